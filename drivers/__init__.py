@@ -1,0 +1,129 @@
+"""The driver protocol and the registry that finds drivers by entry point.
+
+A driver owns one device (or one simulated rig) and knows nothing about muscles.
+It exposes numbered input and output channels. Its own thread does the bus I/O and
+keeps `in_values` / `in_stamps_s` current; the loop only reads those lists and calls
+`write()`, which must never block. A driver that cannot deliver sets `fault` to a
+sentence naming the device; the supervisor turns that (or a stale stamp) into a
+safe-state fault.
+
+Drivers are registered in the `pamd.drivers` entry-point group:
+
+    [project.entry-points."pamd.drivers"]
+    mydevice = "mypackage.mydevice:MyDriver"
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
+from typing import Any, ClassVar, Literal
+
+from pamd.errors import DriverError
+
+Clock = Callable[[], float]
+"""Returns the loop's time in seconds (monotonic, or virtual)."""
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One named input or output of a driver, in the driver's own (raw) unit."""
+
+    name: str
+    direction: Literal["in", "out"]
+    unit: str = ""
+
+
+@dataclass
+class DriverHealth:
+    """What a driver reports about itself for status displays."""
+
+    ok: bool
+    fault: str | None = None
+    counters: dict[str, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class NoOptions:
+    """A driver without options."""
+
+
+class Driver(ABC):
+    """Base class of every driver. Subclasses set `options_type` to a dataclass that
+    `pamd.config` validates (unknown keys, types, bounds) like the rest of the config."""
+
+    options_type: ClassVar[type] = NoOptions
+    steps_with_loop: ClassVar[bool] = False
+    """True for simulated devices that the loop advances by one period per tick."""
+
+    def __init__(self, name: str, options: Any) -> None:
+        self.name = name
+        self.options = options
+        chans = list(self.channels())
+        self.input_channels = [c for c in chans if c.direction == "in"]
+        self.output_channels = [c for c in chans if c.direction == "out"]
+        self.in_values: list[float] = [math.nan] * len(self.input_channels)
+        self.in_stamps_s: list[float] = [-math.inf] * len(self.input_channels)
+        self.fault: str | None = None
+
+    @abstractmethod
+    def channels(self) -> Sequence[Channel]:
+        """All channels, known from the options alone (before `open`)."""
+
+    @abstractmethod
+    def open(self, clock: Clock) -> None:
+        """Connect and start the I/O thread. Must not wait for the device to answer:
+        a missing device sets `fault` and keeps retrying."""
+
+    @abstractmethod
+    def write(self, index: int, value: float) -> None:
+        """Queue `value` for output channel `index`; never blocks."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stop the I/O thread and release the device."""
+
+    def advance(self, dt_s: float) -> None:  # noqa: B027 - optional hook
+        """Simulated devices only (`steps_with_loop`): advance physics by `dt_s`."""
+
+    def health(self) -> DriverHealth:
+        return DriverHealth(ok=self.fault is None, fault=self.fault)
+
+    def input_index(self, channel: str) -> int:
+        for i, c in enumerate(self.input_channels):
+            if c.name == channel:
+                return i
+        raise KeyError(channel)
+
+    def output_index(self, channel: str) -> int:
+        for i, c in enumerate(self.output_channels):
+            if c.name == channel:
+                return i
+        raise KeyError(channel)
+
+
+ENTRY_POINT_GROUP = "pamd.drivers"
+
+
+def available_drivers() -> dict[str, Any]:
+    """Driver type name -> entry point, for every installed driver."""
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def load_driver_class(type_name: str) -> type[Driver]:
+    """The driver class registered under `type_name`, or a DriverError listing the
+    installed ones."""
+    found = available_drivers()
+    if type_name not in found:
+        names = ", ".join(sorted(found)) or "none"
+        raise DriverError(
+            f"no driver of type {type_name!r} is installed (installed: {names}); "
+            "check the spelling or install the package that provides it"
+        )
+    cls = found[type_name].load()
+    if not (isinstance(cls, type) and issubclass(cls, Driver)):
+        raise DriverError(f"entry point {type_name!r} does not name a pamd Driver class")
+    return cls

@@ -1,0 +1,170 @@
+"""Muscle types: their ratings and static force model F(pressure, contraction).
+
+The force map of a Festo DMSP-20 is the datasheet's, digitised
+(`pamd/data/dmsp20_force_map.csv`). `ForceMap` interpolates it the way the
+reference equilibrium table was made: linearly in contraction along each pressure
+curve, then linearly in pressure between neighbouring curves. `SmoothForceFit`
+is the closed-form fit F = (a p + b) e^(c k) + (e p + f) k + g p + h (k in %).
+Both are pure Python: they run inside the tick (safe pressure, simulated plant).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from bisect import bisect_right
+from dataclasses import dataclass
+from importlib import resources
+from typing import Protocol
+
+GRAVITY_M_S2 = 9.80665
+
+
+class ForceModel(Protocol):
+    def force_n(self, pressure_bar: float, contraction: float) -> float: ...
+
+
+class ForceMap:
+    """Piecewise-linear interpolation of a digitised force map.
+
+    Outside a curve's contraction range the end segment is extended; above the top
+    pressure curve the two top curves are extended linearly in pressure.
+    """
+
+    def __init__(self, points: list[tuple[float, float, float]]) -> None:
+        levels: dict[float, list[tuple[float, float]]] = {}
+        for p, x, f in points:
+            levels.setdefault(p, []).append((x, f))
+        self.pressures_bar = sorted(levels)
+        if len(self.pressures_bar) < 2:
+            raise ValueError("a force map needs at least two pressure curves")
+        self._xs: list[list[float]] = []
+        self._fs: list[list[float]] = []
+        for p in self.pressures_bar:
+            pts = sorted(levels[p])
+            if len(pts) < 2:
+                raise ValueError(f"the force map curve at {p} bar needs at least two points")
+            self._xs.append([x for x, _ in pts])
+            self._fs.append([f for _, f in pts])
+
+    @classmethod
+    def from_csv(cls, path: str | None = None) -> ForceMap:
+        """Load `pressure_bar,contraction,force_n` rows; default: the DMSP-20 map."""
+        if path is None:
+            text = resources.files("pamd.data").joinpath("dmsp20_force_map.csv").read_text()
+        else:
+            with open(path) as fh:
+                text = fh.read()
+        rows = [r for r in text.splitlines() if r and not r.startswith("#")]
+        reader = csv.DictReader(rows)
+        return cls(
+            [(float(r["pressure_bar"]), float(r["contraction"]), float(r["force_n"])) for r in reader]
+        )
+
+    def curve_force_n(self, level: int, contraction: float) -> float:
+        xs, fs = self._xs[level], self._fs[level]
+        j = bisect_right(xs, contraction) - 1
+        if j < 0:
+            j = 0
+        elif j > len(xs) - 2:
+            j = len(xs) - 2
+        x0, x1 = xs[j], xs[j + 1]
+        return fs[j] + (fs[j + 1] - fs[j]) * (contraction - x0) / (x1 - x0)
+
+    def force_n(self, pressure_bar: float, contraction: float) -> float:
+        ps = self.pressures_bar
+        i = bisect_right(ps, pressure_bar) - 1
+        if i < 0:
+            i = 0
+        elif i > len(ps) - 2:
+            i = len(ps) - 2
+        f0 = self.curve_force_n(i, contraction)
+        f1 = self.curve_force_n(i + 1, contraction)
+        return f0 + (f1 - f0) * (pressure_bar - ps[i]) / (ps[i + 1] - ps[i])
+
+
+@dataclass(frozen=True)
+class SmoothForceFit:
+    """F = (a p + b) e^(c k) + (e p + f) k + g p + h, p in bar, k contraction in %."""
+
+    a: float = -10.1206
+    b: float = 236.3164
+    c: float = -0.3378
+    e: float = -7.9242
+    f: float = -1.8549
+    g: float = 263.2552
+    h: float = -238.7719
+
+    def force_n(self, pressure_bar: float, contraction: float) -> float:
+        k = contraction * 100.0
+        p = pressure_bar
+        return (self.a * p + self.b) * math.exp(self.c * k) + (self.e * p + self.f) * k + (
+            self.g * p + self.h
+        )
+
+
+@dataclass(frozen=True)
+class MuscleType:
+    """A muscle model's datasheet ratings."""
+
+    name: str
+    max_pressure_bar: float
+    max_contraction: float
+    max_pretension: float
+    max_load_kg: float
+    theoretical_force_n: float
+
+
+MUSCLE_TYPES: dict[str, MuscleType] = {
+    "dmsp20": MuscleType("dmsp20", 6.0, 0.25, 0.04, 80.0, 1500.0),
+}
+
+
+def force_model(kind: str = "map") -> ForceModel:
+    """The DMSP-20 force model by name: 'map' (interpolated table) or 'fit'."""
+    if kind == "map":
+        return ForceMap.from_csv()
+    if kind == "fit":
+        return SmoothForceFit()
+    raise ValueError(f"unknown force model {kind!r}; use 'map' or 'fit'")
+
+
+def equilibrium_contraction(
+    model: ForceModel, pressure_bar: float, load_kg: float, lo: float = -0.06, hi: float = 0.30
+) -> float:
+    """Contraction where the muscle force equals the hanging load's weight.
+
+    Force falls with contraction, so bisection on [lo, hi] finds it; the result is
+    clamped to the bracket when the load is outside what the muscle can hold there.
+    """
+    weight_n = load_kg * GRAVITY_M_S2
+    if model.force_n(pressure_bar, lo) < weight_n:
+        return lo
+    if model.force_n(pressure_bar, hi) > weight_n:
+        return hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if model.force_n(pressure_bar, mid) > weight_n:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def pressure_for_force(
+    model: ForceModel, force_n: float, contraction: float, max_pressure_bar: float
+) -> float:
+    """Lowest pressure in [0, max] at which the muscle pulls `force_n` at `contraction`
+    (force rises with pressure); 0 if it already does at 0 bar, max if it never does."""
+    if model.force_n(0.0, contraction) >= force_n:
+        return 0.0
+    if model.force_n(max_pressure_bar, contraction) < force_n:
+        return max_pressure_bar
+    lo, hi = 0.0, max_pressure_bar
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        if model.force_n(mid, contraction) >= force_n:
+            hi = mid
+        else:
+            lo = mid
+    return hi
