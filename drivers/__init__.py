@@ -89,6 +89,11 @@ class Driver(ABC):
     def advance(self, dt_s: float) -> None:  # noqa: B027 - optional hook
         """Simulated devices only (`steps_with_loop`): advance physics by `dt_s`."""
 
+    def is_absolute(self, index: int) -> bool:
+        """True if input `index` is referenced by the device itself (an absolute
+        encoder, a simulated rig), so it needs no `home`."""
+        return False
+
     def health(self) -> DriverHealth:
         return DriverHealth(ok=self.fault is None, fault=self.fault)
 

@@ -1,4 +1,48 @@
-"""Entry point of the `pamd` command (placeholder until the CLI lands)."""
+"""The `pamd` command: one sub-command per job. Errors that pamd raises on purpose
+are printed as one clear message (no traceback) with the error's exit code."""
 
-def main() -> int:
-    return 0
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Sequence
+
+from pamd import __version__
+from pamd.cli import check_config, run
+from pamd.errors import PamdError
+
+COMMANDS = (run, check_config)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="pamd",
+        description="Controller daemon for pneumatic artificial muscle test beds. "
+        "Runs the rig at a fixed rate under PID pressure control, safely.",
+        epilog="Start with `pamd run --clock virtual --duration 30 --profile sine` (the "
+        "built-in simulated rig), then `pamd check-config YOUR.yaml` for a real rig.",
+    )
+    parser.add_argument("--version", action="version", version=f"pamd {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="more log output")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for mod in COMMANDS:
+        mod.add_parser(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
+                        format="pamd: %(message)s", stream=sys.stderr)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except PamdError as exc:
+        print(f"pamd: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        return 130

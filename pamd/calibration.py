@@ -1,0 +1,67 @@
+"""Signal references that change at run time: `home` (length offset) and `tare`
+(force offset), persisted in a small YAML file beside the config.
+
+An incremental encoder reads 0 at power-up and a load cell drifts, so length and
+force need a reference. A muscle whose length is not referenced refuses everything
+that needs absolute length. Simulated drivers start referenced.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import asdict, dataclass, field
+
+import yaml
+
+from pamd.config.engine import Context, build_dataclass, spec
+from pamd.config.yamlload import load_yaml_text
+
+
+@dataclass
+class MuscleReference:
+    length_offset_mm: float = spec(0.0, "Added to the calibrated length (set by home).",
+                                   unit="mm")
+    force_offset_n: float = spec(0.0, "Subtracted from the calibrated force (set by tare).",
+                                 unit="N")
+    length_referenced: bool = spec(False, "True once the length has been homed.")
+    homed_at: str | None = spec(None, "When the length was last homed (ISO time).")
+    tared_at: str | None = spec(None, "When the force was last tared (ISO time).")
+
+
+@dataclass
+class Calibration:
+    muscles: dict[str, MuscleReference] = field(default_factory=dict)
+
+    def for_muscle(self, name: str) -> MuscleReference:
+        return self.muscles.setdefault(name, MuscleReference())
+
+
+def load_calibration(path: str) -> Calibration:
+    """The references in `path`, or empty ones if the file does not exist yet."""
+    if not os.path.exists(path):
+        return Calibration()
+    with open(path, encoding="utf-8") as fh:
+        raw = load_yaml_text(fh.read(), path) or {}
+    ctx = Context(path)
+    cal = Calibration()
+    muscles = raw.get("muscles", {}) if isinstance(raw, dict) else {}
+    for name, node in (muscles or {}).items():
+        ref = build_dataclass(MuscleReference, node, ctx, f"muscles.{name}", None)
+        if ref is not None:
+            cal.muscles[str(name)] = ref
+    ctx.raise_if_any()
+    return cal
+
+
+def save_calibration(cal: Calibration, path: str) -> None:
+    """Write atomically (temp file + rename) so a power cut never leaves half a file."""
+    data = {"muscles": {k: asdict(v) for k, v in cal.muscles.items()}}
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".cal-", dir=directory)
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        fh.write("# pamd signal references (home/tare); written by pamd\n")
+        yaml.safe_dump(data, fh, sort_keys=False)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)

@@ -1,0 +1,31 @@
+"""`pamd check-config FILE`: validate a rig config and say what it describes."""
+
+from __future__ import annotations
+
+import argparse
+
+from pamd.config import load_config
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "check-config", help="validate a rig config file",
+        description="Validate a rig config: syntax, unknown keys, types, units and bounds, "
+        "drivers and channels, limits against the muscle's ratings. Exits 0 if valid, 2 "
+        "with every problem (file:line: key: expected ..., found ...) if not.")
+    p.add_argument("file", help="the YAML config file")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    cfg = load_config(args.file)
+    rig = cfg.rig
+    print(f"{args.file}: valid. rig {rig.rig_id!r}, {rig.loop.rate_hz:g} Hz "
+          f"({rig.loop.clock} clock), drivers: "
+          f"{', '.join(f'{d.name} ({d.type})' for d in rig.drivers)}")
+    for m in rig.muscles:
+        lim = cfg.limits[m.name]
+        print(f"  muscle {m.name}: {m.type}, {m.nominal_length_mm:g} mm, load {m.load_kg:g} kg;"
+              f" limits {lim.max_pressure_bar:g} bar, {100 * lim.max_contraction:g} % "
+              f"contraction, {100 * lim.max_pretension:g} % stretch")
+    return 0

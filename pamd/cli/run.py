@@ -1,0 +1,141 @@
+"""`pamd run`: run the rig (default: the built-in simulated rig) until the duration
+is reached, the profile has finished, or Ctrl-C / SIGTERM; then reach the safe state
+and print the run summary."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import threading
+from typing import Any
+
+from pamd.config import load_config
+from pamd.control.profiles import ProfileSpec
+from pamd.daemon import Daemon
+from pamd.errors import CommandRefused
+from pamd.tick import State
+
+PROFILE_KINDS = ("constant", "step", "ramp", "sine", "triangle")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "run", help="run the rig (default: the simulated rig)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Run the fixed-rate control loop. With no --config, the built-in "
+        "simulated DMSP-20 rig (config/sim.yaml).\n\n"
+        "Start-up reads every sensor before writing anything, then holds the measured "
+        "pressure. A run ends when --duration is reached, when the --profile has "
+        "finished its cycles, or on Ctrl-C / SIGTERM; it then ramps to the safe state "
+        "(the load-dependent safe pressure) and prints a summary.",
+        epilog="examples:\n"
+        "  pamd run --clock virtual --profile sine --cycles 2      # the seeds' sweep\n"
+        "  pamd run --profile sine --freq-hz 0.05 --min-bar 0 --max-bar 6 --cycles 2\n"
+        "  pamd run --config rig.yaml --duration 60 --json")
+    p.add_argument("--config", metavar="FILE", help="rig config (default: built-in sim)")
+    p.add_argument("--clock", choices=("real", "virtual"),
+                   help="override loop.clock (virtual: as fast as possible, deterministic)")
+    p.add_argument("--rate-hz", type=float, help="override loop.rate_hz")
+    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.add_argument("--note", default="", help="operator note kept with the run")
+    g = p.add_argument_group("profile (on every muscle unless --muscle)")
+    g.add_argument("--profile", choices=PROFILE_KINDS, help="start this reference profile")
+    g.add_argument("--muscle", help="apply the profile to this muscle only")
+    g.add_argument("--freq-hz", type=float, default=0.05, help="sine/triangle/step (0.05)")
+    g.add_argument("--min-bar", type=float, default=0.0, help="lowest pressure (0)")
+    g.add_argument("--max-bar", type=float, default=6.0, help="highest pressure (6)")
+    g.add_argument("--cycles", type=int, help="number of cycles (default: until stopped)")
+    g.add_argument("--to-bar", type=float, help="ramp/constant target")
+    g.add_argument("--rate-bar-per-s", type=float, help="ramp rate")
+    p.set_defaults(func=run)
+
+
+def _profile_spec(args: argparse.Namespace) -> ProfileSpec | None:
+    if args.profile is None:
+        return None
+    return ProfileSpec(kind=args.profile, min_bar=args.min_bar, max_bar=args.max_bar,
+                       freq_hz=args.freq_hz, cycles=args.cycles, to_bar=args.to_bar,
+                       rate_bar_per_s=args.rate_bar_per_s)
+
+
+def run(args: argparse.Namespace) -> int:
+    overrides: dict[str, Any] = {}
+    if args.clock:
+        overrides.setdefault("loop", {})["clock"] = args.clock
+    if args.rate_hz:
+        overrides.setdefault("loop", {})["rate_hz"] = args.rate_hz
+    cfg = load_config(args.config, overrides)
+    spec = _profile_spec(args)
+    if spec is not None:  # refused before anything opens or moves
+        for m in cfg.rig.muscles:
+            if args.muscle in (None, m.name):
+                spec.check(0.0, cfg.limits[m.name].max_pressure_bar,
+                           cfg.rig.control.slew_limit_bar_per_s)
+    daemon = Daemon(cfg, note=args.note)
+    _install_signals(daemon)
+    daemon.start(args.duration, stop_when_profile_done=spec is not None and
+                 spec.cycles is not None)
+    try:
+        if spec is not None:
+            st = daemon.wait_for_state((State.IDLE, State.FAULT, State.ESTOP),
+                                       cfg.rig.safety.startup_timeout_s + 1.0)
+            if st == State.IDLE:
+                payload = {k: v for k, v in spec.__dict__.items() if v is not None}
+                if args.muscle:
+                    payload["muscle"] = args.muscle
+                verdict = daemon.command("profile", payload)
+                if not verdict["ok"]:
+                    daemon.stop("profile refused")
+                    daemon.wait()
+                    raise CommandRefused(verdict["error"])
+        daemon.wait()
+    finally:
+        daemon.stop("shutting down")
+        daemon.wait()
+        daemon.close()
+    result = daemon.result()
+    if daemon.error is not None:
+        result["faults"].append(f"loop crashed: {daemon.error!r}")
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        print_summary(result)
+    return 1 if result["final_state"] in ("FAULT", "ESTOP") or daemon.error else 0
+
+
+def _install_signals(daemon: Daemon) -> None:
+    if threading.current_thread() is not threading.main_thread():
+        return
+    count = {"n": 0}
+
+    def handler(signum: int, frame: Any) -> None:
+        count["n"] += 1
+        name = signal.Signals(signum).name
+        daemon.stop(f"{name} received")
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+def print_summary(r: dict[str, Any]) -> None:
+    out = sys.stdout
+    w, c = r["wake_latency_us"], r["compute_us"]
+    print(f"pamd run: {r['ticks']} ticks ({r['duration_s']:.1f} s, {r['clock']} clock at "
+          f"{r['rate_hz']:g} Hz), stopped: {r['stop_reason'] or 'n/a'}", file=out)
+    print(f"  overruns {r['overruns']}, lost records {r['lost_records']}", file=out)
+    print(f"  wake-up latency p50 {w['p50']:.0f} us, p99 {w['p99']:.0f} us, max "
+          f"{w['max']:.0f} us", file=out)
+    print(f"  compute time    p50 {c['p50']:.0f} us, p99 {c['p99']:.0f} us, max "
+          f"{c['max']:.0f} us", file=out)
+    for name, t in r["tracking"].items():
+        if t["samples"]:
+            print(f"  {name}: pressure tracking RMSE {t['rmse_bar']:.4f} bar, max error "
+                  f"{t['max_error_bar']:.4f} bar ({t['samples']} ticks running)", file=out)
+        else:
+            print(f"  {name}: no profile ran (no tracking figures)", file=out)
+    faults = r["faults"]
+    print(f"  faults: {'; '.join(faults) if faults else 'none'}", file=out)
+    print(f"  final state: {r['final_state']}", file=out)

@@ -1,0 +1,299 @@
+"""Commands to the running loop: their argument schemas and what each one does.
+
+`parse_command` checks a payload's shape (unknown fields, types, NaN) and can run
+anywhere (the io process does it before anything reaches the loop).
+`apply_command` runs in the loop's thread at the start of a tick, checks the
+command against the present state and limits, and returns the verdict. A refused
+command changes nothing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from pamd.config.engine import Context, build_dataclass, spec
+from pamd.control.profiles import Profile, ProfileSpec
+from pamd.errors import CommandRefused
+from pamd.muscle import MUSCLE_TYPES
+from pamd.tick import State
+
+
+@dataclass(frozen=True, kw_only=True)
+class SetpointArgs:
+    muscle: str = spec(doc="Muscle name.")
+    bar: float = spec(doc="Pressure setpoint.", unit="bar")
+    ramp_s: float | None = spec(None, "Reach the setpoint over this time (default: at half "
+                                "the slew limit).", unit="s", min=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ProfileArgs:
+    muscle: str | None = spec(None, "Muscle name (default: every muscle).")
+    kind: str = spec("sine", "constant, step, ramp, sine or triangle.")
+    min_bar: float = spec(0.0, "Lowest pressure.", unit="bar")
+    max_bar: float = spec(6.0, "Highest pressure.", unit="bar")
+    freq_hz: float = spec(0.05, "Frequency (sine, triangle, step).", unit="Hz")
+    cycles: int | None = spec(None, "Number of cycles (default: until stopped).", min=1)
+    to_bar: float | None = spec(None, "Target (ramp, constant).", unit="bar")
+    rate_bar_per_s: float | None = spec(None, "Ramp rate.", unit="bar/s", gt=0.0)
+    rise_s: float | None = spec(None, "Step edge duration.", unit="s", gt=0.0)
+    duration_s: float | None = spec(None, "Duration (constant).", unit="s", gt=0.0)
+    lead_in_bar_per_s: float = spec(1.0, "Lead-in ramp rate from the present pressure.",
+                                    unit="bar/s", gt=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MuscleArgs:
+    muscle: str | None = spec(None, "Muscle name (default: every muscle).")
+
+
+@dataclass(frozen=True, kw_only=True)
+class HomeArgs:
+    muscle: str = spec(doc="Muscle name.")
+    length_mm: float = spec(doc="The muscle's true length at its present position.", unit="mm",
+                            gt=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class LoadArgs:
+    muscle: str = spec(doc="Muscle name.")
+    load_kg: float = spec(doc="The hanging load now on the muscle.", unit="kg", min=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class NoArgs:
+    pass
+
+
+@dataclass(frozen=True, kw_only=True)
+class EstopArgs:
+    reason: str = spec("emergency stop", "Why (recorded).")
+
+
+VERBS: dict[str, type] = {
+    "setpoint": SetpointArgs, "profile": ProfileArgs, "hold": NoArgs, "resume": NoArgs,
+    "stop": NoArgs, "estop": EstopArgs, "reset": NoArgs, "home": HomeArgs, "tare": MuscleArgs,
+    "load": LoadArgs,
+}
+
+
+@dataclass
+class Command:
+    """A parsed command on its way to the loop; `reply` receives the verdict."""
+
+    verb: str
+    args: Any
+    reply: Callable[[dict[str, Any]], None] | None = None
+    sender: str = "local"
+    user: str = ""
+
+
+def parse_command(verb: str, payload: Any, sender: str = "local", user: str = "",
+                  reply: Callable[[dict[str, Any]], None] | None = None) -> Command:
+    """Shape checks only; raises CommandRefused saying what was wrong."""
+    if verb not in VERBS:
+        raise CommandRefused(f"unknown command {verb!r}; known: {', '.join(VERBS)}")
+    if payload is None:
+        payload = {}
+    if not isinstance(payload, dict):
+        raise CommandRefused(f"{verb}: the payload must be a JSON object")
+    ctx = Context(f"cmd/{verb}")
+    args = build_dataclass(VERBS[verb], payload, ctx, "", None)
+    if ctx.issues:
+        raise CommandRefused("; ".join(
+            f"{i.path}: expected {i.expected}" + (f", found {i.found}" if i.found else "")
+            for i in ctx.issues))
+    return Command(verb, args, reply, sender, user)
+
+
+def apply_command(ctrl: Any, cmd: Command) -> dict[str, Any]:
+    """Apply in the loop's thread; returns the verdict."""
+    try:
+        result = _HANDLERS[cmd.verb](ctrl, cmd.args)
+    except CommandRefused as exc:
+        verdict: dict[str, Any] = {"ok": False, "error": str(exc)}
+    else:
+        verdict = {"ok": True, **(result or {})}
+    ctrl.sink.event(ctrl.now, "command", {"verb": cmd.verb, "args": dataclasses.asdict(cmd.args),
+                                         "sender": cmd.sender, "user": cmd.user, **verdict})
+    return verdict
+
+
+def _muscles(ctrl: Any, name: str | None) -> list[Any]:
+    if name is None:
+        return list(ctrl.muscles)
+    if name not in ctrl.by_name:
+        raise CommandRefused(f"no muscle named {name!r}; muscles: {', '.join(ctrl.by_name)}")
+    return [ctrl.by_name[name]]
+
+
+def _can_move(ctrl: Any) -> None:
+    st = ctrl.supervisor.state
+    if st == State.STARTING:
+        raise CommandRefused("the rig is starting (sensors not yet read); try again shortly")
+    if ctrl.supervisor.latched:
+        raise CommandRefused(f"the rig is in {st.name} ({ctrl.supervisor.reason}); send reset "
+                             "once the cause is gone")
+
+
+def _need_reference(ms: list[Any]) -> None:
+    for m in ms:
+        if not m.referenced:
+            raise CommandRefused(f"{m.name}: length not referenced, so contraction limits "
+                                 "cannot be enforced; send home first")
+
+
+def _start(ctrl: Any, ms: list[Any], spec_: ProfileSpec) -> float | None:
+    for m in ms:
+        spec_.check(0.0, m.max_p, m.slew)
+    total = None
+    for m in ms:
+        m.start_profile(Profile(spec_, ctrl.now, m.sp, m.slew))
+        total = m.profile.total_s()
+    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"{spec_.kind} profile started")
+    return total
+
+
+def _setpoint(ctrl: Any, a: SetpointArgs) -> dict[str, Any]:
+    _can_move(ctrl)
+    ms = _muscles(ctrl, a.muscle)
+    _need_reference(ms)
+    m = ms[0]
+    if not 0.0 <= a.bar <= m.max_p:
+        raise CommandRefused(f"{m.name}: {a.bar:g} bar is outside 0-{m.max_p:g} bar")
+    dist = abs(a.bar - m.sp)
+    rate = 0.5 * m.slew if not a.ramp_s else dist / a.ramp_s
+    if rate > m.slew:
+        raise CommandRefused(f"{m.name}: reaching {a.bar:g} bar in {a.ramp_s:g} s needs "
+                             f"{rate:.3g} bar/s, above the slew limit {m.slew:g} bar/s")
+    spec_ = ProfileSpec(kind="ramp", to_bar=a.bar, rate_bar_per_s=max(rate, 1e-6),
+                        lead_in_bar_per_s=m.slew)
+    m.start_profile(Profile(spec_, ctrl.now, m.sp, m.slew))
+    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"setpoint {m.name} {a.bar:g} bar")
+    return {"muscle": m.name, "bar": a.bar, "ramp_s": dist / rate if rate > 0 else 0.0}
+
+
+def _profile(ctrl: Any, a: ProfileArgs) -> dict[str, Any]:
+    _can_move(ctrl)
+    ms = _muscles(ctrl, a.muscle)
+    _need_reference(ms)
+    fields = dataclasses.asdict(a)
+    fields.pop("muscle")
+    if fields["kind"] not in ("constant", "step", "ramp", "sine", "triangle"):
+        raise CommandRefused(f"unknown profile kind {a.kind!r}; use constant, step, ramp, "
+                             "sine or triangle")
+    total = _start(ctrl, ms, ProfileSpec(**fields))
+    return {"duration_s": total}
+
+
+def _hold(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    _can_move(ctrl)
+    ctrl.hold_started = ctrl.now
+    ctrl.supervisor.go(ctrl.now, State.HOLD, "hold: setpoints frozen")
+    return {}
+
+
+def _resume(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    if ctrl.supervisor.state != State.HOLD:
+        raise CommandRefused(f"resume only from HOLD (state is {ctrl.supervisor.state.name})")
+    paused = ctrl.now - getattr(ctrl, "hold_started", ctrl.now)
+    running = False
+    for m in ctrl.muscles:
+        if m.profile is not None:
+            m.profile.t0_s += paused
+            running = True
+    ctrl.supervisor.go(ctrl.now, State.RUNNING if running else State.IDLE, "resumed")
+    return {}
+
+
+def _stop(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    if ctrl.supervisor.latched:
+        raise CommandRefused(f"the rig is already in {ctrl.supervisor.state.name}, at its safe "
+                             "state")
+    ctrl.go_safe("stop: ramping to the safe state")
+    return {}
+
+
+def _estop(ctrl: Any, a: EstopArgs) -> dict[str, Any]:
+    for m in ctrl.muscles:
+        m.profile = None
+    ctrl.supervisor.estop(ctrl.now, f"emergency stop: {a.reason}")
+    return {}
+
+
+def _reset(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    sup = ctrl.supervisor
+    if not sup.latched:
+        raise CommandRefused(f"nothing to reset: the rig is {sup.state.name}")
+    for m in ctrl.muscles:
+        if m.started:
+            missing = m.inputs_fresh(ctrl.now)
+            if missing is not None:
+                raise CommandRefused(f"cannot reset: {missing} still has no fresh reading")
+    for drv in ctrl.drivers:
+        if drv.fault is not None:
+            raise CommandRefused(f"cannot reset: driver {drv.name!r} still reports {drv.fault}")
+    for m in ctrl.muscles:
+        if m.started:
+            m.pid.reset(m.pressure)
+            m.safing = False
+        else:
+            m.hold_measured()
+    sup.reset(ctrl.now)
+    return {}
+
+
+def _idle_or_hold(ctrl: Any, verb: str) -> None:
+    if ctrl.supervisor.state not in (State.IDLE, State.HOLD, State.FAULT):
+        raise CommandRefused(f"{verb} only while IDLE, HOLD or FAULT (state is "
+                             f"{ctrl.supervisor.state.name})")
+
+
+def _home(ctrl: Any, a: HomeArgs) -> dict[str, Any]:
+    _idle_or_hold(ctrl, "home")
+    m = _muscles(ctrl, a.muscle)[0]
+    raw_len = m.length - m.ref.length_offset_mm
+    if not math.isfinite(raw_len):
+        raise CommandRefused(f"{m.name}: no length reading to reference")
+    m.ref.length_offset_mm = a.length_mm - raw_len
+    m.ref.length_referenced = True
+    m.ref.homed_at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    m._prev_len = math.nan
+    ctrl.calibration_dirty = True  # saved outside the loop's thread
+    return {"muscle": m.name, "length_offset_mm": m.ref.length_offset_mm}
+
+
+def _tare(ctrl: Any, a: MuscleArgs) -> dict[str, Any]:
+    _idle_or_hold(ctrl, "tare")
+    out = {}
+    for m in _muscles(ctrl, a.muscle):
+        raw = m.force + m.ref.force_offset_n
+        if not math.isfinite(raw):
+            raise CommandRefused(f"{m.name}: no force reading to tare")
+        m.ref.force_offset_n = raw
+        m.ref.tared_at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        out[m.name] = raw
+    ctrl.calibration_dirty = True  # saved outside the loop's thread
+    return {"force_offset_n": out}
+
+
+def _load(ctrl: Any, a: LoadArgs) -> dict[str, Any]:
+    m = _muscles(ctrl, a.muscle)[0]
+    rated = MUSCLE_TYPES[m.cfg.type].max_load_kg
+    if a.load_kg > rated:
+        raise CommandRefused(f"{m.name}: {a.load_kg:g} kg exceeds the {m.cfg.type} rating "
+                             f"({rated:g} kg)")
+    m.update_load(a.load_kg)
+    return {"muscle": m.name, "load_kg": a.load_kg, "safe_pressure_bar": m.safe_bar}
+
+
+_HANDLERS: dict[str, Callable[[Any, Any], dict[str, Any] | None]] = {
+    "setpoint": _setpoint, "profile": _profile, "hold": _hold, "resume": _resume,
+    "stop": _stop, "estop": _estop, "reset": _reset, "home": _home, "tare": _tare,
+    "load": _load,
+}

@@ -1,0 +1,160 @@
+"""The rig configuration schema: every key, its type, unit, bounds and default.
+
+The docs in `spec(...)` are the config reference (`docs/config-reference.md` is
+generated from them by `python -m pamd.config.reference`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from pamd.config.engine import spec
+
+
+@dataclass(frozen=True, kw_only=True)
+class RealtimeConfig:
+    enabled: bool = spec(True, "Try real-time settings for the loop's thread; each one the OS "
+                         "refuses is warned about, never fatal.")
+    priority: int = spec(80, "SCHED_FIFO priority of the loop's thread.", min=1, max=99)
+    cpu: int | None = spec(None, "CPU the loop's thread is pinned to (null: no pinning).", min=0)
+    lock_memory: bool = spec(True, "mlockall() so the loop never page-faults.")
+    timer_slack_ns: int = spec(1, "Timer slack of the loop's thread.", unit="ns", min=1)
+    cpu_dma_latency: bool = spec(True, "Hold /dev/cpu_dma_latency at 0 while running.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class LoopConfig:
+    rate_hz: float = spec(1000.0, "Tick rate; 500 is the fallback for slow machines.",
+                          unit="Hz", gt=0.0, max=10000.0)
+    clock: Literal["real", "virtual"] = spec(
+        "real", "real: monotonic wall clock. virtual: as fast as possible, simulated "
+        "drivers advanced exactly one period per tick (deterministic for a seed).")
+    overrun_policy: Literal["skip", "catch_up"] = spec(
+        "skip", "After a late tick: skip the missed periods (keep the phase) or run them "
+        "back to back.")
+    stall_timeout_s: float = spec(0.05, "Fault when no tick has completed for this long.",
+                                  unit="s", gt=0.0)
+    realtime: RealtimeConfig = spec(RealtimeConfig(), "Real-time options of the loop's thread.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DriverConfig:
+    name: str = spec(doc="Name the signals refer to.")
+    type: str = spec(doc="Driver type, as registered in the pamd.drivers entry points "
+                     "(sim, modbus, serial-line, canopen-encoder, ...).")
+    options: Any = field(default_factory=dict, metadata={
+        "doc": "Options of this driver type (validated by the driver's own schema)."})
+
+
+@dataclass(frozen=True, kw_only=True)
+class SignalConfig:
+    driver: str = spec(doc="Name of the driver that carries this signal.")
+    channel: str = spec(doc="Driver channel name.")
+    gain: float = spec(1.0, "SI units per raw unit: si = gain * raw + offset.")
+    offset: float = spec(0.0, "SI value at raw 0.")
+    timeout_s: float | None = spec(None, "Stale after this age (inputs; default: "
+                                   "safety.signal_timeout_s).", unit="s", gt=0.0)
+    raw_min: float | None = spec(None, "Lowest raw value ever written (outputs).")
+    raw_max: float | None = spec(None, "Highest raw value ever written (outputs). For a valve, "
+                                 "gain * raw_max + offset is its full scale and must not "
+                                 "exceed the muscle's pressure rating.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class MuscleSignals:
+    pressure: SignalConfig = spec(doc="Measured muscle pressure, SI unit bar.")
+    force: SignalConfig = spec(doc="Load-cell force, SI unit N.")
+    length: SignalConfig = spec(doc="Muscle length, SI unit mm.")
+    valve: SignalConfig = spec(doc="Pressure regulator setpoint, SI unit bar.")
+    exhaust: SignalConfig | None = spec(None, "Exhaust (dump) valve, 1 = open; optional.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class MuscleLimits:
+    max_pressure_bar: float | None = spec(None, "Soft pressure limit (default: the rating).",
+                                          unit="bar", gt=0.0)
+    max_contraction: float | None = spec(None, "Soft contraction limit as a fraction "
+                                         "(default: the rating).", min=0.0, max=1.0)
+    max_pretension: float | None = spec(None, "Stretch limit as a fraction (default: the "
+                                        "rating).", min=0.0, max=1.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PidConfig:
+    kp: float = spec(0.3, "Proportional gain.", unit="bar/bar", min=0.0)
+    ki_per_s: float = spec(20.0, "Integral gain.", unit="1/s", min=0.0)
+    kd_s: float = spec(0.0, "Derivative gain (on measurement).", unit="s", min=0.0)
+    derivative_filter_hz: float = spec(30.0, "Cut-off of the derivative's low-pass filter.",
+                                       unit="Hz", gt=0.0)
+    integral_limit_bar: float = spec(1.0, "Anti-windup clamp of the integral term.",
+                                     unit="bar", min=0.0)
+    output_limit_bar: float = spec(1.5, "Largest correction the PID adds to the setpoint.",
+                                   unit="bar", min=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ControlConfig:
+    pid: PidConfig = spec(PidConfig(), "PID pressure loop gains.")
+    rate_feedforward_s: float = spec(
+        0.035, "The setpoint's rate times this is added to the valve command; it cancels "
+        "the regulator's dead time plus lag.", unit="s", min=0.0, max=1.0)
+    slew_limit_bar_per_s: float = spec(5.0, "Fastest allowed setpoint change; faster "
+                                       "profiles are refused.", unit="bar/s", gt=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MuscleConfig:
+    name: str = spec(doc="Muscle name (used in signal, topic and key names).")
+    type: Literal["dmsp20"] = spec("dmsp20", "Muscle type; fixes the ratings and force map.")
+    nominal_length_mm: float = spec(200.0, "Unloaded, unpressurised length.", unit="mm",
+                                    gt=0.0)
+    load_kg: float = spec(0.0, "Hanging load; sets the safe pressure.", unit="kg", min=0.0)
+    force_model: Literal["map", "fit"] = spec(
+        "map", "Static force model used for the safe pressure: the datasheet map or the "
+        "smooth fit.")
+    signals: MuscleSignals = spec(doc="Which driver channels carry this muscle's signals.")
+    limits: MuscleLimits = spec(MuscleLimits(), "Limits tighter than the rating.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SafetyConfig:
+    pressure_margin_bar: float = spec(0.3, "Hard pressure limit = soft limit + this.",
+                                      unit="bar", min=0.0)
+    contraction_margin: float = spec(0.01, "Hard contraction limit = soft limit + this "
+                                     "(fraction).", min=0.0, max=0.2)
+    soft_band_contraction: float = spec(0.01, "Within this of the contraction limit the "
+                                        "pressure command stops rising (fraction).",
+                                        min=0.0, max=0.1)
+    hard_limit_hold_s: float = spec(0.02, "A hard limit must be exceeded this long to fault.",
+                                    unit="s", min=0.0)
+    signal_timeout_s: float = spec(0.05, "A signal older than this is stale and faults.",
+                                   unit="s", gt=0.0)
+    tracking_band_bar: float = spec(0.5, "Measured pressure must follow the command within "
+                                    "this band ...", unit="bar", gt=0.0)
+    tracking_time_s: float = spec(1.0, "... or the muscle faults after this long (a leak, a "
+                                  "dead sensor, no supply).", unit="s", gt=0.0)
+    stretch_margin: float = spec(0.01, "The safe pressure keeps the stretch this far inside "
+                                 "the pretension limit (fraction).", min=0.0, max=0.1)
+    safe_pressure_margin_bar: float = spec(0.2, "Added to the lowest pressure that holds the "
+                                           "load.", unit="bar", min=0.0)
+    estop_action: Literal["safe_pressure", "hold", "vent"] = spec(
+        "safe_pressure", "Emergency stop: ramp fast to the safe pressure, freeze the present "
+        "command, or vent (only honoured where the safe pressure is 0).")
+    estop_slew_bar_per_s: float = spec(20.0, "Ramp rate of the emergency action.",
+                                       unit="bar/s", gt=0.0)
+    startup_timeout_s: float = spec(1.0, "Start-up waits this long for every sensor before "
+                                    "faulting.", unit="s", gt=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RigConfig:
+    rig_id: str = spec("sim", "Rig name; appears in Zenoh keys and MCAP topics.")
+    loop: LoopConfig = spec(LoopConfig(), "The fixed-rate loop.")
+    drivers: tuple[DriverConfig, ...] = spec(doc="Hardware (or simulated) drivers.")
+    muscles: tuple[MuscleConfig, ...] = spec(doc="The muscles of the rig.")
+    control: ControlConfig = spec(ControlConfig(), "Control gains and slew limit.")
+    safety: SafetyConfig = spec(SafetyConfig(), "Limits, timeouts and the safe state.")
+    calibration_file: str | None = spec(
+        None, "Where home/tare references are kept (relative to the config file; default: "
+        "<config name>.cal.yaml beside it).")

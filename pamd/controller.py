@@ -1,0 +1,165 @@
+"""The rig controller: one tick of the whole rig (drivers advanced, every muscle
+controlled, supervisor updated, record filled) and the commands that change it.
+
+Commands arrive through a mailbox and are applied at the start of a tick, in the
+loop's thread, so the state they see is the state they change. Each command gets a
+verdict (`{"ok": true, ...}` or `{"ok": false, "error": ...}`); a refused command
+changes nothing.
+"""
+
+from __future__ import annotations
+
+from array import array
+from collections.abc import Callable
+from typing import Any
+
+from pamd.calibration import Calibration
+from pamd.config.loader import LoadedConfig
+from pamd.control.muscle import MuscleController
+from pamd.rig import Rig
+from pamd.safety import Supervisor, Transition
+from pamd.tick import I_STATE, I_T, I_TICK, Sink, State, TickLayout
+
+S_STARTING, S_IDLE, S_RUNNING, S_HOLD = (int(State.STARTING), int(State.IDLE),
+                                         int(State.RUNNING), int(State.HOLD))
+
+
+class RigController:
+    """Everything that happens inside a tick, minus the scheduling."""
+
+    def __init__(self, cfg: LoadedConfig, rig: Rig, sink: Sink,
+                 calibration: Calibration) -> None:
+        self.cfg = cfg
+        self.rig = rig
+        self.sink = sink
+        self.calibration = calibration
+        self.layout = TickLayout([m.name for m in cfg.rig.muscles])
+        self.record = self.layout.new_record()
+        self.supervisor = Supervisor(self._on_transition)
+        self.muscles = [
+            MuscleController(i, m, cfg.limits[m.name], cfg, rig.muscles[i],
+                             self.layout.muscle_base[i])
+            for i, m in enumerate(cfg.rig.muscles)
+        ]
+        self.by_name = {m.name: m for m in self.muscles}
+        self.drivers = list(rig.drivers.values())
+        self.steppers = rig.steppers
+        self.startup_timeout_s = cfg.rig.safety.startup_timeout_s
+        self.t_start = 0.0
+        self.now = 0.0
+        self.tick_no = 0
+        self.listeners: list[Callable[[Transition], None]] = []
+        self.calibration_dirty = False
+        self.hold_started = 0.0
+
+    def _on_transition(self, tr: Transition) -> None:
+        self.sink.event(tr.t_s, "transition",
+                        {"from": tr.old.name, "to": tr.new.name, "reason": tr.reason})
+        for fn in self.listeners:
+            fn(tr)
+
+    @property
+    def state(self) -> State:
+        return self.supervisor.state
+
+    def start(self, t_s: float) -> None:
+        self.t_start = t_s
+        self.now = t_s
+
+    # -- the tick -------------------------------------------------------------------
+    def tick(self, now: float, dt: float) -> array:
+        self.now = now
+        for drv in self.steppers:
+            drv.advance(dt)
+        sup = self.supervisor
+        state = int(sup.state)
+        if state == S_STARTING:
+            self._starting(now)
+            state = int(sup.state)
+        fault = None
+        for drv in self.drivers:
+            if drv.fault is not None:
+                fault = f"driver {drv.name!r}: {drv.fault}"
+                break
+        rec = self.record
+        for m in self.muscles:
+            reason = m.tick(now, dt, state, rec)
+            if reason is not None and fault is None:
+                fault = reason
+        if fault is not None and not sup.latched and state != S_STARTING:
+            sup.fault(now, fault)
+        elif fault is not None and state == S_STARTING:
+            pass  # start-up waits for its timeout before faulting
+        if state == S_RUNNING:
+            self._running_done(now)
+        rec[I_TICK] = self.tick_no
+        rec[I_T] = now - self.t_start
+        rec[I_STATE] = int(sup.state)
+        self.tick_no += 1
+        return rec
+
+    def _starting(self, now: float) -> None:
+        """Read before writing: once every input is fresh, hold the measured pressure."""
+        missing = None
+        for m in self.muscles:
+            missing = m.inputs_fresh(now)
+            if missing is not None:
+                break
+        if missing is None:
+            for m in self.muscles:
+                m.hold_measured()
+            held = ", ".join(f"{m.name} {m.sp:.2f} bar" for m in self.muscles)
+            self.supervisor.go(now, State.IDLE, f"sensors read; holding measured pressure "
+                               f"({held})")
+            if self.supervisor.fault_reason:  # restored latched fault (service restart)
+                self.supervisor.fault(now, self.supervisor.fault_reason)
+        elif now - self.t_start > self.startup_timeout_s:
+            self.supervisor.fault(now, f"start-up: no reading from {missing} within "
+                                  f"{self.startup_timeout_s:g} s; nothing was written")
+
+    def _running_done(self, now: float) -> None:
+        """A profile that has finished its cycles leaves the rig IDLE at its end value."""
+        for m in self.muscles:
+            p = m.profile
+            if p is None or not p.done or p.spec.kind == "ramp":
+                return
+        for m in self.muscles:
+            m.profile = None
+        self.supervisor.go(now, State.IDLE, "profile finished")
+
+    # -- safe state -----------------------------------------------------------------
+    def go_safe(self, reason: str) -> None:
+        """End what runs and ramp every muscle to its safe pressure (IDLE)."""
+        for m in self.muscles:
+            m.profile = None
+            m.safing = True
+        if not self.supervisor.latched and self.supervisor.state != State.STARTING:
+            self.supervisor.go(self.now, State.IDLE, reason)
+
+    def at_safe_state(self) -> bool:
+        """True when every started muscle's setpoint has reached its safe pressure (or
+        nothing was ever written)."""
+        for m in self.muscles:
+            if m.started and abs(m.sp - m.safe_bar) > 1e-6:
+                return False
+        return True
+
+    def status(self) -> dict[str, Any]:
+        sup = self.supervisor
+        return {
+            "state": sup.state.name,
+            "reason": sup.reason,
+            "fault": sup.fault_reason,
+            "muscles": {
+                m.name: {
+                    "pressure_bar": m.pressure, "setpoint_bar": m.sp, "valve_cmd_bar": m.valve_cmd,
+                    "force_n": m.force, "length_mm": m.length, "contraction": m.contraction,
+                    "load_kg": m.load_kg, "safe_pressure_bar": m.safe_bar,
+                    "referenced": m.referenced, "mode": m.mode.name.lower(),
+                    "profile": m.profile.spec.kind if m.profile else None,
+                    "limits": {"max_pressure_bar": m.max_p, "max_contraction": m.max_c,
+                               "max_pretension": m.max_stretch},
+                }
+                for m in self.muscles
+            },
+        }

@@ -1,0 +1,149 @@
+"""The daemon: a validated config turned into a running rig (drivers, controller,
+loop thread), with a thread-safe way in (commands) and out (status, summary).
+
+The loop runs in its own thread; the calling thread waits, prints the loop's
+notices, saves references changed by home/tare, and handles signals.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections import deque
+from typing import Any
+
+from pamd.calibration import load_calibration, save_calibration
+from pamd.commands import parse_command
+from pamd.config.loader import LoadedConfig
+from pamd.controller import RigController
+from pamd.errors import CommandRefused
+from pamd.loop import Loop
+from pamd.rig import Rig
+from pamd.safety import Transition
+from pamd.summary import LocalMailbox, SummarySink
+from pamd.tick import State, TickLayout
+
+log = logging.getLogger("pamd")
+
+
+class Daemon:
+    """Owns one rig run. `start()`, then `command()`/`status()`, then `stop()` and
+    `wait()`; `close()` releases the drivers."""
+
+    def __init__(self, cfg: LoadedConfig, note: str = "") -> None:
+        self.cfg = cfg
+        self.note = note
+        self.calibration = load_calibration(cfg.calibration_path)
+        self.rig = Rig(cfg, self.calibration)
+        self.layout = TickLayout([m.name for m in cfg.rig.muscles])
+        self.summary = SummarySink(self.layout)
+        self.mailbox = LocalMailbox()
+        self.ctrl = RigController(cfg, self.rig, self.summary, self.calibration)
+        self.loop = Loop(cfg, self.ctrl, self.mailbox)
+        self.transitions: deque[Transition] = deque(maxlen=1000)
+        self.ctrl.listeners.append(self.transitions.append)
+        self._thread: threading.Thread | None = None
+        self.error: BaseException | None = None
+
+    # -- life cycle -------------------------------------------------------------------
+    def start(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
+        self.rig.open(self.loop.clock)
+        self._thread = threading.Thread(
+            target=self._run, args=(duration_s, stop_when_profile_done), name="pamd-loop",
+            daemon=True)
+        self._thread.start()
+
+    def _run(self, duration_s: float | None, stop_when_done: bool) -> None:
+        try:
+            self.loop.run(duration_s, stop_when_done)
+        except BaseException as exc:  # reported by wait(); the rig is closed by close()
+            self.error = exc
+
+    def stop(self, reason: str) -> None:
+        self.loop.request_stop(reason)
+
+    @property
+    def alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def wait(self, timeout_s: float | None = None, poll_s: float = 0.05) -> bool:
+        """Wait for the loop to end (True) or the timeout (False), meanwhile printing
+        notices and transitions and saving changed references."""
+        assert self._thread is not None
+        waited = 0.0
+        while self._thread.is_alive():
+            self._thread.join(poll_s)
+            self.service()
+            waited += poll_s
+            if timeout_s is not None and waited >= timeout_s:
+                return False
+        self.service()
+        return True
+
+    def service(self) -> None:
+        """Housekeeping outside the loop's thread."""
+        while self.loop.notices:
+            log.warning(self.loop.notices.popleft())
+        while self.transitions:
+            tr = self.transitions.popleft()
+            level = logging.ERROR if tr.new in (State.FAULT, State.ESTOP) else logging.INFO
+            log.log(level, "%s -> %s: %s", tr.old.name, tr.new.name, tr.reason)
+        if self.ctrl.calibration_dirty:
+            self.ctrl.calibration_dirty = False
+            save_calibration(self.calibration, self.cfg.calibration_path)
+
+    def close(self) -> None:
+        self.rig.close()
+        self.summary.close()
+
+    # -- commands and status -------------------------------------------------------------
+    def command(self, verb: str, payload: dict[str, Any] | None = None,
+                timeout_s: float = 5.0, sender: str = "local") -> dict[str, Any]:
+        """Send a command to the loop and wait for its verdict."""
+        done = threading.Event()
+        box: dict[str, Any] = {}
+
+        def reply(verdict: dict[str, Any]) -> None:
+            box.update(verdict)
+            done.set()
+
+        try:
+            cmd = parse_command(verb, payload, sender=sender, reply=reply)
+        except CommandRefused as exc:
+            return {"ok": False, "error": str(exc)}
+        self.mailbox.put(cmd)
+        if not done.wait(timeout_s):
+            return {"ok": False, "error": f"no verdict from the loop within {timeout_s:g} s"}
+        return box
+
+    def wait_for_state(self, states: tuple[State, ...], timeout_s: float = 5.0) -> State:
+        """Block until the supervisor is in one of `states` (or the timeout)."""
+        done = threading.Event()
+        waited = 0.0
+        while self.ctrl.supervisor.state not in states and self.alive and waited < timeout_s:
+            done.wait(0.005)
+            waited += 0.005
+            self.service()
+        return self.ctrl.supervisor.state
+
+    def result(self) -> dict[str, Any]:
+        """The run summary (documented in README: `pamd run --json`)."""
+        t = self.loop.timing.summary()
+        sup = self.ctrl.supervisor
+        return {
+            "rig_id": self.cfg.rig.rig_id,
+            "clock": "virtual" if self.loop.virtual else "real",
+            "rate_hz": self.cfg.rig.loop.rate_hz,
+            "ticks": t.ticks,
+            "duration_s": t.ticks * self.cfg.period_s,
+            "overruns": t.overruns,
+            "lost_records": self.loop.lost_records,
+            "wake_latency_us": {"p50": t.wake_p50_us, "p99": t.wake_p99_us, "max": t.wake_max_us},
+            "compute_us": {"p50": t.compute_p50_us, "p99": t.compute_p99_us,
+                           "max": t.compute_max_us},
+            "tracking": self.summary.tracking(),
+            "faults": list(sup.faults),
+            "final_state": sup.state.name,
+            "stop_reason": self.loop.stopped_reason,
+            "realtime": {"applied": self.loop.rt.applied, "refused": self.loop.rt.warnings},
+        }

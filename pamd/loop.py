@@ -1,0 +1,171 @@
+"""The fixed-rate loop: absolute deadlines on the monotonic clock (or a virtual
+clock that runs as fast as possible), per-tick timing, overrun handling, stall
+detection, garbage collection only in slack time, commands once per tick.
+
+The loop's thread does no I/O: notices for the operator go into `notices`, which
+another thread prints.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+
+from pamd.commands import apply_command
+from pamd.config.loader import LoadedConfig
+from pamd.controller import RigController
+from pamd.rt import RealtimeSession
+from pamd.tick import I_COMPUTE, I_LOST, I_OVERRUNS, I_WAKE, Mailbox, State
+from pamd.timing import TickTiming
+
+MAX_COMMANDS_PER_TICK = 4
+SAFE_STATE_DEADLINE_S = 30.0
+GC_EVERY_TICKS = 200
+
+
+class VirtualClock:
+    """Time that only moves when the loop moves it: one period per tick."""
+
+    def __init__(self, start_s: float = 0.0) -> None:
+        self.t = start_s
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class Loop:
+    """Runs `controller.tick` at a fixed rate until stopped, then reaches the safe
+    state before returning."""
+
+    def __init__(self, cfg: LoadedConfig, controller: RigController, mailbox: Mailbox) -> None:
+        self.cfg = cfg
+        self.ctrl = controller
+        self.mailbox = mailbox
+        self.period_s = cfg.period_s
+        lc = cfg.rig.loop
+        self.virtual = lc.clock == "virtual"
+        self.skip_overruns = lc.overrun_policy == "skip"
+        self.stall_s = lc.stall_timeout_s
+        self.clock: Callable[[], float] = VirtualClock() if self.virtual else time.monotonic
+        self.timing = TickTiming()
+        self.notices: deque[str] = deque(maxlen=256)
+        self.lost_records = 0
+        self.rt = RealtimeSession()
+        self._stop_reason: str | None = None
+        self.stopped_reason = ""
+        self.running = False
+        self.last_tick_done = math.nan  # monotonic time of the last completed tick
+
+    def request_stop(self, reason: str) -> None:
+        """Ask the loop to reach the safe state and return (any thread)."""
+        if self._stop_reason is None:
+            self._stop_reason = reason
+
+    def run(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
+        ctrl = self.ctrl
+        if not self.virtual:
+            self.rt.apply(self.cfg.rig.loop.realtime, self.notices.append)
+        gc.collect()
+        gc.freeze()
+        gc.disable()
+        try:
+            self._run(ctrl, duration_s, stop_when_profile_done)
+        finally:
+            gc.enable()
+            gc.unfreeze()
+            self.rt.close()
+            self.running = False
+
+    def _run(self, ctrl: RigController, duration_s: float | None, stop_when_done: bool) -> None:
+        virtual = self.virtual
+        vclock = self.clock if virtual else None
+        mono = time.monotonic
+        perf = time.perf_counter
+        sleep = time.sleep
+        period = self.period_s
+        timing = self.timing
+        wake_h, comp_h = timing.wake, timing.compute
+        sink, mailbox = ctrl.sink, self.mailbox
+        start = self.clock()
+        ctrl.start(start)
+        end_t = math.inf if duration_s is None else start + duration_s
+        next_t = start
+        dt = period
+        stopping_since = math.inf
+        last_warn = -math.inf
+        self.running = True
+        self.last_tick_done = mono()
+        saw_running = False
+        while True:
+            # -- wait for the deadline ---------------------------------------------
+            if virtual:
+                vclock.t = next_t  # type: ignore[union-attr]
+                wake = 0.0
+                t_wake = perf()
+            else:
+                now = mono()
+                if now < next_t:
+                    sleep(next_t - now)
+                    now = mono()
+                wake = now - next_t
+                t_wake = perf()
+                if now - self.last_tick_done > self.stall_s and not ctrl.supervisor.latched:
+                    ctrl.supervisor.fault(next_t, f"loop stalled: no tick completed for "
+                                          f"{1000 * (now - self.last_tick_done):.0f} ms")
+            # -- commands, then the tick -------------------------------------------
+            for _ in range(MAX_COMMANDS_PER_TICK):
+                cmd = mailbox.poll()
+                if cmd is None:
+                    break
+                verdict = apply_command(ctrl, cmd)
+                if cmd.reply is not None:
+                    cmd.reply(verdict)
+            rec = ctrl.tick(next_t, dt)
+            compute = perf() - t_wake
+            rec[I_WAKE] = wake
+            rec[I_COMPUTE] = compute
+            rec[I_OVERRUNS] = timing.overruns
+            rec[I_LOST] = self.lost_records
+            if not sink.put(rec):
+                self.lost_records += 1
+            wake_h.add(wake)
+            comp_h.add(compute)
+            timing.ticks += 1
+            self.last_tick_done = mono()
+            # -- end of run, safe state ----------------------------------------------
+            state = ctrl.supervisor.state
+            if state == State.RUNNING:
+                saw_running = True
+            if self._stop_reason is None:
+                if next_t >= end_t:
+                    self.request_stop("duration reached")
+                elif stop_when_done and saw_running and state == State.IDLE:
+                    self.request_stop("profile finished")
+            if self._stop_reason is not None and stopping_since == math.inf:
+                stopping_since = next_t
+                self.stopped_reason = self._stop_reason
+                ctrl.go_safe(f"{self._stop_reason}: ramping to the safe state")
+            if stopping_since != math.inf and (
+                    ctrl.at_safe_state() or next_t - stopping_since > SAFE_STATE_DEADLINE_S):
+                break
+            # -- next deadline -------------------------------------------------------
+            next_t += period
+            dt = period
+            if not virtual:
+                late = mono() - next_t
+                if late > 0.0:
+                    missed = int(late / period) + 1
+                    timing.overruns += missed
+                    if self.skip_overruns:
+                        next_t += missed * period
+                        dt = period * (missed + 1)
+                    if next_t - last_warn >= 1.0:
+                        last_warn = next_t
+                        self.notices.append(f"overrun: {missed} period(s) missed "
+                                            f"({timing.overruns} so far)")
+            if timing.ticks % GC_EVERY_TICKS == 0 and (
+                    virtual or next_t - mono() > 0.5 * period):
+                gc.collect(0)

@@ -1,0 +1,136 @@
+"""The rig: drivers built from the config, and each muscle's named signals bound to
+driver channels with calibration (raw -> SI) and references (home, tare).
+
+Drivers know nothing of muscles; the rig knows nothing of protocols.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from pamd.calibration import Calibration, MuscleReference
+from pamd.config.loader import LoadedConfig
+from pamd.config.schema import SignalConfig
+from pamd.drivers import Clock, Driver, load_driver_class
+from pamd.errors import DriverError
+
+
+@dataclass
+class InputBinding:
+    """One input signal: where it comes from and how raw becomes SI."""
+
+    name: str  # e.g. "m1.pressure"
+    driver: Driver
+    index: int
+    gain: float
+    offset: float
+    timeout_s: float
+
+    @property
+    def values(self) -> list[float]:
+        return self.driver.in_values
+
+    @property
+    def stamps(self) -> list[float]:
+        return self.driver.in_stamps_s
+
+    def read_si(self) -> tuple[float, float]:
+        """(SI value, stamp) - not for the tick path."""
+        return (self.gain * self.driver.in_values[self.index] + self.offset,
+                self.driver.in_stamps_s[self.index])
+
+
+@dataclass
+class OutputBinding:
+    """One output signal: SI -> raw, clamped to the configured raw range."""
+
+    name: str
+    driver: Driver
+    index: int
+    gain: float
+    offset: float
+    raw_min: float
+    raw_max: float
+
+    def write_si(self, value: float) -> float:
+        raw = (value - self.offset) / self.gain
+        raw = self.raw_min if raw < self.raw_min else (self.raw_max if raw > self.raw_max else raw)
+        self.driver.write(self.index, raw)
+        return raw
+
+
+@dataclass
+class MuscleSignals:
+    pressure: InputBinding
+    force: InputBinding
+    length: InputBinding
+    valve: OutputBinding
+    exhaust: OutputBinding | None
+    reference: MuscleReference
+
+
+class Rig:
+    """Drivers and signal bindings for a validated config."""
+
+    def __init__(self, cfg: LoadedConfig, calibration: Calibration) -> None:
+        self.cfg = cfg
+        self.calibration = calibration
+        self.drivers: dict[str, Driver] = {}
+        for d in cfg.rig.drivers:
+            cls = load_driver_class(d.type)
+            self.drivers[d.name] = cls(d.name, d.options)
+        self.steppers = [d for d in self.drivers.values() if d.steps_with_loop]
+        timeout = cfg.rig.safety.signal_timeout_s
+        self.muscles: list[MuscleSignals] = []
+        for m in cfg.rig.muscles:
+            s = m.signals
+            ref = calibration.for_muscle(m.name)
+            length = self._input(f"{m.name}.length", s.length, timeout)
+            self.absolute_length = length.driver.is_absolute(length.index)
+            if self.absolute_length:
+                ref.length_referenced = True
+            self.muscles.append(MuscleSignals(
+                pressure=self._input(f"{m.name}.pressure", s.pressure, timeout),
+                force=self._input(f"{m.name}.force", s.force, timeout),
+                length=length,
+                valve=self._output(f"{m.name}.valve", s.valve),
+                exhaust=self._output(f"{m.name}.exhaust", s.exhaust) if s.exhaust else None,
+                reference=ref,
+            ))
+
+    def _input(self, name: str, sig: SignalConfig, timeout_s: float) -> InputBinding:
+        drv = self.drivers[sig.driver]
+        return InputBinding(name, drv, drv.input_index(sig.channel), sig.gain, sig.offset,
+                            sig.timeout_s or timeout_s)
+
+    def _output(self, name: str, sig: SignalConfig) -> OutputBinding:
+        drv = self.drivers[sig.driver]
+        lo = -math.inf if sig.raw_min is None else sig.raw_min
+        hi = math.inf if sig.raw_max is None else sig.raw_max
+        return OutputBinding(name, drv, drv.output_index(sig.channel), sig.gain, sig.offset,
+                             lo, hi)
+
+    def open(self, clock: Clock) -> None:
+        """Open every driver. A driver that raises here is reported with its name;
+        drivers are expected to keep retrying a missing device rather than raise."""
+        opened: list[Driver] = []
+        for name, drv in self.drivers.items():
+            try:
+                drv.open(clock)
+            except Exception as exc:  # a driver's own failure, reported with its name
+                for o in opened:
+                    o.close()
+                raise DriverError(f"driver {name!r} ({type(drv).__name__}) failed to open: "
+                                  f"{exc}") from exc
+            opened.append(drv)
+
+    def close(self) -> None:
+        for drv in self.drivers.values():
+            try:
+                drv.close()
+            except Exception:  # closing must go on for the other drivers
+                pass
+
+    def driver(self, name: str) -> Driver:
+        return self.drivers[name]

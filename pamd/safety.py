@@ -1,0 +1,83 @@
+"""The supervisor: rig state, latched faults with reasons, and the safe pressure.
+
+The safe state is not "vent": with a heavy load hanging, a vented DMSP-20
+over-stretches. Each muscle's safe pressure is the lowest pressure that keeps it
+inside its pretension (stretch) limit with a margin under its hanging load, plus a
+pressure margin; 0 (and then the exhaust valve may open) when the muscle holds the
+load unpressurised.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from pamd.muscle import GRAVITY_M_S2, ForceModel, pressure_for_force
+from pamd.tick import State
+
+
+def safe_pressure_bar(model: ForceModel, load_kg: float, max_pretension: float,
+                      stretch_margin: float, pressure_margin_bar: float,
+                      max_pressure_bar: float) -> float:
+    """Lowest pressure keeping the loaded muscle at least `stretch_margin` inside its
+    pretension limit, plus `pressure_margin_bar`; 0 if no pressure is needed."""
+    if load_kg <= 0.0:
+        return 0.0
+    allowed_stretch = max(max_pretension - stretch_margin, 0.0)
+    need = pressure_for_force(model, load_kg * GRAVITY_M_S2, -allowed_stretch, max_pressure_bar)
+    if need <= 0.0:
+        return 0.0
+    return min(need + pressure_margin_bar, max_pressure_bar)
+
+
+@dataclass
+class Transition:
+    t_s: float
+    old: State
+    new: State
+    reason: str
+
+
+class Supervisor:
+    """The rig's state machine. FAULT and ESTOP latch until `reset()`; every
+    transition carries a reason and is reported through `on_transition`."""
+
+    def __init__(self, on_transition: Callable[[Transition], None] | None = None) -> None:
+        self.state = State.STARTING
+        self.reason = "starting: waiting for the first sensor readings"
+        self.fault_reason: str | None = None
+        self.on_transition = on_transition
+        self.history: list[Transition] = []
+        self.faults: list[str] = []
+
+    @property
+    def latched(self) -> bool:
+        return self.state in (State.FAULT, State.ESTOP)
+
+    def go(self, t_s: float, new: State, reason: str) -> None:
+        if new == self.state and reason == self.reason:
+            return
+        tr = Transition(t_s, self.state, new, reason)
+        self.state, self.reason = new, reason
+        self.history.append(tr)
+        if self.on_transition is not None:
+            self.on_transition(tr)
+
+    def fault(self, t_s: float, reason: str) -> None:
+        """Latch a fault (the first reason wins while latched; ESTOP stays ESTOP)."""
+        if self.latched:
+            return
+        self.fault_reason = reason
+        self.faults.append(reason)
+        self.go(t_s, State.FAULT, reason)
+
+    def estop(self, t_s: float, reason: str) -> None:
+        if self.state == State.ESTOP:
+            return
+        self.fault_reason = reason
+        self.faults.append(reason)
+        self.go(t_s, State.ESTOP, reason)
+
+    def reset(self, t_s: float, reason: str = "reset by operator") -> None:
+        self.fault_reason = None
+        self.go(t_s, State.IDLE, reason)

@@ -1,0 +1,86 @@
+"""The in-process sink: keeps what the run summary needs (tracking error per muscle,
+events, faults), and the local mailbox for commands from the same process."""
+
+from __future__ import annotations
+
+import math
+import queue
+from array import array
+from typing import Any
+
+from pamd.tick import I_STATE, M_PRESSURE, M_SETPOINT, State, TickLayout
+
+_RUNNING = float(int(State.RUNNING))
+
+
+class SummarySink:
+    """Accumulates tracking error (measured pressure vs setpoint, while RUNNING) and
+    the run's events. Constant work per tick; no allocation."""
+
+    def __init__(self, layout: TickLayout) -> None:
+        self.layout = layout
+        n = len(layout.muscles)
+        self.sq = [0.0] * n
+        self.max_abs = [0.0] * n
+        self.count = [0] * n
+        self.ticks = 0
+        self.events: list[tuple[float, str, dict[str, Any]]] = []
+        self.last = layout.new_record()
+        self._bases = [b for b in layout.muscle_base]
+        self.downstream: list[Any] = []
+
+    def put(self, record: array) -> bool:
+        self.ticks += 1
+        if record[I_STATE] == _RUNNING:
+            for k, b in enumerate(self._bases):
+                e = record[b + M_SETPOINT] - record[b + M_PRESSURE]
+                if e == e:
+                    self.sq[k] += e * e
+                    self.count[k] += 1
+                    if abs(e) > self.max_abs[k]:
+                        self.max_abs[k] = abs(e)
+        self.last[:] = record
+        ok = True
+        for d in self.downstream:
+            ok = d.put(record) and ok
+        return ok
+
+    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+        self.events.append((t_s, kind, data))
+        for d in self.downstream:
+            d.event(t_s, kind, data)
+
+    def close(self) -> None:
+        for d in self.downstream:
+            d.close()
+
+    def tracking(self) -> dict[str, dict[str, float | None]]:
+        out: dict[str, dict[str, float | None]] = {}
+        for k, m in enumerate(self.layout.muscles):
+            n = self.count[k]
+            out[m] = {
+                "rmse_bar": math.sqrt(self.sq[k] / n) if n else None,
+                "max_error_bar": self.max_abs[k] if n else None,
+                "samples": n,
+            }
+        return out
+
+    def last_values(self) -> dict[str, Any]:
+        return self.layout.as_dict(self.last)
+
+
+
+class LocalMailbox:
+    """Commands from threads of the same process; `poll` never blocks."""
+
+    def __init__(self) -> None:
+        self._q: queue.SimpleQueue[Any] = queue.SimpleQueue()
+
+    def put(self, cmd: Any) -> None:
+        self._q.put(cmd)
+
+    def poll(self) -> Any | None:
+        try:
+            return self._q.get_nowait()
+        except queue.Empty:
+            return None
