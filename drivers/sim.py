@@ -1,0 +1,224 @@
+"""The `sim` driver: a simulated rig of DMSP-20 muscles stepped by the loop.
+
+Per muscle X it has inputs `X.pressure` (bar), `X.force` (N, in-line load cell),
+`X.length` (mm, absolute; the simulated rig starts referenced) and outputs
+`X.valve` (bar, regulator setpoint) and `X.exhaust` (0 closed / 1 open dump
+valve). Inputs of muscle k are channels 3k..3k+2, outputs 2k..2k+1.
+
+The loop calls `advance(dt_s)` once per tick and then reads `in_values` /
+`in_stamps_s` (stamped with the loop's clock at the end of `advance`). The
+physics lives in `pamd.sim.plant`. Tests and the CLI can change a load while
+running (`set_load_kg`) and inject faults (`inject_fault`, `clear_faults`).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections.abc import Sequence
+
+from pamd.drivers import Channel, Clock, Driver, DriverHealth
+
+from pamd.errors import DriverError
+from pamd.muscle import ForceModel, force_model
+from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
+from pamd.sim.plant import MusclePlant
+
+INPUTS_PER_MUSCLE = 3  # pressure, force, length
+OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
+
+SIGNALS: tuple[str, ...] = ("pressure", "force", "length")
+SENSOR_FAULTS: tuple[str, ...] = ("stuck", "dead", "silent")
+
+_OK, _STUCK, _DEAD, _SILENT = 0, 1, 2, 3
+_FAULT_CODES = {"stuck": _STUCK, "dead": _DEAD, "silent": _SILENT}
+
+
+def muscle_rng(seed: int, muscle: str) -> random.Random:
+    """The noise generator of one muscle, derived from the driver seed and its name."""
+    return random.Random(f"pamd.sim:{seed}:{muscle}")
+
+
+class SimDriver(Driver):
+    """A simulated rig: one `MusclePlant` per configured muscle."""
+
+    options_type = SimOptions
+    steps_with_loop = True
+
+    def __init__(self, name: str = "sim", options: SimOptions | None = None) -> None:
+        if options is None:
+            options = SimOptions()
+        problems = check_options(options)
+        if problems:
+            raise DriverError(f"sim driver {name!r}: " + "; ".join(problems))
+        super().__init__(name, options)
+        models: dict[str, ForceModel] = {}
+        self._plants: list[MusclePlant] = []
+        for m in options.muscles:
+            if m.force_model not in models:
+                models[m.force_model] = force_model(m.force_model)
+            rng = muscle_rng(options.seed, m.name)
+            self._plants.append(MusclePlant(m, rng, models[m.force_model]))
+        self._by_name = {p.name: k for k, p in enumerate(self._plants)}
+        self._modes = [_OK] * len(self.input_channels)
+        self._any_sensor_fault = False
+        self._driver_error = False
+        self._clock: Clock | None = None
+        self._steps = 0
+        self._writes = 0
+        self._dropped_writes = 0
+
+    # --- Driver protocol --------------------------------------------------------
+    def channels(self) -> Sequence[Channel]:
+        opts: SimOptions = self.options
+        ins: list[Channel] = []
+        outs: list[Channel] = []
+        for m in opts.muscles:
+            ins += [
+                Channel(f"{m.name}.pressure", "in", "bar"),
+                Channel(f"{m.name}.force", "in", "N"),
+                Channel(f"{m.name}.length", "in", "mm"),
+            ]
+            outs += [
+                Channel(f"{m.name}.valve", "out", "bar"),
+                Channel(f"{m.name}.exhaust", "out", ""),
+            ]
+        return ins + outs
+
+    def open(self, clock: Clock) -> None:
+        """Store the clock and publish the readings of the rig at rest."""
+        self._clock = clock
+        self._publish(clock())
+
+    def write(self, index: int, value: float) -> None:
+        """Regulator setpoint (bar) or exhaust (>= 0.5 opens); never blocks.
+
+        Non-finite values are dropped (and counted), as are writes while an
+        injected driver error stands: a failed device does not take outputs.
+        """
+        k, j = divmod(index, OUTPUTS_PER_MUSCLE)
+        plant = self._plants[k]
+        if self._driver_error or not math.isfinite(value):
+            self._dropped_writes += 1
+            return
+        self._writes += 1
+        if j == 0:
+            plant.regulator.set_setpoint(value)
+        else:
+            plant.regulator.exhaust_open = value >= 0.5
+
+    def close(self) -> None:
+        self._clock = None
+
+    def advance(self, dt_s: float) -> None:
+        """Advance every muscle by `dt_s`, then publish readings stamped `clock()`."""
+        for plant in self._plants:
+            plant.advance(dt_s)
+        self._steps += 1
+        clock = self._clock
+        if clock is not None:
+            self._publish(clock())
+
+    def health(self) -> DriverHealth:
+        return DriverHealth(
+            ok=self.fault is None,
+            fault=self.fault,
+            counters={
+                "steps": self._steps,
+                "writes": self._writes,
+                "dropped_writes": self._dropped_writes,
+            },
+        )
+
+    # --- simulation controls -----------------------------------------------------
+    def plant(self, muscle: str) -> MusclePlant:
+        """The simulated muscle named `muscle` (true state, for tests and tools)."""
+        return self._plants[self._muscle_index(muscle)]
+
+    @property
+    def plants(self) -> tuple[MusclePlant, ...]:
+        return tuple(self._plants)
+
+    def set_load_kg(self, muscle: str, load_kg: float) -> None:
+        """Change the mass hanging from `muscle` while running."""
+        self.plant(muscle).set_load_kg(load_kg)
+
+    def inject_fault(self, muscle: str, signal: str, kind: str) -> None:
+        """Make part of the simulated rig fail until `clear_faults`.
+
+        Sensor faults, `signal` in pressure/force/length: `stuck` (value frozen,
+        stamps advance), `dead` (reads 0.0, stamps advance), `silent` (stamps stop).
+        `inject_fault(muscle, "supply", "lost")`: the regulator loses its supply
+        air, so the pressure cannot rise. `inject_fault("*", "driver", "error")`:
+        the whole device fails: `fault` is set, readings stop, writes are dropped.
+        """
+        if signal == "driver":
+            if kind != "error":
+                raise ValueError(f"driver fault kind must be 'error', got {kind!r}")
+            self._driver_error = True
+            self.fault = f"simulated rig {self.name!r} stopped answering (injected driver error)"
+            return
+        k = self._muscle_index(muscle)
+        if signal == "supply":
+            if kind != "lost":
+                raise ValueError(f"supply fault kind must be 'lost', got {kind!r}")
+            self._plants[k].set_supply(False)
+            return
+        if signal not in SIGNALS:
+            raise ValueError(
+                f"unknown signal {signal!r}; use one of {', '.join(SIGNALS)}, supply, driver"
+            )
+        if kind not in _FAULT_CODES:
+            raise ValueError(
+                f"unknown sensor fault {kind!r}; use one of {', '.join(SENSOR_FAULTS)}"
+            )
+        self._modes[k * INPUTS_PER_MUSCLE + SIGNALS.index(signal)] = _FAULT_CODES[kind]
+        self._any_sensor_fault = True
+
+    def clear_faults(self) -> None:
+        """Remove every injected fault."""
+        self._modes = [_OK] * len(self.input_channels)
+        self._any_sensor_fault = False
+        for plant in self._plants:
+            plant.set_supply(True)
+        self._driver_error = False
+        self.fault = None
+
+    # --- internals ---------------------------------------------------------------
+    def _muscle_index(self, muscle: str) -> int:
+        try:
+            return self._by_name[muscle]
+        except KeyError:
+            names = ", ".join(self._by_name)
+            raise KeyError(f"no simulated muscle {muscle!r} (have: {names})") from None
+
+    def _publish(self, now_s: float) -> None:
+        if self._driver_error:
+            return
+        values = self.in_values
+        stamps = self.in_stamps_s
+        if not self._any_sensor_fault:
+            i = 0
+            for plant in self._plants:
+                values[i] = plant.pressure_read_bar
+                values[i + 1] = plant.force_read_n
+                values[i + 2] = plant.length_read_mm
+                stamps[i] = stamps[i + 1] = stamps[i + 2] = now_s
+                i += 3
+            return
+        modes = self._modes
+        i = 0
+        for plant in self._plants:
+            readings = (plant.pressure_read_bar, plant.force_read_n, plant.length_read_mm)
+            for j in range(INPUTS_PER_MUSCLE):
+                mode = modes[i]
+                if mode == _OK:
+                    values[i] = readings[j]
+                elif mode == _DEAD:
+                    values[i] = 0.0
+                if mode != _SILENT:
+                    stamps[i] = now_s
+                i += 1
+
+
+__all__ = ["SimDriver", "SimMuscleOptions", "SimOptions", "muscle_rng"]

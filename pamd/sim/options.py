@@ -1,0 +1,188 @@
+"""Options of the simulated rig (`sim` driver), as frozen dataclasses.
+
+`pamd.config` validates a driver's options block against these: every field has
+a default (an empty block gives one 30 kg muscle named "m1"), a one-sentence
+`doc`, and where it applies a `unit` and `min`/`max` bounds. Cross-field rules
+(hard stops in order, unique names) are checked by `check_options`.
+
+This module deliberately does not use `from __future__ import annotations`, so
+`dataclasses.fields(...)[i].type` holds real types for the config engine.
+"""
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+
+def _f(
+    default: Any, doc: str, unit: str = "", lo: float | None = None, hi: float | None = None
+) -> Any:
+    """A dataclass field with the metadata the config engine reads."""
+    meta: dict[str, object] = {"doc": doc}
+    if unit:
+        meta["unit"] = unit
+    if lo is not None:
+        meta["min"] = lo
+    if hi is not None:
+        meta["max"] = hi
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class SimMuscleOptions:
+    """One simulated DMSP-20 with its hanging load, pressure regulator and sensors."""
+
+    name: str = _f(
+        "m1",
+        "Muscle name; its channels are NAME.pressure, NAME.force, "
+        "NAME.length, NAME.valve and NAME.exhaust.",
+    )
+    nominal_length_mm: float = _f(
+        200.0, "Nominal (unpressurised, unloaded) muscle length.", "mm", 10.0, 5000.0
+    )
+    load_kg: float = _f(
+        30.0,
+        "Mass hanging from the muscle at start-up (changeable while running).",
+        "kg",
+        0.0,
+        500.0,
+    )
+    force_model: Literal["map", "fit"] = _f(
+        "map",
+        "Static force model: 'map' interpolates the datasheet map, 'fit' is the "
+        "smooth closed-form fit.",
+    )
+    force_scale: float = _f(
+        1.0, "Factor on the datasheet force (real specimens are 0-40 % weaker).", "", 0.1, 2.0
+    )
+    friction_n_at_5bar: float = _f(
+        50.0,
+        "Dahl friction level at 5 bar (it scales in proportion to pressure).",
+        "N",
+        0.0,
+        1000.0,
+    )
+    friction_presliding_mm: float = _f(
+        0.2,
+        "Travel over which the friction builds up after a reversal (Dahl characteristic length).",
+        "mm",
+        0.001,
+        10.0,
+    )
+    damping_contracting_n_s_per_m: float = _f(
+        1000.0, "Viscous damping while the muscle shortens.", "N s/m", 0.0, 100000.0
+    )
+    damping_relaxing_n_s_per_m: float = _f(
+        500.0,
+        "Viscous damping while the muscle lengthens (smaller than when contracting).",
+        "N s/m",
+        0.0,
+        100000.0,
+    )
+    moving_mass_kg: float = _f(
+        0.2,
+        "Mass moving with the muscle end besides the load "
+        "(fittings, load cell); inertia only, so 0 kg is well posed.",
+        "kg",
+        0.01,
+        100.0,
+    )
+    stop_stretch_contraction: float = _f(
+        -0.05,
+        "Hard stop that catches the load when the "
+        "muscle is stretched this far (contraction "
+        "fraction, negative = longer than nominal).",
+        "",
+        -0.2,
+        0.4,
+    )
+    stop_contraction: float = _f(
+        0.25,
+        "Hard stop that limits shortening (contraction "
+        "fraction); equal stops clamp the muscle isometric.",
+        "",
+        -0.2,
+        0.4,
+    )
+    initial_pressure_bar: float = _f(
+        0.0,
+        "Pressure the regulator holds at power-up (a VPPM holds its pressure across a PC restart).",
+        "bar",
+        0.0,
+        16.0,
+    )
+    supply_bar: float = _f(7.0, "Supply pressure feeding the regulator.", "bar", 0.0, 16.0)
+    regulator_max_bar: float = _f(
+        6.0, "Regulator full scale: the pressure at the largest setpoint.", "bar", 0.1, 16.0
+    )
+    regulator_dead_time_s: float = _f(
+        0.010,
+        "Regulator dead time between a setpoint and the first pressure change.",
+        "s",
+        0.0,
+        0.5,
+    )
+    regulator_lag_s: float = _f(
+        0.030,
+        "First-order lag of the regulated pressure (dead time + lag = t63).",
+        "s",
+        0.0001,
+        5.0,
+    )
+    regulator_backlash_bar: float = _f(
+        0.02,
+        "Setpoint backlash (full width) standing in for the regulator's hysteresis.",
+        "bar",
+        0.0,
+        1.0,
+    )
+    regulator_zero_bar: float = _f(
+        0.03, "Zero-point suppression: a setpoint below this vents to 0 bar.", "bar", 0.0, 1.0
+    )
+    exhaust_vent_time_constant_s: float = _f(
+        0.015,
+        "Time constant of the pressure decay while the exhaust (dump) valve is open.",
+        "s",
+        0.0001,
+        5.0,
+    )
+    pressure_noise_bar: float = _f(
+        0.003, "Standard deviation of the pressure sensor noise.", "bar", 0.0, 1.0
+    )
+    force_noise_n: float = _f(0.5, "Standard deviation of the load cell noise.", "N", 0.0, 100.0)
+    encoder_resolution_mm: float = _f(
+        0.01, "Length encoder resolution (readings are quantised to it).", "mm", 0.000001, 10.0
+    )
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """Options of the `sim` driver: a simulated rig of one or more muscles."""
+
+    seed: int = _f(0, "Seed of the sensor noise; the same seed and inputs give identical readings.")
+    muscles: tuple[SimMuscleOptions, ...] = _f(
+        (SimMuscleOptions(),),
+        "The simulated muscles, each with its own load, regulator and sensors.",
+    )
+
+
+def check_options(options: SimOptions) -> list[str]:
+    """Problems the per-field bounds cannot catch, as sentences (empty if none)."""
+    problems: list[str] = []
+    if not options.muscles:
+        problems.append("the sim driver needs at least one muscle")
+    seen: set[str] = set()
+    for k, m in enumerate(options.muscles):
+        where = f"muscles[{k}] ({m.name!r})"
+        if not m.name or "." in m.name or m.name.strip() != m.name:
+            problems.append(
+                f"{where}: a muscle name must be non-empty, without dots or surrounding spaces"
+            )
+        if m.name in seen:
+            problems.append(f"{where}: the muscle name is used twice")
+        seen.add(m.name)
+        if m.stop_stretch_contraction > m.stop_contraction:
+            problems.append(
+                f"{where}: stop_stretch_contraction ({m.stop_stretch_contraction}) "
+                f"must not exceed stop_contraction ({m.stop_contraction})"
+            )
+    return problems

@@ -1,0 +1,265 @@
+"""The physics of one simulated muscle: hanging load, friction, regulator, sensors.
+
+State, in the length coordinate L (m, positive = longer; contraction
+x = 1 - L / L0): the load hangs from the muscle, so
+
+    m dv/dt = W - T,   T = s F(p, x) + Ff + c v
+
+with m the load plus a small moving mass, W the load's weight, F the static force
+model (`pamd.muscle.force_model`) times the force scale `s`, c a viscous damper
+(larger while contracting) and Ff a Dahl friction state in the same coordinate,
+
+    dFf = (Fc(p) sign(dL) - Ff) |dL| / delta,   Fc(p) = Fc5 p / 5 bar.
+
+The muscle is stiff (dF/dL ~ 125 N/mm against a 0.2 kg moving mass and a
+1000 N s/m damper), so explicit Euler diverges. Each step is backward Euler with
+F linearised around the present length (tangent stiffness by a one-sided
+difference in the direction of motion) and the Dahl update taken implicitly too:
+Ff_new = (Ff + sigma dL) / (1 + |dL| / delta) with sigma = Fc / delta. For a
+known direction of motion that makes the step equation a quadratic in |dL| with
+exactly one positive root, solved in closed form. The direction is the sign of
+the force imbalance at dL = 0 (the step residual is monotone in dL), so the step
+is unconditionally stable and its rest point is the exact static equilibrium.
+Hard stops at both ends are perfectly inelastic (position clamped, velocity
+zeroed); equal stops hold the muscle isometric.
+
+`T` is what the in-line load cell measures. Sensors add gaussian noise
+(one `random.Random` per muscle) and quantise the length like an encoder.
+Pure Python and allocation-free per step: `advance` runs inside the 1 kHz tick.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+
+from pamd.muscle import GRAVITY_M_S2, ForceModel, equilibrium_contraction, force_model
+from pamd.sim.options import SimMuscleOptions
+from pamd.sim.regulator import Regulator
+
+MAX_STEP_S = 0.002
+"""Longer `advance` calls (after skipped periods) are split into steps this long."""
+
+_PROBE_CONTRACTION = 2e-4  # finite-difference step for the tangent stiffness (fraction)
+
+
+class _ScaledModel:
+    """A force model times a constant factor (for the start-up equilibrium)."""
+
+    def __init__(self, model: ForceModel, scale: float) -> None:
+        self.model = model
+        self.scale = scale
+
+    def force_n(self, pressure_bar: float, contraction: float) -> float:
+        return self.scale * self.model.force_n(pressure_bar, contraction)
+
+
+class MusclePlant:
+    """One muscle with its hanging load, regulator and sensors.
+
+    Call `advance(dt_s)`; then read `pressure_read_bar`, `force_read_n`,
+    `length_read_mm` (sensor readings) or the true state (`pressure_bar`,
+    `length_mm`, `contraction`, `velocity_mm_s`, `tension_n`, `friction_n`).
+    """
+
+    def __init__(
+        self,
+        options: SimMuscleOptions,
+        rng: random.Random,
+        model: ForceModel | None = None,
+    ) -> None:
+        o = options
+        self.options = o
+        self.name = o.name
+        self.model: ForceModel = model if model is not None else force_model(o.force_model)
+        self._force_fn = self.model.force_n
+        self.force_scale = o.force_scale
+        self.rng = rng
+        self._gauss = rng.gauss
+        self.nominal_length_m = o.nominal_length_mm * 1e-3
+        self._inv_l0 = 1.0 / self.nominal_length_m
+        self._probe_m = _PROBE_CONTRACTION * self.nominal_length_m
+        self._length_max_m = self.nominal_length_m * (1.0 - o.stop_stretch_contraction)
+        self._length_min_m = self.nominal_length_m * (1.0 - o.stop_contraction)
+        self.moving_mass_kg = o.moving_mass_kg
+        self.load_kg = 0.0
+        self._mass_kg = 0.0
+        self._weight_n = 0.0
+        self.set_load_kg(o.load_kg)
+        self._fric_per_bar = o.friction_n_at_5bar / 5.0
+        self._delta_m = o.friction_presliding_mm * 1e-3
+        self._c_contract = o.damping_contracting_n_s_per_m
+        self._c_relax = o.damping_relaxing_n_s_per_m
+        self.regulator = Regulator(
+            supply_bar=o.supply_bar,
+            max_bar=o.regulator_max_bar,
+            dead_time_s=o.regulator_dead_time_s,
+            lag_s=o.regulator_lag_s,
+            backlash_bar=o.regulator_backlash_bar,
+            zero_bar=o.regulator_zero_bar,
+            vent_time_constant_s=o.exhaust_vent_time_constant_s,
+            initial_bar=o.initial_pressure_bar,
+        )
+        self._p_noise = o.pressure_noise_bar
+        self._f_noise = o.force_noise_n
+        self._enc_res_mm = o.encoder_resolution_mm
+        self._inv_enc_res = 1.0 / o.encoder_resolution_mm
+        # The rig starts at rest, at the static equilibrium for its load and pressure.
+        p0 = self.regulator.pressure_bar
+        x0 = equilibrium_contraction(
+            _ScaledModel(self.model, self.force_scale), p0, self.load_kg, -0.5, 0.9
+        )
+        x0 = min(max(x0, o.stop_stretch_contraction), o.stop_contraction)
+        self._length_m = self.nominal_length_m * (1.0 - x0)
+        self._velocity_m_s = 0.0
+        self._friction_n = 0.0
+        self._tension_n = self.force_scale * self._force_fn(p0, x0)
+        self.t_s = 0.0
+        self.pressure_read_bar = 0.0
+        self.force_read_n = 0.0
+        self.length_read_mm = 0.0
+        self._read_sensors()
+
+    # --- inputs ---------------------------------------------------------------
+    def set_load_kg(self, load_kg: float) -> None:
+        """Change the hanging mass (takes effect at the next step)."""
+        if not (load_kg >= 0.0 and math.isfinite(load_kg)):
+            raise ValueError(f"load must be a finite mass >= 0 kg, got {load_kg!r}")
+        self.load_kg = load_kg
+        self._mass_kg = load_kg + self.moving_mass_kg
+        self._weight_n = load_kg * GRAVITY_M_S2
+
+    def set_setpoint(self, value_bar: float) -> None:
+        """Regulator setpoint (bar), clamped to its input range."""
+        self.regulator.set_setpoint(value_bar)
+
+    def set_exhaust(self, open_: bool) -> None:
+        """Open (True) or close the dump valve that vents the muscle."""
+        self.regulator.exhaust_open = open_
+
+    def set_supply(self, ok: bool) -> None:
+        """Supply present (True) or lost: without it the pressure cannot rise."""
+        self.regulator.supply_ok = ok
+
+    # --- true state -----------------------------------------------------------
+    @property
+    def pressure_bar(self) -> float:
+        return self.regulator.pressure_bar
+
+    @property
+    def length_mm(self) -> float:
+        return self._length_m * 1e3
+
+    @property
+    def contraction(self) -> float:
+        return 1.0 - self._length_m * self._inv_l0
+
+    @property
+    def velocity_mm_s(self) -> float:
+        return self._velocity_m_s * 1e3
+
+    @property
+    def tension_n(self) -> float:
+        """Force the muscle pulls (static + friction + damping): what the load cell sees."""
+        return self._tension_n
+
+    @property
+    def friction_n(self) -> float:
+        """Dahl friction state (positive while stretching)."""
+        return self._friction_n
+
+    def static_force_n(self, pressure_bar: float, contraction: float) -> float:
+        """The static force this muscle's model gives (force scale included)."""
+        return self.force_scale * self._force_fn(pressure_bar, contraction)
+
+    # --- stepping -------------------------------------------------------------
+    def advance(self, dt_s: float) -> None:
+        """Advance physics and sensors by `dt_s` (split into steps <= MAX_STEP_S)."""
+        if not dt_s > 0.0:
+            return
+        if dt_s <= MAX_STEP_S * 1.000001:
+            self._step(dt_s)
+        else:
+            n = math.ceil(dt_s / MAX_STEP_S - 1e-9)
+            h = dt_s / n
+            for _ in range(n):
+                self._step(h)
+        self._read_sensors()
+
+    def _step(self, dt: float) -> None:
+        p = self.regulator.step(dt)
+        force_fn = self._force_fn
+        scale = self.force_scale
+        length = self._length_m
+        v = self._velocity_m_s
+        ff = self._friction_n
+        m = self._mass_kg
+        x = 1.0 - length * self._inv_l0
+        fs = scale * force_fn(p, x)
+        # Step residual R(dL) = a dL + b + Ff_new(dL) with b as below; R rises with dL.
+        b = fs - self._weight_n - m * v / dt
+        r0 = b + ff
+        if r0 == 0.0:
+            dl = 0.0
+            stiff = 0.0
+            c = 0.0
+        else:
+            fc = self._fric_per_bar * p if p > 0.0 else 0.0
+            delta = self._delta_m
+            sigma = fc / delta
+            probe = self._probe_m
+            if r0 < 0.0:  # net pull down: the muscle lengthens
+                s = 1.0
+                c = self._c_relax
+                stiff = (scale * force_fn(p, x - _PROBE_CONTRACTION) - fs) / probe
+            else:
+                s = -1.0
+                c = self._c_contract
+                stiff = (fs - scale * force_fn(p, x + _PROBE_CONTRACTION)) / probe
+            if stiff < 0.0:
+                stiff = 0.0
+            a = m / (dt * dt) + c / dt + stiff
+            # With u = s dL >= 0: (a/delta) u^2 + (a + sigma + s b/delta) u - |r0| = 0.
+            qa = a / delta
+            qb = a + sigma + s * b / delta
+            qc = -abs(r0)
+            root = math.sqrt(qb * qb - 4.0 * qa * qc)
+            if qb >= 0.0:
+                u = -2.0 * qc / (qb + root)
+            else:
+                u = (root - qb) / (2.0 * qa)
+            dl = s * u
+        new_length = length + dl
+        if new_length > self._length_max_m:
+            new_length = self._length_max_m
+            dl = new_length - length
+            v = 0.0
+        elif new_length < self._length_min_m:
+            new_length = self._length_min_m
+            dl = new_length - length
+            v = 0.0
+        else:
+            v = dl / dt
+        if dl != 0.0:
+            fc = self._fric_per_bar * p if p > 0.0 else 0.0
+            delta = self._delta_m
+            ff = (ff + fc / delta * dl) / (1.0 + abs(dl) / delta)
+        else:
+            fc = self._fric_per_bar * p if p > 0.0 else 0.0
+        # Less contact pressure, less friction: the stored friction cannot exceed it.
+        if ff > fc:
+            ff = fc
+        elif ff < -fc:
+            ff = -fc
+        self._length_m = new_length
+        self._velocity_m_s = v
+        self._friction_n = ff
+        self._tension_n = fs + stiff * dl + ff + c * v
+        self.t_s += dt
+
+    def _read_sensors(self) -> None:
+        gauss = self._gauss
+        self.pressure_read_bar = self.regulator.pressure_bar + gauss(0.0, self._p_noise)
+        self.force_read_n = self._tension_n + gauss(0.0, self._f_noise)
+        res = self._enc_res_mm
+        self.length_read_mm = math.floor(self._length_m * 1e3 * self._inv_enc_res + 0.5) * res
