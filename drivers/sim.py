@@ -119,6 +119,10 @@ class SimDriver(Driver):
         if clock is not None:
             self._publish(clock())
 
+    def is_absolute(self, index: int) -> bool:
+        """Every simulated input is absolute: the simulated rig starts referenced."""
+        return 0 <= index < len(self.input_channels)
+
     def health(self) -> DriverHealth:
         return DriverHealth(
             ok=self.fault is None,

@@ -76,11 +76,14 @@ class Regulator:
         if dt_s != self._dt_s:
             self._set_dt(dt_s)
         t0 = self.t_s
-        # Backlash: the effective setpoint moves only once the command leaves the band.
+        # Zero-point suppression on the command, else backlash: the effective
+        # setpoint moves only once the command leaves the band.
         u = self.setpoint_bar
         e = self._effective_bar
         half = self.half_backlash_bar
-        if u > e + half:
+        if u < self.zero_bar:
+            e = 0.0
+        elif u > e + half:
             e = u - half
         elif u < e - half:
             e = u + half
@@ -111,8 +114,6 @@ class Regulator:
             self._head = head
             self._count = count
         target = self._delayed_bar
-        if target < self.zero_bar:
-            target = 0.0
         top = self.max_bar if self.max_bar < self.supply_bar else self.supply_bar
         if target > top:
             target = top
