@@ -96,6 +96,8 @@ class SimDriver(Driver):
         Non-finite values are dropped (and counted), as are writes while an
         injected driver error stands: a failed device does not take outputs.
         """
+        if not 0 <= index < len(self.output_channels):
+            raise IndexError(f"sim driver {self.name!r} has no output channel {index}")
         k, j = divmod(index, OUTPUTS_PER_MUSCLE)
         plant = self._plants[k]
         if self._driver_error or not math.isfinite(value):

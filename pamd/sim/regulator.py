@@ -1,12 +1,13 @@
 """The simulated proportional pressure regulator (Festo VPPM) and dump valve.
 
-A setpoint passes through a backlash band (standing in for the regulator's
-hysteresis), zero-point suppression (a near-zero setpoint vents), a dead time
-(a ring buffer of time-stamped setpoint changes) and a first-order lag, exact
-for any step length, toward the delayed setpoint clamped to
-[0, min(supply, full scale)]. Without supply the pressure cannot rise: it holds
-(or falls, if the setpoint asks for less). An open exhaust valve vents the
-muscle toward 0 bar with its own time constant, whatever the regulator does.
+A setpoint below the zero-point threshold vents (zero-point suppression); any
+other passes through a backlash band (standing in for the regulator's
+hysteresis). The result goes through a dead time (a ring buffer of time-stamped
+setpoint changes) and a first-order lag, exact for any step length, toward the
+delayed setpoint clamped to [0, min(supply, full scale)]. Without supply the
+pressure cannot rise: it holds (or falls, if the setpoint asks for less). An
+open exhaust valve vents the muscle toward 0 bar with its own time constant,
+whatever the regulator does.
 
 Pure Python, nothing allocated per step: `step` runs inside the 1 kHz tick.
 """

@@ -278,3 +278,43 @@ def test_one_muscle_step_costs_well_under_15_us() -> None:
             drv.advance(0.001)
         best = min(best, (time.perf_counter() - t0) / n)
     assert best < 15e-6, f"{best * 1e6:.1f} us per advance"
+
+
+UNDAMPED = {
+    "damping_contracting_n_s_per_m": 0.0,
+    "damping_relaxing_n_s_per_m": 0.0,
+    "friction_n_at_5bar": 0.0,
+}
+
+
+@pytest.mark.parametrize("dt_s", [0.001, 0.002])
+def test_stable_without_damping_and_with_the_smallest_moving_mass(make_rig, dt_s) -> None:
+    """No damper, no friction, 0 kg and 10 g moving: the muscle's stiffness alone
+    (~125 N/mm) would make an explicit step explode; here it must stay bounded."""
+    rig = make_rig(load_kg=0.0, moving_mass_kg=0.01, initial_pressure_bar=1.0, **UNDAMPED)
+    rig.valve(3.0)
+    for _, values in rig.run(1.0, dt_s):
+        assert all(math.isfinite(v) for v in values)
+        assert abs(values[1]) < 5000.0
+    assert rig.plant.contraction == pytest.approx(
+        equilibrium_contraction(force_model("map"), rig.plant.pressure_bar, 0.0), abs=0.003
+    )
+
+
+def test_hard_stop_does_not_bounce(make_rig) -> None:
+    """100 kg vented without damping falls onto the stretch stop and stays there."""
+    rig = make_rig(load_kg=100.0, initial_pressure_bar=4.0, **UNDAMPED)
+    stop = rig.plant.options.stop_stretch_contraction
+    rig.valve(0.0)
+    rig.run(1.0)
+    xs = [rig.plant.contraction for _ in rig.run(0.5)]
+    assert max(xs) - min(xs) < 1e-9
+    assert xs[-1] == pytest.approx(stop)
+
+
+def test_write_to_a_missing_channel_is_an_index_error(make_rig) -> None:
+    drv = make_rig().driver
+    with pytest.raises(IndexError):
+        drv.write(2, 1.0)
+    with pytest.raises(IndexError):
+        drv.write(-1, 1.0)
