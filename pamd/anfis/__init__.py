@@ -1,1 +1,41 @@
-"""pamd.anfis"""
+"""pamd.anfis: the ANFIS inverse model (force, length[, velocity] -> pressure).
+
+A first-order Takagi-Sugeno ANFIS with grid-partitioned Gaussian (or generalised
+bell) membership functions, trained by Jang's hybrid learning, written on numpy.
+
+* `fit` / `train` (`pamd.anfis.training`): hybrid learning with a progress callback.
+* `AnfisModel.predict` (`pamd.anfis.model`): batch evaluation for training and reports.
+* `AnfisModel.compile()` -> `CompiledAnfis` (`pamd.anfis.compiled`): the single-sample
+  path for the control tick, with clipping flags.
+* `regression_metrics` (`pamd.metrics`): MSE, RMSE, ..., AIC, SBC, NDEI.
+"""
+
+from pamd.anfis.compiled import CompiledAnfis
+from pamd.anfis.model import AnfisModel, Variable, init_model
+from pamd.anfis.training import (
+    StepSizeState,
+    TrainingOptions,
+    TrainingResult,
+    error_and_gradient,
+    fit,
+    solve_consequents,
+    train,
+    update_step_size,
+)
+from pamd.metrics import regression_metrics
+
+__all__ = [
+    "AnfisModel",
+    "CompiledAnfis",
+    "StepSizeState",
+    "TrainingOptions",
+    "TrainingResult",
+    "Variable",
+    "error_and_gradient",
+    "fit",
+    "init_model",
+    "regression_metrics",
+    "solve_consequents",
+    "train",
+    "update_step_size",
+]
