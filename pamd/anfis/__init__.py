@@ -7,11 +7,13 @@ bell) membership functions, trained by Jang's hybrid learning, written on numpy.
 * `AnfisModel.predict` (`pamd.anfis.model`): batch evaluation for training and reports.
 * `AnfisModel.compile()` -> `CompiledAnfis` (`pamd.anfis.compiled`): the single-sample
   path for the control tick, with clipping flags.
+* `save` / `load` (`pamd.anfis.modelfile`): versioned JSON model files.
 * `regression_metrics` (`pamd.metrics`): MSE, RMSE, ..., AIC, SBC, NDEI.
 """
 
 from pamd.anfis.compiled import CompiledAnfis
 from pamd.anfis.model import AnfisModel, Variable, init_model
+from pamd.anfis.modelfile import FORMAT, VERSION, dumps, load, loads, save
 from pamd.anfis.training import (
     StepSizeState,
     TrainingOptions,
@@ -25,16 +27,22 @@ from pamd.anfis.training import (
 from pamd.metrics import regression_metrics
 
 __all__ = [
+    "FORMAT",
+    "VERSION",
     "AnfisModel",
     "CompiledAnfis",
     "StepSizeState",
     "TrainingOptions",
     "TrainingResult",
     "Variable",
+    "dumps",
     "error_and_gradient",
     "fit",
     "init_model",
+    "load",
+    "loads",
     "regression_metrics",
+    "save",
     "solve_consequents",
     "train",
     "update_step_size",

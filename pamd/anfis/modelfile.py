@@ -1,0 +1,269 @@
+"""ANFIS model files: readable, versioned JSON (``"format": "pamd-anfis", "version": 1``).
+
+Role: `save` and `load` an `AnfisModel`. Floats are written with Python's shortest
+round-tripping repr (the json module's default), so `load(save(m))` predicts bit for
+bit like `m`. Anything wrong with a file (not JSON, truncated, another format or
+version, missing fields, wrong shapes, NaN/inf, zero widths) raises
+`pamd.errors.ModelError` with the file name and the field at fault.
+
+Layout (version 1)::
+
+    {
+      "format": "pamd-anfis", "version": 1,
+      "inputs":  [{"name": "force_n", "unit": "N", "range": [min, max]}, ...],
+      "output":  {"name": "pressure_bar", "unit": "bar", "range": [min, max]},
+      "derived_inputs": {"velocity_mm_s": {"derived_from": "length_mm", ...}},
+      "scaling": {"method": "minmax" | "zscore", "offset": [...], "span": [...]},
+      "membership": {"type": "gaussian" | "bell",
+                     "inputs": [{"input": "force_n", "centres": [...],
+                                 "widths": [...], ("slopes": [...])}, ...]},
+      "rules": [{"mfs": [0, 0], "p": [p_1, ..., p_d], "q": q}, ...],
+      "provenance": {...free form: data files, runs, loads, training settings...},
+      "metrics": {"train": {...}, "validation": {...}}
+    }
+
+Semantics: inputs are clipped to "range", scaled s = (x - offset) / span; MF
+parameters are in scaled units (Gaussian: centre, sigma; bell: centre, a, b); rules
+are the full grid in `itertools.product` order (last input fastest), "mfs" naming
+each rule's MF index per input; rule output f = sum_i p_i s_i + q in the output
+unit. Non-finite metric values (undefined metrics) are written as null.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+from pamd.anfis.model import AnfisModel, Variable
+from pamd.errors import ModelError
+
+FORMAT = "pamd-anfis"
+VERSION = 1
+
+
+def _floats(values: Any) -> list[float]:
+    return [float(v) for v in values]
+
+
+def _plain(obj: Any) -> Any:
+    """Free-form dicts -> JSON-safe values (numpy scalars/arrays, non-finite -> null)."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if hasattr(obj, "tolist"):  # numpy array or scalar
+        return _plain(obj.tolist())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if obj is None or isinstance(obj, (str, int, float, bool)):
+        return obj
+    return str(obj)
+
+
+def to_dict(model: AnfisModel) -> dict[str, Any]:
+    """The version-1 document for `model` (plain Python values only)."""
+    mf_inputs = []
+    for i, v in enumerate(model.inputs):
+        entry: dict[str, Any] = {
+            "input": v.name,
+            "centres": _floats(model.centres[i]),
+            "widths": _floats(model.widths[i]),
+        }
+        if model.slopes is not None:
+            entry["slopes"] = _floats(model.slopes[i])
+        mf_inputs.append(entry)
+    rules = [
+        {"mfs": list(mfs), "p": _floats(row[:-1]), "q": float(row[-1])}
+        for mfs, row in zip(model.rule_mfs, model.consequents, strict=True)
+    ]
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "inputs": [
+            {"name": v.name, "unit": v.unit, "range": [float(v.min), float(v.max)]}
+            for v in model.inputs
+        ],
+        "output": {
+            "name": model.output.name,
+            "unit": model.output.unit,
+            "range": [float(model.output.min), float(model.output.max)],
+        },
+        "derived_inputs": _plain(model.derived_inputs),
+        "scaling": {
+            "method": model.scaling,
+            "offset": _floats(model.scale_offset),
+            "span": _floats(model.scale_span),
+        },
+        "membership": {"type": model.mf_type, "inputs": mf_inputs},
+        "rules": rules,
+        "provenance": _plain(model.provenance),
+        "metrics": _plain(model.metrics),
+    }
+
+
+def dumps(model: AnfisModel) -> str:
+    """The model file text: indented JSON with short lists and each rule on one line."""
+    return _format(to_dict(model), 0) + "\n"
+
+
+def _format(obj: Any, level: int, in_list: bool = False) -> str:
+    """JSON text: objects (to depth 3, not inside lists) and lists holding objects or
+    lists span lines; other lists and list items stay on one line each."""
+    pad, inner = "  " * level, "  " * (level + 1)
+    if isinstance(obj, dict) and obj and level < 3 and not in_list:
+        items = [f"{inner}{json.dumps(k)}: {_format(v, level + 1)}" for k, v in obj.items()]
+        return "{\n" + ",\n".join(items) + "\n" + pad + "}"
+    if _is_nested_list(obj):
+        items = [inner + _format(v, level + 1, in_list=True) for v in obj]
+        return "[\n" + ",\n".join(items) + "\n" + pad + "]"
+    return json.dumps(obj, allow_nan=False)
+
+
+def _is_nested_list(obj: Any) -> bool:
+    return isinstance(obj, list) and any(isinstance(v, (dict, list)) for v in obj)
+
+
+def save(model: AnfisModel, path: str | os.PathLike[str]) -> Path:
+    """Write the model file atomically (temporary file + rename); returns the path."""
+    target = Path(path)
+    text = dumps(model)
+    tmp = target.with_name(target.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, target)
+    return target
+
+
+def load(path: str | os.PathLike[str]) -> AnfisModel:
+    """Read a model file; raise `ModelError` naming the file and the problem."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"model file {p}: cannot read it ({exc})") from exc
+    return loads(text, source=str(p))
+
+
+def _reject_constant(name: str) -> Any:
+    raise ValueError(f"non-finite number {name}")
+
+
+def loads(text: str, source: str = "<string>") -> AnfisModel:
+    """Parse model file text; `source` names it in error messages."""
+    try:
+        doc = json.loads(text, parse_constant=_reject_constant)
+    except ValueError as exc:
+        truncated = isinstance(exc, json.JSONDecodeError) and exc.pos >= len(text.rstrip())
+        hint = " (the file looks truncated)" if truncated else ""
+        raise ModelError(f"model file {source}: not valid JSON{hint}: {exc}") from exc
+    try:
+        return from_dict(doc)
+    except ModelError as exc:
+        raise ModelError(f"model file {source}: {exc}") from exc
+
+
+def _field(doc: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    if not isinstance(doc, dict):
+        raise ModelError(f"{where or 'document'}: expected an object")
+    if key not in doc:
+        raise ModelError(f"missing field {where + '.' if where else ''}{key}")
+    value = doc[key]
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
+        raise ModelError(
+            f"field {where + '.' if where else ''}{key}: expected {names}, "
+            f"got {type(value).__name__}"
+        )
+    return value
+
+
+def _numbers(doc: Any, key: str, where: str, length: int | None = None) -> list[float]:
+    values = _field(doc, key, list, where)
+    label = f"{where}.{key}" if where else key
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ModelError(f"field {label}: expected numbers, found {v!r}")
+        if not math.isfinite(v):
+            raise ModelError(f"field {label}: non-finite number {v!r}")
+    if length is not None and len(values) != length:
+        raise ModelError(f"field {label}: expected {length} numbers, got {len(values)}")
+    return [float(v) for v in values]
+
+
+def _variable(doc: Any, where: str) -> Variable:
+    lo, hi = _numbers(doc, "range", where, 2)
+    return Variable(_field(doc, "name", str, where), _field(doc, "unit", str, where), lo, hi)
+
+
+def from_dict(doc: Any) -> AnfisModel:
+    """Build a model from a parsed version-1 document (checks everything)."""
+    fmt = _field(doc, "format", str, "")
+    if fmt != FORMAT:
+        raise ModelError(f"format is {fmt!r}, not {FORMAT!r}: not a pamd ANFIS model")
+    version = _field(doc, "version", int, "")
+    if version != VERSION:
+        raise ModelError(
+            f"version {version} is not supported (this pamd reads version {VERSION}); "
+            "use a matching pamd or re-train the model"
+        )
+    raw_inputs = _field(doc, "inputs", list, "")
+    inputs = [_variable(v, f"inputs[{i}]") for i, v in enumerate(raw_inputs)]
+    d = len(inputs)
+    if d == 0:
+        raise ModelError("field inputs: no inputs")
+    output = _variable(_field(doc, "output", dict, ""), "output")
+    scaling = _field(doc, "scaling", dict, "")
+    membership = _field(doc, "membership", dict, "")
+    mf_type = _field(membership, "type", str, "membership")
+    mf_inputs = _field(membership, "inputs", list, "membership")
+    if len(mf_inputs) != d:
+        raise ModelError(f"field membership.inputs: expected {d} entries, got {len(mf_inputs)}")
+    centres, widths, slopes = [], [], []
+    for i, entry in enumerate(mf_inputs):
+        where = f"membership.inputs[{i}]"
+        c = _numbers(entry, "centres", where)
+        centres.append(c)
+        widths.append(_numbers(entry, "widths", where, len(c)))
+        if mf_type == "bell":
+            slopes.append(_numbers(entry, "slopes", where, len(c)))
+    n_rules = math.prod(len(c) for c in centres)
+    rules = _field(doc, "rules", list, "")
+    if len(rules) != n_rules:
+        raise ModelError(f"field rules: expected {n_rules} rules for the MF grid, got {len(rules)}")
+    consequents = []
+    expected_mfs = _grid(tuple(len(c) for c in centres))
+    for r, (rule, mfs) in enumerate(zip(rules, expected_mfs, strict=True)):
+        where = f"rules[{r}]"
+        if _field(rule, "mfs", list, where) != list(mfs):
+            raise ModelError(f"field {where}.mfs: expected {list(mfs)} (grid order)")
+        q = _field(rule, "q", (int, float), where)
+        if not math.isfinite(q):
+            raise ModelError(f"field {where}.q: non-finite number")
+        consequents.append([*_numbers(rule, "p", where, d), float(q)])
+    return AnfisModel(
+        inputs,
+        output,
+        mf_type=mf_type,
+        scaling=_field(scaling, "method", str, "scaling"),
+        scale_offset=_numbers(scaling, "offset", "scaling", d),
+        scale_span=_numbers(scaling, "span", "scaling", d),
+        centres=centres,
+        widths=widths,
+        slopes=slopes if mf_type == "bell" else None,
+        consequents=consequents,
+        derived_inputs=_optional_dict(doc, "derived_inputs"),
+        provenance=_optional_dict(doc, "provenance"),
+        metrics=_optional_dict(doc, "metrics"),
+    )
+
+
+def _optional_dict(doc: dict[str, Any], key: str) -> dict[str, Any]:
+    return _field(doc, key, dict, "") if key in doc else {}
+
+
+def _grid(n_mfs: tuple[int, ...]) -> list[tuple[int, ...]]:
+    import itertools
+
+    return list(itertools.product(*(range(m) for m in n_mfs)))
