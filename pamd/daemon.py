@@ -17,6 +17,7 @@ from pamd.commands import parse_command
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
+from pamd.io.session import IoSession, RecordingRequest
 from pamd.loop import Loop
 from pamd.rig import Rig
 from pamd.safety import Transition
@@ -30,7 +31,8 @@ class Daemon:
     """Owns one rig run. `start()`, then `command()`/`status()`, then `stop()` and
     `wait()`; `close()` releases the drivers."""
 
-    def __init__(self, cfg: LoadedConfig, note: str = "") -> None:
+    def __init__(self, cfg: LoadedConfig, note: str = "",
+                 recording: RecordingRequest | None = None) -> None:
         self.cfg = cfg
         self.note = note
         self.calibration = load_calibration(cfg.calibration_path)
@@ -40,6 +42,8 @@ class Daemon:
         self.mailbox = LocalMailbox()
         self.ctrl = RigController(cfg, self.rig, self.summary, self.calibration)
         self.loop = Loop(cfg, self.ctrl, self.mailbox)
+        # the io process (MCAP recording): its sink goes downstream of the summary
+        self.io = IoSession.attach(self, recording)
         self.transitions: deque[Transition] = deque(maxlen=1000)
         self.ctrl.listeners.append(self.transitions.append)
         self._thread: threading.Thread | None = None
@@ -47,6 +51,8 @@ class Daemon:
 
     # -- life cycle -------------------------------------------------------------------
     def start(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
+        if self.io is not None:
+            self.io.start()  # refuses (RecordingError) before anything opens or moves
         self.rig.open(self.loop.clock)
         self._thread = threading.Thread(
             target=self._run, args=(duration_s, stop_when_profile_done), name="pamd-loop",
@@ -93,6 +99,8 @@ class Daemon:
             save_calibration(self.calibration, self.cfg.calibration_path)
 
     def close(self) -> None:
+        if self.io is not None:
+            self.io.close(self.result())  # finalises the file with the run summary
         self.rig.close()
         self.summary.close()
 
@@ -146,4 +154,5 @@ class Daemon:
             "final_state": sup.state.name,
             "stop_reason": self.loop.stopped_reason,
             "realtime": {"applied": self.loop.rt.applied, "refused": self.loop.rt.warnings},
+            "recording": self.io.result() if self.io is not None else None,
         }

@@ -15,6 +15,7 @@ from pamd.config import load_config
 from pamd.control.profiles import ProfileSpec
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
+from pamd.io.session import RecordingRequest
 from pamd.tick import State
 
 PROFILE_KINDS = ("constant", "step", "ramp", "sine", "triangle")
@@ -41,6 +42,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.add_argument("--note", default="", help="operator note kept with the run")
+    r = p.add_argument_group("recording (MCAP, written by the io process)")
+    r.add_argument("--record", metavar="DIR", help="record the run into DIR (overrides "
+                   "recording.dir of the config)")
+    r.add_argument("--no-record", action="store_true", help="do not record, even if the "
+                   "config names a directory")
+    r.add_argument("--name", help="run name in the file name (default: recording.run_name)")
     g = p.add_argument_group("profile (on every muscle unless --muscle)")
     g.add_argument("--profile", choices=PROFILE_KINDS, help="start this reference profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")
@@ -74,7 +81,14 @@ def run(args: argparse.Namespace) -> int:
             if args.muscle in (None, m.name):
                 spec.check(0.0, cfg.limits[m.name].max_pressure_bar,
                            cfg.rig.control.slew_limit_bar_per_s)
-    daemon = Daemon(cfg, note=args.note)
+    profile = None
+    if spec is not None:
+        profile = {k: v for k, v in spec.__dict__.items() if v is not None}
+        if args.muscle:
+            profile["muscle"] = args.muscle
+    recording = RecordingRequest(dir=args.record, enabled=not args.no_record,
+                                 run_name=args.name, profile=profile)
+    daemon = Daemon(cfg, note=args.note, recording=recording)
     _install_signals(daemon)
     daemon.start(args.duration, stop_when_profile_done=spec is not None and
                  spec.cycles is not None)
@@ -136,6 +150,14 @@ def print_summary(r: dict[str, Any]) -> None:
                   f"{t['max_error_bar']:.4f} bar ({t['samples']} ticks running)", file=out)
         else:
             print(f"  {name}: no profile ran (no tracking figures)", file=out)
+    rec = r.get("recording")
+    if rec:
+        files = ", ".join(rec["files"]) or "none"
+        print(f"  recording: {files} ({rec['ticks_recorded']} ticks, lost records "
+              f"{rec['lost_records']}, lost events {rec['lost_events']})", file=out)
+        if rec.get("failure"):
+            print(f"  recording FAILED: {rec['failure']['reason']} "
+                  f"({rec['failure']['policy']})", file=out)
     faults = r["faults"]
     print(f"  faults: {'; '.join(faults) if faults else 'none'}", file=out)
     print(f"  final state: {r['final_state']}", file=out)

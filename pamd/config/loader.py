@@ -93,8 +93,8 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     rig = build_dataclass(RigConfig, raw, ctx, "", 1)
     ctx.raise_if_any()
     drivers_node = raw.get("drivers", [])
-    rig = _check_drivers(rig, drivers_node, ctx)
-    limits = _check_muscles(rig, raw.get("muscles", []), ctx)
+    rig, channels = _check_drivers(rig, drivers_node, ctx)
+    limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
     ctx.raise_if_any()
     cal = rig.calibration_file or os.path.splitext(os.path.basename(path))[0] + ".cal.yaml"
     cal_path = os.path.join(os.path.dirname(os.path.abspath(path)), cal)
@@ -110,11 +110,15 @@ def _check_name(ctx: Context, name: str, seen: set[str], line: int | None, path:
     seen.add(name)
 
 
-def _check_drivers(rig: RigConfig, node: Any, ctx: Context) -> RigConfig:
+def _check_drivers(rig: RigConfig, node: Any,
+                   ctx: Context) -> tuple[RigConfig, dict[str, dict[str, str]]]:
+    """Validate each driver's type and options; returns the config with typed options
+    and, per driver whose options are valid, {channel name: 'in' | 'out'}."""
     from pamd.drivers import load_driver_class
 
     seen: set[str] = set()
     built = []
+    channel_map: dict[str, dict[str, str]] = {}
     for i, drv in enumerate(rig.drivers):
         item = node[i]
         _check_name(ctx, drv.name, seen, line_of(item, "name"), f"drivers[{i}].name")
@@ -125,27 +129,23 @@ def _check_drivers(rig: RigConfig, node: Any, ctx: Context) -> RigConfig:
                     f"{drv.type!r} ({exc})")
             built.append(drv)
             continue
+        n_before = len(ctx.issues)
         options = build_dataclass(cls.options_type, item.get("options"), ctx,
                                   f"drivers[{i}].options", line_of(item, "options"))
+        if len(ctx.issues) == n_before:
+            try:  # the driver's own cross-field checks (it must not do I/O here)
+                channels = cls(drv.name, options).channels()
+            except (DriverError, ValueError) as exc:
+                ctx.add(line_of(item, "options"), f"drivers[{i}].options",
+                        f"options that driver type {drv.type!r} accepts", str(exc))
+            else:
+                channel_map[drv.name] = {c.name: c.direction for c in channels}
         built.append(dataclasses.replace(drv, options=options))
-    return dataclasses.replace(rig, drivers=tuple(built))
+    return dataclasses.replace(rig, drivers=tuple(built)), channel_map
 
 
-def _driver_channels(rig: RigConfig) -> dict[str, dict[str, str]]:
-    """driver name -> {channel name: 'in' | 'out'} for drivers whose options are valid."""
-    from pamd.drivers import load_driver_class
-
-    out: dict[str, dict[str, str]] = {}
-    for drv in rig.drivers:
-        if isinstance(drv.options, dict):
-            continue  # invalid options were reported already
-        cls = load_driver_class(drv.type)
-        out[drv.name] = {c.name: c.direction for c in cls(drv.name, drv.options).channels()}
-    return out
-
-
-def _check_muscles(rig: RigConfig, node: Any, ctx: Context) -> dict[str, MuscleLimitsResolved]:
-    channels = _driver_channels(rig)
+def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]],
+                   ctx: Context) -> dict[str, MuscleLimitsResolved]:
     known_drivers = {d.name for d in rig.drivers}
     seen: set[str] = set()
     limits: dict[str, MuscleLimitsResolved] = {}

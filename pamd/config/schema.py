@@ -148,6 +148,33 @@ class SafetyConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class RecordingConfig:
+    dir: str | None = spec(None, "Directory for the run's MCAP files (relative to the working "
+                           "directory; null: no recording unless `pamd run --record DIR`).")
+    run_name: str = spec("run", "Run name in the file name "
+                         "(<YYYYmmdd-HHMMSS>_<rig_id>_<run_name>.mcap).")
+    rotate_mb: float | None = spec(None, "Start a new file once this size is reached (null: "
+                                   "never).", unit="MB", gt=0.0)
+    rotate_s: float | None = spec(None, "Start a new file after this much run time (null: "
+                                  "never).", unit="s", gt=0.0)
+    chunk_kb: int = spec(256, "Largest chunk before compression; chunks also close every "
+                         "flush_s.", unit="KiB", min=4, max=65536)
+    flush_s: float = spec(0.1, "Each chunk is closed and written at least this often, and the "
+                          "file fsync'd: the most a crash or power cut can lose (plus the "
+                          "ring's backlog).", unit="s", gt=0.0, max=10.0)
+    compression: Literal["zstd", "lz4", "none"] = spec("zstd", "Chunk compression.")
+    ring_s: float = spec(2.0, "Tick records the shared-memory ring holds while the io process "
+                         "is busy; beyond that, records are lost (counted and reported) in "
+                         "real time.", unit="s", gt=0.0, max=60.0)
+    on_failure: Literal["safe_state", "continue"] = spec(
+        "safe_state", "When a write fails (disk full, I/O error): fault to the safe state, or "
+        "keep controlling without recording. Either way it is said.")
+    on_io_death: Literal["safe_state", "continue"] = spec(
+        "safe_state", "When the io process dies: fault to the safe state, or keep controlling "
+        "without recording. Either way it is said.")
+
+
+@dataclass(frozen=True, kw_only=True)
 class RigConfig:
     rig_id: str = spec("sim", "Rig name; appears in Zenoh keys and MCAP topics.")
     loop: LoopConfig = spec(LoopConfig(), "The fixed-rate loop.")
@@ -155,6 +182,7 @@ class RigConfig:
     muscles: tuple[MuscleConfig, ...] = spec(doc="The muscles of the rig.")
     control: ControlConfig = spec(ControlConfig(), "Control gains and slew limit.")
     safety: SafetyConfig = spec(SafetyConfig(), "Limits, timeouts and the safe state.")
+    recording: RecordingConfig = spec(RecordingConfig(), "MCAP recording by the io process.")
     calibration_file: str | None = spec(
         None, "Where home/tare references are kept (relative to the config file; default: "
         "<config name>.cal.yaml beside it).")

@@ -91,6 +91,9 @@ class MuscleController:
         self.soft_c = limits.max_contraction - saf.soft_band_contraction
         self.hard_c = limits.hard_max_contraction
         self.max_stretch = limits.max_pretension
+        self.c_release = self.soft_c - 0.5 * saf.soft_band_contraction
+        self.s_release = -self.max_stretch + 0.5 * saf.soft_band_contraction
+        self._c_guard = self._s_guard = False
         self.hard_stretch = limits.hard_max_pretension
         self.hold_s = saf.hard_limit_hold_s
         self.track_band = saf.tracking_band_bar
@@ -247,20 +250,36 @@ class MuscleController:
             pid.reset(p)
             u = sp
 
-        # Soft limits, acting in the restoring direction.
+        # Soft limits, acting in the restoring direction, with a release band so they
+        # do not chatter; the setpoint follows the limited command so a release is
+        # bumpless.
         u_free = u
         prev_u = self.valve_cmd
         if referenced:
-            if x >= self.soft_c:
+            if self._c_guard:
+                if x < self.c_release:
+                    self._c_guard = False
+            elif x >= self.soft_c:
+                self._c_guard = True
+            if self._s_guard:
+                if x > self.s_release:
+                    self._s_guard = False
+            elif x <= -self.max_stretch:
+                self._s_guard = True
+            if self._c_guard:
                 cap = prev_u - slew * dt if x >= self.max_c else prev_u
                 if u > cap:
                     u = cap
                     flags |= F_SOFT_C
-            elif x <= -self.max_stretch:
-                floor = prev_u + slew * dt
+                    if self.sp > u:
+                        self.sp = u
+            elif self._s_guard:
+                floor = prev_u + slew * dt if x <= -self.max_stretch else prev_u
                 if u < floor:
                     u = floor
                     flags |= F_PRETENSION
+                    if self.sp < u:
+                        self.sp = u
         if u > self.max_p:
             u = self.max_p
             flags |= F_SOFT_P

@@ -49,10 +49,10 @@ class Pid:
             il = self.integral_limit
             self.i = il if i > il else (-il if i < -il else i)
         u = self.p + self.i + self.d
-        if u > lim:
+        if u >= lim:
             self.saturated = True
             return lim
-        if u < -lim:
+        if u <= -lim:
             self.saturated = True
             return -lim
         self.saturated = False

@@ -1,0 +1,330 @@
+"""The loop process's side of the io process: start and watch it, hand it one tick
+record per tick (`RingSink`), take commands from it (`RingMailbox`).
+
+The tick path (`RingSink.put`) takes no lock, does no I/O and allocates nothing but
+the transient slice view: a memoryview slice assignment copies the record's bytes
+into the next slot and the head counter is bumped. It also watches the io process:
+the io process bumps a heartbeat on every pass; only when the heartbeat has not
+moved for `QUIET_TICKS` ticks does the sink poll the process's sentinel (one
+`select` with zero timeout), so a dead io process is seen within a tick or two at
+the cost of a couple of integer reads per tick.
+
+A full ring in real time drops the record (put returns False, the loop counts it)
+and, once space is back, records a `lost_records` event. With the virtual clock the
+sink waits for space instead, so a virtual run loses nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import select
+import threading
+import time
+from array import array
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+from pamd.commands import parse_command
+from pamd.errors import CommandRefused, RecordingError
+from pamd.io.spec import IoSpec
+from pamd.ipc.ring import (
+    C_HEARTBEAT,
+    C_IO_STATE,
+    C_LOST_EVENTS,
+    C_RECORDED,
+    C_STOP,
+    IO_DONE,
+    IO_FAILED,
+    IO_STARTING,
+    SharedBlock,
+)
+from pamd.tick import I_TICK
+
+QUIET_TICKS = 2
+START_TIMEOUT_S = 30.0
+STOP_TIMEOUT_S = 60.0
+
+FailureHandler = Callable[[str, str], None]  # (what: "death" | "write", reason)
+
+
+class IoLink:
+    """Owns the shared block and the io process."""
+
+    def __init__(self, spec: IoSpec, block: SharedBlock) -> None:
+        self.spec = spec
+        self.block = block
+        self.proc: Any = None
+        self.closed = False
+
+    @classmethod
+    def create(cls, make_spec: Callable[[str], IoSpec], layout: Any) -> IoLink:
+        block = SharedBlock(layout, create=True)
+        return cls(make_spec(block.name), block)
+
+    def start(self, timeout_s: float = START_TIMEOUT_S) -> None:
+        """Spawn the io process and wait until it has opened its file (or failed)."""
+        from pamd.io.process import io_main
+
+        ctx = multiprocessing.get_context("spawn")  # never fork a process with threads
+        self.proc = ctx.Process(target=io_main, args=(self.spec,), name="pamd-io", daemon=True)
+        self.proc.start()
+        t0 = time.monotonic()
+        while self.block.get(C_IO_STATE) == IO_STARTING:
+            if not self.proc.is_alive():
+                self._cleanup()
+                raise RecordingError(f"the io process exited at start (code "
+                                     f"{self.proc.exitcode})")
+            if time.monotonic() - t0 > timeout_s:
+                self.proc.kill()
+                self._cleanup()
+                raise RecordingError(f"the io process did not start within {timeout_s:g} s")
+            time.sleep(0.005)
+        if self.block.get(C_IO_STATE) == IO_FAILED:
+            err = self.block.error()
+            self.proc.join(5.0)
+            self._cleanup()
+            raise RecordingError(err)
+
+    @property
+    def pid(self) -> int | None:
+        return self.proc.pid if self.proc is not None else None
+
+    @property
+    def sentinel(self) -> int:
+        return self.proc.sentinel
+
+    def files(self) -> list[str]:
+        return self.block.files() if not self.closed else self._files
+
+    def status(self) -> dict[str, Any]:
+        if self.closed:
+            return dict(self._status)
+        st = self.block.get(C_IO_STATE)
+        return {
+            "files": self.block.files(),
+            "ticks_recorded": self.block.get(C_RECORDED),
+            "lost_events": self.block.get(C_LOST_EVENTS),
+            "state": {0: "starting", 1: "recording", 2: "failed", 3: "finished"}.get(st, "?"),
+            "error": self.block.error() or None,
+        }
+
+    def close(self, timeout_s: float = STOP_TIMEOUT_S) -> None:
+        """Ask the io process to drain, finalise and exit; wait for it."""
+        if self.closed:
+            return
+        self.block.set(C_STOP, 1)
+        if self.proc is not None:
+            self.proc.join(timeout_s)
+            if self.proc.is_alive():
+                self.proc.kill()
+                self.proc.join(5.0)
+        self._cleanup()
+
+    def _cleanup(self) -> None:
+        self._status = self.status() if not self.closed else self._status
+        self._files = self._status["files"]
+        self.closed = True
+        self.block.close()
+
+
+class RingSink:
+    """The sink the loop hands its records to (a `SummarySink` downstream)."""
+
+    def __init__(self, link: IoLink, virtual: bool, t_start: Callable[[], float],
+                 on_failure: FailureHandler, notify: Callable[[str], None]) -> None:
+        self.link = link
+        self.block = link.block
+        self.ring = link.block.ticks
+        self.events_ring = link.block.events
+        self.u64 = link.block.u64
+        self.virtual = virtual
+        self.t_start = t_start
+        self.on_failure = on_failure
+        self.notify = notify
+        self.active = True
+        self.failure: str | None = None
+        self._rec: array | None = None
+        self._mv: memoryview | None = None
+        self._hb = -1
+        self._quiet = 0
+        self._started = False
+        self._sentinel = -1  # the process's sentinel fd, once it runs
+        self._dropped = 0
+        self._drop_first = -1
+        self._drop_last = -1
+        self.lost_records = 0
+        self.lost_events = 0
+        self._producer: int | None = None  # the loop's thread, bound at the first put
+        self._pending: deque[tuple[float, str, dict[str, Any]]] = deque()
+
+    # -- watch ------------------------------------------------------------------------
+    def _dead(self) -> bool:
+        if self._sentinel < 0:
+            self._sentinel = self.link.sentinel
+        return bool(select.select([self._sentinel], [], [], 0)[0])
+
+    def _lose_io(self, what: str, reason: str) -> None:
+        self.active = False
+        self.failure = reason
+        self.on_failure(what, reason)
+
+    def _ensure_start(self) -> None:
+        """First put, in the loop's thread: from now on it alone writes the rings."""
+        self._producer = threading.get_ident()
+        self._started = True
+        self.block.set_t_start(self.t_start())
+
+    # -- the tick path ----------------------------------------------------------------
+    def put(self, record: array) -> bool:
+        if not self.active:
+            return True
+        u = self.u64
+        hb = u[C_HEARTBEAT]
+        if hb != self._hb:
+            self._hb = hb
+            self._quiet = 0
+        else:
+            self._quiet += 1
+            if self._quiet >= QUIET_TICKS and self._dead():
+                self._lose_io("death", f"the io process (pid {self.link.pid}) died")
+                return True
+        if u[C_IO_STATE] == IO_FAILED:
+            self._lose_io("write", self.block.error() or "the io process failed")
+            return True
+        if record is not self._rec:
+            self._rec = record
+            self._mv = memoryview(record).cast("B")
+        if not self._started:
+            self._ensure_start()
+        if self._pending:
+            self._flush_pending()
+        if not self.ring.put(self._mv):  # type: ignore[arg-type]
+            if not self.virtual:
+                if self._dropped == 0:
+                    self._drop_first = int(record[I_TICK])
+                self._dropped += 1
+                self._drop_last = int(record[I_TICK])
+                self.lost_records += 1
+                return False
+            while not self.ring.put(self._mv):  # type: ignore[arg-type]
+                if self._dead():
+                    self._lose_io("death", f"the io process (pid {self.link.pid}) died")
+                    return True
+                if u[C_IO_STATE] == IO_FAILED:
+                    self._lose_io("write", self.block.error() or "the io process failed")
+                    return True
+                time.sleep(0.0002)
+        if self._dropped:
+            self._report_drops()
+        return True
+
+    def _report_drops(self) -> None:
+        n, first, last = self._dropped, self._drop_first, self._drop_last
+        self._dropped = 0
+        msg = (f"recording: the io ring was full, {n} tick record(s) lost (ticks {first}-"
+               f"{last}; {self.lost_records} so far)")
+        self.notify(msg)
+        self.event(self._rec[1] + self.t_start() if self._rec is not None else 0.0,  # type: ignore[index]
+                   "lost_records", {"count": n, "first_tick": first, "last_tick": last,
+                                    "total": self.lost_records})
+
+    # -- events -----------------------------------------------------------------------
+    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+        if not self.active:
+            return
+        if threading.get_ident() != self._producer:
+            self._pending.append((t_s, kind, data))  # the loop's thread sends it
+            return
+        blob = self._encode(t_s, kind, data)
+        if self.events_ring.put_blob(blob):
+            return
+        if self.virtual or kind == "summary":
+            while not self.events_ring.put_blob(blob):
+                if self._dead() or self.u64[C_IO_STATE] in (IO_FAILED, IO_DONE):
+                    return
+                time.sleep(0.0002)
+            return
+        self.lost_events += 1
+        self.u64[C_LOST_EVENTS] = self.lost_events
+
+    def _encode(self, t_s: float, kind: str, data: dict[str, Any]) -> bytes:
+        blob = json.dumps({"t": t_s, "kind": kind, "data": data}, default=str).encode()
+        cap = self.events_ring.slot_bytes - 4
+        if len(blob) > cap:
+            text = json.dumps(data, default=str)[: cap // 2]
+            blob = json.dumps({"t": t_s, "kind": kind,
+                               "data": {"truncated": True, "text": text}}).encode()
+        return blob
+
+    def _flush_pending(self) -> None:
+        while self._pending:
+            t_s, kind, data = self._pending.popleft()
+            self.event(t_s, kind, data)
+
+    def finish(self, summary: dict[str, Any]) -> None:
+        """Last words, from the thread that owns the rings once the loop has ended."""
+        self._producer = threading.get_ident()
+        if not self._started:
+            self._started = True
+            self.block.set_t_start(self.t_start())
+        if self.active:
+            self._flush_pending()
+            if self._dropped:
+                self._report_drops()
+            self.event(0.0, "summary", summary)
+
+    def close(self) -> None:
+        pass  # the daemon closes the link after `finish`
+
+
+class RingMailbox:
+    """Commands from the io process, polled by the loop once per tick (never blocks).
+    A command is re-checked with `parse_command`; its verdict goes back to the io
+    process as a `reply` event carrying the command's id."""
+
+    def __init__(self, link: IoLink, sink: RingSink, now: Callable[[], float]) -> None:
+        self.ring = link.block.commands
+        self.sink = sink
+        self.now = now
+
+    def poll(self) -> Any | None:
+        if self.ring.available() <= 0:
+            return None
+        blob = self.ring.get_blob()
+        if blob is None:
+            return None
+        try:
+            msg = json.loads(blob)
+            cid = int(msg.get("id", 0))
+        except (ValueError, AttributeError):
+            return None
+
+        def reply(verdict: dict[str, Any], _cid: int = cid) -> None:
+            self.sink.event(self.now(), "reply", {"id": _cid, **verdict})
+
+        try:
+            return parse_command(str(msg.get("verb")), msg.get("payload"),
+                                 sender=str(msg.get("sender", "io")),
+                                 user=str(msg.get("user", "")), reply=reply)
+        except CommandRefused as exc:
+            reply({"ok": False, "error": str(exc)})
+            return None
+
+
+class MultiMailbox:
+    """Polls several mailboxes in order (local commands first)."""
+
+    def __init__(self, *boxes: Any) -> None:
+        self.boxes = boxes
+
+    def put(self, cmd: Any) -> None:
+        self.boxes[0].put(cmd)
+
+    def poll(self) -> Any | None:
+        for b in self.boxes:
+            cmd = b.poll()
+            if cmd is not None:
+                return cmd
+        return None

@@ -1,0 +1,226 @@
+"""The io process: drains the loop's rings into the recorder, bumps the heartbeat the
+loop watches, sends commands to the loop and routes their verdicts.
+
+It never blocks the loop: it only reads rings the loop writes without waiting. If a
+write fails (disk full, I/O error) it reports the error in the shared header, stops
+recording and keeps draining, so the loop decides (safe state or continue) and is
+never held up. It ignores SIGINT/SIGTERM (the daemon stops it cleanly through the
+stop flag) and finalises its file by itself if the loop's process disappears.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import struct
+import time
+from collections.abc import Callable
+from typing import Any
+
+from pamd.io.spec import IoSpec
+from pamd.ipc.ring import (
+    C_HEARTBEAT,
+    C_IO_STATE,
+    C_RECORDED,
+    C_STOP,
+    IO_DONE,
+    IO_FAILED,
+    IO_READY,
+    SharedBlock,
+)
+
+IDLE_SLEEP_S = 0.0005
+BATCH = 512
+
+
+class CommandPort:
+    """The io side of the command mailbox: send a command to the loop, get its verdict
+    back (through the event ring) by id. The Zenoh session uses the same port."""
+
+    def __init__(self, block: SharedBlock) -> None:
+        self.ring = block.commands
+        self.next_id = 1
+        self.waiting: dict[int, Callable[[dict[str, Any]], None]] = {}
+
+    def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
+             on_verdict: Callable[[dict[str, Any]], None] | None = None) -> int | None:
+        """Queue a command; None (and a refusal verdict) if the mailbox is full."""
+        cid = self.next_id
+        self.next_id += 1
+        blob = json.dumps({"id": cid, "verb": verb, "payload": payload or {},
+                           "sender": sender, "user": user}).encode()
+        if not self.ring.put_blob(blob):
+            if on_verdict:
+                on_verdict({"ok": False, "error": "the loop's command mailbox is full"})
+            return None
+        if on_verdict is not None:
+            self.waiting[cid] = on_verdict
+        return cid
+
+    def on_reply(self, data: dict[str, Any]) -> None:
+        fn = self.waiting.pop(int(data.get("id", -1)), None)
+        if fn is not None:
+            fn(data)
+
+
+def io_main(spec: IoSpec) -> None:
+    """Entry point of the spawned io process."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    block = SharedBlock(spec.layout, spec.shm_name)
+    try:
+        IoProcess(spec, block).run()
+    finally:
+        block.close()
+
+
+class IoProcess:
+    def __init__(self, spec: IoSpec, block: SharedBlock) -> None:
+        self.spec = spec
+        self.block = block
+        self.recorder: Any = None
+        self.port = CommandPort(block)
+        self.script = sorted(spec.script)
+        self.rec_struct = struct.Struct(f"<{spec.layout.record_bytes // 8}d")
+        self.last_tick = -1
+        self.failed = False
+        self.reply_t = 0.0
+
+    def _fail(self, what: str, exc: BaseException) -> None:
+        reason = f"{what}: {exc.__class__.__name__}: {exc}"
+        if isinstance(exc, OSError) and exc.strerror:
+            where = exc.filename or (self.recorder.files[-1] if self.recorder is not None
+                                     and self.recorder.files else "")
+            reason = f"{what}: {exc.strerror}" + (f" ({where})" if where else "")
+        self.block.set_error(reason)
+        self.block.set(C_IO_STATE, IO_FAILED)
+        self.failed = True
+        if self.recorder is not None:
+            self.recorder.abandon()
+            self.recorder = None
+
+    def run(self) -> None:
+        spec, block = self.spec, self.block
+        if spec.record is not None:
+            if spec.record.fsize_limit_bytes:
+                import resource
+
+                signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # writes fail with EFBIG
+                lim = spec.record.fsize_limit_bytes
+                resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim))
+            from pamd.io.recorder import Recorder
+
+            try:
+                self.recorder = Recorder(spec)
+                self.recorder.open()
+                block.set_files(self.recorder.files)
+            except Exception as exc:  # reported to the daemon, which refuses to start
+                self._fail("cannot open the recording", exc)
+                return
+        block.set(C_IO_STATE, IO_READY)
+        stop_reason = "stopped by the daemon"
+        summary: dict[str, Any] | None = None
+        hb = 0
+        mono = time.monotonic
+        last_parent_check = mono()
+        while True:
+            hb += 1
+            block.set(C_HEARTBEAT, hb)
+            stop = block.get(C_STOP)  # read before draining: all data is in by now
+            n = self._drain_ticks()
+            m, s = self._drain_events()
+            if s is not None:
+                summary = s
+            self._run_script()
+            now = mono()
+            if self.recorder is not None:
+                try:
+                    self.recorder.service(now)
+                    block.set_files(self.recorder.files)
+                except Exception as exc:
+                    self._fail("recording write failed", exc)
+            if stop and n == 0 and m == 0:
+                break
+            if now - last_parent_check > 0.1:
+                last_parent_check = now
+                if os.getppid() != spec.parent_pid:
+                    self._drain_ticks()
+                    self._drain_events()
+                    stop_reason = "the loop's process disappeared (killed?)"
+                    break
+            if n == 0 and m == 0:
+                time.sleep(IDLE_SLEEP_S)
+        if self.recorder is not None:
+            try:
+                self.recorder.finish(summary, stop_reason)
+            except Exception as exc:
+                self._fail("recording could not be finalised", exc)
+                return
+        if not self.failed:
+            block.set(C_IO_STATE, IO_DONE)
+
+    def _drain_ticks(self) -> int:
+        ring = self.ring_ticks = self.block.ticks
+        avail = ring.available()
+        if avail <= 0:
+            return 0
+        n = min(avail, BATCH)
+        start = ring.tail
+        unpack, buf = self.rec_struct.unpack_from, ring.buf
+        rows = [unpack(buf, ring.slot_offset(seq)) for seq in range(start, start + n)]
+        ring.release(start + n)
+        rec = self.recorder
+        if rec is not None:
+            if rec.t_start is None:
+                rec.t_start = self.block.t_start()
+            try:
+                for row in rows:
+                    rec.tick(row)
+            except Exception as exc:
+                self._fail("recording write failed", exc)
+            else:
+                self.block.set(C_RECORDED, rec.ticks)
+        self.last_tick = int(rows[-1][0])
+        return n
+
+    def _drain_events(self) -> tuple[int, dict[str, Any] | None]:
+        ring = self.block.events
+        n = 0
+        summary = None
+        while n < 64:
+            blob = ring.get_blob()
+            if blob is None:
+                break
+            n += 1
+            ev = json.loads(blob)
+            kind, data = ev["kind"], ev["data"]
+            if kind == "reply":
+                self.reply_t = ev["t"]
+                self.port.on_reply(data)
+            if kind == "summary":
+                summary = data
+                continue
+            rec = self.recorder
+            if rec is not None:
+                if rec.t_start is None:
+                    rec.t_start = self.block.t_start()
+                try:
+                    rec.event(ev["t"], kind, data)
+                except Exception as exc:
+                    self._fail("recording write failed", exc)
+        return n, summary
+
+    def _run_script(self) -> None:
+        while self.script and self.script[0][0] <= self.last_tick:
+            _tick, verb, payload = self.script.pop(0)
+            self.port.send(verb, payload, sender="script", on_verdict=self._scripted_verdict)
+
+    def _scripted_verdict(self, data: dict[str, Any]) -> None:
+        """The verdict came back to the io process: say so in the recording."""
+        if self.recorder is not None:
+            try:
+                self.recorder.event(self.reply_t, "verdict_received",
+                                    {"by": "io process", **data})
+            except Exception as exc:
+                self._fail("recording write failed", exc)

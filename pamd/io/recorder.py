@@ -1,0 +1,232 @@
+"""The recorder: tick records and events -> MCAP topics, one file per run (with
+optional rotation), metadata and attachments stating what the run was.
+
+Topics (they match the Zenoh key names):
+  /pamd/<rig>/state/<muscle>  pamd_msgs/msg/MuscleState, cdr, one per muscle per tick
+  /pamd/<rig>/loop            pamd_msgs/msg/LoopTiming,  cdr, one per tick
+  /pamd/<rig>/events          pamd_msgs/Event, json (jsonschema): transitions, commands
+                              and verdicts, markers, lost records, recording notices
+Log time: wall-clock ns of the tick's scheduled time in real time; with the virtual
+clock, run start (wall clock) + tick x period, so the time axis is the rig's.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import struct
+import time
+from typing import Any
+
+from pamd.io import cdr
+from pamd.io.mcapw import McapWriter
+from pamd.io.spec import IoSpec, RecordSpec
+from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
+
+EVENT_SCHEMA = {
+    "title": "pamd event",
+    "type": "object",
+    "properties": {
+        "t_s": {"type": "number", "description": "loop time since the run start, s"},
+        "tick": {"type": "integer", "description": "tick number of the loop"},
+        "kind": {"type": "string", "description": "transition, command, reply, marker, "
+                 "lost_records, recording, summary"},
+        "data": {"type": "object"},
+    },
+}
+
+
+def sanitize(x: Any) -> Any:
+    """JSON-safe copy: non-finite floats become null (Foxglove parses strict JSON)."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {str(k): sanitize(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [sanitize(v) for v in x]
+    return x
+
+
+def file_name(started_at: str, rig_id: str, run_name: str, segment: int) -> str:
+    seg = f"_{segment:03d}" if segment else ""
+    return f"{started_at}_{rig_id}_{run_name}{seg}.mcap"
+
+
+class Recorder:
+    """Encodes and writes; every OSError propagates to the io process (which reports
+    it to the loop)."""
+
+    def __init__(self, spec: IoSpec) -> None:
+        assert spec.record is not None
+        self.spec = spec
+        self.rs: RecordSpec = spec.record
+        self.period_ns = round(1e9 / spec.rate_hz)
+        self.n_loop = len(LOOP_FIELDS)
+        self.n_mf = len(MUSCLE_FIELDS)
+        self.rec_struct = struct.Struct(f"<{self.n_loop + self.n_mf * len(spec.muscles)}d")
+        lf = cdr.loop_fields()
+        mf = cdr.muscle_fields()
+        self.loop_rec = cdr.compile_record(lf)
+        self.mus_rec = cdr.compile_record(mf)
+        self.loop_len = cdr.record_length(self.loop_rec)
+        self.mus_len = cdr.record_length(self.mus_rec)
+        self.loop_int = [i for i, (_n, t) in enumerate(lf) if t != "float64"]
+        self.mus_int = [i for i, (_n, t) in enumerate(mf) if t != "float64"]
+        self.schemas = [
+            (cdr.MUSCLE_SCHEMA_NAME, "ros2msg", cdr.schema_text(mf, "pamd muscle state, one "
+                                                                "per muscle per tick")),
+            (cdr.LOOP_SCHEMA_NAME, "ros2msg", cdr.schema_text(lf, "pamd loop timing, one "
+                                                              "per tick")),
+            (cdr.EVENT_SCHEMA_NAME, "jsonschema", json.dumps(EVENT_SCHEMA).encode()),
+        ]
+        self.t_start: float | None = None
+        self.writer: McapWriter | None = None
+        self.files: list[str] = []
+        self.segment = 0
+        self.ticks = 0
+        self.events = 0
+        self.last_tick = -1
+        self.flush_ns = int(self.rs.flush_s * 1e9)
+        self.chunk_max = self.rs.chunk_kb * 1024
+        self.rotate_bytes = int(self.rs.rotate_mb * 1e6) if self.rs.rotate_mb else None
+        self.rotate_ns = int(self.rs.rotate_s * 1e9) if self.rs.rotate_s else None
+        self.chunk_t0 = -1  # log time of the open chunk's first tick
+        self.chunk_opened = 0.0  # monotonic time the open chunk got its first message
+        self.file_t0 = -1
+        self.last_sync = time.monotonic()
+
+    # -- files ------------------------------------------------------------------------
+    def open(self) -> str:
+        os.makedirs(self.rs.dir, exist_ok=True)
+        sp = self.spec
+        path = os.path.join(self.rs.dir, file_name(self.rs.started_at, sp.rig_id,
+                                                   self.rs.run_name, self.segment))
+        w = McapWriter(path, self.rs.compression)
+        self.writer = w
+        self.files.append(path)
+        w.start(profile="", library="pamd")
+        sid = [w.add_schema(n, e, d) for n, e, d in self.schemas]
+        self.ch_muscle = [
+            w.add_channel(f"/pamd/{sp.rig_id}/state/{m}", "cdr", sid[0], {"muscle": m})
+            for m in sp.muscles
+        ]
+        self.ch_loop = w.add_channel(f"/pamd/{sp.rig_id}/loop", "cdr", sid[1])
+        self.ch_events = w.add_channel(f"/pamd/{sp.rig_id}/events", "json", sid[2])
+        for name, data in self.rs.metadata.items():
+            data = dict(data)
+            if name == "pamd":
+                data["segment"] = str(self.segment)
+                data["previous_file"] = os.path.basename(self.files[-2]) if self.segment else ""
+            w.add_metadata(name, data)
+        now = time.time_ns()
+        for name, media, blob in self.rs.attachments:
+            w.add_attachment(name, media, blob, now, now)
+        self.file_t0 = -1
+        self.chunk_t0 = -1
+        w.sync()
+        return path
+
+    def _rotate(self) -> None:
+        assert self.writer is not None
+        self.writer.add_metadata("pamd.segment", {
+            "segment": str(self.segment), "next_file": file_name(
+                self.rs.started_at, self.spec.rig_id, self.rs.run_name, self.segment + 1)})
+        self.writer.finish()
+        self.segment += 1
+        self.open()
+
+    # -- time -------------------------------------------------------------------------
+    def log_ns_of(self, t_abs_s: float) -> int:
+        return self.spec.wall0_ns + round((t_abs_s - self.spec.clock0_s) * 1e9)
+
+    # -- the hot path -----------------------------------------------------------------
+    def tick(self, v: tuple[float, ...]) -> None:
+        w = self.writer
+        assert w is not None
+        tick = int(v[0])
+        if self.spec.virtual:
+            log_ns = self.spec.wall0_ns + tick * self.period_ns
+        else:
+            log_ns = self.log_ns_of((self.t_start or 0.0) + v[1])
+        if self.chunk_t0 < 0:
+            self.chunk_t0 = log_ns
+            self.chunk_opened = time.monotonic()
+            if self.file_t0 < 0:
+                self.file_t0 = log_ns
+        seq = tick & 0xFFFFFFFF
+        nl = self.n_loop
+        vals = list(v[:nl])
+        for i in self.loop_int:
+            vals[i] = int(vals[i])
+        w.add_record(self.ch_loop, log_ns, self.loop_rec.pack(
+            5, self.loop_len, self.ch_loop, seq, log_ns, log_ns, cdr.CDR_LE, *vals))
+        t_s = v[1]
+        nm = self.n_mf
+        mrec, mlen, mint = self.mus_rec, self.mus_len, self.mus_int
+        for k, ch in enumerate(self.ch_muscle):
+            b = nl + k * nm
+            mv = [tick, t_s, *v[b:b + nm]]
+            for i in mint:
+                mv[i] = int(mv[i])
+            w.add_record(ch, log_ns, mrec.pack(5, mlen, ch, seq, log_ns, log_ns, cdr.CDR_LE,
+                                               *mv))
+        self.ticks += 1
+        self.last_tick = tick
+        if log_ns - self.chunk_t0 >= self.flush_ns or len(w.chunk) >= self.chunk_max:
+            self._close_chunk(log_ns)
+
+    def _close_chunk(self, log_ns: int) -> None:
+        w = self.writer
+        assert w is not None
+        w.close_chunk()
+        self.chunk_t0 = -1
+        if (self.rotate_bytes and w.pos >= self.rotate_bytes) or (
+                self.rotate_ns and self.file_t0 >= 0 and log_ns - self.file_t0 >= self.rotate_ns):
+            self._rotate()
+
+    def event(self, t_abs_s: float, kind: str, data: dict[str, Any]) -> None:
+        w = self.writer
+        assert w is not None
+        t0 = self.t_start if self.t_start is not None else t_abs_s
+        log_ns = self.log_ns_of(t_abs_s)
+        tick = round((t_abs_s - t0) * self.spec.rate_hz)
+        body = json.dumps(sanitize({"t_s": t_abs_s - t0, "tick": tick, "kind": kind,
+                                    "data": data}), separators=(",", ":"))
+        w.add_message(self.ch_events, log_ns, body.encode(), self.events)
+        self.events += 1
+        if self.chunk_t0 < 0:
+            self.chunk_t0 = log_ns
+            self.chunk_opened = time.monotonic()
+
+    # -- housekeeping (once per io-loop pass) ------------------------------------------
+    def service(self, now_mono: float) -> None:
+        """Close a chunk that has been open for flush_s of wall time (a stalled or slow
+        loop), and fsync every flush_s."""
+        w = self.writer
+        if w is None:
+            return
+        if w.chunk and now_mono - self.chunk_opened >= self.rs.flush_s:
+            self._close_chunk(w.end_ns if self.chunk_t0 < 0 else self.chunk_t0)
+        if now_mono - self.last_sync >= self.rs.flush_s:
+            self.last_sync = now_mono
+            self.writer.sync()  # type: ignore[union-attr]
+
+    def finish(self, summary: dict[str, Any] | None, stop_reason: str) -> None:
+        w = self.writer
+        if w is None:
+            return
+        meta = {"io_stop": stop_reason, "ticks_recorded": str(self.ticks),
+                "last_tick": str(self.last_tick), "events_recorded": str(self.events),
+                "files": json.dumps([os.path.basename(f) for f in self.files])}
+        if summary:
+            for k, v in summary.items():
+                meta[k] = v if isinstance(v, str) else json.dumps(sanitize(v))
+        w.add_metadata("pamd.summary", meta)
+        w.finish()
+        self.writer = None
+
+    def abandon(self) -> None:
+        if self.writer is not None:
+            self.writer.abandon()
+            self.writer = None

@@ -1,0 +1,77 @@
+"""Helpers of the recording tests: a virtual daemon run that records into a temp dir
+while a capture sink keeps, in-process, every record and event the loop produced."""
+
+from __future__ import annotations
+
+import math
+from array import array
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pamd.daemon import Daemon
+from pamd.io.session import RecordingRequest
+from pamd.tick import State
+
+
+class CaptureSink:
+    """What the loop saw: a copy of every tick record and every event."""
+
+    def __init__(self) -> None:
+        self.rows: list[list[float]] = []
+        self.events: list[tuple[float, str, dict[str, Any]]] = []
+
+    def put(self, record: array) -> bool:
+        self.rows.append(record.tolist())
+        return True
+
+    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+        self.events.append((t_s, kind, data))
+
+    def close(self) -> None:
+        pass
+
+
+def same(a: Any, b: Any) -> bool:
+    """Equal, with NaN equal to NaN (and to a JSON 'NaN' string)."""
+    fa = float("nan") if a == "NaN" else a
+    fb = float("nan") if b == "NaN" else b
+    if isinstance(fa, float) and isinstance(fb, float) and math.isnan(fa) and math.isnan(fb):
+        return True
+    return fa == fb
+
+
+class Run:
+    def __init__(self, daemon: Daemon, cap: CaptureSink, result: dict[str, Any]) -> None:
+        self.daemon = daemon
+        self.cap = cap
+        self.result = result
+        self.files = result["recording"]["files"] if result.get("recording") else []
+
+
+@pytest.fixture
+def recorded_run(tmp_path: Path, sim_config: Callable[..., Any]) -> Callable[..., Run]:
+    def run(duration_s: float = 1.0, profile: dict[str, Any] | None = None,
+            req: dict[str, Any] | None = None, load_kg: float = 30.0,
+            **changes: Any) -> Run:
+        cfg = sim_config(load_kg, **changes)
+        rq = RecordingRequest(dir=str(tmp_path / "rec"), **(req or {}))
+        d = Daemon(cfg, note="test note", recording=rq)
+        cap = CaptureSink()
+        d.summary.downstream.insert(0, cap)
+        d.start(duration_s)
+        try:
+            if profile is not None:
+                d.wait_for_state((State.IDLE,), 5.0)
+                verdict = d.command("profile", profile)
+                assert verdict["ok"], verdict
+            d.wait(timeout_s=120)
+        finally:
+            d.stop("test finished")
+            d.wait(timeout_s=60)
+            d.close()
+        return Run(d, cap, d.result())
+
+    return run

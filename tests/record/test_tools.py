@@ -1,0 +1,91 @@
+"""`pamd inspect`, `export` and `recover`: what they print on a good file, and one
+clear line with a non-zero exit (never a traceback) on a bad one."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pamd.cli.main import main
+
+BAD = {
+    "missing": None,
+    "empty": b"",
+    "text": b"rig_id: sim\nthis is not an MCAP file\n",
+    "magic only": b"\x89MCAP0\r\n",
+    "cut in header": b"\x89MCAP0\r\n\x01\x20\x00",
+}
+
+
+def _bad(tmp_path: Path, kind: str) -> str:
+    p = tmp_path / f"{kind.replace(' ', '_')}.mcap"
+    if BAD[kind] is not None:
+        p.write_bytes(BAD[kind])
+    return str(p)
+
+
+@pytest.mark.parametrize("kind", list(BAD))
+@pytest.mark.parametrize("verb", ["inspect", "export", "recover"])
+def test_bad_files_give_one_clear_line(tmp_path: Path, capsys: Any, verb: str,
+                                       kind: str) -> None:
+    path = _bad(tmp_path, kind)
+    argv = [verb, path] + (["--csv", str(tmp_path / "csv")] if verb == "export" else [])
+    rc = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert rc != 0
+    assert "Traceback" not in err and len(err.splitlines()) == 1, err
+    assert err.startswith("pamd: error: ") and path in err
+
+
+def test_truncated_file_inspect_says_unfinished_and_recover_fixes_it(
+        recorded_run: Any, tmp_path: Path, capsys: Any) -> None:
+    run = recorded_run(duration_s=1.0)
+    data = Path(run.files[0]).read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    rc = main(["inspect", str(cut)])
+    cap = capsys.readouterr()
+    assert rc != 0 and "unfinished" in cap.out and "pamd recover" in cap.err
+    assert len(cap.err.strip().splitlines()) == 1
+    rc = main(["export", str(cut), "--csv", str(tmp_path / "csv")])
+    assert rc != 0 and "recover" in capsys.readouterr().err
+    out = tmp_path / "fixed.mcap"
+    assert main(["recover", str(cut), "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["inspect", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["finalised"] and "pamd.recovered" in info["metadata"]
+    counts = {c["topic"]: c["messages"] for c in info["channels"]}
+    n = counts["/pamd/sim/state/m1"]
+    assert 0 < n < len(run.cap.rows) and counts["/pamd/sim/loop"] == n
+    assert "pamd" in info["metadata"] and info["attachments"]
+
+
+def test_inspect_and_export_a_good_file(recorded_run: Any, tmp_path: Path,
+                                        capsys: Any) -> None:
+    run = recorded_run(duration_s=0.5)
+    path = run.files[0]
+    assert main(["inspect", path, "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    n = len(run.cap.rows)
+    counts = {c["topic"]: c["messages"] for c in info["channels"]}
+    assert counts["/pamd/sim/state/m1"] == n and counts["/pamd/sim/loop"] == n
+    assert info["lost_records"] == 0 and info["faults"] == []
+    assert abs(info["duration_s"] - (n - 1) / 1000) < 1e-9
+    assert info["metadata"]["pamd"]["note"] == "test note"
+    assert main(["inspect", path]) == 0
+    assert "/pamd/sim/state/m1" in capsys.readouterr().out
+    out = tmp_path / "csv"
+    assert main(["export", path, "--csv", str(out)]) == 0
+    with open(out / "pamd_sim_state_m1.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0][:4] == ["log_time_ns", "tick", "t_s", "pressure_bar"]
+    assert len(rows) == n + 1
+    i = rows[0].index("force_n")
+    fi = 7 + 1  # force_n is the 2nd muscle field, after the 7 loop fields
+    assert [float(r[i]) for r in rows[1:]] == [r[fi] for r in run.cap.rows]
+    assert (out / "pamd_sim_loop.csv").exists() and (out / "pamd_sim_events.csv").exists()
