@@ -64,6 +64,12 @@ class Loop:
         if self._stop_reason is None:
             self._stop_reason = reason
 
+    def _stalled(self, done: float) -> None:
+        gap_ms = 1000 * (done - self.last_tick_done)
+        if not self.ctrl.supervisor.latched:
+            self.ctrl.supervisor.fault(self.ctrl.now, f"loop stalled: no tick completed for "
+                                       f"{gap_ms:.0f} ms (limit {1000 * self.stall_s:.0f} ms)")
+
     def run(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
         ctrl = self.ctrl
         if not self.virtual:
@@ -112,9 +118,6 @@ class Loop:
                     now = mono()
                 wake = now - next_t
                 t_wake = perf()
-                if now - self.last_tick_done > self.stall_s and not ctrl.supervisor.latched:
-                    ctrl.supervisor.fault(next_t, f"loop stalled: no tick completed for "
-                                          f"{1000 * (now - self.last_tick_done):.0f} ms")
             # -- commands, then the tick -------------------------------------------
             for _ in range(MAX_COMMANDS_PER_TICK):
                 cmd = mailbox.poll()
@@ -134,7 +137,10 @@ class Loop:
             wake_h.add(wake)
             comp_h.add(compute)
             timing.ticks += 1
-            self.last_tick_done = mono()
+            done = mono()
+            if done - self.last_tick_done > self.stall_s and not virtual:
+                self._stalled(done)
+            self.last_tick_done = done
             # -- end of run, safe state ----------------------------------------------
             state = ctrl.supervisor.state
             if state == State.RUNNING:

@@ -17,7 +17,7 @@ class Histogram:
         self.max_s = 0.0
 
     def add(self, seconds: float) -> None:
-        us = int(seconds * 1e6)
+        us = int(seconds * 1e6 + 0.5)
         if us < 0:
             us = 0
         elif us > self.last:

@@ -15,6 +15,8 @@ from pamd.io.process import CommandPort
 from pamd.io.session import RecordingRequest
 from pamd.ipc.ring import BlockLayout, SharedBlock
 
+from ..record.conftest import make_sim_config
+
 
 class EventsOut:
     def __init__(self, block: SharedBlock) -> None:
@@ -50,11 +52,12 @@ def test_command_and_verdict_round_trip_through_the_rings() -> None:
 
 
 def test_commands_from_the_io_process_reach_the_loop_and_verdicts_return(
-        tmp_path: Any, sim_config: Any) -> None:
+        tmp_path: Any) -> None:
     script = ((20, "load", {"muscle": "m1", "load_kg": 20.0}),
               (30, "setpoint", {"muscle": "zz", "bar": 1.0}),
               (40, "nonsense", {}))
-    d = Daemon(sim_config(30.0), recording=RecordingRequest(dir=str(tmp_path), script=script))
+    d = Daemon(make_sim_config(tmp_path),
+               recording=RecordingRequest(dir=str(tmp_path), script=script))
     d.start(1.0)
     d.wait(60)
     d.close()

@@ -3,6 +3,7 @@ while a capture sink keeps, in-process, every record and event the loop produced
 
 from __future__ import annotations
 
+import copy
 import math
 from array import array
 from collections.abc import Callable
@@ -10,10 +11,38 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
+from pamd.config import LoadedConfig, load_config
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
 from pamd.tick import State
+
+SIM_YAML = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
+
+
+def _merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
+    out = copy.deepcopy(base)
+    for k, v in changes.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def make_sim_config(tmp_path: Path, load_kg: float = 30.0, **changes: Any) -> LoadedConfig:
+    """config/sim.yaml with the virtual clock, real-time off, and `changes` merged in."""
+    base = yaml.safe_load(SIM_YAML.read_text())
+    base["loop"]["clock"] = "virtual"
+    base["loop"]["realtime"] = {"enabled": False}
+    base["drivers"][0]["options"]["muscles"][0]["load_kg"] = load_kg
+    base["muscles"][0]["load_kg"] = load_kg
+    path = tmp_path / "sim.yaml"
+    path.write_text(yaml.safe_dump(_merge(base, changes), sort_keys=False))
+    return load_config(str(path))
+
+
+@pytest.fixture
+def sim_config(tmp_path: Path) -> Callable[..., LoadedConfig]:
+    return lambda load_kg=30.0, **changes: make_sim_config(tmp_path, load_kg, **changes)
 
 
 class CaptureSink:

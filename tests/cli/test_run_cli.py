@@ -1,0 +1,86 @@
+"""The whole product through its command line: config + CLI + simulated rig."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def pamd(*args: str, timeout: float = 120, **kw: object) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "pamd", *args], capture_output=True,
+                          text=True, timeout=timeout, cwd=kw.get("cwd", REPO))
+
+
+def test_help_teaches() -> None:
+    out = pamd("run", "--help").stdout
+    assert "--profile" in out and "safe state" in out and "examples:" in out
+
+
+def test_virtual_run_with_profile_prints_json_summary() -> None:
+    r = pamd("run", "--clock", "virtual", "--profile", "sine", "--freq-hz", "0.5",
+             "--min-bar", "1", "--max-bar", "3", "--cycles", "2", "--json")
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["clock"] == "virtual" and s["final_state"] == "IDLE"
+    assert s["stop_reason"] == "profile finished"
+    # 2 s lead-in (0 -> 2 bar at 1 bar/s) + 2 cycles of 2 s, then 0.4 s ramp to safe
+    # (2 -> 0 bar at the 5 bar/s slew limit).
+    assert 6390 <= s["ticks"] <= 6500
+    track = s["tracking"]["m1"]
+    assert track["samples"] > 4500 and track["rmse_bar"] < 0.05
+    assert s["faults"] == [] and s["lost_records"] == 0
+    assert "sensors read" in r.stderr
+
+
+def test_profile_faster_than_slew_limit_is_refused_before_anything_moves() -> None:
+    r = pamd("run", "--clock", "virtual", "--profile", "sine", "--freq-hz", "2")
+    assert r.returncode == 4
+    assert "slew limit" in r.stderr and "Traceback" not in r.stderr
+    assert "sensors read" not in r.stderr  # the rig never started
+
+
+def test_bad_config_is_refused_with_file_and_line(tmp_path: Path) -> None:
+    data = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())
+    data["safety"]["tracking_band_bar"] = -1
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(data, sort_keys=False))
+    for cmd in (("check-config", str(bad)), ("run", "--config", str(bad))):
+        r = pamd(*cmd)
+        assert r.returncode == 2
+        assert f"{bad}:" in r.stderr and "safety.tracking_band_bar" in r.stderr
+        assert "Traceback" not in r.stderr
+    ok = pamd("check-config", str(REPO / "config" / "sim.yaml"))
+    assert ok.returncode == 0 and "valid" in ok.stdout
+
+
+def test_sigterm_mid_profile_reaches_safe_state_and_exits_0(tmp_path: Path) -> None:
+    data = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())
+    data["loop"]["realtime"] = {"enabled": False}
+    cfg = tmp_path / "sim.yaml"
+    cfg.write_text(yaml.safe_dump(data, sort_keys=False))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pamd", "run", "--config", str(cfg), "--profile", "sine",
+         "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    assert proc.stderr is not None
+    deadline = time.monotonic() + 60
+    seen = ""
+    while "sine profile started" not in seen and time.monotonic() < deadline:
+        seen += proc.stderr.readline()
+    time.sleep(1.5)  # mid lead-in ramp, pressure above 0
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
+    s = json.loads(out)
+    assert s["stop_reason"] == "SIGTERM received"
+    assert s["final_state"] == "IDLE" and s["faults"] == []
+    assert "ramping to the safe state" in seen + err
