@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import math
+import time
 from array import array
 from collections.abc import Callable
 from pathlib import Path
@@ -90,12 +91,19 @@ def recorded_run(tmp_path: Path, sim_config: Callable[..., Any]) -> Callable[...
         d = Daemon(cfg, note="test note", recording=rq)
         cap = CaptureSink()
         d.summary.downstream.insert(0, cap)
-        d.start(duration_s)
+        # With a profile the run has no duration of its own (a virtual run could end
+        # before the command arrives): it is stopped once it has run `duration_s`.
+        d.start(duration_s if profile is None else None)
         try:
             if profile is not None:
-                d.wait_for_state((State.IDLE,), 5.0)
-                verdict = d.command("profile", profile)
+                assert d.wait_for_state((State.IDLE,), 10.0) == State.IDLE
+                verdict = d.command("profile", profile, timeout_s=30.0)
                 assert verdict["ok"], verdict
+                n = round(duration_s * cfg.rig.loop.rate_hz)
+                t0 = time.monotonic()
+                while d.loop.timing.ticks < n and time.monotonic() - t0 < 120:
+                    time.sleep(0.002)
+                d.stop("duration reached")
             d.wait(timeout_s=120)
         finally:
             d.stop("test finished")
