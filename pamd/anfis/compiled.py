@@ -27,8 +27,8 @@ k = 1/(2 sigma^2) precomputed), then the rule firing strengths as the grid's out
 product (same rule order as the model), then the output as
 (sum w q + sum_i s_i sum w p_i) / sum w with sum w = prod_i sum_j mu_ij. If all
 firing strengths are tiny (below 1e-200, a point far out on narrow MFs) it re-runs
-with each input's memberships divided by their maximum, as the batch path always
-does, so no underflow gives 0/0. Bell MFs always take that log-domain route.
+with each input's memberships divided by their maximum, as the batch path does, so
+no underflow gives 0/0.
 """
 
 from __future__ import annotations
@@ -38,11 +38,10 @@ from collections.abc import Callable
 from operator import mul
 from typing import TYPE_CHECKING
 
+from pamd.anfis.model import UNDERFLOW_GUARD as _UNDERFLOW_GUARD
+
 if TYPE_CHECKING:
     from pamd.anfis.model import AnfisModel
-
-#: Below this total firing strength the fast Gaussian path re-runs in the log domain.
-_UNDERFLOW_GUARD = 1e-200
 
 
 class CompiledAnfis:
@@ -165,11 +164,13 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
                 [exp(-(si - c) * (si - c) * k) for c, k in mf]
                 for si, mf in zip(s, mfs, strict=True)
             ]
-            den = 1.0
-            for m in mus:
-                den *= sum(m)
-            if den > _UNDERFLOW_GUARD:
-                return weighted_output(mus, s)
+        else:
+            mus = [[exp(v) for v in log_mf[i](si)] for i, si in enumerate(s)]
+        den = 1.0
+        for m in mus:
+            den *= sum(m)
+        if den > _UNDERFLOW_GUARD:
+            return weighted_output(mus, s)
         return weighted_output(shifted(s), s)
 
     return evaluate
@@ -192,7 +193,7 @@ def _bell_logs(
     """Per input: s -> [log mu_j] for bell MFs given as (centre, a, b) triples.
 
     log mu = -softplus(t), t = b ln z^2, z = (s - c) / a; written as in
-    numpy.logaddexp(0, t) so both paths round alike.
+    numpy.logaddexp(0, t) so that both paths round alike.
     """
     log, log1p, exp = math.log, math.log1p, math.exp
 

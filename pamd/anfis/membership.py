@@ -7,6 +7,9 @@ single-sample path (`pamd.anfis.compiled`) re-implements the same formulas with
 `math` on plain floats.
 
 All quantities live in the model's *scaled* input space (see `AnfisModel.scale`).
+The batch functions take the MFs of all inputs side by side: column k of the sample
+matrix holds the scaled input that MF k belongs to, and the parameters are flat
+vectors (all inputs' MFs in input order).
 Two MF types:
 
 * ``"gaussian"``: mu = exp(-(x - c)^2 / (2 sigma^2)); parameters centre c, width sigma.
@@ -77,8 +80,9 @@ def log_membership(
     widths: np.ndarray,
     slopes: np.ndarray | None = None,
 ) -> np.ndarray:
-    """log mu for every sample (rows) and MF (columns): shape (len(x), len(centres))."""
-    d = x[:, None] - centres[None, :]
+    """log mu of MF k at x[..., k]: x is (n, K) (column k holds the input of MF k, or
+    broadcasts to it) and the parameters are (K,). Returns (n, K)."""
+    d = x - centres
     if mf_type == "gaussian":
         return -(d * d) / (2.0 * widths * widths)
     t = _bell_t(d / widths, slopes)
@@ -92,18 +96,18 @@ def log_membership_grads(
     widths: np.ndarray,
     slopes: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[np.ndarray]]:
-    """log mu and its derivatives with respect to each MF parameter.
+    """log mu (as `log_membership`) and its derivatives with respect to each parameter.
 
     Returns (log_mu, [d log_mu / d centre, d log_mu / d width(, d log_mu / d slope)]),
-    each of shape (len(x), len(centres)). Derivative of sample n w.r.t. parameter j of
-    MF j only (MF parameters do not interact).
+    each (n, K); entry (n, k) is the derivative of MF k's log membership at sample n
+    with respect to MF k's own parameter (MF parameters do not interact).
     """
-    d = x[:, None] - centres[None, :]
+    d = x - centres
     if mf_type == "gaussian":
         inv_var = 1.0 / (widths * widths)
         log_mu = -0.5 * d * d * inv_var
         d_c = d * inv_var  # d/dc of -(x-c)^2/(2s^2)
-        d_s = d * d * inv_var / widths  # d/ds
+        d_s = d * d_c / widths  # d/ds
         return log_mu, [d_c, d_s]
     a, b = widths, slopes
     z = d / a
@@ -127,14 +131,3 @@ def _bell_t(z: np.ndarray, slopes: np.ndarray | None) -> np.ndarray:
     log_z2 = np.full_like(z2, -np.inf)
     np.log(z2, out=log_z2, where=z2 > 0.0)
     return slopes * log_z2
-
-
-def normalised_memberships(log_mu: np.ndarray) -> np.ndarray:
-    """exp(log_mu - row max): memberships of one input divided by the row's largest.
-
-    A per-sample constant factor on one input's memberships scales every rule firing
-    strength of that sample by the same factor, so normalised firing strengths are
-    unchanged; this keeps the largest membership at 1 and rules out 0/0 when every
-    MF of an input has underflowed.
-    """
-    return np.exp(log_mu - log_mu.max(axis=1, keepdims=True))

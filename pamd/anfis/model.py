@@ -26,15 +26,22 @@ from __future__ import annotations
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.anfis.membership import check_mf_type, log_membership, normalised_memberships
+from pamd.anfis.membership import check_mf_type, log_membership
 from pamd.errors import ModelError
 
+if TYPE_CHECKING:
+    from pamd.anfis.compiled import CompiledAnfis
+
 SCALINGS: tuple[str, ...] = ("minmax", "zscore")
+
+#: Below this total firing strength a sample's memberships are recomputed divided by
+#: each input's largest, so that underflow (narrow MFs, far point) cannot give 0/0.
+UNDERFLOW_GUARD = 1e-200
 
 
 @dataclass(frozen=True)
@@ -138,8 +145,8 @@ class AnfisModel:
                 if not np.all(np.isfinite(a)):
                     raise ModelError(f"input {v.name!r}: non-finite MF {label}")
         for v, w in zip(self.inputs, self.widths, strict=True):
-            if not np.all(w != 0):
-                raise ModelError(f"input {v.name!r}: an MF width is zero")
+            if not np.all(w > 0):
+                raise ModelError(f"input {v.name!r}: MF widths must be positive, got {w.tolist()}")
         if self.consequents.shape != (self.n_rules, d + 1):
             raise ModelError(
                 f"consequents: expected shape ({self.n_rules}, {d + 1}) for {self.n_rules} "
@@ -190,25 +197,30 @@ class AnfisModel:
 
     # -- premise parameter vector (training) -------------------------------------------
 
+    @property
+    def mf_input(self) -> np.ndarray:
+        """For each MF in flat order (all inputs' MFs in input order), its input index."""
+        return np.repeat(np.arange(self.n_inputs), self.n_mfs)
+
+    def flat_params(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """(centres, widths, slopes or None), each concatenated over the inputs."""
+        slopes = None if self.slopes is None else np.concatenate(self.slopes)
+        return np.concatenate(self.centres), np.concatenate(self.widths), slopes
+
     def premise_vector(self) -> np.ndarray:
-        """All premise parameters in one vector: per input, centres, widths(, slopes)."""
-        parts: list[np.ndarray] = []
-        for i in range(self.n_inputs):
-            parts += [self.centres[i], self.widths[i]]
-            if self.slopes is not None:
-                parts.append(self.slopes[i])
-        return np.concatenate(parts)
+        """All premise parameters in one vector: all centres, all widths(, all slopes),
+        each block in flat MF order (see `mf_input`)."""
+        return np.concatenate([p for p in self.flat_params() if p is not None])
 
     def set_premise_vector(self, vec: np.ndarray) -> None:
         """Inverse of `premise_vector` (copies)."""
-        pos = 0
-        for i, m in enumerate(self.n_mfs):
-            self.centres[i] = np.array(vec[pos : pos + m], dtype=np.float64)
-            self.widths[i] = np.array(vec[pos + m : pos + 2 * m], dtype=np.float64)
-            pos += 2 * m
-            if self.slopes is not None:
-                self.slopes[i] = np.array(vec[pos : pos + m], dtype=np.float64)
-                pos += m
+        k = sum(self.n_mfs)
+        splits = np.cumsum(self.n_mfs)[:-1]
+        vec = np.array(vec, dtype=np.float64)
+        self.centres = np.split(vec[:k], splits)
+        self.widths = np.split(vec[k : 2 * k], splits)
+        if self.slopes is not None:
+            self.slopes = np.split(vec[2 * k : 3 * k], splits)
 
     def copy(self) -> AnfisModel:
         return AnfisModel(
@@ -250,27 +262,29 @@ class AnfisModel:
         """Raw (already clipped) inputs -> scaled inputs s."""
         return (X - self.scale_offset) / self.scale_span
 
+    @property
+    def rule_index(self) -> np.ndarray:
+        """(d x R) ints: entry (i, r) is the flat index of rule r's MF on input i."""
+        offsets = np.concatenate([[0], np.cumsum(self.n_mfs)[:-1]])
+        return (np.array(self.rule_mfs, dtype=np.intp).reshape(-1, self.n_inputs) + offsets).T
+
+    def log_memberships(self, S: np.ndarray) -> np.ndarray:
+        """log mu of every MF (flat order) at scaled inputs S (n x d): (n x sum(n_mfs))."""
+        return log_membership(self.mf_type, S[:, self.mf_input], *self.flat_params())
+
     def firing_strengths(self, S: np.ndarray) -> np.ndarray:
         """Normalised rule firing strengths wbar (n x R) for scaled inputs S (n x d)."""
-        n = S.shape[0]
-        w: np.ndarray | None = None
-        for i in range(self.n_inputs):
-            slopes = None if self.slopes is None else self.slopes[i]
-            mu = normalised_memberships(
-                log_membership(self.mf_type, S[:, i], self.centres[i], self.widths[i], slopes)
-            )
-            w = mu if w is None else (w[:, :, None] * mu[:, None, :]).reshape(n, -1)
-        assert w is not None
-        # Every input's largest membership is exactly 1, so sum(w) >= 1: no 0/0.
-        return w / w.sum(axis=1, keepdims=True)
+        return rule_firing(self.log_memberships(S), self.rule_index)
 
     def predict_scaled(self, S: np.ndarray) -> np.ndarray:
         """Output for scaled inputs S (n x d), no clipping."""
         wbar = self.firing_strengths(S)
-        f = S @ self.consequents[:, :-1].T + self.consequents[:, -1]
+        f = np.hstack([S, np.ones((S.shape[0], 1))]) @ self.consequents.T
         return np.einsum("nr,nr->n", wbar, f)
 
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False) -> Any:
+    def predict(
+        self, X: ArrayLike, *, return_clipped: bool = False
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Model output for raw inputs X (n x d, input units) in the output unit.
 
         Inputs outside the training ranges are clipped to the range, never
@@ -282,7 +296,7 @@ class AnfisModel:
         y = self.predict_scaled(self.scale(Xc))
         return (y, clipped) if return_clipped else y
 
-    def compile(self) -> Any:
+    def compile(self) -> CompiledAnfis:
         """The single-sample evaluator for the control tick (`CompiledAnfis`)."""
         from pamd.anfis.compiled import CompiledAnfis
 
@@ -294,6 +308,36 @@ class AnfisModel:
             f"AnfisModel({ins} -> {self.output.name} [{self.output.unit}], "
             f"{self.mf_type} MFs {self.n_mfs}, {self.n_rules} rules)"
         )
+
+
+def rule_firing(log_mu: np.ndarray, rule_index: np.ndarray) -> np.ndarray:
+    """Normalised firing strengths wbar (n x R) from log memberships (n x K, flat MF
+    order) and `AnfisModel.rule_index` (d x R).
+
+    w_r is the product over the inputs of exp(log mu) of the rule's MFs. Where the
+    total firing strength of a sample is below `UNDERFLOW_GUARD`, that sample's log
+    memberships are first shifted by each input's maximum: a per-input factor scales
+    every rule of the sample alike, so wbar is unchanged, and the largest rule fires
+    at 1.
+    """
+    w = _products(np.exp(log_mu), rule_index)
+    total = w @ np.ones(w.shape[1])
+    low = total < UNDERFLOW_GUARD
+    if low.any():
+        shifted = log_mu[low]
+        for idx in rule_index:  # the MFs of one input (as they appear in the rules)
+            mfs = np.unique(idx)
+            shifted[:, mfs] -= shifted[:, mfs].max(axis=1, keepdims=True)
+        w[low] = _products(np.exp(shifted), rule_index)
+        total[low] = w[low].sum(axis=1)
+    return w / total[:, None]
+
+
+def _products(mu: np.ndarray, rule_index: np.ndarray) -> np.ndarray:
+    w = mu[:, rule_index[0]]  # a copy (fancy indexing), safe to multiply in place
+    for idx in rule_index[1:]:
+        w *= mu[:, idx]
+    return w
 
 
 def init_model(

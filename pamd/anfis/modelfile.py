@@ -3,7 +3,7 @@
 Role: `save` and `load` an `AnfisModel`. Floats are written with Python's shortest
 round-tripping repr (the json module's default), so `load(save(m))` predicts bit for
 bit like `m`. Anything wrong with a file (not JSON, truncated, another format or
-version, missing fields, wrong shapes, NaN/inf, zero widths) raises
+version, missing fields, wrong shapes, NaN/inf, non-positive widths) raises
 `pamd.errors.ModelError` with the file name and the field at fault.
 
 Layout (version 1)::

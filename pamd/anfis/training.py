@@ -4,7 +4,8 @@ Role: fit a model to data. Each epoch (batch, vectorised numpy):
 
 1. Forward pass: with the premise (MF) parameters fixed, the output is linear in the
    consequents, so they are solved by linear least squares over all training
-   samples (`solve_consequents`: SVD-based `numpy.linalg.lstsq` by default).
+   samples (`solve_consequents`: the normal equations behind a condition-number
+   check, with one refinement step, else SVD-based `numpy.linalg.lstsq`).
 2. Backward pass: with the consequents fixed, the analytic gradient of
    E = 1/2 sum (y_hat - y)^2 with respect to every premise parameter is computed
    (`error_and_gradient`), and the premise parameters take one step of length
@@ -23,23 +24,23 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from pamd.anfis.checks import as_inputs_outputs, check_trainable
-from pamd.anfis.membership import log_membership_grads, normalised_memberships
-from pamd.anfis.model import AnfisModel, init_model
+from pamd.anfis.membership import log_membership, log_membership_grads
+from pamd.anfis.model import AnfisModel, init_model, rule_firing
 from pamd.metrics import regression_metrics
 
 #: Progress callback: (epoch 1-based, training RMSE, validation RMSE or None).
-ProgressCallback = Callable[[int, float, "float | None"], None]
+ProgressCallback = Callable[[int, float, float | None], None]
 
-#: Largest condition number of the column-equilibrated Gram matrix for which the
-#: "auto" solver uses the normal equations (first solve's relative error about
-#: cond * 1e-16, shrunk by the same factor again by one refinement step).
+#: Largest 1-norm condition number of the column-equilibrated Gram matrix for which
+#: the "auto" solver uses the normal equations (first solve's relative error about
+#: cond * 1e-16, shrunk by about the same factor again by one refinement step).
 NORMAL_EQUATIONS_MAX_COND = 1e12
 
 
@@ -57,7 +58,7 @@ class TrainingOptions:
     step_decrease: float = 0.9
     error_goal: float = 0.0  # stop once the training RMSE is at or below this
     solver: str = "auto"  # "auto" (normal equations if well conditioned) or "lstsq" (SVD)
-    ridge: float = 0.0  # Tikhonov term added to the least-squares problem (0 = none)
+    ridge: float = 0.0  # adds ridge * ||consequents||^2 to the squared error (0 = none)
     validation_fraction: float = 0.0  # hold out this share when no validation set is given
     seed: int = 0  # seeds the validation hold-out (the only random choice)
     restore_best: bool = True  # end with the best epoch's parameters
@@ -76,7 +77,6 @@ class TrainingResult:
     best_epoch: int
     selected_on: str  # "validation" or "training"
     seconds: float
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -119,117 +119,116 @@ def solve_consequents(
     """Least-squares consequents theta minimising ||A theta - y||^2 + ridge ||theta||^2.
 
     ``"lstsq"``: SVD-based `numpy.linalg.lstsq` (rank-deficient columns, e.g. rules
-    that never fire, get the minimum-norm solution). ``"auto"``: the normal equations
-    on column-equilibrated A, but only when the condition number of their matrix (from
-    its eigenvalues) is at most `NORMAL_EQUATIONS_MAX_COND`, followed by one step of
-    iterative refinement on the true residual (which brings the error from about
-    cond * 1e-16 down to least-squares accuracy); otherwise, or with an all-zero
-    column, it falls back to lstsq. "auto" is several times faster on long data.
+    that never fire, get the minimum-norm solution). ``"auto"``: the normal equations,
+    column-equilibrated (unit diagonal), but only when their 1-norm condition number
+    ||G||_1 ||G^-1||_1 is at most `NORMAL_EQUATIONS_MAX_COND`, followed by one step
+    of iterative refinement on the normal-equation residual (which takes the error
+    from about cond * 1e-16 down to least-squares accuracy); otherwise, or with an
+    all-zero column, it falls back to lstsq. "auto" is several times faster.
     A ridge > 0 is applied as extra rows sqrt(ridge) * I (lstsq) or on the diagonal.
     """
     if solver not in ("lstsq", "auto"):
         raise ValueError(f"unknown solver {solver!r}; expected 'lstsq' or 'auto'")
     p = A.shape[1]
     if solver == "auto":
-        norms = np.sqrt(np.einsum("np,np->p", A, A))
-        if np.all(norms > 0):
-            As = A / norms
-            gram = As.T @ As
-            ridge_s = ridge / (norms * norms)  # ridge on the equilibrated unknowns
-            if ridge > 0:
-                gram[np.diag_indices(p)] += ridge_s
-            eig = np.linalg.eigvalsh(gram)
-            if eig[0] > 0 and eig[-1] <= NORMAL_EQUATIONS_MAX_COND * eig[0]:
-                z = np.linalg.solve(gram, As.T @ y)
-                rhs = As.T @ (y - As @ z) - ridge_s * z  # gradient at z: refinement
-                return (z + np.linalg.solve(gram, rhs)) / norms
+        gram = A.T @ A
+        if ridge > 0:
+            gram[np.diag_indices(p)] += ridge
+        d = np.sqrt(np.diag(gram))
+        if np.all(d > 0):
+            scaled = gram / np.outer(d, d)  # unit diagonal: column equilibration
+            try:
+                inv = np.linalg.inv(scaled)
+            except np.linalg.LinAlgError:
+                inv = None
+            if inv is not None:
+                cond = np.abs(scaled).sum(axis=0).max() * np.abs(inv).sum(axis=0).max()
+                if cond <= NORMAL_EQUATIONS_MAX_COND:
+                    x = (inv @ ((A.T @ y) / d)) / d
+                    # One refinement step on the normal-equation residual.
+                    r = A.T @ (y - A @ x) - ridge * x
+                    return x + (inv @ (r / d)) / d
     if ridge > 0:
         A = np.vstack([A, math.sqrt(ridge) * np.eye(p)])
         y = np.concatenate([y, np.zeros(p)])
     return np.linalg.lstsq(A, y, rcond=None)[0]
 
 
-def _forward(model: AnfisModel, S: np.ndarray) -> tuple[np.ndarray, list[list[np.ndarray]]]:
-    """Normalised firing strengths (n x R) and per-input d log mu / d parameter lists."""
-    n = S.shape[0]
-    w: np.ndarray | None = None
-    dlogs: list[list[np.ndarray]] = []
-    for i in range(model.n_inputs):
-        slopes = None if model.slopes is None else model.slopes[i]
-        log_mu, d = log_membership_grads(
-            model.mf_type, S[:, i], model.centres[i], model.widths[i], slopes
-        )
-        mu = normalised_memberships(log_mu)
-        w = mu if w is None else (w[:, :, None] * mu[:, None, :]).reshape(n, -1)
-        dlogs.append(d)
-    assert w is not None
-    return w / w.sum(axis=1, keepdims=True), dlogs
+class _Layout:
+    """A model's fixed structure, precomputed once, and the forward pass on a flat
+    premise vector (the training loop updates that vector, not the model)."""
+
+    def __init__(self, model: AnfisModel) -> None:
+        self.mf_type = model.mf_type
+        self.k = sum(model.n_mfs)
+        self.mf_input = model.mf_input
+        self.rule_index = model.rule_index
+        self.n_rules = model.n_rules
+        self.cons_shape = (model.n_rules, model.n_inputs + 1)
+        # indicator[r, k] = 1 if rule r uses MF k (flat order).
+        self.indicator = np.zeros((self.n_rules, self.k))
+        self.indicator[np.arange(self.n_rules), self.rule_index] = 1.0
+
+    def params(self, vec: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        k = self.k
+        return vec[:k], vec[k : 2 * k], vec[2 * k : 3 * k] if self.mf_type == "bell" else None
+
+    def forward(self, vec: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Normalised firing strengths (n x R) and d log mu / d (centre, width(, slope)),
+        each (n x K) in flat MF order."""
+        log_mu, dlogs = log_membership_grads(self.mf_type, S[:, self.mf_input], *self.params(vec))
+        return rule_firing(log_mu, self.rule_index), dlogs
+
+    def predict(self, vec: np.ndarray, theta: np.ndarray, Sa: np.ndarray) -> np.ndarray:
+        """Output for scaled inputs with a ones column, Sa = [S, 1] (n x (d + 1))."""
+        log_mu = log_membership(self.mf_type, Sa[:, self.mf_input], *self.params(vec))
+        return np.einsum("nr,nr->n", rule_firing(log_mu, self.rule_index), Sa @ theta.T)
+
+    def gradient(
+        self,
+        wbar: np.ndarray,
+        dlogs: list[np.ndarray],
+        F: np.ndarray,
+        y_hat: np.ndarray,
+        err: np.ndarray,
+    ) -> np.ndarray:
+        """dE/d(premise vector) for E = 1/2 sum err^2, err = y_hat - y, consequents
+        fixed. d y_hat / d theta_k = d log mu_k / d theta * (sum over the rules using
+        MF k of wbar_r (f_r - y_hat)); that rule sum for every MF is one product with
+        the indicator matrix."""
+        B = ((wbar * (F - y_hat[:, None])) * err[:, None]) @ self.indicator
+        return np.concatenate([np.einsum("nk,nk->k", B, dlog) for dlog in dlogs])
+
+    def project(self, vec: np.ndarray, opts: TrainingOptions) -> np.ndarray:
+        """Keep widths (by magnitude) >= min_width and slopes >= min_slope, in place."""
+        k = self.k
+        w = vec[k : 2 * k]  # only |width| matters to the MFs; it may change sign
+        w[np.abs(w) < opts.min_width] = opts.min_width
+        if self.mf_type == "bell":
+            np.maximum(vec[2 * k :], opts.min_slope, out=vec[2 * k :])
+        return vec
 
 
 def _design(wbar: np.ndarray, Sa: np.ndarray) -> np.ndarray:
     """Least-squares design matrix: column r*(d+1)+k is wbar_r * [s, 1]_k."""
-    n = wbar.shape[0]
-    return (wbar[:, :, None] * Sa[:, None, :]).reshape(n, -1)
+    return np.einsum("nr,nk->nrk", wbar, Sa).reshape(wbar.shape[0], -1)
 
 
-def rule_indicator(model: AnfisModel) -> np.ndarray:
-    """R x sum(n_mfs) 0/1 matrix: entry (r, offset_i + j) = 1 if rule r uses MF j of input i."""
-    offsets = np.concatenate([[0], np.cumsum(model.n_mfs)[:-1]])
-    M = np.zeros((model.n_rules, sum(model.n_mfs)))
-    for r, mfs in enumerate(model.rule_mfs):
-        M[r, offsets + np.array(mfs)] = 1.0
-    return M
-
-
-def _premise_gradient(
-    model: AnfisModel,
-    wbar: np.ndarray,
-    dlogs: list[list[np.ndarray]],
-    F: np.ndarray,
-    y_hat: np.ndarray,
-    err: np.ndarray,
-    indicator: np.ndarray,
-) -> np.ndarray:
-    """dE/d(premise vector) for E = 1/2 sum err^2, err = y_hat - y, consequents fixed.
-
-    d y_hat / d theta_ij = d log mu_ij / d theta * sum over rules using MF j of input i of
-    wbar_r (f_r - y_hat); that rule sum for all (i, j) at once is one product with
-    `rule_indicator`.
-    """
-    B = ((wbar * (F - y_hat[:, None])) * err[:, None]) @ indicator
-    parts: list[np.ndarray] = []
-    pos = 0
-    for i, m in enumerate(model.n_mfs):
-        Bi = B[:, pos : pos + m]
-        parts += [np.einsum("nm,nm->m", Bi, dlog) for dlog in dlogs[i]]
-        pos += m
-    return np.concatenate(parts)
+def _with_ones(S: np.ndarray) -> np.ndarray:
+    return np.hstack([S, np.ones((S.shape[0], 1))])
 
 
 def error_and_gradient(model: AnfisModel, X: ArrayLike, y: ArrayLike) -> tuple[float, np.ndarray]:
     """E = 1/2 sum (y_hat - y)^2 over raw inputs X (no clipping) and its analytic
     gradient with respect to `model.premise_vector()`, consequents held fixed."""
-    S = model.scale(np.asarray(X, dtype=np.float64))
-    yv = np.asarray(y, dtype=np.float64)
-    wbar, dlogs = _forward(model, S)
-    F = S @ model.consequents[:, :-1].T + model.consequents[:, -1]
+    layout = _Layout(model)
+    vec = model.premise_vector()
+    Sa = _with_ones(model.scale(np.asarray(X, dtype=np.float64)))
+    wbar, dlogs = layout.forward(vec, Sa)
+    F = Sa @ model.consequents.T
     y_hat = np.einsum("nr,nr->n", wbar, F)
-    err = y_hat - yv
-    grad = _premise_gradient(model, wbar, dlogs, F, y_hat, err, rule_indicator(model))
-    return 0.5 * float(err @ err), grad
-
-
-def _project(model: AnfisModel, vec: np.ndarray, opts: TrainingOptions) -> np.ndarray:
-    """Keep widths (by magnitude) >= min_width and slopes >= min_slope."""
-    pos = 0
-    for m in model.n_mfs:
-        w = vec[pos + m : pos + 2 * m]
-        w[:] = np.where(np.abs(w) < opts.min_width, opts.min_width, w)
-        pos += 2 * m
-        if model.slopes is not None:
-            vec[pos : pos + m] = np.maximum(vec[pos : pos + m], opts.min_slope)
-            pos += m
-    return vec
+    err = y_hat - np.asarray(y, dtype=np.float64)
+    return 0.5 * float(err @ err), layout.gradient(wbar, dlogs, F, y_hat, err)
 
 
 def train(
@@ -258,58 +257,60 @@ def train(
         Xv = yv = None
     check_trainable(Xa, model.n_params, names)
     t0 = time.perf_counter()
-    S = model.scale(np.clip(Xa, model.input_lo, model.input_hi))
-    Sa = np.hstack([S, np.ones((S.shape[0], 1))])
-    Sv = None if Xv is None else model.scale(np.clip(Xv, model.input_lo, model.input_hi))
-    n_cons = (model.n_rules, model.n_inputs + 1)
-    indicator = rule_indicator(model)
+    layout = _Layout(model)
+    Sa = _with_ones(model.scale(np.clip(Xa, model.input_lo, model.input_hi)))
+    Sva = (
+        None if Xv is None else _with_ones(model.scale(np.clip(Xv, model.input_lo, model.input_hi)))
+    )
     vec = model.premise_vector()
+    theta = model.consequents
     state = StepSizeState(opts.initial_step)
     train_hist: list[float] = []
     val_hist: list[float] = []
     steps: list[float] = []
-    best = (math.inf, 0, vec.copy(), model.consequents.copy())
+    best = (math.inf, 0, vec.copy(), theta.copy())
     for epoch in range(1, opts.epochs + 1):
-        wbar, dlogs = _forward(model, S)
+        wbar, dlogs = layout.forward(vec, Sa)
         theta = solve_consequents(_design(wbar, Sa), ya, solver=opts.solver, ridge=opts.ridge)
-        model.consequents = theta.reshape(n_cons)
-        F = Sa @ model.consequents.T
+        theta = theta.reshape(layout.cons_shape)
+        F = Sa @ theta.T
         y_hat = np.einsum("nr,nr->n", wbar, F)
         err = y_hat - ya
         rmse = math.sqrt(float(err @ err) / err.size)
         train_hist.append(rmse)
         val_rmse = None
-        if Sv is not None:
-            ev = model.predict_scaled(Sv) - yv
+        if Sva is not None:
+            ev = layout.predict(vec, theta, Sva) - yv
             val_rmse = math.sqrt(float(ev @ ev) / ev.size)
             val_hist.append(val_rmse)
         score = rmse if val_rmse is None else val_rmse
         if score < best[0]:
-            best = (score, epoch, vec.copy(), model.consequents.copy())
+            best = (score, epoch, vec.copy(), theta.copy())
         if callback is not None:
             callback(epoch, rmse, val_rmse)
         state = update_step_size(train_hist, state, opts.step_increase, opts.step_decrease)
         steps.append(state.step)
         if epoch == opts.epochs or rmse <= opts.error_goal:
             break
-        grad = _premise_gradient(model, wbar, dlogs, F, y_hat, err, indicator)
+        grad = layout.gradient(wbar, dlogs, F, y_hat, err)
         norm = float(np.linalg.norm(grad))
         if not norm > 0 or not math.isfinite(norm):
             break  # at a stationary point (or broken): nothing more to learn
-        vec = _project(model, vec - state.step * grad / norm, opts)
-        model.set_premise_vector(vec)
+        vec = layout.project(vec - state.step * grad / norm, opts)
     if opts.restore_best:
-        model.set_premise_vector(best[2])
-        model.consequents = best[3]
+        vec, theta = best[2], best[3]
+    k = layout.k
+    vec[k : 2 * k] = np.abs(vec[k : 2 * k])  # the sign of a width is immaterial
+    model.set_premise_vector(vec)
+    model.consequents = np.array(theta)
     seconds = time.perf_counter() - t0
-    selected_on = "training" if Sv is None else "validation"
     result = TrainingResult(
         model=model,
         train_rmse=np.array(train_hist),
-        val_rmse=None if Sv is None else np.array(val_hist),
+        val_rmse=None if Sva is None else np.array(val_hist),
         step_sizes=np.array(steps),
         best_epoch=best[1] if opts.restore_best else len(train_hist),
-        selected_on=selected_on,
+        selected_on="training" if Sva is None else "validation",
         seconds=seconds,
     )
     _record(model, opts, result, Xa, ya, Xv, yv)

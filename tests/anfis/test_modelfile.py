@@ -119,7 +119,7 @@ def _swapped_rule(doc):
         (_drop_centre, "widths"),
         (_drop_rule, "rules"),
         (_short_p, "rules[3].p"),
-        (_zero_width, "width is zero"),
+        (_zero_width, "widths must be positive"),
         (_no_scaling, "scaling"),
         (_string_number, "scaling.span"),
         (_swapped_rule, "rules[0].mfs"),
