@@ -139,10 +139,7 @@ class RigController:
     def at_safe_state(self) -> bool:
         """True when every started muscle's setpoint has reached its safe pressure (or
         nothing was ever written)."""
-        for m in self.muscles:
-            if m.started and abs(m.sp - m.safe_bar) > 1e-6:
-                return False
-        return True
+        return all(not m.started or abs(m.sp - m.safe_bar) <= 1e-6 for m in self.muscles)
 
     def status(self) -> dict[str, Any]:
         sup = self.supervisor

@@ -27,6 +27,23 @@ from pamd.tick import State, TickLayout
 log = logging.getLogger("pamd")
 
 
+class PendingCommand:
+    """A command's verdict, set by the loop's thread."""
+
+    def __init__(self) -> None:
+        self._done = threading.Event()
+        self.verdict: dict[str, Any] = {}
+
+    def set(self, verdict: dict[str, Any]) -> None:
+        self.verdict = verdict
+        self._done.set()
+
+    def result(self, timeout_s: float) -> dict[str, Any]:
+        if not self._done.wait(timeout_s):
+            return {"ok": False, "error": f"no verdict from the loop within {timeout_s:g} s"}
+        return self.verdict
+
+
 class Daemon:
     """Owns one rig run. `start()`, then `command()`/`status()`, then `stop()` and
     `wait()`; `close()` releases the drivers."""
@@ -105,24 +122,23 @@ class Daemon:
         self.summary.close()
 
     # -- commands and status -------------------------------------------------------------
+    def submit(self, verb: str, payload: dict[str, Any] | None = None,
+               sender: str = "local") -> PendingCommand:
+        """Queue a command for the loop without waiting. Commands queued before
+        `start()` are applied on the first tick after the sensors are read."""
+        pending = PendingCommand()
+        try:
+            cmd = parse_command(verb, payload, sender=sender, reply=pending.set)
+        except CommandRefused as exc:
+            pending.set({"ok": False, "error": str(exc)})
+        else:
+            self.mailbox.put(cmd)
+        return pending
+
     def command(self, verb: str, payload: dict[str, Any] | None = None,
                 timeout_s: float = 5.0, sender: str = "local") -> dict[str, Any]:
         """Send a command to the loop and wait for its verdict."""
-        done = threading.Event()
-        box: dict[str, Any] = {}
-
-        def reply(verdict: dict[str, Any]) -> None:
-            box.update(verdict)
-            done.set()
-
-        try:
-            cmd = parse_command(verb, payload, sender=sender, reply=reply)
-        except CommandRefused as exc:
-            return {"ok": False, "error": str(exc)}
-        self.mailbox.put(cmd)
-        if not done.wait(timeout_s):
-            return {"ok": False, "error": f"no verdict from the loop within {timeout_s:g} s"}
-        return box
+        return self.submit(verb, payload, sender).result(timeout_s)
 
     def wait_for_state(self, states: tuple[State, ...], timeout_s: float = 5.0) -> State:
         """Block until the supervisor is in one of `states` (or the timeout)."""

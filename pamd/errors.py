@@ -24,7 +24,8 @@ class ConfigError(PamdError):
     def __init__(self, issues: list[ConfigIssue]) -> None:
         self.issues = issues
         lines = [str(i) for i in issues]
-        head = "invalid configuration" if len(issues) == 1 else f"{len(issues)} configuration errors"
+        n = len(issues)
+        head = "invalid configuration" if n == 1 else f"{n} configuration errors"
         super().__init__(head + ":\n  " + "\n  ".join(lines))
 
 

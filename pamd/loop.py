@@ -118,8 +118,9 @@ class Loop:
                     now = mono()
                 wake = now - next_t
                 t_wake = perf()
-            # -- commands, then the tick -------------------------------------------
-            for _ in range(MAX_COMMANDS_PER_TICK):
+            # -- commands (held until the sensors are read), then the tick -------------
+            for _ in range(MAX_COMMANDS_PER_TICK if ctrl.supervisor.state != State.STARTING
+                           else 0):
                 cmd = mailbox.poll()
                 if cmd is None:
                     break

@@ -58,7 +58,8 @@ class ForceMap:
         rows = [r for r in text.splitlines() if r and not r.startswith("#")]
         reader = csv.DictReader(rows)
         return cls(
-            [(float(r["pressure_bar"]), float(r["contraction"]), float(r["force_n"])) for r in reader]
+            [(float(r["pressure_bar"]), float(r["contraction"]), float(r["force_n"]))
+             for r in reader]
         )
 
     def curve_force_n(self, level: int, contraction: float) -> float:

@@ -6,6 +6,7 @@ Drivers know nothing of muscles; the rig knows nothing of protocols.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 
@@ -127,10 +128,8 @@ class Rig:
 
     def close(self) -> None:
         for drv in self.drivers.values():
-            try:
+            with contextlib.suppress(Exception):  # closing must go on for the others
                 drv.close()
-            except Exception:  # closing must go on for the other drivers
-                pass
 
     def driver(self, name: str) -> Driver:
         return self.drivers[name]

@@ -80,6 +80,8 @@ class LocalMailbox:
         self._q.put(cmd)
 
     def poll(self) -> Any | None:
+        if self._q.empty():  # the common case, without raising queue.Empty
+            return None
         try:
             return self._q.get_nowait()
         except queue.Empty:

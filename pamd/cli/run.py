@@ -16,7 +16,6 @@ from pamd.control.profiles import ProfileSpec
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
 from pamd.io.session import RecordingRequest
-from pamd.tick import State
 
 PROFILE_KINDS = ("constant", "step", "ramp", "sine", "triangle")
 
@@ -90,21 +89,18 @@ def run(args: argparse.Namespace) -> int:
                                  run_name=args.name, profile=profile)
     daemon = Daemon(cfg, note=args.note, recording=recording)
     _install_signals(daemon)
+    # Queued before the loop starts: applied on the first tick after start-up, so a
+    # virtual run is the same every time.
+    pending = daemon.submit("profile", profile) if profile is not None else None
     daemon.start(args.duration, stop_when_profile_done=spec is not None and
                  spec.cycles is not None)
     try:
-        if spec is not None:
-            st = daemon.wait_for_state((State.IDLE, State.FAULT, State.ESTOP),
-                                       cfg.rig.safety.startup_timeout_s + 1.0)
-            if st == State.IDLE:
-                payload = {k: v for k, v in spec.__dict__.items() if v is not None}
-                if args.muscle:
-                    payload["muscle"] = args.muscle
-                verdict = daemon.command("profile", payload)
-                if not verdict["ok"]:
-                    daemon.stop("profile refused")
-                    daemon.wait()
-                    raise CommandRefused(verdict["error"])
+        if pending is not None:
+            verdict = pending.result(cfg.rig.safety.startup_timeout_s + 5.0)
+            if not verdict["ok"]:
+                daemon.stop("profile refused")
+                daemon.wait()
+                raise CommandRefused(verdict["error"])
         daemon.wait()
     finally:
         daemon.stop("shutting down")

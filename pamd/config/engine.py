@@ -63,6 +63,8 @@ def describe(value: Any) -> str:
 
 
 def _type_name(tp: Any) -> str:
+    if tp is Any:
+        return "a mapping (checked by its owner)"
     origin = typing.get_origin(tp)
     if origin is Literal:
         return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))

@@ -57,7 +57,9 @@ class ProfileSpec:
         return 0.0
 
     def edge_s(self, slew_limit: float) -> float:
-        return self.rise_s if self.rise_s is not None else (self.max_bar - self.min_bar) / slew_limit
+        if self.rise_s is not None:
+            return self.rise_s
+        return (self.max_bar - self.min_bar) / slew_limit
 
     def check(self, low_bar: float, high_bar: float, slew_limit: float) -> None:
         """Refuse (CommandRefused) a profile outside [low, high] or faster than the slew

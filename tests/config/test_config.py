@@ -36,7 +36,7 @@ def test_unknown_key_names_line_and_suggests() -> None:
     assert issue.line == line
     assert issue.path == "loop.stall_timout_s"
     assert "stall_timeout_s" in issue.expected
-    assert "rig.yaml:%d" % line in str(issue)
+    assert f"rig.yaml:{line}" in str(issue)
 
 
 def test_wrong_type_reports_expected_and_found() -> None:

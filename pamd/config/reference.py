@@ -1,0 +1,95 @@
+"""Generates the config reference (docs/config-reference.md) from the schema, so the
+reference cannot drift from the code: `python -m pamd.config.reference > FILE`.
+A test checks the committed file is current."""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from dataclasses import MISSING
+from typing import Any
+
+from pamd.config.engine import _type_name
+from pamd.config.schema import RigConfig
+
+HEADER = """# pamd config reference
+
+Generated from the schema by `python -m pamd.config.reference`; do not edit by hand.
+Every key, its type, unit and default. Unknown keys are errors. Units are in the key
+names. `pamd check-config FILE` validates a file and names file, line and key of
+every problem.
+
+Lists (`drivers`, `muscles`) hold one mapping per item; their keys are shown with
+`[]`. A driver's `options` are validated by that driver type's own schema, listed
+at the end per installed driver.
+"""
+
+
+def _default(f: dataclasses.Field[Any]) -> str:
+    if f.default is not MISSING:
+        d = f.default
+        if d is None:
+            return "null"
+        if isinstance(d, bool):
+            return str(d).lower()
+        return f"`{d}`"
+    if f.default_factory is not MISSING:  # type: ignore[misc]
+        return "(section)" if dataclasses.is_dataclass(f.default_factory()) else "`{}`"
+    return "**required**"
+
+
+def _rows(cls: type, prefix: str, out: list[str]) -> None:
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        tp = hints[f.name]
+        key = f"{prefix}{f.name}"
+        inner = _dataclass_in(tp)
+        doc = f.metadata.get("doc", "")
+        unit = f.metadata.get("unit", "")
+        if inner is not None:
+            plural = typing.get_origin(tp) is tuple
+            out.append(f"| `{key}` | {'list' if plural else 'section'} | | {_default(f)} | "
+                       f"{doc} |")
+            _rows(inner, f"{key}[]." if plural else f"{key}.", out)
+            continue
+        bounds = []
+        for k, word in (("gt", ">"), ("min", ">="), ("max", "<=")):
+            if k in f.metadata:
+                bounds.append(f"{word} {f.metadata[k]}")
+        b = f" ({', '.join(bounds)})" if bounds else ""
+        out.append(f"| `{key}` | {_type_name(tp)}{b} | {unit} | {_default(f)} | {doc} |")
+
+
+def _dataclass_in(tp: Any) -> type | None:
+    if dataclasses.is_dataclass(tp):
+        return tp  # type: ignore[return-value]
+    for arg in typing.get_args(tp):
+        if dataclasses.is_dataclass(arg):
+            return arg  # type: ignore[return-value]
+    return None
+
+
+def _table(cls: type, prefix: str = "") -> list[str]:
+    out = ["| key | type | unit | default | meaning |", "|---|---|---|---|---|"]
+    _rows(cls, prefix, out)
+    return out
+
+
+def generate() -> str:
+    from pamd.drivers import available_drivers
+
+    lines = [HEADER, "## Rig config", ""] + _table(RigConfig) + [""]
+    for name, ep in sorted(available_drivers().items()):
+        cls = ep.load()
+        lines += [f"## Driver `{name}` options", "", (cls.__doc__ or "").strip().split("\n")[0],
+                  ""]
+        if dataclasses.fields(cls.options_type):
+            lines += _table(cls.options_type, "options.")
+        else:
+            lines.append("No options.")
+        lines.append("")
+    return "\n".join(lines).rstrip() + "\n"
+
+
+if __name__ == "__main__":
+    print(generate(), end="")
