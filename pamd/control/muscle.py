@@ -207,6 +207,8 @@ class MuscleController:
                 action = self.safety.estop_action
                 if action == "hold":
                     target = sp
+                elif action == "vent" and target == 0.0:
+                    sp = 0.0  # vent at once: only where the load allows it
             use_pid = not (state == S_FAULT or state == S_ESTOP)
             step = slew * dt
             if sp < target - step:

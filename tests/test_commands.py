@@ -1,0 +1,114 @@
+"""Commands applied by the loop: references, hold/resume, estop/reset, loads."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pamd.calibration import load_calibration
+from pamd.tick import State
+
+
+def test_profile_refused_until_length_is_referenced_then_home_persists(
+        harness: Any, tmp_path: Path) -> None:
+    h = harness()
+    h.step(0.01)
+    h.m1.ref.length_referenced = False  # as an incremental encoder at power-up
+    refused = h.cmd("profile", kind="sine", cycles=1)
+    assert not refused["ok"] and "send home first" in refused["error"]
+    assert h.state == "IDLE" and h.m1.profile is None  # nothing changed
+    true_len = h.sim.plant("m1").length_mm
+    raw_len = h.m1.length
+    ok = h.cmd("home", muscle="m1", length_mm=true_len + 10.0)
+    assert ok["ok"] and ok["length_offset_mm"] == pytest.approx(10.0 + true_len - raw_len)
+    h.step(0.01)
+    assert h.m1.length == pytest.approx(true_len + 10.0, abs=0.05)
+    assert h.ctrl.calibration_dirty  # saved by the daemon outside the loop's thread
+    assert h.cmd("profile", kind="sine", cycles=1)["ok"]
+
+
+def test_tare_zeroes_the_force_and_is_saved_by_the_daemon(sim_daemon: Any) -> None:
+    d = sim_daemon()
+    assert d.wait_for_state((State.IDLE,)) == State.IDLE
+    assert d.ctrl.muscles[0].force == pytest.approx(30 * 9.80665, abs=5.0)
+    assert d.command("tare", {"muscle": "m1"})["ok"]
+    d.service()
+    cal = load_calibration(d.cfg.calibration_path)
+    assert cal.muscles["m1"].force_offset_n == pytest.approx(294.2, abs=5.0)
+    assert cal.muscles["m1"].tared_at
+    d.wait_for_state((State.RUNNING,), timeout_s=0.1)  # let a few ticks pass
+    assert abs(d.ctrl.muscles[0].force) < 5.0
+
+
+def test_hold_freezes_and_resume_continues_the_profile(harness: Any) -> None:
+    h = harness()
+    h.step(0.01)
+    h.cmd("profile", kind="triangle", min_bar=1.0, max_bar=3.0, freq_hz=0.25, cycles=1)
+    h.step(1.5)
+    assert h.cmd("hold")["ok"] and h.state == "HOLD"
+    frozen = h.m1.sp
+    h.step(2.0)
+    assert h.m1.sp == frozen
+    assert h.cmd("resume")["ok"] and h.state == "RUNNING"
+    h.step(0.01)
+    assert h.m1.sp == pytest.approx(frozen, abs=0.05)  # continues where it was
+    h.step(6.0)
+    assert h.state == "IDLE"  # finished its one cycle
+
+
+def test_estop_latches_and_reset_needs_the_cause_gone(harness: Any) -> None:
+    h = harness(safety={"estop_action": "vent"})
+    h.step(0.01)
+    h.cmd("setpoint", muscle="m1", bar=3.0)
+    h.step(1.5)
+    assert h.cmd("estop", reason="operator pressed the button")["ok"]
+    h.step(0.002)
+    assert h.state == "ESTOP" and h.m1.sp == 0.0 and h.m1.exhaust_open  # 30 kg: may vent
+    refused = h.cmd("setpoint", muscle="m1", bar=2.0)
+    assert not refused["ok"] and "ESTOP" in refused["error"]
+    assert h.cmd("reset")["ok"] and h.state == "IDLE"
+    assert h.cmd("setpoint", muscle="m1", bar=1.0)["ok"]
+
+
+def test_estop_vent_is_not_honoured_when_the_load_needs_pressure(harness: Any) -> None:
+    h = harness(load_kg=80.0, safety={"estop_action": "vent"}, drivers=[{
+        "name": "sim", "type": "sim", "options": {"muscles": [
+            {"name": "m1", "load_kg": 80.0, "initial_pressure_bar": 3.0}]}}])
+    h.step(0.01)
+    h.cmd("estop")
+    h.step(2.0)
+    assert h.m1.sp == pytest.approx(h.m1.safe_bar) and h.m1.safe_bar > 1.0
+    assert not h.m1.exhaust_open
+
+
+def test_load_change_moves_the_safe_pressure_and_is_refused_above_rating(harness: Any) -> None:
+    h = harness()
+    h.step(0.01)
+    assert h.m1.safe_bar == 0.0
+    ok = h.cmd("load", muscle="m1", load_kg=80.0)
+    assert ok["ok"] and ok["safe_pressure_bar"] > 1.0
+    bad = h.cmd("load", muscle="m1", load_kg=120.0)
+    assert not bad["ok"] and "rating" in bad["error"]
+    assert h.m1.load_kg == 80.0
+
+
+def test_500_hz_fallback_and_two_muscles(harness: Any) -> None:
+    sig = {"driver": "sim"}
+    muscles = []
+    for name in ("m1", "m2"):
+        s = {k: {**sig, "channel": f"{name}.{k}"} for k in ("pressure", "force", "length")}
+        s["valve"] = {**sig, "channel": f"{name}.valve", "raw_max": 6.0}
+        muscles.append({"name": name, "load_kg": 30.0, "signals": s})
+    h = harness(loop={"rate_hz": 500.0}, muscles=muscles, drivers=[{
+        "name": "sim", "type": "sim",
+        "options": {"muscles": [{"name": "m1"}, {"name": "m2", "load_kg": 50.0}]}}])
+    assert h.period_s == 0.002
+    h.step(0.01)
+    assert h.cmd("setpoint", muscle="m2", bar=3.0)["ok"]
+    h.step(3.0)
+    m1, m2 = h.ctrl.muscles
+    assert m2.pressure == pytest.approx(3.0, abs=0.03)
+    assert m1.pressure == pytest.approx(0.0, abs=0.03)
+    assert h.sim.plant("m2").contraction == pytest.approx(0.045, abs=0.01)  # 50 kg, 3 bar
