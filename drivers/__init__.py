@@ -94,6 +94,10 @@ class Driver(ABC):
         encoder, a simulated rig), so it needs no `home`."""
         return False
 
+    def set_safe_outputs(self, values: dict[int, float]) -> None:  # noqa: B027 - optional
+        """Output index -> raw value the device should apply by itself if the host goes
+        silent (a module's communication watchdog). Never blocks; no-op by default."""
+
     def health(self) -> DriverHealth:
         return DriverHealth(ok=self.fault is None, fault=self.fault)
 

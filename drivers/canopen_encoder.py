@@ -1,0 +1,399 @@
+"""The `canopen-encoder` driver: CiA 406 encoders (and raw CAN frames) on one
+python-can bus.
+
+Per encoder node the driver's thread configures TPDO1 to carry the position
+(0x6004) on an event timer and sets the heartbeat time (0x1017) by SDO, starts
+the node (NMT start), then publishes every position frame, scaled counts -> mm and
+stamped with the loop's clock on arrival. It watches the heartbeat: a silent node,
+one that stops sending positions, one that reports an emergency (EMCY) or sends
+frames of the wrong length is counted and named in `health()`, and when that lasts
+`fault_after_s` it sets `fault` (safe state). A node that reboots (boot-up message)
+is configured and started again; the fault clears when it is healthy and the
+operator resets. `preset_position()` sets the encoder's own reference through
+the preset object 0x6003 (for `home`), without blocking the caller.
+
+Raw frames (`frames:`) read a field of any CAN frame for devices that are not
+CANopen. Interfaces: anything python-can opens (`socketcan`, `pcan`, ...; `serial`
+over a pty pair for the emulated rig, `virtual` in one process for tests).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import time
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from pamd.drivers import Channel
+from pamd.drivers.can_frames import (
+    EMCY_BASE,
+    HEARTBEAT_BASE,
+    NMT_ID,
+    NMT_START,
+    NMT_STATES,
+    OBJ_PRESET,
+    SDO_RX_BASE,
+    SDO_TX_BASE,
+    TPDO1_BASE,
+    EncoderNode,
+    RawFrame,
+    raw_frame_value,
+    sdo_download,
+    sdo_reply,
+    tpdo1_setup,
+)
+from pamd.drivers.device import Backoff, ThreadedDriver
+
+from pamd.config.engine import spec
+from pamd.errors import DriverError
+
+BAD_FRAME_HOLD_S = 0.05  # a bad frame counts as a failing cycle this long
+
+
+@dataclass(frozen=True, kw_only=True)
+class CanEncoderOptions:
+    """Options of the `canopen-encoder` driver."""
+
+    interface: str = spec("socketcan", "python-can interface (socketcan, pcan, kvaser, "
+                          "serial, virtual, ...).")
+    channel: str = spec("can0", "python-can channel (can0; a serial device for 'serial').")
+    bitrate: int = spec(500000, "Bus bit rate (ignored by serial and virtual).", unit="bit/s",
+                        min=10000, max=1000000)
+    sdo_timeout_s: float = spec(0.2, "Wait this long for an SDO answer.", unit="s", gt=0.0)
+    recv_timeout_s: float = spec(0.005, "Longest wait for a frame before the thread checks "
+                                 "its timers.", unit="s", gt=0.0, max=0.1)
+    fault_after_s: float = spec(0.3, "Failure lasting this long sets the driver's fault.",
+                                unit="s", gt=0.0)
+    reconnect_min_s: float = spec(0.05, "First retry delay (bus or node configuration).",
+                                  unit="s", gt=0.0)
+    reconnect_max_s: float = spec(2.0, "Longest retry delay.", unit="s", gt=0.0)
+    encoders: tuple[EncoderNode, ...] = spec((), "CiA 406 encoder nodes on this bus.")
+    frames: tuple[RawFrame, ...] = spec((), "Values in raw CAN frames (not CANopen).")
+
+
+class _Node:
+    """Run-time state of one encoder node."""
+
+    def __init__(self, spec_: EncoderNode, index: int) -> None:
+        self.spec = spec_
+        self.index = index
+        self.id = spec_.node_id
+        self.needs_config = True
+        self.retry_at = 0.0
+        self.backoff = Backoff(0.05, 2.0)
+        self.started_at = math.inf
+        self.last_hb = -math.inf
+        self.last_pdo = -math.inf
+        self.last_start_cmd = -math.inf
+        self.nmt_state = -1
+        self.emcy: tuple[int, int] | None = None
+        hb = spec_.heartbeat_ms / 1000.0
+        self.hb_timeout = spec_.heartbeat_timeout_s or (3.0 * hb + 0.05)
+
+    @property
+    def label(self) -> str:
+        return f"node {self.id} ({self.spec.name})"
+
+
+class CanEncoderDriver(ThreadedDriver):
+    """CiA 406 encoders and raw CAN values on one bus."""
+
+    options_type = CanEncoderOptions
+
+    def __init__(self, name: str, options: CanEncoderOptions | None = None) -> None:
+        o = options if options is not None else CanEncoderOptions()
+        names = [e.name for e in o.encoders] + [f.name for f in o.frames]
+        problems = []
+        if len(set(names)) != len(names):
+            problems.append("channel names must be unique")
+        ids = [e.node_id for e in o.encoders]
+        if len(set(ids)) != len(ids):
+            problems.append("node ids must be unique")
+        if not names:
+            problems.append("needs at least one encoder or frame")
+        if o.interface == "udp_multicast":
+            problems.append("interface udp_multicast sends off this machine; use socketcan, "
+                            "serial or virtual")
+        if problems:
+            raise DriverError(f"canopen-encoder driver {name!r}: " + "; ".join(problems))
+        super().__init__(name, o)
+        self.fault_after_s = o.fault_after_s
+        self.nodes = [_Node(e, i) for i, e in enumerate(o.encoders)]
+        self._by_cob: dict[int, tuple[str, Any]] = {}
+        for n in self.nodes:
+            self._by_cob[TPDO1_BASE + n.id] = ("pdo", n)
+            self._by_cob[HEARTBEAT_BASE + n.id] = ("hb", n)
+            self._by_cob[EMCY_BASE + n.id] = ("emcy", n)
+        self._raw: dict[tuple[int, bool], list[tuple[int, RawFrame]]] = {}
+        for k, f in enumerate(o.frames):
+            self._raw.setdefault((f.can_id, f.extended), []).append((len(self.nodes) + k, f))
+        self._bus: Any = None
+        self._presets: deque[tuple[int, int]] = deque()
+        self.preset_generation = [0] * len(self.input_channels)
+        self._bad_t = -math.inf
+        self._bad_msg = ""
+        self._sdo_wait: int | None = None
+        self._sdo_answer: bytes | None = None
+
+    # -- Driver protocol ----------------------------------------------------------------
+    def channels(self) -> Sequence[Channel]:
+        o: CanEncoderOptions = self.options
+        return ([Channel(e.name, "in", "mm") for e in o.encoders]
+                + [Channel(f.name, "in", f.unit) for f in o.frames])
+
+    def write(self, index: int, value: float) -> None:
+        raise DriverError(f"{self.describe()} has no outputs")
+
+    def is_absolute(self, index: int) -> bool:
+        o: CanEncoderOptions = self.options
+        if index < len(o.encoders):
+            return o.encoders[index].absolute
+        return o.frames[index - len(o.encoders)].absolute
+
+    def describe(self) -> str:
+        o: CanEncoderOptions = self.options
+        return f"canopen-encoder {self.name!r} ({o.interface} {o.channel})"
+
+    def preset_position(self, index: int, position_mm: float) -> None:
+        """Make encoder `index` read `position_mm` from now on (0x6003), done by the
+        driver's thread; `preset_generation[index]` counts the presets applied."""
+        if index >= len(self.nodes):
+            raise DriverError(f"{self.describe()}: channel {index} is not a CANopen encoder")
+        e = self.nodes[index].spec
+        counts = round((position_mm - e.offset_mm) / e.mm_per_count)
+        self._presets.append((index, counts))
+
+    # -- the I/O thread -------------------------------------------------------------------
+    def _open_bus(self) -> bool:
+        import can
+
+        o: CanEncoderOptions = self.options
+        kwargs: dict[str, Any] = {}
+        if o.interface == "serial":
+            kwargs["timeout"] = o.recv_timeout_s
+        elif o.interface != "virtual":
+            kwargs["bitrate"] = o.bitrate
+        try:
+            self._bus = can.Bus(interface=o.interface, channel=o.channel, **kwargs)
+        except Exception as exc:  # noqa: BLE001 - missing adapter, bad channel: retry
+            self.error("bus_open_failures", f"cannot open the bus: {exc}")
+            return False
+        self.connected = True
+        self.count("bus_opens")
+        return True
+
+    def release(self) -> None:
+        bus, self._bus = self._bus, None
+        self.connected = False
+        if bus is not None:
+            with contextlib.suppress(Exception):
+                bus.shutdown()
+
+    def run(self) -> None:
+        o: CanEncoderOptions = self.options
+        backoff = Backoff(o.reconnect_min_s, o.reconnect_max_s)
+        mono = time.monotonic
+        last_check = 0.0
+        while not self.stopping.is_set():
+            if self._bus is None:
+                if not self._open_bus():
+                    self.failing(f"cannot open the CAN bus ({self.recent_errors[-1]})")
+                    self.stopping.wait(backoff.next())
+                    continue
+                backoff.reset()
+            now = mono()
+            for n in self.nodes:
+                if n.needs_config and now >= n.retry_at and self._bus is not None:
+                    self._configure(n)
+            while self._presets and self._bus is not None:
+                self._preset(*self._presets.popleft())
+            self._receive(o.recv_timeout_s)
+            now = mono()
+            if now - last_check >= 0.01:
+                last_check = now
+                problem = self._check(now)
+                if problem is None:
+                    self.healthy()
+                else:
+                    self.failing(problem)
+        self.release()
+
+    def _receive(self, timeout_s: float) -> Any:
+        bus = self._bus
+        if bus is None:
+            return None
+        try:
+            msg = bus.recv(timeout_s)
+        except Exception as exc:  # noqa: BLE001 - a broken link or garbage on the wire
+            self.error("bus_errors", f"receive failed: {exc}")
+            self.release()
+            return None
+        if msg is not None:
+            self._dispatch(msg)
+        return msg
+
+    def _send(self, can_id: int, data: bytes) -> bool:
+        import can
+
+        bus = self._bus
+        if bus is None:
+            return False
+        try:
+            bus.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
+        except Exception as exc:  # noqa: BLE001 - a full queue, a broken link
+            self.error("send_errors", f"send of 0x{can_id:03X} failed: {exc}")
+            return False
+        return True
+
+    def _dispatch(self, msg: Any) -> None:
+        if msg.is_error_frame:
+            self.count("error_frames")
+            return
+        cid, data = msg.arbitration_id, bytes(msg.data)
+        if not msg.is_extended_id and cid == self._sdo_wait:
+            self._sdo_answer = data
+            return
+        raw = self._raw.get((cid, bool(msg.is_extended_id)))
+        if raw is not None:
+            now = self.clock()
+            for idx, f in raw:
+                v = raw_frame_value(f, data)
+                if v is None:
+                    self._bad(f"frame 0x{cid:X} for {f.name} has {len(data)} bytes, needs "
+                              f"{f.byte_offset + f.length}", (f.name,))
+                else:
+                    self.stamp(idx, v, now)
+            self.count("frames")
+            return
+        hit = None if msg.is_extended_id else self._by_cob.get(cid)
+        if hit is None:
+            self.count("ignored_frames")
+            return
+        kind, n = hit
+        if kind == "pdo":
+            if len(data) < 4:
+                self._bad(f"{n.label}: position frame of {len(data)} bytes, needs 4",
+                          (n.spec.name,))
+                return
+            counts = int.from_bytes(data[:4], "little", signed=n.spec.signed)
+            n.last_pdo = time.monotonic()
+            self.stamp(n.index, counts * n.spec.mm_per_count + n.spec.offset_mm, self.clock())
+            self.count("positions")
+        elif kind == "hb":
+            self._heartbeat(n, data)
+        else:
+            self._emergency(n, data)
+
+    def _bad(self, message: str, names: tuple[str, ...]) -> None:
+        self._bad_t = time.monotonic()
+        self._bad_msg = self.error("bad_frames", message, names)
+
+    def _heartbeat(self, n: _Node, data: bytes) -> None:
+        if len(data) < 1:
+            self._bad(f"{n.label}: empty heartbeat", (n.spec.name,))
+            return
+        now = time.monotonic()
+        state = data[0] & 0x7F
+        n.last_hb = now
+        n.nmt_state = state
+        self.count("heartbeats")
+        if state == 0x00:  # boot-up: the node restarted and lost its configuration
+            self.error("node_boots", f"{n.label} restarted (boot-up message)", (n.spec.name,))
+            n.needs_config = True
+            n.retry_at = now
+        elif state in (0x04, 0x7F) and not n.needs_config and now - n.last_start_cmd > 0.5:
+            self.error("nmt_restarts", f"{n.label} is {NMT_STATES[state]}; sending NMT start",
+                       (n.spec.name,))
+            n.last_start_cmd = now
+            self._send(NMT_ID, bytes([NMT_START, n.id]))
+
+    def _emergency(self, n: _Node, data: bytes) -> None:
+        if len(data) < 3:
+            self._bad(f"{n.label}: EMCY frame of {len(data)} bytes", (n.spec.name,))
+            return
+        code, register = int.from_bytes(data[:2], "little"), data[2]
+        if code == 0:
+            n.emcy = None
+            self.count("emcy_resets")
+        else:
+            n.emcy = (code, register)
+            self.error("emergencies", f"{n.label} emergency 0x{code:04X} (error register "
+                       f"0x{register:02X})", (n.spec.name,))
+
+    def _sdo_write(self, n: _Node, index: int, sub: int, value: int, size: int) -> str | None:
+        """One expedited download; returns a problem or None. Other frames are handled
+        while waiting."""
+        o: CanEncoderOptions = self.options
+        self._sdo_wait, self._sdo_answer = SDO_TX_BASE + n.id, None
+        try:
+            if not self._send(SDO_RX_BASE + n.id, sdo_download(index, sub, value, size)):
+                return f"{n.label}: could not send the SDO request"
+            deadline = time.monotonic() + o.sdo_timeout_s
+            while self._sdo_answer is None and time.monotonic() < deadline:
+                if self._bus is None:
+                    return f"{n.label}: bus lost during SDO"
+                self._receive(min(o.recv_timeout_s, max(0.0, deadline - time.monotonic())))
+            answer = self._sdo_answer
+        finally:
+            self._sdo_wait = None
+        if answer is None:
+            self.count("sdo_timeouts")
+            return f"{n.label}: no SDO answer to 0x{index:04X}:{sub} within {o.sdo_timeout_s:g} s"
+        ok, why = sdo_reply(answer, index, sub)
+        return None if ok else f"{n.label}: {why}"
+
+    def _configure(self, n: _Node) -> None:
+        now = time.monotonic()
+        problem = None
+        if n.spec.configure:
+            for index, sub, value, size in tpdo1_setup(n.spec):
+                problem = self._sdo_write(n, index, sub, value, size)
+                if problem is not None:
+                    break
+        if problem is None and self._send(NMT_ID, bytes([NMT_START, n.id])):
+            n.needs_config = False
+            n.backoff.reset()
+            n.started_at = n.last_start_cmd = time.monotonic()
+            self.count("nodes_started")
+            return
+        self.error("config_failures", problem or f"{n.label}: NMT start not sent",
+                   (n.spec.name,))
+        n.retry_at = now + n.backoff.next()
+
+    def _preset(self, index: int, counts: int) -> None:
+        n = self.nodes[index]
+        problem = self._sdo_write(n, OBJ_PRESET, 0, counts, 4)
+        if problem is None:
+            self.preset_generation[index] += 1
+            self.count("presets")
+        else:
+            self.error("preset_failures", f"preset of {n.label} failed: {problem}",
+                       (n.spec.name,))
+
+    def _check(self, now: float) -> str | None:
+        """The first problem of any node, or a recent bad frame, or None."""
+        if self._bus is None:
+            return "CAN bus closed after an error (reopening)"
+        for n in self.nodes:
+            if n.needs_config:
+                if n.retry_at > now or self.counters.get("config_failures", 0):
+                    last = self.recent_errors[-1] if self.recent_errors else ""
+                    return f"{n.label} not configured ({last})"
+                continue
+            since = now - n.started_at
+            if n.spec.heartbeat_ms > 0 and now - max(n.last_hb, n.started_at) > n.hb_timeout:
+                return (f"{n.label} silent: no heartbeat for "
+                        f"{1000 * (now - max(n.last_hb, n.started_at)):.0f} ms")
+            if since > n.spec.position_timeout_s and \
+                    now - max(n.last_pdo, n.started_at) > n.spec.position_timeout_s:
+                state = NMT_STATES.get(n.nmt_state, "unknown state")
+                return (f"{n.label} sends no position (TPDO1) for "
+                        f"{1000 * (now - max(n.last_pdo, n.started_at)):.0f} ms ({state})")
+            if n.emcy is not None:
+                return f"{n.label} reports emergency 0x{n.emcy[0]:04X}"
+        if now - self._bad_t < BAD_FRAME_HOLD_S:
+            return self._bad_msg
+        return None

@@ -1,0 +1,354 @@
+"""The `modbus` driver: analog and digital I/O modules over Modbus TCP or RTU.
+
+Channels come from a register map (`drivers/modbus_map.py`; built-in maps in
+`drivers/modbus_presets.py`): inputs are read in as few requests as the map
+allows once per poll cycle, each value stamped with the loop's clock when its
+response arrived; outputs are sent when their register value changes and
+re-sent every `write_refresh_s`, never before the loop has written them (start-up
+reads before it writes). Values are in the channel's unit (volts); the rig's
+signal calibration goes on to SI.
+
+All bus I/O runs on the driver's thread with pymodbus's synchronous client.
+Exception responses, timeouts and disconnects are counted per kind and per
+channel and logged with the device and channel named (`health()`); the link is
+re-opened with backoff; failure that lasts `fault_after_s` sets `fault`, which
+the supervisor turns into the safe state. A module with a communication watchdog
+gets the outputs' safe values (`set_safe_outputs`) written to its safe-value
+registers, so it reaches the safe state by itself if this PC goes silent.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from pamd.drivers import Channel
+from pamd.drivers.device import Backoff, ThreadedDriver
+from pamd.drivers.modbus_map import (
+    MAX_WRITE_REGISTERS,
+    Block,
+    CommSafety,
+    ModbusPoint,
+    check_points,
+    decode,
+    encode,
+    plan_blocks,
+    to_raw,
+    to_value,
+)
+from pamd.drivers.modbus_presets import PRESETS
+
+from pamd.config.engine import spec
+from pamd.errors import DriverError
+
+EXCEPTION_NAMES = {1: "illegal function", 2: "illegal data address", 3: "illegal data value",
+                   4: "device failure", 5: "acknowledge", 6: "device busy",
+                   10: "gateway path unavailable", 11: "gateway target did not respond"}
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModbusOptions:
+    """Options of the `modbus` driver."""
+
+    transport: Literal["tcp", "rtu"] = spec("tcp", "Modbus TCP (Ethernet) or RTU (RS-485).")
+    host: str = spec("127.0.0.1", "TCP: the module's address.")
+    port: int = spec(502, "TCP: the module's port.", min=1, max=65535)
+    serial_port: str = spec("", "RTU: serial device or pyserial URL (/dev/ttyUSB0).")
+    baud: int = spec(115200, "RTU: baud rate.", unit="baud", min=300, max=4000000)
+    parity: Literal["N", "E", "O"] = spec("N", "RTU: parity.")
+    stopbits: int = spec(1, "RTU: stop bits.", min=1, max=2)
+    bytesize: int = spec(8, "RTU: data bits.", min=7, max=8)
+    device_id: int = spec(1, "Modbus device (unit/slave) id.", min=0, max=255)
+    timeout_s: float = spec(0.1, "Wait this long for a response.", unit="s", gt=0.0)
+    poll_period_s: float = spec(0.001, "Start a read cycle this often (0: back to back).",
+                                unit="s", min=0.0, max=10.0)
+    write_refresh_s: float = spec(0.5, "Re-send unchanged outputs this often.", unit="s",
+                                  gt=0.0)
+    reconnect_min_s: float = spec(0.05, "First reconnect delay (doubles per failure).",
+                                  unit="s", gt=0.0)
+    reconnect_max_s: float = spec(2.0, "Longest reconnect delay.", unit="s", gt=0.0)
+    fault_after_s: float = spec(0.3, "Failure lasting this long sets the driver's fault.",
+                                unit="s", gt=0.0)
+    max_gap: int = spec(0, "Read across up to this many unmapped registers to save requests "
+                        "(only if the device answers for them).", min=0, max=100)
+    preset: Literal["none", "adam-6024", "wago-750-559"] = spec(
+        "none", "Built-in map, used when inputs and outputs are both empty.")
+    inputs: tuple[ModbusPoint, ...] = spec((), "Input channels (read every poll cycle).")
+    outputs: tuple[ModbusPoint, ...] = spec((), "Output channels (holding registers, coils).")
+    comm_safety: CommSafety | None = spec(None, "The module's communication watchdog; null: "
+                                          "none, or configured on the module.")
+
+
+def effective_map(o: ModbusOptions) -> tuple[tuple[ModbusPoint, ...], tuple[ModbusPoint, ...]]:
+    """The (inputs, outputs) in force: explicit ones, or the preset's."""
+    if not o.inputs and not o.outputs and o.preset != "none":
+        return PRESETS[o.preset]
+    return o.inputs, o.outputs
+
+
+class ModbusDriver(ThreadedDriver):
+    """Modbus TCP/RTU analog and digital I/O."""
+
+    options_type = ModbusOptions
+
+    def __init__(self, name: str, options: ModbusOptions | None = None) -> None:
+        o = options if options is not None else ModbusOptions()
+        ins, outs = effective_map(o)
+        problems = check_points(ins, False) + check_points(outs, True)
+        if set(p.name for p in ins) & set(p.name for p in outs):
+            problems.append("an input and an output share a name")
+        if o.transport == "rtu" and not o.serial_port:
+            problems.append("transport rtu needs serial_port")
+        if problems:
+            raise DriverError(f"modbus driver {name!r}: " + "; ".join(problems))
+        self.in_points, self.out_points = ins, outs
+        super().__init__(name, o)
+        self.fault_after_s = o.fault_after_s
+        self.read_blocks: list[Block] = plan_blocks(ins, o.max_gap)
+        self.write_blocks: list[Block] = plan_blocks(outs, 0, MAX_WRITE_REGISTERS)
+        n = len(outs)
+        self._out: list[float] = [math.nan] * n  # latest value from the loop (volts)
+        self._sent: list[float | None] = [None] * n  # raw value the device has
+        self._sent_t: list[float] = [-math.inf] * n
+        self._safe_want: dict[int, float] = {}
+        self._safe_sent: dict[int, float] = {}
+        self._client: Any = None
+        self.cycles = 0
+        self.last_cycle_s = math.nan
+
+    # -- Driver protocol ----------------------------------------------------------------
+    def channels(self) -> Sequence[Channel]:
+        ins, outs = effective_map(self.options)
+        return ([Channel(p.name, "in", p.unit) for p in ins]
+                + [Channel(p.name, "out", p.unit) for p in outs])
+
+    def write(self, index: int, value: float) -> None:
+        """Store the value; the thread sends it if its register value changed."""
+        if value == value:  # NaN never reaches a device
+            self._out[index] = value
+        else:
+            self.count("dropped_writes")
+
+    def set_safe_outputs(self, values: dict[int, float]) -> None:
+        """Values (channel unit) for the module's comm-safety registers; outputs without
+        a `safe_address` are counted as unsupported."""
+        want = {}
+        for i, v in values.items():
+            if self.out_points[i].safe_address is None:
+                self.count("safe_unsupported")
+            elif v == v:
+                want[i] = v
+        self._safe_want = want
+
+    def describe(self) -> str:
+        o: ModbusOptions = self.options
+        where = (f"tcp {o.host}:{o.port}" if o.transport == "tcp"
+                 else f"rtu {o.serial_port} {o.baud} {o.bytesize}{o.parity}{o.stopbits}")
+        return f"modbus {self.name!r} ({where}, id {o.device_id})"
+
+    # -- the I/O thread ---------------------------------------------------------------
+    def _connect(self) -> bool:
+        o: ModbusOptions = self.options
+        from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+        from pymodbus.framer import FramerType
+
+        logging.getLogger("pymodbus.logging").setLevel(logging.CRITICAL)  # we count errors
+        if o.transport == "tcp":
+            client = ModbusTcpClient(o.host, port=o.port, timeout=o.timeout_s, retries=0)
+        else:
+            client = ModbusSerialClient(o.serial_port, framer=FramerType.RTU, baudrate=o.baud,
+                                        bytesize=o.bytesize, parity=o.parity,
+                                        stopbits=o.stopbits, timeout=o.timeout_s, retries=0)
+        try:
+            ok = bool(client.connect())
+        except Exception:  # noqa: BLE001 - any failure to open is "not connected"
+            ok = False
+        if not ok:
+            client.close()
+            return False
+        self._client = client
+        self.connected = True
+        self.count("connects")
+        self._sent = [None] * len(self.out_points)  # the device may have restarted
+        self._safe_sent = {}
+        cs: CommSafety | None = self.options.comm_safety
+        if cs is not None and cs.timeout_address is not None:
+            ticks = max(1, round(cs.timeout_s / cs.timeout_unit_s))
+            self._request("write_registers", cs.timeout_address, [ticks], (),
+                          "comm-safety watchdog time")
+        return self._client is not None
+
+    def _drop(self) -> None:
+        if self._client is not None:
+            with contextlib.suppress(Exception):
+                self._client.close()
+        self._client = None
+        self.connected = False
+
+    def release(self) -> None:
+        self._drop()
+
+    def run(self) -> None:
+        o: ModbusOptions = self.options
+        backoff = Backoff(o.reconnect_min_s, o.reconnect_max_s)
+        mono = time.monotonic
+        while not self.stopping.is_set():
+            if self._client is None:
+                if not self._connect():
+                    self.count("connect_failures")
+                    tries = self.counters.get("connect_failures", 0)
+                    self.failing(f"cannot connect ({tries} attempts so far, retrying)")
+                    self.stopping.wait(backoff.next())
+                    continue
+                backoff.reset()
+            t0 = mono()
+            problem = self._cycle()
+            if problem is None:
+                self.healthy()
+            else:
+                self.failing(problem)
+            self.cycles += 1
+            self.last_cycle_s = mono() - t0
+            if o.poll_period_s > 0.0:
+                rest = t0 + o.poll_period_s - mono()
+                if rest > 0.0:
+                    self.stopping.wait(rest)
+        self._drop()
+
+    def _cycle(self) -> str | None:
+        """Writes, then reads. Returns the first problem, or None."""
+        problem = self._write_outputs()
+        if self._client is None:
+            return problem
+        p2 = self._write_safe_values()
+        problem = problem or p2
+        clock = self.clock
+        for blk in self.read_blocks:
+            if self._client is None:
+                return problem or "link lost"
+            fn = {"holding": "read_holding_registers", "input": "read_input_registers",
+                  "coil": "read_coils", "discrete": "read_discrete_inputs"}[blk.function]
+            rr = self._request(fn, blk.start, blk.count, blk.names, blk.label)
+            if isinstance(rr, str):
+                problem = problem or rr
+                continue
+            now = clock()
+            data = rr.bits if blk.function in ("coil", "discrete") else rr.registers
+            if len(data) < blk.count:
+                problem = problem or self.error(
+                    "short_responses", f"{blk.label}: {len(data)} values for {blk.count}",
+                    blk.names)
+                continue
+            for i, off in blk.members:
+                pt = self.in_points[i]
+                if pt.is_bit:
+                    raw = 1.0 if data[off] else 0.0
+                else:
+                    raw = decode(pt, data[off:off + pt.words])
+                self.stamp(i, to_value(pt, raw), now)
+            self.count("reads")
+        return problem
+
+    def _write_outputs(self) -> str | None:
+        now = time.monotonic()
+        refresh = self.options.write_refresh_s
+        problem = None
+        for blk in self.write_blocks:
+            raws: list[float] = []
+            due = False
+            for i, _off in blk.members:
+                v = self._out[i]
+                if v != v:
+                    raws = []
+                    break
+                r = to_raw(self.out_points[i], v)
+                raws.append(r)
+                due = due or r != self._sent[i] or now - self._sent_t[i] >= refresh
+            if not raws:  # not every member written yet: send those that are, one by one
+                for i, _off in blk.members:
+                    v = self._out[i]
+                    if v == v:
+                        problem = self._send([i], [to_raw(self.out_points[i], v)], now) \
+                            or problem
+                continue
+            if due:
+                problem = self._send([i for i, _ in blk.members], raws, now) or problem
+        return problem
+
+    def _send(self, idx: list[int], raws: list[float], now: float) -> str | None:
+        pts = [self.out_points[i] for i in idx]
+        names = tuple(p.name for p in pts)
+        if len(idx) == 1 and (pts[0].is_bit or pts[0].words == 1):
+            fn = "write_coil" if pts[0].is_bit else "write_register"
+            payload: Any = bool(raws[0] >= 0.5) if pts[0].is_bit else encode(pts[0], raws[0])[0]
+        elif pts[0].is_bit:
+            fn, payload = "write_coils", [r >= 0.5 for r in raws]
+        else:
+            fn = "write_registers"
+            payload = [w for p, r in zip(pts, raws, strict=True) for w in encode(p, r)]
+        rr = self._request(fn, pts[0].address, payload, names,
+                           f"writing {', '.join(names)} at {pts[0].function} {pts[0].address}")
+        if isinstance(rr, str):
+            return rr
+        for i, r in zip(idx, raws, strict=True):
+            self._sent[i] = r
+            self._sent_t[i] = now
+        self.count("writes")
+        return None
+
+    def _write_safe_values(self) -> str | None:
+        want = self._safe_want
+        problem = None
+        for i, v in want.items():
+            pt = self.out_points[i]
+            raw = to_raw(pt, v)
+            if self._safe_sent.get(i) == raw or pt.safe_address is None:
+                continue
+            if pt.is_bit:
+                rr = self._request("write_coil", pt.safe_address, raw >= 0.5, (pt.name,),
+                                   f"safe value of {pt.name}")
+            else:
+                rr = self._request("write_registers", pt.safe_address, encode(pt, raw),
+                                   (pt.name,), f"safe value of {pt.name}")
+            if isinstance(rr, str):
+                problem = problem or rr
+                continue
+            self._safe_sent[i] = raw
+            self.count("safe_writes")
+        return problem
+
+    def _request(self, fn: str, address: int, arg: Any, names: tuple[str, ...],
+                 label: str) -> Any:
+        """One transaction; returns the response, or a message (str) naming the device,
+        the request and its channels. Link failures drop the link for a reconnect."""
+        client = self._client
+        if client is None:
+            return f"{label}: not connected"
+        dev = self.options.device_id
+        try:
+            if fn.startswith("read"):
+                rr = getattr(client, fn)(address, count=arg, device_id=dev)
+            else:
+                rr = getattr(client, fn)(address, arg, device_id=dev)
+        except Exception as exc:  # noqa: BLE001 - timeouts, resets, garbage: all counted
+            kind = "timeouts" if "No response" in str(exc) or "timed out" in str(exc) \
+                else "link_errors"
+            self._drop()
+            self.count("disconnects")
+            return self.error(kind, f"{label}: {type(exc).__name__}: {exc}", names)
+        if rr.isError():
+            code = getattr(rr, "exception_code", 0)
+            what = EXCEPTION_NAMES.get(code, f"code {code}")
+            return self.error(f"exception.{code}", f"{label}: exception response {code} "
+                              f"({what})", names)
+        return rr
+
+    def health(self):  # noqa: ANN201 - DeviceHealth
+        h = super().health()
+        h.counters["cycles"] = self.cycles
+        return h

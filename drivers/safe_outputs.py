@@ -1,0 +1,37 @@
+"""The commands of the safe state, for devices that hold them by themselves.
+
+A module with a communication watchdog (ADAM 'Comm Safety') sets its outputs to
+preset values when the host goes silent. Those presets should be the commands of
+the present safe state: each regulator at its muscle's safe pressure (which
+depends on the hanging load) and each dump valve open only where that pressure is
+0. `push_safe_outputs(ctrl)` computes them through the rig's output calibration and
+hands each driver its share (`Driver.set_safe_outputs`, which never blocks). The
+daemon calls it once the rig is started and after every `load` command.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pamd.drivers import Driver
+
+
+def safe_output_values(ctrl: Any) -> dict[Driver, dict[int, float]]:
+    """Driver -> {output index: raw value} of the safe state of every muscle."""
+    out: dict[Driver, dict[int, float]] = {}
+    for m in ctrl.muscles:
+        v = m.valve
+        raw = (m.safe_bar - v.offset) / v.gain
+        raw = min(max(raw, v.raw_min), v.raw_max)
+        out.setdefault(v.driver, {})[v.index] = raw
+        ex = m.exhaust
+        if ex is not None:
+            vent = 1.0 if m.safe_bar == 0.0 else 0.0
+            out.setdefault(ex.driver, {})[ex.index] = (vent - ex.offset) / ex.gain
+    return out
+
+
+def push_safe_outputs(ctrl: Any) -> None:
+    """Give every driver the raw commands of the present safe state."""
+    for drv, values in safe_output_values(ctrl).items():
+        drv.set_safe_outputs(values)

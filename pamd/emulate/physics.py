@@ -1,0 +1,105 @@
+"""The physics behind the emulated rig: the `sim` driver's muscles (pamd.sim),
+stepped in real time on their own thread, with the rig config's signal bindings
+inverted so each emulated device knows what to show on which channel.
+
+For an input signal `si = gain * raw + offset` the device shows
+`raw = (si - offset) / gain`; for an output the device's raw value becomes
+`gain * raw + offset` at the simulated regulator (or dump valve).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+from pamd.config.loader import LoadedConfig
+from pamd.drivers.sim import SimDriver
+from pamd.sim.options import SimMuscleOptions, SimOptions
+
+STEP_S = 0.001
+
+
+@dataclass(frozen=True)
+class Binding:
+    sim_index: int
+    gain: float
+    offset: float
+
+
+class EmulatedPlant:
+    """Simulated muscles of a rig config, and the map (driver, channel) -> signal."""
+
+    def __init__(self, cfg: LoadedConfig, seed: int = 1,
+                 loads_kg: dict[str, float] | None = None) -> None:
+        loads_kg = loads_kg or {}
+        muscles = tuple(
+            SimMuscleOptions(name=m.name, nominal_length_mm=m.nominal_length_mm,
+                             load_kg=loads_kg.get(m.name, m.load_kg), force_model=m.force_model)
+            for m in cfg.rig.muscles)
+        self.sim = SimDriver("emulated", SimOptions(seed=seed, muscles=muscles))
+        self.sim.open(time.monotonic)
+        self.inputs: dict[tuple[str, str], Binding] = {}
+        self.outputs: dict[tuple[str, str], Binding] = {}
+        for k, m in enumerate(cfg.rig.muscles):
+            s = m.signals
+            for j, sig in enumerate((s.pressure, s.force, s.length)):
+                self.inputs[(sig.driver, sig.channel)] = Binding(3 * k + j, sig.gain, sig.offset)
+            self.outputs[(s.valve.driver, s.valve.channel)] = Binding(2 * k, s.valve.gain,
+                                                                       s.valve.offset)
+            if s.exhaust is not None:
+                self.outputs[(s.exhaust.driver, s.exhaust.channel)] = Binding(
+                    2 * k + 1, s.exhaust.gain, s.exhaust.offset)
+        self.lock = threading.Lock()
+        self.steps = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def raw_input(self, driver: str, channel: str) -> float | None:
+        """What the device carrying (driver, channel) shows now (None: not bound)."""
+        b = self.inputs.get((driver, channel))
+        if b is None:
+            return None
+        si = self.sim.in_values[b.sim_index]
+        if si != si:
+            return None
+        return (si - b.offset) / b.gain
+
+    def set_output(self, driver: str, channel: str, raw: float) -> None:
+        b = self.outputs.get((driver, channel))
+        if b is None or not math.isfinite(raw):
+            return
+        with self.lock:
+            self.sim.write(b.sim_index, b.gain * raw + b.offset)
+
+    def true_lengths_mm(self) -> dict[str, float]:
+        return {p.name: p.length_mm for p in self.sim.plants}
+
+    # -- real-time stepping ---------------------------------------------------------------
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="emu-physics", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(2.0)
+
+    def _run(self) -> None:
+        mono = time.monotonic
+        last = next_t = mono()
+        while not self._stop.is_set():
+            next_t += STEP_S
+            delay = next_t - mono()
+            if delay > 0:
+                time.sleep(delay)
+            elif delay < -0.1:
+                next_t = mono()
+            now = mono()
+            if now <= last:
+                continue
+            with self.lock:
+                self.sim.advance(now - last)
+            last = now
+            self.steps += 1

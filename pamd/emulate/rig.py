@@ -1,0 +1,148 @@
+"""The emulated rig: a rig config's field devices served through their real
+protocols, with the simulated muscles behind them.
+
+For every driver in the config the emulator plays the device that driver expects:
+- `modbus` over TCP: a Modbus TCP server on the configured (loopback) host/port;
+- `modbus` over RTU: a Modbus RTU server on the far end of a socat pty pair whose
+  near end is the driver's `serial_port`;
+- `canopen-encoder`: one emulated CiA 406 node per encoder on a canopen network:
+  python-can's `serial` interface over a pty pair (between processes) or
+  `virtual` (in one process, for tests).
+The devices' channels are wired to the simulated muscles through the config's own
+signal bindings (`physics.EmulatedPlant`), so the daemon running the same config
+sees a consistent rig. `sim` drivers are skipped; `serial-line` devices and raw CAN
+frames are not emulated (a notice says so).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import threading
+from typing import Any
+
+from pamd.config.loader import LoadedConfig
+from pamd.emulate.modbus_device import EmulatedModbusDevice, serve_rtu, serve_tcp
+from pamd.emulate.physics import EmulatedPlant
+from pamd.emulate.ptys import PtyPair
+
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+async def _cancel_all() -> None:
+    me = asyncio.current_task()
+    for task in asyncio.all_tasks():
+        if task is not me:
+            task.cancel()
+
+
+class EmulatedRig:
+    """Start with `start()`, stop with `stop()`; `endpoints` says what serves where."""
+
+    def __init__(self, cfg: LoadedConfig, seed: int = 1,
+                 loads_kg: dict[str, float] | None = None) -> None:
+        self.cfg = cfg
+        self.plant = EmulatedPlant(cfg, seed, loads_kg)
+        self.modbus: dict[str, EmulatedModbusDevice] = {}
+        self.encoders: dict[str, Any] = {}  # "driver.channel" -> EmulatedEncoder
+        self.endpoints: dict[str, str] = {}
+        self.notices: list[str] = []
+        self._ptys: list[PtyPair] = []
+        self._servers: list[Any] = []
+        self._networks: list[Any] = []
+        self._loop = asyncio.new_event_loop()
+        self._loop_thread = threading.Thread(target=self._loop.run_forever,
+                                             name="emu-asyncio", daemon=True)
+
+    # -- life cycle -----------------------------------------------------------------------
+    def start(self) -> None:
+        self.plant.start()
+        self._loop_thread.start()
+        try:
+            for drv in self.cfg.rig.drivers:
+                if drv.type == "modbus":
+                    self._start_modbus(drv.name, drv.options)
+                elif drv.type == "canopen-encoder":
+                    self._start_can(drv.name, drv.options)
+                elif drv.type != "sim":
+                    self.notices.append(f"driver {drv.name!r} of type {drv.type!r} is not "
+                                        "emulated")
+        except BaseException:
+            self.stop()
+            raise
+
+    def stop(self) -> None:
+        for enc in self.encoders.values():
+            enc.stop()
+        for net in self._networks:
+            with contextlib.suppress(Exception):
+                net.disconnect()
+        if self._loop_thread.is_alive():
+            for dev in self.modbus.values():
+                self._loop.call_soon_threadsafe(dev.stop_watchdog)
+            for srv in self._servers:
+                with contextlib.suppress(Exception):
+                    asyncio.run_coroutine_threadsafe(srv.shutdown(), self._loop).result(5.0)
+            with contextlib.suppress(Exception):
+                self._run(_cancel_all())
+            self._loop.call_soon_threadsafe(self._loop.stop)
+            self._loop_thread.join(5.0)
+        for p in self._ptys:
+            p.close()
+        self.plant.stop()
+
+    def _run(self, coro: Any) -> Any:
+        return asyncio.run_coroutine_threadsafe(coro, self._loop).result(10.0)
+
+    # -- devices ----------------------------------------------------------------------------
+    def _start_modbus(self, name: str, o: Any) -> None:
+        plant = self.plant
+        dev = EmulatedModbusDevice(
+            o, source=lambda ch: plant.raw_input(name, ch),
+            sink=lambda ch, v: plant.set_output(name, ch, v), label=name)
+        self.modbus[name] = dev
+        if o.transport == "tcp":
+            if o.host not in LOOPBACK:
+                raise RuntimeError(f"driver {name!r}: the emulator serves on loopback only, "
+                                   f"not {o.host}")
+            self._servers.append(self._run(serve_tcp(dev, o.host, o.port)))
+            self.endpoints[name] = f"modbus tcp {o.host}:{o.port} id {o.device_id}"
+        else:
+            pair = PtyPair(o.serial_port)
+            self._ptys.append(pair)
+            self._servers.append(self._run(serve_rtu(dev, pair.device, o.baud, o.parity,
+                                                     o.stopbits, o.bytesize)))
+            self.endpoints[name] = (f"modbus rtu {o.serial_port} (device end {pair.device}) "
+                                    f"{o.baud} baud id {o.device_id}")
+
+    def _start_can(self, name: str, o: Any) -> None:
+        import canopen
+
+        from pamd.emulate.canopen_node import EmulatedEncoder
+
+        net = canopen.Network()
+        if o.interface == "serial":
+            pair = PtyPair(o.channel)
+            self._ptys.append(pair)
+            net.connect(interface="serial", channel=pair.device, timeout=0.01)
+            where = f"python-can serial {o.channel} (device end {pair.device})"
+        elif o.interface == "virtual":
+            net.connect(interface="virtual", channel=o.channel)
+            where = f"python-can virtual {o.channel} (this process only)"
+        else:
+            raise RuntimeError(f"driver {name!r}: the emulator serves CAN over the 'serial' "
+                               f"(pty pair) or 'virtual' interface, not {o.interface!r}")
+        self._networks.append(net)
+        plant = self.plant
+        for e in o.encoders:
+            def counts(e: Any = e) -> int:
+                mm = plant.raw_input(name, e.name)
+                return 0 if mm is None else round((mm - e.offset_mm) / e.mm_per_count)
+
+            enc = EmulatedEncoder(net, e.node_id, counts)
+            enc.start()
+            self.encoders[f"{name}.{e.name}"] = enc
+        if o.frames:
+            self.notices.append(f"driver {name!r}: raw CAN frames are not emulated")
+        self.endpoints[name] = (f"canopen {where}, nodes "
+                                f"{', '.join(str(e.node_id) for e in o.encoders)}")

@@ -1,0 +1,120 @@
+"""Helpers for tests and benchmarks of the drivers and the emulated rig: free
+loopback ports, an asyncio loop in a thread for emulated devices, polling waits
+(generous timeouts instead of timing asserts), and variants of
+config/rig-emulated.yaml on free ports and private pty paths."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import shutil
+import socket
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+RIG_EMULATED = REPO / "config" / "rig-emulated.yaml"
+
+
+def have_socat() -> bool:
+    return shutil.which("socat") is not None
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_until(pred: Callable[[], Any], timeout_s: float = 10.0, step_s: float = 0.01) -> bool:
+    """Poll `pred` until it is true or the (generous) timeout passes."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if pred():
+            return True
+        time.sleep(step_s)
+    return bool(pred())
+
+
+class AioThread:
+    """An asyncio loop on its own thread; `run(coro)` waits for the result."""
+
+    def __init__(self) -> None:
+        self.loop = asyncio.new_event_loop()
+        self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
+        self.thread.start()
+
+    def run(self, coro: Any, timeout_s: float = 10.0) -> Any:
+        return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout_s)
+
+    def stop(self) -> None:
+        async def cancel_all() -> None:
+            me = asyncio.current_task()
+            for task in asyncio.all_tasks():
+                if task is not me:
+                    task.cancel()
+
+        with contextlib.suppress(Exception):
+            self.run(cancel_all())
+        self.loop.call_soon_threadsafe(self.loop.stop)
+        self.thread.join(5.0)
+
+
+def emulated_dict(tmp: Path, port: int, can: str = "serial", **changes: Any) -> dict[str, Any]:
+    """config/rig-emulated.yaml on `port`, with pty paths under `tmp` and, for
+    can='virtual', the CAN bus in this process; real-time settings off."""
+    d = yaml.safe_load(RIG_EMULATED.read_text())
+    d["loop"]["realtime"] = {"enabled": False}
+    for drv in d["drivers"]:
+        o = drv["options"]
+        if drv["type"] == "modbus" and o["transport"] == "tcp":
+            o["port"] = port
+        elif drv["type"] == "modbus":
+            o["serial_port"] = str(tmp / "rtu")
+        elif drv["type"] == "canopen-encoder":
+            o["interface"] = can
+            o["channel"] = str(tmp / "can") if can == "serial" else f"pamd-test-{port}"
+    for k, v in changes.items():
+        d[k] = v
+    return d
+
+
+def write_config(tmp: Path, data: dict[str, Any], name: str = "rig.yaml") -> Path:
+    path = tmp / name
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def start_emulator(config_path: str, *extra: str) -> tuple[Any, dict[str, Any]]:
+    """`pamd emulate --config FILE` in its own process; returns (process, ready line)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen([sys.executable, "-m", "pamd", "emulate", "--config", config_path,
+                             *extra], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            text=True, env=env)
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    if not line:
+        proc.wait(10)
+        raise RuntimeError(f"pamd emulate exited ({proc.returncode}) before it was ready")
+    return proc, json.loads(line)
+
+
+def stop_emulator(proc: Any) -> dict[str, Any]:
+    """SIGTERM, wait, and return its closing statistics line."""
+    import json
+    import signal
+
+    proc.send_signal(signal.SIGTERM)
+    out, _ = proc.communicate(timeout=20)
+    lines = out.strip().splitlines()
+    return json.loads(lines[-1]) if lines else {}

@@ -1,0 +1,152 @@
+"""The whole daemon on the emulated rig: real protocol stacks end to end.
+
+In-process (CAN on python-can's `virtual` bus): a device that stops answering
+makes its signals stale, the supervisor faults naming the signal and driver and
+goes to the safe state; when the device answers again the driver's fault clears
+and `reset` is accepted. Across processes (`pamd emulate`, Modbus TCP on loopback,
+Modbus RTU and CAN over socat pty pairs): the daemon tracks the 0.05 Hz pressure
+sine (shortened here; bench/drivers_tracking.py runs the full figure)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pamd.config import load_config
+from pamd.daemon import Daemon
+from pamd.emulate.rig import EmulatedRig
+from pamd.emulate.testing import emulated_dict, free_port, have_socat, wait_until, write_config
+from pamd.tick import State
+
+pytestmark = pytest.mark.skipif(not have_socat(), reason="needs socat (apt-get install socat)")
+
+ROBUST = {  # a busy 2-core test machine: slower loop, generous timeouts
+    "loop": {"rate_hz": 500, "clock": "real", "stall_timeout_s": 0.5,
+             "realtime": {"enabled": False}},
+    "safety": {"signal_timeout_s": 0.25, "tracking_band_bar": 0.5, "tracking_time_s": 2.0,
+               "startup_timeout_s": 5.0},
+}
+
+
+def config(tmp: Path, can: str, patient: bool = False) -> Any:
+    """The emulated rig's config; `patient`: timeouts no busy machine reaches (for
+    the tracking run, where staleness is not what is tested)."""
+    d = emulated_dict(tmp, free_port(), can=can, **ROBUST)
+    for m in d["muscles"]:
+        m["signals"]["force"].pop("timeout_s", None)
+    if patient:
+        d["safety"]["signal_timeout_s"] = 1.0
+        d["loop"]["stall_timeout_s"] = 1.0
+        for drv in d["drivers"]:
+            drv["options"]["fault_after_s"] = 2.0
+            for e in drv["options"].get("encoders", []):
+                e["heartbeat_timeout_s"] = 1.0
+                e["position_timeout_s"] = 1.0
+    return load_config(str(write_config(tmp, d)))
+
+
+@pytest.fixture
+def running(tmp_path: Path) -> Iterator[tuple[EmulatedRig, Daemon]]:
+    cfg = config(tmp_path, "virtual")
+    rig = EmulatedRig(cfg)
+    rig.start()
+    daemon = Daemon(cfg)
+    daemon.start()
+    try:
+        yield rig, daemon
+    finally:
+        daemon.stop("test finished")
+        daemon.wait(timeout_s=40)
+        daemon.close()
+        rig.stop()
+
+
+def test_silent_device_leads_to_the_safe_state_and_reset(
+        running: tuple[EmulatedRig, Daemon]) -> None:
+    rig, daemon = running
+    assert daemon.wait_for_state((State.IDLE, State.FAULT), 15) == State.IDLE
+    io = rig.modbus["io"]
+    io.hang_s = 1.0  # the ADAM stops answering
+    assert daemon.wait_for_state((State.FAULT,), 15) == State.FAULT
+    reason = daemon.ctrl.supervisor.fault_reason or ""
+    assert "'io'" in reason, reason
+    assert "stale" in reason or "modbus" in reason
+    for m in daemon.ctrl.muscles:  # the safe state: setpoint goes to the safe pressure
+        assert wait_until(lambda m=m: abs(m.sp - m.safe_bar) < 1e-6, 15)
+    assert daemon.command("reset")["ok"] is False  # the cause is still there
+    io.hang_s = 0.0
+    drv = daemon.rig.drivers["io"]
+    assert wait_until(lambda: drv.fault is None and drv.connected, 15)
+
+    def reset_ok() -> bool:
+        return bool(daemon.command("reset")["ok"])
+
+    assert wait_until(reset_ok, 15, 0.2)
+    assert daemon.wait_for_state((State.IDLE,), 10) == State.IDLE
+
+
+def test_daemon_tracks_the_sine_against_the_emulator_process(tmp_path: Path) -> None:
+    cfg = config(tmp_path, "serial", patient=True)
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    emu = subprocess.Popen([sys.executable, "-m", "pamd", "emulate", "--config", cfg.path],
+                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                           env=env)
+    daemon = None
+    try:
+        assert emu.stdout is not None
+        ready = json.loads(emu.stdout.readline())
+        assert ready["ready"] and set(ready["endpoints"]) == {"io", "lc2", "enc"}
+        daemon = Daemon(cfg)
+        daemon.start()
+        assert daemon.wait_for_state((State.IDLE, State.FAULT), 20) == State.IDLE
+        for m, length in ready["true_length_mm"].items():
+            assert daemon.command("home", {"muscle": m, "length_mm": length})["ok"]
+        v = daemon.command("profile", {"kind": "sine", "min_bar": 0.0, "max_bar": 6.0,
+                                       "freq_hz": 0.05})
+        assert v["ok"], v
+        daemon.wait(timeout_s=8.0)
+        daemon.stop("test finished")
+        daemon.wait(timeout_s=40)
+        result = daemon.result()
+        assert result["faults"] == [], result["faults"]
+        for name, t in result["tracking"].items():
+            assert t["samples"] > 1000, name
+            assert t["rmse_bar"] < 0.15, (name, t)
+        for drv in daemon.rig.drivers.values():
+            assert drv.health().counters.get("faults", 0) == 0, drv.health()
+    finally:
+        if daemon is not None:
+            daemon.close()
+        emu.send_signal(signal.SIGTERM)
+        out, _ = emu.communicate(timeout=20)
+    stats = json.loads(out.strip().splitlines()[-1])
+    assert stats["stopped"] and stats["modbus_requests"]["io"] > 1000
+    assert sum(stats["tpdo_frames"].values()) > 1000
+
+
+def test_safe_outputs_follow_the_load(running: tuple[EmulatedRig, Daemon]) -> None:
+    from pamd.drivers.safe_outputs import push_safe_outputs
+
+    rig, daemon = running
+    assert daemon.wait_for_state((State.IDLE, State.FAULT), 15) == State.IDLE
+    io = rig.modbus["io"]
+    m1 = daemon.ctrl.muscles[0]
+    push_safe_outputs(daemon.ctrl)  # the daemon's hook after start
+    volts = m1.safe_bar / 0.6  # VPPM: 0.6 bar per volt
+    assert wait_until(lambda: abs(io.safe_value("ao0") - volts) < 0.003, 10)
+    vent = 1.0 if m1.safe_bar == 0.0 else 0.0  # 30 kg: vented is safe
+    assert wait_until(lambda: io.safe_value("do0") == vent, 10)
+    before = m1.safe_bar
+    assert daemon.command("load", {"muscle": "m1", "load_kg": 80.0})["ok"]
+    assert m1.safe_bar > before
+    push_safe_outputs(daemon.ctrl)  # the daemon's hook after `load`
+    volts = m1.safe_bar / 0.6
+    assert wait_until(lambda: abs(io.safe_value("ao0") - volts) < 0.003, 10)
