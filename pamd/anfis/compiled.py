@@ -28,7 +28,8 @@ product (same rule order as the model), then the output as
 (sum w q + sum_i s_i sum w p_i) / sum w with sum w = prod_i sum_j mu_ij. If all
 firing strengths are tiny (below 1e-200, a point far out on narrow MFs) it re-runs
 with each input's memberships divided by their maximum, as the batch path does, so
-no underflow gives 0/0.
+no underflow gives 0/0. Gaussian models with 2 or 3 inputs (the inverse models of
+seeds 000 and 001) get a closure with the inputs unrolled; others a generic one.
 """
 
 from __future__ import annotations
@@ -142,6 +143,43 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
             ) / den
 
         return evaluate2
+
+    if model.mf_type == "gaussian" and d == 3:  # seed 001: force, length, velocity
+        (lo1, lo2, lo3), (hi1, hi2, hi3), (o1, o2, o3), (sp1, sp2, sp3) = lo, hi, off, span
+        mf1, mf2, mf3 = mfs
+        p1, p2, p3 = p
+
+        def evaluate3(x1: float, x2: float, x3: float) -> float:
+            mask = 0
+            if x1 < lo1:
+                x1, mask = lo1, 1
+            elif x1 > hi1:
+                x1, mask = hi1, 1
+            if x2 < lo2:
+                x2, mask = lo2, mask | 2
+            elif x2 > hi2:
+                x2, mask = hi2, mask | 2
+            if x3 < lo3:
+                x3, mask = lo3, mask | 4
+            elif x3 > hi3:
+                x3, mask = hi3, mask | 4
+            flags.clipped_mask = mask
+            flags.clipped = mask != 0
+            s1 = (x1 - o1) / sp1
+            s2 = (x2 - o2) / sp2
+            s3 = (x3 - o3) / sp3
+            m1 = [exp(-(s1 - c) * (s1 - c) * k) for c, k in mf1]
+            m2 = [exp(-(s2 - c) * (s2 - c) * k) for c, k in mf2]
+            m3 = [exp(-(s3 - c) * (s3 - c) * k) for c, k in mf3]
+            den = sum(m1) * sum(m2) * sum(m3)
+            if not den > _UNDERFLOW_GUARD:
+                return weighted_output(shifted([s1, s2, s3]), [s1, s2, s3])
+            w = [a * b for a in m1 for b in m2]
+            w = [a * b for a in w for b in m3]
+            num = sum(map(mul, w, q)) + s1 * sum(map(mul, w, p1))
+            return (num + s2 * sum(map(mul, w, p2)) + s3 * sum(map(mul, w, p3))) / den
+
+        return evaluate3
 
     bounds = tuple(zip(lo, hi, off, span, (1 << i for i in range(d)), strict=True))
     gauss = model.mf_type == "gaussian"

@@ -59,26 +59,36 @@ def test_clipping_is_flagged_per_input_and_never_extrapolates(model_factory) -> 
     assert c.tolist() == [True, False]
 
 
-def test_generic_path_flags_and_arity(model_factory) -> None:
-    model = model_factory("gaussian", (2, 2, 2))
-    ff = model.compile()
-    ff.evaluate(0.5, 1.5, 0.5)
+@pytest.mark.parametrize("n_mfs", [(2, 2, 2), (2, 2, 2, 2)])  # specialised and generic
+def test_flags_and_arity_with_more_inputs(model_factory, n_mfs) -> None:
+    d = len(n_mfs)
+    ff = model_factory("gaussian", n_mfs).compile()
+    ff.evaluate(*([0.5, 1.5] + [0.5] * (d - 2)))
     assert ff.clipped and ff.clipped_mask == 0b010
-    ff.evaluate(0.5, 0.5, -1.0)
-    assert ff.clipped_mask == 0b100
+    ff.evaluate(*([0.5] * (d - 1) + [-1.0]))
+    assert ff.clipped_mask == 1 << (d - 1)
+    ff.evaluate(*([0.5] * d))
+    assert not ff.clipped and ff.clipped_mask == 0
     with pytest.raises(TypeError):
-        ff.evaluate(0.5, 0.5)
+        ff.evaluate(*([0.5] * (d - 1)))
 
 
-def test_far_from_narrow_mfs_no_underflow(model_factory) -> None:
+@pytest.mark.parametrize(
+    ("mf_type", "n_mfs"),
+    [("gaussian", (2, 2)), ("gaussian", (2, 2, 2)), ("gaussian", (2, 2, 2, 2)), ("bell", (2, 2))],
+)
+def test_far_from_narrow_mfs_no_underflow(model_factory, mf_type, n_mfs) -> None:
     # Two very narrow MFs at the range ends: in the middle every membership underflows
-    # to 0 in the direct form; the evaluator must fall back, not divide 0 by 0.
-    model = model_factory("gaussian", (2, 2))
-    for i in range(2):
+    # to 0 in the direct form; both paths must fall back, not divide 0 by 0.
+    model = model_factory(mf_type, n_mfs)
+    d = len(n_mfs)
+    for i in range(d):
         model.centres[i] = np.array([0.0, 1.0])
-        model.widths[i] = np.array([0.01, 0.012])
+        model.widths[i] = np.array([0.01, 0.012] if mf_type == "gaussian" else [1e-3, 1e-3])
+        if mf_type == "bell":
+            model.slopes[i] = np.array([60.0, 60.0])  # |z|^120 overflows at z = 500
     ff = model.compile()
-    X = np.array([[0.5, 0.5], [0.45, 0.55], [0.0, 0.5], [0.5, 1.0]])
+    X = np.array([[0.5] * d, [0.45] * (d - 1) + [0.55], [0.0] + [0.5] * (d - 1)])
     y_batch = model.predict(X)
     assert np.all(np.isfinite(y_batch))
     for row, yb in zip(X.tolist(), y_batch, strict=True):
