@@ -247,6 +247,7 @@ def train(
     Deterministic: the same data, options and seed give the same parameters.
     """
     opts = options or TrainingOptions()
+    _check_options(opts)
     names = [v.name for v in model.inputs]
     Xa, ya = as_inputs_outputs(X, y, names, model.output.name)
     if validation is None and opts.validation_fraction > 0:
@@ -315,6 +316,23 @@ def train(
     )
     _record(model, opts, result, Xa, ya, Xv, yv)
     return result
+
+
+def _check_options(opts: TrainingOptions) -> None:
+    problems = [
+        f"{name} = {value!r}: {need}"
+        for name, value, ok, need in [
+            ("epochs", opts.epochs, opts.epochs >= 1, "need at least 1"),
+            ("initial_step", opts.initial_step, opts.initial_step > 0, "must be > 0"),
+            ("step_increase", opts.step_increase, opts.step_increase >= 1, "must be >= 1"),
+            ("step_decrease", opts.step_decrease, 0 < opts.step_decrease <= 1, "in (0, 1]"),
+            ("ridge", opts.ridge, opts.ridge >= 0, "must be >= 0"),
+            ("min_width", opts.min_width, opts.min_width > 0, "must be > 0"),
+        ]
+        if not ok
+    ]
+    if problems:
+        raise ValueError("invalid training options: " + "; ".join(problems))
 
 
 def _split(

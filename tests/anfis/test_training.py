@@ -160,3 +160,13 @@ def test_auto_solver_is_accurate_when_moderately_ill_conditioned() -> None:
     ref = np.linalg.lstsq(A, y, rcond=None)[0]
     got = solve_consequents(A, y, solver="auto")
     assert np.max(np.abs(got - ref)) < 1e-10 * np.max(np.abs(ref))
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [{"epochs": 0}, {"initial_step": 0.0}, {"step_decrease": 1.5}, {"ridge": -1.0}],
+)
+def test_invalid_options_refused(inverse_data, bad) -> None:
+    X, y = inverse_data
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        fit(X, y, TrainingOptions(**bad))
