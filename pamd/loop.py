@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import gc
 import math
+import sys
 import time
 from collections import deque
 from collections.abc import Callable
@@ -24,6 +25,7 @@ from pamd.timing import TickTiming
 MAX_COMMANDS_PER_TICK = 4
 SAFE_STATE_DEADLINE_S = 30.0
 GC_EVERY_TICKS = 200
+GIL_SWITCH_FRACTION = 0.1
 
 
 class VirtualClock:
@@ -72,14 +74,19 @@ class Loop:
 
     def run(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
         ctrl = self.ctrl
+        switch_interval = sys.getswitchinterval()
         if not self.virtual:
             self.rt.apply(self.cfg.rig.loop.realtime, self.notices.append)
+            # Driver threads share the interpreter lock; when the loop wakes, whoever
+            # holds it must let go within a fraction of a period, not the default 5 ms.
+            sys.setswitchinterval(min(switch_interval, GIL_SWITCH_FRACTION * self.period_s))
         gc.collect()
         gc.freeze()
         gc.disable()
         try:
             self._run(ctrl, duration_s, stop_when_profile_done)
         finally:
+            sys.setswitchinterval(switch_interval)
             gc.enable()
             gc.unfreeze()
             self.rt.close()
