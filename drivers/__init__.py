@@ -67,6 +67,7 @@ class Driver(ABC):
         self.output_channels = [c for c in chans if c.direction == "out"]
         self.in_values: list[float] = [math.nan] * len(self.input_channels)
         self.in_stamps_s: list[float] = [-math.inf] * len(self.input_channels)
+        self.preset_counts: list[int] = [0] * len(self.input_channels)
         self.fault: str | None = None
 
     @abstractmethod
@@ -92,6 +93,12 @@ class Driver(ABC):
     def is_absolute(self, index: int) -> bool:
         """True if input `index` is referenced by the device itself (an absolute
         encoder, a simulated rig), so it needs no `home`."""
+        return False
+
+    def preset_input(self, index: int, raw_value: float) -> bool:
+        """Ask the device to read `raw_value` on input `index` from now on (an
+        encoder's preset object, for `home`). Never blocks; returns False if the
+        device cannot. `preset_counts[index]` grows once the device has applied it."""
         return False
 
     def set_safe_outputs(self, values: dict[int, float]) -> None:  # noqa: B027 - optional

@@ -132,7 +132,7 @@ class CanEncoderDriver(ThreadedDriver):
             self._raw.setdefault((f.can_id, f.extended), []).append((len(self.nodes) + k, f))
         self._bus: Any = None
         self._presets: deque[tuple[int, int]] = deque()
-        self.preset_generation = [0] * len(self.input_channels)
+        self.preset_generation = self.preset_counts  # the protocol's name for it
         self._bad_t = -math.inf
         self._bad_msg = ""
         self._sdo_wait: int | None = None
@@ -156,6 +156,13 @@ class CanEncoderDriver(ThreadedDriver):
     def describe(self) -> str:
         o: CanEncoderOptions = self.options
         return f"canopen-encoder {self.name!r} ({o.interface} {o.channel})"
+
+    def preset_input(self, index: int, raw_value: float) -> bool:
+        """`home` through the encoder's preset object (0x6003); raw frames cannot."""
+        if index >= len(self.nodes):
+            return False
+        self.preset_position(index, raw_value)
+        return True
 
     def preset_position(self, index: int, position_mm: float) -> None:
         """Make encoder `index` read `position_mm` from now on (0x6003), done by the

@@ -18,6 +18,7 @@ from typing import Any
 
 from pamd.config.engine import Context, build_dataclass, spec
 from pamd.control.profiles import Profile, ProfileSpec
+from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
 from pamd.muscle import MUSCLE_TYPES
 from pamd.tick import State
@@ -260,7 +261,13 @@ def _home(ctrl: Any, a: HomeArgs) -> dict[str, Any]:
     raw_len = m.length - m.ref.length_offset_mm
     if not math.isfinite(raw_len):
         raise CommandRefused(f"{m.name}: no length reading to reference")
-    m.ref.length_offset_mm = a.length_mm - raw_len
+    m.ref.length_offset_mm = a.length_mm - raw_len  # at once, in software
+    b = m.sig.length
+    counts = b.driver.preset_counts
+    if b.driver.preset_input(b.index, (a.length_mm - b.offset) / b.gain):
+        # The device takes the reference too; the tick drops the software offset
+        # when the device confirms (preset count moves).
+        m.pending_preset = (counts, b.index, counts[b.index])
     m.ref.length_referenced = True
     m.ref.homed_at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     m._prev_len = math.nan
@@ -289,6 +296,7 @@ def _load(ctrl: Any, a: LoadArgs) -> dict[str, Any]:
         raise CommandRefused(f"{m.name}: {a.load_kg:g} kg exceeds the {m.cfg.type} rating "
                              f"({rated:g} kg)")
     m.update_load(a.load_kg)
+    push_safe_outputs(ctrl)  # modules with a comm watchdog hold the new safe state
     return {"muscle": m.name, "load_kg": a.load_kg, "safe_pressure_bar": m.safe_bar}
 
 

@@ -16,6 +16,7 @@ from pamd.calibration import load_calibration, save_calibration
 from pamd.commands import parse_command
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
+from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
 from pamd.io.session import IoSession, RecordingRequest
 from pamd.loop import Loop
@@ -71,6 +72,7 @@ class Daemon:
         if self.io is not None:
             self.io.start()  # refuses (RecordingError) before anything opens or moves
         self.rig.open(self.loop.clock)
+        push_safe_outputs(self.ctrl)  # what modules with a comm watchdog fall back to
         self._thread = threading.Thread(
             target=self._run, args=(duration_s, stop_when_profile_done), name="pamd-loop",
             daemon=True)
@@ -111,8 +113,10 @@ class Daemon:
             tr = self.transitions.popleft()
             level = logging.ERROR if tr.new in (State.FAULT, State.ESTOP) else logging.INFO
             log.log(level, "%s -> %s: %s", tr.old.name, tr.new.name, tr.reason)
-        if self.ctrl.calibration_dirty:
+        if self.ctrl.calibration_dirty or any(m.calibration_dirty for m in self.ctrl.muscles):
             self.ctrl.calibration_dirty = False
+            for m in self.ctrl.muscles:
+                m.calibration_dirty = False
             save_calibration(self.calibration, self.cfg.calibration_path)
 
     def close(self) -> None:

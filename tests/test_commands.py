@@ -112,3 +112,28 @@ def test_500_hz_fallback_and_two_muscles(harness: Any) -> None:
     assert m2.pressure == pytest.approx(3.0, abs=0.03)
     assert m1.pressure == pytest.approx(0.0, abs=0.03)
     assert h.sim.plant("m2").contraction == pytest.approx(0.045, abs=0.01)  # 50 kg, 3 bar
+
+
+def test_home_uses_the_devices_preset_when_it_has_one(harness: Any) -> None:
+    """A device that takes a preset (a CANopen encoder's 0x6003) gets the reference;
+    the software offset bridges the time until it confirms, then goes back to 0."""
+    h = harness()
+    h.step(0.01)
+    sim = h.sim
+    idx = h.m1.sig.length.index
+    asked: list[tuple[int, float]] = []
+
+    def preset_input(index: int, raw: float) -> bool:
+        asked.append((index, raw))
+        return True
+
+    sim.preset_input = preset_input
+    true_len = h.sim.plant("m1").length_mm
+    assert h.cmd("home", muscle="m1", length_mm=true_len + 5.0)["ok"]
+    assert asked == [(idx, pytest.approx(true_len + 5.0))]
+    h.step(0.01)
+    assert h.m1.length == pytest.approx(true_len + 5.0, abs=0.05)  # software offset
+    assert h.m1.ref.length_offset_mm == pytest.approx(5.0, abs=0.05)
+    sim.preset_counts[idx] += 1  # the device confirms: it now reads the reference
+    h.step(0.001)
+    assert h.m1.ref.length_offset_mm == 0.0 and h.m1.calibration_dirty

@@ -117,6 +117,8 @@ class MuscleController:
         self._track_since = math.inf
         self.feedforward = 0.0
         self.target_length = self.target_force = math.nan
+        self.pending_preset: tuple[list[int], int, int] | None = None
+        self.calibration_dirty = False
 
     # -- set-up and commands (not the tick path) ------------------------------------
     def update_load(self, load_kg: float) -> None:
@@ -159,6 +161,9 @@ class MuscleController:
     def tick(self, now: float, dt: float, state: int, rec: array) -> str | None:
         """Run one tick; returns a fault reason, or None."""
         b = self.base
+        pp = self.pending_preset
+        if pp is not None and pp[0][pp[1]] != pp[2]:
+            self._preset_applied()
         pi, fi, li = self._pi, self._fi, self._li
         p = self._pg * self._pv[pi] + self._po
         f = self._fg * self._fv[fi] + self._fo - self.ref.force_offset_n
@@ -313,6 +318,13 @@ class MuscleController:
             flags |= F_EXHAUST
         self._record(rec, b, flags)
         return fault
+
+    def _preset_applied(self) -> None:
+        """The encoder now reads the homed length itself: drop the software offset."""
+        self.ref.length_offset_mm = 0.0
+        self._prev_len = math.nan
+        self.pending_preset = None
+        self.calibration_dirty = True
 
     def _record(self, rec: array, b: int, flags: int) -> None:
         rec[b + M_PRESSURE] = self.pressure

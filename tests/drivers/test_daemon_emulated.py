@@ -133,13 +133,11 @@ def test_daemon_tracks_the_sine_against_the_emulator_process(tmp_path: Path) -> 
 
 
 def test_safe_outputs_follow_the_load(running: tuple[EmulatedRig, Daemon]) -> None:
-    from pamd.drivers.safe_outputs import push_safe_outputs
-
     rig, daemon = running
     assert daemon.wait_for_state((State.IDLE, State.FAULT), 15) == State.IDLE
     io = rig.modbus["io"]
     m1 = daemon.ctrl.muscles[0]
-    push_safe_outputs(daemon.ctrl)  # the daemon's hook after start
+    # The daemon set the module's comm-safety values at start ...
     volts = m1.safe_bar / 0.6  # VPPM: 0.6 bar per volt
     assert wait_until(lambda: abs(io.safe_value("ao0") - volts) < 0.003, 10)
     vent = 1.0 if m1.safe_bar == 0.0 else 0.0  # 30 kg: vented is safe
@@ -147,6 +145,6 @@ def test_safe_outputs_follow_the_load(running: tuple[EmulatedRig, Daemon]) -> No
     before = m1.safe_bar
     assert daemon.command("load", {"muscle": "m1", "load_kg": 80.0})["ok"]
     assert m1.safe_bar > before
-    push_safe_outputs(daemon.ctrl)  # the daemon's hook after `load`
+    # ... and again with the load change.
     volts = m1.safe_bar / 0.6
     assert wait_until(lambda: abs(io.safe_value("ao0") - volts) < 0.003, 10)
