@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 import yaml
 
 from pamd.config.engine import Context, build_dataclass, spec
-from pamd.config.yamlload import load_yaml_text
+from pamd.config.yamlload import load_yaml_file
 
 
 @dataclass
@@ -41,8 +41,7 @@ def load_calibration(path: str) -> Calibration:
     """The references in `path`, or empty ones if the file does not exist yet."""
     if not os.path.exists(path):
         return Calibration()
-    with open(path, encoding="utf-8") as fh:
-        raw = load_yaml_text(fh.read(), path) or {}
+    raw = load_yaml_file(path) or {}
     ctx = Context(path)
     cal = Calibration()
     muscles = raw.get("muscles", {}) if isinstance(raw, dict) else {}

@@ -14,8 +14,8 @@ from typing import Any
 
 from pamd.config.engine import Context, build_dataclass, line_of
 from pamd.config.schema import MuscleConfig, RigConfig
-from pamd.config.yamlload import load_yaml_text
-from pamd.errors import ConfigError, ConfigIssue, DriverError
+from pamd.config.yamlload import load_yaml_text, read_text
+from pamd.errors import DriverError
 from pamd.muscle import MUSCLE_TYPES
 
 NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
@@ -69,14 +69,7 @@ def load_config(path: str | None = None, overrides: dict[str, Any] | None = None
     `overrides` replaces top-level sections' keys after parsing (e.g. the CLI's
     `--clock virtual` is `{"loop": {"clock": "virtual"}}`)."""
     path = path or builtin_config_path()
-    try:
-        with open(path, encoding="utf-8") as fh:
-            text = fh.read()
-    except OSError as exc:
-        raise ConfigError(
-            [ConfigIssue(path, None, "", "a readable config file", exc.strerror or str(exc))]
-        ) from None
-    return load_config_text(text, path, overrides)
+    return load_config_text(read_text(path, "a readable config file"), path, overrides)
 
 
 def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = None) -> LoadedConfig:

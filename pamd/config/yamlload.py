@@ -79,13 +79,15 @@ def load_yaml_text(text: str, file: str) -> Any:
         loader.dispose()
 
 
-def load_yaml_file(path: str) -> Any:
-    """Read and parse a YAML file; a missing or unreadable file is a ConfigError."""
+def read_text(path: str, what: str = "a readable YAML file") -> str:
+    """A file's text; a missing or unreadable file is a ConfigError saying why."""
     try:
         with open(path, encoding="utf-8") as fh:
-            text = fh.read()
+            return fh.read()
     except OSError as exc:
-        raise ConfigError(
-            [ConfigIssue(path, None, "", "a readable YAML file", exc.strerror or str(exc))]
-        ) from None
-    return load_yaml_text(text, path)
+        raise ConfigError([ConfigIssue(path, None, "", what, exc.strerror or str(exc))]) from None
+
+
+def load_yaml_file(path: str) -> Any:
+    """Read and parse a YAML file; a missing or unreadable file is a ConfigError."""
+    return load_yaml_text(read_text(path), path)
