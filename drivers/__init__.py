@@ -101,6 +101,11 @@ class Driver(ABC):
         device cannot. `preset_counts[index]` grows once the device has applied it."""
         return False
 
+    def change_load(self, input_index: int, load_kg: float) -> bool:
+        """Simulated devices only: hang `load_kg` on the muscle that input `input_index`
+        measures. Returns False where a person has to do it (real hardware)."""
+        return False
+
     def set_safe_outputs(self, values: dict[int, float]) -> None:  # noqa: B027 - optional
         """Output index -> raw value the device should apply by itself if the host goes
         silent (a module's communication watchdog). Never blocks; no-op by default."""

@@ -145,6 +145,11 @@ class SimDriver(Driver):
     def plants(self) -> tuple[MusclePlant, ...]:
         return tuple(self._plants)
 
+    def change_load(self, input_index: int, load_kg: float) -> bool:
+        """The muscle whose input this is gets the new load at once."""
+        self._plants[input_index // INPUTS_PER_MUSCLE].set_load_kg(load_kg)
+        return True
+
     def set_load_kg(self, muscle: str, load_kg: float) -> None:
         """Change the mass hanging from `muscle` while running."""
         self.plant(muscle).set_load_kg(load_kg)

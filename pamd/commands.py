@@ -72,6 +72,12 @@ class NoArgs:
 
 
 @dataclass(frozen=True, kw_only=True)
+class CollectArgs:
+    plan_file: str = spec(doc="Experiment plan (YAML) on the rig PC.")
+    start_step: int = spec(0, "Start at this step (0-based; --resume).", min=0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class EstopArgs:
     reason: str = spec("emergency stop", "Why (recorded).")
 
@@ -79,7 +85,7 @@ class EstopArgs:
 VERBS: dict[str, type] = {
     "setpoint": SetpointArgs, "profile": ProfileArgs, "hold": NoArgs, "resume": NoArgs,
     "stop": NoArgs, "estop": EstopArgs, "reset": NoArgs, "home": HomeArgs, "tare": MuscleArgs,
-    "load": LoadArgs,
+    "load": LoadArgs, "confirm": NoArgs, "pause": NoArgs, "collect": CollectArgs,
 }
 
 
@@ -120,7 +126,8 @@ def apply_command(ctrl: Any, cmd: Command) -> dict[str, Any]:
         verdict: dict[str, Any] = {"ok": False, "error": str(exc)}
     else:
         verdict = {"ok": True, **(result or {})}
-    ctrl.sink.event(ctrl.now, "command", {"verb": cmd.verb, "args": dataclasses.asdict(cmd.args),
+    args = {k: v for k, v in vars(cmd.args).items() if k != "plan"}
+    ctrl.sink.event(ctrl.now, "command", {"verb": cmd.verb, "args": args,
                                          "sender": cmd.sender, "user": cmd.user, **verdict})
     return verdict
 
@@ -203,11 +210,14 @@ def _resume(ctrl: Any, a: NoArgs) -> dict[str, Any]:
     if ctrl.supervisor.state != State.HOLD:
         raise CommandRefused(f"resume only from HOLD (state is {ctrl.supervisor.state.name})")
     paused = ctrl.now - getattr(ctrl, "hold_started", ctrl.now)
-    running = False
+    seq = ctrl.sequencer
+    running = seq is not None and not seq.outcome
     for m in ctrl.muscles:
         if m.profile is not None:
             m.profile.t0_s += paused
             running = True
+    if seq is not None:
+        seq.awaiting_operator = "" if seq.phase == "pause" else seq.awaiting_operator
     ctrl.supervisor.go(ctrl.now, State.RUNNING if running else State.IDLE, "resumed")
     return {}
 
@@ -300,8 +310,44 @@ def _load(ctrl: Any, a: LoadArgs) -> dict[str, Any]:
     return {"muscle": m.name, "load_kg": a.load_kg, "safe_pressure_bar": m.safe_bar}
 
 
+def _confirm(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    seq = ctrl.sequencer
+    if seq is None or seq.outcome:
+        raise CommandRefused("no experiment is running")
+    try:
+        return {"message": seq.confirm_load()}
+    except ValueError as exc:
+        raise CommandRefused(str(exc)) from None
+
+
+def _pause(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    seq = ctrl.sequencer
+    if seq is None or seq.outcome:
+        raise CommandRefused("no experiment is running (use hold to freeze setpoints)")
+    seq.pause_at_cycle_end = True
+    return {"message": "pausing at the end of the present cycle"}
+
+
+def _collect(ctrl: Any, a: Any) -> dict[str, Any]:
+    """`a.plan` is a Plan already read and checked outside the loop's thread."""
+    from pamd.experiment.sequencer import Sequencer
+
+    _can_move(ctrl)
+    if ctrl.sequencer is not None and not ctrl.sequencer.outcome:
+        raise CommandRefused(f"plan {ctrl.sequencer.plan.name!r} is still running")
+    plan = getattr(a, "plan", None)
+    if plan is None:
+        raise CommandRefused("collect: the plan was not loaded (pass it through the daemon)")
+    _need_reference([ctrl.by_name[plan.muscle]])
+    if not 0 <= a.start_step < len(plan.steps):
+        raise CommandRefused(f"start_step {a.start_step} is not a step of the plan "
+                             f"(0-{len(plan.steps) - 1})")
+    ctrl.sequencer = Sequencer(plan, ctrl, a.start_step)
+    return {"plan": plan.name, "steps": len(plan.steps), "start_step": a.start_step}
+
+
 _HANDLERS: dict[str, Callable[[Any, Any], dict[str, Any] | None]] = {
     "setpoint": _setpoint, "profile": _profile, "hold": _hold, "resume": _resume,
     "stop": _stop, "estop": _estop, "reset": _reset, "home": _home, "tare": _tare,
-    "load": _load,
+    "load": _load, "confirm": _confirm, "pause": _pause, "collect": _collect,
 }

@@ -50,6 +50,7 @@ class RigController:
         self.tick_no = 0
         self.listeners: list[Callable[[Transition], None]] = []
         self.calibration_dirty = False
+        self.sequencer: Any = None  # a running experiment plan (pamd.experiment)
         self.hold_started = 0.0
 
     def _on_transition(self, tr: Transition) -> None:
@@ -90,7 +91,10 @@ class RigController:
             sup.fault(now, fault)
         elif fault is not None and state == S_STARTING:
             pass  # start-up waits for its timeout before faulting
-        if state == S_RUNNING:
+        seq = self.sequencer
+        if seq is not None:
+            seq.tick(now)
+        elif state == S_RUNNING:
             self._running_done(now)
         rec[I_TICK] = self.tick_no
         rec[I_T] = now - self.t_start

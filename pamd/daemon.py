@@ -10,10 +10,11 @@ from __future__ import annotations
 import logging
 import threading
 from collections import deque
+from dataclasses import dataclass
 from typing import Any
 
 from pamd.calibration import load_calibration, save_calibration
-from pamd.commands import parse_command
+from pamd.commands import Command, parse_command
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
@@ -26,6 +27,13 @@ from pamd.summary import LocalMailbox, SummarySink
 from pamd.tick import State, TickLayout
 
 log = logging.getLogger("pamd")
+
+
+@dataclass(frozen=True)
+class _PlanArgs:
+    plan_file: str
+    start_step: int
+    plan: Any
 
 
 class PendingCommand:
@@ -137,6 +145,13 @@ class Daemon:
             pending.set({"ok": False, "error": str(exc)})
         else:
             self.mailbox.put(cmd)
+        return pending
+
+    def start_plan(self, plan: Any, plan_file: str, start_step: int = 0) -> PendingCommand:
+        """Queue an experiment plan (already read and checked against this rig)."""
+        pending = PendingCommand()
+        args = _PlanArgs(plan_file=plan_file, start_step=start_step, plan=plan)
+        self.mailbox.put(Command("collect", args, pending.set))
         return pending
 
     def command(self, verb: str, payload: dict[str, Any] | None = None,

@@ -53,6 +53,7 @@ class State(IntEnum):
     HOLD = 3  # frozen at the present setpoints
     FAULT = 4  # latched; safe pressure held until reset
     ESTOP = 5  # latched; emergency action taken
+    LOAD_CHANGE = 6  # an experiment holds a working pressure while the load is changed
 
 
 class Mode(IntEnum):

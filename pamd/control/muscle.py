@@ -48,6 +48,7 @@ F_STALE, F_SOFT_P, F_SOFT_C = int(Flag.STALE), int(Flag.SOFT_LIMIT_PRESSURE), in
 F_PRETENSION, F_SLEW, F_SAT = int(Flag.PRETENSION_LIMIT), int(Flag.SLEW_LIMITED), int(
     Flag.OUTPUT_SATURATED)
 F_NOREF, F_EXHAUST, F_TRACK = int(Flag.NOT_REFERENCED), int(Flag.EXHAUST_OPEN), int(Flag.TRACKING)
+S_LOAD = int(State.LOAD_CHANGE)
 S_IDLE, S_RUNNING, S_HOLD, S_FAULT, S_ESTOP = (int(State.IDLE), int(State.RUNNING),
                                               int(State.HOLD), int(State.FAULT), int(State.ESTOP))
 
@@ -225,7 +226,7 @@ class MuscleController:
             else:
                 sp = target
                 self.sp_rate = 0.0
-        elif state == S_RUNNING and self.profile is not None:
+        elif (state == S_RUNNING or state == S_LOAD) and self.profile is not None:
             prof = self.profile
             prof.sample(now)
             want = prof.value
@@ -296,7 +297,7 @@ class MuscleController:
             pid.i = i_before  # no wind-up against a limit
 
         # Tracking: the measured pressure must follow the command.
-        if state == S_RUNNING or state == S_IDLE or state == S_HOLD:
+        if state == S_RUNNING or state == S_IDLE or state == S_HOLD or state == S_LOAD:
             if abs(p - prev_u) > self.track_band:
                 flags |= F_TRACK
                 if self._track_since == math.inf:

@@ -1,0 +1,2 @@
+"""Scripted data collection: experiment plans, their dry run, and the sequencer
+that runs them inside the loop."""

@@ -1,0 +1,93 @@
+"""The manifest of a collection: the plan, each step's status and files, and every
+run that worked on it. `--resume` reads it to continue from the first unfinished
+step. Written atomically, so a crash never leaves half a manifest."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from typing import Any
+
+from pamd import __version__
+from pamd.config.loader import LoadedConfig
+from pamd.errors import ConfigError, ConfigIssue
+from pamd.experiment.plan import Plan
+
+FORMAT, VERSION = "pamd-collection", 1
+
+
+class Manifest:
+    def __init__(self, directory: str, data: dict[str, Any]) -> None:
+        self.directory = directory
+        self.data = data
+
+    @property
+    def path(self) -> str:
+        return os.path.join(self.directory, "manifest.json")
+
+    @property
+    def plan_name(self) -> str:
+        return self.data["plan"]["name"]
+
+    @classmethod
+    def new(cls, directory: str, plan: Plan, plan_file: str, cfg: LoadedConfig) -> Manifest:
+        with open(plan_file, encoding="utf-8") as fh:
+            plan_text = fh.read()
+        return cls(directory, {
+            "format": FORMAT, "version": VERSION, "pamd": __version__,
+            "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "plan": {"name": plan.name, "file": os.path.abspath(plan_file), "text": plan_text,
+                     "muscle": plan.muscle, "metadata": vars(plan.metadata)},
+            "rig": {"config": os.path.abspath(cfg.path), "sha256": cfg.sha256,
+                    "rig_id": cfg.rig.rig_id},
+            "steps": [{"index": i, "name": s.name, "load_kg": s.load_kg, "status": "pending",
+                       "files": []} for i, s in enumerate(plan.steps)],
+            "runs": [],
+        })
+
+    @classmethod
+    def load(cls, directory: str) -> Manifest:
+        path = os.path.join(directory, "manifest.json")
+        try:
+            with open(path, encoding="utf-8") as fh:
+                data = json.load(fh)
+        except (OSError, ValueError) as exc:
+            raise ConfigError([ConfigIssue(path, None, "", "a pamd collection manifest",
+                                           str(exc))]) from None
+        if data.get("format") != FORMAT or data.get("version") != VERSION:
+            raise ConfigError([ConfigIssue(path, None, "format", f"{FORMAT} v{VERSION}",
+                                           f"{data.get('format')} v{data.get('version')}")])
+        return cls(directory, data)
+
+    def first_unfinished(self) -> int | None:
+        for s in self.data["steps"]:
+            if s["status"] != "done":
+                return int(s["index"])
+        return None
+
+    def record_run(self, seq: Any, result: dict[str, Any], start: int) -> None:
+        """Mark what this run finished, failed or left, and which files it wrote."""
+        finished = set(seq.finished_steps) if seq is not None else set()
+        files = [os.path.basename(f) for f in (result.get("recording") or {}).get("files", [])]
+        for s in self.data["steps"][start:]:
+            own = [f for f in files if f.endswith(f"-{s['name']}.mcap")]
+            s["files"] = sorted(set(s["files"]) | set(own))
+            if s["name"] in finished:
+                s["status"] = "done"
+            elif seq is not None and seq.step is not None and seq.step.name == s["name"]:
+                s["status"] = "failed" if seq.outcome.startswith("fault") else "interrupted"
+        self.data["runs"].append({
+            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "start_step": start,
+            "outcome": seq.outcome if seq is not None else "not started",
+            "faults": result.get("faults", []), "ticks": result.get("ticks"),
+            "lost_records": result.get("lost_records"), "files": files})
+
+    def save(self) -> None:
+        fd, tmp = tempfile.mkstemp(prefix=".manifest-", dir=self.directory)
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(self.data, fh, indent=2)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, self.path)

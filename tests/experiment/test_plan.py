@@ -1,0 +1,73 @@
+"""Plans are checked against the rig before anything moves; the dry-run timeline."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pamd.config import load_config
+from pamd.errors import ConfigError
+from pamd.experiment.plan import load_plan, parse_plan
+from pamd.experiment.timeline import format_timeline, timeline
+
+REPO = Path(__file__).resolve().parents[2]
+PLAN = """name: test
+muscle: m1
+settle: {seconds: 1}
+profile: {kind: sine, min_bar: 0.0, max_bar: 3.0, freq_hz: 0.5, cycles: 1}
+steps:
+  - {name: a, load_kg: 15}
+  - {name: b, load_kg: 30}
+"""
+
+
+def issues(text: str) -> list[Any]:
+    with pytest.raises(ConfigError) as exc:
+        parse_plan(text, "plan.yaml", load_config())
+    return exc.value.issues
+
+
+def test_shipped_sine_sweep_reproduces_the_seeds_protocol() -> None:
+    cfg = load_config()
+    plan = load_plan(str(REPO / "config/experiments/sine-sweep.yaml"), cfg)
+    assert [s.load_kg for s in plan.steps] == [15, 30, 50, 65, 80]
+    assert plan.profile is not None and plan.profile.freq_hz == 0.05
+    lines = timeline(plan, cfg, simulated=True)
+    total = sum(s.duration_s for s in lines)
+    assert 5 * 60 < total < 7 * 60  # 5 x (3 cycles of 20 s + 10 s settling + lead-in)
+    assert all(s.peak_bar == 6.0 for s in lines)
+    assert lines[0].contraction_max == pytest.approx(0.242, abs=0.002)  # table: 24.2 %
+    assert "load-80kg" in format_timeline(plan, lines)
+
+
+def test_unknown_key_names_line_and_step() -> None:
+    (i,) = issues(PLAN.replace("  - {name: b, load_kg: 30}", "  - {name: b, lod_kg: 30}"))
+    assert i.path == "steps[1].lod_kg" and i.line == 7
+
+
+def test_load_beyond_rating_names_the_step() -> None:
+    (i,) = issues(PLAN.replace("load_kg: 30", "load_kg: 95"))
+    assert i.path == "steps[1] (b).load_kg" and "80" in i.expected
+
+
+def test_profile_faster_than_slew_names_the_step() -> None:
+    text = PLAN + "  - name: c\n    profile: {kind: sine, max_bar: 6.0, freq_hz: 1.0}\n"
+    (i,) = issues(text)
+    assert i.path == "steps[2] (c).profile" and "slew limit" in i.found
+
+
+def test_contraction_and_stretch_limits_checked_per_load() -> None:
+    text = PLAN + ("  - {name: empty, load_kg: 0, profile: {kind: sine, max_bar: 6.0, "
+                   "freq_hz: 0.05}}\n  - {name: heavy, load_kg: 80, profile: {kind: sine, "
+                   "min_bar: 0.0, max_bar: 6.0, freq_hz: 0.05}}\n")
+    found = {i.path: i for i in issues(text)}
+    assert "steps[2] (empty).profile.max_bar" in found  # 0 kg at 6 bar: > 25 %
+    assert "steps[3] (heavy).profile.min_bar" in found  # 80 kg at 0 bar: 4.4 % stretch
+    assert "4.4 % stretch" in found["steps[3] (heavy).profile.min_bar"].found
+
+
+def test_pause_step_stands_alone() -> None:
+    (i,) = issues(PLAN + "  - {name: p, pause: check it, load_kg: 10}\n")
+    assert i.path == "steps[2] (p).pause"
