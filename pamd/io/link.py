@@ -42,7 +42,7 @@ from pamd.ipc.ring import (
 )
 from pamd.tick import I_TICK
 
-QUIET_TICKS = 2
+QUIET_TICKS = 1
 START_TIMEOUT_S = 30.0
 STOP_TIMEOUT_S = 60.0
 

@@ -155,7 +155,8 @@ class SharedBlock:
         self.layout = layout
         if create:
             self.shm = shared_memory.SharedMemory(create=True, size=layout.total_bytes)
-            self.shm.buf[:CTRL_BYTES] = bytes(CTRL_BYTES)
+            # touch every page now, so the loop never page-faults on a fresh slot
+            self.shm.buf[:layout.total_bytes] = bytes(layout.total_bytes)
         else:
             self.shm = shared_memory.SharedMemory(name=name)
         self.owner = create

@@ -154,6 +154,25 @@ def test_sigkill_of_the_whole_run_is_recoverable(sim_config: Any, tmp_path: Path
     assert ticks == list(range(len(ticks))) and len(ticks) > 100  # no hole, from tick 0
 
 
+def test_sigterm_stops_cleanly_and_finalises_the_file(sim_config: Any, tmp_path: Path) -> None:
+    proc = _pamd(tmp_path, sim_config, "--duration", "120")
+    try:
+        path = _one_file(tmp_path)
+        until(lambda: os.path.getsize(path) > 30_000, what="some chunks on disk")
+        sent_ns = time.time_ns()
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert files.is_finalised(path)
+    info = files.inspect(path)
+    assert info["metadata"]["pamd.summary"]["stop_reason"] == "SIGTERM received"
+    assert info["metadata"]["pamd"]["clock"] == "real"
+    # real clock: log time is the wall clock of each tick
+    assert abs(info["start_ns"] - sent_ns) < 120e9 and info["end_ns"] > sent_ns - 5e9
+
+
 def test_sigkill_of_the_loop_process_alone_the_io_process_finalises(
         sim_config: Any, tmp_path: Path) -> None:
     proc = _pamd(tmp_path, sim_config, "--duration", "120")
