@@ -129,3 +129,37 @@ def test_rotation_by_duration_splits_without_losing_a_tick(recorded_run: Any) ->
         ticks += [m.tick for _t, m in f["msgs"]["/pamd/sim/state/m1"]]
         assert f["att"]["sim.yaml"]
     assert ticks == list(range(len(run.cap.rows)))
+
+
+def test_rotation_by_size(recorded_run: Any) -> None:
+    run = recorded_run(duration_s=1.5, recording={"rotate_mb": 0.06})
+    assert len(run.files) >= 2
+    ticks: list[int] = []
+    for p in run.files:
+        f = read_all(p)
+        ticks += [m.tick for _t, m in f["msgs"]["/pamd/sim/state/m1"]]
+    assert ticks == list(range(len(run.cap.rows)))
+    # every file but the last is cut at the first chunk past the size
+    import os
+    assert all(os.path.getsize(p) < 0.06e6 + 64_000 for p in run.files[:-1])
+
+
+def test_markers_from_another_thread_reach_the_file(tmp_path: Any, sim_config: Any) -> None:
+    """Events from any thread (an experiment runner, the CLI) are handed to the loop's
+    thread, which alone writes the rings, and land on the events topic in order."""
+    from pamd.daemon import Daemon
+    from pamd.io.session import RecordingRequest
+
+    d = Daemon(sim_config(30.0), recording=RecordingRequest(dir=str(tmp_path / "r")))
+    d.start(None)
+    try:
+        for k in range(5):
+            d.summary.event(d.ctrl.now, "marker", {"step": k, "load_kg": 10.0 * k})
+            time.sleep(0.01)
+    finally:
+        d.stop("test finished")
+        d.wait(60)
+        d.close()
+    f = read_all(d.result()["recording"]["files"][0])
+    marks = [b["data"] for _t, b in f["msgs"]["/pamd/sim/events"] if b["kind"] == "marker"]
+    assert marks == [{"step": k, "load_kg": 10.0 * k} for k in range(5)]

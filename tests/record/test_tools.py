@@ -89,3 +89,18 @@ def test_inspect_and_export_a_good_file(recorded_run: Any, tmp_path: Path,
     fi = 7 + 1  # force_n is the 2nd muscle field, after the 7 loop fields
     assert [float(r[i]) for r in rows[1:]] == [r[fi] for r in run.cap.rows]
     assert (out / "pamd_sim_loop.csv").exists() and (out / "pamd_sim_events.csv").exists()
+
+
+def test_run_records_by_config_default_and_no_record_turns_it_off(
+        sim_config: Any, tmp_path: Path, capsys: Any) -> None:
+    rec = tmp_path / "by-config"
+    cfg = sim_config(30.0, recording={"dir": str(rec), "run_name": "sweep"})
+    assert main(["run", "--config", cfg.path, "--duration", "0.2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    [f] = out["recording"]["files"]
+    assert Path(f).parent == rec and f.endswith("_sim_sweep.mcap")
+    assert out["recording"]["ticks_recorded"] == out["ticks"]
+    assert main(["run", "--config", cfg.path, "--duration", "0.2", "--no-record",
+                 "--json", "--note", "dry"]) == 0
+    assert json.loads(capsys.readouterr().out)["recording"] is None
+    assert len(list(rec.iterdir())) == 1
