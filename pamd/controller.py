@@ -18,7 +18,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.control.muscle import MuscleController
 from pamd.rig import Rig
 from pamd.safety import Supervisor, Transition
-from pamd.tick import I_STATE, I_T, I_TICK, Sink, State, TickLayout
+from pamd.tick import I_SEGMENT, I_STATE, I_T, I_TICK, Sink, State, TickLayout
 
 S_STARTING, S_IDLE, S_RUNNING, S_HOLD = (int(State.STARTING), int(State.IDLE),
                                          int(State.RUNNING), int(State.HOLD))
@@ -51,6 +51,7 @@ class RigController:
         self.listeners: list[Callable[[Transition], None]] = []
         self.calibration_dirty = False
         self.sequencer: Any = None  # a running experiment plan (pamd.experiment)
+        self.segment = 0  # the plan's step + 1: each step gets a recording file
         self.hold_started = 0.0
 
     def _on_transition(self, tr: Transition) -> None:
@@ -99,6 +100,7 @@ class RigController:
         rec[I_TICK] = self.tick_no
         rec[I_T] = now - self.t_start
         rec[I_STATE] = int(sup.state)
+        rec[I_SEGMENT] = self.segment
         self.tick_no += 1
         return rec
 

@@ -22,6 +22,7 @@ LOOP_FIELDS: tuple[str, ...] = (
     "overruns",  # periods skipped since start (cumulative)
     "state",  # supervisor State
     "lost_records",  # records the sink could not take since start (cumulative)
+    "segment",  # experiment step + 1 (0 outside a plan): a new recording file each step
 )
 
 MUSCLE_FIELDS: tuple[str, ...] = (
@@ -114,7 +115,7 @@ class TickLayout:
 
 
 # Loop field offsets, for the tick path (no lookups per tick).
-I_TICK, I_T, I_WAKE, I_COMPUTE, I_OVERRUNS, I_STATE, I_LOST = range(len(LOOP_FIELDS))
+I_TICK, I_T, I_WAKE, I_COMPUTE, I_OVERRUNS, I_STATE, I_LOST, I_SEGMENT = range(len(LOOP_FIELDS))
 (
     M_PRESSURE,
     M_FORCE,

@@ -72,7 +72,8 @@ class Manifest:
         finished = set(seq.finished_steps) if seq is not None else set()
         files = [os.path.basename(f) for f in (result.get("recording") or {}).get("files", [])]
         for s in self.data["steps"][start:]:
-            own = [f for f in files if f.endswith(f"-{s['name']}.mcap")]
+            tag = f"_{s['index'] + 1:02d}-{s['name']}"
+            own = [f for f in files if tag in f]
             s["files"] = sorted(set(s["files"]) | set(own))
             if s["name"] in finished:
                 s["status"] = "done"

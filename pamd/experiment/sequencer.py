@@ -95,6 +95,7 @@ class Sequencer:
         step = self.plan.steps[self.index]
         self.step = step
         self.step_t0 = now
+        self.ctrl.segment = self.index + 1  # the recorder starts the step's file here
         m = self.muscle
         self.ctrl.sink.event(now, "segment", {
             "plan": self.plan.name, "step": step.name, "index": self.index,
@@ -154,9 +155,9 @@ class Sequencer:
             if self._agree_since == math.inf:
                 self._agree_since = now
             elif now - self._agree_since >= FORCE_AGREE_S:
-                self._start_settle(now)
                 self.ctrl.supervisor.go(now, State.RUNNING,
                                         f"load {step.load_kg:g} kg confirmed by the force")
+                self._start_settle(now)
         else:
             self._agree_since = math.inf
             if now - self.phase_t0 > FORCE_AGREE_TIMEOUT_S:

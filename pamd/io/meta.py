@@ -26,7 +26,8 @@ def build_record_spec(cfg: LoadedConfig, calibration: Calibration, *, record_dir
                       note: str = "", run_name: str | None = None,
                       model_path: str | None = None, profile: dict[str, Any] | None = None,
                       virtual: bool, wall0_ns: int,
-                      fsize_limit_bytes: int | None = None) -> RecordSpec:
+                      fsize_limit_bytes: int | None = None,
+                      steps: tuple[dict[str, Any], ...] = ()) -> RecordSpec:
     rc = cfg.rig.recording
     started = time.strftime("%Y%m%d-%H%M%S", time.localtime(wall0_ns / 1e9))
     rig = cfg.rig
@@ -69,4 +70,4 @@ def build_record_spec(cfg: LoadedConfig, calibration: Calibration, *, record_dir
         dir=record_dir, run_name=run_name or rc.run_name, rotate_mb=rc.rotate_mb,
         rotate_s=rc.rotate_s, chunk_kb=rc.chunk_kb, flush_s=rc.flush_s,
         compression=rc.compression, started_at=started, metadata=meta,
-        attachments=tuple(atts), fsize_limit_bytes=fsize_limit_bytes)
+        attachments=tuple(atts), fsize_limit_bytes=fsize_limit_bytes, steps=steps)

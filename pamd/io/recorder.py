@@ -48,9 +48,13 @@ def sanitize(x: Any) -> Any:
     return x
 
 
-def file_name(started_at: str, rig_id: str, run_name: str, segment: int) -> str:
+def file_name(started_at: str, rig_id: str, run_name: str, segment: int,
+              step: dict[str, Any] | None = None) -> str:
+    """`<time>_<rig>_<run>[_NN-<step>][_NNN].mcap`: an experiment step's files carry
+    its number and name; a rotated file its segment number."""
     seg = f"_{segment:03d}" if segment else ""
-    return f"{started_at}_{rig_id}_{run_name}{seg}.mcap"
+    st = f"_{int(step['index']) + 1:02d}-{step['step']}" if step else ""
+    return f"{started_at}_{rig_id}_{run_name}{st}{seg}.mcap"
 
 
 class Recorder:
@@ -95,13 +99,16 @@ class Recorder:
         self.chunk_opened = 0.0  # monotonic time the open chunk got its first message
         self.file_t0 = -1
         self.last_sync = time.monotonic()
+        self.step_no = 0  # the tick field `segment`: experiment step + 1, 0 outside
+        self.i_segment = LOOP_FIELDS.index("segment")
 
     # -- files ------------------------------------------------------------------------
     def open(self) -> str:
         os.makedirs(self.rs.dir, exist_ok=True)
         sp = self.spec
         path = os.path.join(self.rs.dir, file_name(self.rs.started_at, sp.rig_id,
-                                                   self.rs.run_name, self.segment))
+                                                   self.rs.run_name, self.segment,
+                                                   self._step()))
         w = McapWriter(path, self.rs.compression)
         self.writer = w
         self.files.append(path)
@@ -113,6 +120,9 @@ class Recorder:
         ]
         self.ch_loop = w.add_channel(f"/pamd/{sp.rig_id}/loop", "cdr", sid[1])
         self.ch_events = w.add_channel(f"/pamd/{sp.rig_id}/events", "json", sid[2])
+        step = self._step()
+        if step is not None:
+            w.add_metadata("pamd.experiment", {k: str(v) for k, v in step.items()})
         for name, data in self.rs.metadata.items():
             data = dict(data)
             if name == "pamd":
@@ -127,13 +137,26 @@ class Recorder:
         w.sync()
         return path
 
+    def _step(self) -> dict[str, Any] | None:
+        k = self.step_no - 1
+        return self.rs.steps[k] if 0 <= k < len(self.rs.steps) else None
+
     def _rotate(self) -> None:
         assert self.writer is not None
         self.writer.add_metadata("pamd.segment", {
             "segment": str(self.segment), "next_file": file_name(
-                self.rs.started_at, self.spec.rig_id, self.rs.run_name, self.segment + 1)})
+                self.rs.started_at, self.spec.rig_id, self.rs.run_name, self.segment + 1,
+                self._step())})
         self.writer.finish()
         self.segment += 1
+        self.open()
+
+    def _next_step(self, step_no: int) -> None:
+        """An experiment step begins at this tick: finish the file, start the step's."""
+        assert self.writer is not None
+        self.writer.finish()
+        self.step_no = step_no
+        self.segment = 0
         self.open()
 
     # -- time -------------------------------------------------------------------------
@@ -145,6 +168,8 @@ class Recorder:
         w = self.writer
         assert w is not None
         tick = int(v[0])
+        if v[self.i_segment] != self.step_no and self.rs.steps:
+            self._next_step(int(v[self.i_segment]))
         if self.spec.virtual:
             log_ns = self.spec.wall0_ns + tick * self.period_ns
         else:

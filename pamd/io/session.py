@@ -27,6 +27,7 @@ class RecordingRequest:
     profile: dict[str, Any] | None = None  # the profile or experiment step, as metadata
     script: tuple[tuple[int, str, dict], ...] = ()  # io-side commands (tick, verb, payload)
     fsize_limit_bytes: int | None = None  # tests: make writes fail for real
+    segments: tuple[dict[str, Any], ...] = ()  # experiment steps: one file each
 
 
 class IoSession:
@@ -45,7 +46,8 @@ class IoSession:
         rspec = build_record_spec(
             cfg, daemon.calibration, record_dir=record_dir, note=daemon.note,
             run_name=req.run_name, model_path=req.model_path, profile=req.profile,
-            virtual=self.virtual, wall0_ns=wall0, fsize_limit_bytes=req.fsize_limit_bytes)
+            virtual=self.virtual, wall0_ns=wall0, fsize_limit_bytes=req.fsize_limit_bytes,
+            steps=req.segments)
 
         def make_spec(shm_name: str) -> IoSpec:
             return IoSpec(shm_name=shm_name, layout=layout, rig_id=cfg.rig.rig_id,

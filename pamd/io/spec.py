@@ -4,6 +4,7 @@ spawn (the io process imports nothing of the daemon's live objects)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from pamd.ipc.ring import BlockLayout
 
@@ -23,6 +24,9 @@ class RecordSpec:
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     attachments: tuple[tuple[str, str, bytes], ...] = ()  # (name, media type, data)
     fsize_limit_bytes: int | None = None  # tests: RLIMIT_FSIZE, so writes fail for real
+    # Experiment steps: the file of step k (tick field `segment` = k + 1) is named after
+    # steps[k]["step"] and states steps[k] as its `pamd.experiment` metadata.
+    steps: tuple[dict[str, Any], ...] = ()
 
 
 @dataclass(frozen=True)

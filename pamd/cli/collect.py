@@ -1,0 +1,224 @@
+"""`pamd collect PLAN`: run an experiment plan on the rig, unattended where it can
+be, with a progress bar, one recording file per step and a manifest; `--dry-run`
+checks the plan and prints its timeline without moving anything."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import signal
+import sys
+import threading
+import time
+from typing import Any
+
+from pamd.config import LoadedConfig, load_config
+from pamd.daemon import Daemon
+from pamd.errors import CommandRefused
+from pamd.experiment.manifest import Manifest
+from pamd.experiment.plan import Plan, load_plan
+from pamd.experiment.timeline import format_timeline, timeline
+from pamd.io.session import RecordingRequest
+from pamd.tick import State
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "collect", help="run an experiment plan (e.g. the 0.05 Hz sine sweep under loads)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Run an experiment plan: per step, change the load (by itself on the "
+        "simulated rig; otherwise the operator hangs it and confirms, and the measured "
+        "force must agree), settle, run the profile, hold. One MCAP file per step and a "
+        "manifest.json go to --out.\n\n"
+        "Ctrl-C once: pause at the end of the present cycle, then resume or abort. "
+        "Twice: abort now, to the safe state. --resume DIR continues a collection from "
+        "its first unfinished step.",
+        epilog="examples:\n"
+        "  pamd collect config/experiments/sine-sweep.yaml --dry-run\n"
+        "  pamd collect config/experiments/sine-sweep.yaml --clock virtual --out runs/sweep\n"
+        "  pamd collect sweep.yaml --config rig.yaml --resume runs/sweep")
+    p.add_argument("plan", help="the experiment plan (YAML)")
+    p.add_argument("--config", metavar="RIG", help="rig config (default: built-in sim)")
+    p.add_argument("--out", metavar="DIR", help="where files and the manifest go "
+                   "(default: runs/<plan>-<time>)")
+    p.add_argument("--clock", choices=("real", "virtual"), help="override loop.clock")
+    p.add_argument("--dry-run", action="store_true", help="check and print the timeline only")
+    p.add_argument("--resume", metavar="DIR", help="continue the collection in DIR")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def simulated_loads(cfg: LoadedConfig, plan: Plan) -> bool:
+    """True when the plan's muscle hangs on a simulated rig (loads change by themselves)."""
+    force = cfg.muscle(plan.muscle).signals.force
+    return next(d.type for d in cfg.rig.drivers if d.name == force.driver) == "sim"
+
+
+def run(args: argparse.Namespace) -> int:
+    overrides: dict[str, Any] = {}
+    if args.clock:
+        overrides["loop"] = {"clock": args.clock}
+    cfg = load_config(args.config, overrides)
+    plan = load_plan(args.plan, cfg)
+    sim = simulated_loads(cfg, plan)
+    lines = timeline(plan, cfg, sim)
+    print(format_timeline(plan, lines))
+    if args.dry_run:
+        print("dry run: the plan fits the rig's limits; nothing moved")
+        return 0
+    if args.resume:
+        manifest = Manifest.load(args.resume)
+        if manifest.plan_name != plan.name:
+            raise CommandRefused(f"{args.resume} holds plan {manifest.plan_name!r}, not "
+                                 f"{plan.name!r}")
+        start = manifest.first_unfinished()
+        if start is None:
+            print(f"{args.resume}: every step is finished; nothing to resume")
+            return 0
+        out = args.resume
+    else:
+        out = args.out or os.path.join(
+            "runs", f"{plan.name}-{time.strftime('%Y%m%d-%H%M%S')}")
+        os.makedirs(out, exist_ok=True)
+        manifest = Manifest.new(out, plan, args.plan, cfg)
+        start = 0
+    print(f"collecting into {out}, from step {start + 1} ({plan.steps[start].name})")
+    segments = tuple({"step": s.name, "index": i, "plan": plan.name,
+                      "load_kg": lines[i].load_kg} for i, s in enumerate(plan.steps))
+    daemon = Daemon(cfg, note=plan.metadata.notes, recording=RecordingRequest(
+        dir=out, run_name=plan.name, segments=segments,
+        profile={"plan": plan.name, "plan_file": os.path.abspath(args.plan)}))
+    pending = daemon.start_plan(plan, args.plan, start)
+    interrupts = _signals(daemon)
+    daemon.start()
+    outcome = "not started"
+    try:
+        verdict = pending.result(cfg.rig.safety.startup_timeout_s + 5.0)
+        if not verdict["ok"]:
+            raise CommandRefused(verdict["error"])
+        outcome = _follow(daemon, lines, start, interrupts, not args.no_progress)
+    finally:
+        daemon.stop("collection ended")
+        daemon.wait()
+        daemon.close()
+    seq = daemon.ctrl.sequencer
+    manifest.record_run(seq, daemon.result(), start)
+    manifest.save()
+    print(f"{outcome}; {len(seq.finished_steps) if seq else 0} step(s) finished; "
+          f"manifest: {os.path.join(out, 'manifest.json')}")
+    return 0 if outcome == "done" else 1
+
+
+def _signals(daemon: Daemon) -> dict[str, int]:
+    count = {"n": 0}
+    if threading.current_thread() is not threading.main_thread():
+        return count
+
+    def handler(signum: int, frame: Any) -> None:
+        count["n"] += 1
+        if signum == signal.SIGTERM or count["n"] >= 2:
+            daemon.submit("stop")
+        else:
+            daemon.submit("pause")
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return count
+
+
+def _follow(daemon: Daemon, lines: list[Any], start: int, interrupts: dict[str, int],
+            show: bool) -> str:
+    """Show progress and talk to the operator until the plan ends."""
+    seq = daemon.ctrl.sequencer
+    total = sum(s.duration_s for s in lines[start:])
+    bar = _bar(total, show)
+    with _logs_above(bar):
+        outcome = _follow_loop(daemon, seq, bar, total, interrupts)
+    if bar is not None:
+        if outcome == "done":
+            bar.n = total
+        bar.close()
+    return outcome
+
+
+def _logs_above(bar: Any) -> Any:
+    """Log lines print above the progress bar instead of through it."""
+    if bar is None:
+        return contextlib.nullcontext()
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    return logging_redirect_tqdm()
+
+
+def _follow_loop(daemon: Daemon, seq: Any, bar: Any, total: float,
+                 interrupts: dict[str, int]) -> str:
+    ctrl = daemon.ctrl
+    t0 = None
+    asked = ""
+    while daemon.alive and not seq.outcome:
+        daemon.service()
+        if t0 is None and ctrl.supervisor.state != State.STARTING:
+            t0 = ctrl.now
+        if bar is not None and t0 is not None:
+            pr = seq.progress()
+            m = seq.muscle
+            bar.n = min(total, ctrl.now - t0)
+            cyc = f" cycle {pr['cycle'] + 1}/{pr['cycles']}" if pr["cycles"] else ""
+            bar.set_postfix_str(f"step {pr['index'] + 1}/{pr['steps']} {pr['step']} "
+                                f"{pr['phase']}{cyc} | {m.pressure:4.2f} bar "
+                                f"{m.length:6.2f} mm", refresh=True)
+        prompt = seq.awaiting_operator
+        if prompt and prompt != asked:
+            asked = prompt
+            _ask(daemon, prompt, bar)
+        if ctrl.supervisor.state == State.HOLD and interrupts["n"] == 1 and seq.phase != "pause":
+            interrupts["n"] = 0
+            _pause_menu(daemon, bar)
+        time.sleep(0.1)
+    return seq.outcome or "aborted"
+
+
+def _ask(daemon: Daemon, prompt: str, bar: Any) -> None:
+    """An operator action: a load to hang (confirm) or a pause to end (resume)."""
+    seq = daemon.ctrl.sequencer
+    msg = f"\n>>> {prompt}. Press Enter when done (Ctrl-C twice aborts): "
+    if bar is not None:
+        bar.clear()
+    if not sys.stdin.isatty() and not os.environ.get("PAMD_OPERATOR_STDIN"):
+        print(msg + "(no operator terminal: aborting)", file=sys.stderr)
+        daemon.submit("stop")
+        return
+    input(msg)
+    verdict = daemon.command("confirm" if seq.phase == "load" else "resume")
+    if not verdict["ok"]:
+        print(f"pamd: {verdict['error']}", file=sys.stderr)
+
+
+def _pause_menu(daemon: Daemon, bar: Any) -> None:
+    if bar is not None:
+        bar.clear()
+    while True:
+        try:
+            answer = input("\npaused at the end of the cycle: [r]esume or [a]bort? ").strip()
+        except EOFError:
+            answer = "a"
+        if answer[:1].lower() == "r":
+            daemon.command("resume")
+            return
+        if answer[:1].lower() == "a":
+            daemon.command("stop")
+            return
+
+
+def _bar(total_s: float, show: bool) -> Any:
+    if not show:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # progress is a nicety, not a requirement
+        return None
+    return tqdm(total=round(total_s, 1), unit="s", unit_scale=False, dynamic_ncols=True,
+                bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} s rig time "
+                "[{elapsed}<{remaining}] {postfix}", file=sys.stderr)
+
