@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 
 from pamd.cli.main import main
+from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 BAD = {
     "missing": None,
@@ -86,7 +87,7 @@ def test_inspect_and_export_a_good_file(recorded_run: Any, tmp_path: Path,
     assert rows[0][:4] == ["log_time_ns", "tick", "t_s", "pressure_bar"]
     assert len(rows) == n + 1
     i = rows[0].index("force_n")
-    fi = 7 + 1  # force_n is the 2nd muscle field, after the 7 loop fields
+    fi = len(LOOP_FIELDS) + MUSCLE_FIELDS.index("force_n")
     assert [float(r[i]) for r in rows[1:]] == [r[fi] for r in run.cap.rows]
     assert (out / "pamd_sim_loop.csv").exists() and (out / "pamd_sim_events.csv").exists()
 
