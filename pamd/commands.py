@@ -82,6 +82,38 @@ class EstopArgs:
     reason: str = spec("emergency stop", "Why (recorded).")
 
 
+@dataclass(frozen=True, kw_only=True)
+class MuscleSettings:
+    """One muscle's share of a reloaded config, computed outside the loop's thread
+    (`pamd.service.reload`); the loop only assigns it (`MuscleController.apply_settings`).
+    """
+
+    muscle: str
+    pid: Any  # PidConfig
+    rate_feedforward_s: float
+    pressure_timeout_s: float
+    force_timeout_s: float
+    length_timeout_s: float
+    safety: Any  # SafetyConfig
+    limits: Any  # MuscleLimitsResolved
+    slew_limit_bar_per_s: float
+    nominal_length_mm: float
+    load_kg: float | None  # None: unchanged in the file (a `load` command's value stays)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReloadArgs:
+    """The `reload` command (SIGHUP). Internal: not in VERBS, so no client can send
+    it; the daemon builds it from a validated config. `plan` (one MuscleSettings per
+    muscle, in the rig's order) stays out of the recorded event, like collect's."""
+
+    config_sha256: str
+    at_once: tuple[str, ...]  # changed key paths that apply at once (gains, timeouts)
+    idle_only: tuple[str, ...]  # changed key paths that apply only while IDLE (limits)
+    startup_timeout_s: float
+    plan: tuple[MuscleSettings, ...]
+
+
 VERBS: dict[str, type] = {
     "setpoint": SetpointArgs, "profile": ProfileArgs, "hold": NoArgs, "resume": NoArgs,
     "stop": NoArgs, "estop": EstopArgs, "reset": NoArgs, "home": HomeArgs, "tare": MuscleArgs,
@@ -346,8 +378,36 @@ def _collect(ctrl: Any, a: Any) -> dict[str, Any]:
     return {"plan": plan.name, "steps": len(plan.steps), "start_step": a.start_step}
 
 
+def _reload(ctrl: Any, a: ReloadArgs) -> dict[str, Any]:
+    """A reloaded config: gains and timeouts at once; limits, slew, loads and nominal
+    lengths only while IDLE (otherwise reported as deferred: the daemon sends the
+    command again once the rig is IDLE). Refused as a whole, changing nothing, if
+    a held pressure is above a new pressure limit."""
+    settings = a.plan
+    if [s.muscle for s in settings] != [m.name for m in ctrl.muscles]:
+        raise CommandRefused("reload: the muscles differ from the running rig's; that "
+                             "needs a restart")
+    with_limits = bool(a.idle_only) and ctrl.supervisor.state == State.IDLE
+    if with_limits:
+        for m, s in zip(ctrl.muscles, settings, strict=True):
+            if m.started and m.sp > s.limits.max_pressure_bar:
+                raise CommandRefused(
+                    f"reload: {m.name} holds {m.sp:.2f} bar, above the new pressure limit "
+                    f"{s.limits.max_pressure_bar:g} bar; lower the setpoint first "
+                    "(nothing changed)")
+    for m, s in zip(ctrl.muscles, settings, strict=True):
+        m.apply_settings(s, with_limits)
+    ctrl.startup_timeout_s = a.startup_timeout_s
+    if with_limits:
+        push_safe_outputs(ctrl)  # loads or limits may have moved the safe pressures
+    return {"applied": list(a.at_once) + (list(a.idle_only) if with_limits else []),
+            "deferred": [] if with_limits else list(a.idle_only),
+            "state": ctrl.supervisor.state.name}
+
+
 _HANDLERS: dict[str, Callable[[Any, Any], dict[str, Any] | None]] = {
     "setpoint": _setpoint, "profile": _profile, "hold": _hold, "resume": _resume,
     "stop": _stop, "estop": _estop, "reset": _reset, "home": _home, "tare": _tare,
     "load": _load, "confirm": _confirm, "pause": _pause, "collect": _collect,
+    "reload": _reload,  # internal (SIGHUP): built by the daemon, not in VERBS
 }

@@ -23,6 +23,9 @@ from pamd.io.session import IoSession, RecordingRequest
 from pamd.loop import Loop
 from pamd.rig import Rig
 from pamd.safety import Transition
+from pamd.service.keeper import ServiceKeeper
+from pamd.service.notify import Notifier
+from pamd.service.state import state_paths
 from pamd.summary import LocalMailbox, SummarySink
 from pamd.tick import State, TickLayout
 
@@ -47,6 +50,10 @@ class PendingCommand:
         self.verdict = verdict
         self._done.set()
 
+    @property
+    def done(self) -> bool:
+        return self._done.is_set()
+
     def result(self, timeout_s: float) -> dict[str, Any]:
         if not self._done.wait(timeout_s):
             return {"ok": False, "error": f"no verdict from the loop within {timeout_s:g} s"}
@@ -58,7 +65,12 @@ class Daemon:
     `wait()`; `close()` releases the drivers."""
 
     def __init__(self, cfg: LoadedConfig, note: str = "",
-                 recording: RecordingRequest | None = None) -> None:
+                 recording: RecordingRequest | None = None, *, state_dir: str | None = None,
+                 notifier: Notifier | None = None,
+                 config_overrides: dict[str, Any] | None = None) -> None:
+        """`state_dir` overrides the config's (see pamd.service.state); `notifier`
+        talks to systemd (the CLI passes `Notifier.from_environ()`);
+        `config_overrides` are re-applied when the config is reloaded (SIGHUP)."""
         self.cfg = cfg
         self.note = note
         self.calibration = load_calibration(cfg.calibration_path)
@@ -74,6 +86,10 @@ class Daemon:
         self.ctrl.listeners.append(self.transitions.append)
         self._thread: threading.Thread | None = None
         self.error: BaseException | None = None
+        # systemd notify, the latched fault and safe outputs kept across restarts, reload
+        self.keeper = ServiceKeeper(self, state_paths(cfg, state_dir), notifier,
+                                    config_overrides)
+        self.keeper.restore()
 
     # -- life cycle -------------------------------------------------------------------
     def start(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
@@ -81,6 +97,7 @@ class Daemon:
             self.io.start()  # refuses (RecordingError) before anything opens or moves
         self.rig.open(self.loop.clock)
         push_safe_outputs(self.ctrl)  # what modules with a comm watchdog fall back to
+        self.keeper.started()  # ... and what `pamd safe-outputs` replays
         self._thread = threading.Thread(
             target=self._run, args=(duration_s, stop_when_profile_done), name="pamd-loop",
             daemon=True)
@@ -94,6 +111,11 @@ class Daemon:
 
     def stop(self, reason: str) -> None:
         self.loop.request_stop(reason)
+        self.keeper.stop_requested(reason)
+
+    def request_reload(self) -> None:
+        """Read the config again at the next `service()` (SIGHUP; any thread)."""
+        self.keeper.reload_requested = True
 
     @property
     def alive(self) -> bool:
@@ -126,8 +148,10 @@ class Daemon:
             for m in self.ctrl.muscles:
                 m.calibration_dirty = False
             save_calibration(self.calibration, self.cfg.calibration_path)
+        self.keeper.service()
 
     def close(self) -> None:
+        self.keeper.close()  # STOPPING=1 if not yet sent; the fault file up to date
         if self.io is not None:
             self.io.close(self.result())  # finalises the file with the run summary
         self.rig.close()

@@ -16,6 +16,8 @@ from pamd.control.profiles import ProfileSpec
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
 from pamd.io.session import RecordingRequest
+from pamd.service import testhooks
+from pamd.service.notify import Notifier
 
 PROFILE_KINDS = ("constant", "step", "ramp", "sine", "triangle")
 
@@ -41,6 +43,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.add_argument("--note", default="", help="operator note kept with the run")
+    p.add_argument("--state-dir", metavar="DIR", help="keep the latched fault and the safe "
+                   "outputs in DIR (overrides state_dir of the config; the service uses "
+                   "/var/lib/pamd)")
     r = p.add_argument_group("recording (MCAP, written by the io process)")
     r.add_argument("--record", metavar="DIR", help="record the run into DIR (overrides "
                    "recording.dir of the config)")
@@ -87,8 +92,10 @@ def run(args: argparse.Namespace) -> int:
             profile["muscle"] = args.muscle
     recording = RecordingRequest(dir=args.record, enabled=not args.no_record,
                                  run_name=args.name, profile=profile)
-    daemon = Daemon(cfg, note=args.note, recording=recording)
-    _install_signals(daemon)
+    daemon = Daemon(cfg, note=args.note, recording=recording, state_dir=args.state_dir,
+                    notifier=Notifier.from_environ(), config_overrides=overrides)
+    testhooks.install(daemon)
+    signalled = _install_signals(daemon)
     # Queued before the loop starts: applied on the first tick after start-up, so a
     # virtual run is the same every time.
     pending = daemon.submit("profile", profile) if profile is not None else None
@@ -96,7 +103,11 @@ def run(args: argparse.Namespace) -> int:
                  spec.cycles is not None)
     try:
         if pending is not None:
-            verdict = pending.result(cfg.rig.safety.startup_timeout_s + 5.0)
+            waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
+            while not pending.done and waited < patience and daemon.alive:
+                daemon.wait(timeout_s=0.05)  # keeps service() (notify, state) running
+                waited += 0.05
+            verdict = pending.result(0.0)
             if not verdict["ok"]:
                 daemon.stop("profile refused")
                 daemon.wait()
@@ -113,21 +124,35 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(result, indent=2))
     else:
         print_summary(result)
-    return 1 if result["final_state"] in ("FAULT", "ESTOP") or daemon.error else 0
+    if daemon.error is not None:
+        return 1
+    if signalled and daemon.ctrl.at_safe_state():
+        # Stopped on purpose and safe: a latched fault stays in the summary and in the
+        # state directory (the next start comes back latched), not in the exit code,
+        # so systemd does not count a clean stop as a failure.
+        return 0
+    return 1 if result["final_state"] in ("FAULT", "ESTOP") else 0
 
 
-def _install_signals(daemon: Daemon) -> None:
+def _install_signals(daemon: Daemon) -> list[str]:
+    """SIGTERM/SIGINT: safe state, finalise, exit. SIGHUP: reload the config. Returns
+    the list the handler appends the names of the stop signals it received to."""
+    received: list[str] = []
     if threading.current_thread() is not threading.main_thread():
-        return
-    count = {"n": 0}
+        return received
 
     def handler(signum: int, frame: Any) -> None:
-        count["n"] += 1
         name = signal.Signals(signum).name
+        received.append(name)
         daemon.stop(f"{name} received")
+
+    def reload(signum: int, frame: Any) -> None:
+        daemon.request_reload()  # done by daemon.service(), in this (main) thread
 
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
+    signal.signal(signal.SIGHUP, reload)
+    return received
 
 
 def print_summary(r: dict[str, Any]) -> None:

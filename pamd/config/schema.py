@@ -186,3 +186,9 @@ class RigConfig:
     calibration_file: str | None = spec(
         None, "Where home/tare references are kept (relative to the config file; default: "
         "<config name>.cal.yaml beside it).")
+    state_dir: str | None = spec(
+        None, "Directory for state that survives a restart: the latched fault (fault.json) "
+        "and the last known-good safe outputs (safe-outputs.json, replayed by `pamd "
+        "safe-outputs`). Relative to the config file; null: beside the config as "
+        "<config name>.fault.json and <config name>.safe-outputs.json. `pamd run "
+        "--state-dir` overrides it (the service uses /var/lib/pamd).")

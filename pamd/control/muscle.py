@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from array import array
+from typing import Any
 
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig
@@ -128,6 +129,39 @@ class MuscleController:
         self.safe_bar = safe_pressure_bar(
             self.force_model, load_kg, self.limits.max_pretension,
             self.safety.stretch_margin, self.safety.safe_pressure_margin_bar, self.max_p)
+
+    def apply_settings(self, s: Any, with_limits: bool) -> None:
+        """A reloaded config (`pamd.commands.MuscleSettings`, SIGHUP), applied in the
+        loop's thread at a tick boundary. Gains and timeouts always; limits, slew,
+        nominal length and a changed load (so the safe pressure) only `with_limits`
+        (the rig is IDLE). The PID keeps its state, the integral clamped to the new
+        limit: no bump."""
+        pid, g = self.pid, s.pid
+        pid.kp, pid.ki, pid.kd = g.kp, g.ki_per_s, g.kd_s
+        pid.filter_tau_s = 1.0 / (2.0 * math.pi * g.derivative_filter_hz)
+        pid.integral_limit, pid.output_limit = g.integral_limit_bar, g.output_limit_bar
+        pid.i = max(-pid.integral_limit, min(pid.integral_limit, pid.i))
+        self.kff_rate_s = s.rate_feedforward_s
+        sig = self.sig
+        sig.pressure.timeout_s = self._pto = s.pressure_timeout_s
+        sig.force.timeout_s = self._fto = s.force_timeout_s
+        sig.length.timeout_s = self._lto = s.length_timeout_s
+        saf = s.safety
+        self.hold_s = saf.hard_limit_hold_s
+        self.track_band, self.track_s = saf.tracking_band_bar, saf.tracking_time_s
+        if not with_limits:
+            return
+        lim = s.limits
+        self.safety, self.limits = saf, lim
+        self.max_p, self.hard_p = lim.max_pressure_bar, lim.hard_max_pressure_bar
+        self.max_c, self.hard_c = lim.max_contraction, lim.hard_max_contraction
+        self.soft_c = lim.max_contraction - saf.soft_band_contraction
+        self.c_release = self.soft_c - 0.5 * saf.soft_band_contraction
+        self.max_stretch, self.hard_stretch = lim.max_pretension, lim.hard_max_pretension
+        self.s_release = -self.max_stretch + 0.5 * saf.soft_band_contraction
+        self.slew, self.estop_slew = s.slew_limit_bar_per_s, saf.estop_slew_bar_per_s
+        self.length0_mm = s.nominal_length_mm
+        self.update_load(self.load_kg if s.load_kg is None else s.load_kg)
 
     @property
     def referenced(self) -> bool:

@@ -1,0 +1,348 @@
+"""The service keeper: what a daemon does in its main thread so that it can live
+under systemd for months. `Daemon.service()` calls `ServiceKeeper.service()` every
+50 ms (from `wait()`); nothing here runs in the loop's thread.
+
+* notify: `READY=1` once the loop ticks (even with a device missing: the rig is
+  then in FAULT and STATUS says why), `WATCHDOG=1` every half watchdog period while
+  the loop ticks on time (a stalled loop gets no pings and systemd restarts it; a
+  FAULT is not a stall), `STATUS=` with the supervisor's state and reason,
+  `STOPPING=1` on shutdown, `RELOADING=1` ... `READY=1` around a reload;
+* persistence: the latched fault is written to the state directory when the
+  supervisor latches it and removed when it is reset; a daemon started again comes
+  back latched (`restore()`, before start). The present safe outputs are saved
+  whenever they change, for `pamd safe-outputs`;
+* a loop the main thread sees stalled (no tick within `loop.stall_timeout_s`) is
+  persisted as a fault at once, so a daemon the watchdog had to kill comes back
+  latched;
+* SIGHUP: the config is read again, validated and applied through the loop's
+  mailbox (`pamd.service.reload`).
+
+Outside systemd the notifier is disabled and only the persistence remains.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any
+
+from pamd.commands import Command
+from pamd.config.loader import LoadedConfig, load_config
+from pamd.errors import PamdError
+from pamd.service.notify import Notifier
+from pamd.service.reload import ReloadPlan, describe, plan_reload
+from pamd.service.state import (
+    FaultRecord,
+    StateFileError,
+    StatePaths,
+    now_iso,
+    read_fault,
+    remove_durably,
+    safe_outputs_document,
+    write_fault,
+    write_safe_outputs,
+)
+from pamd.tick import State
+
+log = logging.getLogger("pamd")
+
+
+class ServiceKeeper:
+    """Main-thread housekeeping of one daemon: notify, persistence, reload."""
+
+    def __init__(self, daemon: Any, paths: StatePaths | None, notifier: Notifier | None = None,
+                 config_overrides: dict[str, Any] | None = None) -> None:
+        self.daemon = daemon
+        self.paths = paths
+        self.notifier = notifier if notifier is not None else Notifier(None)
+        self.config_overrides = config_overrides
+        # notify
+        self.ready_sent = False
+        self.stopping_sent = False
+        self.stop_reason: str | None = None
+        self.last_status: str | None = None
+        self.pings = 0
+        self._next_ping = 0.0
+        self._withholding = False
+        # persistence
+        self.persisted: tuple[str, str] | None = None  # (state, reason) the fault file holds
+        self.earlier: list[str] = []  # reasons persisted before, never reset
+        self._plain = ""  # the reason as the fault file holds it
+        self.restored: FaultRecord | None = None
+        self._stall_persisted = False
+        self._safe_key: tuple[Any, ...] | None = None
+        self._io_errors: set[str] = set()
+        # reload
+        self.reload_requested = False
+        self.started_cfg: LoadedConfig = daemon.cfg
+        self.gains_cfg: LoadedConfig = daemon.cfg
+        self.limits_cfg: LoadedConfig = daemon.cfg
+        self.pending: tuple[ReloadPlan, Any] | None = None
+        self.deferred: ReloadPlan | None = None
+
+    # -- life cycle (called by the Daemon) -------------------------------------------------
+    def restore(self) -> FaultRecord | None:
+        """Before start: a fault latched before a restart latches again (the
+        controller re-latches `fault_reason` once the sensors are read)."""
+        if self.paths is None:
+            return None
+        path = self.paths.fault
+        try:
+            rec = read_fault(path)
+        except StateFileError as exc:
+            rec = FaultRecord("FAULT", f"the fault state file is unreadable ({exc}); latched "
+                              "to be safe", now_iso())
+        if rec is None:
+            return None
+        text = rec.restored_reason()
+        self.daemon.ctrl.supervisor.fault_reason = text
+        self.restored = rec
+        self.persisted = ("FAULT", text)
+        self.earlier, self._plain = list(rec.earlier), rec.reason
+        log.error("latched %s restored from %s: %s; the rig holds its measured pressure "
+                  "until reset", "emergency stop" if rec.state == "ESTOP" else "fault",
+                  path, rec.reason)
+        return rec
+
+    def started(self) -> None:
+        """The drivers are open: save the safe outputs before the loop runs."""
+        self._save_safe_outputs()
+
+    def stop_requested(self, reason: str) -> None:
+        """Daemon.stop() (possibly from a signal handler): only remember it."""
+        if self.stop_reason is None:
+            self.stop_reason = reason
+
+    def close(self) -> None:
+        self._send_stopping()
+        self.service_persistence()
+        self.notifier.close()
+
+    # -- every 50 ms -----------------------------------------------------------------------
+    def service(self) -> None:
+        self.service_persistence()
+        self._notify()
+        self._reload()
+
+    def service_persistence(self) -> None:
+        self._persist_fault()
+        self._persist_stall()
+        self._save_safe_outputs()
+
+    # -- notify ----------------------------------------------------------------------------
+    def status_text(self) -> str:
+        sup = self.daemon.ctrl.supervisor
+        text = f"{sup.state.name}: {sup.reason}"
+        if self.deferred is not None:
+            text += " (config reload waiting for IDLE)"
+        return text
+
+    def _notify(self) -> None:
+        n = self.notifier
+        loop = self.daemon.loop
+        status = self.status_text()
+        if not self.ready_sent and loop.running and loop.timing.ticks > 0:
+            self.ready_sent = True
+            self.last_status = status
+            n.ready(status)
+            self._next_ping = 0.0
+        elif status != self.last_status:
+            self.last_status = status
+            n.status(status)
+        if self.stop_reason is not None or loop.stopped_reason:
+            self._send_stopping()
+        interval = n.ping_interval_s
+        if interval is None or not self.ready_sent:
+            return
+        now = time.monotonic()
+        if now < self._next_ping:
+            return
+        if self.loop_on_time():
+            n.watchdog()
+            self.pings += 1
+            self._next_ping = now + interval
+            if self._withholding:
+                self._withholding = False
+                log.warning("the loop ticks on time again: watchdog pings resumed")
+        elif not self._withholding and loop.running:
+            self._withholding = True
+            log.error("the loop has not completed a tick for %.0f ms: watchdog pings "
+                      "withheld (systemd restarts pamd if this lasts)", 1000 * self.tick_gap_s())
+
+    def tick_gap_s(self) -> float:
+        """Seconds since the loop last completed a tick (NaN before the first)."""
+        now = time.monotonic()  # read first: a late main thread never sees a false gap
+        return now - self.daemon.loop.last_tick_done
+
+    def loop_on_time(self) -> bool:
+        loop = self.daemon.loop
+        return loop.running and self.tick_gap_s() < loop.stall_s
+
+    def _send_stopping(self) -> None:
+        if self.stopping_sent:
+            return
+        self.stopping_sent = True
+        reason = self.stop_reason or self.daemon.loop.stopped_reason or "shutting down"
+        self.notifier.stopping(f"stopping ({reason}): ramping to the safe state and "
+                               "finalising the recording")
+
+    # -- persistence -------------------------------------------------------------------------
+    def _io(self, what: str, fn: Any, *args: Any) -> bool:
+        """Run one state-file operation; a failure is logged once, never fatal."""
+        try:
+            fn(*args)
+        except OSError as exc:
+            msg = f"cannot {what}: {exc}"
+            if msg not in self._io_errors:
+                self._io_errors.add(msg)
+                log.error("%s (the state does NOT survive a restart until this is fixed)", msg)
+            return False
+        return True
+
+    def _persist_fault(self) -> None:
+        if self.paths is None:
+            return
+        sup = self.daemon.ctrl.supervisor
+        state, reason = sup.state, sup.fault_reason
+        if state in (State.FAULT, State.ESTOP):
+            if reason is None:  # a reset half done in the loop's thread: next time
+                return
+            want = (state.name, reason)
+            if want != self.persisted and self._write_fault(state.name, reason, want):
+                log.info("latched %s saved in %s", state.name, self.paths.fault)
+        elif (state != State.STARTING and reason is None and self.persisted is not None
+              and self._io("remove the latched fault", remove_durably, self.paths.fault)):
+            self.persisted = None
+            self.earlier = []
+            self.restored = None
+            self._stall_persisted = False
+            log.info("fault reset: %s removed", self.paths.fault)
+
+    def _persist_stall(self) -> None:
+        """A loop seen stalled is saved as a latched fault now: if it never ticks
+        again, systemd kills pamd and the restarted daemon comes back latched."""
+        loop = self.daemon.loop
+        if self.paths is None or loop.virtual or not loop.running or self._stall_persisted:
+            return
+        gap = self.tick_gap_s()
+        if not gap > loop.stall_s or self.daemon.ctrl.supervisor.latched:
+            return
+        reason = (f"loop stalled: no tick completed for at least {1000 * gap:.0f} ms (limit "
+                  f"{1000 * loop.stall_s:.0f} ms), seen by the main thread")
+        if self._write_fault("FAULT", reason, ("FAULT", reason)):
+            self._stall_persisted = True
+            log.error("%s; saved as a latched fault in %s", reason, self.paths.fault)
+
+    def _write_fault(self, state: str, reason: str, key: tuple[str, str]) -> bool:
+        """Persist a latched fault; the one it replaces (never reset) goes to `earlier`."""
+        assert self.paths is not None
+        earlier = [*self.earlier, self._plain] if self.persisted is not None else self.earlier
+        rec = FaultRecord(state, reason, now_iso(), tuple(earlier))
+        if not self._io("save the latched fault", write_fault, self.paths.fault, rec,
+                        self.daemon.cfg):
+            return False
+        self.earlier, self.persisted, self._plain = list(earlier), key, reason
+        return True
+
+    def _save_safe_outputs(self) -> None:
+        if self.paths is None:
+            return
+        ctrl = self.daemon.ctrl
+        cfg = self.daemon.cfg
+        key = (cfg.sha256, *((m.safe_bar, m.load_kg) for m in ctrl.muscles))
+        if key == self._safe_key:
+            return
+        doc = safe_outputs_document(cfg, ctrl)
+        if self._io("save the safe outputs", write_safe_outputs, self.paths.safe_outputs, doc):
+            self._safe_key = key
+            loads = ", ".join(f"{m.name} {m.safe_bar:.2f} bar" for m in ctrl.muscles)
+            log.info("safe outputs saved in %s (%s)", self.paths.safe_outputs, loads)
+
+    # -- reload (SIGHUP) -----------------------------------------------------------------------
+    def _reload(self) -> None:
+        if self.reload_requested:
+            self.reload_requested = False
+            try:
+                self._begin_reload()
+            except Exception:  # a reload must never take the running rig down
+                log.exception("reload failed; still running on the config loaded before")
+                self._finish()
+        if self.pending is not None:
+            plan, pending = self.pending
+            if pending.done:
+                self.pending = None
+                self._reload_verdict(plan, pending.verdict)
+        elif (self.deferred is not None
+              and self.daemon.ctrl.supervisor.state == State.IDLE):
+            plan = self._plan(self.deferred.cfg)
+            log.info("the rig is IDLE: applying the deferred reload (%s)",
+                     ", ".join(plan.idle) or "nothing left")
+            self._submit(plan)
+
+    def _plan(self, new: LoadedConfig) -> ReloadPlan:
+        return plan_reload(self.started_cfg, self.gains_cfg, self.limits_cfg, new)
+
+    def _finish(self) -> None:
+        self.last_status = self.status_text()
+        self.notifier.ready(self.last_status)
+
+    def _begin_reload(self) -> None:
+        path = self.daemon.cfg.path
+        self.notifier.reloading()
+        log.info("SIGHUP: reloading %s", path)
+        try:
+            new = load_config(path, self.config_overrides)
+        except PamdError as exc:
+            log.error("reload refused, still running on the config loaded before: %s", exc)
+            self._finish()
+            return
+        except Exception as exc:  # noqa: BLE001 - a reload must never take the daemon down
+            log.error("reload refused (%s: %s), still running on the config loaded before",
+                      type(exc).__name__, exc)
+            self._finish()
+            return
+        plan = self._plan(new)
+        if plan.restart:
+            log.error("reload refused, still running on the config loaded before: %s "
+                      "changed, which needs a restart (systemctl restart pamd)",
+                      describe(plan.restart, self.started_cfg, new))
+            self._finish()
+            return
+        if self.deferred is not None:
+            log.info("reload: the deferred reload is superseded by this one")
+            self.deferred = None
+        if not (plan.now or plan.idle):
+            log.info("reload: %s has no changes to apply", path)
+            self._finish()
+            return
+        self._submit(plan)
+
+    def _submit(self, plan: ReloadPlan) -> None:
+        from pamd.daemon import PendingCommand  # the daemon imports this module
+
+        pending = PendingCommand()
+        self.daemon.mailbox.put(Command("reload", plan.args, pending.set, sender="SIGHUP"))
+        self.pending = (plan, pending)
+
+    def _reload_verdict(self, plan: ReloadPlan, verdict: dict[str, Any]) -> None:
+        if not verdict.get("ok"):
+            log.error("reload refused: %s", verdict.get("error"))
+            self.deferred = None
+            self._finish()
+            return
+        old_gains, self.gains_cfg = self.gains_cfg, plan.cfg
+        self.daemon.loop.stall_s = plan.cfg.rig.loop.stall_timeout_s
+        if plan.now:
+            log.warning("reload: applied at once: %s", describe(plan.now, old_gains, plan.cfg))
+        if verdict.get("deferred"):
+            self.deferred = plan
+            log.warning("reload: deferred until the rig is IDLE (it is %s): %s",
+                        verdict.get("state"), ", ".join(verdict["deferred"]))
+        else:
+            self.deferred = None
+            if plan.idle:
+                log.warning("reload: applied while IDLE: %s",
+                            describe(plan.idle, self.limits_cfg, plan.cfg))
+            self.limits_cfg = plan.cfg
+            self.daemon.cfg = plan.cfg  # everything in it is now in force
+        self._finish()

@@ -1,0 +1,138 @@
+"""Config reload (SIGHUP): validate the new file, sort its changes, and build the
+`reload` command the loop applies at a tick boundary.
+
+A new config that does not validate is refused and the daemon keeps running on
+the one it has, saying why. The changes of a valid one fall in three classes:
+
+* at once: control gains (`control.pid.*`, `control.rate_feedforward_s`) and
+  timeouts (`safety.signal_timeout_s`, the signals' `timeout_s`,
+  `safety.tracking_*`, `safety.hard_limit_hold_s`, `safety.startup_timeout_s`,
+  `loop.stall_timeout_s`);
+* only while IDLE (deferred until the rig is IDLE): limits and muscle data
+  (`muscles[].limits.*`, `muscles[].load_kg`, `muscles[].nominal_length_mm`,
+  the other `safety.*` keys, `control.slew_limit_bar_per_s`);
+* only by a restart (the whole reload is refused): drivers, which muscles there
+  are and how their signals are wired, the loop's rate, clock and real-time
+  settings, recording, `rig_id`, `calibration_file`, `state_dir`. Changing them
+  means reopening the devices; `systemctl restart pamd` does that through the
+  start-up that reads before it writes.
+
+Everything here runs in the daemon's main thread; the loop only receives the
+finished `ReloadArgs` (small frozen dataclasses of numbers).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from pamd.commands import MuscleSettings, ReloadArgs
+from pamd.config.loader import LoadedConfig
+
+Kind = Literal["now", "idle", "restart"]
+
+_RULES: tuple[tuple[re.Pattern[str], Kind], ...] = tuple(
+    (re.compile(p), k) for p, k in (
+        (r"^control\.pid\.", "now"),
+        (r"^control\.rate_feedforward_s$", "now"),
+        (r"^control\.slew_limit_bar_per_s$", "idle"),
+        (r"^safety\.(signal_timeout_s|tracking_band_bar|tracking_time_s|hard_limit_hold_s"
+         r"|startup_timeout_s)$", "now"),
+        (r"^safety\.", "idle"),
+        (r"^loop\.stall_timeout_s$", "now"),
+        (r"^muscles\[\d+\]\.signals\.\w+\.timeout_s$", "now"),
+        (r"^muscles\[\d+\]\.(load_kg|nominal_length_mm)$", "idle"),
+        (r"^muscles\[\d+\]\.limits\.", "idle"),
+    ))
+
+
+def classify(path: str) -> Kind:
+    """When a change at key `path` may apply (see the module's docstring)."""
+    for pattern, kind in _RULES:
+        if pattern.search(path):
+            return kind
+    return "restart"
+
+
+def flatten(value: Any, prefix: str = "") -> dict[str, Any]:
+    """Key path -> leaf value of a config (dataclasses, mappings, lists); a list's
+    length is kept under `path[]` so added or removed items show."""
+    out: dict[str, Any] = {}
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for f in dataclasses.fields(value):
+            out.update(flatten(getattr(value, f.name), f"{prefix}.{f.name}" if prefix
+                               else f.name))
+    elif isinstance(value, dict):
+        for k, v in value.items():
+            out.update(flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    elif isinstance(value, (list, tuple)):
+        out[f"{prefix}[]"] = len(value)
+        for i, v in enumerate(value):
+            out.update(flatten(v, f"{prefix}[{i}]"))
+    else:
+        out[prefix] = value
+    return out
+
+
+def changed_paths(old: LoadedConfig, new: LoadedConfig) -> list[str]:
+    """Every key path whose value differs between the two configs."""
+    a, b = flatten(old.rig), flatten(new.rig)
+    return sorted(k for k in a.keys() | b.keys() if a.get(k, _MISSING) != b.get(k, _MISSING))
+
+
+_MISSING = object()
+
+
+@dataclass
+class ReloadPlan:
+    """A validated new config, what changed, and the command that applies it."""
+
+    cfg: LoadedConfig
+    now: list[str]
+    idle: list[str]
+    restart: list[str]
+    args: ReloadArgs
+
+    @property
+    def empty(self) -> bool:
+        return not (self.now or self.idle or self.restart)
+
+
+def plan_reload(started: LoadedConfig, gains_cfg: LoadedConfig, limits_cfg: LoadedConfig,
+                new: LoadedConfig) -> ReloadPlan:
+    """Sort the changes of `new`: restart-only ones against the config the daemon
+    started with, at-once ones against `gains_cfg` (whose gains are in force) and
+    IDLE-only ones against `limits_cfg` (whose limits are in force)."""
+    restart = [p for p in changed_paths(started, new) if classify(p) == "restart"]
+    now = [p for p in changed_paths(gains_cfg, new) if classify(p) == "now"]
+    idle = [p for p in changed_paths(limits_cfg, new) if classify(p) == "idle"]
+    settings = tuple(_muscle_settings(new, limits_cfg, i) for i in range(len(new.rig.muscles)))
+    args = ReloadArgs(config_sha256=new.sha256, at_once=tuple(now), idle_only=tuple(idle),
+                      startup_timeout_s=new.rig.safety.startup_timeout_s, plan=settings)
+    return ReloadPlan(new, now, idle, restart, args)
+
+
+def _muscle_settings(new: LoadedConfig, limits_cfg: LoadedConfig, i: int) -> MuscleSettings:
+    m = new.rig.muscles[i]
+    default_to = new.rig.safety.signal_timeout_s
+    old_load = (limits_cfg.rig.muscles[i].load_kg if i < len(limits_cfg.rig.muscles)
+                else None)
+    return MuscleSettings(
+        muscle=m.name, pid=new.rig.control.pid,
+        rate_feedforward_s=new.rig.control.rate_feedforward_s,
+        pressure_timeout_s=m.signals.pressure.timeout_s or default_to,
+        force_timeout_s=m.signals.force.timeout_s or default_to,
+        length_timeout_s=m.signals.length.timeout_s or default_to,
+        safety=new.rig.safety, limits=new.limits[m.name],
+        slew_limit_bar_per_s=new.rig.control.slew_limit_bar_per_s,
+        nominal_length_mm=m.nominal_length_mm,
+        load_kg=None if old_load == m.load_kg else m.load_kg,
+    )
+
+
+def describe(paths: list[str], old: LoadedConfig, new: LoadedConfig) -> str:
+    """`key old -> new, ...` for the log."""
+    a, b = flatten(old.rig), flatten(new.rig)
+    return ", ".join(f"{p} {a.get(p, '(none)')!r} -> {b.get(p, '(none)')!r}" for p in paths)

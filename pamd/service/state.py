@@ -1,0 +1,248 @@
+"""State that survives a restart, kept in the state directory as small JSON files
+written atomically (temp file, fsync, rename, fsync of the directory):
+
+* the latched fault (`fault.json`): its state (FAULT or ESTOP), reason and time. A
+  daemon started again comes back latched until someone sends `reset`;
+* the last known-good safe outputs (`safe-outputs.json`): per driver its type and
+  options, and per output channel the raw value of the present safe state. The
+  second-line command `pamd safe-outputs` replays them when the daemon is gone and
+  the config may be unreadable.
+
+Where: `--state-dir DIR` (the service: /var/lib/pamd) or the config's `state_dir`
+(relative to the config file) hold `fault.json` and `safe-outputs.json`; with
+neither, they sit beside the config as `<config name>.fault.json` and
+`<config name>.safe-outputs.json`. The built-in simulated rig (no `--config`)
+keeps no state unless `--state-dir` is given.
+
+Everything here is file I/O: it runs in the daemon's main thread, never in the
+loop's.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from pamd.config.loader import LoadedConfig, builtin_config_path
+from pamd.errors import PamdError
+
+FAULT_FORMAT = "pamd-fault"
+SAFE_OUTPUTS_FORMAT = "pamd-safe-outputs"
+FORMAT_VERSION = 1
+FAULT_FILE = "fault.json"
+SAFE_OUTPUTS_FILE = "safe-outputs.json"
+EARLIER_KEPT = 10
+
+
+class StateFileError(PamdError):
+    """A state file exists but cannot be read or understood."""
+
+    exit_code = 2
+
+
+@dataclass(frozen=True)
+class StatePaths:
+    """Where one daemon keeps its persistent state."""
+
+    directory: str
+    fault: str
+    safe_outputs: str
+
+    @classmethod
+    def in_dir(cls, directory: str) -> StatePaths:
+        d = os.path.abspath(directory)
+        return cls(d, os.path.join(d, FAULT_FILE), os.path.join(d, SAFE_OUTPUTS_FILE))
+
+
+def state_paths(cfg: LoadedConfig, state_dir: str | None = None) -> StatePaths | None:
+    """The state paths of `cfg` (`state_dir` overrides the config's `state_dir`);
+    None for the built-in simulated rig without an explicit directory."""
+    if state_dir:
+        return StatePaths.in_dir(state_dir)
+    config_dir = os.path.dirname(os.path.abspath(cfg.path))
+    if cfg.rig.state_dir:
+        return StatePaths.in_dir(os.path.join(config_dir, cfg.rig.state_dir))
+    if os.path.abspath(cfg.path) == os.path.abspath(builtin_config_path()):
+        return None  # never write into the installed package
+    stem = os.path.splitext(os.path.basename(cfg.path))[0]
+    return StatePaths(config_dir, os.path.join(config_dir, f"{stem}.{FAULT_FILE}"),
+                      os.path.join(config_dir, f"{stem}.{SAFE_OUTPUTS_FILE}"))
+
+
+def now_iso() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%S%z")
+
+
+# -- atomic JSON ----------------------------------------------------------------------
+def write_json_atomic(path: str, doc: dict[str, Any]) -> None:
+    """Write `doc` so that a crash or power cut leaves the old file or the new one,
+    never half of one."""
+    directory = os.path.dirname(os.path.abspath(path))
+    os.makedirs(directory, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".pamd-", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(doc, fh, indent=2, allow_nan=False)
+            fh.write("\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    _fsync_dir(directory)
+
+
+def remove_durably(path: str) -> bool:
+    """Remove `path` (and make the removal durable); False if it was not there."""
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        return False
+    _fsync_dir(os.path.dirname(os.path.abspath(path)))
+    return True
+
+
+def read_json(path: str, fmt: str) -> dict[str, Any] | None:
+    """The document in `path` (None if there is no file); StateFileError if it is
+    unreadable, not JSON, or not a `fmt` document of a known version."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise StateFileError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        doc = json.loads(text)
+    except ValueError as exc:
+        raise StateFileError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("format") != fmt:
+        raise StateFileError(f"{path}: not a {fmt} file")
+    if doc.get("version") != FORMAT_VERSION:
+        raise StateFileError(f"{path}: {fmt} version {doc.get('version')!r}; this pamd "
+                             f"reads version {FORMAT_VERSION}")
+    return doc
+
+
+def _fsync_dir(directory: str) -> None:
+    with contextlib.suppress(OSError):
+        fd = os.open(directory, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+# -- the latched fault -------------------------------------------------------------------
+@dataclass(frozen=True)
+class FaultRecord:
+    """A latched fault as persisted."""
+
+    state: str  # FAULT or ESTOP
+    reason: str
+    since: str  # ISO time it latched
+    earlier: tuple[str, ...] = ()  # reasons latched before it and never reset
+
+    def restored_reason(self) -> str:
+        """The reason a restarted daemon latches with: the original, and that it
+        was kept across a restart."""
+        what = "emergency stop" if self.state == "ESTOP" else "fault"
+        return f"{self.reason} [{what} latched {self.since}, kept across a restart]"
+
+
+def read_fault(path: str) -> FaultRecord | None:
+    doc = read_json(path, FAULT_FORMAT)
+    if doc is None:
+        return None
+    state, reason = doc.get("state"), doc.get("reason")
+    if state not in ("FAULT", "ESTOP") or not isinstance(reason, str):
+        raise StateFileError(f"{path}: needs state FAULT or ESTOP and a reason")
+    earlier = doc.get("earlier") or []
+    return FaultRecord(state, reason, str(doc.get("since", "?")),
+                       tuple(str(e) for e in earlier if isinstance(e, str)))
+
+
+def write_fault(path: str, record: FaultRecord, cfg: LoadedConfig) -> None:
+    write_json_atomic(path, {
+        "format": FAULT_FORMAT, "version": FORMAT_VERSION,
+        "state": record.state, "reason": record.reason, "since": record.since,
+        "earlier": list(record.earlier[-EARLIER_KEPT:]),
+        "rig_id": cfg.rig.rig_id, "config": os.path.abspath(cfg.path), "pid": os.getpid(),
+        "how_to_clear": "send reset to the running daemon once the cause is gone",
+    })
+
+
+# -- the safe outputs ---------------------------------------------------------------------
+def options_as_json(options: Any) -> Any:
+    """A driver's validated options as plain JSON values (the driver's schema
+    builds them back)."""
+    if dataclasses.is_dataclass(options) and not isinstance(options, type):
+        return _plain(dataclasses.asdict(options))
+    return _plain(options)
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def safe_outputs_document(cfg: LoadedConfig, ctrl: Any) -> dict[str, Any]:
+    """What `pamd safe-outputs` needs to put the rig in its present safe state with
+    no config: per driver its type and options, per output its channel and raw
+    value (the same values `push_safe_outputs` gives the devices)."""
+    from pamd.drivers.safe_outputs import safe_output_values
+
+    labels: dict[tuple[str, int], tuple[str, float, str]] = {}
+    for m in ctrl.muscles:
+        labels[(m.valve.driver.name, m.valve.index)] = (m.valve.name, m.safe_bar, "bar")
+        if m.exhaust is not None:
+            vent = 1.0 if m.safe_bar == 0.0 else 0.0
+            labels[(m.exhaust.driver.name, m.exhaust.index)] = (m.exhaust.name, vent,
+                                                                "(1 = open)")
+    by_name = {d.name: d for d in cfg.rig.drivers}
+    drivers = []
+    for drv, values in safe_output_values(ctrl).items():
+        dcfg = by_name[drv.name]
+        outputs = []
+        for index in sorted(values):
+            signal, si, unit = labels.get((drv.name, index), ("", float("nan"), ""))
+            outputs.append({"channel": drv.output_channels[index].name, "raw": values[index],
+                            "signal": signal, "si": si, "si_unit": unit})
+        drivers.append({"name": drv.name, "type": dcfg.type,
+                        "options": options_as_json(dcfg.options), "outputs": outputs})
+    return {
+        "format": SAFE_OUTPUTS_FORMAT, "version": FORMAT_VERSION,
+        "rig_id": cfg.rig.rig_id, "config": os.path.abspath(cfg.path),
+        "config_sha256": cfg.sha256,
+        "loads_kg": {m.name: m.load_kg for m in ctrl.muscles},
+        "drivers": drivers,
+    }
+
+
+def write_safe_outputs(path: str, doc: dict[str, Any]) -> None:
+    write_json_atomic(path, dict(doc, saved_at=now_iso()))
+
+
+def read_safe_outputs(path: str) -> dict[str, Any] | None:
+    doc = read_json(path, SAFE_OUTPUTS_FORMAT)
+    if doc is None:
+        return None
+    drivers = doc.get("drivers")
+    if not isinstance(drivers, list) or not all(
+            isinstance(d, dict) and isinstance(d.get("name"), str)
+            and isinstance(d.get("type"), str) and isinstance(d.get("outputs"), list)
+            for d in drivers):
+        raise StateFileError(f"{path}: 'drivers' must be a list of drivers with name, type "
+                             "and outputs")
+    return doc

@@ -1,0 +1,50 @@
+"""Test hooks of `pamd run`, for the service tests only: each is off unless its
+environment variable is set, and says loudly when it is on.
+
+`PAMD_TEST_STALL_LOOP="TICKS:SECONDS"` makes the loop's thread sleep SECONDS once,
+in tick number TICKS (a hung driver call, say), so a test can see the watchdog
+pings stop while the main thread is alive. SIGSTOP cannot do it: it stops the
+whole process, the pinger with it.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from typing import Any
+
+log = logging.getLogger("pamd")
+
+STALL_ENV = "PAMD_TEST_STALL_LOOP"
+
+
+class StallOnce:
+    """A 'stepper' the loop advances each tick; it sleeps `seconds` in tick `at_tick`."""
+
+    steps_with_loop = True
+
+    def __init__(self, at_tick: int, seconds: float) -> None:
+        self.at_tick = at_tick
+        self.seconds = seconds
+        self.ticks = 0
+
+    def advance(self, dt_s: float) -> None:
+        self.ticks += 1
+        if self.ticks == self.at_tick:
+            time.sleep(self.seconds)
+
+
+def install(daemon: Any, environ: dict[str, str] | None = None) -> list[str]:
+    """Install the hooks the environment asks for; returns their descriptions."""
+    env = os.environ if environ is None else environ
+    active: list[str] = []
+    spec = env.get(STALL_ENV)
+    if spec:
+        ticks, _, seconds = spec.partition(":")
+        hook = StallOnce(int(ticks), float(seconds))
+        daemon.ctrl.steppers.append(hook)
+        active.append(f"{STALL_ENV}: the loop stalls {hook.seconds:g} s in tick {hook.at_tick}")
+    for what in active:
+        log.warning("TEST HOOK ACTIVE (never on a rig): %s", what)
+    return active
