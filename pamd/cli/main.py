@@ -9,10 +9,10 @@ import sys
 from collections.abc import Sequence
 
 from pamd import __version__
-from pamd.cli import check_config, emulate, recordings, run
+from pamd.cli import check_config, emulate, recordings, run, service
 from pamd.errors import PamdError
 
-COMMANDS = (run, check_config, recordings, emulate)
+COMMANDS = (run, check_config, recordings, emulate, service)
 
 
 def build_parser() -> argparse.ArgumentParser:
