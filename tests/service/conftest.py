@@ -139,6 +139,11 @@ class DaemonProcess:
         wait_until(lambda: text in self.log() or self.proc.poll() is not None, timeout_s)
         return text in self.log()
 
+    def until(self, pred: Callable[[], Any], timeout_s: float = 30.0) -> bool:
+        """Wait for `pred` while the process runs (a process that died fails fast)."""
+        wait_until(lambda: pred() or self.proc.poll() is not None, timeout_s)
+        return bool(pred())
+
     def send(self, sig: int) -> None:
         self.proc.send_signal(sig)
 

@@ -48,7 +48,7 @@ def test_ready_watchdog_status_stopping(tmp_path: Path, notify: NotifySocket,
     cfg = write_yaml(tmp_path / "rig.yaml", sim_dict())
     p = pamd_run("--config", cfg, "--state-dir", tmp_path / "state", "--json",
                  env=notify.env(WATCHDOG_USEC))
-    assert wait_until(lambda: notify.count("WATCHDOG=1") >= 5, 60), (notify.texts(), p.log())
+    assert p.until(lambda: notify.count("WATCHDOG=1") >= 5, 60), (notify.texts(), p.log())
     ready, first_ping = notify.index("READY=1"), notify.index("WATCHDOG=1")
     assert 0 <= ready < first_ping
     assert any(s.startswith("IDLE: sensors read") for s in notify.statuses())
@@ -75,7 +75,7 @@ def test_a_stalled_loop_gets_no_pings_and_is_saved_as_a_fault(
     assert max(gaps) > 1.5, gaps  # at least 3 s - 1 s; normal gaps are 0.2 s
     before = pings[gaps.index(max(gaps))]
     assert sum(1 for t in pings if t < before) >= 3  # it pinged before the stall ...
-    assert wait_until(lambda: notify.ping_times()[-1] > before + max(gaps) + 0.5, 30)
+    assert p.until(lambda: notify.ping_times()[-1] > before + max(gaps) + 0.5, 30)
     # ... and pings again after it, although the rig is now in FAULT (not a stall)
     assert any(s.startswith("FAULT: loop stalled") for s in notify.statuses())
     fault = json.loads((state / "fault.json").read_text())
@@ -95,12 +95,12 @@ def test_a_missing_device_is_ready_in_fault_and_the_fault_survives_a_restart(
     missing = write_yaml(tmp_path / "missing.yaml", d)
     p = pamd_run("--config", missing, "--state-dir", state, "--json",
                  env=notify.env(WATCHDOG_USEC), name="missing")
-    assert wait_until(lambda: any(s.startswith("FAULT: start-up: no reading from "
+    assert p.until(lambda: any(s.startswith("FAULT: start-up: no reading from "
                                                "m1.pressure (driver 'io')")
                                   for s in notify.statuses()), 60), (notify.texts(), p.log())
     assert 0 <= notify.index("READY=1") < notify.index("WATCHDOG=1")
     n = notify.count("WATCHDOG=1")
-    assert wait_until(lambda: notify.count("WATCHDOG=1") >= n + 3, 30)  # FAULT: still pinging
+    assert p.until(lambda: notify.count("WATCHDOG=1") >= n + 3, 30)  # FAULT: still pinging
     assert p.finish() == 0, p.log()  # a clean stop; nothing was ever written
     out = json.loads(p.stdout())
     assert out["final_state"] == "FAULT" and "nothing was written" in out["faults"][0]
@@ -112,7 +112,7 @@ def test_a_missing_device_is_ready_in_fault_and_the_fault_survives_a_restart(
     good = write_yaml(tmp_path / "good.yaml", sim_dict())
     p2 = pamd_run("--config", good, "--state-dir", state, "--json",
                   env=notify.env(WATCHDOG_USEC), name="restarted")
-    assert wait_until(lambda: any("kept across a restart" in s for s in notify.statuses()),
+    assert p2.until(lambda: any("kept across a restart" in s for s in notify.statuses()),
                       60), (notify.texts(), p2.log())
     restored = next(s for s in notify.statuses() if "kept across a restart" in s)
     assert restored.startswith("FAULT: start-up: no reading from m1.pressure")

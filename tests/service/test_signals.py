@@ -12,7 +12,7 @@ from pathlib import Path
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from .conftest import NotifySocket, sim_dict, wait_until, write_yaml
+from .conftest import NotifySocket, sim_dict, write_yaml
 
 
 def read_recording(path: Path) -> tuple[object, dict[str, dict[str, str]], list[object]]:
@@ -33,8 +33,8 @@ def test_sigterm_mid_profile_safe_state_recording_finalised_exit_0(
     p = pamd_run("--config", cfg, "--state-dir", tmp_path / "state", "--profile", "sine",
                  "--record", rec, "--json", env=notify.env(400_000))
     assert p.wait_log("sine profile started", 60), p.log()
-    assert wait_until(lambda: any(s.startswith("RUNNING") for s in notify.statuses()), 30)
-    assert wait_until(lambda: notify.count("WATCHDOG=1") >= 5, 30)  # ~1 s into the lead-in
+    assert p.until(lambda: any(s.startswith("RUNNING") for s in notify.statuses()), 30)
+    assert p.until(lambda: notify.count("WATCHDOG=1") >= 5, 30)  # ~1 s into the lead-in
     p.send(signal.SIGTERM)
     assert p.finish() == 0, p.log()
     out = json.loads(p.stdout())
@@ -61,7 +61,7 @@ def test_sighup_reload_refuses_a_broken_config_and_applies_a_new_gain(
     p = pamd_run("--config", cfg, "--state-dir", tmp_path / "state", "--json",
                  env=notify.env(400_000))
     assert p.wait_log("sensors read", 60), p.log()
-    assert wait_until(lambda: notify.index("READY=1") >= 0, 30)
+    assert p.until(lambda: notify.index("READY=1") >= 0, 30)
 
     broken = sim_dict(safety={"tracking_band_bar": -1})
     write_yaml(cfg, broken)
@@ -69,10 +69,10 @@ def test_sighup_reload_refuses_a_broken_config_and_applies_a_new_gain(
     assert p.wait_log("reload refused", 30), p.log()
     assert "safety.tracking_band_bar" in p.log() and f"{cfg}:" in p.log()
     assert p.proc.poll() is None  # still running, on the old config
-    assert wait_until(lambda: notify.count("READY=1") >= 2, 30)  # reload answered
+    assert p.until(lambda: notify.count("READY=1") >= 2, 30)  # reload answered
     assert notify.index("RELOADING=1") > notify.index("WATCHDOG=1")
     n = notify.count("WATCHDOG=1")
-    assert wait_until(lambda: notify.count("WATCHDOG=1") >= n + 3, 30)  # and ticking
+    assert p.until(lambda: notify.count("WATCHDOG=1") >= n + 3, 30)  # and ticking
 
     write_yaml(cfg, sim_dict(control={"pid": {"kp": 0.45}}))
     p.send(signal.SIGHUP)
