@@ -260,6 +260,12 @@ class ServiceKeeper:
 
     # -- reload (SIGHUP) -----------------------------------------------------------------------
     def _reload(self) -> None:
+        if self.pending is not None:
+            plan, pending = self.pending
+            if not pending.done:
+                return  # one reload at a time; a new SIGHUP waits for this verdict
+            self.pending = None
+            self._reload_verdict(plan, pending.verdict)
         if self.reload_requested:
             self.reload_requested = False
             try:
@@ -267,12 +273,7 @@ class ServiceKeeper:
             except Exception:  # a reload must never take the running rig down
                 log.exception("reload failed; still running on the config loaded before")
                 self._finish()
-        if self.pending is not None:
-            plan, pending = self.pending
-            if pending.done:
-                self.pending = None
-                self._reload_verdict(plan, pending.verdict)
-        elif (self.deferred is not None
+        elif (self.deferred is not None and self.pending is None
               and self.daemon.ctrl.supervisor.state == State.IDLE):
             plan = self._plan(self.deferred.cfg)
             log.info("the rig is IDLE: applying the deferred reload (%s)",
