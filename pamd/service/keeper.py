@@ -70,6 +70,7 @@ class ServiceKeeper:
         self._plain = ""  # the reason as the fault file holds it
         self.restored: FaultRecord | None = None
         self._stall_persisted = False
+        self._seen_latched = False  # the supervisor latched since the file was written
         self._safe_key: tuple[Any, ...] | None = None
         self._io_errors: set[str] = set()
         # reload
@@ -207,15 +208,21 @@ class ServiceKeeper:
         if state in (State.FAULT, State.ESTOP):
             if reason is None:  # a reset half done in the loop's thread: next time
                 return
+            self._seen_latched = True
             want = (state.name, reason)
             if want != self.persisted and self._write_fault(state.name, reason, want):
                 log.info("latched %s saved in %s", state.name, self.paths.fault)
-        elif (state != State.STARTING and reason is None and self.persisted is not None
+        elif (self._seen_latched and state != State.STARTING and reason is None
+              and self.persisted is not None
               and self._io("remove the latched fault", remove_durably, self.paths.fault)):
+            # a reset: the supervisor latched (or re-latched what was restored), and
+            # now it is not. A stall saved by the main thread waits for the loop's own
+            # stall fault, which comes with the first tick after the stall.
             self.persisted = None
             self.earlier = []
             self.restored = None
             self._stall_persisted = False
+            self._seen_latched = False
             log.info("fault reset: %s removed", self.paths.fault)
 
     def _persist_stall(self) -> None:

@@ -80,6 +80,9 @@ def test_a_stalled_loop_gets_no_pings_and_is_saved_as_a_fault(
     assert any(s.startswith("FAULT: loop stalled") for s in notify.statuses())
     fault = json.loads((state / "fault.json").read_text())
     assert fault["state"] == "FAULT" and "loop stalled" in fault["reason"]
+    # saved while it hung (a watchdog kill would have found it), then the loop's own
+    assert [e for e in fault["earlier"] if "seen by the main thread" in e], fault
+    assert "removed" not in p.log()  # only a reset removes it
     assert p.finish() == 0, p.log()
 
 
