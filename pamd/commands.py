@@ -30,6 +30,10 @@ class SetpointArgs:
     bar: float = spec(doc="Pressure setpoint.", unit="bar")
     ramp_s: float | None = spec(None, "Reach the setpoint over this time (default: at half "
                                 "the slew limit).", unit="s", min=0.0)
+    deadman_s: float | None = spec(None, "Streamed setpoints: unless the next setpoint for "
+                                   "this muscle arrives within this time, the rig goes to "
+                                   "the safe state (a later setpoint without it disarms "
+                                   "it).", unit="s", gt=0.0)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -215,7 +219,9 @@ def _setpoint(ctrl: Any, a: SetpointArgs) -> dict[str, Any]:
                         lead_in_bar_per_s=m.slew)
     m.start_profile(Profile(spec_, ctrl.now, m.sp, m.slew))
     ctrl.supervisor.go(ctrl.now, State.RUNNING, f"setpoint {m.name} {a.bar:g} bar")
-    return {"muscle": m.name, "bar": a.bar, "ramp_s": dist / rate if rate > 0 else 0.0}
+    ctrl.arm_deadman(m, a.deadman_s)  # streamed setpoints: each one re-arms (or disarms)
+    return {"muscle": m.name, "bar": a.bar, "ramp_s": dist / rate if rate > 0 else 0.0,
+            "deadman_s": a.deadman_s}
 
 
 def _profile(ctrl: Any, a: ProfileArgs) -> dict[str, Any]:

@@ -9,6 +9,7 @@ changes nothing.
 
 from __future__ import annotations
 
+import math
 from array import array
 from collections.abc import Callable
 from typing import Any
@@ -53,6 +54,10 @@ class RigController:
         self.sequencer: Any = None  # a running experiment plan (pamd.experiment)
         self.segment = 0  # the plan's step + 1: each step gets a recording file
         self.hold_started = 0.0
+        # Streamed setpoints' deadman: muscle -> (deadline, the ramp it guards, timeout);
+        # the tick compares one float, the earliest deadline, and nothing else.
+        self.deadman: dict[str, tuple[float, Any, float]] = {}
+        self.deadman_at = math.inf
 
     def _on_transition(self, tr: Transition) -> None:
         self.sink.event(tr.t_s, "transition",
@@ -77,6 +82,9 @@ class RigController:
         state = int(sup.state)
         if state == S_STARTING:
             self._starting(now)
+            state = int(sup.state)
+        if now > self.deadman_at:  # a streamed setpoint was not refreshed in time
+            self._deadman(now)
             state = int(sup.state)
         fault = None
         for drv in self.drivers:
@@ -132,6 +140,34 @@ class RigController:
         for m in self.muscles:
             m.profile = None
         self.supervisor.go(now, State.IDLE, "profile finished")
+
+    # -- deadman (streamed setpoints) ---------------------------------------------------
+    def arm_deadman(self, m: MuscleController, timeout_s: float | None) -> None:
+        """A setpoint command (loop's thread): re-arm this muscle's deadman for
+        `timeout_s`, or disarm it (None)."""
+        if timeout_s is None:
+            self.deadman.pop(m.name, None)
+        else:
+            self.deadman[m.name] = (self.now + timeout_s, m.profile, timeout_s)
+        self.deadman_at = min((d[0] for d in self.deadman.values()), default=math.inf)
+
+    def _deadman(self, now: float) -> None:
+        """A deadline passed (rare path). If the rig still runs the ramp that setpoint
+        started, go to the safe state; if something else took over since (a profile,
+        hold, stop, a fault), the deadman no longer applies."""
+        running = self.supervisor.state == State.RUNNING
+        for name, (deadline, ramp, timeout_s) in list(self.deadman.items()):
+            m = self.by_name[name]
+            if not running or m.profile is not ramp:
+                del self.deadman[name]
+            elif now > deadline:
+                del self.deadman[name]
+                reason = (f"deadman: no setpoint for {name} within {timeout_s:g} s; ramping "
+                          "to the safe state")
+                self.sink.event(now, "deadman", {"muscle": name, "timeout_s": timeout_s})
+                self.go_safe(reason)
+                running = False
+        self.deadman_at = min((d[0] for d in self.deadman.values()), default=math.inf)
 
     # -- safe state -----------------------------------------------------------------
     def go_safe(self, reason: str) -> None:
