@@ -9,10 +9,10 @@ import sys
 from collections.abc import Sequence
 
 from pamd import __version__
-from pamd.cli import check_config, emulate, recordings, run, service
+from pamd.cli import check_config, emulate, evaluate, recordings, run, service, train
 from pamd.errors import PamdError
 
-COMMANDS = (run, check_config, recordings, emulate, service)
+COMMANDS = (run, check_config, recordings, emulate, train, evaluate, service)
 
 
 def build_parser() -> argparse.ArgumentParser:

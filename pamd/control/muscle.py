@@ -16,6 +16,7 @@ from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig
 from pamd.control.pid import Pid
 from pamd.control.profiles import Profile
+from pamd.control.velocity import VELOCITY_WINDOW_S, velocity_step
 from pamd.muscle import force_model
 from pamd.rig import MuscleSignals
 from pamd.safety import safe_pressure_bar
@@ -40,9 +41,6 @@ from pamd.tick import (
     Mode,
     State,
 )
-
-VELOCITY_WINDOW_S = 0.05
-"""Time constant of the length derivative filter (the encoder moves < 1 step a tick)."""
 
 F_STALE, F_SOFT_P, F_SOFT_C = int(Flag.STALE), int(Flag.SOFT_LIMIT_PRESSURE), int(
     Flag.SOFT_LIMIT_CONTRACTION)
@@ -210,10 +208,8 @@ class MuscleController:
             flags |= F_STALE
             fault = self._stale_reason(now)
         x = (self.length0_mm - length) / self.length0_mm
-        prev = self._prev_len
-        if prev == prev:
-            a = dt / (VELOCITY_WINDOW_S + dt)
-            self.velocity += a * ((length - prev) / dt - self.velocity)
+        self.velocity = velocity_step(self.velocity, self._prev_len, length, dt,
+                                      VELOCITY_WINDOW_S)
         self._prev_len = length
         self.pressure, self.force, self.length, self.contraction = p, f, length, x
         referenced = self.ref.length_referenced
