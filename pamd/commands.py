@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -27,9 +28,14 @@ from pamd.tick import State
 @dataclass(frozen=True, kw_only=True)
 class SetpointArgs:
     muscle: str = spec(doc="Muscle name.")
-    bar: float = spec(doc="Pressure setpoint.", unit="bar")
+    bar: float | None = spec(None, "Pressure setpoint (pressure mode).", unit="bar")
+    length_mm: float | None = spec(None, "Length target (length_force and position modes).",
+                                   unit="mm", gt=0.0)
+    force_n: float | None = spec(None, "Force target (length_force mode; default: the force "
+                                 "at the mode change).", unit="N", min=0.0)
     ramp_s: float | None = spec(None, "Reach the setpoint over this time (default: at half "
-                                "the slew limit).", unit="s", min=0.0)
+                                "the slew limit, or half control.position.max_rate_per_s "
+                                "for a length).", unit="s", min=0.0)
     deadman_s: float | None = spec(None, "Streamed setpoints: unless the next setpoint for "
                                    "this muscle arrives within this time, the rig goes to "
                                    "the safe state (a later setpoint without it disarms "
@@ -50,6 +56,49 @@ class ProfileArgs:
     duration_s: float | None = spec(None, "Duration (constant).", unit="s", gt=0.0)
     lead_in_bar_per_s: float = spec(1.0, "Lead-in ramp rate from the present pressure.",
                                     unit="bar/s", gt=0.0)
+    # Length profiles (length_force and position modes), in contraction (fraction of the
+    # nominal length); the *_bar fields above do not apply to them.
+    min_contraction: float | None = spec(None, "Length profile: least contraction (sine, "
+                                         "triangle, step), e.g. 0.05.")
+    max_contraction: float | None = spec(None, "Length profile: most contraction, e.g. 0.20.")
+    to_contraction: float | None = spec(None, "Length profile: target (ramp, constant).")
+    rate_per_s: float | None = spec(None, "Length profile: ramp rate, contraction per second.",
+                                    unit="1/s", gt=0.0)
+    lead_in_per_s: float | None = spec(None, "Length profile: lead-in rate from the present "
+                                       "target (default: half control.position."
+                                       "max_rate_per_s).", unit="1/s", gt=0.0)
+
+
+LENGTH_PROFILE_FIELDS = ("min_contraction", "max_contraction", "to_contraction", "rate_per_s",
+                         "lead_in_per_s")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModeArgs:
+    muscle: str | None = spec(None, "Muscle name (default: every muscle).")
+    mode: str = spec(doc="pressure, length_force or position.")
+    feedforward: bool = spec(True, "position: use the muscle's model (false: the position "
+                             "PID alone, no model needed).")
+    ilc: bool = spec(False, "position: learn a correction over the cycles of a periodic "
+                     "length profile (iterative learning control).")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelArgs:
+    muscle: str = spec(doc="Muscle name.")
+    file: str = spec(doc="Model file (pamd train) on the rig PC; read, checked and compiled "
+                     "before the command reaches the loop.")
+
+
+class PreparedModelArgs:
+    """A `model` command whose file was loaded, checked and compiled outside the loop's
+    thread (`prepare_command`); the loop only swaps `feedforward` in."""
+
+    def __init__(self, muscle: str, file: str, feedforward: Any) -> None:
+        self.muscle, self.file, self.feedforward = muscle, file, feedforward
+
+    def describe(self) -> dict[str, Any]:
+        return {"muscle": self.muscle, **self.feedforward.describe()}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -122,6 +171,7 @@ VERBS: dict[str, type] = {
     "setpoint": SetpointArgs, "profile": ProfileArgs, "hold": NoArgs, "resume": NoArgs,
     "stop": NoArgs, "estop": EstopArgs, "reset": NoArgs, "home": HomeArgs, "tare": MuscleArgs,
     "load": LoadArgs, "confirm": NoArgs, "pause": NoArgs, "collect": CollectArgs,
+    "mode": ModeArgs, "model": ModelArgs,
 }
 
 
@@ -154,6 +204,30 @@ def parse_command(verb: str, payload: Any, sender: str = "local", user: str = ""
     return Command(verb, args, reply, sender, user)
 
 
+def prepare_command(cmd: Command, cfg: Any) -> Command:
+    """The part of a command that is I/O, done outside the loop's thread before it is
+    queued: a `model` command's file is read, checked against the muscle and compiled
+    here (CommandRefused if it cannot be), so the loop only swaps the compiled object."""
+    if cmd.verb != "model" or isinstance(cmd.args, PreparedModelArgs):
+        return cmd
+    from pamd.control.feedforward import Feedforward
+    from pamd.errors import ModelError
+
+    a = cmd.args
+    try:
+        mcfg = cfg.muscle(a.muscle)
+    except KeyError:
+        names = ", ".join(m.name for m in cfg.rig.muscles)
+        raise CommandRefused(f"no muscle named {a.muscle!r}; muscles: {names}") from None
+    path = os.path.abspath(os.path.expanduser(a.file))
+    try:
+        ff = Feedforward.from_file(path, mcfg, cfg.limits[a.muscle])
+    except ModelError as exc:
+        raise CommandRefused(f"model refused: {exc}") from None
+    return dataclasses.replace(cmd, args=PreparedModelArgs(a.muscle, path, ff))
+
+
+
 def apply_command(ctrl: Any, cmd: Command) -> dict[str, Any]:
     """Apply in the loop's thread; returns the verdict."""
     try:
@@ -162,7 +236,9 @@ def apply_command(ctrl: Any, cmd: Command) -> dict[str, Any]:
         verdict: dict[str, Any] = {"ok": False, "error": str(exc)}
     else:
         verdict = {"ok": True, **(result or {})}
-    args = {k: v for k, v in vars(cmd.args).items() if k != "plan"}
+    describe = getattr(cmd.args, "describe", None)  # prepared args say what they hold
+    args = describe() if describe is not None else {
+        k: v for k, v in vars(cmd.args).items() if k != "plan"}
     ctrl.sink.event(ctrl.now, "command", {"verb": cmd.verb, "args": args,
                                          "sender": cmd.sender, "user": cmd.user, **verdict})
     return verdict
@@ -208,6 +284,12 @@ def _setpoint(ctrl: Any, a: SetpointArgs) -> dict[str, Any]:
     ms = _muscles(ctrl, a.muscle)
     _need_reference(ms)
     m = ms[0]
+    if m.length_ctl_on or a.bar is None:
+        return _length_setpoint(ctrl, m, a)
+    if a.length_mm is not None or a.force_n is not None:
+        raise CommandRefused(f"{m.name} is in pressure mode: length_mm and force_n are "
+                             "targets of the length_force and position modes (send mode "
+                             "first); give bar alone")
     if not 0.0 <= a.bar <= m.max_p:
         raise CommandRefused(f"{m.name}: {a.bar:g} bar is outside 0-{m.max_p:g} bar")
     dist = abs(a.bar - m.sp)
@@ -228,13 +310,141 @@ def _profile(ctrl: Any, a: ProfileArgs) -> dict[str, Any]:
     _can_move(ctrl)
     ms = _muscles(ctrl, a.muscle)
     _need_reference(ms)
+    if any(m.length_ctl_on for m in ms) or any(
+            getattr(a, k) is not None for k in LENGTH_PROFILE_FIELDS):
+        return _length_profile(ctrl, ms, a)
     fields = dataclasses.asdict(a)
     fields.pop("muscle")
+    for k in LENGTH_PROFILE_FIELDS:
+        fields.pop(k)
     if fields["kind"] not in ("constant", "step", "ramp", "sine", "triangle"):
         raise CommandRefused(f"unknown profile kind {a.kind!r}; use constant, step, ramp, "
                              "sine or triangle")
     total = _start(ctrl, ms, ProfileSpec(**fields))
     return {"duration_s": total}
+
+
+def _length_setpoint(ctrl: Any, m: Any, a: SetpointArgs) -> dict[str, Any]:
+    """A length (and force) target in the length modes, reached by a ramp."""
+    from pamd.control.feedforward import length_profile
+    from pamd.tick import Mode
+
+    mode = m.mode.name.lower()
+    if not m.length_ctl_on:
+        raise CommandRefused(f"{m.name}: give bar, the pressure setpoint (length_mm and "
+                             "force_n are targets of the length_force and position modes; "
+                             "send mode first)")
+    if a.bar is not None:
+        raise CommandRefused(f"{m.name} is in {mode} mode: give length_mm (and force_n), not "
+                             "bar; send mode pressure for pressure setpoints")
+    if a.force_n is not None and m.mode != Mode.LENGTH_FORCE:
+        raise CommandRefused(f"{m.name}: force_n is a target only in length_force mode (the "
+                             f"{mode} mode feeds the model the measured force)")
+    if a.length_mm is None and a.force_n is None:
+        raise CommandRefused(f"{m.name}: give length_mm" + (
+            " and/or force_n" if m.mode == Mode.LENGTH_FORCE else ""))
+    rated = MUSCLE_TYPES[m.cfg.type].theoretical_force_n
+    if a.force_n is not None and a.force_n > rated:
+        raise CommandRefused(f"{m.name}: {a.force_n:g} N exceeds the {m.cfg.type}'s "
+                             f"theoretical force ({rated:g} N)")
+    out: dict[str, Any] = {"muscle": m.name, "mode": mode}
+    if a.length_mm is not None:
+        l0 = m.length0_mm
+        x = (l0 - a.length_mm) / l0
+        max_rate = m.length_ctl.cfg.max_rate_per_s
+        dist = abs(x - (l0 - m.target_length) / l0)
+        rate = 0.5 * max_rate if not a.ramp_s else dist / a.ramp_s
+        if rate > max_rate:
+            raise CommandRefused(
+                f"{m.name}: reaching {a.length_mm:g} mm in {a.ramp_s:g} s needs "
+                f"{rate * l0:.3g} mm/s, above the length rate limit {max_rate * l0:.3g} mm/s "
+                "(control.position.max_rate_per_s)")
+        prof = length_profile(m, ctrl.now, "ramp", min_contraction=None, max_contraction=None,
+                              to_contraction=x, freq_hz=1.0, cycles=None,
+                              rate_per_s=max(rate, 1e-6), rise_s=None, duration_s=None,
+                              lead_in_per_s=max_rate)
+        m.profile = prof
+        out.update(length_mm=a.length_mm, ramp_s=dist / rate if rate > 0 else 0.0)
+    if a.force_n is not None:
+        m.target_force = a.force_n
+        out["force_n"] = a.force_n
+    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"setpoint {m.name} " + ", ".join(
+        f"{k} {v:g}" for k, v in out.items() if k in ("length_mm", "force_n")))
+    return out
+
+
+def _length_profile(ctrl: Any, ms: list[Any], a: ProfileArgs) -> dict[str, Any]:
+    """A length profile (contraction units) on muscles in a length mode."""
+    from pamd.control.feedforward import length_profile
+
+    for m in ms:
+        if not m.length_ctl_on:
+            raise CommandRefused(f"{m.name} is in pressure mode: a length profile "
+                                 "(min/max/to_contraction) needs mode length_force or position "
+                                 "first")
+    profiles = [length_profile(m, ctrl.now, a.kind, min_contraction=a.min_contraction,
+                               max_contraction=a.max_contraction,
+                               to_contraction=a.to_contraction, freq_hz=a.freq_hz,
+                               cycles=a.cycles, rate_per_s=a.rate_per_s, rise_s=a.rise_s,
+                               duration_s=a.duration_s, lead_in_per_s=a.lead_in_per_s)
+                for m in ms]  # every muscle checked before any moves
+    total = None
+    for m, prof in zip(ms, profiles, strict=True):
+        m.profile = prof
+        lc = m.length_ctl
+        if lc.ilc_on and prof.period_s > 0:
+            lc.start_ilc(prof.period_s)
+        total = prof.total_s()
+    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"{a.kind} length profile started")
+    return {"duration_s": total, "length_profile": True}
+
+
+def _mode(ctrl: Any, a: ModeArgs) -> dict[str, Any]:
+    from pamd.control.feedforward import MODE_NAMES
+    from pamd.tick import Mode
+
+    _can_move(ctrl)
+    if a.mode not in MODE_NAMES:
+        raise CommandRefused(f"unknown mode {a.mode!r}; use {', '.join(MODE_NAMES)}")
+    seq = getattr(ctrl, "sequencer", None)
+    if seq is not None and not seq.outcome:
+        raise CommandRefused("an experiment plan is running; its profiles are pressure "
+                             "profiles (pause or stop it first)")
+    ms = _muscles(ctrl, a.muscle)
+    mode = MODE_NAMES[a.mode]
+    if mode == Mode.PRESSURE:
+        for m in ms:
+            if m.length_ctl_on:
+                m.length_ctl.leave()
+        return {"mode": a.mode, "muscles": [m.name for m in ms]}
+    if a.ilc and mode != Mode.POSITION:
+        raise CommandRefused("ilc: iterative learning runs in position mode only")
+    if not a.feedforward and mode != Mode.POSITION:
+        raise CommandRefused("length_force mode is the model itself: feedforward cannot be "
+                             "off")
+    _need_reference(ms)
+    for m in ms:
+        if a.feedforward and m.length_ctl.ff is None:
+            raise CommandRefused(
+                f"{m.name}: no model for {a.mode} mode; name model_file in the config, `pamd "
+                "run --model FILE` or send the model command first (position mode with "
+                "feedforward false runs the position PID alone)")
+        if not (math.isfinite(m.length) and math.isfinite(m.force)):
+            raise CommandRefused(f"{m.name}: no length/force reading to start from")
+    for m in ms:
+        m.length_ctl.enter(mode, a.feedforward, a.ilc)
+    return {"mode": a.mode, "muscles": [m.name for m in ms],
+            "feedforward_bar": {m.name: m.feedforward for m in ms}}
+
+
+def _model(ctrl: Any, a: Any) -> dict[str, Any]:
+    """Swap in a model compiled outside the loop (`prepare_command`)."""
+    if not isinstance(a, PreparedModelArgs):
+        raise CommandRefused("model: the file was not loaded (send the command through the "
+                             "daemon, which reads and checks it outside the loop)")
+    m = _muscles(ctrl, a.muscle)[0]
+    diff = m.length_ctl.swap(a.feedforward)
+    return {**a.describe(), "mode": m.mode.name.lower(), "taken_up_bar": diff}
 
 
 def _hold(ctrl: Any, a: NoArgs) -> dict[str, Any]:
@@ -377,6 +587,9 @@ def _collect(ctrl: Any, a: Any) -> dict[str, Any]:
     if plan is None:
         raise CommandRefused("collect: the plan was not loaded (pass it through the daemon)")
     _need_reference([ctrl.by_name[plan.muscle]])
+    if ctrl.by_name[plan.muscle].length_ctl_on:
+        raise CommandRefused(f"{plan.muscle} is in a length mode and plans run pressure "
+                             "profiles; send mode pressure first")
     if not 0 <= a.start_step < len(plan.steps):
         raise CommandRefused(f"start_step {a.start_step} is not a step of the plan "
                              f"(0-{len(plan.steps) - 1})")
@@ -412,6 +625,7 @@ def _reload(ctrl: Any, a: ReloadArgs) -> dict[str, Any]:
 
 
 _HANDLERS: dict[str, Callable[[Any, Any], dict[str, Any] | None]] = {
+    "mode": _mode, "model": _model,
     "setpoint": _setpoint, "profile": _profile, "hold": _hold, "resume": _resume,
     "stop": _stop, "estop": _estop, "reset": _reset, "home": _home, "tare": _tare,
     "load": _load, "confirm": _confirm, "pause": _pause, "collect": _collect,

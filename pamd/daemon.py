@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from pamd.calibration import load_calibration, save_calibration
-from pamd.commands import Command, parse_command
+from pamd.commands import Command, parse_command, prepare_command
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
@@ -165,6 +165,7 @@ class Daemon:
         pending = PendingCommand()
         try:
             cmd = parse_command(verb, payload, sender=sender, reply=pending.set)
+            cmd = prepare_command(cmd, self.cfg)  # file I/O (model) here, not in the loop
         except CommandRefused as exc:
             pending.set({"ok": False, "error": str(exc)})
         else:

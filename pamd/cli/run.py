@@ -5,6 +5,7 @@ and print the run summary."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import signal
 import sys
@@ -61,6 +62,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--cycles", type=int, help="number of cycles (default: until stopped)")
     g.add_argument("--to-bar", type=float, help="ramp/constant target")
     g.add_argument("--rate-bar-per-s", type=float, help="ramp rate")
+    lm = p.add_argument_group(
+        "length modes (the ANFIS inverse model as feedforward; every muscle unless --muscle)")
+    lm.add_argument("--mode", choices=("pressure", "length_force", "position"),
+                    help="control mode from the start (length modes need a referenced "
+                    "length and, but for position --no-feedforward, a model); a --profile "
+                    "is then a length profile in contraction")
+    lm.add_argument("--model", metavar="FILE", help="inverse model (pamd train) for the "
+                    "length modes, overriding model_file of the config; read and checked "
+                    "before anything starts")
+    lm.add_argument("--no-feedforward", action="store_true",
+                    help="position mode with the position PID alone (no model)")
+    lm.add_argument("--ilc", action="store_true", help="position mode: iterative learning "
+                    "over the cycles of a periodic length profile")
+    lm.add_argument("--min-contraction", type=float, help="length profile: least "
+                    "contraction (fraction, e.g. 0.05)")
+    lm.add_argument("--max-contraction", type=float, help="length profile: most contraction "
+                    "(fraction, e.g. 0.20)")
+    lm.add_argument("--to-contraction", type=float, help="length profile: ramp/constant "
+                    "target (fraction)")
     p.set_defaults(func=run)
 
 
@@ -72,6 +92,49 @@ def _profile_spec(args: argparse.Namespace) -> ProfileSpec | None:
                        rate_bar_per_s=args.rate_bar_per_s)
 
 
+def _with_model(cfg: Any, args: argparse.Namespace) -> tuple[Any, str | None]:
+    """--model read and checked for the selected muscles (a ModelError before anything
+    opens); returns the config holding it and the model file to attach to a recording."""
+    from pamd.control.feedforward import LoadedModel
+
+    names = [m.name for m in cfg.rig.muscles if args.muscle in (None, m.name)]
+    if args.model is None:
+        models = [cfg.models[n] for n in names if n in cfg.models]
+        return cfg, models[0].path if models else None
+    loaded = {n: LoadedModel.read(args.model, cfg.muscle(n), cfg.limits[n]) for n in names}
+    return dataclasses.replace(cfg, models={**cfg.models, **loaded}), args.model
+
+
+def _length_profile(args: argparse.Namespace, cfg: Any) -> dict[str, Any]:
+    """The --profile of a length mode as a profile command (contraction), checked
+    against each muscle's limits, load and rate limit before anything opens."""
+    from pamd.control.feedforward import check_length_profile_config
+
+    payload: dict[str, Any] = {"kind": args.profile, "freq_hz": args.freq_hz}
+    for key in ("min_contraction", "max_contraction", "to_contraction", "cycles"):
+        if getattr(args, key) is not None:
+            payload[key] = getattr(args, key)
+    for m in cfg.rig.muscles:
+        if args.muscle in (None, m.name):
+            check_length_profile_config(cfg, m.name, payload)
+    if args.muscle:
+        payload["muscle"] = args.muscle
+    return payload
+
+
+def _verdict(daemon: Daemon, pending: Any, cfg: Any, what: str) -> None:
+    """Wait for a command queued before start-up; a refusal stops the run (nothing moved)."""
+    waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
+    while not pending.done and waited < patience and daemon.alive:
+        daemon.wait(timeout_s=0.05)
+        waited += 0.05
+    verdict = pending.result(0.0)
+    if not verdict["ok"]:
+        daemon.stop(f"{what} refused")
+        daemon.wait()
+        raise CommandRefused(verdict["error"])
+
+
 def run(args: argparse.Namespace) -> int:
     overrides: dict[str, Any] = {}
     if args.clock:
@@ -79,7 +142,20 @@ def run(args: argparse.Namespace) -> int:
     if args.rate_hz:
         overrides.setdefault("loop", {})["rate_hz"] = args.rate_hz
     cfg = load_config(args.config, overrides)
-    spec = _profile_spec(args)
+    cfg, model_path = _with_model(cfg, args)
+    length_mode = args.mode in ("length_force", "position")
+    if not length_mode and any(v is not None for v in (
+            args.min_contraction, args.max_contraction, args.to_contraction)):
+        raise CommandRefused("--min/--max/--to-contraction are length profiles: add --mode "
+                             "position or --mode length_force")
+    needs_model = args.mode == "length_force" or (args.mode == "position"
+                                                  and not args.no_feedforward)
+    for m in cfg.rig.muscles:
+        if needs_model and args.muscle in (None, m.name) and m.name not in cfg.models:
+            raise CommandRefused(f"{m.name}: --mode {args.mode} needs a model: --model FILE "
+                                 "or model_file in the config (position mode runs without "
+                                 "one with --no-feedforward)")
+    spec = None if length_mode else _profile_spec(args)
     if spec is not None:  # refused before anything opens or moves
         for m in cfg.rig.muscles:
             if args.muscle in (None, m.name):
@@ -90,18 +166,29 @@ def run(args: argparse.Namespace) -> int:
         profile = {k: v for k, v in spec.__dict__.items() if v is not None}
         if args.muscle:
             profile["muscle"] = args.muscle
+    if length_mode and args.profile is not None:
+        profile = _length_profile(args, cfg)
     recording = RecordingRequest(dir=args.record, enabled=not args.no_record,
-                                 run_name=args.name, profile=profile)
+                                 run_name=args.name, profile=profile, model_path=model_path)
     daemon = Daemon(cfg, note=args.note, recording=recording, state_dir=args.state_dir,
                     notifier=Notifier.from_environ(), config_overrides=overrides)
     testhooks.install(daemon)
     signalled = _install_signals(daemon)
     # Queued before the loop starts: applied on the first tick after start-up, so a
     # virtual run is the same every time.
+    mode = None
+    if args.mode is not None:  # before the profile, so both land on the first tick
+        mode_args: dict[str, Any] = {"mode": args.mode, "feedforward": not args.no_feedforward,
+                                     "ilc": args.ilc}
+        if args.muscle:
+            mode_args["muscle"] = args.muscle
+        mode = daemon.submit("mode", mode_args)
     pending = daemon.submit("profile", profile) if profile is not None else None
-    daemon.start(args.duration, stop_when_profile_done=spec is not None and
-                 spec.cycles is not None)
+    daemon.start(args.duration, stop_when_profile_done=profile is not None and
+                 args.cycles is not None)
     try:
+        if mode is not None:
+            _verdict(daemon, mode, cfg, "mode")
         if pending is not None:
             waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
             while not pending.done and waited < patience and daemon.alive:

@@ -94,8 +94,62 @@ class PidConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class PositionPidConfig:
+    kp_bar_per_mm: float = spec(0.1, "Proportional gain on the length error (measured - "
+                                "target: too long means more pressure).", unit="bar/mm",
+                                min=0.0)
+    ki_bar_per_mm_s: float = spec(3.0, "Integral gain.", unit="bar/(mm s)", min=0.0)
+    kd_bar_s_per_mm: float = spec(0.004, "Derivative gain (on the measured length).",
+                                  unit="bar s/mm", min=0.0)
+    derivative_filter_hz: float = spec(10.0, "Cut-off of the derivative's low-pass filter.",
+                                       unit="Hz", gt=0.0)
+    integral_limit_bar: float = spec(6.0, "Anti-windup clamp of the integral term (it carries "
+                                     "the whole pressure when there is no model).", unit="bar",
+                                     min=0.0)
+    output_limit_bar: float = spec(6.0, "Largest correction the position loop adds to the "
+                                   "model's pressure.", unit="bar", min=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class IlcConfig:
+    gain_bar_per_mm: float = spec(0.2, "Learning gain: each cycle, the correction at a phase "
+                                  "grows by this times the length error one `lead_s` later.",
+                                  unit="bar/mm", min=0.0)
+    gain_d_bar_s_per_mm: float = spec(0.0, "Learning gain on the error's rate of change.",
+                                      unit="bar s/mm", min=0.0)
+    lead_s: float = spec(0.3, "Phase lead of the learning update (covers the regulator and "
+                         "muscle lag).", unit="s", min=0.0, max=5.0)
+    forgetting: float = spec(0.02, "Share of the learned correction forgotten per cycle "
+                             "(keeps it bounded against noise).", min=0.0, max=0.5)
+    limit_bar: float = spec(1.0, "Largest learned correction.", unit="bar", min=0.0)
+    resolution_s: float = spec(0.2, "Time resolution of the learned correction over a "
+                               "cycle (bins; each is smoothed with its neighbours once a "
+                               "cycle).", unit="s", gt=0.0, max=2.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PositionConfig:
+    pid: PositionPidConfig = spec(PositionPidConfig(), "Outer position loop (position "
+                                  "mode): corrects what the model misses.")
+    max_rate_per_s: float = spec(0.05, "Fastest change of a length target, contraction "
+                                 "(fraction) per second; faster length profiles and setpoint "
+                                 "ramps are refused.", unit="1/s", gt=0.0, max=1.0)
+    force_filter_s: float = spec(0.5, "position mode: time constant of the low-pass on the "
+                                 "measured force fed to the model (the model is a "
+                                 "quasi-static inverse; the force's fast part would close a "
+                                 "loop through it).", unit="s", gt=0.0, max=10.0)
+    bumpless_s: float = spec(1.0, "length_force mode: the pressure difference found at a "
+                             "mode change or model swap fades with this time constant.",
+                             unit="s", gt=0.0)
+    ilc: IlcConfig = spec(IlcConfig(), "Iterative learning across repeated cycles "
+                          "(position mode with `ilc: true`; seed 003's PID-type ILC).")
+
+
+@dataclass(frozen=True, kw_only=True)
 class ControlConfig:
     pid: PidConfig = spec(PidConfig(), "PID pressure loop gains.")
+    position: PositionConfig = spec(PositionConfig(), "The length modes (length_force, "
+                                    "position): outer position loop and iterative learning.")
     rate_feedforward_s: float = spec(
         0.035, "The setpoint's rate times this is added to the valve command; it cancels "
         "the regulator's dead time plus lag.", unit="s", min=0.0, max=1.0)
@@ -115,6 +169,12 @@ class MuscleConfig:
         "smooth fit.")
     signals: MuscleSignals = spec(doc="Which driver channels carry this muscle's signals.")
     limits: MuscleLimits = spec(MuscleLimits(), "Limits tighter than the rating.")
+    model_file: str | None = spec(
+        None, "ANFIS inverse model (`pamd train`) for the length modes, relative to the "
+        "config file. Loaded and checked with the config: refused unless it loads, maps "
+        "force_n and length_mm or contraction (and optionally velocity_mm_s, its filter "
+        "stated) to pressure_bar with at most 125 rules, and its training lengths meet "
+        "this muscle's. Swapped while running only by the `model` command.")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -14,6 +14,7 @@ from typing import Any
 
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig
+from pamd.control.feedforward import LengthControl
 from pamd.control.pid import Pid
 from pamd.control.profiles import Profile
 from pamd.control.velocity import VELOCITY_WINDOW_S, velocity_step
@@ -119,6 +120,11 @@ class MuscleController:
         self.target_length = self.target_force = math.nan
         self.pending_preset: tuple[list[int], int, int] | None = None
         self.calibration_dirty = False
+        # Length modes (pamd.control.feedforward), with the model_file's model if any.
+        loaded = cfg.models.get(muscle.name)
+        self.length_ctl_on = False
+        self.length_ctl = LengthControl(self, ctl.position,
+                                        None if loaded is None else loaded.feedforward())
 
     # -- set-up and commands (not the tick path) ------------------------------------
     def update_load(self, load_kg: float) -> None:
@@ -237,6 +243,8 @@ class MuscleController:
         sp = self.sp
         use_pid = True
         if state == S_FAULT or state == S_ESTOP or self.safing:
+            if self.length_ctl_on:  # the safe state drops a length mode for good
+                self.length_ctl.leave()
             target = self.safe_bar
             if state == S_ESTOP:
                 slew = self.estop_slew
@@ -256,6 +264,10 @@ class MuscleController:
             else:
                 sp = target
                 self.sp_rate = 0.0
+        elif self.length_ctl_on:  # length_force / position: pamd.control.feedforward
+            lc = self.length_ctl
+            sp = lc.step(now, dt, state, sp)
+            flags |= lc.flags
         elif (state == S_RUNNING or state == S_LOAD) and self.profile is not None:
             prof = self.profile
             prof.sample(now)
