@@ -285,7 +285,9 @@ def _setpoint(ctrl: Any, a: SetpointArgs) -> dict[str, Any]:
     _need_reference(ms)
     m = ms[0]
     if m.length_ctl_on or a.bar is None:
-        return _length_setpoint(ctrl, m, a)
+        out = _length_setpoint(ctrl, m, a)
+        ctrl.arm_deadman(m, a.deadman_s)
+        return dict(out, deadman_s=a.deadman_s)
     if a.length_mm is not None or a.force_n is not None:
         raise CommandRefused(f"{m.name} is in pressure mode: length_mm and force_n are "
                              "targets of the length_force and position modes (send mode "

@@ -21,6 +21,7 @@ from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
 from pamd.io.session import IoSession, RecordingRequest
 from pamd.loop import Loop
+from pamd.net.spec import TelemetryRequest
 from pamd.rig import Rig
 from pamd.safety import Transition
 from pamd.service.keeper import ServiceKeeper
@@ -67,10 +68,13 @@ class Daemon:
     def __init__(self, cfg: LoadedConfig, note: str = "",
                  recording: RecordingRequest | None = None, *, state_dir: str | None = None,
                  notifier: Notifier | None = None,
-                 config_overrides: dict[str, Any] | None = None) -> None:
+                 config_overrides: dict[str, Any] | None = None,
+                 telemetry: TelemetryRequest | None = None) -> None:
         """`state_dir` overrides the config's (see pamd.service.state); `notifier`
         talks to systemd (the CLI passes `Notifier.from_environ()`);
-        `config_overrides` are re-applied when the config is reloaded (SIGHUP)."""
+        `config_overrides` are re-applied when the config is reloaded (SIGHUP);
+        `telemetry` asks for Zenoh telemetry and commands as the config's
+        `telemetry` section says (None: off; `pamd run` asks unless --no-telemetry)."""
         self.cfg = cfg
         self.note = note
         self.calibration = load_calibration(cfg.calibration_path)
@@ -80,8 +84,9 @@ class Daemon:
         self.mailbox = LocalMailbox()
         self.ctrl = RigController(cfg, self.rig, self.summary, self.calibration)
         self.loop = Loop(cfg, self.ctrl, self.mailbox)
-        # the io process (MCAP recording): its sink goes downstream of the summary
-        self.io = IoSession.attach(self, recording)
+        # the io process (MCAP recording, Zenoh telemetry): its sink goes downstream of
+        # the summary
+        self.io = IoSession.attach(self, recording, telemetry)
         self.transitions: deque[Transition] = deque(maxlen=1000)
         self.ctrl.listeners.append(self.transitions.append)
         self._thread: threading.Thread | None = None
@@ -111,6 +116,8 @@ class Daemon:
 
     def stop(self, reason: str) -> None:
         self.loop.request_stop(reason)
+        if self.io is not None:
+            self.io.stopping(reason)  # liveliness token withdrawn, new commands refused
         self.keeper.stop_requested(reason)
 
     def request_reload(self) -> None:
@@ -149,6 +156,8 @@ class Daemon:
                 m.calibration_dirty = False
             save_calibration(self.calibration, self.cfg.calibration_path)
         self.keeper.service()
+        if self.io is not None:
+            self.io.service()  # telemetry: status snapshot, collect/model commands
 
     def close(self) -> None:
         self.keeper.close()  # STOPPING=1 if not yet sent; the fault file up to date
@@ -214,5 +223,7 @@ class Daemon:
             "final_state": sup.state.name,
             "stop_reason": self.loop.stopped_reason,
             "realtime": {"applied": self.loop.rt.applied, "refused": self.loop.rt.warnings},
-            "recording": self.io.result() if self.io is not None else None,
+            "recording": self.io.result() if self.io is not None and self.io.recording
+            else None,
+            "telemetry": self.io.telemetry() if self.io is not None else None,
         }

@@ -17,6 +17,7 @@ from pamd.control.profiles import ProfileSpec
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
 from pamd.io.session import RecordingRequest
+from pamd.net.spec import TelemetryRequest
 from pamd.service import testhooks
 from pamd.service.notify import Notifier
 
@@ -53,6 +54,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--no-record", action="store_true", help="do not record, even if the "
                    "config names a directory")
     r.add_argument("--name", help="run name in the file name (default: recording.run_name)")
+    t = p.add_argument_group("telemetry and remote commands (Zenoh, in the io process)")
+    t.add_argument("--no-telemetry", action="store_true", help="no Zenoh session: no state, "
+                   "status or remote commands (default: as telemetry.enabled says, on)")
+    t.add_argument("--zenoh-config", metavar="FILE", help="Zenoh config (JSON5) of the "
+                   "daemon's session (overrides telemetry.zenoh_config; default: listen on "
+                   "telemetry.listen, tcp/127.0.0.1:7447)")
     g = p.add_argument_group("profile (on every muscle unless --muscle)")
     g.add_argument("--profile", choices=PROFILE_KINDS, help="start this reference profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")
@@ -170,8 +177,10 @@ def run(args: argparse.Namespace) -> int:
         profile = _length_profile(args, cfg)
     recording = RecordingRequest(dir=args.record, enabled=not args.no_record,
                                  run_name=args.name, profile=profile, model_path=model_path)
+    telemetry = TelemetryRequest(enabled=not args.no_telemetry, zenoh_config=args.zenoh_config)
     daemon = Daemon(cfg, note=args.note, recording=recording, state_dir=args.state_dir,
-                    notifier=Notifier.from_environ(), config_overrides=overrides)
+                    notifier=Notifier.from_environ(), config_overrides=overrides,
+                    telemetry=telemetry)
     testhooks.install(daemon)
     signalled = _install_signals(daemon)
     # Queued before the loop starts: applied on the first tick after start-up, so a

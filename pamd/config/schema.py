@@ -235,6 +235,39 @@ class RecordingConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class TelemetryConfig:
+    enabled: bool = spec(True, "`pamd run` publishes state and events, answers status and "
+                         "takes commands over Zenoh (the session lives in the io process); "
+                         "`pamd run --no-telemetry` turns it off for one run.")
+    zenoh_config: str | None = spec(
+        None, "Zenoh config file (JSON5) of the daemon's session, relative to the config "
+        "file (`pamd run --zenoh-config` overrides it); e.g. config/zenoh/lab-daemon.json5 "
+        "to reach a router with mutual TLS. Multicast and gossip scouting are turned off "
+        "unless the file turns them on. null: a peer listening on `listen` only.")
+    listen: str = spec("tcp/127.0.0.1:7447", "Endpoint the daemon listens on when "
+                       "zenoh_config is null. If it is taken, `pamd run` says so and exits "
+                       "before anything moves.")
+    rate_hz: float = spec(100.0, "State samples per second per muscle (one every "
+                          "loop.rate_hz / rate_hz ticks; loop.rate_hz or more: every tick).",
+                          unit="Hz", gt=0.0)
+    publish_hz: float = spec(100.0, "At most this many puts per second per muscle; each "
+                             "carries every sample since the last (batched).", unit="Hz",
+                             gt=0.0, max=1000.0)
+    status_hz: float = spec(10.0, "How often the daemon's main thread refreshes the status "
+                            "snapshot the io process answers `status` queries from.",
+                            unit="Hz", gt=0.0, max=100.0)
+    command_rate_per_s: float = spec(50.0, "Commands per second one sender may send "
+                                     "(token bucket; all senders together: 4 times this); "
+                                     "beyond it they are refused without reaching the loop.",
+                                     unit="1/s", gt=0.0)
+    command_burst: int = spec(20, "Commands one sender may send at once before the rate "
+                              "applies.", min=1)
+    command_timeout_s: float = spec(5.0, "A command with no verdict from the loop within "
+                                    "this time is answered with an error saying so.",
+                                    unit="s", gt=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class RigConfig:
     rig_id: str = spec("sim", "Rig name; appears in Zenoh keys and MCAP topics.")
     loop: LoopConfig = spec(LoopConfig(), "The fixed-rate loop.")
@@ -243,6 +276,9 @@ class RigConfig:
     control: ControlConfig = spec(ControlConfig(), "Control gains and slew limit.")
     safety: SafetyConfig = spec(SafetyConfig(), "Limits, timeouts and the safe state.")
     recording: RecordingConfig = spec(RecordingConfig(), "MCAP recording by the io process.")
+    telemetry: TelemetryConfig = spec(TelemetryConfig(), "Live state, events, status and "
+                                      "remote commands over Zenoh (pamd.net, in the io "
+                                      "process).")
     calibration_file: str | None = spec(
         None, "Where home/tare references are kept (relative to the config file; default: "
         "<config name>.cal.yaml beside it).")

@@ -1,5 +1,6 @@
-"""The io process: drains the loop's rings into the recorder, bumps the heartbeat the
-loop watches, sends commands to the loop and routes their verdicts.
+"""The io process: drains the loop's rings into the recorder and the Zenoh node
+(`pamd.net.node`: telemetry, status, remote commands), bumps the heartbeat the loop
+watches, sends commands to the loop and routes their verdicts.
 
 It never blocks the loop: it only reads rings the loop writes without waiting. If a
 write fails (disk full, I/O error) it reports the error in the shared header, stops
@@ -14,6 +15,7 @@ import json
 import os
 import signal
 import struct
+import threading
 import time
 from collections.abc import Callable
 from typing import Any
@@ -31,37 +33,42 @@ from pamd.ipc.ring import (
 )
 
 IDLE_SLEEP_S = 0.0005
+VERDICT_SLEEP_S = 0.0001
 BATCH = 512
 
 
 class CommandPort:
     """The io side of the command mailbox: send a command to the loop, get its verdict
-    back (through the event ring) by id. The Zenoh session uses the same port."""
+    back (through the event ring) by id. The Zenoh session uses the same port, from
+    its query callbacks' thread: `lock` makes it the ring's one producer at a time."""
 
     def __init__(self, block: SharedBlock) -> None:
         self.ring = block.commands
         self.next_id = 1
         self.waiting: dict[int, Callable[[dict[str, Any]], None]] = {}
+        self.lock = threading.RLock()
 
     def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
              on_verdict: Callable[[dict[str, Any]], None] | None = None) -> int | None:
         """Queue a command; None (and a refusal verdict) if the mailbox is full."""
-        cid = self.next_id
-        self.next_id += 1
-        blob = json.dumps({"id": cid, "verb": verb, "payload": payload or {},
-                           "sender": sender, "user": user}).encode()
-        if not self.ring.put_blob(blob):
-            if on_verdict:
-                on_verdict({"ok": False, "error": "the loop's command mailbox is full"})
-            return None
-        if on_verdict is not None:
-            self.waiting[cid] = on_verdict
-        return cid
+        with self.lock:
+            cid = self.next_id
+            self.next_id += 1
+            blob = json.dumps({"id": cid, "verb": verb, "payload": payload or {},
+                               "sender": sender, "user": user}).encode()
+            if not self.ring.put_blob(blob):
+                if on_verdict:
+                    on_verdict({"ok": False, "error": "the loop's command mailbox is full"})
+                return None
+            if on_verdict is not None:
+                self.waiting[cid] = on_verdict
+            return cid
 
     def on_reply(self, data: dict[str, Any]) -> None:
-        fn = self.waiting.pop(int(data.get("id", -1)), None)
-        if fn is not None:
-            fn(data)
+        with self.lock:
+            fn = self.waiting.pop(int(data.get("id", -1)), None)
+            if fn is not None:
+                fn(data)
 
 
 def io_main(spec: IoSpec) -> None:
@@ -80,6 +87,7 @@ class IoProcess:
         self.spec = spec
         self.block = block
         self.recorder: Any = None
+        self.net: Any = None  # pamd.net.node.NetNode: telemetry and remote commands
         self.port = CommandPort(block)
         self.script = sorted(spec.script)
         self.rec_struct = struct.Struct(f"<{spec.layout.record_bytes // 8}d")
@@ -102,6 +110,17 @@ class IoProcess:
 
     def run(self) -> None:
         spec, block = self.spec, self.block
+        if spec.net is not None:  # first: a taken endpoint refuses before any file opens
+            from pamd.net.node import NetNode
+
+            self.net = NetNode(spec.net, spec, block, self.port, self._record_event)
+            err = self.net.open()
+            if err is not None:  # reported to the daemon, which refuses to start
+                self.net = None
+                block.set_error(f"telemetry: {err}")
+                block.set(C_IO_STATE, IO_FAILED)
+                self.failed = True
+                return
         if spec.record is not None:
             if spec.record.fsize_limit_bytes:
                 import resource
@@ -117,6 +136,8 @@ class IoProcess:
                 block.set_files(self.recorder.files)
             except Exception as exc:  # reported to the daemon, which refuses to start
                 self._fail("cannot open the recording", exc)
+                if self.net is not None:
+                    self.net.close("the recording could not be opened")
                 return
         block.set(C_IO_STATE, IO_READY)
         stop_reason = "stopped by the daemon"
@@ -134,6 +155,7 @@ class IoProcess:
                 summary = s
             self._run_script()
             now = mono()
+            k = self.net.poll(now) if self.net is not None else 0
             if self.recorder is not None:
                 try:
                     self.recorder.service(now)
@@ -149,8 +171,12 @@ class IoProcess:
                     self._drain_events()
                     stop_reason = "the loop's process disappeared (killed?)"
                     break
-            if n == 0 and m == 0:
-                time.sleep(IDLE_SLEEP_S)
+            if n == 0 and m == 0 and k == 0:
+                # a remote command waits for its verdict: look for it sooner
+                time.sleep(VERDICT_SLEEP_S if self.net is not None and self.net.waiting
+                           else IDLE_SLEEP_S)
+        if self.net is not None:  # token withdrawn, pending queries answered, closed
+            self.net.close(stop_reason)
         if self.recorder is not None:
             try:
                 self.recorder.finish(summary, stop_reason)
@@ -170,6 +196,8 @@ class IoProcess:
         unpack, buf = self.rec_struct.unpack_from, ring.buf
         rows = [unpack(buf, ring.slot_offset(seq)) for seq in range(start, start + n)]
         ring.release(start + n)
+        if self.net is not None:
+            self.net.ticks(rows)
         rec = self.recorder
         if rec is not None:
             if rec.t_start is None:
@@ -198,6 +226,8 @@ class IoProcess:
             if kind == "reply":
                 self.reply_t = ev["t"]
                 self.port.on_reply(data)
+            if self.net is not None:
+                self.net.event(ev["t"], kind, data)
             if kind == "summary":
                 summary = data
                 continue
@@ -210,6 +240,18 @@ class IoProcess:
                 except Exception as exc:
                     self._fail("recording write failed", exc)
         return n, summary
+
+    def _record_event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+        """An event of the io process's own (a command it refused) into the recording."""
+        rec = self.recorder
+        if rec is None:
+            return
+        if rec.t_start is None:
+            rec.t_start = self.block.t_start()
+        try:
+            rec.event(t_s, kind, data)
+        except Exception as exc:
+            self._fail("recording write failed", exc)
 
     def _run_script(self) -> None:
         while self.script and self.script[0][0] <= self.last_tick:

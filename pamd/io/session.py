@@ -1,10 +1,16 @@
 """An io process attached to a daemon: builds the shared block and the spec, puts
 the ring sink downstream of the summary sink and the ring mailbox beside the local
 one, and decides what a lost io process or a failed write means (by config: fault to
-the safe state, or keep controlling without recording; either way it says so)."""
+the safe state, or keep controlling without recording; either way it says so).
+
+It starts when the run records, publishes telemetry (`pamd.net`), or both; with
+telemetry it also owns the status board and the main thread's share of it
+(`service`, `stopping`)."""
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 import os
 import time
 from dataclasses import dataclass
@@ -14,6 +20,10 @@ from pamd.io.link import IoLink, MultiMailbox, RingMailbox, RingSink
 from pamd.io.meta import build_record_spec
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import BlockLayout, pow2_at_least
+from pamd.net.board import Board
+from pamd.net.host import NetHost
+from pamd.net.spec import NetSpec, TelemetryRequest
+from pamd.net.spec import resolve as resolve_net
 
 
 @dataclass(frozen=True)
@@ -31,29 +41,40 @@ class RecordingRequest:
 
 
 class IoSession:
-    def __init__(self, daemon: Any, req: RecordingRequest, record_dir: str) -> None:
+    def __init__(self, daemon: Any, req: RecordingRequest, record_dir: str | None,
+                 net: NetSpec | None = None) -> None:
         self.daemon = daemon
         cfg = daemon.cfg
         self.rc = cfg.rig.recording
         loop = daemon.loop
         self.virtual = loop.virtual
         self.failure: dict[str, Any] | None = None
+        self.recording = record_dir is not None  # False: telemetry alone
         clock0 = 0.0 if self.virtual else time.monotonic()
         wall0 = time.time_ns()
         rate = cfg.rig.loop.rate_hz
         layout = BlockLayout(record_bytes=8 * daemon.layout.size,
                              tick_slots=pow2_at_least(max(64, int(self.rc.ring_s * rate))))
-        rspec = build_record_spec(
+        rspec = None if record_dir is None else build_record_spec(
             cfg, daemon.calibration, record_dir=record_dir, note=daemon.note,
             run_name=req.run_name, model_path=req.model_path, profile=req.profile,
             virtual=self.virtual, wall0_ns=wall0, fsize_limit_bytes=req.fsize_limit_bytes,
             steps=req.segments)
+        # Telemetry: the status board the main thread writes (pamd.net.board)
+        self.board: Board | None = None
+        self.host: NetHost | None = None
+        if net is not None:
+            self.board = Board(create=True)
+            net = dataclasses.replace(net, board_name=self.board.name)
+            self.host = NetHost(daemon, self.board, cfg.rig.telemetry.status_hz)
+        self.net = net
 
         def make_spec(shm_name: str) -> IoSpec:
             return IoSpec(shm_name=shm_name, layout=layout, rig_id=cfg.rig.rig_id,
                           muscles=tuple(daemon.layout.muscles), rate_hz=rate,
                           virtual=self.virtual, wall0_ns=wall0, clock0_s=clock0,
-                          parent_pid=os.getpid(), record=rspec, script=tuple(req.script))
+                          parent_pid=os.getpid(), record=rspec, script=tuple(req.script),
+                          net=net)
 
         self.link = IoLink.create(make_spec, layout)
         ctrl = daemon.ctrl
@@ -64,25 +85,53 @@ class IoSession:
         loop.mailbox = MultiMailbox(daemon.mailbox, self.mailbox)
 
     @classmethod
-    def attach(cls, daemon: Any, req: RecordingRequest | None) -> IoSession | None:
+    def attach(cls, daemon: Any, req: RecordingRequest | None,
+               telemetry: TelemetryRequest | None = None) -> IoSession | None:
+        """An io process when the run records, publishes (telemetry), or both."""
         req = req or RecordingRequest()
         record_dir = req.dir or daemon.cfg.rig.recording.dir
         if not req.enabled or not record_dir:
+            record_dir = None
+        net = resolve_net(daemon.cfg, telemetry)  # ConfigError before anything starts
+        if record_dir is None and net is None:
             return None
-        return cls(daemon, req, record_dir)
+        return cls(daemon, req, record_dir, net)
 
     def start(self) -> None:
-        self.link.start()
+        try:
+            self.link.start()
+        except BaseException:
+            if self.board is not None:
+                self.board.close()
+                self.board = None
+            raise
+        if self.net is not None:
+            logging.getLogger("pamd").info("telemetry: pamd/%s/** (%s)", self.net.rig_id,
+                                           self.net.where)
+
+    def service(self) -> None:
+        """The main thread's share (Daemon.service): status snapshot, main-thread
+        commands (collect, model)."""
+        if self.host is not None and self.board is not None:
+            self.host.service()
+
+    def stopping(self, reason: str) -> None:
+        """A stop was requested: the io process withdraws the liveliness token and
+        refuses new commands at once."""
+        if self.host is not None and self.board is not None:
+            self.host.stopping(reason)
 
     def _failed(self, what: str, reason: str) -> None:
         """In the loop's thread: the io process died or could not write."""
         policy = self.rc.on_io_death if what == "death" else self.rc.on_failure
         key = "on_io_death" if what == "death" else "on_failure"
         ctrl = self.daemon.ctrl
+        gone = " and ".join(w for w, on in (("recording", self.recording),
+                                            ("telemetry", self.net is not None)) if on)
         if policy == "safe_state":
-            msg = f"recording stopped: {reason}; going to the safe state (recording.{key})"
+            msg = f"{gone} stopped: {reason}; going to the safe state (recording.{key})"
         else:
-            msg = (f"recording stopped: {reason}; control continues WITHOUT recording "
+            msg = (f"{gone} stopped: {reason}; control continues WITHOUT {gone} "
                    f"(recording.{key}: continue)")
         self.failure = {"what": what, "reason": reason, "policy": policy,
                         "tick": ctrl.tick_no}
@@ -96,6 +145,9 @@ class IoSession:
             return
         self.sink.finish(summary)
         self.link.close()
+        if self.board is not None:
+            self.board.close()
+            self.board = None
 
     def result(self) -> dict[str, Any]:
         st = self.link.status()
@@ -103,3 +155,10 @@ class IoSession:
         st["lost_events"] = max(self.sink.lost_events, st.get("lost_events") or 0)
         st["failure"] = self.failure
         return st
+
+    def telemetry(self) -> dict[str, Any] | None:
+        """What the run's summary says of telemetry (None when it was off)."""
+        if self.net is None:
+            return None
+        return {"rig_id": self.net.rig_id, "every_ticks": self.net.every_ticks,
+                "failure": self.failure if not self.recording else None}

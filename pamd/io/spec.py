@@ -44,3 +44,5 @@ class IoSpec:
     # Commands the io process sends to the loop at a given tick: (tick, verb, payload).
     # The Zenoh session will be the real source; this one proves the path end to end.
     script: tuple[tuple[int, str, dict], ...] = ()
+    # Telemetry and remote commands (pamd.net.spec.NetSpec); None: no Zenoh session.
+    net: Any = None

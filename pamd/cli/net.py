@@ -1,0 +1,306 @@
+"""`pamd status`, `pamd cmd`, `pamd watch`: clients of a running daemon over Zenoh.
+
+Each opens its own Zenoh session in client mode: to `tcp/127.0.0.1:7447` by default,
+to `--connect ENDPOINT`, or as `--zenoh-config FILE` says (a client config such as
+config/zenoh/lab-client.json5; given a daemon's config, it connects where that daemon
+listens). With no `--rig`, the one rig alive is used. Exit codes: 0 ok, 4 command
+refused, 7 no daemon answers (or not allowed), 2 bad arguments or config.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+import typing
+from typing import Any
+
+from pamd.errors import CommandRefused
+
+CMD_EPILOG = """examples:
+  pamd cmd setpoint --muscle m1 --bar 3.0
+  pamd cmd setpoint --muscle m1 --bar 3.0 --deadman-s 0.5     # streamed: refresh it
+  pamd cmd profile --kind sine --min-bar 0 --max-bar 6 --freq-hz 0.05 --cycles 2
+  pamd cmd hold ; pamd cmd stop ; pamd cmd estop --reason "hand in the rig"
+  pamd cmd collect --plan-file /srv/plans/sweep.yaml           # a file on the rig PC
+  pamd cmd load --arg muscle=m1 --arg load_kg=40
+  pamd cmd setpoint --json '{"muscle": "m1", "bar": 2.5}'
+"""
+
+
+def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
+    d: Any = argparse.SUPPRESS if suppress else None
+    p.add_argument("--rig", default=d, help="rig id (default: the one rig alive)")
+    p.add_argument("--zenoh-config", metavar="FILE", default=d,
+                   help="Zenoh client config (JSON5), e.g. config/zenoh/lab-client.json5")
+    p.add_argument("--connect", metavar="ENDPOINT", default=d,
+                   help="connect here (default: tcp/127.0.0.1:7447)")
+    p.add_argument("--timeout", type=float, metavar="S", default=d,
+                   help="how long to wait for an answer (status 3 s, cmd 10 s)")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    s = sub.add_parser("status", help="ask a running daemon how it is (over Zenoh)",
+                       description="The daemon's status: state, faults, limits, references, "
+                       "timing, profile and model, config hash.")
+    _common(s)
+    s.add_argument("--json", action="store_true", help="print the status as JSON")
+    s.set_defaults(func=status)
+
+    from pamd.commands import VERBS
+
+    c = sub.add_parser("cmd", help="command a running daemon (over Zenoh)",
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Send one command; the reply is the loop's verdict. "
+                       "Options after VERB are the verb's fields (--muscle, --bar, ...), "
+                       "--arg KEY=VALUE (JSON value) or --json PAYLOAD. Verbs: "
+                       + ", ".join(VERBS) + ".", epilog=CMD_EPILOG)
+    _common(c)
+    c.add_argument("--user", help="the user the command declares (default: your login; "
+                   "recorded, not authenticated)")
+    c.add_argument("verb", help="setpoint, profile, mode, hold, resume, stop, estop, reset, "
+                   "home, tare, load, model, collect, confirm, pause")
+    c.add_argument("rest", nargs=argparse.REMAINDER, help="the verb's options")
+    c.set_defaults(func=cmd)
+
+    w = sub.add_parser("watch", help="live table of a running daemon's muscles (over Zenoh)",
+                       description="Each muscle's latest state and the message rate, "
+                       "refreshed twice a second, plus the latest events.")
+    _common(w)
+    w.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    w.add_argument("--plain", action="store_true", help="append tables instead of redrawing")
+    w.set_defaults(func=watch)
+
+
+def _client(args: argparse.Namespace) -> Any:
+    from pamd.net.client import Client
+
+    return Client(args.zenoh_config, args.connect)
+
+
+# -- status ------------------------------------------------------------------------------
+def status(args: argparse.Namespace) -> int:
+    with _client(args) as cl:
+        rig = cl.rig(args.rig)
+        st = cl.status(rig, args.timeout or 3.0)
+    if args.json:
+        print(json.dumps(st, indent=2))
+    else:
+        print_status(st)
+    return 0 if st.get("ok", True) else 1
+
+
+def _f(v: Any, fmt: str = ".3f") -> str:
+    return "-" if v is None else format(v, fmt) if isinstance(v, (int, float)) else str(v)
+
+
+def print_status(st: dict[str, Any]) -> None:
+    if not st.get("ok", True):
+        print(f"status: {st.get('error')}")
+        return
+    print(f"rig {st.get('rig_id')}: {st.get('state')} ({st.get('reason')})")
+    if st.get("fault"):
+        print(f"  latched fault: {st['fault']}")
+    if st.get("stopping"):
+        print(f"  stopping: {st['stopping']}")
+    for name, m in (st.get("muscles") or {}).items():
+        lim, ref = m.get("limits") or {}, m.get("references") or {}
+        print(f"  {name}: {_f(m.get('pressure_bar'))} bar (setpoint "
+              f"{_f(m.get('setpoint_bar'))}, valve {_f(m.get('valve_cmd_bar'))}), force "
+              f"{_f(m.get('force_n'), '.1f')} N, length {_f(m.get('length_mm'), '.2f')} mm, "
+              f"mode {m.get('mode')}, profile {m.get('profile') or '-'}")
+        print(f"      limits {_f(lim.get('max_pressure_bar'), 'g')} bar, contraction "
+              f"{_f(lim.get('max_contraction'), 'g')}, pretension "
+              f"{_f(lim.get('max_pretension'), 'g')}; safe pressure "
+              f"{_f(m.get('safe_pressure_bar'), '.2f')} bar at {_f(m.get('load_kg'), 'g')} "
+              f"kg; referenced {m.get('referenced')} (homed {ref.get('homed_at') or '-'}, "
+              f"tared {ref.get('tared_at') or '-'})")
+        model = m.get("model")
+        if model:
+            print(f"      model {model.get('file')} ({model.get('rules')} rules)")
+    t = st.get("timing") or {}
+    if t:
+        w, c = t.get("wake_latency_us", {}), t.get("compute_us", {})
+        print(f"  loop: {st.get('rate_hz')} Hz {st.get('clock')} clock, {t.get('ticks')} ticks,"
+              f" {t.get('overruns')} overruns; wake-up p50/p99/max {_f(w.get('p50'), '.0f')}/"
+              f"{_f(w.get('p99'), '.0f')}/{_f(w.get('max'), '.0f')} us; compute p99 "
+              f"{_f(c.get('p99'), '.0f')} us")
+    if st.get("experiment"):
+        e = st["experiment"]
+        print(f"  experiment {e.get('plan')}: step {e.get('step')} {e.get('phase')}"
+              + (f" - {e['awaiting_operator']}" if e.get("awaiting_operator") else ""))
+    if st.get("faults"):
+        print(f"  faults this run: {'; '.join(st['faults'])}")
+    print(f"  config {st.get('config_path')} sha256 {str(st.get('config_sha256'))[:16]}..., "
+          f"snapshot {_f(st.get('snapshot_age_s'), '.2f')} s old")
+
+
+# -- cmd ---------------------------------------------------------------------------------
+def _parse_bool(text: str) -> bool:
+    t = text.strip().lower()
+    if t in ("true", "1", "yes", "on"):
+        return True
+    if t in ("false", "0", "no", "off"):
+        return False
+    raise argparse.ArgumentTypeError(f"expected true or false, found {text!r}")
+
+
+def _json_value(text: str) -> Any:
+    try:
+        return json.loads(text)
+    except ValueError:
+        return text
+
+
+def _field_type(tp: Any) -> Any:
+    args = [a for a in typing.get_args(tp) if a is not type(None)] or [tp]
+    base = args[0]
+    return {bool: _parse_bool, int: int, float: float}.get(base, str)
+
+
+def verb_parser(verb: str) -> argparse.ArgumentParser:
+    """The options of one verb, from its argument dataclass."""
+    import dataclasses
+
+    from pamd.commands import VERBS
+
+    p = argparse.ArgumentParser(prog=f"pamd cmd {verb}", add_help=True)
+    _common(p, suppress=True)
+    p.add_argument("--user", default=argparse.SUPPRESS)
+    p.add_argument("--arg", action="append", default=[], metavar="KEY=VALUE",
+                   help="a field, VALUE parsed as JSON when it can be")
+    p.add_argument("--json", metavar="PAYLOAD", help="the whole payload, sent as given")
+    cls = VERBS.get(verb)
+    if cls is not None:
+        hints = typing.get_type_hints(cls)
+        for f in dataclasses.fields(cls):
+            doc = f.metadata.get("doc", "")
+            unit = f.metadata.get("unit")
+            p.add_argument("--" + f.name.replace("_", "-"), dest=f"field_{f.name}",
+                           type=_field_type(hints[f.name]), metavar=unit or "VALUE",
+                           help=doc)
+    return p
+
+
+def build_payload(verb: str, rest: list[str], args: argparse.Namespace) -> str | dict[str, Any]:
+    ns = verb_parser(verb).parse_args(rest, namespace=args)
+    if ns.json is not None:
+        if ns.arg or any(k.startswith("field_") and v is not None for k, v in vars(ns).items()):
+            raise SystemExit("pamd cmd: --json is the whole payload; give no other fields")
+        return ns.json
+    payload: dict[str, Any] = {k[len("field_"):]: v for k, v in vars(ns).items()
+                               if k.startswith("field_") and v is not None}
+    for item in ns.arg:
+        key, eq, value = item.partition("=")
+        if not eq or not key:
+            raise SystemExit(f"pamd cmd: --arg takes KEY=VALUE, found {item!r}")
+        payload[key] = _json_value(value)
+    return payload
+
+
+def cmd(args: argparse.Namespace) -> int:
+    payload = build_payload(args.verb, list(args.rest), args)
+    with _client(args) as cl:
+        rig = cl.rig(args.rig)
+        verdict = cl.command(rig, args.verb, payload, user=args.user,
+                             timeout_s=args.timeout or 10.0)
+    print(json.dumps(verdict))
+    if not verdict.get("ok"):
+        raise CommandRefused(f"{args.verb} refused: {verdict.get('error')}")
+    return 0
+
+
+# -- watch -------------------------------------------------------------------------------
+COLUMNS = ("muscle", "state", "p bar", "sp bar", "valve", "force N", "len mm", "contr %",
+           "mode", "flags", "puts/s", "samples/s", "dropped")
+
+
+def _name(enum: Any, v: Any) -> str:
+    try:
+        return enum(int(v)).name
+    except (TypeError, ValueError):
+        return "-"
+
+
+def watch(args: argparse.Namespace) -> int:
+    from pamd.net.keys import Keys
+    from pamd.net.telemetry import decode
+    from pamd.net.zconf import NoDaemon
+    from pamd.tick import Mode, State
+
+    with _client(args) as cl:
+        rig = cl.rig(args.rig)
+        keys = Keys(rig)
+        sub = cl.subscribe(keys.state_all)
+        evs = cl.subscribe(keys.events, 256)
+        latest: dict[str, dict[str, Any]] = {}
+        puts: dict[str, int] = {}
+        samples: dict[str, int] = {}
+        gaps: dict[str, int] = {}
+        last_seq: dict[str, int] = {}
+        events: list[str] = []
+        t0 = t_draw = time.monotonic()
+        n_draw = {"puts": dict(puts), "samples": dict(samples)}
+        redraw = sys.stdout.isatty() and not args.plain
+        total = 0
+        try:
+            while True:
+                now = time.monotonic()
+                while (s := sub.try_recv()) is not None:
+                    msg = decode(s.payload.to_bytes())
+                    m = msg.get("muscle", "?")
+                    total += 1
+                    puts[m] = puts.get(m, 0) + 1
+                    samples[m] = samples.get(m, 0) + len(msg.get("tick", []))
+                    seq = msg.get("seq", 0)
+                    if m in last_seq and seq > last_seq[m] + 1:
+                        gaps[m] = gaps.get(m, 0) + seq - last_seq[m] - 1
+                    last_seq[m] = seq
+                    if msg.get("tick"):
+                        latest[m] = {k: v[-1] for k, v in msg.items() if isinstance(v, list)}
+                while (e := evs.try_recv()) is not None:
+                    ev = json.loads(e.payload.to_bytes())
+                    events = (events + [f"{_f(ev.get('t_s'), '.2f')} s {ev.get('kind')}: "
+                                        f"{json.dumps(ev.get('data'))[:100]}"])[-5:]
+                if now - t_draw >= 0.5:
+                    dt = now - t_draw
+                    rows = []
+                    for m, v in sorted(latest.items()):
+                        rows.append((m, _name(State, v.get("state")), _f(v.get("pressure_bar")),
+                                     _f(v.get("setpoint_bar")), _f(v.get("valve_cmd_bar")),
+                                     _f(v.get("force_n"), ".1f"), _f(v.get("length_mm"), ".2f"),
+                                     _f(None if v.get("contraction") is None
+                                        else 100 * v["contraction"], ".2f"),
+                                     _name(Mode, v.get("mode")), f"{int(v.get('flags') or 0):#x}",
+                                     f"{(puts[m] - n_draw['puts'].get(m, 0)) / dt:.0f}",
+                                     f"{(samples[m] - n_draw['samples'].get(m, 0)) / dt:.0f}",
+                                     str(gaps.get(m, 0))))
+                    n_draw = {"puts": dict(puts), "samples": dict(samples)}
+                    t_draw = now
+                    _draw(rig, rows, events, redraw)
+                if args.duration is not None and now - t0 >= args.duration:
+                    break
+                time.sleep(0.02)
+        except KeyboardInterrupt:
+            pass
+        if total == 0:
+            raise NoDaemon(f"no state received on {keys.state_all} (is the daemon running "
+                           "with telemetry on?)")
+    return 0
+
+
+def _draw(rig: str, rows: list[tuple[str, ...]], events: list[str], redraw: bool) -> None:
+    widths = [max(len(c), *(len(r[i]) for r in rows)) if rows else len(c)
+              for i, c in enumerate(COLUMNS)]
+    out = []
+    if redraw:
+        out.append("\x1b[H\x1b[2J")
+    out.append(f"pamd watch: rig {rig}  ({time.strftime('%H:%M:%S')})")
+    out.append("  ".join(c.rjust(w) for c, w in zip(COLUMNS, widths, strict=True)))
+    for r in rows:
+        out.append("  ".join(v.rjust(w) for v, w in zip(r, widths, strict=True)))
+    if not rows:
+        out.append("(no state yet)")
+    out.extend(f"  {e}" for e in events)
+    print("\n".join(out), flush=True)

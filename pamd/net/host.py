@@ -1,0 +1,127 @@
+"""The daemon's main-process side of telemetry: writes the status snapshot into the
+board at `telemetry.status_hz`, and does the work of the commands that need the main
+thread (`collect`: read and check the plan file, then queue it; `model`: load,
+check and compile the model file, then queue it) before the loop gives its verdict,
+which goes back to the io process by id.
+
+Runs in `Daemon.service()` (the main thread, every few tens of ms); never in the
+loop's thread.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from pamd import commands
+from pamd.commands import Command, parse_command
+from pamd.errors import CommandRefused, PamdError
+from pamd.net.board import Board
+from pamd.net.status import StatusBuilder, jsonsafe
+
+log = logging.getLogger("pamd")
+
+
+@dataclass(frozen=True)
+class PlanArgs:
+    """A `collect` whose plan was read and checked here (the loop records every
+    field but `plan`)."""
+
+    plan_file: str
+    start_step: int
+    plan: Any
+
+
+class _Pending:
+    def __init__(self) -> None:
+        self.verdict: dict[str, Any] | None = None
+
+    def set(self, verdict: dict[str, Any]) -> None:  # the loop's thread
+        self.verdict = verdict
+
+
+class NetHost:
+    def __init__(self, daemon: Any, board: Board, status_hz: float) -> None:
+        self.d = daemon
+        self.board = board
+        self.period_s = 1.0 / status_hz
+        self.builder = StatusBuilder(daemon)
+        self.last_t = -1e9
+        self.pending: dict[int, _Pending] = {}
+        self.outbox: list[bytes] = []  # replies waiting for room in the ring
+
+    def service(self) -> None:
+        now = time.monotonic()
+        if now - self.last_t >= self.period_s:
+            self.last_t = now
+            self.write_status(now)
+        while (blob := self.board.requests.get_blob()) is not None:
+            self._request(blob)
+        for rid, p in list(self.pending.items()):
+            if p.verdict is not None:
+                del self.pending[rid]
+                self._reply(rid, p.verdict)
+        while self.outbox and self.board.replies.put_blob(self.outbox[0]):
+            self.outbox.pop(0)
+
+    def write_status(self, now: float | None = None) -> None:
+        try:
+            snap = self.builder.build(time.monotonic() if now is None else now)
+            blob = json.dumps(snap, separators=(",", ":"), default=str).encode()
+        except Exception as exc:  # never let status kill the daemon's main thread
+            blob = json.dumps({"error": f"status failed: {exc!r}"}).encode()
+        if not self.board.write_status(blob):
+            self.board.write_status(json.dumps({"error": "status too large"}).encode())
+
+    def stopping(self, reason: str) -> None:
+        self.board.set_stopping(reason)
+        self.write_status()
+
+    # -- commands that need this thread ----------------------------------------------
+    def _reply(self, rid: int, verdict: dict[str, Any]) -> None:
+        blob = json.dumps({"id": rid, "verdict": jsonsafe(verdict)}, default=str).encode()
+        cap = self.board.replies.slot_bytes - 4
+        if len(blob) > cap:
+            short = {"ok": verdict.get("ok", False), "error": verdict.get("error"),
+                     "note": "verdict truncated"}
+            blob = json.dumps({"id": rid, "verdict": short}, default=str).encode()
+        self.outbox.append(blob)
+
+    def _request(self, blob: bytes) -> None:
+        try:
+            req = json.loads(blob)
+            rid = int(req["id"])
+        except (ValueError, KeyError, TypeError):
+            return
+        verb, payload = str(req.get("verb")), req.get("payload")
+        sender, user = str(req.get("sender", "zenoh")), str(req.get("user", ""))
+        p = _Pending()
+        try:
+            cmd = parse_command(verb, payload, sender=sender, user=user, reply=p.set)
+            if verb == "collect":
+                from pamd.experiment.plan import load_plan
+
+                a = cmd.args
+                try:
+                    plan = load_plan(a.plan_file, self.d.cfg)
+                except PamdError as exc:
+                    raise CommandRefused(f"collect: plan refused: {exc}") from None
+                cmd = Command("collect", PlanArgs(a.plan_file, a.start_step, plan), p.set,
+                              sender, user)
+            else:  # model: the file read, checked and compiled here, not in the loop
+                prepare = getattr(commands, "prepare_command", None)
+                if prepare is not None:
+                    cmd = prepare(cmd, self.d.cfg)
+        except CommandRefused as exc:
+            verdict = {"ok": False, "error": str(exc)}
+            ctrl = self.d.ctrl
+            self.d.summary.event(ctrl.now, "command", {
+                "verb": verb, "args": payload if isinstance(payload, dict) else {},
+                "sender": sender, "user": user, "by": "daemon", **verdict})
+            self._reply(rid, verdict)
+            return
+        self.pending[rid] = p
+        self.d.mailbox.put(cmd)

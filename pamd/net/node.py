@@ -1,0 +1,430 @@
+"""The io process's Zenoh node: one session, in the io process (never in the loop's).
+
+Queries (`status`, `cmd/*`) are answered from Zenoh's callback thread, at once: the
+status from the board's snapshot, a command by checking it and putting it into the
+loop's mailbox. The callbacks take the interpreter lock of the io process only, and
+share one lock (`CommandPort.lock`) with the io loop, which publishes the state it
+drains, routes verdicts back to their queries and writes what must be recorded (the
+recorder is the io loop's alone). Everything published uses the drop congestion
+policy: a frozen subscriber never stalls the io process (nor, through the rings, the
+loop).
+
+Commands: `pamd/<rig>/cmd/<verb>` (one wildcard queryable `cmd/*`), JSON object in,
+JSON out. Refused here at once: malformed JSON, unknown verbs, missing, extra or
+mistyped fields, non-finite numbers (`parse_command`), muscles the rig lacks and
+pressures outside the limits, senders over their rate, anything while stopping.
+What passes goes through the loop's mailbox (or, for `collect` and `model`, through
+the board to the daemon's main thread); the reply is the loop's verdict. The sender
+is the Zenoh id the query declares (`source_info`), the user the `user` selector
+parameter (`pamd/sim/cmd/hold?user=ana`): both declared, not authenticated.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import sys
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+from pamd.commands import parse_command
+from pamd.errors import CommandRefused
+from pamd.net.board import Board
+from pamd.net.keys import Keys
+from pamd.net.ratelimit import RateLimiter
+from pamd.net.spec import NetSpec
+from pamd.net.stats import TickStats
+from pamd.net.status import jsonsafe
+from pamd.net.telemetry import StateBatcher
+from pamd.tick import I_STATE, I_T, I_TICK, LOOP_FIELDS, MUSCLE_FIELDS, Mode, State
+
+#: what a status answer takes from the latest tick record rather than the snapshot
+LIVE_FIELDS = ("pressure_bar", "setpoint_bar", "valve_cmd_bar", "force_n", "length_mm",
+               "contraction")
+CLOSE_TIMEOUT_S = 3.0
+SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
+PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
+LIMITS_REFRESH_S = 1.0
+RATE_NOTE_S = 1.0
+
+RecordFn = Callable[[float, str, dict[str, Any]], None]
+
+
+class NetNode:
+    def __init__(self, spec: NetSpec, io_spec: Any, block: Any, port: Any,
+                 record: RecordFn) -> None:
+        self.spec = spec
+        self.io_spec = io_spec
+        self.block = block
+        self.port = port
+        self.record = record  # (loop time, kind, data) -> the recording, if any
+        self.keys = Keys(spec.rig_id)
+        self.batcher = StateBatcher(spec.rig_id, spec.muscles, spec.every_ticks)
+        self.stats = TickStats()
+        n_loop, n_m = len(LOOP_FIELDS), len(MUSCLE_FIELDS)
+        self.live = [(m, n_loop + k * n_m) for k, m in enumerate(spec.muscles)]
+        self.live_idx = [(f, MUSCLE_FIELDS.index(f)) for f in LIVE_FIELDS]
+        self.i_mode, self.i_flags = MUSCLE_FIELDS.index("mode"), MUSCLE_FIELDS.index("flags")
+        self.limiter = RateLimiter(spec.command_rate_per_s, spec.command_burst)
+        self.session: Any = None
+        self.board: Board | None = None
+        self.token: Any = None
+        self.lock = port.lock  # one lock for the mailbox, the board and the queries
+        self.waiting: dict[int, tuple[Any, float, str, int | None]] = {}
+        self.to_record: deque[tuple[float, str, dict[str, Any]]] = deque()
+        self.closing = False
+        self.next_id = 1
+        self.put_tokens = PUT_BURST
+        self.put_t = 0.0
+        self.stop_reason: str | None = None
+        self.last_t_s = 0.0
+        self.t0_wall: float | None = None
+        self._limits: dict[str, float] = {}
+        self._limits_t = -1e9
+        self._rate_note_t = -1e9
+        self._rate_refused_noted = 0
+        self.counts = {"state_puts": 0, "events": 0, "commands": 0, "refused_here": 0,
+                       "rate_limited": 0, "status_queries": 0}
+
+    # -- life cycle ---------------------------------------------------------------------
+    def open(self) -> str | None:
+        """Open the session and declare everything; an error text if it cannot."""
+        import zenoh
+
+        from pamd.net import zconf
+
+        cfg = zenoh.Config.from_json5(self.spec.zenoh_json)
+        try:
+            self.session = s = zenoh.open(cfg)
+        except Exception as exc:  # zenoh.ZError: endpoint taken, TLS files, ...
+            return zconf.open_error(exc, cfg)
+        self.board = Board(self.spec.board_name)
+        drop, k = zenoh.CongestionControl.DROP, self.keys
+        enc = zenoh.Encoding.APPLICATION_JSON
+        self.pubs = [s.declare_publisher(k.state(m), encoding=enc, congestion_control=drop)
+                     for m in self.spec.muscles]
+        self.events_pub = s.declare_publisher(k.events, encoding=enc, congestion_control=drop,
+                                              priority=zenoh.Priority.DATA_HIGH)
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
+        self.status_q = s.declare_queryable(k.status, self._on_status, complete=True)
+        self.cmd_q = s.declare_queryable(k.cmd_all, self._on_command, complete=True)
+        self.token = s.liveliness().declare_token(k.alive)
+        self.zid = str(s.zid())
+        self._publish_event("run_start", {"rig_id": self.spec.rig_id, "zid": self.zid,
+                                          "muscles": list(self.spec.muscles)})
+        return None
+
+    def close(self, reason: str) -> None:
+        """Withdraw the token, answer every pending and queued query, close the
+        session (bounded: a session that will not close is left to the process's
+        exit)."""
+        if self.session is None:
+            return
+        with self.lock:
+            self.closing = True  # from now on, commands are refused at once
+            self.stop_reason = self.stop_reason or reason
+            self._withdraw()
+            for k in list(self.waiting):
+                self._resolve(k, {"ok": False, "error": f"the daemon stopped ({reason}) "
+                                  "before the loop gave its verdict; the command was not "
+                                  "applied"})
+        self._flush_records()
+        s = self.session
+        self.session = None
+
+        def _close() -> None:
+            for e in (self.status_q, self.cmd_q, self.events_pub, *self.pubs):
+                with contextlib.suppress(Exception):
+                    e.undeclare()
+            s.close()
+
+        t = threading.Thread(target=_close, name="pamd-zenoh-close", daemon=True)
+        t.start()
+        t.join(CLOSE_TIMEOUT_S)
+        with self.lock:
+            if self.board is not None:
+                self.board.close()
+                self.board = None
+
+    def _withdraw(self) -> None:
+        if self.token is not None:
+            try:
+                self.token.undeclare()
+            finally:
+                self.token = None
+
+    # -- clocks -------------------------------------------------------------------------
+    def _t_start(self) -> float | None:
+        return self.block.t_start()
+
+    def loop_now(self) -> float:
+        """The loop's clock now (monotonic is one clock for every process here)."""
+        t0 = self._t_start() or 0.0
+        return t0 + self.last_t_s if self.io_spec.virtual else time.monotonic()
+
+    def _wall0(self) -> float | None:
+        if self.t0_wall is None:
+            t0 = self._t_start()
+            if t0 is not None:
+                self.t0_wall = self.io_spec.wall0_ns / 1e9 + (t0 - self.io_spec.clock0_s)
+        return self.t0_wall
+
+    # -- from the rings -----------------------------------------------------------------
+    def ticks(self, rows: list[tuple[float, ...]]) -> None:
+        add = self.batcher.add
+        for row in rows:
+            add(row)
+        self.stats.add(rows)
+        self.last_t_s = rows[-1][1]
+
+    def event(self, t: float, kind: str, data: dict[str, Any]) -> None:
+        if kind == "reply":
+            return
+        if kind == "summary":
+            kind = "run_stop"
+        t0 = self._t_start()
+        self._publish_event(kind, data, None if t0 is None else t - t0)
+
+    def _publish_event(self, kind: str, data: dict[str, Any], t_s: float | None = None) -> None:
+        w0 = self._wall0()
+        msg = {"t_s": t_s, "wall_s": (w0 + t_s) if (w0 is not None and t_s is not None)
+               else time.time(), "kind": kind, "data": jsonsafe(data)}
+        try:
+            self.events_pub.put(json.dumps(msg, default=str, allow_nan=False))
+            self.counts["events"] += 1
+        except Exception:
+            pass  # a closing session: the recording still has it
+
+    # -- every pass of the io loop ---------------------------------------------------------
+    def poll(self, now: float) -> int:
+        """Publish due batches, answer queries, route verdicts; the work done."""
+        if self.session is None:
+            return 0
+        work = 0
+        b = self.batcher
+        if b.pending:  # token bucket: at most publish_hz puts/s, a late one catches up
+            rate = 1.0 / self.spec.publish_period_s
+            self.put_tokens = min(PUT_BURST, self.put_tokens + (now - self.put_t) * rate)
+            self.put_t = now
+            if self.put_tokens >= 1.0:
+                self.put_tokens -= 1.0
+                w0 = self._wall0()
+                for pub, mb in zip(self.pubs, b.batches, strict=True):
+                    pub.put(mb.take(w0))
+                b.pending = 0
+                self.counts["state_puts"] += 1
+                work += 1
+        with self.lock:
+            if self.stop_reason is None and self.board is not None:
+                reason = self.board.stopping()
+                if reason is not None:
+                    self.stop_reason = reason
+                    self._withdraw()
+            while self.board is not None and (blob := self.board.replies.get_blob()):
+                rep = json.loads(blob)
+                self._resolve(int(rep["id"]), rep["verdict"])
+                work += 1
+            if self.waiting:
+                for k, (_q, deadline, verb, _cid) in list(self.waiting.items()):
+                    if now > deadline:
+                        self._resolve(k, {"ok": False, "error": (
+                            f"no verdict from the loop within "
+                            f"{self.spec.command_timeout_s:g} s; the {verb} command may "
+                            "still be applied (see status)")})
+        if self.to_record:
+            self._flush_records()
+        self.stats.refresh(now)
+        return work
+
+    def _flush_records(self) -> None:
+        """Events of the query callbacks into the recording (the io loop's thread)."""
+        while self.to_record:
+            self.record(*self.to_record.popleft())
+
+    # -- status ---------------------------------------------------------------------------
+    def _on_status(self, q: Any) -> None:
+        """Zenoh's callback thread."""
+        with self.lock:
+            try:
+                self._status(q)
+            except Exception as exc:  # never leave a query unanswered
+                self._send(q, self.keys.status, json.dumps(
+                    {"ok": False, "error": f"status failed: {exc!r}"}).encode())
+
+    def _status(self, q: Any) -> None:
+        self.counts["status_queries"] += 1
+        got = self.board.read_status() if self.board is not None else None
+        if got is None:
+            body = json.dumps({"ok": False, "error": "no status yet: the daemon is starting"})
+            self._send(q, self.keys.status, body.encode())
+            return
+        blob, age = got
+        try:
+            st = json.loads(blob)
+        except ValueError:
+            st = {"error": "the status snapshot is not JSON"}
+        self._live(st)
+        st.update(ok="error" not in st, snapshot_age_s=round(age, 4),
+                  stopping=self.stop_reason or st.get("stopping"), timing=self.stats.summary,
+                  io=dict(self.counts))
+        self._send(q, self.keys.status, json.dumps(st, default=str).encode())
+
+    def _live(self, st: dict[str, Any]) -> None:
+        """The latest tick record's values over the snapshot's (which may be up to
+        1 / status_hz old)."""
+        row = self.stats.last
+        if row is None:
+            return
+        with contextlib.suppress(ValueError):
+            st["state"] = State(int(row[I_STATE])).name
+        st["tick"], st["t_s"] = int(row[I_TICK]), row[I_T]
+        ms = st.get("muscles") or {}
+        for name, base in self.live:
+            d = ms.get(name)
+            if d is None:
+                continue
+            for f, j in self.live_idx:
+                v = row[base + j]
+                d[f] = v if -math.inf < v < math.inf else None
+            with contextlib.suppress(ValueError):
+                d["mode"] = Mode(int(row[base + self.i_mode])).name.lower()
+            d["flags"] = int(row[base + self.i_flags])
+
+    def _send(self, q: Any, key: str, body: bytes) -> None:
+        try:
+            q.reply(key, body, encoding="application/json")
+        except Exception:
+            pass  # the querier is gone or the key is not one it accepts
+        finally:
+            q.drop()
+
+    # -- commands ---------------------------------------------------------------------------
+    def _refuse(self, q: Any, key: str, verb: str, args: Any, sender: str, user: str,
+                error: str, record: bool = True) -> None:
+        self.counts["refused_here"] += 1
+        verdict = {"ok": False, "error": error}
+        if record:
+            data = {"verb": verb, "args": args if isinstance(args, dict) else {"raw": args},
+                    "sender": sender, "user": user, "by": "io", **verdict}
+            now = self.loop_now()
+            self.to_record.append((now, "command", data))  # recorded by the io loop
+            t0 = self._t_start()
+            self._publish_event("command", data, None if t0 is None else now - t0)
+        self._send(q, key, json.dumps(verdict).encode())
+
+    def _on_command(self, q: Any) -> None:
+        """Zenoh's callback thread: refused at once, or into the loop's mailbox."""
+        with self.lock:
+            try:
+                self._command(q, time.monotonic())
+            except Exception as exc:  # never leave a query unanswered
+                self._send(q, str(q.key_expr), json.dumps(
+                    {"ok": False, "error": f"command failed in the io process: {exc!r}"}
+                ).encode())
+
+    def _command(self, q: Any, now: float) -> None:
+        self.counts["commands"] += 1
+        key = str(q.key_expr)
+        verb = Keys.last_chunk(key)
+        try:
+            si = q.source_info
+            zid = str(si.source_id.zid) if si is not None else ""
+        except Exception:
+            zid = ""
+        sender = f"zenoh:{zid}" if zid else "zenoh"
+        user = q.parameters.get("user") or ""
+        raw = q.payload.to_bytes() if q.payload is not None else b""
+        text = raw.decode("utf-8", "replace")
+        if "*" in verb or "$" in verb:
+            self._refuse(q, self.keys.cmd(verb), verb, text[:200], sender, user,
+                         "name one verb: pamd/<rig>/cmd/<verb>", record=False)
+            return
+        if self.stop_reason is not None or self.closing:
+            self._refuse(q, key, verb, text[:200], sender, user,
+                         f"the daemon is stopping ({self.stop_reason}); command not taken")
+            return
+        if not self.limiter.allow(zid or "unidentified", now):
+            self.counts["rate_limited"] += 1
+            note = now - self._rate_note_t >= RATE_NOTE_S
+            if note:
+                self._rate_note_t = now
+            self._refuse(q, key, verb, text[:200], sender, user, (
+                f"rate limited: more than {self.spec.command_rate_per_s:g} commands/s "
+                f"(burst {self.spec.command_burst}) from {sender}; not taken"), record=note)
+            return
+        try:
+            payload = json.loads(text) if text.strip() else {}
+        except ValueError as exc:
+            self._refuse(q, key, verb, text[:200], sender, user, f"malformed JSON: {exc}")
+            return
+        try:
+            parse_command(verb, payload, sender=sender, user=user)
+            self._check_ranges(verb, payload)
+        except CommandRefused as exc:
+            self._refuse(q, key, verb, payload, sender, user, str(exc))
+            return
+        k = self.next_id
+        self.next_id += 1
+        deadline = now + self.spec.command_timeout_s
+        self.waiting[k] = (q, deadline, verb, None)
+        if verb in self.spec.main_thread_verbs:
+            assert self.board is not None
+            blob = json.dumps({"id": k, "verb": verb, "payload": payload, "sender": sender,
+                               "user": user}).encode()
+            if not self.board.requests.put_blob(blob):
+                self._resolve(k, {"ok": False, "error": "the daemon is busy (request queue "
+                                  "full); try again"})
+            return
+        cid = self.port.send(verb, payload, sender, user,
+                             on_verdict=lambda v, _k=k: self._resolve(_k, v))
+        if cid is not None and k in self.waiting:
+            self.waiting[k] = (q, deadline, verb, cid)
+
+    def _resolve(self, k: int, verdict: dict[str, Any]) -> None:
+        entry = self.waiting.pop(k, None)
+        if entry is None:
+            return  # answered already (timed out)
+        q, _deadline, verb, cid = entry
+        if cid is not None:
+            self.port.waiting.pop(cid, None)
+        out = {key: v for key, v in verdict.items() if key != "id"}
+        body = json.dumps(jsonsafe(out), default=str).encode()
+        self._send(q, self.keys.cmd(verb), body)
+
+    def _check_ranges(self, verb: str, p: dict[str, Any]) -> None:
+        """Muscle names and pressures against the limits, before the mailbox (the loop
+        checks again against the present state)."""
+        muscle = p.get("muscle")
+        if isinstance(muscle, str) and muscle not in self.spec.muscles:
+            raise CommandRefused(f"no muscle named {muscle!r}; muscles: "
+                                 f"{', '.join(self.spec.muscles)}")
+        fields = {"setpoint": ("bar",), "profile": ("min_bar", "max_bar", "to_bar")}.get(verb)
+        if not fields:
+            return
+        limits = self._pressure_limits()
+        for name in [muscle] if isinstance(muscle, str) else list(self.spec.muscles):
+            top = limits.get(name)
+            for f in fields:
+                v = p.get(f)
+                if isinstance(v, (int, float)) and not isinstance(v, bool) and (
+                        v < 0.0 or (top is not None and v > top)):
+                    rng = f"0-{top:g} bar" if top is not None else "at least 0 bar"
+                    raise CommandRefused(f"{name}: {f}={v:g} is outside {rng}")
+
+    def _pressure_limits(self) -> dict[str, float]:
+        now = time.monotonic()
+        if now - self._limits_t >= LIMITS_REFRESH_S and self.board is not None:
+            got = self.board.read_status()
+            if got is not None:
+                self._limits_t = now
+                try:
+                    ms = json.loads(got[0]).get("muscles", {})
+                    self._limits = {n: float(m["limits"]["max_pressure_bar"])
+                                    for n, m in ms.items()}
+                except (ValueError, KeyError, TypeError, AttributeError):
+                    pass
+        return self._limits

@@ -1,0 +1,69 @@
+"""What the daemon asks of telemetry (`TelemetryRequest`, from the CLI) and what it
+tells the io process (`NetSpec`, picklable, handed over at spawn)."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+from pamd.errors import ConfigError, ConfigIssue
+from pamd.net.keys import check_chunk
+
+#: verbs whose work needs the daemon's main thread (file I/O before the loop sees them)
+MAIN_THREAD_VERBS = ("collect", "model")
+
+
+@dataclass(frozen=True)
+class TelemetryRequest:
+    """The caller's say: `pamd run` asks for telemetry as the config says unless
+    `--no-telemetry`; `--zenoh-config` overrides `telemetry.zenoh_config`."""
+
+    enabled: bool = True
+    zenoh_config: str | None = None
+
+
+@dataclass(frozen=True)
+class NetSpec:
+    rig_id: str
+    muscles: tuple[str, ...]
+    zenoh_json: str  # the session's whole config (zenoh.Config as JSON)
+    every_ticks: int  # one state sample per this many ticks
+    publish_period_s: float  # at most one put per muscle per this
+    command_rate_per_s: float
+    command_burst: int
+    command_timeout_s: float
+    where: str = ""  # where the session listens or connects, for the operator
+    board_name: str = ""  # the shared status board (pamd.net.board), set at creation
+    main_thread_verbs: tuple[str, ...] = MAIN_THREAD_VERBS
+
+
+def resolve(cfg: Any, req: TelemetryRequest | None) -> NetSpec | None:
+    """The io process's telemetry spec, or None when telemetry is off. A bad Zenoh
+    config file or a rig id that cannot be a key is refused here, before anything
+    starts (ConfigError)."""
+    tc = cfg.rig.telemetry
+    if req is None or not req.enabled or not tc.enabled:
+        return None
+    from pamd.net import zconf
+
+    problems = [p for p in [check_chunk("rig_id", cfg.rig.rig_id)] + [
+        check_chunk("muscle name", m.name) for m in cfg.rig.muscles] if p]
+    if problems:
+        raise ConfigError([ConfigIssue(cfg.path, None, "rig_id", p) for p in problems])
+    file = req.zenoh_config
+    if file is None and tc.zenoh_config is not None:
+        file = os.path.join(os.path.dirname(os.path.abspath(cfg.path)),
+                            os.path.expanduser(tc.zenoh_config))
+    rate = cfg.rig.loop.rate_hz
+    zcfg = zconf.daemon_config(file, tc.listen)
+    listen, connect = zconf.endpoints(zcfg, "listen"), zconf.endpoints(zcfg, "connect")
+    where = "; ".join(w for w in (listen and "listening on " + ", ".join(listen),
+                                  connect and "connecting to " + ", ".join(connect)) if w)
+    return NetSpec(
+        rig_id=cfg.rig.rig_id, muscles=tuple(m.name for m in cfg.rig.muscles),
+        zenoh_json=str(zcfg), where=where or "no endpoints",
+        every_ticks=max(1, round(rate / tc.rate_hz)),
+        publish_period_s=1.0 / tc.publish_hz,
+        command_rate_per_s=tc.command_rate_per_s, command_burst=tc.command_burst,
+        command_timeout_s=tc.command_timeout_s)
