@@ -38,9 +38,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import sim_config  # noqa: E402
 
-from pamd.anfis import TrainingOptions, fit, save  # noqa: E402
+from pamd.anfis import AnfisModel, TrainingOptions, fit, save  # noqa: E402
 from pamd.anfis.dataset import (  # noqa: E402
     ExtractOptions,
+    Run,
     derived_inputs,
     extract,
     read_runs,
@@ -111,7 +112,9 @@ def hysteresis_floor(length_mm: np.ndarray, p_bar: np.ndarray, bin_mm: float = 0
     return 0.5 * float(max(gaps))
 
 
-def train(runs: list, inputs: tuple[str, ...], mfs, epochs: int):
+def train(runs: list[Run], inputs: tuple[str, ...], mfs: int | list[int],
+          epochs: int) -> tuple[AnfisModel, int, float]:
+    """A model as `pamd train` makes it; (model, samples, training seconds)."""
     opts = ExtractOptions(inputs=inputs, velocity_window_s=WINDOW_S)
     samples = extract(runs, opts)
     parts = split(samples, 0.2, 0.0, by="block", block_s=10.0, seed=0)

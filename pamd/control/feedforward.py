@@ -152,7 +152,7 @@ class Feedforward:
     the inputs it has (in its own input order), holds the result to the output's
     training range and sets `clipped` if an input or the output had to be held."""
 
-    __slots__ = ("model", "source", "sha256", "evaluate", "clipped", "velocity_window_s",
+    __slots__ = ("model", "source", "sha256", "compiled", "clipped", "velocity_window_s",
                  "out_lo", "out_hi", "_call")
 
     def __init__(self, model: AnfisModel, source: str = "", sha256: str = "") -> None:
@@ -160,7 +160,7 @@ class Feedforward:
         self.source = source
         self.sha256 = sha256
         compiled = model.compile()
-        self.evaluate = compiled
+        self.compiled = compiled
         self.clipped = False
         self.velocity_window_s = velocity_window(model) or MODEL_VELOCITY_WINDOW_S
         self.out_lo, self.out_hi = model.output.min, model.output.max
@@ -174,7 +174,7 @@ class Feedforward:
     def pressure(self, force_n: float, length_mm: float, contraction: float,
                  velocity_mm_s: float) -> float:
         y = self._call(force_n, length_mm, contraction, velocity_mm_s)
-        clipped = self.evaluate.clipped
+        clipped = self.compiled.clipped
         # Inside the inputs' ranges but off the data (a load and length never seen
         # together) a model can still answer nonsense: its output is held to the range
         # it was trained on, and that counts as clipped too.
