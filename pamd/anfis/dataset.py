@@ -278,7 +278,8 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
 def read_csv(path: str) -> Run:
     """A CSV file with a header row of column names (case-insensitive; units in the
     names as pamd writes them: force_n, length_mm, pressure_bar, ...) and a time
-    column (t_s, time_s, time, t or log_time_ns)."""
+    column (t_s, time_s, time, t or log_time_ns). A muscle file of `pamd export`
+    (<topic>_state_<muscle>.csv) takes each tick's state from the loop file beside it."""
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             sample = fh.read(4096)
@@ -321,7 +322,21 @@ def read_csv(path: str) -> Run:
     load = None
     if "load_kg" in columns and np.all(columns["load_kg"] == columns["load_kg"][0]):
         load = float(columns["load_kg"][0])
-    return Run(source=path, muscle="", t_s=t - t[0], columns=columns, load_kg=load)
+    muscle = ""
+    base = os.path.basename(path)
+    if "_state_" in base and "state" not in columns and "tick" in columns:
+        # `pamd export` writes <rig topic>_state_<muscle>.csv beside <rig topic>_loop.csv:
+        # the loop file carries the supervisor state of each tick.
+        prefix, _, rest = base.rpartition("_state_")
+        muscle = rest[:-4] if rest.endswith(".csv") else rest
+        loop_path = os.path.join(os.path.dirname(path), prefix + "_loop.csv")
+        if os.path.exists(loop_path):
+            loop = read_csv(loop_path).columns
+            if "tick" in loop and "state" in loop:
+                state = dict(zip(loop["tick"].tolist(), loop["state"].tolist(), strict=True))
+                columns["state"] = np.array([state.get(k, math.nan)
+                                             for k in columns["tick"].tolist()])
+    return Run(source=path, muscle=muscle, t_s=t - t[0], columns=columns, load_kg=load)
 
 
 def _cell(row: list[str], j: int) -> float:

@@ -192,3 +192,22 @@ def test_unknown_inputs_and_muscles_are_refused(recording: Path) -> None:
         read_runs([str(recording)], muscle="m9")
     with pytest.raises(ModelError, match="no such file"):
         read_runs([str(recording) + ".missing"])
+
+
+def test_pamd_export_csv_gives_the_same_pairs(recording: Path, tmp_path: Path) -> None:
+    """The CSVs of `pamd export` (state taken from the loop file beside the muscle's)
+    give the pairs the MCAP file gives, but for the lead-in, which only MCAP events
+    tell (so its settling is dropped by --settle-s alone)."""
+    from pamd.io.files import export_csv
+
+    out = export_csv(str(recording), str(tmp_path / "csv"))
+    muscle_csv = next(p for t, (p, _n) in out.items() if t.endswith("/state/m1"))
+    opts = ExtractOptions(settle_s=1.0)
+    from_csv = load_samples([muscle_csv], opts)
+    from_mcap = load_samples([str(recording)], opts)
+    assert "not running (idle, hold, load change, fault, estop)" in from_csv.runs[0]["dropped"]
+    assert from_csv.runs[0]["muscle"] == "m1"
+    both = np.intersect1d(np.round(from_csv.t_s, 6), np.round(from_mcap.t_s, 6))
+    # Every MCAP pair is a CSV pair too, but maybe the first (the CSV keeps the lead-in,
+    # so the first 20 ms bin after it can pick a different tick).
+    assert both.size >= len(from_mcap) - 1
