@@ -236,9 +236,12 @@ class RecordingConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class TelemetryConfig:
-    enabled: bool = spec(True, "`pamd run` publishes state and events, answers status and "
-                         "takes commands over Zenoh (the session lives in the io process); "
-                         "`pamd run --no-telemetry` turns it off for one run.")
+    enabled: bool | None = spec(
+        None, "`pamd run` publishes state and events, answers status and takes commands "
+        "over Zenoh (the session lives in the io process). null: on with the real clock, "
+        "off with the virtual clock (a simulation as fast as possible takes no port a "
+        "running daemon may hold); true or false: always. `pamd run --no-telemetry` turns "
+        "it off for one run.")
     zenoh_config: str | None = spec(
         None, "Zenoh config file (JSON5) of the daemon's session, relative to the config "
         "file (`pamd run --zenoh-config` overrides it); e.g. config/zenoh/lab-daemon.json5 "
@@ -254,7 +257,8 @@ class TelemetryConfig:
                              "carries every sample since the last (batched).", unit="Hz",
                              gt=0.0, max=1000.0)
     status_hz: float = spec(10.0, "How often the daemon's main thread refreshes the status "
-                            "snapshot the io process answers `status` queries from.",
+                            "snapshot the io process answers `status` queries from (the "
+                            "live values and timing come from the latest tick records).",
                             unit="Hz", gt=0.0, max=100.0)
     command_rate_per_s: float = spec(50.0, "Commands per second one sender may send "
                                      "(token bucket; all senders together: 4 times this); "

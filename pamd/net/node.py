@@ -86,7 +86,6 @@ class NetNode:
         self._limits: dict[str, float] = {}
         self._limits_t = -1e9
         self._rate_note_t = -1e9
-        self._rate_refused_noted = 0
         self.counts = {"state_puts": 0, "events": 0, "commands": 0, "refused_here": 0,
                        "rate_limited": 0, "status_queries": 0}
 

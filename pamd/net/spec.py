@@ -39,11 +39,13 @@ class NetSpec:
 
 
 def resolve(cfg: Any, req: TelemetryRequest | None) -> NetSpec | None:
-    """The io process's telemetry spec, or None when telemetry is off. A bad Zenoh
+    """The io process's telemetry spec, or None when telemetry is off (by the request,
+    by `telemetry.enabled`, or, when that is null, by the virtual clock). A bad Zenoh
     config file or a rig id that cannot be a key is refused here, before anything
     starts (ConfigError)."""
     tc = cfg.rig.telemetry
-    if req is None or not req.enabled or not tc.enabled:
+    on = tc.enabled if tc.enabled is not None else cfg.rig.loop.clock == "real"
+    if req is None or not req.enabled or not on:
         return None
     from pamd.net import zconf
 

@@ -66,15 +66,21 @@ def test_built_configs_are_secure_by_default(tmp_path: Path) -> None:
 
 
 def test_telemetry_request_resolves_from_the_config(sim_config: Any, tmp_path: Path) -> None:
-    cfg = sim_config(30.0, telemetry={"rate_hz": 250.0, "listen": "tcp/127.0.0.1:7123"})
+    auto = {"rate_hz": 250.0, "listen": "tcp/127.0.0.1:7123"}
+    assert resolve(sim_config(30.0, telemetry=auto), TelemetryRequest()) is None  # virtual
+    assert resolve(sim_config(30.0, telemetry=auto, loop={"clock": "real"}),
+                   TelemetryRequest()) is not None  # real clock: on by default
+    cfg = sim_config(30.0, telemetry=dict(auto, enabled=True))
     assert resolve(cfg, None) is None  # the library default: off
     assert resolve(cfg, TelemetryRequest(enabled=False)) is None  # --no-telemetry
     spec = resolve(cfg, TelemetryRequest())
     assert spec is not None and spec.every_ticks == 4 and spec.muscles == ("m1",)
     assert "tcp/127.0.0.1:7123" in spec.zenoh_json
-    assert resolve(sim_config(30.0, telemetry={"enabled": False}), TelemetryRequest()) is None
+    assert resolve(sim_config(30.0, telemetry={"enabled": False}, loop={"clock": "real"}),
+                   TelemetryRequest()) is None
     with pytest.raises(ConfigError, match="cannot be part of a Zenoh key"):
-        resolve(sim_config(30.0, rig_id="a/b"), TelemetryRequest())
+        resolve(sim_config(30.0, rig_id="a/b", telemetry={"enabled": True}),
+                TelemetryRequest())
     with pytest.raises(ConfigError, match="no such file"):
         resolve(cfg, TelemetryRequest(zenoh_config=str(tmp_path / "none.json5")))
 
