@@ -75,6 +75,8 @@ class DaemonProc:
         env = dict(os.environ, PYTHONUNBUFFERED="1", OPENBLAS_NUM_THREADS="1")
         for k in ("NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID"):
             env.pop(k, None)
+        if "--duration" not in args:  # a daemon a test loses track of stops by itself
+            args = [*args, "--duration", "600"]
         with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
             self.proc = subprocess.Popen([sys.executable, "-m", "pamd", "run", "--json", *args],
                                          stdout=out, stderr=err, env=env, cwd=tmp)

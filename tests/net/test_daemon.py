@@ -37,11 +37,16 @@ class Rig:
         cfg = rig_config(tmp, self.port, telemetry={"command_rate_per_s": 1000.0,
                                                     "command_burst": 200})
         self.daemon = DaemonProc(tmp, ["--config", str(cfg), "--record", str(self.rec)])
-        wait_listening(self.port, self.daemon)
-        self.agent = Agent("--connect", self.endpoint)
-        assert self.agent.hello.get("ready"), self.agent.hello
-        self.zid = self.agent.hello["zid"]
-        self.status0 = wait_ready(self.agent, RIG, self.daemon)
+        try:
+            wait_listening(self.port, self.daemon)
+            self.agent = Agent("--connect", self.endpoint)
+            assert self.agent.hello.get("ready"), self.agent.hello
+            self.zid = self.agent.hello["zid"]
+            self.status0 = wait_ready(self.agent, RIG, self.daemon)
+        except BaseException:
+            self.daemon.proc.kill()
+            self.daemon.proc.wait(10)
+            raise
 
     def status(self) -> dict[str, Any]:
         return self.agent.call("status", rig=RIG)
