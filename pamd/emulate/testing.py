@@ -70,6 +70,7 @@ def emulated_dict(tmp: Path, port: int, can: str = "serial", **changes: Any) -> 
     can='virtual', the CAN bus in this process; real-time settings off."""
     d = yaml.safe_load(RIG_EMULATED.read_text())
     d["loop"]["realtime"] = {"enabled": False}
+    d["telemetry"] = {"enabled": False}  # tests and benches keep off the default port
     for drv in d["drivers"]:
         o = drv["options"]
         if drv["type"] == "modbus" and o["transport"] == "tcp":

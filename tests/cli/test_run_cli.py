@@ -68,6 +68,7 @@ def test_bad_config_is_refused_with_file_and_line(tmp_path: Path) -> None:
 def test_sigterm_mid_profile_reaches_safe_state_and_exits_0(tmp_path: Path) -> None:
     data = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())
     data["loop"]["realtime"] = {"enabled": False}
+    data["telemetry"] = {"enabled": False}  # not on the default port 7447
     cfg = tmp_path / "sim.yaml"
     cfg.write_text(yaml.safe_dump(data, sort_keys=False))
     proc = subprocess.Popen(

@@ -66,7 +66,8 @@ def test_built_configs_are_secure_by_default(tmp_path: Path) -> None:
 
 
 def test_telemetry_request_resolves_from_the_config(sim_config: Any, tmp_path: Path) -> None:
-    auto = {"rate_hz": 250.0, "listen": "tcp/127.0.0.1:7123"}
+    # enabled: null is the config default (the shared fixture turns telemetry off)
+    auto = {"enabled": None, "rate_hz": 250.0, "listen": "tcp/127.0.0.1:7123"}
     assert resolve(sim_config(30.0, telemetry=auto), TelemetryRequest()) is None  # virtual
     assert resolve(sim_config(30.0, telemetry=auto, loop={"clock": "real"}),
                    TelemetryRequest()) is not None  # real clock: on by default

@@ -34,6 +34,7 @@ def make_sim_config(tmp_path: Path, load_kg: float = 30.0, **changes: Any) -> Lo
     base = yaml.safe_load(SIM_YAML.read_text())
     base["loop"]["clock"] = "virtual"
     base["loop"]["realtime"] = {"enabled": False}
+    base["telemetry"] = {"enabled": False}  # never on the default port 7447 in tests
     base["drivers"][0]["options"]["muscles"][0]["load_kg"] = load_kg
     base["muscles"][0]["load_kg"] = load_kg
     path = tmp_path / "sim.yaml"

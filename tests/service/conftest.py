@@ -28,6 +28,7 @@ ROBUST: dict[str, Any] = {  # real clock, but nothing a busy test machine can tr
     "loop": {"rate_hz": 250, "clock": "real", "stall_timeout_s": 1.0,
              "realtime": {"enabled": False}},
     "safety": {"signal_timeout_s": 0.5, "startup_timeout_s": 1.5, "tracking_time_s": 3.0},
+    "telemetry": {"enabled": False},  # never on the default port 7447 in tests
 }
 
 
