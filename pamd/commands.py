@@ -227,7 +227,6 @@ def prepare_command(cmd: Command, cfg: Any) -> Command:
     return dataclasses.replace(cmd, args=PreparedModelArgs(a.muscle, path, ff))
 
 
-
 def apply_command(ctrl: Any, cmd: Command) -> dict[str, Any]:
     """Apply in the loop's thread; returns the verdict."""
     try:
