@@ -21,6 +21,7 @@ import contextlib
 import struct
 from dataclasses import dataclass
 from multiprocessing import shared_memory
+from typing import Any
 
 MAGIC = 0x31444D4150  # "PAMD1"
 CTRL_BYTES = 4096
@@ -219,12 +220,18 @@ class SharedBlock:
 
     def close(self) -> None:
         """Release our mapping (and remove the block if we created it)."""
-        for r in (self.ticks, self.events, self.commands):
-            r.buf = r.u64 = None  # type: ignore[assignment]
-        self.u64.release()
-        self.u64 = None  # type: ignore[assignment]
-        self.buf = None  # type: ignore[assignment]
-        self.shm.close()
-        if self.owner:
-            with contextlib.suppress(FileNotFoundError):
-                self.shm.unlink()
+        release_block(self, (self.ticks, self.events, self.commands))
+
+
+def release_block(block: Any, rings: tuple[Any, ...]) -> None:
+    """Drop every view into a shared-memory block (its rings' and its own), close it,
+    and remove it if this side created it (`block.owner`)."""
+    for r in rings:
+        r.buf = r.u64 = None
+    block.u64.release()
+    block.u64 = None
+    block.buf = None
+    block.shm.close()
+    if block.owner:
+        with contextlib.suppress(FileNotFoundError):
+            block.shm.unlink()

@@ -15,12 +15,11 @@ Single writer per field or ring, as in `pamd.ipc.ring`; nothing here blocks.
 
 from __future__ import annotations
 
-import contextlib
 import struct
 import time
 from multiprocessing import shared_memory
 
-from pamd.ipc.ring import RING_HDR_BYTES, Ring
+from pamd.ipc.ring import RING_HDR_BYTES, Ring, release_block
 
 MAGIC = 0x44524F4244AD  # "pamd board"
 HDR_BYTES = 1024
@@ -102,12 +101,4 @@ class Board:
                                                                                "replace")
 
     def close(self) -> None:
-        for r in (self.requests, self.replies):
-            r.buf = r.u64 = None  # type: ignore[assignment]
-        self.u64.release()
-        self.u64 = None  # type: ignore[assignment]
-        self.buf = None  # type: ignore[assignment]
-        self.shm.close()
-        if self.owner:
-            with contextlib.suppress(FileNotFoundError):
-                self.shm.unlink()
+        release_block(self, (self.requests, self.replies))
