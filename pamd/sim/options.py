@@ -9,22 +9,24 @@ This module deliberately does not use `from __future__ import annotations`, so
 `dataclasses.fields(...)[i].type` holds real types for the config engine.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Literal
+
+from pamd.config.engine import spec
 
 
 def _f(
     default: Any, doc: str, unit: str = "", lo: float | None = None, hi: float | None = None
 ) -> Any:
-    """A dataclass field with the metadata the config engine reads."""
-    meta: dict[str, object] = {"doc": doc}
+    """`pamd.config.engine.spec` with the bounds given positionally."""
+    meta: dict[str, object] = {}
     if unit:
         meta["unit"] = unit
     if lo is not None:
         meta["min"] = lo
     if hi is not None:
         meta["max"] = hi
-    return field(default=default, metadata=meta)
+    return spec(default, doc, **meta)
 
 
 @dataclass(frozen=True)
