@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import copy
 import math
-import time
 from array import array
 from collections.abc import Callable
 from pathlib import Path
@@ -17,7 +16,6 @@ import yaml
 from pamd.config import LoadedConfig, load_config
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
-from pamd.tick import State
 
 SIM_YAML = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
 
@@ -92,19 +90,14 @@ def recorded_run(tmp_path: Path, sim_config: Callable[..., Any]) -> Callable[...
         d = Daemon(cfg, note="test note", recording=rq)
         cap = CaptureSink()
         d.summary.downstream.insert(0, cap)
-        # With a profile the run has no duration of its own (a virtual run could end
-        # before the command arrives): it is stopped once it has run `duration_s`.
-        d.start(duration_s if profile is None else None)
+        # Queued before the start: the loop applies it on its first tick after start-up,
+        # so a virtual run is the same every time.
+        pending = d.submit("profile", profile) if profile is not None else None
+        d.start(duration_s)
         try:
-            if profile is not None:
-                assert d.wait_for_state((State.IDLE,), 10.0) == State.IDLE
-                verdict = d.command("profile", profile, timeout_s=30.0)
+            if pending is not None:
+                verdict = pending.result(30.0)
                 assert verdict["ok"], verdict
-                n = round(duration_s * cfg.rig.loop.rate_hz)
-                t0 = time.monotonic()
-                while d.loop.timing.ticks < n and time.monotonic() - t0 < 120:
-                    time.sleep(0.002)
-                d.stop("duration reached")
             d.wait(timeout_s=120)
         finally:
             d.stop("test finished")
