@@ -101,15 +101,31 @@ class Recorder:
         self.last_sync = time.monotonic()
         self.step_no = 0  # the tick field `segment`: experiment step + 1, 0 outside
         self.i_segment = LOOP_FIELDS.index("segment")
+        self.name_suffix = ""  # "-2"... when the plain name was taken by an earlier run
 
     # -- files ------------------------------------------------------------------------
+    def _create(self, name: str) -> tuple[McapWriter, str]:
+        """Open a new file, never over an existing one: a run that starts within the same
+        second as an earlier one (a quick virtual run, then its resume) takes a `-2`,
+        `-3`... suffix, and keeps it for all its later files."""
+        stem, ext = os.path.splitext(name)
+        for n in range(1, 1000):
+            suffix = self.name_suffix if n == 1 else f"-{n}"
+            path = os.path.join(self.rs.dir, f"{stem}{suffix}{ext}")
+            try:
+                writer = McapWriter(path, self.rs.compression)
+            except FileExistsError:
+                continue
+            self.name_suffix = suffix
+            return writer, path
+        raise FileExistsError(17, "no free file name", os.path.join(self.rs.dir, name))
+
     def open(self) -> str:
         os.makedirs(self.rs.dir, exist_ok=True)
         sp = self.spec
-        path = os.path.join(self.rs.dir, file_name(self.rs.started_at, sp.rig_id,
-                                                   self.rs.run_name, self.segment,
-                                                   self._step()))
-        w = McapWriter(path, self.rs.compression)
+        name = file_name(self.rs.started_at, sp.rig_id, self.rs.run_name, self.segment,
+                         self._step())
+        w, path = self._create(name)
         self.writer = w
         self.files.append(path)
         w.start(profile="", library="pamd")
@@ -137,6 +153,10 @@ class Recorder:
         w.sync()
         return path
 
+    def _suffixed(self, name: str) -> str:
+        stem, ext = os.path.splitext(name)
+        return f"{stem}{self.name_suffix}{ext}"
+
     def _step(self) -> dict[str, Any] | None:
         k = self.step_no - 1
         return self.rs.steps[k] if 0 <= k < len(self.rs.steps) else None
@@ -144,9 +164,9 @@ class Recorder:
     def _rotate(self) -> None:
         assert self.writer is not None
         self.writer.add_metadata("pamd.segment", {
-            "segment": str(self.segment), "next_file": file_name(
+            "segment": str(self.segment), "next_file": self._suffixed(file_name(
                 self.rs.started_at, self.spec.rig_id, self.rs.run_name, self.segment + 1,
-                self._step())})
+                self._step()))})
         self.writer.finish()
         self.segment += 1
         self.open()
