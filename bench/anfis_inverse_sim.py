@@ -39,14 +39,10 @@ import numpy as np  # noqa: E402
 from _common import sim_config  # noqa: E402
 
 from pamd.anfis import AnfisModel, TrainingOptions, fit, save  # noqa: E402
-from pamd.anfis.dataset import (  # noqa: E402
-    ExtractOptions,
-    Run,
-    derived_inputs,
-    extract,
-    read_runs,
-    split,
-)
+from pamd.anfis.extraction import derived_inputs, extract  # noqa: E402
+from pamd.anfis.recordings import read_runs  # noqa: E402
+from pamd.anfis.samples import ExtractOptions, Run  # noqa: E402
+from pamd.anfis.splitting import split  # noqa: E402
 from pamd.daemon import Daemon  # noqa: E402
 from pamd.io.session import RecordingRequest  # noqa: E402
 from pamd.metrics import regression_metrics  # noqa: E402

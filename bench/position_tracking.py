@@ -38,7 +38,10 @@ from typing import Any  # noqa: E402
 from _common import percentile, sim_config  # noqa: E402
 
 from pamd.anfis import TrainingOptions, fit, save  # noqa: E402
-from pamd.anfis.dataset import ExtractOptions, derived_inputs, extract, read_runs, split  # noqa: E402
+from pamd.anfis.extraction import derived_inputs, extract  # noqa: E402
+from pamd.anfis.recordings import read_runs  # noqa: E402
+from pamd.anfis.samples import ExtractOptions  # noqa: E402
+from pamd.anfis.splitting import split  # noqa: E402
 from pamd.calibration import load_calibration  # noqa: E402
 from pamd.commands import apply_command, parse_command  # noqa: E402
 from pamd.control.feedforward import LoadedModel  # noqa: E402

@@ -11,9 +11,10 @@ import sys
 from collections.abc import Mapping
 from typing import Any, TextIO
 
-from pamd.anfis.dataset import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, load_samples
+from pamd.anfis.extraction import load_samples
 from pamd.anfis.model import AnfisModel
 from pamd.anfis.modelfile import load
+from pamd.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
 from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics

@@ -9,15 +9,10 @@ import os
 import sys
 from typing import Any
 
-from pamd.anfis.dataset import (
-    INPUT_UNITS,
-    OUTPUT_UNITS,
-    ExtractOptions,
-    derived_inputs,
-    load_samples,
-    split,
-)
+from pamd.anfis.extraction import derived_inputs, load_samples
 from pamd.anfis.modelfile import save
+from pamd.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
+from pamd.anfis.splitting import split
 from pamd.anfis.training import TrainingOptions, fit
 from pamd.cli.evaluate import format_table
 from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S

@@ -1,5 +1,6 @@
-"""Training pairs from recordings (pamd.anfis.dataset): CSV and MCAP, what is dropped,
-the velocity filter shared with the tick, the split, and bad data refused."""
+"""Training pairs from recordings (pamd.anfis.recordings, .extraction, .splitting): CSV
+and MCAP, what is dropped, the velocity filter shared with the tick, the split, and bad
+data refused."""
 
 from __future__ import annotations
 
@@ -12,14 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.anfis.dataset import (
-    ExtractOptions,
-    extract,
-    load_samples,
-    read_csv,
-    read_runs,
-    split,
-)
+from pamd.anfis.extraction import extract, load_samples
+from pamd.anfis.recordings import read_csv, read_runs
+from pamd.anfis.samples import ExtractOptions
+from pamd.anfis.splitting import split
 from pamd.control.velocity import VELOCITY_WINDOW_S, filtered_velocity, velocity_step
 from pamd.errors import ModelError
 from pamd.tick import Flag, State
