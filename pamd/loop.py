@@ -58,6 +58,8 @@ class Loop:
         self.rt = RealtimeSession()
         self._stop_reason: str | None = None
         self.stopped_reason = ""
+        self._handover_reason: str | None = None
+        self.handed_over = False  # ended at an IDLE tick, outputs held (restart in place)
         self.running = False
         self.last_tick_done = math.nan  # monotonic time of the last completed tick
 
@@ -65,6 +67,14 @@ class Loop:
         """Ask the loop to reach the safe state and return (any thread)."""
         if self._stop_reason is None:
             self._stop_reason = reason
+
+    def request_handover(self, reason: str) -> None:
+        """Ask the loop to end at the next tick that finds the rig IDLE, without
+        ramping to the safe state: the outputs hold what they hold, for a daemon
+        that restarts in place (a reload that reopens the drivers). A stop
+        requested before or meanwhile wins (any thread)."""
+        if self._handover_reason is None:
+            self._handover_reason = reason
 
     def _stalled(self, done: float) -> None:
         gap_ms = 1000 * (done - self.last_tick_done)
@@ -158,6 +168,11 @@ class Loop:
                     self.request_stop("duration reached")
                 elif stop_when_done and saw_running and state == State.IDLE:
                     self.request_stop("profile finished")
+            if (self._handover_reason is not None and self._stop_reason is None
+                    and state == State.IDLE):
+                self.handed_over = True  # first: the main thread reads them in this order
+                self.stopped_reason = self._handover_reason
+                break
             if self._stop_reason is not None and stopping_since == math.inf:
                 stopping_since = next_t
                 self.stopped_reason = self._stop_reason

@@ -20,6 +20,7 @@ from pamd.io.session import RecordingRequest
 from pamd.net.spec import TelemetryRequest
 from pamd.service import testhooks
 from pamd.service.notify import Notifier
+from pamd.service.restart import restart_in_place, run_argv, unblock_signals
 
 PROFILE_KINDS = ("constant", "step", "ramp", "sine", "triangle")
 
@@ -182,6 +183,7 @@ def run(args: argparse.Namespace) -> int:
                     notifier=Notifier.from_environ(), config_overrides=overrides,
                     telemetry=telemetry)
     testhooks.install(daemon)
+    daemon.keeper.restart_in_place = True  # a reload that reopens the devices execs again
     signalled = _install_signals(daemon)
     # Queued before the loop starts: applied on the first tick after start-up, so a
     # virtual run is the same every time.
@@ -214,6 +216,13 @@ def run(args: argparse.Namespace) -> int:
         daemon.wait()
         daemon.close()
     result = daemon.result()
+    if daemon.loop.handed_over and daemon.error is None:
+        remaining = None if args.duration is None else args.duration - result["duration_s"]
+        if remaining is None or remaining > 0:
+            if not args.json:
+                print_summary(result)
+            restart_in_place(run_argv(args, remaining), daemon.keeper.handover_reason,
+                             stop_received=bool(signalled))
     if daemon.error is not None:
         result["faults"].append(f"loop crashed: {daemon.error!r}")
     if args.json:
@@ -248,6 +257,7 @@ def _install_signals(daemon: Daemon) -> list[str]:
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     signal.signal(signal.SIGHUP, reload)
+    unblock_signals()  # what a restart in place held back for this daemon
     return received
 
 

@@ -15,7 +15,9 @@ under systemd for months. `Daemon.service()` calls `ServiceKeeper.service()` eve
   persisted as a fault at once, so a daemon the watchdog had to kill comes back
   latched;
 * SIGHUP: the config is read again, validated and applied through the loop's
-  mailbox (`pamd.service.reload`).
+  mailbox (`pamd.service.reload`); changes that reopen the devices wait for IDLE
+  and then restart the daemon in place (`pamd.service.restart`), where `pamd run`
+  allows it (`restart_in_place`).
 
 Outside systemd the notifier is disabled and only the persistence remains.
 """
@@ -80,6 +82,12 @@ class ServiceKeeper:
         self.limits_cfg: LoadedConfig = daemon.cfg
         self.pending: tuple[ReloadPlan, Any] | None = None
         self.deferred: ReloadPlan | None = None
+        # changes that reopen the devices: `pamd run` can restart in place (a
+        # library daemon, a virtual run cannot, and such a reload is refused)
+        self.restart_in_place = False
+        self.handover: ReloadPlan | None = None  # waiting for IDLE
+        self.handover_reason = ""
+        self.handing_over = False  # the loop was asked to end at an IDLE tick
 
     # -- life cycle (called by the Daemon) -------------------------------------------------
     def restore(self) -> FaultRecord | None:
@@ -136,6 +144,8 @@ class ServiceKeeper:
         text = f"{sup.state.name}: {sup.reason}"
         if self.deferred is not None:
             text += " (config reload waiting for IDLE)"
+        if self.handover is not None:
+            text += " (restart in place for a config reload waiting for IDLE)"
         return text
 
     def _notify(self) -> None:
@@ -180,8 +190,8 @@ class ServiceKeeper:
         return loop.running and self.tick_gap_s() < loop.stall_s
 
     def _send_stopping(self) -> None:
-        if self.stopping_sent:
-            return
+        if self.stopping_sent or self.daemon.loop.handed_over:
+            return  # a restart in place is a reload, not a stop
         self.stopping_sent = True
         reason = self.stop_reason or self.daemon.loop.stopped_reason or "shutting down"
         self.notifier.stopping(f"stopping ({reason}): ramping to the safe state and "
@@ -280,6 +290,13 @@ class ServiceKeeper:
             except Exception:  # a reload must never take the running rig down
                 log.exception("reload failed; still running on the config loaded before")
                 self._finish()
+        elif (self.handover is not None and not self.handing_over and self.pending is None
+              and self.daemon.ctrl.supervisor.state == State.IDLE):
+            self.handing_over = True
+            self.notifier.reloading()
+            log.warning("the rig is IDLE: the loop ends holding the outputs, then pamd "
+                        "restarts in place (%s)", self.handover_reason)
+            self.daemon.loop.request_handover(f"config reload: {self.handover_reason}")
         elif (self.deferred is not None and self.pending is None
               and self.daemon.ctrl.supervisor.state == State.IDLE):
             plan = self._plan(self.deferred.cfg)
@@ -310,11 +327,16 @@ class ServiceKeeper:
             self._finish()
             return
         plan = self._plan(new)
+        if self.handing_over:
+            log.warning("reload: pamd is restarting in place already; the restarted daemon "
+                        "reads %s again", path)
+            return
+        if self.handover is not None:
+            log.info("reload: the restart in place waiting for IDLE is superseded by this "
+                     "reload")
+            self.handover = None
         if plan.restart:
-            log.error("reload refused, still running on the config loaded before: %s "
-                      "changed, which needs a restart (systemctl restart pamd)",
-                      describe(plan.restart, self.started_cfg, new))
-            self._finish()
+            self._restart_when_idle(plan)
             return
         if self.deferred is not None:
             log.info("reload: the deferred reload is superseded by this one")
@@ -324,6 +346,28 @@ class ServiceKeeper:
             self._finish()
             return
         self._submit(plan)
+
+    def _restart_when_idle(self, plan: ReloadPlan) -> None:
+        """Changes that reopen the devices: a restart in place once the rig is IDLE
+        (`_reload`), or refused where this daemon cannot restart in place."""
+        what = describe(plan.restart, self.started_cfg, plan.cfg)
+        if not self.restart_in_place or self.daemon.loop.virtual:
+            why = ("a virtual-clock run" if self.daemon.loop.virtual
+                   else "this daemon is not `pamd run`")
+            log.error("reload refused, still running on the config loaded before: %s "
+                      "changed, which reopens the devices, and %s cannot restart in place: "
+                      "needs a restart (systemctl restart pamd)", what, why)
+            self._finish()
+            return
+        self.deferred = None  # the restart applies everything
+        self.handover, self.handover_reason = plan, what
+        state = self.daemon.ctrl.supervisor.state
+        log.warning("reload: %s changed, which reopens the devices: pamd restarts in place "
+                    "%s", what, "now (the rig is IDLE)" if state == State.IDLE else
+                    f"once the rig is IDLE (it is {state.name}; `pamd cmd stop` ends what "
+                    "runs)")
+        if state != State.IDLE:
+            self._finish()
 
     def _submit(self, plan: ReloadPlan) -> None:
         from pamd.daemon import PendingCommand  # the daemon imports this module

@@ -3,7 +3,8 @@
 systemd passes `NOTIFY_SOCKET` (a path, or an abstract name starting with '@') and,
 with `WatchdogSec=`, `WATCHDOG_USEC` (and `WATCHDOG_PID`, the process it expects
 pings from). A message is newline-separated `KEY=VALUE` lines in one datagram:
-`READY=1`, `STATUS=...`, `WATCHDOG=1`, `STOPPING=1`, `RELOADING=1`.
+`READY=1`, `STATUS=...`, `WATCHDOG=1`, `WATCHDOG_USEC=...`, `STOPPING=1`,
+`RELOADING=1`.
 
 Outside systemd (no `NOTIFY_SOCKET`) a `Notifier` is disabled and sends nothing.
 Sending never raises: a notify socket that went away is logged once, and the
@@ -90,7 +91,11 @@ class Notifier:
 
     # -- the messages pamd sends ----------------------------------------------------
     def ready(self, status: str) -> bool:
-        return self.send("READY=1", f"STATUS={one_line(status)}")
+        """`READY=1` with the status; with a watchdog also `WATCHDOG_USEC=`, which sets
+        back a timeout widened for a restart in place (`pamd.service.restart`)."""
+        watchdog = () if self.watchdog_s is None else (
+            f"WATCHDOG_USEC={round(self.watchdog_s * 1e6)}",)
+        return self.send("READY=1", f"STATUS={one_line(status)}", *watchdog)
 
     def status(self, status: str) -> bool:
         return self.send(f"STATUS={one_line(status)}")
