@@ -8,14 +8,23 @@ import queue
 from array import array
 from typing import Any
 
-from pamd.tick import I_STATE, M_PRESSURE, M_SETPOINT, State, TickLayout
+from pamd.tick import (
+    I_STATE,
+    M_LENGTH,
+    M_PRESSURE,
+    M_SETPOINT,
+    M_TARGET_LENGTH,
+    State,
+    TickLayout,
+)
 
 _RUNNING = float(int(State.RUNNING))
 
 
 class SummarySink:
-    """Accumulates tracking error (measured pressure vs setpoint, while RUNNING) and
-    the run's events. Constant work per tick; no allocation."""
+    """Accumulates tracking errors while RUNNING (measured pressure vs setpoint, and
+    in the length modes measured length vs target length) and the run's events.
+    Constant work per tick; no allocation."""
 
     def __init__(self, layout: TickLayout) -> None:
         self.layout = layout
@@ -23,6 +32,9 @@ class SummarySink:
         self.sq = [0.0] * n
         self.max_abs = [0.0] * n
         self.count = [0] * n
+        self.len_sq = [0.0] * n
+        self.len_max_abs = [0.0] * n
+        self.len_count = [0] * n
         self.ticks = 0
         self.events: list[tuple[float, str, dict[str, Any]]] = []
         self.last = layout.new_record()
@@ -39,6 +51,12 @@ class SummarySink:
                     self.count[k] += 1
                     if abs(e) > self.max_abs[k]:
                         self.max_abs[k] = abs(e)
+                e = record[b + M_TARGET_LENGTH] - record[b + M_LENGTH]  # NaN: no target
+                if e == e:
+                    self.len_sq[k] += e * e
+                    self.len_count[k] += 1
+                    if abs(e) > self.len_max_abs[k]:
+                        self.len_max_abs[k] = abs(e)
         self.last[:] = record
         ok = True
         for d in self.downstream:
@@ -55,19 +73,24 @@ class SummarySink:
             d.close()
 
     def tracking(self) -> dict[str, dict[str, float | None]]:
+        """Per muscle: pressure tracking (`rmse_bar`, `max_error_bar`, `samples`) and
+        length tracking in the length modes (`length_rmse_mm`, `length_max_error_mm`,
+        `length_samples`); None where nothing was tracked."""
         out: dict[str, dict[str, float | None]] = {}
         for k, m in enumerate(self.layout.muscles):
-            n = self.count[k]
+            n, n_len = self.count[k], self.len_count[k]
             out[m] = {
                 "rmse_bar": math.sqrt(self.sq[k] / n) if n else None,
                 "max_error_bar": self.max_abs[k] if n else None,
                 "samples": n,
+                "length_rmse_mm": math.sqrt(self.len_sq[k] / n_len) if n_len else None,
+                "length_max_error_mm": self.len_max_abs[k] if n_len else None,
+                "length_samples": n_len,
             }
         return out
 
     def last_values(self) -> dict[str, Any]:
         return self.layout.as_dict(self.last)
-
 
 
 class LocalMailbox:

@@ -275,6 +275,10 @@ def print_summary(r: dict[str, Any]) -> None:
         if t["samples"]:
             print(f"  {name}: pressure tracking RMSE {t['rmse_bar']:.4f} bar, max error "
                   f"{t['max_error_bar']:.4f} bar ({t['samples']} ticks running)", file=out)
+            if t.get("length_samples"):
+                print(f"  {name}: length tracking RMSE {t['length_rmse_mm']:.3f} mm, max "
+                      f"error {t['length_max_error_mm']:.3f} mm ({t['length_samples']} "
+                      "ticks with a length target)", file=out)
         else:
             print(f"  {name}: no profile ran (no tracking figures)", file=out)
     rec = r.get("recording")

@@ -40,6 +40,7 @@ def test_virtual_run_with_profile_prints_json_summary() -> None:
     assert 6390 <= s["ticks"] <= 6420
     track = s["tracking"]["m1"]
     assert track["samples"] > 4500 and track["rmse_bar"] < 0.05
+    assert (track["length_samples"], track["length_rmse_mm"]) == (0, None)  # pressure mode
     assert s["faults"] == [] and s["lost_records"] == 0
     assert "sensors read" in r.stderr
 

@@ -283,6 +283,9 @@ def test_pamd_run_in_position_mode_with_a_model(static_model: Path) -> None:
     s = json.loads(r.stdout)
     assert s["final_state"] == "IDLE" and s["stop_reason"] == "profile finished"
     assert "sine length profile started" in r.stderr
+    track = s["tracking"]["m1"]  # the summary reports how well the length followed
+    assert 0 < track["length_samples"] <= track["samples"]
+    assert 0.0 < track["length_rmse_mm"] <= track["length_max_error_mm"] < 3.0
     r = subprocess.run(base, capture_output=True, text=True, timeout=120, cwd=repo)
     assert r.returncode == 4 and "needs a model" in r.stderr
     assert "sensors read" not in r.stderr  # refused before the rig started
