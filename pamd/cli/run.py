@@ -217,12 +217,14 @@ def run(args: argparse.Namespace) -> int:
         daemon.close()
     result = daemon.result()
     if daemon.loop.handed_over and daemon.error is None:
-        remaining = None if args.duration is None else args.duration - result["duration_s"]
-        if remaining is None or remaining > 0:
-            if not args.json:
-                print_summary(result)
-            restart_in_place(run_argv(args, remaining), daemon.keeper.handover_reason,
-                             stop_received=bool(signalled))
+        # the outputs hold: the new daemon must take over (and, with no time left
+        # of --duration, read, then stop to the safe state at once)
+        remaining = (None if args.duration is None else
+                     max(args.duration - result["duration_s"], cfg.period_s))
+        if not args.json:
+            print_summary(result)
+        restart_in_place(run_argv(args, remaining), daemon.keeper.handover_reason,
+                         stop_received=bool(signalled))
     if daemon.error is not None:
         result["faults"].append(f"loop crashed: {daemon.error!r}")
     if args.json:
