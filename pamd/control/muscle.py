@@ -14,7 +14,7 @@ from typing import Any
 
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig
-from pamd.control.feedforward import LengthControl
+from pamd.control.length_control import LengthControl
 from pamd.control.pid import Pid
 from pamd.control.profiles import Profile
 from pamd.control.velocity import VELOCITY_WINDOW_S, velocity_step
@@ -120,7 +120,7 @@ class MuscleController:
         self.target_length = self.target_force = math.nan
         self.pending_preset: tuple[list[int], int, int] | None = None
         self.calibration_dirty = False
-        # Length modes (pamd.control.feedforward), with the model_file's model if any.
+        # Length modes (pamd.control.length_control), with the model_file's model if any.
         loaded = cfg.models.get(muscle.name)
         self.length_ctl_on = False
         self.length_ctl = LengthControl(self, ctl.position,
@@ -264,7 +264,7 @@ class MuscleController:
             else:
                 sp = target
                 self.sp_rate = 0.0
-        elif self.length_ctl_on:  # length_force / position: pamd.control.feedforward
+        elif self.length_ctl_on:  # length_force / position: pamd.control.length_control
             lc = self.length_ctl
             sp = lc.step(now, dt, state, sp)
             flags |= lc.flags

@@ -17,7 +17,8 @@ import yaml
 from pamd.anfis import TrainingOptions, fit, save
 from pamd.commands import apply_command, parse_command, prepare_command
 from pamd.config import LoadedConfig, load_config
-from pamd.control.feedforward import LoadedModel, velocity_window
+from pamd.control.feedforward import LoadedModel
+from pamd.control.model_check import velocity_window
 from pamd.errors import CommandRefused, ConfigError
 from pamd.harness import Harness
 from pamd.muscle import force_model, pressure_for_force

@@ -1,0 +1,227 @@
+"""The length modes of a muscle: the ANFIS inverse model as feedforward, an outer
+position loop, and iterative learning across cycles.
+
+Modes (`pamd.tick.Mode`), per muscle:
+
+* ``pressure``: the pressure setpoint comes from a pressure profile or setpoint
+  (`pamd.control.muscle`); nothing here runs.
+* ``length_force``: targets for length and force go through the model to the
+  pressure setpoint, which the PID pressure loop follows. No length feedback: the
+  model is the controller (seed 000's use of the inverse model).
+* ``position``: a length target; the model takes the *measured* force and the target
+  length (and the target's velocity) and gives the pressure it needs; an outer PID on
+  the length error adds what the model misses; optionally an iterative learning
+  correction (ILC) learned over repeated cycles of a periodic length profile
+  (seed 003's PID-type ILC: u_{j+1}(t) = u_j(t) + Kp e_j(t + lead) + Kd de_j/dt). With
+  ``feedforward: false`` the outer PID (+ ILC) runs alone, without a model.
+
+A model's velocity input is the target length run through the filter its training
+data went through (`pamd.control.velocity`, with the window stated in the model
+file), so it is the signal the model learned. The model itself is
+`pamd.control.feedforward`, the learning correction `pamd.control.ilc`, the checks
+of length targets and profiles `pamd.control.length_targets`.
+
+Everything on the tick path (`LengthControl.step`, `Feedforward.pressure`,
+`Ilc.step`) is plain float arithmetic on attributes prepared outside the loop.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+from pamd.control.ilc import Ilc
+from pamd.control.pid import Pid
+from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
+from pamd.tick import Flag, Mode, State
+
+if TYPE_CHECKING:
+    from pamd.config.schema import PositionConfig
+    from pamd.control.feedforward import Feedforward
+
+#: Time constant of the setpoint's rate estimate (for the rate feedforward), s.
+SP_RATE_WINDOW_S = 0.05
+
+F_CLIP, F_SLEW = int(Flag.FF_CLIPPED), int(Flag.SLEW_LIMITED)
+S_RUNNING, S_LOAD = int(State.RUNNING), int(State.LOAD_CHANGE)
+MODE_NAMES: dict[str, Mode] = {"pressure": Mode.PRESSURE, "length_force": Mode.LENGTH_FORCE,
+                               "position": Mode.POSITION}
+
+
+class LengthControl:
+    """What the length modes add to one muscle's tick (see the module docstring).
+
+    Owned by a `MuscleController` (`muscle.length_ctl`); `enter`/`leave`/`swap` run
+    in command handlers (the loop's thread, between ticks), `step` in the tick."""
+
+    def __init__(self, muscle: Any, position: PositionConfig,
+                 feedforward: Feedforward | None) -> None:
+        self.m = muscle
+        self.cfg = position
+        pc = position.pid
+        self.pid = Pid(pc.kp_bar_per_mm, pc.ki_bar_per_mm_s, pc.kd_bar_s_per_mm,
+                       pc.derivative_filter_hz, pc.integral_limit_bar, pc.output_limit_bar)
+        self.ff = feedforward
+        self.use_ff = True
+        self.position = False
+        self.ilc: Ilc | None = None
+        self.ilc_on = False
+        # The target's velocity, filtered as the model's velocity input was in training.
+        self.target_vel = VelocityFilter(MODEL_VELOCITY_WINDOW_S if feedforward is None
+                                         else feedforward.velocity_window_s)
+        self.sp_rate = VelocityFilter(SP_RATE_WINDOW_S)  # d(setpoint)/dt, bar/s
+        # position mode: the measured force through a low-pass before the model. The
+        # model is a quasi-static inverse; the force's fast part (damping, inertia,
+        # noise) would close a loop pressure -> motion -> force -> model -> pressure.
+        self.force_tau_s = position.force_filter_s
+        self.force_lp = math.nan
+        self.bump = 0.0
+        self.bump_tau_s = position.bumpless_s
+        self.flags = 0
+        self.last_sp = math.nan
+        self.correction = 0.0  # outer PID + ILC part of the setpoint, bar
+
+    # -- commands (loop thread, not the tick) --------------------------------------------
+    def model_value(self) -> float:
+        """The model's pressure at the present targets and measurements (0 without one)."""
+        m = self.m
+        if self.ff is None or not self.use_ff:
+            return 0.0
+        ln = m.target_length
+        x = (m.length0_mm - ln) / m.length0_mm
+        f = self.force_lp if self.position else m.target_force
+        return self.ff.pressure(f, ln, x, self.target_vel.value)
+
+    def enter(self, mode: Mode, use_ff: bool, ilc: bool) -> None:
+        """Switch the muscle into a length mode, bumpless: targets at the present length
+        and force, the outer loop's integral (or the fading offset) holding the present
+        setpoint."""
+        m = self.m
+        m.profile = None
+        was = m.mode
+        if was == Mode.PRESSURE:
+            m.target_length = m.length
+            m.target_force = m.force
+            self.target_vel.reset(m.length, 0.0)
+            self.force_lp = m.force
+            self.sp_rate.reset(m.sp, 0.0)
+        self.position = mode == Mode.POSITION
+        self.use_ff = use_ff
+        self.ilc_on = ilc and self.position
+        self.ilc = None
+        m.mode = mode
+        ff = self.model_value()
+        self.pid.reset(-m.length)
+        self.bump = 0.0
+        if self.position:
+            self.pid.i = max(-self.pid.integral_limit, min(self.pid.integral_limit, m.sp - ff))
+        else:
+            self.bump = m.sp - ff
+        self.last_sp = m.sp
+        m.feedforward = ff
+        m.length_ctl_on = True
+
+    def leave(self) -> None:
+        """Back to pressure mode; the setpoint stays where it is (bumpless)."""
+        m = self.m
+        m.mode = Mode.PRESSURE
+        m.length_ctl_on = False
+        m.profile = None
+        m.sp_rate = 0.0
+        m.feedforward = 0.0
+        m.target_length = m.target_force = math.nan
+        self.ilc = None
+
+    def swap(self, ff: Feedforward) -> float:
+        """A new model while running: the outer integral (or the fading offset) takes up
+        the difference between the old and the new model's pressure. Returns it (bar)."""
+        before = self.model_value() if self.m.length_ctl_on else 0.0
+        self.ff = ff
+        self.target_vel.window_s = ff.velocity_window_s
+        if not self.m.length_ctl_on:
+            return 0.0
+        diff = before - self.model_value()
+        if self.position:
+            il = self.pid.integral_limit
+            self.pid.i = max(-il, min(il, self.pid.i + diff))
+        else:
+            self.bump += diff
+        return diff
+
+    def start_ilc(self, period_s: float) -> None:
+        c = self.cfg.ilc
+        self.ilc = Ilc(period_s, c.gain_bar_per_mm, c.gain_d_bar_s_per_mm, c.lead_s,
+                       c.forgetting, c.limit_bar, c.resolution_s)
+
+    # -- the tick --------------------------------------------------------------------------
+    def step(self, now: float, dt: float, state: int, sp_prev: float) -> float:
+        """The pressure setpoint for this tick (bar); sets the muscle's target_length,
+        feedforward and sp_rate, and `flags` (FF_CLIPPED, SLEW_LIMITED)."""
+        m = self.m
+        flags = 0
+        l0 = m.length0_mm
+        prof = m.profile
+        if prof is not None and (state == S_RUNNING or state == S_LOAD):
+            prof.sample(now)
+            x_t = prof.value
+            ln_t = l0 * (1.0 - x_t)
+            m.target_length = ln_t
+        else:
+            ln_t = m.target_length
+            x_t = (l0 - ln_t) / l0
+        v_t = self.target_vel.update(ln_t, dt)
+        f_in = m.target_force
+        if self.position:
+            f = m.force
+            fl = self.force_lp
+            f_in = self.force_lp = fl + dt / (self.force_tau_s + dt) * (f - fl) if (
+                fl == fl) else f
+        ff = 0.0
+        if self.use_ff and self.ff is not None:
+            ff_obj = self.ff
+            ff = ff_obj.pressure(f_in, ln_t, x_t, v_t)
+            if ff_obj.clipped:
+                flags |= F_CLIP
+        want = ff
+        pid = self.pid
+        i_before = pid.i
+        if self.position:
+            length = m.length
+            corr = pid.step(length - ln_t, -length, dt)
+            ilc = self.ilc
+            if ilc is not None and prof is not None and not prof.done and (
+                    state == S_RUNNING or state == S_LOAD):
+                tau = now - prof.t0_s - prof.lead_in_s
+                if tau >= 0.0:
+                    corr += ilc.step(tau, length - ln_t, dt)
+            self.correction = corr
+            want += corr
+        else:
+            b = self.bump
+            if b != 0.0:
+                b -= b * dt / (self.bump_tau_s + dt)
+                self.bump = b if abs(b) > 1e-6 else 0.0
+                want += b
+        held = False
+        if want != want:  # a NaN input (stale sensor): hold; the fault follows
+            want = sp_prev
+            held = True
+        hi = m.max_p
+        if want > hi:
+            want, held = hi, True
+        elif want < 0.0:
+            want, held = 0.0, True
+        step = m.slew * dt
+        if want > sp_prev + step:
+            want, held = sp_prev + step, True
+            flags |= F_SLEW
+        elif want < sp_prev - step:
+            want, held = sp_prev - step, True
+            flags |= F_SLEW
+        if held or sp_prev != self.last_sp:  # clamped here or by the tick's soft limits
+            pid.i = i_before
+        m.feedforward = ff
+        m.sp_rate = self.sp_rate.update(want, dt)
+        self.last_sp = want
+        self.flags = flags
+        return want
