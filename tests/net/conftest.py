@@ -179,6 +179,44 @@ def wait_ready(agent: Agent, rig: str = "sim", daemon: DaemonProc | None = None,
     return wait_until(ready, timeout_s, "the daemon's status")
 
 
+class RigProc:
+    """`pamd run --record <tmp>/rec` on its own loopback port (config/sim.yaml, ROBUST,
+    with `changes`) and a client process connected to it, once the daemon answers
+    status in a steady state; `close()` ends both."""
+
+    def __init__(self, tmp: Path, rig: str = "sim", args: tuple[str, ...] = (),
+                 **changes: Any) -> None:
+        self.tmp, self.rig = tmp, rig
+        self.port = free_port()
+        self.endpoint = f"tcp/127.0.0.1:{self.port}"
+        self.rec = tmp / "rec"
+        cfg = rig_config(tmp, self.port, **changes)
+        self.daemon = DaemonProc(tmp, ["--config", str(cfg), "--record", str(self.rec),
+                                       *args])
+        try:
+            wait_listening(self.port, self.daemon)
+            self.agent = Agent("--connect", self.endpoint)
+            assert self.agent.hello.get("ready"), self.agent.hello
+            self.zid = self.agent.hello["zid"]
+            self.status0 = wait_ready(self.agent, rig, self.daemon)
+        except BaseException:
+            self.daemon.proc.kill()
+            self.daemon.proc.wait(10)
+            raise
+
+    def status(self) -> dict[str, Any]:
+        return self.agent.call("status", rig=self.rig)
+
+    def cmd(self, verb: str, payload: Any = None, **kw: Any) -> dict[str, Any]:
+        return self.agent.call("cmd", rig=self.rig, verb=verb, payload=payload or {}, **kw)
+
+    def close(self) -> None:
+        self.agent.close()
+        if self.daemon.proc.poll() is None:
+            self.daemon.proc.kill()
+            self.daemon.proc.wait(10)
+
+
 def wait_listening(port: int, daemon: DaemonProc | None = None,
                    timeout_s: float = 60.0) -> None:
     """Until something accepts TCP connections on 127.0.0.1:`port`."""

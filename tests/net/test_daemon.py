@@ -7,65 +7,27 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
 
 from pamd.io.files import Decoder, iter_messages
 
-from .conftest import (
-    Agent,
-    DaemonProc,
-    free_port,
-    pamd_cli,
-    rig_config,
-    wait_listening,
-    wait_ready,
-    wait_until,
-)
+from .conftest import RigProc, pamd_cli, wait_until
 
 RIG = "sim"
 
 
-class Rig:
-    def __init__(self, tmp: Path) -> None:
-        self.port = free_port()
-        self.endpoint = f"tcp/127.0.0.1:{self.port}"
-        self.rec = tmp / "rec"
-        # the flood limit is tested on its own (test_lifecycle); here, many commands at once
-        cfg = rig_config(tmp, self.port, telemetry={"command_rate_per_s": 1000.0,
-                                                    "command_burst": 200})
-        self.daemon = DaemonProc(tmp, ["--config", str(cfg), "--record", str(self.rec)])
-        try:
-            wait_listening(self.port, self.daemon)
-            self.agent = Agent("--connect", self.endpoint)
-            assert self.agent.hello.get("ready"), self.agent.hello
-            self.zid = self.agent.hello["zid"]
-            self.status0 = wait_ready(self.agent, RIG, self.daemon)
-        except BaseException:
-            self.daemon.proc.kill()
-            self.daemon.proc.wait(10)
-            raise
-
-    def status(self) -> dict[str, Any]:
-        return self.agent.call("status", rig=RIG)
-
-    def cmd(self, verb: str, payload: Any = None, **kw: Any) -> dict[str, Any]:
-        return self.agent.call("cmd", rig=RIG, verb=verb, payload=payload or {}, **kw)
-
-
 @pytest.fixture(scope="module")
-def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Rig]:
-    r = Rig(tmp_path_factory.mktemp("net"))
+def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RigProc]:
+    # the flood limit is tested on its own (test_lifecycle); here, many commands at once
+    r = RigProc(tmp_path_factory.mktemp("net"), RIG,
+                telemetry={"command_rate_per_s": 1000.0, "command_burst": 200})
     yield r
-    r.agent.close()
-    if r.daemon.proc.poll() is None:
-        r.daemon.proc.kill()
-        r.daemon.proc.wait(10)
+    r.close()
 
 
-def test_state_status_and_liveliness(rig: Rig) -> None:
+def test_state_status_and_liveliness(rig: RigProc) -> None:
     assert rig.agent.call("rigs") == {"rigs": [RIG]}
     rig.agent.call("subscribe", name="state", key=f"pamd/{RIG}/state/m1")
     got = rig.agent.call("until", name="state", field="pressure_bar", seconds=30)
@@ -117,7 +79,7 @@ BAD: list[tuple[str, dict[str, Any], str]] = [  # verb, request, what the error 
 ]
 
 
-def test_every_bad_command_is_refused_and_nothing_moves(rig: Rig) -> None:
+def test_every_bad_command_is_refused_and_nothing_moves(rig: RigProc) -> None:
     before = rig.status()
     assert before["state"] == "IDLE"
     sp0 = before["muscles"]["m1"]["setpoint_bar"]
@@ -132,7 +94,7 @@ def test_every_bad_command_is_refused_and_nothing_moves(rig: Rig) -> None:
     assert after["io"]["refused_here"] >= 19  # refused in the io process, not the loop
 
 
-def test_setpoint_and_the_pressure_follows(rig: Rig) -> None:
+def test_setpoint_and_the_pressure_follows(rig: RigProc) -> None:
     rig.agent.call("subscribe", name="follow", key=f"pamd/{RIG}/state/m1")
     v = rig.cmd("setpoint", {"muscle": "m1", "bar": 3.0})
     assert v["ok"] and v["bar"] == 3.0 and v["muscle"] == "m1", v
@@ -146,7 +108,7 @@ def test_setpoint_and_the_pressure_follows(rig: Rig) -> None:
     assert st["state"] == "RUNNING" and st["muscles"]["m1"]["profile"] == "ramp"
 
 
-def test_streamed_setpoints_deadman_goes_to_the_safe_state(rig: Rig) -> None:
+def test_streamed_setpoints_deadman_goes_to_the_safe_state(rig: RigProc) -> None:
     rig.agent.call("subscribe", name="ev", key=f"pamd/{RIG}/events")
     verdicts = rig.agent.call("stream", rig=RIG, muscle="m1", bar=2.0, deadman_s=1.0,
                               period_s=0.05, count=5)
@@ -158,7 +120,7 @@ def test_streamed_setpoints_deadman_goes_to_the_safe_state(rig: Rig) -> None:
     assert got["met"] and got["msg"]["data"]["to"] == "IDLE", got
 
 
-def test_cli_clients(rig: Rig) -> None:
+def test_cli_clients(rig: RigProc) -> None:
     ep = rig.endpoint
     r = pamd_cli("status", "--connect", ep, "--json")
     assert r.returncode == 0, r.stderr
@@ -179,7 +141,7 @@ def test_cli_clients(rig: Rig) -> None:
     assert r.returncode == 7 and "no answer on pamd/nosuch/cmd/hold" in r.stderr, r.stderr
 
 
-def test_stop_withdraws_and_the_recording_says_it_all(rig: Rig) -> None:
+def test_stop_withdraws_and_the_recording_says_it_all(rig: RigProc) -> None:
     rc = rig.daemon.stop()
     assert rc == 0, rig.daemon.log()[-3000:]
     gone = rig.agent.call("rigs")
