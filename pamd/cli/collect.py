@@ -13,12 +13,12 @@ import threading
 import time
 from typing import Any
 
-from pamd.config import LoadedConfig, load_config
+from pamd.config import load_config
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
-from pamd.experiment.manifest import Manifest
-from pamd.experiment.plan import Plan, load_plan
-from pamd.experiment.timeline import format_timeline, timeline
+from pamd.experiment.manifest import Manifest, collection_name, step_records
+from pamd.experiment.plan import load_plan
+from pamd.experiment.timeline import format_timeline, simulated_loads, timeline
 from pamd.io.session import RecordingRequest
 from pamd.tick import State
 
@@ -49,12 +49,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def simulated_loads(cfg: LoadedConfig, plan: Plan) -> bool:
-    """True when the plan's muscle hangs on a simulated rig (loads change by themselves)."""
-    force = cfg.muscle(plan.muscle).signals.force
-    return next(d.type for d in cfg.rig.drivers if d.name == force.driver) == "sim"
-
-
 def run(args: argparse.Namespace) -> int:
     overrides: dict[str, Any] = {}
     if args.clock:
@@ -78,16 +72,13 @@ def run(args: argparse.Namespace) -> int:
             return 0
         out = args.resume
     else:
-        out = args.out or os.path.join(
-            "runs", f"{plan.name}-{time.strftime('%Y%m%d-%H%M%S')}")
+        out = args.out or os.path.join("runs", collection_name(plan))
         os.makedirs(out, exist_ok=True)
         manifest = Manifest.new(out, plan, args.plan, cfg)
         start = 0
     print(f"collecting into {out}, from step {start + 1} ({plan.steps[start].name})")
-    segments = tuple({"step": s.name, "index": i, "plan": plan.name,
-                      "load_kg": lines[i].load_kg} for i, s in enumerate(plan.steps))
     daemon = Daemon(cfg, note=plan.metadata.notes, recording=RecordingRequest(
-        dir=out, run_name=plan.name, segments=segments,
+        dir=out, run_name=plan.name, segments=step_records(plan, lines),
         profile={"plan": plan.name, "plan_file": os.path.abspath(args.plan)}))
     pending = daemon.start_plan(plan, args.plan, start)
     interrupts = _signals(daemon)

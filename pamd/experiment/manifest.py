@@ -1,6 +1,10 @@
 """The manifest of a collection: the plan, each step's status and files, and every
 run that worked on it. `--resume` reads it to continue from the first unfinished
-step. Written atomically, so a crash never leaves half a manifest."""
+step. Written atomically, so a crash never leaves half a manifest.
+
+Also what `pamd collect` and a collection started over the network
+(`pamd.experiment.remote`) share: the collection directory's name and what each step's
+recording file states (`step_records`)."""
 
 from __future__ import annotations
 
@@ -14,8 +18,21 @@ from pamd import __version__
 from pamd.config.loader import LoadedConfig
 from pamd.errors import ConfigError, ConfigIssue
 from pamd.experiment.plan import Plan
+from pamd.experiment.timeline import StepLine
 
 FORMAT, VERSION = "pamd-collection", 1
+
+
+def collection_name(plan: Plan, wall_s: float | None = None) -> str:
+    """`<plan>-<YYYYmmdd-HHMMSS>`: a new collection's directory (local time)."""
+    return f"{plan.name}-{time.strftime('%Y%m%d-%H%M%S', time.localtime(wall_s))}"
+
+
+def step_records(plan: Plan, lines: list[StepLine]) -> tuple[dict[str, Any], ...]:
+    """Per step, what its recording file is named after and states as `pamd.experiment`
+    metadata: the plan, the step's name and index, and the load it runs under."""
+    return tuple({"step": s.name, "index": i, "plan": plan.name, "load_kg": lines[i].load_kg}
+                 for i, s in enumerate(plan.steps))
 
 
 class Manifest:
@@ -67,9 +84,14 @@ class Manifest:
                 return int(s["index"])
         return None
 
-    def record_run(self, seq: Any, result: dict[str, Any], start: int) -> None:
-        """Mark what this run finished, failed or left, and which files it wrote."""
+    def record_run(self, seq: Any, result: dict[str, Any], start: int,
+                   outcome: str | None = None, extra: dict[str, Any] | None = None) -> None:
+        """Mark what this run finished, failed or left, and which files it wrote.
+        `outcome` overrides the sequencer's (a daemon that stopped before the plan
+        ended); `extra` goes into the run's entry (who asked for a remote collection)."""
         finished = set(seq.finished_steps) if seq is not None else set()
+        if outcome is None:
+            outcome = seq.outcome if seq is not None else "not started"
         files = [os.path.basename(f) for f in (result.get("recording") or {}).get("files", [])]
         for s in self.data["steps"][start:]:
             tag = f"_{s['index'] + 1:02d}-{s['name']}"
@@ -78,12 +100,12 @@ class Manifest:
             if s["name"] in finished:
                 s["status"] = "done"
             elif seq is not None and seq.step is not None and seq.step.name == s["name"]:
-                s["status"] = "failed" if seq.outcome.startswith("fault") else "interrupted"
+                s["status"] = "failed" if outcome.startswith("fault") else "interrupted"
         self.data["runs"].append({
             "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "start_step": start,
-            "outcome": seq.outcome if seq is not None else "not started",
-            "faults": result.get("faults", []), "ticks": result.get("ticks"),
-            "lost_records": result.get("lost_records"), "files": files})
+            "outcome": outcome, "faults": result.get("faults", []),
+            "ticks": result.get("ticks"), "lost_records": result.get("lost_records"),
+            "files": files, **(extra or {})})
 
     def save(self) -> None:
         fd, tmp = tempfile.mkstemp(prefix=".manifest-", dir=self.directory)

@@ -115,6 +115,8 @@ def parse_plan(text: str, path: str, rig: LoadedConfig) -> Plan:
 
 def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list) -> None:
     """Limits, loads, slew and contraction of every step, against the rig."""
+    if not NAME_RE.match(plan.name):  # it names the collection's files and directory
+        ctx.add(None, "name", "a name of letters, digits, '_', '-'", repr(plan.name))
     names = [m.name for m in rig.rig.muscles]
     if plan.muscle not in names:
         ctx.add(None, "muscle", f"one of the rig's muscles ({', '.join(names)})",

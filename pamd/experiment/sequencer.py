@@ -5,8 +5,10 @@ rig itself or by the operator, who confirms; then the measured force must agree
 with the new weight), SETTLE (hold; for a time, then optionally until still),
 PROFILE (run it; Ctrl-C asks for a pause at the end of the cycle, in HOLD), HOLD
 (for a time), or PAUSE (HOLD until the operator resumes). Each step starts with a
-`segment` event, which gives it a recording file of its own. A fault, an
-emergency stop or a `stop` ends the plan; every file stays.
+`segment` event, which gives it a recording file of its own; when the plan ends the
+tick field `segment` is 0 again (a collection started over the network goes back to
+an ordinary run file there). A fault, an emergency stop or a `stop` ends the plan;
+every file stays.
 
 Step changes allocate a little (a Profile, an event dict): that happens a handful
 of times per experiment, never in the per-tick checks.
@@ -241,6 +243,7 @@ class Sequencer:
 
     def _end(self, now: float, outcome: str) -> None:
         self.outcome = outcome
+        self.ctrl.segment = 0  # outside a plan again (the recorder's cue)
         self.step = self.step if outcome != "done" else None
         self._event(now, "plan_finished" if outcome == "done" else "plan_ended",
                     {"outcome": outcome})

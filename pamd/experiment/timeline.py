@@ -27,6 +27,12 @@ class StepLine:
     operator: bool  # needs a person (load change on real hardware, pause)
 
 
+def simulated_loads(cfg: LoadedConfig, plan: Plan) -> bool:
+    """True when the plan's muscle hangs on a simulated rig (loads change by themselves)."""
+    force = cfg.muscle(plan.muscle).signals.force
+    return next(d.type for d in cfg.rig.drivers if d.name == force.driver) == "sim"
+
+
 def timeline(plan: Plan, rig: LoadedConfig, simulated: bool) -> list[StepLine]:
     """One line per step. Durations are rig time; a step that waits for a person
     counts only its machine time."""

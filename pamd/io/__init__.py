@@ -6,5 +6,7 @@
 - `recorder`: topics, metadata, file naming and rotation on top of `mcapw`.
 - `process`: the io process's main loop (drain rings, record, heartbeat).
 - `link`: the loop-process side (start/watch the process, sink, mailbox).
+- `control`: recording control from the daemon's main thread (a remote collection's
+  directory and steps) and the recorder's notices back.
 - `files`: reading recordings back: inspect, export, recover.
 """

@@ -2,6 +2,10 @@
 (`pamd.net.node`: telemetry, status, remote commands), bumps the heartbeat the loop
 watches, sends commands to the loop and routes their verdicts.
 
+With telemetry, it also takes recording control from the daemon's main thread (the
+board's control ring: a collection started over the network, `pamd.io.control`) and
+sends the recorder's notices back through the board.
+
 It never blocks the loop: it only reads rings the loop writes without waiting. If a
 write fails (disk full, I/O error) it reports the error in the shared header, stops
 recording and keeps draining, so the loop decides (safe state or continue) and is
@@ -192,6 +196,8 @@ class IoProcess:
         if avail <= 0:
             return 0
         n = min(avail, BATCH)
+        if self.net is not None and self.recorder is not None:
+            self._control()  # after the ring's head: a collection's begin is in by now
         start = ring.tail
         unpack, buf = self.rec_struct.unpack_from, ring.buf
         rows = [unpack(buf, ring.slot_offset(seq)) for seq in range(start, start + n)]
@@ -209,6 +215,8 @@ class IoProcess:
                 self._fail("recording write failed", exc)
             else:
                 self.block.set(C_RECORDED, rec.ticks)
+            if rec.notices:
+                self._notify(rec, rows[-1][1])
         self.last_tick = int(rows[-1][0])
         return n
 
@@ -240,6 +248,23 @@ class IoProcess:
                 except Exception as exc:
                     self._fail("recording write failed", exc)
         return n, summary
+
+    def _control(self) -> None:
+        """Recording control from the daemon's main thread (pamd.io.control)."""
+        board = self.net.board
+        rec = self.recorder
+        while board is not None and (blob := board.control.get_blob()) is not None:
+            rec.control(json.loads(blob))
+        if rec.notices:
+            self._notify(rec, self.net.last_t_s)
+
+    def _notify(self, rec: Any, t_s: float) -> None:
+        """The recorder's notices: to the daemon's main thread, and published."""
+        for msg in rec.notices:
+            if self.net is not None:
+                self.net.notify_main(msg)
+                self.net.event((self.block.t_start() or 0.0) + t_s, "collection", msg)
+        rec.notices.clear()
 
     def _record_event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
         """An event of the io process's own (a command it refused) into the recording."""

@@ -8,10 +8,17 @@ Topics (they match the Zenoh key names):
                               and verdicts, markers, lost records, recording notices
 Log time: wall-clock ns of the tick's scheduled time in real time; with the virtual
 clock, run start (wall clock) + tick x period, so the time axis is the rig's.
+
+Experiment steps (the tick field `segment`, step + 1) get a file each: from the start
+when the run is a collection (`pamd collect`: `RecordSpec.steps`), or, in a daemon
+already recording, for the span of a collection started over the network
+(`pamd.io.control`: the recorder switches into the collection's directory at its first
+step and back to an ordinary run file when `segment` returns to 0).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -19,7 +26,7 @@ import struct
 import time
 from typing import Any
 
-from pamd.io import cdr
+from pamd.io import cdr, control
 from pamd.io.mcapw import McapWriter
 from pamd.io.spec import IoSpec, RecordSpec
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
@@ -31,7 +38,7 @@ EVENT_SCHEMA = {
         "t_s": {"type": "number", "description": "loop time since the run start, s"},
         "tick": {"type": "integer", "description": "tick number of the loop"},
         "kind": {"type": "string", "description": "transition, command, reply, marker, "
-                 "lost_records, recording, summary"},
+                 "lost_records, recording, experiment, segment, collection, summary"},
         "data": {"type": "object"},
     },
 }
@@ -99,8 +106,14 @@ class Recorder:
         self.chunk_opened = 0.0  # monotonic time the open chunk got its first message
         self.file_t0 = -1
         self.last_sync = time.monotonic()
-        self.step_no = 0  # the tick field `segment`: experiment step + 1, 0 outside
+        self.step_no = 0  # the step whose file is open: experiment step + 1, 0 outside
         self.i_segment = LOOP_FIELDS.index("segment")
+        self.seg_seen = 0.0  # the tick field `segment` of the last tick
+        self.base: RecordSpec = self.rs  # the run's own spec (a collection swaps rs)
+        self.pending: dict[str, Any] | None = None  # a collection announced (`begin`)
+        self.coll: dict[str, Any] | None = None  # the collection being recorded
+        self.coll_files = self.coll_ticks = 0  # where it started in files and ticks
+        self.notices: list[dict[str, Any]] = []  # for the daemon (pamd.io.control)
         self.name_suffix = ""  # "-2"... when the plain name was taken by an earlier run
 
     # -- files ------------------------------------------------------------------------
@@ -171,13 +184,60 @@ class Recorder:
         self.segment += 1
         self.open()
 
-    def _next_step(self, step_no: int) -> None:
-        """An experiment step begins at this tick: finish the file, start the step's."""
+    def _switch(self, rs: RecordSpec, step_no: int) -> None:
+        """Finish the file and open the next one: the step's, or the run's again."""
         assert self.writer is not None
         self.writer.finish()
+        if rs is not self.rs:
+            self.rs = rs
+            self.name_suffix = ""
         self.step_no = step_no
         self.segment = 0
         self.open()
+
+    # -- experiment steps and collections ------------------------------------------------
+    def control(self, msg: dict[str, Any]) -> None:
+        """A control message of the daemon's main thread (pamd.io.control)."""
+        if msg.get("op") == control.BEGIN:
+            self.pending = msg
+        elif msg.get("op") == control.END:
+            p = self.pending
+            if p is not None and p["id"] == msg.get("id"):
+                self.pending = None
+                self.notices.append(control.notice(control.DROPPED, p))
+
+    def _segment(self, seg: int, t_abs_s: float, log_ns: int) -> None:
+        """The tick field `segment` changed: a step begins, or the plan has ended (0)."""
+        self.seg_seen = seg
+        if seg == 0:
+            if self.coll is not None:
+                self._end_collection(t_abs_s, log_ns)
+            # else a plan of `pamd collect`: its last step's file keeps the rest of the run
+            return
+        if self.coll is None and self.pending is not None:
+            self._begin_collection(seg, t_abs_s)
+        elif self.rs.steps:
+            self._switch(self.rs, seg)
+
+    def _begin_collection(self, seg: int, t_abs_s: float) -> None:
+        p = self.coll = self.pending
+        assert p is not None
+        self.pending = None
+        self.event(t_abs_s, "collection", control.notice(control.BEGUN, p))
+        self._switch(control.collection_spec(self.base, p), seg)
+        self.coll_files, self.coll_ticks = len(self.files) - 1, self.ticks
+        self.notices.append(control.notice(control.BEGUN, p))
+
+    def _end_collection(self, t_abs_s: float, log_ns: int) -> None:
+        p, self.coll = self.coll, None
+        assert p is not None
+        files = [os.path.basename(f) for f in self.files[self.coll_files:]]
+        started = time.strftime("%Y%m%d-%H%M%S", time.localtime(log_ns / 1e9))
+        self._switch(dataclasses.replace(self.base, started_at=started), 0)
+        closed = control.notice(control.CLOSED, p, ticks=self.ticks - self.coll_ticks,
+                                files=len(files))
+        self.event(t_abs_s, "collection", dict(closed, files=files))
+        self.notices.append(closed)
 
     # -- time -------------------------------------------------------------------------
     def log_ns_of(self, t_abs_s: float) -> int:
@@ -188,12 +248,14 @@ class Recorder:
         w = self.writer
         assert w is not None
         tick = int(v[0])
-        if v[self.i_segment] != self.step_no and self.rs.steps:
-            self._next_step(int(v[self.i_segment]))
         if self.spec.virtual:
             log_ns = self.spec.wall0_ns + tick * self.period_ns
         else:
             log_ns = self.log_ns_of((self.t_start or 0.0) + v[1])
+        if v[self.i_segment] != self.seg_seen:
+            self._segment(int(v[self.i_segment]), (self.t_start or 0.0) + v[1], log_ns)
+            w = self.writer
+            assert w is not None
         if self.chunk_t0 < 0:
             self.chunk_t0 = log_ns
             self.chunk_opened = time.monotonic()

@@ -66,7 +66,8 @@ class IoSession:
         if net is not None:
             self.board = Board(create=True)
             net = dataclasses.replace(net, board_name=self.board.name)
-            self.host = NetHost(daemon, self.board, cfg.rig.telemetry.status_hz)
+            self.host = NetHost(daemon, self.board, cfg.rig.telemetry.status_hz,
+                                record_dir)
         self.net = net
 
         def make_spec(shm_name: str) -> IoSpec:
@@ -145,6 +146,8 @@ class IoSession:
             return
         self.sink.finish(summary)
         self.link.close()
+        if self.host is not None:  # a remote collection still open: its manifest
+            self.host.close(str(summary.get("stop_reason") or "stopped"))
         if self.board is not None:
             self.board.close()
             self.board = None

@@ -8,7 +8,11 @@ process, beside the loop's block.
   withdraws the liveliness token and refuses new commands at once;
 - requests (io -> main) and replies (main -> io): commands whose work needs the main
   thread (`collect` reads and checks a plan file, `model` loads a model file) go
-  there instead of the loop's mailbox; the verdict comes back by id.
+  there instead of the loop's mailbox; the verdict comes back by id. The io process
+  also sends its recording notices on `requests` (`{"notice": ...}`);
+- control (main -> io): recording control for the io process's recorder
+  (`pamd.io.control`: a collection's directory and steps, sent before its plan
+  reaches the loop). The io loop reads it, never Zenoh's callback threads.
 
 Single writer per field or ring, as in `pamd.ipc.ring`; nothing here blocks.
 """
@@ -30,9 +34,12 @@ STATUS_MAX = 64 * 1024
 RING_SLOTS = 16
 REQ_SLOT_BYTES = 4096
 REP_SLOT_BYTES = 8192
+CTL_SLOTS = 4
+CTL_SLOT_BYTES = 32 * 1024  # a collection's steps and metadata
 REQ_OFF = STATUS_OFF + STATUS_MAX
 REP_OFF = REQ_OFF + RING_HDR_BYTES + RING_SLOTS * REQ_SLOT_BYTES
-TOTAL_BYTES = REP_OFF + RING_HDR_BYTES + RING_SLOTS * REP_SLOT_BYTES
+CTL_OFF = REP_OFF + RING_HDR_BYTES + RING_SLOTS * REP_SLOT_BYTES
+TOTAL_BYTES = CTL_OFF + RING_HDR_BYTES + CTL_SLOTS * CTL_SLOT_BYTES
 _U32 = struct.Struct("<I")
 
 
@@ -52,6 +59,7 @@ class Board:
             raise RuntimeError(f"shared block {name!r} is not a pamd status board")
         self.requests = Ring(self.buf, self.u64, REQ_OFF, RING_SLOTS, REQ_SLOT_BYTES)
         self.replies = Ring(self.buf, self.u64, REP_OFF, RING_SLOTS, REP_SLOT_BYTES)
+        self.control = Ring(self.buf, self.u64, CTL_OFF, CTL_SLOTS, CTL_SLOT_BYTES)
 
     @property
     def name(self) -> str:
@@ -101,4 +109,4 @@ class Board:
                                                                                "replace")
 
     def close(self) -> None:
-        release_block(self, (self.requests, self.replies))
+        release_block(self, (self.requests, self.replies, self.control))

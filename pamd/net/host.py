@@ -1,8 +1,11 @@
 """The daemon's main-process side of telemetry: writes the status snapshot into the
 board at `telemetry.status_hz`, and does the work of the commands that need the main
-thread (`collect`: read and check the plan file, then queue it; `model`: load,
-check and compile the model file, then queue it) before the loop gives its verdict,
-which goes back to the io process by id.
+thread (`collect`: read and check the plan file, make the collection's directory and
+manifest and tell the io process's recorder (`pamd.experiment.remote`), then queue
+it; `model`: load, check and compile the model file, then queue it) before the loop
+gives its verdict, which goes back to the io process by id. It also takes the io
+process's notices (a collection's files closed) and writes a collection's manifest
+when its plan has ended.
 
 Runs in `Daemon.service()` (the main thread, every few tens of ms); never in the
 loop's thread.
@@ -19,6 +22,7 @@ from typing import Any
 from pamd import commands
 from pamd.commands import Command, parse_command
 from pamd.errors import CommandRefused, PamdError
+from pamd.experiment.remote import Collection, Collections
 from pamd.net.board import Board
 from pamd.net.status import StatusBuilder, jsonsafe
 
@@ -38,17 +42,22 @@ class PlanArgs:
 class _Pending:
     def __init__(self) -> None:
         self.verdict: dict[str, Any] | None = None
+        self.collection: Collection | None = None  # a collect's, until its verdict
 
     def set(self, verdict: dict[str, Any]) -> None:  # the loop's thread
         self.verdict = verdict
 
 
 class NetHost:
-    def __init__(self, daemon: Any, board: Board, status_hz: float) -> None:
+    def __init__(self, daemon: Any, board: Board, status_hz: float,
+                 record_dir: str | None = None) -> None:
+        """`record_dir`: where the daemon records (None: it does not, and a collect is
+        refused)."""
         self.d = daemon
         self.board = board
         self.period_s = 1.0 / status_hz
-        self.builder = StatusBuilder(daemon)
+        self.collections = Collections(daemon, record_dir, board.control.put_blob)
+        self.builder = StatusBuilder(daemon, self.collections.describe)
         self.last_t = -1e9
         self.pending: dict[int, _Pending] = {}
         self.outbox: list[bytes] = []  # replies waiting for room in the ring
@@ -63,9 +72,15 @@ class NetHost:
         for rid, p in list(self.pending.items()):
             if p.verdict is not None:
                 del self.pending[rid]
-                self._reply(rid, p.verdict)
+                self._reply(rid, p.verdict if p.collection is None else
+                            self.collections.verdict(p.collection, p.verdict))
         while self.outbox and self.board.replies.put_blob(self.outbox[0]):
             self.outbox.pop(0)
+        self.collections.service()
+
+    def close(self, reason: str) -> None:
+        """The io process has ended: a collection still open gets its manifest."""
+        self.collections.close(reason)
 
     def write_status(self, now: float | None = None) -> None:
         try:
@@ -93,6 +108,9 @@ class NetHost:
     def _request(self, blob: bytes) -> None:
         try:
             req = json.loads(blob)
+            if "notice" in req:  # the io process's (pamd.io.control)
+                self.collections.notice(req["notice"])
+                return
             rid = int(req["id"])
         except (ValueError, KeyError, TypeError):
             return
@@ -109,6 +127,8 @@ class NetHost:
                     plan = load_plan(a.plan_file, self.d.cfg)
                 except PamdError as exc:
                     raise CommandRefused(f"collect: plan refused: {exc}") from None
+                p.collection = self.collections.prepare(plan, a.plan_file, a.start_step,
+                                                        sender, user)
                 cmd = Command("collect", PlanArgs(a.plan_file, a.start_step, plan), p.set,
                               sender, user)
             else:  # model: the file read, checked and compiled here, not in the loop

@@ -76,6 +76,7 @@ class NetNode:
         self.lock = port.lock  # one lock for the mailbox, the board and the queries
         self.waiting: dict[int, tuple[Any, float, str, int | None]] = {}
         self.to_record: deque[tuple[float, str, dict[str, Any]]] = deque()
+        self.to_main: deque[bytes] = deque()  # notices for the daemon's main thread
         self.closing = False
         self.next_id = 1
         self.put_tokens = PUT_BURST
@@ -223,6 +224,10 @@ class NetNode:
                 if reason is not None:
                     self.stop_reason = reason
                     self._withdraw()
+            while self.to_main and self.board is not None and self.board.requests.put_blob(
+                    self.to_main[0]):
+                self.to_main.popleft()
+                work += 1
             while self.board is not None and (blob := self.board.replies.get_blob()):
                 rep = json.loads(blob)
                 self._resolve(int(rep["id"]), rep["verdict"])
@@ -238,6 +243,11 @@ class NetNode:
             self._flush_records()
         self.stats.refresh(now)
         return work
+
+    def notify_main(self, msg: dict[str, Any]) -> None:
+        """A notice for the daemon's main thread (the recorder's: pamd.io.control), sent
+        on the board's request ring by the next poll (the io loop's thread)."""
+        self.to_main.append(json.dumps({"notice": msg}, default=str).encode())
 
     def _flush_records(self) -> None:
         """Events of the query callbacks into the recording (the io loop's thread)."""

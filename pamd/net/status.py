@@ -2,7 +2,8 @@
 by the loop's thread, never per tick) and answered by the io process from the board.
 
 Keys: `rig_id`, `state`, `reason`, `fault`, `faults`, `muscles` (measured values,
-setpoints, limits, references, mode, profile, model, deadman), `experiment`,
+setpoints, limits, references, mode, profile, model, deadman), `experiment` (with the
+`collection` a remote collect writes into: directory, manifest),
 `config_sha256`, `clock`, `rate_hz`, `verbs`, `recording`, `t_wall_s`, `uptime_s`.
 It costs the main thread some 50 us. The io process, when it answers, puts in the
 live values of the latest tick record it drained (state, measured values, setpoint,
@@ -15,6 +16,7 @@ from __future__ import annotations
 import math
 import os
 import time
+from collections.abc import Callable
 from typing import Any
 
 from pamd import __version__
@@ -35,9 +37,12 @@ def jsonsafe(x: Any) -> Any:
 class StatusBuilder:
     """Builds the snapshot from a running `Daemon` (its main thread)."""
 
-    def __init__(self, daemon: Any) -> None:
+    def __init__(self, daemon: Any,
+                 collection: Callable[[], dict[str, Any] | None] = lambda: None) -> None:
+        """`collection`: the collection started over the network that runs, if any."""
         self.d = daemon
         self.t0 = time.monotonic()
+        self.collection = collection
 
     def build(self, now: float) -> dict[str, Any]:
         d = self.d
@@ -63,7 +68,8 @@ class StatusBuilder:
         if seq is not None:
             experiment = {"plan": seq.plan.name, "step": seq.index, "phase": seq.phase,
                           "outcome": seq.outcome or None,
-                          "awaiting_operator": seq.awaiting_operator or None}
+                          "awaiting_operator": seq.awaiting_operator or None,
+                          "collection": self.collection()}
         io = getattr(d, "io", None)
         rec = None
         if io is not None and getattr(io, "recording", True):

@@ -71,3 +71,10 @@ def test_contraction_and_stretch_limits_checked_per_load() -> None:
 def test_pause_step_stands_alone() -> None:
     (i,) = issues(PLAN + "  - {name: p, pause: check it, load_kg: 10}\n")
     assert i.path == "steps[2] (p).pause"
+
+
+def test_plan_name_must_be_a_file_name() -> None:
+    """It names the collection's directory and files: no path, no spaces."""
+    for bad in ("../../etc", "my sweep", "a/b"):
+        (i,) = issues(PLAN.replace("name: test", f"name: {bad!r}"))
+        assert i.path == "name" and bad in i.found

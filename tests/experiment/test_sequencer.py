@@ -46,6 +46,7 @@ def test_plan_runs_every_step_on_the_simulated_rig(harness: Any) -> None:
     seq = h.ctrl.sequencer
     assert seq.outcome == "done" and seq.finished_steps == ["a", "b"]
     assert segments(h) == ["a", "b"]
+    assert h.ctrl.segment == 0  # outside a plan again: the recorder's cue
     plant = h.sim.plant("m1")
     assert plant.load_kg == 50.0 and h.m1.load_kg == 50.0
     assert h.m1.safe_bar > 0.0  # 50 kg needs pressure to stay inside the stretch limit
@@ -114,7 +115,7 @@ def test_a_fault_ends_the_plan_in_the_safe_state(harness: Any) -> None:
     h.step(1.0)
     seq = h.ctrl.sequencer
     assert seq.outcome.startswith("fault") and "m1.force" in seq.outcome
-    assert seq.finished_steps == []
+    assert seq.finished_steps == [] and h.ctrl.segment == 0
 
 
 def test_start_step_resumes_later_in_the_plan(harness: Any) -> None:
