@@ -1,0 +1,47 @@
+"""What the loop-side command handlers share: their signature and the checks of a
+command against the rig's present state (muscle names, state, length reference)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from pamd.errors import CommandRefused
+from pamd.tick import State
+
+Handler = Callable[[Any, Any], dict[str, Any] | None]
+"""A verb's handler: (controller, args) -> verdict fields; raises CommandRefused."""
+
+
+def named_muscles(ctrl: Any, name: str | None) -> list[Any]:
+    """The muscle so named, or every muscle for None."""
+    if name is None:
+        return list(ctrl.muscles)
+    if name not in ctrl.by_name:
+        raise CommandRefused(f"no muscle named {name!r}; muscles: {', '.join(ctrl.by_name)}")
+    return [ctrl.by_name[name]]
+
+
+def can_move(ctrl: Any) -> None:
+    """Refuse motion while starting or latched (FAULT, ESTOP)."""
+    st = ctrl.supervisor.state
+    if st == State.STARTING:
+        raise CommandRefused("the rig is starting (sensors not yet read); try again shortly")
+    if ctrl.supervisor.latched:
+        raise CommandRefused(f"the rig is in {st.name} ({ctrl.supervisor.reason}); send reset "
+                             "once the cause is gone")
+
+
+def need_reference(ms: list[Any]) -> None:
+    """Refuse unless every muscle has its length referenced (home)."""
+    for m in ms:
+        if not m.referenced:
+            raise CommandRefused(f"{m.name}: length not referenced, so contraction limits "
+                                 "cannot be enforced; send home first")
+
+
+def idle_or_hold(ctrl: Any, verb: str) -> None:
+    """Refuse `verb` outside IDLE, HOLD and FAULT."""
+    if ctrl.supervisor.state not in (State.IDLE, State.HOLD, State.FAULT):
+        raise CommandRefused(f"{verb} only while IDLE, HOLD or FAULT (state is "
+                             f"{ctrl.supervisor.state.name})")

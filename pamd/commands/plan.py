@@ -1,0 +1,52 @@
+"""The experiment-plan commands, in the loop's thread: collect (start a plan read and
+checked outside the loop), confirm (a load change) and pause (at a cycle's end)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pamd.commands.guards import Handler, can_move, need_reference
+from pamd.commands.schema import NoArgs
+from pamd.errors import CommandRefused
+
+
+def _confirm(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    seq = ctrl.sequencer
+    if seq is None or seq.outcome:
+        raise CommandRefused("no experiment is running")
+    try:
+        return {"message": seq.confirm_load()}
+    except ValueError as exc:
+        raise CommandRefused(str(exc)) from None
+
+
+def _pause(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    seq = ctrl.sequencer
+    if seq is None or seq.outcome:
+        raise CommandRefused("no experiment is running (use hold to freeze setpoints)")
+    seq.pause_at_cycle_end = True
+    return {"message": "pausing at the end of the present cycle"}
+
+
+def _collect(ctrl: Any, a: Any) -> dict[str, Any]:
+    """`a.plan` is a Plan already read and checked outside the loop's thread."""
+    from pamd.experiment.sequencer import Sequencer
+
+    can_move(ctrl)
+    if ctrl.sequencer is not None and not ctrl.sequencer.outcome:
+        raise CommandRefused(f"plan {ctrl.sequencer.plan.name!r} is still running")
+    plan = getattr(a, "plan", None)
+    if plan is None:
+        raise CommandRefused("collect: the plan was not loaded (pass it through the daemon)")
+    need_reference([ctrl.by_name[plan.muscle]])
+    if ctrl.by_name[plan.muscle].length_ctl_on:
+        raise CommandRefused(f"{plan.muscle} is in a length mode and plans run pressure "
+                             "profiles; send mode pressure first")
+    if not 0 <= a.start_step < len(plan.steps):
+        raise CommandRefused(f"start_step {a.start_step} is not a step of the plan "
+                             f"(0-{len(plan.steps) - 1})")
+    ctrl.sequencer = Sequencer(plan, ctrl, a.start_step)
+    return {"plan": plan.name, "steps": len(plan.steps), "start_step": a.start_step}
+
+
+HANDLERS: dict[str, Handler] = {"confirm": _confirm, "pause": _pause, "collect": _collect}

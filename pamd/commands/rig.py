@@ -1,0 +1,154 @@
+"""The rig's state and settings commands, in the loop's thread: hold, resume, stop,
+estop and reset; home, tare and load (calibration and load); reload (SIGHUP)."""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+from pamd.commands.guards import Handler, can_move, idle_or_hold, named_muscles
+from pamd.commands.schema import EstopArgs, HomeArgs, LoadArgs, MuscleArgs, NoArgs, ReloadArgs
+from pamd.drivers.safe_outputs import push_safe_outputs
+from pamd.errors import CommandRefused
+from pamd.muscle import MUSCLE_TYPES
+from pamd.tick import State
+
+
+def _hold(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    can_move(ctrl)
+    ctrl.hold_started = ctrl.now
+    ctrl.supervisor.go(ctrl.now, State.HOLD, "hold: setpoints frozen")
+    return {}
+
+
+def _resume(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    if ctrl.supervisor.state != State.HOLD:
+        raise CommandRefused(f"resume only from HOLD (state is {ctrl.supervisor.state.name})")
+    paused = ctrl.now - getattr(ctrl, "hold_started", ctrl.now)
+    seq = ctrl.sequencer
+    running = seq is not None and not seq.outcome
+    for m in ctrl.muscles:
+        if m.profile is not None:
+            m.profile.t0_s += paused
+            running = True
+    if seq is not None:
+        seq.awaiting_operator = "" if seq.phase == "pause" else seq.awaiting_operator
+    ctrl.supervisor.go(ctrl.now, State.RUNNING if running else State.IDLE, "resumed")
+    return {}
+
+
+def _stop(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    if ctrl.supervisor.latched:
+        raise CommandRefused(f"the rig is already in {ctrl.supervisor.state.name}, at its safe "
+                             "state")
+    ctrl.go_safe("stop: ramping to the safe state")
+    return {}
+
+
+def _estop(ctrl: Any, a: EstopArgs) -> dict[str, Any]:
+    for m in ctrl.muscles:
+        m.profile = None
+    ctrl.supervisor.estop(ctrl.now, f"emergency stop: {a.reason}")
+    return {}
+
+
+def _reset(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+    sup = ctrl.supervisor
+    if not sup.latched:
+        raise CommandRefused(f"nothing to reset: the rig is {sup.state.name}")
+    for m in ctrl.muscles:
+        if m.started:
+            missing = m.inputs_fresh(ctrl.now)
+            if missing is not None:
+                raise CommandRefused(f"cannot reset: {missing} still has no fresh reading")
+    for drv in ctrl.drivers:
+        if drv.fault is not None:
+            raise CommandRefused(f"cannot reset: driver {drv.name!r} still reports {drv.fault}")
+    for m in ctrl.muscles:
+        if m.started:
+            m.pid.reset(m.pressure)
+            m.safing = False
+        else:
+            m.hold_measured()
+    sup.reset(ctrl.now)
+    return {}
+
+
+def _home(ctrl: Any, a: HomeArgs) -> dict[str, Any]:
+    idle_or_hold(ctrl, "home")
+    m = named_muscles(ctrl, a.muscle)[0]
+    raw_len = m.length - m.ref.length_offset_mm
+    if not math.isfinite(raw_len):
+        raise CommandRefused(f"{m.name}: no length reading to reference")
+    m.ref.length_offset_mm = a.length_mm - raw_len  # at once, in software
+    b = m.sig.length
+    counts = b.driver.preset_counts
+    if b.driver.preset_input(b.index, (a.length_mm - b.offset) / b.gain):
+        # The device takes the reference too; the tick drops the software offset
+        # when the device confirms (preset count moves).
+        m.pending_preset = (counts, b.index, counts[b.index])
+    m.ref.length_referenced = True
+    m.ref.homed_at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    m._prev_len = math.nan
+    ctrl.calibration_dirty = True  # saved outside the loop's thread
+    return {"muscle": m.name, "length_offset_mm": m.ref.length_offset_mm}
+
+
+def _tare(ctrl: Any, a: MuscleArgs) -> dict[str, Any]:
+    idle_or_hold(ctrl, "tare")
+    out = {}
+    for m in named_muscles(ctrl, a.muscle):
+        raw = m.force + m.ref.force_offset_n
+        if not math.isfinite(raw):
+            raise CommandRefused(f"{m.name}: no force reading to tare")
+        m.ref.force_offset_n = raw
+        m.ref.tared_at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        out[m.name] = raw
+    ctrl.calibration_dirty = True  # saved outside the loop's thread
+    return {"force_offset_n": out}
+
+
+def _load(ctrl: Any, a: LoadArgs) -> dict[str, Any]:
+    m = named_muscles(ctrl, a.muscle)[0]
+    rated = MUSCLE_TYPES[m.cfg.type].max_load_kg
+    if a.load_kg > rated:
+        raise CommandRefused(f"{m.name}: {a.load_kg:g} kg exceeds the {m.cfg.type} rating "
+                             f"({rated:g} kg)")
+    m.update_load(a.load_kg)
+    push_safe_outputs(ctrl)  # modules with a comm watchdog hold the new safe state
+    return {"muscle": m.name, "load_kg": a.load_kg, "safe_pressure_bar": m.safe_bar}
+
+
+def _reload(ctrl: Any, a: ReloadArgs) -> dict[str, Any]:
+    """A reloaded config: gains and timeouts at once; limits, slew, loads and nominal
+    lengths only while IDLE (otherwise reported as deferred: the daemon sends the
+    command again once the rig is IDLE). Refused as a whole, changing nothing, if
+    a held pressure is above a new pressure limit."""
+    settings = a.plan
+    if [s.muscle for s in settings] != [m.name for m in ctrl.muscles]:
+        raise CommandRefused("reload: the muscles differ from the running rig's; that "
+                             "needs a restart")
+    with_limits = bool(a.idle_only) and ctrl.supervisor.state == State.IDLE
+    if with_limits:
+        for m, s in zip(ctrl.muscles, settings, strict=True):
+            if m.started and m.sp > s.limits.max_pressure_bar:
+                raise CommandRefused(
+                    f"reload: {m.name} holds {m.sp:.2f} bar, above the new pressure limit "
+                    f"{s.limits.max_pressure_bar:g} bar; lower the setpoint first "
+                    "(nothing changed)")
+    for m, s in zip(ctrl.muscles, settings, strict=True):
+        m.apply_settings(s, with_limits)
+    ctrl.startup_timeout_s = a.startup_timeout_s
+    if with_limits:
+        push_safe_outputs(ctrl)  # loads or limits may have moved the safe pressures
+    return {"applied": list(a.at_once) + (list(a.idle_only) if with_limits else []),
+            "deferred": [] if with_limits else list(a.idle_only),
+            "state": ctrl.supervisor.state.name}
+
+
+HANDLERS: dict[str, Handler] = {
+    "hold": _hold, "resume": _resume, "stop": _stop, "estop": _estop, "reset": _reset,
+    "home": _home, "tare": _tare, "load": _load,
+    "reload": _reload,  # internal (SIGHUP): built by the daemon, not in VERBS
+}

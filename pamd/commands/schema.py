@@ -1,0 +1,219 @@
+"""Commands' argument schemas and their shape checks, away from the loop.
+
+`parse_command` checks a payload's shape (unknown fields, types, NaN) and can run
+anywhere (the io process does it before anything reaches the loop).
+`prepare_command` does a command's I/O (a `model` file) before it is queued.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from pamd.config.engine import Context, build_dataclass, spec
+from pamd.errors import CommandRefused
+
+
+@dataclass(frozen=True, kw_only=True)
+class SetpointArgs:
+    muscle: str = spec(doc="Muscle name.")
+    bar: float | None = spec(None, "Pressure setpoint (pressure mode).", unit="bar")
+    length_mm: float | None = spec(None, "Length target (length_force and position modes).",
+                                   unit="mm", gt=0.0)
+    force_n: float | None = spec(None, "Force target (length_force mode; default: the force "
+                                 "at the mode change).", unit="N", min=0.0)
+    ramp_s: float | None = spec(None, "Reach the setpoint over this time (default: at half "
+                                "the slew limit, or half control.position.max_rate_per_s "
+                                "for a length).", unit="s", min=0.0)
+    deadman_s: float | None = spec(None, "Streamed setpoints: unless the next setpoint for "
+                                   "this muscle arrives within this time, the rig goes to "
+                                   "the safe state (a later setpoint without it disarms "
+                                   "it).", unit="s", gt=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ProfileArgs:
+    muscle: str | None = spec(None, "Muscle name (default: every muscle).")
+    kind: str = spec("sine", "constant, step, ramp, sine or triangle.")
+    min_bar: float = spec(0.0, "Lowest pressure.", unit="bar")
+    max_bar: float = spec(6.0, "Highest pressure.", unit="bar")
+    freq_hz: float = spec(0.05, "Frequency (sine, triangle, step).", unit="Hz")
+    cycles: int | None = spec(None, "Number of cycles (default: until stopped).", min=1)
+    to_bar: float | None = spec(None, "Target (ramp, constant).", unit="bar")
+    rate_bar_per_s: float | None = spec(None, "Ramp rate.", unit="bar/s", gt=0.0)
+    rise_s: float | None = spec(None, "Step edge duration.", unit="s", gt=0.0)
+    duration_s: float | None = spec(None, "Duration (constant).", unit="s", gt=0.0)
+    lead_in_bar_per_s: float = spec(1.0, "Lead-in ramp rate from the present pressure.",
+                                    unit="bar/s", gt=0.0)
+    # Length profiles (length_force and position modes), in contraction (fraction of the
+    # nominal length); the *_bar fields above do not apply to them.
+    min_contraction: float | None = spec(None, "Length profile: least contraction (sine, "
+                                         "triangle, step), e.g. 0.05.")
+    max_contraction: float | None = spec(None, "Length profile: most contraction, e.g. 0.20.")
+    to_contraction: float | None = spec(None, "Length profile: target (ramp, constant).")
+    rate_per_s: float | None = spec(None, "Length profile: ramp rate, contraction per second.",
+                                    unit="1/s", gt=0.0)
+    lead_in_per_s: float | None = spec(None, "Length profile: lead-in rate from the present "
+                                       "target (default: half control.position."
+                                       "max_rate_per_s).", unit="1/s", gt=0.0)
+
+
+LENGTH_PROFILE_FIELDS = ("min_contraction", "max_contraction", "to_contraction", "rate_per_s",
+                         "lead_in_per_s")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModeArgs:
+    muscle: str | None = spec(None, "Muscle name (default: every muscle).")
+    mode: str = spec(doc="pressure, length_force or position.")
+    feedforward: bool = spec(True, "position: use the muscle's model (false: the position "
+                             "PID alone, no model needed).")
+    ilc: bool = spec(False, "position: learn a correction over the cycles of a periodic "
+                     "length profile (iterative learning control).")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelArgs:
+    muscle: str = spec(doc="Muscle name.")
+    file: str = spec(doc="Model file (pamd train) on the rig PC; read, checked and compiled "
+                     "before the command reaches the loop.")
+
+
+class PreparedModelArgs:
+    """A `model` command whose file was loaded, checked and compiled outside the loop's
+    thread (`prepare_command`); the loop only swaps `feedforward` in."""
+
+    def __init__(self, muscle: str, file: str, feedforward: Any) -> None:
+        self.muscle, self.file, self.feedforward = muscle, file, feedforward
+
+    def describe(self) -> dict[str, Any]:
+        return {"muscle": self.muscle, **self.feedforward.describe()}
+
+
+@dataclass(frozen=True, kw_only=True)
+class MuscleArgs:
+    muscle: str | None = spec(None, "Muscle name (default: every muscle).")
+
+
+@dataclass(frozen=True, kw_only=True)
+class HomeArgs:
+    muscle: str = spec(doc="Muscle name.")
+    length_mm: float = spec(doc="The muscle's true length at its present position.", unit="mm",
+                            gt=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class LoadArgs:
+    muscle: str = spec(doc="Muscle name.")
+    load_kg: float = spec(doc="The hanging load now on the muscle.", unit="kg", min=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class NoArgs:
+    pass
+
+
+@dataclass(frozen=True, kw_only=True)
+class CollectArgs:
+    plan_file: str = spec(doc="Experiment plan (YAML) on the rig PC.")
+    start_step: int = spec(0, "Start at this step (0-based; --resume).", min=0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EstopArgs:
+    reason: str = spec("emergency stop", "Why (recorded).")
+
+
+@dataclass(frozen=True, kw_only=True)
+class MuscleSettings:
+    """One muscle's share of a reloaded config, computed outside the loop's thread
+    (`pamd.service.reload`); the loop only assigns it (`MuscleController.apply_settings`).
+    """
+
+    muscle: str
+    pid: Any  # PidConfig
+    rate_feedforward_s: float
+    pressure_timeout_s: float
+    force_timeout_s: float
+    length_timeout_s: float
+    safety: Any  # SafetyConfig
+    limits: Any  # MuscleLimitsResolved
+    slew_limit_bar_per_s: float
+    nominal_length_mm: float
+    load_kg: float | None  # None: unchanged in the file (a `load` command's value stays)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReloadArgs:
+    """The `reload` command (SIGHUP). Internal: not in VERBS, so no client can send
+    it; the daemon builds it from a validated config. `plan` (one MuscleSettings per
+    muscle, in the rig's order) stays out of the recorded event, like collect's."""
+
+    config_sha256: str
+    at_once: tuple[str, ...]  # changed key paths that apply at once (gains, timeouts)
+    idle_only: tuple[str, ...]  # changed key paths that apply only while IDLE (limits)
+    startup_timeout_s: float
+    plan: tuple[MuscleSettings, ...]
+
+
+VERBS: dict[str, type] = {
+    "setpoint": SetpointArgs, "profile": ProfileArgs, "hold": NoArgs, "resume": NoArgs,
+    "stop": NoArgs, "estop": EstopArgs, "reset": NoArgs, "home": HomeArgs, "tare": MuscleArgs,
+    "load": LoadArgs, "confirm": NoArgs, "pause": NoArgs, "collect": CollectArgs,
+    "mode": ModeArgs, "model": ModelArgs,
+}
+
+
+@dataclass
+class Command:
+    """A parsed command on its way to the loop; `reply` receives the verdict."""
+
+    verb: str
+    args: Any
+    reply: Callable[[dict[str, Any]], None] | None = None
+    sender: str = "local"
+    user: str = ""
+
+
+def parse_command(verb: str, payload: Any, sender: str = "local", user: str = "",
+                  reply: Callable[[dict[str, Any]], None] | None = None) -> Command:
+    """Shape checks only; raises CommandRefused saying what was wrong."""
+    if verb not in VERBS:
+        raise CommandRefused(f"unknown command {verb!r}; known: {', '.join(VERBS)}")
+    if payload is None:
+        payload = {}
+    if not isinstance(payload, dict):
+        raise CommandRefused(f"{verb}: the payload must be a JSON object")
+    ctx = Context(f"cmd/{verb}")
+    args = build_dataclass(VERBS[verb], payload, ctx, "", None)
+    if ctx.issues:
+        raise CommandRefused("; ".join(
+            f"{i.path}: expected {i.expected}" + (f", found {i.found}" if i.found else "")
+            for i in ctx.issues))
+    return Command(verb, args, reply, sender, user)
+
+
+def prepare_command(cmd: Command, cfg: Any) -> Command:
+    """The part of a command that is I/O, done outside the loop's thread before it is
+    queued: a `model` command's file is read, checked against the muscle and compiled
+    here (CommandRefused if it cannot be), so the loop only swaps the compiled object."""
+    if cmd.verb != "model" or isinstance(cmd.args, PreparedModelArgs):
+        return cmd
+    from pamd.control.feedforward import Feedforward
+    from pamd.errors import ModelError
+
+    a = cmd.args
+    try:
+        mcfg = cfg.muscle(a.muscle)
+    except KeyError:
+        names = ", ".join(m.name for m in cfg.rig.muscles)
+        raise CommandRefused(f"no muscle named {a.muscle!r}; muscles: {names}") from None
+    path = os.path.abspath(os.path.expanduser(a.file))
+    try:
+        ff = Feedforward.from_file(path, mcfg, cfg.limits[a.muscle])
+    except ModelError as exc:
+        raise CommandRefused(f"model refused: {exc}") from None
+    return dataclasses.replace(cmd, args=PreparedModelArgs(a.muscle, path, ff))
