@@ -152,6 +152,9 @@ def test_raw_frames(bus: Bus) -> None:
     ), fault_after_s=0.1)
     tx = can.Bus(interface="virtual", channel=bus.channel)
     try:
+        # the driver opens its bus on its own thread; a virtual bus delivers a frame
+        # only to the buses open when it is sent
+        assert wait_until(lambda: d.connected)
         tx.send(can.Message(arbitration_id=0x321, data=b"\x00\x00\xff\xfe\x00",
                             is_extended_id=False))
         tx.send(can.Message(arbitration_id=0x18FF0001, data=b"\x07", is_extended_id=True))
