@@ -242,9 +242,11 @@ class Collections:
                     os.rmdir(c.dir)
             self.active = None
             return
-        self._finish(c, None if c.seq.outcome else f"aborted: the daemon stopped ({reason})")
+        # no event: the recording is finalised and the rings are gone
+        self._finish(c, None if c.seq.outcome else f"aborted: the daemon stopped ({reason})",
+                     event=False)
 
-    def _finish(self, c: Collection, outcome: str | None = None) -> None:
+    def _finish(self, c: Collection, outcome: str | None = None, event: bool = True) -> None:
         self.active = None
         ctrl = self.d.ctrl
         try:
@@ -261,7 +263,8 @@ class Collections:
             log.error("collection %s: cannot write its manifest: %s", c.dir, exc)
             return
         outcome = c.manifest.data["runs"][-1]["outcome"]
-        self._event("ended", c, outcome=outcome, files=len(files))
+        if event:
+            self._event("ended", c, outcome=outcome, files=len(files))
         log.info("collection %s: %s; %d file(s); manifest %s", c.dir, outcome, len(files),
                  c.manifest.path)
 

@@ -147,7 +147,10 @@ class IoSession:
         self.sink.finish(summary)
         self.link.close()
         if self.host is not None:  # a remote collection still open: its manifest
-            self.host.close(str(summary.get("stop_reason") or "stopped"))
+            try:
+                self.host.close(str(summary.get("stop_reason") or "stopped"))
+            except Exception:  # never in the way of the rest of the shutdown
+                logging.getLogger("pamd").exception("closing the remote collection")
         if self.board is not None:
             self.board.close()
             self.board = None
