@@ -120,6 +120,10 @@ class NoArgs:
 class CollectArgs:
     plan_file: str = spec(doc="Experiment plan (YAML) on the rig PC.")
     start_step: int = spec(0, "Start at this step (0-based; --resume).", min=0)
+    collection: str | None = spec(
+        None, "With start_step > 0: the collection to resume, by its directory name under "
+        "the daemon's recording directory (the collect reply names it); default: the "
+        "newest unfinished one of this plan.")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -9,7 +9,8 @@ own under the daemon's recording directory: `<recording dir>/<plan>-<YYYYmmdd-HH
 - **`start_step` > 0 resumes**, as `pamd collect --resume DIR` does: the newest
   collection of the same plan (same name, same steps) under the recording directory
   whose manifest has an unfinished step takes the new files, and its manifest the new
-  run. With none to resume, the command is refused (start_step 0 starts a new one).
+  run; `collection` names one instead (its directory name, never a path). With none
+  to resume, the command is refused (start_step 0 starts a new one).
 - **A daemon that does not record refuses** a collect: a plan run without its files
   is hours of a rig for nothing, and the daemon has nowhere it was told it may write.
 - **When the plan ends** (done, aborted, or failed by a fault) the io process closes
@@ -84,7 +85,7 @@ class Collections:
 
     # -- the request ----------------------------------------------------------------------
     def prepare(self, plan: Plan, plan_file: str, start: int, sender: str,
-                user: str) -> Collection:
+                user: str, name: str | None = None) -> Collection:
         """Before the plan goes to the loop: its directory and manifest, and the io
         process told. CommandRefused (and nothing left behind) if it cannot be."""
         if self.record_dir is None:
@@ -98,8 +99,13 @@ class Collections:
                                  f"({io.failure['reason']}); restart the daemon")
         if self.active is not None:
             raise CommandRefused(f"collect: collection {self.active.dir} is still running")
+        if name is not None and start == 0:
+            raise CommandRefused("collect: a collection is named only to resume it; add "
+                                 "start_step (the first unfinished step)")
         if start == 0:
             directory, created = self._new_dir(plan), True
+        elif name is not None:
+            directory, created = self._named(plan, name), False
         else:
             directory, created = self._resumable(plan, start), False
         try:
@@ -157,6 +163,27 @@ class Collections:
             raise CommandRefused(f"collect: cannot create the collection's directory: "
                                  f"{exc}") from None
         raise CommandRefused(f"collect: no free directory name for {stem}")
+
+    def _named(self, plan: Plan, name: str) -> str:
+        """The collection `name` (a directory under the recording directory, never a
+        path) if it is an unfinished collection of this plan."""
+        assert self.record_dir is not None
+        if name in ("", ".", "..") or os.sep in name or (os.altsep and os.altsep in name):
+            raise CommandRefused(f"collect: collection {name!r} must be a directory name "
+                                 "under the daemon's recording directory, not a path")
+        path = os.path.join(self.record_dir, name)
+        try:
+            m = Manifest.load(path)
+        except (ConfigError, OSError) as exc:
+            raise CommandRefused(f"collect: collection {name!r}: {exc}") from None
+        if m.plan_name != plan.name or [s["name"] for s in m.data["steps"]] != [
+                s.name for s in plan.steps]:
+            raise CommandRefused(f"collect: collection {name!r} holds plan "
+                                 f"{m.plan_name!r} with other steps, not {plan.name!r}")
+        if m.first_unfinished() is None:
+            raise CommandRefused(f"collect: collection {name!r} is finished; nothing to "
+                                 "resume")
+        return path
 
     def _resumable(self, plan: Plan, start: int) -> str:
         """The newest unfinished collection of this plan (same steps) to resume."""

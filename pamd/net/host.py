@@ -128,7 +128,7 @@ class NetHost:
                 except PamdError as exc:
                     raise CommandRefused(f"collect: plan refused: {exc}") from None
                 p.collection = self.collections.prepare(plan, a.plan_file, a.start_step,
-                                                        sender, user)
+                                                        sender, user, a.collection)
                 cmd = Command("collect", PlanArgs(a.plan_file, a.start_step, plan), p.set,
                               sender, user)
             else:  # model: the file read, checked and compiled here, not in the loop

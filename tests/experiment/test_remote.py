@@ -47,10 +47,10 @@ class Setup:
         self.sent.append(json.loads(blob))
         return True
 
-    def prepare(self, start: int = 0, text: str = PLAN) -> Any:
+    def prepare(self, start: int = 0, text: str = PLAN, name: str | None = None) -> Any:
         self.plan_file.write_text(text)
         plan = load_plan(str(self.plan_file), self.cfg)
-        return self.c.prepare(plan, str(self.plan_file), start, "zenoh:abc", "ana")
+        return self.c.prepare(plan, str(self.plan_file), start, "zenoh:abc", "ana", name)
 
     def accept(self, coll: Any, outcome: str = "") -> Any:
         """The loop took the plan; its sequencer as the main thread sees it."""
@@ -121,6 +121,32 @@ def test_resume_takes_the_newest_unfinished_collection_of_the_plan(tmp_path: Pat
     reply = s.c.verdict(coll, {"ok": False, "error": "no"})
     assert reply["ok"] is False and os.path.isdir(made[1])  # a resumed one stays
     assert s.prepare(start=1, text=other).dir == m.directory  # the plan with its steps
+
+
+def test_resume_a_named_collection(tmp_path: Path) -> None:
+    s = Setup(tmp_path)
+    dirs = {}
+    for name, status in (("old", ("done", "failed")), ("new", ("done", "failed")),
+                         ("finished", ("done", "done"))):
+        m = Manifest.new(str(s.rec / name), load_plan(str(s.plan_file), s.cfg),
+                         str(s.plan_file), s.cfg)
+        os.makedirs(m.directory)
+        for step, st in zip(m.data["steps"], status, strict=True):
+            step["status"] = st
+        m.save()
+        dirs[name] = m.directory
+    coll = s.prepare(start=1, name="old")  # not the newest: the one asked for
+    assert coll.dir == dirs["old"] and not coll.created
+    s.c.verdict(coll, {"ok": False, "error": "no"})
+    for name, match in (("finished", "is finished"), ("nowhere", "collection 'nowhere'"),
+                        ("../rec/old", "not a path"), ("..", "not a path")):
+        with pytest.raises(CommandRefused, match=match):
+            s.prepare(start=1, name=name)
+    with pytest.raises(CommandRefused, match="with other steps"):
+        s.prepare(start=1, name="new", text=PLAN.replace("heavy", "heavier"))
+    with pytest.raises(CommandRefused, match="only to resume"):
+        s.prepare(start=0, name="old")
+    assert sorted(os.listdir(s.rec)) == ["finished", "new", "old"]  # nothing new made
 
 
 def test_a_daemon_stopping_mid_plan_writes_the_manifest_as_it_closes(tmp_path: Path) -> None:
