@@ -92,6 +92,7 @@ def restart_in_place(argv: list[str], reason: str, stop_received: bool) -> NoRet
         signal.pthread_kill(main, signal.SIGTERM)  # pending across the exec
     log.warning("restarting in place (pid %d) to apply the new config: %s", os.getpid(),
                 reason)
+    _stop_resource_tracker()
     notifier = Notifier.from_environ()
     if notifier.watchdog_s is not None:  # widened; the new daemon's READY=1 sets it back
         notifier.send("WATCHDOG=1", f"WATCHDOG_USEC={int(STARTUP_WATCHDOG_S * 1e6)}")
@@ -101,3 +102,18 @@ def restart_in_place(argv: list[str], reason: str, stop_received: bool) -> NoRet
     sys.stdout.flush()
     sys.stderr.flush()
     os.execv(argv[0], argv)
+
+
+def _stop_resource_tracker() -> None:
+    """multiprocessing's resource tracker (a child started with the io process) would
+    see its pipe close at the exec, exit, and stay a zombie of the new daemon: stop
+    and reap it now (the new daemon starts its own)."""
+    from multiprocessing import resource_tracker
+
+    stop = getattr(resource_tracker._resource_tracker, "_stop", None)  # private, 3.8+
+    if stop is None:
+        return
+    try:
+        stop()
+    except Exception as exc:  # noqa: BLE001 - a leftover zombie is no reason not to restart
+        log.debug("resource tracker not stopped: %s", exc)

@@ -29,6 +29,18 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def _zombie_children(pid: int) -> list[int]:
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if fields[0] == "Z" and int(fields[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
 def _pamd(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "pamd", *args], capture_output=True,
                           text=True, timeout=60, env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
@@ -74,6 +86,7 @@ def test_new_driver_config_waits_for_idle_then_restarts_in_place(
     assert ready_before < widened < ready_again
     assert "WATCHDOG_USEC=400000" in texts[ready_again]  # set back
     assert "STOPPING=1" not in "\n".join(texts)  # a reload, not a stop
+    assert _zombie_children(p.proc.pid) == []  # the old image's helpers were reaped
     st = None
 
     def status() -> bool:
