@@ -116,7 +116,7 @@ def _with_model(cfg: Any, args: argparse.Namespace) -> tuple[Any, str | None]:
 def _length_profile(args: argparse.Namespace, cfg: Any) -> dict[str, Any]:
     """The --profile of a length mode as a profile command (contraction), checked
     against each muscle's limits, load and rate limit before anything opens."""
-    from pamd.control.feedforward import check_length_profile_config
+    from pamd.control.length_targets import check_length_profile_config
 
     payload: dict[str, Any] = {"kind": args.profile, "freq_hz": args.freq_hz}
     for key in ("min_contraction", "max_contraction", "to_contraction", "cycles"):

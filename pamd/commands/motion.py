@@ -81,7 +81,7 @@ def _profile(ctrl: Any, a: ProfileArgs) -> dict[str, Any]:
 
 def _length_setpoint(ctrl: Any, m: Any, a: SetpointArgs) -> dict[str, Any]:
     """A length (and force) target in the length modes, reached by a ramp."""
-    from pamd.control.feedforward import length_profile
+    from pamd.control.length_targets import length_profile
     from pamd.tick import Mode
 
     mode = m.mode.name.lower()
@@ -130,7 +130,7 @@ def _length_setpoint(ctrl: Any, m: Any, a: SetpointArgs) -> dict[str, Any]:
 
 def _length_profile(ctrl: Any, ms: list[Any], a: ProfileArgs) -> dict[str, Any]:
     """A length profile (contraction units) on muscles in a length mode."""
-    from pamd.control.feedforward import length_profile
+    from pamd.control.length_targets import length_profile
 
     for m in ms:
         if not m.length_ctl_on:
@@ -155,7 +155,7 @@ def _length_profile(ctrl: Any, ms: list[Any], a: ProfileArgs) -> dict[str, Any]:
 
 
 def _mode(ctrl: Any, a: ModeArgs) -> dict[str, Any]:
-    from pamd.control.feedforward import MODE_NAMES
+    from pamd.control.length_control import MODE_NAMES
     from pamd.tick import Mode
 
     can_move(ctrl)

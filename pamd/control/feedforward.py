@@ -21,20 +21,12 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from pamd.anfis.model import AnfisModel
-from pamd.control.length_control import MODE_NAMES
-from pamd.control.length_targets import check_length_profile_config, length_profile
 from pamd.control.model_check import SOURCES, load_model_for, velocity_window
 from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S
 
 if TYPE_CHECKING:
     from pamd.config.loader import MuscleLimitsResolved
     from pamd.config.schema import MuscleConfig
-
-# MODE_NAMES, length_profile and check_length_profile_config live in the length modes'
-# modules; they are importable from here too for the command handlers and `pamd run`.
-__all__ = ["MODE_NAMES", "Feedforward", "LoadedModel", "check_length_profile_config",
-           "length_profile"]
-
 
 class LoadedModel:
     """A model file read and checked for one muscle (kept in `LoadedConfig.models`);
