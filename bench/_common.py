@@ -1,4 +1,5 @@
-"""Shared helpers for the benchmarks: the simulated rig config, a tick harness."""
+"""Shared helpers for the benchmarks: the simulated rig config, the controller's
+compute per tick, a recorded profile run."""
 
 from __future__ import annotations
 
@@ -41,3 +42,74 @@ def sim_config(clock: str = "virtual", load_kg: float = 30.0, realtime: bool = F
 def percentile(values: list[float], q: float) -> float:
     s = sorted(values)
     return s[min(len(s) - 1, int(q / 100 * len(s)))]
+
+
+def controller_compute_us(cfg: LoadedConfig, commands: list[tuple[str, dict[str, Any]]],
+                          seconds: float) -> list[float]:
+    """Per-tick compute (us) of one `RigController.tick` plus the summary sink, with
+    the simulated plant advanced by hand outside the timed region; `commands` are
+    applied (and must be accepted) at tick 10. The first second is dropped."""
+    import gc
+    import time
+
+    from pamd.calibration import load_calibration
+    from pamd.commands import apply_command, parse_command
+    from pamd.controller import RigController
+    from pamd.loop import VirtualClock
+    from pamd.rig import Rig
+    from pamd.summary import SummarySink
+    from pamd.tick import TickLayout
+
+    rig = Rig(cfg, load_calibration(cfg.calibration_path))
+    sink = SummarySink(TickLayout([m.name for m in cfg.rig.muscles]))
+    ctrl = RigController(cfg, rig, sink, rig.calibration)
+    sim = rig.drivers["sim"]
+    ctrl.steppers = []  # the plant is advanced by hand, outside the timing
+    clock = VirtualClock()
+    rig.open(clock)
+    ctrl.start(0.0)
+    dt = cfg.period_s
+    t = 0.0
+    perf = time.perf_counter
+    samples: list[float] = []
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    try:
+        for k in range(int(seconds / dt)):
+            clock.t = t
+            sim.advance(dt)
+            if k == 10:
+                for verb, payload in commands:
+                    v = apply_command(ctrl, parse_command(verb, payload))
+                    assert v["ok"], v
+            t0 = perf()
+            sink.put(ctrl.tick(t, dt))
+            samples.append(perf() - t0)
+            t += dt
+    finally:
+        gc.enable()
+        gc.unfreeze()
+        rig.close()
+    return [s * 1e6 for s in samples[int(1.0 / dt):]]
+
+
+def record_profile(cfg: LoadedConfig, out_dir: str, run_name: str,
+                   profile: dict[str, Any], note: str = "") -> str:
+    """Run `profile` to its end on a virtual daemon recording into `out_dir`; the
+    first recorded file."""
+    from pamd.daemon import Daemon
+    from pamd.io.session import RecordingRequest
+
+    d = Daemon(cfg, note=note, recording=RecordingRequest(dir=out_dir, run_name=run_name))
+    pending = d.submit("profile", profile)
+    d.start(stop_when_profile_done=True)
+    try:
+        verdict = pending.result(30.0)
+        assert verdict["ok"], verdict
+        d.wait(timeout_s=600)
+    finally:
+        d.stop("done")
+        d.wait(timeout_s=60)
+        d.close()
+    return str(d.result()["recording"]["files"][0])

@@ -36,15 +36,13 @@ import tempfile  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
-from _common import sim_config  # noqa: E402
+from _common import record_profile, sim_config  # noqa: E402
 
 from pamd.anfis import AnfisModel, TrainingOptions, fit, save  # noqa: E402
 from pamd.anfis.extraction import derived_inputs, extract  # noqa: E402
 from pamd.anfis.recordings import read_runs  # noqa: E402
 from pamd.anfis.samples import ExtractOptions, Run  # noqa: E402
 from pamd.anfis.splitting import split  # noqa: E402
-from pamd.daemon import Daemon  # noqa: E402
-from pamd.io.session import RecordingRequest  # noqa: E402
 from pamd.metrics import regression_metrics  # noqa: E402
 from pamd.muscle import SmoothForceFit, force_model, pressure_for_force  # noqa: E402
 
@@ -57,22 +55,11 @@ P_RANGE_BAR = 6.0
 
 def record_sweep(load_kg: float, cycles: int, out_dir: str) -> str:
     """One recorded 0.05 Hz 0-6 bar sweep at `load_kg` (virtual clock); the file path."""
-    cfg = sim_config("virtual", load_kg=load_kg)
-    d = Daemon(cfg, note=f"bench sweep {load_kg:g} kg",
-               recording=RecordingRequest(dir=out_dir, run_name=f"sweep{load_kg:g}kg"))
-    pending = d.submit("profile", {"kind": "sine", "min_bar": 0.0, "max_bar": 6.0,
-                                   "freq_hz": 0.05, "cycles": cycles})
-    d.start(stop_when_profile_done=True)
-    try:
-        verdict = pending.result(30.0)
-        assert verdict["ok"], verdict
-        d.wait(timeout_s=600)
-    finally:
-        d.stop("done")
-        d.wait(timeout_s=60)
-        d.close()
-    files = d.result()["recording"]["files"]
-    return files[0]
+    return record_profile(sim_config("virtual", load_kg=load_kg), out_dir,
+                          f"sweep{load_kg:g}kg", {"kind": "sine", "min_bar": 0.0,
+                                                  "max_bar": 6.0, "freq_hz": 0.05,
+                                                  "cycles": cycles},
+                          note=f"bench sweep {load_kg:g} kg")
 
 
 def static_inverse_fit(F: np.ndarray, length_mm: np.ndarray, l0_mm: float = 200.0) -> np.ndarray:

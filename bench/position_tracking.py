@@ -28,31 +28,22 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import dataclasses  # noqa: E402
-import gc  # noqa: E402
 import glob  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from typing import Any  # noqa: E402
 
-from _common import percentile, sim_config  # noqa: E402
+from _common import controller_compute_us, percentile, record_profile, sim_config  # noqa: E402
 
 from pamd.anfis import TrainingOptions, fit, save  # noqa: E402
 from pamd.anfis.extraction import derived_inputs, extract  # noqa: E402
 from pamd.anfis.recordings import read_runs  # noqa: E402
 from pamd.anfis.samples import ExtractOptions  # noqa: E402
 from pamd.anfis.splitting import split  # noqa: E402
-from pamd.calibration import load_calibration  # noqa: E402
-from pamd.commands import apply_command, parse_command  # noqa: E402
 from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.controller import RigController  # noqa: E402
-from pamd.daemon import Daemon  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
-from pamd.io.session import RecordingRequest  # noqa: E402
-from pamd.loop import VirtualClock  # noqa: E402
-from pamd.rig import Rig  # noqa: E402
-from pamd.summary import SummarySink  # noqa: E402
-from pamd.tick import Flag, State, TickLayout  # noqa: E402
+from pamd.tick import Flag, State  # noqa: E402
 
 LOAD_KG = 30.0
 TRAIN_LOADS_KG = (20.0, 30.0, 40.0)
@@ -66,20 +57,9 @@ def record(load_kg: float, lo: float, hi: float, out: str, cycles: int = 2) -> s
     found = glob.glob(os.path.join(out, f"*_{name}.mcap"))
     if found:
         return found[0]
-    d = Daemon(sim_config("virtual", load_kg=load_kg),
-               recording=RecordingRequest(dir=out, run_name=name))
-    pending = d.submit("profile", {"kind": "sine", "min_bar": lo, "max_bar": hi,
-                                   "freq_hz": 0.05, "cycles": cycles})
-    d.start(stop_when_profile_done=True)
-    try:
-        verdict = pending.result(30.0)
-        assert verdict["ok"], verdict
-        d.wait(timeout_s=600)
-    finally:
-        d.stop("done")
-        d.wait(timeout_s=60)
-        d.close()
-    return d.result()["recording"]["files"][0]
+    return record_profile(sim_config("virtual", load_kg=load_kg), out, name,
+                          {"kind": "sine", "min_bar": lo, "max_bar": hi, "freq_hz": 0.05,
+                           "cycles": cycles})
 
 
 def train(files: list[str], inputs: tuple[str, ...], mfs: Any, path: str) -> str:
@@ -144,38 +124,8 @@ def compute_time(model: str, seconds: float = 20.0) -> tuple[float, float, float
     cfg = sim_config("virtual", load_kg=LOAD_KG)
     cfg = dataclasses.replace(cfg, models={"m1": LoadedModel.read(
         model, cfg.muscle("m1"), cfg.limits["m1"])})
-    rig = Rig(cfg, load_calibration(cfg.calibration_path))
-    sink = SummarySink(TickLayout(["m1"]))
-    ctrl = RigController(cfg, rig, sink, rig.calibration)
-    sim = rig.drivers["sim"]
-    ctrl.steppers = []
-    clock = VirtualClock()
-    rig.open(clock)
-    ctrl.start(0.0)
-    dt = cfg.period_s
-    t = 0.0
-    perf = time.perf_counter
-    samples: list[float] = []
-    gc.collect()
-    gc.freeze()
-    gc.disable()
-    try:
-        for k in range(int(seconds / dt)):
-            clock.t = t
-            sim.advance(dt)
-            if k == 10:
-                for verb, payload in (("mode", {"mode": "position"}),
-                                      ("profile", {"muscle": "m1", **PROFILE})):
-                    v = apply_command(ctrl, parse_command(verb, payload))
-                    assert v["ok"], v
-            t0 = perf()
-            sink.put(ctrl.tick(t, dt))
-            samples.append(perf() - t0)
-            t += dt
-    finally:
-        gc.enable()
-        rig.close()
-    us = [s * 1e6 for s in samples[1000:]]
+    us = controller_compute_us(cfg, [("mode", {"mode": "position"}),
+                                     ("profile", {"muscle": "m1", **PROFILE})], seconds)
     return percentile(us, 50), percentile(us, 99), max(us)
 
 
