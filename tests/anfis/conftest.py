@@ -1,8 +1,12 @@
-"""Shared set-up for the pamd.anfis tests: single-threaded BLAS, small fixtures."""
+"""Shared set-up for the pamd.anfis tests: single-threaded BLAS, small fixtures, a
+short recorded run."""
 
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: threaded BLAS is slower
 
@@ -67,3 +71,19 @@ def model_factory():
 def dmsp20_force():
     """F(p_bar, k_pct) in N of the smooth DMSP-20 fit."""
     return dmsp20_force_n
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """`pamd run --record` of two 0.2 Hz 0.5-5 bar sine cycles (virtual clock, ~1 s):
+    exactly one MCAP file."""
+    d = tmp_path_factory.mktemp("rec")
+    r = subprocess.run([sys.executable, "-m", "pamd", "run", "--clock", "virtual", "--profile",
+                        "sine", "--freq-hz", "0.2", "--min-bar", "0.5", "--max-bar", "5",
+                        "--cycles", "2", "--record", str(d), "--name", "sweep"],
+                       capture_output=True, text=True, timeout=120,
+                       cwd=Path(__file__).resolve().parents[2])
+    assert r.returncode == 0, r.stderr
+    files = sorted(d.glob("*.mcap"))
+    assert len(files) == 1
+    return files[0]

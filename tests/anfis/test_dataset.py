@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import csv
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,8 +18,6 @@ from pamd.anfis.splitting import split
 from pamd.control.velocity import VELOCITY_WINDOW_S, filtered_velocity, velocity_step
 from pamd.errors import ModelError
 from pamd.tick import Flag, State
-
-REPO = Path(__file__).resolve().parents[2]
 
 
 def write_csv(path: Path, n: int = 3000, rate_hz: float = 100.0, **cols: np.ndarray) -> Path:
@@ -136,21 +132,6 @@ def test_split_keeps_blocks_and_runs_apart(tmp_path: Path) -> None:
     assert set(by_run.train.run).isdisjoint(set(by_run.validation.run))
     with pytest.raises(ModelError, match="too few"):
         split(s, 0.5, 0.4, by="run")  # 2 runs: one each for validation and test
-
-
-# -- a short recorded run (MCAP) ---------------------------------------------------------
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """`pamd run --record` of a 0.2 Hz sine, virtual clock: about 1 s."""
-    d = tmp_path_factory.mktemp("rec")
-    r = subprocess.run([sys.executable, "-m", "pamd", "run", "--clock", "virtual", "--profile",
-                        "sine", "--freq-hz", "0.2", "--min-bar", "0.5", "--max-bar", "5",
-                        "--cycles", "2", "--record", str(d), "--name", "sweep"],
-                       capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert r.returncode == 0, r.stderr
-    files = sorted(d.glob("*.mcap"))
-    assert len(files) == 1
-    return files[0]
 
 
 def test_mcap_pairs_keep_only_the_running_sweep(recording: Path) -> None:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -13,20 +11,6 @@ import pytest
 from pamd.anfis import load
 from pamd.cli.main import main
 from pamd.metrics import METRIC_NAMES
-
-REPO = Path(__file__).resolve().parents[2]
-
-
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """`pamd run --record` of two 0.2 Hz 0.5-5 bar sine cycles (virtual clock, ~1 s)."""
-    d = tmp_path_factory.mktemp("rec")
-    r = subprocess.run([sys.executable, "-m", "pamd", "run", "--clock", "virtual", "--profile",
-                        "sine", "--freq-hz", "0.2", "--min-bar", "0.5", "--max-bar", "5",
-                        "--cycles", "2", "--record", str(d), "--name", "sweep"],
-                       capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert r.returncode == 0, r.stderr
-    return sorted(d.glob("*.mcap"))[0]
 
 
 def test_train_then_evaluate_with_json_and_plots(recording: Path, tmp_path: Path,
