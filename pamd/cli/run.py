@@ -223,7 +223,7 @@ def run(args: argparse.Namespace) -> int:
                      max(args.duration - result["duration_s"], cfg.period_s))
         if not args.json:
             print_summary(result)
-        restart_in_place(run_argv(args, remaining), daemon.keeper.handover_reason,
+        restart_in_place(run_argv(args, remaining), daemon.keeper.handover or "",
                          stop_received=bool(signalled))
     if daemon.error is not None:
         result["faults"].append(f"loop crashed: {daemon.error!r}")

@@ -85,8 +85,7 @@ class ServiceKeeper:
         # changes that reopen the devices: `pamd run` can restart in place (a
         # library daemon, a virtual run cannot, and such a reload is refused)
         self.restart_in_place = False
-        self.handover: ReloadPlan | None = None  # waiting for IDLE
-        self.handover_reason = ""
+        self.handover: str | None = None  # the changes a restart waiting for IDLE applies
         self.handing_over = False  # the loop was asked to end at an IDLE tick
 
     # -- life cycle (called by the Daemon) -------------------------------------------------
@@ -295,8 +294,8 @@ class ServiceKeeper:
             self.handing_over = True
             self.notifier.reloading()
             log.warning("the rig is IDLE: the loop ends holding the outputs, then pamd "
-                        "restarts in place (%s)", self.handover_reason)
-            self.daemon.loop.request_handover(f"config reload: {self.handover_reason}")
+                        "restarts in place (%s)", self.handover)
+            self.daemon.loop.request_handover(f"config reload: {self.handover}")
         elif (self.deferred is not None and self.pending is None
               and self.daemon.ctrl.supervisor.state == State.IDLE):
             plan = self._plan(self.deferred.cfg)
@@ -360,7 +359,7 @@ class ServiceKeeper:
             self._finish()
             return
         self.deferred = None  # the restart applies everything
-        self.handover, self.handover_reason = plan, what
+        self.handover = what
         state = self.daemon.ctrl.supervisor.state
         log.warning("reload: %s changed, which reopens the devices: pamd restarts in place "
                     "%s", what, "now (the rig is IDLE)" if state == State.IDLE else
