@@ -61,17 +61,13 @@ class MuscleController:
         self.index = index
         self.name = muscle.name
         self.cfg = muscle
-        self.limits = limits
         self.sig = signals
         self.base = record_base
         ctl, saf = cfg.rig.control, cfg.rig.safety
-        self.safety = saf
         pid = ctl.pid
         self.pid = Pid(pid.kp, pid.ki_per_s, pid.kd_s, pid.derivative_filter_hz,
                        pid.integral_limit_bar, pid.output_limit_bar)
         self.kff_rate_s = ctl.rate_feedforward_s
-        self.slew = ctl.slew_limit_bar_per_s
-        self.estop_slew = saf.estop_slew_bar_per_s
         self.force_model = force_model(muscle.force_model)
         self.length0_mm = muscle.nominal_length_mm
         # Cached signal access (tick path).
@@ -86,19 +82,9 @@ class MuscleController:
         self.exhaust = signals.exhaust
         self.ref = signals.reference
         # Limits.
-        self.max_p = limits.max_pressure_bar
-        self.hard_p = limits.hard_max_pressure_bar
-        self.max_c = limits.max_contraction
-        self.soft_c = limits.max_contraction - saf.soft_band_contraction
-        self.hard_c = limits.hard_max_contraction
-        self.max_stretch = limits.max_pretension
-        self.c_release = self.soft_c - 0.5 * saf.soft_band_contraction
-        self.s_release = -self.max_stretch + 0.5 * saf.soft_band_contraction
+        self._set_limits(limits, saf, ctl.slew_limit_bar_per_s)
+        self._set_safety_times(saf)
         self._c_guard = self._s_guard = False
-        self.hard_stretch = limits.hard_max_pretension
-        self.hold_s = saf.hard_limit_hold_s
-        self.track_band = saf.tracking_band_bar
-        self.track_s = saf.tracking_time_s
         # Run-time state.
         self.mode = Mode.PRESSURE
         self.load_kg = muscle.load_kg
@@ -150,12 +136,15 @@ class MuscleController:
         sig.pressure.timeout_s = self._pto = s.pressure_timeout_s
         sig.force.timeout_s = self._fto = s.force_timeout_s
         sig.length.timeout_s = self._lto = s.length_timeout_s
-        saf = s.safety
-        self.hold_s = saf.hard_limit_hold_s
-        self.track_band, self.track_s = saf.tracking_band_bar, saf.tracking_time_s
+        self._set_safety_times(s.safety)
         if not with_limits:
             return
-        lim = s.limits
+        self._set_limits(s.limits, s.safety, s.slew_limit_bar_per_s)
+        self.length0_mm = s.nominal_length_mm
+        self.update_load(self.load_kg if s.load_kg is None else s.load_kg)
+
+    def _set_limits(self, lim: MuscleLimitsResolved, saf: Any, slew_bar_per_s: float) -> None:
+        """Limits, their soft bands and the slew limits (set-up and IDLE reloads)."""
         self.safety, self.limits = saf, lim
         self.max_p, self.hard_p = lim.max_pressure_bar, lim.hard_max_pressure_bar
         self.max_c, self.hard_c = lim.max_contraction, lim.hard_max_contraction
@@ -163,9 +152,12 @@ class MuscleController:
         self.c_release = self.soft_c - 0.5 * saf.soft_band_contraction
         self.max_stretch, self.hard_stretch = lim.max_pretension, lim.hard_max_pretension
         self.s_release = -self.max_stretch + 0.5 * saf.soft_band_contraction
-        self.slew, self.estop_slew = s.slew_limit_bar_per_s, saf.estop_slew_bar_per_s
-        self.length0_mm = s.nominal_length_mm
-        self.update_load(self.load_kg if s.load_kg is None else s.load_kg)
+        self.slew, self.estop_slew = slew_bar_per_s, saf.estop_slew_bar_per_s
+
+    def _set_safety_times(self, saf: Any) -> None:
+        """The hard-limit hold and tracking fault timing (set-up and any reload)."""
+        self.hold_s = saf.hard_limit_hold_s
+        self.track_band, self.track_s = saf.tracking_band_bar, saf.tracking_time_s
 
     @property
     def referenced(self) -> bool:
