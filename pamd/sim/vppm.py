@@ -1,0 +1,157 @@
+"""The proportional pressure regulator (Festo VPPM) as a device, filling a muscle.
+
+The regulator is not a filter on its setpoint: it has its own pressure loop.
+
+    setpoint -> zero point, backlash, pilot dead time (`SetpointPilot`)
+             -> pilot response (first-order lag)           = the loop's reference
+    main stage opening u = clip((reference - p_out) / full_open_error_bar, -1, 1)
+             u > 0: supply -> muscle through C_in u      (ISO 6358 orifice)
+             u < 0: muscle -> atmosphere through C_ex |u| (its own exhaust)
+
+so the muscle pressure is what the air flow allows: a large volume fills slower, a
+contracting muscle loses pressure unless air flows in, and a sagging supply slows
+the fill. Without power the main stage closes and the muscle holds its pressure
+(a VPPM holds on power loss). A separate dump valve (`exhaust_open`) vents through
+its own orifice whatever the regulator does. Without supply (`supply_ok` False) the
+inlet is shut: the pressure can only fall.
+
+Each step solves the chamber's implicit equation p = p_nf + k q(p) (p_nf the
+no-flow pressure after the volume change) by two Newton steps and then lets in
+exactly the air q(p) dt that the supply gives up, so air is conserved between the
+supply line and the muscle.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pamd.sim.pilot import SetpointPilot
+from pamd.sim.pneumatics import (
+    BAR_PA,
+    P_ATM_PA,
+    Chamber,
+    MuscleVolume,
+    SupplyLine,
+    conductance_from_nominal_flow,
+    orifice_flow_kg_s,
+)
+
+
+class FlowRegulator:
+    """One VPPM feeding one muscle chamber from a (possibly shared) supply line."""
+
+    def __init__(
+        self,
+        *,
+        supply: SupplyLine,
+        volume: MuscleVolume,
+        contraction: float,
+        max_bar: float = 6.0,
+        dead_time_s: float = 0.010,
+        pilot_lag_s: float = 0.015,
+        backlash_bar: float = 0.02,
+        zero_bar: float = 0.03,
+        nominal_flow_l_min: float = 700.0,
+        exhaust_flow_l_min: float = 700.0,
+        dump_flow_l_min: float = 300.0,
+        critical_ratio: float = 0.3,
+        full_open_error_bar: float = 0.2,
+        polytropic: float = 1.2,
+        initial_bar: float = 0.0,
+    ) -> None:
+        self.supply = supply
+        self.volume = volume
+        self.max_bar = max_bar
+        self.pilot = SetpointPilot(max_bar=max_bar, dead_time_s=dead_time_s,
+                                   backlash_bar=backlash_bar, zero_bar=zero_bar,
+                                   initial_bar=initial_bar)
+        self.pilot_lag_s = pilot_lag_s
+        self.critical_ratio = critical_ratio
+        self.c_in = conductance_from_nominal_flow(nominal_flow_l_min, critical_ratio)
+        self.c_exhaust = conductance_from_nominal_flow(exhaust_flow_l_min, critical_ratio)
+        self.c_dump = conductance_from_nominal_flow(dump_flow_l_min, critical_ratio)
+        self._inv_band_pa = 1.0 / (full_open_error_bar * BAR_PA)
+        p0 = min(max(initial_bar, 0.0), max_bar)
+        self.reference_bar = p0
+        self.chamber = Chamber(volume.volume_m3(contraction), p0 * BAR_PA + P_ATM_PA,
+                               polytropic)
+        self.supply_ok = True
+        self.powered = True
+        self.exhaust_open = False
+        self.opening = 0.0
+        self.t_s = 0.0
+        self.supplied_kg = 0.0  # air taken from the supply so far
+        self.vented_kg = 0.0  # air let out to the atmosphere so far
+        self._dt_s = -1.0
+        self._alpha_pilot = 0.0
+        self._q_supply = 0.0  # from the last flow evaluation
+
+    # -- the same face as the lag regulator ------------------------------------------
+    @property
+    def setpoint_bar(self) -> float:
+        return self.pilot.setpoint_bar
+
+    def set_setpoint(self, value_bar: float) -> None:
+        self.pilot.set_setpoint(value_bar)
+
+    @property
+    def pressure_bar(self) -> float:
+        return (self.chamber.pressure_pa - P_ATM_PA) / BAR_PA
+
+    # -- physics ---------------------------------------------------------------------
+    def _flow_in(self, p_pa: float) -> float:
+        """Net mass flow into the muscle at chamber pressure `p_pa` (kg/s); the part
+        drawn from the supply is left in `_q_supply`."""
+        q_supply = 0.0
+        q = 0.0
+        if self.powered:
+            u = (self.reference_bar * BAR_PA + P_ATM_PA - p_pa) * self._inv_band_pa
+            if u > 1.0:
+                u = 1.0
+            elif u < -1.0:
+                u = -1.0
+            self.opening = u
+            if u > 0.0:
+                if self.supply_ok:
+                    q_supply = orifice_flow_kg_s(self.c_in * u, self.critical_ratio,
+                                                 self.supply.pressure_pa, p_pa)
+                    q = q_supply
+            elif u < 0.0:
+                q = -orifice_flow_kg_s(-self.c_exhaust * u, self.critical_ratio, p_pa, P_ATM_PA)
+        else:
+            self.opening = 0.0
+        if self.exhaust_open:
+            q -= orifice_flow_kg_s(self.c_dump, self.critical_ratio, p_pa, P_ATM_PA)
+        self._q_supply = q_supply
+        return q
+
+    def step(self, dt_s: float, contraction: float) -> float:
+        """Advance by `dt_s` with the muscle at `contraction` at the step's end; the
+        new muscle pressure (bar, gauge)."""
+        if dt_s != self._dt_s:
+            self._dt_s = dt_s
+            lag = self.pilot_lag_s
+            self._alpha_pilot = 1.0 - math.exp(-dt_s / lag) if lag > 0.0 else 1.0
+        delayed = self.pilot.step(self.t_s)
+        self.reference_bar += (delayed - self.reference_bar) * self._alpha_pilot
+        ch = self.chamber
+        v1 = self.volume.volume_m3(contraction)
+        p_nf = ch.no_flow_pressure_pa(v1)
+        k = ch.pressure_per_kg(v1) * dt_s
+        # p = p_nf + k q(p): Newton from the no-flow pressure; q falls as p rises.
+        p = p_nf
+        for _ in range(2):
+            q0 = self._flow_in(p)
+            h = 1.0 + 1e-6 * p
+            dq = (self._flow_in(p + h) - q0) / h
+            p -= (p - p_nf - k * q0) / (1.0 - k * dq)
+            if p < 0.0:
+                p = 0.0
+        q = self._flow_in(p)
+        drawn = self._q_supply * dt_s
+        self.supply.draw(drawn)
+        self.supplied_kg += drawn
+        self.vented_kg += drawn - q * dt_s
+        ch.step(dt_s, q, v1)
+        self.t_s += dt_s
+        return (ch.pressure_pa - P_ATM_PA) / BAR_PA
