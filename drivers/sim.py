@@ -23,6 +23,7 @@ from pamd.errors import DriverError
 from pamd.muscle import ForceModel, force_model
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
+from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
 
 INPUTS_PER_MUSCLE = 3  # pressure, force, length
 OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
@@ -53,12 +54,13 @@ class SimDriver(Driver):
             raise DriverError(f"sim driver {name!r}: " + "; ".join(problems))
         super().__init__(name, options)
         models: dict[str, ForceModel] = {}
+        self.supply_line = _shared_supply_line(options)
         self._plants: list[MusclePlant] = []
         for m in options.muscles:
             if m.force_model not in models:
                 models[m.force_model] = force_model(m.force_model)
             rng = muscle_rng(options.seed, m.name)
-            self._plants.append(MusclePlant(m, rng, models[m.force_model]))
+            self._plants.append(MusclePlant(m, rng, models[m.force_model], self.supply_line))
         self._by_name = {p.name: k for k, p in enumerate(self._plants)}
         self._modes = [_OK] * len(self.input_channels)
         self._any_sensor_fault = False
@@ -116,6 +118,8 @@ class SimDriver(Driver):
         """Advance every muscle by `dt_s`, then publish readings stamped `clock()`."""
         for plant in self._plants:
             plant.advance(dt_s)
+        if self.supply_line is not None:
+            self.supply_line.step(dt_s)
         self._steps += 1
         clock = self._clock
         if clock is not None:
@@ -230,6 +234,20 @@ class SimDriver(Driver):
                 if mode != _SILENT:
                     stamps[i] = now_s
                 i += 1
+
+
+def _shared_supply_line(options: SimOptions) -> SupplyLine | None:
+    """The supply line the 'flow' muscles share, if the options give it a volume."""
+    flow = [m for m in options.muscles if m.pneumatics == "flow"]
+    if not flow or options.supply_line_volume_l <= 0.0:
+        return None
+    return SupplyLine(
+        source_bar=max(m.supply_bar for m in flow),
+        conductance_m3_s_pa=conductance_from_nominal_flow(
+            options.supply_line_flow_l_min, flow[0].critical_pressure_ratio),
+        critical_ratio=flow[0].critical_pressure_ratio,
+        line_volume_l=options.supply_line_volume_l,
+    )
 
 
 __all__ = ["SimDriver", "SimMuscleOptions", "SimOptions", "muscle_rng"]

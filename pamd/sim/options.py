@@ -147,6 +147,88 @@ class SimMuscleOptions:
         0.0001,
         5.0,
     )
+    pneumatics: Literal["lag", "flow"] = _f(
+        "lag",
+        "How the muscle's pressure follows the regulator: 'lag' is a dead time and a "
+        "first-order lag on the setpoint; 'flow' lets air flow through the regulator "
+        "(its own pressure loop, ISO 6358 orifices) into a chamber whose volume "
+        "follows the contraction.",
+    )
+    regulator_flow_l_min: float = _f(
+        140.0,
+        "'flow' pneumatics: standard nominal flow (6 -> 5 bar, ANR) of the regulator's "
+        "main stage and the hose to the muscle together, filling and venting (the default "
+        "gives a t63 of about 40 ms for 0 -> 3 bar into a DMSP-20-200 at 30 kg).",
+        "l/min",
+        1.0,
+        100000.0,
+    )
+    regulator_pilot_lag_s: float = _f(
+        0.005,
+        "'flow' pneumatics: first-order response of the regulator's pilot stage.",
+        "s",
+        0.0,
+        1.0,
+    )
+    regulator_full_open_error_bar: float = _f(
+        0.3,
+        "'flow' pneumatics: pressure error at which the regulator's main stage is fully open.",
+        "bar",
+        0.001,
+        10.0,
+    )
+    critical_pressure_ratio: float = _f(
+        0.3,
+        "'flow' pneumatics: ISO 6358 critical pressure ratio b of the regulator, hose "
+        "and exhaust valve.",
+        "",
+        0.01,
+        0.99,
+    )
+    exhaust_flow_l_min: float = _f(
+        300.0,
+        "'flow' pneumatics: standard nominal flow of the exhaust (dump) valve.",
+        "l/min",
+        1.0,
+        100000.0,
+    )
+    dead_volume_cm3: float = _f(
+        10.0,
+        "'flow' pneumatics: air volume of the hose and fittings beside the muscle's own.",
+        "cm^3",
+        0.0,
+        10000.0,
+    )
+    polytropic_exponent: float = _f(
+        1.2,
+        "'flow' pneumatics: polytropic exponent of the air in the muscle "
+        "(1 isothermal, 1.4 adiabatic).",
+        "",
+        1.0,
+        1.4,
+    )
+    stiction_ratio: float = _f(
+        1.0,
+        "Breakaway friction over sliding friction (Stribeck); 1 means no stiction.",
+        "",
+        1.0,
+        5.0,
+    )
+    stribeck_velocity_mm_s: float = _f(
+        1.0,
+        "Speed over which the friction falls from breakaway to sliding (Stribeck).",
+        "mm/s",
+        0.001,
+        1000.0,
+    )
+    force_drift_per_hour: float = _f(
+        0.0,
+        "Slow drift of the muscle's force (a warming muscle, a wearing braid): the "
+        "force scale changes by this fraction per hour of rig time, linearly.",
+        "1/h",
+        -10.0,
+        10.0,
+    )
     pressure_noise_bar: float = _f(
         0.003, "Standard deviation of the pressure sensor noise.", "bar", 0.0, 1.0
     )
@@ -164,6 +246,22 @@ class SimOptions:
     muscles: tuple[SimMuscleOptions, ...] = _f(
         (SimMuscleOptions(),),
         "The simulated muscles, each with its own load, regulator and sensors.",
+    )
+    supply_line_volume_l: float = _f(
+        0.0,
+        "'flow' pneumatics: volume of the supply line the regulators share, fed from the "
+        "compressor at the highest muscle supply_bar; it sags when several muscles fill "
+        "at once. 0: each regulator has a stiff supply of its own.",
+        "l",
+        0.0,
+        1000.0,
+    )
+    supply_line_flow_l_min: float = _f(
+        2000.0,
+        "'flow' pneumatics: standard nominal flow from the compressor into the supply line.",
+        "l/min",
+        1.0,
+        1000000.0,
     )
 
 

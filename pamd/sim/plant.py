@@ -35,7 +35,9 @@ import random
 
 from pamd.muscle import GRAVITY_M_S2, ForceModel, equilibrium_contraction, force_model
 from pamd.sim.options import SimMuscleOptions
+from pamd.sim.pneumatics import SupplyLine
 from pamd.sim.regulator import Regulator
+from pamd.sim.vppm import FlowRegulator
 
 MAX_STEP_S = 0.002
 """Longer `advance` calls (after skipped periods) are split into steps this long."""
@@ -67,6 +69,7 @@ class MusclePlant:
         options: SimMuscleOptions,
         rng: random.Random,
         model: ForceModel | None = None,
+        supply: SupplyLine | None = None,
     ) -> None:
         o = options
         self.options = o
@@ -74,6 +77,10 @@ class MusclePlant:
         self.model: ForceModel = model if model is not None else force_model(o.force_model)
         self._force_fn = self.model.force_n
         self.force_scale = o.force_scale
+        self._force_scale_0 = o.force_scale
+        self._drift_per_s = o.force_drift_per_hour / 3600.0
+        self._stiction_extra = o.stiction_ratio - 1.0
+        self._inv_stribeck_m_s = 1.0 / (o.stribeck_velocity_mm_s * 1e-3)
         self.rng = rng
         self._gauss = rng.gauss
         self.nominal_length_m = o.nominal_length_mm * 1e-3
@@ -90,26 +97,36 @@ class MusclePlant:
         self._delta_m = o.friction_presliding_mm * 1e-3
         self._c_contract = o.damping_contracting_n_s_per_m
         self._c_relax = o.damping_relaxing_n_s_per_m
-        self.regulator = Regulator(
-            supply_bar=o.supply_bar,
-            max_bar=o.regulator_max_bar,
-            dead_time_s=o.regulator_dead_time_s,
-            lag_s=o.regulator_lag_s,
-            backlash_bar=o.regulator_backlash_bar,
-            zero_bar=o.regulator_zero_bar,
-            vent_time_constant_s=o.exhaust_vent_time_constant_s,
-            initial_bar=o.initial_pressure_bar,
-        )
         self._p_noise = o.pressure_noise_bar
         self._f_noise = o.force_noise_n
         self._enc_res_mm = o.encoder_resolution_mm
         self._inv_enc_res = 1.0 / o.encoder_resolution_mm
         # The rig starts at rest, at the static equilibrium for its load and pressure.
-        p0 = self.regulator.pressure_bar
+        p0 = min(max(o.initial_pressure_bar, 0.0), o.regulator_max_bar, o.supply_bar)
         x0 = equilibrium_contraction(
             _ScaledModel(self.model, self.force_scale), p0, self.load_kg, -0.5, 0.9
         )
         x0 = min(max(x0, o.stop_stretch_contraction), o.stop_contraction)
+        # A 'flow' muscle without a shared supply line has a stiff one of its own,
+        # which it steps itself; a shared one is stepped by its owner (the driver).
+        self._own_supply: SupplyLine | None = None
+        self.regulator: Regulator | FlowRegulator
+        if o.pneumatics == "flow":
+            if supply is None:
+                supply = self._own_supply = SupplyLine(source_bar=o.supply_bar,
+                                                       conductance_m3_s_pa=1e-5)
+            self.regulator = FlowRegulator.from_options(o, supply, x0, p0)
+        else:
+            self.regulator = Regulator(
+                supply_bar=o.supply_bar,
+                max_bar=o.regulator_max_bar,
+                dead_time_s=o.regulator_dead_time_s,
+                lag_s=o.regulator_lag_s,
+                backlash_bar=o.regulator_backlash_bar,
+                zero_bar=o.regulator_zero_bar,
+                vent_time_constant_s=o.exhaust_vent_time_constant_s,
+                initial_bar=p0,
+            )
         self._length_m = self.nominal_length_m * (1.0 - x0)
         self._velocity_m_s = 0.0
         self._friction_n = 0.0
@@ -184,17 +201,27 @@ class MusclePlant:
             h = dt_s / n
             for _ in range(n):
                 self._step(h)
+        if self._own_supply is not None:
+            self._own_supply.step(dt_s)
         self._read_sensors()
 
     def _step(self, dt: float) -> None:
-        p = self.regulator.step(dt)
-        force_fn = self._force_fn
-        scale = self.force_scale
         length = self._length_m
+        x = 1.0 - length * self._inv_l0
+        p = self.regulator.step(dt, x)
+        force_fn = self._force_fn
+        if self._drift_per_s != 0.0:
+            drift = 1.0 + self._drift_per_s * self.t_s
+            self.force_scale = self._force_scale_0 * (drift if drift > 0.05 else 0.05)
+        scale = self.force_scale
         v = self._velocity_m_s
         ff = self._friction_n
         m = self._mass_kg
-        x = 1.0 - length * self._inv_l0
+        # Stribeck: at rest the friction can reach the breakaway level, sliding less.
+        fric_per_bar = self._fric_per_bar
+        if self._stiction_extra != 0.0:
+            w = v * self._inv_stribeck_m_s
+            fric_per_bar *= 1.0 + self._stiction_extra * math.exp(-w * w)
         fs = scale * force_fn(p, x)
         # Step residual R(dL) = a dL + b + Ff_new(dL) with b as below; R rises with dL.
         b = fs - self._weight_n - m * v / dt
@@ -204,7 +231,7 @@ class MusclePlant:
             stiff = 0.0
             c = 0.0
         else:
-            fc = self._fric_per_bar * p if p > 0.0 else 0.0
+            fc = fric_per_bar * p if p > 0.0 else 0.0
             delta = self._delta_m
             sigma = fc / delta
             probe = self._probe_m
@@ -241,11 +268,11 @@ class MusclePlant:
         else:
             v = dl / dt
         if dl != 0.0:
-            fc = self._fric_per_bar * p if p > 0.0 else 0.0
+            fc = fric_per_bar * p if p > 0.0 else 0.0
             delta = self._delta_m
             ff = (ff + fc / delta * dl) / (1.0 + abs(dl) / delta)
         else:
-            fc = self._fric_per_bar * p if p > 0.0 else 0.0
+            fc = fric_per_bar * p if p > 0.0 else 0.0
         # Less contact pressure, less friction: the stored friction cannot exceed it.
         if ff > fc:
             ff = fc
@@ -263,3 +290,4 @@ class MusclePlant:
         self.force_read_n = self._tension_n + gauss(0.0, self._f_noise)
         res = self._enc_res_mm
         self.length_read_mm = math.floor(self._length_m * 1e3 * self._inv_enc_res + 0.5) * res
+

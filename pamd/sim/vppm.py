@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 
+from pamd.sim.options import SimMuscleOptions
 from pamd.sim.pilot import SetpointPilot
 from pamd.sim.pneumatics import (
     BAR_PA,
@@ -46,18 +47,18 @@ class FlowRegulator:
         supply: SupplyLine,
         volume: MuscleVolume,
         contraction: float,
-        max_bar: float = 6.0,
-        dead_time_s: float = 0.010,
-        pilot_lag_s: float = 0.015,
-        backlash_bar: float = 0.02,
-        zero_bar: float = 0.03,
-        nominal_flow_l_min: float = 700.0,
-        exhaust_flow_l_min: float = 700.0,
-        dump_flow_l_min: float = 300.0,
-        critical_ratio: float = 0.3,
-        full_open_error_bar: float = 0.2,
-        polytropic: float = 1.2,
-        initial_bar: float = 0.0,
+        max_bar: float,
+        dead_time_s: float,
+        pilot_lag_s: float,
+        backlash_bar: float,
+        zero_bar: float,
+        nominal_flow_l_min: float,
+        exhaust_flow_l_min: float,
+        dump_flow_l_min: float,
+        critical_ratio: float,
+        full_open_error_bar: float,
+        polytropic: float,
+        initial_bar: float,
     ) -> None:
         self.supply = supply
         self.volume = volume
@@ -85,6 +86,29 @@ class FlowRegulator:
         self._dt_s = -1.0
         self._alpha_pilot = 0.0
         self._q_supply = 0.0  # from the last flow evaluation
+
+    @classmethod
+    def from_options(cls, o: SimMuscleOptions, supply: SupplyLine, contraction: float,
+                     initial_bar: float) -> FlowRegulator:
+        """The regulator of a simulated muscle with 'flow' pneumatics (its options)."""
+        return cls(
+            supply=supply,
+            volume=MuscleVolume(length_scale=o.nominal_length_mm / 200.0,
+                                dead_volume_cm3=o.dead_volume_cm3),
+            contraction=contraction,
+            max_bar=o.regulator_max_bar,
+            dead_time_s=o.regulator_dead_time_s,
+            pilot_lag_s=o.regulator_pilot_lag_s,
+            backlash_bar=o.regulator_backlash_bar,
+            zero_bar=o.regulator_zero_bar,
+            nominal_flow_l_min=o.regulator_flow_l_min,
+            exhaust_flow_l_min=o.regulator_flow_l_min,
+            dump_flow_l_min=o.exhaust_flow_l_min,
+            critical_ratio=o.critical_pressure_ratio,
+            full_open_error_bar=o.regulator_full_open_error_bar,
+            polytropic=o.polytropic_exponent,
+            initial_bar=initial_bar,
+        )
 
     # -- the same face as the lag regulator ------------------------------------------
     @property

@@ -61,7 +61,8 @@ def test_plant_force_function_matches_the_datasheet(make_rig) -> None:
         assert plant.static_force_n(float(p), 0.0) == pytest.approx(expected, rel=0.05, abs=1.0)
 
 
-def test_equilibrium_table_is_reproduced_when_the_rig_settles(make_rig) -> None:
+@pytest.mark.parametrize("pneumatics", ["lag", "flow"])
+def test_equilibrium_table_is_reproduced_when_the_rig_settles(make_rig, pneumatics) -> None:
     """Friction is set to 0 (it shifts the rest point by up to its level divided by
     the stiffness) and the regulator backlash to 0 (it offsets the pressure by half
     its width); each case starts at the other end of the pressure range, so the
@@ -74,6 +75,7 @@ def test_equilibrium_table_is_reproduced_when_the_rig_settles(make_rig) -> None:
             friction_n_at_5bar=0.0,
             regulator_backlash_bar=0.0,
             initial_pressure_bar=start_bar,
+            pneumatics=pneumatics,
         )
         start = rig.contraction_read()
         rig.valve(pressure)
