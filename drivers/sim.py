@@ -218,13 +218,18 @@ class SimDriver(Driver):
                 values[i] = plant.pressure_read_bar
                 values[i + 1] = plant.force_read_n
                 values[i + 2] = plant.length_read_mm
-                stamps[i] = stamps[i + 1] = stamps[i + 2] = now_s
+                # Stamped with when the device took the sample (its age is 0 for a
+                # sensor sampled at every step without latency).
+                stamps[i] = now_s - plant.pressure_age_s
+                stamps[i + 1] = now_s - plant.force_age_s
+                stamps[i + 2] = now_s - plant.length_age_s
                 i += 3
             return
         modes = self._modes
         i = 0
         for plant in self._plants:
             readings = (plant.pressure_read_bar, plant.force_read_n, plant.length_read_mm)
+            ages = (plant.pressure_age_s, plant.force_age_s, plant.length_age_s)
             for j in range(INPUTS_PER_MUSCLE):
                 mode = modes[i]
                 if mode == _OK:
@@ -232,7 +237,7 @@ class SimDriver(Driver):
                 elif mode == _DEAD:
                     values[i] = 0.0
                 if mode != _SILENT:
-                    stamps[i] = now_s
+                    stamps[i] = now_s - ages[j]
                 i += 1
 
 

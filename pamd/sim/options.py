@@ -236,6 +236,39 @@ class SimMuscleOptions:
     encoder_resolution_mm: float = _f(
         0.01, "Length encoder resolution (readings are quantised to it).", "mm", 0.000001, 10.0
     )
+    pressure_sample_period_s: float = _f(
+        0.0,
+        "Pressure input: the device converts a sample this often (an ADAM-6024 about "
+        "0.1 s); 0 samples at every plant step.",
+        "s",
+        0.0,
+        10.0,
+    )
+    pressure_latency_s: float = _f(
+        0.0, "Pressure input: time from taking a sample to its delivery.", "s", 0.0, 10.0
+    )
+    pressure_filter_s: float = _f(
+        0.0,
+        "Pressure input: time constant of the device's own first-order filter (0: none).",
+        "s",
+        0.0,
+        10.0,
+    )
+    force_sample_period_s: float = _f(
+        0.0, "Load cell: sample period of its amplifier (0: every plant step).", "s", 0.0, 10.0
+    )
+    force_latency_s: float = _f(
+        0.0, "Load cell: time from taking a sample to its delivery.", "s", 0.0, 10.0
+    )
+    force_filter_s: float = _f(
+        0.0, "Load cell: time constant of the amplifier's filter (0: none).", "s", 0.0, 10.0
+    )
+    length_sample_period_s: float = _f(
+        0.0, "Encoder: sample period of its interface (0: every plant step).", "s", 0.0, 10.0
+    )
+    length_latency_s: float = _f(
+        0.0, "Encoder: time from taking a sample to its delivery.", "s", 0.0, 10.0
+    )
 
 
 @dataclass(frozen=True)

@@ -32,11 +32,13 @@ from __future__ import annotations
 
 import math
 import random
+from collections.abc import Callable
 
 from pamd.muscle import GRAVITY_M_S2, ForceModel, equilibrium_contraction, force_model
 from pamd.sim.options import SimMuscleOptions
 from pamd.sim.pneumatics import SupplyLine
 from pamd.sim.regulator import Regulator
+from pamd.sim.sensors import SampledSensor
 from pamd.sim.vppm import FlowRegulator
 
 MAX_STEP_S = 0.002
@@ -135,6 +137,9 @@ class MusclePlant:
         self.pressure_read_bar = 0.0
         self.force_read_n = 0.0
         self.length_read_mm = 0.0
+        # How old each reading is (s): when it was sampled, before this plant time.
+        self.pressure_age_s = self.force_age_s = self.length_age_s = 0.0
+        self._sensors = _sampled_sensors(o, rng.gauss)
         self._read_sensors()
 
     # --- inputs ---------------------------------------------------------------
@@ -285,9 +290,47 @@ class MusclePlant:
         self.t_s += dt
 
     def _read_sensors(self) -> None:
+        if self._sensors is not None:
+            self._read_sampled(self._sensors)
+            return
         gauss = self._gauss
         self.pressure_read_bar = self.regulator.pressure_bar + gauss(0.0, self._p_noise)
         self.force_read_n = self._tension_n + gauss(0.0, self._f_noise)
         res = self._enc_res_mm
         self.length_read_mm = math.floor(self._length_m * 1e3 * self._inv_enc_res + 0.5) * res
 
+
+    def _read_sampled(self, sensors: tuple[SampledSensor, SampledSensor, SampledSensor]) -> None:
+        """Sensors with their own sample periods, latencies and filters."""
+        t = self.t_s
+        p_sensor, f_sensor, l_sensor = sensors
+        p_sensor.update(t, self.regulator.pressure_bar)
+        f_sensor.update(t, self._tension_n)
+        l_sensor.update(t, self._length_m * 1e3)
+        self.pressure_read_bar = p_sensor.value
+        self.force_read_n = f_sensor.value
+        self.length_read_mm = l_sensor.value
+        self.pressure_age_s = t - p_sensor.sampled_at_s
+        self.force_age_s = t - f_sensor.sampled_at_s
+        self.length_age_s = t - l_sensor.sampled_at_s
+
+
+def _sampled_sensors(
+    o: SimMuscleOptions, gauss: Callable[[float, float], float]
+) -> tuple[SampledSensor, SampledSensor, SampledSensor] | None:
+    """The three sensors as devices, or None where every one samples at each plant
+    step without delay or filter (the plant then reads them directly: cheaper, and
+    the same readings)."""
+    if not (o.pressure_sample_period_s or o.pressure_latency_s or o.pressure_filter_s
+            or o.force_sample_period_s or o.force_latency_s or o.force_filter_s
+            or o.length_sample_period_s or o.length_latency_s):
+        return None
+    return (
+        SampledSensor(period_s=o.pressure_sample_period_s, latency_s=o.pressure_latency_s,
+                      noise_sd=o.pressure_noise_bar, filter_tau_s=o.pressure_filter_s,
+                      gauss=gauss),
+        SampledSensor(period_s=o.force_sample_period_s, latency_s=o.force_latency_s,
+                      noise_sd=o.force_noise_n, filter_tau_s=o.force_filter_s, gauss=gauss),
+        SampledSensor(period_s=o.length_sample_period_s, latency_s=o.length_latency_s,
+                      resolution=o.encoder_resolution_mm),
+    )

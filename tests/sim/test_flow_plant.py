@@ -93,3 +93,48 @@ def test_force_drift_weakens_the_muscle_over_rig_time(make_rig) -> None:
     f0 = rig.plant.static_force_n(4.0, 0.0)
     rig.run(60.0, dt_s=0.002)
     assert rig.plant.static_force_n(4.0, 0.0) == pytest.approx(0.99 * f0, rel=1e-3)
+
+
+def test_a_slow_input_is_stamped_with_when_it_was_sampled(make_rig) -> None:
+    """An ADAM-class pressure input: 10 samples/s, 20 ms to deliver. The driver's
+    stamp is the sample's time, so the loop sees its true age (up to 120 ms)."""
+    rig = make_rig(pressure_sample_period_s=0.1, pressure_latency_s=0.02)
+    ages = []
+    for _ in range(1000):
+        rig.step()
+        ages.append(rig.t_s - rig.stamp("m1.pressure"))
+    assert min(ages[50:]) == pytest.approx(0.02, abs=1e-6)
+    assert max(ages[200:]) == pytest.approx(0.12, abs=2e-3)
+    assert rig.t_s - rig.stamp("m1.force") == 0.0  # the other inputs: fresh
+
+
+def test_ideal_sensors_read_as_before(make_rig) -> None:
+    """Sampling at every step without latency gives the same readings as the plain
+    path (the noise draws in the same order)."""
+    plain = make_rig(seed=3)
+    sampled = make_rig(seed=3, force_filter_s=0.0, length_latency_s=1e-12)
+    for _ in range(200):
+        plain.valve(2.0)
+        sampled.valve(2.0)
+        plain.step()
+        sampled.step()
+    assert plain.read("m1.pressure") == sampled.read("m1.pressure")
+    assert plain.read("m1.force") == sampled.read("m1.force")
+
+
+def test_a_10_samples_per_second_input_is_stale_for_a_50_ms_timeout(harness) -> None:
+    """Through the whole controller: the loop sees each sample's true age, so a
+    pressure input converting every 100 ms faults a rig whose timeout is 50 ms,
+    naming the input; at 20 ms per sample the same rig runs."""
+    def run(period_s: float):
+        h = harness(safety={"signal_timeout_s": 0.05}, drivers=[{
+            "name": "sim", "type": "sim", "options": {"seed": 1, "muscles": [
+                {"name": "m1", "pressure_sample_period_s": period_s}]}}])
+        h.step(1.0)
+        return h
+
+    slow = run(0.1)
+    assert slow.state == "FAULT"
+    assert "pressure" in slow.ctrl.supervisor.fault_reason
+    assert "stale" in slow.ctrl.supervisor.fault_reason
+    assert run(0.02).state == "IDLE"
