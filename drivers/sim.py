@@ -3,7 +3,9 @@
 Per muscle X it has inputs `X.pressure` (bar), `X.force` (N, in-line load cell),
 `X.length` (mm, absolute; the simulated rig starts referenced) and outputs
 `X.valve` (bar, regulator setpoint) and `X.exhaust` (0 closed / 1 open dump
-valve). Inputs of muscle k are channels 3k..3k+2, outputs 2k..2k+1.
+valve), or with on/off actuation `X.inflate` and `X.exhaust` (0 / 1: the inflate
+and exhaust solenoid valves). Inputs of muscle k are channels 3k..3k+2, outputs
+2k..2k+1.
 
 The loop calls `advance(dt_s)` once per tick and then reads `in_values` /
 `in_stamps_s` (stamped with the loop's clock at the end of `advance`). The
@@ -21,6 +23,7 @@ from pamd.drivers import Channel, Clock, Driver, DriverHealth
 
 from pamd.errors import DriverError
 from pamd.muscle import ForceModel, force_model
+from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
 from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
@@ -81,10 +84,9 @@ class SimDriver(Driver):
                 Channel(f"{m.name}.force", "in", "N"),
                 Channel(f"{m.name}.length", "in", "mm"),
             ]
-            outs += [
-                Channel(f"{m.name}.valve", "out", "bar"),
-                Channel(f"{m.name}.exhaust", "out", ""),
-            ]
+            first = (Channel(f"{m.name}.inflate", "out", "") if m.actuation == "onoff"
+                     else Channel(f"{m.name}.valve", "out", "bar"))
+            outs += [first, Channel(f"{m.name}.exhaust", "out", "")]
         return ins + outs
 
     def open(self, clock: Clock) -> None:
@@ -106,10 +108,13 @@ class SimDriver(Driver):
             self._dropped_writes += 1
             return
         self._writes += 1
-        if j == 0:
-            plant.regulator.set_setpoint(value)
+        reg = plant.regulator
+        if j == 1:
+            reg.exhaust_open = value >= 0.5
+        elif isinstance(reg, OnOffValves):
+            reg.set_inflate(value >= 0.5)
         else:
-            plant.regulator.exhaust_open = value >= 0.5
+            reg.set_setpoint(value)
 
     def close(self) -> None:
         self._clock = None
@@ -137,6 +142,8 @@ class SimDriver(Driver):
                 "steps": self._steps,
                 "writes": self._writes,
                 "dropped_writes": self._dropped_writes,
+                "valve_switchings": sum(p.regulator.switchings for p in self._plants
+                                        if isinstance(p.regulator, OnOffValves)),
             },
         )
 
@@ -243,7 +250,7 @@ class SimDriver(Driver):
 
 def _shared_supply_line(options: SimOptions) -> SupplyLine | None:
     """The supply line the 'flow' muscles share, if the options give it a volume."""
-    flow = [m for m in options.muscles if m.pneumatics == "flow"]
+    flow = [m for m in options.muscles if m.pneumatics == "flow" or m.actuation == "onoff"]
     if not flow or options.supply_line_volume_l <= 0.0:
         return None
     return SupplyLine(

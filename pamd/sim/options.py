@@ -147,9 +147,38 @@ class SimMuscleOptions:
         0.0001,
         5.0,
     )
+    actuation: Literal["proportional", "onoff"] = _f(
+        "proportional",
+        "How air reaches the muscle: 'proportional', a pressure regulator (outputs "
+        "NAME.valve in bar and NAME.exhaust, the dump valve); 'onoff', an inflate valve "
+        "(3/2 NC) and an exhaust valve (2/2 NC), digital outputs NAME.inflate and "
+        "NAME.exhaust, always with air that flows.",
+    )
+    inflate_valve_flow_l_min: float = _f(
+        100.0,
+        "'onoff' actuation: standard nominal flow of the inflate valve and its hose.",
+        "l/min",
+        1.0,
+        100000.0,
+    )
+    valve_on_delay_s: float = _f(
+        0.002,
+        "'onoff' actuation: time from energising a valve to its opening.",
+        "s",
+        0.0,
+        1.0,
+    )
+    valve_off_delay_s: float = _f(
+        0.004,
+        "'onoff' actuation: time from releasing a valve to its closing.",
+        "s",
+        0.0,
+        1.0,
+    )
     pneumatics: Literal["lag", "flow"] = _f(
         "lag",
-        "How the muscle's pressure follows the regulator: 'lag' is a dead time and a "
+        "How the muscle's pressure follows a proportional regulator: 'lag' is a dead "
+        "time and a "
         "first-order lag on the setpoint; 'flow' lets air flow through the regulator "
         "(its own pressure loop, ISO 6358 orifices) into a chamber whose volume "
         "follows the contraction.",
@@ -187,7 +216,8 @@ class SimMuscleOptions:
     )
     exhaust_flow_l_min: float = _f(
         300.0,
-        "'flow' pneumatics: standard nominal flow of the exhaust (dump) valve.",
+        "'flow' pneumatics and 'onoff' actuation: standard nominal flow of the exhaust "
+        "valve.",
         "l/min",
         1.0,
         100000.0,

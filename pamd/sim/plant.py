@@ -35,6 +35,7 @@ import random
 from collections.abc import Callable
 
 from pamd.muscle import GRAVITY_M_S2, ForceModel, equilibrium_contraction, force_model
+from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions
 from pamd.sim.pneumatics import SupplyLine
 from pamd.sim.regulator import Regulator
@@ -112,12 +113,13 @@ class MusclePlant:
         # A 'flow' muscle without a shared supply line has a stiff one of its own,
         # which it steps itself; a shared one is stepped by its owner (the driver).
         self._own_supply: SupplyLine | None = None
-        self.regulator: Regulator | FlowRegulator
-        if o.pneumatics == "flow":
+        self.regulator: Regulator | FlowRegulator | OnOffValves
+        if o.pneumatics == "flow" or o.actuation == "onoff":
             if supply is None:
                 supply = self._own_supply = SupplyLine(source_bar=o.supply_bar,
                                                        conductance_m3_s_pa=1e-5)
-            self.regulator = FlowRegulator.from_options(o, supply, x0, p0)
+            self.regulator = (OnOffValves if o.actuation == "onoff" else FlowRegulator
+                              ).from_options(o, supply, x0, p0)
         else:
             self.regulator = Regulator(
                 supply_bar=o.supply_bar,
@@ -152,8 +154,12 @@ class MusclePlant:
         self._weight_n = load_kg * GRAVITY_M_S2
 
     def set_setpoint(self, value_bar: float) -> None:
-        """Regulator setpoint (bar), clamped to its input range."""
-        self.regulator.set_setpoint(value_bar)
+        """Regulator setpoint (bar), clamped to its input range (proportional
+        actuation; an on/off muscle has no setpoint)."""
+        reg = self.regulator
+        if isinstance(reg, OnOffValves):
+            raise TypeError(f"muscle {self.name!r} has on/off valves, not a regulator")
+        reg.set_setpoint(value_bar)
 
     def set_exhaust(self, open_: bool) -> None:
         """Open (True) or close the dump valve that vents the muscle."""

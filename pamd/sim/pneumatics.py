@@ -34,6 +34,7 @@ Pure Python floats, nothing allocated per step: this runs inside the tick.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 P_ATM_PA = 101325.0
 """Atmospheric pressure: gauge 0 bar."""
@@ -161,6 +162,26 @@ class Chamber:
         self.volume_m3 = new_volume_m3
         self.pressure_pa = p if p > 0.0 else 0.0
         return self.pressure_pa
+
+
+def settle_chamber_pa(chamber: Chamber, new_volume_m3: float, dt_s: float,
+                      flow_in: Callable[[float], float]) -> float:
+    """The chamber pressure at the end of a step in which its volume becomes
+    `new_volume_m3` and air flows in at `flow_in(p)` kg/s (a function of the chamber
+    pressure, falling as it rises): p = p_nf + k q(p), solved by two Newton steps from
+    the no-flow pressure p_nf. The chamber is not changed; the caller lets the air in
+    with `Chamber.step`, so what it books is what went in."""
+    p_nf = chamber.no_flow_pressure_pa(new_volume_m3)
+    k = chamber.pressure_per_kg(new_volume_m3) * dt_s
+    p = p_nf
+    for _ in range(2):
+        q0 = flow_in(p)
+        h = 1.0 + 1e-6 * p
+        dq = (flow_in(p + h) - q0) / h
+        p -= (p - p_nf - k * q0) / (1.0 - k * dq)
+        if p < 0.0:
+            p = 0.0
+    return p
 
 
 class SupplyLine:

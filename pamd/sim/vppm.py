@@ -15,10 +15,9 @@ the fill. Without power the main stage closes and the muscle holds its pressure
 its own orifice whatever the regulator does. Without supply (`supply_ok` False) the
 inlet is shut: the pressure can only fall.
 
-Each step solves the chamber's implicit equation p = p_nf + k q(p) (p_nf the
-no-flow pressure after the volume change) by two Newton steps and then lets in
-exactly the air q(p) dt that the supply gives up, so air is conserved between the
-supply line and the muscle.
+Each step settles the chamber's implicit equation (`settle_chamber_pa`) and then
+lets in exactly the air q(p) dt that the supply gives up, so air is conserved
+between the supply line and the muscle.
 """
 
 from __future__ import annotations
@@ -35,6 +34,7 @@ from pamd.sim.pneumatics import (
     SupplyLine,
     conductance_from_nominal_flow,
     orifice_flow_kg_s,
+    settle_chamber_pa,
 )
 
 
@@ -86,6 +86,7 @@ class FlowRegulator:
         self._dt_s = -1.0
         self._alpha_pilot = 0.0
         self._q_supply = 0.0  # from the last flow evaluation
+        self._flow_fn = self._flow_in  # bound once: the tick allocates nothing
 
     @classmethod
     def from_options(cls, o: SimMuscleOptions, supply: SupplyLine, contraction: float,
@@ -160,18 +161,7 @@ class FlowRegulator:
         self.reference_bar += (delayed - self.reference_bar) * self._alpha_pilot
         ch = self.chamber
         v1 = self.volume.volume_m3(contraction)
-        p_nf = ch.no_flow_pressure_pa(v1)
-        k = ch.pressure_per_kg(v1) * dt_s
-        # p = p_nf + k q(p): Newton from the no-flow pressure; q falls as p rises.
-        p = p_nf
-        for _ in range(2):
-            q0 = self._flow_in(p)
-            h = 1.0 + 1e-6 * p
-            dq = (self._flow_in(p + h) - q0) / h
-            p -= (p - p_nf - k * q0) / (1.0 - k * dq)
-            if p < 0.0:
-                p = 0.0
-        q = self._flow_in(p)
+        q = self._flow_in(settle_chamber_pa(ch, v1, dt_s, self._flow_fn))
         drawn = self._q_supply * dt_s
         self.supply.draw(drawn)
         self.supplied_kg += drawn
