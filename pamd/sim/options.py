@@ -154,9 +154,17 @@ class SimMuscleOptions:
         "(3/2 NC) and an exhaust valve (2/2 NC), digital outputs NAME.inflate and "
         "NAME.exhaust, always with air that flows.",
     )
-    inflate_valve_flow_l_min: float = _f(
-        100.0,
-        "'onoff' actuation: standard nominal flow of the inflate valve and its hose.",
+    onoff_inflate_flow_l_min: float = _f(
+        20.0,
+        "'onoff' actuation: standard nominal flow of the inflate valve and its hose "
+        "(fast switching valves are small: fine positioning needs small air portions).",
+        "l/min",
+        1.0,
+        100000.0,
+    )
+    onoff_exhaust_flow_l_min: float = _f(
+        20.0,
+        "'onoff' actuation: standard nominal flow of the exhaust valve.",
         "l/min",
         1.0,
         100000.0,
@@ -216,8 +224,7 @@ class SimMuscleOptions:
     )
     exhaust_flow_l_min: float = _f(
         300.0,
-        "'flow' pneumatics and 'onoff' actuation: standard nominal flow of the exhaust "
-        "valve.",
+        "'flow' pneumatics: standard nominal flow of the exhaust (dump) valve.",
         "l/min",
         1.0,
         100000.0,

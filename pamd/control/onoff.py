@@ -1,0 +1,126 @@
+"""Control with on/off valves: each tick decides inflate (+1), hold (0) or
+exhaust (-1) for a muscle driven by an inflate and an exhaust solenoid valve.
+
+`PwmPressure` makes the valves follow a pressure setpoint, so the pressure mode,
+profiles and collection work without a proportional regulator: a PI law on the
+pressure error (plus the setpoint's rate, as feedforward) gives a duty in [-1, 1],
+and each PWM period opens the inflate (duty > 0) or the exhaust valve (duty < 0) for
+that share of the period, at its start. A pulse shorter than `min_pulse_s` (what the
+valves' switching delays let through) is not sent: the valves hold, which is also
+what keeps them still at rest.
+
+`SlidingModePosition` is seed 004's positioning: a sliding surface on the length
+error and its rate, s = lambda e + de/dt (e = length - target, so s > 0 asks for
+contraction), with a boundary layer |s| <= phi against chattering: outside it the
+valve opens fully toward the surface, inside it pulses with a duty s / phi, and
+within `hold_band_mm` of the target at rest it holds (the muscle's friction keeps
+it there with its air shut in).
+
+Pure float arithmetic, nothing allocated: both run on the tick path.
+"""
+
+from __future__ import annotations
+
+INFLATE, HOLD, EXHAUST = 1, 0, -1
+
+
+class _Pulser:
+    """Turns a duty in [-1, 1] into valve states over PWM periods."""
+
+    def __init__(self, period_s: float, min_pulse_s: float) -> None:
+        if not period_s > min_pulse_s > 0.0:
+            raise ValueError("the PWM period must be longer than the minimum pulse, "
+                             "and the minimum pulse longer than 0 s")
+        self.period_s = period_s
+        self.min_pulse_s = min_pulse_s
+        self.min_duty = min_pulse_s / period_s
+        self._period_start_s = -1e30
+        self._pulse_s = 0.0
+        self._direction = HOLD
+
+    def reset(self) -> None:
+        self._period_start_s = -1e30
+        self._pulse_s = 0.0
+        self._direction = HOLD
+
+    def state(self, now_s: float, duty: float) -> int:
+        """The valve state at `now_s`; a new period starts with the given duty."""
+        if now_s - self._period_start_s >= self.period_s - 1e-9:
+            self._period_start_s = now_s
+            d = duty if duty >= 0.0 else -duty
+            pulse = (d if d < 1.0 else 1.0) * self.period_s
+            if pulse < self.min_pulse_s:
+                self._direction = HOLD
+                self._pulse_s = 0.0
+            else:
+                self._direction = INFLATE if duty > 0.0 else EXHAUST
+                self._pulse_s = pulse
+        if now_s - self._period_start_s < self._pulse_s - 1e-9:
+            return self._direction
+        return HOLD
+
+
+class PwmPressure:
+    """Pressure setpoint -> inflate / hold / exhaust by PWM."""
+
+    def __init__(self, *, period_s: float, min_pulse_s: float, kp_per_bar: float,
+                 ki_per_bar_s: float, rate_feedforward_s_per_bar: float,
+                 integral_limit: float = 0.5) -> None:
+        self.pulser = _Pulser(period_s, min_pulse_s)
+        self.kp = kp_per_bar
+        self.ki = ki_per_bar_s
+        self.kff = rate_feedforward_s_per_bar
+        self.integral_limit = integral_limit
+        self.integral = 0.0
+        self.duty = 0.0
+
+    def reset(self) -> None:
+        self.pulser.reset()
+        self.integral = 0.0
+        self.duty = 0.0
+
+    def step(self, now_s: float, dt_s: float, setpoint_bar: float, pressure_bar: float,
+             setpoint_rate_bar_s: float) -> int:
+        e = setpoint_bar - pressure_bar
+        i = self.integral + self.ki * e * dt_s
+        lim = self.integral_limit
+        self.integral = lim if i > lim else (-lim if i < -lim else i)
+        self.duty = self.kp * e + self.integral + self.kff * setpoint_rate_bar_s
+        return self.pulser.state(now_s, self.duty)
+
+
+class SlidingModePosition:
+    """Length target -> inflate / hold / exhaust by sliding mode (seed 004)."""
+
+    def __init__(self, *, lambda_per_s: float, boundary_mm_s: float, hold_band_mm: float,
+                 period_s: float, min_pulse_s: float) -> None:
+        self.lam = lambda_per_s
+        self.phi = boundary_mm_s
+        self.hold_band_mm = hold_band_mm
+        self.pulser = _Pulser(period_s, min_pulse_s)
+        self.surface = 0.0
+
+    def reset(self) -> None:
+        self.pulser.reset()
+        self.surface = 0.0
+
+    def step(self, now_s: float, length_mm: float, velocity_mm_s: float, target_mm: float,
+             target_velocity_mm_s: float) -> int:
+        e = length_mm - target_mm
+        s = self.lam * e + (velocity_mm_s - target_velocity_mm_s)
+        self.surface = s
+        if -self.hold_band_mm <= e <= self.hold_band_mm and target_velocity_mm_s == 0.0:
+            self.pulser.reset()
+            return HOLD
+        phi = self.phi
+        if s > phi:
+            return INFLATE
+        if s < -phi:
+            return EXHAUST
+        duty = s / phi
+        pulser = self.pulser
+        if -pulser.min_duty < duty < pulser.min_duty:
+            # Too small a pulse to send, yet outside the hold band: creep toward the
+            # target with the shortest pulse the valves pass.
+            duty = pulser.min_duty if e > 0.0 else -pulser.min_duty
+        return pulser.state(now_s, duty)
