@@ -66,6 +66,7 @@ def _reset(ctrl: Any, a: NoArgs) -> dict[str, Any]:
         if drv.fault is not None:
             raise CommandRefused(f"cannot reset: driver {drv.name!r} still reports {drv.fault}")
     for m in ctrl.muscles:
+        m.clear_findings()  # every signal trusted again; the checks start afresh
         if m.started:
             m.pid.reset(m.pressure)
             m.safing = False
