@@ -226,6 +226,12 @@ class MuscleController:
             return f"contracted {100 * x:.1f} % (limit {100 * self.max_c:.1f} %)"
         return None
 
+    def length_reference_changed(self) -> None:
+        """`home` set a new length reference: the velocity and the length checks start
+        afresh (the reading's step is the new offset, not a motion)."""
+        self._prev_len = math.nan
+        self.plaus.reference_changed()
+
     def clear_findings(self) -> None:
         """Reset: trust every signal again; the checks start afresh."""
         self.plaus.clear()
@@ -424,6 +430,7 @@ class MuscleController:
         """The encoder now reads the homed length itself: drop the software offset."""
         self.ref.length_offset_mm = 0.0
         self._prev_len = math.nan
+        self.plaus.reference_changed()
         self.pending_preset = None
         self.calibration_dirty = True
 

@@ -88,6 +88,13 @@ class Plausibility:
         self._p_since = math.inf
         self._p_cmd0 = self._p_l0 = math.nan
 
+    def reference_changed(self) -> None:
+        """A new length reference (home, a device preset): the reading steps by the new
+        offset, which is not a jump; the length checks start afresh."""
+        self._l_last = math.nan
+        self._anchor_l = math.nan
+        self._f_l0 = self._p_l0 = math.nan
+
     def distrust_pressure(self) -> None:
         self.pressure_ok = False
 

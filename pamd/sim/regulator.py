@@ -44,6 +44,7 @@ class Regulator:
         self.zero_bar = zero_bar
         self.vent_time_constant_s = vent_time_constant_s
         self.supply_ok = True
+        self.stuck = False  # an injected fault: new setpoints are ignored
         self.exhaust_open = False
         p0 = min(max(initial_bar, 0.0), max_bar, supply_bar)
         self.setpoint_bar = p0  # as written (clamped to the input range)
@@ -60,7 +61,10 @@ class Regulator:
         self._alpha_vent = 0.0
 
     def set_setpoint(self, value_bar: float) -> None:
-        """The commanded pressure; clamped to the regulator's input range."""
+        """The commanded pressure; clamped to the regulator's input range. Ignored while
+        `stuck` (an injected fault)."""
+        if self.stuck:
+            return
         if value_bar < 0.0:
             value_bar = 0.0
         elif value_bar > self.max_bar:
