@@ -372,6 +372,8 @@ class MuscleController:
                 flags |= F_SOFT_C
             elif u < lim.lo:
                 flags |= F_PRETENSION
+            else:
+                lim.caught_up()
         else:
             lim.no_guard()
         u_free = u

@@ -5,6 +5,8 @@ The guards never write the setpoint: they only bound the command, each in its
 restoring direction (near the contraction limit the command may not rise, beyond
 it it falls at the slew limit; stretched past the pretension limit it may not
 fall, and rises at the slew limit), with a release band so they do not chatter.
+A released guard lets the command return to what control wants at the slew limit
+(bumpless, as when the guard used to drag the setpoint along).
 They act only on a trusted, referenced length: an untrusted length bounds nothing
 (the muscle then holds its safe pressure open loop; `pamd.safety.limiter`).
 
@@ -32,7 +34,7 @@ class LimitMonitor:
         self.p_name = pressure_name
         self.set_limits(limits, safety)
         self.set_times(safety)
-        self.c_guard = self.s_guard = False
+        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
         self._over_p_since = self._over_c_since = self._over_s_since = math.inf
         self._track_since = math.inf
         self.lo = 0.0  # guard bounds on the command of this tick
@@ -52,7 +54,7 @@ class LimitMonitor:
         self.track_band, self.track_s = saf.tracking_band_bar, saf.tracking_time_s
 
     def reset_guards(self) -> None:
-        self.c_guard = self.s_guard = False
+        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
 
     # -- faults -------------------------------------------------------------------
     def hard_pressure(self, now: float, p: float) -> str | None:
@@ -111,24 +113,36 @@ class LimitMonitor:
         if self.c_guard:
             if x < self.c_release:
                 self.c_guard = False
+                self.c_recover = True
         elif x >= self.soft_c:
             self.c_guard = True
+            self.c_recover = False
         if self.s_guard:
             if x > self.s_release:
                 self.s_guard = False
+                self.s_recover = True
         elif x <= -self.max_stretch:
             self.s_guard = True
+            self.s_recover = False
+        self.lo, self.hi = 0.0, math.inf
         if self.c_guard:
             # restoring: never up; beyond the limit, down at the slew limit
             self.hi = prev_cmd - step if x >= self.max_c else prev_cmd
-            self.lo = 0.0
-        elif self.s_guard:
-            # restoring: never down; beyond the limit, up at the slew limit
-            self.lo = prev_cmd + step if x <= -self.max_stretch else prev_cmd
-            self.hi = math.inf
-        else:
-            self.lo, self.hi = 0.0, math.inf
+        elif self.c_recover:
+            # released: back towards what control wants at the slew limit (bumpless)
+            self.hi = prev_cmd + step
+        if self.s_guard:
+            if not self.c_guard:  # both at once cannot be: contraction wins
+                # restoring: never down; beyond the limit, up at the slew limit
+                self.lo = prev_cmd + step if x <= -self.max_stretch else prev_cmd
+        elif self.s_recover and not self.c_guard:
+            self.lo = prev_cmd - step
+
+    def caught_up(self) -> None:
+        """The command is inside the bounds: a released guard's recovery is over."""
+        self.c_recover = self.s_recover = False
 
     def no_guard(self) -> None:
         """No trusted length this tick: the guards bound nothing."""
         self.lo, self.hi = 0.0, math.inf
+        self.c_recover = self.s_recover = False

@@ -138,7 +138,7 @@ class Plausibility:
         # Frozen: the length does not move while the pressure moves, and the force does
         # not change as it would if the muscle really stood still (an isometric clamp or
         # a hard stop keeps the length, but then the force follows the pressure).
-        if not (self._anchor_l == self._anchor_l) or abs(length - self._anchor_l) > self.frozen_mm:
+        if self._anchor_l != self._anchor_l or abs(length - self._anchor_l) > self.frozen_mm:
             self._anchor_l, self._anchor_p, self._anchor_f = length, p, f
             return None
         dp = p - self._anchor_p
