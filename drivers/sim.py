@@ -82,6 +82,7 @@ class SimDriver(Driver):
         self._schedule: list[SimFault] = sorted(options.faults, key=lambda f: f.at_s)
         self._next_fault = 0
         self._t_s = 0.0
+        self._t_open = 0.0
         self._any_sensor_fault = False
         self._driver_error = False
         self._clock: Clock | None = None
@@ -109,7 +110,8 @@ class SimDriver(Driver):
     def open(self, clock: Clock) -> None:
         """Store the clock and publish the readings of the rig at rest."""
         self._clock = clock
-        self._publish(clock())
+        self._t_open = clock()
+        self._publish(self._t_open)
 
     def write(self, index: int, value: float) -> None:
         """Regulator setpoint (bar) or exhaust (>= 0.5 opens); never blocks.
@@ -139,14 +141,18 @@ class SimDriver(Driver):
             plant.advance(dt_s)
         self._steps += 1
         self._t_s += dt_s
-        sched = self._schedule
-        while self._next_fault < len(sched) and sched[self._next_fault].at_s <= self._t_s:
-            f = sched[self._next_fault]
-            self._next_fault += 1
-            self.inject_fault(f.muscle, f.signal, f.kind, f.size)
         clock = self._clock
+        now_s = clock() if clock is not None else math.nan
+        if self._next_fault < len(self._schedule):
+            # the schedule runs on the loop's clock (this tick's time), else on the steps
+            elapsed = now_s - self._t_open + 1e-9 if clock is not None else self._t_s
+            sched = self._schedule
+            while self._next_fault < len(sched) and sched[self._next_fault].at_s <= elapsed:
+                f = sched[self._next_fault]
+                self._next_fault += 1
+                self.inject_fault(f.muscle, f.signal, f.kind, f.size)
         if clock is not None:
-            self._publish(clock())
+            self._publish(now_s)
 
     def is_absolute(self, index: int) -> bool:
         """Pressure and force are absolute; a length unless its muscle's

@@ -189,6 +189,12 @@ class PlausibilityConfig:
         "samples has jumped: faster than the muscle can move.", unit="mm/s", gt=0.0)
     length_jump_mm: float = spec(1.0, "Allowance on top of length_max_rate_mm_s (encoder counts, "
                                  "sampling).", unit="mm", min=0.0)
+    pressure_max_rate_bar_per_s: float = spec(
+        500.0, "A pressure reading changing faster than this (plus pressure_jump_bar) between "
+        "two samples has jumped (an exhaust valve vents 6 bar at about 400 bar/s).",
+        unit="bar/s", gt=0.0)
+    pressure_jump_bar: float = spec(0.3, "Allowance on top of pressure_max_rate_bar_per_s "
+                                    "(noise, sampling).", unit="bar", min=0.0)
     min_contraction: float = spec(-0.15, "A referenced length stretched beyond this contraction "
                                   "is physically impossible (a broken or dead sensor).",
                                   min=-1.0, max=0.0)
@@ -200,6 +206,9 @@ class PlausibilityConfig:
         unit="bar", gt=0.0)
     frozen_length_mm: float = spec(0.05, "Length change still counted as not moving.",
                                    unit="mm", min=0.0)
+    frozen_force_change_n: float = spec(
+        100.0, "... and the force model at that length must change by more than this (more "
+        "than friction can hold the muscle against).", unit="N", min=0.0)
     frozen_s: float = spec(0.2, "A force or pressure reading repeating the identical value this "
                            "long while the muscle moves or the command changes is frozen.",
                            unit="s", gt=0.0)

@@ -16,14 +16,20 @@ Checks and their detection times (defaults of `safety.plausibility`):
   plus `length_jump_mm`: detected at the first sample after the jump;
 * length out of the physical range (`min_contraction`..`max_contraction`, a dead
   encoder's 0 mm is 100 % contraction), when referenced: at the first sample;
-* length frozen: within `frozen_length_mm` while the pressure changed by
-  `frozen_pressure_change_bar` and the force did not change as it would at a fixed
+* length frozen (while pressure and force are trusted): within `frozen_length_mm`
+  while the (low-passed) pressure changed by `frozen_pressure_change_bar`, enough
+  for the force model to change by more than friction can hold
+  (`frozen_force_change_n`), and the force did not change as it would at a fixed
   length (less than 30 % of the model's change): as soon as the pressure has moved
   that much (a stuck reading while nothing moves harms nothing);
-* force zero under a known load (below `force_zero_fraction` of the weight) for
-  `force_zero_s`;
+* force zero under a known load (below `force_zero_fraction` of the weight, while
+  the force model says the muscle holds at least half of it at the measured
+  pressure and length, i.e. the load is not resting on a stop) for `force_zero_s`;
 * force or pressure frozen: the identical value for `frozen_s` while the muscle
   moved (0.5 mm) or the pressure command changed (0.2 bar);
+* pressure jump: a change between two samples faster than
+  `pressure_max_rate_bar_per_s` plus `pressure_jump_bar` (a dead sensor dropping to
+  0, a noisy one): at the first sample;
 * pressure not following an open valve: the tracking check in
   `pamd.safety.limits` (`tracking_band_bar` for `tracking_time_s`), which also
   marks the pressure untrusted here through `distrust_pressure`.
@@ -44,6 +50,9 @@ FROZEN_FORCE_SHARE = 0.3
 #: What counts as "the muscle moved" / "the command changed" for frozen readings.
 MOVED_MM = 0.5
 COMMAND_CHANGED_BAR = 0.2
+#: Per-sample weight of the low-pass on pressure and force used by the frozen-length
+#: check (about 20 samples: 20 ms at 1 kHz).
+LOWPASS_ALPHA = 0.05
 
 
 class Plausibility:
@@ -63,9 +72,10 @@ class Plausibility:
         """Thresholds (set-up and reloads): a `PlausibilityConfig`."""
         self.enabled = cfg.enabled
         self.max_rate, self.jump_mm = cfg.length_max_rate_mm_s, cfg.length_jump_mm
+        self.p_max_rate, self.p_jump = cfg.pressure_max_rate_bar_per_s, cfg.pressure_jump_bar
         self.min_x, self.max_x = cfg.min_contraction, cfg.max_contraction
         self.frozen_dp, self.frozen_mm = cfg.frozen_pressure_change_bar, cfg.frozen_length_mm
-        self.frozen_s = cfg.frozen_s
+        self.frozen_s, self.frozen_df = cfg.frozen_s, cfg.frozen_force_change_n
         self.zero_share, self.zero_s = cfg.force_zero_fraction, cfg.force_zero_s
         self.min_load_kg = cfg.force_check_min_load_kg
 
@@ -87,6 +97,7 @@ class Plausibility:
         self._p_last = math.nan
         self._p_since = math.inf
         self._p_cmd0 = self._p_l0 = math.nan
+        self._p_lp = self._f_lp = math.nan
 
     def reference_changed(self) -> None:
         """A new length reference (home, a device preset): the reading steps by the new
@@ -107,12 +118,20 @@ class Plausibility:
         if not self.enabled:
             return None
         found = None
-        if self.length_ok and l_t != self._l_t:
-            found = self._check_length(l_t, length, p, f, referenced)
-        if self.force_ok and f_t != self._f_t and found is None:
-            found = self._check_force(now, f_t, f, p, length, load_known)
-        if self.pressure_ok and p_t != self._p_t and found is None:
+        # low-passed pressure and force for the frozen-length check (noise is not motion)
+        if p_t != self._p_t and p == p:
+            lp = self._p_lp
+            self._p_lp = p if lp != lp else lp + LOWPASS_ALPHA * (p - lp)
+        if f_t != self._f_t and f == f:
+            lp = self._f_lp
+            self._f_lp = f if lp != lp else lp + LOWPASS_ALPHA * (f - lp)
+        # the pressure first: the length and force checks lean on it
+        if self.pressure_ok and p_t != self._p_t:
             found = self._check_pressure(p_t, p, command, length)
+        if self.force_ok and f_t != self._f_t and found is None:
+            found = self._check_force(now, f_t, f, p, length, load_known and referenced)
+        if self.length_ok and l_t != self._l_t and found is None:
+            found = self._check_length(l_t, length, self._p_lp, self._f_lp, referenced)
         return found
 
     def _check_length(self, t: float, length: float, p: float, f: float,
@@ -141,10 +160,14 @@ class Plausibility:
         if self._anchor_l != self._anchor_l or abs(length - self._anchor_l) > self.frozen_mm:
             self._anchor_l, self._anchor_p, self._anchor_f = length, p, f
             return None
+        if not (self.pressure_ok and self.force_ok):
+            return None  # the frozen check needs both
         dp = p - self._anchor_p
         if abs(dp) >= self.frozen_dp and p == p and f == f:
             x = (self.length0_mm - length) / self.length0_mm
             model_df = (self.model.force_n(p, x) - self.model.force_n(self._anchor_p, x))
+            if abs(model_df) < self.frozen_df:
+                return None  # friction may still hold it: wait for a larger change
             if abs(f - self._anchor_f) < FROZEN_FORCE_SHARE * abs(model_df):
                 self.length_ok = False
                 return (f"{self.muscle}: {self.l_name} frozen at {length:.2f} mm while the "
@@ -158,14 +181,16 @@ class Plausibility:
                      load_known: bool) -> str | None:
         self._f_t = t
         w = self.weight_n
-        if w > 0.0 and load_known and f == f and abs(f) < self.zero_share * w:
+        if (w > 0.0 and load_known and f == f and abs(f) < self.zero_share * w
+                and self._carries_load(p, length, w)):
             if self._zero_since == math.inf:
                 self._zero_since = now
             elif now - self._zero_since >= self.zero_s:
                 self.force_ok = False
                 return (f"{self.muscle}: {self.f_name} reads {f:.1f} N for "
                         f"{1000 * (now - self._zero_since):.0f} ms under a known load of "
-                        f"{w:.0f} N: dead sensor or broken cable")
+                        f"{w:.0f} N that the muscle holds at this pressure and length: "
+                        "dead sensor or broken cable")
         else:
             self._zero_since = math.inf
         if f != self._f_last:
@@ -173,7 +198,7 @@ class Plausibility:
             self._f_since, self._f_p0, self._f_l0 = now, p, length
             return None
         if now - self._f_since >= self.frozen_s and (
-                abs(p - self._f_p0) >= COMMAND_CHANGED_BAR
+                (self.pressure_ok and abs(p - self._f_p0) >= COMMAND_CHANGED_BAR)
                 or (self.length_ok and abs(length - self._f_l0) >= MOVED_MM)):
             self.force_ok = False
             return (f"{self.muscle}: {self.f_name} frozen at {f:.1f} N for "
@@ -181,9 +206,26 @@ class Plausibility:
                     "sensor")
         return None
 
+    def _carries_load(self, p: float, length: float, w: float) -> bool:
+        """Does the muscle, by its force model, pull at least half the load's weight at
+        this pressure and length? (Not when the load rests on a stop or the muscle is
+        clamped.) Without a trusted length, assume it does."""
+        if not self.length_ok or length != length:
+            return True
+        x = (self.length0_mm - length) / self.length0_mm
+        return self.model.force_n(p, x) > 0.5 * w
+
     def _check_pressure(self, t: float, p: float, command: float,
                         length: float) -> str | None:
+        prev_t, prev = self._p_t, self._p_last
         self._p_t = t
+        if prev == prev and p == p and t > prev_t:
+            step = abs(p - prev)
+            if step > self.p_max_rate * (t - prev_t) + self.p_jump:
+                self.pressure_ok = False
+                return (f"{self.muscle}: {self.p_name} jumped {p - prev:+.2f} bar in "
+                        f"{1000 * (t - prev_t):.0f} ms, faster than the muscle's pressure can "
+                        f"change ({self.p_max_rate:g} bar/s): noisy, dead or broken sensor")
         if p != self._p_last:
             self._p_last = p
             self._p_since, self._p_cmd0, self._p_l0 = t, command, length
