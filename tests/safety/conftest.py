@@ -132,7 +132,8 @@ def safety_rig(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[...
 
     def make(load_kg: float, initial_bar: float = 0.0,
              faults: list[dict[str, Any]] | None = None, **changes: Any) -> SafetyRig:
-        cfg = sim_config(load_kg, drivers=sim_driver(load_kg, initial_bar, faults), **changes)
+        changes.setdefault("drivers", sim_driver(load_kg, initial_bar, faults))
+        cfg = sim_config(load_kg, **changes)
         h = Harness(cfg)
         made.append(h)
         return SafetyRig(h)
