@@ -151,6 +151,9 @@ class RigController:
             self.supervisor.go(now, State.IDLE, "sensors read; " + "; ".join(parts))
             if self.supervisor.fault_reason:  # restored latched fault (service restart)
                 self.supervisor.fault(now, self.supervisor.fault_reason)
+            for m in self.muscles:  # a reading found implausible while starting
+                if m.plaus.reason is not None:
+                    self.supervisor.fault(now, m.plaus.reason)
         elif now - self.t_start > self.startup_timeout_s:
             self.supervisor.fault(now, f"start-up: no reading from {missing} within "
                                   f"{self.startup_timeout_s:g} s; nothing was written")

@@ -390,7 +390,7 @@ class MuscleController:
             reason = lim.tracking(now, p, prev_u)
             flags |= lim.flags
             if reason is not None:
-                plaus.distrust_pressure()
+                plaus.distrust_pressure(reason)
                 self.finding = reason
                 if fault is None:
                     fault = reason

@@ -85,6 +85,7 @@ class Plausibility:
     def clear(self) -> None:
         """Trust every signal again and restart every check (reset)."""
         self.length_ok = self.force_ok = self.pressure_ok = True
+        self.reason: str | None = None  # the first finding since the last clear()
         self._l_t = math.nan  # stamp of the last length sample checked
         self._l_last = math.nan
         self._anchor_l = self._anchor_p = self._anchor_f = math.nan
@@ -106,8 +107,10 @@ class Plausibility:
         self._anchor_l = math.nan
         self._f_l0 = self._p_l0 = math.nan
 
-    def distrust_pressure(self) -> None:
+    def distrust_pressure(self, reason: str) -> None:
         self.pressure_ok = False
+        if self.reason is None:
+            self.reason = reason
 
     # -- the tick -----------------------------------------------------------------
     def check(self, now: float, p: float, p_t: float, f: float, f_t: float, length: float,
@@ -132,6 +135,8 @@ class Plausibility:
             found = self._check_force(now, f_t, f, p, length, load_known and referenced)
         if self.length_ok and l_t != self._l_t and found is None:
             found = self._check_length(l_t, length, self._p_lp, self._f_lp, referenced)
+        if found is not None and self.reason is None:
+            self.reason = found
         return found
 
     def _check_length(self, t: float, length: float, p: float, f: float,

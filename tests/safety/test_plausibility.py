@@ -107,3 +107,20 @@ def test_an_isometric_clamp_is_not_a_frozen_length_nor_a_lost_load(
     rig.cmd("profile", kind="sine", min_bar=0.0, max_bar=6.0, freq_hz=0.25, cycles=1)
     rig.run(5.0)
     assert rig.h.ctrl.supervisor.faults == []
+
+
+def test_a_reading_found_implausible_while_starting_faults_once_started(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    rig = safety_rig(30.0)
+    sim = rig.h.sim
+    sim.inject_fault("m1", "force", "silent")  # start-up waits for the force ...
+    sim.in_stamps_s[1] = -10.0
+    sim.inject_fault("m1", "length", "dead")  # ... while the length reads 0 mm
+    rig.run(0.02)
+    assert rig.h.state == "STARTING" and not rig.m.plaus.length_ok
+    sim.clear_faults()  # the force answers: the rig starts, and faults at once
+    rig.run(0.02)
+    sup = rig.h.ctrl.supervisor
+    assert [t.new.name for t in sup.history] == ["IDLE", "FAULT"]
+    assert "m1.length reads 0.00 mm" in sup.fault_reason
+    assert "length untrusted" in sup.history[0].reason  # and it ramps to the safe pressure
