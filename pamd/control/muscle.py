@@ -163,7 +163,7 @@ class MuscleController:
         if not with_limits:
             return
         self._set_limits(s.limits, s.safety, s.slew_limit_bar_per_s)
-        self.length0_mm = s.nominal_length_mm
+        self.length0_mm = self.plaus.length0_mm = s.nominal_length_mm
         self.update_load(self.load_kg if s.load_kg is None else s.load_kg)
 
     def _set_limits(self, lim: MuscleLimitsResolved, saf: Any, slew_bar_per_s: float) -> None:
