@@ -1,6 +1,6 @@
 """The safety contract (issue 11): for every scripted fault kind x load (0, 30, 80 kg)
 x the state the rig is in when it strikes (IDLE, RUNNING, HOLD, a safe ramp,
-start-up), on the virtual clock, the invariants hold over the whole run: the
+start-up, and an ESTOP ramp), on the virtual clock, the invariants hold over the whole run: the
 command never above the limits, in a safe state never below the safe pressure and
 never faster than the slew limit, the setpoint never pushed by a guard, and the
 muscle inside its hard contraction limits where the physics allows.
@@ -21,9 +21,10 @@ SENSOR_FAULTS = [(s, k) for s in ("length", "force", "pressure")
                  for k in ("dead", "stuck", "noisy", "jump", "silent")]
 FAULTS = SENSOR_FAULTS + [("supply", "lost"), ("valve", "stuck"), ("driver", "error")]
 LOADS = (0.0, 30.0, 80.0)
-STATES = ("idle", "running", "hold", "safe_ramp", "startup")
+STATES = ("idle", "running", "hold", "safe_ramp", "startup", "estop")
 #: When the fault strikes in each scenario, s after the driver opened.
-FAULT_AT_S = {"idle": 0.5, "running": 1.0, "hold": 1.5, "safe_ramp": 2.1, "startup": 0.0}
+FAULT_AT_S = {"idle": 0.5, "running": 1.0, "hold": 1.5, "safe_ramp": 2.1, "startup": 0.0,
+              "estop": 1.05}
 AFTER_S = 2.5  # how long the run goes on after the fault
 
 
@@ -41,11 +42,13 @@ def _scenario(rig: SafetyRig, state: str, load_kg: float) -> None:
     rig.run(0.01)
     if state == "idle":
         rig.run(FAULT_AT_S["idle"] - 0.01 + AFTER_S)
-    elif state in ("running", "hold"):
+    elif state in ("running", "hold", "estop"):
         rig.cmd("profile", kind="sine", min_bar=low, max_bar=high, freq_hz=0.25)
         rig.run(1.0 - 0.01)
         if state == "hold":
             rig.cmd("hold")
+        elif state == "estop":  # the emergency ramp (20 bar/s) is under way
+            rig.cmd("estop", reason="contract suite")
         rig.run(FAULT_AT_S[state] - 1.0 + AFTER_S)
     else:  # a safe ramp down from a high pressure: a stop
         rig.cmd("setpoint", muscle="m1", bar=4.5)
