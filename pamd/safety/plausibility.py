@@ -195,7 +195,8 @@ class Plausibility:
                 return (f"{self.muscle}: {self.f_name} reads {f:.1f} N for "
                         f"{1000 * (now - self._zero_since):.0f} ms under a known load of "
                         f"{w:.0f} N that the muscle holds at this pressure and length: "
-                        "dead sensor or broken cable")
+                        "dead sensor or broken cable (or the load went without a `load` "
+                        "command)")
         else:
             self._zero_since = math.inf
         if f != self._f_last:
