@@ -1,7 +1,9 @@
 """The `sim` driver: a simulated rig of DMSP-20 muscles stepped by the loop.
 
 Per muscle X it has inputs `X.pressure` (bar), `X.force` (N, in-line load cell),
-`X.length` (mm, absolute; the simulated rig starts referenced) and outputs
+`X.length` (mm; absolute, so the simulated rig starts referenced, unless the
+muscle's `length_absolute` is false: then an incremental encoder reading 0 at
+power-up) and outputs
 `X.valve` (bar, regulator setpoint) and `X.exhaust` (0 closed / 1 open dump
 valve), or with on/off actuation `X.inflate` and `X.exhaust` (0 / 1: the inflate
 and exhaust solenoid valves). Inputs of muscle k are channels 3k..3k+2, outputs
@@ -10,7 +12,9 @@ and exhaust solenoid valves). Inputs of muscle k are channels 3k..3k+2, outputs
 The loop calls `advance(dt_s)` once per tick and then reads `in_values` /
 `in_stamps_s` (stamped with the loop's clock at the end of `advance`). The
 physics lives in `pamd.sim.plant`. Tests and the CLI can change a load while
-running (`set_load_kg`) and inject faults (`inject_fault`, `clear_faults`).
+running (`set_load_kg`) and inject faults (`inject_fault`, `clear_faults`); the
+options' `faults` schedule injects them at set times after `open`, so a rig's
+reaction to each fault can be shown from the CLI (`pamd run --config ...`).
 """
 
 from __future__ import annotations
@@ -24,7 +28,15 @@ from pamd.drivers import Channel, Clock, Driver, DriverHealth
 from pamd.errors import DriverError
 from pamd.muscle import ForceModel, force_model
 from pamd.sim.onoff import OnOffValves
-from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
+from pamd.sim.options import (
+    FAULT_KINDS,
+    JUMP_DEFAULT,
+    NOISE_DEFAULT,
+    SimFault,
+    SimMuscleOptions,
+    SimOptions,
+    check_options,
+)
 from pamd.sim.plant import MusclePlant
 from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
 
@@ -32,10 +44,11 @@ INPUTS_PER_MUSCLE = 3  # pressure, force, length
 OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
 
 SIGNALS: tuple[str, ...] = ("pressure", "force", "length")
-SENSOR_FAULTS: tuple[str, ...] = ("stuck", "dead", "silent")
+SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
 
-_OK, _STUCK, _DEAD, _SILENT = 0, 1, 2, 3
-_FAULT_CODES = {"stuck": _STUCK, "dead": _DEAD, "silent": _SILENT}
+_OK, _STUCK, _DEAD, _SILENT, _NOISY, _JUMP = 0, 1, 2, 3, 4, 5
+_FAULT_CODES = {"stuck": _STUCK, "dead": _DEAD, "silent": _SILENT, "noisy": _NOISY,
+                "jump": _JUMP}
 
 
 def muscle_rng(seed: int, muscle: str) -> random.Random:
@@ -65,7 +78,16 @@ class SimDriver(Driver):
             rng = muscle_rng(options.seed, m.name)
             self._plants.append(MusclePlant(m, rng, models[m.force_model], self.supply_line))
         self._by_name = {p.name: k for k, p in enumerate(self._plants)}
+        # incremental encoders read 0 at power-up: the true length then is their zero
+        self._len_zero_mm = [0.0 if m.length_absolute else p.length_read_mm
+                             for m, p in zip(options.muscles, self._plants, strict=True)]
         self._modes = [_OK] * len(self.input_channels)
+        self._sizes = [0.0] * len(self.input_channels)
+        self._fault_rng = random.Random(f"pamd.sim.faults:{options.seed}")
+        self._schedule: list[SimFault] = sorted(options.faults, key=lambda f: f.at_s)
+        self._next_fault = 0
+        self._t_s = 0.0
+        self._t_open = 0.0
         self._any_sensor_fault = False
         self._driver_error = False
         self._clock: Clock | None = None
@@ -92,7 +114,8 @@ class SimDriver(Driver):
     def open(self, clock: Clock) -> None:
         """Store the clock and publish the readings of the rig at rest."""
         self._clock = clock
-        self._publish(clock())
+        self._t_open = clock()
+        self._publish(self._t_open)
 
     def write(self, index: int, value: float) -> None:
         """Regulator setpoint (bar) or exhaust (>= 0.5 opens); never blocks.
@@ -126,13 +149,27 @@ class SimDriver(Driver):
         if self.supply_line is not None:
             self.supply_line.step(dt_s)
         self._steps += 1
+        self._t_s += dt_s
         clock = self._clock
+        now_s = clock() if clock is not None else math.nan
+        if self._next_fault < len(self._schedule):
+            # the schedule runs on the loop's clock (this tick's time), else on the steps
+            elapsed = now_s - self._t_open + 1e-9 if clock is not None else self._t_s
+            sched = self._schedule
+            while self._next_fault < len(sched) and sched[self._next_fault].at_s <= elapsed:
+                f = sched[self._next_fault]
+                self._next_fault += 1
+                self.inject_fault(f.muscle, f.signal, f.kind, f.size)
         if clock is not None:
-            self._publish(clock())
+            self._publish(now_s)
 
     def is_absolute(self, index: int) -> bool:
-        """Every simulated input is absolute: the simulated rig starts referenced."""
-        return 0 <= index < len(self.input_channels)
+        """Pressure and force are absolute; a length unless its muscle's
+        `length_absolute` is false (an incremental encoder that needs `home`)."""
+        if not 0 <= index < len(self.input_channels):
+            return False
+        k, j = divmod(index, INPUTS_PER_MUSCLE)
+        return j != 2 or self.options.muscles[k].length_absolute
 
     def health(self) -> DriverHealth:
         return DriverHealth(
@@ -165,14 +202,18 @@ class SimDriver(Driver):
         """Change the mass hanging from `muscle` while running."""
         self.plant(muscle).set_load_kg(load_kg)
 
-    def inject_fault(self, muscle: str, signal: str, kind: str) -> None:
+    def inject_fault(self, muscle: str, signal: str, kind: str,
+                     size: float | None = None) -> None:
         """Make part of the simulated rig fail until `clear_faults`.
 
         Sensor faults, `signal` in pressure/force/length: `stuck` (value frozen,
-        stamps advance), `dead` (reads 0.0, stamps advance), `silent` (stamps stop).
-        `inject_fault(muscle, "supply", "lost")`: the regulator loses its supply
-        air, so the pressure cannot rise. `inject_fault("*", "driver", "error")`:
-        the whole device fails: `fault` is set, readings stop, writes are dropped.
+        stamps advance), `dead` (reads 0.0, stamps advance), `silent` (stamps stop),
+        `noisy` (gaussian noise of standard deviation `size` added), `jump` (the
+        reading steps by `size` and stays offset). `inject_fault(muscle, "supply",
+        "lost")`: the regulator loses its supply air, so the pressure cannot rise.
+        `inject_fault(muscle, "valve", "stuck")`: the regulator ignores new setpoints.
+        `inject_fault("*", "driver", "error")`: the whole device fails: `fault` is
+        set, readings stop, writes are dropped.
         """
         if signal == "driver":
             if kind != "error":
@@ -186,6 +227,11 @@ class SimDriver(Driver):
                 raise ValueError(f"supply fault kind must be 'lost', got {kind!r}")
             self._plants[k].set_supply(False)
             return
+        if signal == "valve":
+            if kind != "stuck":
+                raise ValueError(f"valve fault kind must be 'stuck', got {kind!r}")
+            self._plants[k].regulator.stuck = True
+            return
         if signal not in SIGNALS:
             raise ValueError(
                 f"unknown signal {signal!r}; use one of {', '.join(SIGNALS)}, supply, driver"
@@ -194,7 +240,12 @@ class SimDriver(Driver):
             raise ValueError(
                 f"unknown sensor fault {kind!r}; use one of {', '.join(SENSOR_FAULTS)}"
             )
-        self._modes[k * INPUTS_PER_MUSCLE + SIGNALS.index(signal)] = _FAULT_CODES[kind]
+        i = k * INPUTS_PER_MUSCLE + SIGNALS.index(signal)
+        self._modes[i] = _FAULT_CODES[kind]
+        if kind == "noisy":
+            self._sizes[i] = NOISE_DEFAULT[signal] if size is None else size
+        elif kind == "jump":
+            self._sizes[i] = JUMP_DEFAULT[signal] if size is None else size
         self._any_sensor_fault = True
 
     def clear_faults(self) -> None:
@@ -203,6 +254,7 @@ class SimDriver(Driver):
         self._any_sensor_fault = False
         for plant in self._plants:
             plant.set_supply(True)
+            plant.regulator.stuck = False
         self._driver_error = False
         self.fault = None
 
@@ -219,12 +271,13 @@ class SimDriver(Driver):
             return
         values = self.in_values
         stamps = self.in_stamps_s
+        zero = self._len_zero_mm
         if not self._any_sensor_fault:
             i = 0
-            for plant in self._plants:
+            for k, plant in enumerate(self._plants):
                 values[i] = plant.pressure_read_bar
                 values[i + 1] = plant.force_read_n
-                values[i + 2] = plant.length_read_mm
+                values[i + 2] = plant.length_read_mm - zero[k]
                 # Stamped with when the device took the sample (its age is 0 for a
                 # sensor sampled at every step without latency).
                 stamps[i] = now_s - plant.pressure_age_s
@@ -232,10 +285,12 @@ class SimDriver(Driver):
                 stamps[i + 2] = now_s - plant.length_age_s
                 i += 3
             return
-        modes = self._modes
+        modes, sizes = self._modes, self._sizes
+        gauss = self._fault_rng.gauss
         i = 0
-        for plant in self._plants:
-            readings = (plant.pressure_read_bar, plant.force_read_n, plant.length_read_mm)
+        for k, plant in enumerate(self._plants):
+            readings = (plant.pressure_read_bar, plant.force_read_n,
+                        plant.length_read_mm - zero[k])
             ages = (plant.pressure_age_s, plant.force_age_s, plant.length_age_s)
             for j in range(INPUTS_PER_MUSCLE):
                 mode = modes[i]
@@ -243,6 +298,10 @@ class SimDriver(Driver):
                     values[i] = readings[j]
                 elif mode == _DEAD:
                     values[i] = 0.0
+                elif mode == _NOISY:
+                    values[i] = readings[j] + gauss(0.0, sizes[i])
+                elif mode == _JUMP:
+                    values[i] = readings[j] + sizes[i]
                 if mode != _SILENT:
                     stamps[i] = now_s - ages[j]
                 i += 1
@@ -262,4 +321,4 @@ def _shared_supply_line(options: SimOptions) -> SupplyLine | None:
     )
 
 
-__all__ = ["SimDriver", "SimMuscleOptions", "SimOptions", "muscle_rng"]
+__all__ = ["SimDriver", "SimFault", "SimMuscleOptions", "SimOptions", "muscle_rng"]

@@ -96,6 +96,10 @@ class RigController:
             reason = m.tick(now, dt, state, rec)
             if reason is not None and fault is None:
                 fault = reason
+            if m.finding is not None:  # rare path: an implausible reading
+                self._finding(now, m)
+            if m.limit_report is not None:  # rare path: a profile held at a soft limit
+                self._soft_limit(now, m)
         if fault is not None and not sup.latched and state != S_STARTING:
             sup.fault(now, fault)
         elif fault is not None and state == S_STARTING:
@@ -113,23 +117,65 @@ class RigController:
         return rec
 
     def _starting(self, now: float) -> None:
-        """Read before writing: once every input is fresh, hold the measured pressure."""
+        """Read before writing. Once every input is fresh: a muscle inside its limits
+        holds its measured pressure; one outside them (stretched past its pretension
+        limit under its load, over-contracted, above the pressure limit, or with an
+        untrusted length) ramps from its measured pressure to its safe pressure at the
+        slew limit. The transition and one `startup` event per muscle say which, and
+        why."""
         missing = None
         for m in self.muscles:
             missing = m.inputs_fresh(now)
             if missing is not None:
                 break
         if missing is None:
+            held, ramped = [], []
             for m in self.muscles:
-                m.hold_measured()
-            held = ", ".join(f"{m.name} {m.sp:.2f} bar" for m in self.muscles)
-            self.supervisor.go(now, State.IDLE, f"sensors read; holding measured pressure "
-                               f"({held})")
+                why = m.outside_limits()
+                m.hold_measured(safe_ramp=why is not None)
+                if why is None:
+                    held.append(f"{m.name} {m.sp:.2f} bar")
+                    self.sink.event(now, "startup", {"muscle": m.name, "action": "hold",
+                                                     "pressure_bar": m.sp})
+                else:
+                    ramped.append(f"{m.name} {why}: ramping from {m.sp:.2f} bar to its safe "
+                                  f"pressure {m.safe_bar:.2f} bar at {m.slew:g} bar/s")
+                    self.sink.event(now, "startup", {
+                        "muscle": m.name, "action": "safe_ramp", "reason": why,
+                        "pressure_bar": m.sp, "safe_pressure_bar": m.safe_bar})
+            parts = []
+            if held:
+                parts.append(f"holding measured pressure ({', '.join(held)})")
+            if ramped:
+                parts.append("; ".join(ramped))
+            self.supervisor.go(now, State.IDLE, "sensors read; " + "; ".join(parts))
             if self.supervisor.fault_reason:  # restored latched fault (service restart)
                 self.supervisor.fault(now, self.supervisor.fault_reason)
+            for m in self.muscles:  # a reading found implausible while starting
+                if m.plaus.reason is not None:
+                    self.supervisor.fault(now, m.plaus.reason)
         elif now - self.t_start > self.startup_timeout_s:
             self.supervisor.fault(now, f"start-up: no reading from {missing} within "
                                   f"{self.startup_timeout_s:g} s; nothing was written")
+
+    def _finding(self, now: float, m: MuscleController) -> None:
+        """A reading that is no longer trusted: an event, whatever the state (a fault
+        already latched keeps its first reason; this one is still said)."""
+        trusted = [n for n, ok in (("pressure", m.plaus.pressure_ok),
+                                   ("force", m.plaus.force_ok),
+                                   ("length", m.plaus.length_ok)) if ok]
+        self.sink.event(now, "implausible", {"muscle": m.name, "reason": m.finding,
+                                             "trusted": trusted})
+        m.finding = None
+
+    def _soft_limit(self, now: float, m: MuscleController) -> None:
+        limit = m.limit_report
+        m.limit_report = None
+        self.sink.event(now, "soft_limit", {
+            "muscle": m.name, "limit": limit, "held_s": 1.0,
+            "setpoint_bar": m.sp, "valve_cmd_bar": m.valve_cmd,
+            "reason": f"{m.name}: the profile is held at the {limit} limit (setpoint "
+                      f"{m.sp:.2f} bar, command {m.valve_cmd:.2f} bar) for more than 1 s"})
 
     def _running_done(self, now: float) -> None:
         """A profile that has finished its cycles leaves the rig IDLE at its end value."""
@@ -195,6 +241,9 @@ class RigController:
                     "force_n": m.force, "length_mm": m.length, "contraction": m.contraction,
                     "load_kg": m.load_kg, "safe_pressure_bar": m.safe_bar,
                     "referenced": m.referenced, "mode": m.mode.name.lower(),
+                    "safe_ramp": m.safing,
+                    "trusted": {"pressure": m.plaus.pressure_ok, "force": m.plaus.force_ok,
+                                "length": m.plaus.length_ok},
                     "profile": m.profile.spec.kind if m.profile else None,
                     "limits": {"max_pressure_bar": m.max_p, "max_contraction": m.max_c,
                                "max_pretension": m.max_stretch},

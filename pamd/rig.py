@@ -88,7 +88,8 @@ class Rig:
             s = m.signals
             ref = calibration.for_muscle(m.name)
             length = self._input(f"{m.name}.length", s.length, timeout)
-            self.absolute_length = length.driver.is_absolute(length.index)
+            self.absolute_length = (length.driver.is_absolute(length.index)
+                                    or s.length.absolute)
             if self.absolute_length:
                 ref.length_referenced = True
             self.muscles.append(MuscleSignals(

@@ -10,20 +10,27 @@ from typing import Any
 
 from pamd.tick import (
     I_STATE,
+    I_T,
+    M_FLAGS,
     M_LENGTH,
     M_PRESSURE,
     M_SETPOINT,
     M_TARGET_LENGTH,
+    Flag,
     State,
     TickLayout,
 )
 
 _RUNNING = float(int(State.RUNNING))
+_AT_LIMIT = int(Flag.SOFT_LIMIT_PRESSURE | Flag.SOFT_LIMIT_CONTRACTION | Flag.PRETENSION_LIMIT)
 
 
 class SummarySink:
-    """Accumulates tracking errors while RUNNING (measured pressure vs setpoint, and
-    in the length modes measured length vs target length) and the run's events.
+    """Accumulates tracking errors while RUNNING (measured pressure vs the setpoint,
+    which is the profile's target: no limit or guard ever writes it, so a profile a
+    limit holds back shows as tracking error; in the length modes measured length vs
+    target length), the time a soft limit held the valve command back while RUNNING,
+    and the run's events (`soft_limit` events: a profile held at a limit > 1 s).
     Constant work per tick; no allocation."""
 
     def __init__(self, layout: TickLayout) -> None:
@@ -35,6 +42,9 @@ class SummarySink:
         self.len_sq = [0.0] * n
         self.len_max_abs = [0.0] * n
         self.len_count = [0] * n
+        self.limited_s = [0.0] * n
+        self.limit_events = [0] * n
+        self._last_t = 0.0
         self.ticks = 0
         self.events: list[tuple[float, str, dict[str, Any]]] = []
         self.last = layout.new_record()
@@ -43,8 +53,13 @@ class SummarySink:
 
     def put(self, record: array) -> bool:
         self.ticks += 1
+        t = record[I_T]
+        dt = t - self._last_t
+        self._last_t = t
         if record[I_STATE] == _RUNNING:
             for k, b in enumerate(self._bases):
+                if int(record[b + M_FLAGS]) & _AT_LIMIT:
+                    self.limited_s[k] += dt
                 e = record[b + M_SETPOINT] - record[b + M_PRESSURE]
                 if e == e:
                     self.sq[k] += e * e
@@ -65,6 +80,8 @@ class SummarySink:
 
     def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
         self.events.append((t_s, kind, data))
+        if kind == "soft_limit" and data.get("muscle") in self.layout.muscles:
+            self.limit_events[self.layout.muscles.index(data["muscle"])] += 1
         for d in self.downstream:
             d.event(t_s, kind, data)
 
@@ -73,9 +90,11 @@ class SummarySink:
             d.close()
 
     def tracking(self) -> dict[str, dict[str, float | None]]:
-        """Per muscle: pressure tracking (`rmse_bar`, `max_error_bar`, `samples`) and
-        length tracking in the length modes (`length_rmse_mm`, `length_max_error_mm`,
-        `length_samples`); None where nothing was tracked."""
+        """Per muscle: pressure tracking against the profile's target (`rmse_bar`,
+        `max_error_bar`, `samples`), length tracking in the length modes
+        (`length_rmse_mm`, `length_max_error_mm`, `length_samples`), None where nothing
+        was tracked; and how long a soft limit held the command back while RUNNING
+        (`soft_limit_s`) with the number of `soft_limit` events (held > 1 s)."""
         out: dict[str, dict[str, float | None]] = {}
         for k, m in enumerate(self.layout.muscles):
             n, n_len = self.count[k], self.len_count[k]
@@ -86,6 +105,8 @@ class SummarySink:
                 "length_rmse_mm": math.sqrt(self.len_sq[k] / n_len) if n_len else None,
                 "length_max_error_mm": self.len_max_abs[k] if n_len else None,
                 "length_samples": n_len,
+                "soft_limit_s": round(self.limited_s[k], 3),
+                "soft_limit_events": self.limit_events[k],
             }
         return out
 

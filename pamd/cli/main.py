@@ -16,6 +16,12 @@ from pamd.errors import PamdError
 
 COMMANDS = (run, check_config, collect, recordings, emulate, train, evaluate, service)
 
+# Offline references on the configured rig (no daemon, no Zenoh).
+from pamd.cli import home as home_cli  # noqa: E402
+from pamd.cli import tare as tare_cli  # noqa: E402
+
+COMMANDS += (home_cli, tare_cli)
+
 # Clients of a running daemon over Zenoh (status, cmd, watch) and the lab router.
 COMMANDS += (net_cli, router_cli)
 

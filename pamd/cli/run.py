@@ -281,6 +281,10 @@ def print_summary(r: dict[str, Any]) -> None:
                 print(f"  {name}: length tracking RMSE {t['length_rmse_mm']:.3f} mm, max "
                       f"error {t['length_max_error_mm']:.3f} mm ({t['length_samples']} "
                       "ticks with a length target)", file=out)
+            if t.get("soft_limit_s"):
+                print(f"  {name}: held back by a soft limit for {t['soft_limit_s']:.1f} s "
+                      f"while running ({t['soft_limit_events']} time(s) over 1 s): the "
+                      "profile was not followed there", file=out)
         else:
             print(f"  {name}: no profile ran (no tracking figures)", file=out)
     rec = r.get("recording")

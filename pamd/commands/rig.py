@@ -8,10 +8,11 @@ import time
 from typing import Any
 
 from pamd.commands.guards import Handler, can_move, idle_or_hold, named_muscles
-from pamd.commands.schema import EstopArgs, HomeArgs, LoadArgs, MuscleArgs, NoArgs, ReloadArgs
+from pamd.commands.schema import EstopArgs, HomeArgs, LoadArgs, NoArgs, ReloadArgs, TareArgs
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
 from pamd.muscle import MUSCLE_TYPES
+from pamd.safety.references import check_home, tare_offset
 from pamd.tick import State
 
 
@@ -66,6 +67,7 @@ def _reset(ctrl: Any, a: NoArgs) -> dict[str, Any]:
         if drv.fault is not None:
             raise CommandRefused(f"cannot reset: driver {drv.name!r} still reports {drv.fault}")
     for m in ctrl.muscles:
+        m.clear_findings()  # every signal trusted again; the checks start afresh
         if m.started:
             m.pid.reset(m.pressure)
             m.safing = False
@@ -81,6 +83,7 @@ def _home(ctrl: Any, a: HomeArgs) -> dict[str, Any]:
     raw_len = m.length - m.ref.length_offset_mm
     if not math.isfinite(raw_len):
         raise CommandRefused(f"{m.name}: no length reading to reference")
+    check_home(m, a.length_mm)  # absolute sensor, untrusted, moving, or disagreeing: refused
     m.ref.length_offset_mm = a.length_mm - raw_len  # at once, in software
     b = m.sig.length
     counts = b.driver.preset_counts
@@ -90,21 +93,20 @@ def _home(ctrl: Any, a: HomeArgs) -> dict[str, Any]:
         m.pending_preset = (counts, b.index, counts[b.index])
     m.ref.length_referenced = True
     m.ref.homed_at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-    m._prev_len = math.nan
+    m.length_reference_changed()
     ctrl.calibration_dirty = True  # saved outside the loop's thread
     return {"muscle": m.name, "length_offset_mm": m.ref.length_offset_mm}
 
 
-def _tare(ctrl: Any, a: MuscleArgs) -> dict[str, Any]:
+def _tare(ctrl: Any, a: TareArgs) -> dict[str, Any]:
     idle_or_hold(ctrl, "tare")
+    ms = named_muscles(ctrl, a.muscle)
+    offsets = [tare_offset(m, a.load_kg) for m in ms]  # all checked before any changes
     out = {}
-    for m in named_muscles(ctrl, a.muscle):
-        raw = m.force + m.ref.force_offset_n
-        if not math.isfinite(raw):
-            raise CommandRefused(f"{m.name}: no force reading to tare")
-        m.ref.force_offset_n = raw
+    for m, offset in zip(ms, offsets, strict=True):
+        m.ref.force_offset_n = offset
         m.ref.tared_at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-        out[m.name] = raw
+        out[m.name] = offset
     ctrl.calibration_dirty = True  # saved outside the loop's thread
     return {"force_offset_n": out}
 

@@ -106,6 +106,14 @@ class HomeArgs:
 
 
 @dataclass(frozen=True, kw_only=True)
+class TareArgs:
+    muscle: str | None = spec(None, "Muscle name (default: every muscle).")
+    load_kg: float | None = spec(None, "Tare against this load hanging on the load cell (it "
+                                 "must be the configured load); default: none hangs.",
+                                 unit="kg", min=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class LoadArgs:
     muscle: str = spec(doc="Muscle name.")
     load_kg: float = spec(doc="The hanging load now on the muscle.", unit="kg", min=0.0)
@@ -165,7 +173,7 @@ class ReloadArgs:
 
 VERBS: dict[str, type] = {
     "setpoint": SetpointArgs, "profile": ProfileArgs, "hold": NoArgs, "resume": NoArgs,
-    "stop": NoArgs, "estop": EstopArgs, "reset": NoArgs, "home": HomeArgs, "tare": MuscleArgs,
+    "stop": NoArgs, "estop": EstopArgs, "reset": NoArgs, "home": HomeArgs, "tare": TareArgs,
     "load": LoadArgs, "confirm": NoArgs, "pause": NoArgs, "collect": CollectArgs,
     "mode": ModeArgs, "model": ModelArgs,
 }

@@ -59,6 +59,9 @@ class SignalConfig:
     raw_max: float | None = spec(None, "Highest raw value ever written (outputs). For a valve, "
                                  "gain * raw_max + offset is its full scale and must not "
                                  "exceed the muscle's pressure rating.")
+    absolute: bool = spec(False, "A length input that is referenced by itself (a potentiometer "
+                          "or laser sensor on an analog input, an absolute encoder): the "
+                          "muscle starts referenced and `home` is refused.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -178,6 +181,47 @@ class MuscleConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class PlausibilityConfig:
+    enabled: bool = spec(True, "Check every reading for plausibility; an implausible one is a "
+                         "fault naming the sensor, and nothing trusts that signal until reset.")
+    length_max_rate_mm_s: float = spec(
+        2000.0, "A length reading changing faster than this (plus length_jump_mm) between two "
+        "samples has jumped: faster than the muscle can move.", unit="mm/s", gt=0.0)
+    length_jump_mm: float = spec(1.0, "Allowance on top of length_max_rate_mm_s (encoder counts, "
+                                 "sampling).", unit="mm", min=0.0)
+    pressure_max_rate_bar_per_s: float = spec(
+        500.0, "A pressure reading changing faster than this (plus pressure_jump_bar) between "
+        "two samples has jumped (an exhaust valve vents 6 bar at about 400 bar/s).",
+        unit="bar/s", gt=0.0)
+    pressure_jump_bar: float = spec(0.3, "Allowance on top of pressure_max_rate_bar_per_s "
+                                    "(noise, sampling).", unit="bar", min=0.0)
+    min_contraction: float = spec(-0.15, "A referenced length stretched beyond this contraction "
+                                  "is physically impossible (a broken or dead sensor).",
+                                  min=-1.0, max=0.0)
+    max_contraction: float = spec(0.40, "A referenced length contracted beyond this (0 mm is "
+                                  "100 %) is physically impossible.", min=0.0, max=1.0)
+    frozen_pressure_change_bar: float = spec(
+        0.5, "A length that stays within frozen_length_mm while the pressure changes this much, "
+        "and the force does not change as it would at a fixed length, is frozen.",
+        unit="bar", gt=0.0)
+    frozen_length_mm: float = spec(0.05, "Length change still counted as not moving.",
+                                   unit="mm", min=0.0)
+    frozen_force_change_n: float = spec(
+        100.0, "... and the force model at that length must change by more than this (more "
+        "than friction can hold the muscle against).", unit="N", min=0.0)
+    frozen_s: float = spec(0.2, "A force or pressure reading repeating the identical value this "
+                           "long while the muscle moves or the command changes is frozen.",
+                           unit="s", gt=0.0)
+    force_zero_fraction: float = spec(
+        0.2, "A force below this share of the known load's weight for force_zero_s reads zero "
+        "under load (checked from force_check_min_load_kg).", min=0.0, max=1.0)
+    force_zero_s: float = spec(0.1, "How long a force must read zero under load to fault.",
+                               unit="s", gt=0.0)
+    force_check_min_load_kg: float = spec(5.0, "Smallest configured load the zero-force check "
+                                          "applies to.", unit="kg", min=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class SafetyConfig:
     pressure_margin_bar: float = spec(0.3, "Hard pressure limit = soft limit + this.",
                                       unit="bar", min=0.0)
@@ -205,6 +249,15 @@ class SafetyConfig:
                                        unit="bar/s", gt=0.0)
     startup_timeout_s: float = spec(1.0, "Start-up waits this long for every sensor before "
                                     "faulting.", unit="s", gt=0.0)
+    plausibility: PlausibilityConfig = spec(PlausibilityConfig(), "Plausibility checks of "
+                                            "the readings (jumps, impossible or frozen values).")
+    home_tolerance: float = spec(
+        0.03, "`home` is refused when the new length differs by more than this (fraction of "
+        "the nominal length) from what the nominal length, the load and the measured pressure "
+        "make expected.", min=0.0, max=0.5)
+    tare_tolerance_n: float = spec(
+        50.0, "`tare` is refused when it would move the force offset by more than this: the "
+        "load cell then holds a load nobody declared (use load_kg).", unit="N", min=0.0)
 
 
 @dataclass(frozen=True, kw_only=True)

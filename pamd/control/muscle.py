@@ -1,6 +1,15 @@
-"""One muscle's work in a tick: read its signals, check its limits, follow its
-reference, run the PID, clamp in the restoring direction, write the valve, and fill
-its block of the tick record.
+"""One muscle's work in a tick, as the design's pipeline of stages:
+
+inputs     read its signals, check their age and plausibility (`pamd.safety.plausibility`)
+limits     hard limits, tracking and the soft-limit guards (`pamd.safety.limits`)
+reference  by mode: profile, length control, safe ramp (the setpoint, `sp`)
+pressure   the PID pressure loop (+ rate feedforward)
+limiter    the supervisor's invariants, last (`pamd.safety.limiter`)
+actuation  write the valve (and the exhaust), fill its block of the tick record
+
+No guard writes the setpoint: guards and the limiter bound the valve command only,
+so the setpoint stays what the profile asked for (the summary measures tracking
+against it) and nothing ratchets.
 
 This is the tick path: plain float arithmetic on cached attributes, no I/O, no
 allocation on the normal path (only a fault builds its message string).
@@ -21,6 +30,9 @@ from pamd.control.velocity import VELOCITY_WINDOW_S, velocity_step
 from pamd.muscle import force_model
 from pamd.rig import MuscleSignals
 from pamd.safety import safe_pressure_bar
+from pamd.safety.limiter import Limiter
+from pamd.safety.limits import LimitMonitor
+from pamd.safety.plausibility import Plausibility
 from pamd.tick import (
     M_CONTRACTION,
     M_FEEDFORWARD,
@@ -47,7 +59,10 @@ F_STALE, F_SOFT_P, F_SOFT_C = int(Flag.STALE), int(Flag.SOFT_LIMIT_PRESSURE), in
     Flag.SOFT_LIMIT_CONTRACTION)
 F_PRETENSION, F_SLEW, F_SAT = int(Flag.PRETENSION_LIMIT), int(Flag.SLEW_LIMITED), int(
     Flag.OUTPUT_SATURATED)
-F_NOREF, F_EXHAUST, F_TRACK = int(Flag.NOT_REFERENCED), int(Flag.EXHAUST_OPEN), int(Flag.TRACKING)
+F_NOREF, F_EXHAUST = int(Flag.NOT_REFERENCED), int(Flag.EXHAUST_OPEN)
+F_AT_LIMIT = F_SOFT_P | F_SOFT_C | F_PRETENSION
+#: A profile held at a soft limit longer than this is reported (event, summary).
+SOFT_LIMIT_REPORT_S = 1.0
 S_LOAD = int(State.LOAD_CHANGE)
 S_IDLE, S_RUNNING, S_HOLD, S_FAULT, S_ESTOP = (int(State.IDLE), int(State.RUNNING),
                                               int(State.HOLD), int(State.FAULT), int(State.ESTOP))
@@ -81,10 +96,15 @@ class MuscleController:
         self.valve = signals.valve
         self.exhaust = signals.exhaust
         self.ref = signals.reference
-        # Limits.
+        # Limits and plausibility (pamd.safety).
+        self.lim = LimitMonitor(muscle.name, p.name, limits, saf)
+        self.plaus = Plausibility(muscle.name, (p.name, f.name, ln.name), saf.plausibility,
+                                  muscle.nominal_length_mm, self.force_model)
+        self.limiter = Limiter()
         self._set_limits(limits, saf, ctl.slew_limit_bar_per_s)
         self._set_safety_times(saf)
-        self._c_guard = self._s_guard = False
+        self.length_absolute = bool(
+            ln.driver.is_absolute(ln.index) or muscle.signals.length.absolute)
         # Run-time state.
         self.mode = Mode.PRESSURE
         self.load_kg = muscle.load_kg
@@ -100,8 +120,10 @@ class MuscleController:
         self.pressure = self.force = self.length = self.contraction = math.nan
         self.velocity = 0.0
         self._prev_len = math.nan
-        self._over_p_since = self._over_c_since = self._over_s_since = math.inf
-        self._track_since = math.inf
+        self.finding: str | None = None  # a new plausibility finding, for the controller
+        self._limited_since = math.inf
+        self._limit_reported = False
+        self.limit_report: str | None = None  # a profile held at a soft limit (> 1 s)
         self.feedforward = 0.0
         self.target_length = self.target_force = math.nan
         self.pending_preset: tuple[list[int], int, int] | None = None
@@ -119,6 +141,7 @@ class MuscleController:
         self.safe_bar = safe_pressure_bar(
             self.force_model, load_kg, self.limits.max_pretension,
             self.safety.stretch_margin, self.safety.safe_pressure_margin_bar, self.max_p)
+        self.plaus.set_load(load_kg)
 
     def apply_settings(self, s: Any, with_limits: bool) -> None:
         """A reloaded config (`pamd.commands.MuscleSettings`, SIGHUP), applied in the
@@ -140,24 +163,23 @@ class MuscleController:
         if not with_limits:
             return
         self._set_limits(s.limits, s.safety, s.slew_limit_bar_per_s)
-        self.length0_mm = s.nominal_length_mm
+        self.length0_mm = self.plaus.length0_mm = s.nominal_length_mm
         self.update_load(self.load_kg if s.load_kg is None else s.load_kg)
 
     def _set_limits(self, lim: MuscleLimitsResolved, saf: Any, slew_bar_per_s: float) -> None:
         """Limits, their soft bands and the slew limits (set-up and IDLE reloads)."""
         self.safety, self.limits = saf, lim
+        self.lim.set_limits(lim, saf)
         self.max_p, self.hard_p = lim.max_pressure_bar, lim.hard_max_pressure_bar
         self.max_c, self.hard_c = lim.max_contraction, lim.hard_max_contraction
-        self.soft_c = lim.max_contraction - saf.soft_band_contraction
-        self.c_release = self.soft_c - 0.5 * saf.soft_band_contraction
+        self.soft_c = self.lim.soft_c
         self.max_stretch, self.hard_stretch = lim.max_pretension, lim.hard_max_pretension
-        self.s_release = -self.max_stretch + 0.5 * saf.soft_band_contraction
         self.slew, self.estop_slew = slew_bar_per_s, saf.estop_slew_bar_per_s
 
     def _set_safety_times(self, saf: Any) -> None:
-        """The hard-limit hold and tracking fault timing (set-up and any reload)."""
-        self.hold_s = saf.hard_limit_hold_s
-        self.track_band, self.track_s = saf.tracking_band_bar, saf.tracking_time_s
+        """The hard-limit hold, tracking and plausibility (set-up and any reload)."""
+        self.lim.set_times(saf)
+        self.plaus.configure(saf.plausibility)
 
     @property
     def referenced(self) -> bool:
@@ -172,16 +194,49 @@ class MuscleController:
                 return f"{sig.name} (driver {sig.driver.name!r})"
         return None
 
-    def hold_measured(self) -> None:
-        """Start-up / reset: take the measured pressure as the setpoint, bumpless."""
+    def hold_measured(self, safe_ramp: bool = False) -> None:
+        """Start-up / reset: take the measured pressure as the setpoint, bumpless; with
+        `safe_ramp`, ramp from there to the safe pressure at the slew limit."""
         p = self._pg * self._pv[self._pi] + self._po
+        p = max(p, 0.0)
         self.sp = p
         self.sp_rate = 0.0
         self.valve_cmd = p
         self.pid.reset(p)
         self.profile = None
-        self.safing = False
+        self.safing = safe_ramp
         self.started = True
+
+    def outside_limits(self) -> str | None:
+        """Start-up: why the measured state is outside the limits (None: inside). Only
+        trusted readings count; an untrusted length is itself a reason."""
+        p = self._pg * self._pv[self._pi] + self._po
+        if p > self.max_p:
+            return f"pressure {p:.2f} bar above the limit {self.max_p:g} bar"
+        if not self.ref.length_referenced:
+            return None
+        if not self.plaus.length_ok:
+            return f"length untrusted ({self.sig.length.name})"
+        length = self._lg * self._lv[self._li] + self._lo + self.ref.length_offset_mm
+        x = (self.length0_mm - length) / self.length0_mm
+        if x < -self.max_stretch:
+            return (f"stretched {-100 * x:.1f} % (pretension limit "
+                    f"{100 * self.max_stretch:.1f} %)")
+        if x > self.soft_c:
+            return f"contracted {100 * x:.1f} % (limit {100 * self.max_c:.1f} %)"
+        return None
+
+    def length_reference_changed(self) -> None:
+        """`home` set a new length reference: the velocity and the length checks start
+        afresh (the reading's step is the new offset, not a motion)."""
+        self._prev_len = math.nan
+        self.plaus.reference_changed()
+
+    def clear_findings(self) -> None:
+        """Reset: trust every signal again; the checks start afresh."""
+        self.plaus.clear()
+        self.lim.stop_tracking()
+        self.lim.reset_guards()
 
     def start_profile(self, profile: Profile) -> None:
         self.profile = profile
@@ -195,14 +250,17 @@ class MuscleController:
         pp = self.pending_preset
         if pp is not None and pp[0][pp[1]] != pp[2]:
             self._preset_applied()
+        # -- inputs ---------------------------------------------------------------------
         pi, fi, li = self._pi, self._fi, self._li
+        pt, ft, lt = self._pt[pi], self._ft[fi], self._lt[li]
         p = self._pg * self._pv[pi] + self._po
         f = self._fg * self._fv[fi] + self._fo - self.ref.force_offset_n
         length = self._lg * self._lv[li] + self._lo + self.ref.length_offset_mm
         flags = 0
         fault = None
-        if not (now - self._pt[pi] <= self._pto and now - self._ft[fi] <= self._fto
-                and now - self._lt[li] <= self._lto):
+        p_fresh = now - pt <= self._pto
+        l_fresh = now - lt <= self._lto
+        if not (p_fresh and l_fresh and now - ft <= self._fto):
             flags |= F_STALE
             fault = self._stale_reason(now)
         x = (self.length0_mm - length) / self.length0_mm
@@ -213,31 +271,41 @@ class MuscleController:
         referenced = self.ref.length_referenced
         if not referenced:
             flags |= F_NOREF
+        plaus = self.plaus
+        prev_u = self.valve_cmd
+        finding = plaus.check(now, p, pt, f, ft, length, lt, referenced, prev_u,
+                              state != S_LOAD)
+        if finding is not None:
+            self.finding = finding
+            if fault is None:
+                fault = finding
+        p_ok = p_fresh and plaus.pressure_ok
+        l_ok = l_fresh and plaus.length_ok and referenced
 
-        # Hard limits (held for hold_s) -> fault.
-        if p > self.hard_p:
-            if self._over_p_since == math.inf:
-                self._over_p_since = now
-            elif now - self._over_p_since >= self.hold_s and fault is None:
-                fault = (f"{self.name}: pressure {p:.2f} bar above the hard limit "
-                         f"{self.hard_p:.2f} bar")
-        else:
-            self._over_p_since = math.inf
-        if referenced:
-            fault = self._length_limits(now, x, fault)
+        # -- limits: hard limits fault (on trusted readings only) -------------------------
+        lim = self.lim
+        if p_ok:
+            reason = lim.hard_pressure(now, p)
+            if reason is not None and fault is None:
+                fault = reason
+        if l_ok:
+            reason = lim.hard_length(now, x)
+            if reason is not None and fault is None:
+                fault = reason
 
         if not self.started:
             self._record(rec, b, flags)
             return fault
 
-        # Reference.
+        # -- reference -------------------------------------------------------------------
         slew = self.slew
         sp = self.sp
-        use_pid = True
-        if state == S_FAULT or state == S_ESTOP or self.safing:
+        safe = state == S_FAULT or state == S_ESTOP or self.safing
+        floor = self.safe_bar
+        if safe:
             if self.length_ctl_on:  # the safe state drops a length mode for good
                 self.length_ctl.leave()
-            target = self.safe_bar
+            target = floor
             if state == S_ESTOP:
                 slew = self.estop_slew
                 action = self.safety.estop_action
@@ -245,7 +313,7 @@ class MuscleController:
                     target = sp
                 elif action == "vent" and target == 0.0:
                     sp = 0.0  # vent at once: only where the load allows it
-            use_pid = not (state == S_FAULT or state == S_ESTOP)
+                    slew = math.inf
             step = slew * dt
             if sp < target - step:
                 sp += step
@@ -280,8 +348,10 @@ class MuscleController:
             self.sp_rate = 0.0
         self.sp = sp
 
-        # Control.
+        # -- pressure: the PID closes its loop only on a trusted pressure, and not in
+        # FAULT/ESTOP (open loop to the safe pressure) -------------------------------------
         pid = self.pid
+        use_pid = p_ok and not (state == S_FAULT or state == S_ESTOP)
         if use_pid:
             i_before = pid.i
             u = sp + self.kff_rate_s * self.sp_rate + pid.step(sp - p, p, dt)
@@ -289,63 +359,59 @@ class MuscleController:
                 flags |= F_SAT
         else:
             i_before = 0.0
-            pid.reset(p)
+            pid.reset(p if p_ok else sp)
             u = sp
 
-        # Soft limits, acting in the restoring direction, with a release band so they
-        # do not chatter; the setpoint follows the limited command so a release is
-        # bumpless.
-        u_free = u
-        prev_u = self.valve_cmd
-        if referenced:
-            if self._c_guard:
-                if x < self.c_release:
-                    self._c_guard = False
-            elif x >= self.soft_c:
-                self._c_guard = True
-            if self._s_guard:
-                if x > self.s_release:
-                    self._s_guard = False
-            elif x <= -self.max_stretch:
-                self._s_guard = True
-            if self._c_guard:
-                cap = prev_u - slew * dt if x >= self.max_c else prev_u
-                if u > cap:
-                    u = cap
-                    flags |= F_SOFT_C
-                    if self.sp > u:
-                        self.sp = u
-            elif self._s_guard:
-                floor = prev_u + slew * dt if x <= -self.max_stretch else prev_u
-                if u < floor:
-                    u = floor
-                    flags |= F_PRETENSION
-                    if self.sp < u:
-                        self.sp = u
-        if u > self.max_p:
-            u = self.max_p
-            flags |= F_SOFT_P
-        elif u < 0.0:
-            u = 0.0
-        if u != u_free and use_pid:
-            pid.i = i_before  # no wind-up against a limit
-
-        # Tracking: the measured pressure must follow the command.
-        if state == S_RUNNING or state == S_IDLE or state == S_HOLD or state == S_LOAD:
-            if abs(p - prev_u) > self.track_band:
-                flags |= F_TRACK
-                if self._track_since == math.inf:
-                    self._track_since = now
-                elif now - self._track_since >= self.track_s and fault is None:
-                    fault = (f"{self.name}: measured pressure {p:.2f} bar does not follow the "
-                             f"command {prev_u:.2f} bar (leak, dead sensor or no supply?)")
+        # -- guards (restoring direction, trusted length only), then the limiter -----------
+        step = slew * dt
+        if prev_u != prev_u:  # nothing written yet
+            prev_u = u
+        if l_ok:
+            lim.guard(x, prev_u, step)
+            if u > lim.hi:
+                flags |= F_SOFT_C
+            elif u < lim.lo:
+                flags |= F_PRETENSION
             else:
-                self._track_since = math.inf
+                lim.caught_up()
+        else:
+            lim.no_guard()
+        u_free = u
+        if state == S_ESTOP and slew == math.inf:
+            floor = 0.0  # the explicit vent (safe pressure 0)
+        u = self.limiter.apply(u, prev_u, self.max_p, lim.lo, lim.hi, safe, floor, step)
+        flags |= self.limiter.flags
+        if use_pid and u != u_free:
+            pid.keep_integral_off_clamp(i_before, u < u_free)
 
+        # -- tracking: the measured pressure must follow the command -----------------------
+        lim.flags = 0
+        if p_ok:
+            reason = lim.tracking(now, p, prev_u)
+            flags |= lim.flags
+            if reason is not None:
+                plaus.distrust_pressure(reason)
+                self.finding = reason
+                if fault is None:
+                    fault = reason
+        else:
+            lim.stop_tracking()
+
+        # -- a profile held at a soft limit ---------------------------------------------
+        if flags & F_AT_LIMIT and (state == S_RUNNING or state == S_LOAD):
+            if self._limited_since == math.inf:
+                self._limited_since = now
+                self._limit_reported = False
+            elif not self._limit_reported and now - self._limited_since > SOFT_LIMIT_REPORT_S:
+                self.limit_report = self._limit_name(flags)  # the controller reports it
+                self._limit_reported = True
+        else:
+            self._limited_since = math.inf
+
+        # -- actuation ----------------------------------------------------------------
         self.valve_cmd = u
         self.valve.write_si(u)
-        want_open = ((state == S_FAULT or state == S_ESTOP or self.safing)
-                     and self.safe_bar == 0.0 and sp <= 0.005)
+        want_open = safe and self.safe_bar == 0.0 and sp <= 0.005 and u <= 0.005
         if self.exhaust is not None and want_open != self.exhaust_open:
             self.exhaust.write_si(1.0 if want_open else 0.0)
         self.exhaust_open = want_open and self.exhaust is not None
@@ -354,10 +420,19 @@ class MuscleController:
         self._record(rec, b, flags)
         return fault
 
+    @staticmethod
+    def _limit_name(flags: int) -> str:
+        if flags & F_SOFT_C:
+            return "contraction"
+        if flags & F_PRETENSION:
+            return "pretension"
+        return "pressure"
+
     def _preset_applied(self) -> None:
         """The encoder now reads the homed length itself: drop the software offset."""
         self.ref.length_offset_mm = 0.0
         self._prev_len = math.nan
+        self.plaus.reference_changed()
         self.pending_preset = None
         self.calibration_dirty = True
 
@@ -378,25 +453,6 @@ class MuscleController:
         rec[b + M_SAFE_PRESSURE] = self.safe_bar
         rec[b + M_MODE] = self.mode
         rec[b + M_FLAGS] = flags
-
-    def _length_limits(self, now: float, x: float, fault: str | None) -> str | None:
-        if x > self.hard_c:
-            if self._over_c_since == math.inf:
-                self._over_c_since = now
-            elif now - self._over_c_since >= self.hold_s and fault is None:
-                fault = (f"{self.name}: contraction {100 * x:.1f} % beyond the hard limit "
-                         f"{100 * self.hard_c:.1f} %")
-        else:
-            self._over_c_since = math.inf
-        if x < -self.hard_stretch:
-            if self._over_s_since == math.inf:
-                self._over_s_since = now
-            elif now - self._over_s_since >= self.hold_s and fault is None:
-                fault = (f"{self.name}: stretched {-100 * x:.1f} %, beyond the pretension "
-                         f"limit {100 * self.hard_stretch:.1f} %")
-        else:
-            self._over_s_since = math.inf
-        return fault
 
     def _stale_reason(self, now: float) -> str:
         for sig, t, i, to in ((self.sig.pressure, self._pt, self._pi, self._pto),

@@ -31,6 +31,17 @@ class Pid:
         self.p = self.d = 0.0
         self.saturated = False
 
+    def keep_integral_off_clamp(self, i_before: float, clamped_down: bool) -> None:
+        """The command was clamped after this step (a guard or a limit): the integral may
+        move away from the clamp, never into it. Clamped down (the command was lowered),
+        it may only fall; clamped up, only rise. Then a clamp that lets go finds no
+        wound-up integral, and one that holds never pins it."""
+        if clamped_down:
+            if self.i > i_before:
+                self.i = i_before
+        elif self.i < i_before:
+            self.i = i_before
+
     def step(self, error: float, measured: float, dt_s: float) -> float:
         if self._filtered != self._filtered:  # NaN: first step
             self.reset(measured)

@@ -81,6 +81,7 @@ class OnOffValves:
         self.chamber = Chamber(volume.volume_m3(contraction),
                                max(initial_bar, 0.0) * BAR_PA + P_ATM_PA, polytropic)
         self.supply_ok = True
+        self.stuck = False  # an injected fault: the spools stay where they are
         self.t_s = 0.0
         self.supplied_kg = 0.0
         self.vented_kg = 0.0
@@ -117,10 +118,12 @@ class OnOffValves:
 
     @exhaust_open.setter
     def exhaust_open(self, on: bool) -> None:
-        self.exhaust.command(on)
+        if not self.stuck:
+            self.exhaust.command(on)
 
     def set_inflate(self, on: bool) -> None:
-        self.inflate.command(on)
+        if not self.stuck:
+            self.inflate.command(on)
 
     @property
     def switchings(self) -> int:

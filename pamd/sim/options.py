@@ -9,6 +9,7 @@ This module deliberately does not use `from __future__ import annotations`, so
 `dataclasses.fields(...)[i].type` holds real types for the config engine.
 """
 
+import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -306,6 +307,54 @@ class SimMuscleOptions:
     length_latency_s: float = _f(
         0.0, "Encoder: time from taking a sample to its delivery.", "s", 0.0, 10.0
     )
+    length_absolute: bool = _f(
+        True,
+        "True: the length reads the true length (an absolute sensor; the muscle starts "
+        "referenced). False: an incremental encoder that reads 0 mm at power-up and needs "
+        "`home`.",
+    )
+
+
+#: Which fault kinds each signal takes (see `SimFault`).
+FAULT_KINDS: dict[str, tuple[str, ...]] = {
+    "pressure": ("dead", "stuck", "noisy", "jump", "silent"),
+    "force": ("dead", "stuck", "noisy", "jump", "silent"),
+    "length": ("dead", "stuck", "noisy", "jump", "silent"),
+    "supply": ("lost",),
+    "valve": ("stuck",),
+    "driver": ("error",),
+}
+
+
+@dataclass(frozen=True)
+class SimFault:
+    """One scripted fault: from `at_s` on, part of the simulated rig fails (until the
+    driver's `clear_faults`, e.g. by a test)."""
+
+    at_s: float = _f(0.0, "Time after the driver opened at which the fault starts.", "s", 0.0)
+    muscle: str = _f("*", "The muscle it hits ('*' only for the whole driver, signal: driver).")
+    signal: Literal["pressure", "force", "length", "supply", "valve", "driver"] = _f(
+        "driver",
+        "What fails: a sensor (pressure, force, length), the air supply, the regulator "
+        "(valve) or the whole device (driver).",
+    )
+    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error"] = _f(
+        "error",
+        "Sensors: dead (reads 0), stuck (repeats its last value), noisy (adds noise of "
+        "standard deviation `size`), jump (steps by `size` and stays), silent (no new "
+        "samples); supply: lost; valve: stuck (the regulator ignores new setpoints); "
+        "driver: error (readings stop, writes dropped).",
+    )
+    size: float | None = _f(
+        None,
+        "noisy: noise standard deviation; jump: step; in the signal's unit (default: 0.3 "
+        "bar, 50 N, 5 mm for noisy; 1 bar, 200 N, 20 mm for jump).",
+    )
+
+
+#: Default `size` of a noisy / jump fault per sensor.
+NOISE_DEFAULT = {"pressure": 0.3, "force": 50.0, "length": 5.0}
+JUMP_DEFAULT = {"pressure": 1.0, "force": 200.0, "length": 20.0}
 
 
 @dataclass(frozen=True)
@@ -333,6 +382,12 @@ class SimOptions:
         1.0,
         1000000.0,
     )
+    faults: tuple[SimFault, ...] = _f(
+        (),
+        "Scripted faults, each {at_s, muscle, signal, kind[, size]}: how a rig reacts to a "
+        "dead, stuck, noisy or jumping sensor, a lost supply, a stuck valve or a driver "
+        "error, from the CLI.",
+    )
 
 
 def check_options(options: SimOptions) -> list[str]:
@@ -355,4 +410,23 @@ def check_options(options: SimOptions) -> list[str]:
                 f"{where}: stop_stretch_contraction ({m.stop_stretch_contraction}) "
                 f"must not exceed stop_contraction ({m.stop_contraction})"
             )
+    names = [m.name for m in options.muscles]
+    for k, f in enumerate(options.faults):
+        where = f"faults[{k}]"
+        if f.kind not in FAULT_KINDS[f.signal]:
+            problems.append(
+                f"{where}: a {f.signal} fault is one of {', '.join(FAULT_KINDS[f.signal])}, "
+                f"not {f.kind!r}"
+            )
+        if f.signal == "driver":
+            if f.muscle not in ("*", *names):
+                problems.append(f"{where}: no muscle {f.muscle!r} (muscles: {', '.join(names)})")
+        elif f.muscle not in names:
+            problems.append(
+                f"{where}: no muscle {f.muscle!r} in this sim driver (muscles: "
+                f"{', '.join(names)}); a {f.signal} fault names its muscle"
+            )
+        if f.size is not None and (not math.isfinite(f.size) or
+                                   (f.kind == "noisy" and f.size <= 0.0)):
+            problems.append(f"{where}: size must be finite (and > 0 for noisy), got {f.size}")
     return problems

@@ -37,6 +37,7 @@ class Regulator:
         self.lag_s = lag_s
         self.vent_time_constant_s = vent_time_constant_s
         self.supply_ok = True
+        self.stuck = False  # an injected fault: new setpoints are ignored
         self.exhaust_open = False
         p0 = min(max(initial_bar, 0.0), max_bar, supply_bar)
         self.pilot = SetpointPilot(max_bar=max_bar, dead_time_s=dead_time_s,
@@ -52,7 +53,10 @@ class Regulator:
         return self.pilot.setpoint_bar
 
     def set_setpoint(self, value_bar: float) -> None:
-        """The commanded pressure; clamped to the regulator's input range."""
+        """The commanded pressure; clamped to the regulator's input range. Ignored while
+        `stuck` (an injected fault)."""
+        if self.stuck:
+            return
         self.pilot.set_setpoint(value_bar)
 
     def _set_dt(self, dt_s: float) -> None:

@@ -77,6 +77,7 @@ class FlowRegulator:
         self.chamber = Chamber(volume.volume_m3(contraction), p0 * BAR_PA + P_ATM_PA,
                                polytropic)
         self.supply_ok = True
+        self.stuck = False  # an injected fault: new setpoints are ignored
         self.powered = True
         self.exhaust_open = False
         self.opening = 0.0
@@ -117,7 +118,8 @@ class FlowRegulator:
         return self.pilot.setpoint_bar
 
     def set_setpoint(self, value_bar: float) -> None:
-        self.pilot.set_setpoint(value_bar)
+        if not self.stuck:
+            self.pilot.set_setpoint(value_bar)
 
     @property
     def pressure_bar(self) -> float:

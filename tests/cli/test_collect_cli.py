@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import yaml
 from mcap.reader import make_reader
 
 REPO = Path(__file__).resolve().parents[2]
@@ -22,9 +23,18 @@ steps:
     SETTLE
 """
 GOOD = PLAN.replace("    SETTLE\n", "")
-# Stillness that noise never reaches: the settle times out and faults.
-BAD = PLAN.replace("SETTLE", "settle: {seconds: 0.1, until_still: true, still_mm_s: 1.0e-6, "
-                   "timeout_s: 0.5}")
+
+
+def faulty_rig(tmp_path: Path) -> Path:
+    """The built-in simulated rig whose length encoder dies 8 s in: during step 2."""
+    data = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())
+    data["loop"]["realtime"] = {"enabled": False}
+    data["telemetry"] = {"enabled": False}
+    data["drivers"][0]["options"]["faults"] = [
+        {"at_s": 8.0, "muscle": "m1", "signal": "length", "kind": "dead"}]
+    path = tmp_path / "faulty-rig.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
 
 
 def collect(*args: str) -> subprocess.CompletedProcess[str]:
@@ -68,14 +78,16 @@ def test_collection_writes_a_file_per_step_and_a_manifest(tmp_path: Path) -> Non
 
 def test_a_fault_keeps_its_files_and_resume_finishes_the_plan(tmp_path: Path) -> None:
     plan = tmp_path / "plan.yaml"
-    plan.write_text(BAD)
+    plan.write_text(GOOD)
     out = tmp_path / "out"
-    r = collect(str(plan), "--clock", "virtual", "--out", str(out))
+    r = collect(str(plan), "--config", str(faulty_rig(tmp_path)), "--clock", "virtual",
+                "--out", str(out))
     assert r.returncode == 1 and "fault" in r.stdout
+    assert "m1.length reads 0.00 mm" in r.stderr
     m = json.loads((out / "manifest.json").read_text())
     assert [s["status"] for s in m["steps"]] == ["done", "failed"]
     assert all(s["files"] for s in m["steps"])  # the failed step's file is kept
-    plan.write_text(GOOD)  # the operator fixes the plan, then resumes
+    # the operator replaces the encoder (the built-in rig), then resumes
     r = collect(str(plan), "--clock", "virtual", "--resume", str(out))
     assert r.returncode == 0, r.stderr
     assert "from step 2 (heavy)" in r.stdout

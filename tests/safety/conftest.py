@@ -1,0 +1,143 @@
+"""The safety suite's rig: the simulated DMSP-20 with a load and a scripted fault
+schedule (the sim driver's `faults` option), stepped tick by tick on the virtual
+clock through `pamd.harness.Harness`, with what each tick did kept for the
+invariant checks."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import pytest
+
+from pamd.config import LoadedConfig
+from pamd.harness import Harness
+from pamd.tick import State
+
+SAFE_STATES = (State.FAULT, State.ESTOP)
+
+
+@dataclass
+class Tick:
+    """What one tick did, as the invariants need it."""
+
+    t_s: float
+    state: State  # the state the muscle's tick ran in
+    safe: bool  # FAULT, ESTOP or a safe ramp
+    sp: float
+    cmd: float
+    safe_bar: float
+    pressure_true: float
+    contraction_true: float
+
+
+@dataclass
+class SafetyRig:
+    h: Harness
+    ticks: list[Tick] = field(default_factory=list)
+
+    @property
+    def m(self) -> Any:
+        return self.h.m1
+
+    @property
+    def plant(self) -> Any:
+        return self.h.sim.plant("m1")
+
+    def run(self, seconds: float) -> None:
+        """Step tick by tick, keeping what each tick did."""
+        h, m, plant = self.h, self.h.m1, self.h.sim.plant("m1")
+        ctrl = h.ctrl
+        for _ in range(round(seconds / h.period_s)):
+            before = ctrl.supervisor.state
+            h.step(h.period_s)
+            ran_in = ctrl.supervisor.state if before == State.STARTING else before
+            if not m.started:
+                continue
+            self.ticks.append(Tick(h.t, ran_in, ran_in in SAFE_STATES or m.safing, m.sp,
+                                   m.valve_cmd, m.safe_bar, plant.pressure_bar,
+                                   plant.contraction))
+
+    def cmd(self, verb: str, **payload: Any) -> dict[str, Any]:
+        v = self.h.cmd(verb, **payload)
+        assert v["ok"], v
+        return v
+
+    def check_invariants(self, actuator_works: bool = True) -> None:
+        """The safety contract over the whole run (issue 11):
+
+        * the command is never above the pressure limit nor below 0;
+        * in a safe state (FAULT, ESTOP, a safe ramp) it moves at most at the slew limit,
+          never falls below the safe pressure, and while below it never falls at all;
+        * in a safe state the setpoint only ever moves towards the safe pressure (no
+          guard writes it);
+        * the muscle stays inside its hard contraction limits, where the physics allows
+          it (the valve, the supply and the driver still work).
+        """
+        m = self.m
+        eps = 1e-9
+        step = m.slew * self.h.period_s
+        estop_step = m.estop_slew * self.h.period_s
+        prev: Tick | None = None
+        for k in self.ticks:
+            where = f"t={k.t_s:.3f} s {k.state.name}{' (safe)' if k.safe else ''}"
+            assert 0.0 <= k.cmd <= m.max_p + eps, f"{where}: command {k.cmd:.3f} bar"
+            if prev is not None and k.safe:
+                lim = estop_step if k.state == State.ESTOP else step
+                assert abs(k.cmd - prev.cmd) <= lim + eps, (
+                    f"{where}: command moved {k.cmd - prev.cmd:+.4f} bar in one tick "
+                    f"(slew limit {lim:.4f})")
+                assert k.cmd >= min(k.safe_bar, prev.cmd) - eps, (
+                    f"{where}: command {k.cmd:.3f} bar below the safe pressure "
+                    f"{k.safe_bar:.3f} bar (was {prev.cmd:.3f})")
+                if prev.safe:
+                    assert abs(k.sp - k.safe_bar) <= abs(prev.sp - k.safe_bar) + eps, (
+                        f"{where}: setpoint {k.sp:.3f} moved away from the safe pressure")
+            if actuator_works:
+                assert -m.hard_stretch - 1e-3 <= k.contraction_true <= m.hard_c + 1e-3, (
+                    f"{where}: contraction {100 * k.contraction_true:.2f} % outside the hard "
+                    "limits")
+            prev = k
+
+    def min_safe_command(self) -> float:
+        """The lowest command written in a safe state after it reached the safe
+        pressure (the figure the bench reports)."""
+        reached = False
+        low = math.inf
+        for k in self.ticks:
+            if not k.safe:
+                reached = False
+                continue
+            if not reached and k.cmd >= k.safe_bar - 1e-9:
+                reached = True
+            if reached:
+                low = min(low, k.cmd)
+        return low
+
+
+def sim_driver(load_kg: float, initial_bar: float,
+               faults: list[dict[str, Any]] | None = None) -> list[dict[str, Any]]:
+    """The `drivers:` of a rig with one muscle carrying `load_kg`, its regulator holding
+    `initial_bar` at power-up, and the fault schedule."""
+    muscle = {"name": "m1", "load_kg": load_kg, "initial_pressure_bar": initial_bar}
+    return [{"name": "sim", "type": "sim", "options": {
+        "seed": 1, "faults": faults or [], "muscles": [muscle]}}]
+
+
+@pytest.fixture
+def safety_rig(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[..., SafetyRig]]:
+    made: list[Harness] = []
+
+    def make(load_kg: float, initial_bar: float = 0.0,
+             faults: list[dict[str, Any]] | None = None, **changes: Any) -> SafetyRig:
+        changes.setdefault("drivers", sim_driver(load_kg, initial_bar, faults))
+        cfg = sim_config(load_kg, **changes)
+        h = Harness(cfg)
+        made.append(h)
+        return SafetyRig(h)
+
+    yield make
+    for h in made:
+        h.rig.close()

@@ -1,0 +1,152 @@
+"""References that cannot lie (issue 11): `home` refused on an absolute sensor and
+when it disagrees with the expected length; `tare` refused under an undeclared
+load; both offline (`pamd home`, `pamd tare`) with the same rules."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from pamd.calibration import load_calibration
+from pamd.cli.main import main
+from pamd.muscle import GRAVITY_M_S2, equilibrium_contraction, force_model
+
+from .conftest import SafetyRig
+
+
+def _incremental(load_kg: float, initial_bar: float = 0.0) -> list[dict[str, Any]]:
+    return [{"name": "sim", "type": "sim", "options": {"seed": 1, "muscles": [
+        {"name": "m1", "load_kg": load_kg, "initial_pressure_bar": initial_bar,
+         "length_absolute": False}]}}]
+
+
+def _signals(**length: Any) -> dict[str, Any]:
+    sig: dict[str, Any] = {k: {"driver": "sim", "channel": f"m1.{k}"}
+                           for k in ("pressure", "force", "length")}
+    sig["length"].update(length)
+    sig["valve"] = {"driver": "sim", "channel": "m1.valve", "raw_min": 0.0, "raw_max": 6.0}
+    return sig
+
+
+def test_home_is_refused_on_an_absolute_sensor(safety_rig: Callable[..., SafetyRig]) -> None:
+    rig = safety_rig(30.0)  # the simulated encoder is absolute by default
+    rig.run(0.05)
+    v = rig.h.cmd("home", muscle="m1", length_mm=rig.plant.length_mm)
+    assert not v["ok"] and "m1.length (driver 'sim') is an absolute sensor" in v["error"]
+    assert rig.m.ref.length_offset_mm == 0.0 and not rig.h.ctrl.calibration_dirty
+
+
+def test_absolute_true_on_an_analog_length_input_references_it_and_refuses_home(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    # a potentiometer on an analog input: the driver cannot know it is absolute
+    rig = safety_rig(30.0, drivers=_incremental(30.0), muscles=[
+        {"name": "m1", "load_kg": 30.0, "signals": _signals(absolute=True)}])
+    rig.run(0.05)
+    assert rig.m.referenced and rig.m.length_absolute
+    v = rig.h.cmd("home", muscle="m1", length_mm=204.0)
+    assert not v["ok"] and "absolute sensor" in v["error"]
+
+
+@pytest.mark.parametrize("load_kg, initial_bar", [(30.0, 0.0), (80.0, 3.0)])
+def test_home_is_refused_when_it_disagrees_with_the_expected_length(
+        safety_rig: Callable[..., SafetyRig], load_kg: float, initial_bar: float) -> None:
+    rig = safety_rig(load_kg, drivers=_incremental(load_kg, initial_bar))
+    rig.run(0.3)
+    true_mm = rig.plant.length_mm
+    # the issue's case: a length nobody measured (a typo, the wrong muscle)
+    for wrong in (150.0, true_mm + 8.0, true_mm - 8.0):
+        v = rig.h.cmd("home", muscle="m1", length_mm=wrong)
+        assert not v["ok"] and "disagrees with the" in v["error"], v
+        assert "safety.home_tolerance" in v["error"]
+    assert not rig.m.referenced and rig.m.ref.length_offset_mm == 0.0
+    ok = rig.h.cmd("home", muscle="m1", length_mm=round(true_mm, 1))
+    assert ok["ok"], ok
+    rig.run(0.1)
+    assert rig.m.referenced and rig.m.length == pytest.approx(true_mm, abs=0.1)
+    assert rig.h.state == "IDLE"
+
+
+def test_home_is_refused_while_the_muscle_moves(safety_rig: Callable[..., SafetyRig]) -> None:
+    rig = safety_rig(30.0, drivers=_incremental(30.0))
+    rig.run(0.05)
+    rig.cmd("home", muscle="m1", length_mm=rig.plant.length_mm)  # at rest: fine
+    rig.cmd("setpoint", muscle="m1", bar=2.0)
+    rig.run(0.3)
+    rig.cmd("hold")  # HOLD freezes the setpoint; the muscle is still on its way
+    v = rig.h.cmd("home", muscle="m1", length_mm=rig.plant.length_mm)
+    assert not v["ok"] and "moving at" in v["error"]
+
+
+def test_tare_refuses_to_call_a_hanging_load_zero(safety_rig: Callable[..., SafetyRig]) -> None:
+    rig = safety_rig(30.0)
+    rig.run(0.2)
+    before = rig.m.ref.force_offset_n
+    v = rig.h.cmd("tare", muscle="m1")
+    assert not v["ok"] and "holds the configured load of 30 kg" in v["error"]
+    assert "--load-kg 30" in v["error"]
+    v = rig.h.cmd("tare", muscle="m1", load_kg=50.0)
+    assert not v["ok"] and "configured load is 30 kg" in v["error"]
+    assert rig.m.ref.force_offset_n == before
+    ok = rig.h.cmd("tare", muscle="m1", load_kg=30.0)
+    assert ok["ok"] and abs(ok["force_offset_n"]["m1"]) < 5.0
+    rig.run(0.01)
+    assert rig.m.force == pytest.approx(30.0 * GRAVITY_M_S2, abs=5.0)
+
+
+def test_tare_refuses_an_undeclared_load(safety_rig: Callable[..., SafetyRig]) -> None:
+    # 30 kg really hang, but the config says nothing hangs
+    rig = safety_rig(0.0, drivers=[{"name": "sim", "type": "sim", "options": {
+        "seed": 1, "muscles": [{"name": "m1", "load_kg": 30.0}]}}])
+    rig.run(0.2)
+    v = rig.h.cmd("tare", muscle="m1")
+    assert not v["ok"] and "would move its offset by +294 N" in v["error"]
+    assert "nobody declared" in v["error"]
+
+
+# -- offline: pamd home / pamd tare -----------------------------------------------------
+
+def _config(tmp_path: Path, load_kg: float) -> Path:
+    """config/sim.yaml with an incremental length encoder, virtual clock."""
+    data = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "sim.yaml")
+                          .read_text())
+    data["loop"]["clock"] = "virtual"
+    data["loop"]["realtime"] = {"enabled": False}
+    data["telemetry"] = {"enabled": False}
+    data["drivers"] = _incremental(load_kg)
+    data["muscles"][0]["load_kg"] = load_kg
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def test_pamd_home_offline_references_and_saves(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    path = _config(tmp_path, 30.0)
+    true_mm = 200.0 * (1.0 - equilibrium_contraction(force_model("map"), 0.0, 30.0, -0.5, 0.9))
+    cal = tmp_path / "rig.cal.yaml"
+    assert main(["home", "--config", str(path), "--muscle", "m1", "--length-mm", "150"]) == 4
+    assert "disagrees with the" in capsys.readouterr().err
+    assert not cal.exists()  # refused: nothing saved
+    assert main(["home", "--config", str(path), "--muscle", "m1", "--length-mm",
+                 f"{true_mm:.2f}", "--json"]) == 0
+    out = capsys.readouterr().out
+    assert '"ok": true' in out
+    ref = load_calibration(str(cal)).muscles["m1"]
+    assert ref.length_referenced and ref.homed_at
+    assert ref.length_offset_mm == pytest.approx(true_mm, abs=0.1)  # the encoder read 0
+
+
+def test_pamd_tare_offline_needs_the_load_declared(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    path = _config(tmp_path, 30.0)
+    cal = tmp_path / "rig.cal.yaml"
+    assert main(["tare", "--config", str(path), "--muscle", "m1"]) == 4
+    assert "holds the configured load of 30 kg" in capsys.readouterr().err
+    assert not cal.exists()
+    assert main(["tare", "--config", str(path), "--muscle", "m1", "--load-kg", "30"]) == 0
+    ref = load_calibration(str(cal)).muscles["m1"]
+    assert ref.tared_at and abs(ref.force_offset_n) < 5.0
