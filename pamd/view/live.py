@@ -14,9 +14,9 @@ scheduled wall-clock time). Events are all sent.
 Never in the loop's way: the io process hands each message to the foxglove-sdk
 (a Rust server on its own threads, which take no Python lock) and goes on; each
 viewer has a bounded queue (`BACKLOG`) whose oldest data is dropped when the viewer
-does not keep up, and a viewer that stops reading altogether is disconnected by the
-server. The server takes no commands (no client publishing, no services): commands
-stay on Zenoh, where the router authenticates them.
+does not keep up (the server disconnects a viewer whose control messages back up).
+The server takes no commands (no client publishing, no services): commands stay on
+Zenoh, where the router authenticates them.
 """
 
 from __future__ import annotations

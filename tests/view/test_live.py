@@ -176,3 +176,16 @@ def test_a_bad_listen_address_is_refused_with_its_field(tmp_path: Path) -> None:
     r = subprocess.run([sys.executable, "-m", "pamd", "run", "--foxglove", "1.2.3.4:99999",
                         "--duration", "1"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "--foxglove" in r.stderr and "HOST:PORT" in r.stderr
+
+
+def test_a_restart_in_place_keeps_the_view() -> None:
+    """A reload that reopens the devices execs `pamd run` again: the view stays on."""
+    from pamd.cli.main import build_parser
+    from pamd.service.restart import run_argv
+
+    for given, kept in ((["--foxglove"], ["--foxglove", "default"]),
+                        (["--foxglove", "0.0.0.0:9000"], ["--foxglove", "0.0.0.0:9000"]),
+                        ([], [])):
+        args = build_parser().parse_args(["run", "--no-telemetry", *given])
+        argv = run_argv(args, remaining_s=None)
+        assert argv[4:] == ["--no-telemetry", *kept]
