@@ -99,7 +99,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _listen(text: str) -> str:
     """--foxglove's HOST:PORT, checked before anything starts."""
-    from pamd.view.live import parse_listen
+    from pamd.view.spec import parse_listen
 
     if text == "default":
         return text

@@ -24,8 +24,8 @@ from pamd.net.board import Board
 from pamd.net.host import NetHost
 from pamd.net.spec import NetSpec, TelemetryRequest
 from pamd.net.spec import resolve as resolve_net
-from pamd.view.live import ViewerSpec
-from pamd.view.live import resolve as resolve_viewer
+from pamd.view.spec import ViewerSpec
+from pamd.view.spec import resolve as resolve_viewer
 
 
 @dataclass(frozen=True)
