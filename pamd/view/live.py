@@ -21,7 +21,9 @@ Zenoh, where the router authenticates them.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -99,9 +101,16 @@ class LiveView:
         return io.wall0_ns + round(((self.t_start() or 0.0) + t_s - io.clock0_s) * 1e9)
 
     def ticks(self, rows: Sequence[Sequence[float]]) -> None:
-        """Tick records drained from the ring: one in `every_ticks` goes out."""
+        """Tick records drained from the ring: one in `every_ticks` goes out. A failure
+        ends the view alone (said once); recording and telemetry go on."""
         if self.server is None:
             return
+        try:
+            self._ticks(rows)
+        except Exception as exc:
+            self._give_up(exc)
+
+    def _ticks(self, rows: Sequence[Sequence[float]]) -> None:
         every, nl, nm = self.every, self.n_loop, self.n_mf
         hdr = cdr.CDR_LE
         for row in rows:
@@ -128,11 +137,22 @@ class LiveView:
         io = self.io_spec
         t0 = self.t_start()
         t0 = t_abs_s if t0 is None else t0
-        body = json.dumps(sanitize({"t_s": t_abs_s - t0,
-                                    "tick": round((t_abs_s - t0) * io.rate_hz),
-                                    "kind": kind, "data": data}), separators=(",", ":"))
         log_ns = io.wall0_ns + round((t_abs_s - io.clock0_s) * 1e9)
-        self.events_ch.log(body.encode(), log_time=log_ns)
+        try:
+            body = json.dumps(sanitize({"t_s": t_abs_s - t0,
+                                        "tick": round((t_abs_s - t0) * io.rate_hz),
+                                        "kind": kind, "data": data}), separators=(",", ":"),
+                              default=str)
+            self.events_ch.log(body.encode(), log_time=log_ns)
+        except Exception as exc:
+            self._give_up(exc)
+
+    def _give_up(self, exc: BaseException) -> None:
+        print(f"pamd: foxglove: the live view stopped ({exc.__class__.__name__}: {exc}); "
+              "recording and telemetry go on", file=sys.stderr, flush=True)
+        with contextlib.suppress(Exception):
+            self.close()
+        self.server = None
 
     def close(self) -> None:
         if self.server is None:
