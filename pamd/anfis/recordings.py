@@ -152,7 +152,10 @@ def read_csv(path: str) -> Run:
         try:
             columns[name] = np.array([_cell(r, j) for r in raw], dtype=np.float64)
         except ValueError:
-            continue  # a text column (events, notes): not usable, not needed
+            codes = _named_codes(name, [r[j] if j < len(r) else "" for r in raw])
+            if codes is not None:  # states and modes by name (`pamd export --csv`)
+                columns[name] = codes
+            continue  # any other text column (events, notes): not usable, not needed
     t = None
     for tname, scale in TIME_COLUMNS:
         if tname in columns:
@@ -186,6 +189,20 @@ def read_csv(path: str) -> Run:
                 columns["state"] = np.array([state.get(k, math.nan)
                                              for k in columns["tick"].tolist()])
     return Run(source=path, muscle=muscle, t_s=t - t[0], columns=columns, load_kg=load)
+
+
+def _named_codes(name: str, cells: list[str]) -> np.ndarray | None:
+    """A `state` or `mode` column of names (IDLE, RUNNING; pressure) as their codes."""
+    from pamd.tick import Mode, State
+
+    table = ({s.name: float(s.value) for s in State} if name == "state" else
+             {m.name.lower(): float(m.value) for m in Mode} if name == "mode" else None)
+    if table is None:
+        return None
+    try:
+        return np.array([table[c.strip()] if c.strip() else math.nan for c in cells])
+    except KeyError:
+        return None
 
 
 def _cell(row: list[str], j: int) -> float:

@@ -12,6 +12,7 @@ from pamd import __version__
 from pamd.cli import check_config, collect, emulate, evaluate, recordings, run, service, train
 from pamd.cli import net as net_cli
 from pamd.cli import router as router_cli
+from pamd.cli import view as view_cli
 from pamd.errors import PamdError
 
 COMMANDS = (run, check_config, collect, recordings, emulate, train, evaluate, service)
@@ -24,6 +25,7 @@ COMMANDS += (home_cli, tare_cli)
 
 # Clients of a running daemon over Zenoh (status, cmd, watch) and the lab router.
 COMMANDS += (net_cli, router_cli)
+COMMANDS += (view_cli,)  # pamd plot (pamd.view)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from typing import Any
 
@@ -16,14 +17,33 @@ from pamd.io import files
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("inspect", help="what a recording holds (channels, counts, metadata, "
-                       "faults, lost records)")
-    p.add_argument("file", metavar="FILE", help="an MCAP file written by pamd run --record")
+    p = sub.add_parser("inspect", help="what a recording or a collection holds (channels, "
+                       "counts, metadata, faults, lost records; steps, loads, files)",
+                       description="FILE: an MCAP recording's channels, counts, metadata, "
+                       "faults and lost records. DIR: a collection (pamd collect, or one "
+                       "started over the network): its steps, loads, status, files and "
+                       "duration, from its manifest and the files.")
+    p.add_argument("file", metavar="FILE|DIR", help="an MCAP file written by pamd run "
+                   "--record, or a collection directory")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run_inspect)
-    e = sub.add_parser("export", help="one CSV per topic, for MATLAB and pandas")
-    e.add_argument("file", metavar="FILE")
-    e.add_argument("--csv", metavar="DIR", required=True, help="directory for the CSV files")
+    e = sub.add_parser(
+        "export", help="a recording for MATLAB (.mat) or as named CSV tables",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Export a recording (a file, several, or a collection directory, "
+        "joined in order).\n\n--mat: one MATLAB struct per muscle (every tick field as a "
+        "column, units, state/mode names, flag bits), plus loop, events and pamd (rig, "
+        "files, loads, metadata); `load` reads it in MATLAB and Octave. Needs scipy "
+        "(pip install 'pamd[mat]').\n--csv: per muscle and for the loop a CSV with named "
+        "columns, times rounded to the tick, states and modes as names; the events; and "
+        "<stem>.meta.json with units, codes and flag bits.",
+        epilog="examples:\n  pamd export --mat run.mat rec/20260101-120000_sim_run.mcap\n"
+        "  pamd export --csv out/ runs/sweep            # a whole collection\n"
+        "  matlab> s = load('run.mat'); plot(s.m1.t_s, s.m1.pressure_bar)")
+    e.add_argument("file", metavar="RECORDING", nargs="+", help="MCAP file(s) or a "
+                   "collection directory")
+    e.add_argument("--csv", metavar="DIR", help="directory for the CSV files")
+    e.add_argument("--mat", metavar="OUT.mat", help="the MATLAB file to write")
     e.set_defaults(func=run_export)
     r = sub.add_parser("recover", help="turn an unfinished recording (crash, SIGKILL, power "
                        "cut) into a valid file holding every complete chunk")
@@ -38,6 +58,15 @@ def _ns(v: Any) -> str:
 
 
 def run_inspect(args: argparse.Namespace) -> int:
+    if os.path.isdir(args.file):
+        from pamd.view.collection import inspect_collection, print_collection
+
+        coll = inspect_collection(args.file)
+        if args.json:
+            print(json.dumps(coll, indent=2))
+        else:
+            print_collection(coll)
+        return 0
     info = files.inspect(args.file)
     if args.json:
         print(json.dumps(info, indent=2))
@@ -71,12 +100,18 @@ def run_inspect(args: argparse.Namespace) -> int:
 
 
 def run_export(args: argparse.Namespace) -> int:
-    out = files.export_csv(args.file, args.csv)
-    for topic, (path, n) in out.items():
-        if n < 0:
-            print(f"{topic}: skipped (not a flat message this tool can tabulate)")
-        else:
-            print(f"{topic}: {n} rows -> {path}")
+    if not args.csv and not args.mat:
+        raise RecordingError("say what to write: --mat OUT.mat, --csv DIR, or both")
+    from pamd.view import export
+
+    source = args.file[0] if len(args.file) == 1 else args.file
+    if args.mat:
+        r = export.export_mat(source, args.mat)
+        ticks = ", ".join(f"{m} {n} ticks" for m, n in r["muscles"].items())
+        print(f"{args.mat}: {ticks}, {r['events']} events, from {r['files']} file(s)")
+    if args.csv:
+        for what, (path, n) in export.export_named_csv(source, args.csv).items():
+            print(f"{what}: {path}" + ("" if n < 0 else f" ({n} rows)"))
     return 0
 
 

@@ -61,6 +61,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     t.add_argument("--zenoh-config", metavar="FILE", help="Zenoh config (JSON5) of the "
                    "daemon's session (overrides telemetry.zenoh_config; default: listen on "
                    "telemetry.listen, tcp/127.0.0.1:7447)")
+    t.add_argument("--foxglove", nargs="?", const="default", metavar="HOST:PORT",
+                   type=_listen, help="serve a live view to Foxglove (WebSocket, in the io "
+                   "process; a viewer, commands stay on Zenoh) on HOST:PORT (default: "
+                   "telemetry.foxglove.listen, 127.0.0.1:8765); layout: "
+                   "config/foxglove/pamd-layout.json")
     g = p.add_argument_group("profile (on every muscle unless --muscle)")
     g.add_argument("--profile", choices=PROFILE_KINDS, help="start this reference profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")
@@ -90,6 +95,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     lm.add_argument("--to-contraction", type=float, help="length profile: ramp/constant "
                     "target (fraction)")
     p.set_defaults(func=run)
+
+
+def _listen(text: str) -> str:
+    """--foxglove's HOST:PORT, checked before anything starts."""
+    from pamd.view.spec import parse_listen
+
+    if text == "default":
+        return text
+    try:
+        parse_listen(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 def _profile_spec(args: argparse.Namespace) -> ProfileSpec | None:
@@ -178,7 +196,8 @@ def run(args: argparse.Namespace) -> int:
         profile = _length_profile(args, cfg)
     recording = RecordingRequest(dir=args.record, enabled=not args.no_record,
                                  run_name=args.name, profile=profile, model_path=model_path)
-    telemetry = TelemetryRequest(enabled=not args.no_telemetry, zenoh_config=args.zenoh_config)
+    telemetry = TelemetryRequest(enabled=not args.no_telemetry, zenoh_config=args.zenoh_config,
+                                 foxglove=args.foxglove)
     daemon = Daemon(cfg, note=args.note, recording=recording, state_dir=args.state_dir,
                     notifier=Notifier.from_environ(), config_overrides=overrides,
                     telemetry=telemetry)

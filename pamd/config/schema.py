@@ -288,6 +288,17 @@ class RecordingConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class FoxgloveConfig:
+    enabled: bool = spec(False, "Serve a Foxglove WebSocket server from the io process: the "
+                         "recording's channels (state per muscle, loop, events) live, "
+                         "decimated to rate_hz like the Zenoh state; a viewer only (commands "
+                         "stay on Zenoh). `pamd run --foxglove [HOST:PORT]` turns it on for "
+                         "one run.")
+    listen: str = spec("127.0.0.1:8765", "HOST:PORT the Foxglove server listens on. If it "
+                       "is taken, `pamd run` says so and exits before anything moves.")
+
+
+@dataclass(frozen=True, kw_only=True)
 class TelemetryConfig:
     enabled: bool | None = spec(
         None, "`pamd run` publishes state and events, answers status and takes commands "
@@ -322,6 +333,8 @@ class TelemetryConfig:
     command_timeout_s: float = spec(5.0, "A command with no verdict from the loop within "
                                     "this time is answered with an error saying so.",
                                     unit="s", gt=0.0)
+    foxglove: FoxgloveConfig = spec(FoxgloveConfig(), "Live view in Foxglove (WebSocket, "
+                                    "in the io process; pamd.view.live).")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -92,6 +92,7 @@ class IoProcess:
         self.block = block
         self.recorder: Any = None
         self.net: Any = None  # pamd.net.node.NetNode: telemetry and remote commands
+        self.viewer: Any = None  # pamd.view.live.LiveView: the Foxglove server
         self.port = CommandPort(block)
         self.script = sorted(spec.script)
         self.rec_struct = struct.Struct(f"<{spec.layout.record_bytes // 8}d")
@@ -125,6 +126,8 @@ class IoProcess:
                 block.set(C_IO_STATE, IO_FAILED)
                 self.failed = True
                 return
+        if spec.viewer is not None and not self._open_viewer():
+            return
         if spec.record is not None:
             if spec.record.fsize_limit_bytes:
                 import resource
@@ -142,6 +145,8 @@ class IoProcess:
                 self._fail("cannot open the recording", exc)
                 if self.net is not None:
                     self.net.close("the recording could not be opened")
+                if self.viewer is not None:
+                    self.viewer.close()
                 return
         block.set(C_IO_STATE, IO_READY)
         stop_reason = "stopped by the daemon"
@@ -181,6 +186,8 @@ class IoProcess:
                            else IDLE_SLEEP_S)
         if self.net is not None:  # token withdrawn, pending queries answered, closed
             self.net.close(stop_reason)
+        if self.viewer is not None:
+            self.viewer.close()
         if self.recorder is not None:
             try:
                 self.recorder.finish(summary, stop_reason)
@@ -189,6 +196,24 @@ class IoProcess:
                 return
         if not self.failed:
             block.set(C_IO_STATE, IO_DONE)
+
+    def _open_viewer(self) -> bool:
+        """The Foxglove server (pamd.view.live); a taken port refuses, as Zenoh's does,
+        before any file opens."""
+        from pamd.view.live import LiveView
+
+        assert self.spec.viewer is not None
+        self.viewer = LiveView(self.spec.viewer, self.spec, self.block.t_start)
+        err = self.viewer.open()
+        if err is None:
+            return True
+        self.viewer = None
+        self.block.set_error(f"foxglove: {err}")
+        self.block.set(C_IO_STATE, IO_FAILED)
+        self.failed = True
+        if self.net is not None:
+            self.net.close("the Foxglove server could not start")
+        return False
 
     def _drain_ticks(self) -> int:
         ring = self.ring_ticks = self.block.ticks
@@ -204,6 +229,8 @@ class IoProcess:
         ring.release(start + n)
         if self.net is not None:
             self.net.ticks(rows)
+        if self.viewer is not None:
+            self.viewer.ticks(rows)
         rec = self.recorder
         if rec is not None:
             if rec.t_start is None:
@@ -236,6 +263,8 @@ class IoProcess:
                 self.port.on_reply(data)
             if self.net is not None:
                 self.net.event(ev["t"], kind, data)
+            if self.viewer is not None:
+                self.viewer.event(ev["t"], kind, data)
             if kind == "summary":
                 summary = data
                 continue

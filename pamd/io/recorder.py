@@ -55,6 +55,18 @@ def sanitize(x: Any) -> Any:
     return x
 
 
+def record_schemas() -> list[tuple[str, str, bytes]]:
+    """(name, encoding, data) of the muscle state, loop and event schemas: the
+    recording's, and the live Foxglove view's (pamd.view.live)."""
+    return [
+        (cdr.MUSCLE_SCHEMA_NAME, "ros2msg", cdr.schema_text(cdr.muscle_fields(), "pamd muscle "
+                                                            "state, one per muscle per tick")),
+        (cdr.LOOP_SCHEMA_NAME, "ros2msg", cdr.schema_text(cdr.loop_fields(), "pamd loop "
+                                                          "timing, one per tick")),
+        (cdr.EVENT_SCHEMA_NAME, "jsonschema", json.dumps(EVENT_SCHEMA).encode()),
+    ]
+
+
 def file_name(started_at: str, rig_id: str, run_name: str, segment: int,
               step: dict[str, Any] | None = None) -> str:
     """`<time>_<rig>_<run>[_NN-<step>][_NNN].mcap`: an experiment step's files carry
@@ -84,13 +96,7 @@ class Recorder:
         self.mus_len = cdr.record_length(self.mus_rec)
         self.loop_int = [i for i, (_n, t) in enumerate(lf) if t != "float64"]
         self.mus_int = [i for i, (_n, t) in enumerate(mf) if t != "float64"]
-        self.schemas = [
-            (cdr.MUSCLE_SCHEMA_NAME, "ros2msg", cdr.schema_text(mf, "pamd muscle state, one "
-                                                                "per muscle per tick")),
-            (cdr.LOOP_SCHEMA_NAME, "ros2msg", cdr.schema_text(lf, "pamd loop timing, one "
-                                                              "per tick")),
-            (cdr.EVENT_SCHEMA_NAME, "jsonschema", json.dumps(EVENT_SCHEMA).encode()),
-        ]
+        self.schemas = record_schemas()
         self.t_start: float | None = None
         self.writer: McapWriter | None = None
         self.files: list[str] = []

@@ -24,6 +24,8 @@ from pamd.net.board import Board
 from pamd.net.host import NetHost
 from pamd.net.spec import NetSpec, TelemetryRequest
 from pamd.net.spec import resolve as resolve_net
+from pamd.view.spec import ViewerSpec
+from pamd.view.spec import resolve as resolve_viewer
 
 
 @dataclass(frozen=True)
@@ -42,7 +44,7 @@ class RecordingRequest:
 
 class IoSession:
     def __init__(self, daemon: Any, req: RecordingRequest, record_dir: str | None,
-                 net: NetSpec | None = None) -> None:
+                 net: NetSpec | None = None, viewer: ViewerSpec | None = None) -> None:
         self.daemon = daemon
         cfg = daemon.cfg
         self.rc = cfg.rig.recording
@@ -69,13 +71,14 @@ class IoSession:
             self.host = NetHost(daemon, self.board, cfg.rig.telemetry.status_hz,
                                 record_dir)
         self.net = net
+        self.viewer = viewer
 
         def make_spec(shm_name: str) -> IoSpec:
             return IoSpec(shm_name=shm_name, layout=layout, rig_id=cfg.rig.rig_id,
                           muscles=tuple(daemon.layout.muscles), rate_hz=rate,
                           virtual=self.virtual, wall0_ns=wall0, clock0_s=clock0,
                           parent_pid=os.getpid(), record=rspec, script=tuple(req.script),
-                          net=net)
+                          net=net, viewer=viewer)
 
         self.link = IoLink.create(make_spec, layout)
         ctrl = daemon.ctrl
@@ -94,9 +97,10 @@ class IoSession:
         if not req.enabled or not record_dir:
             record_dir = None
         net = resolve_net(daemon.cfg, telemetry)  # ConfigError before anything starts
-        if record_dir is None and net is None:
+        viewer = resolve_viewer(daemon.cfg, telemetry.foxglove if telemetry else None)
+        if record_dir is None and net is None and viewer is None:
             return None
-        return cls(daemon, req, record_dir, net)
+        return cls(daemon, req, record_dir, net, viewer)
 
     def start(self) -> None:
         try:
@@ -109,6 +113,9 @@ class IoSession:
         if self.net is not None:
             logging.getLogger("pamd").info("telemetry: pamd/%s/** (%s)", self.net.rig_id,
                                            self.net.where)
+        if self.viewer is not None:
+            logging.getLogger("pamd").info("foxglove: live view on %s (Foxglove: Open "
+                                           "connection, Foxglove WebSocket)", self.viewer.url)
 
     def service(self) -> None:
         """The main thread's share (Daemon.service): status snapshot, main-thread
@@ -128,7 +135,9 @@ class IoSession:
         key = "on_io_death" if what == "death" else "on_failure"
         ctrl = self.daemon.ctrl
         gone = " and ".join(w for w, on in (("recording", self.recording),
-                                            ("telemetry", self.net is not None)) if on)
+                                            ("telemetry", self.net is not None),
+                                            ("the Foxglove view", self.viewer is not None))
+                            if on)
         if policy == "safe_state":
             msg = f"{gone} stopped: {reason}; going to the safe state (recording.{key})"
         else:

@@ -46,3 +46,5 @@ class IoSpec:
     script: tuple[tuple[int, str, dict], ...] = ()
     # Telemetry and remote commands (pamd.net.spec.NetSpec); None: no Zenoh session.
     net: Any = None
+    # The live Foxglove view (pamd.view.spec.ViewerSpec); None: no Foxglove server.
+    viewer: Any = None

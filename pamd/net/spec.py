@@ -21,6 +21,9 @@ class TelemetryRequest:
 
     enabled: bool = True
     zenoh_config: str | None = None
+    # The live Foxglove view (pamd.view.spec.resolve): None as telemetry.foxglove says,
+    # "default" on at its listen address, "HOST:PORT" on there. Independent of `enabled`.
+    foxglove: str | None = None
 
 
 @dataclass(frozen=True)

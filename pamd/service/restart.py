@@ -51,6 +51,7 @@ STANDING_OPTIONS: tuple[tuple[str, str, bool], ...] = (
     ("name", "--name", True),
     ("no_telemetry", "--no-telemetry", False),
     ("zenoh_config", "--zenoh-config", True),
+    ("foxglove", "--foxglove", True),
     ("model", "--model", True),
 )
 

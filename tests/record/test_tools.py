@@ -82,14 +82,15 @@ def test_inspect_and_export_a_good_file(recorded_run: Any, tmp_path: Path,
     assert "/pamd/sim/state/m1" in capsys.readouterr().out
     out = tmp_path / "csv"
     assert main(["export", path, "--csv", str(out)]) == 0
-    with open(out / "pamd_sim_state_m1.csv", newline="") as fh:
+    stem = Path(path).stem
+    with open(out / f"{stem}_m1.csv", newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0][:4] == ["log_time_ns", "tick", "t_s", "pressure_bar"]
+    assert rows[0][:3] == ["tick", "t_s", "pressure_bar"]
     assert len(rows) == n + 1
     i = rows[0].index("force_n")
     fi = len(LOOP_FIELDS) + MUSCLE_FIELDS.index("force_n")
     assert [float(r[i]) for r in rows[1:]] == [r[fi] for r in run.cap.rows]
-    assert (out / "pamd_sim_loop.csv").exists() and (out / "pamd_sim_events.csv").exists()
+    assert (out / f"{stem}_loop.csv").exists() and (out / f"{stem}_events.csv").exists()
 
 
 def test_run_records_by_config_default_and_no_record_turns_it_off(

@@ -1,0 +1,198 @@
+"""A recording for MATLAB and spreadsheets: `pamd export --mat` and `--csv`.
+
+MATLAB (`scipy.io.savemat`, MAT 5, readable by `load` in MATLAB and Octave): one
+struct per muscle (every tick field as a column vector, `units` and `description`
+structs, `state_names` and `mode_names` for the codes: `m1.state_names{m1.state + 1}`,
+`flag_bits` for the bits of `flags`), `loop` (the loop's fields), `events` (t_s, tick,
+kind, data as JSON text) and `pamd` (rig, rate, files, steps and loads, metadata).
+
+CSV: per muscle `<stem>_<muscle>.csv` and `<stem>_loop.csv` with a header of names,
+times rounded to the tick (as many decimals as the period needs), states and modes
+as names; `<stem>_events.csv`; and the sidecar `<stem>.meta.json` with each column's
+unit and meaning, the state and mode codes, the flag bits and the run's metadata.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import re
+import warnings
+from typing import Any
+
+import numpy as np
+
+from pamd.errors import RecordingError
+from pamd.view import fields
+from pamd.view.recording import Recording, open_recording
+
+_NAME = re.compile(r"[^A-Za-z0-9_]")
+
+
+def matlab_name(name: str) -> str:
+    """A valid MATLAB identifier for `name` (letters, digits, '_'; a letter first)."""
+    out = _NAME.sub("_", name)
+    if not out or not out[0].isalpha():
+        out = "m_" + out
+    return out[:63]
+
+
+def _complete(source: Any) -> Recording:
+    with warnings.catch_warnings():  # an unfinished file is refused below, in one line
+        warnings.simplefilter("ignore")
+        rec = open_recording(source)
+    if not rec.complete:
+        bad = next(f.path for f in rec.files if not f.complete)
+        raise RecordingError(f"{bad}: unfinished recording; run `pamd recover {bad}` first "
+                             "and export the recovered file")
+    if not rec.muscles:
+        raise RecordingError(f"{source}: no muscle state recorded")
+    return rec
+
+
+def decimals_of(rate_hz: float | None) -> int:
+    """Decimals that show every tick time exactly: 1 kHz -> 3, 500 Hz -> 3, 64 Hz -> 6."""
+    if not rate_hz:
+        return 6
+    period = 1.0 / rate_hz
+    for d in range(0, 10):
+        if abs(round(period, d) - period) < 1e-12:
+            return d
+    return 9
+
+
+def _columns_doc(names: list[str]) -> dict[str, dict[str, str]]:
+    return {n: {"unit": fields.unit_of(n), "description": fields.DESCRIPTIONS.get(n, {
+        "load_kg": "hanging load of the file's step (or the config's)",
+        "file": "index of the file the tick came from (0-based)"}.get(n, ""))}
+            for n in names}
+
+
+def _meta(rec: Recording) -> dict[str, Any]:
+    return {"source": rec.source, "rig_id": rec.rig_id, "rate_hz": rec.rate_hz,
+            "files": [os.path.basename(f.path) for f in rec.files],
+            "steps": [f.step or "" for f in rec.files],
+            "loads_kg": [math.nan if f.load_kg is None else f.load_kg for f in rec.files],
+            "metadata": rec.metadata}
+
+
+# -- MATLAB ------------------------------------------------------------------------------
+def export_mat(source: Any, out: str) -> dict[str, Any]:
+    """Write `out` (.mat); what was written (muscles, ticks, events)."""
+    try:
+        from scipy.io import savemat
+    except ImportError:
+        raise RecordingError("MATLAB export needs scipy: pip install 'pamd[mat]'") from None
+    rec = _complete(source)
+    cell = lambda xs: np.array(list(xs), dtype=object)  # noqa: E731 - a MATLAB cell array
+    tables: dict[str, Any] = {}
+    for m, data in rec.muscles.items():
+        st: dict[str, Any] = {k: v.astype(np.float64) for k, v in data.columns.items()}
+        doc = _columns_doc(list(data.columns))
+        st["units"] = {k: d["unit"] for k, d in doc.items()}
+        st["description"] = {k: d["description"] for k, d in doc.items()}
+        st["state_names"] = cell(fields.STATE_NAMES.values())
+        st["mode_names"] = cell(fields.MODE_NAMES.values())
+        st["flag_bits"] = {k: float(v) for k, v in fields.FLAG_BITS.items()}
+        st["muscle"] = m
+        tables[matlab_name(m)] = st
+    loop = {k: v.astype(np.float64) for k, v in rec.loop.items()}
+    loop["units"] = {k: fields.unit_of(k) for k in rec.loop}
+    loop["state_names"] = cell(fields.STATE_NAMES.values())
+    ev = rec.events
+    events = {"t_s": np.array([e.t_s for e in ev], dtype=np.float64),
+              "tick": np.array([e.tick for e in ev], dtype=np.float64),
+              "kind": cell(e.kind for e in ev),
+              "data": cell(json.dumps(e.data, sort_keys=True, default=str) for e in ev)}
+    meta = _meta(rec)
+    pamd = {"source": meta["source"], "rig_id": meta["rig_id"],
+            "rate_hz": math.nan if rec.rate_hz is None else rec.rate_hz,
+            "files": cell(meta["files"]), "steps": cell(meta["steps"]),
+            "loads_kg": np.array(meta["loads_kg"], dtype=np.float64),
+            "muscles": cell(rec.muscles),
+            "metadata": {matlab_name(k): {matlab_name(a): str(b) for a, b in v.items()}
+                         for k, v in rec.metadata.items()}}
+    clash = set(tables) & {"loop", "events", "pamd"}
+    if clash:
+        raise RecordingError(f"a muscle named {clash.pop()!r} would hide a table of the "
+                             "same name in the .mat file")
+    os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
+    try:
+        savemat(out, {**tables, "loop": loop, "events": events, "pamd": pamd},
+                oned_as="column", do_compression=True, long_field_names=True)
+    except OSError as exc:
+        raise RecordingError(f"{out}: cannot write ({exc.strerror or exc})") from None
+    return {"out": out, "muscles": {m: len(d) for m, d in rec.muscles.items()},
+            "events": len(ev), "files": len(rec.files)}
+
+
+# -- CSV ---------------------------------------------------------------------------------------
+def export_named_csv(source: Any, out_dir: str) -> dict[str, Any]:
+    """Named CSV tables and their sidecar in `out_dir`; the paths written."""
+    rec = _complete(source)
+    os.makedirs(out_dir, exist_ok=True)
+    stem = (os.path.basename(os.path.normpath(source)) if isinstance(source, str)
+            and os.path.isdir(source) else os.path.splitext(os.path.basename(
+                rec.files[0].path))[0])
+    d = decimals_of(rec.rate_hz)
+    written: dict[str, Any] = {}
+    for m, data in rec.muscles.items():
+        path = os.path.join(out_dir, f"{stem}_{m}.csv")
+        named = {"state": data.states(), "mode": data.modes()}
+        _write_table(path, data.columns, named, d)
+        written[m] = (path, len(data))
+    loop_named = {"state": np.array([fields.state_name(x) for x in rec.loop["state"]],
+                                    dtype=object)}
+    path = os.path.join(out_dir, f"{stem}_loop.csv")
+    _write_table(path, rec.loop, loop_named, d)
+    written["loop"] = (path, len(rec.loop["tick"]))
+    path = os.path.join(out_dir, f"{stem}_events.csv")
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t_s", "tick", "kind", "data"])
+        for e in rec.events:
+            w.writerow([f"{e.t_s:.{d}f}", e.tick, e.kind,
+                        json.dumps(e.data, sort_keys=True, default=str)])
+    written["events"] = (path, len(rec.events))
+    names = list(next(iter(rec.muscles.values())).columns) + [
+        c for c in rec.loop if c not in ("tick", "t_s", "state", "segment")]
+    side = {"format": "pamd-csv", "version": 1, "time_decimals": d,
+            "columns": _columns_doc(names),
+            "states": {str(k): v for k, v in fields.STATE_NAMES.items()},
+            "modes": {str(k): v for k, v in fields.MODE_NAMES.items()},
+            "flags": {n: {"bit": v, "meaning": fields.FLAG_MEANINGS.get(n, "")}
+                      for n, v in fields.FLAG_BITS.items()},
+            "tables": {k: os.path.basename(p) for k, (p, _n) in written.items()},
+            **_meta(rec)}
+    side["loads_kg"] = [None if math.isnan(x) else x for x in side["loads_kg"]]
+    path = os.path.join(out_dir, f"{stem}.meta.json")
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(side, fh, indent=2)
+    written["sidecar"] = (path, -1)
+    return written
+
+
+def _write_table(path: str, cols: dict[str, np.ndarray], named: dict[str, np.ndarray],
+                 decimals: int) -> None:
+    names = list(cols)
+    t = cols.get("t_s")
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(names)
+        n = len(cols[names[0]]) if names else 0
+        lists = [named[k].tolist() if k in named else cols[k].tolist() for k in names]
+        it = names.index("t_s") if t is not None else -1
+        ints = {i for i, k in enumerate(names) if cols[k].dtype.kind in "iu"}
+        for r in range(n):
+            row: list[Any] = []
+            for i, col in enumerate(lists):
+                v = col[r]
+                if i == it:
+                    row.append(f"{v:.{decimals}f}")
+                elif isinstance(v, float):
+                    row.append("NaN" if v != v else (str(int(v)) if i in ints else repr(v)))
+                else:
+                    row.append(v)
+            w.writerow(row)

@@ -1,0 +1,122 @@
+"""The Foxglove layout of a rig: per muscle, pressure against setpoint and valve
+command, length against target, force; the supervisor state and control modes over
+time; the latest event. Its message paths name the recording's topics and fields, so
+it shows a live rig (`pamd run --foxglove`) and a recorded file alike, with the log
+time (the tick's) as the time axis.
+
+config/foxglove/pamd-layout.json is this layout for the simulated rig (rig_id `sim`,
+muscle `m1`); for another rig:
+
+    python -m pamd.view.layout --config rig.yaml --out my-rig-layout.json
+
+Import it in Foxglove: Layouts, Import from file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+from pamd.tick import Mode, State
+
+_COLORS = {"STARTING": "#9e9e9e", "IDLE": "#1f77b4", "RUNNING": "#2ca02c", "HOLD": "#ff7f0e",
+           "FAULT": "#d62728", "ESTOP": "#7f0000", "LOAD_CHANGE": "#9467bd"}
+
+
+def _series(path: str, label: str, color: str | None = None) -> dict[str, Any]:
+    s: dict[str, Any] = {"value": path, "enabled": True, "timestampMethod": "receiveTime",
+                         "label": label}
+    if color:
+        s["color"] = color
+    return s
+
+
+def _plot(title: str, ylabel: str, series: list[dict[str, Any]]) -> dict[str, Any]:
+    return {"paths": series, "showXAxisLabels": True, "showYAxisLabels": True,
+            "showLegend": True, "legendDisplay": "floating", "showPlotValuesInLegend": True,
+            "isSynced": True, "xAxisVal": "timestamp", "yAxisLabel": ylabel,
+            "sidebarDimension": 240, "foxglovePanelTitle": title}
+
+
+def _discrete(names: dict[int, str]) -> dict[str, Any]:
+    return {"type": "discrete", "states": [
+        {"value": str(v), "label": n, "color": _COLORS.get(n)} for v, n in names.items()]}
+
+
+def _stack(ids: Sequence[Any], direction: str = "column") -> Any:
+    """A mosaic tree giving each panel an equal share."""
+    if len(ids) == 1:
+        return ids[0]
+    return {"direction": direction, "first": ids[0], "second": _stack(ids[1:], direction),
+            "splitPercentage": round(100.0 / len(ids), 2)}
+
+
+def build_layout(rig_id: str, muscles: Sequence[str]) -> dict[str, Any]:
+    """The layout (Foxglove's layout file format) of a rig with these muscles."""
+    root = f"/pamd/{rig_id}"
+    config: dict[str, Any] = {}
+    tabs = []
+    for m in muscles:
+        st = f"{root}/state/{m}"
+        ids = [f"Plot!{m}-pressure", f"Plot!{m}-length", f"Plot!{m}-force"]
+        config[ids[0]] = _plot(f"{m}: pressure vs setpoint, valve command", "bar", [
+            _series(f"{st}.pressure_bar", "pressure", "#1f77b4"),
+            _series(f"{st}.setpoint_bar", "setpoint", "#ff7f0e"),
+            _series(f"{st}.valve_cmd_bar", "valve command", "#7f7f7f")])
+        config[ids[1]] = _plot(f"{m}: length vs target", "mm", [
+            _series(f"{st}.length_mm", "length", "#1f77b4"),
+            _series(f"{st}.target_length_mm", "target", "#ff7f0e")])
+        config[ids[2]] = _plot(f"{m}: force", "N", [
+            _series(f"{st}.force_n", "force", "#2ca02c"),
+            _series(f"{st}.target_force_n", "force target", "#ff7f0e")])
+        tabs.append({"title": m, "layout": _stack(ids)})
+    state_id, events_id = "StateTransitions!pamd-state", "RawMessages!pamd-events"
+    state_paths = [dict(_series(f"{root}/loop.state", "supervisor state"),
+                        customStates=_discrete({s.value: s.name for s in State}))]
+    state_paths += [dict(_series(f"{root}/state/{m}.mode", f"{m} mode"),
+                         customStates=_discrete({x.value: x.name.lower() for x in Mode}))
+                    for m in muscles]
+    config[state_id] = {"paths": state_paths, "isSynced": True, "showPoints": True,
+                        "foxglovePanelTitle": "state and modes"}
+    config[events_id] = {"topicPath": f"{root}/events", "diffTopicPath": "",
+                         "diffMethod": "custom", "diffEnabled": False,
+                         "showFullMessageForDiff": False, "expansion": "all", "fontSize": 12,
+                         "foxglovePanelTitle": "latest event"}
+    if len(tabs) == 1:
+        left: Any = tabs[0]["layout"]
+    else:
+        left = "Tab!pamd-muscles"
+        config[left] = {"activeTabIdx": 0, "tabs": tabs}
+    return {"configById": config, "globalVariables": {}, "userNodes": {},
+            "playbackConfig": {"speed": 1},
+            "layout": {"direction": "row", "first": left,
+                       "second": _stack([state_id, events_id]), "splitPercentage": 65}}
+
+
+def layout_json(rig_id: str, muscles: Sequence[str]) -> str:
+    return json.dumps(build_layout(rig_id, muscles), indent=2) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m pamd.view.layout",
+                                description="Write the Foxglove layout of a rig.")
+    p.add_argument("--config", metavar="FILE", help="rig config (default: built-in sim)")
+    p.add_argument("--out", metavar="FILE", help="where to write it (default: stdout)")
+    args = p.parse_args(argv)
+    from pamd.config import load_config
+
+    cfg = load_config(args.config)
+    text = layout_json(cfg.rig.rig_id, [m.name for m in cfg.rig.muscles])
+    if args.out:
+        with open(args.out, "w", encoding="utf-8") as fh:
+            fh.write(text)
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,125 @@
+"""The figures of a run, without a model (`pamd plot`): per muscle, pressure and
+setpoint against time, length and its target, force, and the pressure-contraction
+hysteresis loop of each load (seeds 000 and 003). One figure per PNG file, sized and
+labelled for print (units on every axis, a legend wherever there is more than one line).
+
+matplotlib is the optional `plot` extra, imported here only (Agg backend).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from pamd.errors import RecordingError
+from pamd.view.recording import MuscleData, Recording
+
+FIGSIZE = (8.0, 4.5)
+DPI = 150
+
+
+def _pyplot() -> Any:
+    try:
+        import matplotlib
+    except ImportError:
+        raise RecordingError("plots need matplotlib: pip install 'pamd[plot]'") from None
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def timeline(m: MuscleData) -> tuple[np.ndarray, bool]:
+    """The time axis: t_s, with files whose clock restarts placed end to end."""
+    t = np.asarray(m["t_s"], dtype=np.float64).copy()
+    back = np.flatnonzero(np.diff(t) < 0)
+    for i in back:
+        t[i + 1:] += t[i] - t[i + 1] + (t[i] - t[i - 1] if i > 0 else 0.0)
+    return t, bool(len(back))
+
+
+def write_plots(rec: Recording, prefix: str, muscles: list[str] | None = None) -> list[str]:
+    """PREFIX_<muscle>_{pressure,length,force,hysteresis}.png; returns the paths."""
+    plt = _pyplot()
+    d = os.path.dirname(prefix)
+    if d:
+        os.makedirs(d, exist_ok=True)
+    out: list[str] = []
+    for name in muscles or list(rec.muscles):
+        m = rec[name]
+        if len(m) == 0:
+            raise RecordingError(f"{rec.source}: muscle {name} has no ticks")
+        t, joined = timeline(m)
+        xlabel = "time [s]" + (" (files placed end to end)" if joined else "")
+        where = f"{name}, {os.path.basename(rec.source.rstrip(os.sep))}"
+        base = f"{prefix}_{name}"
+        out.append(_series(plt, f"{base}_pressure.png", t, xlabel, "pressure [bar]",
+                           [(m["pressure_bar"], "measured pressure", "tab:blue", "-"),
+                            (m["setpoint_bar"], "setpoint", "tab:orange", "--")],
+                           f"Pressure and setpoint ({where})"))
+        lines = [(m["length_mm"], "measured length", "tab:blue", "-")]
+        if np.isfinite(m["target_length_mm"]).any():
+            lines.append((m["target_length_mm"], "length target", "tab:orange", "--"))
+        out.append(_series(plt, f"{base}_length.png", t, xlabel, "length [mm]", lines,
+                           f"Length{' and target' if len(lines) > 1 else ''} ({where})"))
+        out.append(_series(plt, f"{base}_force.png", t, xlabel, "force [N]",
+                           [(m["force_n"], "measured force", "tab:green", "-")],
+                           f"Force ({where})"))
+        out.append(_hysteresis(plt, f"{base}_hysteresis.png", m,
+                               f"Pressure-contraction hysteresis ({where})"))
+    return out
+
+
+def _series(plt: Any, path: str, t: np.ndarray, xlabel: str, ylabel: str,
+            lines: list[tuple[np.ndarray, str, str, str]], title: str) -> str:
+    fig, ax = plt.subplots(figsize=FIGSIZE)
+    for y, label, color, style in lines:
+        ax.plot(t, y, style, color=color, lw=1.2, label=label)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    if len(lines) > 1:
+        ax.legend(loc="best")
+    return _save(fig, plt, path)
+
+
+def hysteresis_loops(m: MuscleData) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(load label, pressure [bar], contraction [%]) of the running ticks, per load."""
+    running = m.states() == "RUNNING"
+    loads = m["load_kg"]
+    keys = sorted({float(x) for x in loads[running]}, key=lambda x: (np.isnan(x), x))
+    out = []
+    for load in keys:
+        sel = running & (np.isnan(loads) if np.isnan(load) else loads == load)
+        label = "load unknown" if np.isnan(load) else f"{load:g} kg"
+        out.append((label, m["pressure_bar"][sel], 100.0 * m["contraction"][sel]))
+    return out
+
+
+def _hysteresis(plt: Any, path: str, m: MuscleData, title: str) -> str:
+    """Contraction against measured pressure while running, one loop per load."""
+    loops = hysteresis_loops(m)
+    fig, ax = plt.subplots(figsize=(6.5, 5.0))
+    cmap = plt.get_cmap("viridis", max(2, len(loops)))
+    for k, (label, p, c) in enumerate(loops):
+        ax.plot(p, c, ".", ms=1.5, color=cmap(k), label=label)
+    if not loops:
+        ax.text(0.5, 0.5, "no running ticks (no profile ran)", ha="center",
+                transform=ax.transAxes)
+    ax.set_xlabel("pressure [bar]")
+    ax.set_ylabel("contraction [%]")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    if loops:
+        ax.legend(loc="best", title="hanging load", markerscale=6)
+    return _save(fig, plt, path)
+
+
+def _save(fig: Any, plt: Any, path: str) -> str:
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
