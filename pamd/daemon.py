@@ -177,6 +177,10 @@ class Daemon:
             cmd = prepare_command(cmd, self.cfg)  # file I/O (model) here, not in the loop
         except CommandRefused as exc:
             pending.set({"ok": False, "error": str(exc)})
+        except Exception as exc:  # the daemon never dies of a request
+            log.exception("%s command", verb)
+            pending.set({"ok": False, "error": f"{verb}: refused: it failed while being "
+                         f"prepared ({exc.__class__.__name__}); the daemon goes on"})
         else:
             self.mailbox.put(cmd)
         return pending

@@ -269,6 +269,14 @@ class TelemetryConfig:
     command_timeout_s: float = spec(5.0, "A command with no verdict from the loop within "
                                     "this time is answered with an error saying so.",
                                     unit="s", gt=0.0)
+    plans_dir: str | None = spec(
+        None, "Directory (relative to the config file) whose plan files a remote `collect` "
+        "may name, by file name only (`pamd cmd collect --plan-file sweep.yaml`); at most "
+        "1 MiB and 64 levels of nesting each. null: remote collects are refused.")
+    models_dir: str | None = spec(
+        None, "Directory (relative to the config file) whose model files a remote `model` "
+        "command may name, by file name only; at most 16 MiB and 64 levels of nesting "
+        "each. null: remote model swaps are refused.")
 
 
 @dataclass(frozen=True, kw_only=True)
