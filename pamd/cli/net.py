@@ -23,7 +23,8 @@ CMD_EPILOG = """examples:
   pamd cmd setpoint --muscle m1 --bar 3.0 --deadman-s 0.5     # streamed: refresh it
   pamd cmd profile --kind sine --min-bar 0 --max-bar 6 --freq-hz 0.05 --cycles 2
   pamd cmd hold ; pamd cmd stop ; pamd cmd estop --reason "hand in the rig"
-  pamd cmd collect --plan-file /srv/plans/sweep.yaml           # a file on the rig PC
+  pamd cmd collect --plan-file sweep.yaml     # by name, from the daemon's telemetry.plans_dir
+  pamd cmd model --muscle m1 --file m1.json   # by name, from its telemetry.models_dir
   pamd cmd load --arg muscle=m1 --arg load_kg=40
   pamd cmd setpoint --json '{"muscle": "m1", "bar": 2.5}'
 """

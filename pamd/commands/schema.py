@@ -79,8 +79,9 @@ class ModeArgs:
 @dataclass(frozen=True, kw_only=True)
 class ModelArgs:
     muscle: str = spec(doc="Muscle name.")
-    file: str = spec(doc="Model file (pamd train) on the rig PC; read, checked and compiled "
-                     "before the command reaches the loop.")
+    file: str = spec(doc="Model file (pamd train) on the rig PC: over the network, its "
+                     "name in the daemon's telemetry.models_dir (no directories); read, "
+                     "checked and compiled before the command reaches the loop.")
 
 
 class PreparedModelArgs:
@@ -119,7 +120,8 @@ class NoArgs:
 
 @dataclass(frozen=True, kw_only=True)
 class CollectArgs:
-    plan_file: str = spec(doc="Experiment plan (YAML) on the rig PC.")
+    plan_file: str = spec(doc="Experiment plan (YAML) on the rig PC: its name in the "
+                          "daemon's telemetry.plans_dir (no directories).")
     start_step: int = spec(0, "Start at this step (0-based; --resume).", min=0)
     collection: str | None = spec(
         None, "With start_step > 0: the collection to resume, by its directory name under "
