@@ -101,8 +101,15 @@ def print_status(st: dict[str, Any]) -> None:
         print(f"status: {st.get('error')}")
         return
     print(f"rig {st.get('rig_id')}: {st.get('state')} ({st.get('reason')})")
+    for why in st.get("stale_reasons") or []:
+        print(f"  STALE: {why}")
     if st.get("fault"):
         print(f"  latched fault: {st['fault']}")
+    failure = (st.get("recording") or {}).get("failure")
+    if failure:
+        print(f"  RECORDING STOPPED: {failure.get('reason')} (recording.on_"
+              f"{'io_death' if failure.get('what') == 'death' else 'failure'}: "
+              f"{failure.get('policy')})")
     if st.get("stopping"):
         print(f"  stopping: {st['stopping']}")
     for name, m in (st.get("muscles") or {}).items():

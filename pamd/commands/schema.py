@@ -185,6 +185,8 @@ class Command:
     user: str = ""
 
 
+URGENT_VERBS = ("estop", "stop")
+"""Never rate limited, taken while the daemon stops, ahead of a waiting burst."""
 MAX_TEXT_CHARS = 200
 """Text fields (`reason`, a muscle's name, a file name...) are cut to this when parsed,
 so an `estop` or `stop` always fits the rings and always acts."""

@@ -25,6 +25,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
+from pamd.commands.schema import URGENT_VERBS
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import (
     C_HEARTBEAT,
@@ -39,7 +40,6 @@ from pamd.ipc.ring import (
 
 IDLE_SLEEP_S = 0.0005
 BACKLOG_MAX = 1024  # commands waiting for room in the loop's mailbox
-URGENT_VERBS = ("estop", "stop")  # ahead of the waiting ones
 VERDICT_SLEEP_S = 0.0001
 BATCH = 512
 

@@ -73,8 +73,14 @@ class NetHost:
         for rid, p in list(self.pending.items()):
             if p.verdict is not None:
                 del self.pending[rid]
-                self._reply(rid, p.verdict if p.collection is None else
-                            self.collections.verdict(p.collection, p.verdict))
+                try:
+                    verdict = (p.verdict if p.collection is None else
+                               self.collections.verdict(p.collection, p.verdict))
+                except Exception as exc:  # the daemon never dies of a request
+                    log.exception("the verdict of request %d", rid)
+                    verdict = {**p.verdict, "warning": f"the collection's bookkeeping "
+                               f"failed ({exc.__class__.__name__}); see the daemon's log"}
+                self._reply(rid, verdict)
         while self.outbox and self.board.replies.put_blob(self.outbox[0]):
             self.outbox.pop(0)
         self.collections.service()

@@ -32,7 +32,13 @@ from collections.abc import Callable
 from typing import Any
 
 from pamd.commands import parse_command
-from pamd.commands.schema import MAX_WHO_CHARS, args_for_record, cap_payload, cap_text
+from pamd.commands.schema import (
+    MAX_WHO_CHARS,
+    URGENT_VERBS,
+    args_for_record,
+    cap_payload,
+    cap_text,
+)
 from pamd.errors import CommandRefused
 from pamd.net.board import Board
 from pamd.net.keys import Keys
@@ -352,10 +358,15 @@ class NetNode:
         with self.lock:
             try:
                 self._command(q, time.monotonic())
-            except Exception as exc:  # never leave a query unanswered
-                self._send(q, str(q.key_expr), json.dumps(
-                    {"ok": False, "error": f"command failed in the io process: {exc!r}"}
-                ).encode())
+            except Exception as exc:  # never leave a query unanswered, nor unrecorded
+                error = cap_text(f"refused: the command failed in the io process "
+                                 f"({exc.__class__.__name__}: {exc}); the daemon goes on", 300)
+                try:
+                    key = str(q.key_expr)
+                    self._refuse(q, key, Keys.last_chunk(key), b"", "zenoh", "", error)
+                except Exception:
+                    self._send(q, str(q.key_expr), json.dumps(
+                        {"ok": False, "error": error}).encode())
 
     def _command(self, q: Any, now: float) -> None:
         self.counts["commands"] += 1
@@ -379,11 +390,12 @@ class NetNode:
             self._refuse(q, key, verb, raw, sender, user,
                          "name one verb: pamd/<rig>/cmd/<verb>", record=False)
             return
-        if self.stop_reason is not None or self.closing:
+        urgent = verb in URGENT_VERBS  # estop and stop always reach the loop while it runs
+        if (self.stop_reason is not None and not urgent) or self.closing:
             self._refuse(q, key, verb, raw, sender, user,
                          f"the daemon is stopping ({self.stop_reason}); command not taken")
             return
-        if not self.limiter.allow(zid or "unidentified", now):
+        if not urgent and not self.limiter.allow(zid or "unidentified", now):
             self.counts["rate_limited"] += 1
             note = now - self._rate_note_t >= RATE_NOTE_S
             if note:

@@ -12,6 +12,7 @@ import json
 import os
 import shutil
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -149,3 +150,17 @@ def test_the_recording_keeps_refusals_small_and_no_file_contents(rig: RigProc) -
     assert n_events > 0 and big == 200  # each recorded, all small
     total = sum(os.path.getsize(f) for f in summary["recording"]["files"])
     assert total < 20e6, total  # was 145 MB more for the 200 payloads alone
+
+
+def test_estop_and_stop_are_never_rate_limited(tmp_path: Path) -> None:
+    r = RigProc(tmp_path, RIG, telemetry={"command_rate_per_s": 0.001, "command_burst": 1})
+    try:
+        assert "rate limited" not in str(r.cmd("hold").get("error"))  # the one token
+        assert "rate limited" in r.cmd("hold")["error"]
+        v = r.cmd("estop", {"reason": "hand in the rig"})
+        assert v["ok"], v
+        wait_until(lambda: r.status()["state"] == "ESTOP", 30, "ESTOP")
+        assert "rate limited" not in str(r.cmd("stop").get("error"))
+        assert "rate limited" in r.cmd("reset")["error"]
+    finally:
+        r.close()
