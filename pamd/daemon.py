@@ -15,6 +15,7 @@ from typing import Any
 
 from pamd.calibration import load_calibration, save_calibration
 from pamd.commands import Command, parse_command, prepare_command
+from pamd.commands.schema import args_for_record
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
@@ -177,6 +178,14 @@ class Daemon:
             cmd = prepare_command(cmd, self.cfg)  # file I/O (model) here, not in the loop
         except CommandRefused as exc:
             pending.set({"ok": False, "error": str(exc)})
+        except Exception as exc:  # the daemon never dies of a request
+            log.exception("%s command", verb)
+            verdict = {"ok": False, "error": f"{verb}: refused: it failed while being "
+                       f"prepared ({exc.__class__.__name__}); the daemon goes on"}
+            self.summary.event(self.ctrl.now, "command", {
+                "verb": verb, "args": args_for_record(payload), "sender": sender,
+                "by": "daemon", **verdict})
+            pending.set(verdict)
         else:
             self.mailbox.put(cmd)
         return pending

@@ -23,6 +23,7 @@ from pamd.tick import I_COMPUTE, I_LOST, I_OVERRUNS, I_WAKE, Mailbox, State
 from pamd.timing import TickTiming
 
 MAX_COMMANDS_PER_TICK = 4
+COMMAND_BUDGET_FRACTION = 0.3  # of the period: commands after the first wait past it
 SAFE_STATE_DEADLINE_S = 30.0
 GC_EVERY_TICKS = 200
 GIL_SWITCH_FRACTION = 0.1
@@ -62,6 +63,7 @@ class Loop:
         self.handed_over = False  # ended at an IDLE tick, outputs held (restart in place)
         self.running = False
         self.last_tick_done = math.nan  # monotonic time of the last completed tick
+        self.command_faults = 0  # a mailbox or reply that raised (see _take_commands)
 
     def request_stop(self, reason: str) -> None:
         """Ask the loop to reach the safe state and return (any thread)."""
@@ -81,6 +83,36 @@ class Loop:
         if not self.ctrl.supervisor.latched:
             self.ctrl.supervisor.fault(self.ctrl.now, f"loop stalled: no tick completed for "
                                        f"{gap_ms:.0f} ms (limit {1000 * self.stall_s:.0f} ms)")
+
+    def _take_commands(self, ctrl: RigController, mailbox: Mailbox, until: float) -> None:
+        """At most MAX_COMMANDS_PER_TICK commands, and after the first none once the
+        tick has spent COMMAND_BUDGET_FRACTION of its period (perf_counter `until`):
+        a burst waits its turn in the mailbox (each reply still waits for its
+        verdict), it never makes the tick late. Nothing a command does can end the
+        loop: `apply_command` turns any failure into a refusal, and a failing reply
+        or mailbox is counted and noticed, not raised."""
+        perf = time.perf_counter
+        for n in range(MAX_COMMANDS_PER_TICK):
+            if n and perf() > until:
+                return
+            try:
+                cmd = mailbox.poll()
+            except Exception as exc:
+                self._command_fault("the command mailbox", exc)
+                return
+            if cmd is None:
+                return
+            verdict = apply_command(ctrl, cmd)
+            if cmd.reply is not None:
+                try:
+                    cmd.reply(verdict)
+                except Exception as exc:
+                    self._command_fault(f"the reply to {cmd.verb}", exc)
+
+    def _command_fault(self, what: str, exc: Exception) -> None:
+        self.command_faults += 1
+        self.notices.append(f"commands: {what} failed ({exc.__class__.__name__}: {exc}); "
+                            f"{self.command_faults} so far, the loop goes on")
 
     def run(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
         ctrl = self.ctrl
@@ -122,6 +154,8 @@ class Loop:
         self.running = True
         self.last_tick_done = mono()
         saw_running = False
+        # virtual clock: deterministic, so no budget by the machine's speed
+        command_budget_s = math.inf if virtual else COMMAND_BUDGET_FRACTION * period
         while True:
             # -- wait for the deadline ---------------------------------------------
             if virtual:
@@ -136,14 +170,8 @@ class Loop:
                 wake = now - next_t
                 t_wake = perf()
             # -- commands (held until the sensors are read), then the tick -------------
-            for _ in range(MAX_COMMANDS_PER_TICK if ctrl.supervisor.state != State.STARTING
-                           else 0):
-                cmd = mailbox.poll()
-                if cmd is None:
-                    break
-                verdict = apply_command(ctrl, cmd)
-                if cmd.reply is not None:
-                    cmd.reply(verdict)
+            if ctrl.supervisor.state != State.STARTING:
+                self._take_commands(ctrl, mailbox, t_wake + command_budget_s)
             rec = ctrl.tick(next_t, dt)
             compute = perf() - t_wake
             rec[I_WAKE] = wake

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import queue
 from array import array
+from collections import deque
 from typing import Any
 
 from pamd.tick import (
@@ -23,6 +24,7 @@ from pamd.tick import (
 
 _RUNNING = float(int(State.RUNNING))
 _AT_LIMIT = int(Flag.SOFT_LIMIT_PRESSURE | Flag.SOFT_LIMIT_CONTRACTION | Flag.PRETENSION_LIMIT)
+EVENTS_KEPT = 1000
 
 
 class SummarySink:
@@ -46,7 +48,9 @@ class SummarySink:
         self.limit_events = [0] * n
         self._last_t = 0.0
         self.ticks = 0
-        self.events: list[tuple[float, str, dict[str, Any]]] = []
+        # the latest events (the recording keeps them all): a daemon that runs for
+        # weeks and takes commands must not grow by each one
+        self.events: deque[tuple[float, str, dict[str, Any]]] = deque(maxlen=EVENTS_KEPT)
         self.last = layout.new_record()
         self._bases = [b for b in layout.muscle_base]
         self.downstream: list[Any] = []

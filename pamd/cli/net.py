@@ -23,7 +23,8 @@ CMD_EPILOG = """examples:
   pamd cmd setpoint --muscle m1 --bar 3.0 --deadman-s 0.5     # streamed: refresh it
   pamd cmd profile --kind sine --min-bar 0 --max-bar 6 --freq-hz 0.05 --cycles 2
   pamd cmd hold ; pamd cmd stop ; pamd cmd estop --reason "hand in the rig"
-  pamd cmd collect --plan-file /srv/plans/sweep.yaml           # a file on the rig PC
+  pamd cmd collect --plan-file sweep.yaml     # by name, from the daemon's telemetry.plans_dir
+  pamd cmd model --muscle m1 --file m1.json   # by name, from its telemetry.models_dir
   pamd cmd load --arg muscle=m1 --arg load_kg=40
   pamd cmd setpoint --json '{"muscle": "m1", "bar": 2.5}'
 """
@@ -100,8 +101,15 @@ def print_status(st: dict[str, Any]) -> None:
         print(f"status: {st.get('error')}")
         return
     print(f"rig {st.get('rig_id')}: {st.get('state')} ({st.get('reason')})")
+    for why in st.get("stale_reasons") or []:
+        print(f"  STALE: {why}")
     if st.get("fault"):
         print(f"  latched fault: {st['fault']}")
+    failure = (st.get("recording") or {}).get("failure")
+    if failure:
+        print(f"  RECORDING STOPPED: {failure.get('reason')} (recording.on_"
+              f"{'io_death' if failure.get('what') == 'death' else 'failure'}: "
+              f"{failure.get('policy')})")
     if st.get("stopping"):
         print(f"  stopping: {st['stopping']}")
     for name, m in (st.get("muscles") or {}).items():

@@ -48,7 +48,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r = sub.add_parser("recover", help="turn an unfinished recording (crash, SIGKILL, power "
                        "cut) into a valid file holding every complete chunk")
     r.add_argument("file", metavar="FILE")
-    r.add_argument("--out", metavar="FILE", help="output (default: FILE.recovered.mcap)")
+    r.add_argument("--out", metavar="FILE|DIR", help="output file, or a directory (e.g. on "
+                   "another disk when the recording's is full) for FILE.recovered.mcap "
+                   "(default: beside FILE). Refused before writing anything when its disk "
+                   "lacks the room")
     r.add_argument("--force", action="store_true", help="rewrite even a finalised file")
     r.set_defaults(func=run_recover)
 

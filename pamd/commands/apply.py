@@ -1,5 +1,9 @@
 """`apply_command`: a command's verdict in the loop's thread, from its verb's handler,
-recorded as a `command` event. A refused command changes nothing."""
+recorded as a `command` event. A refused command changes nothing.
+
+No exception leaves `apply_command`: a handler that fails for any reason (a bug, a
+value no check foresaw) is a refusal with the reason, recorded like any other, and
+the loop goes on ticking."""
 
 from __future__ import annotations
 
@@ -7,23 +11,32 @@ from typing import Any
 
 from pamd.commands import motion, plan, rig
 from pamd.commands.guards import Handler
-from pamd.commands.schema import Command
+from pamd.commands.schema import MAX_ERROR_CHARS, Command, cap_text
 from pamd.errors import CommandRefused
 
 _HANDLERS: dict[str, Handler] = {**motion.HANDLERS, **rig.HANDLERS, **plan.HANDLERS}
 
 
 def apply_command(ctrl: Any, cmd: Command) -> dict[str, Any]:
-    """Apply in the loop's thread; returns the verdict."""
+    """Apply in the loop's thread; returns the verdict (never raises)."""
     try:
-        result = _HANDLERS[cmd.verb](ctrl, cmd.args)
+        handler = _HANDLERS.get(cmd.verb)
+        if handler is None:
+            raise CommandRefused(f"unknown command {cmd.verb!r}")
+        result = handler(ctrl, cmd.args)
+        verdict: dict[str, Any] = {"ok": True, **(result or {})}
     except CommandRefused as exc:
-        verdict: dict[str, Any] = {"ok": False, "error": str(exc)}
-    else:
-        verdict = {"ok": True, **(result or {})}
-    describe = getattr(cmd.args, "describe", None)  # prepared args say what they hold
-    args = describe() if describe is not None else {
-        k: v for k, v in vars(cmd.args).items() if k != "plan"}
+        verdict = {"ok": False, "error": cap_text(str(exc), MAX_ERROR_CHARS)}
+    except Exception as exc:  # the loop never dies of a request
+        verdict = {"ok": False, "error": cap_text(
+            f"{cmd.verb} failed in the loop ({exc.__class__.__name__}: {exc}); the rig "
+            "keeps running: check status before sending it again", MAX_ERROR_CHARS)}
+    try:
+        describe = getattr(cmd.args, "describe", None)  # prepared args say what they hold
+        args = describe() if describe is not None else {
+            k: v for k, v in vars(cmd.args).items() if k != "plan"}
+    except Exception as exc:
+        args = {"unrecordable": exc.__class__.__name__}
     ctrl.sink.event(ctrl.now, "command", {"verb": cmd.verb, "args": args,
                                          "sender": cmd.sender, "user": cmd.user, **verdict})
     return verdict

@@ -8,6 +8,7 @@ anywhere (the io process does it before anything reaches the loop).
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -78,8 +79,9 @@ class ModeArgs:
 @dataclass(frozen=True, kw_only=True)
 class ModelArgs:
     muscle: str = spec(doc="Muscle name.")
-    file: str = spec(doc="Model file (pamd train) on the rig PC; read, checked and compiled "
-                     "before the command reaches the loop.")
+    file: str = spec(doc="Model file (pamd train) on the rig PC: over the network, its "
+                     "name in the daemon's telemetry.models_dir (no directories); read, "
+                     "checked and compiled before the command reaches the loop.")
 
 
 class PreparedModelArgs:
@@ -126,7 +128,8 @@ class NoArgs:
 
 @dataclass(frozen=True, kw_only=True)
 class CollectArgs:
-    plan_file: str = spec(doc="Experiment plan (YAML) on the rig PC.")
+    plan_file: str = spec(doc="Experiment plan (YAML) on the rig PC: its name in the "
+                          "daemon's telemetry.plans_dir (no directories).")
     start_step: int = spec(0, "Start at this step (0-based; --resume).", min=0)
     collection: str | None = spec(
         None, "With start_step > 0: the collection to resume, by its directory name under "
@@ -190,22 +193,70 @@ class Command:
     user: str = ""
 
 
+URGENT_VERBS = ("estop", "stop")
+"""Never rate limited, taken while the daemon stops, ahead of a waiting burst."""
+MAX_TEXT_CHARS = 200
+"""Text fields (`reason`, a muscle's name, a file name...) are cut to this when parsed,
+so an `estop` or `stop` always fits the rings and always acts."""
+MAX_WHO_CHARS = 64  # `sender` and `user`
+MAX_ERROR_CHARS = 600  # a refusal's text
+RECORD_HEAD_BYTES = 256  # what a recorded refusal keeps of a large payload
+
+
+def cap_text(text: str, limit: int = MAX_TEXT_CHARS) -> str:
+    """`text` cut to `limit` characters, saying how much was cut."""
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... [{len(text) - limit} more characters cut]"
+
+
+def cap_payload(payload: dict[str, Any]) -> dict[str, Any]:
+    """A payload whose text values and field names are capped (see MAX_TEXT_CHARS)."""
+    return {cap_text(str(k)): cap_text(v) if isinstance(v, str) else v
+            for k, v in payload.items()}
+
+
+def args_for_record(payload: Any) -> dict[str, Any]:
+    """What a recorded refusal keeps of a request: the payload if small, else its first
+    RECORD_HEAD_BYTES bytes (as text) and its size."""
+    if isinstance(payload, (bytes, bytearray)):
+        text = bytes(payload[:RECORD_HEAD_BYTES * 4]).decode("utf-8", "replace")
+        size = len(payload)
+    elif isinstance(payload, str):
+        text, size = payload, len(payload.encode("utf-8", "replace"))
+    else:
+        try:
+            text = json.dumps(payload, default=str)
+        except (ValueError, TypeError, RecursionError):
+            text = repr(type(payload))
+        size = len(text.encode("utf-8", "replace"))
+        if isinstance(payload, dict) and size <= RECORD_HEAD_BYTES:
+            return payload
+    if size <= RECORD_HEAD_BYTES:
+        return {"raw": text}
+    head = text.encode("utf-8", "replace")[:RECORD_HEAD_BYTES].decode("utf-8", "ignore")
+    return {"head": head, "bytes": size}
+
+
 def parse_command(verb: str, payload: Any, sender: str = "local", user: str = "",
                   reply: Callable[[dict[str, Any]], None] | None = None) -> Command:
-    """Shape checks only; raises CommandRefused saying what was wrong."""
+    """Shape checks only; raises CommandRefused saying what was wrong. Text fields
+    are capped here (MAX_TEXT_CHARS; sender and user MAX_WHO_CHARS)."""
     if verb not in VERBS:
-        raise CommandRefused(f"unknown command {verb!r}; known: {', '.join(VERBS)}")
+        raise CommandRefused(f"unknown command {cap_text(repr(verb), 80)}; known: "
+                             f"{', '.join(VERBS)}")
     if payload is None:
         payload = {}
     if not isinstance(payload, dict):
         raise CommandRefused(f"{verb}: the payload must be a JSON object")
     ctx = Context(f"cmd/{verb}")
-    args = build_dataclass(VERBS[verb], payload, ctx, "", None)
+    args = build_dataclass(VERBS[verb], cap_payload(payload), ctx, "", None)
     if ctx.issues:
-        raise CommandRefused("; ".join(
+        raise CommandRefused(cap_text("; ".join(
             f"{i.path}: expected {i.expected}" + (f", found {i.found}" if i.found else "")
-            for i in ctx.issues))
-    return Command(verb, args, reply, sender, user)
+            for i in ctx.issues), MAX_ERROR_CHARS))
+    return Command(verb, args, reply, cap_text(str(sender), MAX_WHO_CHARS),
+                   cap_text(str(user), MAX_WHO_CHARS))
 
 
 def prepare_command(cmd: Command, cfg: Any) -> Command:
@@ -227,5 +278,10 @@ def prepare_command(cmd: Command, cfg: Any) -> Command:
     try:
         ff = Feedforward.from_file(path, mcfg, cfg.limits[a.muscle])
     except ModelError as exc:
-        raise CommandRefused(f"model refused: {exc}") from None
+        raise CommandRefused(cap_text(f"model refused: {exc}", MAX_ERROR_CHARS)) from None
+    except OSError as exc:
+        raise CommandRefused(f"model refused: {a.file}: {exc.strerror or exc}") from None
+    except (RecursionError, UnicodeDecodeError, ValueError) as exc:
+        raise CommandRefused(f"model refused: {a.file}: unreadable as a model file "
+                             f"({exc.__class__.__name__})") from None
     return dataclasses.replace(cmd, args=PreparedModelArgs(a.muscle, path, ff))

@@ -335,6 +335,14 @@ class TelemetryConfig:
                                     unit="s", gt=0.0)
     foxglove: FoxgloveConfig = spec(FoxgloveConfig(), "Live view in Foxglove (WebSocket, "
                                     "in the io process; pamd.view.live).")
+    plans_dir: str | None = spec(
+        None, "Directory (relative to the config file) whose plan files a remote `collect` "
+        "may name, by file name only (`pamd cmd collect --plan-file sweep.yaml`); at most "
+        "1 MiB and 64 levels of nesting each. null: remote collects are refused.")
+    models_dir: str | None = spec(
+        None, "Directory (relative to the config file) whose model files a remote `model` "
+        "command may name, by file name only; at most 16 MiB and 64 levels of nesting "
+        "each. null: remote model swaps are refused.")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -324,6 +324,24 @@ def export_csv(path: str, out_dir: str) -> dict[str, tuple[str, int]]:
 
 
 # -- recover -------------------------------------------------------------------------
+RECOVER_MARGIN_BYTES = 1 << 20  # the summary section and slack
+
+
+def _check_room(out: str, need_bytes: int) -> None:
+    """Refuse to start a recovery the output's file system has no room for (the
+    recovered file holds at most what was read, plus its summary)."""
+    try:
+        st = os.statvfs(os.path.dirname(os.path.abspath(out)))
+    except OSError:
+        return  # the open that follows says why
+    free = st.f_bavail * st.f_frsize
+    need = need_bytes + RECOVER_MARGIN_BYTES
+    if free < need:
+        raise RecordingError(f"{out}: its disk has {free} bytes free and the recovered file "
+                             f"needs up to {need}; nothing was written. Free some space, or "
+                             "recover onto another disk with --out DIR")
+
+
 def recover(path: str, out: str | None = None, force: bool = False) -> dict[str, Any]:
     """Write a finalised copy of `path` holding every complete chunk."""
     check_file(path)
@@ -331,11 +349,14 @@ def recover(path: str, out: str | None = None, force: bool = False) -> dict[str,
         return {"file": path, "out": None, "complete": True,
                 "message": "already finalised (has a footer); nothing to recover"}
     sc = scan(path)
+    stem = path[:-5] if path.endswith(".mcap") else path
     if out is None:
-        stem = path[:-5] if path.endswith(".mcap") else path
         out = stem + ".recovered.mcap"
+    elif os.path.isdir(out):  # a directory (another disk): the default name in it
+        out = os.path.join(out, os.path.basename(stem) + ".recovered.mcap")
     if os.path.exists(out):
         raise RecordingError(f"{out}: already exists; choose another with --out")
+    _check_room(out, sc.bytes_read)
     try:
         w = McapWriter(out, compression="zstd")
     except OSError as exc:
@@ -384,7 +405,11 @@ def recover(path: str, out: str | None = None, force: bool = False) -> dict[str,
         w.finish()
     except OSError as exc:
         w.abandon()
-        raise RecordingError(f"{out}: write failed ({exc.strerror})") from None
+        with contextlib.suppress(OSError):
+            os.unlink(out)  # never a partial or empty file left behind
+        raise RecordingError(f"{out}: write failed ({exc.strerror}); nothing was written. "
+                             "Free some space, or recover onto another disk with --out "
+                             "DIR") from None
     return {"file": path, "out": out, "complete": False, "chunks": len(sc.chunks),
             "messages": n, "bytes_dropped": os.path.getsize(path) - sc.bytes_read,
             "tail": sc.tail_error, "last_log_time_ns": last}

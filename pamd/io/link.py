@@ -43,6 +43,7 @@ from pamd.ipc.ring import (
 from pamd.tick import I_TICK
 
 QUIET_TICKS = 1
+HELD_EVENTS_MAX = 4096  # events (a burst's verdicts) waiting for room in the ring
 START_TIMEOUT_S = 30.0
 STOP_TIMEOUT_S = 60.0
 
@@ -133,8 +134,14 @@ class RingSink:
     """The sink the loop hands its records to (a `SummarySink` downstream)."""
 
     def __init__(self, link: IoLink, virtual: bool, t_start: Callable[[], float],
-                 on_failure: FailureHandler, notify: Callable[[str], None]) -> None:
+                 on_failure: FailureHandler, notify: Callable[[str], None],
+                 keeps_draining: bool = False) -> None:
+        """`keeps_draining`: the io process also publishes (telemetry), so after a
+        write failure it goes on taking records and events (only its recording
+        stopped); without telemetry the sink stops feeding it."""
         self.link = link
+        self.keeps_draining = keeps_draining
+        self.write_failed = False
         self.block = link.block
         self.ring = link.block.ticks
         self.events_ring = link.block.events
@@ -158,6 +165,7 @@ class RingSink:
         self.lost_events = 0
         self._producer: int | None = None  # the loop's thread, bound at the first put
         self._pending: deque[tuple[float, str, dict[str, Any]]] = deque()
+        self._held: deque[bytes] = deque()  # events waiting for room in the ring
 
     # -- watch ------------------------------------------------------------------------
     def _dead(self) -> bool:
@@ -190,14 +198,22 @@ class RingSink:
             if self._quiet >= QUIET_TICKS and self._dead():
                 self._lose_io("death", f"the io process (pid {self.link.pid}) died")
                 return True
-        if u[C_IO_STATE] == IO_FAILED:
-            self._lose_io("write", self.block.error() or "the io process failed")
-            return True
+        if u[C_IO_STATE] == IO_FAILED and not self.write_failed:
+            self.write_failed = True
+            if not self.keeps_draining:
+                self._lose_io("write", self.block.error() or "the io process failed")
+                return True
+            # the io process stopped recording but still publishes: it keeps getting
+            # the records, so status and telemetry show what the loop does now
+            self.failure = self.block.error() or "the io process failed"
+            self.on_failure("write", self.failure)
         if record is not self._rec:
             self._rec = record
             self._mv = memoryview(record).cast("B")
         if not self._started:
             self._ensure_start()
+        if self._held:
+            self._flush_held()
         if self._pending:
             self._flush_pending()
         if not self.ring.put(self._mv):  # type: ignore[arg-type]
@@ -212,7 +228,7 @@ class RingSink:
                 if self._dead():
                     self._lose_io("death", f"the io process (pid {self.link.pid}) died")
                     return True
-                if u[C_IO_STATE] == IO_FAILED:
+                if u[C_IO_STATE] == IO_FAILED and not self.keeps_draining:
                     self._lose_io("write", self.block.error() or "the io process failed")
                     return True
                 time.sleep(0.0002)
@@ -238,16 +254,27 @@ class RingSink:
             self._pending.append((t_s, kind, data))  # the loop's thread sends it
             return
         blob = self._encode(t_s, kind, data)
-        if self.events_ring.put_blob(blob):
+        if self._held:  # after the ones waiting, in order
+            self._flush_held()
+        if not self._held and self.events_ring.put_blob(blob):
             return
-        if self.virtual or kind == "summary":
-            while not self.events_ring.put_blob(blob):
-                if self._dead() or self.u64[C_IO_STATE] in (IO_FAILED, IO_DONE):
-                    return
-                time.sleep(0.0002)
+        if not self.virtual and kind != "summary":
+            if len(self._held) < HELD_EVENTS_MAX:  # a burst's verdicts wait, never lost
+                self._held.append(blob)
+                return
+            self.lost_events += 1
+            self.u64[C_LOST_EVENTS] = self.lost_events
             return
-        self.lost_events += 1
-        self.u64[C_LOST_EVENTS] = self.lost_events
+        self._wait_held()  # the virtual clock (and the summary) wait for room instead
+        while not self.events_ring.put_blob(blob):
+            if self._dead() or self._io_gone():
+                return
+            time.sleep(0.0002)
+
+    def _io_gone(self) -> bool:
+        """The io process takes no more events (finished, or failed without telemetry)."""
+        st = self.u64[C_IO_STATE]
+        return st == IO_DONE or (st == IO_FAILED and not self.keeps_draining)
 
     def _encode(self, t_s: float, kind: str, data: dict[str, Any]) -> bytes:
         blob = json.dumps({"t": t_s, "kind": kind, "data": data}, default=str).encode()
@@ -257,6 +284,20 @@ class RingSink:
             blob = json.dumps({"t": t_s, "kind": kind,
                                "data": {"truncated": True, "text": text}}).encode()
         return blob
+
+    def _flush_held(self) -> None:
+        """Events the ring had no room for, as far as it has now (the loop's thread)."""
+        held, ring = self._held, self.events_ring
+        while held and ring.put_blob(held[0]):
+            held.popleft()
+
+    def _wait_held(self) -> None:
+        """Every held event into the ring, waiting for room (not on the tick path)."""
+        while self._held:
+            self._flush_held()
+            if not self._held or self._dead() or self._io_gone():
+                return
+            time.sleep(0.0002)
 
     def _flush_pending(self) -> None:
         while self._pending:
@@ -271,6 +312,7 @@ class RingSink:
             self.block.set_t_start(self.t_start())
         if self.active:
             self._flush_pending()
+            self._wait_held()
             if self._dropped:
                 self._report_drops()
             self.event(0.0, "summary", summary)
@@ -298,8 +340,8 @@ class RingMailbox:
         try:
             msg = json.loads(blob)
             cid = int(msg.get("id", 0))
-        except (ValueError, AttributeError):
-            return None
+        except (ValueError, AttributeError, TypeError, RecursionError):
+            return None  # not the io process's: it always sends an object with an id
 
         def reply(verdict: dict[str, Any], _cid: int = cid) -> None:
             self.sink.event(self.now(), "reply", {"id": _cid, **verdict})
@@ -310,7 +352,10 @@ class RingMailbox:
                                  user=str(msg.get("user", "")), reply=reply)
         except CommandRefused as exc:
             reply({"ok": False, "error": str(exc)})
-            return None
+        except Exception as exc:  # never the loop's end: a refusal with the reason
+            reply({"ok": False, "error": f"{msg.get('verb')!s:.40}: refused: "
+                   f"{exc.__class__.__name__} while parsing it"})
+        return None
 
 
 class MultiMailbox:

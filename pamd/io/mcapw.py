@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import os
 import struct
+import tempfile
 import zlib
 from array import array
 from typing import Any
@@ -74,7 +75,11 @@ class McapWriter:
         self.index: dict[int, array] = {}  # channel -> flat (log_time, offset) pairs
         self.schemas: list[Schema] = []
         self.channels: list[Channel] = []
-        self.chunk_indexes: list[ChunkIndex] = []
+        # Chunk indexes, needed only for the summary at the end, go to an unnamed
+        # file beside the recording as they are made: a long run (ten chunks a second)
+        # would otherwise grow the io process by ~7 KB/s (one ChunkIndex each).
+        self.chunk_count = 0
+        self._chunk_index_file: Any = None
         self.attachment_indexes: list[AttachmentIndex] = []
         self.metadata_indexes: list[MetadataIndex] = []
         self.counts: dict[int, int] = {}
@@ -193,7 +198,7 @@ class McapWriter:
             self.message_count += n // 2
         idx_bytes = b"".join(parts)
         self._write(idx_bytes)
-        self.chunk_indexes.append(ChunkIndex(
+        self._spill_chunk_index(ChunkIndex(
             message_start_time=start, message_end_time=end, chunk_start_offset=chunk_off,
             chunk_length=chunk_len, message_index_offsets=offsets,
             message_index_length=len(idx_bytes), compression=self.compression,
@@ -204,6 +209,21 @@ class McapWriter:
         self.chunk = bytearray()
         for _ch, idx in in_chunk:
             del idx[:]
+
+    def _spill_chunk_index(self, ci: ChunkIndex) -> None:
+        if self._chunk_index_file is None:
+            self._chunk_index_file = tempfile.TemporaryFile(  # noqa: SIM115 (closed at the end)
+                dir=os.path.dirname(os.path.abspath(self.path)), prefix=".pamd-chunk-index-")
+        b = RecordBuilder()
+        ci.write(b)
+        self._chunk_index_file.write(b.end())
+        self.chunk_count += 1
+
+    def _close_spill(self) -> None:
+        if self._chunk_index_file is not None:
+            with contextlib.suppress(OSError):
+                self._chunk_index_file.close()
+            self._chunk_index_file = None
 
     def sync(self) -> None:
         if self.unsynced:
@@ -218,38 +238,53 @@ class McapWriter:
         self.close_chunk()
         self._record(DataEnd(data_section_crc=0))
         summary_start = self.pos
-        b = RecordBuilder()
         offsets: list[SummaryOffset] = []
+        crc = 0
+
+        def emit(data: bytes) -> None:
+            nonlocal crc
+            crc = zlib.crc32(data, crc)
+            self._write(data)
 
         def group(opcode: int, records: list[Any]) -> None:
             if not records:
                 return
-            g0 = b.count
+            b = RecordBuilder()
             for r in records:
                 r.write(b)
-            offsets.append(SummaryOffset(group_opcode=opcode, group_start=summary_start + g0,
-                                         group_length=b.count - g0))
+            data = b.end()
+            offsets.append(SummaryOffset(group_opcode=opcode, group_start=self.pos,
+                                         group_length=len(data)))
+            emit(data)
 
         stats = Statistics(
             message_count=self.message_count, schema_count=len(self.schemas),
             channel_count=len(self.channels), attachment_count=len(self.attachment_indexes),
-            metadata_count=len(self.metadata_indexes), chunk_count=len(self.chunk_indexes),
+            metadata_count=len(self.metadata_indexes), chunk_count=self.chunk_count,
             message_start_time=self.start_ns or 0, message_end_time=self.end_ns,
             channel_message_counts=dict(self.counts))
         group(Opcode.SCHEMA, self.schemas)
         group(Opcode.CHANNEL, self.channels)
         group(Opcode.STATISTICS, [stats])
-        group(Opcode.CHUNK_INDEX, self.chunk_indexes)
+        spill = self._chunk_index_file
+        if spill is not None and self.chunk_count:
+            g0 = self.pos
+            spill.flush()
+            spill.seek(0)
+            while block := spill.read(1 << 20):
+                emit(block)
+            offsets.append(SummaryOffset(group_opcode=Opcode.CHUNK_INDEX, group_start=g0,
+                                         group_length=self.pos - g0))
+        self._close_spill()
         group(Opcode.ATTACHMENT_INDEX, self.attachment_indexes)
         group(Opcode.METADATA_INDEX, self.metadata_indexes)
-        summary_offset_start = summary_start + b.count
+        summary_offset_start = self.pos
+        b = RecordBuilder()
         for o in offsets:
             o.write(b)
-        summary = b.end()
-        crc = zlib.crc32(summary)
+        emit(b.end())
         crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start,
                                      summary_offset_start), crc)
-        self._write(summary)
         fb = RecordBuilder()
         Footer(summary_start=summary_start, summary_offset_start=summary_offset_start,
                summary_crc=crc).write(fb)
@@ -262,5 +297,6 @@ class McapWriter:
         """Close the descriptor without finishing (after a write error)."""
         if not self.finished:
             self.finished = True
+            self._close_spill()
             with contextlib.suppress(OSError):
                 os.close(self.fd)

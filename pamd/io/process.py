@@ -21,9 +21,11 @@ import signal
 import struct
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
+from pamd.commands.schema import URGENT_VERBS
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import (
     C_HEARTBEAT,
@@ -37,6 +39,7 @@ from pamd.ipc.ring import (
 )
 
 IDLE_SLEEP_S = 0.0005
+BACKLOG_MAX = 1024  # commands waiting for room in the loop's mailbox
 VERDICT_SLEEP_S = 0.0001
 BATCH = 512
 
@@ -44,29 +47,54 @@ BATCH = 512
 class CommandPort:
     """The io side of the command mailbox: send a command to the loop, get its verdict
     back (through the event ring) by id. The Zenoh session uses the same port, from
-    its query callbacks' thread: `lock` makes it the ring's one producer at a time."""
+    its query callbacks' thread: `lock` makes it the ring's one producer at a time.
+
+    A burst larger than the ring waits here (`backlog`, at most BACKLOG_MAX commands)
+    and goes into the ring as the loop takes commands (`flush`, every io pass); an
+    `estop` or `stop` goes ahead of the waiting ones."""
 
     def __init__(self, block: SharedBlock) -> None:
         self.ring = block.commands
         self.next_id = 1
         self.waiting: dict[int, Callable[[dict[str, Any]], None]] = {}
+        self.backlog: deque[tuple[int, bytes]] = deque()
         self.lock = threading.RLock()
 
     def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
              on_verdict: Callable[[dict[str, Any]], None] | None = None) -> int | None:
-        """Queue a command; None (and a refusal verdict) if the mailbox is full."""
+        """Queue a command; None (and a refusal verdict) if it cannot be queued."""
         with self.lock:
             cid = self.next_id
             self.next_id += 1
             blob = json.dumps({"id": cid, "verb": verb, "payload": payload or {},
                                "sender": sender, "user": user}).encode()
-            if not self.ring.put_blob(blob):
+            why = None
+            if len(blob) > self.ring.slot_bytes - 4:
+                why = f"{verb}: the command is too large ({len(blob)} bytes); not taken"
+            elif len(self.backlog) >= BACKLOG_MAX:
+                why = (f"the loop's command queue is full ({BACKLOG_MAX} waiting); not "
+                       "taken, try again")
+            if why is not None:
                 if on_verdict:
-                    on_verdict({"ok": False, "error": "the loop's command mailbox is full"})
+                    on_verdict({"ok": False, "error": why})
                 return None
             if on_verdict is not None:
                 self.waiting[cid] = on_verdict
+            if verb in URGENT_VERBS:
+                self.backlog.appendleft((cid, blob))
+            else:
+                self.backlog.append((cid, blob))
+            self.flush()
             return cid
+
+    def flush(self) -> int:
+        """Into the ring, as far as it has room; the number sent."""
+        n = 0
+        with self.lock:
+            while self.backlog and self.ring.put_blob(self.backlog[0][1]):
+                self.backlog.popleft()
+                n += 1
+        return n
 
     def on_reply(self, data: dict[str, Any]) -> None:
         with self.lock:
@@ -163,6 +191,8 @@ class IoProcess:
             if s is not None:
                 summary = s
             self._run_script()
+            if self.port.backlog:
+                self.port.flush()
             now = mono()
             k = self.net.poll(now) if self.net is not None else 0
             if self.recorder is not None:

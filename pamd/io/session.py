@@ -83,7 +83,7 @@ class IoSession:
         self.link = IoLink.create(make_spec, layout)
         ctrl = daemon.ctrl
         self.sink = RingSink(self.link, self.virtual, lambda: ctrl.t_start, self._failed,
-                             loop.notices.append)
+                             loop.notices.append, keeps_draining=net is not None)
         self.mailbox = RingMailbox(self.link, self.sink, lambda: ctrl.now)
         daemon.summary.downstream.append(self.sink)
         loop.mailbox = MultiMailbox(daemon.mailbox, self.mailbox)
@@ -134,10 +134,11 @@ class IoSession:
         policy = self.rc.on_io_death if what == "death" else self.rc.on_failure
         key = "on_io_death" if what == "death" else "on_failure"
         ctrl = self.daemon.ctrl
-        gone = " and ".join(w for w, on in (("recording", self.recording),
-                                            ("telemetry", self.net is not None),
-                                            ("the Foxglove view", self.viewer is not None))
-                            if on)
+        gone = "recording" if what == "write" else " and ".join(
+            w for w, on in (("recording", self.recording),
+                            ("telemetry", self.net is not None),
+                            ("the Foxglove view", self.viewer is not None))
+            if on)
         if policy == "safe_state":
             msg = f"{gone} stopped: {reason}; going to the safe state (recording.{key})"
         else:

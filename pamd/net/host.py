@@ -13,14 +13,15 @@ loop's thread.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import time
 from dataclasses import dataclass
 from typing import Any
 
-from pamd import commands
-from pamd.commands import Command, parse_command
+from pamd.commands import Command, named_files, parse_command, prepare_command
+from pamd.commands.schema import args_for_record
 from pamd.errors import CommandRefused, PamdError
 from pamd.experiment.remote import Collection, Collections
 from pamd.net.board import Board
@@ -72,8 +73,14 @@ class NetHost:
         for rid, p in list(self.pending.items()):
             if p.verdict is not None:
                 del self.pending[rid]
-                self._reply(rid, p.verdict if p.collection is None else
-                            self.collections.verdict(p.collection, p.verdict))
+                try:
+                    verdict = (p.verdict if p.collection is None else
+                               self.collections.verdict(p.collection, p.verdict))
+                except Exception as exc:  # the daemon never dies of a request
+                    log.exception("the verdict of request %d", rid)
+                    verdict = {**p.verdict, "warning": f"the collection's bookkeeping "
+                               f"failed ({exc.__class__.__name__}); see the daemon's log"}
+                self._reply(rid, verdict)
         while self.outbox and self.board.replies.put_blob(self.outbox[0]):
             self.outbox.pop(0)
         self.collections.service()
@@ -112,36 +119,71 @@ class NetHost:
                 self.collections.notice(req["notice"])
                 return
             rid = int(req["id"])
-        except (ValueError, KeyError, TypeError):
+        except (ValueError, KeyError, TypeError, RecursionError):
             return
         verb, payload = str(req.get("verb")), req.get("payload")
         sender, user = str(req.get("sender", "zenoh")), str(req.get("user", ""))
         p = _Pending()
         try:
-            cmd = parse_command(verb, payload, sender=sender, user=user, reply=p.set)
-            if verb == "collect":
-                from pamd.experiment.plan import load_plan
-
-                a = cmd.args
-                try:
-                    plan = load_plan(a.plan_file, self.d.cfg)
-                except PamdError as exc:
-                    raise CommandRefused(f"collect: plan refused: {exc}") from None
-                p.collection = self.collections.prepare(plan, a.plan_file, a.start_step,
-                                                        sender, user, a.collection)
-                cmd = Command("collect", PlanArgs(a.plan_file, a.start_step, plan), p.set,
-                              sender, user)
-            else:  # model: the file read, checked and compiled here, not in the loop
-                prepare = getattr(commands, "prepare_command", None)
-                if prepare is not None:
-                    cmd = prepare(cmd, self.d.cfg)
+            cmd = self._prepare(verb, payload, sender, user, p)
         except CommandRefused as exc:
-            verdict = {"ok": False, "error": str(exc)}
+            error = str(exc)
+        except Exception as exc:  # the daemon never dies of a request
+            log.exception("%s request from %s", verb, sender)
+            error = (f"{verb}: refused: it failed while being prepared "
+                     f"({exc.__class__.__name__}); the daemon goes on")
+        else:
+            self.pending[rid] = p
+            self.d.mailbox.put(cmd)
+            return
+        verdict = {"ok": False, "error": error}
+        try:
             ctrl = self.d.ctrl
             self.d.summary.event(ctrl.now, "command", {
-                "verb": verb, "args": payload if isinstance(payload, dict) else {},
-                "sender": sender, "user": user, "by": "daemon", **verdict})
+                "verb": verb, "args": args_for_record(payload), "sender": sender,
+                "user": user, "by": "daemon", **verdict})
+        finally:
             self._reply(rid, verdict)
-            return
-        self.pending[rid] = p
-        self.d.mailbox.put(cmd)
+
+    def _prepare(self, verb: str, payload: Any, sender: str, user: str,
+                 p: _Pending) -> Command:
+        """The command ready for the loop, its file read and checked here (collect: the
+        plan; model: the model), only by name from the directory the config allows."""
+        cfg = self.d.cfg
+        cmd = parse_command(verb, payload, sender=sender, user=user, reply=p.set)
+        if verb == "collect":
+            a = cmd.args
+            plan, path = read_plan(a.plan_file, cfg)
+            p.collection = self.collections.prepare(plan, path, a.start_step, sender, user,
+                                                    a.collection)
+            return Command("collect", PlanArgs(path, a.start_step, plan), p.set, sender,
+                           user)
+        if verb == "model":
+            a = cmd.args
+            path = named_files.resolve(a.file, named_files.configured_dir(cfg, "models_dir"),
+                                       "model", "models_dir")
+            named_files.read_limited(path, a.file, "model", named_files.MODEL_MAX_BYTES)
+            return prepare_command(dataclasses.replace(cmd, args=dataclasses.replace(
+                a, file=path)), cfg)
+        return cmd
+
+
+def read_plan(name: str, cfg: Any) -> tuple[Any, str]:
+    """A remote collect's plan: file `name` in `telemetry.plans_dir`, within the limits
+    (`pamd.commands.named_files`), parsed and checked against the rig; the refusal
+    names file, line and key and never quotes the file."""
+    from pamd.experiment.plan import parse_plan
+
+    try:
+        path = named_files.resolve(name, named_files.configured_dir(cfg, "plans_dir"),
+                                   "plan", "plans_dir")
+        nf = named_files.read_limited(path, name, "plan", named_files.PLAN_MAX_BYTES)
+    except CommandRefused as exc:
+        raise CommandRefused(f"collect: plan refused: {exc}") from None
+    try:
+        return parse_plan(nf.text, path, cfg), path
+    except PamdError as exc:
+        raise CommandRefused(f"collect: plan refused: "
+                             f"{named_files.issues_text(exc, name)}") from None
+    except RecursionError:
+        raise CommandRefused(f"collect: plan refused: {name!r} is nested too deep") from None

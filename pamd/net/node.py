@@ -32,6 +32,13 @@ from collections.abc import Callable
 from typing import Any
 
 from pamd.commands import parse_command
+from pamd.commands.schema import (
+    MAX_WHO_CHARS,
+    URGENT_VERBS,
+    args_for_record,
+    cap_payload,
+    cap_text,
+)
 from pamd.errors import CommandRefused
 from pamd.net.board import Board
 from pamd.net.keys import Keys
@@ -50,6 +57,9 @@ SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most t
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
 LIMITS_REFRESH_S = 1.0
 RATE_NOTE_S = 1.0
+MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
+SNAPSHOT_STALE_MIN_S, SNAPSHOT_STALE_PERIODS = 1.0, 5  # a snapshot older is stale
+LIVE_STALE_MIN_S, LIVE_STALE_TICKS = 0.5, 50  # tick records older are stale
 
 RecordFn = Callable[[float, str, dict[str, Any]], None]
 
@@ -83,6 +93,7 @@ class NetNode:
         self.put_t = 0.0
         self.stop_reason: str | None = None
         self.last_t_s = 0.0
+        self.rows_mono = time.monotonic()  # when tick records last came in
         self.t0_wall: float | None = None
         self._limits: dict[str, float] = {}
         self._limits_t = -1e9
@@ -180,6 +191,7 @@ class NetNode:
             add(row)
         self.stats.add(rows)
         self.last_t_s = rows[-1][1]
+        self.rows_mono = time.monotonic()
 
     def event(self, t: float, kind: str, data: dict[str, Any]) -> None:
         if kind == "reply":
@@ -276,11 +288,27 @@ class NetNode:
             st = json.loads(blob)
         except ValueError:
             st = {"error": "the status snapshot is not JSON"}
-        self._live(st)
+        stale = self._staleness(age, time.monotonic())
+        if not any(r.startswith("no tick records") for r in stale):
+            self._live(st)  # the loop's latest values over the snapshot, when they are new
         st.update(ok="error" not in st, snapshot_age_s=round(age, 4),
                   stopping=self.stop_reason or st.get("stopping"), timing=self.stats.summary,
-                  io=dict(self.counts))
+                  io=dict(self.counts), stale=bool(stale), stale_reasons=stale)
         self._send(q, self.keys.status, json.dumps(st, default=str).encode())
+
+    def _staleness(self, snapshot_age_s: float, now: float) -> list[str]:
+        """Why the answer may not be the rig's present state (empty: it is)."""
+        out = []
+        limit = max(SNAPSHOT_STALE_MIN_S, SNAPSHOT_STALE_PERIODS * self.spec.status_period_s)
+        if snapshot_age_s > limit:
+            out.append(f"the daemon's main thread has not refreshed the status for "
+                       f"{snapshot_age_s:.1f} s (it does every {self.spec.status_period_s:g} s)")
+        if self.stats.last is not None:
+            live_age = now - self.rows_mono
+            if live_age > max(LIVE_STALE_MIN_S, LIVE_STALE_TICKS / self.io_spec.rate_hz):
+                out.append(f"no tick records from the loop for {live_age:.1f} s: live values "
+                           "are the snapshot's")
+        return out
 
     def _live(self, st: dict[str, Any]) -> None:
         """The latest tick record's values over the snapshot's (which may be up to
@@ -317,7 +345,7 @@ class NetNode:
         self.counts["refused_here"] += 1
         verdict = {"ok": False, "error": error}
         if record:
-            data = {"verb": verb, "args": args if isinstance(args, dict) else {"raw": args},
+            data = {"verb": cap_text(verb, 40), "args": args_for_record(args),
                     "sender": sender, "user": user, "by": "io", **verdict}
             now = self.loop_now()
             self.to_record.append((now, "command", data))  # recorded by the io loop
@@ -330,10 +358,15 @@ class NetNode:
         with self.lock:
             try:
                 self._command(q, time.monotonic())
-            except Exception as exc:  # never leave a query unanswered
-                self._send(q, str(q.key_expr), json.dumps(
-                    {"ok": False, "error": f"command failed in the io process: {exc!r}"}
-                ).encode())
+            except Exception as exc:  # never leave a query unanswered, nor unrecorded
+                error = cap_text(f"refused: the command failed in the io process "
+                                 f"({exc.__class__.__name__}: {exc}); the daemon goes on", 300)
+                try:
+                    key = str(q.key_expr)
+                    self._refuse(q, key, Keys.last_chunk(key), b"", "zenoh", "", error)
+                except Exception:
+                    self._send(q, str(q.key_expr), json.dumps(
+                        {"ok": False, "error": error}).encode())
 
     def _command(self, q: Any, now: float) -> None:
         self.counts["commands"] += 1
@@ -345,36 +378,44 @@ class NetNode:
         except Exception:
             zid = ""
         sender = f"zenoh:{zid}" if zid else "zenoh"
-        user = q.parameters.get("user") or ""
+        user = cap_text(q.parameters.get("user") or "", MAX_WHO_CHARS)
         raw = q.payload.to_bytes() if q.payload is not None else b""
+        if len(raw) > MAX_PAYLOAD_BYTES:
+            self._refuse(q, key, cap_text(verb, 40), raw, sender, user,
+                         f"payload of {len(raw)} bytes, above the limit of "
+                         f"{MAX_PAYLOAD_BYTES} bytes; not taken")
+            return
         text = raw.decode("utf-8", "replace")
         if "*" in verb or "$" in verb:
-            self._refuse(q, self.keys.cmd(verb), verb, text[:200], sender, user,
+            self._refuse(q, key, verb, raw, sender, user,
                          "name one verb: pamd/<rig>/cmd/<verb>", record=False)
             return
-        if self.stop_reason is not None or self.closing:
-            self._refuse(q, key, verb, text[:200], sender, user,
+        urgent = verb in URGENT_VERBS  # estop and stop always reach the loop while it runs
+        if (self.stop_reason is not None and not urgent) or self.closing:
+            self._refuse(q, key, verb, raw, sender, user,
                          f"the daemon is stopping ({self.stop_reason}); command not taken")
             return
-        if not self.limiter.allow(zid or "unidentified", now):
+        if not urgent and not self.limiter.allow(zid or "unidentified", now):
             self.counts["rate_limited"] += 1
             note = now - self._rate_note_t >= RATE_NOTE_S
             if note:
                 self._rate_note_t = now
-            self._refuse(q, key, verb, text[:200], sender, user, (
+            self._refuse(q, key, verb, raw, sender, user, (
                 f"rate limited: more than {self.spec.command_rate_per_s:g} commands/s "
                 f"(burst {self.spec.command_burst}) from {sender}; not taken"), record=note)
             return
         try:
             payload = json.loads(text) if text.strip() else {}
-        except ValueError as exc:
-            self._refuse(q, key, verb, text[:200], sender, user, f"malformed JSON: {exc}")
+        except (ValueError, RecursionError) as exc:
+            why = exc if isinstance(exc, ValueError) else "nested too deep"
+            self._refuse(q, key, verb, raw, sender, user, f"malformed JSON: {why}")
             return
         try:
             parse_command(verb, payload, sender=sender, user=user)
+            payload = cap_payload(payload)  # what goes on: text fields capped
             self._check_ranges(verb, payload)
         except CommandRefused as exc:
-            self._refuse(q, key, verb, payload, sender, user, str(exc))
+            self._refuse(q, key, verb, raw, sender, user, str(exc))
             return
         k = self.next_id
         self.next_id += 1
@@ -384,7 +425,13 @@ class NetNode:
             assert self.board is not None
             blob = json.dumps({"id": k, "verb": verb, "payload": payload, "sender": sender,
                                "user": user}).encode()
-            if not self.board.requests.put_blob(blob):
+            try:
+                taken = self.board.requests.put_blob(blob)
+            except ValueError:  # larger than a slot, even with its text capped
+                self._resolve(k, {"ok": False, "error": f"{verb}: the request is too large "
+                                  f"({len(blob)} bytes); not taken"})
+                return
+            if not taken:
                 self._resolve(k, {"ok": False, "error": "the daemon is busy (request queue "
                                   "full); try again"})
             return

@@ -36,6 +36,7 @@ class NetSpec:
     command_rate_per_s: float
     command_burst: int
     command_timeout_s: float
+    status_period_s: float = 0.1  # the main thread's status snapshot refresh
     where: str = ""  # where the session listens or connects, for the operator
     board_name: str = ""  # the shared status board (pamd.net.board), set at creation
     main_thread_verbs: tuple[str, ...] = MAIN_THREAD_VERBS
@@ -71,4 +72,4 @@ def resolve(cfg: Any, req: TelemetryRequest | None) -> NetSpec | None:
         every_ticks=max(1, round(rate / tc.rate_hz)),
         publish_period_s=1.0 / tc.publish_hz,
         command_rate_per_s=tc.command_rate_per_s, command_burst=tc.command_burst,
-        command_timeout_s=tc.command_timeout_s)
+        command_timeout_s=tc.command_timeout_s, status_period_s=1.0 / tc.status_hz)

@@ -73,7 +73,7 @@ class StatusBuilder:
         io = getattr(d, "io", None)
         rec = None
         if io is not None and getattr(io, "recording", True):
-            rec = {"files": io.link.files()}
+            rec = {"files": io.link.files(), "failure": io.failure}
         st.update(
             rig_id=cfg.rig.rig_id, faults=list(ctrl.supervisor.faults),
             experiment=experiment, config_sha256=cfg.sha256,

@@ -9,6 +9,7 @@ load unpressurised.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -38,6 +39,9 @@ class Transition:
     reason: str
 
 
+HISTORY_KEPT = 256  # transitions kept in memory (every one is recorded as an event)
+
+
 class Supervisor:
     """The rig's state machine. FAULT and ESTOP latch until `reset()`; every
     transition carries a reason and is reported through `on_transition`."""
@@ -47,7 +51,7 @@ class Supervisor:
         self.reason = "starting: waiting for the first sensor readings"
         self.fault_reason: str | None = None
         self.on_transition = on_transition
-        self.history: list[Transition] = []
+        self.history: deque[Transition] = deque(maxlen=HISTORY_KEPT)  # the latest
         self.faults: list[str] = []
 
     @property

@@ -124,7 +124,52 @@ def handle(cl: Client, subs: dict[str, Any], op: str, req: dict[str, Any]) -> An
                    "rate_limited" if "rate limited" in str(v.get("error")) else "other")
             counts[key] += 1
         return counts
+    if op == "big":  # `n` commands whose JSON is `bytes` long: the distinct errors
+        pad = "x" * req["bytes"]
+        errors: dict[str, int] = {}
+        for _ in range(req["n"]):
+            v = cl.command(req["rig"], req["verb"], {**req.get("payload", {}), "pad": pad},
+                           user="big", timeout_s=30.0)
+            e = "ok" if v.get("ok") else str(v.get("error"))[:200]
+            errors[e] = errors.get(e, 0) + 1
+        return errors
+    if op == "burst":  # `n` commands spread over `seconds`, sent without waiting
+        return _burst(cl, req)
     return {"error": f"unknown op {op!r}"}
+
+
+def _burst(cl: Client, req: dict[str, Any]) -> dict[str, Any]:
+    import threading
+
+    n, lock, done = req["n"], threading.Lock(), threading.Event()
+    verdicts: list[dict[str, Any]] = []
+
+    def on_reply(reply: Any) -> None:
+        try:
+            v = json.loads(reply.ok.payload.to_bytes()) if reply.ok else {"error": "err"}
+        except Exception as exc:
+            v = {"error": repr(exc)}
+        with lock:
+            verdicts.append(v)
+            if len(verdicts) >= n:
+                done.set()
+
+    key = f"pamd/{req['rig']}/cmd/{req['verb']}"
+    t0 = time.perf_counter()
+    for i in range(n):
+        while time.perf_counter() < t0 + i * req["seconds"] / n:
+            time.sleep(0.0005)
+        body = json.dumps(req["payloads"][i % len(req["payloads"])]).encode()
+        cl.session.get(key, on_reply, payload=body, timeout=req.get("timeout", 60.0))
+    done.wait(req.get("timeout", 60.0) + 5.0)
+    with lock:
+        errors: dict[str, int] = {}
+        for v in verdicts:
+            if not v.get("ok"):
+                e = str(v.get("error"))[:120]
+                errors[e] = errors.get(e, 0) + 1
+        return {"answered": len(verdicts), "ok": sum(1 for v in verdicts if v.get("ok")),
+                "errors": errors, "send_s": time.perf_counter() - t0}
 
 
 if __name__ == "__main__":

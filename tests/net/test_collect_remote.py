@@ -46,12 +46,13 @@ class Rig(RigProc):
     def __init__(self, tmp: Path) -> None:
         super().__init__(tmp, RIG, ("--duration", "36000"),
                          loop={"clock": "virtual", "rate_hz": 1000},
-                         telemetry={"enabled": True})
+                         telemetry={"enabled": True, "plans_dir": "plans"})
 
     def plan(self, text: str, name: str = "plan.yaml") -> str:
-        path = self.tmp / name
-        path.write_text(text)
-        return str(path)
+        """The plan written into the daemon's plans_dir; its name (what a request names)."""
+        (self.tmp / "plans").mkdir(exist_ok=True)
+        (self.tmp / "plans" / name).write_text(text)
+        return name
 
     def collect(self, plan_file: str, start_step: int = 0) -> dict[str, Any]:
         return self.cmd("collect", {"plan_file": plan_file, "start_step": start_step})
@@ -213,12 +214,12 @@ def test_a_stop_mid_collection_writes_the_manifest_and_every_tick_is_in_one_file
 
 def test_a_daemon_that_does_not_record_refuses_a_collect(tmp_path: Path) -> None:
     r = RigProc(tmp_path, RIG, ("--no-record",), loop={"clock": "virtual"},
-                telemetry={"enabled": True})
+                telemetry={"enabled": True, "plans_dir": "."})
     try:
-        v = r.cmd("collect", {"plan_file": str(tmp_path / "plan.yaml")})
+        v = r.cmd("collect", {"plan_file": "plan.yaml"})
         assert not v["ok"] and "plan refused" in v["error"]  # the plan is read first
         (tmp_path / "plan.yaml").write_text(GOOD)
-        v = r.cmd("collect", {"plan_file": str(tmp_path / "plan.yaml")})
+        v = r.cmd("collect", {"plan_file": "plan.yaml"})
         assert not v["ok"] and "does not record" in v["error"] and "--record" in v["error"]
         assert r.status()["experiment"] is None  # nothing reached the loop
         assert not r.rec.exists()
