@@ -16,7 +16,9 @@ are found (``--tuner``):
 For the GAs each string is one premise vector (centre and width of every MF, in the
 scaled input space: centres in [-0.25, 1.25], widths in [0.15, 1.0]); its cost is the
 training MSE with the consequents solved by least squares for that premise (normal
-equations while searching, SVD for the final model).
+equations while searching, SVD for the final model). The grid layout of `init_model`
+is one string of the initial population. Seeded: the same data, options and seed give
+the same model.
 
 One departure from the paper, for every tuner: the consequent least squares carry a
 small ridge (`TsFuzzyOptions.ridge`, default 0.01 on the scaled design). With 27
@@ -24,9 +26,7 @@ rules over data of a few loads, some rules barely fire on the training samples; 
 least squares then gives them huge consequents that a premise search happily
 exploits, and the model is wild between the training loads (on 3 sweeps: training
 RMSE 0.04 bar, validation 4.6 bar without it; 0.064 and 0.048 bar with it). The
-ridge is a tuning choice: pick it on a validation split (the benchmark does). The grid layout of `init_model`
-is one string of the initial population. Seeded: the same data, options and seed give
-the same model.
+ridge is a tuning choice: pick it on a validation split (the benchmark does).
 """
 
 from __future__ import annotations
