@@ -12,6 +12,7 @@ from pathlib import Path  # noqa: E402
 import pytest  # noqa: E402
 import yaml  # noqa: E402
 
+from pamd.cli.main import main  # noqa: E402
 from pamd.config import load_config  # noqa: E402
 from pamd.daemon import Daemon  # noqa: E402
 from pamd.io.session import RecordingRequest  # noqa: E402
@@ -51,3 +52,24 @@ def sweeps(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     """0.1 Hz 0.5-5.5 bar sweeps, 2 cycles each, at 20, 40 and 60 kg."""
     tmp = tmp_path_factory.mktemp("sweeps")
     return [record_sweep(tmp, load) for load in SWEEP_LOADS_KG]
+
+
+@pytest.fixture(scope="session")
+def trained(sweeps: list[Path], tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """One model file per kind, trained by `pamd train --kind` on the sweeps (small
+    settings: seconds)."""
+    out = tmp_path_factory.mktemp("models")
+    runs = [str(p) for p in sweeps]
+    args = {
+        "anfis": ["--epochs", "20", "--mfs", "3"],
+        "ts-fuzzy": ["--tuner", "mga", "--epochs", "4", "--population", "16"],
+        "polynomial": [],
+        "sarosi": [],
+    }
+    paths = {}
+    for kind, extra in args.items():
+        path = out / f"{kind}.json"
+        assert main(["train", *runs, "--out", str(path), "--kind", kind, "--quiet",
+                     "--block-s", "2", *extra]) == 0, kind
+        paths[kind] = path
+    return paths

@@ -12,25 +12,6 @@ from pamd.cli.main import main
 from pamd.models.registry import load_model
 
 
-@pytest.fixture(scope="module")
-def trained(sweeps: list[Path], tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    out = tmp_path_factory.mktemp("models")
-    runs = [str(p) for p in sweeps]
-    args = {
-        "anfis": ["--epochs", "5", "--mfs", "3"],
-        "ts-fuzzy": ["--tuner", "mga", "--epochs", "4", "--population", "16"],
-        "polynomial": [],
-        "sarosi": [],
-    }
-    paths = {}
-    for kind, extra in args.items():
-        path = out / f"{kind}.json"
-        assert main(["train", *runs, "--out", str(path), "--kind", kind, "--quiet",
-                     "--block-s", "2", *extra]) == 0, kind
-        paths[kind] = path
-    return paths
-
-
 def test_train_writes_each_kind(trained: dict[str, Path], capsys: Any) -> None:
     # Validation RMSE (bar) on unseen 2 s blocks of the three sweeps (virtual clock:
     # deterministic). The polynomial's offset a4 cannot follow the force at zero
