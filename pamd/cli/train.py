@@ -62,6 +62,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "algorithm, modified GA; default mga)")
     p.add_argument("--population", type=int, default=100,
                    help="ts-fuzzy ga/mga: strings per generation (default 100)")
+    p.add_argument("--hidden", type=int, default=8,
+                   help="mlp: tanh neurons in the hidden layer (default 8, seed 001's ANN)")
+    p.add_argument("--svr-c", type=float, default=10.0, help="svr: regularisation C "
+                   "(default 10)")
+    p.add_argument("--svr-epsilon", type=float, default=0.02, help="svr: epsilon tube in "
+                   "bar (default 0.02; wider gives fewer support vectors)")
     p.add_argument("--ridge", type=float, default=0.01,
                    help="ts-fuzzy: ridge on the consequents' least squares, scaled units "
                    "(default 0.01; 0 = plain SVD; choose it on the validation split)")
@@ -180,6 +186,7 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Any,
     epochs = args.epochs or default_epochs.get(args.kind, 1)
     kopts = KindOptions(epochs=epochs, seed=args.seed, tuner=args.tuner,
                         population=args.population, ridge=args.ridge,
+                        hidden=args.hidden, svr_c=args.svr_c, svr_epsilon=args.svr_epsilon,
                         n_mfs=None if args.mfs is None else parse_mfs(args.mfs, len(inputs)))
     iterative = args.kind == "ts-fuzzy"
     bar = _progress(epochs, args.quiet, "generation" if args.tuner != "gd" else "epoch"

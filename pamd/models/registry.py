@@ -23,7 +23,7 @@ from typing import Any
 
 from pamd.anfis import modelfile as anfis_file
 from pamd.errors import ModelError
-from pamd.models import static_force
+from pamd.models import learned, static_force
 from pamd.models.contract import InverseModel
 from pamd.models.document import field, format_json, parse_json
 
@@ -50,6 +50,10 @@ KINDS: dict[str, Kind] = {k.name: k for k in (
          "closed form", static_force.from_dict),
     Kind("sarosi", "004", "forward force F = (a p + b) e^(c k + d) + (e p + f) k + g p + h, "
          "inverted in closed form", static_force.from_dict),
+    Kind("mlp", "002", "multilayer perceptron (one tanh layer), fitted by scikit-learn",
+         learned.from_dict),
+    Kind("svr", "002", "support vector regression (RBF), fitted by scikit-learn; offline "
+         "only with more than 24 support vectors", learned.from_dict),
 )}
 
 

@@ -18,6 +18,7 @@ import numpy as np
 from pamd.anfis.training import TrainingOptions, fit
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
+from pamd.models.learned import fit_learned
 from pamd.models.static_force import fit_static
 from pamd.models.ts_fuzzy import TsFuzzyOptions, fit_ts_fuzzy
 
@@ -89,5 +90,10 @@ def fit_kind(kind: str, X: np.ndarray, y: np.ndarray, *, inputs: Sequence[str],
                              "force is a function of pressure and contraction)")
         return fit_static(kind, X, y, input_units=units, validation=validation,
                           derived_inputs=derived_inputs, provenance=provenance)
+    if kind in ("mlp", "svr"):
+        return fit_learned(kind, X, y, input_names=inputs, input_units=units,
+                           hidden=opts.hidden, max_iter=opts.epochs, svr_c=opts.svr_c,
+                           svr_epsilon=opts.svr_epsilon, seed=opts.seed, validation=validation,
+                           derived_inputs=derived_inputs, provenance=provenance)
     raise ModelError(f"pamd cannot train kind {kind!r} here; kinds: "
                      f"{', '.join(DEFAULT_INPUTS)}")
