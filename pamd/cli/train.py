@@ -18,7 +18,7 @@ from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.registry import KINDS, save_model
-from pamd.models.training import DEFAULT_INPUTS, KindOptions, fit_kind
+from pamd.models.training import DEFAULT_INPUTS, KindOptions, fit_split
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -68,6 +68,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(default 10)")
     p.add_argument("--svr-epsilon", type=float, default=0.02, help="svr: epsilon tube in "
                    "bar (default 0.02; wider gives fewer support vectors)")
+    p.add_argument("--operators", type=int, default=10,
+                   help="qupi: play operators per branch, Na = Nb (default 10, seed 003; "
+                   "the tick evaluates Na x Nb of them)")
     p.add_argument("--ridge", type=float, default=0.01,
                    help="ts-fuzzy: ridge on the consequents' least squares, scaled units "
                    "(default 0.01; 0 = plain SVD; choose it on the validation split)")
@@ -181,12 +184,13 @@ def run(args: argparse.Namespace) -> int:
 def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Any,
               parts: Any) -> int:
     """Every kind but anfis: `pamd.models.training.fit_kind`, then the same report."""
-    tr, va, te = parts.train, parts.validation, parts.test
+    te = parts.test
     default_epochs = {"ts-fuzzy": 100 if args.tuner == "gd" else 60, "mlp": 500}
     epochs = args.epochs or default_epochs.get(args.kind, 1)
     kopts = KindOptions(epochs=epochs, seed=args.seed, tuner=args.tuner,
                         population=args.population, ridge=args.ridge,
-                        hidden=args.hidden, svr_c=args.svr_c, svr_epsilon=args.svr_epsilon,
+                        hidden=args.hidden, operators=args.operators, svr_c=args.svr_c,
+                        svr_epsilon=args.svr_epsilon,
                         n_mfs=None if args.mfs is None else parse_mfs(args.mfs, len(inputs)))
     iterative = args.kind == "ts-fuzzy"
     bar = _progress(epochs, args.quiet, "generation" if args.tuner != "gd" else "epoch"
@@ -199,18 +203,22 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Any,
 
     prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how}
     try:
-        model = fit_kind(args.kind, tr.X, tr.y, inputs=inputs, input_units=tr.input_units,
-                         opts=kopts, validation=(va.X, va.y) if va is not None else None,
-                         derived_inputs=derived_inputs(inputs, args.velocity_window_s),
-                         provenance=prov, callback=progress, run=tr.run)
+        model = fit_split(args.kind, samples, parts, opts=kopts,
+                          derived_inputs=derived_inputs(inputs, args.velocity_window_s),
+                          provenance=prov, callback=progress)
     finally:
         if bar is not None:
             bar.close()
     rows = {k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
     if te is not None:
-        from pamd.models.compare import predict_samples
+        if model.stateful:  # over whole runs, scored on the test rows
+            from pamd.models.compare import predict_samples
+            from pamd.models.training import rows_of
 
-        y_hat, _ = predict_samples(model, te.X, te.run)
+            y_all, _ = predict_samples(model, samples.X, samples.run)
+            y_hat = y_all[rows_of(samples, te)]
+        else:
+            y_hat = model.predict(te.X)
         model.metrics["test"] = regression_metrics(te.y, y_hat, model.n_params)
         rows["test"] = model.metrics["test"]
     save_model(model, args.out)
@@ -218,8 +226,10 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Any,
     format_table(rows, model.output.unit)
     fwd = {k[len("forward_"):]: v for k, v in model.metrics.items() if k.startswith("forward_")}
     if fwd:
-        print("  forward force model (force from pressure and contraction):")
-        format_table(fwd, "N")
+        qupi = model.kind == "qupi"
+        print("  forward model (" + ("length from the pressure history" if qupi else
+                                     "force from pressure and contraction") + "):")
+        format_table(fwd, "mm" if qupi else "N")
     return 0
 
 

@@ -23,7 +23,7 @@ from typing import Any
 
 from pamd.anfis import modelfile as anfis_file
 from pamd.errors import ModelError
-from pamd.models import learned, static_force
+from pamd.models import learned, qupi, static_force
 from pamd.models.contract import InverseModel
 from pamd.models.document import field, format_json, parse_json
 
@@ -54,6 +54,8 @@ KINDS: dict[str, Kind] = {k.name: k for k in (
          learned.from_dict),
     Kind("svr", "002", "support vector regression (RBF), fitted by scikit-learn; offline "
          "only with more than 24 support vectors", learned.from_dict),
+    Kind("qupi", "003", "inverse quadratic unparallel Prandtl-Ishlinskii hysteresis model "
+         "(target length -> pressure, stateful; one load)", qupi.from_dict),
 )}
 
 

@@ -15,10 +15,13 @@ from typing import Any
 
 import numpy as np
 
+from pamd.anfis.samples import Samples
+from pamd.anfis.splitting import Split
 from pamd.anfis.training import TrainingOptions, fit
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
 from pamd.models.learned import fit_learned
+from pamd.models.qupi import fit_qupi
 from pamd.models.static_force import fit_static
 from pamd.models.ts_fuzzy import TsFuzzyOptions, fit_ts_fuzzy
 
@@ -58,10 +61,8 @@ def fit_kind(kind: str, X: np.ndarray, y: np.ndarray, *, inputs: Sequence[str],
              validation: tuple[np.ndarray, np.ndarray] | None = None,
              derived_inputs: dict[str, Any] | None = None,
              provenance: dict[str, Any] | None = None,
-             callback: Progress | None = None,
-             run: np.ndarray | None = None) -> InverseModel:
-    """Train `kind` on (X, y) (pressure in bar); `run` gives each row's run (a stateful
-    kind identifies its memory run by run)."""
+             callback: Progress | None = None) -> InverseModel:
+    """Train a stateless `kind` on (X, y) (pressure in bar); qupi: `fit_split`."""
     units = list(input_units)
     if kind == "anfis":
         res = fit(X, y, TrainingOptions(n_mfs=opts.n_mfs or (5 if len(inputs) <= 2 else 3),
@@ -97,3 +98,35 @@ def fit_kind(kind: str, X: np.ndarray, y: np.ndarray, *, inputs: Sequence[str],
                            derived_inputs=derived_inputs, provenance=provenance)
     raise ModelError(f"pamd cannot train kind {kind!r} here; kinds: "
                      f"{', '.join(DEFAULT_INPUTS)}")
+
+
+def fit_split(kind: str, samples: Samples, parts: Split, *, opts: KindOptions,
+              derived_inputs: dict[str, Any] | None = None,
+              provenance: dict[str, Any] | None = None,
+              callback: Progress | None = None) -> InverseModel:
+    """Train `kind` on a split of `samples`. A stateless kind sees the training rows
+    (and validation rows); a stateful one (qupi) runs over every row of each run, in
+    time order, and fits and scores only the rows of its set."""
+    if kind != "qupi":
+        va = parts.validation
+        return fit_kind(kind, parts.train.X, parts.train.y, inputs=samples.inputs,
+                        input_units=samples.input_units, opts=opts,
+                        validation=(va.X, va.y) if va is not None else None,
+                        derived_inputs=derived_inputs, provenance=provenance,
+                        callback=callback)
+    if tuple(samples.inputs) != ("length_mm",):
+        raise ModelError("a qupi model takes the one input length_mm (the target length; it "
+                         "is identified at one load)")
+    return fit_qupi(samples.X[:, 0], samples.y, samples.run, n_operators=opts.operators,
+                    train=rows_of(samples, parts.train),
+                    validation=None if parts.validation is None
+                    else rows_of(samples, parts.validation),
+                    derived_inputs=derived_inputs, provenance=provenance)
+
+
+def rows_of(samples: Samples, subset: Samples) -> np.ndarray:
+    """The mask of `samples` rows that are in `subset` (a split of them)."""
+    def key(s: Samples) -> np.ndarray:
+        return s.run.astype(np.int64) * (1 << 40) + np.round(s.t_s * 1e6).astype(np.int64)
+
+    return np.isin(key(samples), key(subset))
