@@ -271,6 +271,32 @@ def fit_coefficients(kind: str, p_bar: np.ndarray, k_pct: np.ndarray,
     return {"a": a, "b": b, "c": c, "d": 0.0, "e": e, "f": f, "g": g, "h": h}
 
 
+def invertible_range(kind: str, co: dict[str, float], x: np.ndarray) -> tuple[float, float]:
+    """The contraction range the inverse is used on: the data's, narrowed to the
+    stretch around the median where the fitted force rises with pressure (a low-order
+    fit may bend its gain below zero at the travel's end; contractions beyond are then
+    held to the range and flagged, never inverted). `ModelError` if that leaves less
+    than half of the samples."""
+    grid = np.linspace(float(x.min()), float(x.max()), 401)
+    ok = gain_offset(kind, co, 100.0 * grid)[0] > MIN_GAIN_N_PER_BAR
+    i = int(np.searchsorted(grid, float(np.median(x))))
+    i = min(i, grid.size - 1)
+    if not ok[i]:
+        raise ModelError(f"{kind} fit is not invertible: its force does not rise with "
+                         "pressure at the data's median contraction")
+    lo, hi = i, i
+    while lo > 0 and ok[lo - 1]:
+        lo -= 1
+    while hi < grid.size - 1 and ok[hi + 1]:
+        hi += 1
+    inside = float(np.mean((x >= grid[lo]) & (x <= grid[hi])))
+    if inside < 0.5:
+        raise ModelError(f"{kind} fit is not invertible: its force rises with pressure "
+                         f"only over contractions {grid[lo]:.3f}-{grid[hi]:.3f}, "
+                         f"{100 * inside:.0f} % of the data")
+    return float(grid[lo]), float(grid[hi])
+
+
 def fit_static(kind: str, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
                validation: tuple[np.ndarray, np.ndarray] | None = None,
                derived_inputs: dict[str, Any] | None = None,
@@ -284,8 +310,9 @@ def fit_static(kind: str, X: np.ndarray, y: np.ndarray, *, input_units: Sequence
     co = fit_coefficients(kind, y, 100.0 * x, F)
     if not all(math.isfinite(v) for v in co.values()):
         raise ModelError(f"{kind} fit did not converge (non-finite coefficients)")
+    x_lo, x_hi = invertible_range(kind, co, x)
     inputs = [Variable("force_n", input_units[0], float(F.min()), float(F.max())),
-              Variable("contraction", input_units[1], float(x.min()), float(x.max()))]
+              Variable("contraction", input_units[1], x_lo, x_hi)]
     output = Variable("pressure_bar", "bar", float(y.min()), float(y.max()))
     prov = {**(provenance or {}), "fit": {"method": "linear least squares (SVD)"
                                           if kind == "polynomial" else

@@ -16,7 +16,9 @@ are found (``--tuner``):
 For the GAs each string is one premise vector (centre and width of every MF, in the
 scaled input space: centres in [-0.25, 1.25], widths in [0.15, 1.0]); its cost is the
 training MSE with the consequents solved by least squares for that premise (normal
-equations while searching, SVD for the final model). The grid layout of `init_model`
+equations while searching, SVD for the final model), on a fixed seeded subset of at
+most `TsFuzzyOptions.fitness_rows` training rows (each string costs one solve; the
+final consequents use every row). The grid layout of `init_model`
 is one string of the initial population. Seeded: the same data, options and seed give
 the same model.
 
@@ -65,6 +67,7 @@ class TsFuzzyOptions:
     population: int = 100
     seed: int = 0
     ridge: float = 0.01  # ridge on the consequents (0: plain SVD least squares)
+    fitness_rows: int = 3000  # ga/mga: rows the fitness is computed on (0: all)
 
 
 def premise_cost(model: AnfisModel, X: np.ndarray, y: np.ndarray, solver: str = "auto",
@@ -143,12 +146,18 @@ def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[
             if callback is not None:
                 callback(gen, mse, None)
 
-        ga: GaResult = minimise(premise_cost(model, Xa, ya, ridge=opts.ridge), lo, hi, gopts,
+        rows = np.arange(ya.size)
+        if 0 < opts.fitness_rows < ya.size:  # a fixed seeded subset: the search's cost
+            rows = np.sort(np.random.default_rng(opts.seed).choice(ya.size, opts.fitness_rows,
+                                                                   replace=False))
+        ga: GaResult = minimise(premise_cost(model, Xa[rows], ya[rows], ridge=opts.ridge),
+                                lo, hi, gopts,
                                 start=model.premise_vector(), callback=progress_ga)
         _finish(model, ga.best, Xa, ya, opts.ridge)
         history = ga.history
         model.provenance["tuning"] = {
-            "tuner": opts.tuner, "options": asdict(gopts), "initial_mse": float(history[0]),
+            "tuner": opts.tuner, "options": asdict(gopts), "fitness_rows": int(rows.size),
+            "ridge": opts.ridge, "initial_mse": float(history[0]),
             "best_mse": float(ga.best_cost), "history_mse": history.tolist(),
             "switched_to_gradient_selection_at": ga.switched_at}
         p = model.n_params

@@ -99,3 +99,17 @@ def test_wrong_inputs_are_refused() -> None:
         StaticForceModel("polynomial", POLY, [Variable("force_n", "N", 0, 1),
                                               Variable("length_mm", "mm", 150, 200)],
                          Variable("pressure_bar", "bar", 0, 6))
+
+
+def test_the_inverse_is_held_where_the_fitted_gain_turns_negative() -> None:
+    """A(k) = 250 - 14 k crosses zero at 17.9 %: contractions past it are held, not
+    inverted (data up to 20 %)."""
+    co = {"a1": 0.0, "a2": -14.0, "a3": 250.0, "a4": -40.0}
+    p, x = grid()
+    model = fit_static("polynomial", np.c_[forward("polynomial", co, p, x), x], p,
+                       input_units=["N", ""])
+    hi = model.inputs[1].max
+    assert 0.17 < hi < 250.0 / 14.0 / 100.0 and model.problems(ENV) == []
+    ev = model.compile()
+    ev.evaluate(300.0, 0.195)
+    assert ev.clipped and ev.clipped_mask & 2
