@@ -34,13 +34,16 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import csv  # noqa: E402
 import dataclasses  # noqa: E402
 import glob  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+from importlib import resources  # noqa: E402
 from typing import Any  # noqa: E402
 
+import numpy as np  # noqa: E402
 from _common import record_profile, sim_config  # noqa: E402
 
 from pamd.anfis.extraction import derived_inputs, extract  # noqa: E402
@@ -59,6 +62,7 @@ from pamd.models.compare import (  # noqa: E402
 )
 from pamd.models.contract import InverseModel  # noqa: E402
 from pamd.models.registry import save_model  # noqa: E402
+from pamd.models.static_force import fit_coefficients, gain_offset  # noqa: E402
 from pamd.models.training import KindOptions, fit_split  # noqa: E402
 from pamd.tick import State  # noqa: E402
 
@@ -174,6 +178,13 @@ def part1(out: str, opts: KindOptions, ridge: float | None) -> float:
               f"{fit_v:.1f} % (validation blocks) over 10-80 kg (goal >= 90 %); RMSE "
               f"{rmse:.1f} N at {TEST_LOAD_KG:g} kg (one load: its force hardly varies, so "
               "a fit % there means nothing)")
+    p, x, F = datasheet_map()
+    for name, n in (("polynomial", 4), ("sarosi", 7)):
+        co = fit_coefficients(name, p, 100.0 * x, F)
+        A, B = gain_offset(name, co, 100.0 * x)
+        m = regression_metrics(F, A * p + B, n)
+        print(f"  {name} fitted to the DMSP-20 datasheet force map (static, {F.size} points): "
+              f"NRMSE fit {m['nrmse_fit_pct']:.1f} %, RMSE {m['rmse']:.1f} N")
     q = by["qupi 10x10"].model
     print(f"  qupi forward (pressure history -> length) on 40/60 kg: RMSE "
           f"{q.metrics['forward_train']['rmse']:.3f} mm")
@@ -188,6 +199,13 @@ def part1(out: str, opts: KindOptions, ridge: float | None) -> float:
     print(f"  goal: ts-fuzzy mga max deviation <= 1.6 % and below ga and gd: mga "
           f"{dev['mga']:.2f} %, ga {dev['ga']:.2f} %, gd {dev['gd']:.2f} %")
     return ridge
+
+
+def datasheet_map() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    text = resources.files("pamd.data").joinpath("dmsp20_force_map.csv").read_text()
+    rows = list(csv.DictReader(text.splitlines()))
+    return tuple(np.array([float(r[k]) for r in rows])  # type: ignore[return-value]
+                 for k in ("pressure_bar", "contraction", "force_n"))
 
 
 def track(model: str | None, cycles: int) -> tuple[float, str]:
