@@ -36,7 +36,8 @@ def write_overlay(prefix: str, judged: Sequence[Judged], t_s: np.ndarray, y: np.
     fig, ax = plt.subplots(figsize=(10, 4))
     for j in judged:
         ax.plot(t_s, j.y_hat - y, "-", lw=0.8,
-                label=f"{j.model.kind}: max dev {j.metrics['max_deviation_pct']:.2f} %")
+                label=f"{j.model.kind} ({os.path.basename(j.file)}): max dev "
+                      f"{j.metrics['max_deviation_pct']:.2f} %")
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_xlabel("time [s] (runs placed end to end)")
     ax.set_ylabel(f"model - measured [{o.unit}]" if o.unit else "model - measured")
