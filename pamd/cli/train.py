@@ -25,9 +25,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "train", help="train an inverse model (ANFIS or another kind) from recorded runs",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Train a first-order Sugeno ANFIS (hybrid learning) that maps the "
-        "muscle's force and length (and optionally its velocity) to the pressure that "
-        "produced them, from MCAP recordings (pamd run --record) or CSV files with named "
+        description="Train an inverse model (by default a first-order Sugeno ANFIS, "
+        "hybrid learning) that maps the muscle's force and length (and optionally its "
+        "velocity) to the pressure that produced them, from MCAP recordings (pamd run "
+        "--record) or CSV files with named "
         "columns. Faults, limit-flagged samples, idle stretches, lead-in ramps and the "
         "first --settle-s of each run are dropped; the rest is decimated to --rate-hz and "
         "split into training / validation (/ test) sets by whole time blocks or runs.\n\n"
