@@ -64,6 +64,9 @@ class CompiledAnfis:
     def __call__(self, *x: float) -> float:
         return self.evaluate(*x)
 
+    def reset(self, *x: float) -> None:
+        """Nothing to reset: the model has no state (`CompiledModel` contract)."""
+
     def __repr__(self) -> str:
         return f"CompiledAnfis({', '.join(self.input_names)})"
 

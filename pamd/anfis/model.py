@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -33,6 +32,12 @@ from numpy.typing import ArrayLike
 
 from pamd.anfis.membership import check_mf_type, log_membership
 from pamd.errors import ModelError
+from pamd.models.contract import (
+    Envelope,
+    Variable,
+    describe_common,
+    tick_problems,
+)
 
 if TYPE_CHECKING:
     from pamd.anfis.compiled import CompiledAnfis
@@ -42,16 +47,6 @@ SCALINGS: tuple[str, ...] = ("minmax", "zscore")
 #: Below this total firing strength a sample's memberships are recomputed divided by
 #: each input's largest, so that underflow (narrow MFs, far point) cannot give 0/0.
 UNDERFLOW_GUARD = 1e-200
-
-
-@dataclass(frozen=True)
-class Variable:
-    """A model input or output: name, unit, and the range seen in training (its unit)."""
-
-    name: str
-    unit: str
-    min: float
-    max: float
 
 
 class AnfisModel:
@@ -223,7 +218,7 @@ class AnfisModel:
             self.slopes = np.split(vec[2 * k : 3 * k], splits)
 
     def copy(self) -> AnfisModel:
-        return AnfisModel(
+        twin = AnfisModel(
             self.inputs,
             self.output,
             mf_type=self.mf_type,
@@ -238,6 +233,8 @@ class AnfisModel:
             provenance=self.provenance,
             metrics=self.metrics,
         )
+        twin.kind = self.kind
+        return twin
 
     # -- batch evaluation --------------------------------------------------------------
 
@@ -295,6 +292,33 @@ class AnfisModel:
         Xc, clipped = self.clip(X)
         y = self.predict_scaled(self.scale(Xc))
         return (y, clipped) if return_clipped else y
+
+    # -- the model contract (`pamd.models.contract.InverseModel`) ---------------------
+
+    #: Largest rule count accepted for the tick (about 25 us single-sample at 1 kHz;
+    #: the seeds' layouts are 25 and 27 rules).
+    MAX_RULES = 125
+    #: The file's kind: "anfis" (seed 000), or "ts-fuzzy" (seed 001's GA/MGA-tuned
+    #: Takagi-Sugeno model, the same structure; set by `pamd.models.ts_fuzzy`).
+    kind: str = "anfis"
+    stateful: bool = False
+
+    def describe(self) -> dict[str, Any]:
+        return {**describe_common(self), "rules": self.n_rules, "mf_type": self.mf_type,
+                "mfs": list(self.n_mfs)}
+
+    def problems(self, envelope: Envelope) -> list[str]:
+        out = tick_problems(self, envelope)
+        if self.n_rules > self.MAX_RULES:
+            out.append(f"{self.n_rules} rules is too many for the tick (at most "
+                       f"{self.MAX_RULES}); use fewer membership functions (e.g. 3 on the "
+                       "velocity)")
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        from pamd.anfis.modelfile import to_dict
+
+        return to_dict(self)
 
     def compile(self) -> CompiledAnfis:
         """The single-sample evaluator for the control tick (`CompiledAnfis`)."""

@@ -31,36 +31,25 @@ unit. Non-finite metric values (undefined metrics) are written as null.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
 from typing import Any
 
-from pamd.anfis.model import AnfisModel, Variable
+from pamd.anfis.model import AnfisModel
 from pamd.errors import ModelError
+from pamd.models.document import field as _field
+from pamd.models.document import floats as _floats
+from pamd.models.document import format_json as _format
+from pamd.models.document import numbers as _numbers
+from pamd.models.document import parse_json
+from pamd.models.document import plain as _plain
+from pamd.models.document import variable as _variable
 
 FORMAT = "pamd-anfis"
 VERSION = 1
-
-
-def _floats(values: Any) -> list[float]:
-    return [float(v) for v in values]
-
-
-def _plain(obj: Any) -> Any:
-    """Free-form dicts -> JSON-safe values (numpy scalars/arrays, non-finite -> null)."""
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if hasattr(obj, "tolist"):  # numpy array or scalar
-        return _plain(obj.tolist())
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if obj is None or isinstance(obj, (str, int, float, bool)):
-        return obj
-    return str(obj)
+#: Kinds stored in this layout (seed 001's TS fuzzy model is an ANFIS structure).
+KINDS: tuple[str, ...] = ("anfis", "ts-fuzzy")
 
 
 def to_dict(model: AnfisModel) -> dict[str, Any]:
@@ -79,9 +68,11 @@ def to_dict(model: AnfisModel) -> dict[str, Any]:
         {"mfs": list(mfs), "p": _floats(row[:-1]), "q": float(row[-1])}
         for mfs, row in zip(model.rule_mfs, model.consequents, strict=True)
     ]
+    head: dict[str, Any] = {"format": FORMAT, "version": VERSION}
+    if model.kind != "anfis":  # ANFIS files stay as they were (no kind field)
+        head = {"format": FORMAT, "kind": model.kind, "version": VERSION}
     return {
-        "format": FORMAT,
-        "version": VERSION,
+        **head,
         "inputs": [
             {"name": v.name, "unit": v.unit, "range": [float(v.min), float(v.max)]}
             for v in model.inputs
@@ -109,21 +100,8 @@ def dumps(model: AnfisModel) -> str:
     return _format(to_dict(model), 0) + "\n"
 
 
-def _format(obj: Any, level: int, in_list: bool = False) -> str:
-    """JSON text: objects (to depth 3, not inside lists) and lists holding objects or
-    lists span lines; other lists and list items stay on one line each."""
-    pad, inner = "  " * level, "  " * (level + 1)
-    if isinstance(obj, dict) and obj and level < 3 and not in_list:
-        items = [f"{inner}{json.dumps(k)}: {_format(v, level + 1)}" for k, v in obj.items()]
-        return "{\n" + ",\n".join(items) + "\n" + pad + "}"
-    if _is_nested_list(obj):
-        items = [inner + _format(v, level + 1, in_list=True) for v in obj]
-        return "[\n" + ",\n".join(items) + "\n" + pad + "]"
-    return json.dumps(obj, allow_nan=False)
 
 
-def _is_nested_list(obj: Any) -> bool:
-    return isinstance(obj, list) and any(isinstance(v, (dict, list)) for v in obj)
 
 
 def save(model: AnfisModel, path: str | os.PathLike[str]) -> Path:
@@ -146,55 +124,21 @@ def load(path: str | os.PathLike[str]) -> AnfisModel:
     return loads(text, source=str(p))
 
 
-def _reject_constant(name: str) -> Any:
-    raise ValueError(f"non-finite number {name}")
 
 
 def loads(text: str, source: str = "<string>") -> AnfisModel:
     """Parse model file text; `source` names it in error messages."""
-    try:
-        doc = json.loads(text, parse_constant=_reject_constant)
-    except ValueError as exc:
-        truncated = isinstance(exc, json.JSONDecodeError) and exc.pos >= len(text.rstrip())
-        hint = " (the file looks truncated)" if truncated else ""
-        raise ModelError(f"model file {source}: not valid JSON{hint}: {exc}") from exc
+    doc = parse_json(text, source)
     try:
         return from_dict(doc)
     except ModelError as exc:
         raise ModelError(f"model file {source}: {exc}") from exc
 
 
-def _field(doc: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
-    if not isinstance(doc, dict):
-        raise ModelError(f"{where or 'document'}: expected an object")
-    if key not in doc:
-        raise ModelError(f"missing field {where + '.' if where else ''}{key}")
-    value = doc[key]
-    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
-        names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
-        raise ModelError(
-            f"field {where + '.' if where else ''}{key}: expected {names}, "
-            f"got {type(value).__name__}"
-        )
-    return value
 
 
-def _numbers(doc: Any, key: str, where: str, length: int | None = None) -> list[float]:
-    values = _field(doc, key, list, where)
-    label = f"{where}.{key}" if where else key
-    for v in values:
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ModelError(f"field {label}: expected numbers, found {v!r}")
-        if not math.isfinite(v):
-            raise ModelError(f"field {label}: non-finite number {v!r}")
-    if length is not None and len(values) != length:
-        raise ModelError(f"field {label}: expected {length} numbers, got {len(values)}")
-    return [float(v) for v in values]
 
 
-def _variable(doc: Any, where: str) -> Variable:
-    lo, hi = _numbers(doc, "range", where, 2)
-    return Variable(_field(doc, "name", str, where), _field(doc, "unit", str, where), lo, hi)
 
 
 def from_dict(doc: Any) -> AnfisModel:
@@ -202,6 +146,9 @@ def from_dict(doc: Any) -> AnfisModel:
     fmt = _field(doc, "format", str, "")
     if fmt != FORMAT:
         raise ModelError(f"format is {fmt!r}, not {FORMAT!r}: not a pamd ANFIS model")
+    kind = _field(doc, "kind", str, "") if "kind" in doc else "anfis"
+    if kind not in KINDS:
+        raise ModelError(f"kind {kind!r} is not stored in the {FORMAT} layout")
     version = _field(doc, "version", int, "")
     if version != VERSION:
         raise ModelError(
@@ -242,7 +189,7 @@ def from_dict(doc: Any) -> AnfisModel:
         if not math.isfinite(q):
             raise ModelError(f"field {where}.q: non-finite number")
         consequents.append([*_numbers(rule, "p", where, d), float(q)])
-    return AnfisModel(
+    model = AnfisModel(
         inputs,
         output,
         mf_type=mf_type,
@@ -257,6 +204,8 @@ def from_dict(doc: Any) -> AnfisModel:
         provenance=_optional_dict(doc, "provenance"),
         metrics=_optional_dict(doc, "metrics"),
     )
+    model.kind = kind
+    return model
 
 
 def _optional_dict(doc: dict[str, Any], key: str) -> dict[str, Any]:

@@ -1,6 +1,7 @@
-"""`pamd evaluate MODEL.json DATA...`: judge an inverse model on recorded data the way
-the papers do (MSE, RMSE, MAE, max error and deviation %, SSE, NRMSE fit, AIC, SBC,
-NDEI) and draw its figures."""
+"""`pamd evaluate MODEL... DATA...`: judge one or several inverse models (any kind) on
+the same recorded data the way the papers do (MSE, RMSE, MAE, max error and
+deviation %, SSE, NRMSE fit, AIC, SBC, NDEI, and each model's tick cost), side by
+side in seed 002's comparison table, and draw their figures."""
 
 from __future__ import annotations
 
@@ -8,16 +9,15 @@ import argparse
 import json
 import math
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, TextIO
 
 from pamd.anfis.extraction import load_samples
-from pamd.anfis.model import AnfisModel
-from pamd.anfis.modelfile import load
-from pamd.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
-from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S
+from pamd.anfis.samples import ExtractOptions
 from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
+from pamd.models.compare import common_options, format_comparison, judge
+from pamd.models.contract import InverseModel
+from pamd.models.registry import load_model
 
 #: Table rows: metric key, label, format.
 METRIC_ROWS: tuple[tuple[str, str, str], ...] = (
@@ -26,55 +26,60 @@ METRIC_ROWS: tuple[tuple[str, str, str], ...] = (
     ("sse", "SSE", ".4g"), ("nrmse_fit_pct", "NRMSE fit %", ".2f"), ("aic", "AIC", ".1f"),
     ("sbc", "SBC", ".1f"), ("ndei", "NDEI", ".4g"),
 )
+MODEL_SUFFIX = ".json"
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "evaluate", help="metrics and plots of an inverse model on recorded data",
+        "evaluate", help="metrics and plots of inverse models on recorded data",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Evaluate a model file on recorded runs (MCAP or CSV). The samples "
-        "are extracted as for training (same filter, same drops; settings from the "
-        "model file unless overridden). Inputs outside the model's training ranges are "
-        "clipped, counted and shown, never extrapolated.",
+        description="Evaluate one or several model files (any kind: anfis, ts-fuzzy, "
+        "polynomial, sarosi, mlp, svr, qupi) on recorded runs (MCAP or CSV). Arguments "
+        "ending in .json are models, the rest data. The samples are extracted once, as "
+        "for training (same filter, same drops; settings from the first model file "
+        "unless overridden), and every model is judged on the same samples. Inputs "
+        "outside a model's training ranges are clipped, counted and shown, never "
+        "extrapolated. With several models: seed 002's comparison table (parameters, "
+        "SSE, NRMSE fit, AIC, SBC, MSE, RMSE, max deviation, tick cost in us per "
+        "sample of the compiled evaluator) and overlaid plots.",
         epilog="examples:\n"
         "  pamd evaluate model.json runs/50kg.mcap\n"
-        "  pamd evaluate model.json runs/50kg.mcap --json --plot figs/50kg")
-    p.add_argument("model", metavar="MODEL.json", help="a model file from pamd train")
-    p.add_argument("data", nargs="+", metavar="DATA", help="MCAP recordings or CSV files")
+        "  pamd evaluate model.json runs/50kg.mcap --json --plot figs/50kg\n"
+        "  pamd evaluate anfis.json tsf.json sarosi.json runs/50kg.mcap --plot figs/cmp")
+    p.add_argument("files", nargs="+", metavar="MODEL.json... DATA...",
+                   help="model files (.json) then MCAP recordings or CSV files")
     p.add_argument("--json", action="store_true",
-                   help="print one JSON object of the metrics (keys: rmse, mae, ndei, ...)")
-    p.add_argument("--plot", metavar="PREFIX", help="write PREFIX_prediction.png, _error.png, "
-                   "_membership.png, _surface.png (and _training.png); needs matplotlib")
+                   help='print one JSON object: {"models": [{"file", "kind", "n_params", '
+                   '"metrics": {...}}, ...]} (with one model also its metrics at the top '
+                   "level: rmse, mae, ndei, ...)")
+    p.add_argument("--plot", metavar="PREFIX", help="write PREFIX_prediction.png and "
+                   "_error.png (models overlaid); with one ANFIS model also _membership.png, "
+                   "_surface.png (and _training.png); needs matplotlib")
     p.add_argument("--muscle", help="MCAP: only this muscle (default: every muscle)")
     p.add_argument("--settle-s", type=float, help="drop this long after each start "
                    "(default: as in training)")
     p.add_argument("--rate-hz", type=float, help="decimate to this rate (default: as in "
                    "training)")
+    p.add_argument("--no-timing", action="store_true", help="skip the tick-cost measurement")
     p.set_defaults(func=run)
 
 
-def extract_options_for(model: AnfisModel, muscle: str | None = None,
+def extract_options_for(model: InverseModel, muscle: str | None = None,
                         settle_s: float | None = None,
                         rate_hz: float | None = None) -> ExtractOptions:
     """Extraction settings that reproduce how `model` was trained."""
-    names = tuple(v.name for v in model.inputs)
-    bad = [n for n in names if n not in INPUT_UNITS]
-    if bad:
-        raise ModelError(f"model input(s) {', '.join(bad)} cannot be taken from recordings "
-                         f"(known: {', '.join(INPUT_UNITS)})")
-    if model.output.name not in OUTPUT_UNITS:
-        raise ModelError(f"model output {model.output.name!r} is not a recorded signal "
-                         f"(known: {', '.join(OUTPUT_UNITS)})")
-    ext = (model.provenance.get("data") or {}).get("extraction") or {}
-    vel = model.derived_inputs.get("velocity_mm_s") or {}
-    if "velocity_mm_s" in names and not isinstance(vel.get("window_s"), (int, float)):
-        raise ModelError("the model's velocity_mm_s input does not state its filter window "
-                         "(derived_inputs.velocity_mm_s.window_s)")
-    return ExtractOptions(
-        inputs=names, output=model.output.name, muscle=muscle,
-        settle_s=settle_s if settle_s is not None else float(ext.get("settle_s", 2.0)),
-        rate_hz=rate_hz if rate_hz is not None else float(ext.get("rate_hz", 50.0)),
-        velocity_window_s=float(vel.get("window_s", MODEL_VELOCITY_WINDOW_S)))
+    return common_options([model], muscle, settle_s, rate_hz)
+
+
+def split_files(files: Sequence[str]) -> tuple[list[str], list[str]]:
+    """(model files, data files): the leading .json arguments are the models."""
+    models = [f for f in files if f.lower().endswith(MODEL_SUFFIX)]
+    data = [f for f in files if not f.lower().endswith(MODEL_SUFFIX)]
+    if not models:
+        raise ModelError("no model file: give MODEL.json first, then the data")
+    if not data:
+        raise ModelError("no data: give the MCAP recordings or CSV files after the models")
+    return models, data
 
 
 def format_table(rows: Mapping[str, Mapping[str, float]], unit: str = "",
@@ -99,29 +104,55 @@ def format_table(rows: Mapping[str, Mapping[str, float]], unit: str = "",
 
 
 def run(args: argparse.Namespace) -> int:
-    model = load(args.model)
-    opts = extract_options_for(model, args.muscle, args.settle_s, args.rate_hz)
-    samples = load_samples(args.data, opts)
-    y_hat, clipped = model.predict(samples.X, return_clipped=True)
-    metrics = regression_metrics(samples.y, y_hat, model.n_params)
-    n_clip = int(clipped.sum())
-    note = (f"{len(samples)} samples from {len(samples.runs)} run(s); {n_clip} "
-            f"({100.0 * n_clip / len(samples):.1f} %) had inputs outside the training "
-            "ranges (clipped)")
+    files, data = split_files(args.files)
+    models = [load_model(f) for f in files]
+    opts = common_options(models, args.muscle, args.settle_s, args.rate_hz)
+    samples = load_samples(data, opts)
+    judged = judge(files, models, samples, timing=not args.no_timing)
+    note = f"{len(samples)} samples from {len(samples.runs)} run(s)"
+    clip_notes = [f"{j.file}: {int(j.clipped.sum())} "
+                  f"({100.0 * j.clipped.sum() / len(samples):.1f} %) clipped" for j in judged]
     if args.json:
-        print(json.dumps({k: _json_float(v) for k, v in metrics.items()}, indent=2))
-        print(f"pamd evaluate: {note}", file=sys.stderr)
+        doc: dict[str, Any] = {}
+        if len(judged) == 1:
+            doc.update({k: _json_float(v) for k, v in judged[0].metrics.items()})
+        doc["models"] = [j.as_json() for j in judged]
+        print(json.dumps(doc, indent=2))
+        print(f"pamd evaluate: {note}; " + "; ".join(clip_notes), file=sys.stderr)
+    elif len(judged) == 1:
+        j = judged[0]
+        print(f"{j.file}: {j.model!r}")
+        print(f"  {note}; {int(j.clipped.sum())} ({100.0 * j.clipped.sum() / len(samples):.1f}"
+              " %) had inputs outside the training ranges or an output held (clipped)")
+        format_table({"evaluation": j.metrics}, j.model.output.unit)
+        print(f"  tick cost of the compiled model: {j.tick_cost_us:.2f} us per sample")
     else:
-        print(f"{args.model}: {model!r}")
-        print(f"  {note}")
-        format_table({"evaluation": metrics}, model.output.unit)
+        print(f"{len(judged)} models on the same {note} ({', '.join(data)[:100]}):")
+        format_comparison(judged)
+        unit = judged[0].model.output.unit
+        print(f"  (errors in {unit}; max dev % of the measured range; fit % = NRMSE fit; "
+              "tick us = compiled evaluator per sample on this machine)")
+        for c in clip_notes:
+            print(f"  {c}")
     if args.plot:
-        from pamd.anfis.plots import write_plots
-
-        paths = write_plots(args.plot, model, samples.time_axis(), samples.y, y_hat, clipped,
-                            title=f"{model.output.name}: {', '.join(args.data)[:80]}")
+        paths = _plots(args.plot, judged, samples, ", ".join(data)[:80])
         print(f"plots: {', '.join(paths)}", file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _plots(prefix: str, judged: list[Any], samples: Any, what: str) -> list[str]:
+    from pamd.anfis.model import AnfisModel
+
+    if len(judged) == 1 and isinstance(judged[0].model, AnfisModel):
+        from pamd.anfis.plots import write_plots
+
+        j = judged[0]
+        return write_plots(prefix, j.model, samples.time_axis(), samples.y, j.y_hat,
+                           j.clipped, title=f"{j.model.output.name}: {what}")
+    from pamd.models.plots import write_overlay
+
+    return write_overlay(prefix, judged, samples.time_axis(), samples.y,
+                         title=f"{judged[0].model.output.name}: {what}")
 
 
 def _json_float(v: Any) -> Any:

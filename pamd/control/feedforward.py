@@ -1,6 +1,6 @@
-"""The ANFIS inverse model as a muscle's feedforward: a model file read and checked
-for one muscle (`LoadedModel`), then compiled and wired to the tick's signals
-(`Feedforward`).
+"""An inverse model (any kind, `pamd.models`) as a muscle's feedforward: a model file
+read and checked for one muscle (`LoadedModel`), then compiled and wired to the tick's
+signals (`Feedforward`).
 
 Inputs outside the model's training ranges are clipped to them, never extrapolated,
 and so is its output; the tick then sets `Flag.FF_CLIPPED`. The checks a model file
@@ -20,9 +20,11 @@ import os
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from pamd.anfis.model import AnfisModel
-from pamd.control.model_check import SOURCES, load_model_for, velocity_window
+from pamd.control.model_check import SOURCES, check_model_for, velocity_window
 from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S
+from pamd.errors import ModelError
+from pamd.models.contract import InverseModel
+from pamd.models.registry import load_model
 
 if TYPE_CHECKING:
     from pamd.config.loader import MuscleLimitsResolved
@@ -34,15 +36,26 @@ class LoadedModel:
 
     __slots__ = ("model", "path", "sha256")
 
-    def __init__(self, model: AnfisModel, path: str, sha256: str) -> None:
+    def __init__(self, model: InverseModel, path: str, sha256: str) -> None:
         self.model, self.path, self.sha256 = model, path, sha256
 
     @classmethod
     def read(cls, path: str, muscle: MuscleConfig, limits: MuscleLimitsResolved) -> LoadedModel:
-        model = load_model_for(path, muscle, limits)
-        with open(path, "rb") as fh:
-            digest = hashlib.sha256(fh.read()).hexdigest()
-        return cls(model, os.path.abspath(path), digest)
+        """The model file at `path` (any kind), read once, checked against the muscle."""
+        try:
+            with open(path, "rb") as fh:
+                data = fh.read()
+        except OSError as exc:
+            raise ModelError(f"model file {path}: cannot read it ({exc})") from exc
+        return cls.from_bytes(data, path, muscle, limits)
+
+    @classmethod
+    def from_bytes(cls, data: bytes, path: str, muscle: MuscleConfig,
+                   limits: MuscleLimitsResolved) -> LoadedModel:
+        """A model file's bytes already read by the caller (`path` names it), checked
+        against the muscle; `ModelError` says why it cannot drive it."""
+        model = check_model_for(load_model(data, name=str(path)), str(path), muscle, limits)
+        return cls(model, os.path.abspath(path), hashlib.sha256(data).hexdigest())
 
     def feedforward(self) -> Feedforward:
         return Feedforward(self.model, self.path, self.sha256)
@@ -57,9 +70,9 @@ class Feedforward:
     training range and sets `clipped` if an input or the output had to be held."""
 
     __slots__ = ("model", "source", "sha256", "compiled", "clipped", "velocity_window_s",
-                 "out_lo", "out_hi", "_call")
+                 "out_lo", "out_hi", "stateful", "_call", "_reset")
 
-    def __init__(self, model: AnfisModel, source: str = "", sha256: str = "") -> None:
+    def __init__(self, model: InverseModel, source: str = "", sha256: str = "") -> None:
         self.model = model
         self.source = source
         self.sha256 = sha256
@@ -68,7 +81,10 @@ class Feedforward:
         self.clipped = False
         self.velocity_window_s = velocity_window(model) or MODEL_VELOCITY_WINDOW_S
         self.out_lo, self.out_hi = model.output.min, model.output.max
-        self._call = _wire(compiled.evaluate, [SOURCES.index(v.name) for v in model.inputs])
+        idx = [SOURCES.index(v.name) for v in model.inputs]
+        self._call = _wire(compiled.evaluate, idx)
+        self._reset = _wire(compiled.reset, idx)
+        self.stateful = model.stateful
 
     @classmethod
     def from_file(cls, path: str, muscle: MuscleConfig,
@@ -89,20 +105,23 @@ class Feedforward:
         self.clipped = clipped
         return y
 
+    def reset(self, force_n: float, length_mm: float, contraction: float,
+              velocity_mm_s: float) -> None:
+        """Set a stateful model's memory from the measured signals (a mode starts); a
+        no-op for the stateless kinds."""
+        self._reset(force_n, length_mm, contraction, velocity_mm_s)
+
     def describe(self) -> dict[str, Any]:
-        m = self.model
-        return {"file": self.source, "sha256": self.sha256,
-                "inputs": [v.name for v in m.inputs], "rules": m.n_rules,
-                "ranges": {v.name: [v.min, v.max] for v in m.inputs}}
+        return {"file": self.source, "sha256": self.sha256, **self.model.describe()}
 
 
-def _wire(ev: Callable[..., float], idx: list[int]) -> Callable[[float, float, float, float],
-                                                                float]:
+def _wire(ev: Callable[..., Any], idx: list[int]) -> Callable[[float, float, float, float],
+                                                              Any]:
     """A call taking all four tick signals and passing the model its own inputs."""
     if len(idx) == 2:
         i, j = idx
 
-        def call2(f: float, ln: float, x: float, v: float) -> float:
+        def call2(f: float, ln: float, x: float, v: float) -> Any:
             a = (f, ln, x, v)
             return ev(a[i], a[j])
 
@@ -110,13 +129,13 @@ def _wire(ev: Callable[..., float], idx: list[int]) -> Callable[[float, float, f
     if len(idx) == 3:
         i, j, k = idx
 
-        def call3(f: float, ln: float, x: float, v: float) -> float:
+        def call3(f: float, ln: float, x: float, v: float) -> Any:
             a = (f, ln, x, v)
             return ev(a[i], a[j], a[k])
 
         return call3
 
-    def call(f: float, ln: float, x: float, v: float) -> float:
+    def call(f: float, ln: float, x: float, v: float) -> Any:
         a = (f, ln, x, v)
         return ev(*[a[n] for n in idx])
 

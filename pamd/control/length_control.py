@@ -1,4 +1,4 @@
-"""The length modes of a muscle: the ANFIS inverse model as feedforward, an outer
+"""The length modes of a muscle: the inverse model (any kind) as feedforward, an outer
 position loop, and iterative learning across cycles.
 
 Modes (`pamd.tick.Mode`), per muscle:
@@ -110,6 +110,7 @@ class LengthControl:
         self.ilc_on = ilc and self.position
         self.ilc = None
         m.mode = mode
+        self.reset_model()
         ff = self.model_value()
         self.pid.reset(-m.length)
         self.bump = 0.0
@@ -120,6 +121,12 @@ class LengthControl:
         self.last_sp = m.sp
         m.feedforward = ff
         m.length_ctl_on = True
+
+    def reset_model(self) -> None:
+        """A stateful model (hysteresis) takes its memory from the measured state."""
+        m = self.m
+        if self.ff is not None:
+            self.ff.reset(m.force, m.length, (m.length0_mm - m.length) / m.length0_mm, 0.0)
 
     def leave(self) -> None:
         """Back to pressure mode; the setpoint stays where it is (bumpless)."""
@@ -137,6 +144,7 @@ class LengthControl:
         the difference between the old and the new model's pressure. Returns it (bar)."""
         before = self.model_value() if self.m.length_ctl_on else 0.0
         self.ff = ff
+        self.reset_model()
         self.target_vel.window_s = ff.velocity_window_s
         if not self.m.length_ctl_on:
             return 0.0

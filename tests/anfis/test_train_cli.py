@@ -36,8 +36,13 @@ def test_train_then_evaluate_with_json_and_plots(recording: Path, tmp_path: Path
     assert main(["evaluate", str(model_path), str(recording), "--json", "--plot",
                  str(prefix)]) == 0
     out, err = capsys.readouterr()
-    metrics = json.loads(out)
+    doc = json.loads(out)
+    metrics = {k: v for k, v in doc.items() if k != "models"}
     assert set(metrics) == set(METRIC_NAMES)
+    [entry] = doc["models"]  # the same figures in the list form of several models
+    assert entry["kind"] == "anfis" and entry["file"] == str(model_path)
+    assert entry["n_params"] == load(model_path).n_params and entry["metrics"] == metrics
+    assert entry["tick_cost_us"] > 0
     assert metrics["rmse"] < 0.5 and metrics["mse"] == pytest.approx(metrics["rmse"] ** 2)
     for part in ("prediction", "error", "membership", "surface", "training"):
         png = Path(f"{prefix}_{part}.png")

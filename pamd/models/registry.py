@@ -1,0 +1,129 @@
+"""The model kinds pamd knows, found by a model file's ``kind``; the one place that
+turns a model file (a path, its text or its parsed JSON) into a model.
+
+Role: `load_model` is what every user of model files calls (`--model`, the `model`
+command, a muscle's `model_file`, `pamd evaluate`); `save_model` writes any kind.
+A file without a ``kind`` is an ANFIS file (``"format": "pamd-anfis"``, seed 000);
+an unknown kind, a future version or a broken file raise `ModelError` naming the
+file and the field.
+
+Kinds (`KINDS`): anfis (seed 000), ts-fuzzy (001), polynomial (002), sarosi (004),
+mlp and svr (002; trained through scikit-learn, run on numpy-free arrays), qupi
+(003). Each kind module gives ``from_dict(doc) -> model``; training lives beside it
+(`pamd.models.training` dispatches `pamd train --kind`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pamd.anfis import modelfile as anfis_file
+from pamd.errors import ModelError
+from pamd.models import learned, qupi, static_force
+from pamd.models.contract import InverseModel
+from pamd.models.document import field, format_json, parse_json
+
+#: Largest model file read (bytes): the largest kind (svr) stays far below it.
+MAX_FILE_BYTES = 8 * 1024 * 1024
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One model kind: its name, the seed paper it comes from and its file reader."""
+
+    name: str
+    seed: str
+    summary: str
+    from_dict: Callable[[Any], InverseModel]
+
+
+KINDS: dict[str, Kind] = {k.name: k for k in (
+    Kind("anfis", "000", "first-order Sugeno ANFIS, hybrid learning",
+         anfis_file.from_dict),
+    Kind("ts-fuzzy", "001", "Takagi-Sugeno fuzzy (force, length, velocity; 27 rules), "
+         "premises tuned by gradient descent, GA or modified GA", anfis_file.from_dict),
+    Kind("polynomial", "002", "forward force F = p (a1 h^2 + a2 h + a3) + a4, inverted in "
+         "closed form", static_force.from_dict),
+    Kind("sarosi", "004", "forward force F = (a p + b) e^(c k + d) + (e p + f) k + g p + h, "
+         "inverted in closed form", static_force.from_dict),
+    Kind("mlp", "002", "multilayer perceptron (one tanh layer), fitted by scikit-learn",
+         learned.from_dict),
+    Kind("svr", "002", "support vector regression (RBF), fitted by scikit-learn; offline "
+         "only with more than 24 support vectors", learned.from_dict),
+    Kind("qupi", "003", "inverse quadratic unparallel Prandtl-Ishlinskii hysteresis model "
+         "(target length -> pressure, stateful; one load)", qupi.from_dict),
+)}
+
+
+def kind_of(doc: Any) -> str:
+    """The kind a parsed model file says it is (ANFIS files need not say)."""
+    if not isinstance(doc, Mapping):
+        raise ModelError("expected a JSON object")
+    if "kind" not in doc:
+        if doc.get("format") == anfis_file.FORMAT:
+            return "anfis"
+        raise ModelError(f"missing field kind (one of {', '.join(KINDS)})")
+    kind = field(doc, "kind", str, "")
+    if kind not in KINDS:
+        raise ModelError(f"kind {kind!r} is not known to this pamd (known: "
+                         f"{', '.join(KINDS)}); use a newer pamd or re-train the model")
+    return kind
+
+
+def model_from_dict(doc: Any, source: str = "<document>") -> InverseModel:
+    """A model from a parsed model file; `ModelError` names `source` and the field."""
+    try:
+        return KINDS[kind_of(doc)].from_dict(doc)
+    except ModelError as exc:
+        raise ModelError(f"model file {source}: {exc}") from exc
+
+
+def load_model(source: str | os.PathLike[str] | bytes | Mapping[str, Any], *,
+               name: str | None = None) -> InverseModel:
+    """THE way to get a model: from a file path, the file's bytes (read by the caller,
+    e.g. a remote command's checked file), or its parsed JSON. `name` labels errors
+    (default: the path, or "<bytes>"/"<document>")."""
+    if isinstance(source, Mapping):
+        return model_from_dict(source, name or "<document>")
+    if isinstance(source, bytes):
+        label = name or "<bytes>"
+        if len(source) > MAX_FILE_BYTES:
+            raise ModelError(f"model file {label}: {len(source)} bytes is larger than any "
+                             f"model file ({MAX_FILE_BYTES} at most)")
+        try:
+            text = source.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ModelError(f"model file {label}: not UTF-8 text ({exc})") from exc
+        return model_from_dict(parse_json(text, label), label)
+    p = Path(source)
+    label = name or str(p)
+    try:
+        size = p.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise ModelError(f"model file {label}: {size} bytes is larger than any model "
+                             f"file ({MAX_FILE_BYTES} at most)")
+        data = p.read_bytes()
+    except OSError as exc:
+        raise ModelError(f"model file {label}: cannot read it ({exc})") from exc
+    return load_model(data, name=label)
+
+
+def dumps_model(model: InverseModel) -> str:
+    """The model file text of any kind."""
+    if model.kind in anfis_file.KINDS:
+        return anfis_file.dumps(model)  # type: ignore[arg-type]
+    return format_json(model.to_dict(), 0) + "\n"
+
+
+def save_model(model: InverseModel, path: str | os.PathLike[str]) -> Path:
+    """Write any kind's model file atomically (temporary file + rename)."""
+    target = Path(path)
+    text = dumps_model(model)
+    tmp = target.with_name(target.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, target)
+    return target

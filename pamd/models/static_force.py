@@ -1,0 +1,334 @@
+"""The static force models of seeds 002 and 004, used as inverse models.
+
+Role: kinds ``polynomial`` (seed 002: F = p (a1 h^2 + a2 h + a3) + a4) and
+``sarosi`` (seed 004, eq. 2: F = (a p + b) e^(c k + d) + (e p + f) k + g p + h),
+with h = k = contraction in % of the nominal length, p in bar, F in N. Both are
+forward models, force from pressure and contraction; both are affine in p for a
+fixed contraction, F = A(k) p + B(k), so the pressure that gives a force F at
+contraction k is p = (F - B(k)) / A(k) in closed form: that is the inverse the
+tick evaluates (inputs force_n and contraction, output pressure_bar).
+
+Fitting (`fit_static`): the polynomial is linear in its four coefficients (least
+squares by SVD). Sarosi's model is linear in (a, b, e, f, g, h) once c is fixed
+(variable projection): a grid over c, then golden-section refinement of the best
+bracket, each step an SVD least-squares solve. Its d is not identifiable from data
+(e^(c k + d) = e^d e^(c k) only rescales a and b), so the fit holds d = 0 and says so
+in the file; a file may carry any d.
+
+A fit is refused (`ModelError`) if it is not finite, if the design is rank deficient
+(e.g. a single pressure), or if A(k) is not positive over the identified contraction
+range (more pressure must give more force there, or the inverse is meaningless).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from pamd.errors import ModelError
+from pamd.metrics import regression_metrics
+from pamd.models.contract import (
+    Envelope,
+    Variable,
+    clip_inputs,
+    describe_common,
+    tick_problems,
+)
+from pamd.models.document import field, footer, header, numbers, read_header
+
+VERSION = 1
+COEFFS: dict[str, tuple[str, ...]] = {
+    "polynomial": ("a1", "a2", "a3", "a4"),
+    "sarosi": ("a", "b", "c", "d", "e", "f", "g", "h"),
+}
+#: The least pressure gain A(k) (N/bar) accepted over the identified range.
+MIN_GAIN_N_PER_BAR = 1.0
+_SAROSI_C_GRID = np.concatenate([np.linspace(-1.5, -0.01, 50), np.linspace(0.01, 0.5, 15)])
+
+
+def gain_offset(kind: str, co: dict[str, float], k_pct: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """A(k) (N/bar) and B(k) (N) with F = A p + B, k in %."""
+    if kind == "polynomial":
+        return co["a1"] * k_pct ** 2 + co["a2"] * k_pct + co["a3"], np.full_like(k_pct,
+                                                                                    co["a4"])
+    ex = np.exp(co["c"] * k_pct + co["d"])
+    return (co["a"] * ex + co["e"] * k_pct + co["g"],
+            co["b"] * ex + co["f"] * k_pct + co["h"])
+
+
+class StaticForceModel:
+    """A forward force model F(p, k) run as an inverse (see the module doc)."""
+
+    stateful = False
+
+    def __init__(self, kind: str, coefficients: dict[str, float], inputs: Sequence[Variable],
+                 output: Variable, *, derived_inputs: dict[str, Any] | None = None,
+                 provenance: dict[str, Any] | None = None,
+                 metrics: dict[str, Any] | None = None) -> None:
+        if kind not in COEFFS:
+            raise ModelError(f"unknown static force model {kind!r}")
+        self.kind = kind
+        names = [v.name for v in inputs]
+        if names != ["force_n", "contraction"]:
+            raise ModelError(f"a {kind} model takes the inputs force_n, contraction "
+                             f"(in that order), not {', '.join(names)}")
+        missing = [c for c in COEFFS[kind] if c not in coefficients]
+        if missing:
+            raise ModelError(f"{kind} model: missing coefficient(s) {', '.join(missing)}")
+        bad = [c for c in COEFFS[kind] if not math.isfinite(coefficients[c])]
+        if bad:
+            raise ModelError(f"{kind} model: coefficient(s) {', '.join(bad)} not finite")
+        self.coefficients = {c: float(coefficients[c]) for c in COEFFS[kind]}
+        self.inputs = list(inputs)
+        self.output = output
+        self.derived_inputs = dict(derived_inputs or {})
+        self.provenance = dict(provenance or {})
+        self.metrics = dict(metrics or {})
+
+    @property
+    def n_params(self) -> int:
+        return 4 if self.kind == "polynomial" else 7  # sarosi: d is not a free parameter
+
+    def forward_force(self, p_bar: ArrayLike, contraction: ArrayLike) -> np.ndarray:
+        """The force model itself: F (N) at pressure p (bar) and contraction (fraction)."""
+        A, B = gain_offset(self.kind, self.coefficients,
+                           100.0 * np.asarray(contraction, dtype=np.float64))
+        return A * np.asarray(p_bar, dtype=np.float64) + B
+
+    def predict(self, X: ArrayLike, *, return_clipped: bool = False
+                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """Pressure (bar) for rows (force_n, contraction), inputs and output held to their
+        identified ranges; `clipped` marks rows where either was held."""
+        Xc, clipped = clip_inputs(self.inputs, X)
+        A, B = gain_offset(self.kind, self.coefficients, 100.0 * Xc[:, 1])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = (Xc[:, 0] - B) / A
+        p = np.where(A > MIN_GAIN_N_PER_BAR, p, self.output.max)
+        held = np.clip(p, self.output.min, self.output.max)
+        clipped = clipped | (held != p)
+        return (held, clipped) if return_clipped else held
+
+    def compile(self) -> CompiledStaticForce:
+        return CompiledStaticForce(self)
+
+    def describe(self) -> dict[str, Any]:
+        return {**describe_common(self), "coefficients": dict(self.coefficients)}
+
+    def problems(self, envelope: Envelope) -> list[str]:
+        out = tick_problems(self, envelope)
+        gain = self.gain_problem()
+        return [*out, gain] if gain else out
+
+    def gain_problem(self) -> str:
+        """Why the inverse is meaningless over the identified contractions ("" if it
+        is not): the force must rise with pressure there."""
+        x = self.inputs[1]
+        A, _ = gain_offset(self.kind, self.coefficients, 100.0 * np.linspace(x.min, x.max, 101))
+        if np.all(A > MIN_GAIN_N_PER_BAR):
+            return ""
+        return (f"its force does not rise with pressure over contractions {x.min:.3f}-"
+                f"{x.max:.3f} (least gain {float(A.min()):.3g} N/bar)")
+
+    def to_dict(self) -> dict[str, Any]:
+        params: dict[str, Any] = {"coefficients": dict(self.coefficients),
+                                  "units": {"p": "bar", "k": "% contraction", "F": "N"}}
+        return {**header(self, self.kind, VERSION), "parameters": params, **footer(self)}
+
+    def __repr__(self) -> str:
+        co = ", ".join(f"{k}={v:.5g}" for k, v in self.coefficients.items())
+        return f"StaticForceModel({self.kind}: {co})"
+
+
+class CompiledStaticForce:
+    """Single-sample closed-form inverse p = (F - B(k)) / A(k) for the tick."""
+
+    __slots__ = ("clipped", "clipped_mask", "input_names", "evaluate")
+
+    def __init__(self, model: StaticForceModel) -> None:
+        self.clipped = False
+        self.clipped_mask = 0
+        self.input_names = tuple(v.name for v in model.inputs)
+        f_lo, f_hi = model.inputs[0].min, model.inputs[0].max
+        x_lo, x_hi = model.inputs[1].min, model.inputs[1].max
+        p_lo, p_hi = model.output.min, model.output.max
+        co = model.coefficients
+        exp = math.exp
+        g_min = MIN_GAIN_N_PER_BAR
+        sarosi = model.kind == "sarosi"
+        if sarosi:
+            a, b, c, d, e, f, g, h = (co[n] for n in COEFFS["sarosi"])
+        else:
+            a1, a2, a3, a4 = (co[n] for n in COEFFS["polynomial"])
+
+        def evaluate(force_n: float, contraction: float) -> float:
+            mask = 0
+            if force_n < f_lo:
+                force_n, mask = f_lo, 1
+            elif force_n > f_hi:
+                force_n, mask = f_hi, 1
+            if contraction < x_lo:
+                contraction, mask = x_lo, mask | 2
+            elif contraction > x_hi:
+                contraction, mask = x_hi, mask | 2
+            k = 100.0 * contraction
+            if sarosi:
+                ex = exp(c * k + d)
+                gain = a * ex + e * k + g
+                offset = b * ex + f * k + h
+            else:
+                gain = (a1 * k + a2) * k + a3
+                offset = a4
+            held = False
+            if gain > g_min:
+                p = (force_n - offset) / gain
+            else:
+                p, held = p_hi, True
+            if p > p_hi:
+                p, held = p_hi, True
+            elif p < p_lo:
+                p, held = p_lo, True
+            self.clipped_mask = mask
+            self.clipped = mask != 0 or held
+            return p
+
+        self.evaluate = evaluate
+
+    def reset(self, *x: float) -> None:
+        """Nothing to reset: the model has no state."""
+
+
+def from_dict(doc: Any) -> StaticForceModel:
+    kind = field(doc, "kind", str, "")
+    inputs, output, derived, params, prov, metrics = read_header(doc, kind, VERSION)
+    co_doc = field(params, "coefficients", dict, "parameters")
+    co = {n: numbers({"v": [co_doc.get(n)]}, "v", f"parameters.coefficients.{n}", 1)[0]
+          if n in co_doc else math.nan for n in COEFFS[kind]}
+    missing = [n for n in COEFFS[kind] if n not in co_doc]
+    if missing:
+        raise ModelError(f"field parameters.coefficients: missing {', '.join(missing)}")
+    return StaticForceModel(kind, co, inputs, output, derived_inputs=derived,
+                            provenance=prov, metrics=metrics)
+
+
+# -- fitting ----------------------------------------------------------------------------------
+
+def _lstsq(D: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, float, int]:
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    theta, _, rank, _ = np.linalg.lstsq(D, F, rcond=None)
+    r = F - D @ theta
+    return theta, float(r @ r), int(rank)
+
+
+def _sarosi_design(p: np.ndarray, k: np.ndarray, c: float) -> np.ndarray:
+    ex = np.exp(c * k)
+    return np.column_stack([p * ex, ex, p * k, k, p, np.ones_like(p)])
+
+
+def fit_coefficients(kind: str, p_bar: np.ndarray, k_pct: np.ndarray,
+                     force_n: np.ndarray) -> dict[str, float]:
+    """Least-squares coefficients of `kind` for forces at pressures and contractions (%)."""
+    if kind == "polynomial":
+        D = np.column_stack([p_bar * k_pct ** 2, p_bar * k_pct, p_bar, np.ones_like(p_bar)])
+        theta, _, rank = _lstsq(D, force_n)
+        if rank < 4:
+            raise ModelError("polynomial fit: the data do not determine the 4 coefficients "
+                             "(need several pressures and contractions)")
+        return dict(zip(COEFFS["polynomial"], theta.tolist(), strict=True))
+
+    def sse(c: float) -> float:
+        return _lstsq(_sarosi_design(p_bar, k_pct, c), force_n)[1]
+
+    costs = [sse(float(c)) for c in _SAROSI_C_GRID]
+    i = int(np.argmin(costs))
+    lo = float(_SAROSI_C_GRID[max(i - 1, 0)])
+    hi = float(_SAROSI_C_GRID[min(i + 1, len(_SAROSI_C_GRID) - 1)])
+    golden = (math.sqrt(5.0) - 1.0) / 2.0
+    x1, x2 = hi - golden * (hi - lo), lo + golden * (hi - lo)
+    f1, f2 = sse(x1), sse(x2)
+    for _ in range(60):
+        if f1 < f2:
+            hi, x2, f2 = x2, x1, f1
+            x1 = hi - golden * (hi - lo)
+            f1 = sse(x1)
+        else:
+            lo, x1, f1 = x1, x2, f2
+            x2 = lo + golden * (hi - lo)
+            f2 = sse(x2)
+    c = x1 if f1 < f2 else x2
+    if costs[i] < min(f1, f2):
+        c = float(_SAROSI_C_GRID[i])
+    theta, _, rank = _lstsq(_sarosi_design(p_bar, k_pct, c), force_n)
+    if rank < 6:
+        raise ModelError("sarosi fit: the data do not determine the coefficients (need "
+                         "several pressures and contractions)")
+    a, b, e, f, g, h = theta.tolist()
+    return {"a": a, "b": b, "c": c, "d": 0.0, "e": e, "f": f, "g": g, "h": h}
+
+
+def invertible_range(kind: str, co: dict[str, float], x: np.ndarray) -> tuple[float, float]:
+    """The contraction range the inverse is used on: the data's, narrowed to the
+    stretch around the median where the fitted force rises with pressure (a low-order
+    fit may bend its gain below zero at the travel's end; contractions beyond are then
+    held to the range and flagged, never inverted). `ModelError` if that leaves less
+    than half of the samples."""
+    grid = np.linspace(float(x.min()), float(x.max()), 401)
+    ok = gain_offset(kind, co, 100.0 * grid)[0] > MIN_GAIN_N_PER_BAR
+    i = int(np.searchsorted(grid, float(np.median(x))))
+    i = min(i, grid.size - 1)
+    if not ok[i]:
+        raise ModelError(f"{kind} fit is not invertible: its force does not rise with "
+                         "pressure at the data's median contraction")
+    lo, hi = i, i
+    while lo > 0 and ok[lo - 1]:
+        lo -= 1
+    while hi < grid.size - 1 and ok[hi + 1]:
+        hi += 1
+    inside = float(np.mean((x >= grid[lo]) & (x <= grid[hi])))
+    if inside < 0.5:
+        raise ModelError(f"{kind} fit is not invertible: its force rises with pressure "
+                         f"only over contractions {grid[lo]:.3f}-{grid[hi]:.3f}, "
+                         f"{100 * inside:.0f} % of the data")
+    return float(grid[lo]), float(grid[hi])
+
+
+def fit_static(kind: str, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
+               validation: tuple[np.ndarray, np.ndarray] | None = None,
+               derived_inputs: dict[str, Any] | None = None,
+               provenance: dict[str, Any] | None = None) -> StaticForceModel:
+    """Fit `kind` to samples X = (force_n, contraction), y = pressure_bar: the forward
+    model F(p, k) by least squares, then checked as an inverse. The model's metrics
+    hold the inverse's (pressure) and the forward model's (force) fit."""
+    if X.shape[1] != 2:
+        raise ModelError(f"a {kind} model takes the inputs force_n, contraction")
+    F, x = X[:, 0], X[:, 1]
+    co = fit_coefficients(kind, y, 100.0 * x, F)
+    if not all(math.isfinite(v) for v in co.values()):
+        raise ModelError(f"{kind} fit did not converge (non-finite coefficients)")
+    x_lo, x_hi = invertible_range(kind, co, x)
+    inputs = [Variable("force_n", input_units[0], float(F.min()), float(F.max())),
+              Variable("contraction", input_units[1], x_lo, x_hi)]
+    output = Variable("pressure_bar", "bar", float(y.min()), float(y.max()))
+    prov = {**(provenance or {}), "fit": {"method": "linear least squares (SVD)"
+                                          if kind == "polynomial" else
+                                          "variable projection: grid + golden section on c, "
+                                          "SVD least squares for the rest; d held at 0"}}
+    model = StaticForceModel(kind, co, inputs, output, derived_inputs=derived_inputs,
+                             provenance=prov)
+    gain = model.gain_problem()
+    if gain:
+        raise ModelError(f"{kind} fit is not invertible: {gain}")
+    sets = {"train": (X, y)}
+    if validation is not None:
+        sets["validation"] = validation
+    for name, (Xs, ys) in sets.items():
+        model.metrics[name] = regression_metrics(ys, model.predict(Xs), model.n_params)
+        model.metrics[f"forward_{name}"] = regression_metrics(
+            Xs[:, 0], model.forward_force(ys, Xs[:, 1]), model.n_params)
+    return model
+
