@@ -26,7 +26,7 @@ def test_a_closed_pipe_ends_the_verb_without_a_traceback() -> None:
 
 
 
-def test_emulate_is_quiet_and_stops_without_a_traceback(tmp_path: Path) -> None:
+def test_emulate_is_quiet_and_stops_without_a_traceback(tmp_path: Path, socat: str) -> None:
     import signal
 
     import yaml
