@@ -1,12 +1,13 @@
 """The `modbus` driver: analog and digital I/O modules over Modbus TCP or RTU.
 
 Channels come from a register map (`drivers/modbus_map.py`; built-in maps in
-`drivers/modbus_presets.py`): inputs are read in as few requests as the map
-allows once per poll cycle, each value stamped with the loop's clock when its
-response arrived; outputs are sent when their register value changes and
-re-sent every `write_refresh_s`, never before the loop has written them (start-up
-reads before it writes). Values are in the channel's unit (volts); the rig's
-signal calibration goes on to SI.
+`drivers/modbus_presets.py`): inputs are read in as few requests as the map allows
+once per poll cycle, each value stamped with the loop's clock when its response
+arrived, or, for a module with a sample clock (`sample_clock`: a sample counter or
+sample-age register), with the time the module took the sample; outputs are sent
+when their register value changes and re-sent every `write_refresh_s`, never before
+the loop has written them (start-up reads before it writes). Values are in the
+channel's unit (volts); the rig's signal calibration goes on to SI.
 
 All bus I/O runs on the driver's thread with pymodbus's synchronous client.
 Exception responses, timeouts and disconnects are counted per kind and per
@@ -34,6 +35,7 @@ from pamd.drivers.modbus_map import (
     Block,
     CommSafety,
     ModbusPoint,
+    SampleClock,
     check_points,
     decode,
     encode,
@@ -82,6 +84,9 @@ class ModbusOptions:
     outputs: tuple[ModbusPoint, ...] = spec((), "Output channels (holding registers, coils).")
     comm_safety: CommSafety | None = spec(None, "The module's communication watchdog; null: "
                                           "none, or configured on the module.")
+    sample_clock: SampleClock | None = spec(
+        None, "The module's sample counter or sample-age register; null: none (values are "
+        "stamped when read; state the rig signals' `sample_period_s` for a slow module).")
 
 
 def effective_map(o: ModbusOptions) -> tuple[tuple[ModbusPoint, ...], tuple[ModbusPoint, ...]]:
@@ -120,6 +125,9 @@ class ModbusDriver(ThreadedDriver):
         self._client: Any = None
         self.cycles = 0
         self.last_cycle_s = math.nan
+        self._counter: int | None = None  # the sample counter as last read
+        self._counter_read_s = -math.inf  # when it was last read
+        self._sample_s = -math.inf  # stamp of the present sample (sample_clock)
 
     # -- Driver protocol ----------------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
@@ -228,6 +236,10 @@ class ModbusDriver(ThreadedDriver):
         p2 = self._write_safe_values()
         problem = problem or p2
         clock = self.clock
+        if self.options.sample_clock is not None:
+            p3 = self._read_sample_clock(self.options.sample_clock)
+            if p3 is not None:  # no stamp for this cycle's values: keep the old ones
+                return problem or p3
         for blk in self.read_blocks:
             if self._client is None:
                 return problem or "link lost"
@@ -237,7 +249,7 @@ class ModbusDriver(ThreadedDriver):
             if isinstance(rr, str):
                 problem = problem or rr
                 continue
-            now = clock()
+            now = clock() if self.options.sample_clock is None else self._sample_s
             data = rr.bits if blk.function in ("coil", "discrete") else rr.registers
             if len(data) < blk.count:
                 problem = problem or self.error(
@@ -253,6 +265,28 @@ class ModbusDriver(ThreadedDriver):
                 self.stamp(i, to_value(pt, raw), now)
             self.count("reads")
         return problem
+
+    def _read_sample_clock(self, sc: SampleClock) -> str | None:
+        """Set `_sample_s`, the stamp of the sample the value reads after this one see.
+        Counter: a step since the last read means a sample taken after that read (its
+        time, the conservative stamp); no step, the same sample as before."""
+        fn = "read_holding_registers" if sc.function == "holding" else "read_input_registers"
+        label = f"sample clock ({sc.function} register {sc.address})"
+        rr = self._request(fn, sc.address, 1, ("sample_clock",), label)
+        if isinstance(rr, str):
+            return rr
+        now = self.clock()
+        if not rr.registers:
+            return self.error("short_responses", f"{label}: no value", ("sample_clock",))
+        word = rr.registers[0] & 0xFFFF
+        if sc.kind == "age":
+            self._sample_s = now - word * sc.unit_s
+        elif self._counter is None:
+            self._sample_s = now  # the first read: stamped as read (no earlier bound)
+        elif word != self._counter:
+            self._sample_s = self._counter_read_s
+        self._counter, self._counter_read_s = word, now
+        return None
 
     def _write_outputs(self) -> str | None:
         now = time.monotonic()
