@@ -107,6 +107,12 @@ class ModbusDriver(ThreadedDriver):
         problems = check_points(ins, False) + check_points(outs, True)
         if set(p.name for p in ins) & set(p.name for p in outs):
             problems.append("an input and an output share a name")
+        sc = o.sample_clock
+        if sc is not None and any(p.function == sc.function
+                                  and p.address <= sc.address < p.address + p.words
+                                  for p in ins):
+            problems.append(f"sample_clock overlaps an input at {sc.function} address "
+                            f"{sc.address}")
         if o.transport == "rtu" and not o.serial_port:
             problems.append("transport rtu needs serial_port")
         if problems:
@@ -114,7 +120,15 @@ class ModbusDriver(ThreadedDriver):
         self.in_points, self.out_points = ins, outs
         super().__init__(name, o)
         self.fault_after_s = o.fault_after_s
-        self.read_blocks: list[Block] = plan_blocks(ins, o.max_gap)
+        # The sample clock register is read with the inputs: in the same request when its
+        # address is near theirs (one atomic read), and always in the first request.
+        self._clock_index = len(ins) if o.sample_clock is not None else -1
+        read_points = ins if o.sample_clock is None else (*ins, ModbusPoint(
+            name="sample_clock", function=o.sample_clock.function,
+            address=o.sample_clock.address))
+        self.read_blocks: list[Block] = sorted(
+            plan_blocks(read_points, o.max_gap),
+            key=lambda b: not any(i == self._clock_index for i, _ in b.members))
         self.write_blocks: list[Block] = plan_blocks(outs, 0, MAX_WRITE_REGISTERS)
         n = len(outs)
         self._out: list[float] = [math.nan] * n  # latest value from the loop (volts)
@@ -236,10 +250,6 @@ class ModbusDriver(ThreadedDriver):
         p2 = self._write_safe_values()
         problem = problem or p2
         clock = self.clock
-        if self.options.sample_clock is not None:
-            p3 = self._read_sample_clock(self.options.sample_clock)
-            if p3 is not None:  # no stamp for this cycle's values: keep the old ones
-                return problem or p3
         for blk in self.read_blocks:
             if self._client is None:
                 return problem or "link lost"
@@ -249,14 +259,23 @@ class ModbusDriver(ThreadedDriver):
             if isinstance(rr, str):
                 problem = problem or rr
                 continue
-            now = clock() if self.options.sample_clock is None else self._sample_s
+            now = clock()
             data = rr.bits if blk.function in ("coil", "discrete") else rr.registers
             if len(data) < blk.count:
                 problem = problem or self.error(
                     "short_responses", f"{blk.label}: {len(data)} values for {blk.count}",
                     blk.names)
+                if self._clock_index >= 0:
+                    return problem  # without the sample's time no value can be stamped
                 continue
+            if self._clock_index >= 0:
+                for i, off in blk.members:
+                    if i == self._clock_index:
+                        self._sample_clock(data[off] & 0xFFFF, now)
+                now = self._sample_s
             for i, off in blk.members:
+                if i == self._clock_index:
+                    continue
                 pt = self.in_points[i]
                 if pt.is_bit:
                     raw = 1.0 if data[off] else 0.0
@@ -266,19 +285,12 @@ class ModbusDriver(ThreadedDriver):
             self.count("reads")
         return problem
 
-    def _read_sample_clock(self, sc: SampleClock) -> str | None:
-        """Set `_sample_s`, the stamp of the sample the value reads after this one see.
-        Counter: a step since the last read means a sample taken after that read (its
-        time, the conservative stamp); no step, the same sample as before."""
-        fn = "read_holding_registers" if sc.function == "holding" else "read_input_registers"
-        label = f"sample clock ({sc.function} register {sc.address})"
-        rr = self._request(fn, sc.address, 1, ("sample_clock",), label)
-        if isinstance(rr, str):
-            return rr
-        now = self.clock()
-        if not rr.registers:
-            return self.error("short_responses", f"{label}: no value", ("sample_clock",))
-        word = rr.registers[0] & 0xFFFF
+    def _sample_clock(self, word: int, now: float) -> None:
+        """Set `_sample_s`, the stamp of the values read with (or after) the sample clock
+        register. Counter: a step since its last read means a sample taken after that
+        read (its time: the conservative stamp); no step, the same sample as before."""
+        sc = self.options.sample_clock
+        assert sc is not None
         if sc.kind == "age":
             self._sample_s = now - word * sc.unit_s
         elif self._counter is None:
@@ -286,7 +298,6 @@ class ModbusDriver(ThreadedDriver):
         elif word != self._counter:
             self._sample_s = self._counter_read_s
         self._counter, self._counter_read_s = word, now
-        return None
 
     def _write_outputs(self) -> str | None:
         now = time.monotonic()
