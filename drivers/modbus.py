@@ -1,12 +1,13 @@
 """The `modbus` driver: analog and digital I/O modules over Modbus TCP or RTU.
 
 Channels come from a register map (`drivers/modbus_map.py`; built-in maps in
-`drivers/modbus_presets.py`): inputs are read in as few requests as the map
-allows once per poll cycle, each value stamped with the loop's clock when its
-response arrived; outputs are sent when their register value changes and
-re-sent every `write_refresh_s`, never before the loop has written them (start-up
-reads before it writes). Values are in the channel's unit (volts); the rig's
-signal calibration goes on to SI.
+`drivers/modbus_presets.py`): inputs are read in as few requests as the map allows
+once per poll cycle, each value stamped with the loop's clock when its response
+arrived, or, for a module with a sample clock (`sample_clock`: a sample counter or
+sample-age register), with the time the module took the sample; outputs are sent
+when their register value changes and re-sent every `write_refresh_s`, never before
+the loop has written them (start-up reads before it writes). Values are in the
+channel's unit (volts); the rig's signal calibration goes on to SI.
 
 All bus I/O runs on the driver's thread with pymodbus's synchronous client.
 Exception responses, timeouts and disconnects are counted per kind and per
@@ -34,6 +35,7 @@ from pamd.drivers.modbus_map import (
     Block,
     CommSafety,
     ModbusPoint,
+    SampleClock,
     check_points,
     decode,
     encode,
@@ -82,6 +84,9 @@ class ModbusOptions:
     outputs: tuple[ModbusPoint, ...] = spec((), "Output channels (holding registers, coils).")
     comm_safety: CommSafety | None = spec(None, "The module's communication watchdog; null: "
                                           "none, or configured on the module.")
+    sample_clock: SampleClock | None = spec(
+        None, "The module's sample counter or sample-age register; null: none (values are "
+        "stamped when read; state the rig signals' `sample_period_s` for a slow module).")
 
 
 def effective_map(o: ModbusOptions) -> tuple[tuple[ModbusPoint, ...], tuple[ModbusPoint, ...]]:
@@ -102,6 +107,12 @@ class ModbusDriver(ThreadedDriver):
         problems = check_points(ins, False) + check_points(outs, True)
         if set(p.name for p in ins) & set(p.name for p in outs):
             problems.append("an input and an output share a name")
+        sc = o.sample_clock
+        if sc is not None and any(p.function == sc.function
+                                  and p.address <= sc.address < p.address + p.words
+                                  for p in ins):
+            problems.append(f"sample_clock overlaps an input at {sc.function} address "
+                            f"{sc.address}")
         if o.transport == "rtu" and not o.serial_port:
             problems.append("transport rtu needs serial_port")
         if problems:
@@ -109,7 +120,15 @@ class ModbusDriver(ThreadedDriver):
         self.in_points, self.out_points = ins, outs
         super().__init__(name, o)
         self.fault_after_s = o.fault_after_s
-        self.read_blocks: list[Block] = plan_blocks(ins, o.max_gap)
+        # The sample clock register is read with the inputs: in the same request when its
+        # address is near theirs (one atomic read), and always in the first request.
+        self._clock_index = len(ins) if o.sample_clock is not None else -1
+        read_points = ins if o.sample_clock is None else (*ins, ModbusPoint(
+            name="sample_clock", function=o.sample_clock.function,
+            address=o.sample_clock.address))
+        self.read_blocks: list[Block] = sorted(
+            plan_blocks(read_points, o.max_gap),
+            key=lambda b: not any(i == self._clock_index for i, _ in b.members))
         self.write_blocks: list[Block] = plan_blocks(outs, 0, MAX_WRITE_REGISTERS)
         n = len(outs)
         self._out: list[float] = [math.nan] * n  # latest value from the loop (volts)
@@ -120,6 +139,9 @@ class ModbusDriver(ThreadedDriver):
         self._client: Any = None
         self.cycles = 0
         self.last_cycle_s = math.nan
+        self._counter: int | None = None  # the sample counter as last read
+        self._counter_read_s = -math.inf  # when it was last read
+        self._sample_s = -math.inf  # stamp of the present sample (sample_clock)
 
     # -- Driver protocol ----------------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
@@ -243,8 +265,17 @@ class ModbusDriver(ThreadedDriver):
                 problem = problem or self.error(
                     "short_responses", f"{blk.label}: {len(data)} values for {blk.count}",
                     blk.names)
+                if self._clock_index >= 0:
+                    return problem  # without the sample's time no value can be stamped
                 continue
+            if self._clock_index >= 0:
+                for i, off in blk.members:
+                    if i == self._clock_index:
+                        self._sample_clock(data[off] & 0xFFFF, now)
+                now = self._sample_s
             for i, off in blk.members:
+                if i == self._clock_index:
+                    continue
                 pt = self.in_points[i]
                 if pt.is_bit:
                     raw = 1.0 if data[off] else 0.0
@@ -253,6 +284,20 @@ class ModbusDriver(ThreadedDriver):
                 self.stamp(i, to_value(pt, raw), now)
             self.count("reads")
         return problem
+
+    def _sample_clock(self, word: int, now: float) -> None:
+        """Set `_sample_s`, the stamp of the values read with (or after) the sample clock
+        register. Counter: a step since its last read means a sample taken after that
+        read (its time: the conservative stamp); no step, the same sample as before."""
+        sc = self.options.sample_clock
+        assert sc is not None
+        if sc.kind == "age":
+            self._sample_s = now - word * sc.unit_s
+        elif self._counter is None:
+            self._sample_s = now  # the first read: stamped as read (no earlier bound)
+        elif word != self._counter:
+            self._sample_s = self._counter_read_s
+        self._counter, self._counter_read_s = word, now
 
     def _write_outputs(self) -> str | None:
         now = time.monotonic()

@@ -85,6 +85,23 @@ class CommSafety:
                                  gt=0.0)
 
 
+@dataclass(frozen=True, kw_only=True)
+class SampleClock:
+    """A register that says when the module sampled its inputs, where it has one: a
+    counter that steps with every new sample, or the age of the present sample. The
+    inputs are then stamped with their sample's time, not the time they were read, so
+    a module that samples slower than it is polled (an ADAM-6024 takes 10 samples/s)
+    never looks fresher than it is, and one whose sampling stops goes stale."""
+
+    function: Literal["holding", "input"] = spec("input", "Register type.")
+    address: int = spec(doc="Zero-based address of the register.", min=0, max=65535)
+    kind: Literal["counter", "age"] = spec(
+        "counter", "counter: steps by one (mod 65536) with each new sample; the values are "
+        "stamped with the read before the counter was seen to step (never later than the "
+        "sample). age: the sample's age in `unit_s` counts at the time of the read.")
+    unit_s: float = spec(0.001, "age: seconds per count.", unit="s", gt=0.0)
+
+
 def type_range(point: ModbusPoint) -> tuple[float, float]:
     """Lowest and highest raw value the point can carry, tightened by raw_min/raw_max."""
     if point.is_bit:

@@ -11,8 +11,8 @@ import math
 from dataclasses import dataclass
 
 from pamd.calibration import Calibration, MuscleReference
-from pamd.config.loader import LoadedConfig
-from pamd.config.schema import SignalConfig
+from pamd.config.loader import LoadedConfig, effective_timeout_s
+from pamd.config.schema import SafetyConfig, SignalConfig
 from pamd.drivers import Clock, Driver, load_driver_class
 from pamd.errors import DriverError
 
@@ -82,29 +82,32 @@ class Rig:
             cls = load_driver_class(d.type)
             self.drivers[d.name] = cls(d.name, d.options)
         self.steppers = [d for d in self.drivers.values() if d.steps_with_loop]
-        timeout = cfg.rig.safety.signal_timeout_s
+        safety = cfg.rig.safety
         self.muscles: list[MuscleSignals] = []
         for m in cfg.rig.muscles:
             s = m.signals
             ref = calibration.for_muscle(m.name)
-            length = self._input(f"{m.name}.length", s.length, timeout)
+            length = self._input(f"{m.name}.length", s.length, safety)
             self.absolute_length = (length.driver.is_absolute(length.index)
                                     or s.length.absolute)
             if self.absolute_length:
                 ref.length_referenced = True
             self.muscles.append(MuscleSignals(
-                pressure=self._input(f"{m.name}.pressure", s.pressure, timeout),
-                force=self._input(f"{m.name}.force", s.force, timeout),
+                pressure=self._input(f"{m.name}.pressure", s.pressure, safety),
+                force=self._input(f"{m.name}.force", s.force, safety),
                 length=length,
                 valve=self._output(f"{m.name}.valve", s.valve),
                 exhaust=self._output(f"{m.name}.exhaust", s.exhaust) if s.exhaust else None,
                 reference=ref,
             ))
 
-    def _input(self, name: str, sig: SignalConfig, timeout_s: float) -> InputBinding:
+    def _input(self, name: str, sig: SignalConfig, safety: SafetyConfig) -> InputBinding:
+        """The binding's timeout is the age at which the value is stale, counted from
+        its stamp (the sample's time where the driver knows it): see
+        `effective_timeout_s`."""
         drv = self.drivers[sig.driver]
         return InputBinding(name, drv, drv.input_index(sig.channel), sig.gain, sig.offset,
-                            sig.timeout_s or timeout_s)
+                            effective_timeout_s(sig, safety))
 
     def _output(self, name: str, sig: SignalConfig) -> OutputBinding:
         drv = self.drivers[sig.driver]

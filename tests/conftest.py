@@ -13,6 +13,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import copy  # noqa: E402
+import shutil  # noqa: E402
 from collections.abc import Callable, Iterator  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
@@ -89,3 +90,31 @@ def sim_daemon(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[...
         d.stop("test finished")
         d.wait(timeout_s=30)
         d.close()
+
+
+# -- tools the tests drive: missing is a failure saying what to install, never a skip --
+_TOOLS = {  # tool -> (Debian package, what the tests use it for)
+    "socat": ("socat", "pty pairs for Modbus RTU and CAN-over-serial"),
+    "systemd-analyze": ("systemd", "verifying the unit file"),
+    "node": ("nodejs", "the independent MCAP reader (tests/js)"),
+}
+
+
+def require_tool(tool: str) -> str:
+    """The tool's path; the test fails naming what to install when it is missing."""
+    path = shutil.which(tool)
+    if path is None:
+        package, why = _TOOLS.get(tool, (tool, "these tests"))
+        pytest.fail(f"{tool} is not installed ({why}): run .ci/setup-tests, or "
+                    f"apt-get install {package}", pytrace=False)
+    return path
+
+
+@pytest.fixture
+def socat() -> str:
+    return require_tool("socat")
+
+
+@pytest.fixture
+def systemd_analyze() -> str:
+    return require_tool("systemd-analyze")

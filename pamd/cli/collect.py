@@ -41,7 +41,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("plan", help="the experiment plan (YAML)")
     p.add_argument("--config", metavar="RIG", help="rig config (default: built-in sim)")
     p.add_argument("--out", metavar="DIR", help="where files and the manifest go "
-                   "(default: runs/<plan>-<time>)")
+                   "(default: runs/<plan>-<time>); refused if DIR holds a collection "
+                   "already (--resume DIR continues it)")
     p.add_argument("--clock", choices=("real", "virtual"), help="override loop.clock")
     p.add_argument("--dry-run", action="store_true", help="check and print the timeline only")
     p.add_argument("--resume", metavar="DIR", help="continue the collection in DIR")
@@ -73,6 +74,10 @@ def run(args: argparse.Namespace) -> int:
         out = args.resume
     else:
         out = args.out or os.path.join("runs", collection_name(plan))
+        if os.path.exists(os.path.join(out, "manifest.json")):
+            raise CommandRefused(
+                f"{out} already holds a collection (its manifest.json would be overwritten): "
+                f"continue it with --resume {out}, or name a new directory with --out")
         os.makedirs(out, exist_ok=True)
         manifest = Manifest.new(out, plan, args.plan, cfg)
         start = 0
@@ -109,13 +114,22 @@ def _signals(daemon: Daemon) -> dict[str, int]:
     def handler(signum: int, frame: Any) -> None:
         count["n"] += 1
         if signum == signal.SIGTERM or count["n"] >= 2:
+            _say("\npamd: aborting now: ramping to the safe state")
             daemon.submit("stop")
         else:
+            _say("\npamd: Ctrl-C: pausing at the end of the present cycle (Ctrl-C again "
+                 "aborts now)")
             daemon.submit("pause")
 
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     return count
+
+
+def _say(text: str) -> None:
+    """Acknowledge at once, from the signal handler (the bar may be mid-line)."""
+    with contextlib.suppress(OSError):
+        os.write(sys.stderr.fileno(), (text + "\n").encode())
 
 
 def _follow(daemon: Daemon, lines: list[Any], start: int, interrupts: dict[str, int],

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from collections.abc import Sequence
 
@@ -44,16 +45,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Exit status of a verb whose reader went away (`pamd status | head`): 128 + SIGPIPE,
+#: what a Unix tool killed by the signal reports.
+EXIT_BROKEN_PIPE = 141
+
+
+def _quiet_libraries(record: logging.LogRecord) -> bool:
+    """pamd's own log at its level; the libraries' (pymodbus, canopen, python-can,
+    zenoh, asyncio) only from warnings up, unless -v."""
+    return record.name.startswith("pamd") or record.levelno >= logging.WARNING
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
                         format="pamd: %(message)s", stream=sys.stderr)
+    if not args.verbose:
+        for handler in logging.getLogger().handlers:
+            handler.addFilter(_quiet_libraries)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not as a warning at exit
+        return code
+    except BrokenPipeError:
+        # The reader of our output went away: nothing more is worth saying. Point
+        # stdout at /dev/null so the interpreter's own flush at exit stays quiet.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except PamdError as exc:
         print(f"pamd: error: {exc}", file=sys.stderr)
         return exc.exit_code

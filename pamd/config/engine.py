@@ -2,7 +2,9 @@
 reported by file, line and key path.
 
 A schema is a frozen dataclass whose fields carry metadata: `doc` (one sentence),
-optional `unit`, `min`, `max` (inclusive) and `gt` (exclusive lower bound).
+optional `unit`, `min`, `max` (inclusive) and `gt` (exclusive lower bound), and
+`ceiling`: a safe upper value below `max` that only `safety.relax_ceilings: true` lets a
+value pass (values above it are collected in `Context.over_ceiling`, never silently).
 Supported field types: bool, int, float, str, Literal[...], X | None, nested
 dataclasses, tuple[X, ...] and dict[str, Any] (kept raw, validated later by
 whoever owns it: driver options are validated with the driver's own dataclass).
@@ -38,6 +40,8 @@ class Context:
 
     file: str
     issues: list[ConfigIssue] = field(default_factory=list)
+    #: values within their bounds but above their safe `ceiling` (the loader decides)
+    over_ceiling: list[ConfigIssue] = field(default_factory=list)
 
     def add(self, line: int | None, path: str, expected: str, found: str = "") -> None:
         self.issues.append(ConfigIssue(self.file, line, path, expected, found))
@@ -89,7 +93,10 @@ def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
         parts.append(f"greater than {meta['gt']}{unit}")
     if "min" in meta:
         parts.append(f"at least {meta['min']}{unit}")
-    if "max" in meta:
+    if "ceiling" in meta:
+        parts.append(f"at most {meta['ceiling']}{unit} ({meta['max']}{unit} with "
+                     "safety.relax_ceilings: true)")
+    elif "max" in meta:
         parts.append(f"at most {meta['max']}{unit}")
     return " and ".join(parts)
 
@@ -158,6 +165,12 @@ def build(tp: Any, value: Any, ctx: Context, path: str, line: int | None,
             unit = f" {meta['unit']}" if meta.get("unit") else ""
             ctx.add(line, path, f"a value {_bounds_text(meta)}", f"{value}{unit}")
             return None
+        if "ceiling" in meta and value > meta["ceiling"]:
+            unit = f" {meta['unit']}" if meta.get("unit") else ""
+            ctx.over_ceiling.append(ConfigIssue(
+                ctx.file, line, path, f"at most {meta['ceiling']}{unit} (the safe ceiling; "
+                "`safety.relax_ceilings: true` allows up to "
+                f"{meta.get('max', 'any')}{unit})", f"{value}{unit}"))
         return value
     raise TypeError(f"schema type {tp!r} at {path} is not supported")
 

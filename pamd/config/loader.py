@@ -6,18 +6,21 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import logging
 import os
 import re
 from dataclasses import dataclass
 from importlib import resources
 from typing import Any
 
-from pamd.config.engine import Context, build_dataclass, line_of
-from pamd.config.schema import MuscleConfig, RigConfig
+from pamd.config.engine import Context, build_dataclass, describe, line_of
+from pamd.config.schema import MuscleConfig, RigConfig, SafetyConfig, SignalConfig
 from pamd.config.yamlload import load_yaml_text, read_text
 from pamd.errors import DriverError
 from pamd.muscle import MUSCLE_TYPES
+from pamd.net.keys import check_chunk
 
+log = logging.getLogger(__name__)
 NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
 
 
@@ -44,6 +47,8 @@ class LoadedConfig:
     calibration_path: str
     #: muscle name -> `pamd.control.feedforward.LoadedModel` (its `model_file`)
     models: dict[str, Any] = dataclasses.field(default_factory=dict)
+    #: values above their safe ceiling that `safety.relax_ceilings` let pass (said at start)
+    warnings: tuple[str, ...] = ()
 
     @property
     def sha256(self) -> str:
@@ -77,8 +82,9 @@ def load_config(path: str | None = None, overrides: dict[str, Any] | None = None
 def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = None) -> LoadedConfig:
     raw = load_yaml_text(text, path)
     ctx = Context(path)
-    if raw is None:
-        ctx.add(1, "", "a mapping with drivers and muscles", "an empty file")
+    if not isinstance(raw, dict):
+        found = "an empty file" if raw is None else describe(raw)
+        ctx.add(line_of(raw) or 1, "", "a mapping with drivers and muscles", found)
         ctx.raise_if_any()
     if overrides:
         for section, values in overrides.items():
@@ -87,6 +93,7 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
                 node.update(values)
     rig = build_dataclass(RigConfig, raw, ctx, "", 1)
     ctx.raise_if_any()
+    warnings = _check_safety_bounds(rig, raw, ctx)
     drivers_node = raw.get("drivers", [])
     rig, channels = _check_drivers(rig, drivers_node, ctx)
     limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
@@ -95,7 +102,54 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     ctx.raise_if_any()
     cal = rig.calibration_file or os.path.splitext(os.path.basename(path))[0] + ".cal.yaml"
     cal_path = os.path.join(os.path.dirname(os.path.abspath(path)), cal)
-    return LoadedConfig(rig, path, text, limits, cal_path, models)
+    for warning in warnings:
+        log.warning("%s", warning)
+    return LoadedConfig(rig, path, text, limits, cal_path, models, warnings)
+
+
+def effective_timeout_s(sig: SignalConfig, safety: SafetyConfig) -> float:
+    """The age at which an input signal is stale: its `timeout_s` (or the safety
+    default), and never less than its device's sample period plus the latency margin
+    (a value is as old as its sample)."""
+    timeout = sig.timeout_s or safety.signal_timeout_s
+    if sig.sample_period_s is None:
+        return timeout
+    return max(timeout, sig.sample_period_s + safety.latency_margin_s)
+
+
+def _check_safety_bounds(rig: RigConfig, raw: Any, ctx: Context) -> tuple[str, ...]:
+    """Checks that keep safety on: a key-safe rig id, a loop the stall check can watch,
+    sample periods within their timeouts, and the safe ceilings (refused, or with
+    `safety.relax_ceilings` let through as warnings)."""
+    problem = check_chunk("rig_id", rig.rig_id) if rig.rig_id else "rig_id is empty"
+    if problem or len(rig.rig_id) > 64:
+        ctx.add(line_of(raw, "rig_id"), "rig_id", "a name of letters, digits, '_', '-' and "
+                "'.' (not first), at most 64 characters, usable in Zenoh keys and file "
+                "names", f"{rig.rig_id!r}" + (f" ({problem})" if problem else ""))
+    loop_node = raw.get("loop") or {}
+    period_s = 1.0 / rig.loop.rate_hz
+    if 2.0 * period_s > rig.loop.stall_timeout_s:
+        ctx.add(line_of(loop_node, "rate_hz"), "loop.rate_hz",
+                f"at least {2.0 / rig.loop.stall_timeout_s:g} Hz (two periods within "
+                f"loop.stall_timeout_s = {rig.loop.stall_timeout_s:g} s, or the stall check "
+                "cannot see a stalled loop)", f"{rig.loop.rate_hz:g} Hz")
+    muscles_node = raw.get("muscles") or []
+    for i, m in enumerate(rig.muscles):
+        sig_node = (muscles_node[i].get("signals") or {}) if i < len(muscles_node) else {}
+        for name in ("pressure", "force", "length"):
+            sig = getattr(m.signals, name)
+            timeout = sig.timeout_s or rig.safety.signal_timeout_s
+            if sig.sample_period_s is not None and sig.sample_period_s > timeout:
+                ctx.add(line_of(sig_node.get(name) or {}, "sample_period_s"),
+                        f"muscles[{i}].signals.{name}.sample_period_s",
+                        f"at most the signal's timeout ({timeout:g} s): a value cannot be "
+                        "fresher than its device samples it; raise timeout_s",
+                        f"{sig.sample_period_s:g} s")
+    if not rig.safety.relax_ceilings:
+        ctx.issues.extend(ctx.over_ceiling)
+        return ()
+    return tuple(f"{i.file}:{i.line}: {i.path}: {i.found} is above its safe ceiling; "
+                 "allowed by safety.relax_ceilings: true" for i in ctx.over_ceiling)
 
 
 def _load_models(rig: RigConfig, node: Any, path: str, limits: dict[str, MuscleLimitsResolved],

@@ -22,6 +22,10 @@ every problem.
 Lists (`drivers`, `muscles`) hold one mapping per item; their keys are shown with
 `[]`. A driver's `options` are validated by that driver type's own schema, listed
 at the end per installed driver.
+
+Bounds marked `relaxed` are hard maxima that apply only with `safety.relax_ceilings:
+true`; without it the `<=` before them (the safe ceiling) is the limit. The ceilings
+keep the checks they bound meaningful (a 10 s signal timeout is no stale check).
 """
 
 
@@ -53,9 +57,11 @@ def _rows(cls: type, prefix: str, out: list[str]) -> None:
             _rows(inner, f"{key}[]." if plural else f"{key}.", out)
             continue
         bounds = []
-        for k, word in (("gt", ">"), ("min", ">="), ("max", "<=")):
+        for k, word in (("gt", ">"), ("min", ">="), ("ceiling", "<="), ("max", "<=")):
             if k in f.metadata:
                 bounds.append(f"{word} {f.metadata[k]}")
+        if "ceiling" in f.metadata:  # the max applies only with safety.relax_ceilings
+            bounds[-1] += " relaxed"
         b = f" ({', '.join(bounds)})" if bounds else ""
         out.append(f"| `{key}` | {_type_name(tp)}{b} | {unit} | {_default(f)} | {doc} |")
 

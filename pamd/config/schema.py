@@ -25,8 +25,9 @@ class RealtimeConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class LoopConfig:
-    rate_hz: float = spec(1000.0, "Tick rate; 500 is the fallback for slow machines.",
-                          unit="Hz", gt=0.0, max=10000.0)
+    rate_hz: float = spec(1000.0, "Tick rate; 500 is the fallback for slow machines. A "
+                          "period must fit twice into `stall_timeout_s` (the stall check "
+                          "needs ticks to watch).", unit="Hz", min=10.0, max=10000.0)
     clock: Literal["real", "virtual"] = spec(
         "real", "real: monotonic wall clock. virtual: as fast as possible, simulated "
         "drivers advanced exactly one period per tick (deterministic for a seed).")
@@ -34,7 +35,7 @@ class LoopConfig:
         "skip", "After a late tick: skip the missed periods (keep the phase) or run them "
         "back to back.")
     stall_timeout_s: float = spec(0.05, "Fault when no tick has completed for this long.",
-                                  unit="s", gt=0.0)
+                                  unit="s", gt=0.0, ceiling=1.0, max=10.0)
     realtime: RealtimeConfig = spec(RealtimeConfig(), "Real-time options of the loop's thread.")
 
 
@@ -54,7 +55,14 @@ class SignalConfig:
     gain: float = spec(1.0, "SI units per raw unit: si = gain * raw + offset.")
     offset: float = spec(0.0, "SI value at raw 0.")
     timeout_s: float | None = spec(None, "Stale after this age (inputs; default: "
-                                   "safety.signal_timeout_s).", unit="s", gt=0.0)
+                                   "safety.signal_timeout_s).", unit="s", gt=0.0, ceiling=1.0,
+                                   max=60.0)
+    sample_period_s: float | None = spec(
+        None, "How often the device takes a new sample (inputs; null: every poll is a new "
+        "sample). A value is as old as its sample, so a slow device (a 10 samples/s I/O "
+        "module: 0.1) needs a timeout above this: the signal is stale after "
+        "max(timeout, sample_period_s + safety.latency_margin_s). A period longer than "
+        "the timeout is refused.", unit="s", gt=0.0, max=60.0)
     raw_min: float | None = spec(None, "Lowest raw value ever written (outputs).")
     raw_max: float | None = spec(None, "Highest raw value ever written (outputs). For a valve, "
                                  "gain * raw_max + offset is its full scale and must not "
@@ -224,20 +232,27 @@ class PlausibilityConfig:
 @dataclass(frozen=True, kw_only=True)
 class SafetyConfig:
     pressure_margin_bar: float = spec(0.3, "Hard pressure limit = soft limit + this.",
-                                      unit="bar", min=0.0)
+                                      unit="bar", min=0.0, ceiling=1.0, max=3.0)
     contraction_margin: float = spec(0.01, "Hard contraction limit = soft limit + this "
                                      "(fraction).", min=0.0, max=0.2)
     soft_band_contraction: float = spec(0.01, "Within this of the contraction limit the "
                                         "pressure command stops rising (fraction).",
                                         min=0.0, max=0.1)
     hard_limit_hold_s: float = spec(0.02, "A hard limit must be exceeded this long to fault.",
-                                    unit="s", min=0.0)
+                                    unit="s", min=0.0, ceiling=0.5, max=5.0)
     signal_timeout_s: float = spec(0.05, "A signal older than this is stale and faults.",
-                                   unit="s", gt=0.0)
+                                   unit="s", gt=0.0, ceiling=1.0, max=60.0)
+    latency_margin_s: float = spec(0.05, "What a value may age between its device's sample "
+                                   "and the tick that reads it (bus transaction, poll "
+                                   "thread, a busy host), added to a signal's "
+                                   "`sample_period_s`.", unit="s", min=0.0, ceiling=0.5,
+                                   max=5.0)
     tracking_band_bar: float = spec(0.5, "Measured pressure must follow the command within "
-                                    "this band ...", unit="bar", gt=0.0)
+                                    "this band ...", unit="bar", gt=0.0, ceiling=1.0,
+                                    max=3.0)
     tracking_time_s: float = spec(1.0, "... or the muscle faults after this long (a leak, a "
-                                  "dead sensor, no supply).", unit="s", gt=0.0)
+                                  "dead sensor, no supply).", unit="s", gt=0.0, ceiling=5.0,
+                                  max=60.0)
     stretch_margin: float = spec(0.01, "The safe pressure keeps the stretch this far inside "
                                  "the pretension limit (fraction).", min=0.0, max=0.1)
     safe_pressure_margin_bar: float = spec(0.2, "Added to the lowest pressure that holds the "
@@ -248,7 +263,7 @@ class SafetyConfig:
     estop_slew_bar_per_s: float = spec(20.0, "Ramp rate of the emergency action.",
                                        unit="bar/s", gt=0.0)
     startup_timeout_s: float = spec(1.0, "Start-up waits this long for every sensor before "
-                                    "faulting.", unit="s", gt=0.0)
+                                    "faulting.", unit="s", gt=0.0, max=600.0)
     plausibility: PlausibilityConfig = spec(PlausibilityConfig(), "Plausibility checks of "
                                             "the readings (jumps, impossible or frozen values).")
     home_tolerance: float = spec(
@@ -258,6 +273,11 @@ class SafetyConfig:
     tare_tolerance_n: float = spec(
         50.0, "`tare` is refused when it would move the force offset by more than this: the "
         "load cell then holds a load nobody declared (use load_kg).", unit="N", min=0.0)
+    relax_ceilings: bool = spec(
+        False, "Lets the timeouts, bands and margins marked 'relaxed' in this reference go "
+        "above their safe ceiling, up to their hard maximum: for rigs whose devices are "
+        "slower. Each value over its ceiling is still logged as a warning at every start "
+        "and by check-config.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -347,7 +367,8 @@ class TelemetryConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class RigConfig:
-    rig_id: str = spec("sim", "Rig name; appears in Zenoh keys and MCAP topics.")
+    rig_id: str = spec("sim", "Rig name; appears in Zenoh keys, MCAP topics and file names: "
+                       "letters, digits, '_', '-' and '.' (not first), at most 64.")
     loop: LoopConfig = spec(LoopConfig(), "The fixed-rate loop.")
     drivers: tuple[DriverConfig, ...] = spec(doc="Hardware (or simulated) drivers.")
     muscles: tuple[MuscleConfig, ...] = spec(doc="The muscles of the rig.")

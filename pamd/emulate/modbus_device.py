@@ -2,12 +2,14 @@
 served by pymodbus's simulator (`SimDevice` / `SimData`) over TCP or RTU.
 
 Input channels are refreshed from a value source on every request (so a read sees
-the physics of that instant), writes to output channels go to a value sink, and
-the module has a communication watchdog like an ADAM's 'Comm Safety': when no
-request has arrived for the watchdog time, every output that has a safe-value
-register takes that value. Addresses outside the map answer with exception 2
-(illegal data address), as a real module does. `hang_s` makes it stop answering
-(timeouts) for tests.
+the physics of that instant), or, with `sample_period_s`, once per sample period
+like a module that samples slower than it is polled (its sample counter or sample-
+age register, if the options name one, says which sample is served), writes to
+output channels go to a value sink, and the module has a communication watchdog like
+an ADAM's 'Comm Safety': when no request has arrived for the watchdog time, every
+output that has a safe-value register takes that value. Addresses outside the map
+answer with exception 2 (illegal data address), as a real module does. `hang_s`
+makes it stop answering (timeouts) for tests.
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ class EmulatedModbusDevice:
     """The register image of one module, its value source/sink and its watchdog."""
 
     def __init__(self, options: ModbusOptions, source: Source, sink: Sink,
-                 label: str = "modbus") -> None:
+                 label: str = "modbus", sample_period_s: float = 0.0) -> None:
         self.options = options
         self.label = label
         self.inputs, self.outputs = effective_map(options)
@@ -56,6 +58,12 @@ class EmulatedModbusDevice:
             if p.safe_address is not None:
                 for k in range(p.words):
                     self.tables[p.function][p.safe_address + k] = 0
+        self.sample_period_s = sample_period_s
+        self.samples = 0
+        self._sampled_s = -float("inf")
+        sc = options.sample_clock
+        if sc is not None:
+            self.tables[sc.function][sc.address] = 0
         cs = options.comm_safety
         if cs is not None and cs.timeout_address is not None:
             self.tables["holding"][cs.timeout_address] = max(
@@ -111,6 +119,26 @@ class EmulatedModbusDevice:
         return to_value(p, decode(p, [t[address + k] for k in range(p.words)]))
 
     def refresh_inputs(self) -> None:
+        """Take a new sample when one is due (every request without a sample period),
+        and keep the sample clock register current."""
+        now = time.monotonic()
+        if now - self._sampled_s >= self.sample_period_s:
+            # on the period's grid, as a module's own timer would
+            if self.sample_period_s > 0.0 and now - self._sampled_s < 2 * self.sample_period_s:
+                self._sampled_s += self.sample_period_s
+            else:
+                self._sampled_s = now
+            self.samples += 1
+            self._take_sample()
+        sc = self.options.sample_clock
+        if sc is not None:
+            t = self.tables[sc.function]
+            if sc.kind == "counter":
+                t[sc.address] = self.samples & 0xFFFF
+            else:
+                t[sc.address] = min(0xFFFF, round((now - self._sampled_s) / sc.unit_s))
+
+    def _take_sample(self) -> None:
         for p in self.inputs:
             v = self.source(p.name)
             if v is None:

@@ -35,7 +35,11 @@ class PtyPair:
         self.proc = subprocess.Popen(
             ["socat", f"pty,raw,echo=0,link={self.host}",
              f"pty,raw,echo=0,link={self.device}"],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            # its own session: a Ctrl-C at the terminal is for pamd, which closes the
+            # links after the devices on them (socat gone first pulls the pty from
+            # under a reading thread)
+            start_new_session=True)
         deadline = time.monotonic() + timeout_s
         while not (os.path.exists(self.host) and os.path.exists(self.device)):
             if self.proc.poll() is not None or time.monotonic() > deadline:

@@ -99,7 +99,8 @@ class EmulatedRig:
         plant = self.plant
         dev = EmulatedModbusDevice(
             o, source=lambda ch: plant.raw_input(name, ch),
-            sink=lambda ch, v: plant.set_output(name, ch, v), label=name)
+            sink=lambda ch, v: plant.set_output(name, ch, v), label=name,
+            sample_period_s=self._sample_period_s(name))
         self.modbus[name] = dev
         if o.transport == "tcp":
             if o.host not in LOOPBACK:
@@ -114,6 +115,14 @@ class EmulatedRig:
                                                      o.stopbits, o.bytesize)))
             self.endpoints[name] = (f"modbus rtu {o.serial_port} (device end {pair.device}) "
                                     f"{o.baud} baud id {o.device_id}")
+
+    def _sample_period_s(self, driver: str) -> float:
+        """The module samples as slowly as the config says its inputs are sampled (the
+        longest `sample_period_s` of the signals it carries; 0: at every request)."""
+        periods = [sig.sample_period_s for m in self.cfg.rig.muscles
+                   for sig in (m.signals.pressure, m.signals.force, m.signals.length)
+                   if sig.driver == driver and sig.sample_period_s is not None]
+        return max(periods, default=0.0)
 
     def _start_can(self, name: str, o: Any) -> None:
         import canopen

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import time
+import uuid
 from typing import Any
 
 from pamd import __version__
@@ -108,7 +108,10 @@ class Manifest:
             "files": files, **(extra or {})})
 
     def save(self) -> None:
-        fd, tmp = tempfile.mkstemp(prefix=".manifest-", dir=self.directory)
+        # Made like the recordings beside it (mode 0644 less the umask), not mkstemp's
+        # 0600: whoever may read the step files may read what they are.
+        tmp = os.path.join(self.directory, f".manifest-{os.getpid()}-{uuid.uuid4().hex}.tmp")
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(self.data, fh, indent=2)
             fh.flush()

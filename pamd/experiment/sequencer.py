@@ -83,7 +83,9 @@ class Sequencer:
         elif self.phase == PROFILE:
             self._profile(now)
         elif self.phase == HOLD:
-            if now - self.phase_t0 >= self.step.hold_s:  # type: ignore[union-attr]
+            if self.pause_at_cycle_end:  # asked for while the step holds: no cycle to end
+                self._pause(now, "paused in the step's hold")
+            elif now - self.phase_t0 >= self.step.hold_s:  # type: ignore[union-attr]
                 self._step_done(now)
         elif self.phase == PAUSE and st == State.RUNNING:
             self._step_done(now)  # the operator resumed
@@ -181,17 +183,22 @@ class Sequencer:
             if now - self.phase_t0 < s.seconds:
                 return
             if s.until_still:
+                # Still means still for `still_for_s`; the wait gives up after timeout_s
+                # whether the muscle is moving or has been still too briefly (a
+                # quantised encoder at rest reads exactly 0 between its steps).
                 if abs(self.muscle.velocity) < s.still_mm_s:
                     if self._still_since == math.inf:
                         self._still_since = now
-                    if now - self._still_since < s.still_for_s:
-                        return
+                    still = now - self._still_since >= s.still_for_s
                 else:
                     self._still_since = math.inf
+                    still = False
+                if not still:
                     if now - self.phase_t0 > s.seconds + s.timeout_s:
                         self.ctrl.supervisor.fault(
-                            now, f"{self.muscle.name}: not still after {s.timeout_s:g} s of "
-                            "settling (|velocity| above the threshold)")
+                            now, f"{self.muscle.name}: not still for {s.still_for_s:g} s "
+                            f"within {s.timeout_s:g} s of settling (|velocity| below "
+                            f"{s.still_mm_s:g} mm/s)")
                     return
         prof = self.plan.step_profile(self.step)  # type: ignore[arg-type]
         if prof is None:
@@ -211,13 +218,19 @@ class Sequencer:
             self._cycle = p.cycle
             self._event(now, "cycle", {"cycle": p.cycle})
             if self.pause_at_cycle_end and not p.done:
-                self.pause_at_cycle_end = False
-                self.ctrl.hold_started = now
-                self.ctrl.supervisor.go(now, State.HOLD, "paused at the end of the cycle")
+                self._pause(now, "paused at the end of the cycle")
                 return
         if p.done:
             self.muscle.profile = None
             self._phase(now, HOLD)
+            if self.pause_at_cycle_end:  # the last cycle (a one-cycle step's only one)
+                self._pause(now, "paused at the end of the cycle (the step's last)")
+
+    def _pause(self, now: float, reason: str) -> None:
+        """HOLD until the operator resumes (the `pause` command asked for it)."""
+        self.pause_at_cycle_end = False
+        self.ctrl.hold_started = now
+        self.ctrl.supervisor.go(now, State.HOLD, reason)
 
     def _step_done(self, now: float) -> None:
         self.finished_steps.append(self.step.name)  # type: ignore[union-attr]

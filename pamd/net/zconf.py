@@ -136,5 +136,23 @@ def open_error(exc: BaseException, cfg: Any) -> str:
                 "--no-telemetry")
     if "Unable to connect" in text:
         eps = ", ".join(endpoints(cfg, "connect")) or "its endpoints"
+        why = _tls_why(cfg)
+        if why:
+            return f"cannot connect to {eps}: {why}"
         return f"cannot connect to {eps} (nothing listening, or refused: TLS/credentials?)"
-    return text
+    from pamd.net.tlsprobe import listen_error
+
+    return listen_error(text, get(cfg, "transport/link/tls/listen_certificate")) or text
+
+
+def _tls_why(cfg: Any) -> str | None:
+    """Which side refused a `tls/` connection and why (`pamd.net.tlsprobe`)."""
+    from pamd.net.tlsprobe import diagnose
+
+    tls = [e for e in endpoints(cfg, "connect") if e.startswith("tls/")]
+    if not tls:
+        return None
+    path = "transport/link/tls/"
+    return "; ".join(diagnose(e, get(cfg, path + "root_ca_certificate"),
+                              get(cfg, path + "connect_certificate"),
+                              get(cfg, path + "connect_private_key")) for e in tls)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from pamd.commands import MuscleSettings, ReloadArgs
-from pamd.config.loader import LoadedConfig
+from pamd.config.loader import LoadedConfig, effective_timeout_s
 
 Kind = Literal["now", "idle", "restart"]
 
@@ -40,11 +40,11 @@ _RULES: tuple[tuple[re.Pattern[str], Kind], ...] = tuple(
         (r"^control\.pid\.", "now"),
         (r"^control\.rate_feedforward_s$", "now"),
         (r"^control\.slew_limit_bar_per_s$", "idle"),
-        (r"^safety\.(signal_timeout_s|tracking_band_bar|tracking_time_s|hard_limit_hold_s"
-         r"|startup_timeout_s)$", "now"),
+        (r"^safety\.(signal_timeout_s|latency_margin_s|tracking_band_bar|tracking_time_s"
+         r"|hard_limit_hold_s|startup_timeout_s)$", "now"),
         (r"^safety\.", "idle"),
         (r"^loop\.stall_timeout_s$", "now"),
-        (r"^muscles\[\d+\]\.signals\.\w+\.timeout_s$", "now"),
+        (r"^muscles\[\d+\]\.signals\.\w+\.(timeout_s|sample_period_s)$", "now"),
         (r"^muscles\[\d+\]\.(load_kg|nominal_length_mm)$", "idle"),
         (r"^muscles\[\d+\]\.limits\.", "idle"),
     ))
@@ -118,15 +118,15 @@ def plan_reload(started: LoadedConfig, gains_cfg: LoadedConfig, limits_cfg: Load
 
 def _muscle_settings(new: LoadedConfig, limits_cfg: LoadedConfig, i: int) -> MuscleSettings:
     m = new.rig.muscles[i]
-    default_to = new.rig.safety.signal_timeout_s
+    safety = new.rig.safety
     old_load = (limits_cfg.rig.muscles[i].load_kg if i < len(limits_cfg.rig.muscles)
                 else None)
     return MuscleSettings(
         muscle=m.name, pid=new.rig.control.pid,
         rate_feedforward_s=new.rig.control.rate_feedforward_s,
-        pressure_timeout_s=m.signals.pressure.timeout_s or default_to,
-        force_timeout_s=m.signals.force.timeout_s or default_to,
-        length_timeout_s=m.signals.length.timeout_s or default_to,
+        pressure_timeout_s=effective_timeout_s(m.signals.pressure, safety),
+        force_timeout_s=effective_timeout_s(m.signals.force, safety),
+        length_timeout_s=effective_timeout_s(m.signals.length, safety),
         safety=new.rig.safety, limits=new.limits[m.name],
         slew_limit_bar_per_s=new.rig.control.slew_limit_bar_per_s,
         nominal_length_mm=m.nominal_length_mm,

@@ -50,7 +50,7 @@ def test_wrong_type_reports_expected_and_found() -> None:
 def test_negative_period_is_impossible() -> None:
     (issue,) = issues_of(SIM.replace("rate_hz: 1000", "rate_hz: -1000"))
     assert issue.path == "loop.rate_hz"
-    assert "greater than 0" in issue.expected
+    assert "at least 10.0 Hz" in issue.expected
 
 
 def test_limit_above_rating_is_refused() -> None:

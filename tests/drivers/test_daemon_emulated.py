@@ -23,10 +23,10 @@ import pytest
 from pamd.config import load_config
 from pamd.daemon import Daemon
 from pamd.emulate.rig import EmulatedRig
-from pamd.emulate.testing import emulated_dict, free_port, have_socat, wait_until, write_config
+from pamd.emulate.testing import emulated_dict, free_port, wait_until, write_config
 from pamd.tick import State
 
-pytestmark = pytest.mark.skipif(not have_socat(), reason="needs socat (apt-get install socat)")
+pytestmark = pytest.mark.usefixtures("socat")  # missing: fails saying so
 
 ROBUST = {  # a busy 2-core test machine: slower loop, generous timeouts
     "loop": {"rate_hz": 500, "clock": "real", "stall_timeout_s": 0.5,

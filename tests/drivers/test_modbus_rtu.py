@@ -15,9 +15,9 @@ from pamd.drivers.modbus_map import ModbusPoint
 
 from pamd.emulate.modbus_device import EmulatedModbusDevice, serve_rtu
 from pamd.emulate.ptys import PtyPair
-from pamd.emulate.testing import AioThread, have_socat, wait_until
+from pamd.emulate.testing import AioThread, wait_until
 
-pytestmark = pytest.mark.skipif(not have_socat(), reason="needs socat (apt-get install socat)")
+pytestmark = pytest.mark.usefixtures("socat")  # missing: fails saying so
 
 
 def options(port: str) -> ModbusOptions:

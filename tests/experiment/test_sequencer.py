@@ -128,3 +128,22 @@ def test_start_step_resumes_later_in_the_plan(harness: Any) -> None:
 
 def _cmd(verb: str) -> Any:
     return parse_command(verb, {})
+
+
+@pytest.mark.parametrize("still_for_s,outcome", [(5.0, "fault"), (0.2, "done")])
+def test_stillness_held_too_briefly_times_out_even_at_exactly_zero_velocity(
+        harness: Any, still_for_s: float, outcome: str) -> None:
+    """A quantised encoder at rest reads exactly 0 mm/s: the settle must still give up
+    after its timeout when the stillness is not held for `still_for_s`."""
+    h = harness()
+    h.step(0.01)
+    text = PLAN.replace("settle: {seconds: 1}", "settle: {seconds: 0.1, until_still: true, "
+                        f"still_mm_s: 1.0e-6, still_for_s: {still_for_s}, timeout_s: 0.5}}")
+    assert start(h, text)["ok"]
+    m = h.ctrl.sequencer.muscle
+    t_end = h.t + 60.0
+    while not h.ctrl.sequencer.outcome and h.t < t_end:
+        if h.ctrl.sequencer.phase == "settle":
+            m.velocity = 0.0  # what the quantised encoder gives between steps
+        h.step(0.001)
+    assert h.ctrl.sequencer.outcome.startswith(outcome), h.ctrl.sequencer.outcome

@@ -8,6 +8,7 @@ password does not connect at all. Throwaway certificates come from openssl."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -27,31 +28,23 @@ from .conftest import (
 
 REPO = Path(__file__).resolve().parents[2]
 ZCONF = REPO / "config" / "zenoh"
-USERS = {"rig-sim": "daemon-pw", "ana": "operator-pw", "bob": "viewer-pw"}
-
-pytestmark = pytest.mark.skipif(shutil.which("openssl") is None, reason="needs openssl")
 
 
-def _openssl(*args: str) -> None:
-    subprocess.run(["openssl", *args], check=True, capture_output=True, timeout=60)
+def readme_recipe() -> str:
+    """The README's openssl commands, exactly as written there."""
+    blocks = re.findall(r"```sh\n(.*?)```", (REPO / "README.md").read_text(), re.S)
+    return next(b for b in blocks if "openssl req -x509" in b)
 
 
-def make_certs(d: Path) -> None:
-    """A lab CA and leaf certificates (EC P-256, valid 2 days), plus a rogue CA."""
-    ec = ("-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes")
-    for ca in ("ca", "rogue-ca"):
-        _openssl("req", "-x509", *ec, "-keyout", str(d / f"{ca}.key"), "-out",
-                 str(d / f"{ca}.pem"), "-days", "2", "-subj", f"/CN=pamd-test-{ca}")
-    (d / "san.ext").write_text("subjectAltName=DNS:localhost,IP:127.0.0.1\n")
-    for name, cn, ca in (("router", "localhost", "ca"), ("daemon", "pamd-daemon", "ca"),
-                         ("operator", "operator", "ca"), ("viewer", "viewer", "ca"),
-                         ("rogue", "operator", "rogue-ca")):
-        _openssl("req", *ec, "-keyout", str(d / f"{name}.key"), "-out", str(d / f"{name}.csr"),
-                 "-subj", f"/CN={cn}")
-        _openssl("x509", "-req", "-in", str(d / f"{name}.csr"), "-CA", str(d / f"{ca}.pem"),
-                 "-CAkey", str(d / f"{ca}.key"), "-CAcreateserial", "-out",
-                 str(d / f"{name}.pem"), "-days", "2", "-extfile", str(d / "san.ext"))
-    (d / "users.txt").write_text("".join(f"{u}:{p}\n" for u, p in USERS.items()))
+def make_certs(d: Path) -> dict[str, str]:
+    """Run the README's recipe verbatim in `d`; returns its users and passwords."""
+    if shutil.which("openssl") is None:
+        pytest.fail("openssl is not installed: the README's certificate recipe needs it "
+                    "(apt-get install openssl, or run .ci/setup-tests)")
+    d.mkdir(parents=True, exist_ok=True)
+    subprocess.run(["sh", "-eu", "-c", readme_recipe()], cwd=d, check=True,
+                   capture_output=True, timeout=120)
+    return dict(line.split(":", 1) for line in (d / "users.txt").read_text().split())
 
 
 def derive(src: str, out: Path, changes: dict[str, Any], drop: tuple[str, ...] = ()) -> Path:
@@ -73,20 +66,25 @@ def derive(src: str, out: Path, changes: dict[str, Any], drop: tuple[str, ...] =
 
 
 def client_conf(d: Path, name: str, cert: str, user: str, password: str, port: int,
-                ca: str = "ca", no_cert: bool = False) -> Path:
+                certs: Path | None = None, no_cert: bool = False) -> Path:
+    """A client of the router on `port`: the lab's CA, and `cert` from `certs` (default:
+    the lab's own certificates in `d`)."""
     tls = "transport/link/tls"
+    certs = certs or d
     return derive("lab-client.json5", d / f"{name}.json5", {
         "connect/endpoints": [f"tls/localhost:{port}"],
-        f"{tls}/root_ca_certificate": str(d / f"{ca}.pem"),
-        f"{tls}/connect_certificate": str(d / f"{cert}.pem"),
-        f"{tls}/connect_private_key": str(d / f"{cert}.key"),
+        f"{tls}/root_ca_certificate": str(d / "ca.pem"),
+        f"{tls}/connect_certificate": str(certs / f"{cert}.pem"),
+        f"{tls}/connect_private_key": str(certs / f"{cert}.key"),
         "transport/auth/usrpwd/user": user, "transport/auth/usrpwd/password": password,
     }, drop=(f"{tls}/connect_certificate", f"{tls}/connect_private_key") if no_cert else ())
 
 
 def test_operator_and_viewer_roles_with_mutual_tls(tmp_path: Path, daemons: Any,
                                                    agents: Any) -> None:
-    make_certs(tmp_path)
+    users = make_certs(tmp_path)
+    rogue = tmp_path / "rogue"  # the same recipe elsewhere: another CA
+    make_certs(rogue)
     port = free_port()
     tls = "transport/link/tls"
     router_conf = derive("lab-router.json5", tmp_path / "router.json5", {
@@ -98,12 +96,12 @@ def test_operator_and_viewer_roles_with_mutual_tls(tmp_path: Path, daemons: Any,
     daemon_conf = derive("lab-daemon.json5", tmp_path / "daemon.json5", {
         "connect/endpoints": [f"tls/localhost:{port}"],
         f"{tls}/root_ca_certificate": str(tmp_path / "ca.pem"),
-        f"{tls}/connect_certificate": str(tmp_path / "daemon.pem"),
-        f"{tls}/connect_private_key": str(tmp_path / "daemon.key"),
+        f"{tls}/connect_certificate": str(tmp_path / "pamd-daemon.pem"),
+        f"{tls}/connect_private_key": str(tmp_path / "pamd-daemon.key"),
         "transport/auth/usrpwd/user": "rig-sim",
-        "transport/auth/usrpwd/password": USERS["rig-sim"]})
-    op_conf = client_conf(tmp_path, "operator-ana", "operator", "ana", USERS["ana"], port)
-    view_conf = client_conf(tmp_path, "viewer-bob", "viewer", "bob", USERS["bob"], port)
+        "transport/auth/usrpwd/password": users["rig-sim"]})
+    op_conf = client_conf(tmp_path, "operator-ana", "operator", "ana", users["ana"], port)
+    view_conf = client_conf(tmp_path, "viewer-bob", "viewer", "bob", users["bob"], port)
 
     router = subprocess.Popen([sys.executable, "-m", "pamd", "router", "--zenoh-config",
                                str(router_conf)], stdout=subprocess.PIPE,
@@ -146,15 +144,82 @@ def test_operator_and_viewer_roles_with_mutual_tls(tmp_path: Path, daemons: Any,
         r = pamd_cli("cmd", "--zenoh-config", str(op_conf), "stop")
         assert r.returncode == 0 and json.loads(r.stdout)["ok"], r.stdout + r.stderr
 
-        # wrong credentials do not connect at all
-        for name, cert, user, pw, ca, no_cert in (
-                ("rogue", "rogue", "ana", USERS["ana"], "ca", False),  # another CA's cert
-                ("nocert", "operator", "ana", USERS["ana"], "ca", True),  # no cert
-                ("wrongpw", "operator", "ana", "guess", "ca", False)):  # wrong password
-            conf = client_conf(tmp_path, name, cert, user, pw, port, ca, no_cert)
+        # wrong credentials do not connect at all, and the client says who refused, why
+        for name, cert, user, pw, certs, no_cert, why in (
+                ("rogue", "operator", "ana", users["ana"], rogue, False,  # another CA's
+                 "the router at localhost:%d refuses this client's certificate"),
+                ("nocert", "operator", "ana", users["ana"], None, True,  # no certificate
+                 "the router at localhost:%d refuses this client's certificate (none given)"),
+                ("wrongpw", "operator", "ana", "guess", None, False,  # wrong password
+                 "TLS to localhost:%d works both ways")):
+            conf = client_conf(tmp_path, name, cert, user, pw, port, certs, no_cert)
             bad = agents("--zenoh-config", str(conf))
             assert "cannot connect" in bad.hello.get("error", ""), (name, bad.hello)
+            r = pamd_cli("status", "--zenoh-config", str(conf))
+            assert r.returncode == 7 and why % port in r.stderr, (name, r.stderr)
         assert d.stop() == 0, d.log()[-3000:]
+    finally:
+        router.terminate()
+        router.communicate(timeout=30)
+
+
+def _resign(d: Path, name: str, ext: str | None) -> None:
+    """Sign `name`'s request again: without extensions (X.509 v1, what the README's old
+    recipe made) or with the extension file `ext`."""
+    extra = ["-extfile", str(d / ext)] if ext else []
+    subprocess.run(["openssl", "x509", "-req", "-in", str(d / f"{name}.csr"), "-CA",
+                    str(d / "ca.pem"), "-CAkey", str(d / "ca.key"), "-CAcreateserial", "-out",
+                    str(d / f"{name}.pem"), "-days", "2", *extra], check=True,
+                   capture_output=True, timeout=60)
+
+
+def _router(d: Path, port: int) -> subprocess.Popen[str]:
+    tls = "transport/link/tls"
+    conf = derive("lab-router.json5", d / "router.json5", {
+        "listen/endpoints": [f"tls/127.0.0.1:{port}"],
+        f"{tls}/root_ca_certificate": str(d / "ca.pem"),
+        f"{tls}/listen_certificate": str(d / "router.pem"),
+        f"{tls}/listen_private_key": str(d / "router.key"),
+        "transport/auth/usrpwd/dictionary_file": str(d / "users.txt")})
+    return subprocess.Popen([sys.executable, "-m", "pamd", "router", "--zenoh-config",
+                             str(conf)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def test_a_tls_failure_says_which_side_refused_and_why(tmp_path: Path) -> None:
+    users = make_certs(tmp_path)
+    port = free_port()
+    # a router whose own certificate is v1: it says so and does not start
+    _resign(tmp_path, "router", None)
+    router = _router(tmp_path, port)
+    _, err = router.communicate(timeout=60)
+    assert router.returncode != 0
+    assert "refuses this side's own certificate" in err and "X.509 v1" in err, err
+
+    # a router certificate without a subjectAltName: the client refuses it
+    (tmp_path / "nosan.ext").write_text("basicConstraints=CA:FALSE\n")
+    _resign(tmp_path, "router", "nosan.ext")
+    router = _router(tmp_path, port)
+    try:
+        wait_listening(port)
+        conf = client_conf(tmp_path, "op", "operator", "ana", users["ana"], port)
+        r = pamd_cli("status", "--zenoh-config", str(conf))
+        assert r.returncode == 7, r.stderr
+        assert "this client refuses the router's certificate" in r.stderr
+        assert "no subjectAltName" in r.stderr, r.stderr
+    finally:
+        router.terminate()
+        router.communicate(timeout=30)
+
+    # a good router, a client with a v1 certificate: the router would refuse it
+    _resign(tmp_path, "router", "router.ext")
+    _resign(tmp_path, "operator", None)
+    router = _router(tmp_path, port)
+    try:
+        wait_listening(port)
+        r = pamd_cli("status", "--zenoh-config", str(conf))
+        assert r.returncode == 7, r.stderr
+        assert "refuses this client's certificate" in r.stderr and "X.509 v1" in r.stderr
     finally:
         router.terminate()
         router.communicate(timeout=30)

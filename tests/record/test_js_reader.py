@@ -23,9 +23,11 @@ JS = Path(__file__).resolve().parents[1] / "js"
 def node_reader() -> list[str]:
     node = shutil.which("node")
     if node is None:
-        pytest.skip("node is not installed (CI installs it and runs `npm ci` in tests/js)")
+        pytest.fail("node is not installed (the independent MCAP reader runs under it): "
+                    "run .ci/setup-tests, or apt-get install nodejs npm", pytrace=False)
     if not (JS / "node_modules" / "@mcap" / "core").is_dir():
-        pytest.fail("tests/js/node_modules missing: run `npm ci --prefix tests/js`")
+        pytest.fail("tests/js/node_modules missing: run .ci/setup-tests, or "
+                    "`npm ci --prefix tests/js`", pytrace=False)
     return [node, str(JS / "read_mcap.js")]
 
 
