@@ -22,9 +22,8 @@ from __future__ import annotations
 
 from pamd.sim.options import SimMuscleOptions
 from pamd.sim.pneumatics import (
-    BAR_PA,
     P_ATM_PA,
-    Chamber,
+    FedChamber,
     MuscleVolume,
     SupplyLine,
     conductance_from_nominal_flow,
@@ -64,30 +63,24 @@ class SolenoidValve:
         return self.is_open
 
 
-class OnOffValves:
+class OnOffValves(FedChamber):
     """The inflate and exhaust valves of one muscle, filling its chamber."""
 
     def __init__(self, *, supply: SupplyLine, volume: MuscleVolume, contraction: float,
                  inflate_flow_l_min: float, exhaust_flow_l_min: float, critical_ratio: float,
                  on_delay_s: float, off_delay_s: float, polytropic: float,
                  initial_bar: float) -> None:
-        self.supply = supply
-        self.volume = volume
+        super().__init__(supply, volume, contraction, initial_bar, polytropic)
         self.critical_ratio = critical_ratio
         self.c_inflate = conductance_from_nominal_flow(inflate_flow_l_min, critical_ratio)
         self.c_exhaust = conductance_from_nominal_flow(exhaust_flow_l_min, critical_ratio)
         self.inflate = SolenoidValve(on_delay_s, off_delay_s)
         self.exhaust = SolenoidValve(on_delay_s, off_delay_s)
-        self.chamber = Chamber(volume.volume_m3(contraction),
-                               max(initial_bar, 0.0) * BAR_PA + P_ATM_PA, polytropic)
         self.supply_ok = True
         self.stuck = False  # an injected fault: the spools stay where they are
         self.t_s = 0.0
-        self.supplied_kg = 0.0
-        self.vented_kg = 0.0
         self._inflating = False
         self._venting = False
-        self._q_supply = 0.0
         self._flow_fn = self._flow_in  # bound once: the tick allocates nothing
 
     @classmethod
@@ -95,8 +88,7 @@ class OnOffValves:
                      initial_bar: float) -> OnOffValves:
         return cls(
             supply=supply,
-            volume=MuscleVolume(length_scale=o.nominal_length_mm / 200.0,
-                                dead_volume_cm3=o.dead_volume_cm3),
+            volume=MuscleVolume.of_muscle(o.nominal_length_mm, o.dead_volume_cm3),
             contraction=contraction,
             inflate_flow_l_min=o.onoff_inflate_flow_l_min,
             exhaust_flow_l_min=o.onoff_exhaust_flow_l_min,
@@ -108,10 +100,6 @@ class OnOffValves:
         )
 
     # -- the regulators' face ----------------------------------------------------------
-    @property
-    def pressure_bar(self) -> float:
-        return (self.chamber.pressure_pa - P_ATM_PA) / BAR_PA
-
     @property
     def exhaust_open(self) -> bool:
         return self.exhaust.commanded
@@ -148,16 +136,10 @@ class OnOffValves:
         t0 = self.t_s
         self._inflating = self.inflate.step(t0)
         self._venting = self.exhaust.step(t0) and not self._inflating
-        ch = self.chamber
         v1 = self.volume.volume_m3(contraction)
         if self._inflating or self._venting:
-            q = self._flow_in(settle_chamber_pa(ch, v1, dt_s, self._flow_fn))
+            q = self._flow_in(settle_chamber_pa(self.chamber, v1, dt_s, self._flow_fn))
         else:
             q = self._q_supply = 0.0
-        drawn = self._q_supply * dt_s
-        self.supply.draw(drawn)
-        self.supplied_kg += drawn
-        self.vented_kg += drawn - q * dt_s
-        ch.step(dt_s, q, v1)
         self.t_s = t0 + dt_s
-        return (ch.pressure_pa - P_ATM_PA) / BAR_PA
+        return self._admit(dt_s, q, v1)

@@ -112,6 +112,11 @@ class MuscleVolume:
         self._dead_m3 = dead_volume_cm3 * 1e-6
         self._floor_m3 = min_fraction * self._v[0]
 
+    @classmethod
+    def of_muscle(cls, nominal_length_mm: float, dead_volume_cm3: float) -> MuscleVolume:
+        """A DMSP-20 of this nominal length (the table scaled from 200 mm) plus hose."""
+        return cls(length_scale=nominal_length_mm / 200.0, dead_volume_cm3=dead_volume_cm3)
+
     def volume_m3(self, contraction: float) -> float:
         xs, vs = self._x, self._v
         n = len(xs)
@@ -230,3 +235,35 @@ class SupplyLine:
         came_in = dp / k + drawn
         self.delivered_kg += came_in
         ch.step(dt_s, (came_in - drawn) / dt_s, ch.volume_m3)
+
+
+class FedChamber:
+    """One muscle's chamber fed from a supply line, and its air books: what came from
+    the supply (`supplied_kg`) and what went out to the atmosphere (`vented_kg`).
+    The regulator and the on/off valves build on it; their `_flow_in(p)` leaves the
+    part drawn from the supply in `_q_supply`, and `_admit` books a step."""
+
+    def __init__(self, supply: SupplyLine, volume: MuscleVolume, contraction: float,
+                 initial_bar: float, polytropic: float) -> None:
+        self.supply = supply
+        self.volume = volume
+        self.chamber = Chamber(volume.volume_m3(contraction),
+                               max(initial_bar, 0.0) * BAR_PA + P_ATM_PA, polytropic)
+        self.supplied_kg = 0.0
+        self.vented_kg = 0.0
+        self._q_supply = 0.0
+
+    @property
+    def pressure_bar(self) -> float:
+        return (self.chamber.pressure_pa - P_ATM_PA) / BAR_PA
+
+    def _admit(self, dt_s: float, q_kg_s: float, new_volume_m3: float) -> float:
+        """Let in the net flow `q_kg_s` (the supply's part drawn from it) over the step
+        in which the volume becomes `new_volume_m3`; the new pressure (bar, gauge)."""
+        drawn = self._q_supply * dt_s
+        self.supply.draw(drawn)
+        self.supplied_kg += drawn
+        self.vented_kg += drawn - q_kg_s * dt_s
+        ch = self.chamber
+        ch.step(dt_s, q_kg_s, new_volume_m3)
+        return (ch.pressure_pa - P_ATM_PA) / BAR_PA

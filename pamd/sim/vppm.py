@@ -29,7 +29,7 @@ from pamd.sim.pilot import SetpointPilot
 from pamd.sim.pneumatics import (
     BAR_PA,
     P_ATM_PA,
-    Chamber,
+    FedChamber,
     MuscleVolume,
     SupplyLine,
     conductance_from_nominal_flow,
@@ -38,7 +38,7 @@ from pamd.sim.pneumatics import (
 )
 
 
-class FlowRegulator:
+class FlowRegulator(FedChamber):
     """One VPPM feeding one muscle chamber from a (possibly shared) supply line."""
 
     def __init__(
@@ -60,8 +60,8 @@ class FlowRegulator:
         polytropic: float,
         initial_bar: float,
     ) -> None:
-        self.supply = supply
-        self.volume = volume
+        p0 = min(max(initial_bar, 0.0), max_bar)
+        super().__init__(supply, volume, contraction, p0, polytropic)
         self.max_bar = max_bar
         self.pilot = SetpointPilot(max_bar=max_bar, dead_time_s=dead_time_s,
                                    backlash_bar=backlash_bar, zero_bar=zero_bar,
@@ -72,21 +72,15 @@ class FlowRegulator:
         self.c_exhaust = conductance_from_nominal_flow(exhaust_flow_l_min, critical_ratio)
         self.c_dump = conductance_from_nominal_flow(dump_flow_l_min, critical_ratio)
         self._inv_band_pa = 1.0 / (full_open_error_bar * BAR_PA)
-        p0 = min(max(initial_bar, 0.0), max_bar)
         self.reference_bar = p0
-        self.chamber = Chamber(volume.volume_m3(contraction), p0 * BAR_PA + P_ATM_PA,
-                               polytropic)
         self.supply_ok = True
         self.stuck = False  # an injected fault: new setpoints are ignored
         self.powered = True
         self.exhaust_open = False
         self.opening = 0.0
         self.t_s = 0.0
-        self.supplied_kg = 0.0  # air taken from the supply so far
-        self.vented_kg = 0.0  # air let out to the atmosphere so far
         self._dt_s = -1.0
         self._alpha_pilot = 0.0
-        self._q_supply = 0.0  # from the last flow evaluation
         self._flow_fn = self._flow_in  # bound once: the tick allocates nothing
 
     @classmethod
@@ -95,8 +89,7 @@ class FlowRegulator:
         """The regulator of a simulated muscle with 'flow' pneumatics (its options)."""
         return cls(
             supply=supply,
-            volume=MuscleVolume(length_scale=o.nominal_length_mm / 200.0,
-                                dead_volume_cm3=o.dead_volume_cm3),
+            volume=MuscleVolume.of_muscle(o.nominal_length_mm, o.dead_volume_cm3),
             contraction=contraction,
             max_bar=o.regulator_max_bar,
             dead_time_s=o.regulator_dead_time_s,
@@ -120,10 +113,6 @@ class FlowRegulator:
     def set_setpoint(self, value_bar: float) -> None:
         if not self.stuck:
             self.pilot.set_setpoint(value_bar)
-
-    @property
-    def pressure_bar(self) -> float:
-        return (self.chamber.pressure_pa - P_ATM_PA) / BAR_PA
 
     # -- physics ---------------------------------------------------------------------
     def _flow_in(self, p_pa: float) -> float:
@@ -161,13 +150,7 @@ class FlowRegulator:
             self._alpha_pilot = 1.0 - math.exp(-dt_s / lag) if lag > 0.0 else 1.0
         delayed = self.pilot.step(self.t_s)
         self.reference_bar += (delayed - self.reference_bar) * self._alpha_pilot
-        ch = self.chamber
         v1 = self.volume.volume_m3(contraction)
-        q = self._flow_in(settle_chamber_pa(ch, v1, dt_s, self._flow_fn))
-        drawn = self._q_supply * dt_s
-        self.supply.draw(drawn)
-        self.supplied_kg += drawn
-        self.vented_kg += drawn - q * dt_s
-        ch.step(dt_s, q, v1)
+        q = self._flow_in(settle_chamber_pa(self.chamber, v1, dt_s, self._flow_fn))
         self.t_s += dt_s
-        return (ch.pressure_pa - P_ATM_PA) / BAR_PA
+        return self._admit(dt_s, q, v1)
