@@ -259,13 +259,15 @@ def parse_command(verb: str, payload: Any, sender: str = "local", user: str = ""
                    cap_text(str(user), MAX_WHO_CHARS))
 
 
-def prepare_command(cmd: Command, cfg: Any) -> Command:
+def prepare_command(cmd: Command, cfg: Any, data: bytes | None = None) -> Command:
     """The part of a command that is I/O, done outside the loop's thread before it is
-    queued: a `model` command's file is read, checked against the muscle and compiled
-    here (CommandRefused if it cannot be), so the loop only swaps the compiled object."""
+    queued: a `model` command's file is read (or its bytes, already read within the
+    limits by the caller, are taken as they are: one read, nothing can change between
+    the check and the load), checked against the muscle and compiled here
+    (CommandRefused if it cannot be), so the loop only swaps the compiled object."""
     if cmd.verb != "model" or isinstance(cmd.args, PreparedModelArgs):
         return cmd
-    from pamd.control.feedforward import Feedforward
+    from pamd.control.feedforward import Feedforward, LoadedModel
     from pamd.errors import ModelError
 
     a = cmd.args
@@ -276,7 +278,10 @@ def prepare_command(cmd: Command, cfg: Any) -> Command:
         raise CommandRefused(f"no muscle named {a.muscle!r}; muscles: {names}") from None
     path = os.path.abspath(os.path.expanduser(a.file))
     try:
-        ff = Feedforward.from_file(path, mcfg, cfg.limits[a.muscle])
+        if data is None:
+            ff = Feedforward.from_file(path, mcfg, cfg.limits[a.muscle])
+        else:
+            ff = LoadedModel.from_bytes(data, path, mcfg, cfg.limits[a.muscle]).feedforward()
     except ModelError as exc:
         raise CommandRefused(cap_text(f"model refused: {exc}", MAX_ERROR_CHARS)) from None
     except OSError as exc:

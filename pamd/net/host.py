@@ -162,9 +162,9 @@ class NetHost:
             a = cmd.args
             path = named_files.resolve(a.file, named_files.configured_dir(cfg, "models_dir"),
                                        "model", "models_dir")
-            named_files.read_limited(path, a.file, "model", named_files.MODEL_MAX_BYTES)
+            nf = named_files.read_limited(path, a.file, "model", named_files.MODEL_MAX_BYTES)
             return prepare_command(dataclasses.replace(cmd, args=dataclasses.replace(
-                a, file=path)), cfg)
+                a, file=path)), cfg, nf.text.encode("utf-8"))
         return cmd
 
 

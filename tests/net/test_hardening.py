@@ -8,6 +8,7 @@ its recording."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -15,9 +16,12 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+from pamd.models.registry import save_model
+from pamd.models.static_force import fit_static
 from tests.net.conftest import RigProc, wait_until
 
 RIG = "sim"
@@ -83,6 +87,22 @@ def test_a_100000_deep_model_or_plan_is_refused_with_its_position(rig: RigProc) 
     v = rig.cmd("model", {"muscle": "m1", "file": "huge.json"})
     assert not v["ok"] and "above the limit of 16777216 bytes" in v["error"], v
     alive(rig)
+
+
+def test_a_model_named_in_models_dir_is_swapped_in(rig: RigProc) -> None:
+    """The positive path: a valid model file, named, is read once within the limits and
+    the bytes read are the ones loaded (sha256 of the file in the verdict)."""
+    p = np.linspace(0.5, 6.0, 40).repeat(25)
+    x = np.tile(np.linspace(-0.02, 0.20, 25), 40)
+    k = 100.0 * x
+    force = ((-10.1206 * p + 236.3164) * np.exp(-0.3378 * k) + (-7.9242 * p - 1.8549) * k
+             + 263.2552 * p - 238.7719)  # rig-physics.md's smooth fit (Sarosi's form)
+    path = save_model(fit_static("sarosi", np.c_[force, x], p, input_units=["N", ""]),
+                      rig.tmp / "models" / "sarosi.json")
+    v = rig.cmd("model", {"muscle": "m1", "file": "sarosi.json"})
+    assert v["ok"], v
+    assert v["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest(), v
+    wait_until(lambda: alive(rig)["muscles"]["m1"]["model"], 10, "the model in status")
 
 
 def test_a_private_key_or_shadow_file_in_plans_dir_is_never_echoed(rig: RigProc) -> None:
