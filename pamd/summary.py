@@ -9,6 +9,7 @@ from array import array
 from collections import deque
 from typing import Any
 
+from pamd.safety.limiter import held_back
 from pamd.tick import (
     I_STATE,
     I_T,
@@ -17,6 +18,7 @@ from pamd.tick import (
     M_PRESSURE,
     M_SETPOINT,
     M_TARGET_LENGTH,
+    M_VALVE,
     Flag,
     State,
     TickLayout,
@@ -62,7 +64,9 @@ class SummarySink:
         self._last_t = t
         if record[I_STATE] == _RUNNING:
             for k, b in enumerate(self._bases):
-                if int(record[b + M_FLAGS]) & _AT_LIMIT:
+                flags = int(record[b + M_FLAGS])
+                if flags & _AT_LIMIT and held_back(flags, record[b + M_SETPOINT],
+                                                   record[b + M_VALVE]):
                     self.limited_s[k] += dt
                 e = record[b + M_SETPOINT] - record[b + M_PRESSURE]
                 if e == e:

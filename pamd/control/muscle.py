@@ -30,7 +30,7 @@ from pamd.control.velocity import VELOCITY_WINDOW_S, velocity_step
 from pamd.muscle import force_model
 from pamd.rig import MuscleSignals
 from pamd.safety import safe_pressure_bar
-from pamd.safety.limiter import Limiter
+from pamd.safety.limiter import Limiter, held_back
 from pamd.safety.limits import LimitMonitor
 from pamd.safety.plausibility import Plausibility
 from pamd.tick import (
@@ -398,7 +398,8 @@ class MuscleController:
             lim.stop_tracking()
 
         # -- a profile held at a soft limit ---------------------------------------------
-        if flags & F_AT_LIMIT and (state == S_RUNNING or state == S_LOAD):
+        if (flags & F_AT_LIMIT and (state == S_RUNNING or state == S_LOAD)
+                and held_back(flags, sp, u)):
             if self._limited_since == math.inf:
                 self._limited_since = now
                 self._limit_reported = False
