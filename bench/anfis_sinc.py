@@ -17,8 +17,8 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from pamd.anfis import TrainingOptions, fit  # noqa: E402
 from pamd.metrics import regression_metrics  # noqa: E402
+from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
 
 #: Tuned settings (see --sweep). Wide initial MFs (3.3 x the width at which grid
 #: neighbours cross at 0.5) let the gradient descent find the central peak's basin.

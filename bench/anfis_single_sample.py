@@ -20,7 +20,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from pamd.anfis import TrainingOptions, fit  # noqa: E402
+from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
 
 # DMSP-20 static force fit (shared/reference/rig-physics.md), p in bar, k in %.
 FIT = dict(a=-10.1206, b=236.3164, c=-0.3378, e=-7.9242, f=-1.8549, g=263.2552, h=-238.7719)

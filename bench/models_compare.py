@@ -46,14 +46,14 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import record_profile, sim_config  # noqa: E402
 
-from pamd.anfis.extraction import derived_inputs, extract  # noqa: E402
-from pamd.anfis.recordings import read_runs  # noqa: E402
-from pamd.anfis.samples import ExtractOptions, Samples  # noqa: E402
-from pamd.anfis.splitting import split  # noqa: E402
 from pamd.control.feedforward import LoadedModel  # noqa: E402
 from pamd.errors import ModelError  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
 from pamd.metrics import regression_metrics  # noqa: E402
+from pamd.models.anfis.extraction import derived_inputs, extract  # noqa: E402
+from pamd.models.anfis.recordings import read_runs  # noqa: E402
+from pamd.models.anfis.samples import ExtractOptions, Samples  # noqa: E402
+from pamd.models.anfis.splitting import split  # noqa: E402
 from pamd.models.compare import (  # noqa: E402
     Judged,
     format_comparison,

@@ -36,13 +36,13 @@ from typing import Any  # noqa: E402
 
 from _common import controller_compute_us, percentile, record_profile, sim_config  # noqa: E402
 
-from pamd.anfis import TrainingOptions, fit, save  # noqa: E402
-from pamd.anfis.extraction import derived_inputs, extract  # noqa: E402
-from pamd.anfis.recordings import read_runs  # noqa: E402
-from pamd.anfis.samples import ExtractOptions  # noqa: E402
-from pamd.anfis.splitting import split  # noqa: E402
 from pamd.control.feedforward import LoadedModel  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
+from pamd.models.anfis import TrainingOptions, fit, save  # noqa: E402
+from pamd.models.anfis.extraction import derived_inputs, extract  # noqa: E402
+from pamd.models.anfis.recordings import read_runs  # noqa: E402
+from pamd.models.anfis.samples import ExtractOptions  # noqa: E402
+from pamd.models.anfis.splitting import split  # noqa: E402
 from pamd.tick import Flag, State  # noqa: E402
 
 LOAD_KG = 30.0

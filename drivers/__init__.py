@@ -19,10 +19,11 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
+from importlib.metadata import EntryPoint
 from typing import Any, ClassVar, Literal
 
 from pamd.errors import DriverError
+from pamd.plugins import DRIVERS_GROUP, installed, load_driver_entry
 
 Clock = Callable[[], float]
 """Returns the loop's time in seconds (monotonic, or virtual)."""
@@ -126,25 +127,15 @@ class Driver(ABC):
         raise KeyError(channel)
 
 
-ENTRY_POINT_GROUP = "pamd.drivers"
-
-
-def available_drivers() -> dict[str, Any]:
+def available_drivers() -> dict[str, EntryPoint]:
     """Driver type name -> entry point, for every installed driver."""
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+    return installed(DRIVERS_GROUP)
 
 
 def load_driver_class(type_name: str) -> type[Driver]:
     """The driver class registered under `type_name`, or a DriverError listing the
     installed ones."""
-    found = available_drivers()
-    if type_name not in found:
-        names = ", ".join(sorted(found)) or "none"
-        raise DriverError(
-            f"no driver of type {type_name!r} is installed (installed: {names}); "
-            "check the spelling or install the package that provides it"
-        )
-    cls = found[type_name].load()
+    cls = load_driver_entry(type_name)
     if not (isinstance(cls, type) and issubclass(cls, Driver)):
         raise DriverError(f"entry point {type_name!r} does not name a pamd Driver class")
     return cls

@@ -47,8 +47,8 @@ from pamd.drivers.can_frames import (
 )
 from pamd.drivers.device import Backoff, ThreadedDriver
 
-from pamd.config.engine import spec
 from pamd.errors import DriverError
+from pamd.schema.engine import spec
 
 BAD_FRAME_HOLD_S = 0.05  # a bad frame counts as a failing cycle this long
 

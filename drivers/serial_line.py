@@ -25,8 +25,8 @@ from typing import Any, Literal
 from pamd.drivers import Channel
 from pamd.drivers.device import Backoff, ThreadedDriver
 
-from pamd.config.engine import spec
 from pamd.errors import DriverError
+from pamd.schema.engine import spec
 
 
 @dataclass(frozen=True, kw_only=True)

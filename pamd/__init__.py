@@ -13,9 +13,10 @@ The Python API (stable; nothing else is promised):
 
 from __future__ import annotations
 
+import importlib
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
+from pamd.version import __version__
 
 __all__ = [
     "CommandRefused", "Event", "MuscleData", "NoDaemon", "PamdError", "Recording",
@@ -50,7 +51,6 @@ def __getattr__(name: str) -> Any:
     module = _WHERE.get(name)
     if module is None:
         raise AttributeError(f"module 'pamd' has no attribute {name!r}")
-    import importlib
 
     value = getattr(importlib.import_module(module), name)
     globals()[name] = value

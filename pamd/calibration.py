@@ -14,8 +14,8 @@ from dataclasses import asdict, dataclass, field
 
 import yaml
 
-from pamd.config.engine import Context, build_dataclass, spec
-from pamd.config.yamlload import load_yaml_file
+from pamd.schema.engine import Context, build_dataclass, spec
+from pamd.schema.yamlload import load_yaml_file
 
 
 @dataclass

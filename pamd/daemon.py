@@ -15,6 +15,7 @@ from typing import Any
 
 from pamd.calibration import load_calibration, save_calibration
 from pamd.commands import Command, parse_command, prepare_command
+from pamd.commands.pending import PendingCommand
 from pamd.commands.schema import args_for_record
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
@@ -39,27 +40,6 @@ class _PlanArgs:
     plan_file: str
     start_step: int
     plan: Any
-
-
-class PendingCommand:
-    """A command's verdict, set by the loop's thread."""
-
-    def __init__(self) -> None:
-        self._done = threading.Event()
-        self.verdict: dict[str, Any] = {}
-
-    def set(self, verdict: dict[str, Any]) -> None:
-        self.verdict = verdict
-        self._done.set()
-
-    @property
-    def done(self) -> bool:
-        return self._done.is_set()
-
-    def result(self, timeout_s: float) -> dict[str, Any]:
-        if not self._done.wait(timeout_s):
-            return {"ok": False, "error": f"no verdict from the loop within {timeout_s:g} s"}
-        return self.verdict
 
 
 class Daemon:

@@ -12,11 +12,14 @@ import sys
 from collections.abc import Mapping, Sequence
 from typing import Any, TextIO
 
-from pamd.anfis.extraction import load_samples
-from pamd.anfis.samples import ExtractOptions
 from pamd.errors import ModelError
+from pamd.models.anfis.extraction import load_samples
+from pamd.models.anfis.model import AnfisModel
+from pamd.models.anfis.plots import write_plots
+from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.compare import common_options, format_comparison, judge
 from pamd.models.contract import InverseModel
+from pamd.models.plots import write_overlay
 from pamd.models.registry import load_model
 
 #: Table rows: metric key, label, format.
@@ -141,15 +144,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _plots(prefix: str, judged: list[Any], samples: Any, what: str) -> list[str]:
-    from pamd.anfis.model import AnfisModel
 
     if len(judged) == 1 and isinstance(judged[0].model, AnfisModel):
-        from pamd.anfis.plots import write_plots
 
         j = judged[0]
         return write_plots(prefix, j.model, samples.time_axis(), samples.y, j.y_hat,
                            j.clipped, title=f"{j.model.output.name}: {what}")
-    from pamd.models.plots import write_overlay
 
     return write_overlay(prefix, judged, samples.time_axis(), samples.y,
                          title=f"{judged[0].model.output.name}: {what}")

@@ -9,12 +9,12 @@ import os
 import sys
 from collections.abc import Sequence
 
-from pamd import __version__
 from pamd.cli import check_config, collect, emulate, evaluate, recordings, run, service, train
 from pamd.cli import net as net_cli
 from pamd.cli import router as router_cli
 from pamd.cli import view as view_cli
 from pamd.errors import PamdError
+from pamd.version import __version__
 
 COMMANDS = (run, check_config, collect, recordings, emulate, train, evaluate, service)
 

@@ -13,7 +13,9 @@ import sys
 from typing import Any
 
 from pamd.errors import RecordingError
-from pamd.io import files
+from pamd.record import files
+from pamd.view import export
+from pamd.view.collection import inspect_collection, print_collection
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -62,7 +64,6 @@ def _ns(v: Any) -> str:
 
 def run_inspect(args: argparse.Namespace) -> int:
     if os.path.isdir(args.file):
-        from pamd.view.collection import inspect_collection, print_collection
 
         coll = inspect_collection(args.file)
         if args.json:
@@ -105,7 +106,6 @@ def run_inspect(args: argparse.Namespace) -> int:
 def run_export(args: argparse.Namespace) -> int:
     if not args.csv and not args.mat:
         raise RecordingError("say what to write: --mat OUT.mat, --csv DIR, or both")
-    from pamd.view import export
 
     source = args.file[0] if len(args.file) == 1 else args.file
     if args.mat:

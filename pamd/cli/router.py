@@ -11,6 +11,7 @@ import signal
 import threading
 from typing import Any
 
+from pamd.net import zconf
 from pamd.net.zconf import NoDaemon
 
 
@@ -27,7 +28,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import zenoh
 
-    from pamd.net import zconf
 
     cfg = zconf.router_config(args.zenoh_config)
     try:

@@ -13,6 +13,8 @@ import threading
 from typing import Any
 
 from pamd.config import load_config
+from pamd.control.feedforward import LoadedModel
+from pamd.control.length_targets import check_length_profile_config
 from pamd.control.profiles import ProfileSpec
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
@@ -21,6 +23,7 @@ from pamd.net.spec import TelemetryRequest
 from pamd.service import testhooks
 from pamd.service.notify import Notifier
 from pamd.service.restart import restart_in_place, run_argv, unblock_signals
+from pamd.view.spec import parse_listen
 
 PROFILE_KINDS = ("constant", "step", "ramp", "sine", "triangle")
 
@@ -99,7 +102,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _listen(text: str) -> str:
     """--foxglove's HOST:PORT, checked before anything starts."""
-    from pamd.view.spec import parse_listen
 
     if text == "default":
         return text
@@ -121,7 +123,6 @@ def _profile_spec(args: argparse.Namespace) -> ProfileSpec | None:
 def _with_model(cfg: Any, args: argparse.Namespace) -> tuple[Any, str | None]:
     """--model read and checked for the selected muscles (a ModelError before anything
     opens); returns the config holding it and the model file to attach to a recording."""
-    from pamd.control.feedforward import LoadedModel
 
     names = [m.name for m in cfg.rig.muscles if args.muscle in (None, m.name)]
     if args.model is None:
@@ -134,7 +135,6 @@ def _with_model(cfg: Any, args: argparse.Namespace) -> tuple[Any, str | None]:
 def _length_profile(args: argparse.Namespace, cfg: Any) -> dict[str, Any]:
     """The --profile of a length mode as a profile command (contraction), checked
     against each muscle's limits, load and rate limit before anything opens."""
-    from pamd.control.length_targets import check_length_profile_config
 
     payload: dict[str, Any] = {"kind": args.profile, "freq_hz": args.freq_hz}
     for key in ("min_contraction", "max_contraction", "to_contraction", "cycles"):

@@ -9,16 +9,17 @@ import os
 import sys
 from typing import Any
 
-from pamd.anfis.extraction import derived_inputs, load_samples
-from pamd.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
-from pamd.anfis.splitting import split
-from pamd.anfis.training import TrainingOptions, fit
 from pamd.cli.evaluate import format_table
-from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
+from pamd.models.anfis.extraction import derived_inputs, load_samples
+from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
+from pamd.models.anfis.splitting import split
+from pamd.models.anfis.training import TrainingOptions, fit
+from pamd.models.compare import predict_samples
 from pamd.models.registry import KINDS, save_model
-from pamd.models.training import DEFAULT_INPUTS, KindOptions, fit_split
+from pamd.models.training import DEFAULT_INPUTS, KindOptions, fit_split, rows_of
+from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -213,8 +214,6 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Any,
     rows = {k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
     if te is not None:
         if model.stateful:  # over whole runs, scored on the test rows
-            from pamd.models.compare import predict_samples
-            from pamd.models.training import rows_of
 
             y_all, _ = predict_samples(model, samples.X, samples.run)
             y_hat = y_all[rows_of(samples, te)]

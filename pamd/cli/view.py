@@ -7,6 +7,8 @@ import os
 import warnings
 
 from pamd.errors import RecordingError
+from pamd.view.plots import write_plots
+from pamd.view.recording import RecordingIncomplete, open_recording
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -29,8 +31,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run_plot(args: argparse.Namespace) -> int:
-    from pamd.view.plots import write_plots
-    from pamd.view.recording import RecordingIncomplete, open_recording
 
     source = args.recording[0] if len(args.recording) == 1 else args.recording
     with warnings.catch_warnings(record=True) as caught:

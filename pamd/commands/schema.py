@@ -14,8 +14,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from pamd.config.engine import Context, build_dataclass, spec
 from pamd.errors import CommandRefused
+from pamd.schema.engine import Context, build_dataclass, spec
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -8,20 +8,20 @@ import dataclasses
 import hashlib
 import logging
 import os
-import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import resources
-from typing import Any
+from typing import Any, ClassVar, Protocol, cast
 
-from pamd.config.engine import Context, build_dataclass, describe, line_of
+from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.schema import MuscleConfig, RigConfig, SafetyConfig, SignalConfig
-from pamd.config.yamlload import load_yaml_text, read_text
 from pamd.errors import DriverError
 from pamd.muscle import MUSCLE_TYPES
-from pamd.net.keys import check_chunk
+from pamd.plugins import load_driver_entry
+from pamd.schema.engine import Context, build_dataclass, describe, line_of
+from pamd.schema.yamlload import load_yaml_text, read_text
 
 log = logging.getLogger(__name__)
-NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
 
 
 @dataclass(frozen=True)
@@ -182,12 +182,40 @@ def _check_name(ctx: Context, name: str, seen: set[str], line: int | None, path:
     seen.add(name)
 
 
+class DriverType(Protocol):
+    """What the config needs of an installed driver class (`pamd.drivers.Driver`):
+    its options type, and its channels as those options define them."""
+
+    options_type: ClassVar[type]
+
+    def __call__(self, name: str, options: Any) -> _HasChannels: ...
+
+
+class _HasChannels(Protocol):
+    def channels(self) -> Sequence[_ChannelLike]: ...
+
+
+class _ChannelLike(Protocol):
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def direction(self) -> str: ...
+
+
+def _driver_type(type_name: str) -> DriverType:
+    """The driver class installed under `type_name` (the `pamd.drivers` entry points)."""
+    found = load_driver_entry(type_name)
+    if not (isinstance(found, type) and hasattr(found, "options_type")
+            and hasattr(found, "channels")):
+        raise DriverError(f"entry point {type_name!r} does not name a pamd Driver class")
+    return cast(DriverType, found)
+
+
 def _check_drivers(rig: RigConfig, node: Any,
                    ctx: Context) -> tuple[RigConfig, dict[str, dict[str, str]]]:
     """Validate each driver's type and options; returns the config with typed options
     and, per driver whose options are valid, {channel name: 'in' | 'out'}."""
-    from pamd.drivers import load_driver_class
-
     seen: set[str] = set()
     built = []
     channel_map: dict[str, dict[str, str]] = {}
@@ -195,7 +223,7 @@ def _check_drivers(rig: RigConfig, node: Any,
         item = node[i]
         _check_name(ctx, drv.name, seen, line_of(item, "name"), f"drivers[{i}].name")
         try:
-            cls = load_driver_class(drv.type)
+            cls = _driver_type(drv.type)
         except DriverError as exc:
             ctx.add(line_of(item, "type"), f"drivers[{i}].type", "an installed driver type",
                     f"{drv.type!r} ({exc})")

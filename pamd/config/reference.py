@@ -9,8 +9,9 @@ import typing
 from dataclasses import MISSING
 from typing import Any
 
-from pamd.config.engine import _type_name
 from pamd.config.schema import RigConfig
+from pamd.plugins import DRIVERS_GROUP, installed
+from pamd.schema.engine import _type_name
 
 HEADER = """# pamd config reference
 
@@ -82,10 +83,8 @@ def _table(cls: type, prefix: str = "") -> list[str]:
 
 
 def generate() -> str:
-    from pamd.drivers import available_drivers
-
     lines = [HEADER, "## Rig config", ""] + _table(RigConfig) + [""]
-    for name, ep in sorted(available_drivers().items()):
+    for name, ep in sorted(installed(DRIVERS_GROUP).items()):
         cls = ep.load()
         lines += [f"## Driver `{name}` options", "", (cls.__doc__ or "").strip().split("\n")[0],
                   ""]

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from pamd.config.engine import spec
+from pamd.schema.engine import spec
 
 
 @dataclass(frozen=True, kw_only=True)

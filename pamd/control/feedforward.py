@@ -21,10 +21,10 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from pamd.control.model_check import SOURCES, check_model_for, velocity_window
-from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
 from pamd.models.registry import load_model
+from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 
 if TYPE_CHECKING:
     from pamd.config.loader import MuscleLimitsResolved

@@ -16,7 +16,7 @@ Modes (`pamd.tick.Mode`), per muscle:
   ``feedforward: false`` the outer PID (+ ILC) runs alone, without a model.
 
 A model's velocity input is the target length run through the filter its training
-data went through (`pamd.control.velocity`, with the window stated in the model
+data went through (`pamd.models.velocity`, with the window stated in the model
 file), so it is the signal the model learned. The model itself is
 `pamd.control.feedforward`, the learning correction `pamd.control.ilc`, the checks
 of length targets and profiles `pamd.control.length_targets`.
@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 from pamd.control.ilc import Ilc
 from pamd.control.pid import Pid
-from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
+from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
 from pamd.tick import Flag, Mode, State
 
 if TYPE_CHECKING:

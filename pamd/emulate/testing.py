@@ -7,8 +7,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
+import os
 import shutil
+import signal
 import socket
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -93,10 +98,6 @@ def write_config(tmp: Path, data: dict[str, Any], name: str = "rig.yaml") -> Pat
 
 def start_emulator(config_path: str, *extra: str) -> tuple[Any, dict[str, Any]]:
     """`pamd emulate --config FILE` in its own process; returns (process, ready line)."""
-    import json
-    import os
-    import subprocess
-    import sys
 
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen([sys.executable, "-m", "pamd", "emulate", "--config", config_path,
@@ -112,8 +113,6 @@ def start_emulator(config_path: str, *extra: str) -> tuple[Any, dict[str, Any]]:
 
 def stop_emulator(proc: Any) -> dict[str, Any]:
     """SIGTERM, wait, and return its closing statistics line."""
-    import json
-    import signal
 
     proc.send_signal(signal.SIGTERM)
     out, _ = proc.communicate(timeout=20)

@@ -3,7 +3,7 @@ run that worked on it. `--resume` reads it to continue from the first unfinished
 step. Written atomically, so a crash never leaves half a manifest.
 
 Also what `pamd collect` and a collection started over the network
-(`pamd.experiment.remote`) share: the collection directory's name and what each step's
+(`pamd.net.collections`) share: the collection directory's name and what each step's
 recording file states (`step_records`)."""
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ import time
 import uuid
 from typing import Any
 
-from pamd import __version__
 from pamd.config.loader import LoadedConfig
 from pamd.errors import ConfigError, ConfigIssue
 from pamd.experiment.plan import Plan
 from pamd.experiment.timeline import StepLine
+from pamd.version import __version__
 
 FORMAT, VERSION = "pamd-collection", 1
 

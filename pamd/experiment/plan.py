@@ -12,12 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from pamd.config.engine import Context, build_dataclass, spec
 from pamd.config.loader import NAME_RE, LoadedConfig
-from pamd.config.yamlload import load_yaml_text, read_text
 from pamd.control.profiles import ProfileSpec
 from pamd.errors import CommandRefused
 from pamd.muscle import MUSCLE_TYPES, equilibrium_contraction, force_model
+from pamd.schema.engine import Context, build_dataclass, spec
+from pamd.schema.yamlload import load_yaml_text, read_text
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -28,6 +28,7 @@ from typing import Any
 
 from pamd.commands import parse_command
 from pamd.errors import CommandRefused, RecordingError
+from pamd.io.process import io_main
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import (
     C_HEARTBEAT,
@@ -66,7 +67,6 @@ class IoLink:
 
     def start(self, timeout_s: float = START_TIMEOUT_S) -> None:
         """Spawn the io process and wait until it has opened its file (or failed)."""
-        from pamd.io.process import io_main
 
         ctx = multiprocessing.get_context("spawn")  # never fork a process with threads
         self.proc = ctx.Process(target=io_main, args=(self.spec,), name="pamd-io", daemon=True)

@@ -3,7 +3,7 @@
 watches, sends commands to the loop and routes their verdicts.
 
 With telemetry, it also takes recording control from the daemon's main thread (the
-board's control ring: a collection started over the network, `pamd.io.control`) and
+board's control ring: a collection started over the network, `pamd.record.control`) and
 sends the recorder's notices back through the board.
 
 It never blocks the loop: it only reads rings the loop writes without waiting. If a
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import resource
 import signal
 import struct
 import threading
@@ -37,6 +38,9 @@ from pamd.ipc.ring import (
     IO_READY,
     SharedBlock,
 )
+from pamd.net.node import NetNode
+from pamd.record.recorder import Recorder
+from pamd.view.live import LiveView
 
 IDLE_SLEEP_S = 0.0005
 BACKLOG_MAX = 1024  # commands waiting for room in the loop's mailbox
@@ -144,7 +148,6 @@ class IoProcess:
     def run(self) -> None:
         spec, block = self.spec, self.block
         if spec.net is not None:  # first: a taken endpoint refuses before any file opens
-            from pamd.net.node import NetNode
 
             self.net = NetNode(spec.net, spec, block, self.port, self._record_event)
             err = self.net.open()
@@ -158,12 +161,10 @@ class IoProcess:
             return
         if spec.record is not None:
             if spec.record.fsize_limit_bytes:
-                import resource
 
                 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # writes fail with EFBIG
                 lim = spec.record.fsize_limit_bytes
                 resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim))
-            from pamd.io.recorder import Recorder
 
             try:
                 self.recorder = Recorder(spec)
@@ -230,7 +231,6 @@ class IoProcess:
     def _open_viewer(self) -> bool:
         """The Foxglove server (pamd.view.live); a taken port refuses, as Zenoh's does,
         before any file opens."""
-        from pamd.view.live import LiveView
 
         assert self.spec.viewer is not None
         self.viewer = LiveView(self.spec.viewer, self.spec, self.block.t_start)
@@ -309,7 +309,7 @@ class IoProcess:
         return n, summary
 
     def _control(self) -> None:
-        """Recording control from the daemon's main thread (pamd.io.control)."""
+        """Recording control from the daemon's main thread (pamd.record.control)."""
         board = self.net.board
         rec = self.recorder
         while board is not None and (blob := board.control.get_blob()) is not None:

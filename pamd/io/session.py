@@ -17,13 +17,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from pamd.io.link import IoLink, MultiMailbox, RingMailbox, RingSink
-from pamd.io.meta import build_record_spec
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import BlockLayout, pow2_at_least
 from pamd.net.board import Board
 from pamd.net.host import NetHost
 from pamd.net.spec import NetSpec, TelemetryRequest
 from pamd.net.spec import resolve as resolve_net
+from pamd.record.meta import build_record_spec
 from pamd.view.spec import ViewerSpec
 from pamd.view.spec import resolve as resolve_viewer
 

@@ -3,30 +3,11 @@ spawn (the io process imports nothing of the daemon's live objects)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from pamd.ipc.ring import BlockLayout
-
-
-@dataclass(frozen=True)
-class RecordSpec:
-    """One run's recording: where, how files are cut, and what each file states."""
-
-    dir: str
-    run_name: str
-    rotate_mb: float | None
-    rotate_s: float | None
-    chunk_kb: int
-    flush_s: float
-    compression: str
-    started_at: str  # local time of the run's start, for file names
-    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
-    attachments: tuple[tuple[str, str, bytes], ...] = ()  # (name, media type, data)
-    fsize_limit_bytes: int | None = None  # tests: RLIMIT_FSIZE, so writes fail for real
-    # Experiment steps: the file of step k (tick field `segment` = k + 1) is named after
-    # steps[k]["step"] and states steps[k] as its `pamd.experiment` metadata.
-    steps: tuple[dict[str, Any], ...] = ()
+from pamd.record.spec import RecordSpec
 
 
 @dataclass(frozen=True)

@@ -5,10 +5,10 @@
 * `pamd.models.registry`: the kinds by name (`KINDS`), `load_model` (a path, bytes or
   parsed JSON -> a model of any kind), `save_model`.
 * one module per kind: `static_force` (polynomial, sarosi), `ts_fuzzy` (+ `genetic`),
-  `learned` (mlp, svr), `qupi`; ANFIS lives in `pamd.anfis`.
+  `learned` (mlp, svr), `qupi`; ANFIS lives in `pamd.models.anfis`.
 * `training` (`pamd train --kind`), `compare` and `plots` (`pamd evaluate`).
 
-This module imports only the contract, so that `pamd.anfis` can use it.
+This module imports only the contract, so that `pamd.models.anfis` can use it.
 """
 
 from pamd.models.contract import (

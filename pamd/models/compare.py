@@ -18,11 +18,11 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from pamd.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
-from pamd.control.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
+from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
 from pamd.models.contract import InverseModel, velocity_window
+from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 
 #: Comparison table columns: metric key, header, format (seed 002's Table 4 and more).
 COMPARISON_COLUMNS: tuple[tuple[str, str, str], ...] = (

@@ -13,7 +13,7 @@ layout of the kinds after ANFIS (`header`, `read_header`)::
     }
 
 Problems raise `pamd.errors.ModelError` naming the field; the registry adds the file.
-ANFIS files keep their own layout (``"format": "pamd-anfis"``, `pamd.anfis.modelfile`).
+ANFIS files keep their own layout (``"format": "pamd-anfis"``, `pamd.models.anfis.modelfile`).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Figures of several models judged on the same data: predictions overlaid on the
-measurement, and their errors over time (matplotlib, optional, as `pamd.anfis.plots`).
+measurement, and their errors over time (matplotlib, optional, as `pamd.models.anfis.plots`).
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pamd.anfis.plots import _label, _pyplot, _save
+from pamd.models.anfis.plots import _label, _pyplot, _save
 from pamd.models.compare import Judged
 
 

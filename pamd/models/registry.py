@@ -21,9 +21,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pamd.anfis import modelfile as anfis_file
 from pamd.errors import ModelError
 from pamd.models import learned, qupi, static_force
+from pamd.models.anfis import modelfile as anfis_file
 from pamd.models.contract import InverseModel
 from pamd.models.document import field, format_json, parse_json
 

@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from pamd.anfis.samples import Samples
-from pamd.anfis.splitting import Split
-from pamd.anfis.training import TrainingOptions, fit
 from pamd.errors import ModelError
+from pamd.models.anfis.samples import Samples
+from pamd.models.anfis.splitting import Split
+from pamd.models.anfis.training import TrainingOptions, fit
 from pamd.models.contract import InverseModel
 from pamd.models.learned import fit_learned
 from pamd.models.qupi import fit_qupi

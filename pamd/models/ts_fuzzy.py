@@ -7,7 +7,7 @@ with ``"kind": "ts-fuzzy"``, same tick evaluator); what differs is how its premi
 are found (``--tuner``):
 
 * ``gd``: gradient descent on the premises with the consequents re-identified every
-  epoch (the hybrid learning of `pamd.anfis.training`, SVD solver), best epoch on the
+  epoch (the hybrid learning of `pamd.models.anfis.training`, SVD solver), best epoch on the
   validation set kept;
 * ``ga``: the conventional GA of `pamd.models.genetic` (population 100, 12-bit genes,
   roulette wheel, crossover 0.95, mutation 0.01);
@@ -40,18 +40,18 @@ from typing import Any
 
 import numpy as np
 
-from pamd.anfis.checks import as_inputs_outputs, check_trainable
-from pamd.anfis.membership import log_membership
-from pamd.anfis.model import AnfisModel, init_model, rule_firing
-from pamd.anfis.training import (
+from pamd.errors import ModelError
+from pamd.metrics import regression_metrics
+from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
+from pamd.models.anfis.membership import log_membership
+from pamd.models.anfis.model import AnfisModel, init_model, rule_firing
+from pamd.models.anfis.training import (
     TrainingOptions,
     _design,
     _with_ones,
     solve_consequents,
     train,
 )
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
 from pamd.models.genetic import GaOptions, GaResult, minimise
 
 TUNERS: tuple[str, ...] = ("gd", "ga", "mga")

@@ -11,7 +11,7 @@ process, beside the loop's block.
   there instead of the loop's mailbox; the verdict comes back by id. The io process
   also sends its recording notices on `requests` (`{"notice": ...}`);
 - control (main -> io): recording control for the io process's recorder
-  (`pamd.io.control`: a collection's directory and steps, sent before its plan
+  (`pamd.record.control`: a collection's directory and steps, sent before its plan
   reaches the loop). The io loop reads it, never Zenoh's callback threads.
 
 Single writer per field or ring, as in `pamd.ipc.ring`; nothing here blocks.

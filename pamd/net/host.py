@@ -1,7 +1,7 @@
 """The daemon's main-process side of telemetry: writes the status snapshot into the
 board at `telemetry.status_hz`, and does the work of the commands that need the main
 thread (`collect`: read and check the plan file, make the collection's directory and
-manifest and tell the io process's recorder (`pamd.experiment.remote`), then queue
+manifest and tell the io process's recorder (`pamd.net.collections`), then queue
 it; `model`: load, check and compile the model file, then queue it) before the loop
 gives its verdict, which goes back to the io process by id. It also takes the io
 process's notices (a collection's files closed) and writes a collection's manifest
@@ -23,8 +23,9 @@ from typing import Any
 from pamd.commands import Command, named_files, parse_command, prepare_command
 from pamd.commands.schema import args_for_record
 from pamd.errors import CommandRefused, PamdError
-from pamd.experiment.remote import Collection, Collections
+from pamd.experiment.plan import parse_plan
 from pamd.net.board import Board
+from pamd.net.collections import Collection, Collections
 from pamd.net.status import StatusBuilder, jsonsafe
 
 log = logging.getLogger("pamd")
@@ -115,7 +116,7 @@ class NetHost:
     def _request(self, blob: bytes) -> None:
         try:
             req = json.loads(blob)
-            if "notice" in req:  # the io process's (pamd.io.control)
+            if "notice" in req:  # the io process's (pamd.record.control)
                 self.collections.notice(req["notice"])
                 return
             rid = int(req["id"])
@@ -172,7 +173,6 @@ def read_plan(name: str, cfg: Any) -> tuple[Any, str]:
     """A remote collect's plan: file `name` in `telemetry.plans_dir`, within the limits
     (`pamd.commands.named_files`), parsed and checked against the rig; the refusal
     names file, line and key and never quotes the file."""
-    from pamd.experiment.plan import parse_plan
 
     try:
         path = named_files.resolve(name, named_files.configured_dir(cfg, "plans_dir"),

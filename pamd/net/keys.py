@@ -3,19 +3,7 @@
 
 from __future__ import annotations
 
-import re
-
 ROOT = "pamd"
-#: rig ids and muscle names that are safe as one key chunk (no '/', '*', '$', '?', '#')
-CHUNK_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
-
-
-def check_chunk(what: str, value: str) -> str | None:
-    """None when `value` can be one chunk of a key; else what is wrong with it."""
-    if CHUNK_RE.match(value):
-        return None
-    return (f"{what} {value!r} cannot be part of a Zenoh key: use letters, digits, '_', "
-            "'-' and '.'")
 
 
 class Keys:

@@ -40,6 +40,7 @@ from pamd.commands.schema import (
     cap_text,
 )
 from pamd.errors import CommandRefused
+from pamd.net import zconf
 from pamd.net.board import Board
 from pamd.net.keys import Keys
 from pamd.net.ratelimit import RateLimiter
@@ -106,7 +107,6 @@ class NetNode:
         """Open the session and declare everything; an error text if it cannot."""
         import zenoh
 
-        from pamd.net import zconf
 
         cfg = zenoh.Config.from_json5(self.spec.zenoh_json)
         try:
@@ -257,7 +257,7 @@ class NetNode:
         return work
 
     def notify_main(self, msg: dict[str, Any]) -> None:
-        """A notice for the daemon's main thread (the recorder's: pamd.io.control), sent
+        """A notice for the daemon's main thread (the recorder's: pamd.record.control), sent
         on the board's request ring by the next poll (the io loop's thread)."""
         self.to_main.append(json.dumps({"notice": msg}, default=str).encode())
 

@@ -7,8 +7,9 @@ import os
 from dataclasses import dataclass
 from typing import Any
 
+from pamd.config.names import check_chunk
 from pamd.errors import ConfigError, ConfigIssue
-from pamd.net.keys import check_chunk
+from pamd.net import zconf
 
 #: verbs whose work needs the daemon's main thread (file I/O before the loop sees them)
 MAIN_THREAD_VERBS = ("collect", "model")
@@ -51,7 +52,6 @@ def resolve(cfg: Any, req: TelemetryRequest | None) -> NetSpec | None:
     on = tc.enabled if tc.enabled is not None else cfg.rig.loop.clock == "real"
     if req is None or not req.enabled or not on:
         return None
-    from pamd.net import zconf
 
     problems = [p for p in [check_chunk("rig_id", cfg.rig.rig_id)] + [
         check_chunk("muscle name", m.name) for m in cfg.rig.muscles] if p]

@@ -19,8 +19,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from pamd import __version__
 from pamd.commands import VERBS
+from pamd.version import __version__
 
 
 def jsonsafe(x: Any) -> Any:

@@ -16,6 +16,7 @@ import os
 from typing import Any
 
 from pamd.errors import ConfigError, ConfigIssue, PamdError
+from pamd.net.tlsprobe import diagnose, listen_error
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 SCOUTING_KEYS = ("scouting/multicast/enabled", "scouting/gossip/enabled")
@@ -140,14 +141,12 @@ def open_error(exc: BaseException, cfg: Any) -> str:
         if why:
             return f"cannot connect to {eps}: {why}"
         return f"cannot connect to {eps} (nothing listening, or refused: TLS/credentials?)"
-    from pamd.net.tlsprobe import listen_error
 
     return listen_error(text, get(cfg, "transport/link/tls/listen_certificate")) or text
 
 
 def _tls_why(cfg: Any) -> str | None:
     """Which side refused a `tls/` connection and why (`pamd.net.tlsprobe`)."""
-    from pamd.net.tlsprobe import diagnose
 
     tls = [e for e in endpoints(cfg, "connect") if e.startswith("tls/")]
     if not tls:

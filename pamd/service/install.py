@@ -19,6 +19,9 @@ from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
+from pamd.config import load_config
+from pamd.errors import ConfigError
+
 PLACEHOLDER = "/opt/pamd/bin/pamd"
 FILES = (  # (source in systemd/, target below the prefix)
     ("pamd.service", "etc/systemd/system/pamd.service"),
@@ -109,8 +112,6 @@ def _check_config(path: str, say: Callable[[str], None]) -> None:
         say(f"next: put the rig config at {path} (`pamd check-config` it first), with "
             f"calibration_file: {STATE_DIR}/pamd.cal.yaml")
         return
-    from pamd.config import load_config
-    from pamd.errors import ConfigError
 
     try:
         cfg = load_config(path)

@@ -29,6 +29,7 @@ import time
 from typing import Any
 
 from pamd.commands import Command
+from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig, load_config
 from pamd.errors import PamdError
 from pamd.service.notify import Notifier
@@ -369,8 +370,6 @@ class ServiceKeeper:
             self._finish()
 
     def _submit(self, plan: ReloadPlan) -> None:
-        from pamd.daemon import PendingCommand  # the daemon imports this module
-
         pending = PendingCommand()
         self.daemon.mailbox.put(Command("reload", plan.args, pending.set, sender="SIGHUP"))
         self.pending = (plan, pending)

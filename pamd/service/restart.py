@@ -31,6 +31,7 @@ import os
 import signal
 import sys
 import threading
+from multiprocessing import resource_tracker
 from typing import NoReturn
 
 from pamd.service.notify import Notifier
@@ -109,9 +110,9 @@ def _stop_resource_tracker() -> None:
     """multiprocessing's resource tracker (a child started with the io process) would
     see its pipe close at the exec, exit, and stay a zombie of the new daemon: stop
     and reap it now (the new daemon starts its own)."""
-    from multiprocessing import resource_tracker
 
-    stop = getattr(resource_tracker._resource_tracker, "_stop", None)  # private, 3.8+
+    tracker = getattr(resource_tracker, "_resource_tracker", None)  # private, 3.8+
+    stop = getattr(tracker, "_stop", None)
     if stop is None:
         return
     try:

@@ -20,9 +20,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from pamd.config.engine import Context, build_dataclass
 from pamd.drivers import Driver, load_driver_class
 from pamd.errors import DriverError
+from pamd.schema.engine import Context, build_dataclass
 
 SIMULATED = ("sim",)
 

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from pamd.config.loader import LoadedConfig, builtin_config_path
+from pamd.drivers.safe_outputs import safe_output_values
 from pamd.errors import PamdError
 
 FAULT_FORMAT = "pamd-fault"
@@ -201,7 +202,6 @@ def safe_outputs_document(cfg: LoadedConfig, ctrl: Any) -> dict[str, Any]:
     """What `pamd safe-outputs` needs to put the rig in its present safe state with
     no config: per driver its type and options, per output its channel and raw
     value (the same values `push_safe_outputs` gives the devices)."""
-    from pamd.drivers.safe_outputs import safe_output_values
 
     labels: dict[tuple[str, int], tuple[str, float, str]] = {}
     for m in ctrl.muscles:

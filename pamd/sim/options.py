@@ -13,13 +13,13 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from pamd.config.engine import spec
+from pamd.schema.engine import spec
 
 
 def _f(
     default: Any, doc: str, unit: str = "", lo: float | None = None, hi: float | None = None
 ) -> Any:
-    """`pamd.config.engine.spec` with the bounds given positionally."""
+    """`pamd.schema.engine.spec` with the bounds given positionally."""
     meta: dict[str, object] = {}
     if unit:
         meta["unit"] = unit

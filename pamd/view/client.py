@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from pamd.errors import CommandRefused
+from pamd.net.client import Client
 from pamd.net.keys import Keys
 from pamd.net.telemetry import decode
 
@@ -60,7 +61,6 @@ class RigClient:
 
     def __init__(self, rig: str | None = None, endpoint: str | None = None,
                  zenoh_config: str | None = None, timeout_s: float = 3.0) -> None:
-        from pamd.net.client import Client
 
         self._client = Client(zenoh_config, endpoint)
         try:

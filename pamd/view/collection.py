@@ -10,7 +10,7 @@ import os
 from typing import Any
 
 from pamd.errors import RecordingError
-from pamd.io import files as io_files
+from pamd.record import files as io_files
 
 
 def _file(path: str) -> dict[str, Any]:

@@ -20,6 +20,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from pamd.config import load_config
 from pamd.tick import Mode, State
 
 _COLORS = {"STARTING": "#9e9e9e", "IDLE": "#1f77b4", "RUNNING": "#2ca02c", "HOLD": "#ff7f0e",
@@ -106,7 +107,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--config", metavar="FILE", help="rig config (default: built-in sim)")
     p.add_argument("--out", metavar="FILE", help="where to write it (default: stdout)")
     args = p.parse_args(argv)
-    from pamd.config import load_config
 
     cfg = load_config(args.config)
     text = layout_json(cfg.rig.rig_id, [m.name for m in cfg.rig.muscles])

@@ -27,8 +27,8 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from pamd.io import cdr
-from pamd.io.recorder import record_schemas, sanitize
+from pamd.record import cdr
+from pamd.record.recorder import record_schemas, sanitize
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 from pamd.view.spec import ViewerSpec
 
@@ -94,7 +94,7 @@ class LiveView:
         return None
 
     def _log_ns(self, tick: int, t_s: float) -> int:
-        """The recording's log time of a tick (pamd.io.recorder.Recorder.tick)."""
+        """The recording's log time of a tick (pamd.record.recorder.Recorder.tick)."""
         io = self.io_spec
         if io.virtual:
             return io.wall0_ns + tick * self.period_ns

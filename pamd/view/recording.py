@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from pamd.errors import RecordingError
+from pamd.record import files as io_files
 from pamd.view import fields
 
 
@@ -210,7 +211,6 @@ def open_recording(source: str | os.PathLike[str] | Sequence[str | os.PathLike[s
                    muscle: str | None = None) -> Recording:
     """Read a recording: an MCAP file, a list of files, or a directory (a collection
     with its manifest.json, or a directory of .mcap files). `muscle`: only that one."""
-    from pamd.io import files as io_files
 
     parts: dict[str, list[dict[str, np.ndarray]]] = {}
     loops: list[dict[str, np.ndarray]] = []
@@ -257,7 +257,6 @@ def open_recording(source: str | os.PathLike[str] | Sequence[str | os.PathLike[s
 
 def _read_file(path: str, only: str | None
                ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, np.ndarray]], list[Event]]:
-    from pamd.io import files as io_files
 
     dec = io_files.Decoder()
     rows: dict[str, list[list[Any]]] = {}

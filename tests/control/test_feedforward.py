@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 import yaml
 
-from pamd.anfis import TrainingOptions, fit, save
 from pamd.commands import apply_command, parse_command, prepare_command
 from pamd.config import LoadedConfig, load_config
 from pamd.control.feedforward import LoadedModel
 from pamd.control.model_check import velocity_window
 from pamd.errors import CommandRefused, ConfigError
 from pamd.harness import Harness
+from pamd.models.anfis import TrainingOptions, fit, save
 from pamd.muscle import force_model, pressure_for_force
 from pamd.tick import Flag, Mode, State
 

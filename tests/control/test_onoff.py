@@ -9,7 +9,7 @@ import random
 import pytest
 
 from pamd.control.onoff import EXHAUST, HOLD, INFLATE, PwmPressure, SlidingModePosition
-from pamd.control.velocity import velocity_step
+from pamd.models.velocity import velocity_step
 from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions
 from pamd.sim.plant import MusclePlant

@@ -21,10 +21,10 @@ def test_50kg_test_figures_as_reported(tmp_path: Path) -> None:
         import models_compare as mc  # type: ignore[import-not-found]
     finally:
         sys.path.remove(str(BENCH))
-    from pamd.anfis.extraction import extract
-    from pamd.anfis.recordings import read_runs
-    from pamd.anfis.samples import ExtractOptions
     from pamd.metrics import regression_metrics
+    from pamd.models.anfis.extraction import extract
+    from pamd.models.anfis.recordings import read_runs
+    from pamd.models.anfis.samples import ExtractOptions
     from pamd.models.training import KindOptions
 
     runs = {load: read_runs([mc.record(load, 0.0, 6.0, 3, str(tmp_path), "sweep")])

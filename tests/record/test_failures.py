@@ -20,8 +20,8 @@ import pytest
 from mcap.reader import make_reader
 
 from pamd.daemon import Daemon
-from pamd.io import files
 from pamd.io.session import RecordingRequest
+from pamd.record import files
 from pamd.tick import State
 
 

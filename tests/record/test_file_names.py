@@ -8,8 +8,9 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
-from pamd.io.recorder import Recorder
-from pamd.io.spec import IoSpec, RecordSpec
+from pamd.io.spec import IoSpec
+from pamd.record.recorder import Recorder
+from pamd.record.spec import RecordSpec
 
 
 def _spec(tmp_path: Path) -> IoSpec:

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from pamd.errors import RecordingError
-from pamd.io import files
+from pamd.record import files
 
 
 @pytest.fixture

@@ -13,8 +13,8 @@ import pytest
 from mat4py import loadmat
 
 import pamd
-from pamd.anfis.recordings import read_csv
 from pamd.cli.main import main
+from pamd.models.anfis.recordings import read_csv
 from pamd.tick import MUSCLE_FIELDS, Flag, State
 
 from .conftest import Recorded

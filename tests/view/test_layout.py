@@ -10,7 +10,7 @@ from typing import Any
 
 from mcap.reader import make_reader
 
-from pamd.io.cdr import parse_flat_schema
+from pamd.record.cdr import parse_flat_schema
 from pamd.view.layout import build_layout, layout_json, main
 
 from .conftest import Recorded

@@ -18,8 +18,8 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap.records import Channel, Schema
 
-from pamd.io.files import Decoder
-from pamd.io.recorder import record_schemas
+from pamd.record.files import Decoder
+from pamd.record.recorder import record_schemas
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 from ..net.conftest import DaemonProc, free_port, rig_config

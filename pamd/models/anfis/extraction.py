@@ -1,0 +1,213 @@
+"""Training pairs for the inverse model, taken from recorded runs.
+
+Role: from `Run`s (`pamd.models.anfis.recordings`), keep the samples that show the
+muscle's steady behaviour and return inputs X (force, length or contraction,
+optionally velocity) and the measured output y (pressure) as `Samples`, with each
+run's provenance; `pamd.models.anfis.splitting` then cuts them into training / validation /
+test sets.
+
+What is dropped, per run (counted per reason in the provenance):
+
+* faults and other states: with a state column (MCAP: the loop topic) only RUNNING
+  samples are kept (IDLE holds, HOLD, LOAD_CHANGE, FAULT, ESTOP, STARTING are not
+  the sweep);
+* flagged samples: stale signals, soft limits (pressure, contraction, pretension),
+  PID saturation, open exhaust, tracking alarms, unreferenced length
+  (`pamd.models.anfis.samples.DROP_FLAGS`);
+* settling transients: the first `settle_s` of each run and of each stretch of
+  accepted state, and, in MCAP files, each profile's lead-in ramp (computed from the
+  profile command recorded on the events topic) plus `settle_s`.
+
+The velocity input is computed from the length at the recording's full rate with
+`pamd.models.velocity.filtered_velocity`, the very function the control tick uses
+(with the model's window, stored in the model file and used by the tick), and only
+then are the samples decimated to `rate_hz` (1 kHz is far more than a model
+of a 0.05 Hz sweep needs).
+
+Bad data is refused with `ModelError` naming file, column and problem: a missing
+column, NaN/inf among the kept samples, a constant input, too few samples.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from pamd.errors import ModelError
+from pamd.models.anfis.recordings import read_runs
+from pamd.models.anfis.samples import ExtractOptions, Run, Samples
+from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, derivation, filtered_velocity
+from pamd.tick import Flag, State
+
+_RUNNING = int(State.RUNNING)
+_PROFILE_VERBS = ("profile", "setpoint")
+
+
+def extract(runs: Sequence[Run], options: ExtractOptions | None = None) -> Samples:
+    """Training pairs from `runs` (see the module docstring for what is dropped)."""
+    o = options or ExtractOptions()
+    o.check()
+    if o.muscle is not None:
+        runs = [r for r in runs if r.muscle in (o.muscle, "")]
+    if not runs:
+        raise ModelError("no runs to extract from")
+    Xs, ys, ts, idx, info = [], [], [], [], []
+    for k, run in enumerate(runs):
+        X, y, t, counts = _extract_run(run, o)
+        Xs.append(X)
+        ys.append(y)
+        ts.append(t)
+        idx.append(np.full(y.size, k, dtype=np.intp))
+        info.append({"source": run.source, "muscle": run.muscle, "load_kg": run.load_kg,
+                     "duration_s": round(float(run.t_s[-1] - run.t_s[0]), 3),
+                     "samples_kept": int(y.size), "dropped": counts})
+    X = np.concatenate(Xs)
+    y = np.concatenate(ys)
+    total = int(y.size)
+    if total < o.min_samples:
+        detail = "; ".join(f"{r['source']}: {r['samples_kept']} kept, dropped "
+                           f"{r['dropped']}" for r in info)
+        raise ModelError(f"too few samples: {total} kept after dropping faults, limits and "
+                         f"settling (need at least {o.min_samples}); {detail}")
+    for j, name in enumerate(o.inputs):
+        lo, hi = float(X[:, j].min()), float(X[:, j].max())
+        if not hi > lo:
+            raise ModelError(f"input {name!r} is constant ({lo:g}) in every kept sample: no "
+                             "membership functions can be placed on it; drop the input or "
+                             "record data that spans a range")
+    if not float(y.max()) > float(y.min()):
+        raise ModelError(f"output {o.output!r} is constant ({float(y[0]):g}) in every kept "
+                         "sample: nothing to learn")
+    return Samples(X=X, y=y, t_s=np.concatenate(ts), run=np.concatenate(idx),
+                   inputs=tuple(o.inputs), output=o.output, runs=info, options=o)
+
+
+def _extract_run(run: Run, o: ExtractOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                         dict[str, int]]:
+    c = run.columns
+    t = np.asarray(run.t_s, dtype=np.float64)
+    n = t.size
+    need = [n_ for n_ in o.inputs if n_ != "velocity_mm_s"] + [o.output]
+    if "velocity_mm_s" in o.inputs:
+        need.append("length_mm")
+    missing = [n_ for n_ in dict.fromkeys(need) if n_ not in c]
+    if missing:
+        have = ", ".join(sorted(c)) or "none"
+        raise ModelError(f"{run.label}: missing column(s) {', '.join(missing)} (columns: "
+                         f"{have})")
+    counts: dict[str, int] = {}
+    keep = np.ones(n, dtype=bool)
+
+    def drop(mask: np.ndarray, reason: str) -> None:
+        new = mask & keep
+        if new.any():
+            counts[reason] = counts.get(reason, 0) + int(new.sum())
+            keep[new] = False
+
+    state = c.get("state")
+    accepted = np.ones(n, dtype=bool)
+    if state is not None:
+        accepted = state == _RUNNING
+        drop(~accepted, "not running (idle, hold, load change, fault, estop)")
+    if "flags" in c:
+        flags = np.nan_to_num(c["flags"], nan=0.0).astype(np.int64)
+        for f in Flag:
+            if f & o.drop_flags:
+                drop((flags & int(f)) != 0, f"flag {f.name}")
+    # Settling: the run's start and the start of each accepted stretch.
+    starts = [float(t[0])]
+    if state is not None:
+        edges = np.flatnonzero(accepted[1:] & ~accepted[:-1]) + 1
+        starts += [float(t[i]) for i in edges]
+    settle = np.zeros(n, dtype=bool)
+    for s in starts:
+        settle |= (t >= s) & (t < s + o.settle_s)
+    drop(settle, "settling")
+    lead = np.zeros(n, dtype=bool)
+    for t0, t1 in _lead_ins(run, o.settle_s):
+        lead |= (t >= t0) & (t < t1)
+    drop(lead, "lead-in ramp")
+    # The velocity at full rate, before decimation (the tick's filter).
+    cols = dict(c)
+    if "velocity_mm_s" in o.inputs:
+        length = c["length_mm"]
+        bad = ~np.isfinite(length)
+        if bad.any():  # hold the last reading through a hole so the filter can run on
+            drop(bad, "length NaN (velocity undefined)")
+            good = np.flatnonzero(~bad)
+            if good.size == 0:
+                raise ModelError(f"{run.label}: column 'length_mm' has no finite value")
+            pos = np.maximum.accumulate(np.where(bad, 0, np.arange(n)))
+            length = length[pos]
+            length[: good[0]] = length[good[0]]
+        cols["velocity_mm_s"] = np.array(filtered_velocity(t, length, o.velocity_window_s))
+    # NaN/inf in a sample that is neither flagged nor outside RUNNING: refused.
+    kept_idx = np.flatnonzero(keep)
+    for name in dict.fromkeys([*o.inputs, o.output]):
+        col = cols[name][kept_idx]
+        bad = ~np.isfinite(col)
+        if bad.any():
+            first_t = float(t[kept_idx[np.flatnonzero(bad)[0]]])
+            raise ModelError(f"{run.label}: column {name!r} has {int(bad.sum())} NaN/inf "
+                             f"value(s) among the samples kept for training, first at "
+                             f"t = {first_t:.3f} s; repair or cut that part of the data")
+    # Decimate: the first kept sample in each 1/rate_hz bin.
+    bins = np.floor(t * o.rate_hz).astype(np.int64)
+    if kept_idx.size:
+        b = bins[kept_idx]
+        first = np.ones(kept_idx.size, dtype=bool)
+        first[1:] = b[1:] != b[:-1]
+        counts["decimated"] = int((~first).sum())
+        kept_idx = kept_idx[first]
+    X = np.column_stack([cols[n_][kept_idx] for n_ in o.inputs]) if kept_idx.size else \
+        np.empty((0, len(o.inputs)))
+    y = cols[o.output][kept_idx]
+    return X, y, t[kept_idx], counts
+
+
+def _lead_ins(run: Run, settle_s: float) -> list[tuple[float, float]]:
+    """(start, end) of each profile's lead-in ramp plus `settle_s`, from the profile
+    and setpoint commands on the events topic (MCAP only)."""
+    out = []
+    sp = run.columns.get("setpoint_bar")
+    for t0, kind, data in run.events:
+        if kind != "command" or data.get("verb") not in _PROFILE_VERBS or not data.get("ok"):
+            continue
+        args = data.get("args") or {}
+        lead_s = 0.0
+        if data.get("verb") == "profile" and sp is not None:
+            start = _profile_start(args)
+            rate = float(args.get("lead_in_bar_per_s") or 1.0)
+            i = int(np.searchsorted(run.t_s, t0))
+            if start is not None and 0 <= i < sp.size and math.isfinite(sp[i]):
+                lead_s = abs(start - float(sp[i])) / rate
+        out.append((t0, t0 + lead_s + settle_s))
+    return out
+
+
+def _profile_start(args: dict[str, Any]) -> float | None:
+    kind = args.get("kind")
+    lo, hi = args.get("min_bar"), args.get("max_bar")
+    if kind == "sine" and lo is not None and hi is not None:
+        return 0.5 * (float(lo) + float(hi))
+    if kind in ("triangle", "step") and lo is not None:
+        return float(lo)
+    if kind == "constant":
+        v = args.get("to_bar", lo)
+        return None if v is None else float(v)
+    return None
+
+
+def load_samples(paths: Sequence[str], options: ExtractOptions | None = None) -> Samples:
+    """`read_runs` then `extract`."""
+    o = options or ExtractOptions()
+    return extract(read_runs(paths, o.muscle), o)
+
+
+def derived_inputs(inputs: Sequence[str],
+                   window_s: float = MODEL_VELOCITY_WINDOW_S) -> dict[str, Any]:
+    """The model file's `derived_inputs` entry for these inputs."""
+    return {"velocity_mm_s": derivation(window_s)} if "velocity_mm_s" in inputs else {}

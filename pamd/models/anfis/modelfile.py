@@ -1,0 +1,172 @@
+"""ANFIS model files: readable, versioned JSON (``"format": "pamd-anfis", "version": 1``).
+
+Role: `save` and `load` an `AnfisModel`. Floats are written with Python's shortest
+round-tripping repr (the json module's default), so `load(save(m))` predicts bit for
+bit like `m`. Anything wrong with a file (not JSON, truncated, another format or
+version, missing fields, wrong shapes, NaN/inf, non-positive widths) raises
+`pamd.errors.ModelError` with the file name and the field at fault.
+
+Layout (version 1)::
+
+    {
+      "format": "pamd-anfis", "version": 1,
+      "inputs":  [{"name": "force_n", "unit": "N", "range": [min, max]}, ...],
+      "output":  {"name": "pressure_bar", "unit": "bar", "range": [min, max]},
+      "derived_inputs": {"velocity_mm_s": {"derived_from": "length_mm", ...}},
+      "scaling": {"method": "minmax" | "zscore", "offset": [...], "span": [...]},
+      "membership": {"type": "gaussian" | "bell",
+                     "inputs": [{"input": "force_n", "centres": [...],
+                                 "widths": [...], ("slopes": [...])}, ...]},
+      "rules": [{"mfs": [0, 0], "p": [p_1, ..., p_d], "q": q}, ...],
+      "provenance": {...free form: data files, runs, loads, training settings...},
+      "metrics": {"train": {...}, "validation": {...}}
+    }
+
+Semantics: inputs are clipped to "range", scaled s = (x - offset) / span; MF
+parameters are in scaled units (Gaussian: centre, sigma; bell: centre, a, b); rules
+are the full grid in `itertools.product` order (last input fastest), "mfs" naming
+each rule's MF index per input; rule output f = sum_i p_i s_i + q in the output
+unit. Non-finite metric values (undefined metrics) are written as null.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+from pamd.errors import ModelError
+from pamd.models.anfis.model import AnfisModel
+from pamd.models.anfis.serialize import FORMAT, VERSION, to_dict
+from pamd.models.document import field as _field
+from pamd.models.document import format_json as _format
+from pamd.models.document import numbers as _numbers
+from pamd.models.document import parse_json
+from pamd.models.document import variable as _variable
+
+#: Kinds stored in this layout (seed 001's TS fuzzy model is an ANFIS structure).
+KINDS: tuple[str, ...] = ("anfis", "ts-fuzzy")
+
+
+def dumps(model: AnfisModel) -> str:
+    """The model file text: indented JSON with short lists and each rule on one line."""
+    return _format(to_dict(model), 0) + "\n"
+
+
+
+
+
+
+def save(model: AnfisModel, path: str | os.PathLike[str]) -> Path:
+    """Write the model file atomically (temporary file + rename); returns the path."""
+    target = Path(path)
+    text = dumps(model)
+    tmp = target.with_name(target.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, target)
+    return target
+
+
+def load(path: str | os.PathLike[str]) -> AnfisModel:
+    """Read a model file; raise `ModelError` naming the file and the problem."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"model file {p}: cannot read it ({exc})") from exc
+    return loads(text, source=str(p))
+
+
+
+
+def loads(text: str, source: str = "<string>") -> AnfisModel:
+    """Parse model file text; `source` names it in error messages."""
+    doc = parse_json(text, source)
+    try:
+        return from_dict(doc)
+    except ModelError as exc:
+        raise ModelError(f"model file {source}: {exc}") from exc
+
+
+
+
+
+
+
+
+def from_dict(doc: Any) -> AnfisModel:
+    """Build a model from a parsed version-1 document (checks everything)."""
+    fmt = _field(doc, "format", str, "")
+    if fmt != FORMAT:
+        raise ModelError(f"format is {fmt!r}, not {FORMAT!r}: not a pamd ANFIS model")
+    kind = _field(doc, "kind", str, "") if "kind" in doc else "anfis"
+    if kind not in KINDS:
+        raise ModelError(f"kind {kind!r} is not stored in the {FORMAT} layout")
+    version = _field(doc, "version", int, "")
+    if version != VERSION:
+        raise ModelError(
+            f"version {version} is not supported (this pamd reads version {VERSION}); "
+            "use a matching pamd or re-train the model"
+        )
+    raw_inputs = _field(doc, "inputs", list, "")
+    inputs = [_variable(v, f"inputs[{i}]") for i, v in enumerate(raw_inputs)]
+    d = len(inputs)
+    if d == 0:
+        raise ModelError("field inputs: no inputs")
+    output = _variable(_field(doc, "output", dict, ""), "output")
+    scaling = _field(doc, "scaling", dict, "")
+    membership = _field(doc, "membership", dict, "")
+    mf_type = _field(membership, "type", str, "membership")
+    mf_inputs = _field(membership, "inputs", list, "membership")
+    if len(mf_inputs) != d:
+        raise ModelError(f"field membership.inputs: expected {d} entries, got {len(mf_inputs)}")
+    centres, widths, slopes = [], [], []
+    for i, entry in enumerate(mf_inputs):
+        where = f"membership.inputs[{i}]"
+        c = _numbers(entry, "centres", where)
+        centres.append(c)
+        widths.append(_numbers(entry, "widths", where, len(c)))
+        if mf_type == "bell":
+            slopes.append(_numbers(entry, "slopes", where, len(c)))
+    n_rules = math.prod(len(c) for c in centres)
+    rules = _field(doc, "rules", list, "")
+    if len(rules) != n_rules:
+        raise ModelError(f"field rules: expected {n_rules} rules for the MF grid, got {len(rules)}")
+    consequents = []
+    expected_mfs = _grid(tuple(len(c) for c in centres))
+    for r, (rule, mfs) in enumerate(zip(rules, expected_mfs, strict=True)):
+        where = f"rules[{r}]"
+        if _field(rule, "mfs", list, where) != list(mfs):
+            raise ModelError(f"field {where}.mfs: expected {list(mfs)} (grid order)")
+        q = _field(rule, "q", (int, float), where)
+        if not math.isfinite(q):
+            raise ModelError(f"field {where}.q: non-finite number")
+        consequents.append([*_numbers(rule, "p", where, d), float(q)])
+    model = AnfisModel(
+        inputs,
+        output,
+        mf_type=mf_type,
+        scaling=_field(scaling, "method", str, "scaling"),
+        scale_offset=_numbers(scaling, "offset", "scaling", d),
+        scale_span=_numbers(scaling, "span", "scaling", d),
+        centres=centres,
+        widths=widths,
+        slopes=slopes if mf_type == "bell" else None,
+        consequents=consequents,
+        derived_inputs=_optional_dict(doc, "derived_inputs"),
+        provenance=_optional_dict(doc, "provenance"),
+        metrics=_optional_dict(doc, "metrics"),
+    )
+    model.kind = kind
+    return model
+
+
+def _optional_dict(doc: dict[str, Any], key: str) -> dict[str, Any]:
+    return _field(doc, key, dict, "") if key in doc else {}
+
+
+def _grid(n_mfs: tuple[int, ...]) -> list[tuple[int, ...]]:
+
+    return list(itertools.product(*(range(m) for m in n_mfs)))

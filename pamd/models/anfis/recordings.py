@@ -1,0 +1,221 @@
+"""Recorded runs read for training: MCAP files written by `pamd run --record` and CSV
+files with named columns (as `pamd export` writes them, or a lab's MATLAB export).
+
+Role: turn each file into `Run`s (one per muscle) at the recording's own rate, with
+the supervisor state, the load and the events where the file has them. A file that
+cannot be used is refused with `ModelError` naming the file and the problem.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from pamd.errors import ModelError, RecordingError
+from pamd.models.anfis.samples import Run
+from pamd.record import files
+from pamd.tick import Mode, State
+
+#: Accepted names of a CSV time column (case-insensitive) and their scale to seconds.
+TIME_COLUMNS: tuple[tuple[str, float], ...] = (
+    ("t_s", 1.0), ("time_s", 1.0), ("time", 1.0), ("t", 1.0), ("log_time_ns", 1e-9),
+)
+
+
+def read_runs(paths: Sequence[str], muscle: str | None = None) -> list[Run]:
+    """Every run in `paths` (MCAP files by their magic bytes, anything else as CSV)."""
+    if not paths:
+        raise ModelError("no data files given")
+    runs: list[Run] = []
+    for p in paths:
+        if not os.path.exists(p):
+            raise ModelError(f"{p}: no such file")
+        if os.path.isdir(p):
+            raise ModelError(f"{p}: is a directory; name the .mcap or .csv files in it")
+        with open(p, "rb") as fh:
+            head = fh.read(8)
+        if head.startswith(b"\x89MCAP"):
+            runs += read_mcap(p, muscle)
+        else:
+            runs.append(read_csv(p))
+    return runs
+
+
+def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
+    """The runs of one recording: one per muscle state topic (or only `muscle`)."""
+
+    try:
+        info = files.inspect(path)
+    except RecordingError as exc:
+        raise ModelError(str(exc)) from None
+    if not info["finalised"]:
+        raise ModelError(f"{path}: unfinished recording; run `pamd recover {path}` first")
+    meta = info["metadata"]
+    loads = {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
+    topics = [c["topic"] for c in info["channels"]]
+    state_topics = {t.rsplit("/", 1)[1]: t for t in topics if "/state/" in t}
+    if muscle is not None:
+        if muscle not in state_topics:
+            raise ModelError(f"{path}: no muscle {muscle!r} recorded (muscles: "
+                             f"{', '.join(state_topics) or 'none'})")
+        state_topics = {muscle: state_topics[muscle]}
+    if not state_topics:
+        raise ModelError(f"{path}: no /pamd/<rig>/state/<muscle> topic in this recording")
+    wanted = {t: m for m, t in state_topics.items()}
+    rows: dict[str, list[list[Any]]] = {t: [] for t in wanted}
+    cols: dict[str, list[str]] = {}
+    loop_rows: list[list[Any]] = []
+    loop_cols: list[str] = []
+    events: list[tuple[float, str, dict[str, Any]]] = []
+    dec = files.Decoder()
+    try:
+        for ch, schema, msg in files.iter_messages(path):
+            topic = ch.topic
+            if topic in rows:
+                if topic not in cols:
+                    cols[topic] = dec.columns(ch, schema) or []
+                row = dec.decode(ch, schema, msg.data)
+                if row is not None:
+                    rows[topic].append(row)
+            elif topic.endswith("/loop"):
+                if not loop_cols:
+                    loop_cols = dec.columns(ch, schema) or []
+                row = dec.decode(ch, schema, msg.data)
+                if row is not None:
+                    loop_rows.append(row)
+            elif topic.endswith("/events"):
+                try:
+                    ev = json.loads(msg.data)
+                except ValueError:
+                    continue
+                if isinstance(ev, dict):
+                    events.append((float(ev.get("t_s") or 0.0), str(ev.get("kind")),
+                                   ev.get("data") or {}))
+    except RecordingError as exc:
+        raise ModelError(str(exc)) from None
+    state_by_tick: dict[int, float] = {}
+    if loop_cols and "state" in loop_cols and "tick" in loop_cols:
+        it, ist = loop_cols.index("tick"), loop_cols.index("state")
+        state_by_tick = {int(r[it]): float(r[ist]) for r in loop_rows}
+    runs = []
+    for topic, m in wanted.items():
+        names = cols.get(topic, [])
+        data = rows[topic]
+        if not data:
+            raise ModelError(f"{path}: topic {topic} holds no messages")
+        arr = np.array(data, dtype=np.float64)
+        columns = {n: arr[:, i] for i, n in enumerate(names)}
+        if "t_s" not in columns:
+            raise ModelError(f"{path}: topic {topic} has no t_s field")
+        if state_by_tick and "tick" in columns:
+            columns["state"] = np.array([state_by_tick.get(int(k), math.nan)
+                                         for k in columns["tick"]])
+        muscle_events = [e for e in events
+                         if e[2].get("args", {}).get("muscle") in (None, m)]
+        runs.append(Run(source=path, muscle=m, t_s=columns["t_s"], columns=columns,
+                        load_kg=loads.get(m), events=muscle_events,
+                        meta={"rig_id": meta.get("pamd", {}).get("rig_id"),
+                              "rate_hz": _float_or_none(meta.get("pamd", {}).get("rate_hz"))}))
+    return runs
+
+
+def read_csv(path: str) -> Run:
+    """A CSV file with a header row of column names (case-insensitive; units in the
+    names as pamd writes them: force_n, length_mm, pressure_bar, ...) and a time
+    column (t_s, time_s, time, t or log_time_ns). A muscle file of `pamd export`
+    (<topic>_state_<muscle>.csv) takes each tick's state from the loop file beside it."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            sample = fh.read(4096)
+            fh.seek(0)
+            try:
+                dialect: Any = csv.Sniffer().sniff(sample, delimiters=",;\t")
+            except csv.Error:
+                dialect = csv.excel
+            reader = csv.reader(fh, dialect)
+            header = next(reader, None)
+            if not header:
+                raise ModelError(f"{path}: empty file (no header row)")
+            names = [h.strip().lower() for h in header]
+            raw = list(reader)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{path}: cannot read it as a CSV text file ({exc})") from None
+    if not raw:
+        raise ModelError(f"{path}: a header but no data rows")
+    columns: dict[str, np.ndarray] = {}
+    for j, name in enumerate(names):
+        try:
+            columns[name] = np.array([_cell(r, j) for r in raw], dtype=np.float64)
+        except ValueError:
+            codes = _named_codes(name, [r[j] if j < len(r) else "" for r in raw])
+            if codes is not None:  # states and modes by name (`pamd export --csv`)
+                columns[name] = codes
+            continue  # any other text column (events, notes): not usable, not needed
+    t = None
+    for tname, scale in TIME_COLUMNS:
+        if tname in columns:
+            t = columns[tname] * scale
+            break
+    if t is None:
+        raise ModelError(f"{path}: no time column (one of "
+                         f"{', '.join(n for n, _ in TIME_COLUMNS)}); the velocity and "
+                         "the settling time need one")
+    if not np.all(np.isfinite(t)):
+        raise ModelError(f"{path}: the time column has NaN/inf values")
+    if t.size > 1 and not np.all(np.diff(t) > 0):
+        k = int(np.flatnonzero(np.diff(t) <= 0)[0])
+        raise ModelError(f"{path}: time does not increase at row {k + 2} "
+                         f"({t[k]:g} then {t[k + 1]:g} s)")
+    load = None
+    if "load_kg" in columns and np.all(columns["load_kg"] == columns["load_kg"][0]):
+        load = float(columns["load_kg"][0])
+    muscle = ""
+    base = os.path.basename(path)
+    if "_state_" in base and "state" not in columns and "tick" in columns:
+        # `pamd export` writes <rig topic>_state_<muscle>.csv beside <rig topic>_loop.csv:
+        # the loop file carries the supervisor state of each tick.
+        prefix, _, rest = base.rpartition("_state_")
+        muscle = rest[:-4] if rest.endswith(".csv") else rest
+        loop_path = os.path.join(os.path.dirname(path), prefix + "_loop.csv")
+        if os.path.exists(loop_path):
+            loop = read_csv(loop_path).columns
+            if "tick" in loop and "state" in loop:
+                state = dict(zip(loop["tick"].tolist(), loop["state"].tolist(), strict=True))
+                columns["state"] = np.array([state.get(k, math.nan)
+                                             for k in columns["tick"].tolist()])
+    return Run(source=path, muscle=muscle, t_s=t - t[0], columns=columns, load_kg=load)
+
+
+def _named_codes(name: str, cells: list[str]) -> np.ndarray | None:
+    """A `state` or `mode` column of names (IDLE, RUNNING; pressure) as their codes."""
+
+    table = ({s.name: float(s.value) for s in State} if name == "state" else
+             {m.name.lower(): float(m.value) for m in Mode} if name == "mode" else None)
+    if table is None:
+        return None
+    try:
+        return np.array([table[c.strip()] if c.strip() else math.nan for c in cells])
+    except KeyError:
+        return None
+
+
+def _cell(row: list[str], j: int) -> float:
+    if j >= len(row):
+        return math.nan
+    s = row[j].strip()
+    if s == "" or s.lower() in ("nan", "null", "none"):
+        return math.nan
+    return float(s)
+
+
+def _float_or_none(v: Any) -> float | None:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return None

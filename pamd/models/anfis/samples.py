@@ -1,0 +1,141 @@
+"""The data of ANFIS training: one recorded run, what to extract from runs, and the
+training pairs with their provenance.
+
+Role: the types that reading (`pamd.models.anfis.recordings`), extraction
+(`pamd.models.anfis.extraction`) and splitting (`pamd.models.anfis.splitting`) pass between them,
+and the model inputs and outputs they can produce, with units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from pamd.errors import ModelError
+from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
+from pamd.tick import Flag
+
+#: Model inputs this module can produce, with units.
+INPUT_UNITS: dict[str, str] = {
+    "force_n": "N", "length_mm": "mm", "contraction": "", "velocity_mm_s": "mm/s",
+}
+#: Outputs it can produce (measured signals), with units.
+OUTPUT_UNITS: dict[str, str] = {"pressure_bar": "bar", "force_n": "N", "length_mm": "mm"}
+
+#: Flag bits whose samples are not training data.
+DROP_FLAGS = int(Flag.STALE | Flag.SOFT_LIMIT_PRESSURE | Flag.SOFT_LIMIT_CONTRACTION
+                 | Flag.PRETENSION_LIMIT | Flag.OUTPUT_SATURATED | Flag.EXHAUST_OPEN
+                 | Flag.TRACKING | Flag.NOT_REFERENCED)
+
+
+@dataclass
+class Run:
+    """One recorded run of one muscle: columns at the recording's own rate.
+
+    `columns` holds float arrays by field name (pressure_bar, force_n, length_mm, ...,
+    flags, state where known); `events` are (t_s, kind, data) from the events topic.
+    """
+
+    source: str
+    muscle: str
+    t_s: np.ndarray
+    columns: dict[str, np.ndarray]
+    load_kg: float | None = None
+    events: list[tuple[float, str, dict[str, Any]]] = field(default_factory=list)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        return f"{self.source} [{self.muscle}]" if self.muscle else self.source
+
+
+@dataclass(frozen=True)
+class ExtractOptions:
+    """What to extract and what to drop (see `pamd.models.anfis.extraction`)."""
+
+    inputs: tuple[str, ...] = ("force_n", "length_mm")
+    output: str = "pressure_bar"
+    muscle: str | None = None  # MCAP: only this muscle (default: every muscle, pooled)
+    settle_s: float = 2.0  # dropped at the start of each run, state stretch and lead-in
+    rate_hz: float = 50.0  # decimated sample rate
+    drop_flags: int = DROP_FLAGS
+    velocity_window_s: float = MODEL_VELOCITY_WINDOW_S  # the model's velocity filter
+    min_samples: int = 50  # fewer kept samples than this is refused
+
+    def check(self) -> None:
+        unknown = [n for n in self.inputs if n not in INPUT_UNITS]
+        if unknown:
+            raise ModelError(f"unknown input(s) {', '.join(unknown)}; inputs are chosen from "
+                             f"{', '.join(INPUT_UNITS)}")
+        if len(set(self.inputs)) != len(self.inputs) or not self.inputs:
+            raise ModelError(f"inputs must be distinct and at least one: {self.inputs}")
+        if self.output not in OUTPUT_UNITS:
+            raise ModelError(f"unknown output {self.output!r}; use one of "
+                             f"{', '.join(OUTPUT_UNITS)}")
+        if self.output in self.inputs:
+            raise ModelError(f"{self.output} cannot be both an input and the output")
+        if not self.rate_hz > 0 or not self.settle_s >= 0:
+            raise ModelError("rate_hz must be > 0 and settle_s >= 0")
+        if not self.velocity_window_s > 0:
+            raise ModelError("the velocity window must be > 0 s")
+
+
+@dataclass
+class Samples:
+    """Training pairs: X (n x d) in input units, y (n,), each sample's time and run."""
+
+    X: np.ndarray
+    y: np.ndarray
+    t_s: np.ndarray
+    run: np.ndarray  # index into `runs`
+    inputs: tuple[str, ...]
+    output: str
+    runs: list[dict[str, Any]]  # provenance of each run (source, muscle, load, counts)
+    options: ExtractOptions
+
+    def __len__(self) -> int:
+        return int(self.y.size)
+
+    @property
+    def input_units(self) -> list[str]:
+        return [INPUT_UNITS[n] for n in self.inputs]
+
+    @property
+    def output_unit(self) -> str:
+        return OUTPUT_UNITS[self.output]
+
+    def subset(self, mask: np.ndarray) -> Samples:
+        return replace(self, X=self.X[mask], y=self.y[mask], t_s=self.t_s[mask],
+                       run=self.run[mask])
+
+    def time_axis(self) -> np.ndarray:
+        """A time axis across runs for plots: each run's time offset to follow the last."""
+        out = np.empty_like(self.t_s)
+        offset = 0.0
+        for r in np.unique(self.run):
+            sel = self.run == r
+            t = self.t_s[sel]
+            out[sel] = t - t[0] + offset
+            offset = out[sel][-1] + 1.0
+        return out
+
+    def provenance(self) -> dict[str, Any]:
+        """What the model file says about its data."""
+        o = self.options
+        loads = sorted({r["load_kg"] for r in self.runs if r.get("load_kg") is not None})
+        out: dict[str, Any] = {
+            "files": sorted({r["source"] for r in self.runs}),
+            "runs": self.runs,
+            "loads_kg": loads,
+            "samples": len(self),
+            "extraction": {
+                "settle_s": o.settle_s, "rate_hz": o.rate_hz,
+                "drop_flags": [f.name for f in Flag if f & o.drop_flags],
+                "states_kept": ["RUNNING"],
+                "lead_in_ramps": "dropped (MCAP profile commands)",
+                "velocity_window_s": o.velocity_window_s,
+            },
+        }
+        return out

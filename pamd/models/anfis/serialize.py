@@ -1,0 +1,59 @@
+"""An `AnfisModel` as its version-1 document (the layout is in `modelfile`, which
+reads it back): apart from the reader, so that the model can write itself without
+an import cycle."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from pamd.models.document import floats as _floats
+from pamd.models.document import plain as _plain
+
+if TYPE_CHECKING:
+    from pamd.models.anfis.model import AnfisModel
+
+FORMAT = "pamd-anfis"
+VERSION = 1
+
+
+def to_dict(model: AnfisModel) -> dict[str, Any]:
+    """The version-1 document for `model` (plain Python values only)."""
+    mf_inputs = []
+    for i, v in enumerate(model.inputs):
+        entry: dict[str, Any] = {
+            "input": v.name,
+            "centres": _floats(model.centres[i]),
+            "widths": _floats(model.widths[i]),
+        }
+        if model.slopes is not None:
+            entry["slopes"] = _floats(model.slopes[i])
+        mf_inputs.append(entry)
+    rules = [
+        {"mfs": list(mfs), "p": _floats(row[:-1]), "q": float(row[-1])}
+        for mfs, row in zip(model.rule_mfs, model.consequents, strict=True)
+    ]
+    head: dict[str, Any] = {"format": FORMAT, "version": VERSION}
+    if model.kind != "anfis":  # ANFIS files stay as they were (no kind field)
+        head = {"format": FORMAT, "kind": model.kind, "version": VERSION}
+    return {
+        **head,
+        "inputs": [
+            {"name": v.name, "unit": v.unit, "range": [float(v.min), float(v.max)]}
+            for v in model.inputs
+        ],
+        "output": {
+            "name": model.output.name,
+            "unit": model.output.unit,
+            "range": [float(model.output.min), float(model.output.max)],
+        },
+        "derived_inputs": _plain(model.derived_inputs),
+        "scaling": {
+            "method": model.scaling,
+            "offset": _floats(model.scale_offset),
+            "span": _floats(model.scale_span),
+        },
+        "membership": {"type": model.mf_type, "inputs": mf_inputs},
+        "rules": rules,
+        "provenance": _plain(model.provenance),
+        "metrics": _plain(model.metrics),
+    }

@@ -1,0 +1,420 @@
+"""Jang's hybrid learning for `AnfisModel`: least squares + normalised gradient descent.
+
+Role: fit a model to data. Each epoch (batch, vectorised numpy):
+
+1. Forward pass: with the premise (MF) parameters fixed, the output is linear in the
+   consequents, so they are solved by linear least squares over all training
+   samples (`solve_consequents`: the normal equations behind a condition-number
+   check, with one refinement step, else SVD-based `numpy.linalg.lstsq`).
+2. Backward pass: with the consequents fixed, the analytic gradient of
+   E = 1/2 sum (y_hat - y)^2 with respect to every premise parameter is computed
+   (`error_and_gradient`), and the premise parameters take one step of length
+   `step` along -gradient / ||gradient|| (as MATLAB's anfis does).
+3. The step size follows MATLAB/Jang's rule (`update_step_size`): grow by
+   `step_increase` after four consecutive decreases of the training error, shrink by
+   `step_decrease` after two consecutive (increase, decrease) combinations.
+
+The model of the best epoch is kept: lowest validation RMSE when a validation set is
+given (or split off with `validation_fraction`), else lowest training RMSE. Widths
+are kept >= `min_width` and bell slopes >= `min_slope` (scaled units) after each step.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from pamd.metrics import regression_metrics
+from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
+from pamd.models.anfis.membership import log_membership, log_membership_grads
+from pamd.models.anfis.model import AnfisModel, init_model, rule_firing
+from pamd.version import __version__
+
+#: Progress callback: (epoch 1-based, training RMSE, validation RMSE or None).
+ProgressCallback = Callable[[int, float, float | None], None]
+
+#: Largest 1-norm condition number of the column-equilibrated Gram matrix for which
+#: the "auto" solver uses the normal equations (first solve's relative error about
+#: cond * 1e-16, shrunk by about the same factor again by one refinement step).
+NORMAL_EQUATIONS_MAX_COND = 1e12
+
+
+@dataclass
+class TrainingOptions:
+    """Model layout and training settings. Layout fields are used by `fit` only."""
+
+    n_mfs: int | Sequence[int] = 3  # MFs per input (one int for all, or one per input)
+    mf_type: str = "gaussian"  # "gaussian" or "bell"
+    scaling: str = "minmax"  # "minmax" ([0, 1]) or "zscore"
+    width_factor: float = 1.0  # initial MF width relative to the grid spacing
+    epochs: int = 100
+    initial_step: float = 0.01  # step length in scaled parameter space
+    step_increase: float = 1.1
+    step_decrease: float = 0.9
+    error_goal: float = 0.0  # stop once the training RMSE is at or below this
+    solver: str = "auto"  # "auto" (normal equations if well conditioned) or "lstsq" (SVD)
+    ridge: float = 0.0  # adds ridge * ||consequents||^2 to the squared error (0 = none)
+    validation_fraction: float = 0.0  # hold out this share when no validation set is given
+    seed: int = 0  # seeds the validation hold-out (the only random choice)
+    restore_best: bool = True  # end with the best epoch's parameters
+    min_width: float = 1e-3  # lower bound on MF widths, scaled units
+    min_slope: float = 0.5  # lower bound on bell slopes b
+
+
+@dataclass
+class TrainingResult:
+    """What `train`/`fit` return. Epoch numbers are 1-based; histories are per epoch."""
+
+    model: AnfisModel
+    train_rmse: np.ndarray
+    val_rmse: np.ndarray | None
+    step_sizes: np.ndarray  # step size in force after each epoch's error was known
+    best_epoch: int
+    selected_on: str  # "validation" or "training"
+    seconds: float
+
+
+@dataclass(frozen=True)
+class StepSizeState:
+    """Step size and the epochs (0-based) of its last increase and decrease."""
+
+    step: float
+    last_increase: int = 0
+    last_decrease: int = 0
+
+
+def update_step_size(
+    errors: Sequence[float],
+    state: StepSizeState,
+    increase: float = 1.1,
+    decrease: float = 0.9,
+) -> StepSizeState:
+    """Jang's step-size rule after the error of epoch len(errors) - 1 is known.
+
+    Shrink by `decrease` if the last five errors went up, down, up, down (two
+    consecutive increase-decrease combinations); otherwise grow by `increase` if they
+    went down four times in a row. Each rule looks only at windows lying after its own
+    last firing (at least four epochs apart), so one run of decreases is not counted
+    twice. Pure function: returns a new state.
+    """
+    i = len(errors) - 1
+    e = errors
+    if i - state.last_decrease >= 4 and (
+        e[i - 4] < e[i - 3] and e[i - 3] > e[i - 2] and e[i - 2] < e[i - 1] and e[i - 1] > e[i]
+    ):
+        return StepSizeState(state.step * decrease, state.last_increase, i)
+    if i - state.last_increase >= 4 and (e[i - 4] > e[i - 3] > e[i - 2] > e[i - 1] > e[i]):
+        return StepSizeState(state.step * increase, i, state.last_decrease)
+    return state
+
+
+def solve_consequents(
+    A: np.ndarray, y: np.ndarray, *, solver: str = "auto", ridge: float = 0.0
+) -> np.ndarray:
+    """Least-squares consequents theta minimising ||A theta - y||^2 + ridge ||theta||^2.
+
+    ``"lstsq"``: SVD-based `numpy.linalg.lstsq` (rank-deficient columns, e.g. rules
+    that never fire, get the minimum-norm solution). ``"auto"``: the normal equations,
+    column-equilibrated (unit diagonal), but only when their 1-norm condition number
+    ||G||_1 ||G^-1||_1 is at most `NORMAL_EQUATIONS_MAX_COND`, followed by one step
+    of iterative refinement on the normal-equation residual (which takes the error
+    from about cond * 1e-16 down to least-squares accuracy); otherwise, or with an
+    all-zero column, it falls back to lstsq. "auto" is several times faster.
+    A ridge > 0 is applied as extra rows sqrt(ridge) * I (lstsq) or on the diagonal.
+    """
+    if solver not in ("lstsq", "auto"):
+        raise ValueError(f"unknown solver {solver!r}; expected 'lstsq' or 'auto'")
+    p = A.shape[1]
+    if solver == "auto":
+        gram = A.T @ A
+        if ridge > 0:
+            gram[np.diag_indices(p)] += ridge
+        d = np.sqrt(np.diag(gram))
+        if np.all(d > 0):
+            scaled = gram / np.outer(d, d)  # unit diagonal: column equilibration
+            try:
+                inv = np.linalg.inv(scaled)
+            except np.linalg.LinAlgError:
+                inv = None
+            if inv is not None:
+                cond = np.abs(scaled).sum(axis=0).max() * np.abs(inv).sum(axis=0).max()
+                if cond <= NORMAL_EQUATIONS_MAX_COND:
+                    x = (inv @ ((A.T @ y) / d)) / d
+                    # One refinement step on the normal-equation residual.
+                    r = A.T @ (y - A @ x) - ridge * x
+                    return x + (inv @ (r / d)) / d
+    if ridge > 0:
+        A = np.vstack([A, math.sqrt(ridge) * np.eye(p)])
+        y = np.concatenate([y, np.zeros(p)])
+    return np.linalg.lstsq(A, y, rcond=None)[0]
+
+
+class _Layout:
+    """A model's fixed structure, precomputed once, and the forward pass on a flat
+    premise vector (the training loop updates that vector, not the model)."""
+
+    def __init__(self, model: AnfisModel) -> None:
+        self.mf_type = model.mf_type
+        self.k = sum(model.n_mfs)
+        self.mf_input = model.mf_input
+        self.rule_index = model.rule_index
+        self.n_rules = model.n_rules
+        self.cons_shape = (model.n_rules, model.n_inputs + 1)
+        # indicator[r, k] = 1 if rule r uses MF k (flat order).
+        self.indicator = np.zeros((self.n_rules, self.k))
+        self.indicator[np.arange(self.n_rules), self.rule_index] = 1.0
+
+    def params(self, vec: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        k = self.k
+        return vec[:k], vec[k : 2 * k], vec[2 * k : 3 * k] if self.mf_type == "bell" else None
+
+    def forward(self, vec: np.ndarray, S: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Normalised firing strengths (n x R) and d log mu / d (centre, width(, slope)),
+        each (n x K) in flat MF order."""
+        log_mu, dlogs = log_membership_grads(self.mf_type, S[:, self.mf_input], *self.params(vec))
+        return rule_firing(log_mu, self.rule_index), dlogs
+
+    def predict(self, vec: np.ndarray, theta: np.ndarray, Sa: np.ndarray) -> np.ndarray:
+        """Output for scaled inputs with a ones column, Sa = [S, 1] (n x (d + 1))."""
+        log_mu = log_membership(self.mf_type, Sa[:, self.mf_input], *self.params(vec))
+        return np.einsum("nr,nr->n", rule_firing(log_mu, self.rule_index), Sa @ theta.T)
+
+    def gradient(
+        self,
+        wbar: np.ndarray,
+        dlogs: list[np.ndarray],
+        F: np.ndarray,
+        y_hat: np.ndarray,
+        err: np.ndarray,
+    ) -> np.ndarray:
+        """dE/d(premise vector) for E = 1/2 sum err^2, err = y_hat - y, consequents
+        fixed. d y_hat / d theta_k = d log mu_k / d theta * (sum over the rules using
+        MF k of wbar_r (f_r - y_hat)); that rule sum for every MF is one product with
+        the indicator matrix."""
+        B = ((wbar * (F - y_hat[:, None])) * err[:, None]) @ self.indicator
+        return np.concatenate([np.einsum("nk,nk->k", B, dlog) for dlog in dlogs])
+
+    def project(self, vec: np.ndarray, opts: TrainingOptions) -> np.ndarray:
+        """Keep widths (by magnitude) >= min_width and slopes >= min_slope, in place."""
+        k = self.k
+        w = vec[k : 2 * k]  # only |width| matters to the MFs; it may change sign
+        w[np.abs(w) < opts.min_width] = opts.min_width
+        if self.mf_type == "bell":
+            np.maximum(vec[2 * k :], opts.min_slope, out=vec[2 * k :])
+        return vec
+
+
+def _design(wbar: np.ndarray, Sa: np.ndarray) -> np.ndarray:
+    """Least-squares design matrix: column r*(d+1)+k is wbar_r * [s, 1]_k."""
+    return np.einsum("nr,nk->nrk", wbar, Sa).reshape(wbar.shape[0], -1)
+
+
+def _with_ones(S: np.ndarray) -> np.ndarray:
+    return np.hstack([S, np.ones((S.shape[0], 1))])
+
+
+def error_and_gradient(model: AnfisModel, X: ArrayLike, y: ArrayLike) -> tuple[float, np.ndarray]:
+    """E = 1/2 sum (y_hat - y)^2 over raw inputs X (no clipping) and its analytic
+    gradient with respect to `model.premise_vector()`, consequents held fixed."""
+    layout = _Layout(model)
+    vec = model.premise_vector()
+    Sa = _with_ones(model.scale(np.asarray(X, dtype=np.float64)))
+    wbar, dlogs = layout.forward(vec, Sa)
+    F = Sa @ model.consequents.T
+    y_hat = np.einsum("nr,nr->n", wbar, F)
+    err = y_hat - np.asarray(y, dtype=np.float64)
+    return 0.5 * float(err @ err), layout.gradient(wbar, dlogs, F, y_hat, err)
+
+
+def train(
+    model: AnfisModel,
+    X: ArrayLike,
+    y: ArrayLike,
+    options: TrainingOptions | None = None,
+    *,
+    validation: tuple[ArrayLike, ArrayLike] | None = None,
+    callback: ProgressCallback | None = None,
+) -> TrainingResult:
+    """Train `model` in place by hybrid learning on raw data X (n x d), y (n,).
+
+    Returns a `TrainingResult` whose `.model` is `model`, left at the best epoch's
+    parameters (if `restore_best`), with metrics and training provenance filled in.
+    Deterministic: the same data, options and seed give the same parameters.
+    """
+    opts = options or TrainingOptions()
+    _check_options(opts)
+    names = [v.name for v in model.inputs]
+    Xa, ya = as_inputs_outputs(X, y, names, model.output.name)
+    if validation is None and opts.validation_fraction > 0:
+        Xa, ya, Xv, yv = _split(Xa, ya, opts.validation_fraction, opts.seed)
+    elif validation is not None:
+        Xv, yv = as_inputs_outputs(*validation, names, model.output.name, what="validation data")
+    else:
+        Xv = yv = None
+    check_trainable(Xa, model.n_params, names)
+    t0 = time.perf_counter()
+    layout = _Layout(model)
+    Sa = _with_ones(model.scale(np.clip(Xa, model.input_lo, model.input_hi)))
+    Sva = (
+        None if Xv is None else _with_ones(model.scale(np.clip(Xv, model.input_lo, model.input_hi)))
+    )
+    vec = model.premise_vector()
+    theta = model.consequents
+    state = StepSizeState(opts.initial_step)
+    train_hist: list[float] = []
+    val_hist: list[float] = []
+    steps: list[float] = []
+    best = (math.inf, 0, vec.copy(), theta.copy())
+    for epoch in range(1, opts.epochs + 1):
+        wbar, dlogs = layout.forward(vec, Sa)
+        theta = solve_consequents(_design(wbar, Sa), ya, solver=opts.solver, ridge=opts.ridge)
+        theta = theta.reshape(layout.cons_shape)
+        F = Sa @ theta.T
+        y_hat = np.einsum("nr,nr->n", wbar, F)
+        err = y_hat - ya
+        rmse = math.sqrt(float(err @ err) / err.size)
+        train_hist.append(rmse)
+        val_rmse = None
+        if Sva is not None:
+            ev = layout.predict(vec, theta, Sva) - yv
+            val_rmse = math.sqrt(float(ev @ ev) / ev.size)
+            val_hist.append(val_rmse)
+        score = rmse if val_rmse is None else val_rmse
+        if score < best[0]:
+            best = (score, epoch, vec.copy(), theta.copy())
+        if callback is not None:
+            callback(epoch, rmse, val_rmse)
+        state = update_step_size(train_hist, state, opts.step_increase, opts.step_decrease)
+        steps.append(state.step)
+        if epoch == opts.epochs or rmse <= opts.error_goal:
+            break
+        grad = layout.gradient(wbar, dlogs, F, y_hat, err)
+        norm = float(np.linalg.norm(grad))
+        if not norm > 0 or not math.isfinite(norm):
+            break  # at a stationary point (or broken): nothing more to learn
+        vec = layout.project(vec - state.step * grad / norm, opts)
+    if opts.restore_best:
+        vec, theta = best[2], best[3]
+    k = layout.k
+    vec[k : 2 * k] = np.abs(vec[k : 2 * k])  # the sign of a width is immaterial
+    model.set_premise_vector(vec)
+    model.consequents = np.array(theta)
+    seconds = time.perf_counter() - t0
+    result = TrainingResult(
+        model=model,
+        train_rmse=np.array(train_hist),
+        val_rmse=None if Sva is None else np.array(val_hist),
+        step_sizes=np.array(steps),
+        best_epoch=best[1] if opts.restore_best else len(train_hist),
+        selected_on="training" if Sva is None else "validation",
+        seconds=seconds,
+    )
+    _record(model, opts, result, Xa, ya, Xv, yv)
+    return result
+
+
+def _check_options(opts: TrainingOptions) -> None:
+    problems = [
+        f"{name} = {value!r}: {need}"
+        for name, value, ok, need in [
+            ("epochs", opts.epochs, opts.epochs >= 1, "need at least 1"),
+            ("initial_step", opts.initial_step, opts.initial_step > 0, "must be > 0"),
+            ("step_increase", opts.step_increase, opts.step_increase >= 1, "must be >= 1"),
+            ("step_decrease", opts.step_decrease, 0 < opts.step_decrease <= 1, "in (0, 1]"),
+            ("ridge", opts.ridge, opts.ridge >= 0, "must be >= 0"),
+            ("min_width", opts.min_width, opts.min_width > 0, "must be > 0"),
+        ]
+        if not ok
+    ]
+    if problems:
+        raise ValueError("invalid training options: " + "; ".join(problems))
+
+
+def _split(
+    X: np.ndarray, y: np.ndarray, fraction: float, seed: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Random hold-out of round(fraction * n) samples, reproducible for a seed."""
+    if not 0 < fraction < 1:
+        raise ValueError(f"validation_fraction must be in (0, 1), got {fraction}")
+    n = X.shape[0]
+    n_val = int(round(fraction * n))
+    order = np.random.default_rng(seed).permutation(n)
+    val, trn = np.sort(order[:n_val]), np.sort(order[n_val:])
+    return X[trn], y[trn], X[val], y[val]
+
+
+def _record(
+    model: AnfisModel,
+    opts: TrainingOptions,
+    result: TrainingResult,
+    X: np.ndarray,
+    y: np.ndarray,
+    Xv: np.ndarray | None,
+    yv: np.ndarray | None,
+) -> None:
+    """Fill model.metrics and model.provenance["training"] from a finished run."""
+
+    p = model.n_params
+    model.metrics["train"] = regression_metrics(y, model.predict(X), p)
+    if Xv is not None and yv is not None:
+        model.metrics["validation"] = regression_metrics(yv, model.predict(Xv), p)
+    settings = asdict(opts)
+    if not isinstance(settings["n_mfs"], int):
+        settings["n_mfs"] = [int(m) for m in settings["n_mfs"]]
+    model.provenance["training"] = {
+        "method": "hybrid (least squares + normalised gradient descent, Jang 1993)",
+        "options": settings,
+        "n_train": int(X.shape[0]),
+        "n_validation": 0 if Xv is None else int(Xv.shape[0]),
+        "epochs_run": int(result.train_rmse.size),
+        "best_epoch": int(result.best_epoch),
+        "selected_on": result.selected_on,
+        "final_step": float(result.step_sizes[-1]) if result.step_sizes.size else None,
+        "seconds": round(result.seconds, 3),
+        "pamd_version": __version__,
+        "numpy_version": np.__version__,
+    }
+
+
+def fit(
+    X: ArrayLike,
+    y: ArrayLike,
+    options: TrainingOptions | None = None,
+    *,
+    input_names: Sequence[str] | None = None,
+    input_units: Sequence[str] | None = None,
+    output_name: str = "y",
+    output_unit: str = "",
+    validation: tuple[ArrayLike, ArrayLike] | None = None,
+    callback: ProgressCallback | None = None,
+    derived_inputs: dict[str, Any] | None = None,
+    provenance: dict[str, Any] | None = None,
+) -> TrainingResult:
+    """Check the data, lay out a model over its ranges (`init_model`) and `train` it."""
+    opts = options or TrainingOptions()
+    Xa, ya = as_inputs_outputs(X, y, input_names, output_name)
+    if validation is None and opts.validation_fraction > 0:
+        Xa, ya, Xv, yv = _split(Xa, ya, opts.validation_fraction, opts.seed)
+        validation = (Xv, yv)
+    check_trainable(Xa, 0, input_names)  # constant columns first: they break the layout
+    init = init_model(
+        Xa,
+        ya,
+        n_mfs=opts.n_mfs,
+        mf_type=opts.mf_type,
+        scaling=opts.scaling,
+        width_factor=opts.width_factor,
+        input_names=input_names,
+        input_units=input_units,
+        output_name=output_name,
+        output_unit=output_unit,
+        derived_inputs=derived_inputs,
+        provenance=provenance,
+    )
+    return train(init, Xa, ya, opts, validation=validation, callback=callback)

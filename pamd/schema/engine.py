@@ -1,0 +1,235 @@
+"""The validation engine: YAML values -> frozen dataclasses, with every problem
+reported by file, line and key path.
+
+A schema is a frozen dataclass whose fields carry metadata: `doc` (one sentence),
+optional `unit`, `min`, `max` (inclusive) and `gt` (exclusive lower bound), and
+`ceiling`: a safe upper value below `max` that only `safety.relax_ceilings: true` lets a
+value pass (values above it are collected in `Context.over_ceiling`, never silently).
+Supported field types: bool, int, float, str, Literal[...], X | None, nested
+dataclasses, tuple[X, ...] and dict[str, Any] (kept raw, validated later by
+whoever owns it: driver options are validated with the driver's own dataclass).
+Unknown keys are errors. The same metadata generates the config reference.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import types
+import typing
+from dataclasses import MISSING, dataclass, field
+from typing import Any, Literal, Union
+
+from pamd.errors import ConfigError, ConfigIssue
+from pamd.schema.yamlload import LinedDict, LinedList
+
+
+def spec(default: Any = MISSING, doc: str = "", **meta: Any) -> Any:
+    """A schema field: `spec(1000.0, "Loop rate.", unit="Hz", gt=0)`."""
+    meta["doc"] = doc
+    if isinstance(default, (list, dict)):
+        raise TypeError("use tuples or default_factory for mutable defaults")
+    if dataclasses.is_dataclass(default):
+        return field(default_factory=lambda: default, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass
+class Context:
+    """Where we are: the file being validated and the problems found so far."""
+
+    file: str
+    issues: list[ConfigIssue] = field(default_factory=list)
+    #: values within their bounds but above their safe `ceiling` (the loader decides)
+    over_ceiling: list[ConfigIssue] = field(default_factory=list)
+
+    def add(self, line: int | None, path: str, expected: str, found: str = "") -> None:
+        self.issues.append(ConfigIssue(self.file, line, path, expected, found))
+
+    def raise_if_any(self) -> None:
+        if self.issues:
+            raise ConfigError(self.issues)
+
+
+def describe(value: Any) -> str:
+    """How a found value is shown to the operator."""
+    if value is None:
+        return "nothing (null)"
+    if isinstance(value, bool):
+        return f"{str(value).lower()} (a boolean)"
+    if isinstance(value, (dict,)):
+        return "a mapping"
+    if isinstance(value, (list,)):
+        return "a list"
+    if isinstance(value, str):
+        return f"{value!r} (text)"
+    return repr(value)
+
+
+def _type_name(tp: Any) -> str:
+    if tp is Any:
+        return "a mapping (checked by its owner)"
+    origin = typing.get_origin(tp)
+    if origin is Literal:
+        return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
+    if origin in (Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        return " or ".join(_type_name(a) for a in args) + " or null"
+    if origin is tuple:
+        return f"a list of {_type_name(typing.get_args(tp)[0])}"
+    if origin is dict:
+        return "a mapping"
+    if dataclasses.is_dataclass(tp):
+        return "a mapping"
+    return {bool: "true or false", int: "an integer", float: "a number", str: "text"}.get(
+        tp, str(tp)
+    )
+
+
+def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
+    unit = f" {meta['unit']}" if meta.get("unit") else ""
+    parts = []
+    if "gt" in meta:
+        parts.append(f"greater than {meta['gt']}{unit}")
+    if "min" in meta:
+        parts.append(f"at least {meta['min']}{unit}")
+    if "ceiling" in meta:
+        parts.append(f"at most {meta['ceiling']}{unit} ({meta['max']}{unit} with "
+                     "safety.relax_ceilings: true)")
+    elif "max" in meta:
+        parts.append(f"at most {meta['max']}{unit}")
+    return " and ".join(parts)
+
+
+def build(tp: Any, value: Any, ctx: Context, path: str, line: int | None,
+          meta: typing.Mapping[str, Any] | None = None) -> Any:
+    """Validate `value` against type `tp`; record issues in ctx; return the built
+    value (or None where it was invalid)."""
+    meta = meta or {}
+    origin = typing.get_origin(tp)
+    if origin in (Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if value is None:
+            return None
+        return build(args[0], value, ctx, path, line, meta)
+    if origin is Literal:
+        allowed = typing.get_args(tp)
+        if value not in allowed or isinstance(value, bool) != isinstance(allowed[0], bool):
+            ctx.add(line, path, _type_name(tp), describe(value))
+            return None
+        return value
+    if origin is tuple:
+        if not isinstance(value, list):
+            ctx.add(line, path, _type_name(tp), describe(value))
+            return None
+        item_tp = typing.get_args(tp)[0]
+        lines = getattr(value, "item_lines", [line] * len(value))
+        return tuple(
+            build(item_tp, v, ctx, f"{path}[{i}]", lines[i]) for i, v in enumerate(value)
+        )
+    if tp is Any:
+        return value
+    if origin is dict or tp is dict:
+        if not isinstance(value, dict):
+            ctx.add(line, path, "a mapping", describe(value))
+            return None
+        return value
+    if dataclasses.is_dataclass(tp):
+        return build_dataclass(tp, value, ctx, path, line)
+    if tp is bool:
+        if not isinstance(value, bool):
+            ctx.add(line, path, "true or false", describe(value))
+            return None
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            ctx.add(line, path, "text", describe(value))
+            return None
+        return value
+    if tp in (int, float):
+        ok = isinstance(value, int) if tp is int else isinstance(value, (int, float))
+        if isinstance(value, bool) or not ok:
+            ctx.add(line, path, _type_name(tp) + _unit_suffix(meta), describe(value))
+            return None
+        if tp is float:
+            value = float(value)
+            if not math.isfinite(value):
+                ctx.add(line, path, "a finite number", describe(value))
+                return None
+        bad = (
+            ("gt" in meta and not value > meta["gt"])
+            or ("min" in meta and value < meta["min"])
+            or ("max" in meta and value > meta["max"])
+        )
+        if bad:
+            unit = f" {meta['unit']}" if meta.get("unit") else ""
+            ctx.add(line, path, f"a value {_bounds_text(meta)}", f"{value}{unit}")
+            return None
+        if "ceiling" in meta and value > meta["ceiling"]:
+            unit = f" {meta['unit']}" if meta.get("unit") else ""
+            ctx.over_ceiling.append(ConfigIssue(
+                ctx.file, line, path, f"at most {meta['ceiling']}{unit} (the safe ceiling; "
+                "`safety.relax_ceilings: true` allows up to "
+                f"{meta.get('max', 'any')}{unit})", f"{value}{unit}"))
+        return value
+    raise TypeError(f"schema type {tp!r} at {path} is not supported")
+
+
+def _unit_suffix(meta: typing.Mapping[str, Any]) -> str:
+    return f" in {meta['unit']}" if meta.get("unit") else ""
+
+
+def build_dataclass(cls: type, value: Any, ctx: Context, path: str, line: int | None) -> Any:
+    """Validate a mapping against dataclass `cls`: unknown keys, missing keys, each
+    field's type and bounds. Returns an instance (invalid fields left at default)."""
+    if value is None:
+        value = LinedDict()
+        value.line, value.key_lines = line, {}
+    if not isinstance(value, dict):
+        ctx.add(line, path, f"a mapping of {cls.__name__} keys", describe(value))
+        return None
+    key_lines = getattr(value, "key_lines", {})
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    hints = typing.get_type_hints(cls)
+    prefix = f"{path}." if path else ""
+    for key in value:
+        if key not in fields:
+            near = _closest(str(key), list(fields))
+            hint = f" (did you mean {near!r}?)" if near else ""
+            ctx.add(
+                key_lines.get(key, getattr(value, "line", line)),
+                f"{prefix}{key}",
+                f"one of the known keys {', '.join(fields)}{hint}",
+                "an unknown key",
+            )
+    kwargs: dict[str, Any] = {}
+    for name, f in fields.items():
+        key_line = key_lines.get(name, getattr(value, "line", line))
+        if name not in value:
+            if f.default is MISSING and f.default_factory is MISSING:
+                ctx.add(getattr(value, "line", line), f"{prefix}{name}",
+                        f"key {name!r}: {f.metadata.get('doc', '')}".rstrip(": "), "it missing")
+            continue
+        built = build(hints[name], value[name], ctx, f"{prefix}{name}", key_line, f.metadata)
+        if built is not None or value[name] is None:
+            kwargs[name] = built
+    try:
+        return cls(**kwargs)
+    except TypeError:
+        return None  # a required field was invalid; already reported
+
+
+def _closest(word: str, choices: list[str]) -> str | None:
+
+    found = difflib.get_close_matches(word, choices, n=1, cutoff=0.6)
+    return found[0] if found else None
+
+
+def line_of(node: Any, key: str | None = None) -> int | None:
+    """The line of `key` in a loaded mapping, or of the node itself."""
+    if key is not None and isinstance(node, LinedDict):
+        return node.key_lines.get(key, node.line)
+    if isinstance(node, (LinedDict, LinedList)):
+        return node.line
+    return None

@@ -1,0 +1,191 @@
+"""Training pairs from recordings (pamd.models.anfis.recordings, .extraction, .splitting): CSV
+and MCAP, what is dropped, the velocity filter shared with the tick, the split, and bad
+data refused."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pamd.errors import ModelError
+from pamd.models.anfis.extraction import extract, load_samples
+from pamd.models.anfis.recordings import read_csv, read_runs
+from pamd.models.anfis.samples import ExtractOptions
+from pamd.models.anfis.splitting import split
+from pamd.models.velocity import VELOCITY_WINDOW_S, filtered_velocity, velocity_step
+from pamd.tick import Flag, State
+
+
+def write_csv(path: Path, n: int = 3000, rate_hz: float = 100.0, **cols: np.ndarray) -> Path:
+    """A lab-style CSV: time, force, length, pressure of a slow sweep (+ extra columns)."""
+    t = np.arange(n) / rate_hz
+    p = 3.0 + 2.5 * np.sin(2 * np.pi * 0.05 * t)
+    length = 200.0 - 6.0 * p + 0.3 * np.cos(2 * np.pi * 0.05 * t)
+    force = 294.0 + 2.0 * np.sin(2 * np.pi * 0.5 * t)
+    data = {"t_s": t, "force_n": force, "length_mm": length, "pressure_bar": p, **cols}
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(list(data))
+        for i in range(n):
+            w.writerow([repr(float(data[k][i])) for k in data])
+    return path
+
+
+def test_csv_pairs_drop_settling_and_flags_and_decimate(tmp_path: Path) -> None:
+    flags = np.zeros(3000)
+    flags[1000:1100] = int(Flag.SOFT_LIMIT_CONTRACTION)  # 1 s of soft limit
+    flags[2000:2010] = int(Flag.SLEW_LIMITED)  # kept: the measurement is sound
+    path = write_csv(tmp_path / "lab.csv", flags=flags)
+    s = load_samples([str(path)], ExtractOptions(settle_s=2.0, rate_hz=10.0))
+    assert s.inputs == ("force_n", "length_mm") and s.output == "pressure_bar"
+    assert s.t_s.min() >= 2.0  # the first 2 s settle
+    assert not np.any((s.t_s >= 10.0) & (s.t_s < 11.0))  # the soft-limit second
+    assert np.any((s.t_s >= 20.0) & (s.t_s < 20.1))  # slew-limited samples stay
+    assert np.all(np.diff(s.t_s) >= 0.1 - 1e-9)  # decimated to 10 Hz
+    dropped = s.runs[0]["dropped"]
+    assert dropped["settling"] == 200 and dropped["flag SOFT_LIMIT_CONTRACTION"] == 100
+
+
+def test_csv_semicolons_and_case_and_log_time(tmp_path: Path) -> None:
+    path = tmp_path / "matlab.csv"
+    t = np.arange(500) * 0.01
+    with open(path, "w") as fh:
+        fh.write("log_time_ns;Force_N;Length_mm;Pressure_bar;note\n")
+        for i, ti in enumerate(t):
+            fh.write(f"{int(ti * 1e9) + 10**18};{290 + i % 7};{180 + 0.01 * i};"
+                     f"{1 + 0.004 * i};x\n")
+    s = load_samples([str(path)], ExtractOptions(settle_s=0.5))
+    assert len(s) == 225 and s.t_s[0] == pytest.approx(0.5)
+
+
+def test_velocity_is_the_ticks_filter(tmp_path: Path) -> None:
+    """Velocity pairs come from length at full rate through velocity_step, then decimation."""
+    path = write_csv(tmp_path / "v.csv", n=2000, rate_hz=1000.0)
+    run = read_csv(str(path))
+    window = 0.2
+    s = extract([run], ExtractOptions(inputs=("force_n", "length_mm", "velocity_mm_s"),
+                                      settle_s=0.0, rate_hz=100.0, velocity_window_s=window))
+    v, prev, t_prev = 0.0, math.nan, math.nan
+    by_t = {}
+    for t, x in zip(run.t_s, run.columns["length_mm"], strict=True):
+        v = velocity_step(v, prev, x, t - t_prev, window)
+        prev, t_prev = x, t
+        by_t[round(float(t), 6)] = v
+    expected = [by_t[round(float(t), 6)] for t in s.t_s]
+    assert s.X[:, 2] == pytest.approx(expected, abs=1e-12)
+    assert filtered_velocity(run.t_s, run.columns["length_mm"], window)[-1] == v
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("nan", "column 'force_n' has 1 NaN"),
+    ("missing", "missing column(s) pressure_bar"),
+    ("constant", "input 'force_n' is constant"),
+    ("few", "too few samples"),
+    ("notime", "no time column"),
+    ("backwards", "time does not increase"),
+])
+def test_bad_csv_is_refused_naming_the_problem(tmp_path: Path, kind: str, message: str) -> None:
+    path = tmp_path / f"{kind}.csv"
+    if kind == "missing":
+        write_csv(path)
+        text = path.read_text().splitlines()
+        path.write_text("\n".join(",".join(r.split(",")[:3]) for r in text))
+    elif kind == "few":
+        write_csv(path, n=250)  # 2 s settle leaves 0.5 s = 25 samples at 50 Hz
+    elif kind == "notime":
+        write_csv(path)
+        path.write_text(path.read_text().replace("t_s,", "clock,", 1))
+    else:
+        write_csv(path)
+        rows = path.read_text().splitlines()
+        cells = [r.split(",") for r in rows]
+        if kind == "nan":
+            cells[1500][1] = "nan"
+        elif kind == "constant":
+            for r in cells[1:]:
+                r[1] = "294.0"
+        elif kind == "backwards":
+            cells[100][0] = "0.5"
+        path.write_text("\n".join(",".join(r) for r in cells))
+    with pytest.raises(ModelError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        load_samples([str(path)])
+
+
+def test_split_keeps_blocks_and_runs_apart(tmp_path: Path) -> None:
+    a = write_csv(tmp_path / "a.csv", n=6000)
+    b = write_csv(tmp_path / "b.csv", n=6000)
+    s = load_samples([str(a), str(b)], ExtractOptions(settle_s=0.0))
+    parts = split(s, 0.25, 0.25, by="block", block_s=5.0, seed=3)
+    assert parts.validation is not None and parts.test is not None
+    def blocks(x):
+        return {(int(r), int(t // 5.0)) for r, t in zip(x.run, x.t_s, strict=True)}
+    tr, va, te = blocks(parts.train), blocks(parts.validation), blocks(parts.test)
+    assert not (tr & va) and not (tr & te) and not (va & te)
+    assert len(parts.train) + len(parts.validation) + len(parts.test) == len(s)
+    same = split(s, 0.25, 0.25, by="block", block_s=5.0, seed=3)
+    assert np.array_equal(same.test.t_s, parts.test.t_s)  # reproducible for a seed
+    by_run = split(s, 0.5, 0.0, by="run", seed=0)
+    assert set(by_run.train.run).isdisjoint(set(by_run.validation.run))
+    with pytest.raises(ModelError, match="too few"):
+        split(s, 0.5, 0.4, by="run")  # 2 runs: one each for validation and test
+
+
+def test_mcap_pairs_keep_only_the_running_sweep(recording: Path) -> None:
+    runs = read_runs([str(recording)])
+    assert len(runs) == 1 and runs[0].muscle == "m1" and runs[0].load_kg == 30.0
+    run = runs[0]
+    s = extract(runs, ExtractOptions(settle_s=1.0, rate_hz=50.0))
+    dropped = s.runs[0]["dropped"]
+    # The profile starts at 0 bar: its lead-in ramp to mid-range (2.75 bar at 1 bar/s)
+    # plus the settling second are dropped; so are the idle ticks around the sweep.
+    assert dropped["lead-in ramp"] >= 2700
+    assert dropped["not running (idle, hold, load change, fault, estop)"] > 100
+    assert s.t_s.min() >= 2.75 + 1.0 - 0.01
+    running = run.columns["state"] == int(State.RUNNING)
+    assert s.t_s.max() <= run.t_s[running].max()
+    # The measured pressure really is the output (bar) at those times.
+    i = np.searchsorted(run.t_s, s.t_s)
+    assert s.y == pytest.approx(run.columns["pressure_bar"][i])
+
+
+def test_mcap_velocity_equals_the_recorded_tick_velocity(recording: Path) -> None:
+    """With the tick's window, the extracted velocity is the velocity the tick recorded:
+    one filter for training and the tick."""
+    runs = read_runs([str(recording)])
+    s = extract(runs, ExtractOptions(inputs=("force_n", "length_mm", "velocity_mm_s"),
+                                     velocity_window_s=VELOCITY_WINDOW_S, settle_s=0.0))
+    run = runs[0]
+    i = np.searchsorted(run.t_s, s.t_s)
+    assert s.X[:, 2] == pytest.approx(run.columns["velocity_mm_s"][i], abs=1e-9)
+
+
+def test_unknown_inputs_and_muscles_are_refused(recording: Path) -> None:
+    with pytest.raises(ModelError, match="unknown input"):
+        load_samples([str(recording)], ExtractOptions(inputs=("force_n", "stiffness")))
+    with pytest.raises(ModelError, match="no muscle 'm9'"):
+        read_runs([str(recording)], muscle="m9")
+    with pytest.raises(ModelError, match="no such file"):
+        read_runs([str(recording) + ".missing"])
+
+
+def test_pamd_export_csv_gives_the_same_pairs(recording: Path, tmp_path: Path) -> None:
+    """The CSVs of `pamd export` (state taken from the loop file beside the muscle's)
+    give the pairs the MCAP file gives, but for the lead-in, which only MCAP events
+    tell (so its settling is dropped by --settle-s alone)."""
+    from pamd.record.files import export_csv
+
+    out = export_csv(str(recording), str(tmp_path / "csv"))
+    muscle_csv = next(p for t, (p, _n) in out.items() if t.endswith("/state/m1"))
+    opts = ExtractOptions(settle_s=1.0)
+    from_csv = load_samples([muscle_csv], opts)
+    from_mcap = load_samples([str(recording)], opts)
+    assert "not running (idle, hold, load change, fault, estop)" in from_csv.runs[0]["dropped"]
+    assert from_csv.runs[0]["muscle"] == "m1"
+    both = np.intersect1d(np.round(from_csv.t_s, 6), np.round(from_mcap.t_s, 6))
+    # Every MCAP pair is a CSV pair too, but maybe the first (the CSV keeps the lead-in,
+    # so the first 20 ms bin after it can pick a different tick).
+    assert both.size >= len(from_mcap) - 1
