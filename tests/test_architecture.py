@@ -1,0 +1,162 @@
+"""The package layers (docs/architecture.md draws them), checked on the source.
+
+A module may import only from its own package or from a layer below its own; the
+packages of one layer are independent siblings (neither imports the other). So there is
+no import cycle between packages. An import inside a function is allowed only for an
+optional or heavy third-party dependency (plots, training, the network stacks), never
+to dodge a cycle. `drivers/` installs as `pamd.drivers`, which is why this test reads
+the source rather than using import-linter (it cannot see a package mapped from
+another directory).
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: top to bottom; the names of one layer are independent siblings
+LAYERS: list[list[str]] = [
+    ["__main__"],
+    ["cli"],
+    ["daemon"],
+    ["service", "io"],
+    ["view"],
+    ["net"],
+    ["harness"],
+    ["loop"],
+    ["commands"],
+    ["experiment"],
+    ["controller", "summary"],
+    ["control"],
+    ["safety"],
+    ["rig", "emulate", "models"],
+    ["drivers", "record"],
+    ["sim", "rt", "calibration"],
+    ["config"],
+    ["schema", "plugins", "ipc", "metrics", "timing", "muscle", "tick"],
+    ["errors", "version"],
+    ["data"],
+]
+
+#: third-party packages a function may import when it needs them (heavy, or optional
+#: extras, or only one command uses them): keeps `import pamd` and the daemon light
+LAZY_THIRD_PARTY = {
+    "matplotlib", "scipy", "pandas", "sklearn", "zenoh", "foxglove", "canopen", "can",
+    "serial", "pymodbus", "tqdm", "zstandard", "lz4",
+}
+
+#: pamd's own lazy imports beyond the heavy modules: the public API
+#: (`pamd.open_recording`, `pamd.connect`) on first use, so that `import pamd` does not
+#: pull the readers into the daemon and its io process
+LAZY_OWN = {"pamd/__init__.py": "pamd."}
+
+
+def _sources() -> Iterator[tuple[str, Path]]:
+    for base, prefix in (("pamd", "pamd"), ("drivers", "pamd.drivers")):
+        for path in sorted((ROOT / base).rglob("*.py")):
+            rel = path.relative_to(ROOT / base).with_suffix("")
+            parts = [p for p in rel.parts if p != "__init__"]
+            yield ".".join([prefix, *parts]), path
+
+
+def _package(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[0] == "pamd" else None
+
+
+def _imports(module: str, path: Path) -> Iterator[tuple[str, int, bool]]:
+    """(imported module, line, inside a function) for every import of the file."""
+    tree = ast.parse(path.read_text(), str(path))
+    in_function: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            in_function.update(id(n) for n in ast.walk(node) if n is not node)
+    is_package = path.name == "__init__.py"
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name, node.lineno, id(node) in in_function
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = module.split(".")
+                base = base[: len(base) - node.level + (1 if is_package else 0)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            yield target, node.lineno, id(node) in in_function
+
+
+def _layer_of() -> dict[str, int]:
+    return {name: i for i, layer in enumerate(LAYERS) for name in layer}
+
+
+def test_every_package_has_a_layer() -> None:
+    layer = _layer_of()
+    missing = sorted({p for m, _ in _sources() if (p := _package(m)) and p not in layer})
+    assert not missing, f"place these in LAYERS (and docs/architecture.md): {missing}"
+
+
+def test_imports_go_down_the_layers_only() -> None:
+    layer = _layer_of()
+    wrong = []
+    for module, path in _sources():
+        own = _package(module)
+        for target, line, _ in _imports(module, path):
+            theirs = _package(target)
+            if own is None or theirs is None or theirs == own or own == "__init__":
+                continue
+            if layer[theirs] <= layer[own]:
+                where = "a sibling" if layer[theirs] == layer[own] else "a higher layer"
+                wrong.append(f"{path.relative_to(ROOT)}:{line}: pamd.{own} imports "
+                             f"{target} ({where})")
+    assert not wrong, "\n".join(wrong)
+
+
+def _heavy_modules() -> set[str]:
+    """pamd's modules that pull a lazy third-party package when imported (directly or
+    through another such module): a function may import these on first use."""
+    pulls: dict[str, set[str]] = {}
+    for module, path in _sources():
+        pulls[module] = {t for t, _, inside in _imports(module, path) if not inside}
+    heavy = {m for m, ts in pulls.items()
+             if any(t.split(".")[0] in LAZY_THIRD_PARTY for t in ts)}
+    grew = True
+    while grew:
+        more = {m for m, ts in pulls.items() if m not in heavy and ts & heavy}
+        heavy |= more
+        grew = bool(more)
+    return heavy
+
+
+def test_no_import_hides_in_a_function() -> None:
+    stdlib = set(sys.stdlib_module_names)
+    heavy = _heavy_modules()
+    wrong = []
+    for module, path in _sources():
+        rel = str(path.relative_to(ROOT))
+        for target, line, inside in _imports(module, path):
+            if not inside:
+                continue
+            top = target.split(".")[0]
+            if top in LAZY_THIRD_PARTY:
+                continue
+            if top == "pamd" and (target in heavy or target.startswith(LAZY_OWN.get(rel, "\0"))):
+                continue
+            kind = "the standard library" if top in stdlib else "pamd" if top == "pamd" else top
+            wrong.append(f"{rel}:{line}: {target} ({kind}) imported inside a function")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_check_sees_an_upward_and_a_lazy_import(tmp_path: Path) -> None:
+    """The check itself: an import of a higher layer, and one inside a function."""
+    probe = tmp_path / "probe.py"
+    probe.write_text("from pamd.control.pid import Pid\ndef f():\n    import pamd.daemon\n")
+    found = list(_imports("pamd.config.probe", probe))
+    assert ("pamd.control.pid", 1, False) in found
+    assert ("pamd.daemon", 3, True) in found
+    layer = _layer_of()
+    assert layer["control"] < layer["config"] and layer["daemon"] < layer["config"]
