@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from pamd.config.engine import spec
+from pamd.control.profiles import kinds_reading, kinds_text
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -35,23 +36,25 @@ class SetpointArgs:
 @dataclass(frozen=True, kw_only=True)
 class ProfileArgs:
     muscle: str | None = spec(None, "Muscle name (default: every muscle).")
-    kind: str = spec("sine", "constant, step, ramp, sine or triangle.")
+    kind: str = spec("sine", f"{kinds_text()}.")
     min_bar: float = spec(0.0, "Lowest pressure.", unit="bar")
     max_bar: float = spec(6.0, "Highest pressure.", unit="bar")
-    freq_hz: float = spec(0.05, "Frequency (sine, triangle, step).", unit="Hz")
+    freq_hz: float = spec(0.05, f"Frequency ({kinds_reading('freq_hz')}).", unit="Hz")
     cycles: int | None = spec(None, "Number of cycles (default: until stopped).", min=1)
-    to_bar: float | None = spec(None, "Target (ramp, constant).", unit="bar")
+    to_bar: float | None = spec(None, f"Target ({kinds_reading('to_bar')}).", unit="bar")
     rate_bar_per_s: float | None = spec(None, "Ramp rate.", unit="bar/s", gt=0.0)
     rise_s: float | None = spec(None, "Step edge duration.", unit="s", gt=0.0)
-    duration_s: float | None = spec(None, "Duration (constant).", unit="s", gt=0.0)
+    duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
+                                    unit="s", gt=0.0)
     lead_in_bar_per_s: float = spec(1.0, "Lead-in ramp rate from the present pressure.",
                                     unit="bar/s", gt=0.0)
     # Length profiles (length_force and position modes), in contraction (fraction of the
     # nominal length); the *_bar fields above do not apply to them.
-    min_contraction: float | None = spec(None, "Length profile: least contraction (sine, "
-                                         "triangle, step), e.g. 0.05.")
+    min_contraction: float | None = spec(None, "Length profile: least contraction ("
+                                         f"{kinds_reading('min_bar')}), e.g. 0.05.")
     max_contraction: float | None = spec(None, "Length profile: most contraction, e.g. 0.20.")
-    to_contraction: float | None = spec(None, "Length profile: target (ramp, constant).")
+    to_contraction: float | None = spec(None, "Length profile: target ("
+                                        f"{kinds_reading('to_bar')}).")
     rate_per_s: float | None = spec(None, "Length profile: ramp rate, contraction per second.",
                                     unit="1/s", gt=0.0)
     lead_in_per_s: float | None = spec(None, "Length profile: lead-in rate from the present "
