@@ -10,12 +10,15 @@ refused, 7 no daemon answers (or not allowed), 2 bad arguments or config.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
+import textwrap
 import time
 import typing
 from typing import Any
 
+from pamd.commands import REGISTRY
 from pamd.errors import CommandRefused
 
 CMD_EPILOG = """examples:
@@ -28,6 +31,9 @@ CMD_EPILOG = """examples:
   pamd cmd load --arg muscle=m1 --arg load_kg=40
   pamd cmd setpoint --json '{"muscle": "m1", "bar": 2.5}'
 """
+
+
+HELP_WIDTH = 88  # `pamd cmd --help`'s own paragraphs
 
 
 def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
@@ -49,19 +55,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--json", action="store_true", help="print the status as JSON")
     s.set_defaults(func=status)
 
-    from pamd.commands import VERBS
-
     c = sub.add_parser("cmd", help="command a running daemon (over Zenoh)",
                        formatter_class=argparse.RawDescriptionHelpFormatter,
-                       description="Send one command; the reply is the loop's verdict. "
-                       "Options after VERB are the verb's fields (--muscle, --bar, ...), "
-                       "--arg KEY=VALUE (JSON value) or --json PAYLOAD. Verbs: "
-                       + ", ".join(VERBS) + ".", epilog=CMD_EPILOG)
+                       description=textwrap.fill(
+                           "Send one command; the reply is the loop's verdict. Options after "
+                           "VERB are the verb's fields (--muscle, --bar, ...; `pamd cmd VERB "
+                           "--help` lists them), --arg KEY=VALUE (JSON value) or --json "
+                           "PAYLOAD.", HELP_WIDTH) + "\n\nverbs:\n" + verb_list(),
+                       epilog=CMD_EPILOG)
     _common(c)
     c.add_argument("--user", help="the user the command declares (default: your login; "
                    "recorded, not authenticated)")
-    c.add_argument("verb", help="setpoint, profile, mode, hold, resume, stop, estop, reset, "
-                   "home, tare, load, model, collect, confirm, pause")
+    c.add_argument("verb", help=", ".join(REGISTRY.names))
     c.add_argument("rest", nargs=argparse.REMAINDER, help="the verb's options")
     c.set_defaults(func=cmd)
 
@@ -167,22 +172,27 @@ def _field_type(tp: Any) -> Any:
     return {bool: _parse_bool, int: int, float: float}.get(base, str)
 
 
+def verb_list() -> str:
+    """One line per verb a client may send, from its declaration."""
+    width = max(len(v.name) for v in REGISTRY)
+    return "\n".join(textwrap.fill(v.help, HELP_WIDTH,
+                                   initial_indent=f"  {v.name.ljust(width)}  ",
+                                   subsequent_indent=" " * (width + 4)) for v in REGISTRY)
+
+
 def verb_parser(verb: str) -> argparse.ArgumentParser:
     """The options of one verb, from its argument dataclass."""
-    import dataclasses
-
-    from pamd.commands import VERBS
-
-    p = argparse.ArgumentParser(prog=f"pamd cmd {verb}", add_help=True)
+    declared = REGISTRY.public(verb)
+    p = argparse.ArgumentParser(prog=f"pamd cmd {verb}", add_help=True,
+                                description=declared.help if declared else None)
     _common(p, suppress=True)
     p.add_argument("--user", default=argparse.SUPPRESS)
     p.add_argument("--arg", action="append", default=[], metavar="KEY=VALUE",
                    help="a field, VALUE parsed as JSON when it can be")
     p.add_argument("--json", metavar="PAYLOAD", help="the whole payload, sent as given")
-    cls = VERBS.get(verb)
-    if cls is not None:
-        hints = typing.get_type_hints(cls)
-        for f in dataclasses.fields(cls):
+    if declared is not None:
+        hints = typing.get_type_hints(declared.args)
+        for f in dataclasses.fields(declared.args):
             doc = f.metadata.get("doc", "")
             unit = f.metadata.get("unit")
             p.add_argument("--" + f.name.replace("_", "-"), dest=f"field_{f.name}",

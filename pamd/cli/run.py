@@ -15,7 +15,7 @@ from typing import Any
 from pamd.config import load_config
 from pamd.control.feedforward import LoadedModel
 from pamd.control.length_targets import check_length_profile_config
-from pamd.control.profiles import ProfileSpec
+from pamd.control.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
 from pamd.io.session import RecordingRequest
@@ -24,8 +24,6 @@ from pamd.service import testhooks
 from pamd.service.notify import Notifier
 from pamd.service.restart import restart_in_place, run_argv, unblock_signals
 from pamd.view.spec import parse_listen
-
-PROFILE_KINDS = ("constant", "step", "ramp", "sine", "triangle")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -70,13 +68,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "telemetry.foxglove.listen, 127.0.0.1:8765); layout: "
                    "config/foxglove/pamd-layout.json")
     g = p.add_argument_group("profile (on every muscle unless --muscle)")
-    g.add_argument("--profile", choices=PROFILE_KINDS, help="start this reference profile")
+    g.add_argument("--profile", choices=SHAPE_NAMES, help="start this reference profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")
-    g.add_argument("--freq-hz", type=float, default=0.05, help="sine/triangle/step (0.05)")
+    g.add_argument("--freq-hz", type=float, default=0.05,
+                   help=f"{kinds_reading('freq_hz', '/')} (0.05)")
     g.add_argument("--min-bar", type=float, default=0.0, help="lowest pressure (0)")
     g.add_argument("--max-bar", type=float, default=6.0, help="highest pressure (6)")
     g.add_argument("--cycles", type=int, help="number of cycles (default: until stopped)")
-    g.add_argument("--to-bar", type=float, help="ramp/constant target")
+    g.add_argument("--to-bar", type=float, help=f"{kinds_reading('to_bar', '/')} target")
     g.add_argument("--rate-bar-per-s", type=float, help="ramp rate")
     lm = p.add_argument_group(
         "length modes (the ANFIS inverse model as feedforward; every muscle unless --muscle)")
@@ -95,8 +94,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "contraction (fraction, e.g. 0.05)")
     lm.add_argument("--max-contraction", type=float, help="length profile: most contraction "
                     "(fraction, e.g. 0.20)")
-    lm.add_argument("--to-contraction", type=float, help="length profile: ramp/constant "
-                    "target (fraction)")
+    lm.add_argument("--to-contraction", type=float, help="length profile: "
+                    f"{kinds_reading('to_bar', '/')} target (fraction)")
     p.set_defaults(func=run)
 
 

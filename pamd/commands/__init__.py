@@ -1,19 +1,21 @@
-"""Commands to the running loop: their argument schemas and what each one does.
+"""Commands to the running loop: their verbs, argument schemas and what each one does.
 
-`parse_command` checks a payload's shape (unknown fields, types, NaN) and can run
-anywhere (the io process does it before anything reaches the loop).
-`apply_command` runs in the loop's thread at the start of a tick, checks the
+A verb is declared once (`registry.Verb`: argument dataclass, handler, routing
+properties, CLI help) in the module of its kind (`motion`, `rig`, `plan`, sharing
+`guards`); `verbs.REGISTRY` holds them all and everything else derives from it.
+`parse_command` (`parse`) checks a payload's shape (unknown fields, types, NaN) and can
+run anywhere (the io process does it before anything reaches the loop);
+`prepare_command` does a command's I/O (a `model` file) outside the loop's thread.
+`apply_command` (`apply`) runs in the loop's thread at the start of a tick, checks the
 command against the present state and limits, and returns the verdict. A refused
 command changes nothing.
-
-Modules: `schema` (argument schemas, `parse_command`, `prepare_command`), `apply`
-(`apply_command`), and the handlers by kind: `motion`, `rig`, `plan`, sharing `guards`.
 """
 
 from pamd.commands.apply import apply_command
+from pamd.commands.parse import parse_command, prepare_command
+from pamd.commands.registry import Verb, VerbRegistry
 from pamd.commands.schema import (
     LENGTH_PROFILE_FIELDS,
-    VERBS,
     CollectArgs,
     Command,
     EstopArgs,
@@ -28,13 +30,12 @@ from pamd.commands.schema import (
     ProfileArgs,
     ReloadArgs,
     SetpointArgs,
-    parse_command,
-    prepare_command,
 )
+from pamd.commands.verbs import REGISTRY
 
 __all__ = [
-    "LENGTH_PROFILE_FIELDS", "VERBS", "CollectArgs", "Command", "EstopArgs", "HomeArgs",
+    "LENGTH_PROFILE_FIELDS", "REGISTRY", "CollectArgs", "Command", "EstopArgs", "HomeArgs",
     "LoadArgs", "ModeArgs", "ModelArgs", "MuscleArgs", "MuscleSettings", "NoArgs",
-    "PreparedModelArgs", "ProfileArgs", "ReloadArgs", "SetpointArgs", "apply_command",
-    "parse_command", "prepare_command",
+    "PreparedModelArgs", "ProfileArgs", "ReloadArgs", "SetpointArgs", "Verb", "VerbRegistry",
+    "apply_command", "parse_command", "prepare_command",
 ]

@@ -1,4 +1,5 @@
-"""`apply_command`: a command's verdict in the loop's thread, from its verb's handler,
+"""`apply_command`: a command's verdict in the loop's thread, from its verb's handler
+(`pamd.commands.verbs.REGISTRY`),
 recorded as a `command` event. A refused command changes nothing.
 
 No exception leaves `apply_command`: a handler that fails for any reason (a bug, a
@@ -9,21 +10,18 @@ from __future__ import annotations
 
 from typing import Any
 
-from pamd.commands import motion, plan, rig
-from pamd.commands.guards import Handler
 from pamd.commands.schema import MAX_ERROR_CHARS, Command, cap_text
+from pamd.commands.verbs import REGISTRY
 from pamd.errors import CommandRefused
-
-_HANDLERS: dict[str, Handler] = {**motion.HANDLERS, **rig.HANDLERS, **plan.HANDLERS}
 
 
 def apply_command(ctrl: Any, cmd: Command) -> dict[str, Any]:
     """Apply in the loop's thread; returns the verdict (never raises)."""
     try:
-        handler = _HANDLERS.get(cmd.verb)
-        if handler is None:
+        declared = REGISTRY.get(cmd.verb)  # internal verbs too (reload)
+        if declared is None:
             raise CommandRefused(f"unknown command {cmd.verb!r}")
-        result = handler(ctrl, cmd.args)
+        result = declared.handler(ctrl, cmd.args)
         verdict: dict[str, Any] = {"ok": True, **(result or {})}
     except CommandRefused as exc:
         verdict = {"ok": False, "error": cap_text(str(exc), MAX_ERROR_CHARS)}

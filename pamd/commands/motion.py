@@ -7,10 +7,13 @@ import dataclasses
 import math
 from typing import Any
 
-from pamd.commands.guards import Handler, can_move, named_muscles, need_reference
+from pamd.commands.guards import can_move, named_muscles, need_reference
+from pamd.commands.model_file import prepare_model
+from pamd.commands.registry import Verb
 from pamd.commands.schema import (
     LENGTH_PROFILE_FIELDS,
     ModeArgs,
+    ModelArgs,
     PreparedModelArgs,
     ProfileArgs,
     SetpointArgs,
@@ -72,9 +75,6 @@ def _profile(ctrl: Any, a: ProfileArgs) -> dict[str, Any]:
     fields.pop("muscle")
     for k in LENGTH_PROFILE_FIELDS:
         fields.pop(k)
-    if fields["kind"] not in ("constant", "step", "ramp", "sine", "triangle"):
-        raise CommandRefused(f"unknown profile kind {a.kind!r}; use constant, step, ramp, "
-                             "sine or triangle")
     total = _start(ctrl, ms, ProfileSpec(**fields))
     return {"duration_s": total}
 
@@ -202,6 +202,12 @@ def _model(ctrl: Any, a: Any) -> dict[str, Any]:
     return {**a.describe(), "mode": m.mode.name.lower(), "taken_up_bar": diff}
 
 
-HANDLERS: dict[str, Handler] = {
-    "setpoint": _setpoint, "profile": _profile, "mode": _mode, "model": _model,
-}
+VERBS: tuple[Verb, ...] = (
+    Verb("setpoint", SetpointArgs, _setpoint, "one muscle's pressure (or length/force) "
+         "target, reached by a ramp; --deadman-s for streamed setpoints"),
+    Verb("profile", ProfileArgs, _profile, "run a reference profile (constant, step, ramp, "
+         "sine, triangle) in pressure, or in contraction in a length mode"),
+    Verb("mode", ModeArgs, _mode, "control mode: pressure, length_force or position"),
+    Verb("model", ModelArgs, _model, "swap in an inverse model file (by name, from "
+         "telemetry.models_dir)", main_thread=True, prepare=prepare_model),
+)

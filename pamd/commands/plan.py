@@ -5,8 +5,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from pamd.commands.guards import Handler, can_move, need_reference
-from pamd.commands.schema import NoArgs
+from pamd.commands.guards import can_move, need_reference
+from pamd.commands.registry import Verb
+from pamd.commands.schema import CollectArgs, NoArgs
 from pamd.errors import CommandRefused
 
 
@@ -49,4 +50,9 @@ def _collect(ctrl: Any, a: Any) -> dict[str, Any]:
     return {"plan": plan.name, "steps": len(plan.steps), "start_step": a.start_step}
 
 
-HANDLERS: dict[str, Handler] = {"confirm": _confirm, "pause": _pause, "collect": _collect}
+VERBS: tuple[Verb, ...] = (
+    Verb("confirm", NoArgs, _confirm, "confirm the load change an experiment plan waits for"),
+    Verb("pause", NoArgs, _pause, "pause an experiment plan at the end of its present cycle"),
+    Verb("collect", CollectArgs, _collect, "run an experiment plan (by name, from "
+         "telemetry.plans_dir)", main_thread=True),
+)

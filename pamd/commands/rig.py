@@ -7,7 +7,8 @@ import math
 import time
 from typing import Any
 
-from pamd.commands.guards import Handler, can_move, idle_or_hold, named_muscles
+from pamd.commands.guards import can_move, idle_or_hold, named_muscles
+from pamd.commands.registry import Verb
 from pamd.commands.schema import EstopArgs, HomeArgs, LoadArgs, NoArgs, ReloadArgs, TareArgs
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
@@ -149,8 +150,16 @@ def _reload(ctrl: Any, a: ReloadArgs) -> dict[str, Any]:
             "state": ctrl.supervisor.state.name}
 
 
-HANDLERS: dict[str, Handler] = {
-    "hold": _hold, "resume": _resume, "stop": _stop, "estop": _estop, "reset": _reset,
-    "home": _home, "tare": _tare, "load": _load,
-    "reload": _reload,  # internal (SIGHUP): built by the daemon, not in VERBS
-}
+VERBS: tuple[Verb, ...] = (
+    Verb("hold", NoArgs, _hold, "freeze every setpoint where it is"),
+    Verb("resume", NoArgs, _resume, "go on from HOLD (a profile continues where it was)"),
+    Verb("stop", NoArgs, _stop, "ramp to the safe state", urgent=True),
+    Verb("estop", EstopArgs, _estop, "emergency stop: safety.estop_action at once, latched "
+         "until reset", urgent=True),
+    Verb("reset", NoArgs, _reset, "leave FAULT or ESTOP once its cause is gone"),
+    Verb("home", HomeArgs, _home, "reference a muscle's length: its true length now"),
+    Verb("tare", TareArgs, _tare, "zero the load cells (optionally against a known load)"),
+    Verb("load", LoadArgs, _load, "the hanging load now on a muscle (moves its safe "
+         "pressure)"),
+    Verb("reload", ReloadArgs, _reload, "a reloaded config (SIGHUP)", internal=True),
+)

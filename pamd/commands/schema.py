@@ -1,21 +1,19 @@
-"""Commands' argument schemas and their shape checks, away from the loop.
+"""Commands' argument schemas (the dataclasses a payload is built into, checked and
+capped), the `Command` on its way to the loop, and the caps on text.
 
-`parse_command` checks a payload's shape (unknown fields, types, NaN) and can run
-anywhere (the io process does it before anything reaches the loop).
-`prepare_command` does a command's I/O (a `model` file) before it is queued.
+Parsing is `pamd.commands.parse`; which verb takes which schema is its declaration
+(`pamd.commands.registry.Verb`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from pamd.errors import CommandRefused
-from pamd.schema.engine import Context, build_dataclass, spec
+from pamd.control.profiles import kinds_reading, kinds_text
+from pamd.schema.engine import spec
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -38,23 +36,25 @@ class SetpointArgs:
 @dataclass(frozen=True, kw_only=True)
 class ProfileArgs:
     muscle: str | None = spec(None, "Muscle name (default: every muscle).")
-    kind: str = spec("sine", "constant, step, ramp, sine or triangle.")
+    kind: str = spec("sine", f"{kinds_text()}.")
     min_bar: float = spec(0.0, "Lowest pressure.", unit="bar")
     max_bar: float = spec(6.0, "Highest pressure.", unit="bar")
-    freq_hz: float = spec(0.05, "Frequency (sine, triangle, step).", unit="Hz")
+    freq_hz: float = spec(0.05, f"Frequency ({kinds_reading('freq_hz')}).", unit="Hz")
     cycles: int | None = spec(None, "Number of cycles (default: until stopped).", min=1)
-    to_bar: float | None = spec(None, "Target (ramp, constant).", unit="bar")
+    to_bar: float | None = spec(None, f"Target ({kinds_reading('to_bar')}).", unit="bar")
     rate_bar_per_s: float | None = spec(None, "Ramp rate.", unit="bar/s", gt=0.0)
     rise_s: float | None = spec(None, "Step edge duration.", unit="s", gt=0.0)
-    duration_s: float | None = spec(None, "Duration (constant).", unit="s", gt=0.0)
+    duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
+                                    unit="s", gt=0.0)
     lead_in_bar_per_s: float = spec(1.0, "Lead-in ramp rate from the present pressure.",
                                     unit="bar/s", gt=0.0)
     # Length profiles (length_force and position modes), in contraction (fraction of the
     # nominal length); the *_bar fields above do not apply to them.
-    min_contraction: float | None = spec(None, "Length profile: least contraction (sine, "
-                                         "triangle, step), e.g. 0.05.")
+    min_contraction: float | None = spec(None, "Length profile: least contraction ("
+                                         f"{kinds_reading('min_bar')}), e.g. 0.05.")
     max_contraction: float | None = spec(None, "Length profile: most contraction, e.g. 0.20.")
-    to_contraction: float | None = spec(None, "Length profile: target (ramp, constant).")
+    to_contraction: float | None = spec(None, "Length profile: target ("
+                                        f"{kinds_reading('to_bar')}).")
     rate_per_s: float | None = spec(None, "Length profile: ramp rate, contraction per second.",
                                     unit="1/s", gt=0.0)
     lead_in_per_s: float | None = spec(None, "Length profile: lead-in rate from the present "
@@ -163,7 +163,7 @@ class MuscleSettings:
 
 @dataclass(frozen=True, kw_only=True)
 class ReloadArgs:
-    """The `reload` command (SIGHUP). Internal: not in VERBS, so no client can send
+    """The `reload` command (SIGHUP). Internal (`Verb.internal`), so no client can send
     it; the daemon builds it from a validated config. `plan` (one MuscleSettings per
     muscle, in the rig's order) stays out of the recorded event, like collect's."""
 
@@ -172,14 +172,6 @@ class ReloadArgs:
     idle_only: tuple[str, ...]  # changed key paths that apply only while IDLE (limits)
     startup_timeout_s: float
     plan: tuple[MuscleSettings, ...]
-
-
-VERBS: dict[str, type] = {
-    "setpoint": SetpointArgs, "profile": ProfileArgs, "hold": NoArgs, "resume": NoArgs,
-    "stop": NoArgs, "estop": EstopArgs, "reset": NoArgs, "home": HomeArgs, "tare": TareArgs,
-    "load": LoadArgs, "confirm": NoArgs, "pause": NoArgs, "collect": CollectArgs,
-    "mode": ModeArgs, "model": ModelArgs,
-}
 
 
 @dataclass
@@ -193,8 +185,6 @@ class Command:
     user: str = ""
 
 
-URGENT_VERBS = ("estop", "stop")
-"""Never rate limited, taken while the daemon stops, ahead of a waiting burst."""
 MAX_TEXT_CHARS = 200
 """Text fields (`reason`, a muscle's name, a file name...) are cut to this when parsed,
 so an `estop` or `stop` always fits the rings and always acts."""
@@ -236,57 +226,3 @@ def args_for_record(payload: Any) -> dict[str, Any]:
         return {"raw": text}
     head = text.encode("utf-8", "replace")[:RECORD_HEAD_BYTES].decode("utf-8", "ignore")
     return {"head": head, "bytes": size}
-
-
-def parse_command(verb: str, payload: Any, sender: str = "local", user: str = "",
-                  reply: Callable[[dict[str, Any]], None] | None = None) -> Command:
-    """Shape checks only; raises CommandRefused saying what was wrong. Text fields
-    are capped here (MAX_TEXT_CHARS; sender and user MAX_WHO_CHARS)."""
-    if verb not in VERBS:
-        raise CommandRefused(f"unknown command {cap_text(repr(verb), 80)}; known: "
-                             f"{', '.join(VERBS)}")
-    if payload is None:
-        payload = {}
-    if not isinstance(payload, dict):
-        raise CommandRefused(f"{verb}: the payload must be a JSON object")
-    ctx = Context(f"cmd/{verb}")
-    args = build_dataclass(VERBS[verb], cap_payload(payload), ctx, "", None)
-    if ctx.issues:
-        raise CommandRefused(cap_text("; ".join(
-            f"{i.path}: expected {i.expected}" + (f", found {i.found}" if i.found else "")
-            for i in ctx.issues), MAX_ERROR_CHARS))
-    return Command(verb, args, reply, cap_text(str(sender), MAX_WHO_CHARS),
-                   cap_text(str(user), MAX_WHO_CHARS))
-
-
-def prepare_command(cmd: Command, cfg: Any, data: bytes | None = None) -> Command:
-    """The part of a command that is I/O, done outside the loop's thread before it is
-    queued: a `model` command's file is read (or its bytes, already read within the
-    limits by the caller, are taken as they are: one read, nothing can change between
-    the check and the load), checked against the muscle and compiled here
-    (CommandRefused if it cannot be), so the loop only swaps the compiled object."""
-    if cmd.verb != "model" or isinstance(cmd.args, PreparedModelArgs):
-        return cmd
-    from pamd.control.feedforward import Feedforward, LoadedModel
-    from pamd.errors import ModelError
-
-    a = cmd.args
-    try:
-        mcfg = cfg.muscle(a.muscle)
-    except KeyError:
-        names = ", ".join(m.name for m in cfg.rig.muscles)
-        raise CommandRefused(f"no muscle named {a.muscle!r}; muscles: {names}") from None
-    path = os.path.abspath(os.path.expanduser(a.file))
-    try:
-        if data is None:
-            ff = Feedforward.from_file(path, mcfg, cfg.limits[a.muscle])
-        else:
-            ff = LoadedModel.from_bytes(data, path, mcfg, cfg.limits[a.muscle]).feedforward()
-    except ModelError as exc:
-        raise CommandRefused(cap_text(f"model refused: {exc}", MAX_ERROR_CHARS)) from None
-    except OSError as exc:
-        raise CommandRefused(f"model refused: {a.file}: {exc.strerror or exc}") from None
-    except (RecursionError, UnicodeDecodeError, ValueError) as exc:
-        raise CommandRefused(f"model refused: {a.file}: unreadable as a model file "
-                             f"({exc.__class__.__name__})") from None
-    return dataclasses.replace(cmd, args=PreparedModelArgs(a.muscle, path, ff))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from pamd.control.profiles import Profile, ProfileSpec
+from pamd.control.profiles import Profile, ProfileSpec, shape_of
 from pamd.errors import CommandRefused
 from pamd.muscle import equilibrium_contraction
 
@@ -61,7 +61,8 @@ def length_profile(m: Any, now: float, kind: str, *, min_contraction: float | No
     """A length profile for muscle `m`, in contraction (fraction) units, checked against
     the contraction limits and the length rate limit before anything moves."""
     max_rate = m.length_ctl.cfg.max_rate_per_s
-    if kind in ("sine", "triangle", "step"):
+    shape = shape_of(kind)  # unknown kinds refused, naming the known ones
+    if shape.periodic:
         if min_contraction is None or max_contraction is None:
             raise CommandRefused(f"{kind} length profile: give min_contraction and "
                                  "max_contraction (fractions, e.g. 0.05 and 0.20)")
@@ -70,20 +71,17 @@ def length_profile(m: Any, now: float, kind: str, *, min_contraction: float | No
                                  f"({max_contraction}) must exceed min_contraction "
                                  f"({min_contraction})")
         check_contraction(m, f"{kind} profile spans to", min_contraction, max_contraction)
-    elif kind in ("ramp", "constant"):
+    else:
         if to_contraction is None:
             raise CommandRefused(f"{kind} length profile: give to_contraction")
         check_contraction(m, f"{kind} profile target", to_contraction)
-    else:
-        raise CommandRefused(f"unknown profile kind {kind!r}; use constant, step, ramp, sine "
-                             "or triangle")
     check_reachable(m, *(v for v in (min_contraction, max_contraction, to_contraction)
                          if v is not None))
     lead = lead_in_per_s if lead_in_per_s is not None else 0.5 * max_rate
     if not 0 < lead <= max_rate:
         raise CommandRefused(f"lead-in rate must be in (0, {max_rate:g}] contraction/s "
                              "(control.position.max_rate_per_s)")
-    spec = ProfileSpec(kind=kind,  # type: ignore[arg-type]
+    spec = ProfileSpec(kind=kind,
                        min_bar=min_contraction if min_contraction is not None else 0.0,
                        max_bar=max_contraction if max_contraction is not None else 0.0,
                        freq_hz=freq_hz, cycles=cycles, to_bar=to_contraction,

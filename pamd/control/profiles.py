@@ -1,4 +1,5 @@
-"""Reference profiles for a pressure (or length) setpoint.
+"""Reference profiles for a pressure (or length) setpoint, and the registry of their
+shapes.
 
 Every profile starts with a lead-in ramp from the present value to its own start
 value, then runs its shape: constant, step (a square wave whose edges are ramps),
@@ -6,22 +7,251 @@ ramp, sine (the seeds' (p/2) sin + p/2: starts at mid-range rising with maximum
 slope) or triangle, for a number of cycles (None: until stopped). `sample(t)` sets
 `value`, `rate`, `cycle` and `done` without allocating; `check()` refuses a
 profile that is faster than the slew limit or leaves the allowed range.
+
+A shape is one `Shape` subclass, registered in `SHAPES`: its name, the `ProfileSpec`
+fields it reads, its own checks and its evaluator. The command schema, experiment
+plans, `pamd run --profile` and length profiles take their kinds from `SHAPES`.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 from pamd.errors import CommandRefused
 
-ProfileKind = Literal["constant", "step", "ramp", "sine", "triangle"]
+
+class Shape:
+    """A profile's shape after its lead-in: what it reads of a `ProfileSpec`, what it
+    refuses, the values it spans and how fast, and its evaluator (`sample`, which
+    allocates nothing: it runs in the tick)."""
+
+    name: ClassVar[str]
+    params: ClassVar[tuple[str, ...]]
+    """The ProfileSpec fields the shape reads (beyond lead_in_bar_per_s)."""
+    periodic: ClassVar[bool] = False
+    """Spans min_bar..max_bar and repeats at freq_hz for `cycles` cycles."""
+
+    def start_value(self, spec: ProfileSpec) -> float:
+        """Where the shape starts (the lead-in ramps there); NaN: where the value is."""
+        return spec.min_bar
+
+    def span(self, spec: ProfileSpec) -> tuple[float, float]:
+        """The lowest and highest value the shape reaches (after `check_params`)."""
+        return spec.min_bar, spec.max_bar
+
+    def max_rate(self, spec: ProfileSpec, slew_limit: float) -> float:
+        """The steepest slope of the shape itself (not the lead-in)."""
+        return 0.0
+
+    def check_params(self, spec: ProfileSpec) -> None:
+        """Refuse (CommandRefused) parameters the shape cannot run."""
+
+    def begin(self, run: Profile, slew_limit: float) -> None:
+        """Fill the running profile's shape-specific constants (before any tick)."""
+
+    def total_s(self, run: Profile) -> float | None:
+        """The shape's duration after the lead-in; None: until stopped."""
+        return None
+
+    def sample(self, run: Profile, tau: float) -> None:
+        """Set run.value, run.rate (and run.done, run.cycle) at `tau` s after the lead-in."""
+        raise NotImplementedError
+
+
+class Constant(Shape):
+    name = "constant"
+    params = ("to_bar", "duration_s")
+
+    def start_value(self, spec: ProfileSpec) -> float:
+        return spec.to_bar if spec.to_bar is not None else spec.min_bar
+
+    def span(self, spec: ProfileSpec) -> tuple[float, float]:
+        v = self.start_value(spec)
+        return v, v
+
+    def total_s(self, run: Profile) -> float | None:
+        return run.spec.duration_s
+
+    def sample(self, run: Profile, tau: float) -> None:
+        run.value, run.rate = run.start_bar, 0.0
+        d = run.spec.duration_s
+        run.done = d is not None and tau >= d
+
+
+class Ramp(Shape):
+    name = "ramp"
+    params = ("to_bar", "rate_bar_per_s")
+
+    def start_value(self, spec: ProfileSpec) -> float:
+        return math.nan  # starts where it is
+
+    def span(self, spec: ProfileSpec) -> tuple[float, float]:
+        v = spec.to_bar if spec.to_bar is not None else spec.min_bar
+        return v, v
+
+    def max_rate(self, spec: ProfileSpec, slew_limit: float) -> float:
+        return spec.rate_bar_per_s if spec.rate_bar_per_s is not None else 0.5 * slew_limit
+
+    def check_params(self, spec: ProfileSpec) -> None:
+        if spec.to_bar is None:
+            raise CommandRefused("ramp profile: give to_bar, the value to ramp to")
+
+    def begin(self, run: Profile, slew_limit: float) -> None:
+        spec = run.spec
+        rate = spec.rate_bar_per_s or 0.5 * slew_limit
+        assert spec.to_bar is not None
+        run.start_bar = run.from_bar
+        run.ramp_rate = math.copysign(rate, spec.to_bar - run.from_bar)
+        run.ramp_s = abs(spec.to_bar - run.from_bar) / rate
+
+    def total_s(self, run: Profile) -> float | None:
+        return run.ramp_s
+
+    def sample(self, run: Profile, tau: float) -> None:
+        if tau >= run.ramp_s:
+            run.value, run.rate, run.done = run.spec.to_bar, 0.0, True  # type: ignore[assignment]
+        else:
+            run.value, run.rate = run.start_bar + run.ramp_rate * tau, run.ramp_rate
+
+
+class Periodic(Shape):
+    """A wave between min_bar and max_bar at freq_hz, for `cycles` cycles; at its end
+    it holds the value its phase 0 has."""
+
+    periodic = True
+
+    def check_params(self, spec: ProfileSpec) -> None:
+        k = spec.kind
+        if not spec.max_bar > spec.min_bar:
+            raise CommandRefused(f"{k} profile: max_bar ({spec.max_bar}) must exceed "
+                                 f"min_bar ({spec.min_bar})")
+        if not spec.freq_hz > 0:
+            raise CommandRefused(f"{k} profile: freq_hz must be positive")
+
+    def total_s(self, run: Profile) -> float | None:
+        cycles = run.spec.cycles
+        return None if cycles is None else cycles * run.period_s
+
+    def sample(self, run: Profile, tau: float) -> None:
+        cycles = run.spec.cycles
+        cyc = int(tau * run.freq)
+        if cycles is not None and cyc >= cycles:
+            run.done = True
+            run.cycle = cycles
+            tau = cycles * run.period_s  # hold the end value
+        else:
+            run.cycle = cyc
+        phase = tau * run.freq - int(tau * run.freq)
+        if run.done:
+            phase = 0.0
+        self.wave(run, tau, phase)
+
+    def wave(self, run: Profile, tau: float, phase: float) -> None:
+        """Set run.value and run.rate at `tau` (phase: the fraction of the cycle)."""
+        raise NotImplementedError
+
+
+class Step(Periodic):
+    """Low half period, high half period, edges ramped (rise_s, default at the slew
+    limit)."""
+
+    name = "step"
+    params = ("min_bar", "max_bar", "freq_hz", "cycles", "rise_s")
+
+    def max_rate(self, spec: ProfileSpec, slew_limit: float) -> float:
+        return (spec.max_bar - spec.min_bar) / spec.edge_s(slew_limit)
+
+    def begin(self, run: Profile, slew_limit: float) -> None:
+        run.edge_s = run.spec.edge_s(slew_limit)
+
+    def wave(self, run: Profile, tau: float, phase: float) -> None:
+        t_in = phase / run.freq
+        half = 0.5 * run.period_s
+        e = run.edge_s
+        r = run.span / e if e > 0 else 0.0
+        if t_in < half:
+            if t_in < e and (run.cycle > 0 or run.done):
+                run.value, run.rate = run.hi - r * t_in, -r
+            else:
+                run.value, run.rate = run.lo, 0.0
+        elif t_in - half < e:
+            run.value, run.rate = run.lo + r * (t_in - half), r
+        else:
+            run.value, run.rate = run.hi, 0.0
+        if run.done:
+            run.value, run.rate = run.hi, 0.0
+
+
+class Sine(Periodic):
+    """(p/2) sin + p/2 over the span: starts at mid-range rising with maximum slope."""
+
+    name = "sine"
+    params = ("min_bar", "max_bar", "freq_hz", "cycles")
+
+    def start_value(self, spec: ProfileSpec) -> float:
+        return 0.5 * (spec.min_bar + spec.max_bar)
+
+    def max_rate(self, spec: ProfileSpec, slew_limit: float) -> float:
+        return math.pi * spec.freq_hz * (spec.max_bar - spec.min_bar)
+
+    def wave(self, run: Profile, tau: float, phase: float) -> None:
+        w = 2.0 * math.pi * run.freq
+        run.value = run.lo + 0.5 * run.span * (1.0 + math.sin(w * tau))
+        run.rate = 0.0 if run.done else 0.5 * run.span * w * math.cos(w * tau)
+
+
+class Triangle(Periodic):
+    name = "triangle"
+    params = ("min_bar", "max_bar", "freq_hz", "cycles")
+
+    def max_rate(self, spec: ProfileSpec, slew_limit: float) -> float:
+        return 2.0 * (spec.max_bar - spec.min_bar) * spec.freq_hz
+
+    def wave(self, run: Profile, tau: float, phase: float) -> None:
+        slope = 2.0 * run.span * run.freq
+        if phase < 0.5:
+            run.value, run.rate = run.lo + slope * phase / run.freq, slope
+        else:
+            run.value, run.rate = run.hi - slope * (phase - 0.5) / run.freq, -slope
+        if run.done:
+            run.rate = 0.0
+
+
+SHAPES: dict[str, Shape] = {s.name: s for s in (Constant(), Step(), Ramp(), Sine(), Triangle())}
+"""Every profile shape by name: a new shape is one `Shape` subclass added here."""
+
+SHAPE_NAMES: tuple[str, ...] = tuple(SHAPES)
+
+if TYPE_CHECKING:
+    ProfileKind = str
+else:  # the config engine validates a plan's `kind` against the registered names
+    ProfileKind = Literal[SHAPE_NAMES]
+
+
+def kinds_text() -> str:
+    """The shapes for an operator: 'constant, step, ramp, sine or triangle'."""
+    return ", ".join(SHAPE_NAMES[:-1]) + " or " + SHAPE_NAMES[-1]
+
+
+def kinds_reading(param: str, sep: str = ", ") -> str:
+    """The shapes that read ProfileSpec field `param` (help texts)."""
+    return sep.join(s.name for s in SHAPES.values() if param in s.params)
+
+
+def shape_of(kind: str) -> Shape:
+    """The registered shape so named; CommandRefused naming the known ones."""
+    shape = SHAPES.get(kind)
+    if shape is None:
+        raise CommandRefused(f"unknown profile kind {kind!r}; use {kinds_text()}")
+    return shape
 
 
 @dataclass(frozen=True)
 class ProfileSpec:
-    """What an operator asks for; validated by `check` before anything moves."""
+    """What an operator asks for; validated by `check` before anything moves. An
+    unknown `kind` is refused when the spec is made (CommandRefused)."""
 
     kind: ProfileKind = "sine"
     min_bar: float = 0.0
@@ -34,27 +264,23 @@ class ProfileSpec:
     duration_s: float | None = None  # constant: how long (None: until stopped)
     lead_in_bar_per_s: float = 1.0  # lead-in ramp rate from the present value
 
+    def __post_init__(self) -> None:
+        shape_of(self.kind)
+
+    @property
+    def shape(self) -> Shape:
+        return SHAPES[self.kind]
+
     def start_value(self) -> float:
-        if self.kind in ("ramp",):
-            return math.nan  # starts where it is
-        if self.kind == "constant":
-            return self.to_bar if self.to_bar is not None else self.min_bar
-        if self.kind == "sine":
-            return 0.5 * (self.min_bar + self.max_bar)
-        return self.min_bar
+        return self.shape.start_value(self)
+
+    def span(self) -> tuple[float, float]:
+        """The lowest and highest value the profile's shape reaches."""
+        return self.shape.span(self)
 
     def shape_max_rate(self, slew_limit: float) -> float:
         """Steepest slope of the shape itself (not the lead-in)."""
-        span = self.max_bar - self.min_bar
-        if self.kind == "sine":
-            return math.pi * self.freq_hz * span
-        if self.kind == "triangle":
-            return 2.0 * span * self.freq_hz
-        if self.kind == "step":
-            return span / self.edge_s(slew_limit)
-        if self.kind == "ramp":
-            return self.rate_bar_per_s if self.rate_bar_per_s is not None else 0.5 * slew_limit
-        return 0.0
+        return self.shape.max_rate(self, slew_limit)
 
     def edge_s(self, slew_limit: float) -> float:
         if self.rise_s is not None:
@@ -65,17 +291,8 @@ class ProfileSpec:
         """Refuse (CommandRefused) a profile outside [low, high] or faster than the slew
         limit, saying which parameter to change."""
         k = self.kind
-        if k in ("sine", "triangle", "step"):
-            if not self.max_bar > self.min_bar:
-                raise CommandRefused(f"{k} profile: max_bar ({self.max_bar}) must exceed "
-                                     f"min_bar ({self.min_bar})")
-            if not self.freq_hz > 0:
-                raise CommandRefused(f"{k} profile: freq_hz must be positive")
-            lo, hi = self.min_bar, self.max_bar
-        else:
-            if self.to_bar is None and k == "ramp":
-                raise CommandRefused("ramp profile: give to_bar, the value to ramp to")
-            lo = hi = self.start_value() if k == "constant" else self.to_bar  # type: ignore[assignment]
+        self.shape.check_params(self)
+        lo, hi = self.span()
         if self.cycles is not None and self.cycles < 1:
             raise CommandRefused(f"{k} profile: cycles must be at least 1")
         if lo < low_bar - 1e-9 or hi > high_bar + 1e-9:
@@ -91,7 +308,7 @@ class ProfileSpec:
             raise CommandRefused(f"lead-in rate must be in (0, {slew_limit:g}] bar/s")
 
     def shape_period_s(self) -> float:
-        return 1.0 / self.freq_hz if self.kind in ("sine", "triangle", "step") else 0.0
+        return 1.0 / self.freq_hz if self.shape.periodic else 0.0
 
 
 class Profile:
@@ -101,24 +318,19 @@ class Profile:
                  slew_limit: float) -> None:
         self.spec = spec
         self.kind = spec.kind
+        self.shape = spec.shape
         self.t0_s = t0_s
         self.from_bar = present_bar
-        start = spec.start_value()
-        if spec.kind == "ramp":
-            start = present_bar
-        self.start_bar = start
-        self.lead_in_s = abs(start - present_bar) / spec.lead_in_bar_per_s
-        self.lead_rate = math.copysign(spec.lead_in_bar_per_s, start - present_bar)
+        self.start_bar = spec.start_value()
         self.lo, self.hi = spec.min_bar, spec.max_bar
         self.span = spec.max_bar - spec.min_bar
         self.freq = spec.freq_hz
         self.period_s = spec.shape_period_s()
-        self.edge_s = spec.edge_s(slew_limit) if spec.kind == "step" else 0.0
-        if spec.kind == "ramp":
-            rate = spec.rate_bar_per_s or 0.5 * slew_limit
-            assert spec.to_bar is not None
-            self.ramp_rate = math.copysign(rate, spec.to_bar - present_bar)
-            self.ramp_s = abs(spec.to_bar - present_bar) / rate
+        self.edge_s = 0.0
+        self.ramp_rate = self.ramp_s = 0.0
+        self.shape.begin(self, slew_limit)
+        self.lead_in_s = abs(self.start_bar - present_bar) / spec.lead_in_bar_per_s
+        self.lead_rate = math.copysign(spec.lead_in_bar_per_s, self.start_bar - present_bar)
         self.value = present_bar
         self.rate = 0.0
         self.cycle = 0
@@ -126,14 +338,8 @@ class Profile:
 
     def total_s(self) -> float | None:
         """Lead-in plus shape duration; None if it runs until stopped."""
-        s = self.spec
-        if s.kind == "ramp":
-            return self.lead_in_s + self.ramp_s
-        if s.kind == "constant":
-            return None if s.duration_s is None else self.lead_in_s + s.duration_s
-        if s.cycles is None:
-            return None
-        return self.lead_in_s + s.cycles * self.period_s
+        shape_s = self.shape.total_s(self)
+        return None if shape_s is None else self.lead_in_s + shape_s
 
     def sample(self, t_s: float) -> None:
         tau = t_s - self.t0_s
@@ -141,55 +347,4 @@ class Profile:
             self.value = self.from_bar + self.lead_rate * tau
             self.rate = self.lead_rate
             return
-        tau -= self.lead_in_s
-        kind = self.kind
-        if kind == "ramp":
-            if tau >= self.ramp_s:
-                self.value, self.rate, self.done = self.spec.to_bar, 0.0, True  # type: ignore[assignment]
-            else:
-                self.value, self.rate = self.start_bar + self.ramp_rate * tau, self.ramp_rate
-            return
-        if kind == "constant":
-            self.value, self.rate = self.start_bar, 0.0
-            d = self.spec.duration_s
-            self.done = d is not None and tau >= d
-            return
-        cycles = self.spec.cycles
-        cyc = int(tau * self.freq)
-        if cycles is not None and cyc >= cycles:
-            self.done = True
-            self.cycle = cycles
-            tau = cycles * self.period_s  # hold the end value
-        else:
-            self.cycle = cyc
-        phase = tau * self.freq - int(tau * self.freq)
-        if self.done:
-            phase = 0.0
-        if kind == "sine":
-            w = 2.0 * math.pi * self.freq
-            self.value = self.lo + 0.5 * self.span * (1.0 + math.sin(w * tau))
-            self.rate = 0.0 if self.done else 0.5 * self.span * w * math.cos(w * tau)
-        elif kind == "triangle":
-            slope = 2.0 * self.span * self.freq
-            if phase < 0.5:
-                self.value, self.rate = self.lo + slope * phase / self.freq, slope
-            else:
-                self.value, self.rate = self.hi - slope * (phase - 0.5) / self.freq, -slope
-            if self.done:
-                self.rate = 0.0
-        else:  # step: low half period, high half period, edges ramped
-            t_in = phase / self.freq
-            half = 0.5 * self.period_s
-            e = self.edge_s
-            r = self.span / e if e > 0 else 0.0
-            if t_in < half:
-                if t_in < e and (self.cycle > 0 or self.done):
-                    self.value, self.rate = self.hi - r * t_in, -r
-                else:
-                    self.value, self.rate = self.lo, 0.0
-            elif t_in - half < e:
-                self.value, self.rate = self.lo + r * (t_in - half), r
-            else:
-                self.value, self.rate = self.hi, 0.0
-            if self.done:
-                self.value, self.rate = self.hi, 0.0
+        self.shape.sample(self, tau - self.lead_in_s)

@@ -10,10 +10,9 @@ operator. Each step becomes one recording file.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 from pamd.config.loader import NAME_RE, LoadedConfig
-from pamd.control.profiles import ProfileSpec
+from pamd.control.profiles import ProfileKind, ProfileSpec, kinds_reading
 from pamd.errors import CommandRefused
 from pamd.muscle import MUSCLE_TYPES, equilibrium_contraction, force_model
 from pamd.schema.engine import Context, build_dataclass, spec
@@ -22,14 +21,16 @@ from pamd.schema.yamlload import load_yaml_text, read_text
 
 @dataclass(frozen=True, kw_only=True)
 class PlanProfile:
-    kind: Literal["sine", "triangle", "step", "ramp", "constant"] = spec(
-        "sine", "Profile shape.")
+    kind: ProfileKind = spec("sine", "Profile shape.")
     min_bar: float = spec(0.0, "Lowest pressure.", unit="bar", min=0.0)
     max_bar: float = spec(6.0, "Highest pressure.", unit="bar", min=0.0)
-    freq_hz: float = spec(0.05, "Frequency (sine, triangle, step).", unit="Hz", gt=0.0)
+    freq_hz: float = spec(0.05, f"Frequency ({kinds_reading('freq_hz')}).", unit="Hz",
+                          gt=0.0)
     cycles: int = spec(3, "Cycles to run.", min=1)
-    to_bar: float | None = spec(None, "Target (ramp, constant).", unit="bar", min=0.0)
-    duration_s: float | None = spec(None, "Duration (constant).", unit="s", gt=0.0)
+    to_bar: float | None = spec(None, f"Target ({kinds_reading('to_bar')}).", unit="bar",
+                                min=0.0)
+    duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
+                                    unit="s", gt=0.0)
 
     def as_spec(self) -> ProfileSpec:
         return ProfileSpec(kind=self.kind, min_bar=self.min_bar, max_bar=self.max_bar,
@@ -174,8 +175,5 @@ def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list) ->
 
 
 def profile_range(p: ProfileSpec) -> tuple[float, float]:
-    if p.kind in ("sine", "triangle", "step"):
-        return p.min_bar, p.max_bar
-    v = p.to_bar if p.to_bar is not None else p.min_bar
-    return v, v
+    return p.span()
 

@@ -82,8 +82,7 @@ def timeline(plan: Plan, rig: LoadedConfig, simulated: bool) -> list[StepLine]:
             lo, hi = profile_range(spec)
             peak = max(peak, hi)
             what.append(f"{spec.kind} {lo:g}-{hi:g} bar" + (
-                f" {spec.freq_hz:g} Hz x {spec.cycles}" if spec.kind in ("sine", "triangle",
-                                                                       "step") else ""))
+                f" {spec.freq_hz:g} Hz x {spec.cycles}" if spec.shape.periodic else ""))
             run.sample(total + 1.0)
             pressure = run.value
         else:

@@ -44,7 +44,8 @@ from pamd.ipc.ring import (
 from pamd.tick import I_TICK
 
 QUIET_TICKS = 1
-HELD_EVENTS_MAX = 4096  # events (a burst's verdicts) waiting for room in the ring
+HELD_EVENTS_MAX = 4096  # events (a burst's verdicts) waiting for room in the ring, and
+# events of other threads waiting for the loop's thread to send them
 START_TIMEOUT_S = 30.0
 STOP_TIMEOUT_S = 60.0
 
@@ -251,7 +252,11 @@ class RingSink:
         if not self.active:
             return
         if threading.get_ident() != self._producer:
-            self._pending.append((t_s, kind, data))  # the loop's thread sends it
+            if len(self._pending) < HELD_EVENTS_MAX:  # the loop's thread sends it
+                self._pending.append((t_s, kind, data))
+            else:  # the loop's thread takes none (it has stopped): counted, not kept
+                self.lost_events += 1
+                self.u64[C_LOST_EVENTS] = self.lost_events
             return
         blob = self._encode(t_s, kind, data)
         if self._held:  # after the ones waiting, in order

@@ -26,7 +26,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from pamd.commands.schema import URGENT_VERBS
+from pamd.commands import REGISTRY
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import (
     C_HEARTBEAT,
@@ -84,7 +84,7 @@ class CommandPort:
                 return None
             if on_verdict is not None:
                 self.waiting[cid] = on_verdict
-            if verb in URGENT_VERBS:
+            if REGISTRY.is_urgent(verb):
                 self.backlog.appendleft((cid, blob))
             else:
                 self.backlog.append((cid, blob))

@@ -212,7 +212,16 @@ class SharedBlock:
         return self._get_text(ERR_OFF)
 
     def set_files(self, files: list[str]) -> None:
-        self._set_text(FILES_OFF, FILES_MAX, "\n".join(files))
+        """The recording's files, as many of the newest as fit (whole names): a
+        daemon that rotates its files for months shows the ones it writes now."""
+        kept: list[str] = []
+        size = -1
+        for f in reversed(files):
+            size += len(f.encode("utf-8", "replace")) + 1
+            if size > FILES_MAX:
+                break
+            kept.append(f)
+        self._set_text(FILES_OFF, FILES_MAX, "\n".join(reversed(kept)))
 
     def files(self) -> list[str]:
         text = self._get_text(FILES_OFF)

@@ -146,7 +146,7 @@ class Collections:
             raise CommandRefused("collect: the io process is busy; try again")
         ctrl = self.d.ctrl
         return Collection(cid, directory, plan, start, manifest, created, before, sender,
-                          user, ctrl.tick_no, len(ctrl.supervisor.faults),
+                          user, ctrl.tick_no, ctrl.supervisor.fault_count,
                           self.d.loop.lost_records)
 
     def _new_dir(self, plan: Plan) -> str:
@@ -280,7 +280,7 @@ class Collections:
             files = sorted(f for f in os.listdir(c.dir) if f.endswith(".mcap")
                            and f not in c.before)
             result = {"recording": {"files": files},
-                      "faults": list(ctrl.supervisor.faults[c.faults0:]),
+                      "faults": ctrl.supervisor.faults_since(c.faults0),
                       "ticks": c.ticks if c.ticks is not None else ctrl.tick_no - c.tick0,
                       "lost_records": self.d.loop.lost_records - c.lost0}
             c.manifest.record_run(c.seq, result, c.start, outcome,

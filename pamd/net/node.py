@@ -13,10 +13,11 @@ Commands: `pamd/<rig>/cmd/<verb>` (one wildcard queryable `cmd/*`), JSON object 
 JSON out. Refused here at once: malformed JSON, unknown verbs, missing, extra or
 mistyped fields, non-finite numbers (`parse_command`), muscles the rig lacks and
 pressures outside the limits, senders over their rate, anything while stopping.
-What passes goes through the loop's mailbox (or, for `collect` and `model`, through
-the board to the daemon's main thread); the reply is the loop's verdict. The sender
-is the Zenoh id the query declares (`source_info`), the user the `user` selector
-parameter (`pamd/sim/cmd/hold?user=ana`): both declared, not authenticated.
+What passes goes through the loop's mailbox (or, for the verbs declared `main_thread`,
+`collect` and `model`, through the board to the daemon's main thread); the reply is
+the loop's verdict. The sender is the Zenoh id the query declares (`source_info`), the
+user the `user` selector parameter (`pamd/sim/cmd/hold?user=ana`): both declared, not
+authenticated.
 """
 
 from __future__ import annotations
@@ -31,10 +32,9 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from pamd.commands import parse_command
+from pamd.commands import REGISTRY, parse_command
 from pamd.commands.schema import (
     MAX_WHO_CHARS,
-    URGENT_VERBS,
     args_for_record,
     cap_payload,
     cap_text,
@@ -390,7 +390,7 @@ class NetNode:
             self._refuse(q, key, verb, raw, sender, user,
                          "name one verb: pamd/<rig>/cmd/<verb>", record=False)
             return
-        urgent = verb in URGENT_VERBS  # estop and stop always reach the loop while it runs
+        urgent = REGISTRY.is_urgent(verb)  # estop, stop: they reach the loop while it runs
         if (self.stop_reason is not None and not urgent) or self.closing:
             self._refuse(q, key, verb, raw, sender, user,
                          f"the daemon is stopping ({self.stop_reason}); command not taken")
@@ -421,7 +421,7 @@ class NetNode:
         self.next_id += 1
         deadline = now + self.spec.command_timeout_s
         self.waiting[k] = (q, deadline, verb, None)
-        if verb in self.spec.main_thread_verbs:
+        if verb in REGISTRY.main_thread:
             assert self.board is not None
             blob = json.dumps({"id": k, "verb": verb, "payload": payload, "sender": sender,
                                "user": user}).encode()
@@ -458,7 +458,7 @@ class NetNode:
         if isinstance(muscle, str) and muscle not in self.spec.muscles:
             raise CommandRefused(f"no muscle named {muscle!r}; muscles: "
                                  f"{', '.join(self.spec.muscles)}")
-        fields = {"setpoint": ("bar",), "profile": ("min_bar", "max_bar", "to_bar")}.get(verb)
+        fields = REGISTRY.pressure_fields.get(verb)
         if not fields:
             return
         limits = self._pressure_limits()

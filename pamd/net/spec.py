@@ -11,9 +11,6 @@ from pamd.config.names import check_chunk
 from pamd.errors import ConfigError, ConfigIssue
 from pamd.net import zconf
 
-#: verbs whose work needs the daemon's main thread (file I/O before the loop sees them)
-MAIN_THREAD_VERBS = ("collect", "model")
-
 
 @dataclass(frozen=True)
 class TelemetryRequest:
@@ -40,7 +37,6 @@ class NetSpec:
     status_period_s: float = 0.1  # the main thread's status snapshot refresh
     where: str = ""  # where the session listens or connects, for the operator
     board_name: str = ""  # the shared status board (pamd.net.board), set at creation
-    main_thread_verbs: tuple[str, ...] = MAIN_THREAD_VERBS
 
 
 def resolve(cfg: Any, req: TelemetryRequest | None) -> NetSpec | None:

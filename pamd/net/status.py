@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from pamd.commands import VERBS
+from pamd.commands import REGISTRY
 from pamd.version import __version__
 
 
@@ -78,7 +78,7 @@ class StatusBuilder:
             rig_id=cfg.rig.rig_id, faults=list(ctrl.supervisor.faults),
             experiment=experiment, config_sha256=cfg.sha256,
             config_path=os.path.abspath(cfg.path), clock="virtual" if d.loop.virtual else "real",
-            rate_hz=cfg.rig.loop.rate_hz, verbs=sorted(VERBS), recording=rec,
+            rate_hz=cfg.rig.loop.rate_hz, verbs=sorted(REGISTRY.names), recording=rec,
             stopping=d.loop._stop_reason, pamd_version=__version__, pid=os.getpid(),
             t_wall_s=time.time(), uptime_s=now - self.t0)
         return jsonsafe(st)

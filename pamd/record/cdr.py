@@ -32,9 +32,12 @@ INT_FIELDS: dict[str, str] = {
 
 UNITS = {"_bar": "bar", "_n": "N", "_mm": "mm", "_mm_s": "mm/s", "_s": "s"}
 
+# Schema names: all `pamd_msgs/msg/...`. Readers go by topic and encoding, never by
+# schema name, so recordings made before the event schema was renamed (from
+# `pamd_msgs/Event`) read the same.
 MUSCLE_SCHEMA_NAME = "pamd_msgs/msg/MuscleState"
 LOOP_SCHEMA_NAME = "pamd_msgs/msg/LoopTiming"
-EVENT_SCHEMA_NAME = "pamd_msgs/Event"
+EVENT_SCHEMA_NAME = "pamd_msgs/msg/Event"
 
 # Message record header: opcode, record length, channel id, sequence, log, publish time.
 MSG_HEADER = "<BQHIQQ"

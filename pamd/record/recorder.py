@@ -4,7 +4,7 @@ optional rotation), metadata and attachments stating what the run was.
 Topics (they match the Zenoh key names):
   /pamd/<rig>/state/<muscle>  pamd_msgs/msg/MuscleState, cdr, one per muscle per tick
   /pamd/<rig>/loop            pamd_msgs/msg/LoopTiming,  cdr, one per tick
-  /pamd/<rig>/events          pamd_msgs/Event, json (jsonschema): transitions, commands
+  /pamd/<rig>/events          pamd_msgs/msg/Event, json (jsonschema): transitions, commands
                               and verdicts, markers, lost records, recording notices
 Log time: wall-clock ns of the tick's scheduled time in real time; with the virtual
 clock, run start (wall clock) + tick x period, so the time axis is the rig's.

@@ -40,6 +40,7 @@ class Transition:
 
 
 HISTORY_KEPT = 256  # transitions kept in memory (every one is recorded as an event)
+FAULTS_KEPT = 256  # fault reasons kept in memory (every one is recorded as an event)
 
 
 class Supervisor:
@@ -52,7 +53,8 @@ class Supervisor:
         self.fault_reason: str | None = None
         self.on_transition = on_transition
         self.history: deque[Transition] = deque(maxlen=HISTORY_KEPT)  # the latest
-        self.faults: list[str] = []
+        self.faults: deque[str] = deque(maxlen=FAULTS_KEPT)  # the latest reasons
+        self.fault_count = 0  # faults and emergency stops latched since the start
 
     @property
     def latched(self) -> bool:
@@ -72,15 +74,24 @@ class Supervisor:
         if self.latched:
             return
         self.fault_reason = reason
-        self.faults.append(reason)
+        self._add_fault(reason)
         self.go(t_s, State.FAULT, reason)
 
     def estop(self, t_s: float, reason: str) -> None:
         if self.state == State.ESTOP:
             return
         self.fault_reason = reason
-        self.faults.append(reason)
+        self._add_fault(reason)
         self.go(t_s, State.ESTOP, reason)
+
+    def _add_fault(self, reason: str) -> None:
+        self.faults.append(reason)
+        self.fault_count += 1
+
+    def faults_since(self, count0: int) -> list[str]:
+        """The reasons latched since `fault_count` was `count0` (the latest FAULTS_KEPT)."""
+        n = min(self.fault_count - count0, len(self.faults))
+        return list(self.faults)[len(self.faults) - n:] if n > 0 else []
 
     def reset(self, t_s: float, reason: str = "reset by operator") -> None:
         self.fault_reason = None

@@ -5,7 +5,7 @@ It carries the recording's own channels and schemas, so one Foxglove layout
 
   /pamd/<rig>/state/<muscle>  pamd_msgs/msg/MuscleState  ros2msg, cdr
   /pamd/<rig>/loop            pamd_msgs/msg/LoopTiming   ros2msg, cdr
-  /pamd/<rig>/events          pamd_msgs/Event            jsonschema, json
+  /pamd/<rig>/events          pamd_msgs/msg/Event        jsonschema, json
 
 State and loop messages are decimated like the Zenoh state: one tick in
 `loop.rate_hz / telemetry.rate_hz`, with the recording's log time (the tick's

@@ -21,6 +21,7 @@ from pamd.errors import CommandRefused
 from pamd.experiment.manifest import Manifest
 from pamd.experiment.plan import load_plan
 from pamd.net.collections import Collections
+from pamd.safety.supervisor import Supervisor
 
 PLAN = yaml.safe_dump({
     "name": "quick", "muscle": "m1", "settle": {"seconds": 1},
@@ -39,7 +40,7 @@ class Setup:
         self.d = SimpleNamespace(
             cfg=self.cfg, io=None, note="", loop=SimpleNamespace(lost_records=0),
             ctrl=SimpleNamespace(tick_no=100, now=1.0, sequencer=None,
-                                 supervisor=SimpleNamespace(faults=[])),
+                                 supervisor=Supervisor()),
             summary=SimpleNamespace(event=lambda t, kind, data: self.events.append(data)))
         self.c = Collections(self.d, str(self.rec) if record else None, self.send)
 
@@ -157,7 +158,7 @@ def test_a_daemon_stopping_mid_plan_writes_the_manifest_as_it_closes(tmp_path: P
     step_file = "20250101-000000_sim_quick_01-light.mcap"
     Path(coll.dir, step_file).write_bytes(b"")  # what the io process wrote
     s.d.ctrl.tick_no = 600
-    s.d.ctrl.supervisor.faults.append("m1: something")
+    s.d.ctrl.supervisor.fault(0.0, "m1: something")
     s.c.service()  # the plan still runs: nothing yet
     assert Manifest.load(coll.dir).data["runs"] == []
     s.c.close("SIGTERM received")

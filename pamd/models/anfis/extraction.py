@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from pamd.control.profiles import SHAPES, ProfileSpec
 from pamd.errors import ModelError
 from pamd.models.anfis.recordings import read_runs
 from pamd.models.anfis.samples import ExtractOptions, Run, Samples
@@ -189,16 +190,21 @@ def _lead_ins(run: Run, settle_s: float) -> list[tuple[float, float]]:
 
 
 def _profile_start(args: dict[str, Any]) -> float | None:
-    kind = args.get("kind")
-    lo, hi = args.get("min_bar"), args.get("max_bar")
-    if kind == "sine" and lo is not None and hi is not None:
-        return 0.5 * (float(lo) + float(hi))
-    if kind in ("triangle", "step") and lo is not None:
-        return float(lo)
-    if kind == "constant":
-        v = args.get("to_bar", lo)
-        return None if v is None else float(v)
-    return None
+    """Where a recorded profile command's shape starts (its lead-in's end), by the shape's
+    own rule (`pamd.control.profiles`); None where the record does not say (a ramp
+    starts where it is)."""
+    shape = SHAPES.get(str(args.get("kind")))
+    if shape is None:
+        return None
+    try:
+        to_bar = args.get("to_bar")
+        spec = ProfileSpec(kind=shape.name, min_bar=float(args["min_bar"]),
+                           max_bar=float(args["max_bar"]),
+                           to_bar=None if to_bar is None else float(to_bar))
+    except (KeyError, TypeError, ValueError):
+        return None
+    start = spec.start_value()
+    return None if math.isnan(start) else start
 
 
 def load_samples(paths: Sequence[str], options: ExtractOptions | None = None) -> Samples:

@@ -1,0 +1,9 @@
+"""Every command verb: the declarations of the handler modules, by kind (motion, rig,
+experiment plans), in one registry."""
+
+from __future__ import annotations
+
+from pamd.commands import motion, plan, rig
+from pamd.commands.registry import VerbRegistry
+
+REGISTRY = VerbRegistry(motion.VERBS + rig.VERBS + plan.VERBS)

@@ -1,0 +1,44 @@
+"""The loop's side of the io link never grows without bound: events other threads hand
+it wait for the loop's thread in a bounded queue (beyond it they are counted as lost),
+and the shared block shows the newest of a long run's files."""
+
+from __future__ import annotations
+
+import threading
+from array import array
+from types import SimpleNamespace
+from typing import Any
+
+from pamd.io.link import HELD_EVENTS_MAX, RingSink
+from pamd.ipc.ring import C_LOST_EVENTS, FILES_MAX, BlockLayout, SharedBlock
+
+
+def test_events_from_other_threads_wait_in_a_bounded_queue() -> None:
+    block = SharedBlock(BlockLayout(record_bytes=8, tick_slots=4), create=True)
+    try:
+        sink = RingSink(SimpleNamespace(block=block), virtual=False,  # type: ignore[arg-type]
+                        t_start=lambda: 0.0, on_failure=lambda what, why: None,
+                        notify=lambda msg: None)
+        # the loop's thread puts one record (it owns the rings from then on), then stops
+        t = threading.Thread(target=sink.put, args=(array("d", [0.0]),))
+        t.start()
+        t.join()
+        for k in range(HELD_EVENTS_MAX + 100):  # e.g. the daemon's main thread's events
+            sink.event(float(k), "command", {"k": k})
+        assert sink.lost_events == 100 and block.get(C_LOST_EVENTS) == 100
+    finally:
+        block.close()
+
+
+def test_the_block_shows_the_newest_files_that_fit_whole() -> None:
+    block = SharedBlock(BlockLayout(record_bytes=8, tick_slots=4), create=True)
+    try:
+        files = [f"/var/lib/pamd/rec/20250101-{k:06d}_sim_run_{k:03d}.mcap" for k in range(500)]
+        block.set_files(files[:3])
+        assert block.files() == files[:3]
+        block.set_files(files)  # a months-long run, rotated 500 times
+        shown: list[Any] = block.files()
+        assert shown == files[-len(shown):] and 10 < len(shown) < 500
+        assert len("\n".join(shown).encode()) <= FILES_MAX
+    finally:
+        block.close()
