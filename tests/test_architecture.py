@@ -37,7 +37,7 @@ LAYERS: list[list[str]] = [
     ["drivers", "record"],
     ["sim", "rt", "calibration"],
     ["config"],
-    ["schema", "plugins", "ipc", "metrics", "timing", "muscle", "tick"],
+    ["schema", "plugins", "ipc", "metrics", "timing", "muscle", "tick", "profiles"],
     ["errors", "version"],
     ["data"],
 ]

@@ -15,11 +15,11 @@ from typing import Any
 from pamd.config import load_config
 from pamd.control.feedforward import LoadedModel
 from pamd.control.length_targets import check_length_profile_config
-from pamd.control.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
 from pamd.io.session import RecordingRequest
 from pamd.net.spec import TelemetryRequest
+from pamd.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
 from pamd.service import testhooks
 from pamd.service.notify import Notifier
 from pamd.service.restart import restart_in_place, run_argv, unblock_signals

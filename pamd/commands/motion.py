@@ -18,9 +18,9 @@ from pamd.commands.schema import (
     ProfileArgs,
     SetpointArgs,
 )
-from pamd.control.profiles import Profile, ProfileSpec
 from pamd.errors import CommandRefused
 from pamd.muscle import MUSCLE_TYPES
+from pamd.profiles import Profile, ProfileSpec
 from pamd.tick import State
 
 

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from pamd.control.profiles import kinds_reading, kinds_text
+from pamd.profiles import kinds_reading, kinds_text
 from pamd.schema.engine import spec
 
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from pamd.control.profiles import Profile, ProfileSpec, shape_of
 from pamd.errors import CommandRefused
 from pamd.muscle import equilibrium_contraction
+from pamd.profiles import Profile, ProfileSpec, shape_of
 
 #: Length targets keep this far (contraction) inside what the load lets the muscle reach.
 REACH_MARGIN = 0.005

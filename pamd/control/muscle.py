@@ -25,9 +25,9 @@ from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig
 from pamd.control.length_control import LengthControl
 from pamd.control.pid import Pid
-from pamd.control.profiles import Profile
 from pamd.models.velocity import VELOCITY_WINDOW_S, velocity_step
 from pamd.muscle import force_model
+from pamd.profiles import Profile
 from pamd.rig import MuscleSignals
 from pamd.safety import safe_pressure_bar
 from pamd.safety.limiter import Limiter, held_back

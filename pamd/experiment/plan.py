@@ -12,9 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pamd.config.loader import NAME_RE, LoadedConfig
-from pamd.control.profiles import ProfileKind, ProfileSpec, kinds_reading
 from pamd.errors import CommandRefused
 from pamd.muscle import MUSCLE_TYPES, equilibrium_contraction, force_model
+from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
 from pamd.schema.engine import Context, build_dataclass, spec
 from pamd.schema.yamlload import load_yaml_text, read_text
 

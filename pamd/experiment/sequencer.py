@@ -19,10 +19,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from pamd.control.profiles import Profile, ProfileSpec
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.experiment.plan import Plan, PlanStep
 from pamd.muscle import GRAVITY_M_S2
+from pamd.profiles import Profile, ProfileSpec
 from pamd.safety import safe_pressure_bar
 from pamd.tick import State
 

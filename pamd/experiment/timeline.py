@@ -7,9 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
-from pamd.control.profiles import Profile
 from pamd.experiment.plan import Plan, profile_range
 from pamd.muscle import equilibrium_contraction, force_model
+from pamd.profiles import Profile
 from pamd.safety import safe_pressure_bar
 
 

@@ -1,4 +1,4 @@
-"""The profile shape registry (`pamd.control.profiles.SHAPES`): every registered shape
+"""The profile shape registry (`pamd.profiles.SHAPES`): every registered shape
 keeps its own declarations (start value, span, steepest slope) true when it runs, and
 every place that names profile kinds takes them from the registry."""
 
@@ -12,7 +12,9 @@ import pytest
 
 from pamd.cli.main import build_parser
 from pamd.commands.schema import ProfileArgs
-from pamd.control.profiles import (
+from pamd.errors import CommandRefused
+from pamd.experiment.plan import PlanProfile
+from pamd.profiles import (
     SHAPE_NAMES,
     SHAPES,
     Profile,
@@ -21,8 +23,6 @@ from pamd.control.profiles import (
     kinds_text,
     shape_of,
 )
-from pamd.errors import CommandRefused
-from pamd.experiment.plan import PlanProfile
 
 SLEW = 5.0
 PARAMS = {"min_bar": 1.0, "max_bar": 4.0, "freq_hz": 0.2, "cycles": 2, "to_bar": 3.5,

@@ -36,11 +36,11 @@ from typing import Any
 
 import numpy as np
 
-from pamd.control.profiles import SHAPES, ProfileSpec
 from pamd.errors import ModelError
 from pamd.models.anfis.recordings import read_runs
 from pamd.models.anfis.samples import ExtractOptions, Run, Samples
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, derivation, filtered_velocity
+from pamd.profiles import SHAPES, ProfileSpec
 from pamd.tick import Flag, State
 
 _RUNNING = int(State.RUNNING)
@@ -191,7 +191,7 @@ def _lead_ins(run: Run, settle_s: float) -> list[tuple[float, float]]:
 
 def _profile_start(args: dict[str, Any]) -> float | None:
     """Where a recorded profile command's shape starts (its lead-in's end), by the shape's
-    own rule (`pamd.control.profiles`); None where the record does not say (a ramp
+    own rule (`pamd.profiles`); None where the record does not say (a ramp
     starts where it is)."""
     shape = SHAPES.get(str(args.get("kind")))
     if shape is None:

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from pamd.control.profiles import Profile, ProfileSpec
 from pamd.errors import CommandRefused
+from pamd.profiles import Profile, ProfileSpec
 
 
 def sample(p: Profile, t: float) -> tuple[float, float]:
