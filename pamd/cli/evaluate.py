@@ -13,10 +13,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any, TextIO
 
 from pamd.anfis.extraction import load_samples
-from pamd.anfis.samples import ExtractOptions
 from pamd.errors import ModelError
 from pamd.models.compare import common_options, format_comparison, judge
-from pamd.models.contract import InverseModel
 from pamd.models.registry import load_model
 
 #: Table rows: metric key, label, format.
@@ -62,13 +60,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "training)")
     p.add_argument("--no-timing", action="store_true", help="skip the tick-cost measurement")
     p.set_defaults(func=run)
-
-
-def extract_options_for(model: InverseModel, muscle: str | None = None,
-                        settle_s: float | None = None,
-                        rate_hz: float | None = None) -> ExtractOptions:
-    """Extraction settings that reproduce how `model` was trained."""
-    return common_options([model], muscle, settle_s, rate_hz)
 
 
 def split_files(files: Sequence[str]) -> tuple[list[str], list[str]]:

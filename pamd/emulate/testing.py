@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import shutil
 import socket
 import threading
 import time
@@ -19,10 +18,6 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_EMULATED = REPO / "config" / "rig-emulated.yaml"
-
-
-def have_socat() -> bool:
-    return shutil.which("socat") is not None
 
 
 def free_port() -> int:
