@@ -138,7 +138,6 @@ class ModbusDriver(ThreadedDriver):
         self._safe_sent: dict[int, float] = {}
         self._client: Any = None
         self.cycles = 0
-        self.last_cycle_s = math.nan
         self._counter: int | None = None  # the sample counter as last read
         self._counter_read_s = -math.inf  # when it was last read
         self._sample_s = -math.inf  # stamp of the present sample (sample_clock)
@@ -235,7 +234,6 @@ class ModbusDriver(ThreadedDriver):
             else:
                 self.failing(problem)
             self.cycles += 1
-            self.last_cycle_s = mono() - t0
             if o.poll_period_s > 0.0:
                 rest = t0 + o.poll_period_s - mono()
                 if rest > 0.0:

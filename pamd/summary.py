@@ -53,7 +53,6 @@ class SummarySink:
         # the latest events (the recording keeps them all): a daemon that runs for
         # weeks and takes commands must not grow by each one
         self.events: deque[tuple[float, str, dict[str, Any]]] = deque(maxlen=EVENTS_KEPT)
-        self.last = layout.new_record()
         self._bases = [b for b in layout.muscle_base]
         self.downstream: list[Any] = []
 
@@ -80,7 +79,6 @@ class SummarySink:
                     self.len_count[k] += 1
                     if abs(e) > self.len_max_abs[k]:
                         self.len_max_abs[k] = abs(e)
-        self.last[:] = record
         ok = True
         for d in self.downstream:
             ok = d.put(record) and ok
@@ -117,9 +115,6 @@ class SummarySink:
                 "soft_limit_events": self.limit_events[k],
             }
         return out
-
-    def last_values(self) -> dict[str, Any]:
-        return self.layout.as_dict(self.last)
 
 
 class LocalMailbox:

@@ -93,9 +93,6 @@ class TickLayout:
     def new_record(self) -> array:
         return array("d", bytes(8 * self.size))
 
-    def loop_index(self, name: str) -> int:
-        return LOOP_FIELDS.index(name)
-
     def muscle_index(self, muscle: int, name: str) -> int:
         return self.muscle_base[muscle] + MUSCLE_FIELDS.index(name)
 

@@ -16,9 +16,7 @@ from pamd.errors import ModelError
 from pamd.models.anfis.extraction import load_samples
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.anfis.plots import write_plots
-from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.compare import common_options, format_comparison, judge
-from pamd.models.contract import InverseModel
 from pamd.models.plots import write_overlay
 from pamd.models.registry import load_model
 
@@ -65,13 +63,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "training)")
     p.add_argument("--no-timing", action="store_true", help="skip the tick-cost measurement")
     p.set_defaults(func=run)
-
-
-def extract_options_for(model: InverseModel, muscle: str | None = None,
-                        settle_s: float | None = None,
-                        rate_hz: float | None = None) -> ExtractOptions:
-    """Extraction settings that reproduce how `model` was trained."""
-    return common_options([model], muscle, settle_s, rate_hz)
 
 
 def split_files(files: Sequence[str]) -> tuple[list[str], list[str]]:

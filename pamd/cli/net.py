@@ -20,6 +20,11 @@ from typing import Any
 
 from pamd.commands import REGISTRY
 from pamd.errors import CommandRefused
+from pamd.net.client import Client
+from pamd.net.keys import Keys
+from pamd.net.telemetry import decode
+from pamd.net.zconf import NoDaemon
+from pamd.tick import Mode, State
 
 CMD_EPILOG = """examples:
   pamd cmd setpoint --muscle m1 --bar 3.0
@@ -80,7 +85,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _client(args: argparse.Namespace) -> Any:
-    from pamd.net.client import Client
 
     return Client(args.zenoh_config, args.connect)
 
@@ -242,10 +246,6 @@ def _name(enum: Any, v: Any) -> str:
 
 
 def watch(args: argparse.Namespace) -> int:
-    from pamd.net.keys import Keys
-    from pamd.net.telemetry import decode
-    from pamd.net.zconf import NoDaemon
-    from pamd.tick import Mode, State
 
     with _client(args) as cl:
         rig = cl.rig(args.rig)

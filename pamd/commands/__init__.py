@@ -23,7 +23,6 @@ from pamd.commands.schema import (
     LoadArgs,
     ModeArgs,
     ModelArgs,
-    MuscleArgs,
     MuscleSettings,
     NoArgs,
     PreparedModelArgs,
@@ -35,7 +34,7 @@ from pamd.commands.verbs import REGISTRY
 
 __all__ = [
     "LENGTH_PROFILE_FIELDS", "REGISTRY", "CollectArgs", "Command", "EstopArgs", "HomeArgs",
-    "LoadArgs", "ModeArgs", "ModelArgs", "MuscleArgs", "MuscleSettings", "NoArgs",
+    "LoadArgs", "ModeArgs", "ModelArgs", "MuscleSettings", "NoArgs",
     "PreparedModelArgs", "ProfileArgs", "ReloadArgs", "SetpointArgs", "Verb", "VerbRegistry",
     "apply_command", "parse_command", "prepare_command",
 ]

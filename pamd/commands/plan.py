@@ -9,6 +9,7 @@ from pamd.commands.guards import can_move, need_reference
 from pamd.commands.registry import Verb
 from pamd.commands.schema import CollectArgs, NoArgs
 from pamd.errors import CommandRefused
+from pamd.experiment.sequencer import Sequencer
 
 
 def _confirm(ctrl: Any, a: NoArgs) -> dict[str, Any]:
@@ -31,7 +32,6 @@ def _pause(ctrl: Any, a: NoArgs) -> dict[str, Any]:
 
 def _collect(ctrl: Any, a: Any) -> dict[str, Any]:
     """`a.plan` is a Plan already read and checked outside the loop's thread."""
-    from pamd.experiment.sequencer import Sequencer
 
     can_move(ctrl)
     if ctrl.sequencer is not None and not ctrl.sequencer.outcome:

@@ -96,11 +96,6 @@ class PreparedModelArgs:
 
 
 @dataclass(frozen=True, kw_only=True)
-class MuscleArgs:
-    muscle: str | None = spec(None, "Muscle name (default: every muscle).")
-
-
-@dataclass(frozen=True, kw_only=True)
 class HomeArgs:
     muscle: str = spec(doc="Muscle name.")
     length_mm: float = spec(doc="The muscle's true length at its present position.", unit="mm",

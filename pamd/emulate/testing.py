@@ -9,7 +9,6 @@ import asyncio
 import contextlib
 import json
 import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -24,10 +23,6 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_EMULATED = REPO / "config" / "rig-emulated.yaml"
-
-
-def have_socat() -> bool:
-    return shutil.which("socat") is not None
 
 
 def free_port() -> int:

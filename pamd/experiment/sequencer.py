@@ -42,7 +42,6 @@ class Sequencer:
         self.step: PlanStep | None = None
         self.phase = ""
         self.phase_t0 = 0.0
-        self.step_t0 = 0.0
         self.outcome = ""  # "", "done", "aborted: ...", "fault: ..."
         self.finished_steps: list[str] = []
         self.pause_at_cycle_end = False
@@ -98,7 +97,6 @@ class Sequencer:
             return
         step = self.plan.steps[self.index]
         self.step = step
-        self.step_t0 = now
         self.ctrl.segment = self.index + 1  # the recorder starts the step's file here
         m = self.muscle
         self.ctrl.sink.event(now, "segment", {

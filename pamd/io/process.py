@@ -246,7 +246,7 @@ class IoProcess:
         return False
 
     def _drain_ticks(self) -> int:
-        ring = self.ring_ticks = self.block.ticks
+        ring = self.block.ticks
         avail = ring.available()
         if avail <= 0:
             return 0

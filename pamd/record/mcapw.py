@@ -157,10 +157,6 @@ class McapWriter:
                 publish_time=log_ns, data=data).write(b)
         self.add_record(channel_id, log_ns, b.end())
 
-    @property
-    def chunk_bytes(self) -> int:
-        return len(self.chunk)
-
     def close_chunk(self) -> None:
         """Compress and write the open chunk and its message indexes (if any)."""
         raw = self.chunk

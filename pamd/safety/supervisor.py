@@ -53,7 +53,7 @@ class Supervisor:
         self.fault_reason: str | None = None
         self.on_transition = on_transition
         self.history: deque[Transition] = deque(maxlen=HISTORY_KEPT)  # the latest
-        self.faults: deque[str] = deque(maxlen=FAULTS_KEPT)  # the latest reasons
+        self.faults: list[str] = []  # the latest reasons (FAULTS_KEPT at most)
         self.fault_count = 0  # faults and emergency stops latched since the start
 
     @property
@@ -86,12 +86,14 @@ class Supervisor:
 
     def _add_fault(self, reason: str) -> None:
         self.faults.append(reason)
+        if len(self.faults) > FAULTS_KEPT:
+            del self.faults[0]  # a fault is rare: the shift costs nothing that matters
         self.fault_count += 1
 
     def faults_since(self, count0: int) -> list[str]:
         """The reasons latched since `fault_count` was `count0` (the latest FAULTS_KEPT)."""
         n = min(self.fault_count - count0, len(self.faults))
-        return list(self.faults)[len(self.faults) - n:] if n > 0 else []
+        return self.faults[len(self.faults) - n:] if n > 0 else []
 
     def reset(self, t_s: float, reason: str = "reset by operator") -> None:
         self.fault_reason = None

@@ -161,10 +161,6 @@ class MusclePlant:
             raise TypeError(f"muscle {self.name!r} has on/off valves, not a regulator")
         reg.set_setpoint(value_bar)
 
-    def set_exhaust(self, open_: bool) -> None:
-        """Open (True) or close the dump valve that vents the muscle."""
-        self.regulator.exhaust_open = open_
-
     def set_supply(self, ok: bool) -> None:
         """Supply present (True) or lost: without it the pressure cannot rise."""
         self.regulator.supply_ok = ok

@@ -69,6 +69,3 @@ def state_name(code: float) -> str:
 def mode_name(code: float) -> str:
     return MODE_NAMES.get(int(code), f"?{code:g}") if code == code else ""
 
-
-def flag_names(bits: int) -> list[str]:
-    return [n for n, b in FLAG_BITS.items() if bits & b]

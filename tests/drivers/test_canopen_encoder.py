@@ -1,6 +1,7 @@
 """The `canopen-encoder` driver on python-can's `virtual` bus against canopen's
 LocalNode playing a CiA 406 encoder: configuration by SDO, NMT start, scaling,
-preset (home), silent / rebooted / faulty nodes, wrong-length and raw frames."""
+preset (home), rebooted / faulty nodes, wrong-length and raw frames (a silent or
+missing node: the contract suite, test_contract.py)."""
 
 from __future__ import annotations
 
@@ -98,18 +99,6 @@ def test_preset_sets_the_encoders_reference(bus: Bus) -> None:
         bus.driver(frames=(RawFrame(name="r", can_id=0x300),)).preset_position(0, 1.0)
 
 
-def test_silent_node_faults_with_the_node_named_then_recovers(bus: Bus) -> None:
-    enc = bus.encoder(5)
-    d = bus.driver(node(5, heartbeat_ms=20, name="m1_length"), fault_after_s=0.1)
-    assert wait_until(lambda: ready(d))
-    enc.go_silent()
-    assert wait_until(lambda: d.fault is not None)
-    assert "node 5 (m1_length)" in d.fault and "silent" in d.fault
-    stamp = d.in_stamps_s[0]
-    enc.go_silent(False)
-    assert wait_until(lambda: d.fault is None and d.in_stamps_s[0] > stamp)
-
-
 def test_rebooted_node_is_configured_again(bus: Bus) -> None:
     enc = bus.encoder(6, physical=100)
     d = bus.driver(node(6, heartbeat_ms=20))
@@ -120,13 +109,6 @@ def test_rebooted_node_is_configured_again(bus: Bus) -> None:
     assert wait_until(lambda: enc.node.nmt.state == "OPERATIONAL")
     assert d.health().counters["node_boots"] == 1
     assert wait_until(lambda: d.fault is None)
-
-
-def test_missing_node_never_configured_faults(bus: Bus) -> None:
-    d = bus.driver(node(9, name="ghost"), sdo_timeout_s=0.05, fault_after_s=0.1)
-    assert wait_until(lambda: d.fault is not None)
-    assert "node 9 (ghost)" in d.fault
-    assert d.health().counters["sdo_timeouts"] >= 1
 
 
 def test_emergency_and_wrong_length_frames(bus: Bus) -> None:

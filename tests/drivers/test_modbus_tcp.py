@@ -1,7 +1,7 @@
 """The `modbus` driver over TCP against an emulated ADAM-6024 (pymodbus simulator
 on loopback): scaling round trips through the rig's calibration, bad maps,
-exception responses, timeouts, reconnect, write refresh and the module's
-communication-safety values."""
+exception responses, timeouts, write refresh and the module's communication-safety
+values (the module going away and coming back: the contract suite, test_contract.py)."""
 
 from __future__ import annotations
 
@@ -154,24 +154,6 @@ def test_timeouts_then_recovery(tmp_path: Path, aio: AioThread, drivers: list[An
     assert wait_until(lambda: time.monotonic() - stamp > 0.2)  # stale: stamps stopped
     bench.device.hang_s = 0.0
     assert wait_until(lambda: d.fault is None and d.in_stamps_s[0] > stamp)
-
-
-def test_reconnect_after_the_device_goes_away(tmp_path: Path, aio: AioThread,
-                                              drivers: list[Any]) -> None:
-    opts, _ = rig_options(tmp_path)
-    bench = Bench(aio, opts)
-    d = ModbusDriver("io", dataclasses.replace(opts, fault_after_s=0.2, reconnect_max_s=0.2))
-    drivers.append(d)
-    d.open(time.monotonic)
-    assert wait_until(lambda: d.health().ok)
-    bench.stop()
-    assert wait_until(lambda: d.fault is not None)
-    assert "tcp 127.0.0.1" in d.fault
-    bench.start()
-    assert wait_until(lambda: d.fault is None and d.connected)
-    assert d.health().counters["connects"] >= 2
-    t = time.monotonic()
-    assert wait_until(lambda: d.in_stamps_s[0] > t)
 
 
 def test_comm_safety_values_and_watchdog(tmp_path: Path, aio: AioThread,

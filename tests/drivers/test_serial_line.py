@@ -1,6 +1,7 @@
 """The `serial-line` driver: request/response over pyserial's loop:// (the request
 comes back as the answer), streaming over a pty (os.openpty) with good lines,
-malformed lines, bad checksums, overlong garbage, silence and recovery."""
+malformed lines, bad checksums and overlong garbage (silence, recovery and a missing
+port: the contract suite, test_contract.py)."""
 
 from __future__ import annotations
 
@@ -111,30 +112,3 @@ def test_stream_fields_checksum_and_garbage(pty: Pty, made: list[Any]) -> None:
     assert wait_until(lambda: d.health().counters.get("overlong_lines", 0) >= 1)
     pty.send("\r\n" + nmea("F,125.0,45") + "\r\n")
     assert wait_until(lambda: d.in_values[0] == 125.0)
-
-
-def test_silence_faults_and_recovers(pty: Pty, made: list[Any]) -> None:
-    d = stream_driver(pty.path, timeout_s=0.05)
-    made.append(d)
-    d.open(time.monotonic)
-    assert wait_until(lambda: d.connected)
-    pty.send(nmea("F,1.0,1") + "\n")
-    assert wait_until(lambda: d.in_values[0] == 1.0)
-    assert wait_until(lambda: d.fault is not None)
-    assert "silent" in d.fault and "'amp'" in d.fault
-    stamp = d.in_stamps_s[0]
-    for _ in range(100):
-        pty.send(nmea("F,2.0,2") + "\n")
-        time.sleep(0.01)
-        if d.fault is None:
-            break
-    assert d.fault is None and d.in_stamps_s[0] > stamp
-
-
-def test_missing_port_faults_and_keeps_retrying(tmp_path: Any, made: list[Any]) -> None:
-    d = stream_driver(str(tmp_path / "nothing"), reconnect_max_s=0.05)
-    made.append(d)
-    d.open(time.monotonic)
-    assert wait_until(lambda: d.fault is not None)
-    assert "cannot open" in d.fault
-    assert wait_until(lambda: d.health().counters.get("open_failures", 0) >= 3)
