@@ -79,6 +79,6 @@ class StatusBuilder:
             experiment=experiment, config_sha256=cfg.sha256,
             config_path=os.path.abspath(cfg.path), clock="virtual" if d.loop.virtual else "real",
             rate_hz=cfg.rig.loop.rate_hz, verbs=sorted(VERBS), recording=rec,
-            stopping=d.loop._stop_reason, pamd_version=__version__, pid=os.getpid(),
+            stopping=d.loop.stop_requested, pamd_version=__version__, pid=os.getpid(),
             t_wall_s=time.time(), uptime_s=now - self.t0)
         return jsonsafe(st)
