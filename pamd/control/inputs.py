@@ -1,5 +1,6 @@
 """The inputs stage of one muscle's tick: its three readings in SI units, their age
-against the timeouts, the velocity, and their plausibility (`pamd.safety.plausibility`).
+against the timeouts, the velocity, and their plausibility (`pamd.safety.plausibility`);
+and their references (`home`, `tare`, a device's confirmation of a homed preset).
 
 What it leaves for the later stages: `pressure_bar`, `force_n`, `length_mm`,
 `contraction`, `velocity_mm_s`, whether the pressure and the length are trusted
@@ -47,6 +48,9 @@ class Inputs:
         self.pressure_ok = self.length_ok = False
         self.flags = 0
         self.finding: str | None = None  # a new plausibility finding, this tick
+        # A homed reference the device confirms later: (its preset counts, index, count).
+        self._pending_preset: tuple[list[int], int, int] | None = None
+        self._calibration_dirty = False
 
     # -- set-up, commands (not the tick path) --------------------------------------------
     def set_timeouts(self, pressure_s: float, force_s: float, length_s: float) -> None:
@@ -87,6 +91,36 @@ class Inputs:
         self._prev_length_mm = math.nan
         self.plausibility.reference_changed()
 
+    def home(self, length_mm: float, raw_length_mm: float, at: str) -> float:
+        """Reference the length: this reading (`raw_length_mm`, without the present
+        offset) is `length_mm`, at once in software; a device that takes a preset
+        confirms later (`read` then drops the software offset). Returns the offset."""
+        ref = self.reference
+        ref.length_offset_mm = length_mm - raw_length_mm
+        b = self.length_signal
+        counts = b.driver.preset_counts
+        if b.driver.preset_input(b.index, (length_mm - b.offset) / b.gain):
+            self._pending_preset = (counts, b.index, counts[b.index])
+        ref.length_referenced = True
+        ref.homed_at = at
+        self.reference_changed()
+        return ref.length_offset_mm
+
+    def tare(self, force_offset_n: float, at: str) -> None:
+        self.reference.force_offset_n = force_offset_n
+        self.reference.tared_at = at
+
+    def _preset_applied(self) -> None:
+        """The encoder now reads the homed length itself: drop the software offset."""
+        self.reference.length_offset_mm = 0.0
+        self.reference_changed()
+        self._pending_preset = None
+        self._calibration_dirty = True
+
+    def take_calibration_dirty(self) -> bool:
+        dirty, self._calibration_dirty = self._calibration_dirty, False
+        return dirty
+
     def take_finding(self) -> str | None:
         finding, self.finding = self.finding, None
         return finding
@@ -96,6 +130,9 @@ class Inputs:
         """Read this tick's inputs; returns the fault they raise (a stale input, else a
         new plausibility finding), or None. `last_command_bar` is the last valve command
         (NaN before any), `load_known` False while an experiment changes the load."""
+        pp = self._pending_preset
+        if pp is not None and pp[0][pp[1]] != pp[2]:
+            self._preset_applied()
         pi, fi, li = self._pi, self._fi, self._li
         pt, ft, lt = self._pt[pi], self._ft[fi], self._lt[li]
         ref = self.reference

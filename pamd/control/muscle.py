@@ -106,8 +106,6 @@ class MuscleController:
         self._valve_cmd_bar = math.nan
         self._profile: Profile | None = None
         self._safe_ramp = False
-        self._pending_preset: tuple[list[int], int, int] | None = None
-        self._calibration_dirty = False
         self.finding: str | None = None  # a new plausibility finding (take_finding)
         self.limit_report: str | None = None  # a profile held at a soft limit (> 1 s)
         self._set_envelope(envelope)
@@ -218,8 +216,7 @@ class MuscleController:
     def take_calibration_dirty(self) -> bool:
         """Whether the device took a homed reference since the last call (then the
         calibration is to be saved, outside the loop's thread)."""
-        dirty, self._calibration_dirty = self._calibration_dirty, False
-        return dirty
+        return self.inputs.take_calibration_dirty()
 
     # -- set-up and settings (not the tick path) ----------------------------------------
     def _set_envelope(self, env: MuscleEnvelope) -> None:
@@ -312,33 +309,13 @@ class MuscleController:
 
     # -- references (loop thread) --------------------------------------------------------
     def home(self, length_mm: float, raw_length_mm: float, at: str) -> float:
-        """Reference the length: this reading (`raw_length_mm`, without the present
-        offset) is `length_mm`, at once in software; a device that takes a preset
-        confirms later (the tick then drops the software offset). Returns the offset.
-        The caller has run `pamd.safety.references.check_home`."""
-        ref = self.signals.reference
-        ref.length_offset_mm = length_mm - raw_length_mm
-        b = self.signals.length
-        counts = b.driver.preset_counts
-        if b.driver.preset_input(b.index, (length_mm - b.offset) / b.gain):
-            self._pending_preset = (counts, b.index, counts[b.index])
-        ref.length_referenced = True
-        ref.homed_at = at
-        self.inputs.reference_changed()
-        return ref.length_offset_mm
+        """Reference the length (`Inputs.home`; the caller has run
+        `pamd.safety.references.check_home`). Returns the offset."""
+        return self.inputs.home(length_mm, raw_length_mm, at)
 
     def tare(self, force_offset_n: float, at: str) -> None:
         """The force reference (checked by `pamd.safety.references.tare_offset`)."""
-        ref = self.signals.reference
-        ref.force_offset_n = force_offset_n
-        ref.tared_at = at
-
-    def _preset_applied(self) -> None:
-        """The encoder now reads the homed length itself: drop the software offset."""
-        self.signals.reference.length_offset_mm = 0.0
-        self.inputs.reference_changed()
-        self._pending_preset = None
-        self._calibration_dirty = True
+        self.inputs.tare(force_offset_n, at)
 
     # -- motion (loop thread) ------------------------------------------------------------
     def start_profile(self, profile: Profile) -> None:
@@ -393,9 +370,6 @@ class MuscleController:
     # -- the tick -------------------------------------------------------------------------
     def tick(self, now: float, dt: float, state: int, rec: array) -> str | None:
         """Run one tick; returns a fault reason, or None."""
-        pp = self._pending_preset
-        if pp is not None and pp[0][pp[1]] != pp[2]:
-            self._preset_applied()
         # -- inputs --------------------------------------------------------------------
         inp = self.inputs
         prev_u = self._valve_cmd_bar
