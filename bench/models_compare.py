@@ -228,7 +228,7 @@ def track(model: str | None, cycles: int) -> tuple[float, str]:
         h.step(h.period_s)
         tau = h.t - t0
         if PERIOD_S <= tau < cycles * PERIOD_S and m.profile is not None:
-            e = m.length - m.target_length
+            e = m.length_mm - m.target_length_mm
             sq, n = sq + e * e, n + 1
     h.rig.close()
     return math.sqrt(sq / max(n, 1)), ""

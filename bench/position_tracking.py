@@ -105,11 +105,11 @@ def track(model: str | None, cycles: int, ilc: bool = False) -> dict[str, Any]:
         tau = h.t - t0
         c = int(tau / PERIOD_S)
         if tau > 0 and c < cycles and m.profile is not None:
-            e = m.length - m.target_length
+            e = m.length_mm - m.target_length_mm
             sq[c] += e * e
             n[c] += 1
             worst[c] = max(worst[c], abs(e))
-            clipped += (m.length_ctl.flags & clip_bit) != 0
+            clipped += (m.length_control.flags & clip_bit) != 0
     h.rig.close()
     rmse = [math.sqrt(s / k) if k else math.nan for s, k in zip(sq, n, strict=True)]
     after = slice(1, cycles)

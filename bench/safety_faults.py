@@ -61,13 +61,13 @@ def run_one(load_kg: float, signal: str, kind: str, scenario: str,
             h.step(h.period_s)
             if h.t >= at_s:
                 min_x = min(min_x, plant.contraction)
-            safe = ctrl.supervisor.state in (State.FAULT, State.ESTOP) or m.safing
+            safe = ctrl.supervisor.state in (State.FAULT, State.ESTOP) or m.in_safe_ramp
             if safe and m.started and h.t >= at_s:
                 if entry_cmd != entry_cmd:
-                    entry_cmd = m.valve_cmd
-                reached = reached or m.valve_cmd >= m.safe_bar - 1e-9
+                    entry_cmd = m.valve_cmd_bar
+                reached = reached or m.valve_cmd_bar >= m.safe_pressure_bar - 1e-9
                 if reached:
-                    min_cmd = min(min_cmd, m.valve_cmd)
+                    min_cmd = min(min_cmd, m.valve_cmd_bar)
         detected = None
         named = ""
         for t, kind_, data in h.sink.events:
@@ -78,7 +78,7 @@ def run_one(load_kg: float, signal: str, kind: str, scenario: str,
                 named = data.get("reason", "")
                 break
         return {"detected_s": detected, "named": named, "min_cmd": min_cmd, "entry": entry_cmd,
-                "safe_bar": m.safe_bar, "min_x": min_x, "state": h.state}
+                "safe_bar": m.safe_pressure_bar, "min_x": min_x, "state": h.state}
     finally:
         h.rig.close()
 

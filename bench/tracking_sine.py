@@ -33,9 +33,9 @@ def run(closed_loop: bool, cycles: int = 3) -> tuple[float, float, float]:
     while h.ctrl.supervisor.state == State.RUNNING:
         h.step(0.001)
         if h.t > t_first_cycle_end and h.ctrl.supervisor.state == State.RUNNING:
-            e = h.m1.sp - h.m1.pressure
+            e = h.m1.setpoint_bar - h.m1.pressure_bar
             sq += e * e
-            sq_true += (h.m1.sp - plant.pressure_bar) ** 2
+            sq_true += (h.m1.setpoint_bar - plant.pressure_bar) ** 2
             n += 1
             worst = max(worst, abs(e))
     h.rig.close()

@@ -20,14 +20,9 @@ def safe_output_values(ctrl: Any) -> dict[Driver, dict[int, float]]:
     """Driver -> {output index: raw value} of the safe state of every muscle."""
     out: dict[Driver, dict[int, float]] = {}
     for m in ctrl.muscles:
-        v = m.valve
-        raw = (m.safe_bar - v.offset) / v.gain
-        raw = min(max(raw, v.raw_min), v.raw_max)
-        out.setdefault(v.driver, {})[v.index] = raw
-        ex = m.exhaust
-        if ex is not None:
-            vent = 1.0 if m.safe_bar == 0.0 else 0.0
-            out.setdefault(ex.driver, {})[ex.index] = (vent - ex.offset) / ex.gain
+        for b, value, _unit in m.actuation.safe_outputs(m.safe_pressure_bar):
+            raw = (value - b.offset) / b.gain
+            out.setdefault(b.driver, {})[b.index] = min(max(raw, b.raw_min), b.raw_max)
     return out
 
 

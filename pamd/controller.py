@@ -19,6 +19,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.control.muscle import MuscleController
 from pamd.rig import Rig
 from pamd.safety import Supervisor, Transition
+from pamd.safety.envelope import MuscleEnvelope
 from pamd.tick import I_SEGMENT, I_STATE, I_T, I_TICK, Sink, State, TickLayout
 
 S_STARTING, S_IDLE, S_RUNNING, S_HOLD = (int(State.STARTING), int(State.IDLE),
@@ -38,7 +39,7 @@ class RigController:
         self.record = self.layout.new_record()
         self.supervisor = Supervisor(self._on_transition)
         self.muscles = [
-            MuscleController(i, m, cfg.limits[m.name], cfg, rig.muscles[i],
+            MuscleController(i, MuscleEnvelope.from_config(cfg, m.name), cfg, rig.muscles[i],
                              self.layout.muscle_base[i])
             for i, m in enumerate(cfg.rig.muscles)
         ]
@@ -50,10 +51,10 @@ class RigController:
         self.now = 0.0
         self.tick_no = 0
         self.listeners: list[Callable[[Transition], None]] = []
-        self.calibration_dirty = False
+        self._calibration_dirty = False
         self.sequencer: Any = None  # a running experiment plan (pamd.experiment)
         self.segment = 0  # the plan's step + 1: each step gets a recording file
-        self.hold_started = 0.0
+        self._hold_started = 0.0
         # Streamed setpoints' deadman: muscle -> (deadline, the ramp it guards, timeout);
         # the tick compares one float, the earliest deadline, and nothing else.
         self.deadman: dict[str, tuple[float, Any, float]] = {}
@@ -125,7 +126,7 @@ class RigController:
         why."""
         missing = None
         for m in self.muscles:
-            missing = m.inputs_fresh(now)
+            missing = m.missing_input(now)
             if missing is not None:
                 break
         if missing is None:
@@ -134,15 +135,17 @@ class RigController:
                 why = m.outside_limits()
                 m.hold_measured(safe_ramp=why is not None)
                 if why is None:
-                    held.append(f"{m.name} {m.sp:.2f} bar")
+                    held.append(f"{m.name} {m.setpoint_bar:.2f} bar")
                     self.sink.event(now, "startup", {"muscle": m.name, "action": "hold",
-                                                     "pressure_bar": m.sp})
+                                                     "pressure_bar": m.setpoint_bar})
                 else:
-                    ramped.append(f"{m.name} {why}: ramping from {m.sp:.2f} bar to its safe "
-                                  f"pressure {m.safe_bar:.2f} bar at {m.slew:g} bar/s")
+                    ramped.append(f"{m.name} {why}: ramping from {m.setpoint_bar:.2f} bar to "
+                                  f"its safe pressure {m.safe_pressure_bar:.2f} bar at "
+                                  f"{m.envelope.slew_limit_bar_per_s:g} bar/s")
                     self.sink.event(now, "startup", {
                         "muscle": m.name, "action": "safe_ramp", "reason": why,
-                        "pressure_bar": m.sp, "safe_pressure_bar": m.safe_bar})
+                        "pressure_bar": m.setpoint_bar,
+                        "safe_pressure_bar": m.safe_pressure_bar})
             parts = []
             if held:
                 parts.append(f"holding measured pressure ({', '.join(held)})")
@@ -152,8 +155,8 @@ class RigController:
             if self.supervisor.fault_reason:  # restored latched fault (service restart)
                 self.supervisor.fault(now, self.supervisor.fault_reason)
             for m in self.muscles:  # a reading found implausible while starting
-                if m.plaus.reason is not None:
-                    self.supervisor.fault(now, m.plaus.reason)
+                if m.plausibility.reason is not None:
+                    self.supervisor.fault(now, m.plausibility.reason)
         elif now - self.t_start > self.startup_timeout_s:
             self.supervisor.fault(now, f"start-up: no reading from {missing} within "
                                   f"{self.startup_timeout_s:g} s; nothing was written")
@@ -161,21 +164,20 @@ class RigController:
     def _finding(self, now: float, m: MuscleController) -> None:
         """A reading that is no longer trusted: an event, whatever the state (a fault
         already latched keeps its first reason; this one is still said)."""
-        trusted = [n for n, ok in (("pressure", m.plaus.pressure_ok),
-                                   ("force", m.plaus.force_ok),
-                                   ("length", m.plaus.length_ok)) if ok]
-        self.sink.event(now, "implausible", {"muscle": m.name, "reason": m.finding,
+        plaus = m.plausibility
+        trusted = [n for n, ok in (("pressure", plaus.pressure_ok), ("force", plaus.force_ok),
+                                   ("length", plaus.length_ok)) if ok]
+        self.sink.event(now, "implausible", {"muscle": m.name, "reason": m.take_finding(),
                                              "trusted": trusted})
-        m.finding = None
 
     def _soft_limit(self, now: float, m: MuscleController) -> None:
-        limit = m.limit_report
-        m.limit_report = None
+        limit = m.take_limit_report()
+        sp, cmd = m.setpoint_bar, m.valve_cmd_bar
         self.sink.event(now, "soft_limit", {
             "muscle": m.name, "limit": limit, "held_s": 1.0,
-            "setpoint_bar": m.sp, "valve_cmd_bar": m.valve_cmd,
+            "setpoint_bar": sp, "valve_cmd_bar": cmd,
             "reason": f"{m.name}: the profile is held at the {limit} limit (setpoint "
-                      f"{m.sp:.2f} bar, command {m.valve_cmd:.2f} bar) for more than 1 s"})
+                      f"{sp:.2f} bar, command {cmd:.2f} bar) for more than 1 s"})
 
     def _running_done(self, now: float) -> None:
         """A profile that has finished its cycles leaves the rig IDLE at its end value."""
@@ -184,7 +186,7 @@ class RigController:
             if p is None or not p.done or p.spec.kind == "ramp":
                 return
         for m in self.muscles:
-            m.profile = None
+            m.stop_profile()
         self.supervisor.go(now, State.IDLE, "profile finished")
 
     # -- deadman (streamed setpoints) ---------------------------------------------------
@@ -215,19 +217,49 @@ class RigController:
                 running = False
         self.deadman_at = min((d[0] for d in self.deadman.values()), default=math.inf)
 
+    # -- what commands and the daemon change ---------------------------------------------
+    def enter_hold(self, now: float, reason: str) -> None:
+        """HOLD: setpoints frozen (a `hold` command, a plan's pause) until `resume`."""
+        self._hold_started = now
+        self.supervisor.go(now, State.HOLD, reason)
+
+    @property
+    def hold_started(self) -> float:
+        """When the present (or last) HOLD began."""
+        return self._hold_started
+
+    def mark_calibration_dirty(self) -> None:
+        """A reference changed (home, tare): the daemon saves the calibration outside
+        the loop's thread."""
+        self._calibration_dirty = True
+
+    def take_calibration_dirty(self) -> bool:
+        """Whether the calibration changed since the last call (the daemon's thread)."""
+        dirty, self._calibration_dirty = self._calibration_dirty, False
+        for m in self.muscles:
+            dirty = m.take_calibration_dirty() or dirty
+        return dirty
+
+    @property
+    def calibration_dirty(self) -> bool:
+        return self._calibration_dirty
+
+    def set_startup_timeout(self, startup_timeout_s: float) -> None:
+        self.startup_timeout_s = startup_timeout_s
+
     # -- safe state -----------------------------------------------------------------
     def go_safe(self, reason: str) -> None:
         """End what runs and ramp every muscle to its safe pressure (IDLE)."""
         for m in self.muscles:
-            m.profile = None
-            m.safing = True
+            m.go_safe()
         if not self.supervisor.latched and self.supervisor.state != State.STARTING:
             self.supervisor.go(self.now, State.IDLE, reason)
 
     def at_safe_state(self) -> bool:
         """True when every started muscle's setpoint has reached its safe pressure (or
         nothing was ever written)."""
-        return all(not m.started or abs(m.sp - m.safe_bar) <= 1e-6 for m in self.muscles)
+        return all(not m.started or abs(m.setpoint_bar - m.safe_pressure_bar) <= 1e-6
+                   for m in self.muscles)
 
     def status(self) -> dict[str, Any]:
         sup = self.supervisor
@@ -237,16 +269,19 @@ class RigController:
             "fault": sup.fault_reason,
             "muscles": {
                 m.name: {
-                    "pressure_bar": m.pressure, "setpoint_bar": m.sp, "valve_cmd_bar": m.valve_cmd,
-                    "force_n": m.force, "length_mm": m.length, "contraction": m.contraction,
-                    "load_kg": m.load_kg, "safe_pressure_bar": m.safe_bar,
+                    "pressure_bar": m.pressure_bar, "setpoint_bar": m.setpoint_bar,
+                    "valve_cmd_bar": m.valve_cmd_bar, "force_n": m.force_n,
+                    "length_mm": m.length_mm, "contraction": m.contraction,
+                    "load_kg": m.load_kg, "safe_pressure_bar": m.safe_pressure_bar,
                     "referenced": m.referenced, "mode": m.mode.name.lower(),
-                    "safe_ramp": m.safing,
-                    "trusted": {"pressure": m.plaus.pressure_ok, "force": m.plaus.force_ok,
-                                "length": m.plaus.length_ok},
+                    "safe_ramp": m.in_safe_ramp,
+                    "trusted": {"pressure": m.plausibility.pressure_ok,
+                                "force": m.plausibility.force_ok,
+                                "length": m.plausibility.length_ok},
                     "profile": m.profile.spec.kind if m.profile else None,
-                    "limits": {"max_pressure_bar": m.max_p, "max_contraction": m.max_c,
-                               "max_pretension": m.max_stretch},
+                    "limits": {"max_pressure_bar": m.envelope.max_pressure_bar,
+                               "max_contraction": m.envelope.max_contraction,
+                               "max_pretension": m.envelope.max_pretension},
                 }
                 for m in self.muscles
             },

@@ -131,10 +131,7 @@ class Daemon:
             tr = self.transitions.popleft()
             level = logging.ERROR if tr.new in (State.FAULT, State.ESTOP) else logging.INFO
             log.log(level, "%s -> %s: %s", tr.old.name, tr.new.name, tr.reason)
-        if self.ctrl.calibration_dirty or any(m.calibration_dirty for m in self.ctrl.muscles):
-            self.ctrl.calibration_dirty = False
-            for m in self.ctrl.muscles:
-                m.calibration_dirty = False
+        if self.ctrl.take_calibration_dirty():
             save_calibration(self.calibration, self.cfg.calibration_path)
         self.keeper.service()
         if self.io is not None:

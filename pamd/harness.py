@@ -1,19 +1,33 @@
 """A rig controller stepped tick by tick in the caller's thread on the virtual clock:
 deterministic, no loop thread. For tests, benchmarks and offline tools; the daemon
-uses `pamd.loop.Loop`."""
+uses `pamd.loop.Loop`. Both run each tick through `pamd.loop.tick_once`, so a
+command waits for the sensors to be read here as it does in the daemon."""
 
 from __future__ import annotations
 
+import math
+from collections import deque
 from typing import Any
 
 from pamd.calibration import load_calibration
-from pamd.commands import apply_command, parse_command
+from pamd.commands import Command, parse_command
 from pamd.config import LoadedConfig
+from pamd.control.muscle import MuscleController
 from pamd.controller import RigController
-from pamd.loop import VirtualClock
+from pamd.loop import CommandIntake, VirtualClock, tick_once
 from pamd.rig import Rig
 from pamd.summary import SummarySink
-from pamd.tick import TickLayout
+from pamd.tick import State, TickLayout
+
+
+class _Queue:
+    """The harness's mailbox: commands in the order given."""
+
+    def __init__(self) -> None:
+        self.waiting: deque[Command] = deque()
+
+    def poll(self) -> Command | None:
+        return self.waiting.popleft() if self.waiting else None
 
 
 class Harness:
@@ -28,6 +42,8 @@ class Harness:
         self.sink = SummarySink(self.layout)
         self.ctrl = RigController(cfg, self.rig, self.sink, self.calibration)
         self.clock = VirtualClock()
+        self.queue = _Queue()
+        self.intake = CommandIntake(self.queue, deque(maxlen=256))
         self.rig.open(self.clock)
         self.ctrl.start(0.0)
         self.t = 0.0
@@ -39,20 +55,32 @@ class Harness:
         return self.rig.drivers["sim"]
 
     @property
-    def m1(self) -> Any:
+    def m1(self) -> MuscleController:
         return self.ctrl.muscles[0]
 
     def step(self, seconds: float) -> None:
         for _ in range(round(seconds / self.period_s)):
-            self.clock.t = self.t
-            rec = self.ctrl.tick(self.t, self.period_s)
-            self.sink.put(rec)
-            if self.keep:
-                self.records.append(self.layout.as_dict(rec))
-            self.t += self.period_s
+            self._tick()
+
+    def _tick(self) -> None:
+        self.clock.t = self.t
+        rec = tick_once(self.ctrl, self.intake, self.t, self.period_s, math.inf)
+        self.sink.put(rec)
+        if self.keep:
+            self.records.append(self.layout.as_dict(rec))
+        self.t += self.period_s
 
     def cmd(self, verb: str, **payload: Any) -> dict[str, Any]:
-        return apply_command(self.ctrl, parse_command(verb, payload))
+        """Apply a command at this tick boundary and return its verdict, as the loop
+        would at the start of the next tick. While the rig is starting, the command
+        waits (the clock steps on) until the sensors are read, as in the daemon."""
+        verdicts: list[dict[str, Any]] = []
+        self.queue.waiting.append(parse_command(verb, payload, reply=verdicts.append))
+        while self.ctrl.supervisor.state == State.STARTING:
+            self._tick()
+        if not verdicts:
+            self.intake.take(self.ctrl, math.inf)
+        return verdicts[0]
 
     @property
     def state(self) -> str:

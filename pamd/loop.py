@@ -12,6 +12,7 @@ import gc
 import math
 import sys
 import time
+from array import array
 from collections import deque
 from collections.abc import Callable
 
@@ -39,6 +40,54 @@ class VirtualClock:
         return self.t
 
 
+class CommandIntake:
+    """How commands reach the controller: at most MAX_COMMANDS_PER_TICK a tick, and
+    after the first none once the tick has spent its command budget (perf_counter
+    `until`): a burst waits its turn in the mailbox (each reply still waits for its
+    verdict), it never makes the tick late. Nothing a command does can end the loop:
+    `apply_command` turns any failure into a refusal, and a failing reply or mailbox
+    is counted and noticed, not raised."""
+
+    def __init__(self, mailbox: Mailbox, notices: deque[str]) -> None:
+        self.mailbox = mailbox
+        self.notices = notices
+        self.faults = 0  # a mailbox or reply that raised
+
+    def take(self, ctrl: RigController, until: float) -> None:
+        perf = time.perf_counter
+        for n in range(MAX_COMMANDS_PER_TICK):
+            if n and perf() > until:
+                return
+            try:
+                cmd = self.mailbox.poll()
+            except Exception as exc:
+                self._fault("the command mailbox", exc)
+                return
+            if cmd is None:
+                return
+            verdict = apply_command(ctrl, cmd)
+            if cmd.reply is not None:
+                try:
+                    cmd.reply(verdict)
+                except Exception as exc:
+                    self._fault(f"the reply to {cmd.verb}", exc)
+
+    def _fault(self, what: str, exc: Exception) -> None:
+        self.faults += 1
+        self.notices.append(f"commands: {what} failed ({exc.__class__.__name__}: {exc}); "
+                            f"{self.faults} so far, the loop goes on")
+
+
+def tick_once(ctrl: RigController, intake: CommandIntake, now_s: float, dt_s: float,
+              commands_until: float) -> array:
+    """One tick, as both `Loop` and `pamd.harness.Harness` run it: the waiting commands
+    first (held in the mailbox until the sensors are read: none while STARTING), then
+    the controller's tick. Returns the tick record."""
+    if ctrl.supervisor.state != State.STARTING:
+        intake.take(ctrl, commands_until)
+    return ctrl.tick(now_s, dt_s)
+
+
 class Loop:
     """Runs `controller.tick` at a fixed rate until stopped, then reaches the safe
     state before returning."""
@@ -46,7 +95,6 @@ class Loop:
     def __init__(self, cfg: LoadedConfig, controller: RigController, mailbox: Mailbox) -> None:
         self.cfg = cfg
         self.ctrl = controller
-        self.mailbox = mailbox
         self.period_s = cfg.period_s
         lc = cfg.rig.loop
         self.virtual = lc.clock == "virtual"
@@ -57,13 +105,36 @@ class Loop:
         self.notices: deque[str] = deque(maxlen=256)
         self.lost_records = 0
         self.rt = RealtimeSession()
+        self.intake = CommandIntake(mailbox, self.notices)
         self._stop_reason: str | None = None
         self.stopped_reason = ""
         self._handover_reason: str | None = None
         self.handed_over = False  # ended at an IDLE tick, outputs held (restart in place)
         self.running = False
         self.last_tick_done = math.nan  # monotonic time of the last completed tick
-        self.command_faults = 0  # a mailbox or reply that raised (see _take_commands)
+
+    @property
+    def mailbox(self) -> Mailbox:
+        return self.intake.mailbox
+
+    @mailbox.setter
+    def mailbox(self, mailbox: Mailbox) -> None:
+        """Another mailbox (the io process adds its own), before `run`."""
+        self.intake.mailbox = mailbox
+
+    @property
+    def command_faults(self) -> int:
+        """Mailboxes or replies that raised (see `CommandIntake`)."""
+        return self.intake.faults
+
+    @property
+    def stop_requested(self) -> str | None:
+        """The reason of a requested stop, or None."""
+        return self._stop_reason
+
+    def set_stall_timeout(self, stall_s: float) -> None:
+        """A reload's `loop.stall_timeout_s` (the main thread reads it)."""
+        self.stall_s = stall_s
 
     def request_stop(self, reason: str) -> None:
         """Ask the loop to reach the safe state and return (any thread)."""
@@ -83,36 +154,6 @@ class Loop:
         if not self.ctrl.supervisor.latched:
             self.ctrl.supervisor.fault(self.ctrl.now, f"loop stalled: no tick completed for "
                                        f"{gap_ms:.0f} ms (limit {1000 * self.stall_s:.0f} ms)")
-
-    def _take_commands(self, ctrl: RigController, mailbox: Mailbox, until: float) -> None:
-        """At most MAX_COMMANDS_PER_TICK commands, and after the first none once the
-        tick has spent COMMAND_BUDGET_FRACTION of its period (perf_counter `until`):
-        a burst waits its turn in the mailbox (each reply still waits for its
-        verdict), it never makes the tick late. Nothing a command does can end the
-        loop: `apply_command` turns any failure into a refusal, and a failing reply
-        or mailbox is counted and noticed, not raised."""
-        perf = time.perf_counter
-        for n in range(MAX_COMMANDS_PER_TICK):
-            if n and perf() > until:
-                return
-            try:
-                cmd = mailbox.poll()
-            except Exception as exc:
-                self._command_fault("the command mailbox", exc)
-                return
-            if cmd is None:
-                return
-            verdict = apply_command(ctrl, cmd)
-            if cmd.reply is not None:
-                try:
-                    cmd.reply(verdict)
-                except Exception as exc:
-                    self._command_fault(f"the reply to {cmd.verb}", exc)
-
-    def _command_fault(self, what: str, exc: Exception) -> None:
-        self.command_faults += 1
-        self.notices.append(f"commands: {what} failed ({exc.__class__.__name__}: {exc}); "
-                            f"{self.command_faults} so far, the loop goes on")
 
     def run(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
         ctrl = self.ctrl
@@ -143,7 +184,7 @@ class Loop:
         period = self.period_s
         timing = self.timing
         wake_h, comp_h = timing.wake, timing.compute
-        sink, mailbox = ctrl.sink, self.mailbox
+        sink, intake = ctrl.sink, self.intake
         start = self.clock()
         ctrl.start(start)
         end_t = math.inf if duration_s is None else start + duration_s
@@ -170,9 +211,7 @@ class Loop:
                 wake = now - next_t
                 t_wake = perf()
             # -- commands (held until the sensors are read), then the tick -------------
-            if ctrl.supervisor.state != State.STARTING:
-                self._take_commands(ctrl, mailbox, t_wake + command_budget_s)
-            rec = ctrl.tick(next_t, dt)
+            rec = tick_once(ctrl, intake, next_t, dt, t_wake + command_budget_s)
             compute = perf() - t_wake
             rec[I_WAKE] = wake
             rec[I_COMPUTE] = compute

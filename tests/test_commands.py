@@ -18,16 +18,16 @@ def test_profile_refused_until_length_is_referenced_then_home_persists(
         harness: Any, tmp_path: Path) -> None:
     h = harness(**INCREMENTAL)  # an incremental encoder: reads 0 mm at power-up
     h.step(0.01)
-    assert not h.m1.referenced and h.m1.length == 0.0
+    assert not h.m1.referenced and h.m1.length_mm == 0.0
     refused = h.cmd("profile", kind="sine", cycles=1)
     assert not refused["ok"] and "send home first" in refused["error"]
     assert h.state == "IDLE" and h.m1.profile is None  # nothing changed
     true_len = h.sim.plant("m1").length_mm
-    raw_len = h.m1.length
+    raw_len = h.m1.length_mm
     ok = h.cmd("home", muscle="m1", length_mm=true_len + 1.0)  # within the tolerance
     assert ok["ok"] and ok["length_offset_mm"] == pytest.approx(1.0 + true_len - raw_len)
     h.step(0.01)
-    assert h.m1.length == pytest.approx(true_len + 1.0, abs=0.05)
+    assert h.m1.length_mm == pytest.approx(true_len + 1.0, abs=0.05)
     assert h.ctrl.calibration_dirty  # saved by the daemon outside the loop's thread
     assert h.cmd("profile", kind="sine", cycles=1)["ok"]
 
@@ -41,7 +41,7 @@ def test_tare_against_the_load_removes_the_drift_and_is_saved_by_the_daemon(
     sig["valve"] = {"driver": "sim", "channel": "m1.valve", "raw_min": 0.0, "raw_max": 6.0}
     d = sim_daemon(muscles=[{"name": "m1", "load_kg": 30.0, "signals": sig}])
     assert d.wait_for_state((State.IDLE,)) == State.IDLE
-    assert d.ctrl.muscles[0].force == pytest.approx(30 * 9.80665 + 20.0, abs=5.0)
+    assert d.ctrl.muscles[0].force_n == pytest.approx(30 * 9.80665 + 20.0, abs=5.0)
     refused = d.command("tare", {"muscle": "m1"})
     assert not refused["ok"] and "holds the configured load of 30 kg" in refused["error"]
     assert d.command("tare", {"muscle": "m1", "load_kg": 30.0})["ok"]
@@ -50,7 +50,7 @@ def test_tare_against_the_load_removes_the_drift_and_is_saved_by_the_daemon(
     assert cal.muscles["m1"].force_offset_n == pytest.approx(20.0, abs=5.0)
     assert cal.muscles["m1"].tared_at
     d.wait_for_state((State.RUNNING,), timeout_s=0.1)  # let a few ticks pass
-    assert d.ctrl.muscles[0].force == pytest.approx(30 * 9.80665, abs=5.0)
+    assert d.ctrl.muscles[0].force_n == pytest.approx(30 * 9.80665, abs=5.0)
 
 
 def test_hold_freezes_and_resume_continues_the_profile(harness: Any) -> None:
@@ -59,12 +59,12 @@ def test_hold_freezes_and_resume_continues_the_profile(harness: Any) -> None:
     h.cmd("profile", kind="triangle", min_bar=1.0, max_bar=3.0, freq_hz=0.25, cycles=1)
     h.step(1.5)
     assert h.cmd("hold")["ok"] and h.state == "HOLD"
-    frozen = h.m1.sp
+    frozen = h.m1.setpoint_bar
     h.step(2.0)
-    assert h.m1.sp == frozen
+    assert h.m1.setpoint_bar == frozen
     assert h.cmd("resume")["ok"] and h.state == "RUNNING"
     h.step(0.01)
-    assert h.m1.sp == pytest.approx(frozen, abs=0.05)  # continues where it was
+    assert h.m1.setpoint_bar == pytest.approx(frozen, abs=0.05)  # continues where it was
     h.step(6.0)
     assert h.state == "IDLE"  # finished its one cycle
 
@@ -76,7 +76,7 @@ def test_estop_latches_and_reset_needs_the_cause_gone(harness: Any) -> None:
     h.step(1.5)
     assert h.cmd("estop", reason="operator pressed the button")["ok"]
     h.step(0.002)
-    assert h.state == "ESTOP" and h.m1.sp == 0.0 and h.m1.exhaust_open  # 30 kg: may vent
+    assert h.state == "ESTOP" and h.m1.setpoint_bar == 0.0 and h.m1.exhaust_open  # 30 kg: may vent
     refused = h.cmd("setpoint", muscle="m1", bar=2.0)
     assert not refused["ok"] and "ESTOP" in refused["error"]
     assert h.cmd("reset")["ok"] and h.state == "IDLE"
@@ -90,14 +90,15 @@ def test_estop_vent_is_not_honoured_when_the_load_needs_pressure(harness: Any) -
     h.step(0.01)
     h.cmd("estop")
     h.step(2.0)
-    assert h.m1.sp == pytest.approx(h.m1.safe_bar) and h.m1.safe_bar > 1.0
+    safe = h.m1.safe_pressure_bar
+    assert h.m1.setpoint_bar == pytest.approx(safe) and safe > 1.0
     assert not h.m1.exhaust_open
 
 
 def test_load_change_moves_the_safe_pressure_and_is_refused_above_rating(harness: Any) -> None:
     h = harness()
     h.step(0.01)
-    assert h.m1.safe_bar == 0.0
+    assert h.m1.safe_pressure_bar == 0.0
     ok = h.cmd("load", muscle="m1", load_kg=80.0)
     assert ok["ok"] and ok["safe_pressure_bar"] > 1.0
     bad = h.cmd("load", muscle="m1", load_kg=120.0)
@@ -120,8 +121,8 @@ def test_500_hz_fallback_and_two_muscles(harness: Any) -> None:
     assert h.cmd("setpoint", muscle="m2", bar=3.0)["ok"]
     h.step(3.0)
     m1, m2 = h.ctrl.muscles
-    assert m2.pressure == pytest.approx(3.0, abs=0.03)
-    assert m1.pressure == pytest.approx(0.0, abs=0.03)
+    assert m2.pressure_bar == pytest.approx(3.0, abs=0.03)
+    assert m1.pressure_bar == pytest.approx(0.0, abs=0.03)
     assert h.sim.plant("m2").contraction == pytest.approx(0.045, abs=0.01)  # 50 kg, 3 bar
 
 
@@ -131,7 +132,7 @@ def test_home_uses_the_devices_preset_when_it_has_one(harness: Any) -> None:
     h = harness(**INCREMENTAL)
     h.step(0.01)
     sim = h.sim
-    idx = h.m1.sig.length.index
+    idx = h.m1.signals.length.index
     asked: list[tuple[int, float]] = []
 
     def preset_input(index: int, raw: float) -> bool:
@@ -140,12 +141,12 @@ def test_home_uses_the_devices_preset_when_it_has_one(harness: Any) -> None:
 
     sim.preset_input = preset_input
     true_len = h.sim.plant("m1").length_mm
-    raw_len = h.m1.length  # 0: the encoder's power-up position
+    raw_len = h.m1.length_mm  # 0: the encoder's power-up position
     assert h.cmd("home", muscle="m1", length_mm=true_len + 2.0)["ok"]
     assert asked == [(idx, pytest.approx(true_len + 2.0))]
     h.step(0.01)
-    assert h.m1.length == pytest.approx(true_len + 2.0, abs=0.05)  # software offset
-    assert h.m1.ref.length_offset_mm == pytest.approx(true_len + 2.0 - raw_len, abs=0.05)
+    assert h.m1.length_mm == pytest.approx(true_len + 2.0, abs=0.05)  # software offset
+    assert h.m1.reference.length_offset_mm == pytest.approx(true_len + 2.0 - raw_len, abs=0.05)
     sim.preset_counts[idx] += 1  # the device confirms: it now reads the reference
     h.step(0.001)
-    assert h.m1.ref.length_offset_mm == 0.0 and h.m1.calibration_dirty
+    assert h.m1.reference.length_offset_mm == 0.0 and h.m1.take_calibration_dirty()

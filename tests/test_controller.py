@@ -27,7 +27,7 @@ def test_startup_holds_the_measured_pressure(harness: Any) -> None:
     h = harness(load_kg=30.0, **sim_muscle(load_kg=30.0, initial_pressure_bar=2.5))
     h.step(0.01)
     assert h.state == "IDLE"
-    assert h.m1.sp == pytest.approx(2.5, abs=0.02)
+    assert h.m1.setpoint_bar == pytest.approx(2.5, abs=0.02)
     h.step(2.0)
     assert h.sim.plant("m1").pressure_bar == pytest.approx(2.5, abs=0.03)
     assert "holding measured pressure" in h.ctrl.supervisor.history[0].reason
@@ -55,15 +55,15 @@ def test_startup_writes_nothing_until_sensors_are_read(sim_config: Any) -> None:
 
 def test_safe_pressure_follows_the_load(harness: Any) -> None:
     light = harness(load_kg=30.0)
-    assert light.m1.safe_bar == 0.0  # 30 kg: a vented DMSP-20 stays inside 4 % stretch
+    assert light.m1.safe_pressure_bar == 0.0  # 30 kg: a vented DMSP-20 stays inside 4 % stretch
     heavy = harness(load_kg=80.0, **sim_muscle(load_kg=80.0, initial_pressure_bar=3.0))
-    safe = heavy.m1.safe_bar
+    safe = heavy.m1.safe_pressure_bar
     fm = force_model("map")
     # Without the 0.2 bar margin it is exactly the pressure that holds 80 kg at 3 %
     # stretch (pretension limit 4 % less the 1 % margin).
     assert fm.force_n(safe - 0.2, -0.03) == pytest.approx(80 * GRAVITY_M_S2, rel=1e-3)
     heavy.cmd("load", muscle="m1", load_kg=15.0)
-    assert heavy.m1.safe_bar == 0.0
+    assert heavy.m1.safe_pressure_bar == 0.0
 
 
 def test_stop_ramps_to_safe_pressure_at_slew_and_vents_only_when_safe_is_zero(
@@ -72,20 +72,21 @@ def test_stop_ramps_to_safe_pressure_at_slew_and_vents_only_when_safe_is_zero(
     h.step(0.01)
     assert h.cmd("setpoint", muscle="m1", bar=3.0)["ok"]
     h.step(2.0)
-    assert h.m1.sp == pytest.approx(3.0)
+    assert h.m1.setpoint_bar == pytest.approx(3.0)
     h.ctrl.go_safe("test stop")
     h.step(0.2)
-    assert h.m1.sp == pytest.approx(3.0 - 5.0 * 0.2, abs=0.01)  # 5 bar/s slew limit
+    assert h.m1.setpoint_bar == pytest.approx(3.0 - 5.0 * 0.2, abs=0.01)  # 5 bar/s slew limit
     assert not h.m1.exhaust_open
     h.step(1.0)
-    assert h.m1.sp == 0.0 and h.m1.exhaust_open and h.ctrl.at_safe_state()
+    assert h.m1.setpoint_bar == 0.0 and h.m1.exhaust_open and h.ctrl.at_safe_state()
 
     heavy = harness(load_kg=80.0, **sim_muscle(load_kg=80.0, initial_pressure_bar=4.0))
     heavy.step(0.01)
     heavy.ctrl.go_safe("test stop")
     heavy.keep = True
     heavy.step(3.0)
-    assert heavy.m1.sp == pytest.approx(heavy.m1.safe_bar) and heavy.m1.safe_bar > 1.0
+    safe = heavy.m1.safe_pressure_bar
+    assert heavy.m1.setpoint_bar == pytest.approx(safe) and safe > 1.0
     assert not any(int(r["m1"]["flags"]) & Flag.EXHAUST_OPEN for r in heavy.records)
     assert heavy.sim.plant("m1").contraction > -0.04  # not over-stretched
 
@@ -98,7 +99,7 @@ def test_stretched_muscle_gets_more_pressure_not_less(harness: Any) -> None:
     # start-up outside the limits: a ramp to the safe pressure, said so (issue 11)
     assert "stretched 4.4 %" in h.ctrl.supervisor.history[0].reason
     assert "ramping from 0.00 bar to its safe pressure" in h.ctrl.supervisor.history[0].reason
-    assert h.m1.valve_cmd == pytest.approx(h.m1.safe_bar) and h.m1.valve_cmd > 0.3
+    assert h.m1.valve_cmd_bar == pytest.approx(h.m1.safe_pressure_bar) and h.m1.valve_cmd_bar > 0.3
     assert h.sim.plant("m1").contraction > -0.041
 
 
@@ -134,7 +135,7 @@ def test_silent_sensor_faults_to_safe_state_and_reset_waits_for_it(harness: Any)
     refused = h.cmd("reset")
     assert not refused["ok"] and "m1.force" in refused["error"]
     h.step(1.0)
-    assert h.m1.sp == 0.0  # ramped to the safe pressure (30 kg: 0 bar)
+    assert h.m1.setpoint_bar == 0.0  # ramped to the safe pressure (30 kg: 0 bar)
     h.sim.clear_faults()
     h.step(0.01)
     assert h.cmd("reset")["ok"] and h.state == "IDLE"

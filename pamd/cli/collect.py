@@ -171,8 +171,8 @@ def _follow_loop(daemon: Daemon, seq: Any, bar: Any, total: float,
             bar.n = min(total, ctrl.now - t0)
             cyc = f" cycle {pr['cycle'] + 1}/{pr['cycles']}" if pr["cycles"] else ""
             bar.set_postfix_str(f"step {pr['index'] + 1}/{pr['steps']} {pr['step']} "
-                                f"{pr['phase']}{cyc} | {m.pressure:4.2f} bar "
-                                f"{m.length:6.2f} mm", refresh=True)
+                                f"{pr['phase']}{cyc} | {m.pressure_bar:4.2f} bar "
+                                f"{m.length_mm:6.2f} mm", refresh=True)
         prompt = seq.awaiting_operator
         if prompt and prompt != asked:
             asked = prompt

@@ -28,8 +28,9 @@ SETTLE_TIMEOUT_S = 10.0
 
 def _at_rest(d: Daemon) -> bool:
     ctrl = d.ctrl
-    return all(abs(m.velocity) < AT_REST_MM_S and (not m.safing or abs(m.sp - m.safe_bar) < 1e-6)
-               for m in ctrl.muscles)
+    return all(abs(m.velocity_mm_s) < AT_REST_MM_S and (
+        not m.in_safe_ramp or abs(m.setpoint_bar - m.safe_pressure_bar) < 1e-6)
+        for m in ctrl.muscles)
 
 
 def apply_offline(config: str | None, verb: str, payload: dict[str, Any]) -> dict[str, Any]:

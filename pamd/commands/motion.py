@@ -18,19 +18,21 @@ from pamd.commands.schema import (
     ProfileArgs,
     SetpointArgs,
 )
+from pamd.control.length_control import MODE_NAMES
+from pamd.control.length_targets import length_profile
 from pamd.errors import CommandRefused
-from pamd.muscle import MUSCLE_TYPES
 from pamd.profiles import Profile, ProfileSpec
-from pamd.tick import State
+from pamd.tick import Mode, State
 
 
 def _start(ctrl: Any, ms: list[Any], spec_: ProfileSpec) -> float | None:
     for m in ms:
-        spec_.check(0.0, m.max_p, m.slew)
+        spec_.check(0.0, m.envelope.max_pressure_bar, m.envelope.slew_limit_bar_per_s)
     total = None
     for m in ms:
-        m.start_profile(Profile(spec_, ctrl.now, m.sp, m.slew))
-        total = m.profile.total_s()
+        prof = Profile(spec_, ctrl.now, m.setpoint_bar, m.envelope.slew_limit_bar_per_s)
+        m.start_profile(prof)
+        total = prof.total_s()
     ctrl.supervisor.go(ctrl.now, State.RUNNING, f"{spec_.kind} profile started")
     return total
 
@@ -40,7 +42,7 @@ def _setpoint(ctrl: Any, a: SetpointArgs) -> dict[str, Any]:
     ms = named_muscles(ctrl, a.muscle)
     need_reference(ms)
     m = ms[0]
-    if m.length_ctl_on or a.bar is None:
+    if m.in_length_mode or a.bar is None:
         out = _length_setpoint(ctrl, m, a)
         ctrl.arm_deadman(m, a.deadman_s)
         return dict(out, deadman_s=a.deadman_s)
@@ -48,16 +50,17 @@ def _setpoint(ctrl: Any, a: SetpointArgs) -> dict[str, Any]:
         raise CommandRefused(f"{m.name} is in pressure mode: length_mm and force_n are "
                              "targets of the length_force and position modes (send mode "
                              "first); give bar alone")
-    if not 0.0 <= a.bar <= m.max_p:
-        raise CommandRefused(f"{m.name}: {a.bar:g} bar is outside 0-{m.max_p:g} bar")
-    dist = abs(a.bar - m.sp)
-    rate = 0.5 * m.slew if not a.ramp_s else dist / a.ramp_s
-    if rate > m.slew:
+    max_p, slew = m.envelope.max_pressure_bar, m.envelope.slew_limit_bar_per_s
+    if not 0.0 <= a.bar <= max_p:
+        raise CommandRefused(f"{m.name}: {a.bar:g} bar is outside 0-{max_p:g} bar")
+    dist = abs(a.bar - m.setpoint_bar)
+    rate = 0.5 * slew if not a.ramp_s else dist / a.ramp_s
+    if rate > slew:
         raise CommandRefused(f"{m.name}: reaching {a.bar:g} bar in {a.ramp_s:g} s needs "
-                             f"{rate:.3g} bar/s, above the slew limit {m.slew:g} bar/s")
+                             f"{rate:.3g} bar/s, above the slew limit {slew:g} bar/s")
     spec_ = ProfileSpec(kind="ramp", to_bar=a.bar, rate_bar_per_s=max(rate, 1e-6),
-                        lead_in_bar_per_s=m.slew)
-    m.start_profile(Profile(spec_, ctrl.now, m.sp, m.slew))
+                        lead_in_bar_per_s=slew)
+    m.start_profile(Profile(spec_, ctrl.now, m.setpoint_bar, slew))
     ctrl.supervisor.go(ctrl.now, State.RUNNING, f"setpoint {m.name} {a.bar:g} bar")
     ctrl.arm_deadman(m, a.deadman_s)  # streamed setpoints: each one re-arms (or disarms)
     return {"muscle": m.name, "bar": a.bar, "ramp_s": dist / rate if rate > 0 else 0.0,
@@ -68,7 +71,7 @@ def _profile(ctrl: Any, a: ProfileArgs) -> dict[str, Any]:
     can_move(ctrl)
     ms = named_muscles(ctrl, a.muscle)
     need_reference(ms)
-    if any(m.length_ctl_on for m in ms) or any(
+    if any(m.in_length_mode for m in ms) or any(
             getattr(a, k) is not None for k in LENGTH_PROFILE_FIELDS):
         return _length_profile(ctrl, ms, a)
     fields = dataclasses.asdict(a)
@@ -81,11 +84,9 @@ def _profile(ctrl: Any, a: ProfileArgs) -> dict[str, Any]:
 
 def _length_setpoint(ctrl: Any, m: Any, a: SetpointArgs) -> dict[str, Any]:
     """A length (and force) target in the length modes, reached by a ramp."""
-    from pamd.control.length_targets import length_profile
-    from pamd.tick import Mode
 
     mode = m.mode.name.lower()
-    if not m.length_ctl_on:
+    if not m.in_length_mode:
         raise CommandRefused(f"{m.name}: give bar, the pressure setpoint (length_mm and "
                              "force_n are targets of the length_force and position modes; "
                              "send mode first)")
@@ -98,31 +99,33 @@ def _length_setpoint(ctrl: Any, m: Any, a: SetpointArgs) -> dict[str, Any]:
     if a.length_mm is None and a.force_n is None:
         raise CommandRefused(f"{m.name}: give length_mm" + (
             " and/or force_n" if m.mode == Mode.LENGTH_FORCE else ""))
-    rated = MUSCLE_TYPES[m.cfg.type].theoretical_force_n
+    env = m.envelope
+    rated = env.rating.theoretical_force_n
     if a.force_n is not None and a.force_n > rated:
-        raise CommandRefused(f"{m.name}: {a.force_n:g} N exceeds the {m.cfg.type}'s "
+        raise CommandRefused(f"{m.name}: {a.force_n:g} N exceeds the {env.muscle_type}'s "
                              f"theoretical force ({rated:g} N)")
     out: dict[str, Any] = {"muscle": m.name, "mode": mode}
+    prof = None
     if a.length_mm is not None:
-        l0 = m.length0_mm
+        l0 = env.nominal_length_mm
         x = (l0 - a.length_mm) / l0
-        max_rate = m.length_ctl.cfg.max_rate_per_s
-        dist = abs(x - (l0 - m.target_length) / l0)
+        max_rate = env.max_length_rate_per_s
+        dist = abs(x - (l0 - m.target_length_mm) / l0)
         rate = 0.5 * max_rate if not a.ramp_s else dist / a.ramp_s
         if rate > max_rate:
             raise CommandRefused(
                 f"{m.name}: reaching {a.length_mm:g} mm in {a.ramp_s:g} s needs "
                 f"{rate * l0:.3g} mm/s, above the length rate limit {max_rate * l0:.3g} mm/s "
                 "(control.position.max_rate_per_s)")
-        prof = length_profile(m, ctrl.now, "ramp", min_contraction=None, max_contraction=None,
+        prof = length_profile(env, m.load_kg, m.target_length_mm, ctrl.now, "ramp",
+                              min_contraction=None, max_contraction=None,
                               to_contraction=x, freq_hz=1.0, cycles=None,
                               rate_per_s=max(rate, 1e-6), rise_s=None, duration_s=None,
                               lead_in_per_s=max_rate)
-        m.profile = prof
         out.update(length_mm=a.length_mm, ramp_s=dist / rate if rate > 0 else 0.0)
     if a.force_n is not None:
-        m.target_force = a.force_n
         out["force_n"] = a.force_n
+    m.set_length_targets(prof, a.force_n)
     ctrl.supervisor.go(ctrl.now, State.RUNNING, f"setpoint {m.name} " + ", ".join(
         f"{k} {v:g}" for k, v in out.items() if k in ("length_mm", "force_n")))
     return out
@@ -130,14 +133,14 @@ def _length_setpoint(ctrl: Any, m: Any, a: SetpointArgs) -> dict[str, Any]:
 
 def _length_profile(ctrl: Any, ms: list[Any], a: ProfileArgs) -> dict[str, Any]:
     """A length profile (contraction units) on muscles in a length mode."""
-    from pamd.control.length_targets import length_profile
 
     for m in ms:
-        if not m.length_ctl_on:
+        if not m.in_length_mode:
             raise CommandRefused(f"{m.name} is in pressure mode: a length profile "
                                  "(min/max/to_contraction) needs mode length_force or position "
                                  "first")
-    profiles = [length_profile(m, ctrl.now, a.kind, min_contraction=a.min_contraction,
+    profiles = [length_profile(m.envelope, m.load_kg, m.target_length_mm, ctrl.now, a.kind,
+                               min_contraction=a.min_contraction,
                                max_contraction=a.max_contraction,
                                to_contraction=a.to_contraction, freq_hz=a.freq_hz,
                                cycles=a.cycles, rate_per_s=a.rate_per_s, rise_s=a.rise_s,
@@ -145,18 +148,13 @@ def _length_profile(ctrl: Any, ms: list[Any], a: ProfileArgs) -> dict[str, Any]:
                 for m in ms]  # every muscle checked before any moves
     total = None
     for m, prof in zip(ms, profiles, strict=True):
-        m.profile = prof
-        lc = m.length_ctl
-        if lc.ilc_on and prof.period_s > 0:
-            lc.start_ilc(prof.period_s)
+        m.start_length_profile(prof)
         total = prof.total_s()
     ctrl.supervisor.go(ctrl.now, State.RUNNING, f"{a.kind} length profile started")
     return {"duration_s": total, "length_profile": True}
 
 
 def _mode(ctrl: Any, a: ModeArgs) -> dict[str, Any]:
-    from pamd.control.length_control import MODE_NAMES
-    from pamd.tick import Mode
 
     can_move(ctrl)
     if a.mode not in MODE_NAMES:
@@ -169,8 +167,8 @@ def _mode(ctrl: Any, a: ModeArgs) -> dict[str, Any]:
     mode = MODE_NAMES[a.mode]
     if mode == Mode.PRESSURE:
         for m in ms:
-            if m.length_ctl_on:
-                m.length_ctl.leave()
+            if m.in_length_mode:
+                m.leave_length_mode()
         return {"mode": a.mode, "muscles": [m.name for m in ms]}
     if a.ilc and mode != Mode.POSITION:
         raise CommandRefused("ilc: iterative learning runs in position mode only")
@@ -179,17 +177,17 @@ def _mode(ctrl: Any, a: ModeArgs) -> dict[str, Any]:
                              "off")
     need_reference(ms)
     for m in ms:
-        if a.feedforward and m.length_ctl.ff is None:
+        if a.feedforward and not m.has_model:
             raise CommandRefused(
                 f"{m.name}: no model for {a.mode} mode; name model_file in the config, `pamd "
                 "run --model FILE` or send the model command first (position mode with "
                 "feedforward false runs the position PID alone)")
-        if not (math.isfinite(m.length) and math.isfinite(m.force)):
+        if not (math.isfinite(m.length_mm) and math.isfinite(m.force_n)):
             raise CommandRefused(f"{m.name}: no length/force reading to start from")
     for m in ms:
-        m.length_ctl.enter(mode, a.feedforward, a.ilc)
+        m.enter_mode(mode, a.feedforward, a.ilc)
     return {"mode": a.mode, "muscles": [m.name for m in ms],
-            "feedforward_bar": {m.name: m.feedforward for m in ms}}
+            "feedforward_bar": {m.name: m.feedforward_bar for m in ms}}
 
 
 def _model(ctrl: Any, a: Any) -> dict[str, Any]:
@@ -198,7 +196,7 @@ def _model(ctrl: Any, a: Any) -> dict[str, Any]:
         raise CommandRefused("model: the file was not loaded (send the command through the "
                              "daemon, which reads and checks it outside the loop)")
     m = named_muscles(ctrl, a.muscle)[0]
-    diff = m.length_ctl.swap(a.feedforward)
+    diff = m.swap_model(a.feedforward)
     return {**a.describe(), "mode": m.mode.name.lower(), "taken_up_bar": diff}
 
 

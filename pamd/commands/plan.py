@@ -40,7 +40,7 @@ def _collect(ctrl: Any, a: Any) -> dict[str, Any]:
     if plan is None:
         raise CommandRefused("collect: the plan was not loaded (pass it through the daemon)")
     need_reference([ctrl.by_name[plan.muscle]])
-    if ctrl.by_name[plan.muscle].length_ctl_on:
+    if ctrl.by_name[plan.muscle].in_length_mode:
         raise CommandRefused(f"{plan.muscle} is in a length mode and plans run pressure "
                              "profiles; send mode pressure first")
     if not 0 <= a.start_step < len(plan.steps):

@@ -12,27 +12,24 @@ from pamd.commands.registry import Verb
 from pamd.commands.schema import EstopArgs, HomeArgs, LoadArgs, NoArgs, ReloadArgs, TareArgs
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
-from pamd.muscle import MUSCLE_TYPES
 from pamd.safety.references import check_home, tare_offset
 from pamd.tick import State
 
 
 def _hold(ctrl: Any, a: NoArgs) -> dict[str, Any]:
     can_move(ctrl)
-    ctrl.hold_started = ctrl.now
-    ctrl.supervisor.go(ctrl.now, State.HOLD, "hold: setpoints frozen")
+    ctrl.enter_hold(ctrl.now, "hold: setpoints frozen")
     return {}
 
 
 def _resume(ctrl: Any, a: NoArgs) -> dict[str, Any]:
     if ctrl.supervisor.state != State.HOLD:
         raise CommandRefused(f"resume only from HOLD (state is {ctrl.supervisor.state.name})")
-    paused = ctrl.now - getattr(ctrl, "hold_started", ctrl.now)
+    paused = ctrl.now - ctrl.hold_started
     seq = ctrl.sequencer
     running = seq is not None and not seq.outcome
     for m in ctrl.muscles:
-        if m.profile is not None:
-            m.profile.t0_s += paused
+        if m.resume(paused):
             running = True
     if seq is not None:
         seq.awaiting_operator = "" if seq.phase == "pause" else seq.awaiting_operator
@@ -50,7 +47,7 @@ def _stop(ctrl: Any, a: NoArgs) -> dict[str, Any]:
 
 def _estop(ctrl: Any, a: EstopArgs) -> dict[str, Any]:
     for m in ctrl.muscles:
-        m.profile = None
+        m.stop_profile()
     ctrl.supervisor.estop(ctrl.now, f"emergency stop: {a.reason}")
     return {}
 
@@ -61,19 +58,14 @@ def _reset(ctrl: Any, a: NoArgs) -> dict[str, Any]:
         raise CommandRefused(f"nothing to reset: the rig is {sup.state.name}")
     for m in ctrl.muscles:
         if m.started:
-            missing = m.inputs_fresh(ctrl.now)
+            missing = m.missing_input(ctrl.now)
             if missing is not None:
                 raise CommandRefused(f"cannot reset: {missing} still has no fresh reading")
     for drv in ctrl.drivers:
         if drv.fault is not None:
             raise CommandRefused(f"cannot reset: driver {drv.name!r} still reports {drv.fault}")
     for m in ctrl.muscles:
-        m.clear_findings()  # every signal trusted again; the checks start afresh
-        if m.started:
-            m.pid.reset(m.pressure)
-            m.safing = False
-        else:
-            m.hold_measured()
+        m.reset()  # every signal trusted again; the checks start afresh
     sup.reset(ctrl.now)
     return {}
 
@@ -81,22 +73,14 @@ def _reset(ctrl: Any, a: NoArgs) -> dict[str, Any]:
 def _home(ctrl: Any, a: HomeArgs) -> dict[str, Any]:
     idle_or_hold(ctrl, "home")
     m = named_muscles(ctrl, a.muscle)[0]
-    raw_len = m.length - m.ref.length_offset_mm
+    raw_len = m.length_mm - m.reference.length_offset_mm
     if not math.isfinite(raw_len):
         raise CommandRefused(f"{m.name}: no length reading to reference")
     check_home(m, a.length_mm)  # absolute sensor, untrusted, moving, or disagreeing: refused
-    m.ref.length_offset_mm = a.length_mm - raw_len  # at once, in software
-    b = m.sig.length
-    counts = b.driver.preset_counts
-    if b.driver.preset_input(b.index, (a.length_mm - b.offset) / b.gain):
-        # The device takes the reference too; the tick drops the software offset
-        # when the device confirms (preset count moves).
-        m.pending_preset = (counts, b.index, counts[b.index])
-    m.ref.length_referenced = True
-    m.ref.homed_at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-    m.length_reference_changed()
-    ctrl.calibration_dirty = True  # saved outside the loop's thread
-    return {"muscle": m.name, "length_offset_mm": m.ref.length_offset_mm}
+    # At once in software; a device that takes the reference too confirms later.
+    offset = m.home(a.length_mm, raw_len, time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+    ctrl.mark_calibration_dirty()  # saved outside the loop's thread
+    return {"muscle": m.name, "length_offset_mm": offset}
 
 
 def _tare(ctrl: Any, a: TareArgs) -> dict[str, Any]:
@@ -105,22 +89,21 @@ def _tare(ctrl: Any, a: TareArgs) -> dict[str, Any]:
     offsets = [tare_offset(m, a.load_kg) for m in ms]  # all checked before any changes
     out = {}
     for m, offset in zip(ms, offsets, strict=True):
-        m.ref.force_offset_n = offset
-        m.ref.tared_at = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        m.tare(offset, time.strftime("%Y-%m-%dT%H:%M:%S%z"))
         out[m.name] = offset
-    ctrl.calibration_dirty = True  # saved outside the loop's thread
+    ctrl.mark_calibration_dirty()  # saved outside the loop's thread
     return {"force_offset_n": out}
 
 
 def _load(ctrl: Any, a: LoadArgs) -> dict[str, Any]:
     m = named_muscles(ctrl, a.muscle)[0]
-    rated = MUSCLE_TYPES[m.cfg.type].max_load_kg
+    rated = m.envelope.rating.max_load_kg
     if a.load_kg > rated:
-        raise CommandRefused(f"{m.name}: {a.load_kg:g} kg exceeds the {m.cfg.type} rating "
-                             f"({rated:g} kg)")
-    m.update_load(a.load_kg)
+        raise CommandRefused(f"{m.name}: {a.load_kg:g} kg exceeds the "
+                             f"{m.envelope.muscle_type} rating ({rated:g} kg)")
+    m.set_load(a.load_kg)
     push_safe_outputs(ctrl)  # modules with a comm watchdog hold the new safe state
-    return {"muscle": m.name, "load_kg": a.load_kg, "safe_pressure_bar": m.safe_bar}
+    return {"muscle": m.name, "load_kg": a.load_kg, "safe_pressure_bar": m.safe_pressure_bar}
 
 
 def _reload(ctrl: Any, a: ReloadArgs) -> dict[str, Any]:
@@ -135,14 +118,14 @@ def _reload(ctrl: Any, a: ReloadArgs) -> dict[str, Any]:
     with_limits = bool(a.idle_only) and ctrl.supervisor.state == State.IDLE
     if with_limits:
         for m, s in zip(ctrl.muscles, settings, strict=True):
-            if m.started and m.sp > s.limits.max_pressure_bar:
+            if m.started and m.setpoint_bar > s.limits.max_pressure_bar:
                 raise CommandRefused(
-                    f"reload: {m.name} holds {m.sp:.2f} bar, above the new pressure limit "
-                    f"{s.limits.max_pressure_bar:g} bar; lower the setpoint first "
+                    f"reload: {m.name} holds {m.setpoint_bar:.2f} bar, above the new pressure "
+                    f"limit {s.limits.max_pressure_bar:g} bar; lower the setpoint first "
                     "(nothing changed)")
     for m, s in zip(ctrl.muscles, settings, strict=True):
         m.apply_settings(s, with_limits)
-    ctrl.startup_timeout_s = a.startup_timeout_s
+    ctrl.set_startup_timeout(a.startup_timeout_s)
     if with_limits:
         push_safe_outputs(ctrl)  # loads or limits may have moved the safe pressures
     return {"applied": list(a.at_once) + (list(a.idle_only) if with_limits else []),

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from pamd.control.settings import MuscleSettings
 from pamd.profiles import kinds_reading, kinds_text
 from pamd.schema.engine import spec
 
@@ -135,25 +136,6 @@ class CollectArgs:
 @dataclass(frozen=True, kw_only=True)
 class EstopArgs:
     reason: str = spec("emergency stop", "Why (recorded).")
-
-
-@dataclass(frozen=True, kw_only=True)
-class MuscleSettings:
-    """One muscle's share of a reloaded config, computed outside the loop's thread
-    (`pamd.service.reload`); the loop only assigns it (`MuscleController.apply_settings`).
-    """
-
-    muscle: str
-    pid: Any  # PidConfig
-    rate_feedforward_s: float
-    pressure_timeout_s: float
-    force_timeout_s: float
-    length_timeout_s: float
-    safety: Any  # SafetyConfig
-    limits: Any  # MuscleLimitsResolved
-    slew_limit_bar_per_s: float
-    nominal_length_mm: float
-    load_kg: float | None  # None: unchanged in the file (a `load` command's value stays)
 
 
 @dataclass(frozen=True, kw_only=True)

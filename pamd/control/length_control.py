@@ -23,21 +23,26 @@ of length targets and profiles `pamd.control.length_targets`.
 
 Everything on the tick path (`LengthControl.step`, `Feedforward.pressure`,
 `Ilc.step`) is plain float arithmetic on attributes prepared outside the loop.
+The muscle (`pamd.control.muscle.MuscleController`) owns its `LengthControl` and
+calls it; it reads the muscle's measurements as arguments and writes nothing but
+its own state (targets, feedforward, the setpoint's rate).
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from pamd.control.ilc import Ilc
 from pamd.control.pid import Pid
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
+from pamd.profiles import Profile
 from pamd.tick import Flag, Mode, State
 
 if TYPE_CHECKING:
     from pamd.config.schema import PositionConfig
     from pamd.control.feedforward import Feedforward
+    from pamd.safety.envelope import MuscleEnvelope
 
 #: Time constant of the setpoint's rate estimate (for the rate feedforward), s.
 SP_RATE_WINDOW_S = 0.05
@@ -51,17 +56,18 @@ MODE_NAMES: dict[str, Mode] = {"pressure": Mode.PRESSURE, "length_force": Mode.L
 class LengthControl:
     """What the length modes add to one muscle's tick (see the module docstring).
 
-    Owned by a `MuscleController` (`muscle.length_ctl`); `enter`/`leave`/`swap` run
-    in command handlers (the loop's thread, between ticks), `step` in the tick."""
+    Owned by a `MuscleController` (`muscle.length_control`); `enter`/`leave`/`swap`
+    run in its command methods (the loop's thread, between ticks), `step` in its tick."""
 
-    def __init__(self, muscle: Any, position: PositionConfig,
+    def __init__(self, envelope: MuscleEnvelope, position: PositionConfig,
                  feedforward: Feedforward | None) -> None:
-        self.m = muscle
+        self.set_envelope(envelope)
         self.cfg = position
         pc = position.pid
         self.pid = Pid(pc.kp_bar_per_mm, pc.ki_bar_per_mm_s, pc.kd_bar_s_per_mm,
                        pc.derivative_filter_hz, pc.integral_limit_bar, pc.output_limit_bar)
         self.ff = feedforward
+        self.active = False  # a length mode runs
         self.use_ff = True
         self.position = False
         self.ilc: Ilc | None = None
@@ -80,73 +86,81 @@ class LengthControl:
         self.flags = 0
         self.last_sp = math.nan
         self.correction = 0.0  # outer PID + ILC part of the setpoint, bar
+        # What the muscle records (NaN / 0 outside the length modes).
+        self.target_length_mm = self.target_force_n = math.nan
+        self.feedforward_bar = 0.0
+        self.setpoint_rate_bar_per_s = 0.0
+
+    def set_envelope(self, envelope: MuscleEnvelope) -> None:
+        """Nominal length, pressure limit and slew limit (set-up and IDLE reloads)."""
+        self.nominal_length_mm = envelope.nominal_length_mm
+        self.max_pressure_bar = envelope.max_pressure_bar
+        self.slew_limit_bar_per_s = envelope.slew_limit_bar_per_s
 
     # -- commands (loop thread, not the tick) --------------------------------------------
     def model_value(self) -> float:
         """The model's pressure at the present targets and measurements (0 without one)."""
-        m = self.m
         if self.ff is None or not self.use_ff:
             return 0.0
-        ln = m.target_length
-        x = (m.length0_mm - ln) / m.length0_mm
-        f = self.force_lp if self.position else m.target_force
+        ln = self.target_length_mm
+        l0 = self.nominal_length_mm
+        x = (l0 - ln) / l0
+        f = self.force_lp if self.position else self.target_force_n
         return self.ff.pressure(f, ln, x, self.target_vel.value)
 
-    def enter(self, mode: Mode, use_ff: bool, ilc: bool) -> None:
-        """Switch the muscle into a length mode, bumpless: targets at the present length
-        and force, the outer loop's integral (or the fading offset) holding the present
-        setpoint."""
-        m = self.m
-        m.profile = None
-        was = m.mode
-        if was == Mode.PRESSURE:
-            m.target_length = m.length
-            m.target_force = m.force
-            self.target_vel.reset(m.length, 0.0)
-            self.force_lp = m.force
-            self.sp_rate.reset(m.sp, 0.0)
+    def enter(self, mode: Mode, use_ff: bool, ilc: bool, *, from_pressure: bool,
+              length_mm: float, force_n: float, setpoint_bar: float) -> None:
+        """Switch into a length mode, bumpless: coming from pressure mode the targets
+        start at the present length and force; the outer loop's integral (or the fading
+        offset) holds the present setpoint."""
+        if from_pressure:
+            self.target_length_mm = length_mm
+            self.target_force_n = force_n
+            self.target_vel.reset(length_mm, 0.0)
+            self.force_lp = force_n
+            self.sp_rate.reset(setpoint_bar, 0.0)
         self.position = mode == Mode.POSITION
         self.use_ff = use_ff
         self.ilc_on = ilc and self.position
         self.ilc = None
-        m.mode = mode
-        self.reset_model()
+        self.reset_model(length_mm, force_n)
         ff = self.model_value()
-        self.pid.reset(-m.length)
+        self.pid.reset(-length_mm)
         self.bump = 0.0
         if self.position:
-            self.pid.i = max(-self.pid.integral_limit, min(self.pid.integral_limit, m.sp - ff))
+            self.pid.i = max(-self.pid.integral_limit,
+                             min(self.pid.integral_limit, setpoint_bar - ff))
         else:
-            self.bump = m.sp - ff
-        self.last_sp = m.sp
-        m.feedforward = ff
-        m.length_ctl_on = True
+            self.bump = setpoint_bar - ff
+        self.last_sp = setpoint_bar
+        self.feedforward_bar = ff
+        self.active = True
 
-    def reset_model(self) -> None:
+    def reset_model(self, length_mm: float, force_n: float) -> None:
         """A stateful model (hysteresis) takes its memory from the measured state."""
-        m = self.m
         if self.ff is not None:
-            self.ff.reset(m.force, m.length, (m.length0_mm - m.length) / m.length0_mm, 0.0)
+            l0 = self.nominal_length_mm
+            self.ff.reset(force_n, length_mm, (l0 - length_mm) / l0, 0.0)
 
     def leave(self) -> None:
         """Back to pressure mode; the setpoint stays where it is (bumpless)."""
-        m = self.m
-        m.mode = Mode.PRESSURE
-        m.length_ctl_on = False
-        m.profile = None
-        m.sp_rate = 0.0
-        m.feedforward = 0.0
-        m.target_length = m.target_force = math.nan
+        self.active = False
+        self.setpoint_rate_bar_per_s = 0.0
+        self.feedforward_bar = 0.0
+        self.target_length_mm = self.target_force_n = math.nan
         self.ilc = None
 
-    def swap(self, ff: Feedforward) -> float:
+    def set_force_target(self, force_n: float) -> None:
+        self.target_force_n = force_n
+
+    def swap(self, ff: Feedforward, length_mm: float, force_n: float) -> float:
         """A new model while running: the outer integral (or the fading offset) takes up
         the difference between the old and the new model's pressure. Returns it (bar)."""
-        before = self.model_value() if self.m.length_ctl_on else 0.0
+        before = self.model_value() if self.active else 0.0
         self.ff = ff
-        self.reset_model()
+        self.reset_model(length_mm, force_n)
         self.target_vel.window_s = ff.velocity_window_s
-        if not self.m.length_ctl_on:
+        if not self.active:
             return 0.0
         diff = before - self.model_value()
         if self.position:
@@ -162,28 +176,28 @@ class LengthControl:
                        c.forgetting, c.limit_bar, c.resolution_s)
 
     # -- the tick --------------------------------------------------------------------------
-    def step(self, now: float, dt: float, state: int, sp_prev: float) -> float:
-        """The pressure setpoint for this tick (bar); sets the muscle's target_length,
-        feedforward and sp_rate, and `flags` (FF_CLIPPED, SLEW_LIMITED)."""
-        m = self.m
+    def step(self, now: float, dt: float, state: int, sp_prev: float, prof: Profile | None,
+             length_mm: float, force_n: float) -> float:
+        """The pressure setpoint for this tick (bar), from the running length profile
+        `prof` (if any) and the measured length and force; sets `target_length_mm`,
+        `feedforward_bar`, `setpoint_rate_bar_per_s` and `flags` (FF_CLIPPED,
+        SLEW_LIMITED)."""
         flags = 0
-        l0 = m.length0_mm
-        prof = m.profile
+        l0 = self.nominal_length_mm
         if prof is not None and (state == S_RUNNING or state == S_LOAD):
             prof.sample(now)
             x_t = prof.value
             ln_t = l0 * (1.0 - x_t)
-            m.target_length = ln_t
+            self.target_length_mm = ln_t
         else:
-            ln_t = m.target_length
+            ln_t = self.target_length_mm
             x_t = (l0 - ln_t) / l0
         v_t = self.target_vel.update(ln_t, dt)
-        f_in = m.target_force
+        f_in = self.target_force_n
         if self.position:
-            f = m.force
             fl = self.force_lp
-            f_in = self.force_lp = fl + dt / (self.force_tau_s + dt) * (f - fl) if (
-                fl == fl) else f
+            f_in = self.force_lp = fl + dt / (self.force_tau_s + dt) * (force_n - fl) if (
+                fl == fl) else force_n
         ff = 0.0
         if self.use_ff and self.ff is not None:
             ff_obj = self.ff
@@ -194,14 +208,13 @@ class LengthControl:
         pid = self.pid
         i_before = pid.i
         if self.position:
-            length = m.length
-            corr = pid.step(length - ln_t, -length, dt)
+            corr = pid.step(length_mm - ln_t, -length_mm, dt)
             ilc = self.ilc
             if ilc is not None and prof is not None and not prof.done and (
                     state == S_RUNNING or state == S_LOAD):
                 tau = now - prof.t0_s - prof.lead_in_s
                 if tau >= 0.0:
-                    corr += ilc.step(tau, length - ln_t, dt)
+                    corr += ilc.step(tau, length_mm - ln_t, dt)
             self.correction = corr
             want += corr
         else:
@@ -214,12 +227,12 @@ class LengthControl:
         if want != want:  # a NaN input (stale sensor): hold; the fault follows
             want = sp_prev
             held = True
-        hi = m.max_p
+        hi = self.max_pressure_bar
         if want > hi:
             want, held = hi, True
         elif want < 0.0:
             want, held = 0.0, True
-        step = m.slew * dt
+        step = self.slew_limit_bar_per_s * dt
         if want > sp_prev + step:
             want, held = sp_prev + step, True
             flags |= F_SLEW
@@ -228,8 +241,8 @@ class LengthControl:
             flags |= F_SLEW
         if held or sp_prev != self.last_sp:  # clamped here or by the tick's soft limits
             pid.i = i_before
-        m.feedforward = ff
-        m.sp_rate = self.sp_rate.update(want, dt)
+        self.feedforward_bar = ff
+        self.setpoint_rate_bar_per_s = self.sp_rate.update(want, dt)
         self.last_sp = want
         self.flags = flags
         return want

@@ -10,57 +10,57 @@ from __future__ import annotations
 
 from typing import Any
 
+from pamd.config.loader import LoadedConfig
 from pamd.errors import CommandRefused
 from pamd.muscle import equilibrium_contraction
 from pamd.profiles import Profile, ProfileSpec, shape_of
+from pamd.safety.envelope import MuscleEnvelope
 
 #: Length targets keep this far (contraction) inside what the load lets the muscle reach.
 REACH_MARGIN = 0.005
 
 
-def contraction_bounds(m: Any) -> tuple[float, float]:
-    """The contraction range a length target may use: inside the soft limits, where
-    the tick's limit guards would start to fight the target."""
-    return -m.max_stretch + m.safety.soft_band_contraction, m.soft_c
-
-
-def check_contraction(m: Any, what: str, *values: float) -> None:
-    lo, hi = contraction_bounds(m)
+def check_contraction(env: MuscleEnvelope, what: str, *values: float) -> None:
+    lo, hi = env.contraction_bounds()
     for v in values:
         if not lo - 1e-12 <= v <= hi + 1e-12:
             raise CommandRefused(
-                f"{m.name}: {what} {100 * v:.2f} % contraction is outside the allowed "
-                f"{100 * lo:.2f} % to {100 * hi:.2f} % (soft limits: {100 * m.max_c:.1f} % "
-                f"contraction, {100 * m.max_stretch:.1f} % stretch, less the soft band)")
+                f"{env.name}: {what} {100 * v:.2f} % contraction is outside the allowed "
+                f"{100 * lo:.2f} % to {100 * hi:.2f} % (soft limits: "
+                f"{100 * env.max_contraction:.1f} % contraction, "
+                f"{100 * env.max_pretension:.1f} % stretch, less the soft band)")
 
 
-def check_reachable(m: Any, *values: float, margin: float = REACH_MARGIN) -> None:
+def check_reachable(env: MuscleEnvelope, load_kg: float, *values: float,
+                    margin: float = REACH_MARGIN) -> None:
     """Refuse length targets the hanging load does not let the muscle reach between 0 bar
     and its pressure limit (by the static force model, with a margin)."""
-    fm, load = m.force_model, m.load_kg
-    x_hi = equilibrium_contraction(fm, m.max_p, load)
+    fm, load, max_p = env.force_model, load_kg, env.max_pressure_bar
+    x_hi = equilibrium_contraction(fm, max_p, load)
     x_lo = equilibrium_contraction(fm, 0.0, load)
     for v in values:
         if v > x_hi - margin:
             raise CommandRefused(
-                f"{m.name}: with {load:g} kg the muscle reaches about {100 * x_hi:.1f} % "
-                f"contraction at {m.max_p:g} bar (static force model); {100 * v:.1f} % needs "
+                f"{env.name}: with {load:g} kg the muscle reaches about {100 * x_hi:.1f} % "
+                f"contraction at {max_p:g} bar (static force model); {100 * v:.1f} % needs "
                 f"at most {100 * (x_hi - margin):.1f} %")
         if v < x_lo + margin:
             raise CommandRefused(
-                f"{m.name}: with {load:g} kg the muscle hangs at about {100 * x_lo:.1f} % "
+                f"{env.name}: with {load:g} kg the muscle hangs at about {100 * x_lo:.1f} % "
                 f"contraction at 0 bar; {100 * v:.1f} % would need pushing (at least "
                 f"{100 * (x_lo + margin):.1f} %)")
 
 
-def length_profile(m: Any, now: float, kind: str, *, min_contraction: float | None,
+def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float, now: float,
+                   kind: str, *, min_contraction: float | None,
                    max_contraction: float | None, to_contraction: float | None,
                    freq_hz: float, cycles: int | None, rate_per_s: float | None,
                    rise_s: float | None, duration_s: float | None,
                    lead_in_per_s: float | None) -> Profile:
-    """A length profile for muscle `m`, in contraction (fraction) units, checked against
+    """A length profile for the muscle of `env` with `load_kg` hanging, starting from
+    its present `target_length_mm`, in contraction (fraction) units, checked against
     the contraction limits and the length rate limit before anything moves."""
-    max_rate = m.length_ctl.cfg.max_rate_per_s
+    max_rate = env.max_length_rate_per_s
     shape = shape_of(kind)  # unknown kinds refused, naming the known ones
     if shape.periodic:
         if min_contraction is None or max_contraction is None:
@@ -70,13 +70,13 @@ def length_profile(m: Any, now: float, kind: str, *, min_contraction: float | No
             raise CommandRefused(f"{kind} length profile: max_contraction "
                                  f"({max_contraction}) must exceed min_contraction "
                                  f"({min_contraction})")
-        check_contraction(m, f"{kind} profile spans to", min_contraction, max_contraction)
+        check_contraction(env, f"{kind} profile spans to", min_contraction, max_contraction)
     else:
         if to_contraction is None:
             raise CommandRefused(f"{kind} length profile: give to_contraction")
-        check_contraction(m, f"{kind} profile target", to_contraction)
-    check_reachable(m, *(v for v in (min_contraction, max_contraction, to_contraction)
-                         if v is not None))
+        check_contraction(env, f"{kind} profile target", to_contraction)
+    check_reachable(env, load_kg, *(v for v in (min_contraction, max_contraction,
+                                                to_contraction) if v is not None))
     lead = lead_in_per_s if lead_in_per_s is not None else 0.5 * max_rate
     if not 0 < lead <= max_rate:
         raise CommandRefused(f"lead-in rate must be in (0, {max_rate:g}] contraction/s "
@@ -91,30 +91,22 @@ def length_profile(m: Any, now: float, kind: str, *, min_contraction: float | No
     rate = spec.shape_max_rate(max_rate)
     if rate > max_rate * (1 + 1e-9):
         raise CommandRefused(
-            f"{kind} length profile needs {rate:.3g} contraction/s ({rate * m.length0_mm:.3g} "
-            f"mm/s) but the limit is {max_rate:g}/s (control.position.max_rate_per_s); "
-            "lower freq_hz or the span")
+            f"{kind} length profile needs {rate:.3g} contraction/s "
+            f"({rate * env.nominal_length_mm:.3g} mm/s) but the limit is {max_rate:g}/s "
+            "(control.position.max_rate_per_s); lower freq_hz or the span")
     if cycles is not None and cycles < 1:
         raise CommandRefused("cycles must be at least 1")
-    x_now = (m.length0_mm - m.target_length) / m.length0_mm
-    return Profile(spec, now, x_now, max_rate)
+    return Profile(spec, now, env.contraction(target_length_mm), max_rate)
 
 
-def check_length_profile_config(cfg: Any, muscle: str, payload: dict[str, Any]) -> None:
+def check_length_profile_config(cfg: LoadedConfig, muscle: str,
+                                payload: dict[str, Any]) -> None:
     """`length_profile`'s checks from the config alone (limits, load, rate), for a
-    profile asked for before the rig starts (`pamd run --mode position --profile`)."""
-    from types import SimpleNamespace
-
-    from pamd.muscle import force_model
-
-    mc, lim, saf = cfg.muscle(muscle), cfg.limits[muscle], cfg.rig.safety
-    view = SimpleNamespace(  # the attributes of a MuscleController that the checks read
-        name=muscle, max_stretch=lim.max_pretension, safety=saf, max_c=lim.max_contraction,
-        soft_c=lim.max_contraction - saf.soft_band_contraction,
-        length0_mm=mc.nominal_length_mm, target_length=mc.nominal_length_mm,
-        force_model=force_model(mc.force_model), load_kg=mc.load_kg,
-        max_p=lim.max_pressure_bar, length_ctl=SimpleNamespace(cfg=cfg.rig.control.position))
-    length_profile(view, 0.0, payload.get("kind", "sine"),
+    profile asked for before the rig starts (`pamd run --mode position --profile`):
+    the muscle at its nominal length with its configured load."""
+    env = MuscleEnvelope.from_config(cfg, muscle)
+    length_profile(env, cfg.muscle(muscle).load_kg, env.nominal_length_mm, 0.0,
+                   payload.get("kind", "sine"),
                    min_contraction=payload.get("min_contraction"),
                    max_contraction=payload.get("max_contraction"),
                    to_contraction=payload.get("to_contraction"),

@@ -23,7 +23,6 @@ from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.experiment.plan import Plan, PlanStep
 from pamd.muscle import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfileSpec
-from pamd.safety import safe_pressure_bar
 from pamd.tick import State
 
 LOAD, SETTLE, PROFILE, HOLD, PAUSE, DONE = "load", "settle", "profile", "hold", "pause", "done"
@@ -107,8 +106,7 @@ class Sequencer:
         if step.pause is not None:
             self.awaiting_operator = step.pause
             self._phase(now, PAUSE)
-            self.ctrl.hold_started = now
-            self.ctrl.supervisor.go(now, State.HOLD, f"plan pause: {step.pause}")
+            self.ctrl.enter_hold(now, f"plan pause: {step.pause}")
             return
         if step.load_kg is not None and step.load_kg != m.load_kg:
             self._start_load(now, step.load_kg)
@@ -119,10 +117,8 @@ class Sequencer:
         m = self.muscle
         work = self.plan.working_pressure_bar
         if work is None:
-            new_safe = safe_pressure_bar(m.force_model, load_kg, m.limits.max_pretension,
-                                         m.safety.stretch_margin,
-                                         m.safety.safe_pressure_margin_bar, m.max_p)
-            work = max(m.safe_bar, new_safe)
+            new_safe = m.envelope.safe_pressure_bar(load_kg)
+            work = max(m.safe_pressure_bar, new_safe)
         self._ramp_to(now, work)
         self._load_confirmed = False
         self._agree_since = math.inf
@@ -138,7 +134,7 @@ class Sequencer:
         if m.profile is not None and not m.profile.done:
             return  # still ramping to the working pressure
         if not self._load_confirmed and not self.awaiting_operator:
-            f = m.sig.force
+            f = m.signals.force
             if f.driver.change_load(f.index, step.load_kg):
                 self._load_confirmed = True  # the simulated rig did it itself
             else:
@@ -149,11 +145,11 @@ class Sequencer:
         if not self._load_confirmed:
             return
         if m.load_kg != step.load_kg:
-            m.update_load(step.load_kg)
+            m.set_load(step.load_kg)
             push_safe_outputs(self.ctrl)
             self.phase_t0 = now
         weight = step.load_kg * GRAVITY_M_S2
-        if abs(m.force - weight) <= self.plan.load_tolerance_n:
+        if abs(m.force_n - weight) <= self.plan.load_tolerance_n:
             if self._agree_since == math.inf:
                 self._agree_since = now
             elif now - self._agree_since >= FORCE_AGREE_S:
@@ -164,7 +160,7 @@ class Sequencer:
             self._agree_since = math.inf
             if now - self.phase_t0 > FORCE_AGREE_TIMEOUT_S:
                 self.ctrl.supervisor.fault(
-                    now, f"{m.name}: measured force {m.force:.0f} N does not agree with "
+                    now, f"{m.name}: measured force {m.force_n:.0f} N does not agree with "
                     f"{step.load_kg:g} kg ({weight:.0f} N) within "
                     f"{self.plan.load_tolerance_n:g} N; check the load")
 
@@ -172,7 +168,7 @@ class Sequencer:
         self._still_since = math.inf
         if self.ctrl.supervisor.state != State.RUNNING:
             self.ctrl.supervisor.go(now, State.RUNNING, f"plan step {self.step.name}")  # type: ignore[union-attr]
-        self.muscle.profile = None
+        self.muscle.stop_profile()
         self._phase(now, SETTLE)
 
     def _settle(self, now: float) -> None:
@@ -184,7 +180,7 @@ class Sequencer:
                 # Still means still for `still_for_s`; the wait gives up after timeout_s
                 # whether the muscle is moving or has been still too briefly (a
                 # quantised encoder at rest reads exactly 0 between its steps).
-                if abs(self.muscle.velocity) < s.still_mm_s:
+                if abs(self.muscle.velocity_mm_s) < s.still_mm_s:
                     if self._still_since == math.inf:
                         self._still_since = now
                     still = now - self._still_since >= s.still_for_s
@@ -203,7 +199,8 @@ class Sequencer:
             self._phase(now, HOLD)
             return
         m = self.muscle
-        m.start_profile(Profile(prof.as_spec(), now, m.sp, m.slew))
+        m.start_profile(Profile(prof.as_spec(), now, m.setpoint_bar,
+                                m.envelope.slew_limit_bar_per_s))
         self._cycle = 0
         self._phase(now, PROFILE)
 
@@ -219,7 +216,7 @@ class Sequencer:
                 self._pause(now, "paused at the end of the cycle")
                 return
         if p.done:
-            self.muscle.profile = None
+            self.muscle.stop_profile()
             self._phase(now, HOLD)
             if self.pause_at_cycle_end:  # the last cycle (a one-cycle step's only one)
                 self._pause(now, "paused at the end of the cycle (the step's last)")
@@ -227,8 +224,7 @@ class Sequencer:
     def _pause(self, now: float, reason: str) -> None:
         """HOLD until the operator resumes (the `pause` command asked for it)."""
         self.pause_at_cycle_end = False
-        self.ctrl.hold_started = now
-        self.ctrl.supervisor.go(now, State.HOLD, reason)
+        self.ctrl.enter_hold(now, reason)
 
     def _step_done(self, now: float) -> None:
         self.finished_steps.append(self.step.name)  # type: ignore[union-attr]
@@ -238,9 +234,10 @@ class Sequencer:
     # -- helpers ------------------------------------------------------------------------
     def _ramp_to(self, now: float, bar: float) -> None:
         m = self.muscle
-        spec = ProfileSpec(kind="ramp", to_bar=bar, rate_bar_per_s=0.5 * m.slew,
-                           lead_in_bar_per_s=m.slew)
-        m.start_profile(Profile(spec, now, m.sp, m.slew))
+        slew = m.envelope.slew_limit_bar_per_s
+        spec = ProfileSpec(kind="ramp", to_bar=bar, rate_bar_per_s=0.5 * slew,
+                           lead_in_bar_per_s=slew)
+        m.start_profile(Profile(spec, now, m.setpoint_bar, slew))
 
     def _phase(self, now: float, phase: str) -> None:
         self.phase = phase

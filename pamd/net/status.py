@@ -53,13 +53,12 @@ class StatusBuilder:
             ms = st["muscles"].get(m.name)
             if ms is None:
                 continue
-            ref = m.ref
+            ref = m.reference
             ms["references"] = {
                 "length_referenced": ref.length_referenced, "homed_at": ref.homed_at,
                 "tared_at": ref.tared_at, "length_offset_mm": ref.length_offset_mm,
                 "force_offset_n": ref.force_offset_n}
-            lc = getattr(m, "length_ctl", None)
-            ff = getattr(lc, "ff", None) if lc is not None else None
+            ff = m.length_control.ff
             ms["model"] = ff.describe() if ff is not None else None
             dm = deadman.get(m.name)
             ms["deadman_left_s"] = None if dm is None else max(0.0, dm[0] - ctrl.now)
@@ -79,6 +78,6 @@ class StatusBuilder:
             experiment=experiment, config_sha256=cfg.sha256,
             config_path=os.path.abspath(cfg.path), clock="virtual" if d.loop.virtual else "real",
             rate_hz=cfg.rig.loop.rate_hz, verbs=sorted(REGISTRY.names), recording=rec,
-            stopping=d.loop._stop_reason, pamd_version=__version__, pid=os.getpid(),
+            stopping=d.loop.stop_requested, pamd_version=__version__, pid=os.getpid(),
             t_wall_s=time.time(), uptime_s=now - self.t0)
         return jsonsafe(st)

@@ -16,40 +16,53 @@ Tick path: float arithmetic on attributes; a message string only on a finding.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
 
-from pamd.config.loader import MuscleLimitsResolved
+from pamd.config.schema import SafetyConfig
+from pamd.safety.limiter import held_back
 from pamd.tick import Flag
 
+if TYPE_CHECKING:
+    from pamd.safety.envelope import MuscleEnvelope
+
 F_SOFT_C, F_PRETENSION = int(Flag.SOFT_LIMIT_CONTRACTION), int(Flag.PRETENSION_LIMIT)
+F_SOFT_P = int(Flag.SOFT_LIMIT_PRESSURE)
+F_AT_LIMIT = F_SOFT_P | F_SOFT_C | F_PRETENSION
 F_TRACK = int(Flag.TRACKING)
+#: A profile held at a soft limit longer than this is reported (event, summary).
+SOFT_LIMIT_REPORT_S = 1.0
 
 
 class LimitMonitor:
     """Hard limits, tracking and soft-limit guards of one muscle."""
 
-    def __init__(self, muscle: str, pressure_name: str, limits: MuscleLimitsResolved,
-                 safety: Any) -> None:
-        self.muscle = muscle
+    def __init__(self, envelope: MuscleEnvelope, pressure_name: str,
+                 safety: SafetyConfig) -> None:
+        self.muscle = envelope.name
         self.p_name = pressure_name
-        self.set_limits(limits, safety)
+        self.set_envelope(envelope)
         self.set_times(safety)
         self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
         self._over_p_since = self._over_c_since = self._over_s_since = math.inf
         self._track_since = math.inf
+        self._held_since = math.inf
+        self._held_reported = False
+        self.holding_back = False  # a reference is held back at a limit (held_at_limit)
         self.lo = 0.0  # guard bounds on the command of this tick
         self.hi = math.inf
         self.flags = 0
 
-    def set_limits(self, lim: MuscleLimitsResolved, saf: Any) -> None:
-        self.max_p, self.hard_p = lim.max_pressure_bar, lim.hard_max_pressure_bar
-        self.max_c, self.hard_c = lim.max_contraction, lim.hard_max_contraction
-        self.soft_c = lim.max_contraction - saf.soft_band_contraction
-        self.c_release = self.soft_c - 0.5 * saf.soft_band_contraction
-        self.max_stretch, self.hard_stretch = lim.max_pretension, lim.hard_max_pretension
-        self.s_release = -self.max_stretch + 0.5 * saf.soft_band_contraction
+    def set_envelope(self, env: MuscleEnvelope) -> None:
+        """Limits and bands (set-up and IDLE reloads)."""
+        self.hard_p = env.hard_max_pressure_bar
+        self.max_c, self.hard_c = env.max_contraction, env.hard_max_contraction
+        self.soft_c = env.soft_max_contraction
+        self.c_release = self.soft_c - 0.5 * env.soft_band_contraction
+        self.max_stretch, self.hard_stretch = env.max_pretension, env.hard_max_pretension
+        self.s_release = -self.max_stretch + 0.5 * env.soft_band_contraction
 
-    def set_times(self, saf: Any) -> None:
+    def set_times(self, saf: SafetyConfig) -> None:
+        """The hard-limit hold and the tracking band and time (set-up and any reload)."""
         self.hold_s = saf.hard_limit_hold_s
         self.track_band, self.track_s = saf.tracking_band_bar, saf.tracking_time_s
 
@@ -57,23 +70,26 @@ class LimitMonitor:
         self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
 
     # -- faults -------------------------------------------------------------------
-    def hard_pressure(self, now: float, p: float) -> str | None:
-        if p > self.hard_p:
-            if self._over_p_since == math.inf:
-                self._over_p_since = now
-            elif now - self._over_p_since >= self.hold_s:
-                return (f"{self.muscle}: pressure {p:.2f} bar above the hard limit "
-                        f"{self.hard_p:.2f} bar")
-        else:
-            self._over_p_since = math.inf
-        return None
-
-    def hard_length(self, now: float, x: float) -> str | None:
+    def check_hard(self, now: float, p: float, x: float, pressure_ok: bool,
+                   length_ok: bool) -> str | None:
+        """The hard limits, held for `hard_limit_hold_s`, on trusted readings only: a
+        fault reason (the pressure's first), or None."""
         fault = None
+        if pressure_ok:
+            if p > self.hard_p:
+                if self._over_p_since == math.inf:
+                    self._over_p_since = now
+                elif now - self._over_p_since >= self.hold_s:
+                    fault = (f"{self.muscle}: pressure {p:.2f} bar above the hard limit "
+                             f"{self.hard_p:.2f} bar")
+            else:
+                self._over_p_since = math.inf
+        if not length_ok:
+            return fault
         if x > self.hard_c:
             if self._over_c_since == math.inf:
                 self._over_c_since = now
-            elif now - self._over_c_since >= self.hold_s:
+            elif now - self._over_c_since >= self.hold_s and fault is None:
                 fault = (f"{self.muscle}: contraction {100 * x:.1f} % beyond the hard limit "
                          f"{100 * self.hard_c:.1f} %")
         else:
@@ -88,10 +104,15 @@ class LimitMonitor:
             self._over_s_since = math.inf
         return fault
 
-    def tracking(self, now: float, p: float, command: float) -> str | None:
-        """The measured pressure must follow the last command within the band."""
+    def track(self, now: float, p: float, command: float, pressure_ok: bool) -> str | None:
+        """The measured pressure must follow the last command within the band (on a
+        trusted pressure only); `flags` holds TRACKING while it does not."""
+        self.flags = 0
+        if not pressure_ok:
+            self._track_since = math.inf
+            return None
         if abs(p - command) > self.track_band:
-            self.flags |= F_TRACK
+            self.flags = F_TRACK
             if self._track_since == math.inf:
                 self._track_since = now
             elif now - self._track_since >= self.track_s:
@@ -107,9 +128,16 @@ class LimitMonitor:
         self._track_since = math.inf
 
     # -- guards -------------------------------------------------------------------
-    def guard(self, x: float, prev_cmd: float, step: float) -> None:
-        """This tick's bounds on the command (`lo`, `hi`) from a trusted contraction `x`;
-        `prev_cmd` is the last command, `step` the slew limit times the period."""
+    def bound(self, length_ok: bool, x: float, prev_cmd: float, wanted: float,
+              step: float) -> int:
+        """This tick's bounds on the command (`lo`, `hi`) from a trusted contraction `x`
+        (an untrusted length bounds nothing); `prev_cmd` is the last command, `wanted`
+        what control wants now, `step` the slew limit times the period. Returns the flag
+        of a guard that holds `wanted` back, or 0."""
+        if not length_ok:
+            self.lo, self.hi = 0.0, math.inf
+            self.c_recover = self.s_recover = False
+            return 0
         if self.c_guard:
             if x < self.c_release:
                 self.c_guard = False
@@ -124,25 +152,47 @@ class LimitMonitor:
         elif x <= -self.max_stretch:
             self.s_guard = True
             self.s_recover = False
-        self.lo, self.hi = 0.0, math.inf
+        lo, hi = 0.0, math.inf
         if self.c_guard:
             # restoring: never up; beyond the limit, down at the slew limit
-            self.hi = prev_cmd - step if x >= self.max_c else prev_cmd
+            hi = prev_cmd - step if x >= self.max_c else prev_cmd
         elif self.c_recover:
             # released: back towards what control wants at the slew limit (bumpless)
-            self.hi = prev_cmd + step
+            hi = prev_cmd + step
         if self.s_guard:
             if not self.c_guard:  # both at once cannot be: contraction wins
                 # restoring: never down; beyond the limit, up at the slew limit
-                self.lo = prev_cmd + step if x <= -self.max_stretch else prev_cmd
+                lo = prev_cmd + step if x <= -self.max_stretch else prev_cmd
         elif self.s_recover and not self.c_guard:
-            self.lo = prev_cmd - step
+            lo = prev_cmd - step
+        self.lo, self.hi = lo, hi
+        if wanted > hi:
+            return F_SOFT_C
+        if wanted < lo:
+            return F_PRETENSION
+        self.c_recover = self.s_recover = False  # inside the bounds: recovery is over
+        return 0
 
-    def caught_up(self) -> None:
-        """The command is inside the bounds: a released guard's recovery is over."""
-        self.c_recover = self.s_recover = False
-
-    def no_guard(self) -> None:
-        """No trusted length this tick: the guards bound nothing."""
-        self.lo, self.hi = 0.0, math.inf
-        self.c_recover = self.s_recover = False
+    # -- a reference held back --------------------------------------------------------
+    def held_at_limit(self, now: float, flags: int, moving: bool, setpoint_bar: float,
+                      command_bar: float) -> str | None:
+        """A profile held back at a soft limit (`held_back`) for more than
+        SOFT_LIMIT_REPORT_S while RUNNING or LOAD_CHANGE (`moving`): the limit's name,
+        once per episode (the controller reports it); else None. The tick calls it only
+        with a limit flag set or while `holding_back`."""
+        if flags & F_AT_LIMIT and moving and held_back(flags, setpoint_bar, command_bar):
+            self.holding_back = True
+            if self._held_since == math.inf:
+                self._held_since = now
+                self._held_reported = False
+            elif not self._held_reported and now - self._held_since > SOFT_LIMIT_REPORT_S:
+                self._held_reported = True
+                if flags & F_SOFT_C:
+                    return "contraction"
+                if flags & F_PRETENSION:
+                    return "pretension"
+                return "pressure"
+        else:
+            self._held_since = math.inf
+            self.holding_back = False
+        return None

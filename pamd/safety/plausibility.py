@@ -63,7 +63,7 @@ class Plausibility:
         self.muscle = muscle
         self.p_name, self.f_name, self.l_name = names
         self.model = model
-        self.length0_mm = nominal_length_mm
+        self.nominal_length_mm = nominal_length_mm
         self.configure(cfg)
         self.weight_n = 0.0
         self.clear()
@@ -146,7 +146,7 @@ class Plausibility:
         if length != length:
             return None  # not a number: the stale check speaks for it
         if referenced:
-            x = (self.length0_mm - length) / self.length0_mm
+            x = (self.nominal_length_mm - length) / self.nominal_length_mm
             if x > self.max_x or x < self.min_x:
                 self.length_ok = False
                 return (f"{self.muscle}: {self.l_name} reads {length:.2f} mm, outside what the "
@@ -169,7 +169,7 @@ class Plausibility:
             return None  # the frozen check needs both
         dp = p - self._anchor_p
         if abs(dp) >= self.frozen_dp and p == p and f == f:
-            x = (self.length0_mm - length) / self.length0_mm
+            x = (self.nominal_length_mm - length) / self.nominal_length_mm
             model_df = (self.model.force_n(p, x) - self.model.force_n(self._anchor_p, x))
             if abs(model_df) < self.frozen_df:
                 return None  # friction may still hold it: wait for a larger change
@@ -218,7 +218,7 @@ class Plausibility:
         clamped.) Without a trusted length, assume it does."""
         if not self.length_ok or length != length:
             return True
-        x = (self.length0_mm - length) / self.length0_mm
+        x = (self.nominal_length_mm - length) / self.nominal_length_mm
         return self.model.force_n(p, x) > 0.5 * w
 
     def _check_pressure(self, t: float, p: float, command: float,

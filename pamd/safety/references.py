@@ -32,52 +32,54 @@ LOAD_AGREES_KG = 0.5
 
 
 def _at_rest(m: Any, verb: str) -> None:
-    if abs(m.velocity) > AT_REST_MM_S:
-        raise CommandRefused(f"{m.name}: moving at {m.velocity:.1f} mm/s; {verb} once the load "
-                             "rests")
+    if abs(m.velocity_mm_s) > AT_REST_MM_S:
+        raise CommandRefused(f"{m.name}: moving at {m.velocity_mm_s:.1f} mm/s; {verb} once "
+                             "the load rests")
 
 
 def expected_length_mm(m: Any) -> tuple[float, float]:
     """The length the muscle should have now (nominal length, its load, the measured
     pressure), and the contraction that gives it."""
-    x = equilibrium_contraction(m.force_model, max(m.pressure, 0.0), m.load_kg, -0.15, 0.30)
-    return m.length0_mm * (1.0 - x), x
+    x = equilibrium_contraction(m.envelope.force_model, max(m.pressure_bar, 0.0), m.load_kg,
+                                -0.15, 0.30)
+    return m.envelope.length_mm(x), x
 
 
 def check_home(m: Any, length_mm: float) -> None:
     """Refuse (CommandRefused) a `home` that would make the length reference lie."""
-    b = m.sig.length
+    b = m.signals.length
     if m.length_absolute:
         raise CommandRefused(
             f"{m.name}: {b.name} (driver {b.driver.name!r}) is an absolute sensor, referenced "
             "by itself; home would only make it lie (calibrate its gain/offset in the config "
             "instead)")
-    if not m.plaus.length_ok:
+    if not m.plausibility.length_ok:
         raise CommandRefused(f"{m.name}: {b.name} is not trusted (an implausible reading); "
                              "reset once it reads right, then home")
-    if not (m.plaus.pressure_ok and math.isfinite(m.pressure)):
+    if not (m.plausibility.pressure_ok and math.isfinite(m.pressure_bar)):
         raise CommandRefused(f"{m.name}: no trusted pressure reading, so the expected length "
                              "is unknown; home refused")
     _at_rest(m, "home")
     expected, x = expected_length_mm(m)
-    band = m.safety.home_tolerance * m.length0_mm
+    env = m.envelope
+    band = env.home_tolerance * env.nominal_length_mm
     if abs(length_mm - expected) > band:
         raise CommandRefused(
             f"{m.name}: home at {length_mm:.1f} mm disagrees with the {expected:.1f} mm "
-            f"expected (nominal {m.length0_mm:g} mm, {100 * -x:+.1f} % stretch under "
-            f"{m.load_kg:g} kg at {m.pressure:.2f} bar) by more than {band:.1f} mm "
-            f"(safety.home_tolerance {m.safety.home_tolerance:g}); measure the length again, "
+            f"expected (nominal {env.nominal_length_mm:g} mm, {100 * -x:+.1f} % stretch under "
+            f"{m.load_kg:g} kg at {m.pressure_bar:.2f} bar) by more than {band:.1f} mm "
+            f"(safety.home_tolerance {env.home_tolerance:g}); measure the length again, "
             "or correct nominal_length_mm or load_kg")
 
 
 def tare_offset(m: Any, load_kg: float | None) -> float:
     """The new force offset of a `tare` (against `load_kg` hanging, default none), or
     CommandRefused if it would make the force reference lie."""
-    b = m.sig.force
-    if not m.plaus.force_ok:
+    b = m.signals.force
+    if not m.plausibility.force_ok:
         raise CommandRefused(f"{m.name}: {b.name} is not trusted (an implausible reading); "
                              "reset once it reads right, then tare")
-    raw = m.force + m.ref.force_offset_n
+    raw = m.force_n + m.reference.force_offset_n
     if not math.isfinite(raw):
         raise CommandRefused(f"{m.name}: no force reading to tare")
     _at_rest(m, "tare")
@@ -94,11 +96,11 @@ def tare_offset(m: Any, load_kg: float | None) -> float:
             f"{m.name}: tare against {load_kg:g} kg, but the configured load is "
             f"{m.load_kg:g} kg; send load first (it also sets the safe pressure)")
     offset = raw - load_kg * GRAVITY_M_S2
-    moved = offset - m.ref.force_offset_n
-    tol = m.safety.tare_tolerance_n
+    moved = offset - m.reference.force_offset_n
+    tol = m.envelope.tare_tolerance_n
     if abs(moved) > tol:
         raise CommandRefused(
-            f"{m.name}: {b.name} reads {m.force:.0f} N where {load_kg * GRAVITY_M_S2:.0f} N "
+            f"{m.name}: {b.name} reads {m.force_n:.0f} N where {load_kg * GRAVITY_M_S2:.0f} N "
             f"({load_kg:g} kg) is expected; a tare would move its offset by {moved:+.0f} N, "
             f"more than safety.tare_tolerance_n ({tol:g} N). Does a load hang on it that "
             "nobody declared (send load), or is the sensor's offset in the config wrong?")

@@ -266,13 +266,13 @@ class ServiceKeeper:
             return
         ctrl = self.daemon.ctrl
         cfg = self.daemon.cfg
-        key = (cfg.sha256, *((m.safe_bar, m.load_kg) for m in ctrl.muscles))
+        key = (cfg.sha256, *((m.safe_pressure_bar, m.load_kg) for m in ctrl.muscles))
         if key == self._safe_key:
             return
         doc = safe_outputs_document(cfg, ctrl)
         if self._io("save the safe outputs", write_safe_outputs, self.paths.safe_outputs, doc):
             self._safe_key = key
-            loads = ", ".join(f"{m.name} {m.safe_bar:.2f} bar" for m in ctrl.muscles)
+            loads = ", ".join(f"{m.name} {m.safe_pressure_bar:.2f} bar" for m in ctrl.muscles)
             log.info("safe outputs saved in %s (%s)", self.paths.safe_outputs, loads)
 
     # -- reload (SIGHUP) -----------------------------------------------------------------------
@@ -381,7 +381,7 @@ class ServiceKeeper:
             self._finish()
             return
         old_gains, self.gains_cfg = self.gains_cfg, plan.cfg
-        self.daemon.loop.stall_s = plan.cfg.rig.loop.stall_timeout_s
+        self.daemon.loop.set_stall_timeout(plan.cfg.rig.loop.stall_timeout_s)
         if plan.now:
             log.warning("reload: applied at once: %s", describe(plan.now, old_gains, plan.cfg))
         if verdict.get("deferred"):

@@ -205,11 +205,8 @@ def safe_outputs_document(cfg: LoadedConfig, ctrl: Any) -> dict[str, Any]:
 
     labels: dict[tuple[str, int], tuple[str, float, str]] = {}
     for m in ctrl.muscles:
-        labels[(m.valve.driver.name, m.valve.index)] = (m.valve.name, m.safe_bar, "bar")
-        if m.exhaust is not None:
-            vent = 1.0 if m.safe_bar == 0.0 else 0.0
-            labels[(m.exhaust.driver.name, m.exhaust.index)] = (m.exhaust.name, vent,
-                                                                "(1 = open)")
+        for b, value, unit in m.actuation.safe_outputs(m.safe_pressure_bar):
+            labels[(b.driver.name, b.index)] = (b.name, value, unit)
     by_name = {d.name: d for d in cfg.rig.drivers}
     drivers = []
     for drv, values in safe_output_values(ctrl).items():

@@ -92,7 +92,7 @@ def track(h: Harness, cycles: int, freq_hz: float = 0.1) -> tuple[float, float]:
     while h.ctrl.supervisor.state == State.RUNNING:
         h.step(h.period_s)
         if h.t >= t_from and m.profile is not None:
-            e = m.length - m.target_length
+            e = m.length_mm - m.target_length_mm
             sq, n, worst = sq + e * e, n + 1, max(worst, abs(e))
     return math.sqrt(sq / n), worst
 
@@ -122,15 +122,15 @@ def test_inputs_outside_the_trained_ranges_are_clipped_and_flagged(
     h.step(0.2)
     rec = h.records[-1]["m1"]
     assert int(rec["flags"]) & CLIP and rec["mode"] == int(Mode.POSITION)
-    lc = h.m1.length_ctl
+    lc = h.m1.length_control
     # Never extrapolated: the model's answer at the range edge (force 310 N).
     model = lc.ff.model
     expected = float(model.predict([[310.0 if lc.force_lp > 310 else lc.force_lp,
-                                     h.m1.target_length, lc.target_vel.value]])[0])
-    assert h.m1.feedforward == pytest.approx(min(max(expected, model.output.min),
+                                     h.m1.target_length_mm, lc.target_vel.value]])[0])
+    assert h.m1.feedforward_bar == pytest.approx(min(max(expected, model.output.min),
                                                  model.output.max), abs=1e-9)
-    assert rec["feedforward_bar"] == h.m1.feedforward
-    assert rec["target_length_mm"] == pytest.approx(h.m1.target_length)
+    assert rec["feedforward_bar"] == h.m1.feedforward_bar
+    assert rec["target_length_mm"] == pytest.approx(h.m1.target_length_mm)
     h.rig.close()
 
 
@@ -140,18 +140,18 @@ def test_mode_changes_are_bumpless_and_the_safe_state_leaves_them(
     h.step(0.05)
     assert h.cmd("setpoint", muscle="m1", bar=3.0)["ok"]
     h.step(2.0)
-    sp = h.m1.sp
+    sp = h.m1.setpoint_bar
     for mode in ("position", "length_force", "pressure", "position"):
         assert h.cmd("mode", muscle="m1", mode=mode)["ok"]
         h.step(0.01)
-        assert h.m1.sp == pytest.approx(sp, abs=0.02), mode
+        assert h.m1.setpoint_bar == pytest.approx(sp, abs=0.02), mode
         assert h.m1.mode == Mode[mode.upper()]
     assert h.cmd("setpoint", muscle="m1", length_mm=185.0, ramp_s=2.0)["ok"]
     h.step(3.0)
-    assert h.m1.length == pytest.approx(185.0, abs=0.3)
+    assert h.m1.length_mm == pytest.approx(185.0, abs=0.3)
     h.ctrl.go_safe("test: stop")
     h.step(0.01)
-    assert h.m1.mode == Mode.PRESSURE and math.isnan(h.m1.target_length)
+    assert h.m1.mode == Mode.PRESSURE and math.isnan(h.m1.target_length_mm)
     h.rig.close()
 
 
@@ -164,10 +164,10 @@ def test_mode_refusals(sim_config: Callable[..., LoadedConfig], static_model: Pa
     assert h.m1.mode == Mode.PRESSURE
     assert not h.cmd("mode", muscle="m1", mode="flying")["ok"]
     assert not h.cmd("mode", muscle="m1", mode="length_force", feedforward=False)["ok"]
-    h.m1.ref.length_referenced = False
+    h.m1.reference.length_referenced = False
     v = h.cmd("mode", muscle="m1", mode="position", feedforward=False)
     assert not v["ok"] and "not referenced" in v["error"]
-    h.m1.ref.length_referenced = True
+    h.m1.reference.length_referenced = True
     assert h.cmd("mode", muscle="m1", mode="position", feedforward=False)["ok"]
     # In a length mode, pressure setpoints and profiles are refused; and the reverse.
     v = h.cmd("setpoint", muscle="m1", bar=2.0)
@@ -206,27 +206,27 @@ def test_model_command_swaps_only_a_good_file_and_bumplessly(
     doc["output"]["name"] = "force_n"
     wrong = tmp_path / "wrong.json"
     wrong.write_text(json.dumps(doc))
-    before = (h.m1.valve_cmd, h.m1.length_ctl.ff)
+    before = (h.m1.valve_cmd_bar, h.m1.length_control.ff)
     for path, message in ((junk, "truncated"), (wrong, "not 'pressure_bar'"),
                           (tmp_path / "none.json", "cannot read")):
         v = cmd(h, "model", muscle="m1", file=str(path))
         assert not v["ok"] and message in v["error"], v
-        assert (h.m1.valve_cmd, h.m1.length_ctl.ff) == before  # nothing reached the loop
+        assert (h.m1.valve_cmd_bar, h.m1.length_control.ff) == before  # nothing reached the loop
     # Straight to the loop, unprepared: refused (file I/O is not the loop's job).
     v = apply_command(h.ctrl, parse_command("model", {"muscle": "m1", "file": str(junk)}))
     assert not v["ok"] and "not loaded" in v["error"]
     # A good file: swapped in; in position mode the outer integral takes up the step.
-    sp = h.m1.sp
+    sp = h.m1.setpoint_bar
     v = cmd(h, "model", muscle="m1", file=str(static_model))
     assert v["ok"] and v["rules"] == 8 and v["sha256"]
     assert cmd(h, "mode", muscle="m1", mode="position")["ok"]
     h.step(0.01)
-    assert h.m1.sp == pytest.approx(sp, abs=0.02)
+    assert h.m1.setpoint_bar == pytest.approx(sp, abs=0.02)
     v = cmd(h, "model", muscle="m1", file=str(narrow_model))
     assert v["ok"] and v["inputs"] == ["force_n", "length_mm", "velocity_mm_s"]
     h.step(0.01)
-    assert h.m1.sp == pytest.approx(sp, abs=0.03)
-    assert h.m1.length_ctl.target_vel.window_s == 1.0  # the new model's own filter
+    assert h.m1.setpoint_bar == pytest.approx(sp, abs=0.03)
+    assert h.m1.length_control.target_vel.window_s == 1.0  # the new model's own filter
     h.rig.close()
 
 

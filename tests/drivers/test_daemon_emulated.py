@@ -80,7 +80,7 @@ def test_silent_device_leads_to_the_safe_state_and_reset(
     assert "'io'" in reason, reason
     assert "stale" in reason or "modbus" in reason
     for m in daemon.ctrl.muscles:  # the safe state: setpoint goes to the safe pressure
-        assert wait_until(lambda m=m: abs(m.sp - m.safe_bar) < 1e-6, 15)
+        assert wait_until(lambda m=m: abs(m.setpoint_bar - m.safe_pressure_bar) < 1e-6, 15)
     assert daemon.command("reset")["ok"] is False  # the cause is still there
     io.hang_s = 0.0
     drv = daemon.rig.drivers["io"]
@@ -138,13 +138,13 @@ def test_safe_outputs_follow_the_load(running: tuple[EmulatedRig, Daemon]) -> No
     io = rig.modbus["io"]
     m1 = daemon.ctrl.muscles[0]
     # The daemon set the module's comm-safety values at start ...
-    volts = m1.safe_bar / 0.6  # VPPM: 0.6 bar per volt
+    volts = m1.safe_pressure_bar / 0.6  # VPPM: 0.6 bar per volt
     assert wait_until(lambda: abs(io.safe_value("ao0") - volts) < 0.003, 10)
-    vent = 1.0 if m1.safe_bar == 0.0 else 0.0  # 30 kg: vented is safe
+    vent = 1.0 if m1.safe_pressure_bar == 0.0 else 0.0  # 30 kg: vented is safe
     assert wait_until(lambda: io.safe_value("do0") == vent, 10)
-    before = m1.safe_bar
+    before = m1.safe_pressure_bar
     assert daemon.command("load", {"muscle": "m1", "load_kg": 80.0})["ok"]
-    assert m1.safe_bar > before
+    assert m1.safe_pressure_bar > before
     # ... and again with the load change.
-    volts = m1.safe_bar / 0.6
+    volts = m1.safe_pressure_bar / 0.6
     assert wait_until(lambda: abs(io.safe_value("ao0") - volts) < 0.003, 10)

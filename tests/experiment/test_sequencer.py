@@ -49,7 +49,7 @@ def test_plan_runs_every_step_on_the_simulated_rig(harness: Any) -> None:
     assert h.ctrl.segment == 0  # outside a plan again: the recorder's cue
     plant = h.sim.plant("m1")
     assert plant.load_kg == 50.0 and h.m1.load_kg == 50.0
-    assert h.m1.safe_bar > 0.0  # 50 kg needs pressure to stay inside the stretch limit
+    assert h.m1.safe_pressure_bar > 0.0  # 50 kg needs pressure to stay inside the stretch limit
     assert h.state == "IDLE"
     kinds = [e[2]["what"] for e in h.sink.events if e[1] == "experiment"]
     assert kinds.count("cycle") >= 4 and kinds[-1] == "plan_finished"
@@ -69,7 +69,7 @@ def test_load_change_waits_for_the_operator_and_the_force(harness: Any) -> None:
     assert apply_command(h.ctrl, _cmd("confirm"))["ok"]  # ... and confirms
     h.step(1.0)
     assert h.state == "RUNNING"
-    assert h.m1.force == pytest.approx(15 * GRAVITY_M_S2, abs=30)
+    assert h.m1.force_n == pytest.approx(15 * GRAVITY_M_S2, abs=30)
     run_until_done(h)
     assert seq.outcome == "done"
 
@@ -144,6 +144,6 @@ def test_stillness_held_too_briefly_times_out_even_at_exactly_zero_velocity(
     t_end = h.t + 60.0
     while not h.ctrl.sequencer.outcome and h.t < t_end:
         if h.ctrl.sequencer.phase == "settle":
-            m.velocity = 0.0  # what the quantised encoder gives between steps
+            m.inputs.velocity_mm_s = 0.0  # what the quantised encoder gives between steps
         h.step(0.001)
     assert h.ctrl.sequencer.outcome.startswith(outcome), h.ctrl.sequencer.outcome

@@ -32,7 +32,7 @@ def track(h: Harness, cycles: int = 2, freq_hz: float = 0.1) -> float:
     while h.ctrl.supervisor.state == State.RUNNING:
         h.step(h.period_s)
         if h.t >= t_from and m.profile is not None:
-            e = m.length - m.target_length
+            e = m.length_mm - m.target_length_mm
             sq, n = sq + e * e, n + 1
     return math.sqrt(sq / n)
 
@@ -75,12 +75,12 @@ def test_length_force_mode_with_a_force_model(trained: dict[str, Path],
     assert h.cmd("mode", muscle="m1", mode="length_force")["ok"]
     h.step(0.5)
     m = h.m1
-    ff = m.length_ctl.ff
-    assert ff.model.kind == "sarosi" and m.feedforward > 0.2
+    ff = m.length_control.ff
+    assert ff.model.kind == "sarosi" and m.feedforward_bar > 0.2
     # The closed-form inverse of the model at the held targets, as the tick computes it.
-    x = (m.length0_mm - m.target_length) / m.length0_mm
-    want = float(ff.model.predict([[m.target_force, x]])[0])
-    assert m.feedforward == pytest.approx(want, abs=0.05)  # + the fading bumpless offset
+    x = (m.envelope.nominal_length_mm - m.target_length_mm) / m.envelope.nominal_length_mm
+    want = float(ff.model.predict([[m.target_force_n, x]])[0])
+    assert m.feedforward_bar == pytest.approx(want, abs=0.05)  # + the fading bumpless offset
     h.rig.close()
 
 

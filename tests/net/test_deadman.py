@@ -18,7 +18,7 @@ def test_deadman_in_the_tick(harness: Any) -> None:
         assert h.cmd("setpoint", muscle="m1", bar=2.0, deadman_s=0.2)["ok"]
     h.step(0.25)  # no refresh: the safe state (IDLE, ramping to the safe pressure)
     assert h.state == "IDLE" and "deadman" in h.ctrl.supervisor.reason
-    assert h.m1.safing and h.ctrl.deadman == {} and h.ctrl.deadman_at == math.inf
+    assert h.m1.in_safe_ramp and h.ctrl.deadman == {} and h.ctrl.deadman_at == math.inf
     assert any(k == "deadman" for _t, k, _d in h.sink.events)
     # a later setpoint without deadman_s disarms it; a profile takes over too
     assert h.cmd("setpoint", muscle="m1", bar=1.0, deadman_s=0.2)["ok"]

@@ -56,9 +56,9 @@ class SafetyRig:
             ran_in = ctrl.supervisor.state if before == State.STARTING else before
             if not m.started:
                 continue
-            self.ticks.append(Tick(h.t, ran_in, ran_in in SAFE_STATES or m.safing, m.sp,
-                                   m.valve_cmd, m.safe_bar, plant.pressure_bar,
-                                   plant.contraction))
+            self.ticks.append(Tick(h.t, ran_in, ran_in in SAFE_STATES or m.in_safe_ramp,
+                                   m.setpoint_bar, m.valve_cmd_bar, m.safe_pressure_bar,
+                                   plant.pressure_bar, plant.contraction))
 
     def cmd(self, verb: str, **payload: Any) -> dict[str, Any]:
         v = self.h.cmd(verb, **payload)
@@ -78,12 +78,13 @@ class SafetyRig:
         """
         m = self.m
         eps = 1e-9
-        step = m.slew * self.h.period_s
-        estop_step = m.estop_slew * self.h.period_s
+        step = m.envelope.slew_limit_bar_per_s * self.h.period_s
+        estop_step = m.envelope.estop_slew_bar_per_s * self.h.period_s
         prev: Tick | None = None
         for k in self.ticks:
             where = f"t={k.t_s:.3f} s {k.state.name}{' (safe)' if k.safe else ''}"
-            assert 0.0 <= k.cmd <= m.max_p + eps, f"{where}: command {k.cmd:.3f} bar"
+            assert 0.0 <= k.cmd <= m.envelope.max_pressure_bar + eps, (
+                f"{where}: command {k.cmd:.3f} bar")
             if prev is not None and k.safe:
                 lim = estop_step if k.state == State.ESTOP else step
                 assert abs(k.cmd - prev.cmd) <= lim + eps, (
@@ -96,7 +97,9 @@ class SafetyRig:
                     assert abs(k.sp - k.safe_bar) <= abs(prev.sp - k.safe_bar) + eps, (
                         f"{where}: setpoint {k.sp:.3f} moved away from the safe pressure")
             if actuator_works:
-                assert -m.hard_stretch - 1e-3 <= k.contraction_true <= m.hard_c + 1e-3, (
+                env = m.envelope
+                assert (-env.hard_max_pretension - 1e-3 <= k.contraction_true
+                        <= env.hard_max_contraction + 1e-3), (
                     f"{where}: contraction {100 * k.contraction_true:.2f} % outside the hard "
                     "limits")
             prev = k

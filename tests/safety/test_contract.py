@@ -54,7 +54,7 @@ def _scenario(rig: SafetyRig, state: str, load_kg: float) -> None:
         rig.cmd("setpoint", muscle="m1", bar=4.5)
         rig.run(2.0 - 0.01)
         rig.cmd("stop")
-        assert rig.m.safing
+        assert rig.m.in_safe_ramp
         rig.run(FAULT_AT_S["safe_ramp"] - 2.0 + AFTER_S)
 
 

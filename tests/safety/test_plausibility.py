@@ -49,7 +49,8 @@ def test_each_implausible_reading_is_a_fault_naming_the_sensor_in_its_stated_tim
     t_fault = next(t.t_s for t in sup.history if t.new.name == "FAULT")
     assert 1.0 <= t_fault <= 1.0 + within_s + 1e-9
     rig.check_invariants()
-    assert rig.m.valve_cmd == pytest.approx(rig.m.safe_bar)  # held at the safe pressure
+    # held at the safe pressure
+    assert rig.m.valve_cmd_bar == pytest.approx(rig.m.safe_pressure_bar)
 
 
 def test_an_untrusted_length_moves_no_guard_the_muscle_holds_its_safe_pressure(
@@ -64,7 +65,7 @@ def test_an_untrusted_length_moves_no_guard_the_muscle_holds_its_safe_pressure(
     assert rig.m.contraction < -0.06  # what the lying sensor says
     after = [r for r in rig.h.records if r["t_s"] > 1.0]
     assert not any(int(r["m1"]["flags"]) & Flag.PRETENSION_LIMIT for r in after)
-    assert rig.m.valve_cmd == pytest.approx(rig.m.safe_bar)  # open loop, safe pressure
+    assert rig.m.valve_cmd_bar == pytest.approx(rig.m.safe_pressure_bar)  # open loop, safe pressure
     assert rig.h.ctrl.status()["muscles"]["m1"]["trusted"] == {
         "pressure": True, "force": True, "length": False}
     implausible = [e for e in rig.h.sink.events if e[1] == "implausible"]
@@ -76,12 +77,12 @@ def test_reset_trusts_the_signal_again_once_it_reads_right(
     rig = safety_rig(80.0, 3.0, [{"at_s": 0.5, "muscle": "m1", "signal": "length",
                                   "kind": "dead"}])
     rig.run(1.0)
-    assert rig.h.state == "FAULT" and not rig.m.plaus.length_ok
+    assert rig.h.state == "FAULT" and not rig.m.plausibility.length_ok
     rig.h.sim.clear_faults()
     rig.run(0.01)
     rig.cmd("reset")
     rig.run(1.0)
-    assert rig.h.state == "IDLE" and rig.m.plaus.length_ok
+    assert rig.h.state == "IDLE" and rig.m.plausibility.length_ok
 
 
 @pytest.mark.parametrize("load_kg, low, high", [(0.0, 0.0, 6.0), (30.0, 0.0, 6.0),
@@ -117,7 +118,7 @@ def test_a_reading_found_implausible_while_starting_faults_once_started(
     sim.in_stamps_s[1] = -10.0
     sim.inject_fault("m1", "length", "dead")  # ... while the length reads 0 mm
     rig.run(0.02)
-    assert rig.h.state == "STARTING" and not rig.m.plaus.length_ok
+    assert rig.h.state == "STARTING" and not rig.m.plausibility.length_ok
     sim.clear_faults()  # the force answers: the rig starts, and faults at once
     rig.run(0.02)
     sup = rig.h.ctrl.supervisor

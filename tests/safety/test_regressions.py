@@ -25,9 +25,9 @@ def test_encoder_dying_in_the_safe_state_at_80kg_never_walks_the_command_down(
     rig.cmd("stop")
     rig.run(4.5)  # the stop reaches 1.58 bar in 0.3 s; the encoder dies 1 s later
     m = rig.m
-    assert m.safe_bar == pytest.approx(1.58, abs=0.01)
+    assert m.safe_pressure_bar == pytest.approx(1.58, abs=0.01)
     rig.check_invariants()
-    assert rig.min_safe_command() == pytest.approx(m.safe_bar)
+    assert rig.min_safe_command() == pytest.approx(m.safe_pressure_bar)
     assert rig.h.ctrl.at_safe_state()  # the stop completes and stays complete
     assert rig.plant.contraction > -0.04  # inside the pretension limit
     if plausibility:  # ... and the dead encoder is a fault naming it, found at once
@@ -52,15 +52,16 @@ def test_startup_with_80kg_on_a_vented_muscle_ramps_to_the_safe_pressure_and_say
     rig.check_invariants()
     reason = rig.h.ctrl.supervisor.history[0].reason
     assert "stretched 4.4 %" in reason and "ramping from 0.00 bar" in reason
-    assert f"safe pressure {m.safe_bar:.2f} bar" in reason
+    assert f"safe pressure {m.safe_pressure_bar:.2f} bar" in reason
     assert "holding measured pressure" not in reason
     start = [e for e in rig.h.sink.events if e[1] == "startup"]
     assert start[0][2]["action"] == "safe_ramp" and "stretched" in start[0][2]["reason"]
     cmds = [k.cmd for k in rig.ticks]
-    assert max(cmds) < m.safe_bar + 0.1  # never ratcheted up (was 6 bar)
-    assert max(k.sp for k in rig.ticks) <= m.safe_bar + 1e-9  # the setpoint: the ramp only
-    assert m.valve_cmd == pytest.approx(m.safe_bar) and m.sp == pytest.approx(m.safe_bar)
-    assert abs(m.pid.i) < 0.05  # not pinned
+    assert max(cmds) < m.safe_pressure_bar + 0.1  # never ratcheted up (was 6 bar)
+    safe = m.safe_pressure_bar
+    assert max(k.sp for k in rig.ticks) <= safe + 1e-9  # the setpoint: the ramp only
+    assert m.valve_cmd_bar == pytest.approx(safe) and m.setpoint_bar == pytest.approx(safe)
+    assert abs(m.pressure_loop.pid.i) < 0.05  # not pinned
     lifted_mm = (rig.plant.contraction - x0) * 200.0
     assert 0.0 < lifted_mm < 5.0  # back inside the limit, not lifted 35 mm
     assert rig.plant.contraction > -0.04
@@ -73,7 +74,7 @@ def test_startup_inside_the_limits_holds_the_measured_pressure(
     rig.run(1.0)
     reason = rig.h.ctrl.supervisor.history[0].reason
     assert reason.startswith("sensors read; holding measured pressure (m1 3.00 bar)")
-    assert not rig.m.safing
+    assert not rig.m.in_safe_ramp
     assert all(abs(k.cmd - 3.0) < 0.02 for k in rig.ticks)
 
 
@@ -85,8 +86,9 @@ def test_startup_above_the_pressure_limit_comes_down_at_the_slew_limit(
     assert "pressure 5.00 bar above the limit 4 bar" in rig.h.ctrl.supervisor.history[0].reason
     cmds = [k.cmd for k in rig.ticks]
     steps = [b - a for a, b in zip(cmds, cmds[1:], strict=False)]
-    assert min(steps) >= -rig.m.slew * rig.h.period_s - 1e-9  # no jump down
-    assert rig.m.valve_cmd == 0.0  # 30 kg: the safe pressure is 0
+    slew = rig.m.envelope.slew_limit_bar_per_s
+    assert min(steps) >= -slew * rig.h.period_s - 1e-9  # no jump down
+    assert rig.m.valve_cmd_bar == 0.0  # 30 kg: the safe pressure is 0
 
 
 def _muscle(load_kg: float) -> dict[str, object]:
@@ -108,8 +110,8 @@ def test_a_profile_held_at_a_soft_limit_shows_in_tracking_an_event_and_the_summa
     rig.run(6.0)
     m = rig.m
     assert rig.h.state == "RUNNING"
-    assert m.sp == pytest.approx(5.0)  # the target, never clamped
-    assert m.valve_cmd < 4.0  # the guard holds the command back
+    assert m.setpoint_bar == pytest.approx(5.0)  # the target, never clamped
+    assert m.valve_cmd_bar < 4.0  # the guard holds the command back
     rig.check_invariants()
     assert max(k.contraction_true for k in rig.ticks) < 0.16
     track = rig.h.sink.tracking()["m1"]
@@ -152,7 +154,7 @@ def test_a_profile_reaching_the_pressure_limit_is_not_held_back(harness) -> None
     trimmed = 0
     while h.state == "RUNNING":  # lead-in and one 20 s cycle
         h.step(0.01)
-        trimmed += h.m1.valve_cmd >= h.m1.max_p - 1e-9
+        trimmed += h.m1.valve_cmd_bar >= h.m1.envelope.max_pressure_bar - 1e-9
     assert h.t > 20.0 and trimmed > 0  # the command did reach the limit
     assert h.sink.tracking()["m1"]["soft_limit_s"] == 0.0
     assert not [e for e in h.sink.events if e[1] == "soft_limit"]

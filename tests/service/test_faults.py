@@ -38,7 +38,7 @@ def test_a_latched_fault_comes_back_after_a_restart_until_reset(
     try:
         assert d1.wait_for_state((State.IDLE,), 10) == State.IDLE
         assert d1.command("setpoint", {"muscle": "m1", "bar": 2.0})["ok"]
-        assert wait_until(lambda: d1.ctrl.muscles[0].pressure > 1.0, 20)
+        assert wait_until(lambda: d1.ctrl.muscles[0].pressure_bar > 1.0, 20)
         d1.rig.drivers["sim"].inject_fault("*", "driver", "error")
         assert d1.wait_for_state((State.FAULT,), 10) == State.FAULT
         d1.service()

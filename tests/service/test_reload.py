@@ -72,7 +72,7 @@ def test_gains_at_once_limits_deferred_until_idle(tmp_path: Path) -> None:
                                   "freq_hz": 0.2})
         assert v["ok"], v
         m = d.ctrl.muscles[0]
-        safe_before = m.safe_bar
+        safe_before = m.safe_pressure_bar
         path.write_text(yaml.safe_dump(virtual_dict(
             control={"pid": {"kp": 0.5, "ki_per_s": 10.0}},
             safety={"signal_timeout_s": 0.08},
@@ -80,16 +80,19 @@ def test_gains_at_once_limits_deferred_until_idle(tmp_path: Path) -> None:
                           limits={"max_pressure_bar": 5.0})])))
         reload_and_wait(d)
         assert d.ctrl.supervisor.state == State.RUNNING
-        assert (m.pid.kp, m.pid.ki, m._pto) == (0.5, 10.0, 0.08)  # at once
-        assert m.sig.pressure.timeout_s == 0.08
-        assert (m.max_p, m.load_kg, m.safe_bar) == (6.0, 30.0, safe_before)  # not yet
+        pid = m.pressure_loop.pid
+        assert (pid.kp, pid.ki, m.inputs.timeouts_s[0]) == (0.5, 10.0, 0.08)  # at once
+        assert m.signals.pressure.timeout_s == 0.08
+        assert (m.envelope.max_pressure_bar, m.load_kg, m.safe_pressure_bar) == (
+            6.0, 30.0, safe_before)  # not yet
         assert d.keeper.deferred is not None
         assert "waiting for IDLE" in d.keeper.status_text()
         assert d.command("stop")["ok"]
         assert wait_until(lambda: (d.service(), d.keeper.deferred is None
                                    and d.keeper.pending is None)[1], 20)
-        assert (m.max_p, m.load_kg) == (5.0, 60.0)
-        assert m.hard_p == 5.0 + 0.3 and m.safe_bar > safe_before  # 60 kg needs pressure
+        assert (m.envelope.max_pressure_bar, m.load_kg) == (5.0, 60.0)
+        assert m.envelope.hard_max_pressure_bar == 5.0 + 0.3
+        assert m.safe_pressure_bar > safe_before  # 60 kg needs pressure
         assert d.cfg.rig.muscles[0].load_kg == 60.0  # all of it in force now
     finally:
         d.stop("test finished")
@@ -104,22 +107,22 @@ def test_refused_reloads_change_nothing(tmp_path: Path,
     path = Path(d.cfg.path)
     original = yaml.safe_load(path.read_text())
     m = d.ctrl.muscles[0]
-    kp = m.pid.kp
+    kp = m.pressure_loop.pid.kp
     # a broken file
     path.write_text(yaml.safe_dump(merge(original, {"control": {"pid": {"kp": -1}}})))
     reload_and_wait(d)
-    assert m.pid.kp == kp
+    assert m.pressure_loop.pid.kp == kp
     # a new driver option with a new gain: needs a restart, so nothing applies
     drv = original["drivers"][0]
     changed = merge(original, {"control": {"pid": {"kp": 0.9}}})
     changed["drivers"] = [dict(drv, options=dict(drv["options"], seed=7))]
     path.write_text(yaml.safe_dump(changed))
     reload_and_wait(d)
-    assert m.pid.kp == kp
+    assert m.pressure_loop.pid.kp == kp
     # a pressure limit below the pressure the muscle holds
     v = d.command("profile", {"kind": "constant", "to_bar": 3.0, "duration_s": 0.2})
     assert v["ok"], v  # ends IDLE, holding 3 bar
-    assert wait_until(lambda: abs(m.sp - 3.0) < 1e-6 and d.ctrl.supervisor.state
+    assert wait_until(lambda: abs(m.setpoint_bar - 3.0) < 1e-6 and d.ctrl.supervisor.state
                       == State.IDLE, 20)
     low = merge(original, {"control": {"pid": {"kp": 0.9}}})
     low["muscles"][0]["limits"] = {"max_pressure_bar": 2.0}
@@ -129,4 +132,4 @@ def test_refused_reloads_change_nothing(tmp_path: Path,
     plan, pending = d.keeper.pending
     verdict = pending.result(10)
     assert not verdict["ok"] and "holds 3.00 bar" in verdict["error"]
-    assert (m.pid.kp, m.max_p) == (kp, 6.0)
+    assert (m.pressure_loop.pid.kp, m.envelope.max_pressure_bar) == (kp, 6.0)

@@ -67,7 +67,7 @@ def test_replays_the_saved_safe_outputs_without_the_config(tmp_path: Path,
     daemon.start()
     try:
         assert daemon.wait_for_state((State.IDLE, State.FAULT), 20) in (State.IDLE, State.FAULT)
-        safe_bar = daemon.ctrl.muscles[0].safe_bar
+        safe_bar = daemon.ctrl.muscles[0].safe_pressure_bar
     finally:
         daemon.stop("test finished")
         daemon.wait(timeout_s=30)

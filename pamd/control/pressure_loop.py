@@ -1,0 +1,65 @@
+"""The pressure stage of one muscle's tick: the PID pressure loop (`pamd.control.pid`)
+plus the rate feedforward (`control.rate_feedforward_s` times the setpoint's rate).
+
+It closes its loop only on a trusted pressure and outside FAULT/ESTOP; otherwise
+the command is the setpoint itself (open loop, e.g. to the safe pressure) and the
+PID waits, reset, for a bumpless return. After the limiter has clamped the command
+(`unwind`), the integral may move away from the clamp, never into it.
+Tick path: float arithmetic only.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pamd.config.schema import PidConfig
+from pamd.control.pid import Pid
+from pamd.tick import Flag
+
+F_SAT = int(Flag.OUTPUT_SATURATED)
+
+
+class PressureLoop:
+    """PID + rate feedforward of one muscle."""
+
+    def __init__(self, gains: PidConfig, rate_feedforward_s: float) -> None:
+        self.pid = Pid(gains.kp, gains.ki_per_s, gains.kd_s, gains.derivative_filter_hz,
+                       gains.integral_limit_bar, gains.output_limit_bar)
+        self.rate_feedforward_s = rate_feedforward_s
+        self.closed = False  # the loop was closed this tick
+        self.flags = 0
+        self._i_before = 0.0
+
+    def set_gains(self, gains: PidConfig, rate_feedforward_s: float) -> None:
+        """A reload's gains; the PID keeps its state, the integral clamped to the new
+        limit: no bump."""
+        pid = self.pid
+        pid.kp, pid.ki, pid.kd = gains.kp, gains.ki_per_s, gains.kd_s
+        pid.filter_tau_s = 1.0 / (2.0 * math.pi * gains.derivative_filter_hz)
+        pid.integral_limit, pid.output_limit = gains.integral_limit_bar, gains.output_limit_bar
+        pid.i = max(-pid.integral_limit, min(pid.integral_limit, pid.i))
+        self.rate_feedforward_s = rate_feedforward_s
+
+    def reset(self, measured_bar: float, integral_bar: float = 0.0) -> None:
+        self.pid.reset(measured_bar, integral_bar)
+
+    def step(self, setpoint_bar: float, rate_bar_per_s: float, pressure_bar: float,
+             close: bool, pressure_ok: bool, dt: float) -> float:
+        """The command control wants (before the guards and the limiter), bar."""
+        pid = self.pid
+        self.closed = close
+        if close:
+            self._i_before = pid.i
+            u = (setpoint_bar + self.rate_feedforward_s * rate_bar_per_s
+                 + pid.step(setpoint_bar - pressure_bar, pressure_bar, dt))
+            self.flags = F_SAT if pid.saturated else 0
+            return u
+        self._i_before = 0.0
+        pid.reset(pressure_bar if pressure_ok else setpoint_bar)
+        self.flags = 0
+        return setpoint_bar
+
+    def unwind(self, command_bar: float, wanted_bar: float) -> None:
+        """The limiter moved the command from `wanted_bar` to `command_bar`."""
+        if self.closed:
+            self.pid.keep_integral_off_clamp(self._i_before, command_bar < wanted_bar)

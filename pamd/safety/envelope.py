@@ -1,0 +1,116 @@
+"""A muscle's envelope: everything fixed about what it may do, in one frozen value.
+
+Limits and their bands, the nominal length, the force model, the rate limits and
+the inputs of the safe pressure, built once from the config (`from_config`) and
+rebuilt when a reload changes them (`with_settings`, IDLE only). The tick, the
+command handlers (`pamd.commands`) and the config-time checks
+(`pamd.control.length_targets`, `pamd run`) read the same value, so a limit has
+one source and one name: the config's.
+
+Not in it: what changes while the rig runs (the hanging load, the measured state),
+which the muscle (`pamd.control.muscle.MuscleController`) owns.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
+from pamd.config.schema import MuscleConfig, SafetyConfig
+from pamd.muscle import MUSCLE_TYPES, ForceModel, MuscleType, force_model
+from pamd.safety import safe_pressure_bar
+
+
+@dataclass(frozen=True, slots=True)
+class MuscleEnvelope:
+    """One muscle's limits, bands, geometry, force model and rate limits (config
+    names and units)."""
+
+    name: str
+    muscle_type: str  # `muscles[].type`: the ratings (`pamd.muscle.MUSCLE_TYPES`)
+    nominal_length_mm: float
+    force_model: ForceModel
+    # limits (`pamd.config.loader.MuscleLimitsResolved`)
+    max_pressure_bar: float
+    hard_max_pressure_bar: float
+    max_contraction: float
+    hard_max_contraction: float
+    max_pretension: float
+    hard_max_pretension: float
+    # bands
+    soft_band_contraction: float
+    soft_max_contraction: float  # where the contraction guard starts (limit - band)
+    # rate limits
+    slew_limit_bar_per_s: float
+    estop_slew_bar_per_s: float
+    max_length_rate_per_s: float  # control.position.max_rate_per_s (contraction/s)
+    estop_action: str
+    # the safe pressure's inputs (with the load)
+    stretch_margin: float
+    safe_pressure_margin_bar: float
+    # reference checks (`pamd.safety.references`)
+    home_tolerance: float
+    tare_tolerance_n: float
+
+    @classmethod
+    def build(cls, muscle: MuscleConfig, limits: MuscleLimitsResolved, safety: SafetyConfig,
+              slew_limit_bar_per_s: float, max_length_rate_per_s: float) -> MuscleEnvelope:
+        return cls(name=muscle.name, muscle_type=muscle.type,
+                   nominal_length_mm=muscle.nominal_length_mm,
+                   force_model=force_model(muscle.force_model),
+                   max_length_rate_per_s=max_length_rate_per_s,
+                   **_settings(limits, safety, slew_limit_bar_per_s))
+
+    @classmethod
+    def from_config(cls, cfg: LoadedConfig, name: str) -> MuscleEnvelope:
+        """The envelope of muscle `name` of a validated config."""
+        ctl = cfg.rig.control
+        return cls.build(cfg.muscle(name), cfg.limits[name], cfg.rig.safety,
+                         ctl.slew_limit_bar_per_s, ctl.position.max_rate_per_s)
+
+    def with_settings(self, limits: MuscleLimitsResolved, safety: SafetyConfig,
+                      slew_limit_bar_per_s: float, nominal_length_mm: float) -> MuscleEnvelope:
+        """The envelope after a reload's limits, safety, slew and nominal length (the
+        muscle type, its force model and the length rate limit stay)."""
+        return replace(self, nominal_length_mm=nominal_length_mm,
+                       **_settings(limits, safety, slew_limit_bar_per_s))
+
+    @property
+    def rating(self) -> MuscleType:
+        return MUSCLE_TYPES[self.muscle_type]
+
+    def contraction(self, length_mm: float) -> float:
+        """(nominal - length) / nominal."""
+        return (self.nominal_length_mm - length_mm) / self.nominal_length_mm
+
+    def length_mm(self, contraction: float) -> float:
+        return self.nominal_length_mm * (1.0 - contraction)
+
+    def safe_pressure_bar(self, load_kg: float) -> float:
+        """The safe pressure with `load_kg` hanging (`pamd.safety.safe_pressure_bar`)."""
+        return safe_pressure_bar(self.force_model, load_kg, self.max_pretension,
+                                 self.stretch_margin, self.safe_pressure_margin_bar,
+                                 self.max_pressure_bar)
+
+    def contraction_bounds(self) -> tuple[float, float]:
+        """The contraction range a length target may use: inside the soft limits, where
+        the tick's limit guards would start to fight the target."""
+        return -self.max_pretension + self.soft_band_contraction, self.soft_max_contraction
+
+
+def _settings(limits: MuscleLimitsResolved, safety: SafetyConfig,
+              slew_limit_bar_per_s: float) -> dict[str, Any]:
+    """The fields a reload may change (IDLE only), besides the nominal length."""
+    return dict(
+        max_pressure_bar=limits.max_pressure_bar,
+        hard_max_pressure_bar=limits.hard_max_pressure_bar,
+        max_contraction=limits.max_contraction, hard_max_contraction=limits.hard_max_contraction,
+        max_pretension=limits.max_pretension, hard_max_pretension=limits.hard_max_pretension,
+        soft_band_contraction=safety.soft_band_contraction,
+        soft_max_contraction=limits.max_contraction - safety.soft_band_contraction,
+        slew_limit_bar_per_s=slew_limit_bar_per_s,
+        estop_slew_bar_per_s=safety.estop_slew_bar_per_s, estop_action=safety.estop_action,
+        stretch_margin=safety.stretch_margin,
+        safe_pressure_margin_bar=safety.safe_pressure_margin_bar,
+        home_tolerance=safety.home_tolerance, tare_tolerance_n=safety.tare_tolerance_n)
