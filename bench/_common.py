@@ -9,6 +9,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import copy  # noqa: E402
 import tempfile  # noqa: E402
+from collections.abc import Mapping
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -45,7 +46,8 @@ def percentile(values: list[float], q: float) -> float:
 
 
 def controller_compute_us(cfg: LoadedConfig, commands: list[tuple[str, dict[str, Any]]],
-                          seconds: float) -> list[float]:
+                          seconds: float, models: Mapping[str, Any] | None = None
+                          ) -> list[float]:
     """Per-tick compute (us) of one `RigController.tick` plus the summary sink, with
     the simulated plant advanced by hand outside the timed region; `commands` are
     applied (and must be accepted) at tick 10. The first second is dropped."""
@@ -54,6 +56,7 @@ def controller_compute_us(cfg: LoadedConfig, commands: list[tuple[str, dict[str,
 
     from pamd.calibration import load_calibration
     from pamd.commands import apply_command, parse_command
+    from pamd.control.feedforward import load_models
     from pamd.controller import RigController
     from pamd.loop import VirtualClock
     from pamd.rig import Rig
@@ -62,7 +65,8 @@ def controller_compute_us(cfg: LoadedConfig, commands: list[tuple[str, dict[str,
 
     rig = Rig(cfg, load_calibration(cfg.calibration_path))
     sink = SummarySink(TickLayout([m.name for m in cfg.rig.muscles]))
-    ctrl = RigController(cfg, rig, sink, rig.calibration)
+    ctrl = RigController(cfg, rig, sink, rig.calibration,
+                         load_models(cfg) if models is None else models)
     sim = rig.drivers["sim"]
     ctrl.steppers = []  # the plant is advanced by hand, outside the timing
     clock = VirtualClock()

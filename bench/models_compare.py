@@ -210,13 +210,13 @@ def datasheet_map() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def track(model: str | None, cycles: int) -> tuple[float, str]:
     cfg = sim_config("virtual", load_kg=TRACK_LOAD_KG)
+    models = {}
     if model is not None:
         try:
-            cfg = dataclasses.replace(cfg, models={"m1": LoadedModel.read(
-                model, cfg.muscle("m1"), cfg.limits["m1"])})
+            models = {"m1": LoadedModel.read(model, cfg.muscle("m1"), cfg.limits["m1"])}
         except ModelError as exc:
             return math.nan, str(exc).split(": ", 2)[-1][:90]
-    h = Harness(cfg)
+    h = Harness(cfg, models)
     h.step(0.05)
     v = h.cmd("mode", muscle="m1", mode="position", feedforward=model is not None)
     assert v["ok"], v

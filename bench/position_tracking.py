@@ -27,7 +27,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import dataclasses  # noqa: E402
 import glob  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
@@ -84,10 +83,9 @@ def train(files: list[str], inputs: tuple[str, ...], mfs: Any, path: str) -> str
 def track(model: str | None, cycles: int, ilc: bool = False) -> dict[str, Any]:
     """Run the sine in position mode; per-cycle RMSE and max |error| (mm)."""
     cfg = sim_config("virtual", load_kg=LOAD_KG)
-    if model is not None:
-        cfg = dataclasses.replace(cfg, models={"m1": LoadedModel.read(
-            model, cfg.muscle("m1"), cfg.limits["m1"])})
-    h = Harness(cfg)
+    models = {} if model is None else {"m1": LoadedModel.read(
+        model, cfg.muscle("m1"), cfg.limits["m1"])}
+    h = Harness(cfg, models)
     h.step(0.05)
     v = h.cmd("mode", muscle="m1", mode="position", feedforward=model is not None, ilc=ilc)
     assert v["ok"], v
@@ -122,10 +120,10 @@ def track(model: str | None, cycles: int, ilc: bool = False) -> dict[str, Any]:
 def compute_time(model: str, seconds: float = 20.0) -> tuple[float, float, float]:
     """Controller compute per tick (us) in position mode with `model`, plant excluded."""
     cfg = sim_config("virtual", load_kg=LOAD_KG)
-    cfg = dataclasses.replace(cfg, models={"m1": LoadedModel.read(
-        model, cfg.muscle("m1"), cfg.limits["m1"])})
+    models = {"m1": LoadedModel.read(model, cfg.muscle("m1"), cfg.limits["m1"])}
     us = controller_compute_us(cfg, [("mode", {"mode": "position"}),
-                                     ("profile", {"muscle": "m1", **PROFILE})], seconds)
+                                     ("profile", {"muscle": "m1", **PROFILE})], seconds,
+                               models)
     return percentile(us, 50), percentile(us, 99), max(us)
 
 

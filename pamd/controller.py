@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import math
 from array import array
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
+from pamd.control.feedforward import LoadedModel
 from pamd.control.muscle import MuscleController
 from pamd.rig import Rig
 from pamd.safety import Supervisor, Transition
@@ -29,8 +30,11 @@ S_STARTING, S_IDLE, S_RUNNING, S_HOLD = (int(State.STARTING), int(State.IDLE),
 class RigController:
     """Everything that happens inside a tick, minus the scheduling."""
 
-    def __init__(self, cfg: LoadedConfig, rig: Rig, sink: Sink,
-                 calibration: Calibration) -> None:
+    def __init__(self, cfg: LoadedConfig, rig: Rig, sink: Sink, calibration: Calibration,
+                 models: Mapping[str, LoadedModel]) -> None:
+        """`models`: each muscle's model file, loaded (`pamd.control.feedforward.
+        load_models`, by the daemon); a muscle without one runs without feedforward
+        until a `model` command gives it one."""
         self.cfg = cfg
         self.rig = rig
         self.sink = sink
@@ -40,7 +44,7 @@ class RigController:
         self.supervisor = Supervisor(self._on_transition)
         self.muscles = [
             MuscleController(i, MuscleEnvelope.from_config(cfg, m.name), cfg, rig.muscles[i],
-                             self.layout.muscle_base[i])
+                             self.layout.muscle_base[i], models.get(m.name))
             for i, m in enumerate(cfg.rig.muscles)
         ]
         self.by_name = {m.name: m for m in self.muscles}

@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,6 +19,7 @@ from pamd.commands import Command, parse_command, prepare_command
 from pamd.commands.pending import PendingCommand
 from pamd.commands.schema import args_for_record
 from pamd.config.loader import LoadedConfig
+from pamd.control.feedforward import LoadedModel, load_models
 from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
@@ -50,8 +52,11 @@ class Daemon:
                  recording: RecordingRequest | None = None, *, state_dir: str | None = None,
                  notifier: Notifier | None = None,
                  config_overrides: dict[str, Any] | None = None,
-                 telemetry: TelemetryRequest | None = None) -> None:
-        """`state_dir` overrides the config's (see pamd.service.state); `notifier`
+                 telemetry: TelemetryRequest | None = None,
+                 models: Mapping[str, LoadedModel] | None = None) -> None:
+        """`models`: each muscle's inverse model, loaded; by default the daemon loads
+        the config's `model_file`s (`load_models`: a ConfigError before anything opens).
+        `state_dir` overrides the config's (see pamd.service.state); `notifier`
         talks to systemd (the CLI passes `Notifier.from_environ()`);
         `config_overrides` are re-applied when the config is reloaded (SIGHUP);
         `telemetry` asks for Zenoh telemetry and commands as the config's
@@ -63,7 +68,8 @@ class Daemon:
         self.layout = TickLayout([m.name for m in cfg.rig.muscles])
         self.summary = SummarySink(self.layout)
         self.mailbox = LocalMailbox()
-        self.ctrl = RigController(cfg, self.rig, self.summary, self.calibration)
+        self.ctrl = RigController(cfg, self.rig, self.summary, self.calibration,
+                                  load_models(cfg) if models is None else models)
         self.loop = Loop(cfg, self.ctrl, self.mailbox)
         # the io process (MCAP recording, Zenoh telemetry): its sink goes downstream of
         # the summary

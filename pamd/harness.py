@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Mapping
 from typing import Any
 
 from pamd.calibration import load_calibration
 from pamd.commands import Command, parse_command
 from pamd.config import LoadedConfig
+from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.muscle import MuscleController
 from pamd.controller import RigController
 from pamd.loop import CommandIntake, VirtualClock, tick_once
@@ -33,14 +35,17 @@ class _Queue:
 class Harness:
     """A controller stepped tick by tick on the virtual clock, in the test's thread."""
 
-    def __init__(self, cfg: LoadedConfig) -> None:
+    def __init__(self, cfg: LoadedConfig,
+                 models: Mapping[str, LoadedModel] | None = None) -> None:
+        """`models` as the daemon takes them (by default the config's model files)."""
         self.cfg = cfg
         self.period_s = cfg.period_s
         self.calibration = load_calibration(cfg.calibration_path)
         self.rig = Rig(cfg, self.calibration)
         self.layout = TickLayout([m.name for m in cfg.rig.muscles])
         self.sink = SummarySink(self.layout)
-        self.ctrl = RigController(cfg, self.rig, self.sink, self.calibration)
+        self.ctrl = RigController(cfg, self.rig, self.sink, self.calibration,
+                                  load_models(cfg) if models is None else models)
         self.clock = VirtualClock()
         self.queue = _Queue()
         self.intake = CommandIntake(self.queue, deque(maxlen=256))

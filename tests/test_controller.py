@@ -38,7 +38,7 @@ def test_startup_writes_nothing_until_sensors_are_read(sim_config: Any) -> None:
     rig = Rig(cfg, load_calibration(cfg.calibration_path))
     sim = rig.drivers["sim"]
     sim.inject_fault("*", "driver", "error")  # nothing will ever be read
-    ctrl = RigController(cfg, rig, SummarySink(TickLayout(["m1"])), rig.calibration)
+    ctrl = RigController(cfg, rig, SummarySink(TickLayout(["m1"])), rig.calibration, {})
     clock = VirtualClock()
     rig.open(clock)
     ctrl.start(0.0)

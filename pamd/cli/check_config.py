@@ -5,13 +5,15 @@ from __future__ import annotations
 import argparse
 
 from pamd.config import load_config
+from pamd.control.feedforward import load_models
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "check-config", help="validate a rig config file",
         description="Validate a rig config: syntax, unknown keys, types, units and bounds, "
-        "drivers and channels, limits against the muscle's ratings. Exits 0 if valid, 2 "
+        "drivers and channels, limits against the muscle's ratings, each model_file against its "
+        "muscle. Exits 0 if valid, 2 "
         "with every problem (file:line: key: expected ..., found ...) if not.")
     p.add_argument("file", help="the YAML config file")
     p.set_defaults(func=run)
@@ -19,6 +21,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     cfg = load_config(args.file)
+    models = load_models(cfg)  # as the daemon loads them: a model that does not fit is refused
     rig = cfg.rig
     print(f"{args.file}: valid. rig {rig.rig_id!r}, {rig.loop.rate_hz:g} Hz "
           f"({rig.loop.clock} clock), drivers: "
@@ -27,5 +30,6 @@ def run(args: argparse.Namespace) -> int:
         lim = cfg.limits[m.name]
         print(f"  muscle {m.name}: {m.type}, {m.nominal_length_mm:g} mm, load {m.load_kg:g} kg;"
               f" limits {lim.max_pressure_bar:g} bar, {100 * lim.max_contraction:g} % "
-              f"contraction, {100 * lim.max_pretension:g} % stretch")
+              f"contraction, {100 * lim.max_pretension:g} % stretch"
+              + (f"; model {models[m.name].path}" if m.name in models else ""))
     return 0

@@ -5,7 +5,6 @@ and print the run summary."""
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import signal
 import sys
@@ -13,7 +12,8 @@ import threading
 from typing import Any
 
 from pamd.config import load_config
-from pamd.control.feedforward import LoadedModel
+from pamd.config.loader import LoadedConfig
+from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.length_targets import check_length_profile_config
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
@@ -119,16 +119,18 @@ def _profile_spec(args: argparse.Namespace) -> ProfileSpec | None:
                        rate_bar_per_s=args.rate_bar_per_s)
 
 
-def _with_model(cfg: Any, args: argparse.Namespace) -> tuple[Any, str | None]:
-    """--model read and checked for the selected muscles (a ModelError before anything
-    opens); returns the config holding it and the model file to attach to a recording."""
-
+def _models(cfg: LoadedConfig, args: argparse.Namespace
+            ) -> tuple[dict[str, LoadedModel], str | None]:
+    """The config's model files and --model, read and checked for the selected muscles
+    (an error before anything opens); returns each muscle's model and the model file to
+    attach to a recording."""
+    models = load_models(cfg)
     names = [m.name for m in cfg.rig.muscles if args.muscle in (None, m.name)]
     if args.model is None:
-        models = [cfg.models[n] for n in names if n in cfg.models]
-        return cfg, models[0].path if models else None
+        chosen = [models[n] for n in names if n in models]
+        return models, chosen[0].path if chosen else None
     loaded = {n: LoadedModel.read(args.model, cfg.muscle(n), cfg.limits[n]) for n in names}
-    return dataclasses.replace(cfg, models={**cfg.models, **loaded}), args.model
+    return {**models, **loaded}, args.model
 
 
 def _length_profile(args: argparse.Namespace, cfg: Any) -> dict[str, Any]:
@@ -167,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     if args.rate_hz:
         overrides.setdefault("loop", {})["rate_hz"] = args.rate_hz
     cfg = load_config(args.config, overrides)
-    cfg, model_path = _with_model(cfg, args)
+    models, model_path = _models(cfg, args)
     length_mode = args.mode in ("length_force", "position")
     if not length_mode and any(v is not None for v in (
             args.min_contraction, args.max_contraction, args.to_contraction)):
@@ -176,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
     needs_model = args.mode == "length_force" or (args.mode == "position"
                                                   and not args.no_feedforward)
     for m in cfg.rig.muscles:
-        if needs_model and args.muscle in (None, m.name) and m.name not in cfg.models:
+        if needs_model and args.muscle in (None, m.name) and m.name not in models:
             raise CommandRefused(f"{m.name}: --mode {args.mode} needs a model: --model FILE "
                                  "or model_file in the config (position mode runs without "
                                  "one with --no-feedforward)")
@@ -198,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
     telemetry = TelemetryRequest(enabled=not args.no_telemetry, zenoh_config=args.zenoh_config,
                                  foxglove=args.foxglove)
     daemon = Daemon(cfg, note=args.note, recording=recording, state_dir=args.state_dir,
+                    models=models,
                     notifier=Notifier.from_environ(), config_overrides=overrides,
                     telemetry=telemetry)
     testhooks.install(daemon)

@@ -45,8 +45,6 @@ class LoadedConfig:
     text: str
     limits: dict[str, MuscleLimitsResolved]
     calibration_path: str
-    #: muscle name -> `pamd.control.feedforward.LoadedModel` (its `model_file`)
-    models: dict[str, Any] = dataclasses.field(default_factory=dict)
     #: values above their safe ceiling that `safety.relax_ceilings` let pass (said at start)
     warnings: tuple[str, ...] = ()
 
@@ -98,13 +96,11 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     rig, channels = _check_drivers(rig, drivers_node, ctx)
     limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
     ctx.raise_if_any()
-    models = _load_models(rig, raw.get("muscles", []), path, limits, ctx)
-    ctx.raise_if_any()
     cal = rig.calibration_file or os.path.splitext(os.path.basename(path))[0] + ".cal.yaml"
     cal_path = os.path.join(os.path.dirname(os.path.abspath(path)), cal)
     for warning in warnings:
         log.warning("%s", warning)
-    return LoadedConfig(rig, path, text, limits, cal_path, models, warnings)
+    return LoadedConfig(rig, path, text, limits, cal_path, warnings)
 
 
 def effective_timeout_s(sig: SignalConfig, safety: SafetyConfig) -> float:
@@ -150,27 +146,6 @@ def _check_safety_bounds(rig: RigConfig, raw: Any, ctx: Context) -> tuple[str, .
         return ()
     return tuple(f"{i.file}:{i.line}: {i.path}: {i.found} is above its safe ceiling; "
                  "allowed by safety.relax_ceilings: true" for i in ctx.over_ceiling)
-
-
-def _load_models(rig: RigConfig, node: Any, path: str, limits: dict[str, MuscleLimitsResolved],
-                 ctx: Context) -> dict[str, Any]:
-    """Each muscle's `model_file`, read and checked against the muscle (file I/O, here,
-    before anything starts; the controller compiles it)."""
-    from pamd.control.feedforward import LoadedModel
-    from pamd.errors import ModelError
-
-    models: dict[str, Any] = {}
-    base = os.path.dirname(os.path.abspath(path))
-    for i, m in enumerate(rig.muscles):
-        if m.model_file is None:
-            continue
-        file = os.path.join(base, os.path.expanduser(m.model_file))
-        try:
-            models[m.name] = LoadedModel.read(file, m, limits[m.name])
-        except ModelError as exc:
-            ctx.add(line_of(node[i], "model_file"), f"muscles[{i}].model_file",
-                    "a model file that loads and fits this muscle", str(exc))
-    return models
 
 
 def _check_name(ctx: Context, name: str, seen: set[str], line: int | None, path: str) -> None:

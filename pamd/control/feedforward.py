@@ -18,21 +18,22 @@ from __future__ import annotations
 import hashlib
 import os
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
+from pamd.config.schema import MuscleConfig
 from pamd.control.model_check import SOURCES, check_model_for, velocity_window
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
 from pamd.models.registry import load_model
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
+from pamd.schema.engine import Context, line_of
+from pamd.schema.yamlload import load_yaml_text
 
-if TYPE_CHECKING:
-    from pamd.config.loader import MuscleLimitsResolved
-    from pamd.config.schema import MuscleConfig
 
 class LoadedModel:
-    """A model file read and checked for one muscle (kept in `LoadedConfig.models`);
-    each controller compiles its own `Feedforward` from it."""
+    """A model file read and checked for one muscle (`load_models`, or a `model`
+    command); each controller compiles its own `Feedforward` from it."""
 
     __slots__ = ("model", "path", "sha256")
 
@@ -59,6 +60,31 @@ class LoadedModel:
 
     def feedforward(self) -> Feedforward:
         return Feedforward(self.model, self.path, self.sha256)
+
+
+def load_models(cfg: LoadedConfig) -> dict[str, LoadedModel]:
+    """Each muscle's `model_file`, read and checked against its muscle, before anything
+    starts: the daemon (and the harness that stands in for it) does this file I/O; the
+    config only names the file. A file that does not load or does not fit its muscle
+    is a `ConfigError` at its line of the config."""
+    models: dict[str, LoadedModel] = {}
+    ctx = Context(cfg.path)
+    muscles_node: object = None
+    base = os.path.dirname(os.path.abspath(cfg.path))
+    for i, m in enumerate(cfg.rig.muscles):
+        if m.model_file is None:
+            continue
+        file = os.path.join(base, os.path.expanduser(m.model_file))
+        try:
+            models[m.name] = LoadedModel.read(file, m, cfg.limits[m.name])
+        except ModelError as exc:
+            if muscles_node is None:
+                muscles_node = load_yaml_text(cfg.text, cfg.path).get("muscles") or []
+            item = muscles_node[i] if isinstance(muscles_node, list) else None
+            ctx.add(line_of(item, "model_file"), f"muscles[{i}].model_file",
+                    "a model file that loads and fits this muscle", str(exc))
+    ctx.raise_if_any()
+    return models
 
 
 # -- the compiled model --------------------------------------------------------------------

@@ -64,7 +64,7 @@ from pamd.tick import (
 )
 
 if TYPE_CHECKING:
-    from pamd.control.feedforward import Feedforward
+    from pamd.control.feedforward import Feedforward, LoadedModel
 
 S_LOAD, S_RUNNING = int(State.LOAD_CHANGE), int(State.RUNNING)
 S_FAULT, S_ESTOP = int(State.FAULT), int(State.ESTOP)
@@ -76,7 +76,8 @@ class MuscleController:
     """State and tick of one muscle (see the module docstring)."""
 
     def __init__(self, index: int, envelope: MuscleEnvelope, cfg: LoadedConfig,
-                 signals: MuscleSignals, record_base: int) -> None:
+                 signals: MuscleSignals, record_base: int,
+                 model: LoadedModel | None = None) -> None:
         self.index = index
         self.name = envelope.name
         self.signals = signals
@@ -91,9 +92,8 @@ class MuscleController:
         self.limit_monitor = LimitMonitor(envelope, p.name, saf)
         self.safe_ramp = SafeRamp(envelope)
         self.profile_follower = ProfileFollower(envelope)
-        loaded = cfg.models.get(self.name)  # the model_file's model, if any
-        self.length_control = LengthControl(envelope, ctl.position,
-                                            None if loaded is None else loaded.feedforward())
+        self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
+                                            None if model is None else model.feedforward())
         self.pressure_loop = PressureLoop(ctl.pid, ctl.rate_feedforward_s)
         self.limiter = Limiter()
         self.actuation: Actuation = actuation_for(signals)

@@ -31,6 +31,7 @@ from typing import Any
 from pamd.commands import Command
 from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig, load_config
+from pamd.control.feedforward import load_models
 from pamd.errors import PamdError
 from pamd.service.notify import Notifier
 from pamd.service.reload import ReloadPlan, describe, plan_reload
@@ -317,6 +318,7 @@ class ServiceKeeper:
         log.info("SIGHUP: reloading %s", path)
         try:
             new = load_config(path, self.config_overrides)
+            load_models(new)  # a model_file that does not fit is refused now, not at restart
         except PamdError as exc:
             log.error("reload refused, still running on the config loaded before: %s", exc)
             self._finish()

@@ -3,7 +3,6 @@ loop, clipping, the mode and model commands and their refusals, config loading."
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from collections.abc import Callable
@@ -16,7 +15,7 @@ import yaml
 
 from pamd.commands import apply_command, parse_command, prepare_command
 from pamd.config import LoadedConfig, load_config
-from pamd.control.feedforward import LoadedModel
+from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.model_check import velocity_window
 from pamd.errors import CommandRefused, ConfigError
 from pamd.harness import Harness
@@ -67,9 +66,10 @@ def narrow_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return save(res.model, tmp_path_factory.mktemp("model") / "narrow.json")
 
 
-def with_model(cfg: LoadedConfig, path: Path) -> LoadedConfig:
-    return dataclasses.replace(cfg, models={"m1": LoadedModel.read(
-        str(path), cfg.muscle("m1"), cfg.limits["m1"])})
+def with_model(cfg: LoadedConfig, path: Path) -> Harness:
+    """A harness whose m1 has the model at `path` (as the daemon loads a model_file)."""
+    return Harness(cfg, {"m1": LoadedModel.read(str(path), cfg.muscle("m1"),
+                                                cfg.limits["m1"])})
 
 
 def cmd(h: Harness, verb: str, **payload: Any) -> dict[str, Any]:
@@ -99,7 +99,7 @@ def track(h: Harness, cycles: int, freq_hz: float = 0.1) -> tuple[float, float]:
 
 def test_position_mode_tracks_better_with_the_model(sim_config: Callable[..., LoadedConfig],
                                                     static_model: Path) -> None:
-    h = Harness(with_model(sim_config(), static_model))
+    h = with_model(sim_config(), static_model)
     h.step(0.05)
     assert h.cmd("mode", muscle="m1", mode="position")["ok"]
     with_ff = track(h, 2)
@@ -115,7 +115,7 @@ def test_position_mode_tracks_better_with_the_model(sim_config: Callable[..., Lo
 
 def test_inputs_outside_the_trained_ranges_are_clipped_and_flagged(
         sim_config: Callable[..., LoadedConfig], narrow_model: Path) -> None:
-    h = Harness(with_model(sim_config(load_kg=50.0), narrow_model))
+    h = with_model(sim_config(load_kg=50.0), narrow_model)
     h.step(0.05)
     h.keep = True
     assert h.cmd("mode", muscle="m1", mode="position")["ok"]
@@ -136,7 +136,7 @@ def test_inputs_outside_the_trained_ranges_are_clipped_and_flagged(
 
 def test_mode_changes_are_bumpless_and_the_safe_state_leaves_them(
         sim_config: Callable[..., LoadedConfig], static_model: Path) -> None:
-    h = Harness(with_model(sim_config(), static_model))
+    h = with_model(sim_config(), static_model)
     h.step(0.05)
     assert h.cmd("setpoint", muscle="m1", bar=3.0)["ok"]
     h.step(2.0)
@@ -251,12 +251,13 @@ def test_model_file_in_config_is_loaded_and_checked(tmp_path: Path, static_model
     path = tmp_path / "rig.yaml"
     path.write_text(yaml.safe_dump(data))
     cfg = load_config(str(path))
-    assert cfg.models["m1"].model.n_rules == 8
+    assert load_models(cfg)["m1"].model.n_rules == 8
     data["muscles"][0]["nominal_length_mm"] = 400.0  # a muscle the model never saw
     data["drivers"][0]["options"]["muscles"][0]["nominal_length_mm"] = 400.0
     path.write_text(yaml.safe_dump(data))
-    with pytest.raises(ConfigError, match=r"muscles\[0\].model_file.*trained on lengths"):
-        load_config(str(path))
+    with pytest.raises(ConfigError, match=r"rig.yaml:\d+: muscles\[0\].model_file.*trained on "
+                       "lengths"):
+        load_models(load_config(str(path)))  # what the daemon and check-config do
     doc = json.loads(narrow_model.read_text())
     doc["derived_inputs"] = {}
     nowin = tmp_path / "nowin.json"
@@ -265,7 +266,7 @@ def test_model_file_in_config_is_loaded_and_checked(tmp_path: Path, static_model
     data["muscles"][0]["model_file"] = "nowin.json"  # relative to the config file
     path.write_text(yaml.safe_dump(data))
     with pytest.raises(ConfigError, match="does not state its filter"):
-        load_config(str(path))
+        load_models(load_config(str(path)))
     assert velocity_window(LoadedModel.read(str(narrow_model), cfg.muscle("m1"),
                                             cfg.limits["m1"]).model) == 1.0
 

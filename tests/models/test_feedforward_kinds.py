@@ -17,9 +17,10 @@ from pamd.harness import Harness
 from pamd.tick import State
 
 
-def with_model(cfg: LoadedConfig, path: Path) -> LoadedConfig:
-    return dataclasses.replace(cfg, models={"m1": LoadedModel.read(
-        str(path), cfg.muscle("m1"), cfg.limits["m1"])})
+def with_model(cfg: LoadedConfig, path: Path) -> Harness:
+    """A harness whose m1 has the model at `path` (as the daemon loads a model_file)."""
+    return Harness(cfg, {"m1": LoadedModel.read(str(path), cfg.muscle("m1"),
+                                                cfg.limits["m1"])})
 
 
 def track(h: Harness, cycles: int = 2, freq_hz: float = 0.1) -> float:
@@ -37,8 +38,7 @@ def track(h: Harness, cycles: int = 2, freq_hz: float = 0.1) -> float:
     return math.sqrt(sq / n)
 
 
-def position_rmse(cfg: LoadedConfig, feedforward: bool) -> float:
-    h = Harness(cfg)
+def position_rmse(h: Harness, feedforward: bool) -> float:
     h.step(0.05)
     assert h.cmd("mode", muscle="m1", mode="position", feedforward=feedforward)["ok"]
     try:
@@ -65,12 +65,12 @@ def test_each_kind_drives_position_mode(kind: str, trained: dict[str, Path],
 
 
 def test_pid_alone_for_comparison(sim_config: Callable[..., LoadedConfig]) -> None:
-    assert position_rmse(sim_config(), False) == pytest.approx(PID_ALONE_MM, rel=0.1)
+    assert position_rmse(Harness(sim_config()), False) == pytest.approx(PID_ALONE_MM, rel=0.1)
 
 
 def test_length_force_mode_with_a_force_model(trained: dict[str, Path],
                                               sim_config: Callable[..., LoadedConfig]) -> None:
-    h = Harness(with_model(sim_config(), trained["sarosi"]))
+    h = with_model(sim_config(), trained["sarosi"])
     h.step(0.05)
     assert h.cmd("mode", muscle="m1", mode="length_force")["ok"]
     h.step(0.5)
