@@ -93,8 +93,10 @@ class MuscleLimits:
 
 @dataclass(frozen=True, kw_only=True)
 class PidConfig:
-    kp: float = spec(0.3, "Proportional gain.", unit="bar/bar", min=0.0)
-    ki_per_s: float = spec(20.0, "Integral gain.", unit="1/s", min=0.0)
+    kp: float = spec(0.54, "Proportional gain (default: SIMC PI on the simulated rig's "
+                     "measured step response, bench/tune_pressure_loop.py).", unit="bar/bar",
+                     min=0.0)
+    ki_per_s: float = spec(41.7, "Integral gain.", unit="1/s", min=0.0)
     kd_s: float = spec(0.0, "Derivative gain (on measurement).", unit="s", min=0.0)
     derivative_filter_hz: float = spec(30.0, "Cut-off of the derivative's low-pass filter.",
                                        unit="Hz", gt=0.0)
@@ -106,11 +108,13 @@ class PidConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class PositionPidConfig:
-    kp_bar_per_mm: float = spec(0.1, "Proportional gain on the length error (measured - "
-                                "target: too long means more pressure).", unit="bar/mm",
-                                min=0.0)
-    ki_bar_per_mm_s: float = spec(3.0, "Integral gain.", unit="bar/(mm s)", min=0.0)
-    kd_bar_s_per_mm: float = spec(0.004, "Derivative gain (on the measured length).",
+    kp_bar_per_mm: float = spec(0.0607, "Proportional gain on the length error (measured - "
+                                "target: too long means more pressure). Default: SIMC PI "
+                                "on the simulated rig's measured pressure -> length step "
+                                "response at 30 kg (bench/tune_pressure_loop.py).",
+                                unit="bar/mm", min=0.0)
+    ki_bar_per_mm_s: float = spec(1.93, "Integral gain.", unit="bar/(mm s)", min=0.0)
+    kd_bar_s_per_mm: float = spec(0.0, "Derivative gain (on the measured length).",
                                   unit="bar s/mm", min=0.0)
     derivative_filter_hz: float = spec(10.0, "Cut-off of the derivative's low-pass filter.",
                                        unit="Hz", gt=0.0)
@@ -162,8 +166,9 @@ class ControlConfig:
     position: PositionConfig = spec(PositionConfig(), "The length modes (length_force, "
                                     "position): outer position loop and iterative learning.")
     rate_feedforward_s: float = spec(
-        0.035, "The setpoint's rate times this is added to the valve command; it cancels "
-        "the regulator's dead time plus lag.", unit="s", min=0.0, max=1.0)
+        0.0255, "The setpoint's rate times this is added to the valve command; it cancels "
+        "the pressure loop's dead time plus lag, both measured from a step response "
+        "(bench/tune_pressure_loop.py).", unit="s", min=0.0, max=1.0)
     slew_limit_bar_per_s: float = spec(5.0, "Fastest allowed setpoint change; faster "
                                        "profiles are refused.", unit="bar/s", gt=0.0)
 

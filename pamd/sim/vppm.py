@@ -31,7 +31,7 @@ from pamd.sim.pneumatics import (
     P_ATM_PA,
     FedChamber,
     MuscleVolume,
-    SupplyLine,
+    Supply,
     conductance_from_nominal_flow,
     orifice_flow_kg_s,
     settle_chamber_pa,
@@ -44,7 +44,7 @@ class FlowRegulator(FedChamber):
     def __init__(
         self,
         *,
-        supply: SupplyLine,
+        supply: Supply,
         volume: MuscleVolume,
         contraction: float,
         max_bar: float,
@@ -84,7 +84,7 @@ class FlowRegulator(FedChamber):
         self._flow_fn = self._flow_in  # bound once: the tick allocates nothing
 
     @classmethod
-    def from_options(cls, o: SimMuscleOptions, supply: SupplyLine, contraction: float,
+    def from_options(cls, o: SimMuscleOptions, supply: Supply, contraction: float,
                      initial_bar: float) -> FlowRegulator:
         """The regulator of a simulated muscle with 'flow' pneumatics (its options)."""
         return cls(
