@@ -28,4 +28,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  muscle {m.name}: {m.type}, {m.nominal_length_mm:g} mm, load {m.load_kg:g} kg;"
               f" limits {lim.max_pressure_bar:g} bar, {100 * lim.max_contraction:g} % "
               f"contraction, {100 * lim.max_pretension:g} % stretch")
+        if m.actuation == "onoff":
+            print(f"    on/off valves (PWM {1e3 * m.onoff.pwm_period_s:g} ms): `pamd run` "
+                  "does not drive them yet (the tick's actuation seam comes first)")
     return 0

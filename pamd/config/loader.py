@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from importlib import resources
 from typing import Any
 
+from pamd.config.actuation import check_actuation, check_sim_sample_periods
 from pamd.config.engine import Context, build_dataclass, describe, line_of
 from pamd.config.schema import MuscleConfig, RigConfig, SafetyConfig, SignalConfig
 from pamd.config.yamlload import load_yaml_text, read_text
@@ -95,8 +96,10 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     ctx.raise_if_any()
     warnings = _check_safety_bounds(rig, raw, ctx)
     drivers_node = raw.get("drivers", [])
-    rig, channels = _check_drivers(rig, drivers_node, ctx)
+    rig, channels, digital = _check_drivers(rig, drivers_node, ctx)
     limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
+    check_actuation(rig, raw.get("muscles", []), digital, ctx)
+    check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
     ctx.raise_if_any()
     models = _load_models(rig, raw.get("muscles", []), path, limits, ctx)
     ctx.raise_if_any()
@@ -182,15 +185,17 @@ def _check_name(ctx: Context, name: str, seen: set[str], line: int | None, path:
     seen.add(name)
 
 
-def _check_drivers(rig: RigConfig, node: Any,
-                   ctx: Context) -> tuple[RigConfig, dict[str, dict[str, str]]]:
+def _check_drivers(rig: RigConfig, node: Any, ctx: Context
+                   ) -> tuple[RigConfig, dict[str, dict[str, str]], dict[str, set[str]]]:
     """Validate each driver's type and options; returns the config with typed options
-    and, per driver whose options are valid, {channel name: 'in' | 'out'}."""
+    and, per driver whose options are valid, {channel name: 'in' | 'out'} and the
+    names of its digital outputs."""
     from pamd.drivers import load_driver_class
 
     seen: set[str] = set()
     built = []
     channel_map: dict[str, dict[str, str]] = {}
+    digital: dict[str, set[str]] = {}
     for i, drv in enumerate(rig.drivers):
         item = node[i]
         _check_name(ctx, drv.name, seen, line_of(item, "name"), f"drivers[{i}].name")
@@ -212,8 +217,10 @@ def _check_drivers(rig: RigConfig, node: Any,
                         f"options that driver type {drv.type!r} accepts", str(exc))
             else:
                 channel_map[drv.name] = {c.name: c.direction for c in channels}
+                digital[drv.name] = {c.name for c in channels
+                                     if c.direction == "out" and c.digital}
         built.append(dataclasses.replace(drv, options=options))
-    return dataclasses.replace(rig, drivers=tuple(built)), channel_map
+    return dataclasses.replace(rig, drivers=tuple(built)), channel_map, digital
 
 
 def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]],
@@ -249,13 +256,13 @@ def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]
             **resolved,
         )
         sig_node = item.get("signals") or {}
-        for sig_name in ("pressure", "force", "length", "valve", "exhaust"):
+        for sig_name in ("pressure", "force", "length", "valve", "inflate", "exhaust"):
             sig = getattr(m.signals, sig_name)
             if sig is None:
                 continue
             snode = sig_node.get(sig_name) or {}
             spath = f"{base}.signals.{sig_name}"
-            direction = "out" if sig_name in ("valve", "exhaust") else "in"
+            direction = "out" if sig_name in ("valve", "inflate", "exhaust") else "in"
             if sig.driver not in known_drivers:
                 ctx.add(line_of(snode, "driver"), f"{spath}.driver",
                         f"one of the drivers {', '.join(sorted(known_drivers))}",
@@ -269,8 +276,9 @@ def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]
                             f"driver {sig.driver!r} ({', '.join(names)})", repr(sig.channel))
             if sig.gain == 0.0:
                 ctx.add(line_of(snode, "gain"), f"{spath}.gain", "a non-zero gain", "0")
-        _check_valve(m, resolved["max_pressure_bar"], rating.max_pressure_bar,
-                     sig_node.get("valve") or {}, base, ctx)
+        if m.signals.valve is not None:  # required or refused: pamd.config.actuation
+            _check_valve(m, resolved["max_pressure_bar"], rating.max_pressure_bar,
+                         sig_node.get("valve") or {}, base, ctx)
     return limits
 
 
@@ -278,6 +286,7 @@ def _check_valve(m: MuscleConfig, limit_bar: float, rated_bar: float, vnode: Any
                  ctx: Context) -> None:
     """A regulator's full scale must be clamped in config to the muscle's rating."""
     v = m.signals.valve
+    assert v is not None
     path = f"{base}.signals.valve"
     if v.raw_max is None:
         ctx.add(line_of(vnode), f"{path}.raw_max",

@@ -77,8 +77,17 @@ class MuscleSignals:
     pressure: SignalConfig = spec(doc="Measured muscle pressure, SI unit bar.")
     force: SignalConfig = spec(doc="Load-cell force, SI unit N.")
     length: SignalConfig = spec(doc="Muscle length, SI unit mm.")
-    valve: SignalConfig = spec(doc="Pressure regulator setpoint, SI unit bar.")
-    exhaust: SignalConfig | None = spec(None, "Exhaust (dump) valve, 1 = open; optional.")
+    valve: SignalConfig | None = spec(None, "Pressure regulator setpoint, SI unit bar; "
+                                      "required with `actuation: proportional`, refused "
+                                      "with onoff.")
+    inflate: SignalConfig | None = spec(None, "`actuation: onoff`: the inflate valve (3/2 "
+                                        "NC, supply -> muscle), 1 = open; a digital output "
+                                        "(a sim NAME.inflate, a Modbus coil). Required "
+                                        "there, refused with proportional.")
+    exhaust: SignalConfig | None = spec(None, "Exhaust valve, 1 = open: with proportional "
+                                        "actuation the optional dump valve; with onoff the "
+                                        "required exhaust valve (2/2 NC, muscle -> "
+                                        "atmosphere), a digital output.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -174,6 +183,19 @@ class ControlConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class OnOffConfig:
+    pwm_period_s: float = spec(0.02, "PWM period of the inflate and exhaust valves; must "
+                               "leave room for a valve to open and close within it "
+                               "(valve_on_delay_s + valve_off_delay_s).", unit="s", gt=0.0,
+                               max=1.0)
+    valve_on_delay_s: float = spec(0.003, "The valves' switching time from energising to "
+                                   "open (fast solenoid valves: about 1-3 ms).", unit="s",
+                                   min=0.0, max=0.5)
+    valve_off_delay_s: float = spec(0.005, "The valves' switching time from release to "
+                                    "closed (about 2-5 ms).", unit="s", min=0.0, max=0.5)
+
+
+@dataclass(frozen=True, kw_only=True)
 class MuscleConfig:
     name: str = spec(doc="Muscle name (used in signal, topic and key names).")
     type: Literal["dmsp20"] = spec("dmsp20", "Muscle type; fixes the ratings and force map.")
@@ -183,6 +205,13 @@ class MuscleConfig:
     force_model: Literal["map", "fit"] = spec(
         "map", "Static force model used for the safe pressure: the datasheet map or the "
         "smooth fit.")
+    actuation: Literal["proportional", "onoff"] = spec(
+        "proportional", "How air reaches the muscle: `proportional`, a pressure regulator "
+        "(signals.valve, optionally a dump valve signals.exhaust); `onoff`, an inflate and "
+        "an exhaust solenoid valve on digital outputs (signals.inflate, signals.exhaust), "
+        "pulsed within `onoff.pwm_period_s` (seed 004).")
+    onoff: OnOffConfig = spec(OnOffConfig(), "`actuation: onoff`: the valves' PWM period "
+                              "and switching times.")
     signals: MuscleSignals = spec(doc="Which driver channels carry this muscle's signals.")
     limits: MuscleLimits = spec(MuscleLimits(), "Limits tighter than the rating.")
     model_file: str | None = spec(
