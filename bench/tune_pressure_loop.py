@@ -208,31 +208,38 @@ def tune(config: str, load_kg: float | None, verbose: bool = True) -> Tuning:
     return Tuning(p_model, x_model, kp, ki, kff, kpx, kix)
 
 
-def from_recording(path: str, loop: str) -> None:
+def steps_in(t_s: np.ndarray, u: np.ndarray, y: np.ndarray, record_s: float,
+             min_step: float = 0.05) -> list[Step]:
+    """The steps of input `u` (a change of more than `min_step` within 50 ms, at least
+    0.2 s after the last), each with `y` from 50 ms before it to `record_s` after."""
+    steps: list[Step] = []
+    last = -np.inf
+    for k in np.nonzero(np.abs(np.diff(u)) > 0.02)[0]:
+        if t_s[k] - last < 0.2:
+            continue
+        after = min(int(np.searchsorted(t_s, t_s[k] + 0.05)), len(u) - 1)
+        amp = float(u[after] - u[max(k - 1, 0)])
+        if abs(amp) < min_step:
+            continue
+        last = t_s[k]
+        sel = (t_s >= t_s[k] - 0.05) & (t_s <= t_s[k] + record_s)
+        steps.append(Step(f"t={t_s[k]:.2f} s", float(t_s[k]), amp, t_s[sel], y[sel]))
+    return steps
+
+
+def from_recording(path: str, loop: str, muscle: str | None) -> None:
     """Fit the steps found in a recording of an identification run on real hardware."""
     import pamd
 
     rec = pamd.open_recording(path)
-    muscle = rec.muscles[0] if hasattr(rec, "muscles") else "m1"
-    m = rec[muscle]
+    m = rec[muscle or next(iter(rec.muscles))]
     t = np.asarray(m["t_s"], dtype=float)
-    u = np.asarray(m["valve_cmd_bar" if loop == "pressure" else "setpoint_bar"], dtype=float)
-    y = np.asarray(m["pressure_bar" if loop == "pressure" else "length_mm"], dtype=float)
-    du = np.diff(u)
-    edges = np.nonzero(np.abs(du) > 0.02)[0]
-    steps: list[Step] = []
-    last = -np.inf
-    for k in edges:
-        if t[k] - last < 0.2:
-            continue
-        last = t[k]
-        after = np.searchsorted(t, t[k] + 0.05)
-        amp = float(u[min(after, len(u) - 1)] - u[max(k - 1, 0)])
-        if abs(amp) < 0.05:
-            continue
-        sel = (t >= t[k] - 0.05) & (t <= t[k] + (PRESSURE_RECORD_S if loop == "pressure"
-                                                 else POSITION_RECORD_S))
-        steps.append(Step(f"t={t[k]:.2f} s", float(t[k]), amp, t[sel], y[sel]))
+    if loop == "pressure":
+        steps = steps_in(t, np.asarray(m["valve_cmd_bar"], dtype=float),
+                         np.asarray(m["pressure_bar"], dtype=float), PRESSURE_RECORD_S)
+    else:
+        steps = steps_in(t, np.asarray(m["setpoint_bar"], dtype=float),
+                         np.asarray(m["length_mm"], dtype=float), POSITION_RECORD_S)
     if not steps:
         what = "valve command" if loop == "pressure" else "setpoint"
         raise SystemExit(f"{path}: no steps of the {what} found (a step is a change of "
@@ -261,9 +268,10 @@ def main() -> None:
                     "(real hardware) instead of running the simulated rig")
     ap.add_argument("--loop", choices=("pressure", "position"), default="pressure",
                     help="with --recording: which loop the recorded steps identify")
+    ap.add_argument("--muscle", help="with --recording: the muscle (default: the first)")
     a = ap.parse_args()
     if a.recording:
-        from_recording(a.recording, a.loop)
+        from_recording(a.recording, a.loop, a.muscle)
         return
     r = tune(a.config, a.load_kg)
     print("Gains (SIMC PI, tau_c = dead time; rate feedforward = dead time + tau):")
