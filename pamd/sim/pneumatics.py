@@ -111,6 +111,12 @@ class MuscleVolume:
         self._v = tuple(v * 1e-6 * length_scale for _, v in table)
         self._dead_m3 = dead_volume_cm3 * 1e-6
         self._floor_m3 = min_fraction * self._v[0]
+        # An evenly spaced table (the DMSP-20's) finds its segment by division.
+        steps = [b - a for a, b in zip(self._x, self._x[1:], strict=False)]
+        self._inv_dx = (1.0 / steps[0] if steps[0] > 0.0 and all(
+            abs(d - steps[0]) <= 1e-12 for d in steps) else 0.0)
+        self._slopes = tuple((v1 - v0) / d for v0, v1, d in zip(self._v, self._v[1:], steps,
+                                                                strict=False))
 
     @classmethod
     def of_muscle(cls, nominal_length_mm: float, dead_volume_cm3: float) -> MuscleVolume:
@@ -118,13 +124,16 @@ class MuscleVolume:
         return cls(length_scale=nominal_length_mm / 200.0, dead_volume_cm3=dead_volume_cm3)
 
     def volume_m3(self, contraction: float) -> float:
-        xs, vs = self._x, self._v
-        n = len(xs)
-        i = 0
-        while i < n - 2 and contraction > xs[i + 1]:
-            i += 1
-        x0, x1 = xs[i], xs[i + 1]
-        v = vs[i] + (vs[i + 1] - vs[i]) * (contraction - x0) / (x1 - x0)
+        xs = self._x
+        last = len(xs) - 2
+        if self._inv_dx > 0.0:
+            i = int((contraction - xs[0]) * self._inv_dx)
+            i = 0 if i < 0 else (last if i > last else i)
+        else:
+            i = 0
+            while i < last and contraction > xs[i + 1]:
+                i += 1
+        v = self._v[i] + self._slopes[i] * (contraction - xs[i])
         if v < self._floor_m3:
             v = self._floor_m3
         return v + self._dead_m3
