@@ -104,7 +104,7 @@ class Rig:
                 pressure=self._input(f"{m.name}.pressure", s.pressure, safety),
                 force=self._input(f"{m.name}.force", s.force, safety),
                 length=length,
-                valve=self._output(f"{m.name}.valve", _required(s.valve)),
+                valve=self._output(f"{m.name}.valve", _required(s.valve, cfg.path, m.name)),
                 exhaust=self._output(f"{m.name}.exhaust", s.exhaust) if s.exhaust else None,
                 reference=ref,
             ))
@@ -147,8 +147,10 @@ class Rig:
         return self.drivers[name]
 
 
-def _required(sig: SignalConfig | None) -> SignalConfig:
-    """A signal the config's actuation rules made required (pamd.config.actuation)."""
+def _required(sig: SignalConfig | None, path: str, muscle: str) -> SignalConfig:
+    """The regulator setpoint that `actuation: proportional` requires (the loader
+    refuses a config without it: pamd.config.actuation)."""
     if sig is None:
-        raise ConfigError([ConfigIssue("", None, "signals.valve", "a regulator setpoint")])
+        raise ConfigError([ConfigIssue(path, None, f"muscles ({muscle}).signals.valve",
+                                       "the pressure regulator's setpoint output", "none")])
     return sig
