@@ -31,11 +31,14 @@ Clock = Callable[[], float]
 
 @dataclass(frozen=True)
 class Channel:
-    """One named input or output of a driver, in the driver's own (raw) unit."""
+    """One named input or output of a driver, in the driver's own (raw) unit.
+    `digital`: the channel carries one bit (0 / 1: a solenoid valve's output, a
+    Modbus coil), not a value on a scale."""
 
     name: str
     direction: Literal["in", "out"]
     unit: str = ""
+    digital: bool = False
 
 
 @dataclass

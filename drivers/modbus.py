@@ -145,8 +145,8 @@ class ModbusDriver(ThreadedDriver):
     # -- Driver protocol ----------------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
         ins, outs = effective_map(self.options)
-        return ([Channel(p.name, "in", p.unit) for p in ins]
-                + [Channel(p.name, "out", p.unit) for p in outs])
+        return ([Channel(p.name, "in", p.unit, p.is_bit) for p in ins]
+                + [Channel(p.name, "out", p.unit, p.is_bit) for p in outs])
 
     def write(self, index: int, value: float) -> None:
         """Store the value; the thread sends it if its register value changed."""

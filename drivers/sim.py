@@ -106,9 +106,9 @@ class SimDriver(Driver):
                 Channel(f"{m.name}.force", "in", "N"),
                 Channel(f"{m.name}.length", "in", "mm"),
             ]
-            first = (Channel(f"{m.name}.inflate", "out", "") if m.actuation == "onoff"
-                     else Channel(f"{m.name}.valve", "out", "bar"))
-            outs += [first, Channel(f"{m.name}.exhaust", "out", "")]
+            first = (Channel(f"{m.name}.inflate", "out", "", digital=True)
+                     if m.actuation == "onoff" else Channel(f"{m.name}.valve", "out", "bar"))
+            outs += [first, Channel(f"{m.name}.exhaust", "out", "", digital=True)]
         return ins + outs
 
     def open(self, clock: Clock) -> None:

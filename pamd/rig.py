@@ -11,10 +11,11 @@ import math
 from dataclasses import dataclass
 
 from pamd.calibration import Calibration, MuscleReference
+from pamd.config.actuation import not_yet_driven
 from pamd.config.loader import LoadedConfig, effective_timeout_s
 from pamd.config.schema import SafetyConfig, SignalConfig
 from pamd.drivers import Clock, Driver, load_driver_class
-from pamd.errors import DriverError
+from pamd.errors import ConfigError, ConfigIssue, DriverError
 
 
 @dataclass
@@ -75,6 +76,13 @@ class Rig:
     """Drivers and signal bindings for a validated config."""
 
     def __init__(self, cfg: LoadedConfig, calibration: Calibration) -> None:
+        waiting = not_yet_driven(cfg.rig)
+        if waiting:  # until the tick's actuation seam lands (issue 13)
+            raise ConfigError([ConfigIssue(
+                cfg.path, None, "muscles.actuation",
+                "actuation: proportional to run this rig: pamd checks on/off valve "
+                "configs but does not drive them yet (the tick's actuation seam comes "
+                "first)", f"actuation: onoff on {', '.join(waiting)}")])
         self.cfg = cfg
         self.calibration = calibration
         self.drivers: dict[str, Driver] = {}
@@ -96,7 +104,7 @@ class Rig:
                 pressure=self._input(f"{m.name}.pressure", s.pressure, safety),
                 force=self._input(f"{m.name}.force", s.force, safety),
                 length=length,
-                valve=self._output(f"{m.name}.valve", s.valve),
+                valve=self._output(f"{m.name}.valve", _required(s.valve, cfg.path, m.name)),
                 exhaust=self._output(f"{m.name}.exhaust", s.exhaust) if s.exhaust else None,
                 reference=ref,
             ))
@@ -137,3 +145,12 @@ class Rig:
 
     def driver(self, name: str) -> Driver:
         return self.drivers[name]
+
+
+def _required(sig: SignalConfig | None, path: str, muscle: str) -> SignalConfig:
+    """The regulator setpoint that `actuation: proportional` requires (the loader
+    refuses a config without it: pamd.config.actuation)."""
+    if sig is None:
+        raise ConfigError([ConfigIssue(path, None, f"muscles ({muscle}).signals.valve",
+                                       "the pressure regulator's setpoint output", "none")])
+    return sig

@@ -32,4 +32,7 @@ def run(args: argparse.Namespace) -> int:
               f" limits {lim.max_pressure_bar:g} bar, {100 * lim.max_contraction:g} % "
               f"contraction, {100 * lim.max_pretension:g} % stretch"
               + (f"; model {models[m.name].path}" if m.name in models else ""))
+        if m.actuation == "onoff":
+            print(f"    on/off valves (PWM {1e3 * m.onoff.pwm_period_s:g} ms): `pamd run` "
+                  "does not drive them yet (the tick's actuation seam comes first)")
     return 0

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from importlib import resources
 from typing import Any, ClassVar, Protocol, cast
 
+from pamd.config.actuation import check_actuation, check_sim_sample_periods
 from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.schema import MuscleConfig, RigConfig, SafetyConfig, SignalConfig
 from pamd.errors import DriverError
@@ -93,8 +94,10 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     ctx.raise_if_any()
     warnings = _check_safety_bounds(rig, raw, ctx)
     drivers_node = raw.get("drivers", [])
-    rig, channels = _check_drivers(rig, drivers_node, ctx)
+    rig, channels, digital = _check_drivers(rig, drivers_node, ctx)
     limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
+    check_actuation(rig, raw.get("muscles", []), digital, ctx)
+    check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
     ctx.raise_if_any()
     cal = rig.calibration_file or os.path.splitext(os.path.basename(path))[0] + ".cal.yaml"
     cal_path = os.path.join(os.path.dirname(os.path.abspath(path)), cal)
@@ -177,6 +180,9 @@ class _ChannelLike(Protocol):
     @property
     def direction(self) -> str: ...
 
+    @property
+    def digital(self) -> bool: ...
+
 
 def _driver_type(type_name: str) -> DriverType:
     """The driver class installed under `type_name` (the `pamd.drivers` entry points)."""
@@ -187,13 +193,15 @@ def _driver_type(type_name: str) -> DriverType:
     return cast(DriverType, found)
 
 
-def _check_drivers(rig: RigConfig, node: Any,
-                   ctx: Context) -> tuple[RigConfig, dict[str, dict[str, str]]]:
+def _check_drivers(rig: RigConfig, node: Any, ctx: Context
+                   ) -> tuple[RigConfig, dict[str, dict[str, str]], dict[str, set[str]]]:
     """Validate each driver's type and options; returns the config with typed options
-    and, per driver whose options are valid, {channel name: 'in' | 'out'}."""
+    and, per driver whose options are valid, {channel name: 'in' | 'out'} and the
+    names of its digital outputs."""
     seen: set[str] = set()
     built = []
     channel_map: dict[str, dict[str, str]] = {}
+    digital: dict[str, set[str]] = {}
     for i, drv in enumerate(rig.drivers):
         item = node[i]
         _check_name(ctx, drv.name, seen, line_of(item, "name"), f"drivers[{i}].name")
@@ -215,8 +223,10 @@ def _check_drivers(rig: RigConfig, node: Any,
                         f"options that driver type {drv.type!r} accepts", str(exc))
             else:
                 channel_map[drv.name] = {c.name: c.direction for c in channels}
+                digital[drv.name] = {c.name for c in channels
+                                     if c.direction == "out" and c.digital}
         built.append(dataclasses.replace(drv, options=options))
-    return dataclasses.replace(rig, drivers=tuple(built)), channel_map
+    return dataclasses.replace(rig, drivers=tuple(built)), channel_map, digital
 
 
 def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]],
@@ -252,13 +262,13 @@ def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]
             **resolved,
         )
         sig_node = item.get("signals") or {}
-        for sig_name in ("pressure", "force", "length", "valve", "exhaust"):
+        for sig_name in ("pressure", "force", "length", "valve", "inflate", "exhaust"):
             sig = getattr(m.signals, sig_name)
             if sig is None:
                 continue
             snode = sig_node.get(sig_name) or {}
             spath = f"{base}.signals.{sig_name}"
-            direction = "out" if sig_name in ("valve", "exhaust") else "in"
+            direction = "out" if sig_name in ("valve", "inflate", "exhaust") else "in"
             if sig.driver not in known_drivers:
                 ctx.add(line_of(snode, "driver"), f"{spath}.driver",
                         f"one of the drivers {', '.join(sorted(known_drivers))}",
@@ -272,8 +282,9 @@ def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]
                             f"driver {sig.driver!r} ({', '.join(names)})", repr(sig.channel))
             if sig.gain == 0.0:
                 ctx.add(line_of(snode, "gain"), f"{spath}.gain", "a non-zero gain", "0")
-        _check_valve(m, resolved["max_pressure_bar"], rating.max_pressure_bar,
-                     sig_node.get("valve") or {}, base, ctx)
+        if m.signals.valve is not None:  # required or refused: pamd.config.actuation
+            _check_valve(m, resolved["max_pressure_bar"], rating.max_pressure_bar,
+                         sig_node.get("valve") or {}, base, ctx)
     return limits
 
 
@@ -281,6 +292,7 @@ def _check_valve(m: MuscleConfig, limit_bar: float, rated_bar: float, vnode: Any
                  ctx: Context) -> None:
     """A regulator's full scale must be clamped in config to the muscle's rating."""
     v = m.signals.valve
+    assert v is not None
     path = f"{base}.signals.valve"
     if v.raw_max is None:
         ctx.add(line_of(vnode), f"{path}.raw_max",

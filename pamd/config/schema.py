@@ -77,8 +77,17 @@ class MuscleSignals:
     pressure: SignalConfig = spec(doc="Measured muscle pressure, SI unit bar.")
     force: SignalConfig = spec(doc="Load-cell force, SI unit N.")
     length: SignalConfig = spec(doc="Muscle length, SI unit mm.")
-    valve: SignalConfig = spec(doc="Pressure regulator setpoint, SI unit bar.")
-    exhaust: SignalConfig | None = spec(None, "Exhaust (dump) valve, 1 = open; optional.")
+    valve: SignalConfig | None = spec(None, "Pressure regulator setpoint, SI unit bar; "
+                                      "required with `actuation: proportional`, refused "
+                                      "with onoff.")
+    inflate: SignalConfig | None = spec(None, "`actuation: onoff`: the inflate valve (3/2 "
+                                        "NC, supply -> muscle), 1 = open; a digital output "
+                                        "(a sim NAME.inflate, a Modbus coil). Required "
+                                        "there, refused with proportional.")
+    exhaust: SignalConfig | None = spec(None, "Exhaust valve, 1 = open: with proportional "
+                                        "actuation the optional dump valve; with onoff the "
+                                        "required exhaust valve (2/2 NC, muscle -> "
+                                        "atmosphere), a digital output.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,8 +102,10 @@ class MuscleLimits:
 
 @dataclass(frozen=True, kw_only=True)
 class PidConfig:
-    kp: float = spec(0.3, "Proportional gain.", unit="bar/bar", min=0.0)
-    ki_per_s: float = spec(20.0, "Integral gain.", unit="1/s", min=0.0)
+    kp: float = spec(0.54, "Proportional gain (default: SIMC PI on the simulated rig's "
+                     "measured step response, bench/tune_pressure_loop.py).", unit="bar/bar",
+                     min=0.0)
+    ki_per_s: float = spec(41.7, "Integral gain.", unit="1/s", min=0.0)
     kd_s: float = spec(0.0, "Derivative gain (on measurement).", unit="s", min=0.0)
     derivative_filter_hz: float = spec(30.0, "Cut-off of the derivative's low-pass filter.",
                                        unit="Hz", gt=0.0)
@@ -106,11 +117,13 @@ class PidConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class PositionPidConfig:
-    kp_bar_per_mm: float = spec(0.1, "Proportional gain on the length error (measured - "
-                                "target: too long means more pressure).", unit="bar/mm",
-                                min=0.0)
-    ki_bar_per_mm_s: float = spec(3.0, "Integral gain.", unit="bar/(mm s)", min=0.0)
-    kd_bar_s_per_mm: float = spec(0.004, "Derivative gain (on the measured length).",
+    kp_bar_per_mm: float = spec(0.0607, "Proportional gain on the length error (measured - "
+                                "target: too long means more pressure). Default: SIMC PI "
+                                "on the simulated rig's measured pressure -> length step "
+                                "response at 30 kg (bench/tune_pressure_loop.py).",
+                                unit="bar/mm", min=0.0)
+    ki_bar_per_mm_s: float = spec(1.93, "Integral gain.", unit="bar/(mm s)", min=0.0)
+    kd_bar_s_per_mm: float = spec(0.0, "Derivative gain (on the measured length).",
                                   unit="bar s/mm", min=0.0)
     derivative_filter_hz: float = spec(10.0, "Cut-off of the derivative's low-pass filter.",
                                        unit="Hz", gt=0.0)
@@ -162,10 +175,24 @@ class ControlConfig:
     position: PositionConfig = spec(PositionConfig(), "The length modes (length_force, "
                                     "position): outer position loop and iterative learning.")
     rate_feedforward_s: float = spec(
-        0.035, "The setpoint's rate times this is added to the valve command; it cancels "
-        "the regulator's dead time plus lag.", unit="s", min=0.0, max=1.0)
+        0.0255, "The setpoint's rate times this is added to the valve command; it cancels "
+        "the pressure loop's dead time plus lag, both measured from a step response "
+        "(bench/tune_pressure_loop.py).", unit="s", min=0.0, max=1.0)
     slew_limit_bar_per_s: float = spec(5.0, "Fastest allowed setpoint change; faster "
                                        "profiles are refused.", unit="bar/s", gt=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class OnOffConfig:
+    pwm_period_s: float = spec(0.02, "PWM period of the inflate and exhaust valves; must "
+                               "leave room for a valve to open and close within it "
+                               "(valve_on_delay_s + valve_off_delay_s).", unit="s", gt=0.0,
+                               max=1.0)
+    valve_on_delay_s: float = spec(0.003, "The valves' switching time from energising to "
+                                   "open (fast solenoid valves: about 1-3 ms).", unit="s",
+                                   min=0.0, max=0.5)
+    valve_off_delay_s: float = spec(0.005, "The valves' switching time from release to "
+                                    "closed (about 2-5 ms).", unit="s", min=0.0, max=0.5)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -178,6 +205,13 @@ class MuscleConfig:
     force_model: Literal["map", "fit"] = spec(
         "map", "Static force model used for the safe pressure: the datasheet map or the "
         "smooth fit.")
+    actuation: Literal["proportional", "onoff"] = spec(
+        "proportional", "How air reaches the muscle: `proportional`, a pressure regulator "
+        "(signals.valve, optionally a dump valve signals.exhaust); `onoff`, an inflate and "
+        "an exhaust solenoid valve on digital outputs (signals.inflate, signals.exhaust), "
+        "pulsed within `onoff.pwm_period_s` (seed 004).")
+    onoff: OnOffConfig = spec(OnOffConfig(), "`actuation: onoff`: the valves' PWM period "
+                              "and switching times.")
     signals: MuscleSignals = spec(doc="Which driver channels carry this muscle's signals.")
     limits: MuscleLimits = spec(MuscleLimits(), "Limits tighter than the rating.")
     model_file: str | None = spec(

@@ -36,7 +36,10 @@ class EmulatedPlant:
         loads_kg = loads_kg or {}
         muscles = tuple(
             SimMuscleOptions(name=m.name, nominal_length_mm=m.nominal_length_mm,
-                             load_kg=loads_kg.get(m.name, m.load_kg), force_model=m.force_model)
+                             load_kg=loads_kg.get(m.name, m.load_kg), force_model=m.force_model,
+                             actuation=m.actuation,
+                             valve_on_delay_s=m.onoff.valve_on_delay_s,
+                             valve_off_delay_s=m.onoff.valve_off_delay_s)
             for m in cfg.rig.muscles)
         self.sim = SimDriver("emulated", SimOptions(seed=seed, muscles=muscles))
         self.sim.open(time.monotonic)
@@ -46,8 +49,10 @@ class EmulatedPlant:
             s = m.signals
             for j, sig in enumerate((s.pressure, s.force, s.length)):
                 self.inputs[(sig.driver, sig.channel)] = Binding(3 * k + j, sig.gain, sig.offset)
-            self.outputs[(s.valve.driver, s.valve.channel)] = Binding(2 * k, s.valve.gain,
-                                                                       s.valve.offset)
+            first = s.valve if s.valve is not None else s.inflate  # regulator or valve
+            if first is not None:
+                self.outputs[(first.driver, first.channel)] = Binding(2 * k, first.gain,
+                                                                      first.offset)
             if s.exhaust is not None:
                 self.outputs[(s.exhaust.driver, s.exhaust.channel)] = Binding(
                     2 * k + 1, s.exhaust.gain, s.exhaust.offset)

@@ -25,7 +25,7 @@ from pamd.sim.pneumatics import (
     P_ATM_PA,
     FedChamber,
     MuscleVolume,
-    SupplyLine,
+    Supply,
     conductance_from_nominal_flow,
     orifice_flow_kg_s,
     settle_chamber_pa,
@@ -66,7 +66,7 @@ class SolenoidValve:
 class OnOffValves(FedChamber):
     """The inflate and exhaust valves of one muscle, filling its chamber."""
 
-    def __init__(self, *, supply: SupplyLine, volume: MuscleVolume, contraction: float,
+    def __init__(self, *, supply: Supply, volume: MuscleVolume, contraction: float,
                  inflate_flow_l_min: float, exhaust_flow_l_min: float, critical_ratio: float,
                  on_delay_s: float, off_delay_s: float, polytropic: float,
                  initial_bar: float) -> None:
@@ -84,7 +84,7 @@ class OnOffValves(FedChamber):
         self._flow_fn = self._flow_in  # bound once: the tick allocates nothing
 
     @classmethod
-    def from_options(cls, o: SimMuscleOptions, supply: SupplyLine, contraction: float,
+    def from_options(cls, o: SimMuscleOptions, supply: Supply, contraction: float,
                      initial_bar: float) -> OnOffValves:
         return cls(
             supply=supply,

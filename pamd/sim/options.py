@@ -126,7 +126,8 @@ class SimMuscleOptions:
     )
     regulator_lag_s: float = _f(
         0.030,
-        "First-order lag of the regulated pressure (dead time + lag = t63).",
+        "'lag' pneumatics: first-order lag of the regulated pressure (dead time + lag "
+        "= t63).",
         "s",
         0.0001,
         5.0,
@@ -143,7 +144,8 @@ class SimMuscleOptions:
     )
     exhaust_vent_time_constant_s: float = _f(
         0.015,
-        "Time constant of the pressure decay while the exhaust (dump) valve is open.",
+        "'lag' pneumatics: time constant of the pressure decay while the exhaust (dump) "
+        "valve is open ('flow' vents through exhaust_flow_l_min).",
         "s",
         0.0001,
         5.0,
@@ -185,12 +187,12 @@ class SimMuscleOptions:
         1.0,
     )
     pneumatics: Literal["lag", "flow"] = _f(
-        "lag",
-        "How the muscle's pressure follows a proportional regulator: 'lag' is a dead "
-        "time and a "
-        "first-order lag on the setpoint; 'flow' lets air flow through the regulator "
-        "(its own pressure loop, ISO 6358 orifices) into a chamber whose volume "
-        "follows the contraction.",
+        "flow",
+        "How the muscle's pressure follows a proportional regulator: 'flow' (the "
+        "default) lets air flow through the regulator (its own pressure loop, ISO 6358 "
+        "orifices) into a chamber whose volume follows the contraction; 'lag' is the "
+        "old simple plant, a dead time and a first-order lag on the setpoint (cheaper "
+        "and kinder: for fast tests, not for figures).",
     )
     regulator_flow_l_min: float = _f(
         140.0,
@@ -275,9 +277,9 @@ class SimMuscleOptions:
         0.01, "Length encoder resolution (readings are quantised to it).", "mm", 0.000001, 10.0
     )
     pressure_sample_period_s: float = _f(
-        0.0,
-        "Pressure input: the device converts a sample this often (an ADAM-6024 about "
-        "0.1 s); 0 samples at every plant step.",
+        0.001,
+        "Pressure input: the device converts a sample this often (default: a DAQ card "
+        "at 1 kHz; an ADAM-6024 about 0.1 s); 0 samples at every plant step.",
         "s",
         0.0,
         10.0,
@@ -293,7 +295,12 @@ class SimMuscleOptions:
         10.0,
     )
     force_sample_period_s: float = _f(
-        0.0, "Load cell: sample period of its amplifier (0: every plant step).", "s", 0.0, 10.0
+        0.001,
+        "Load cell: sample period of its amplifier (default: on the DAQ card at 1 kHz; "
+        "0: every plant step).",
+        "s",
+        0.0,
+        10.0,
     )
     force_latency_s: float = _f(
         0.0, "Load cell: time from taking a sample to its delivery.", "s", 0.0, 10.0
@@ -302,7 +309,12 @@ class SimMuscleOptions:
         0.0, "Load cell: time constant of the amplifier's filter (0: none).", "s", 0.0, 10.0
     )
     length_sample_period_s: float = _f(
-        0.0, "Encoder: sample period of its interface (0: every plant step).", "s", 0.0, 10.0
+        0.001,
+        "Encoder: sample period of its interface (default: a CiA 406 encoder's TPDO "
+        "every 1 ms; 0: every plant step).",
+        "s",
+        0.0,
+        10.0,
     )
     length_latency_s: float = _f(
         0.0, "Encoder: time from taking a sample to its delivery.", "s", 0.0, 10.0

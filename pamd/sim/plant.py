@@ -37,7 +37,7 @@ from collections.abc import Callable
 from pamd.muscle import GRAVITY_M_S2, ForceModel, equilibrium_contraction, force_model
 from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions
-from pamd.sim.pneumatics import SupplyLine
+from pamd.sim.pneumatics import StiffSupply, SupplyLine
 from pamd.sim.regulator import Regulator
 from pamd.sim.sensors import SampledSensor
 from pamd.sim.vppm import FlowRegulator
@@ -110,16 +110,13 @@ class MusclePlant:
             _ScaledModel(self.model, self.force_scale), p0, self.load_kg, -0.5, 0.9
         )
         x0 = min(max(x0, o.stop_stretch_contraction), o.stop_contraction)
-        # A 'flow' muscle without a shared supply line has a stiff one of its own,
-        # which it steps itself; a shared one is stepped by its owner (the driver).
-        self._own_supply: SupplyLine | None = None
+        # A 'flow' muscle without a shared supply line has a stiff one of its own;
+        # a shared one is stepped by its owner (the driver).
         self.regulator: Regulator | FlowRegulator | OnOffValves
         if o.pneumatics == "flow" or o.actuation == "onoff":
-            if supply is None:
-                supply = self._own_supply = SupplyLine(source_bar=o.supply_bar,
-                                                       conductance_m3_s_pa=1e-5)
+            own = StiffSupply(source_bar=o.supply_bar) if supply is None else supply
             self.regulator = (OnOffValves if o.actuation == "onoff" else FlowRegulator
-                              ).from_options(o, supply, x0, p0)
+                              ).from_options(o, own, x0, p0)
         else:
             self.regulator = Regulator(
                 supply_bar=o.supply_bar,
@@ -142,6 +139,8 @@ class MusclePlant:
         # How old each reading is (s): when it was sampled, before this plant time.
         self.pressure_age_s = self.force_age_s = self.length_age_s = 0.0
         self._sensors = _sampled_sensors(o, rng.gauss)
+        self._sensor_dt_s = 0.0
+        self._sensors_every_step = False
         self._read_sensors()
 
     # --- inputs ---------------------------------------------------------------
@@ -208,8 +207,9 @@ class MusclePlant:
             h = dt_s / n
             for _ in range(n):
                 self._step(h)
-        if self._own_supply is not None:
-            self._own_supply.step(dt_s)
+        if dt_s != self._sensor_dt_s:
+            self._sensor_dt_s = dt_s
+            self._sensors_every_step = _samples_every_step(self._sensors, dt_s)
         self._read_sensors()
 
     def _step(self, dt: float) -> None:
@@ -292,9 +292,13 @@ class MusclePlant:
         self.t_s += dt
 
     def _read_sensors(self) -> None:
-        if self._sensors is not None:
+        if self._sensors is not None and not self._sensors_every_step:
             self._read_sampled(self._sensors)
             return
+        # Every sensor takes a sample at each step and delivers it at once (no
+        # sensors as devices, or a 1 kHz card at a 1 ms step): the same readings,
+        # read directly.
+        self.pressure_age_s = self.force_age_s = self.length_age_s = 0.0
         gauss = self._gauss
         self.pressure_read_bar = self.regulator.pressure_bar + gauss(0.0, self._p_noise)
         self.force_read_n = self._tension_n + gauss(0.0, self._f_noise)
@@ -315,6 +319,15 @@ class MusclePlant:
         self.pressure_age_s = t - p_sensor.sampled_at_s
         self.force_age_s = t - f_sensor.sampled_at_s
         self.length_age_s = t - l_sensor.sampled_at_s
+
+
+def _samples_every_step(sensors: tuple[SampledSensor, ...] | None, dt_s: float) -> bool:
+    """True where each sensor samples at every plant step of `dt_s` and delivers at
+    once, unfiltered: reading the plant directly then gives the same readings."""
+    if sensors is None:
+        return True
+    return all(s.period_s <= dt_s + 1e-12 and s.latency_s == 0.0 and s.filter_tau_s == 0.0
+               for s in sensors)
 
 
 def _sampled_sensors(

@@ -111,6 +111,12 @@ class MuscleVolume:
         self._v = tuple(v * 1e-6 * length_scale for _, v in table)
         self._dead_m3 = dead_volume_cm3 * 1e-6
         self._floor_m3 = min_fraction * self._v[0]
+        # An evenly spaced table (the DMSP-20's) finds its segment by division.
+        steps = [b - a for a, b in zip(self._x, self._x[1:], strict=False)]
+        self._inv_dx = (1.0 / steps[0] if steps[0] > 0.0 and all(
+            abs(d - steps[0]) <= 1e-12 for d in steps) else 0.0)
+        self._slopes = tuple((v1 - v0) / d for v0, v1, d in zip(self._v, self._v[1:], steps,
+                                                                strict=False))
 
     @classmethod
     def of_muscle(cls, nominal_length_mm: float, dead_volume_cm3: float) -> MuscleVolume:
@@ -118,13 +124,16 @@ class MuscleVolume:
         return cls(length_scale=nominal_length_mm / 200.0, dead_volume_cm3=dead_volume_cm3)
 
     def volume_m3(self, contraction: float) -> float:
-        xs, vs = self._x, self._v
-        n = len(xs)
-        i = 0
-        while i < n - 2 and contraction > xs[i + 1]:
-            i += 1
-        x0, x1 = xs[i], xs[i + 1]
-        v = vs[i] + (vs[i + 1] - vs[i]) * (contraction - x0) / (x1 - x0)
+        xs = self._x
+        last = len(xs) - 2
+        if self._inv_dx > 0.0:
+            i = int((contraction - xs[0]) * self._inv_dx)
+            i = 0 if i < 0 else (last if i > last else i)
+        else:
+            i = 0
+            while i < last and contraction > xs[i + 1]:
+                i += 1
+        v = self._v[i] + self._slopes[i] * (contraction - xs[i])
         if v < self._floor_m3:
             v = self._floor_m3
         return v + self._dead_m3
@@ -173,20 +182,20 @@ def settle_chamber_pa(chamber: Chamber, new_volume_m3: float, dt_s: float,
                       flow_in: Callable[[float], float]) -> float:
     """The chamber pressure at the end of a step in which its volume becomes
     `new_volume_m3` and air flows in at `flow_in(p)` kg/s (a function of the chamber
-    pressure, falling as it rises): p = p_nf + k q(p), solved by two Newton steps from
-    the no-flow pressure p_nf. The chamber is not changed; the caller lets the air in
-    with `Chamber.step`, so what it books is what went in."""
+    pressure, falling as it rises): p = p_nf + k q(p), solved by two chord-Newton
+    steps from the no-flow pressure p_nf (the flow's slope taken once, there). The
+    chamber is not changed; the caller lets the air in with `Chamber.step`, so what
+    it books is what went in."""
     p_nf = chamber.no_flow_pressure_pa(new_volume_m3)
     k = chamber.pressure_per_kg(new_volume_m3) * dt_s
-    p = p_nf
-    for _ in range(2):
-        q0 = flow_in(p)
-        h = 1.0 + 1e-6 * p
-        dq = (flow_in(p + h) - q0) / h
-        p -= (p - p_nf - k * q0) / (1.0 - k * dq)
-        if p < 0.0:
-            p = 0.0
-    return p
+    q0 = flow_in(p_nf)
+    h = 1.0 + 1e-6 * p_nf
+    inv = 1.0 / (1.0 - k * (flow_in(p_nf + h) - q0) / h)
+    p = p_nf + k * q0 * inv
+    if p < 0.0:
+        p = 0.0
+    p -= (p - p_nf - k * flow_in(p)) * inv
+    return p if p > 0.0 else 0.0
 
 
 class SupplyLine:
@@ -237,13 +246,39 @@ class SupplyLine:
         ch.step(dt_s, (came_in - drawn) / dt_s, ch.volume_m3)
 
 
+class StiffSupply:
+    """A supply no draw can sag (a muscle's own, when no shared line is configured):
+    the source pressure at all times; it books what it delivered. The same face as
+    `SupplyLine`, at no cost per step."""
+
+    def __init__(self, source_bar: float = 7.0) -> None:
+        self.source_pa = source_bar * BAR_PA + P_ATM_PA
+        self.pressure_pa = self.source_pa
+        self.ok = True
+        self.delivered_kg = 0.0
+
+    @property
+    def pressure_bar(self) -> float:
+        return (self.pressure_pa - P_ATM_PA) / BAR_PA
+
+    def draw(self, mass_kg: float) -> None:
+        self.delivered_kg += mass_kg
+
+    def step(self, dt_s: float) -> None:
+        """Nothing to settle: the source holds its pressure."""
+
+
+Supply = SupplyLine | StiffSupply
+"""What a regulator or valve draws its air from."""
+
+
 class FedChamber:
     """One muscle's chamber fed from a supply line, and its air books: what came from
     the supply (`supplied_kg`) and what went out to the atmosphere (`vented_kg`).
     The regulator and the on/off valves build on it; their `_flow_in(p)` leaves the
     part drawn from the supply in `_q_supply`, and `_admit` books a step."""
 
-    def __init__(self, supply: SupplyLine, volume: MuscleVolume, contraction: float,
+    def __init__(self, supply: Supply, volume: MuscleVolume, contraction: float,
                  initial_bar: float, polytropic: float) -> None:
         self.supply = supply
         self.volume = volume

@@ -15,9 +15,9 @@ the fill. Without power the main stage closes and the muscle holds its pressure
 its own orifice whatever the regulator does. Without supply (`supply_ok` False) the
 inlet is shut: the pressure can only fall.
 
-Each step settles the chamber's implicit equation (`settle_chamber_pa`) and then
-lets in exactly the air q(p) dt that the supply gives up, so air is conserved
-between the supply line and the muscle.
+Each step settles the chamber's implicit equation (as `settle_chamber_pa`, inlined)
+and then lets in exactly the air q(p) dt that the supply gives up, so air is
+conserved between the supply line and the muscle.
 """
 
 from __future__ import annotations
@@ -31,10 +31,9 @@ from pamd.sim.pneumatics import (
     P_ATM_PA,
     FedChamber,
     MuscleVolume,
-    SupplyLine,
+    Supply,
     conductance_from_nominal_flow,
     orifice_flow_kg_s,
-    settle_chamber_pa,
 )
 
 
@@ -44,7 +43,7 @@ class FlowRegulator(FedChamber):
     def __init__(
         self,
         *,
-        supply: SupplyLine,
+        supply: Supply,
         volume: MuscleVolume,
         contraction: float,
         max_bar: float,
@@ -84,7 +83,7 @@ class FlowRegulator(FedChamber):
         self._flow_fn = self._flow_in  # bound once: the tick allocates nothing
 
     @classmethod
-    def from_options(cls, o: SimMuscleOptions, supply: SupplyLine, contraction: float,
+    def from_options(cls, o: SimMuscleOptions, supply: Supply, contraction: float,
                      initial_bar: float) -> FlowRegulator:
         """The regulator of a simulated muscle with 'flow' pneumatics (its options)."""
         return cls(
@@ -150,7 +149,32 @@ class FlowRegulator(FedChamber):
             self._alpha_pilot = 1.0 - math.exp(-dt_s / lag) if lag > 0.0 else 1.0
         delayed = self.pilot.step(self.t_s)
         self.reference_bar += (delayed - self.reference_bar) * self._alpha_pilot
-        v1 = self.volume.volume_m3(contraction)
-        q = self._flow_in(settle_chamber_pa(self.chamber, v1, dt_s, self._flow_fn))
         self.t_s += dt_s
-        return self._admit(dt_s, q, v1)
+        # `settle_chamber_pa`, then `FedChamber._admit`, inlined (this runs in the tick):
+        # the chamber's implicit pressure by two chord-Newton steps from the no-flow
+        # pressure, then exactly the air q(p) dt let in and booked.
+        ch = self.chamber
+        v1 = self.volume.volume_m3(contraction)
+        v0 = ch.volume_m3
+        p_nf = ch.pressure_pa if v0 == v1 else ch.pressure_pa * (v0 / v1) ** ch.polytropic
+        k = ch.pressure_per_kg(v1) * dt_s
+        flow = self._flow_fn
+        q0 = flow(p_nf)
+        h = 1.0 + 1e-6 * p_nf
+        inv = 1.0 / (1.0 - k * (flow(p_nf + h) - q0) / h)
+        p = p_nf + k * q0 * inv
+        if p < 0.0:
+            p = 0.0
+        q = flow(p)
+        residual = p - p_nf - k * q
+        if residual > 1.0 or residual < -1.0:  # Pa: not settled yet, one more chord step
+            p -= residual * inv
+            q = flow(p if p > 0.0 else 0.0)
+        drawn = self._q_supply * dt_s
+        self.supply.draw(drawn)
+        self.supplied_kg += drawn
+        self.vented_kg += drawn - q * dt_s
+        p = p_nf + k * q
+        ch.volume_m3 = v1
+        ch.pressure_pa = p if p > 0.0 else 0.0
+        return (ch.pressure_pa - P_ATM_PA) / BAR_PA

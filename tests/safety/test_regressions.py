@@ -144,11 +144,17 @@ def test_pid_integral_moves_away_from_a_clamp_never_into_it() -> None:
     assert pid.i > 0.5
 
 
+LAG_PLANT = {"drivers": [{"name": "sim", "type": "sim", "options": {
+    "seed": 1, "muscles": [{"name": "m1", "load_kg": 30.0, "pneumatics": "lag"}]}}]}
+
+
 def test_a_profile_reaching_the_pressure_limit_is_not_held_back(harness) -> None:
     """The seeds' 0-6 bar sine touches the 6 bar limit: only the PID's correction is
     trimmed there, the setpoint is followed, so the summary reports no time held back
-    (the first `pamd run --profile sine` said "held back for 0.5 s")."""
-    h = harness()
+    (the first `pamd run --profile sine` said "held back for 0.5 s"). On the 'lag'
+    plant, whose pressure reaches 0 bar at the sine's bottom: on the 'flow' plant the
+    bottom is test_a_negative_pid_correction_at_0_bar_is_not_a_pretension_guard."""
+    h = harness(**LAG_PLANT)
     h.step(0.01)
     h.cmd("profile", kind="sine", cycles=1)
     trimmed = 0
@@ -158,3 +164,17 @@ def test_a_profile_reaching_the_pressure_limit_is_not_held_back(harness) -> None
     assert h.t > 20.0 and trimmed > 0  # the command did reach the limit
     assert h.sink.tracking()["m1"]["soft_limit_s"] == 0.0
     assert not [e for e in h.sink.events if e[1] == "soft_limit"]
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "tick bug (pamd/control/muscle.py, for the tick's owner): at the sine's 0 bar "
+    "bottom the regulator vents the last mbar slowly, the PID's correction is negative "
+    "and the command is raised to the guards' default lower bound 0, which flags "
+    "PRETENSION_LIMIT without any stretch; the summary then counts 0.077 s held back"))
+def test_a_negative_pid_correction_at_0_bar_is_not_a_pretension_guard(harness) -> None:
+    h = harness()
+    h.step(0.01)
+    h.cmd("profile", kind="sine", cycles=1)
+    while h.state == "RUNNING":
+        h.step(0.01)
+    assert h.sink.tracking()["m1"]["soft_limit_s"] == 0.0

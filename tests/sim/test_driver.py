@@ -63,7 +63,7 @@ def test_two_muscles_have_their_own_channels_and_physics(make_rig) -> None:
     assert drv.output_index("b.exhaust") == 3
     rig.write("b.valve", 4.0)
     rig.run(1.0)
-    assert drv.plant("a").pressure_bar == 0.0
+    assert abs(drv.plant("a").pressure_bar) < 1e-9
     assert drv.plant("b").pressure_bar == pytest.approx(4.0, abs=0.02)
     assert rig.read("a.pressure") != rig.read("b.pressure")
 
@@ -190,7 +190,7 @@ def test_driver_error_sets_fault_stops_readings_and_drops_writes(make_rig) -> No
     rig.valve(3.0)
     rig.run(0.3)
     assert rig.driver.in_stamps_s == [pytest.approx(t_fault)] * 3
-    assert rig.plant.pressure_bar == 0.0  # the failed device took no output
+    assert abs(rig.plant.pressure_bar) < 1e-9  # the failed device took no output
     rig.driver.clear_faults()
     assert rig.driver.fault is None and rig.driver.health().ok
     rig.valve(3.0)

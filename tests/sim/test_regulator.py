@@ -1,8 +1,26 @@
-"""The simulated VPPM regulator and dump valve, seen through the pressure sensor."""
+"""The simulated VPPM regulator and dump valve, seen through the pressure sensor: the
+'lag' pneumatics (the old simple plant, a filter on the setpoint) in detail, and what
+the default 'flow' regulator must do the same way (dead time, backlash, clamps, zero
+point, supply loss, holding at power-up)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import pytest
+
+BOTH = pytest.mark.parametrize("pneumatics", ["lag", "flow"])
+
+
+@pytest.fixture
+def make_rig(make_rig: Callable[..., Any]) -> Callable[..., Any]:
+    """The session's `make_rig` with the 'lag' pneumatics unless a test says otherwise."""
+    def make(*muscles: Any, **kw: Any) -> Any:
+        if not muscles:
+            kw.setdefault("pneumatics", "lag")
+        return make_rig(*muscles, **kw)
+    return make
 
 
 def _t63_s(make_rig, dt_s: float, **kw) -> tuple[float, float]:
@@ -32,61 +50,75 @@ def test_default_t63_is_about_40ms(make_rig) -> None:
     assert t63 == pytest.approx(0.040, rel=0.10)
 
 
-def test_nothing_moves_within_the_dead_time(make_rig) -> None:
-    rig = make_rig(regulator_dead_time_s=0.02)
+@BOTH
+def test_nothing_moves_within_the_dead_time(make_rig, pneumatics: str) -> None:
+    rig = make_rig(regulator_dead_time_s=0.02, pneumatics=pneumatics)
     rig.valve(3.0)
     rig.run(0.02)
-    assert rig.plant.pressure_bar == 0.0
+    assert abs(rig.plant.pressure_bar) < 1e-9
     rig.run(0.01)
     assert rig.plant.pressure_bar > 0.5
 
 
-def test_backlash_swallows_small_reversals(make_rig) -> None:
+@BOTH
+def test_backlash_swallows_small_reversals(make_rig, pneumatics: str) -> None:
     width = 0.02
-    rig = make_rig(regulator_backlash_bar=width, initial_pressure_bar=0.0)
+    rig = make_rig(regulator_backlash_bar=width, initial_pressure_bar=0.0,
+                   pneumatics=pneumatics)
     rig.valve(3.0)
     rig.run(0.5)
     p_up = rig.plant.pressure_bar
     assert p_up == pytest.approx(3.0 - width / 2, abs=1e-4)
     rig.valve(3.0 - 0.8 * width)  # inside the band: no change
     rig.run(0.5)
-    assert rig.plant.pressure_bar == pytest.approx(p_up, abs=1e-6)
+    # (the flow regulator is still creeping the last 20 ubar to its first target)
+    assert rig.plant.pressure_bar == pytest.approx(p_up, abs=1e-6 if pneumatics == "lag"
+                                                   else 1e-4)
     rig.valve(2.5)  # out of the band: follows, offset by half the band
     rig.run(0.5)
     assert rig.plant.pressure_bar == pytest.approx(2.5 + width / 2, abs=1e-4)
 
 
-def test_setpoint_is_clamped_to_full_scale_and_supply(make_rig) -> None:
-    rig = make_rig(regulator_max_bar=6.0, supply_bar=7.0, regulator_backlash_bar=0.0)
+@BOTH
+def test_setpoint_is_clamped_to_full_scale_and_supply(make_rig, pneumatics: str) -> None:
+    rig = make_rig(regulator_max_bar=6.0, supply_bar=7.0, regulator_backlash_bar=0.0,
+                   pneumatics=pneumatics)
     rig.valve(9.0)
     rig.run(0.5)
     assert rig.plant.pressure_bar == pytest.approx(6.0, abs=1e-3)
-    rig = make_rig(regulator_max_bar=6.0, supply_bar=4.5, regulator_backlash_bar=0.0)
+    rig = make_rig(regulator_max_bar=6.0, supply_bar=4.5, regulator_backlash_bar=0.0,
+                   pneumatics=pneumatics)
     rig.valve(6.0)
     rig.run(0.5)
     assert rig.plant.pressure_bar == pytest.approx(4.5, abs=1e-3)
     rig.valve(-3.0)
     rig.run(0.5)
-    assert rig.plant.pressure_bar == pytest.approx(0.0, abs=1e-3)
+    # a regulator's exhaust vents the last hundredths of a bar slowly (the flow falls
+    # with the pressure difference and the main stage closes as the error shrinks)
+    assert rig.plant.pressure_bar == pytest.approx(0.0, abs=1e-3 if pneumatics == "lag"
+                                                   else 0.03)
 
 
-def test_zero_point_suppression_vents(make_rig) -> None:
-    rig = make_rig(initial_pressure_bar=2.0, regulator_zero_bar=0.03)
+@BOTH
+def test_zero_point_suppression_vents(make_rig, pneumatics: str) -> None:
+    rig = make_rig(initial_pressure_bar=2.0, regulator_zero_bar=0.03, pneumatics=pneumatics)
     rig.valve(0.02)
     rig.run(0.5)
-    assert rig.plant.pressure_bar < 1e-3
+    assert rig.plant.pressure_bar < (1e-3 if pneumatics == "lag" else 0.01)
 
 
-def test_initial_pressure_is_held_at_power_up(make_rig) -> None:
-    rig = make_rig(initial_pressure_bar=2.5, load_kg=30.0)
+@BOTH
+def test_initial_pressure_is_held_at_power_up(make_rig, pneumatics: str) -> None:
+    rig = make_rig(initial_pressure_bar=2.5, load_kg=30.0, pneumatics=pneumatics)
     x0 = rig.plant.contraction
     rig.run(0.5)  # nothing written: the regulator holds what it had
     assert rig.read("m1.pressure") == pytest.approx(2.5, abs=0.02)
     assert rig.plant.contraction == pytest.approx(x0, abs=1e-4)  # at rest from the start
 
 
-def test_supply_lost_pressure_cannot_rise_but_can_fall(make_rig) -> None:
-    rig = make_rig(initial_pressure_bar=2.0)
+@BOTH
+def test_supply_lost_pressure_cannot_rise_but_can_fall(make_rig, pneumatics: str) -> None:
+    rig = make_rig(initial_pressure_bar=2.0, pneumatics=pneumatics)
     rig.driver.inject_fault("m1", "supply", "lost")
     rig.valve(4.0)
     rig.run(0.5)
@@ -94,7 +126,9 @@ def test_supply_lost_pressure_cannot_rise_but_can_fall(make_rig) -> None:
     assert rig.plant.pressure_bar > 1.9  # it holds
     rig.valve(1.0)
     rig.run(0.5)
-    assert rig.plant.pressure_bar == pytest.approx(1.0, abs=0.02)
+    # without supply a flow regulator that vents past its target cannot fill back
+    assert rig.plant.pressure_bar == pytest.approx(1.0, abs=0.02 if pneumatics == "lag"
+                                                   else 0.05)
     rig.driver.clear_faults()
     rig.valve(4.0)
     rig.run(0.5)

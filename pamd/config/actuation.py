@@ -1,0 +1,123 @@
+"""The config rules of a muscle's actuation, checked with the rest of the config.
+
+`actuation: proportional` (a pressure regulator): `signals.valve` is required, an
+`inflate` signal is refused. `actuation: onoff` (seed 004's solenoid valves): both
+`signals.inflate` and `signals.exhaust` are required, each on a *digital* output of
+its driver (`pamd.drivers.Channel.digital`: the sim driver's NAME.inflate and
+NAME.exhaust, a Modbus coil), `signals.valve` is refused, and the PWM period must
+leave a valve the time to open and close within it. A simulated muscle's sensors
+must sample within the timeout of the signal that reads them (a device slower than
+its timeout is stale by construction). Every refusal names file, line and key.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from pamd.config.schema import MuscleConfig, RigConfig, SafetyConfig, SignalConfig
+from pamd.schema.engine import Context, line_of
+
+#: The sim driver's sensor options, per input signal: (sample period, latency).
+_SIM_SENSORS = {"pressure": ("pressure_sample_period_s", "pressure_latency_s"),
+                "force": ("force_sample_period_s", "force_latency_s"),
+                "length": ("length_sample_period_s", "length_latency_s")}
+
+
+def not_yet_driven(rig: RigConfig) -> list[str]:
+    """Muscles the tick cannot drive yet: on/off valves wait for its actuation seam."""
+    return [m.name for m in rig.muscles if m.actuation == "onoff"]
+
+
+def check_actuation(rig: RigConfig, node: Any, digital: dict[str, set[str]],
+                    ctx: Context) -> None:
+    """The actuation rules for every muscle; `node` is the raw `muscles` list and
+    `digital` the digital output channels per driver whose options are valid."""
+    for i, m in enumerate(rig.muscles):
+        item = node[i] if isinstance(node, list) and i < len(node) else {}
+        sig_node = item.get("signals") or {}
+        base = f"muscles[{i}]"
+        if m.actuation == "proportional":
+            _check_proportional(m, item, sig_node, base, ctx)
+        else:
+            _check_onoff(m, item, sig_node, base, digital, ctx)
+
+
+def _check_proportional(m: MuscleConfig, item: Any, sig_node: Any, base: str,
+                        ctx: Context) -> None:
+    if m.signals.valve is None:
+        ctx.add(line_of(sig_node) or line_of(item, "signals"), f"{base}.signals.valve",
+                "the pressure regulator's setpoint output (actuation: proportional; for "
+                "solenoid valves set actuation: onoff with signals.inflate and "
+                "signals.exhaust)", "none")
+    if m.signals.inflate is not None:
+        ctx.add(line_of(sig_node, "inflate"), f"{base}.signals.inflate",
+                "no inflate valve with actuation: proportional (a regulator fills the "
+                "muscle; set actuation: onoff to drive solenoid valves)", "an inflate signal")
+
+
+def _check_onoff(m: MuscleConfig, item: Any, sig_node: Any, base: str,
+                 digital: dict[str, set[str]], ctx: Context) -> None:
+    if m.signals.valve is not None:
+        ctx.add(line_of(sig_node, "valve"), f"{base}.signals.valve",
+                "no regulator setpoint with actuation: onoff (the inflate and exhaust valves "
+                "fill and vent the muscle); remove it or set actuation: proportional",
+                "a valve signal")
+    for name, what in (("inflate", "the inflate valve (3/2 NC, supply -> muscle)"),
+                       ("exhaust", "the exhaust valve (2/2 NC, muscle -> atmosphere)")):
+        sig = getattr(m.signals, name)
+        path = f"{base}.signals.{name}"
+        if sig is None:
+            ctx.add(line_of(sig_node) or line_of(item, "signals"), path,
+                    f"{what}: actuation: onoff needs both signals.inflate and "
+                    "signals.exhaust", "none")
+            continue
+        outs = digital.get(sig.driver)
+        if outs is not None and sig.channel not in outs:
+            names = ", ".join(sorted(outs)) or "none"
+            ctx.add(line_of(sig_node.get(name) or {}, "channel"), f"{path}.channel",
+                    f"a digital output of driver {sig.driver!r} for {what} (a solenoid "
+                    f"valve is open or closed; digital outputs: {names})", repr(sig.channel))
+    o = m.onoff
+    switching = o.valve_on_delay_s + o.valve_off_delay_s
+    if o.pwm_period_s < switching:
+        ctx.add(line_of(item.get("onoff") or {}, "pwm_period_s") or line_of(item, "onoff"),
+                f"{base}.onoff.pwm_period_s",
+                f"at least the valves' switching times, valve_on_delay_s + "
+                f"valve_off_delay_s = {switching:g} s (a valve must open and close within "
+                "a period)", f"{o.pwm_period_s:g} s")
+
+
+def check_sim_sample_periods(rig: RigConfig, node: Any, ctx: Context,
+                             timeout_of: Callable[[SignalConfig, SafetyConfig], float]
+                             ) -> None:
+    """A simulated muscle's sensor whose sample period plus latency exceeds the timeout
+    of the signal that reads it (`timeout_of`, the loader's stale age) is refused, at
+    the sim driver's option; `node` is the raw `drivers` list."""
+    sims = {d.name: (i, d) for i, d in enumerate(rig.drivers)
+            if d.type == "sim" and hasattr(d.options, "muscles")}
+    if not sims:
+        return
+    drivers_node = node if isinstance(node, list) else []
+    for m in rig.muscles:
+        for signal, (period_key, latency_key) in _SIM_SENSORS.items():
+            sig = getattr(m.signals, signal)
+            if sig.driver not in sims:
+                continue
+            k, drv = sims[sig.driver]
+            sim_name, _, sensor = sig.channel.rpartition(".")
+            for j, sm in enumerate(drv.options.muscles):
+                if sm.name != sim_name or sensor != signal:
+                    continue
+                age_s = getattr(sm, period_key) + getattr(sm, latency_key)
+                timeout = timeout_of(sig, rig.safety)
+                if age_s > timeout:
+                    opts = (drivers_node[k].get("options") or {}) if k < len(drivers_node) else {}
+                    mnode = (opts.get("muscles") or [{}])
+                    mnode = mnode[j] if j < len(mnode) and isinstance(mnode[j], dict) else {}
+                    ctx.add(line_of(mnode, period_key) or line_of(mnode),
+                            f"drivers[{k}].options.muscles[{j}].{period_key}",
+                            f"a sample period plus latency within the timeout of "
+                            f"muscle {m.name!r}'s {signal} signal ({timeout:g} s): a slower "
+                            "device is stale by construction; raise the signal's timeout_s",
+                            f"{age_s:g} s")
