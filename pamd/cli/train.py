@@ -211,7 +211,8 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Any,
     finally:
         if bar is not None:
             bar.close()
-    rows = {k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
+    rows: dict[str, dict[str, float]] = {
+        k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
     if te is not None:
         if model.stateful:  # over whole runs, scored on the test rows
 

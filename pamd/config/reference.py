@@ -38,7 +38,7 @@ def _default(f: dataclasses.Field[Any]) -> str:
         if isinstance(d, bool):
             return str(d).lower()
         return f"`{d}`"
-    if f.default_factory is not MISSING:  # type: ignore[misc]
+    if f.default_factory is not MISSING:
         return "(section)" if dataclasses.is_dataclass(f.default_factory()) else "`{}`"
     return "**required**"
 

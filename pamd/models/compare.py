@@ -101,7 +101,7 @@ def predict_samples(model: InverseModel, X: np.ndarray,
                     run: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(y_hat, clipped) on rows X; a stateful model starts afresh on each run."""
     if not model.stateful or run is None:
-        return model.predict(X, return_clipped=True)  # type: ignore[return-value]
+        return model.predict(X, return_clipped=True)
     y = np.empty(X.shape[0])
     clipped = np.zeros(X.shape[0], dtype=bool)
     for r in np.unique(run):

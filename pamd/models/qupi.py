@@ -35,7 +35,7 @@ is held to it and flagged (clipped), and so is a pressure outside [p0, pm].
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -137,6 +137,12 @@ class QupiModel:
     def n_params(self) -> int:
         return int(self.inverse.weights.size + 2)
 
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
+                ) -> np.ndarray: ...
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
+                ) -> tuple[np.ndarray, np.ndarray]: ...
     def predict(self, X: ArrayLike, *, return_clipped: bool = False
                 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Pressures along a sequence of lengths (rows in time order), starting from a
@@ -183,7 +189,7 @@ class CompiledQupi:
     def __init__(self, model: QupiModel) -> None:
         self.clipped = False
         self.clipped_mask = 0
-        self.input_names = ("length_mm",)
+        self.input_names: tuple[str, ...] = ("length_mm",)
         inv = model.inverse
         x0, xm, y0, dy = inv.x0, inv.xm, inv.y0, inv.ym - inv.y0
         ym = inv.ym

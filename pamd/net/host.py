@@ -26,6 +26,7 @@ from pamd.errors import CommandRefused, PamdError
 from pamd.experiment.plan import parse_plan
 from pamd.net.board import Board
 from pamd.net.collections import Collection, Collections
+from pamd.net.seams import DaemonView
 from pamd.net.status import StatusBuilder, jsonsafe
 
 log = logging.getLogger("pamd")
@@ -51,7 +52,7 @@ class _Pending:
 
 
 class NetHost:
-    def __init__(self, daemon: Any, board: Board, status_hz: float,
+    def __init__(self, daemon: DaemonView, board: Board, status_hz: float,
                  record_dir: str | None = None) -> None:
         """`record_dir`: where the daemon records (None: it does not, and a collect is
         refused)."""

@@ -98,7 +98,7 @@ def export_mat(source: Any, out: str) -> dict[str, Any]:
         st["flag_bits"] = {k: float(v) for k, v in fields.FLAG_BITS.items()}
         st["muscle"] = m
         tables[matlab_name(m)] = st
-    loop = {k: v.astype(np.float64) for k, v in rec.loop.items()}
+    loop: dict[str, Any] = {k: v.astype(np.float64) for k, v in rec.loop.items()}
     loop["units"] = {k: fields.unit_of(k) for k in rec.loop}
     loop["state_names"] = cell(fields.STATE_NAMES.values())
     ev = rec.events
