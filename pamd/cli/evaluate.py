@@ -155,5 +155,5 @@ def _plots(prefix: str, judged: list[Any], samples: Any, what: str) -> list[str]
                          title=f"{judged[0].model.output.name}: {what}")
 
 
-def _json_float(v: Any) -> Any:
+def _json_float(v: object) -> Any:
     return None if isinstance(v, float) and not math.isfinite(v) else v

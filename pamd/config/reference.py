@@ -67,7 +67,7 @@ def _rows(cls: type, prefix: str, out: list[str]) -> None:
         out.append(f"| `{key}` | {_type_name(tp)}{b} | {unit} | {_default(f)} | {doc} |")
 
 
-def _dataclass_in(tp: Any) -> type | None:
+def _dataclass_in(tp: object) -> type | None:
     if dataclasses.is_dataclass(tp):
         return tp  # type: ignore[return-value]
     for arg in typing.get_args(tp):

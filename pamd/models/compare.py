@@ -160,5 +160,5 @@ def format_comparison(rows: Sequence[Judged], out: TextIO | None = None) -> None
         print(f"  {name:<{w}}" + "".join(cells), file=out)
 
 
-def _json_float(v: Any) -> Any:
+def _json_float(v: object) -> Any:
     return None if isinstance(v, float) and not math.isfinite(v) else v

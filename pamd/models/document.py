@@ -69,9 +69,15 @@ def _reject_constant(name: str) -> NoReturn:
     raise ValueError(f"non-finite number {name}")
 
 
-def field(doc: object, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+def mapping(doc: object, where: str) -> dict[str, Any]:
+    """`doc` as a JSON object; ModelError if it is not one."""
     if not isinstance(doc, dict):
         raise ModelError(f"{where or 'document'}: expected an object")
+    return doc
+
+
+def field(doc: object, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    doc = mapping(doc, where)
     if key not in doc:
         raise ModelError(f"missing field {where + '.' if where else ''}{key}")
     value = doc[key]
@@ -133,8 +139,7 @@ def read_header(doc: object, kind: str, version: int
                            dict[str, Any], dict[str, Any]]:
     """(inputs, output, derived_inputs, parameters, provenance, metrics) of a document
     of `kind`, its version checked."""
-    if not isinstance(doc, dict):
-        raise ModelError("document: expected an object")
+    doc = mapping(doc, "")
     got = field(doc, "version", int, "")
     if got != version:
         raise ModelError(f"{kind} model version {got} is not supported (this pamd reads "

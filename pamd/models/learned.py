@@ -215,7 +215,7 @@ class CompiledLearned:
         """Nothing to reset: the model has no state."""
 
 
-def from_dict(doc: Any) -> LearnedModel:
+def from_dict(doc: object) -> LearnedModel:
     kind = field(doc, "kind", str, "")
     inputs, output, derived, params, prov, metrics = read_header(doc, kind, VERSION)
     d = len(inputs)

@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import Envelope, Variable, describe_common, tick_problems
-from pamd.models.document import field, footer, header, numbers, read_header
+from pamd.models.document import field, footer, header, mapping, numbers, read_header
 
 VERSION = 1
 DEFAULT_OPERATORS = 10  # Na = Nb (seed 003)
@@ -100,7 +100,8 @@ class Qupi:
                 "weights": self.weights.tolist(), "q": self.q, "c": self.c}
 
     @classmethod
-    def from_doc(cls, doc: Any, where: str) -> Qupi:
+    def from_doc(cls, doc: object, where: str) -> Qupi:
+        doc = mapping(doc, where)
         x0, xm = numbers(doc, "x_range", where, 2)
         y0, ym = numbers(doc, "y_range", where, 2)
         r1, r2 = numbers(doc, "r1", where), numbers(doc, "r2", where)
@@ -256,7 +257,7 @@ class CompiledQupi:
         reset(ref - x0)
 
 
-def from_dict(doc: Any) -> QupiModel:
+def from_dict(doc: object) -> QupiModel:
     inputs, output, derived, params, prov, metrics = read_header(doc, "qupi", VERSION)
     ref = numbers({"v": [params.get("length_ref_mm")]}, "v", "parameters.length_ref_mm", 1)[0]
     inv = Qupi.from_doc(field(params, "inverse", dict, "parameters"), "parameters.inverse")

@@ -209,7 +209,7 @@ class CompiledStaticForce:
         """Nothing to reset: the model has no state."""
 
 
-def from_dict(doc: Any) -> StaticForceModel:
+def from_dict(doc: object) -> StaticForceModel:
     kind = field(doc, "kind", str, "")
     inputs, output, derived, params, prov, metrics = read_header(doc, kind, VERSION)
     co_doc = field(params, "coefficients", dict, "parameters")

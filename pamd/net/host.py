@@ -147,7 +147,7 @@ class NetHost:
         finally:
             self._reply(rid, verdict)
 
-    def _prepare(self, verb: str, payload: Any, sender: str, user: str,
+    def _prepare(self, verb: str, payload: object, sender: str, user: str,
                  p: _Pending) -> Command:
         """The command ready for the loop, its file read and checked here (collect: the
         plan; model: the model), only by name from the directory the config allows."""

@@ -243,10 +243,13 @@ def inspect(path: str) -> dict[str, Any]:
     }
 
 
-def _int(v: Any, default: int) -> int:
+def _int(v: object, default: int) -> int:
+    """A JSON value as an integer, or `default` where it is not one."""
+    if not isinstance(v, (int, float, str)):
+        return default
     try:
         return int(v)
-    except (TypeError, ValueError):
+    except ValueError:
         return default
 
 

@@ -59,7 +59,7 @@ def classify(path: str) -> Kind:
     return "restart"
 
 
-def flatten(value: Any, prefix: str = "") -> dict[str, Any]:
+def flatten(value: object, prefix: str = "") -> dict[str, Any]:
     """Key path -> leaf value of a config (dataclasses, mappings, lists); a list's
     length is kept under `path[]` so added or removed items show."""
     out: dict[str, Any] = {}
