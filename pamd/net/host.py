@@ -22,8 +22,9 @@ from typing import Any
 
 from pamd.commands import Command, named_files, parse_command, prepare_command
 from pamd.commands.schema import args_for_record
+from pamd.config.loader import LoadedConfig
 from pamd.errors import CommandRefused, PamdError
-from pamd.experiment.plan import parse_plan
+from pamd.experiment.plan import Plan, parse_plan
 from pamd.net.board import Board
 from pamd.net.collections import Collection, Collections
 from pamd.net.seams import DaemonView
@@ -170,7 +171,7 @@ class NetHost:
         return cmd
 
 
-def read_plan(name: str, cfg: Any) -> tuple[Any, str]:
+def read_plan(name: str, cfg: LoadedConfig) -> tuple[Plan, str]:
     """A remote collect's plan: file `name` in `telemetry.plans_dir`, within the limits
     (`pamd.commands.named_files`), parsed and checked against the rig; the refusal
     names file, line and key and never quotes the file."""
