@@ -179,6 +179,7 @@ class ModbusDriver(ThreadedDriver):
         from pymodbus.framer import FramerType
 
         logging.getLogger("pymodbus.logging").setLevel(logging.CRITICAL)  # we count errors
+        client: ModbusTcpClient | ModbusSerialClient
         if o.transport == "tcp":
             client = ModbusTcpClient(o.host, port=o.port, timeout=o.timeout_s, retries=0)
         else:

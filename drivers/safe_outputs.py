@@ -11,12 +11,48 @@ daemon calls it once the rig is started and after every `load` command.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import Protocol
 
 from pamd.drivers import Driver
 
 
-def safe_output_values(ctrl: Any) -> dict[Driver, dict[int, float]]:
+class OutputPoint(Protocol):
+    """An output signal's place and calibration (`pamd.rig.OutputBinding`)."""
+
+    @property
+    def driver(self) -> Driver: ...
+    @property
+    def index(self) -> int: ...
+    @property
+    def gain(self) -> float: ...
+    @property
+    def offset(self) -> float: ...
+    @property
+    def raw_min(self) -> float: ...
+    @property
+    def raw_max(self) -> float: ...
+
+
+class SafeMuscle(Protocol):
+    """A muscle's outputs and its present safe pressure (`MuscleController`)."""
+
+    @property
+    def valve(self) -> OutputPoint: ...
+    @property
+    def exhaust(self) -> OutputPoint | None: ...
+    @property
+    def safe_bar(self) -> float: ...
+
+
+class SafeRig(Protocol):
+    """The controller's muscles (`pamd.controller.RigController`)."""
+
+    @property
+    def muscles(self) -> Sequence[SafeMuscle]: ...
+
+
+def safe_output_values(ctrl: SafeRig) -> dict[Driver, dict[int, float]]:
     """Driver -> {output index: raw value} of the safe state of every muscle."""
     out: dict[Driver, dict[int, float]] = {}
     for m in ctrl.muscles:
@@ -26,7 +62,7 @@ def safe_output_values(ctrl: Any) -> dict[Driver, dict[int, float]]:
     return out
 
 
-def push_safe_outputs(ctrl: Any) -> None:
+def push_safe_outputs(ctrl: SafeRig) -> None:
     """Give every driver the raw commands of the present safe state."""
     for drv, values in safe_output_values(ctrl).items():
         drv.set_safe_outputs(values)

@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _linked_tree(into: Path) -> Path:
     package = into / "pamd"
-    package.mkdir()
+    package.mkdir(parents=True)
     for child in (ROOT / "pamd").iterdir():
         if child.name != "__pycache__":
             (package / child.name).symlink_to(child)

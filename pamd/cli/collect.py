@@ -11,14 +11,17 @@ import signal
 import sys
 import threading
 import time
-from typing import Any
+from contextlib import AbstractContextManager
+from types import FrameType
+from typing import Any, Protocol
 
 from pamd.config import load_config
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
 from pamd.experiment.manifest import Manifest, collection_name, step_records
 from pamd.experiment.plan import load_plan
-from pamd.experiment.timeline import format_timeline, simulated_loads, timeline
+from pamd.experiment.sequencer import Sequencer
+from pamd.experiment.timeline import StepLine, format_timeline, simulated_loads, timeline
 from pamd.io.session import RecordingRequest
 from pamd.tick import State
 
@@ -106,12 +109,22 @@ def run(args: argparse.Namespace) -> int:
     return 0 if outcome == "done" else 1
 
 
+class ProgressBar(Protocol):
+    """What is used of a `tqdm` bar (an optional dependency)."""
+
+    n: float
+
+    def set_postfix_str(self, s: str = "", refresh: bool = True) -> None: ...
+    def clear(self) -> None: ...
+    def close(self) -> None: ...
+
+
 def _signals(daemon: Daemon) -> dict[str, int]:
     count = {"n": 0}
     if threading.current_thread() is not threading.main_thread():
         return count
 
-    def handler(signum: int, frame: Any) -> None:
+    def handler(signum: int, frame: FrameType | None) -> None:
         count["n"] += 1
         if signum == signal.SIGTERM or count["n"] >= 2:
             _say("\npamd: aborting now: ramping to the safe state")
@@ -132,7 +145,7 @@ def _say(text: str) -> None:
         os.write(sys.stderr.fileno(), (text + "\n").encode())
 
 
-def _follow(daemon: Daemon, lines: list[Any], start: int, interrupts: dict[str, int],
+def _follow(daemon: Daemon, lines: list[StepLine], start: int, interrupts: dict[str, int],
             show: bool) -> str:
     """Show progress and talk to the operator until the plan ends."""
     seq = daemon.ctrl.sequencer
@@ -147,7 +160,7 @@ def _follow(daemon: Daemon, lines: list[Any], start: int, interrupts: dict[str, 
     return outcome
 
 
-def _logs_above(bar: Any) -> Any:
+def _logs_above(bar: ProgressBar | None) -> AbstractContextManager[object]:
     """Log lines print above the progress bar instead of through it."""
     if bar is None:
         return contextlib.nullcontext()
@@ -156,7 +169,7 @@ def _logs_above(bar: Any) -> Any:
     return logging_redirect_tqdm()
 
 
-def _follow_loop(daemon: Daemon, seq: Any, bar: Any, total: float,
+def _follow_loop(daemon: Daemon, seq: Sequencer, bar: ProgressBar | None, total: float,
                  interrupts: dict[str, int]) -> str:
     ctrl = daemon.ctrl
     t0 = None
@@ -184,7 +197,7 @@ def _follow_loop(daemon: Daemon, seq: Any, bar: Any, total: float,
     return seq.outcome or "aborted"
 
 
-def _ask(daemon: Daemon, prompt: str, bar: Any) -> None:
+def _ask(daemon: Daemon, prompt: str, bar: ProgressBar | None) -> None:
     """An operator action: a load to hang (confirm) or a pause to end (resume)."""
     seq = daemon.ctrl.sequencer
     msg = f"\n>>> {prompt}. Press Enter when done (Ctrl-C twice aborts): "
@@ -200,7 +213,7 @@ def _ask(daemon: Daemon, prompt: str, bar: Any) -> None:
         print(f"pamd: {verdict['error']}", file=sys.stderr)
 
 
-def _pause_menu(daemon: Daemon, bar: Any) -> None:
+def _pause_menu(daemon: Daemon, bar: ProgressBar | None) -> None:
     if bar is not None:
         bar.clear()
     while True:
@@ -216,7 +229,7 @@ def _pause_menu(daemon: Daemon, bar: Any) -> None:
             return
 
 
-def _bar(total_s: float, show: bool) -> Any:
+def _bar(total_s: float, show: bool) -> ProgressBar | None:
     if not show:
         return None
     try:

@@ -10,7 +10,7 @@ import signal
 import sys
 import threading
 import time
-from typing import Any
+from types import FrameType
 
 from pamd.config import load_config
 
@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     rig = EmulatedRig(cfg, seed=args.seed, loads_kg=_loads(args.load))
     done = threading.Event()
 
-    def handler(signum: int, frame: Any) -> None:
+    def handler(signum: int, frame: FrameType | None) -> None:
         done.set()
 
     if threading.current_thread() is threading.main_thread():

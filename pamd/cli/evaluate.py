@@ -16,7 +16,8 @@ from pamd.errors import ModelError
 from pamd.models.anfis.extraction import load_samples
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.anfis.plots import write_plots
-from pamd.models.compare import common_options, format_comparison, judge
+from pamd.models.anfis.samples import Samples
+from pamd.models.compare import Judged, common_options, format_comparison, judge
 from pamd.models.plots import write_overlay
 from pamd.models.registry import load_model
 
@@ -134,11 +135,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _plots(prefix: str, judged: list[Any], samples: Any, what: str) -> list[str]:
-
-    if len(judged) == 1 and isinstance(judged[0].model, AnfisModel):
-
-        j = judged[0]
+def _plots(prefix: str, judged: list[Judged], samples: Samples, what: str) -> list[str]:
+    j = judged[0]
+    if len(judged) == 1 and isinstance(j.model, AnfisModel):
         return write_plots(prefix, j.model, samples.time_axis(), samples.y, j.y_hat,
                            j.clipped, title=f"{j.model.output.name}: {what}")
 
@@ -146,5 +145,5 @@ def _plots(prefix: str, judged: list[Any], samples: Any, what: str) -> list[str]
                          title=f"{judged[0].model.output.name}: {what}")
 
 
-def _json_float(v: Any) -> Any:
+def _json_float(v: object) -> Any:
     return None if isinstance(v, float) and not math.isfinite(v) else v

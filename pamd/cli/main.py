@@ -8,25 +8,33 @@ import logging
 import os
 import sys
 from collections.abc import Sequence
+from typing import Protocol
 
 from pamd.cli import check_config, collect, emulate, evaluate, recordings, run, service, train
+from pamd.cli import home as home_cli
 from pamd.cli import net as net_cli
 from pamd.cli import router as router_cli
+from pamd.cli import tare as tare_cli
 from pamd.cli import view as view_cli
 from pamd.errors import PamdError
 from pamd.version import __version__
 
-COMMANDS = (run, check_config, collect, recordings, emulate, train, evaluate, service)
 
-# Offline references on the configured rig (no daemon, no Zenoh).
-from pamd.cli import home as home_cli  # noqa: E402
-from pamd.cli import tare as tare_cli  # noqa: E402
+class SubCommand(Protocol):
+    """A sub-command module: it adds its parser (whose `func` runs it)."""
 
-COMMANDS += (home_cli, tare_cli)
+    def add_parser(self, sub: argparse._SubParsersAction) -> None: ...
 
-# Clients of a running daemon over Zenoh (status, cmd, watch) and the lab router.
-COMMANDS += (net_cli, router_cli)
-COMMANDS += (view_cli,)  # pamd plot (pamd.view)
+
+#: The sub-commands, in the order `pamd --help` lists them.
+COMMANDS: tuple[SubCommand, ...] = (
+    run, check_config, collect, recordings, emulate, train, evaluate, service,
+    # offline references on the configured rig (no daemon, no Zenoh)
+    home_cli, tare_cli,
+    # clients of a running daemon over Zenoh (status, cmd, watch) and the lab router
+    net_cli, router_cli,
+    view_cli,  # pamd plot (pamd.view)
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

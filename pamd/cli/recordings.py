@@ -10,7 +10,6 @@ import argparse
 import json
 import os
 import sys
-from typing import Any
 
 from pamd.errors import RecordingError
 from pamd.record import files
@@ -58,7 +57,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r.set_defaults(func=run_recover)
 
 
-def _ns(v: Any) -> str:
+def _ns(v: object) -> str:
     return "-" if v is None else str(v)
 
 

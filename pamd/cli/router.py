@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import signal
 import threading
-from typing import Any
+from types import FrameType
 
 from pamd.net import zconf
 from pamd.net.zconf import NoDaemon
@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
         raise NoDaemon(f"router: {zconf.open_error(exc, cfg)}") from None
     done = threading.Event()
 
-    def stop(signum: int, frame: Any) -> None:
+    def stop(signum: int, frame: FrameType | None) -> None:
         done.set()
 
     if threading.current_thread() is threading.main_thread():

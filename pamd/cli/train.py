@@ -13,8 +13,8 @@ from pamd.cli.evaluate import format_table
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.extraction import derived_inputs, load_samples
-from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
-from pamd.models.anfis.splitting import split
+from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
+from pamd.models.anfis.splitting import Split, split
 from pamd.models.anfis.training import TrainingOptions, fit
 from pamd.models.compare import predict_samples
 from pamd.models.registry import KINDS, save_model
@@ -183,8 +183,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Any,
-              parts: Any) -> int:
+def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Samples,
+              parts: Split) -> int:
     """Every kind but anfis: `pamd.models.training.fit_kind`, then the same report."""
     te = parts.test
     default_epochs = {"ts-fuzzy": 100 if args.tuner == "gd" else 60, "mlp": 500}
@@ -211,7 +211,8 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Any,
     finally:
         if bar is not None:
             bar.close()
-    rows = {k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
+    rows: dict[str, dict[str, float]] = {
+        k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
     if te is not None:
         if model.stateful:  # over whole runs, scored on the test rows
 

@@ -38,7 +38,7 @@ def _default(f: dataclasses.Field[Any]) -> str:
         if isinstance(d, bool):
             return str(d).lower()
         return f"`{d}`"
-    if f.default_factory is not MISSING:  # type: ignore[misc]
+    if f.default_factory is not MISSING:
         return "(section)" if dataclasses.is_dataclass(f.default_factory()) else "`{}`"
     return "**required**"
 
@@ -67,7 +67,7 @@ def _rows(cls: type, prefix: str, out: list[str]) -> None:
         out.append(f"| `{key}` | {_type_name(tp)}{b} | {unit} | {_default(f)} | {doc} |")
 
 
-def _dataclass_in(tp: Any) -> type | None:
+def _dataclass_in(tp: object) -> type | None:
     if dataclasses.is_dataclass(tp):
         return tp  # type: ignore[return-value]
     for arg in typing.get_args(tp):

@@ -19,6 +19,7 @@ from collections.abc import Callable
 
 import canopen
 from canopen import objectdictionary as od
+from canopen.sdo import SdoArray, SdoRecord, SdoVariable
 
 U8, U16, U32, I32 = (od.UNSIGNED8, od.UNSIGNED16, od.UNSIGNED32, od.INTEGER32)
 
@@ -117,7 +118,7 @@ class EmulatedEncoder:
         if silent:
             self.node.nmt.stop_heartbeat()
         else:
-            hb = self.node.sdo[0x1017].raw
+            hb = self._sdo_int(0x1017)
             if hb:
                 self.node.nmt.start_heartbeat(hb)
 
@@ -125,11 +126,24 @@ class EmulatedEncoder:
         self.network.send_message(0x80 + self.node_id,
                                   struct.pack("<HB5s", code, register, b"\x00" * 5))
 
+    def _sdo_int(self, index: int, subindex: int | None = None) -> int:
+        """The integer value of object `index` (sub-object `subindex`) in our dictionary."""
+        entry = self.node.sdo[index]
+        if subindex is not None:
+            if not isinstance(entry, (SdoRecord, SdoArray)):
+                raise TypeError(f"object 0x{index:04X} has no sub-objects")
+            entry = entry[subindex]
+        if not isinstance(entry, SdoVariable):
+            raise TypeError(f"object 0x{index:04X} is not a value")
+        value = entry.raw
+        if not isinstance(value, int):
+            raise TypeError(f"object 0x{index:04X} holds {value!r}, not an integer")
+        return value
+
     def _tpdo_enabled(self) -> tuple[bool, float]:
-        cob = self.node.sdo[0x1800][1].raw
-        timer_ms = self.node.sdo[0x1800][5].raw
-        mapped = self.node.sdo[0x1A00][0].raw >= 1 and \
-            self.node.sdo[0x1A00][1].raw == 0x60040020
+        cob = self._sdo_int(0x1800, 1)
+        timer_ms = self._sdo_int(0x1800, 5)
+        mapped = self._sdo_int(0x1A00, 0) >= 1 and self._sdo_int(0x1A00, 1) == 0x60040020
         ok = (not cob & 0x80000000 and mapped and timer_ms > 0
               and self.node.nmt.state == "OPERATIONAL")
         return ok, timer_ms / 1000.0 if timer_ms else 0.01
@@ -141,7 +155,7 @@ class EmulatedEncoder:
             next_t += period
             if ok and not self.silent:
                 data = struct.pack("<I", self.position())[: self.pdo_length]
-                cob = self.node.sdo[0x1800][1].raw & 0x7FF
+                cob = self._sdo_int(0x1800, 1) & 0x7FF
                 try:
                     self.network.send_message(cob, data)
                     self.sent += 1

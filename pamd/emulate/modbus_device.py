@@ -190,7 +190,8 @@ class EmulatedModbusDevice:
 
     # -- pymodbus's hook ----------------------------------------------------------------------
     async def _action(self, fc: int, start: int, address: int, count: int,
-                      registers: list[int], values: Any) -> ExcCodes | None:
+                      registers: list[int], values: list[int] | list[bool] | None
+                      ) -> ExcCodes | None:
         if self.hang_s > 0.0:
             await asyncio.sleep(self.hang_s)
             return ExcCodes.DEVICE_BUSY
@@ -216,7 +217,8 @@ class EmulatedModbusDevice:
                 registers[a - start] = t.get(a, 0)
         return None
 
-    def _apply_write(self, fn: str, address: int, values: Any) -> None:
+    def _apply_write(self, fn: str, address: int,
+                     values: list[int] | list[bool] | int) -> None:
         vals = values if isinstance(values, list) else [values]
         t = self.tables[fn]
         touched: dict[str, ModbusPoint] = {}

@@ -19,14 +19,19 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import threading
-from typing import Any
+from collections.abc import Coroutine
+from typing import Any, TypeVar
 
 from pamd.config.loader import LoadedConfig
+from pamd.drivers.can_frames import EncoderNode
+from pamd.drivers.canopen_encoder import CanEncoderOptions
+from pamd.drivers.modbus import ModbusOptions
 from pamd.emulate.modbus_device import EmulatedModbusDevice, serve_rtu, serve_tcp
 from pamd.emulate.physics import EmulatedPlant
 from pamd.emulate.ptys import PtyPair
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
+_T = TypeVar("_T")
 
 
 async def _cancel_all() -> None:
@@ -91,11 +96,11 @@ class EmulatedRig:
             p.close()
         self.plant.stop()
 
-    def _run(self, coro: Any) -> Any:
+    def _run(self, coro: Coroutine[Any, Any, _T]) -> _T:
         return asyncio.run_coroutine_threadsafe(coro, self._loop).result(10.0)
 
     # -- devices ----------------------------------------------------------------------------
-    def _start_modbus(self, name: str, o: Any) -> None:
+    def _start_modbus(self, name: str, o: ModbusOptions) -> None:
         plant = self.plant
         dev = EmulatedModbusDevice(
             o, source=lambda ch: plant.raw_input(name, ch),
@@ -124,7 +129,7 @@ class EmulatedRig:
                    if sig.driver == driver and sig.sample_period_s is not None]
         return max(periods, default=0.0)
 
-    def _start_can(self, name: str, o: Any) -> None:
+    def _start_can(self, name: str, o: CanEncoderOptions) -> None:
         import canopen
 
         from pamd.emulate.canopen_node import EmulatedEncoder
@@ -144,7 +149,7 @@ class EmulatedRig:
         self._networks.append(net)
         plant = self.plant
         for e in o.encoders:
-            def counts(e: Any = e) -> int:
+            def counts(e: EncoderNode = e) -> int:
                 mm = plant.raw_input(name, e.name)
                 return 0 if mm is None else round((mm - e.offset_mm) / e.mm_per_count)
 

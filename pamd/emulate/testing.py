@@ -15,14 +15,15 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_EMULATED = REPO / "config" / "rig-emulated.yaml"
+_T = TypeVar("_T")
 
 
 def free_port() -> int:
@@ -31,7 +32,7 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def wait_until(pred: Callable[[], Any], timeout_s: float = 10.0, step_s: float = 0.01) -> bool:
+def wait_until(pred: Callable[[], object], timeout_s: float = 10.0, step_s: float = 0.01) -> bool:
     """Poll `pred` until it is true or the (generous) timeout passes."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -49,7 +50,7 @@ class AioThread:
         self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
         self.thread.start()
 
-    def run(self, coro: Any, timeout_s: float = 10.0) -> Any:
+    def run(self, coro: Coroutine[Any, Any, _T], timeout_s: float = 10.0) -> _T:
         return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout_s)
 
     def stop(self) -> None:
@@ -91,7 +92,8 @@ def write_config(tmp: Path, data: dict[str, Any], name: str = "rig.yaml") -> Pat
     return path
 
 
-def start_emulator(config_path: str, *extra: str) -> tuple[Any, dict[str, Any]]:
+def start_emulator(config_path: str, *extra: str
+                   ) -> tuple[subprocess.Popen[str], dict[str, Any]]:
     """`pamd emulate --config FILE` in its own process; returns (process, ready line)."""
 
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -106,7 +108,7 @@ def start_emulator(config_path: str, *extra: str) -> tuple[Any, dict[str, Any]]:
     return proc, json.loads(line)
 
 
-def stop_emulator(proc: Any) -> dict[str, Any]:
+def stop_emulator(proc: subprocess.Popen[str]) -> dict[str, Any]:
     """SIGTERM, wait, and return its closing statistics line."""
 
     proc.send_signal(signal.SIGTERM)

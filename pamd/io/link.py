@@ -24,9 +24,10 @@ import time
 from array import array
 from collections import deque
 from collections.abc import Callable
+from multiprocessing.process import BaseProcess
 from typing import Any
 
-from pamd.commands import parse_command
+from pamd.commands import Command, parse_command
 from pamd.errors import CommandRefused, RecordingError
 from pamd.io.process import io_main
 from pamd.io.spec import IoSpec
@@ -39,9 +40,11 @@ from pamd.ipc.ring import (
     IO_DONE,
     IO_FAILED,
     IO_STARTING,
+    BlockLayout,
     SharedBlock,
 )
-from pamd.tick import I_TICK
+from pamd.summary import LocalMailbox
+from pamd.tick import I_TICK, Mailbox
 
 QUIET_TICKS = 1
 HELD_EVENTS_MAX = 4096  # events (a burst's verdicts) waiting for room in the ring, and
@@ -58,11 +61,13 @@ class IoLink:
     def __init__(self, spec: IoSpec, block: SharedBlock) -> None:
         self.spec = spec
         self.block = block
-        self.proc: Any = None
+        self.proc: BaseProcess | None = None
         self.closed = False
+        self._status: dict[str, Any] = {}  # the last status, kept once the block is closed
+        self._files: list[str] = []
 
     @classmethod
-    def create(cls, make_spec: Callable[[str], IoSpec], layout: Any) -> IoLink:
+    def create(cls, make_spec: Callable[[str], IoSpec], layout: BlockLayout) -> IoLink:
         block = SharedBlock(layout, create=True)
         return cls(make_spec(block.name), block)
 
@@ -70,22 +75,23 @@ class IoLink:
         """Spawn the io process and wait until it has opened its file (or failed)."""
 
         ctx = multiprocessing.get_context("spawn")  # never fork a process with threads
-        self.proc = ctx.Process(target=io_main, args=(self.spec,), name="pamd-io", daemon=True)
-        self.proc.start()
+        self.proc = proc = ctx.Process(target=io_main, args=(self.spec,), name="pamd-io",
+                                       daemon=True)
+        proc.start()
         t0 = time.monotonic()
         while self.block.get(C_IO_STATE) == IO_STARTING:
-            if not self.proc.is_alive():
+            if not proc.is_alive():
                 self._cleanup()
                 raise RecordingError(f"the io process exited at start (code "
-                                     f"{self.proc.exitcode})")
+                                     f"{proc.exitcode})")
             if time.monotonic() - t0 > timeout_s:
-                self.proc.kill()
+                proc.kill()
                 self._cleanup()
                 raise RecordingError(f"the io process did not start within {timeout_s:g} s")
             time.sleep(0.005)
         if self.block.get(C_IO_STATE) == IO_FAILED:
             err = self.block.error()
-            self.proc.join(5.0)
+            proc.join(5.0)
             self._cleanup()
             raise RecordingError(err)
 
@@ -95,6 +101,8 @@ class IoLink:
 
     @property
     def sentinel(self) -> int:
+        if self.proc is None:
+            raise RuntimeError("the io process was not started")
         return self.proc.sentinel
 
     def files(self) -> list[str]:
@@ -208,16 +216,17 @@ class RingSink:
             # the records, so status and telemetry show what the loop does now
             self.failure = self.block.error() or "the io process failed"
             self.on_failure("write", self.failure)
-        if record is not self._rec:
+        mv = self._mv
+        if record is not self._rec or mv is None:
             self._rec = record
-            self._mv = memoryview(record).cast("B")
+            self._mv = mv = memoryview(record).cast("B")
         if not self._started:
             self._ensure_start()
         if self._held:
             self._flush_held()
         if self._pending:
             self._flush_pending()
-        if not self.ring.put(self._mv):  # type: ignore[arg-type]
+        if not self.ring.put(mv):
             if not self.virtual:
                 if self._dropped == 0:
                     self._drop_first = int(record[I_TICK])
@@ -225,7 +234,7 @@ class RingSink:
                 self._drop_last = int(record[I_TICK])
                 self.lost_records += 1
                 return False
-            while not self.ring.put(self._mv):  # type: ignore[arg-type]
+            while not self.ring.put(mv):
                 if self._dead():
                     self._lose_io("death", f"the io process (pid {self.link.pid}) died")
                     return True
@@ -243,7 +252,7 @@ class RingSink:
         msg = (f"recording: the io ring was full, {n} tick record(s) lost (ticks {first}-"
                f"{last}; {self.lost_records} so far)")
         self.notify(msg)
-        self.event(self._rec[1] + self.t_start() if self._rec is not None else 0.0,  # type: ignore[index]
+        self.event(self._rec[1] + self.t_start() if self._rec is not None else 0.0,
                    "lost_records", {"count": n, "first_tick": first, "last_tick": last,
                                     "total": self.lost_records})
 
@@ -336,7 +345,7 @@ class RingMailbox:
         self.sink = sink
         self.now = now
 
-    def poll(self) -> Any | None:
+    def poll(self) -> Command | None:
         if self.ring.available() <= 0:
             return None
         blob = self.ring.get_blob()
@@ -366,13 +375,14 @@ class RingMailbox:
 class MultiMailbox:
     """Polls several mailboxes in order (local commands first)."""
 
-    def __init__(self, *boxes: Any) -> None:
-        self.boxes = boxes
+    def __init__(self, local: LocalMailbox, *others: Mailbox) -> None:
+        self.local = local
+        self.boxes: tuple[Mailbox, ...] = (local, *others)
 
-    def put(self, cmd: Any) -> None:
-        self.boxes[0].put(cmd)
+    def put(self, cmd: Command) -> None:
+        self.local.put(cmd)
 
-    def poll(self) -> Any | None:
+    def poll(self) -> Command | None:
         for b in self.boxes:
             cmd = b.poll()
             if cmd is not None:

@@ -48,7 +48,7 @@ VERDICT_SLEEP_S = 0.0001
 BATCH = 512
 
 
-class CommandPort:
+class RingCommandPort:
     """The io side of the command mailbox: send a command to the loop, get its verdict
     back (through the event ring) by id. The Zenoh session uses the same port, from
     its query callbacks' thread: `lock` makes it the ring's one producer at a time.
@@ -122,10 +122,10 @@ class IoProcess:
     def __init__(self, spec: IoSpec, block: SharedBlock) -> None:
         self.spec = spec
         self.block = block
-        self.recorder: Any = None
-        self.net: Any = None  # pamd.net.node.NetNode: telemetry and remote commands
-        self.viewer: Any = None  # pamd.view.live.LiveView: the Foxglove server
-        self.port = CommandPort(block)
+        self.recorder: Recorder | None = None
+        self.net: NetNode | None = None  # telemetry and remote commands
+        self.viewer: LiveView | None = None  # the Foxglove server
+        self.port = RingCommandPort(block)
         self.script = sorted(spec.script)
         self.rec_struct = struct.Struct(f"<{spec.layout.record_bytes // 8}d")
         self.last_tick = -1
@@ -252,7 +252,8 @@ class IoProcess:
             return 0
         n = min(avail, BATCH)
         if self.net is not None and self.recorder is not None:
-            self._control()  # after the ring's head: a collection's begin is in by now
+            # after the ring's head: a collection's begin is in by now
+            self._control(self.net, self.recorder)
         start = ring.tail
         unpack, buf = self.rec_struct.unpack_from, ring.buf
         rows = [unpack(buf, ring.slot_offset(seq)) for seq in range(start, start + n)]
@@ -308,16 +309,15 @@ class IoProcess:
                     self._fail("recording write failed", exc)
         return n, summary
 
-    def _control(self) -> None:
+    def _control(self, net: NetNode, rec: Recorder) -> None:
         """Recording control from the daemon's main thread (pamd.record.control)."""
-        board = self.net.board
-        rec = self.recorder
+        board = net.board
         while board is not None and (blob := board.control.get_blob()) is not None:
             rec.control(json.loads(blob))
         if rec.notices:
-            self._notify(rec, self.net.last_t_s)
+            self._notify(rec, net.last_t_s)
 
-    def _notify(self, rec: Any, t_s: float) -> None:
+    def _notify(self, rec: Recorder, t_s: float) -> None:
         """The recorder's notices: to the daemon's main thread, and published."""
         for msg in rec.notices:
             if self.net is not None:

@@ -14,18 +14,30 @@ import logging
 import os
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
+from pamd.calibration import Calibration
 from pamd.io.link import IoLink, MultiMailbox, RingMailbox, RingSink
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import BlockLayout, pow2_at_least
 from pamd.net.board import Board
 from pamd.net.host import NetHost
+from pamd.net.seams import DaemonView
 from pamd.net.spec import NetSpec, TelemetryRequest
 from pamd.net.spec import resolve as resolve_net
 from pamd.record.meta import build_record_spec
+from pamd.tick import TickLayout
 from pamd.view.spec import ViewerSpec
 from pamd.view.spec import resolve as resolve_viewer
+
+
+class DaemonParts(DaemonView, Protocol):
+    """What an io session uses of the daemon (`pamd.daemon.Daemon`, a layer above)."""
+
+    @property
+    def layout(self) -> TickLayout: ...
+    @property
+    def calibration(self) -> Calibration: ...
 
 
 @dataclass(frozen=True)
@@ -43,7 +55,7 @@ class RecordingRequest:
 
 
 class IoSession:
-    def __init__(self, daemon: Any, req: RecordingRequest, record_dir: str | None,
+    def __init__(self, daemon: DaemonParts, req: RecordingRequest, record_dir: str | None,
                  net: NetSpec | None = None, viewer: ViewerSpec | None = None) -> None:
         self.daemon = daemon
         cfg = daemon.cfg
@@ -89,7 +101,7 @@ class IoSession:
         loop.mailbox = MultiMailbox(daemon.mailbox, self.mailbox)
 
     @classmethod
-    def attach(cls, daemon: Any, req: RecordingRequest | None,
+    def attach(cls, daemon: DaemonParts, req: RecordingRequest | None,
                telemetry: TelemetryRequest | None = None) -> IoSession | None:
         """An io process when the run records, publishes (telemetry), or both."""
         req = req or RecordingRequest()

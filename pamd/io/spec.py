@@ -7,7 +7,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from pamd.ipc.ring import BlockLayout
+from pamd.net.spec import NetSpec
 from pamd.record.spec import RecordSpec
+from pamd.view.spec import ViewerSpec
 
 
 @dataclass(frozen=True)
@@ -24,8 +26,8 @@ class IoSpec:
     record: RecordSpec | None
     # Commands the io process sends to the loop at a given tick: (tick, verb, payload).
     # The Zenoh session will be the real source; this one proves the path end to end.
-    script: tuple[tuple[int, str, dict], ...] = ()
-    # Telemetry and remote commands (pamd.net.spec.NetSpec); None: no Zenoh session.
-    net: Any = None
-    # The live Foxglove view (pamd.view.spec.ViewerSpec); None: no Foxglove server.
-    viewer: Any = None
+    script: tuple[tuple[int, str, dict[str, Any]], ...] = ()
+    # Telemetry and remote commands; None: no Zenoh session.
+    net: NetSpec | None = None
+    # The live Foxglove view; None: no Foxglove server.
+    viewer: ViewerSpec | None = None

@@ -21,7 +21,7 @@ import contextlib
 import struct
 from dataclasses import dataclass
 from multiprocessing import shared_memory
-from typing import Any
+from typing import Protocol
 
 MAGIC = 0x31444D4150  # "PAMD1"
 CTRL_BYTES = 4096
@@ -156,14 +156,13 @@ class SharedBlock:
         self.layout = layout
         if create:
             self.shm = shared_memory.SharedMemory(create=True, size=layout.total_bytes)
-            # touch every page now, so the loop never page-faults on a fresh slot
-            self.shm.buf[:layout.total_bytes] = bytes(layout.total_bytes)
         else:
             self.shm = shared_memory.SharedMemory(name=name)
         self.owner = create
-        self.buf = self.shm.buf
-        self.u64 = self.buf.cast("Q")
+        self.buf, self.u64 = mapped_views(self.shm)
         if create:
+            # touch every page now, so the loop never page-faults on a fresh slot
+            self.buf[:layout.total_bytes] = bytes(layout.total_bytes)
             for off in (layout.tick_off, layout.event_off, layout.command_off):
                 self.buf[off:off + RING_HDR_BYTES] = bytes(RING_HDR_BYTES)
             self.u64[C_MAGIC] = MAGIC
@@ -229,18 +228,30 @@ class SharedBlock:
 
     def close(self) -> None:
         """Release our mapping (and remove the block if we created it)."""
-        release_block(self, (self.ticks, self.events, self.commands))
+        release_block(self)
 
 
-def release_block(block: Any, rings: tuple[Any, ...]) -> None:
-    """Drop every view into a shared-memory block (its rings' and its own), close it,
-    and remove it if this side created it (`block.owner`)."""
-    for r in rings:
-        r.buf = r.u64 = None
+class MappedBlock(Protocol):
+    """A shared-memory block with its byte view and its 64-bit view."""
+
+    shm: shared_memory.SharedMemory
+    owner: bool
+    u64: memoryview
+
+
+def mapped_views(shm: shared_memory.SharedMemory) -> tuple[memoryview, memoryview]:
+    """The block's byte view and its 64-bit view (the rings' counters)."""
+    buf = shm.buf
+    if buf is None:
+        raise RuntimeError(f"shared block {shm.name!r} is already closed")
+    return buf, buf.cast("Q")
+
+
+def release_block(block: MappedBlock) -> None:
+    """Release every view into a shared-memory block (its rings share the block's
+    views), close it, and remove it if this side created it (`block.owner`)."""
     block.u64.release()
-    block.u64 = None
-    block.buf = None
-    block.shm.close()
+    block.shm.close()  # releases the byte view
     if block.owner:
         with contextlib.suppress(FileNotFoundError):
             block.shm.unlink()

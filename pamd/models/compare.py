@@ -101,7 +101,7 @@ def predict_samples(model: InverseModel, X: np.ndarray,
                     run: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(y_hat, clipped) on rows X; a stateful model starts afresh on each run."""
     if not model.stateful or run is None:
-        return model.predict(X, return_clipped=True)  # type: ignore[return-value]
+        return model.predict(X, return_clipped=True)
     y = np.empty(X.shape[0])
     clipped = np.zeros(X.shape[0], dtype=bool)
     for r in np.unique(run):
@@ -160,5 +160,5 @@ def format_comparison(rows: Sequence[Judged], out: TextIO | None = None) -> None
         print(f"  {name:<{w}}" + "".join(cells), file=out)
 
 
-def _json_float(v: Any) -> Any:
+def _json_float(v: object) -> Any:
     return None if isinstance(v, float) and not math.isfinite(v) else v

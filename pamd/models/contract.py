@@ -24,9 +24,9 @@ numpy call, no allocation beyond a few floats, so it fits the 1 kHz tick.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Literal, Protocol, overload, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -77,8 +77,12 @@ class CompiledModel(Protocol):
     clipped_mask: int
     input_names: tuple[str, ...]
 
-    def evaluate(self, *x: float) -> float: ...
-    def reset(self, *x: float) -> None: ...
+    # Both take one float per input, in `input_names` order; a kind may build them as
+    # closures with named parameters, so their arity is the model's, not fixed here.
+    @property
+    def evaluate(self) -> Callable[..., float]: ...
+    @property
+    def reset(self) -> Callable[..., None]: ...
 
 
 @runtime_checkable
@@ -97,8 +101,13 @@ class InverseModel(Protocol):
     @property
     def stateful(self) -> bool: ...
 
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]: ...
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
+                ) -> np.ndarray: ...
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
+                ) -> tuple[np.ndarray, np.ndarray]: ...
+
     def compile(self) -> CompiledModel: ...
     def describe(self) -> dict[str, Any]: ...
     def problems(self, envelope: Envelope) -> list[str]: ...
@@ -169,5 +178,5 @@ def clip_inputs(inputs: Sequence[Variable], X: ArrayLike) -> tuple[np.ndarray, n
     lo = np.array([v.min for v in inputs])
     hi = np.array([v.max for v in inputs])
     Xc = np.clip(Xa, lo, hi)
-    clipped = ((Xa < lo) | (Xa > hi)).any(axis=1)
+    clipped = np.asarray(((Xa < lo) | (Xa > hi)).any(axis=1))
     return Xc, clipped

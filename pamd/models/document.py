@@ -20,19 +20,20 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any
+from collections.abc import Iterable
+from typing import Any, NoReturn, SupportsFloat, TypeGuard
 
 from pamd.errors import ModelError
-from pamd.models.contract import Variable
+from pamd.models.contract import InverseModel, Variable
 
 FORMAT = "pamd-model"
 
 
-def floats(values: Any) -> list[float]:
+def floats(values: Iterable[SupportsFloat]) -> list[float]:
     return [float(v) for v in values]
 
 
-def plain(obj: Any) -> Any:
+def plain(obj: object) -> Any:
     """Free-form dicts -> JSON-safe values (numpy scalars/arrays, non-finite -> null)."""
     if isinstance(obj, dict):
         return {str(k): plain(v) for k, v in obj.items()}
@@ -47,7 +48,7 @@ def plain(obj: Any) -> Any:
     return str(obj)
 
 
-def format_json(obj: Any, level: int, in_list: bool = False) -> str:
+def format_json(obj: object, level: int, in_list: bool = False) -> str:
     """JSON text: objects (to depth 3, not inside lists) and lists holding objects or
     lists span lines; other lists and list items stay on one line each."""
     pad, inner = "  " * level, "  " * (level + 1)
@@ -60,17 +61,23 @@ def format_json(obj: Any, level: int, in_list: bool = False) -> str:
     return json.dumps(obj, allow_nan=False)
 
 
-def _is_nested_list(obj: Any) -> bool:
+def _is_nested_list(obj: object) -> TypeGuard[list[Any]]:
     return isinstance(obj, list) and any(isinstance(v, (dict, list)) for v in obj)
 
 
-def _reject_constant(name: str) -> Any:
+def _reject_constant(name: str) -> NoReturn:
     raise ValueError(f"non-finite number {name}")
 
 
-def field(doc: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+def mapping(doc: object, where: str) -> dict[str, Any]:
+    """`doc` as a JSON object; ModelError if it is not one."""
     if not isinstance(doc, dict):
         raise ModelError(f"{where or 'document'}: expected an object")
+    return doc
+
+
+def field(doc: object, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+    doc = mapping(doc, where)
     if key not in doc:
         raise ModelError(f"missing field {where + '.' if where else ''}{key}")
     value = doc[key]
@@ -83,7 +90,7 @@ def field(doc: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
     return value
 
 
-def numbers(doc: Any, key: str, where: str, length: int | None = None) -> list[float]:
+def numbers(doc: object, key: str, where: str, length: int | None = None) -> list[float]:
     values = field(doc, key, list, where)
     label = f"{where}.{key}" if where else key
     for v in values:
@@ -96,7 +103,7 @@ def numbers(doc: Any, key: str, where: str, length: int | None = None) -> list[f
     return [float(v) for v in values]
 
 
-def variable(doc: Any, where: str) -> Variable:
+def variable(doc: object, where: str) -> Variable:
     lo, hi = numbers(doc, "range", where, 2)
     return Variable(field(doc, "name", str, where), field(doc, "unit", str, where), lo, hi)
 
@@ -111,7 +118,7 @@ def parse_json(text: str, source: str) -> Any:
         raise ModelError(f"model file {source}: not valid JSON{hint}: {exc}") from exc
 
 
-def header(model: Any, kind: str, version: int) -> dict[str, Any]:
+def header(model: InverseModel, kind: str, version: int) -> dict[str, Any]:
     """The common part of a kind's document (parameters go in between)."""
     return {
         "format": FORMAT, "kind": kind, "version": version,
@@ -123,15 +130,16 @@ def header(model: Any, kind: str, version: int) -> dict[str, Any]:
     }
 
 
-def footer(model: Any) -> dict[str, Any]:
+def footer(model: InverseModel) -> dict[str, Any]:
     return {"provenance": plain(model.provenance), "metrics": plain(model.metrics)}
 
 
-def read_header(doc: Any, kind: str, version: int
+def read_header(doc: object, kind: str, version: int
                 ) -> tuple[list[Variable], Variable, dict[str, Any], dict[str, Any],
                            dict[str, Any], dict[str, Any]]:
     """(inputs, output, derived_inputs, parameters, provenance, metrics) of a document
     of `kind`, its version checked."""
+    doc = mapping(doc, "")
     got = field(doc, "version", int, "")
     if got != version:
         raise ModelError(f"{kind} model version {got} is not supported (this pamd reads "

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -97,6 +97,12 @@ class LearnedModel:
     def n_support_vectors(self) -> int:
         return int(self.params["alpha"].size) if self.kind == "svr" else 0
 
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
+                ) -> np.ndarray: ...
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
+                ) -> tuple[np.ndarray, np.ndarray]: ...
     def predict(self, X: ArrayLike, *, return_clipped: bool = False
                 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         Xc, clipped = clip_inputs(self.inputs, X)
@@ -209,7 +215,7 @@ class CompiledLearned:
         """Nothing to reset: the model has no state."""
 
 
-def from_dict(doc: Any) -> LearnedModel:
+def from_dict(doc: object) -> LearnedModel:
     kind = field(doc, "kind", str, "")
     inputs, output, derived, params, prov, metrics = read_header(doc, kind, VERSION)
     d = len(inputs)

@@ -35,7 +35,7 @@ is held to it and flagged (clipped), and so is a pressure outside [p0, pm].
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -43,7 +43,7 @@ from numpy.typing import ArrayLike
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import Envelope, Variable, describe_common, tick_problems
-from pamd.models.document import field, footer, header, numbers, read_header
+from pamd.models.document import field, footer, header, mapping, numbers, read_header
 
 VERSION = 1
 DEFAULT_OPERATORS = 10  # Na = Nb (seed 003)
@@ -100,7 +100,8 @@ class Qupi:
                 "weights": self.weights.tolist(), "q": self.q, "c": self.c}
 
     @classmethod
-    def from_doc(cls, doc: Any, where: str) -> Qupi:
+    def from_doc(cls, doc: object, where: str) -> Qupi:
+        doc = mapping(doc, where)
         x0, xm = numbers(doc, "x_range", where, 2)
         y0, ym = numbers(doc, "y_range", where, 2)
         r1, r2 = numbers(doc, "r1", where), numbers(doc, "r2", where)
@@ -137,6 +138,12 @@ class QupiModel:
     def n_params(self) -> int:
         return int(self.inverse.weights.size + 2)
 
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
+                ) -> np.ndarray: ...
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
+                ) -> tuple[np.ndarray, np.ndarray]: ...
     def predict(self, X: ArrayLike, *, return_clipped: bool = False
                 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Pressures along a sequence of lengths (rows in time order), starting from a
@@ -183,7 +190,7 @@ class CompiledQupi:
     def __init__(self, model: QupiModel) -> None:
         self.clipped = False
         self.clipped_mask = 0
-        self.input_names = ("length_mm",)
+        self.input_names: tuple[str, ...] = ("length_mm",)
         inv = model.inverse
         x0, xm, y0, dy = inv.x0, inv.xm, inv.y0, inv.ym - inv.y0
         ym = inv.ym
@@ -250,7 +257,7 @@ class CompiledQupi:
         reset(ref - x0)
 
 
-def from_dict(doc: Any) -> QupiModel:
+def from_dict(doc: object) -> QupiModel:
     inputs, output, derived, params, prov, metrics = read_header(doc, "qupi", VERSION)
     ref = numbers({"v": [params.get("length_ref_mm")]}, "v", "parameters.length_ref_mm", 1)[0]
     inv = Qupi.from_doc(field(params, "inverse", dict, "parameters"), "parameters.inverse")

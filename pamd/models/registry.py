@@ -59,7 +59,7 @@ KINDS: dict[str, Kind] = {k.name: k for k in (
 )}
 
 
-def kind_of(doc: Any) -> str:
+def kind_of(doc: object) -> str:
     """The kind a parsed model file says it is (ANFIS files need not say)."""
     if not isinstance(doc, Mapping):
         raise ModelError("expected a JSON object")
@@ -74,7 +74,7 @@ def kind_of(doc: Any) -> str:
     return kind
 
 
-def model_from_dict(doc: Any, source: str = "<document>") -> InverseModel:
+def model_from_dict(doc: object, source: str = "<document>") -> InverseModel:
     """A model from a parsed model file; `ModelError` names `source` and the field."""
     try:
         return KINDS[kind_of(doc)].from_dict(doc)

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -101,6 +101,12 @@ class StaticForceModel:
                            100.0 * np.asarray(contraction, dtype=np.float64))
         return A * np.asarray(p_bar, dtype=np.float64) + B
 
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
+                ) -> np.ndarray: ...
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
+                ) -> tuple[np.ndarray, np.ndarray]: ...
     def predict(self, X: ArrayLike, *, return_clipped: bool = False
                 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Pressure (bar) for rows (force_n, contraction), inputs and output held to their
@@ -203,7 +209,7 @@ class CompiledStaticForce:
         """Nothing to reset: the model has no state."""
 
 
-def from_dict(doc: Any) -> StaticForceModel:
+def from_dict(doc: object) -> StaticForceModel:
     kind = field(doc, "kind", str, "")
     inputs, output, derived, params, prov, metrics = read_header(doc, kind, VERSION)
     co_doc = field(params, "coefficients", dict, "parameters")

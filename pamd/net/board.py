@@ -23,7 +23,7 @@ import struct
 import time
 from multiprocessing import shared_memory
 
-from pamd.ipc.ring import RING_HDR_BYTES, Ring, release_block
+from pamd.ipc.ring import RING_HDR_BYTES, Ring, mapped_views, release_block
 
 MAGIC = 0x44524F4244AD  # "pamd board"
 HDR_BYTES = 1024
@@ -47,13 +47,12 @@ class Board:
     def __init__(self, name: str | None = None, create: bool = False) -> None:
         if create:
             self.shm = shared_memory.SharedMemory(create=True, size=TOTAL_BYTES)
-            self.shm.buf[:TOTAL_BYTES] = bytes(TOTAL_BYTES)
         else:
             self.shm = shared_memory.SharedMemory(name=name)
         self.owner = create
-        self.buf = self.shm.buf
-        self.u64 = self.buf.cast("Q")
+        self.buf, self.u64 = mapped_views(self.shm)
         if create:
+            self.buf[:TOTAL_BYTES] = bytes(TOTAL_BYTES)
             self.u64[U_MAGIC] = MAGIC
         elif self.u64[U_MAGIC] != MAGIC:
             raise RuntimeError(f"shared block {name!r} is not a pamd status board")
@@ -109,4 +108,4 @@ class Board:
                                                                                "replace")
 
     def close(self) -> None:
-        release_block(self, (self.requests, self.replies, self.control))
+        release_block(self)

@@ -40,6 +40,7 @@ from pamd.errors import CommandRefused, ConfigError, PamdError
 from pamd.experiment.manifest import Manifest, collection_name, step_records
 from pamd.experiment.plan import Plan
 from pamd.experiment.timeline import simulated_loads, timeline
+from pamd.net.seams import DaemonView
 from pamd.record import control
 
 log = logging.getLogger("pamd")
@@ -74,7 +75,7 @@ class Collection:
 class Collections:
     """The daemon's collections started over the network, one at a time."""
 
-    def __init__(self, daemon: Any, record_dir: str | None,
+    def __init__(self, daemon: DaemonView, record_dir: str | None,
                  send: Callable[[bytes], bool]) -> None:
         self.d = daemon
         self.record_dir = os.path.abspath(record_dir) if record_dir else None

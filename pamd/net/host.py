@@ -22,10 +22,12 @@ from typing import Any
 
 from pamd.commands import Command, named_files, parse_command, prepare_command
 from pamd.commands.schema import args_for_record
+from pamd.config.loader import LoadedConfig
 from pamd.errors import CommandRefused, PamdError
-from pamd.experiment.plan import parse_plan
+from pamd.experiment.plan import Plan, parse_plan
 from pamd.net.board import Board
 from pamd.net.collections import Collection, Collections
+from pamd.net.seams import DaemonView
 from pamd.net.status import StatusBuilder, jsonsafe
 
 log = logging.getLogger("pamd")
@@ -51,7 +53,7 @@ class _Pending:
 
 
 class NetHost:
-    def __init__(self, daemon: Any, board: Board, status_hz: float,
+    def __init__(self, daemon: DaemonView, board: Board, status_hz: float,
                  record_dir: str | None = None) -> None:
         """`record_dir`: where the daemon records (None: it does not, and a collect is
         refused)."""
@@ -146,7 +148,7 @@ class NetHost:
         finally:
             self._reply(rid, verdict)
 
-    def _prepare(self, verb: str, payload: Any, sender: str, user: str,
+    def _prepare(self, verb: str, payload: object, sender: str, user: str,
                  p: _Pending) -> Command:
         """The command ready for the loop, its file read and checked here (collect: the
         plan; model: the model), only by name from the directory the config allows."""
@@ -169,7 +171,7 @@ class NetHost:
         return cmd
 
 
-def read_plan(name: str, cfg: Any) -> tuple[Any, str]:
+def read_plan(name: str, cfg: LoadedConfig) -> tuple[Plan, str]:
     """A remote collect's plan: file `name` in `telemetry.plans_dir`, within the limits
     (`pamd.commands.named_files`), parsed and checked against the rig; the refusal
     names file, line and key and never quotes the file."""

@@ -30,7 +30,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 from pamd.commands import REGISTRY, parse_command
 from pamd.commands.schema import (
@@ -44,6 +44,7 @@ from pamd.net import zconf
 from pamd.net.board import Board
 from pamd.net.keys import Keys
 from pamd.net.ratelimit import RateLimiter
+from pamd.net.seams import CommandPort, LoopStart, Query, RunClock, Verdict
 from pamd.net.spec import NetSpec
 from pamd.net.stats import TickStats
 from pamd.net.status import jsonsafe
@@ -65,8 +66,14 @@ LIVE_STALE_MIN_S, LIVE_STALE_TICKS = 0.5, 50  # tick records older are stale
 RecordFn = Callable[[float, str, dict[str, Any]], None]
 
 
+class _Declared(Protocol):
+    """A publisher or queryable of the session."""
+
+    def undeclare(self) -> None: ...
+
+
 class NetNode:
-    def __init__(self, spec: NetSpec, io_spec: Any, block: Any, port: Any,
+    def __init__(self, spec: NetSpec, io_spec: RunClock, block: LoopStart, port: CommandPort,
                  record: RecordFn) -> None:
         self.spec = spec
         self.io_spec = io_spec
@@ -85,7 +92,7 @@ class NetNode:
         self.board: Board | None = None
         self.token: Any = None
         self.lock = port.lock  # one lock for the mailbox, the board and the queries
-        self.waiting: dict[int, tuple[Any, float, str, int | None]] = {}
+        self.waiting: dict[int, tuple[Query, float, str, int | None]] = {}
         self.to_record: deque[tuple[float, str, dict[str, Any]]] = deque()
         self.to_main: deque[bytes] = deque()  # notices for the daemon's main thread
         self.closing = False
@@ -148,7 +155,9 @@ class NetNode:
         self.session = None
 
         def _close() -> None:
-            for e in (self.status_q, self.cmd_q, self.events_pub, *self.pubs):
+            declared: list[_Declared] = [self.status_q, self.cmd_q, self.events_pub,
+                                         *self.pubs]
+            for e in declared:
                 with contextlib.suppress(Exception):
                     e.undeclare()
             s.close()
@@ -267,7 +276,7 @@ class NetNode:
             self.record(*self.to_record.popleft())
 
     # -- status ---------------------------------------------------------------------------
-    def _on_status(self, q: Any) -> None:
+    def _on_status(self, q: Query) -> None:
         """Zenoh's callback thread."""
         with self.lock:
             try:
@@ -276,7 +285,7 @@ class NetNode:
                 self._send(q, self.keys.status, json.dumps(
                     {"ok": False, "error": f"status failed: {exc!r}"}).encode())
 
-    def _status(self, q: Any) -> None:
+    def _status(self, q: Query) -> None:
         self.counts["status_queries"] += 1
         got = self.board.read_status() if self.board is not None else None
         if got is None:
@@ -331,7 +340,7 @@ class NetNode:
                 d["mode"] = Mode(int(row[base + self.i_mode])).name.lower()
             d["flags"] = int(row[base + self.i_flags])
 
-    def _send(self, q: Any, key: str, body: bytes) -> None:
+    def _send(self, q: Query, key: str, body: bytes) -> None:
         try:
             q.reply(key, body, encoding="application/json")
         except Exception:
@@ -340,7 +349,7 @@ class NetNode:
             q.drop()
 
     # -- commands ---------------------------------------------------------------------------
-    def _refuse(self, q: Any, key: str, verb: str, args: Any, sender: str, user: str,
+    def _refuse(self, q: Query, key: str, verb: str, args: bytes, sender: str, user: str,
                 error: str, record: bool = True) -> None:
         self.counts["refused_here"] += 1
         verdict = {"ok": False, "error": error}
@@ -353,7 +362,7 @@ class NetNode:
             self._publish_event("command", data, None if t0 is None else now - t0)
         self._send(q, key, json.dumps(verdict).encode())
 
-    def _on_command(self, q: Any) -> None:
+    def _on_command(self, q: Query) -> None:
         """Zenoh's callback thread: refused at once, or into the loop's mailbox."""
         with self.lock:
             try:
@@ -368,7 +377,7 @@ class NetNode:
                     self._send(q, str(q.key_expr), json.dumps(
                         {"ok": False, "error": error}).encode())
 
-    def _command(self, q: Any, now: float) -> None:
+    def _command(self, q: Query, now: float) -> None:
         self.counts["commands"] += 1
         key = str(q.key_expr)
         verb = Keys.last_chunk(key)
@@ -435,12 +444,14 @@ class NetNode:
                 self._resolve(k, {"ok": False, "error": "the daemon is busy (request queue "
                                   "full); try again"})
             return
-        cid = self.port.send(verb, payload, sender, user,
-                             on_verdict=lambda v, _k=k: self._resolve(_k, v))
+        def on_verdict(verdict: Verdict, _k: int = k) -> None:
+            self._resolve(_k, verdict)
+
+        cid = self.port.send(verb, payload, sender, user, on_verdict=on_verdict)
         if cid is not None and k in self.waiting:
             self.waiting[k] = (q, deadline, verb, cid)
 
-    def _resolve(self, k: int, verdict: dict[str, Any]) -> None:
+    def _resolve(self, k: int, verdict: Verdict) -> None:
         entry = self.waiting.pop(k, None)
         if entry is None:
             return  # answered already (timed out)

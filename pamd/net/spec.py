@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Any
 
+from pamd.config.loader import LoadedConfig
 from pamd.config.names import check_chunk
 from pamd.errors import ConfigError, ConfigIssue
 from pamd.net import zconf
@@ -39,7 +39,7 @@ class NetSpec:
     board_name: str = ""  # the shared status board (pamd.net.board), set at creation
 
 
-def resolve(cfg: Any, req: TelemetryRequest | None) -> NetSpec | None:
+def resolve(cfg: LoadedConfig, req: TelemetryRequest | None) -> NetSpec | None:
     """The io process's telemetry spec, or None when telemetry is off (by the request,
     by `telemetry.enabled`, or, when that is null, by the virtual clock). A bad Zenoh
     config file or a rig id that cannot be a key is refused here, before anything

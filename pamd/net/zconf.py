@@ -13,13 +13,23 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Any
+from typing import Any, Protocol, TypeVar
 
 from pamd.errors import ConfigError, ConfigIssue, PamdError
 from pamd.net.tlsprobe import diagnose, listen_error
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 SCOUTING_KEYS = ("scouting/multicast/enabled", "scouting/gossip/enabled")
+
+
+class ZenohConfig(Protocol):
+    """What is read and set here of a `zenoh.Config`."""
+
+    def get_json(self, key: str) -> Any: ...
+    def insert_json5(self, key: str, value: str) -> Any: ...
+
+
+_Config = TypeVar("_Config", bound=ZenohConfig)
 
 
 class NoDaemon(PamdError):
@@ -49,11 +59,11 @@ def load_file(path: str) -> Any:
         raise _issue(path, "a valid Zenoh config (JSON5)", str(exc).split(" at /")[0]) from None
 
 
-def get(cfg: Any, key: str) -> Any:
+def get(cfg: ZenohConfig, key: str) -> Any:
     return json.loads(cfg.get_json(key))
 
 
-def secure(cfg: Any) -> Any:
+def secure(cfg: _Config) -> _Config:
     """Multicast and gossip scouting off unless the config set them itself."""
     for key in SCOUTING_KEYS:
         if get(cfg, key) is None:
@@ -61,7 +71,7 @@ def secure(cfg: Any) -> Any:
     return cfg
 
 
-def endpoints(cfg: Any, which: str) -> list[str]:
+def endpoints(cfg: ZenohConfig, which: str) -> list[str]:
     eps = get(cfg, f"{which}/endpoints")
     if isinstance(eps, dict):  # per-mode endpoints: {router: [...], peer: [...], ...}
         eps = eps.get(get(cfg, "mode") or "peer") or []
@@ -127,7 +137,7 @@ def router_config(file: str) -> Any:
     return secure(cfg)
 
 
-def open_error(exc: BaseException, cfg: Any) -> str:
+def open_error(exc: BaseException, cfg: ZenohConfig) -> str:
     """What an operator needs to read when a session does not open."""
     text = str(exc).split(" at /")[0]
     if "Address already in use" in text or "address in use" in text.lower():
@@ -145,7 +155,7 @@ def open_error(exc: BaseException, cfg: Any) -> str:
     return listen_error(text, get(cfg, "transport/link/tls/listen_certificate")) or text
 
 
-def _tls_why(cfg: Any) -> str | None:
+def _tls_why(cfg: ZenohConfig) -> str | None:
     """Which side refused a `tls/` connection and why (`pamd.net.tlsprobe`)."""
 
     tls = [e for e in endpoints(cfg, "connect") if e.startswith("tls/")]

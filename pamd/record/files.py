@@ -134,20 +134,24 @@ def iter_messages(path: str) -> Iterator[tuple[Channel, Schema | None, Message]]
 
 
 # -- decoding ------------------------------------------------------------------------
+#: a channel's column names, and the struct of its CDR payload (None for JSON)
+_ChannelLayout = tuple[list[str], struct.Struct | None]
+
+
 class Decoder:
     """Per-channel decoding to a flat dict: flat ros2msg CDR by struct, JSON by json."""
 
     def __init__(self) -> None:
-        self._cache: dict[int, Any] = {}
+        self._cache: dict[int, _ChannelLayout | None] = {}
 
     def columns(self, ch: Channel, schema: Schema | None) -> list[str] | None:
         d = self._get(ch, schema)
         return None if d is None else d[0]
 
-    def _get(self, ch: Channel, schema: Schema | None) -> Any:
+    def _get(self, ch: Channel, schema: Schema | None) -> _ChannelLayout | None:
         if ch.id in self._cache:
             return self._cache[ch.id]
-        d = None
+        d: _ChannelLayout | None = None
         if ch.message_encoding == "cdr" and schema is not None and schema.encoding == "ros2msg":
             fields = cdr.parse_flat_schema(schema.data.decode("utf-8", "replace"))
             if fields:
@@ -239,10 +243,13 @@ def inspect(path: str) -> dict[str, Any]:
     }
 
 
-def _int(v: Any, default: int) -> int:
+def _int(v: object, default: int) -> int:
+    """A JSON value as an integer, or `default` where it is not one."""
+    if not isinstance(v, (int, float, str)):
+        return default
     try:
         return int(v)
-    except (TypeError, ValueError):
+    except ValueError:
         return default
 
 

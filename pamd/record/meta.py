@@ -18,7 +18,7 @@ from pamd.record.spec import RecordSpec
 from pamd.version import __version__
 
 
-def _s(v: Any) -> str:
+def _s(v: object) -> str:
     return v if isinstance(v, str) else json.dumps(v, default=str)
 
 

@@ -44,7 +44,7 @@ EVENT_SCHEMA = {
 }
 
 
-def sanitize(x: Any) -> Any:
+def sanitize(x: object) -> Any:
     """JSON-safe copy: non-finite floats become null (Foxglove parses strict JSON)."""
     if isinstance(x, float):
         return x if math.isfinite(x) else None

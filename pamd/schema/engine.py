@@ -24,8 +24,12 @@ from typing import Any, Literal, Union
 from pamd.errors import ConfigError, ConfigIssue
 from pamd.schema.yamlload import LinedDict, LinedList
 
+#: A field's type as the schema writes it: a class (bool, int, float, str, a dataclass),
+#: `X | None`, `Literal[...]`, `tuple[X, ...]`, `dict[str, Any]` or `Any`.
+SchemaType = object
 
-def spec(default: Any = MISSING, doc: str = "", **meta: Any) -> Any:
+
+def spec(default: object = MISSING, doc: str = "", **meta: object) -> Any:
     """A schema field: `spec(1000.0, "Loop rate.", unit="Hz", gt=0)`."""
     meta["doc"] = doc
     if isinstance(default, (list, dict)):
@@ -52,7 +56,7 @@ class Context:
             raise ConfigError(self.issues)
 
 
-def describe(value: Any) -> str:
+def describe(value: object) -> str:
     """How a found value is shown to the operator."""
     if value is None:
         return "nothing (null)"
@@ -67,7 +71,7 @@ def describe(value: Any) -> str:
     return repr(value)
 
 
-def _type_name(tp: Any) -> str:
+def _type_name(tp: SchemaType) -> str:
     if tp is Any:
         return "a mapping (checked by its owner)"
     origin = typing.get_origin(tp)
@@ -82,9 +86,9 @@ def _type_name(tp: Any) -> str:
         return "a mapping"
     if dataclasses.is_dataclass(tp):
         return "a mapping"
-    return {bool: "true or false", int: "an integer", float: "a number", str: "text"}.get(
-        tp, str(tp)
-    )
+    names: dict[object, str] = {bool: "true or false", int: "an integer", float: "a number",
+                                str: "text"}
+    return names.get(tp, str(tp))
 
 
 def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
@@ -102,7 +106,7 @@ def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
     return " and ".join(parts)
 
 
-def build(tp: Any, value: Any, ctx: Context, path: str, line: int | None,
+def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | None,
           meta: typing.Mapping[str, Any] | None = None) -> Any:
     """Validate `value` against type `tp`; record issues in ctx; return the built
     value (or None where it was invalid)."""
@@ -135,7 +139,7 @@ def build(tp: Any, value: Any, ctx: Context, path: str, line: int | None,
             ctx.add(line, path, "a mapping", describe(value))
             return None
         return value
-    if dataclasses.is_dataclass(tp):
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
         return build_dataclass(tp, value, ctx, path, line)
     if tp is bool:
         if not isinstance(value, bool):
@@ -149,7 +153,7 @@ def build(tp: Any, value: Any, ctx: Context, path: str, line: int | None,
         return value
     if tp in (int, float):
         ok = isinstance(value, int) if tp is int else isinstance(value, (int, float))
-        if isinstance(value, bool) or not ok:
+        if isinstance(value, bool) or not ok or not isinstance(value, (int, float)):
             ctx.add(line, path, _type_name(tp) + _unit_suffix(meta), describe(value))
             return None
         if tp is float:
@@ -180,7 +184,7 @@ def _unit_suffix(meta: typing.Mapping[str, Any]) -> str:
     return f" in {meta['unit']}" if meta.get("unit") else ""
 
 
-def build_dataclass(cls: type, value: Any, ctx: Context, path: str, line: int | None) -> Any:
+def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int | None) -> Any:
     """Validate a mapping against dataclass `cls`: unknown keys, missing keys, each
     field's type and bounds. Returns an instance (invalid fields left at default)."""
     if value is None:
@@ -226,7 +230,7 @@ def _closest(word: str, choices: list[str]) -> str | None:
     return found[0] if found else None
 
 
-def line_of(node: Any, key: str | None = None) -> int | None:
+def line_of(node: object, key: str | None = None) -> int | None:
     """The line of `key` in a loaded mapping, or of the node itself."""
     if key is not None and isinstance(node, LinedDict):
         return node.key_lines.get(key, node.line)

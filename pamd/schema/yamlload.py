@@ -17,6 +17,9 @@ import yaml
 
 from pamd.errors import ConfigError, ConfigIssue
 
+#: What a key in a YAML mapping may be (a plain value; lists and mappings are refused).
+YamlKey = str | int | float | bool | None
+
 #: Deepest nesting of mappings and lists a file may have (a rig config needs 6).
 MAX_DEPTH = 32
 #: Most values a file may hold once its aliases are expanded (a rig config has hundreds).
@@ -31,7 +34,7 @@ class LinedDict(dict):
     """A mapping from YAML with `line` (its own) and `key_lines` (per key), 1-based."""
 
     line: int | None = None
-    key_lines: dict[str, int]
+    key_lines: dict[YamlKey, int]
 
 
 class LinedList(list):
@@ -68,7 +71,10 @@ class _Loader(yaml.SafeLoader):
         self.name = file
         self._path: list[str] = []
 
-    def compose_node(self, parent: Any, index: Any) -> Any:
+    # index: the item's position, the key node of a mapping value, or None for the root
+    # (wider than the stub's `int`, as the composer calls it)
+    def compose_node(self, parent: yaml.Node | None,
+                     index: int | yaml.Node | None) -> yaml.Node | None:
         if isinstance(index, int):
             part = f"[{index}]"
         elif isinstance(index, yaml.ScalarNode):
@@ -82,11 +88,12 @@ class _Loader(yaml.SafeLoader):
                 raise _issue(self.name, mark.line + 1, _path_text(self._path[:-1]),
                              f"nesting at most {MAX_DEPTH} levels deep",
                              "deeper nesting")
-            return super().compose_node(parent, index)
+            # the stub types index as int only; the composer passes key nodes and None
+            return super().compose_node(parent, index)  # type: ignore[arg-type]
         finally:
             self._path.pop()
 
-    def get_single_node(self) -> Any:
+    def get_single_node(self) -> yaml.Node | None:
         node = super().get_single_node()
         if node is not None:
             _check_expansion(node, self.name)

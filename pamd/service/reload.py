@@ -35,19 +35,20 @@ from pamd.config.loader import LoadedConfig, effective_timeout_s
 
 Kind = Literal["now", "idle", "restart"]
 
+_RULE_TEXT: tuple[tuple[str, Kind], ...] = (
+    (r"^control\.pid\.", "now"),
+    (r"^control\.rate_feedforward_s$", "now"),
+    (r"^control\.slew_limit_bar_per_s$", "idle"),
+    (r"^safety\.(signal_timeout_s|latency_margin_s|tracking_band_bar|tracking_time_s"
+     r"|hard_limit_hold_s|startup_timeout_s)$", "now"),
+    (r"^safety\.", "idle"),
+    (r"^loop\.stall_timeout_s$", "now"),
+    (r"^muscles\[\d+\]\.signals\.\w+\.(timeout_s|sample_period_s)$", "now"),
+    (r"^muscles\[\d+\]\.(load_kg|nominal_length_mm)$", "idle"),
+    (r"^muscles\[\d+\]\.limits\.", "idle"),
+)
 _RULES: tuple[tuple[re.Pattern[str], Kind], ...] = tuple(
-    (re.compile(p), k) for p, k in (
-        (r"^control\.pid\.", "now"),
-        (r"^control\.rate_feedforward_s$", "now"),
-        (r"^control\.slew_limit_bar_per_s$", "idle"),
-        (r"^safety\.(signal_timeout_s|latency_margin_s|tracking_band_bar|tracking_time_s"
-         r"|hard_limit_hold_s|startup_timeout_s)$", "now"),
-        (r"^safety\.", "idle"),
-        (r"^loop\.stall_timeout_s$", "now"),
-        (r"^muscles\[\d+\]\.signals\.\w+\.(timeout_s|sample_period_s)$", "now"),
-        (r"^muscles\[\d+\]\.(load_kg|nominal_length_mm)$", "idle"),
-        (r"^muscles\[\d+\]\.limits\.", "idle"),
-    ))
+    (re.compile(p), k) for p, k in _RULE_TEXT)
 
 
 def classify(path: str) -> Kind:
@@ -58,7 +59,7 @@ def classify(path: str) -> Kind:
     return "restart"
 
 
-def flatten(value: Any, prefix: str = "") -> dict[str, Any]:
+def flatten(value: object, prefix: str = "") -> dict[str, Any]:
     """Key path -> leaf value of a config (dataclasses, mappings, lists); a list's
     length is kept under `path[]` so added or removed items show."""
     out: dict[str, Any] = {}

@@ -20,6 +20,7 @@ import math
 import os
 import re
 import warnings
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -28,6 +29,8 @@ from pamd.errors import RecordingError
 from pamd.view import fields
 from pamd.view.recording import Recording, open_recording
 
+#: what `open_recording` reads: an MCAP file, a list of files, or a directory
+RecordingSource = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
 _NAME = re.compile(r"[^A-Za-z0-9_]")
 
 
@@ -39,7 +42,7 @@ def matlab_name(name: str) -> str:
     return out[:63]
 
 
-def _complete(source: Any) -> Recording:
+def _complete(source: RecordingSource) -> Recording:
     with warnings.catch_warnings():  # an unfinished file is refused below, in one line
         warnings.simplefilter("ignore")
         rec = open_recording(source)
@@ -79,7 +82,7 @@ def _meta(rec: Recording) -> dict[str, Any]:
 
 
 # -- MATLAB ------------------------------------------------------------------------------
-def export_mat(source: Any, out: str) -> dict[str, Any]:
+def export_mat(source: RecordingSource, out: str) -> dict[str, Any]:
     """Write `out` (.mat); what was written (muscles, ticks, events)."""
     try:
         from scipy.io import savemat
@@ -98,7 +101,7 @@ def export_mat(source: Any, out: str) -> dict[str, Any]:
         st["flag_bits"] = {k: float(v) for k, v in fields.FLAG_BITS.items()}
         st["muscle"] = m
         tables[matlab_name(m)] = st
-    loop = {k: v.astype(np.float64) for k, v in rec.loop.items()}
+    loop: dict[str, Any] = {k: v.astype(np.float64) for k, v in rec.loop.items()}
     loop["units"] = {k: fields.unit_of(k) for k in rec.loop}
     loop["state_names"] = cell(fields.STATE_NAMES.values())
     ev = rec.events
@@ -129,7 +132,7 @@ def export_mat(source: Any, out: str) -> dict[str, Any]:
 
 
 # -- CSV ---------------------------------------------------------------------------------------
-def export_named_csv(source: Any, out_dir: str) -> dict[str, Any]:
+def export_named_csv(source: RecordingSource, out_dir: str) -> dict[str, Any]:
     """Named CSV tables and their sidecar in `out_dir`; the paths written."""
     rec = _complete(source)
     os.makedirs(out_dir, exist_ok=True)

@@ -27,6 +27,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from pamd.net.seams import RunClock
 from pamd.record import cdr
 from pamd.record.recorder import record_schemas, sanitize
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
@@ -39,7 +40,7 @@ class LiveView:
     """The io process's Foxglove server: `open`, then `ticks` and `event` from the io
     loop's one thread, `close` at the end."""
 
-    def __init__(self, spec: ViewerSpec, io_spec: Any, t_start: Callable[[], float | None]
+    def __init__(self, spec: ViewerSpec, io_spec: RunClock, t_start: Callable[[], float | None]
                  ) -> None:
         self.spec = spec
         self.io_spec = io_spec

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Any
 
+from pamd.config.loader import LoadedConfig
 from pamd.errors import ConfigError, ConfigIssue
 
 DEFAULT_LISTEN = "127.0.0.1:8765"
@@ -40,7 +40,7 @@ class ViewerSpec:
         return f"ws://{host}:{self.port}"
 
 
-def resolve(cfg: Any, foxglove: str | None) -> ViewerSpec | None:
+def resolve(cfg: LoadedConfig, foxglove: str | None) -> ViewerSpec | None:
     """The viewer of this run, or None. `foxglove`: None: as `telemetry.foxglove`
     says; "default": on at `telemetry.foxglove.listen`; "HOST:PORT": on there. A bad
     listen address is a ConfigError before anything starts."""

@@ -11,7 +11,7 @@ from mcap.reader import make_reader
 
 from pamd.daemon import Daemon
 from pamd.io.link import RingMailbox
-from pamd.io.process import CommandPort
+from pamd.io.process import RingCommandPort
 from pamd.io.session import RecordingRequest
 from pamd.ipc.ring import BlockLayout, SharedBlock
 
@@ -29,7 +29,7 @@ class EventsOut:
 def test_command_and_verdict_round_trip_through_the_rings() -> None:
     block = SharedBlock(BlockLayout(record_bytes=8, tick_slots=4), create=True)
     try:
-        port = CommandPort(block)  # io side
+        port = RingCommandPort(block)  # io side
         verdicts: list[dict[str, Any]] = []
         port.send("hold", {}, sender="zenoh", user="ana", on_verdict=verdicts.append)
         port.send("setpoint", {"muscle": "m1", "bar": "high"}, sender="zenoh",

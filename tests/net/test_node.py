@@ -11,7 +11,7 @@ import time
 from types import SimpleNamespace
 from typing import Any
 
-from pamd.io.process import CommandPort
+from pamd.io.process import RingCommandPort
 from pamd.net.node import NetNode
 from pamd.net.spec import NetSpec
 
@@ -47,7 +47,7 @@ def node(log: list[str], hang: threading.Event | None = None) -> NetNode:
                    publish_period_s=0.01, command_rate_per_s=10.0, command_burst=5,
                    command_timeout_s=0.5)
     block = SimpleNamespace(t_start=lambda: 0.0)
-    port = CommandPort(SimpleNamespace(commands=None))  # type: ignore[arg-type]
+    port = RingCommandPort(SimpleNamespace(commands=None))  # type: ignore[arg-type]
     n = NetNode(spec, SimpleNamespace(virtual=True, wall0_ns=0, clock0_s=0.0), block, port,
                 lambda *a: log.append("recorded"))
     n.session = Entity(log, "session", hang)

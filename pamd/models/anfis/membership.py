@@ -112,6 +112,7 @@ def log_membership_grads(
         d_c = d * inv_var  # d/dc of -(x-c)^2/(2s^2)
         d_s = d * d_c / widths  # d/ds
         return log_mu, [d_c, d_s]
+    assert slopes is not None, "bell membership functions need slopes"
     a, b = widths, slopes
     z = d / a
     t = _bell_t(z, b)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -279,6 +279,12 @@ class AnfisModel:
         f = np.hstack([S, np.ones((S.shape[0], 1))]) @ self.consequents.T
         return np.einsum("nr,nr->n", wbar, f)
 
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
+                ) -> np.ndarray: ...
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
+                ) -> tuple[np.ndarray, np.ndarray]: ...
     def predict(
         self, X: ArrayLike, *, return_clipped: bool = False
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
@@ -398,12 +404,15 @@ def init_model(
     else:
         raise ModelError(f"unknown input scaling {scaling!r}; expected one of {SCALINGS}")
     s_lo, s_hi = (lo - offset) / span, (hi - offset) / span
-    centres, widths, slopes = [], [], []
+    centres: list[np.ndarray] = []
+    widths: list[np.ndarray] = []
+    slopes: list[np.ndarray] = []
     for i in range(d):
         c, w, b = initial_parameters(mf_type, mfs[i], float(s_lo[i]), float(s_hi[i]), width_factor)
         centres.append(c)
         widths.append(w)
-        slopes.append(b)
+        if b is not None:  # bell MFs have slopes, Gaussian ones none
+            slopes.append(b)
     inputs = [Variable(names[i], units[i], float(lo[i]), float(hi[i])) for i in range(d)]
     output = Variable(output_name, output_unit, float(y.min()), float(y.max()))
     return AnfisModel(

@@ -42,6 +42,7 @@ from pamd.models.anfis.model import AnfisModel
 from pamd.models.anfis.serialize import FORMAT, VERSION, to_dict
 from pamd.models.document import field as _field
 from pamd.models.document import format_json as _format
+from pamd.models.document import mapping as _mapping
 from pamd.models.document import numbers as _numbers
 from pamd.models.document import parse_json
 from pamd.models.document import variable as _variable
@@ -96,8 +97,9 @@ def loads(text: str, source: str = "<string>") -> AnfisModel:
 
 
 
-def from_dict(doc: Any) -> AnfisModel:
+def from_dict(doc: object) -> AnfisModel:
     """Build a model from a parsed version-1 document (checks everything)."""
+    doc = _mapping(doc, "")
     fmt = _field(doc, "format", str, "")
     if fmt != FORMAT:
         raise ModelError(f"format is {fmt!r}, not {FORMAT!r}: not a pamd ANFIS model")

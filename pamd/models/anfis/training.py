@@ -251,6 +251,8 @@ def train(
     _check_options(opts)
     names = [v.name for v in model.inputs]
     Xa, ya = as_inputs_outputs(X, y, names, model.output.name)
+    Xv: np.ndarray | None
+    yv: np.ndarray | None
     if validation is None and opts.validation_fraction > 0:
         Xa, ya, Xv, yv = _split(Xa, ya, opts.validation_fraction, opts.seed)
     elif validation is not None:
@@ -281,7 +283,7 @@ def train(
         rmse = math.sqrt(float(err @ err) / err.size)
         train_hist.append(rmse)
         val_rmse = None
-        if Sva is not None:
+        if Sva is not None and yv is not None:
             ev = layout.predict(vec, theta, Sva) - yv
             val_rmse = math.sqrt(float(ev @ ev) / ev.size)
             val_hist.append(val_rmse)

@@ -1,0 +1,120 @@
+"""What telemetry (`pamd.net`) needs of its collaborators, as small Protocols.
+
+The io process (`pamd.io`, a layer above) builds the Zenoh node and hands it its
+command port and its spec; Zenoh hands it queries; the daemon (above both) hands the
+main-process host itself. Telemetry depends on these shapes only, so it imports
+neither the io process nor the daemon, nor (outside `NetNode.open`) Zenoh itself.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from contextlib import AbstractContextManager
+from typing import Any, Protocol
+
+from pamd.config.loader import LoadedConfig
+from pamd.controller import RigController
+from pamd.loop import Loop
+from pamd.summary import LocalMailbox, SummarySink
+
+#: a command's verdict, as the loop gives it: {"ok": bool, "error": str, ...}
+Verdict = dict[str, Any]
+
+
+class CommandPort(Protocol):
+    """The io side of the loop's command mailbox (`pamd.io.process.RingCommandPort`)."""
+
+    @property
+    def lock(self) -> AbstractContextManager[Any]:
+        """Held while a query callback uses the port, the board or the node's queues."""
+
+    @property
+    def waiting(self) -> dict[int, Callable[[Verdict], None]]:
+        """Verdict callbacks by command id (the node drops one whose query timed out)."""
+
+    def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
+             on_verdict: Callable[[Verdict], None] | None = None) -> int | None:
+        """Queue a command for the loop; its id, or None (and a refusal verdict)."""
+
+
+class RecordingState(Protocol):
+    """The daemon's io session as the telemetry host sees it (`pamd.io.session`)."""
+
+    @property
+    def failure(self) -> dict[str, Any] | None:
+        """Why the recording stopped ({"reason": ...}), or None while it goes on."""
+
+
+class DaemonView(Protocol):
+    """What the main-process side of telemetry (`NetHost`, `Collections`) uses of the
+    daemon (`pamd.daemon.Daemon`, a layer above)."""
+
+    @property
+    def cfg(self) -> LoadedConfig: ...
+    @property
+    def note(self) -> str: ...
+    @property
+    def ctrl(self) -> RigController: ...
+    @property
+    def loop(self) -> Loop: ...
+    @property
+    def summary(self) -> SummarySink: ...
+    @property
+    def mailbox(self) -> LocalMailbox: ...
+    @property
+    def io(self) -> RecordingState | None: ...
+
+
+class RunClock(Protocol):
+    """How the run's loop clock maps to the wall clock (`pamd.io.spec.IoSpec` gives it)."""
+
+    @property
+    def virtual(self) -> bool: ...
+    @property
+    def wall0_ns(self) -> int:
+        """Wall clock (ns since the epoch) at loop-clock time `clock0_s`."""
+    @property
+    def clock0_s(self) -> float: ...
+    @property
+    def rate_hz(self) -> float: ...
+
+
+class LoopStart(Protocol):
+    """When the loop's clock started (`pamd.ipc.ring.SharedBlock` tells it)."""
+
+    def t_start(self) -> float | None: ...
+
+
+# -- what the node uses of a Zenoh query (`zenoh.Query`) ----------------------------------
+class QueryParameters(Protocol):
+    def get(self, key: str, default: str | None = None) -> str | None: ...
+
+
+class QueryPayload(Protocol):
+    def to_bytes(self) -> bytes: ...
+
+
+class SourceId(Protocol):
+    @property
+    def zid(self) -> object: ...
+
+
+class SourceInfo(Protocol):
+    @property
+    def source_id(self) -> SourceId: ...
+
+
+class Query(Protocol):
+    """A query to answer once (`reply`), then release (`drop`)."""
+
+    @property
+    def key_expr(self) -> object: ...
+    @property
+    def parameters(self) -> QueryParameters: ...
+    @property
+    def payload(self) -> QueryPayload | None: ...
+    @property
+    def source_info(self) -> SourceInfo | None: ...
+
+    def reply(self, key_expr: str, payload: bytes, *, encoding: str | None = None) -> Any: ...
+    def drop(self) -> Any: ...
