@@ -34,15 +34,21 @@ class OutputPoint(Protocol):
     def raw_max(self) -> float: ...
 
 
+class SafeActuation(Protocol):
+    """What a muscle's actuation holds in the safe state (`pamd.control.actuation`):
+    (output, value in its unit, unit) per output."""
+
+    def safe_outputs(self, safe_pressure_bar: float
+                     ) -> Sequence[tuple[OutputPoint, float, str]]: ...
+
+
 class SafeMuscle(Protocol):
-    """A muscle's outputs and its present safe pressure (`MuscleController`)."""
+    """A muscle's actuation and its present safe pressure (`MuscleController`)."""
 
     @property
-    def valve(self) -> OutputPoint: ...
+    def actuation(self) -> SafeActuation: ...
     @property
-    def exhaust(self) -> OutputPoint | None: ...
-    @property
-    def safe_bar(self) -> float: ...
+    def safe_pressure_bar(self) -> float: ...
 
 
 class SafeRig(Protocol):

@@ -283,7 +283,7 @@ def watch(args: argparse.Namespace) -> int:
                                         f"{json.dumps(ev.get('data'))[:100]}"])[-5:]
                 if now - t_draw >= 0.5:
                     dt = now - t_draw
-                    rows = []
+                    rows: list[tuple[str, ...]] = []
                     for m, v in sorted(latest.items()):
                         rows.append((m, _name(State, v.get("state")), _f(v.get("pressure_bar")),
                                      _f(v.get("setpoint_bar")), _f(v.get("valve_cmd_bar")),

@@ -105,7 +105,7 @@ class EmulatedRig:
         dev = EmulatedModbusDevice(
             o, source=lambda ch: plant.raw_input(name, ch),
             sink=lambda ch, v: plant.set_output(name, ch, v), label=name,
-            sample_period_s=self._sample_period_s(name))
+            sample_period_s=self.sample_period_s(name))
         self.modbus[name] = dev
         if o.transport == "tcp":
             if o.host not in LOOPBACK:
@@ -121,7 +121,7 @@ class EmulatedRig:
             self.endpoints[name] = (f"modbus rtu {o.serial_port} (device end {pair.device}) "
                                     f"{o.baud} baud id {o.device_id}")
 
-    def _sample_period_s(self, driver: str) -> float:
+    def sample_period_s(self, driver: str) -> float:
         """The module samples as slowly as the config says its inputs are sampled (the
         longest `sample_period_s` of the signals it carries; 0: at every request)."""
         periods = [sig.sample_period_s for m in self.cfg.rig.muscles

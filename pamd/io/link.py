@@ -246,6 +246,11 @@ class RingSink:
             self._report_drops()
         return True
 
+    @property
+    def unreported_drops(self) -> int:
+        """Tick records lost to a full ring and not yet reported as an event."""
+        return self._dropped
+
     def _report_drops(self) -> None:
         n, first, last = self._dropped, self._drop_first, self._drop_last
         self._dropped = 0

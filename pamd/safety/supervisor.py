@@ -69,6 +69,11 @@ class Supervisor:
         if self.on_transition is not None:
             self.on_transition(tr)
 
+    def restore_fault_reason(self, reason: str) -> None:
+        """A fault latched before a restart (the service keeper's state file): its reason
+        until the operator resets it."""
+        self.fault_reason = reason
+
     def fault(self, t_s: float, reason: str) -> None:
         """Latch a fault (the first reason wins while latched; ESTOP stays ESTOP)."""
         if self.latched:

@@ -105,7 +105,7 @@ class ServiceKeeper:
         if rec is None:
             return None
         text = rec.restored_reason()
-        self.daemon.ctrl.supervisor.fault_reason = text
+        self.daemon.ctrl.supervisor.restore_fault_reason(text)
         self.restored = rec
         self.persisted = ("FAULT", text)
         self.earlier, self._plain = list(rec.earlier), rec.reason

@@ -93,8 +93,8 @@ def test_the_emulated_rig_samples_at_the_configs_sample_period(tmp_path: Any) ->
     d["muscles"][0]["signals"]["force"].update(sample_period_s=SAMPLE_PERIOD_S, timeout_s=0.1)
     cfg = load_config(str(write_config(tmp_path, d)))
     rig = EmulatedRig(cfg)
-    assert rig._sample_period_s("io") == SAMPLE_PERIOD_S  # the slowest of its inputs
-    assert rig._sample_period_s("lc2") == 0.01  # config/rig-emulated.yaml's transmitter
+    assert rig.sample_period_s("io") == SAMPLE_PERIOD_S  # the slowest of its inputs
+    assert rig.sample_period_s("lc2") == 0.01  # config/rig-emulated.yaml's transmitter
 
 
 def test_the_rig_binds_each_input_with_its_device_aware_timeout(tmp_path: Any) -> None:

@@ -107,7 +107,7 @@ def test_full_ring_in_real_time_is_counted_recorded_and_reported(
         until(lambda: d.loop.lost_records > 50, what="records to be lost")
     finally:
         os.kill(pid, signal.SIGCONT)
-    until(lambda: d.io.sink._dropped == 0, what="the loss to be reported")
+    until(lambda: d.io.sink.unreported_drops == 0, what="the loss to be reported")
     r = finish(d)
     lost = r["lost_records"]
     assert lost > 50 and r["recording"]["lost_records"] == lost
