@@ -12,10 +12,11 @@ from typing import Any
 
 from pamd.commands.schema import MAX_ERROR_CHARS, Command, cap_text
 from pamd.commands.verbs import REGISTRY
+from pamd.controller import RigController
 from pamd.errors import CommandRefused
 
 
-def apply_command(ctrl: Any, cmd: Command) -> dict[str, Any]:
+def apply_command(ctrl: RigController, cmd: Command) -> dict[str, Any]:
     """Apply in the loop's thread; returns the verdict (never raises)."""
     try:
         declared = REGISTRY.get(cmd.verb)  # internal verbs too (reload)

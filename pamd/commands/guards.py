@@ -6,6 +6,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from pamd.control.muscle import MuscleController
+from pamd.controller import RigController
 from pamd.errors import CommandRefused
 from pamd.tick import State
 
@@ -13,7 +15,7 @@ Handler = Callable[[Any, Any], dict[str, Any] | None]
 """A verb's handler: (controller, args) -> verdict fields; raises CommandRefused."""
 
 
-def named_muscles(ctrl: Any, name: str | None) -> list[Any]:
+def named_muscles(ctrl: RigController, name: str | None) -> list[MuscleController]:
     """The muscle so named, or every muscle for None."""
     if name is None:
         return list(ctrl.muscles)
@@ -22,7 +24,7 @@ def named_muscles(ctrl: Any, name: str | None) -> list[Any]:
     return [ctrl.by_name[name]]
 
 
-def can_move(ctrl: Any) -> None:
+def can_move(ctrl: RigController) -> None:
     """Refuse motion while starting or latched (FAULT, ESTOP)."""
     st = ctrl.supervisor.state
     if st == State.STARTING:
@@ -32,7 +34,7 @@ def can_move(ctrl: Any) -> None:
                              "once the cause is gone")
 
 
-def need_reference(ms: list[Any]) -> None:
+def need_reference(ms: list[MuscleController]) -> None:
     """Refuse unless every muscle has its length referenced (home)."""
     for m in ms:
         if not m.referenced:
@@ -40,7 +42,7 @@ def need_reference(ms: list[Any]) -> None:
                                  "cannot be enforced; send home first")
 
 
-def idle_or_hold(ctrl: Any, verb: str) -> None:
+def idle_or_hold(ctrl: RigController, verb: str) -> None:
     """Refuse `verb` outside IDLE, HOLD and FAULT."""
     if ctrl.supervisor.state not in (State.IDLE, State.HOLD, State.FAULT):
         raise CommandRefused(f"{verb} only while IDLE, HOLD or FAULT (state is "

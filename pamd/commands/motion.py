@@ -20,12 +20,14 @@ from pamd.commands.schema import (
 )
 from pamd.control.length_control import MODE_NAMES
 from pamd.control.length_targets import length_profile
+from pamd.control.muscle import MuscleController
+from pamd.controller import RigController
 from pamd.errors import CommandRefused
 from pamd.profiles import Profile, ProfileSpec
 from pamd.tick import Mode, State
 
 
-def _start(ctrl: Any, ms: list[Any], spec_: ProfileSpec) -> float | None:
+def _start(ctrl: RigController, ms: list[MuscleController], spec_: ProfileSpec) -> float | None:
     for m in ms:
         spec_.check(0.0, m.envelope.max_pressure_bar, m.envelope.slew_limit_bar_per_s)
     total = None
@@ -37,7 +39,7 @@ def _start(ctrl: Any, ms: list[Any], spec_: ProfileSpec) -> float | None:
     return total
 
 
-def _setpoint(ctrl: Any, a: SetpointArgs) -> dict[str, Any]:
+def _setpoint(ctrl: RigController, a: SetpointArgs) -> dict[str, Any]:
     can_move(ctrl)
     ms = named_muscles(ctrl, a.muscle)
     need_reference(ms)
@@ -67,7 +69,7 @@ def _setpoint(ctrl: Any, a: SetpointArgs) -> dict[str, Any]:
             "deadman_s": a.deadman_s}
 
 
-def _profile(ctrl: Any, a: ProfileArgs) -> dict[str, Any]:
+def _profile(ctrl: RigController, a: ProfileArgs) -> dict[str, Any]:
     can_move(ctrl)
     ms = named_muscles(ctrl, a.muscle)
     need_reference(ms)
@@ -82,7 +84,7 @@ def _profile(ctrl: Any, a: ProfileArgs) -> dict[str, Any]:
     return {"duration_s": total}
 
 
-def _length_setpoint(ctrl: Any, m: Any, a: SetpointArgs) -> dict[str, Any]:
+def _length_setpoint(ctrl: RigController, m: MuscleController, a: SetpointArgs) -> dict[str, Any]:
     """A length (and force) target in the length modes, reached by a ramp."""
 
     mode = m.mode.name.lower()
@@ -131,7 +133,8 @@ def _length_setpoint(ctrl: Any, m: Any, a: SetpointArgs) -> dict[str, Any]:
     return out
 
 
-def _length_profile(ctrl: Any, ms: list[Any], a: ProfileArgs) -> dict[str, Any]:
+def _length_profile(ctrl: RigController, ms: list[MuscleController],
+                    a: ProfileArgs) -> dict[str, Any]:
     """A length profile (contraction units) on muscles in a length mode."""
 
     for m in ms:
@@ -154,7 +157,7 @@ def _length_profile(ctrl: Any, ms: list[Any], a: ProfileArgs) -> dict[str, Any]:
     return {"duration_s": total, "length_profile": True}
 
 
-def _mode(ctrl: Any, a: ModeArgs) -> dict[str, Any]:
+def _mode(ctrl: RigController, a: ModeArgs) -> dict[str, Any]:
 
     can_move(ctrl)
     if a.mode not in MODE_NAMES:
@@ -190,7 +193,7 @@ def _mode(ctrl: Any, a: ModeArgs) -> dict[str, Any]:
             "feedforward_bar": {m.name: m.feedforward_bar for m in ms}}
 
 
-def _model(ctrl: Any, a: Any) -> dict[str, Any]:
+def _model(ctrl: RigController, a: object) -> dict[str, Any]:
     """Swap in a model compiled outside the loop (`prepare_command`)."""
     if not isinstance(a, PreparedModelArgs):
         raise CommandRefused("model: the file was not loaded (send the command through the "

@@ -8,11 +8,12 @@ from typing import Any
 from pamd.commands.guards import can_move, need_reference
 from pamd.commands.registry import Verb
 from pamd.commands.schema import CollectArgs, NoArgs
+from pamd.controller import RigController
 from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import Sequencer
 
 
-def _confirm(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+def _confirm(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     seq = ctrl.sequencer
     if seq is None or seq.outcome:
         raise CommandRefused("no experiment is running")
@@ -22,7 +23,7 @@ def _confirm(ctrl: Any, a: NoArgs) -> dict[str, Any]:
         raise CommandRefused(str(exc)) from None
 
 
-def _pause(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+def _pause(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     seq = ctrl.sequencer
     if seq is None or seq.outcome:
         raise CommandRefused("no experiment is running (use hold to freeze setpoints)")
@@ -30,7 +31,7 @@ def _pause(ctrl: Any, a: NoArgs) -> dict[str, Any]:
     return {"message": "pausing at the end of the present cycle"}
 
 
-def _collect(ctrl: Any, a: Any) -> dict[str, Any]:
+def _collect(ctrl: RigController, a: CollectArgs) -> dict[str, Any]:
     """`a.plan` is a Plan already read and checked outside the loop's thread."""
 
     can_move(ctrl)

@@ -10,19 +10,20 @@ from typing import Any
 from pamd.commands.guards import can_move, idle_or_hold, named_muscles
 from pamd.commands.registry import Verb
 from pamd.commands.schema import EstopArgs, HomeArgs, LoadArgs, NoArgs, ReloadArgs, TareArgs
+from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
 from pamd.safety.references import check_home, tare_offset
 from pamd.tick import State
 
 
-def _hold(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+def _hold(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     can_move(ctrl)
     ctrl.enter_hold(ctrl.now, "hold: setpoints frozen")
     return {}
 
 
-def _resume(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+def _resume(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     if ctrl.supervisor.state != State.HOLD:
         raise CommandRefused(f"resume only from HOLD (state is {ctrl.supervisor.state.name})")
     paused = ctrl.now - ctrl.hold_started
@@ -37,7 +38,7 @@ def _resume(ctrl: Any, a: NoArgs) -> dict[str, Any]:
     return {}
 
 
-def _stop(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+def _stop(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     if ctrl.supervisor.latched:
         raise CommandRefused(f"the rig is already in {ctrl.supervisor.state.name}, at its safe "
                              "state")
@@ -45,14 +46,14 @@ def _stop(ctrl: Any, a: NoArgs) -> dict[str, Any]:
     return {}
 
 
-def _estop(ctrl: Any, a: EstopArgs) -> dict[str, Any]:
+def _estop(ctrl: RigController, a: EstopArgs) -> dict[str, Any]:
     for m in ctrl.muscles:
         m.stop_profile()
     ctrl.supervisor.estop(ctrl.now, f"emergency stop: {a.reason}")
     return {}
 
 
-def _reset(ctrl: Any, a: NoArgs) -> dict[str, Any]:
+def _reset(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     sup = ctrl.supervisor
     if not sup.latched:
         raise CommandRefused(f"nothing to reset: the rig is {sup.state.name}")
@@ -70,7 +71,7 @@ def _reset(ctrl: Any, a: NoArgs) -> dict[str, Any]:
     return {}
 
 
-def _home(ctrl: Any, a: HomeArgs) -> dict[str, Any]:
+def _home(ctrl: RigController, a: HomeArgs) -> dict[str, Any]:
     idle_or_hold(ctrl, "home")
     m = named_muscles(ctrl, a.muscle)[0]
     raw_len = m.length_mm - m.reference.length_offset_mm
@@ -83,7 +84,7 @@ def _home(ctrl: Any, a: HomeArgs) -> dict[str, Any]:
     return {"muscle": m.name, "length_offset_mm": offset}
 
 
-def _tare(ctrl: Any, a: TareArgs) -> dict[str, Any]:
+def _tare(ctrl: RigController, a: TareArgs) -> dict[str, Any]:
     idle_or_hold(ctrl, "tare")
     ms = named_muscles(ctrl, a.muscle)
     offsets = [tare_offset(m, a.load_kg) for m in ms]  # all checked before any changes
@@ -95,7 +96,7 @@ def _tare(ctrl: Any, a: TareArgs) -> dict[str, Any]:
     return {"force_offset_n": out}
 
 
-def _load(ctrl: Any, a: LoadArgs) -> dict[str, Any]:
+def _load(ctrl: RigController, a: LoadArgs) -> dict[str, Any]:
     m = named_muscles(ctrl, a.muscle)[0]
     rated = m.envelope.rating.max_load_kg
     if a.load_kg > rated:
@@ -106,7 +107,7 @@ def _load(ctrl: Any, a: LoadArgs) -> dict[str, Any]:
     return {"muscle": m.name, "load_kg": a.load_kg, "safe_pressure_bar": m.safe_pressure_bar}
 
 
-def _reload(ctrl: Any, a: ReloadArgs) -> dict[str, Any]:
+def _reload(ctrl: RigController, a: ReloadArgs) -> dict[str, Any]:
     """A reloaded config: gains and timeouts at once; limits, slew, loads and nominal
     lengths only while IDLE (otherwise reported as deferred: the daemon sends the
     command again once the rig is IDLE). Refused as a whole, changing nothing, if

@@ -20,10 +20,36 @@ cell read zero with 80 kg hanging. So:
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Protocol
 
+from pamd.calibration import MuscleReference
 from pamd.errors import CommandRefused
 from pamd.muscle import GRAVITY_M_S2, equilibrium_contraction
+from pamd.rig import MuscleSignals
+from pamd.safety.envelope import MuscleEnvelope
+from pamd.safety.plausibility import Plausibility
+
+
+class ReferencedMuscle(Protocol):
+    """What the rules read of a muscle (`pamd.control.muscle.MuscleController`)."""
+
+    name: str
+    signals: MuscleSignals
+    plausibility: Plausibility
+    length_absolute: bool
+
+    @property
+    def envelope(self) -> MuscleEnvelope: ...
+    @property
+    def reference(self) -> MuscleReference: ...
+    @property
+    def pressure_bar(self) -> float: ...
+    @property
+    def force_n(self) -> float: ...
+    @property
+    def velocity_mm_s(self) -> float: ...
+    @property
+    def load_kg(self) -> float: ...
 
 #: A muscle moving faster than this is not at rest: no reference is taken.
 AT_REST_MM_S = 2.0
@@ -31,13 +57,13 @@ AT_REST_MM_S = 2.0
 LOAD_AGREES_KG = 0.5
 
 
-def _at_rest(m: Any, verb: str) -> None:
+def _at_rest(m: ReferencedMuscle, verb: str) -> None:
     if abs(m.velocity_mm_s) > AT_REST_MM_S:
         raise CommandRefused(f"{m.name}: moving at {m.velocity_mm_s:.1f} mm/s; {verb} once "
                              "the load rests")
 
 
-def expected_length_mm(m: Any) -> tuple[float, float]:
+def expected_length_mm(m: ReferencedMuscle) -> tuple[float, float]:
     """The length the muscle should have now (nominal length, its load, the measured
     pressure), and the contraction that gives it."""
     x = equilibrium_contraction(m.envelope.force_model, max(m.pressure_bar, 0.0), m.load_kg,
@@ -45,7 +71,7 @@ def expected_length_mm(m: Any) -> tuple[float, float]:
     return m.envelope.length_mm(x), x
 
 
-def check_home(m: Any, length_mm: float) -> None:
+def check_home(m: ReferencedMuscle, length_mm: float) -> None:
     """Refuse (CommandRefused) a `home` that would make the length reference lie."""
     b = m.signals.length
     if m.length_absolute:
@@ -72,7 +98,7 @@ def check_home(m: Any, length_mm: float) -> None:
             "or correct nominal_length_mm or load_kg")
 
 
-def tare_offset(m: Any, load_kg: float | None) -> float:
+def tare_offset(m: ReferencedMuscle, load_kg: float | None) -> float:
     """The new force offset of a `tare` (against `load_kg` hanging, default none), or
     CommandRefused if it would make the force reference lie."""
     b = m.signals.force
