@@ -26,10 +26,12 @@ from __future__ import annotations
 
 import math
 from array import array
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from pamd.calibration import MuscleReference
 from pamd.config.loader import LoadedConfig
+from pamd.config.schema import PidConfig
 from pamd.control.actuation import Actuation, actuation_for
 from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
@@ -94,9 +96,10 @@ class MuscleController:
         self.profile_follower = ProfileFollower(envelope)
         self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
                                             None if model is None else model.feedforward())
-        self.pressure_loop = PressureLoop(ctl.pid, ctl.rate_feedforward_s)
+        self.onoff = cfg.muscle(self.name).actuation == "onoff"
+        self.pressure_loop = PressureLoop(*self._pressure_gains(ctl.pid, ctl.rate_feedforward_s))
         self.limiter = Limiter()
-        self.actuation: Actuation = actuation_for(signals)
+        self.actuation: Actuation = actuation_for(signals, cfg.muscle(self.name))
         self.length_absolute = bool(
             ln.driver.is_absolute(ln.index) or cfg.muscle(self.name).signals.length.absolute)
         # Run-time state (read through the properties below).
@@ -229,6 +232,15 @@ class MuscleController:
         self.length_control.set_envelope(env)
         self.inputs.set_nominal_length(env.nominal_length_mm)
 
+    def _pressure_gains(self, pid: PidConfig, rate_feedforward_s: float
+                        ) -> tuple[PidConfig, float]:
+        """The PID's gains: on/off valves close their pressure loop in their actuation
+        (`OnOffActuation`), so there the PID adds nothing and the command is the
+        setpoint."""
+        if self.onoff:
+            return replace(pid, kp=0.0, ki_per_s=0.0, kd_s=0.0), 0.0
+        return pid, rate_feedforward_s
+
     def set_load(self, load_kg: float) -> None:
         """A new hanging load: a new safe pressure."""
         self._load_kg = load_kg
@@ -240,7 +252,7 @@ class MuscleController:
         Gains and timeouts always; limits, slew, nominal length and a changed load (so
         the safe pressure) only `with_limits` (the rig is IDLE). The PID keeps its
         state, the integral clamped to the new limit: no bump."""
-        self.pressure_loop.set_gains(s.pid, s.rate_feedforward_s)
+        self.pressure_loop.set_gains(*self._pressure_gains(s.pid, s.rate_feedforward_s))
         self.inputs.set_timeouts(s.pressure_timeout_s, s.force_timeout_s, s.length_timeout_s)
         self.limit_monitor.set_times(s.safety)
         self.plausibility.configure(s.safety.plausibility)

@@ -24,7 +24,7 @@ from __future__ import annotations
 INFLATE, HOLD, EXHAUST = 1, 0, -1
 
 
-class _Pulser:
+class Pulser:
     """Turns a duty in [-1, 1] into valve states over PWM periods."""
 
     def __init__(self, period_s: float, min_pulse_s: float) -> None:
@@ -66,7 +66,7 @@ class PwmPressure:
     def __init__(self, *, period_s: float, min_pulse_s: float, kp_per_bar: float,
                  ki_per_bar_s: float, rate_feedforward_s_per_bar: float,
                  integral_limit: float = 0.5) -> None:
-        self.pulser = _Pulser(period_s, min_pulse_s)
+        self.pulser = Pulser(period_s, min_pulse_s)
         self.kp = kp_per_bar
         self.ki = ki_per_bar_s
         self.kff = rate_feedforward_s_per_bar
@@ -97,7 +97,7 @@ class SlidingModePosition:
         self.lam = lambda_per_s
         self.phi = boundary_mm_s
         self.hold_band_mm = hold_band_mm
-        self.pulser = _Pulser(period_s, min_pulse_s)
+        self.pulser = Pulser(period_s, min_pulse_s)
         self.surface = 0.0
 
     def reset(self) -> None:
