@@ -427,8 +427,12 @@ class MuscleController:
         self._setpoint_bar = sp
         # -- pressure: closed only on a trusted pressure, and not in FAULT/ESTOP (open
         # loop to the safe pressure) ----------------------------------------------------
+        # At a safe pressure of 0, once the setpoint is there, the loop stays open: the
+        # exhaust vents, and a PID running on the sensor's noise would lift the command
+        # off 0 and make the exhaust chatter.
+        venting = safe and self._safe_pressure_bar == 0.0 and sp <= VENT_BELOW_BAR
         loop = self.pressure_loop
-        u = loop.step(sp, rate, p, p_ok and not latched, p_ok, dt)
+        u = loop.step(sp, rate, p, p_ok and not latched and not venting, p_ok, dt)
         flags |= loop.flags
         # -- limits: the guards' bounds (restoring direction, trusted length only) -------
         step = slew * dt
@@ -457,8 +461,7 @@ class MuscleController:
                 self.limit_report = report  # the controller reports it
         # -- actuation -------------------------------------------------------------------
         self._valve_cmd_bar = u
-        vent = (safe and self._safe_pressure_bar == 0.0 and sp <= VENT_BELOW_BAR
-                and u <= VENT_BELOW_BAR)
+        vent = venting and u <= VENT_BELOW_BAR
         flags |= self.actuation.write(u, p, now, dt, vent)
         self._record(rec, flags)
         return fault
