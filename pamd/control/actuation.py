@@ -23,8 +23,9 @@ rates a step test on the rig measures (bench/tune_onoff.py), never the simulator
 parameters. `Pulser` turns the duty into a pulse at the start of each PWM period; a
 pulse the valves cannot pass (shorter than twice the opening delay) is not sent.
 
-At rest (a steady command within `dead_band_bar` of the pressure) both valves hold
-and the integral stays: no chatter. Venting (the safe state at a safe pressure of 0,
+At rest (a steady command within `dead_band_bar` of the pressure, low-passed over
+a PWM period; left again beyond twice the band) both valves hold and the integral
+stays: no chatter on the sensor's noise. Venting (the safe state at a safe pressure of 0,
 a vent ESTOP) opens the exhaust and closes the inflate valve.
 
 Each valve's switchings are counted (`inflate_switches`, `exhaust_switches`):
@@ -144,6 +145,10 @@ class OnOffActuation:
         self.duty = 0.0
         self.state = HOLD
         self._prev_command = float("nan")
+        self._p_filtered = float("nan")
+        self._holding = False
+        self._tau_s = cfg.pwm_period_s
+        self._alpha = 0.0
 
     def set_config(self, cfg: OnOffConfig) -> None:
         """Gains from the config (also a reload's; the state stays)."""
@@ -165,6 +170,8 @@ class OnOffActuation:
         self.pulser.reset()
         self.integral_bar = 0.0
         self._prev_command = float("nan")
+        self._p_filtered = float("nan")
+        self._holding = False
 
     def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
               vent: bool) -> int:
@@ -175,13 +182,28 @@ class OnOffActuation:
             self.duty = -1.0
             return self._set(EXHAUST)
         rate = 0.0 if prev != prev else (command_bar - prev) / dt_s
+        self._alpha = dt_s / (self._tau_s + dt_s)
         e = command_bar - pressure_bar
         if e != e:  # no trusted pressure to act on: hold the air in
             self.pulser.reset()
             self.duty = 0.0
             return self._set(HOLD)
-        steady = -STEADY_BAR_PER_S < rate < STEADY_BAR_PER_S
-        if steady and -self.dead_band_bar <= e <= self.dead_band_bar:
+        # The dead band, on the pressure low-passed over a PWM period (the sensor's
+        # noise alone never opens a valve), with hysteresis: entered within the band
+        # once a pulse is over, left beyond twice the band.
+        pf = self._p_filtered
+        pf = pressure_bar if pf != pf else pf + self._alpha * (pressure_bar - pf)
+        self._p_filtered = pf
+        ef = command_bar - pf
+        band = self.dead_band_bar
+        if -STEADY_BAR_PER_S < rate < STEADY_BAR_PER_S:
+            if self._holding:
+                self._holding = -2.0 * band <= ef <= 2.0 * band
+            else:
+                self._holding = -band <= ef <= band and not self.pulser.pulsing(now_s)
+        else:
+            self._holding = False
+        if self._holding:
             self.pulser.reset()
             self.duty = 0.0
             return self._set(HOLD)

@@ -43,6 +43,10 @@ class Pulser:
         self._pulse_s = 0.0
         self._direction = HOLD
 
+    def pulsing(self, now_s: float) -> bool:
+        """A pulse is under way (a valve commanded open for this period)."""
+        return self._direction != HOLD and now_s - self._period_start_s < self._pulse_s - 1e-9
+
     def state(self, now_s: float, duty: float) -> int:
         """The valve state at `now_s`; a new period starts with the given duty."""
         if now_s - self._period_start_s >= self.period_s - 1e-9:
