@@ -28,6 +28,11 @@ a PWM period; left again beyond twice the band) both valves hold and the integra
 stays: no chatter on the sensor's noise. Venting (the safe state at a safe pressure of 0,
 a vent ESTOP) opens the exhaust and closes the inflate valve.
 
+In mode position an on/off muscle follows seed 004's sliding mode instead
+(`SlidingModePosition`: a sliding surface on the length error and its rate, a
+boundary layer, inflate / hold / exhaust; `position`), filling never above the
+limiter's ceiling; a safe state leaves the length mode, so PWM takes the safe ramp.
+
 Each valve's switchings are counted (`inflate_switches`, `exhaust_switches`):
 valve wear is what on/off users watch. Tick path: float arithmetic and the drivers'
 non-blocking `write`, only on a change.
@@ -43,7 +48,7 @@ from __future__ import annotations
 from typing import NamedTuple, Protocol
 
 from pamd.config.schema import MuscleConfig, OnOffConfig
-from pamd.control.onoff import EXHAUST, HOLD, INFLATE, Pulser
+from pamd.control.onoff import EXHAUST, HOLD, INFLATE, Pulser, SlidingModePosition
 from pamd.rig import MuscleSignals, OutputBinding
 from pamd.tick import Flag
 
@@ -136,6 +141,14 @@ class OnOffActuation:
         self.inflate = inflate
         self.exhaust = exhaust
         self.pulser = Pulser(cfg.pwm_period_s, min_pulse_s(cfg))
+        self.sliding = SlidingModePosition(
+            lambda_per_s=cfg.position_lambda_per_s, boundary_mm_s=cfg.position_boundary_mm_s,
+            hold_band_mm=cfg.position_hold_band_mm, period_s=cfg.position_period_s,
+            min_pulse_s=min(min_pulse_s(cfg), 0.5 * cfg.position_period_s))
+        self._positioning = False
+        self._length_mm = self._velocity_mm_s = 0.0
+        self._target_mm = self._target_rate_mm_s = 0.0
+        self._ceiling_bar = 0.0
         self.set_config(cfg)
         self.exhaust_open = False
         self.inflate_open = False
@@ -173,14 +186,38 @@ class OnOffActuation:
         self._p_filtered = float("nan")
         self._holding = False
 
+    def position(self, length_mm: float, velocity_mm_s: float, target_mm: float,
+                 target_rate_mm_s: float, ceiling_bar: float) -> None:
+        """Mode position, this tick: the valves follow seed 004's sliding mode on the
+        length instead of the command, never filling above `ceiling_bar` (the pressure
+        limit and the guards'). Called before `write`, every tick it applies."""
+        self._positioning = True
+        self._length_mm = length_mm
+        self._velocity_mm_s = velocity_mm_s
+        self._target_mm = target_mm
+        self._target_rate_mm_s = target_rate_mm_s
+        self._ceiling_bar = ceiling_bar
+
     def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
               vent: bool) -> int:
         prev = self._prev_command
         self._prev_command = command_bar
+        positioning = self._positioning
+        self._positioning = False
         if vent:
             self.integral_bar = 0.0
             self.duty = -1.0
             return self._set(EXHAUST)
+        if positioning:
+            state = self.sliding.step(now_s, self._length_mm, self._velocity_mm_s,
+                                      self._target_mm, self._target_rate_mm_s)
+            if state == INFLATE and not pressure_bar < self._ceiling_bar:
+                state = HOLD  # the limit and the guards bound the valves too
+            self.pulser.reset()
+            self._holding = False
+            self.integral_bar = 0.0
+            self.duty = self.sliding.surface
+            return self._set(state)
         rate = 0.0 if prev != prev else (command_bar - prev) / dt_s
         self._alpha = dt_s / (self._tau_s + dt_s)
         e = command_bar - pressure_bar

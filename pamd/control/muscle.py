@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 from pamd.calibration import MuscleReference
 from pamd.config.loader import LoadedConfig
 from pamd.config.schema import PidConfig
-from pamd.control.actuation import Actuation, actuation_for
+from pamd.control.actuation import Actuation, OnOffActuation, actuation_for
 from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
 from pamd.control.pressure_loop import PressureLoop
@@ -100,6 +100,8 @@ class MuscleController:
         self.pressure_loop = PressureLoop(*self._pressure_gains(ctl.pid, ctl.rate_feedforward_s))
         self.limiter = Limiter()
         self.actuation: Actuation = actuation_for(signals, cfg.muscle(self.name))
+        self._onoff: OnOffActuation | None = (  # on/off valves' sliding mode: position
+            self.actuation if isinstance(self.actuation, OnOffActuation) else None)
         self.length_absolute = bool(
             ln.driver.is_absolute(ln.index) or cfg.muscle(self.name).signals.length.absolute)
         # Run-time state (read through the properties below).
@@ -417,6 +419,10 @@ class MuscleController:
                 sp = lc.step(now, dt, state, sp, self._profile, inp.length_mm, inp.force_n)
                 flags |= lc.flags
                 rate = lc.setpoint_rate_bar_per_s
+                if self._onoff is not None and lc.position and p_ok:
+                    # the sliding mode moves the valves on the length (actuation): the
+                    # pressure is whatever that takes, so the command is the pressure
+                    sp, rate = p, 0.0
             elif (state == S_RUNNING or state == S_LOAD) and self._profile is not None:
                 follower = self.profile_follower
                 sp = follower.step(self._profile, now, sp, dt)
@@ -462,6 +468,13 @@ class MuscleController:
         # -- actuation -------------------------------------------------------------------
         self._valve_cmd_bar = u
         vent = venting and u <= VENT_BELOW_BAR
+        onoff = self._onoff
+        if onoff is not None and lc.active and lc.position and not safe:
+            # seed 004's sliding mode positions an on/off muscle (OnOffActuation)
+            hi = lim.hi
+            onoff.position(inp.length_mm, inp.velocity_mm_s, lc.target_length_mm,
+                                 lc.target_rate_mm_s,
+                                 self._max_pressure_bar if hi > self._max_pressure_bar else hi)
         flags |= self.actuation.write(u, p, now, dt, vent)
         self._record(rec, flags)
         return fault

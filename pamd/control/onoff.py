@@ -14,7 +14,7 @@ error and its rate, s = lambda e + de/dt (e = length - target, so s > 0 asks for
 contraction), with a boundary layer |s| <= phi against chattering: outside it the
 valve opens fully toward the surface, inside it pulses with a duty s / phi, and
 within `hold_band_mm` of the target at rest it holds (the muscle's friction keeps
-it there with its air shut in).
+it there with its air shut in) until the error leaves twice the band.
 
 Pure float arithmetic, nothing allocated: both run on the tick path.
 """
@@ -103,17 +103,27 @@ class SlidingModePosition:
         self.hold_band_mm = hold_band_mm
         self.pulser = Pulser(period_s, min_pulse_s)
         self.surface = 0.0
+        self.holding = False
 
     def reset(self) -> None:
         self.pulser.reset()
         self.surface = 0.0
+        self.holding = False
 
     def step(self, now_s: float, length_mm: float, velocity_mm_s: float, target_mm: float,
              target_velocity_mm_s: float) -> int:
         e = length_mm - target_mm
         s = self.lam * e + (velocity_mm_s - target_velocity_mm_s)
         self.surface = s
-        if -self.hold_band_mm <= e <= self.hold_band_mm and target_velocity_mm_s == 0.0:
+        if target_velocity_mm_s == 0.0:
+            # at rest: hold within the band; once holding, until twice the band (an
+            # encoder count of noise or creep does not start the valves again)
+            band = 2.0 * self.hold_band_mm if self.holding else self.hold_band_mm
+            self.holding = -band <= e <= band and (self.holding
+                                                   or not self.pulser.pulsing(now_s))
+        else:
+            self.holding = False
+        if self.holding:
             self.pulser.reset()
             return HOLD
         phi = self.phi
