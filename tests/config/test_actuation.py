@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from mcap.reader import make_reader
 
 from pamd.config import load_config, load_config_text
 from pamd.errors import ConfigError
@@ -130,8 +131,9 @@ def test_pamd_run_drives_the_onoff_rig_through_a_sine(tmp_path: Path) -> None:
     on the virtual clock; the summary counts each valve's switchings."""
     r = subprocess.run([sys.executable, "-m", "pamd", "run", "--config",
                         str(REPO / "config" / "sim-onoff.yaml"), "--clock", "virtual",
-                        "--profile", "sine", "--cycles", "1", "--no-telemetry", "--no-record",
-                        "--state-dir", str(tmp_path), "--json"],
+                        "--profile", "sine", "--cycles", "1", "--no-telemetry",
+                        "--record", str(tmp_path / "rec"), "--state-dir", str(tmp_path),
+                        "--json"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     s = json.loads(r.stdout)
@@ -141,6 +143,11 @@ def test_pamd_run_drives_the_onoff_rig_through_a_sine(tmp_path: Path) -> None:
     assert t["samples"] >= 20000 and t["rmse_bar"] < 0.1
     sw = s["valve_switches"]["m1"]
     assert set(sw) == {"inflate", "exhaust"} and sw["inflate"] > 100 and sw["exhaust"] > 100
+    # the recording's summary metadata keeps them (an independent MCAP reader)
+    (path,) = (tmp_path / "rec").glob("*.mcap")
+    with path.open("rb") as f:
+        meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    assert json.loads(meta["pamd.summary"]["valve_switches"]) == {"m1": sw}
     c = subprocess.run([sys.executable, "-m", "pamd", "check-config",
                         str(REPO / "config" / "sim-onoff.yaml")],
                        capture_output=True, text=True, timeout=120)
