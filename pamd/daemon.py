@@ -211,6 +211,7 @@ class Daemon:
             "compute_us": {"p50": t.compute_p50_us, "p99": t.compute_p99_us,
                            "max": t.compute_max_us},
             "tracking": self.summary.tracking(),
+            "valve_switches": {m.name: m.actuation.switches() for m in self.ctrl.muscles},
             "faults": list(sup.faults),
             "final_state": sup.state.name,
             "stop_reason": self.loop.stopped_reason,

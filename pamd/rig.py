@@ -11,7 +11,6 @@ import math
 from dataclasses import dataclass
 
 from pamd.calibration import Calibration, MuscleReference
-from pamd.config.actuation import not_yet_driven
 from pamd.config.loader import LoadedConfig, effective_timeout_s
 from pamd.config.schema import SafetyConfig, SignalConfig
 from pamd.drivers import Clock, Driver, load_driver_class
@@ -67,22 +66,16 @@ class MuscleSignals:
     pressure: InputBinding
     force: InputBinding
     length: InputBinding
-    valve: OutputBinding
-    exhaust: OutputBinding | None
+    valve: OutputBinding | None  # the regulator (actuation: proportional)
+    exhaust: OutputBinding | None  # the dump valve, or on/off's exhaust valve
     reference: MuscleReference
+    inflate: OutputBinding | None = None  # on/off's inflate valve (actuation: onoff)
 
 
 class Rig:
     """Drivers and signal bindings for a validated config."""
 
     def __init__(self, cfg: LoadedConfig, calibration: Calibration) -> None:
-        waiting = not_yet_driven(cfg.rig)
-        if waiting:  # until the tick's actuation seam lands (issue 13)
-            raise ConfigError([ConfigIssue(
-                cfg.path, None, "muscles.actuation",
-                "actuation: proportional to run this rig: pamd checks on/off valve "
-                "configs but does not drive them yet (the tick's actuation seam comes "
-                "first)", f"actuation: onoff on {', '.join(waiting)}")])
         self.cfg = cfg
         self.calibration = calibration
         self.drivers: dict[str, Driver] = {}
@@ -104,9 +97,12 @@ class Rig:
                 pressure=self._input(f"{m.name}.pressure", s.pressure, safety),
                 force=self._input(f"{m.name}.force", s.force, safety),
                 length=length,
-                valve=self._output(f"{m.name}.valve", _required(s.valve, cfg.path, m.name)),
+                valve=(None if m.actuation == "onoff" else
+                       self._output(f"{m.name}.valve", _required(s.valve, cfg.path, m.name))),
                 exhaust=self._output(f"{m.name}.exhaust", s.exhaust) if s.exhaust else None,
                 reference=ref,
+                inflate=(self._output(f"{m.name}.inflate", s.inflate)
+                         if m.actuation == "onoff" and s.inflate else None),
             ))
 
     def _input(self, name: str, sig: SignalConfig, safety: SafetyConfig) -> InputBinding:

@@ -33,6 +33,8 @@ def run(args: argparse.Namespace) -> int:
               f"contraction, {100 * lim.max_pretension:g} % stretch"
               + (f"; model {models[m.name].path}" if m.name in models else ""))
         if m.actuation == "onoff":
-            print(f"    on/off valves (PWM {1e3 * m.onoff.pwm_period_s:g} ms): `pamd run` "
-                  "does not drive them yet (the tick's actuation seam comes first)")
+            o = m.onoff
+            print(f"    on/off valves: PWM {1e3 * o.pwm_period_s:g} ms, fill "
+                  f"{o.fill_rate_bar_per_s:g} bar/s, vent {o.vent_rate_bar_per_s:g} bar/s, "
+                  f"response {1e3 * o.response_s:g} ms, dead band {o.dead_band_bar:g} bar")
     return 0

@@ -308,6 +308,11 @@ def print_summary(r: dict[str, Any]) -> None:
                       "profile was not followed there", file=out)
         else:
             print(f"  {name}: no profile ran (no tracking figures)", file=out)
+    for name, sw in r.get("valve_switches", {}).items():
+        if sw:
+            per_s = r["duration_s"] or 1.0
+            print(f"  {name}: valve switchings "
+                  + ", ".join(f"{v} {n} ({n / per_s:.1f}/s)" for v, n in sw.items()), file=out)
     rec = r.get("recording")
     if rec:
         files = ", ".join(rec["files"]) or "none"

@@ -24,11 +24,6 @@ _SIM_SENSORS = {"pressure": ("pressure_sample_period_s", "pressure_latency_s"),
                 "length": ("length_sample_period_s", "length_latency_s")}
 
 
-def not_yet_driven(rig: RigConfig) -> list[str]:
-    """Muscles the tick cannot drive yet: on/off valves wait for its actuation seam."""
-    return [m.name for m in rig.muscles if m.actuation == "onoff"]
-
-
 def check_actuation(rig: RigConfig, node: Any, digital: dict[str, set[str]],
                     ctx: Context) -> None:
     """The actuation rules for every muscle; `node` is the raw `muscles` list and

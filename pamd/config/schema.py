@@ -193,6 +193,34 @@ class OnOffConfig:
                                    min=0.0, max=0.5)
     valve_off_delay_s: float = spec(0.005, "The valves' switching time from release to "
                                     "closed (about 2-5 ms).", unit="s", min=0.0, max=0.5)
+    fill_rate_bar_per_s: float = spec(
+        4.68, "How fast the inflate valve, held open, fills the muscle at mid pressure (3 "
+        "bar): the PWM's gain, measured by a step test on the rig (bench/tune_onoff.py).",
+        unit="bar/s", gt=0.0)
+    vent_rate_bar_per_s: float = spec(
+        3.68, "How fast the exhaust valve, held open, vents the muscle at 3 bar (the same "
+        "step test).", unit="bar/s", gt=0.0)
+    response_s: float = spec(
+        0.1, "Time constant the PWM pressure loop aims for (its proportional gain is "
+        "1 / (rate x response_s), its integral time 5 x response_s).", unit="s", gt=0.0,
+        max=10.0)
+    dead_band_bar: float = spec(
+        0.014, "Within this of a steady command both valves hold (no chatter at rest); "
+        "about half the pressure step of the shortest pulse.", unit="bar", min=0.0, max=1.0)
+    position_lambda_per_s: float = spec(
+        17.6, "Mode position (seed 004's sliding mode): the sliding surface s = lambda e + "
+        "de/dt on the length error e; the error decays at this rate on the surface. From "
+        "the step test (bench/tune_onoff.py).", unit="1/s", gt=0.0)
+    position_boundary_mm_s: float = spec(
+        17.6, "Mode position: the boundary layer |s| <= this, inside which the valves pulse "
+        "with a duty s / boundary (against chattering); outside it one valve is open.",
+        unit="mm/s", gt=0.0)
+    position_hold_band_mm: float = spec(
+        0.01, "Mode position: within this of a length target at rest both valves hold "
+        "(the muscle's friction keeps it there).", unit="mm", min=0.0)
+    position_period_s: float = spec(
+        0.05, "Mode position: the PWM period of the boundary layer's pulses.", unit="s",
+        gt=0.0, max=1.0)
 
 
 @dataclass(frozen=True, kw_only=True)

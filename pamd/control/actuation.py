@@ -1,15 +1,41 @@
 """The actuation stage of one muscle's tick: how its command reaches its valves.
 
 An `Actuation` takes the command the limiter let through (a pressure, bar) once per
-tick and drives the muscle's outputs with it. Today's one is `RegulatorActuation`:
-a proportional pressure regulator's setpoint plus the optional exhaust valve,
-opened only when the tick asks to vent (a safe state whose safe pressure is 0).
+tick and drives the muscle's outputs with it; `actuation_for` picks it from the
+muscle's `actuation`.
 
-Made to fit on/off valves too (issue #14): an inflate and an exhaust digital
-output switched by PWM or a sliding mode (`pamd.control.onoff`) would implement the
-same Protocol, using the measured pressure and the tick's time in `write`, counting
-its valve switches in `switch_count`, and saying what its outputs hold in the safe
-state (`safe_outputs`: both closed holds the air in; the exhaust open vents).
+`RegulatorActuation` (`actuation: proportional`): a proportional pressure
+regulator's setpoint plus the optional exhaust valve, opened only when the tick asks
+to vent (a safe state whose safe pressure is 0).
+
+`OnOffActuation` (`actuation: onoff`, seed 004's rig): the command reaches an
+inflate and an exhaust solenoid valve by PWM. The limiter still decides the
+command; this stage only makes the valves deliver it. For an on/off muscle the
+tick's PID adds nothing (`MuscleController` zeroes its gains): the pressure loop
+is here, where the valves' rates are known.
+
+The law, each tick: the rate of pressure wanted is
+
+    want = (e + integral) / response_s + command rate        (bar/s, e = command - p)
+
+and the duty is `want / fill_rate` (inflate) or `want / vent_rate` (exhaust): the
+rates a step test on the rig measures (bench/tune_onoff.py), never the simulator's
+parameters. `Pulser` turns the duty into a pulse at the start of each PWM period; a
+pulse the valves cannot pass (shorter than twice the opening delay) is not sent.
+
+At rest (a steady command within `dead_band_bar` of the pressure, low-passed over
+a PWM period; left again beyond twice the band) both valves hold and the integral
+stays: no chatter on the sensor's noise. Venting (the safe state at a safe pressure of 0,
+a vent ESTOP) opens the exhaust and closes the inflate valve.
+
+In mode position an on/off muscle follows seed 004's sliding mode instead
+(`SlidingModePosition`: a sliding surface on the length error and its rate, a
+boundary layer, inflate / hold / exhaust; `position`), filling never above the
+limiter's ceiling; a safe state leaves the length mode, so PWM takes the safe ramp.
+
+Each valve's switchings are counted (`inflate_switches`, `exhaust_switches`):
+valve wear is what on/off users watch. Tick path: float arithmetic and the drivers'
+non-blocking `write`, only on a change.
 
 How to add an actuation: a class with these members in `pamd/control/`, built by
 `actuation_for` from the muscle's signals; nothing else in the tick changes.
@@ -21,6 +47,8 @@ from __future__ import annotations
 
 from typing import NamedTuple, Protocol
 
+from pamd.config.schema import MuscleConfig, OnOffConfig
+from pamd.control.onoff import EXHAUST, HOLD, INFLATE, Pulser, SlidingModePosition
 from pamd.rig import MuscleSignals, OutputBinding
 from pamd.tick import Flag
 
@@ -54,6 +82,10 @@ class Actuation(Protocol):
         """What each output holds in the safe state with this safe pressure."""
         ...
 
+    def switches(self) -> dict[str, int]:
+        """Switchings per valve since start (the summary and the recording)."""
+        ...
+
 
 class RegulatorActuation:
     """A proportional pressure regulator's setpoint, plus the optional exhaust valve."""
@@ -76,6 +108,9 @@ class RegulatorActuation:
             self.switch_count += 1
         return F_EXHAUST if vent else 0
 
+    def switches(self) -> dict[str, int]:
+        return {} if self.exhaust is None else {"exhaust": self.switch_count}
+
     def safe_outputs(self, safe_pressure_bar: float) -> list[SafeOutput]:
         out = [SafeOutput(self.valve, safe_pressure_bar, "bar")]
         if self.exhaust is not None:
@@ -84,6 +119,169 @@ class RegulatorActuation:
         return out
 
 
-def actuation_for(signals: MuscleSignals) -> Actuation:
-    """The actuation a muscle's signals describe (today: a regulator and an exhaust)."""
+#: A command moving slower than this counts as steady (the dead band applies).
+STEADY_BAR_PER_S = 0.01
+#: The integral's clamp (bar of pressure error).
+INTEGRAL_LIMIT_BAR = 0.5
+INTEGRAL_TIMES = 5.0  # integral time = this x response_s
+
+
+def min_pulse_s(cfg: OnOffConfig) -> float:
+    """The shortest pulse worth sending: twice the opening delay (a pulse taken back
+    within the delay never moves the spool), at least 2 ms, within the period."""
+    pulse = max(2.0 * cfg.valve_on_delay_s, 0.002)
+    return min(pulse, 0.5 * cfg.pwm_period_s)
+
+
+class OnOffActuation:
+    """An inflate (3/2 NC) and an exhaust (2/2 NC) valve driven by PWM."""
+
+    def __init__(self, inflate: OutputBinding, exhaust: OutputBinding,
+                 cfg: OnOffConfig) -> None:
+        self.inflate = inflate
+        self.exhaust = exhaust
+        self.pulser = Pulser(cfg.pwm_period_s, min_pulse_s(cfg))
+        self.sliding = SlidingModePosition(
+            lambda_per_s=cfg.position_lambda_per_s, boundary_mm_s=cfg.position_boundary_mm_s,
+            hold_band_mm=cfg.position_hold_band_mm, period_s=cfg.position_period_s,
+            min_pulse_s=min(min_pulse_s(cfg), 0.5 * cfg.position_period_s))
+        self._positioning = False
+        self._length_mm = self._velocity_mm_s = 0.0
+        self._target_mm = self._target_rate_mm_s = 0.0
+        self._ceiling_bar = 0.0
+        self.set_config(cfg)
+        self.exhaust_open = False
+        self.inflate_open = False
+        self.inflate_switches = 0
+        self.exhaust_switches = 0
+        self.integral_bar = 0.0
+        self.duty = 0.0
+        self.state = HOLD
+        self._prev_command = float("nan")
+        self._p_filtered = float("nan")
+        self._holding = False
+        self._tau_s = cfg.pwm_period_s
+        self._alpha = 0.0
+
+    def set_config(self, cfg: OnOffConfig) -> None:
+        """Gains from the config (also a reload's; the state stays)."""
+        self.fill_rate = cfg.fill_rate_bar_per_s
+        self.vent_rate = cfg.vent_rate_bar_per_s
+        self.response_s = cfg.response_s
+        self.integral_time_s = INTEGRAL_TIMES * cfg.response_s
+        self.dead_band_bar = cfg.dead_band_bar
+
+    @property
+    def switch_count(self) -> int:
+        return self.inflate_switches + self.exhaust_switches
+
+    def switches(self) -> dict[str, int]:
+        """Switchings per valve (the summary and the recording)."""
+        return {"inflate": self.inflate_switches, "exhaust": self.exhaust_switches}
+
+    def reset(self) -> None:
+        self.pulser.reset()
+        self.integral_bar = 0.0
+        self._prev_command = float("nan")
+        self._p_filtered = float("nan")
+        self._holding = False
+
+    def position(self, length_mm: float, velocity_mm_s: float, target_mm: float,
+                 target_rate_mm_s: float, ceiling_bar: float) -> None:
+        """Mode position, this tick: the valves follow seed 004's sliding mode on the
+        length instead of the command, never filling above `ceiling_bar` (the pressure
+        limit and the guards'). Called before `write`, every tick it applies."""
+        self._positioning = True
+        self._length_mm = length_mm
+        self._velocity_mm_s = velocity_mm_s
+        self._target_mm = target_mm
+        self._target_rate_mm_s = target_rate_mm_s
+        self._ceiling_bar = ceiling_bar
+
+    def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
+              vent: bool) -> int:
+        prev = self._prev_command
+        self._prev_command = command_bar
+        positioning = self._positioning
+        self._positioning = False
+        if vent:
+            self.integral_bar = 0.0
+            self.duty = -1.0
+            return self._set(EXHAUST)
+        if positioning:
+            state = self.sliding.step(now_s, self._length_mm, self._velocity_mm_s,
+                                      self._target_mm, self._target_rate_mm_s)
+            if state == INFLATE and not pressure_bar < self._ceiling_bar:
+                state = HOLD  # the limit and the guards bound the valves too
+            self.pulser.reset()
+            self._holding = False
+            self.integral_bar = 0.0
+            self.duty = self.sliding.surface
+            return self._set(state)
+        rate = 0.0 if prev != prev else (command_bar - prev) / dt_s
+        self._alpha = dt_s / (self._tau_s + dt_s)
+        e = command_bar - pressure_bar
+        if e != e:  # no trusted pressure to act on: hold the air in
+            self.pulser.reset()
+            self.duty = 0.0
+            return self._set(HOLD)
+        # The dead band, on the pressure low-passed over a PWM period (the sensor's
+        # noise alone never opens a valve), with hysteresis: entered within the band
+        # once a pulse is over, left beyond twice the band.
+        pf = self._p_filtered
+        pf = pressure_bar if pf != pf else pf + self._alpha * (pressure_bar - pf)
+        self._p_filtered = pf
+        ef = command_bar - pf
+        band = self.dead_band_bar
+        if -STEADY_BAR_PER_S < rate < STEADY_BAR_PER_S:
+            if self._holding:
+                self._holding = -2.0 * band <= ef <= 2.0 * band
+            else:
+                self._holding = -band <= ef <= band and not self.pulser.pulsing(now_s)
+        else:
+            self._holding = False
+        if self._holding:
+            self.pulser.reset()
+            self.duty = 0.0
+            return self._set(HOLD)
+        i = self.integral_bar + e * dt_s / self.integral_time_s
+        self.integral_bar = (INTEGRAL_LIMIT_BAR if i > INTEGRAL_LIMIT_BAR
+                             else (-INTEGRAL_LIMIT_BAR if i < -INTEGRAL_LIMIT_BAR else i))
+        want = (e + self.integral_bar) / self.response_s + rate
+        duty = want / self.fill_rate if want > 0.0 else want / self.vent_rate
+        self.duty = duty
+        return self._set(self.pulser.state(now_s, duty))
+
+    def _set(self, state: int) -> int:
+        """Drive both valves to `state`; writes and counts only what changes."""
+        self.state = state
+        inflate = state == INFLATE
+        exhaust = state == EXHAUST
+        if inflate != self.inflate_open:
+            self.inflate.write_si(1.0 if inflate else 0.0)
+            self.inflate_open = inflate
+            self.inflate_switches += 1
+        if exhaust != self.exhaust_open:
+            self.exhaust.write_si(1.0 if exhaust else 0.0)
+            self.exhaust_open = exhaust
+            self.exhaust_switches += 1
+        return F_EXHAUST if exhaust else 0
+
+    def safe_outputs(self, safe_pressure_bar: float) -> list[SafeOutput]:
+        """Both closed holds the air in; at a safe pressure of 0 the exhaust vents."""
+        vent = 1.0 if safe_pressure_bar == 0.0 else 0.0
+        return [SafeOutput(self.inflate, 0.0, "(1 = open)"),
+                SafeOutput(self.exhaust, vent, "(1 = open)")]
+
+
+def actuation_for(signals: MuscleSignals, muscle: MuscleConfig) -> Actuation:
+    """The actuation a muscle's config describes: a regulator (and its optional exhaust)
+    or on/off valves (both required by the config's rules: pamd.config.actuation)."""
+    if muscle.actuation == "onoff":
+        if signals.inflate is None or signals.exhaust is None:
+            raise ValueError(f"muscle {muscle.name!r}: on/off actuation needs its inflate "
+                             "and exhaust outputs")
+        return OnOffActuation(signals.inflate, signals.exhaust, muscle.onoff)
+    if signals.valve is None:
+        raise ValueError(f"muscle {muscle.name!r}: a regulator needs its valve output")
     return RegulatorActuation(signals.valve, signals.exhaust)

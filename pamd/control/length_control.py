@@ -88,6 +88,7 @@ class LengthControl:
         self.correction = 0.0  # outer PID + ILC part of the setpoint, bar
         # What the muscle records (NaN / 0 outside the length modes).
         self.target_length_mm = self.target_force_n = math.nan
+        self.target_rate_mm_s = 0.0  # the length profile's rate (0 at rest)
         self.feedforward_bar = 0.0
         self.setpoint_rate_bar_per_s = 0.0
 
@@ -189,9 +190,11 @@ class LengthControl:
             x_t = prof.value
             ln_t = l0 * (1.0 - x_t)
             self.target_length_mm = ln_t
+            self.target_rate_mm_s = -l0 * prof.rate
         else:
             ln_t = self.target_length_mm
             x_t = (l0 - ln_t) / l0
+            self.target_rate_mm_s = 0.0
         v_t = self.target_vel.update(ln_t, dt)
         f_in = self.target_force_n
         if self.position:

@@ -26,11 +26,13 @@ from __future__ import annotations
 
 import math
 from array import array
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from pamd.calibration import MuscleReference
 from pamd.config.loader import LoadedConfig
-from pamd.control.actuation import Actuation, actuation_for
+from pamd.config.schema import PidConfig
+from pamd.control.actuation import Actuation, OnOffActuation, actuation_for
 from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
 from pamd.control.pressure_loop import PressureLoop
@@ -94,9 +96,12 @@ class MuscleController:
         self.profile_follower = ProfileFollower(envelope)
         self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
                                             None if model is None else model.feedforward())
-        self.pressure_loop = PressureLoop(ctl.pid, ctl.rate_feedforward_s)
+        self.onoff = cfg.muscle(self.name).actuation == "onoff"
+        self.pressure_loop = PressureLoop(*self._pressure_gains(ctl.pid, ctl.rate_feedforward_s))
         self.limiter = Limiter()
-        self.actuation: Actuation = actuation_for(signals)
+        self.actuation: Actuation = actuation_for(signals, cfg.muscle(self.name))
+        self._onoff: OnOffActuation | None = (  # on/off valves' sliding mode: position
+            self.actuation if isinstance(self.actuation, OnOffActuation) else None)
         self.length_absolute = bool(
             ln.driver.is_absolute(ln.index) or cfg.muscle(self.name).signals.length.absolute)
         # Run-time state (read through the properties below).
@@ -229,6 +234,15 @@ class MuscleController:
         self.length_control.set_envelope(env)
         self.inputs.set_nominal_length(env.nominal_length_mm)
 
+    def _pressure_gains(self, pid: PidConfig, rate_feedforward_s: float
+                        ) -> tuple[PidConfig, float]:
+        """The PID's gains: on/off valves close their pressure loop in their actuation
+        (`OnOffActuation`), so there the PID adds nothing and the command is the
+        setpoint."""
+        if self.onoff:
+            return replace(pid, kp=0.0, ki_per_s=0.0, kd_s=0.0), 0.0
+        return pid, rate_feedforward_s
+
     def set_load(self, load_kg: float) -> None:
         """A new hanging load: a new safe pressure."""
         self._load_kg = load_kg
@@ -240,7 +254,7 @@ class MuscleController:
         Gains and timeouts always; limits, slew, nominal length and a changed load (so
         the safe pressure) only `with_limits` (the rig is IDLE). The PID keeps its
         state, the integral clamped to the new limit: no bump."""
-        self.pressure_loop.set_gains(s.pid, s.rate_feedforward_s)
+        self.pressure_loop.set_gains(*self._pressure_gains(s.pid, s.rate_feedforward_s))
         self.inputs.set_timeouts(s.pressure_timeout_s, s.force_timeout_s, s.length_timeout_s)
         self.limit_monitor.set_times(s.safety)
         self.plausibility.configure(s.safety.plausibility)
@@ -405,6 +419,10 @@ class MuscleController:
                 sp = lc.step(now, dt, state, sp, self._profile, inp.length_mm, inp.force_n)
                 flags |= lc.flags
                 rate = lc.setpoint_rate_bar_per_s
+                if self._onoff is not None and lc.position and p_ok:
+                    # the sliding mode moves the valves on the length (actuation): the
+                    # pressure is whatever that takes, so the command is the pressure
+                    sp, rate = p, 0.0
             elif (state == S_RUNNING or state == S_LOAD) and self._profile is not None:
                 follower = self.profile_follower
                 sp = follower.step(self._profile, now, sp, dt)
@@ -415,8 +433,12 @@ class MuscleController:
         self._setpoint_bar = sp
         # -- pressure: closed only on a trusted pressure, and not in FAULT/ESTOP (open
         # loop to the safe pressure) ----------------------------------------------------
+        # At a safe pressure of 0, once the setpoint is there, the loop stays open: the
+        # exhaust vents, and a PID running on the sensor's noise would lift the command
+        # off 0 and make the exhaust chatter.
+        venting = safe and self._safe_pressure_bar == 0.0 and sp <= VENT_BELOW_BAR
         loop = self.pressure_loop
-        u = loop.step(sp, rate, p, p_ok and not latched, p_ok, dt)
+        u = loop.step(sp, rate, p, p_ok and not latched and not venting, p_ok, dt)
         flags |= loop.flags
         # -- limits: the guards' bounds (restoring direction, trusted length only) -------
         step = slew * dt
@@ -445,8 +467,14 @@ class MuscleController:
                 self.limit_report = report  # the controller reports it
         # -- actuation -------------------------------------------------------------------
         self._valve_cmd_bar = u
-        vent = (safe and self._safe_pressure_bar == 0.0 and sp <= VENT_BELOW_BAR
-                and u <= VENT_BELOW_BAR)
+        vent = venting and u <= VENT_BELOW_BAR
+        onoff = self._onoff
+        if onoff is not None and lc.active and lc.position and not safe:
+            # seed 004's sliding mode positions an on/off muscle (OnOffActuation)
+            hi = lim.hi
+            onoff.position(inp.length_mm, inp.velocity_mm_s, lc.target_length_mm,
+                                 lc.target_rate_mm_s,
+                                 self._max_pressure_bar if hi > self._max_pressure_bar else hi)
         flags |= self.actuation.write(u, p, now, dt, vent)
         self._record(rec, flags)
         return fault

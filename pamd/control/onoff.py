@@ -14,7 +14,7 @@ error and its rate, s = lambda e + de/dt (e = length - target, so s > 0 asks for
 contraction), with a boundary layer |s| <= phi against chattering: outside it the
 valve opens fully toward the surface, inside it pulses with a duty s / phi, and
 within `hold_band_mm` of the target at rest it holds (the muscle's friction keeps
-it there with its air shut in).
+it there with its air shut in) until the error leaves twice the band.
 
 Pure float arithmetic, nothing allocated: both run on the tick path.
 """
@@ -24,7 +24,7 @@ from __future__ import annotations
 INFLATE, HOLD, EXHAUST = 1, 0, -1
 
 
-class _Pulser:
+class Pulser:
     """Turns a duty in [-1, 1] into valve states over PWM periods."""
 
     def __init__(self, period_s: float, min_pulse_s: float) -> None:
@@ -42,6 +42,10 @@ class _Pulser:
         self._period_start_s = -1e30
         self._pulse_s = 0.0
         self._direction = HOLD
+
+    def pulsing(self, now_s: float) -> bool:
+        """A pulse is under way (a valve commanded open for this period)."""
+        return self._direction != HOLD and now_s - self._period_start_s < self._pulse_s - 1e-9
 
     def state(self, now_s: float, duty: float) -> int:
         """The valve state at `now_s`; a new period starts with the given duty."""
@@ -66,7 +70,7 @@ class PwmPressure:
     def __init__(self, *, period_s: float, min_pulse_s: float, kp_per_bar: float,
                  ki_per_bar_s: float, rate_feedforward_s_per_bar: float,
                  integral_limit: float = 0.5) -> None:
-        self.pulser = _Pulser(period_s, min_pulse_s)
+        self.pulser = Pulser(period_s, min_pulse_s)
         self.kp = kp_per_bar
         self.ki = ki_per_bar_s
         self.kff = rate_feedforward_s_per_bar
@@ -97,19 +101,29 @@ class SlidingModePosition:
         self.lam = lambda_per_s
         self.phi = boundary_mm_s
         self.hold_band_mm = hold_band_mm
-        self.pulser = _Pulser(period_s, min_pulse_s)
+        self.pulser = Pulser(period_s, min_pulse_s)
         self.surface = 0.0
+        self.holding = False
 
     def reset(self) -> None:
         self.pulser.reset()
         self.surface = 0.0
+        self.holding = False
 
     def step(self, now_s: float, length_mm: float, velocity_mm_s: float, target_mm: float,
              target_velocity_mm_s: float) -> int:
         e = length_mm - target_mm
         s = self.lam * e + (velocity_mm_s - target_velocity_mm_s)
         self.surface = s
-        if -self.hold_band_mm <= e <= self.hold_band_mm and target_velocity_mm_s == 0.0:
+        if target_velocity_mm_s == 0.0:
+            # at rest: hold within the band; once holding, until twice the band (an
+            # encoder count of noise or creep does not start the valves again)
+            band = 2.0 * self.hold_band_mm if self.holding else self.hold_band_mm
+            self.holding = -band <= e <= band and (self.holding
+                                                   or not self.pulser.pulsing(now_s))
+        else:
+            self.holding = False
+        if self.holding:
             self.pulser.reset()
             return HOLD
         phi = self.phi

@@ -48,7 +48,8 @@ class LimitMonitor:
         self._held_since = math.inf
         self._held_reported = False
         self.holding_back = False  # a reference is held back at a limit (held_at_limit)
-        self.lo = 0.0  # guard bounds on the command of this tick
+        self.lo = -math.inf  # guard bounds on the command of this tick (none: +-inf;
+        # the limiter keeps the command >= 0 without naming a guard)
         self.hi = math.inf
         self.flags = 0
 
@@ -135,7 +136,7 @@ class LimitMonitor:
         what control wants now, `step` the slew limit times the period. Returns the flag
         of a guard that holds `wanted` back, or 0."""
         if not length_ok:
-            self.lo, self.hi = 0.0, math.inf
+            self.lo, self.hi = -math.inf, math.inf
             self.c_recover = self.s_recover = False
             return 0
         if self.c_guard:
@@ -152,7 +153,7 @@ class LimitMonitor:
         elif x <= -self.max_stretch:
             self.s_guard = True
             self.s_recover = False
-        lo, hi = 0.0, math.inf
+        lo, hi = -math.inf, math.inf  # no guard: 0 bar is the limiter's, not a guard
         if self.c_guard:
             # restoring: never up; beyond the limit, down at the slew limit
             hi = prev_cmd - step if x >= self.max_c else prev_cmd

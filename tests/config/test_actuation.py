@@ -1,15 +1,17 @@
 """A muscle's actuation in the config: proportional (a regulator) or onoff (an inflate
 and an exhaust solenoid valve on digital outputs). Each refusal names file, line and
-key; config/sim-onoff.yaml passes check-config, and `pamd run` says it cannot drive it
-yet (until the tick's actuation seam lands)."""
+key; config/sim-onoff.yaml passes check-config and runs (`pamd run --profile sine`,
+end to end through the CLI on the virtual clock)."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from mcap.reader import make_reader
 
 from pamd.config import load_config, load_config_text
 from pamd.errors import ConfigError
@@ -124,14 +126,30 @@ def test_a_simulated_sensor_slower_than_its_signal_timeout_is_refused() -> None:
     assert load_config_text(ok, "rig.yaml").muscle("m1")
 
 
-def test_pamd_run_says_it_cannot_drive_onoff_valves_yet() -> None:
+def test_pamd_run_drives_the_onoff_rig_through_a_sine(tmp_path: Path) -> None:
+    """config/sim-onoff.yaml as shipped: the 0.05 Hz 0-6 bar sine by PWM, one cycle,
+    on the virtual clock; the summary counts each valve's switchings."""
     r = subprocess.run([sys.executable, "-m", "pamd", "run", "--config",
                         str(REPO / "config" / "sim-onoff.yaml"), "--clock", "virtual",
-                        "--duration", "1", "--no-telemetry"],
-                       capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2, r.stderr
-    assert "does not drive them yet" in r.stderr and "m1" in r.stderr
+                        "--profile", "sine", "--cycles", "1", "--no-telemetry",
+                        "--record", str(tmp_path / "rec"), "--state-dir", str(tmp_path),
+                        "--json"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    s = json.loads(r.stdout)
+    assert s["final_state"] == "IDLE" and s["faults"] == []
+    assert s["stop_reason"] == "profile finished"
+    t = s["tracking"]["m1"]
+    assert t["samples"] >= 20000 and t["rmse_bar"] < 0.1
+    sw = s["valve_switches"]["m1"]
+    assert set(sw) == {"inflate", "exhaust"} and sw["inflate"] > 100 and sw["exhaust"] > 100
+    # the recording's summary metadata keeps them (an independent MCAP reader)
+    (path,) = (tmp_path / "rec").glob("*.mcap")
+    with path.open("rb") as f:
+        meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    assert json.loads(meta["pamd.summary"]["valve_switches"]) == {"m1": sw}
     c = subprocess.run([sys.executable, "-m", "pamd", "check-config",
                         str(REPO / "config" / "sim-onoff.yaml")],
                        capture_output=True, text=True, timeout=120)
-    assert c.returncode == 0 and "on/off valves (PWM 20 ms)" in c.stdout
+    assert c.returncode == 0 and "on/off valves: PWM 20 ms" in c.stdout
+    assert "does not drive" not in c.stdout

@@ -121,12 +121,25 @@ class SafetyRig:
 
 
 def sim_driver(load_kg: float, initial_bar: float,
-               faults: list[dict[str, Any]] | None = None) -> list[dict[str, Any]]:
-    """The `drivers:` of a rig with one muscle carrying `load_kg`, its regulator holding
-    `initial_bar` at power-up, and the fault schedule."""
-    muscle = {"name": "m1", "load_kg": load_kg, "initial_pressure_bar": initial_bar}
+               faults: list[dict[str, Any]] | None = None,
+               actuation: str = "proportional") -> list[dict[str, Any]]:
+    """The `drivers:` of a rig with one muscle carrying `load_kg`, its regulator (or its
+    on/off valves) holding `initial_bar` at power-up, and the fault schedule."""
+    muscle = {"name": "m1", "load_kg": load_kg, "initial_pressure_bar": initial_bar,
+              "actuation": actuation}
     return [{"name": "sim", "type": "sim", "options": {
         "seed": 1, "faults": faults or [], "muscles": [muscle]}}]
+
+
+def onoff_muscles(load_kg: float) -> list[dict[str, Any]]:
+    """The `muscles:` of config/sim.yaml's m1 on on/off valves (as config/sim-onoff.yaml)."""
+    return [{"name": "m1", "type": "dmsp20", "nominal_length_mm": 200, "load_kg": load_kg,
+             "actuation": "onoff",
+             "signals": {"pressure": {"driver": "sim", "channel": "m1.pressure"},
+                         "force": {"driver": "sim", "channel": "m1.force"},
+                         "length": {"driver": "sim", "channel": "m1.length"},
+                         "inflate": {"driver": "sim", "channel": "m1.inflate"},
+                         "exhaust": {"driver": "sim", "channel": "m1.exhaust"}}}]
 
 
 @pytest.fixture
@@ -134,8 +147,11 @@ def safety_rig(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[...
     made: list[Harness] = []
 
     def make(load_kg: float, initial_bar: float = 0.0,
-             faults: list[dict[str, Any]] | None = None, **changes: Any) -> SafetyRig:
-        changes.setdefault("drivers", sim_driver(load_kg, initial_bar, faults))
+             faults: list[dict[str, Any]] | None = None, actuation: str = "proportional",
+             **changes: Any) -> SafetyRig:
+        changes.setdefault("drivers", sim_driver(load_kg, initial_bar, faults, actuation))
+        if actuation == "onoff":
+            changes.setdefault("muscles", onoff_muscles(load_kg))
         cfg = sim_config(load_kg, **changes)
         h = Harness(cfg)
         made.append(h)

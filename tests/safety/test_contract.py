@@ -5,6 +5,10 @@ command never above the limits, in a safe state never below the safe pressure an
 never faster than the slew limit, the setpoint never pushed by a guard, and the
 muscle inside its hard contraction limits where the physics allows.
 
+The same contract holds for a muscle on on/off valves (PWM from the command, the
+exhaust opened to vent; issue #14), at 30 kg only to keep the run time reasonable:
+every fault kind x every state.
+
 This suite is what later redesigns must keep green. Each run is a few virtual
 seconds (a few thousand ticks)."""
 
@@ -58,15 +62,20 @@ def _scenario(rig: SafetyRig, state: str, load_kg: float) -> None:
         rig.run(FAULT_AT_S["safe_ramp"] - 2.0 + AFTER_S)
 
 
+#: (actuation, load): the regulator at every load, on/off valves at 30 kg.
+RIGS = [("proportional", load) for load in LOADS] + [("onoff", 30.0)]
+
+
 @pytest.mark.parametrize("state", STATES)
-@pytest.mark.parametrize("load_kg", LOADS)
+@pytest.mark.parametrize("actuation, load_kg", RIGS, ids=[f"{a}-{w:g}kg" for a, w in RIGS])
 @pytest.mark.parametrize("signal, kind", FAULTS, ids=[f"{s}-{k}" for s, k in FAULTS])
 def test_the_invariants_hold_whatever_fails(safety_rig: Callable[..., SafetyRig], signal: str,
-                                             kind: str, load_kg: float, state: str) -> None:
+                                             kind: str, actuation: str, load_kg: float,
+                                             state: str) -> None:
     fault: dict[str, Any] = {"at_s": FAULT_AT_S[state], "signal": signal, "kind": kind,
                              "muscle": "*" if signal == "driver" else "m1"}
     initial = 0.0 if state == "startup" else _pressures(load_kg)[0]
-    rig = safety_rig(load_kg, initial, [fault])
+    rig = safety_rig(load_kg, initial, [fault], actuation)
     _scenario(rig, state, load_kg)
     actuator_works = signal not in ("supply", "valve", "driver")
     rig.check_invariants(actuator_works)

@@ -1,0 +1,130 @@
+"""Benchmark: on/off valves (config/sim-onoff.yaml, 30 kg) on the simulated rig; prints
+the issue #14 figures. Virtual clock, deterministic.
+
+1. Positioning (mode position, seed 004's sliding mode): a 10 mm length setpoint
+   (shorter), sent at the fastest length rate the config allows (a 1 s ramp at
+   `control.position.max_rate_per_s`, 10 mm/s). Settling time: from the command until
+   the true length stays within 0.02 mm of the target (goal: 2 s); then 4 s at rest:
+   the worst error and each valve's switchings per second (goal: <= 5/s).
+2. PWM pressure tracking of the spine's 0.05 Hz 0-6 bar sine, 3 cycles: RMSE of the
+   measured pressure against the setpoint after the first cycle (goal: <= 0.1 bar),
+   and each valve's switchings per second.
+
+The gains are config/sim-onoff.yaml's, from the step test of bench/tune_onoff.py.
+
+    python bench/onoff_positioning.py
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from pamd.config import load_config
+from pamd.harness import Harness
+from pamd.tick import State
+
+REPO = Path(__file__).resolve().parents[1]
+DT = 0.001
+STEP_MM = 10.0
+BAND_MM = 0.02
+REST_S = 4.0
+
+
+def onoff_harness(load_kg: float = 30.0, initial_bar: float = 0.0) -> Harness:
+    d: dict[str, Any] = yaml.safe_load((REPO / "config" / "sim-onoff.yaml").read_text())
+    d["loop"]["clock"] = "virtual"
+    d["loop"]["realtime"] = {"enabled": False}
+    d["telemetry"] = {"enabled": False}
+    d["muscles"][0]["load_kg"] = load_kg
+    sim = d["drivers"][0]["options"]["muscles"][0]
+    sim["load_kg"] = load_kg
+    sim["initial_pressure_bar"] = initial_bar
+    path = Path(tempfile.mkdtemp()) / "sim-onoff.yaml"
+    path.write_text(yaml.safe_dump(d, sort_keys=False))
+    h = Harness(load_config(str(path)))
+    h.step(0.01)
+    return h
+
+
+def positioning() -> dict[str, float]:
+    """The 10 mm step: settling time (s), worst error at rest (mm), switchings/s at
+    rest per valve."""
+    h = onoff_harness(initial_bar=3.0)
+    try:
+        h.step(1.0)
+        m, plant = h.m1, h.sim.plant("m1")
+        assert h.cmd("mode", muscle="m1", mode="position", feedforward=False)["ok"]
+        target = plant.length_mm - STEP_MM
+        fastest_mm_s = m.envelope.nominal_length_mm * h.cfg.rig.control.position.max_rate_per_s
+        v = h.cmd("setpoint", muscle="m1", length_mm=target,
+                  ramp_s=1.001 * STEP_MM / fastest_mm_s)
+        assert v["ok"], v
+        t0 = h.t
+        errors: list[tuple[float, float]] = []
+        for k in range(round((2.0 + REST_S) / DT)):
+            if k == round(2.0 / DT):
+                at_2s = m.actuation.switches()
+            h.step(DT)
+            errors.append((h.t - t0, abs(plant.length_mm - target)))
+        end = m.actuation.switches()
+        assert h.ctrl.supervisor.state == State.RUNNING, h.ctrl.supervisor.faults
+    finally:
+        h.rig.close()
+    settle = 0.0
+    for t, e in errors:
+        if e > BAND_MM:
+            settle = t
+    rest = [e for t, e in errors if t > 2.0]
+    return {"settle_s": settle, "rest_max_error_mm": max(rest),
+            "rest_inflate_per_s": (end["inflate"] - at_2s["inflate"]) / REST_S,
+            "rest_exhaust_per_s": (end["exhaust"] - at_2s["exhaust"]) / REST_S}
+
+
+def sine_tracking(cycles: int = 3) -> dict[str, float]:
+    """PWM tracking of the 0.05 Hz 0-6 bar sine at 30 kg, after the first cycle."""
+    h = onoff_harness()
+    try:
+        assert h.cmd("profile", muscle="m1", kind="sine", min_bar=0.0, max_bar=6.0,
+                     freq_hz=0.05, cycles=cycles)["ok"]
+        m = h.m1
+        first_end = h.t + m.profile.lead_in_s + 20.0
+        sq, n = 0.0, 0
+        sw0: dict[str, int] | None = None
+        while h.ctrl.supervisor.state == State.RUNNING:
+            h.step(DT)
+            if h.t > first_end and h.ctrl.supervisor.state == State.RUNNING:
+                if sw0 is None:
+                    sw0, t_sw = m.actuation.switches(), h.t
+                e = m.setpoint_bar - m.pressure_bar
+                sq += e * e
+                n += 1
+        sw = m.actuation.switches()
+        assert sw0 is not None and not h.ctrl.supervisor.faults, h.ctrl.supervisor.faults
+        span = h.t - t_sw
+    finally:
+        h.rig.close()
+    return {"rmse_bar": math.sqrt(sq / n),
+            "inflate_per_s": (sw["inflate"] - sw0["inflate"]) / span,
+            "exhaust_per_s": (sw["exhaust"] - sw0["exhaust"]) / span}
+
+
+def main() -> None:
+    p = positioning()
+    print(f"10 mm length step at 30 kg (sliding mode, 1 s ramp at the length rate limit): "
+          f"within {BAND_MM} mm after {p['settle_s']:.3f} s (goal 2 s); at rest "
+          f"({REST_S:g} s): worst error {p['rest_max_error_mm']:.3f} mm, switchings "
+          f"{p['rest_inflate_per_s']:.2f}/s inflate, {p['rest_exhaust_per_s']:.2f}/s "
+          "exhaust (goal <= 5/s per valve)")
+    s = sine_tracking()
+    print(f"PWM pressure tracking, 0.05 Hz 0-6 bar sine at 30 kg, after the first cycle: "
+          f"RMSE {s['rmse_bar']:.4f} bar (goal <= 0.1 bar); switchings "
+          f"{s['inflate_per_s']:.1f}/s inflate, {s['exhaust_per_s']:.1f}/s exhaust")
+
+
+if __name__ == "__main__":
+    main()
