@@ -53,15 +53,19 @@ def test_pressure_loop_identified_and_saved_keeping_comments(rig: Path, tmp_path
     assert pid.pid.kp == pytest.approx(shipped["pid"]["kp"], rel=0.03)
     assert pid.pid.ki_per_s == pytest.approx(shipped["pid"]["ki_per_s"], rel=0.03)
     assert pid.rate_feedforward_s == pytest.approx(shipped["rate_feedforward_s"], rel=0.03)
-    assert pid.pid.kp != shipped["pid"]["kp"]  # really written: 0.526
+    # the figures README "Tuning the loops" reports
+    assert (pid.pid.kp, pid.pid.ki_per_s, pid.rate_feedforward_s) == pytest.approx(
+        (0.526, 41.4, 0.0254), rel=0.01)
 
 
 def test_position_loop_agrees_with_the_bench_and_writes_nothing(rig: Path,
                                                                   tmp_path: Path) -> None:
     before = rig.read_text()
+    png = tmp_path / "tune.png"
     r = tune("--config", str(rig), "--loop", "position", "--out", str(tmp_path / "run"),
-             cwd=tmp_path)
+             "--plot", str(png), cwd=tmp_path)
     assert r.returncode == 0, r.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert rig.read_text() == before and "nothing written" in r.stdout
     shipped = yaml.safe_load(before)["control"]["position"]["pid"]
     rows = {ln.split()[0]: ln.split() for ln in r.stdout.splitlines()
@@ -70,6 +74,7 @@ def test_position_loop_agrees_with_the_bench_and_writes_nothing(rig: Path,
     ki = float(rows["control.position.pid.ki_bar_per_mm_s"][2])
     assert kp == pytest.approx(shipped["kp_bar_per_mm"], rel=0.02)  # 0.0612 vs 0.0607
     assert ki == pytest.approx(shipped["ki_bar_per_mm_s"], rel=0.02)  # 1.95 vs 1.93
+    assert "Model: gain -6.95" in r.stdout  # README's figure
 
 
 @pytest.mark.parametrize(("args", "reason"), [
