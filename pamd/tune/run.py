@@ -171,7 +171,8 @@ def _run_plan(cfg: LoadedConfig, plan: Plan, plan_file: str, lines: list[Any],
         daemon.close()
     if outcome != "done":
         fault = daemon.ctrl.supervisor.fault_reason or ""
-        raise TuneRefused(f"the tuning run stopped ({outcome}{': ' + fault if fault else ''}); "
+        why = outcome if not fault or fault in outcome else f"{outcome}: {fault}"
+        raise TuneRefused(f"the tuning run stopped ({why}); "
                           f"the present gains are kept; its recording is in {out_dir}")
 
 

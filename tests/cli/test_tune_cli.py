@@ -111,6 +111,21 @@ def test_a_run_without_a_response_is_refused(rig: Path, tmp_path: Path) -> None:
     assert rig.read_text() == before
 
 
+def test_a_fault_during_the_run_stops_it(rig: Path, tmp_path: Path) -> None:
+    """The pressure sensor goes silent mid-run: the rig goes to its safe state, tune
+    says why, keeps the present gains and the recording."""
+    rig.write_text(rig.read_text().replace(
+        "      seed: 1\n", "      seed: 1\n      faults: [{at_s: 3.0, muscle: m1, signal: "
+        "pressure, kind: silent}]\n"))
+    before = rig.read_text()
+    r = tune("--config", str(rig), "--out", str(tmp_path / "run"), "--save", cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert "the tuning run stopped" in r.stderr and "present gains are kept" in r.stderr
+    assert "m1.pressure from driver 'sim' is stale" in r.stderr.split("run stopped")[1]
+    assert rig.read_text() == before
+    assert list((tmp_path / "run" / "m1").glob("*.mcap"))
+
+
 def test_help_teaches() -> None:
     r = subprocess.run([sys.executable, "-m", "pamd", "tune", "--help"], capture_output=True,
                        text=True, timeout=60)
