@@ -92,6 +92,10 @@ def _levels(text: str | None) -> tuple[float, ...] | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.save and not args.config:
+        raise TuneRefused("--save writes into the config file: name it with --config (the "
+                          "built-in simulated rig's config is part of the installed package; "
+                          "copy it first: pamd tune --config my-sim.yaml --save)")
     config_path = args.config or builtin_config_path()
     cfg = load_config(config_path)
     lp = with_levels(LOOPS[args.loop], _levels(args.levels), args.step_bar)

@@ -126,6 +126,13 @@ def test_a_fault_during_the_run_stops_it(rig: Path, tmp_path: Path) -> None:
     assert list((tmp_path / "run" / "m1").glob("*.mcap"))
 
 
+def test_save_needs_a_config_file(tmp_path: Path) -> None:
+    r = subprocess.run([sys.executable, "-m", "pamd", "tune", "--save"], capture_output=True,
+                       text=True, timeout=60, cwd=tmp_path)
+    assert r.returncode == 2 and "name it with --config" in r.stderr
+    assert not list(tmp_path.rglob("*.mcap"))
+
+
 def test_help_teaches() -> None:
     r = subprocess.run([sys.executable, "-m", "pamd", "tune", "--help"], capture_output=True,
                        text=True, timeout=60)
