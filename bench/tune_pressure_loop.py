@@ -46,13 +46,15 @@ import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
 from pamd.config import LoadedConfig, load_config  # noqa: E402
-from pamd.control.tuning import Fopdt, fit_step, rate_feedforward_s, simc_pi  # noqa: E402
+from pamd.control.tuning import Fopdt  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
+from pamd.tune.run import IDENT_SLEW_BAR_PER_S  # noqa: E402
+from pamd.tune.steps import Step, fit_all, mean_model, steps_in  # noqa: E402
+from pamd.tune.steps import position_gains as pkg_position_gains  # noqa: E402
+from pamd.tune.steps import pressure_gains as pkg_pressure_gains  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: The identification run's slew limit: fast enough that a step is a step (2 ms edge).
-IDENT_SLEW_BAR_PER_S = 500.0
 EDGE_S = 0.002
 PRESSURE_LEVELS_BAR = (1.5, 3.0, 4.5)
 PRESSURE_STEP_BAR = 0.2
@@ -61,17 +63,6 @@ POSITION_LEVELS_BAR = (2.5, 3.5)
 POSITION_STEP_BAR = 0.5
 POSITION_RECORD_S = 1.5
 SETTLE_S = 2.0
-
-
-@dataclass(frozen=True)
-class Step:
-    """One recorded step: the input's change at `t_step_s` and the output around it."""
-
-    label: str
-    t_step_s: float
-    amplitude: float
-    t_s: np.ndarray
-    y: np.ndarray
 
 
 def ident_config(path: str, load_kg: float | None, control: dict[str, Any]) -> LoadedConfig:
@@ -134,17 +125,6 @@ def _record_steps(h: Harness, levels: tuple[float, ...], step_bar: float, record
     return steps
 
 
-def fit_all(steps: list[Step]) -> list[tuple[Step, Fopdt]]:
-    return [(s, fit_step(s.t_s, s.y, s.t_step_s, s.amplitude)) for s in steps]
-
-
-def mean_model(fits: list[tuple[Step, Fopdt]]) -> Fopdt:
-    g = float(np.mean([f.gain for _, f in fits]))
-    tau = float(np.mean([f.tau_s for _, f in fits]))
-    theta = float(np.mean([f.dead_time_s for _, f in fits]))
-    return Fopdt(g, tau, theta)
-
-
 def print_fits(title: str, unit: str, fits: list[tuple[Step, Fopdt]], model: Fopdt) -> None:
     print(title)
     print(f"  {'step':14s} {'gain ' + unit:>14s} {'dead time ms':>13s} {'tau ms':>8s} "
@@ -168,13 +148,13 @@ class Tuning:
 
 
 def pressure_gains(model: Fopdt) -> tuple[float, float, float]:
-    pi = simc_pi(model)
-    return pi.kp, pi.ki_per_s, rate_feedforward_s(model)
+    g = pkg_pressure_gains(model)
+    return g.kp, g.ki_per_s, g.rate_feedforward_s
 
 
 def position_gains(model: Fopdt) -> tuple[float, float]:
-    pi = simc_pi(Fopdt(abs(model.gain), model.tau_s, model.dead_time_s))
-    return pi.kp, pi.ki_per_s
+    g = pkg_position_gains(model)
+    return g.kp_bar_per_mm, g.ki_bar_per_mm_s
 
 
 def tune(config: str, load_kg: float | None, verbose: bool = True) -> Tuning:
@@ -207,25 +187,6 @@ def tune(config: str, load_kg: float | None, verbose: bool = True) -> Tuning:
         print_fits("Position loop: pressure setpoint -> measured length (pressure loop "
                    "closed)", "mm/bar", x_fits, x_model)
     return Tuning(p_model, x_model, kp, ki, kff, kpx, kix)
-
-
-def steps_in(t_s: np.ndarray, u: np.ndarray, y: np.ndarray, record_s: float,
-             min_step: float = 0.05) -> list[Step]:
-    """The steps of input `u` (a change of more than `min_step` within 50 ms, at least
-    0.2 s after the last), each with `y` from 50 ms before it to `record_s` after."""
-    steps: list[Step] = []
-    last = -np.inf
-    for k in np.nonzero(np.abs(np.diff(u)) > 0.02)[0]:
-        if t_s[k] - last < 0.2:
-            continue
-        after = min(int(np.searchsorted(t_s, t_s[k] + 0.05)), len(u) - 1)
-        amp = float(u[after] - u[max(k - 1, 0)])
-        if abs(amp) < min_step:
-            continue
-        last = t_s[k]
-        sel = (t_s >= t_s[k] - 0.05) & (t_s <= t_s[k] + record_s)
-        steps.append(Step(f"t={t_s[k]:.2f} s", float(t_s[k]), amp, t_s[sel], y[sel]))
-    return steps
 
 
 def from_recording(path: str, loop: str, muscle: str | None) -> None:

@@ -22,6 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LAYERS: list[list[str]] = [
     ["__main__"],
     ["cli"],
+    ["tune"],
     ["daemon"],
     ["service", "io"],
     ["view"],

@@ -10,7 +10,7 @@ import sys
 from collections.abc import Sequence
 from typing import Protocol
 
-from pamd.cli import check_config, collect, emulate, evaluate, recordings, run, service, train
+from pamd.cli import check_config, collect, emulate, evaluate, recordings, run, service, train, tune
 from pamd.cli import home as home_cli
 from pamd.cli import net as net_cli
 from pamd.cli import router as router_cli
@@ -28,7 +28,7 @@ class SubCommand(Protocol):
 
 #: The sub-commands, in the order `pamd --help` lists them.
 COMMANDS: tuple[SubCommand, ...] = (
-    run, check_config, collect, recordings, emulate, train, evaluate, service,
+    run, check_config, collect, tune, recordings, emulate, train, evaluate, service,
     # offline references on the configured rig (no daemon, no Zenoh)
     home_cli, tare_cli,
     # clients of a running daemon over Zenoh (status, cmd, watch) and the lab router

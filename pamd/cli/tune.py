@@ -1,0 +1,185 @@
+"""`pamd tune`: identify the pressure (or position) loop on the rig from recorded
+setpoint steps, and derive its gains; `--save` writes them into the config file."""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import os
+import sys
+import time
+from typing import Any
+
+import yaml
+
+from pamd.config import load_config
+from pamd.config.loader import builtin_config_path, load_config_text
+from pamd.control.tuning import Fopdt, IdentificationError
+from pamd.errors import ConfigError
+from pamd.tune.report import Present, plot_fits, present_gains, print_comparison, print_fits
+from pamd.tune.run import LOOPS, LoopPlan, TuneRefused, run_identification, with_levels
+from pamd.tune.steps import Step, check_model, fit_all, mean_model
+from pamd.tune.yamledit import YamlEditError, format_value, set_values
+
+DESCRIPTION = """\
+Identify a control loop on the rig and derive its gains, like Klipper's PID_CALIBRATE.
+
+What it does to the rig: for each muscle (--muscle, default all), it runs the daemon
+with a small plan of setpoint steps (per level: a fast ramp to the level, a step up
+and a step back down, each held 2 s) and records it like any collection (one MCAP
+file per plan step and the plan, in --out).
+  --loop pressure (default): the PID and the rate feedforward are OFF and the slew
+    limit fast, so only the regulator acts; steps of 0.2 bar at 1.5, 3 and 4.5 bar.
+  --loop position: the pressure loop runs on the config's present gains (tune the
+    pressure loop first); steps of 0.5 bar at 2.5 and 3.5 bar, the length measured.
+Every level must lie between the muscle's safe pressure and its pressure limit
+(level + step); a step larger than allowed (0.5 bar pressure, 1 bar position) is
+refused. How long: 6 s of rig time per level (about 20 s per muscle; a moment on
+the virtual clock).
+
+From the recording it fits a first-order-plus-dead-time model to each step, takes
+their mean, and derives Skogestad's SIMC PI gains (tau_c = dead time) and, for the
+pressure loop, rate_feedforward_s = dead time + lag. It prints them beside the
+present ones, with the predicted and measured step responses (--plot FILE: a PNG).
+
+What it writes: nothing but the recording, unless --save: then the new gains go into
+the config file (control.pid.kp/ki_per_s and control.rate_feedforward_s, or
+control.position.pid.kp_bar_per_mm/ki_bar_per_mm_s), in place, keeping its comments
+and layout, after the diff is shown. If the file cannot be edited safely, the gains go
+to an overrides file beside it (CONFIG.tuned.yaml) and it says so.
+
+A run that leaves the safe limits, a fault, a fit that does not converge or a model
+that is not physical (wrong sign, no response) stops it: the present gains are kept,
+the reason printed, exit status 2."""
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "tune", help="identify the pressure or position loop on the rig and derive its gains",
+        formatter_class=argparse.RawDescriptionHelpFormatter, description=DESCRIPTION,
+        epilog="examples:\n"
+        "  pamd tune --clock virtual                   # the built-in simulated rig\n"
+        "  pamd tune --config rig.yaml --muscle m1 --plot tune.png\n"
+        "  pamd tune --config rig.yaml --save          # then: --loop position --save")
+    p.add_argument("--config", metavar="RIG", help="rig config (default: built-in sim)")
+    p.add_argument("--loop", choices=tuple(LOOPS), default="pressure",
+                   help="which loop to identify (default: pressure)")
+    p.add_argument("--muscle", action="append", metavar="NAME",
+                   help="a muscle to identify (repeatable; default: all)")
+    p.add_argument("--levels", metavar="BAR,BAR,...",
+                   help="the levels the steps start from (default: 1.5,3,4.5 for the "
+                   "pressure loop, 2.5,3.5 for the position loop)")
+    p.add_argument("--step-bar", type=float, metavar="BAR",
+                   help="the step size (default: 0.2 pressure, 0.5 position)")
+    p.add_argument("--clock", choices=("real", "virtual"), help="override loop.clock")
+    p.add_argument("--out", metavar="DIR", help="where the recording goes (default: "
+                   "runs/tune-<loop>-<time>)")
+    p.add_argument("--plot", metavar="FILE", help="a PNG of the measured and predicted "
+                   "step responses (needs pamd[plot])")
+    p.add_argument("--save", action="store_true",
+                   help="write the new gains into the config file (after showing the diff)")
+    p.set_defaults(func=run)
+
+
+def _levels(text: str | None) -> tuple[float, ...] | None:
+    if not text:
+        return None
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise TuneRefused(f"--levels {text!r}: give numbers in bar separated by commas, "
+                          "e.g. 1.5,3,4.5") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.save and not args.config:
+        raise TuneRefused("--save writes into the config file: name it with --config (the "
+                          "built-in simulated rig's config is part of the installed package; "
+                          "copy it first: pamd tune --config my-sim.yaml --save)")
+    config_path = args.config or builtin_config_path()
+    cfg = load_config(config_path)
+    lp = with_levels(LOOPS[args.loop], _levels(args.levels), args.step_bar)
+    muscles = args.muscle or [m.name for m in cfg.rig.muscles]
+    out = args.out or os.path.join("runs", f"tune-{lp.loop}-{time.strftime('%Y%m%d-%H%M%S')}")
+    fits_by_muscle: dict[str, list[tuple[Step, Fopdt]]] = {}
+    for muscle in muscles:
+        steps = run_identification(config_path, args.clock, muscle, lp,
+                                   os.path.join(out, muscle), _progress)
+        fits_by_muscle[muscle] = _fit(muscle, lp, steps)
+    all_fits = [f for fits in fits_by_muscle.values() for f in fits]
+    model = mean_model(all_fits)
+    for muscle, fits in fits_by_muscle.items():
+        print_fits(f"{muscle}: {lp.loop} loop ({lp.input_column} -> {lp.output_column})",
+                   lp.unit, fits, mean_model(fits))
+    present = present_gains(cfg, lp.loop)
+    new = Present.from_model(lp.loop, model)
+    print_comparison(lp, model, present, new, all_fits)
+    print(f"recording: {out}")
+    if args.plot:
+        plot_fits(args.plot, lp, model, fits_by_muscle)
+        print(f"plot: {args.plot}")
+    if not args.save:
+        print("nothing written (--save writes the new gains into the config file)")
+        return 0
+    return _save(config_path, new)
+
+
+def _progress(line: str) -> None:
+    print(f"pamd tune: {line}", file=sys.stderr, flush=True)
+
+
+def _fit(muscle: str, lp: LoopPlan, steps: list[Step]) -> list[tuple[Step, Fopdt]]:
+    if not steps:
+        raise TuneRefused(f"{muscle}: no {lp.step_bar:g} bar step of {lp.input_column} was "
+                          "found in the recording; the present gains are kept")
+    try:
+        fits = fit_all(steps)
+        check_model(lp.loop, fits, mean_model(fits))
+    except IdentificationError as exc:
+        raise TuneRefused(f"{muscle}: {lp.loop} loop not identified: {exc}; the present "
+                          "gains are kept") from None
+    return fits
+
+
+def _save(config_path: str, new: Present) -> int:
+    with open(config_path, encoding="utf-8") as fh:
+        text = fh.read()
+    values = new.key_values()
+    try:
+        edited = set_values(text, values)
+        _check_loads(edited, config_path)
+    except YamlEditError as exc:
+        return _write_overrides(config_path, new, str(exc))
+    sys.stdout.writelines(difflib.unified_diff(
+        text.splitlines(keepends=True), edited.splitlines(keepends=True),
+        fromfile=config_path, tofile=config_path + " (tuned)"))
+    with open(config_path, "w", encoding="utf-8") as fh:
+        fh.write(edited)
+    print(f"saved the new gains into {config_path}")
+    return 0
+
+
+def _check_loads(text: str, path: str) -> None:
+    """The edited config must still be a valid config."""
+    try:
+        load_config_text(text, path)
+    except ConfigError as exc:
+        raise YamlEditError(f"the edited config would not load: {exc}") from None
+
+
+def _write_overrides(config_path: str, new: Present, why: str) -> int:
+    root, _ = os.path.splitext(config_path)
+    path = root + ".tuned.yaml"
+    nested: dict[str, Any] = {}
+    for key_path, value in new.key_values().items():
+        node = nested
+        for key in key_path[:-1]:
+            node = node.setdefault(key, {})
+        node[key_path[-1]] = float(format_value(value))
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(f"# pamd tune: gains for {os.path.basename(config_path)}, which could not "
+                 f"be edited in place\n# ({why}). Merge these keys into it.\n")
+        fh.write(yaml.safe_dump(nested, sort_keys=False))
+    print(f"{config_path} could not be edited in place ({why}); the new gains are in "
+          f"{path}: merge them into the config")
+    return 0

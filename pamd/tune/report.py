@@ -1,0 +1,140 @@
+"""What `pamd tune` shows: the fit of each step, the model and the new gains beside
+the present ones, the predicted and measured step responses, and (`--plot`) a PNG."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pamd.config import LoadedConfig
+from pamd.control.tuning import Fopdt
+from pamd.errors import PamdError
+from pamd.tune.run import LoopPlan
+from pamd.tune.steps import Step, position_gains, pressure_gains
+from pamd.tune.yamledit import KeyPath
+
+
+@dataclass(frozen=True)
+class Present:
+    """A loop's gains by their config keys (present or new)."""
+
+    loop: str
+    gains: dict[KeyPath, float]
+
+    @staticmethod
+    def from_model(loop: str, model: Fopdt) -> Present:
+        if loop == "pressure":
+            g = pressure_gains(model)
+            return Present(loop, {("control", "pid", "kp"): g.kp,
+                                  ("control", "pid", "ki_per_s"): g.ki_per_s,
+                                  ("control", "rate_feedforward_s"): g.rate_feedforward_s})
+        x = position_gains(model)
+        return Present(loop, {("control", "position", "pid", "kp_bar_per_mm"): x.kp_bar_per_mm,
+                              ("control", "position", "pid", "ki_bar_per_mm_s"):
+                              x.ki_bar_per_mm_s})
+
+    def key_values(self) -> dict[KeyPath, float]:
+        return dict(self.gains)
+
+
+def present_gains(cfg: LoadedConfig, loop: str) -> Present:
+    c = cfg.rig.control
+    if loop == "pressure":
+        return Present(loop, {("control", "pid", "kp"): c.pid.kp,
+                              ("control", "pid", "ki_per_s"): c.pid.ki_per_s,
+                              ("control", "rate_feedforward_s"): c.rate_feedforward_s})
+    p = c.position.pid
+    return Present(loop, {("control", "position", "pid", "kp_bar_per_mm"): p.kp_bar_per_mm,
+                          ("control", "position", "pid", "ki_bar_per_mm_s"): p.ki_bar_per_mm_s})
+
+
+def print_fits(title: str, unit: str, fits: list[tuple[Step, Fopdt]], model: Fopdt) -> None:
+    print(title)
+    print(f"  {'step':14s} {'gain ' + unit:>14s} {'dead time ms':>13s} {'tau ms':>8s} "
+          f"{'t63 ms':>8s} {'rms fit':>8s}")
+    for s, f in fits:
+        print(f"  {s.label:14s} {f.gain:14.3f} {1e3 * f.dead_time_s:13.1f} "
+              f"{1e3 * f.tau_s:8.1f} {1e3 * f.t63_s:8.1f} {f.rms_error:8.4f}")
+    print(f"  {'model (mean)':14s} {model.gain:14.3f} {1e3 * model.dead_time_s:13.1f} "
+          f"{1e3 * model.tau_s:8.1f} {1e3 * model.t63_s:8.1f}")
+
+
+def predicted_vs_measured(model: Fopdt, step: Step, t_after_s: np.ndarray) -> list[
+        tuple[float, float, float]]:
+    """(t after the step, measured change, the model's change) at the times given."""
+    t = step.t_s - step.t_step_s
+    y0 = float(step.y[t < 0].mean())
+    out = []
+    for ta in t_after_s:
+        k = int(np.searchsorted(t, ta))
+        if k >= len(t):
+            break
+        out.append((float(t[k]), float(step.y[k] - y0),
+                    float(model.step_response([t[k]], step.amplitude)[0])))
+    return out
+
+
+def model_rms_error(model: Fopdt, step: Step) -> float:
+    """The rms difference between the design model's response and the step's."""
+    t = step.t_s - step.t_step_s
+    after = t >= 0
+    y0 = float(step.y[~after].mean())
+    d = (step.y[after] - y0) - model.step_response(t[after], step.amplitude)
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def print_comparison(lp: LoopPlan, model: Fopdt, present: Present, new: Present,
+                     fits: list[tuple[Step, Fopdt]]) -> None:
+    out_unit = "bar" if lp.output_column == "pressure_bar" else "mm"
+    print(f"Model: gain {model.gain:.3f} {lp.unit}, dead time {1e3 * model.dead_time_s:.1f} ms, "
+          f"lag {1e3 * model.tau_s:.1f} ms (mean of {len(fits)} steps)")
+    print("Gains (SIMC PI, tau_c = dead time"
+          + ("; rate feedforward = dead time + lag):" if lp.loop == "pressure" else "):"))
+    print(f"  {'key':36s} {'present':>10s} {'new':>10s} {'change':>8s}")
+    for key, value in new.gains.items():
+        old = present.gains[key]
+        change = f"{100 * (value - old) / old:+.0f} %" if old else "new"
+        print(f"  {'.'.join(key):36s} {old:10.4g} {value:10.4g} {change:>8s}")
+    step = fits[0][0]
+    end = lp.record_s
+    times = np.array([0.5, 1.0, 1.5, 2.0, 3.0, 5.0]) * model.t63_s
+    times = times[times < end]
+    print(f"Step response, {step.label} (+{abs(step.amplitude):g} bar): measured vs the "
+          f"model's, change in {out_unit}")
+    print(f"  {'t ms':>7s} {'measured':>10s} {'predicted':>10s}")
+    for t, meas, pred in predicted_vs_measured(model, step, times):
+        print(f"  {1e3 * t:7.1f} {meas:10.4f} {pred:10.4f}")
+    errs = [model_rms_error(model, s) for s, _ in fits]
+    print(f"  the model against every step: rms error {min(errs):.4f} to {max(errs):.4f} "
+          f"{out_unit}")
+
+
+def plot_fits(path: str, lp: LoopPlan, model: Fopdt,
+              fits_by_muscle: dict[str, list[tuple[Step, Fopdt]]]) -> None:
+    """Each step's measured response (normalised by its amplitude) and the model's."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise PamdError("--plot needs matplotlib: pip install 'pamd[plot]'") from None
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for muscle, fits in fits_by_muscle.items():
+        for s, _ in fits:
+            t = s.t_s - s.t_step_s
+            y0 = float(s.y[t < 0].mean())
+            ax.plot(1e3 * t, (s.y - y0) / s.amplitude, lw=0.8, alpha=0.7,
+                    label=f"{muscle} {s.label}")
+    t = np.linspace(-0.05, lp.record_s, 800)
+    ax.plot(1e3 * t, model.step_response(t), "k--", lw=2, label="model (mean)")
+    ax.set_xlabel("time after the step (ms)")
+    ax.set_ylabel(f"change per bar of step ({lp.unit})")
+    ax.set_title(f"pamd tune: {lp.loop} loop, gain {model.gain:.3g} {lp.unit}, dead time "
+                 f"{1e3 * model.dead_time_s:.1f} ms, lag {1e3 * model.tau_s:.1f} ms")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,136 @@
+"""Write numbers into a YAML config file's text in place, keeping its comments and
+layout: `set_values(text, {("control", "pid", "kp"): 0.5, ...})`.
+
+A key that is present has its scalar's text replaced (block or flow style); an absent
+key is inserted into its mapping (a line in a block mapping, `, key: value` in a flow
+one), creating absent sections the same way. The result is parsed back and must hold
+exactly the new values and everything else unchanged; where that cannot be done,
+`YamlEditError` says why (the caller writes an overrides file instead).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+
+from pamd.errors import PamdError
+
+KeyPath = tuple[str, ...]
+
+
+class YamlEditError(PamdError):
+    """The file's text cannot be edited in place safely."""
+
+
+def format_value(value: float) -> str:
+    """Three significant digits, never in exponent form (YAML 1.1 reads `1e+03` as a
+    string)."""
+    text = f"{value:.3g}"
+    return f"{float(text):f}".rstrip("0") if "e" in text else text
+
+
+def set_values(text: str, values: dict[KeyPath, float]) -> str:
+    """`text` with each key path set to its value (see the module's doc)."""
+    out = text
+    for path, value in values.items():
+        out = _set_one(out, path, format_value(value))
+    _verify(text, out, values)
+    return out
+
+
+def _compose(text: str) -> yaml.MappingNode:
+    try:
+        root = yaml.compose(text)
+    except yaml.YAMLError as exc:
+        raise YamlEditError(f"not valid YAML: {exc}") from None
+    if not isinstance(root, yaml.MappingNode):
+        raise YamlEditError("the file is not a mapping")
+    return root
+
+
+def _child(node: yaml.MappingNode, key: str) -> tuple[yaml.Node, yaml.Node] | None:
+    for k, v in node.value:
+        if isinstance(k, yaml.ScalarNode) and k.value == key:
+            return k, v
+    return None
+
+
+def _set_one(text: str, path: KeyPath, value: str) -> str:
+    node = _compose(text)
+    for depth, key in enumerate(path):
+        found = _child(node, key)
+        if found is None:
+            return _insert(text, node, path[depth:], value, depth)
+        _, child = found
+        if depth == len(path) - 1:
+            if not isinstance(child, yaml.ScalarNode) or child.style not in (None, ""):
+                raise YamlEditError(f"{'.'.join(path)} is not a plain number in the file")
+            a, b = child.start_mark.index, child.end_mark.index
+            return text[:a] + value + text[b:]
+        if not isinstance(child, yaml.MappingNode):
+            raise YamlEditError(f"{'.'.join(path[:depth + 1])} is not a section (mapping)")
+        node = child
+    raise YamlEditError(f"{'.'.join(path)}: an empty key path")
+
+
+def _nested(keys: KeyPath, value: str) -> Any:
+    return value if not keys else {keys[0]: _nested(keys[1:], value)}
+
+
+def _insert(text: str, node: yaml.MappingNode, keys: KeyPath, value: str,
+            depth: int) -> str:
+    """Insert `keys` (the first is absent from `node`) with `value` into `node`."""
+    if node.flow_style:
+        end = node.end_mark.index - 1  # the closing brace
+        if text[end] != "}":
+            raise YamlEditError("a flow mapping that does not end with '}'")
+        inner = _flow(keys, value)
+        sep = ", " if node.value else ""
+        return text[:end].rstrip() + sep + inner + text[end:]
+    if node.value:
+        first_key = node.value[0][0]
+        indent = first_key.start_mark.column
+        last_value = node.value[-1][1]
+        at = last_value.end_mark.index
+        # after the line the last value ends on
+        line_end = text.find("\n", at - 1 if text[at - 1:at] == "\n" else at)
+        at = len(text) if line_end < 0 else line_end + 1
+    else:
+        if depth != 0:
+            raise YamlEditError("an empty section to insert into")
+        indent, at = 0, len(text)
+    block = _block(keys, value, indent)
+    prefix = "" if at == 0 or text[at - 1] == "\n" else "\n"
+    return text[:at] + prefix + block + text[at:]
+
+
+def _flow(keys: KeyPath, value: str) -> str:
+    if len(keys) == 1:
+        return f"{keys[0]}: {value}"
+    return f"{keys[0]}: {{{_flow(keys[1:], value)}}}"
+
+
+def _block(keys: KeyPath, value: str, indent: int) -> str:
+    pad = " " * indent
+    if len(keys) == 1:
+        return f"{pad}{keys[0]}: {value}\n"
+    return f"{pad}{keys[0]}:\n" + _block(keys[1:], value, indent + 2)
+
+
+def _verify(before: str, after: str, values: dict[KeyPath, float]) -> None:
+    """The edited text must parse to the original data with exactly the new values."""
+    try:
+        want = yaml.safe_load(before) or {}
+        got = yaml.safe_load(after)
+    except yaml.YAMLError as exc:
+        raise YamlEditError(f"the edit would not be valid YAML ({exc})") from None
+    for path, value in values.items():
+        node = want
+        for key in path[:-1]:
+            node = node.setdefault(key, {})
+            if not isinstance(node, dict):
+                raise YamlEditError(f"{'.'.join(path)}: not a section")
+        node[path[-1]] = float(format_value(value))
+    if got != want:
+        raise YamlEditError("the edit would change more than the tuned keys")

@@ -1,0 +1,141 @@
+"""`pamd tune` end to end on the simulated rig (virtual clock: deterministic): the
+identified gains agree with bench/tune_pressure_loop.py's (the shipped ones), --save
+rewrites the config keeping its comments, and runs outside the limits are refused."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pamd.config import load_config
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def tune(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "pamd", "tune", "--clock", "virtual", *args],
+                          capture_output=True, text=True, timeout=300, cwd=cwd)
+
+
+@pytest.fixture()
+def rig(tmp_path: Path) -> Path:
+    path = tmp_path / "sim.yaml"
+    path.write_text((REPO / "config" / "sim.yaml").read_text())
+    return path
+
+
+def test_pressure_loop_identified_and_saved_keeping_comments(rig: Path, tmp_path: Path) -> None:
+    shipped = yaml.safe_load(rig.read_text())["control"]  # bench/tune_pressure_loop.py's
+    before = rig.read_text()
+    r = tune("--config", str(rig), "--out", str(tmp_path / "run"), "--save", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "control.pid.kp" in r.stdout and "measured" in r.stdout
+    assert "--- " in r.stdout and "+  pid: {kp: " in r.stdout  # the diff was shown
+    assert "tune-pressure-m1: 9/9 steps finished (done)" in r.stderr  # progress
+    # recorded like any collection: one file per plan step
+    names = " ".join(p.name for p in (tmp_path / "run" / "m1").glob("*.mcap"))
+    for i, step in enumerate(("level-1_5", "up-1_5", "down-1_5", "level-3", "up-3", "down-3",
+                              "level-4_5", "up-4_5", "down-4_5")):
+        assert f"_{i + 1:02d}-{step}-bar.mcap" in names
+    after = rig.read_text()
+    comments = [ln for ln in before.splitlines() if ln.lstrip().startswith("#")]
+    assert comments == [ln for ln in after.splitlines() if ln.lstrip().startswith("#")]
+    changed = [(a, b) for a, b in zip(before.splitlines(), after.splitlines(), strict=True)
+               if a != b]
+    assert [a.split(":")[0] for a, _ in changed] == ["  pid", "  rate_feedforward_s"]
+    pid = load_config(str(rig)).rig.control
+    # within 3 % of the bench procedure's figures (the step times are read from the
+    # recording here, from the command there: 0.1 ms of dead time apart)
+    assert pid.pid.kp == pytest.approx(shipped["pid"]["kp"], rel=0.03)
+    assert pid.pid.ki_per_s == pytest.approx(shipped["pid"]["ki_per_s"], rel=0.03)
+    assert pid.rate_feedforward_s == pytest.approx(shipped["rate_feedforward_s"], rel=0.03)
+    # the figures README "Tuning the loops" reports
+    assert (pid.pid.kp, pid.pid.ki_per_s, pid.rate_feedforward_s) == pytest.approx(
+        (0.526, 41.4, 0.0254), rel=0.01)
+
+
+def test_position_loop_agrees_with_the_bench_and_writes_nothing(rig: Path,
+                                                                  tmp_path: Path) -> None:
+    before = rig.read_text()
+    png = tmp_path / "tune.png"
+    r = tune("--config", str(rig), "--loop", "position", "--out", str(tmp_path / "run"),
+             "--plot", str(png), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert rig.read_text() == before and "nothing written" in r.stdout
+    shipped = yaml.safe_load(before)["control"]["position"]["pid"]
+    rows = {ln.split()[0]: ln.split() for ln in r.stdout.splitlines()
+            if ln.strip().startswith("control.position.pid.")}
+    kp = float(rows["control.position.pid.kp_bar_per_mm"][2])
+    ki = float(rows["control.position.pid.ki_bar_per_mm_s"][2])
+    assert kp == pytest.approx(shipped["kp_bar_per_mm"], rel=0.02)  # 0.0612 vs 0.0607
+    assert ki == pytest.approx(shipped["ki_bar_per_mm_s"], rel=0.02)  # 1.95 vs 1.93
+    assert "Model: gain -6.95" in r.stdout  # README's figure
+
+
+@pytest.mark.parametrize(("args", "reason"), [
+    (("--step-bar", "0.8"), "step of 0.8 bar is not allowed"),
+    (("--loop", "position", "--step-bar", "1.5"), "step of 1.5 bar is not allowed"),
+    (("--levels", "5.9"), "leaves the pressure limit"),
+    (("--levels", "1.0"), "below the safe pressure 1.58 bar with 80 kg"),
+    (("--muscle", "m9"), "no muscle 'm9'"),
+])
+def test_runs_outside_the_limits_are_refused(rig: Path, tmp_path: Path, args: tuple[str, ...],
+                                             reason: str) -> None:
+    rig.write_text(rig.read_text().replace("load_kg: 30", "load_kg: 80"))
+    before = rig.read_text()
+    r = tune("--config", str(rig), "--out", str(tmp_path / "run"), "--save", *args,
+             cwd=tmp_path)
+    assert r.returncode == 2 and reason in r.stderr, r.stderr
+    assert rig.read_text() == before
+    assert not list(tmp_path.rglob("*.mcap"))  # nothing ran
+
+
+def test_a_run_without_a_response_is_refused(rig: Path, tmp_path: Path) -> None:
+    """The regulator sticks once the first level is reached (a scripted fault of the
+    simulated rig): the steps get no response, so no model; the present gains are
+    kept and the reason printed."""
+    rig.write_text(rig.read_text().replace(
+        "      seed: 1\n", "      seed: 1\n      faults: [{at_s: 1.0, muscle: m1, signal: valve, "
+        "kind: stuck}]\n"))
+    before = rig.read_text()
+    r = tune("--config", str(rig), "--out", str(tmp_path / "run"), "--save",
+             "--levels", "1.5", cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert "pressure loop not identified" in r.stderr and "use a larger step" in r.stderr
+    assert "present gains are kept" in r.stderr
+    assert rig.read_text() == before
+
+
+def test_a_fault_during_the_run_stops_it(rig: Path, tmp_path: Path) -> None:
+    """The pressure sensor goes silent mid-run: the rig goes to its safe state, tune
+    says why, keeps the present gains and the recording."""
+    rig.write_text(rig.read_text().replace(
+        "      seed: 1\n", "      seed: 1\n      faults: [{at_s: 3.0, muscle: m1, signal: "
+        "pressure, kind: silent}]\n"))
+    before = rig.read_text()
+    r = tune("--config", str(rig), "--out", str(tmp_path / "run"), "--save", cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert "the tuning run stopped" in r.stderr and "present gains are kept" in r.stderr
+    assert "m1.pressure from driver 'sim' is stale" in r.stderr.split("run stopped")[1]
+    assert rig.read_text() == before
+    assert list((tmp_path / "run" / "m1").glob("*.mcap"))
+
+
+def test_save_needs_a_config_file(tmp_path: Path) -> None:
+    r = subprocess.run([sys.executable, "-m", "pamd", "tune", "--save"], capture_output=True,
+                       text=True, timeout=60, cwd=tmp_path)
+    assert r.returncode == 2 and "name it with --config" in r.stderr
+    assert not list(tmp_path.rglob("*.mcap"))
+
+
+def test_help_teaches() -> None:
+    r = subprocess.run([sys.executable, "-m", "pamd", "tune", "--help"], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 0
+    for words in ("What it does to the rig", "How long", "What it writes", "--save"):
+        assert words in r.stdout
