@@ -39,8 +39,10 @@ the virtual clock).
 
 From the recording it fits a first-order-plus-dead-time model to each step, takes
 their mean, and derives Skogestad's SIMC PI gains (tau_c = dead time) and, for the
-pressure loop, rate_feedforward_s = dead time + lag. It prints them beside the
-present ones, with the predicted and measured step responses (--plot FILE: a PNG).
+pressure loop, rate_feedforward_s = dead time + lag (the gains are the rig's control
+section: with several muscles, from the mean model of all their steps). It prints
+them beside the present ones, with the predicted and measured step responses (--plot
+FILE: a PNG).
 
 What it writes: nothing but the recording, unless --save: then the new gains go into
 the config file (control.pid.kp/ki_per_s and control.rate_feedforward_s, or
