@@ -8,6 +8,7 @@ tick) and `pamd run --profile` (config only, before the rig starts) run.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from pamd.config.loader import LoadedConfig
@@ -49,6 +50,18 @@ def check_reachable(env: MuscleEnvelope, load_kg: float, *values: float,
                 f"{env.name}: with {load:g} kg the muscle hangs at about {100 * x_lo:.1f} % "
                 f"contraction at 0 bar; {100 * v:.1f} % would need pushing (at least "
                 f"{100 * (x_lo + margin):.1f} %)")
+
+
+def _what_would_pass(spec: ProfileSpec, rate: float, max_rate: float) -> str:
+    """The change that brings a too fast profile within the rate limit: for a shape whose
+    steepest slope grows with its frequency (sine, triangle), the highest frequency that
+    passes over this span; else the span or the shape's own rate."""
+    if spec.freq_hz:
+        half = replace(spec, freq_hz=spec.freq_hz / 2).shape_max_rate(max_rate)
+        if abs(2.0 * half - rate) <= 1e-9 * rate:  # the slope is proportional to freq_hz
+            return (f"at most {spec.freq_hz * max_rate / rate:.3g} Hz passes over this span; "
+                    "lower freq_hz or the span")
+    return "lower freq_hz or the span"
 
 
 def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float, now: float,
@@ -93,7 +106,7 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
         raise CommandRefused(
             f"{kind} length profile needs {rate:.3g} contraction/s "
             f"({rate * env.nominal_length_mm:.3g} mm/s) but the limit is {max_rate:g}/s "
-            "(control.position.max_rate_per_s); lower freq_hz or the span")
+            f"(control.position.max_rate_per_s); {_what_would_pass(spec, rate, max_rate)}")
     if cycles is not None and cycles < 1:
         raise CommandRefused("cycles must be at least 1")
     return Profile(spec, now, env.contraction(target_length_mm), max_rate)
