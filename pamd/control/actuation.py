@@ -68,7 +68,11 @@ class Actuation(Protocol):
     """How one muscle's command reaches its valves."""
 
     exhaust_open: bool  # the exhaust valve is open (vented)
-    switch_count: int  # valve switches since start (the record and the summary)
+
+    @property
+    def switch_count(self) -> int:
+        """Valve switches since start, every valve (the record and the summary)."""
+        ...
 
     def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
               vent: bool) -> int:
