@@ -71,7 +71,7 @@ class Actuation(Protocol):
 
     @property
     def switch_count(self) -> int:
-        """Valve switches since start (the record and the summary)."""
+        """Valve switches since start, every valve (the record and the summary)."""
         ...
 
     def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
