@@ -137,6 +137,16 @@ def min_pulse_s(cfg: OnOffConfig) -> float:
     return min(pulse, 0.5 * cfg.pwm_period_s)
 
 
+#: A valve that has been open this long (in all, since the pressure last moved its way
+#: by VALVE_MOVE_BAR) does not act: stuck, no supply, or a blocked line.
+VALVE_OPEN_S = 1.0
+VALVE_MOVE_BAR = 0.05
+#: Held this long, both valves shut, the count starts again.
+VALVE_REST_S = 0.5
+#: Below this pressure an open exhaust need not lower it any further.
+VENTED_BAR = 0.2
+
+
 class OnOffActuation:
     """An inflate (3/2 NC) and an exhaust (2/2 NC) valve driven by PWM."""
 
@@ -166,6 +176,13 @@ class OnOffActuation:
         self._holding = False
         self._tau_s = cfg.pwm_period_s
         self._alpha = 0.0
+        # the valves' own check: open time without the pressure moving their way
+        self.name = inflate.name.rsplit(".", 1)[0]
+        self._watched = HOLD
+        self._open_s = 0.0
+        self._rest_s = 0.0
+        self._p_ref = float("nan")
+        self._fault: str | None = None
 
     def set_config(self, cfg: OnOffConfig) -> None:
         """Gains from the config (also a reload's; the state stays)."""
@@ -202,8 +219,61 @@ class OnOffActuation:
         self._target_rate_mm_s = target_rate_mm_s
         self._ceiling_bar = ceiling_bar
 
+    def take_fault(self) -> str | None:
+        """Why the pressure does not follow a valve (a tracking fault of the valves
+        themselves: in mode position the command is the measured pressure, so the
+        pressure tracking check cannot see it), once; the check then starts again."""
+        fault, self._fault = self._fault, None
+        return fault
+
     def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
               vent: bool) -> int:
+        state = self._choose(command_bar, pressure_bar, now_s, dt_s, vent)
+        self._watch(state, pressure_bar, dt_s)
+        return self._set(state)
+
+    def _watch(self, state: int, p: float, dt_s: float) -> None:
+        """A valve open for VALVE_OPEN_S in all without the pressure moving its way by
+        VALVE_MOVE_BAR does not act. Float arithmetic only (the tick path)."""
+        if p != p:  # no trusted pressure: nothing to judge
+            self._open_s = 0.0
+            self._p_ref = p
+            return
+        if state == HOLD:
+            self._rest_s += dt_s
+            if self._rest_s >= VALVE_REST_S:
+                self._open_s = 0.0
+            return
+        self._rest_s = 0.0
+        ref = self._p_ref
+        if state != self._watched or ref != ref:
+            self._watched, self._p_ref, self._open_s = state, p, 0.0
+            return
+        if state == INFLATE:
+            if p >= ref + VALVE_MOVE_BAR:
+                self._p_ref, self._open_s = p, 0.0
+                return
+            if p < ref:
+                self._p_ref = p  # a rise counts from the lowest pressure since
+        else:
+            if p <= ref - VALVE_MOVE_BAR or p < VENTED_BAR:
+                self._p_ref, self._open_s = p, 0.0
+                return
+            if p > ref:
+                self._p_ref = p
+        self._open_s += dt_s
+        if self._open_s >= VALVE_OPEN_S and self._fault is None:
+            valve = "inflate" if state == INFLATE else "exhaust"
+            way = "rising" if state == INFLATE else "falling"
+            self._fault = (f"{self.name}: the pressure does not follow the {valve} valve: "
+                           f"open {self._open_s:.1f} s without {way} ({p:.2f} bar; stuck "
+                           "valve, no supply or a blocked line?)")
+            self._open_s = 0.0
+            self._p_ref = p
+
+    def _choose(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
+                vent: bool) -> int:
+        """The valves' state this tick (INFLATE, HOLD or EXHAUST)."""
         prev = self._prev_command
         self._prev_command = command_bar
         positioning = self._positioning
@@ -211,7 +281,7 @@ class OnOffActuation:
         if vent:
             self.integral_bar = 0.0
             self.duty = -1.0
-            return self._set(EXHAUST)
+            return EXHAUST
         if positioning:
             state = self.sliding.step(now_s, self._length_mm, self._velocity_mm_s,
                                       self._target_mm, self._target_rate_mm_s)
@@ -221,14 +291,14 @@ class OnOffActuation:
             self._holding = False
             self.integral_bar = 0.0
             self.duty = self.sliding.surface
-            return self._set(state)
+            return state
         rate = 0.0 if prev != prev else (command_bar - prev) / dt_s
         self._alpha = dt_s / (self._tau_s + dt_s)
         e = command_bar - pressure_bar
         if e != e:  # no trusted pressure to act on: hold the air in
             self.pulser.reset()
             self.duty = 0.0
-            return self._set(HOLD)
+            return HOLD
         # The dead band, on the pressure low-passed over a PWM period (the sensor's
         # noise alone never opens a valve), with hysteresis: entered within the band
         # once a pulse is over, left beyond twice the band.
@@ -247,14 +317,14 @@ class OnOffActuation:
         if self._holding:
             self.pulser.reset()
             self.duty = 0.0
-            return self._set(HOLD)
+            return HOLD
         i = self.integral_bar + e * dt_s / self.integral_time_s
         self.integral_bar = (INTEGRAL_LIMIT_BAR if i > INTEGRAL_LIMIT_BAR
                              else (-INTEGRAL_LIMIT_BAR if i < -INTEGRAL_LIMIT_BAR else i))
         want = (e + self.integral_bar) / self.response_s + rate
         duty = want / self.fill_rate if want > 0.0 else want / self.vent_rate
         self.duty = duty
-        return self._set(self.pulser.state(now_s, duty))
+        return self.pulser.state(now_s, duty)
 
     def _set(self, state: int) -> int:
         """Drive both valves to `state`; writes and counts only what changes."""

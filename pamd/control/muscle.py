@@ -476,6 +476,12 @@ class MuscleController:
                                  lc.target_rate_mm_s,
                                  self._max_pressure_bar if hi > self._max_pressure_bar else hi)
         flags |= self.actuation.write(u, p, now, dt, vent)
+        if onoff is not None:
+            stuck = onoff.take_fault()  # a valve open without the pressure moving its way
+            if stuck is not None:
+                self.finding = stuck
+                if fault is None:
+                    fault = stuck
         self._record(rec, flags)
         return fault
 

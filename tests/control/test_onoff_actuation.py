@@ -105,3 +105,34 @@ def test_a_stuck_valve_ends_in_the_tracking_fault_and_the_safe_state(
     sup = h.ctrl.supervisor
     assert sup.state == State.FAULT
     assert any("follow" in f or "track" in f for f in sup.faults), sup.faults
+
+
+@pytest.mark.parametrize("step_mm", [-5.0, 5.0])
+def test_a_stuck_valve_in_position_mode_ends_in_a_fault_and_the_safe_state(
+        harness: Any, step_mm: float) -> None:
+    """In mode position the command is the measured pressure, so the pressure tracking
+    check cannot see a valve that does not act: the actuation's own check does (a valve
+    open for a while without the pressure moving its way)."""
+    h = onoff_rig(harness, 30.0, initial_bar=3.0)
+    h.step(1.0)
+    assert h.cmd("mode", muscle="m1", mode="position", feedforward=False)["ok"]
+    h.step(0.5)
+    h.sim.inject_fault("m1", "valve", "stuck")  # both valves shut, whatever is asked
+    length = h.sim.plant("m1").length_mm
+    assert h.cmd("setpoint", muscle="m1", length_mm=length + step_mm, ramp_s=1.0)["ok"]
+    h.step(4.0)
+    sup = h.ctrl.supervisor
+    assert sup.state == State.FAULT, sup.faults
+    valve = "exhaust" if step_mm > 0 else "inflate"  # longer: vent; shorter: fill
+    assert any(f"does not follow the {valve} valve" in f for f in sup.faults), sup.faults
+
+
+def test_positioning_without_a_fault_raises_no_valve_alarm(harness: Any) -> None:
+    h = onoff_rig(harness, 30.0, initial_bar=3.0)
+    h.step(1.0)
+    assert h.cmd("mode", muscle="m1", mode="position", feedforward=False)["ok"]
+    for step_mm in (-8.0, 8.0, -3.0):
+        length = h.sim.plant("m1").length_mm
+        assert h.cmd("setpoint", muscle="m1", length_mm=length + step_mm, ramp_s=1.0)["ok"]
+        h.step(4.0)
+    assert h.ctrl.supervisor.state != State.FAULT, h.ctrl.supervisor.faults
