@@ -48,6 +48,7 @@ import yaml  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
 from pamd.control.tuning import Fopdt  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
+from pamd.tune.report import print_fits  # noqa: E402
 from pamd.tune.run import IDENT_SLEW_BAR_PER_S  # noqa: E402
 from pamd.tune.steps import Step, fit_all, mean_model, steps_in  # noqa: E402
 from pamd.tune.steps import position_gains as pkg_position_gains  # noqa: E402
@@ -123,17 +124,6 @@ def _record_steps(h: Harness, levels: tuple[float, ...], step_bar: float, record
             steps.append(Step(f"{level:.1f} bar {label}", t_step, amp, np.array(ts),
                               np.array(ys)))
     return steps
-
-
-def print_fits(title: str, unit: str, fits: list[tuple[Step, Fopdt]], model: Fopdt) -> None:
-    print(title)
-    print(f"  {'step':14s} {'gain ' + unit:>14s} {'dead time ms':>13s} {'tau ms':>8s} "
-          f"{'t63 ms':>8s} {'rms fit':>8s}")
-    for s, f in fits:
-        print(f"  {s.label:14s} {f.gain:14.3f} {1e3 * f.dead_time_s:13.1f} "
-              f"{1e3 * f.tau_s:8.1f} {1e3 * f.t63_s:8.1f} {f.rms_error:8.4f}")
-    print(f"  {'model (mean)':14s} {model.gain:14.3f} {1e3 * model.dead_time_s:13.1f} "
-          f"{1e3 * model.tau_s:8.1f} {1e3 * model.t63_s:8.1f}")
 
 
 @dataclass(frozen=True)
