@@ -151,7 +151,7 @@ class OnOffActuation:
     """An inflate (3/2 NC) and an exhaust (2/2 NC) valve driven by PWM."""
 
     def __init__(self, inflate: OutputBinding, exhaust: OutputBinding,
-                 cfg: OnOffConfig) -> None:
+                 cfg: OnOffConfig, *, muscle: str) -> None:
         self.inflate = inflate
         self.exhaust = exhaust
         self.pulser = Pulser(cfg.pwm_period_s, min_pulse_s(cfg))
@@ -177,7 +177,7 @@ class OnOffActuation:
         self._tau_s = cfg.pwm_period_s
         self._alpha = 0.0
         # the valves' own check: open time without the pressure moving their way
-        self.name = inflate.name.rsplit(".", 1)[0]
+        self.name = muscle  # the fault names the muscle (channel names are the driver's)
         self._watched = HOLD
         self._open_s = 0.0
         self._rest_s = 0.0
@@ -355,7 +355,8 @@ def actuation_for(signals: MuscleSignals, muscle: MuscleConfig) -> Actuation:
         if signals.inflate is None or signals.exhaust is None:
             raise ValueError(f"muscle {muscle.name!r}: on/off actuation needs its inflate "
                              "and exhaust outputs")
-        return OnOffActuation(signals.inflate, signals.exhaust, muscle.onoff)
+        return OnOffActuation(signals.inflate, signals.exhaust, muscle.onoff,
+                              muscle=muscle.name)
     if signals.valve is None:
         raise ValueError(f"muscle {muscle.name!r}: a regulator needs its valve output")
     return RegulatorActuation(signals.valve, signals.exhaust)
