@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from array import array
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Protocol
 
 from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
@@ -25,6 +25,15 @@ from pamd.tick import I_SEGMENT, I_STATE, I_T, I_TICK, Sink, State, TickLayout
 
 S_STARTING, S_IDLE, S_RUNNING, S_HOLD = (int(State.STARTING), int(State.IDLE),
                                          int(State.RUNNING), int(State.HOLD))
+
+
+class PlanRun(Protocol):
+    """A running experiment plan (`pamd.experiment.sequencer.Sequencer`): the controller
+    ticks it; `pamd.experiment.sequencer.running_plan` gives it back, typed."""
+
+    outcome: str
+
+    def tick(self, now: float) -> None: ...
 
 
 class RigController:
@@ -56,8 +65,8 @@ class RigController:
         self.tick_no = 0
         self.listeners: list[Callable[[Transition], None]] = []
         self._calibration_dirty = False
-        self.sequencer: Any = None  # a running experiment plan (pamd.experiment)
-        self.segment = 0  # the plan's step + 1: each step gets a recording file
+        self._plan_run: PlanRun | None = None  # a running experiment plan
+        self._segment = 0  # the plan's step + 1: each step gets a recording file
         self._hold_started = 0.0
         # Streamed setpoints' deadman: muscle -> (deadline, the ramp it guards, timeout);
         # the tick compares one float, the earliest deadline, and nothing else.
@@ -73,6 +82,25 @@ class RigController:
     @property
     def state(self) -> State:
         return self.supervisor.state
+
+    @property
+    def plan_run(self) -> PlanRun | None:
+        """The experiment plan started last (running or ended), or None."""
+        return self._plan_run
+
+    @property
+    def segment(self) -> int:
+        """The running plan's step + 1 (0 outside a plan): the tick field that gives
+        each step its recording file."""
+        return self._segment
+
+    def run_plan(self, run: PlanRun) -> None:
+        """Start ticking an experiment plan (the `collect` command, between ticks)."""
+        self._plan_run = run
+
+    def set_segment(self, segment: int) -> None:
+        """The running plan moved to another step (its sequencer, in the tick)."""
+        self._segment = segment
 
     def start(self, t_s: float) -> None:
         self.t_start = t_s
@@ -109,7 +137,7 @@ class RigController:
             sup.fault(now, fault)
         elif fault is not None and state == S_STARTING:
             pass  # start-up waits for its timeout before faulting
-        seq = self.sequencer
+        seq = self._plan_run
         if seq is not None:
             seq.tick(now)
         elif state == S_RUNNING:
@@ -117,7 +145,7 @@ class RigController:
         rec[I_TICK] = self.tick_no
         rec[I_T] = now - self.t_start
         rec[I_STATE] = int(sup.state)
-        rec[I_SEGMENT] = self.segment
+        rec[I_SEGMENT] = self._segment
         self.tick_no += 1
         return rec
 

@@ -20,7 +20,7 @@ from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
 from pamd.experiment.manifest import Manifest, collection_name, step_records
 from pamd.experiment.plan import load_plan
-from pamd.experiment.sequencer import Sequencer
+from pamd.experiment.sequencer import Sequencer, running_plan, started_plan
 from pamd.experiment.timeline import StepLine, format_timeline, simulated_loads, timeline
 from pamd.io.session import RecordingRequest
 from pamd.tick import State
@@ -101,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         daemon.stop("collection ended")
         daemon.wait()
         daemon.close()
-    seq = daemon.ctrl.sequencer
+    seq = running_plan(daemon.ctrl)
     manifest.record_run(seq, daemon.result(), start)
     manifest.save()
     print(f"{outcome}; {len(seq.finished_steps) if seq else 0} step(s) finished; "
@@ -148,7 +148,7 @@ def _say(text: str) -> None:
 def _follow(daemon: Daemon, lines: list[StepLine], start: int, interrupts: dict[str, int],
             show: bool) -> str:
     """Show progress and talk to the operator until the plan ends."""
-    seq = daemon.ctrl.sequencer
+    seq = started_plan(daemon.ctrl)
     total = sum(s.duration_s for s in lines[start:])
     bar = _bar(total, show)
     with _logs_above(bar):
@@ -199,7 +199,7 @@ def _follow_loop(daemon: Daemon, seq: Sequencer, bar: ProgressBar | None, total:
 
 def _ask(daemon: Daemon, prompt: str, bar: ProgressBar | None) -> None:
     """An operator action: a load to hang (confirm) or a pause to end (resume)."""
-    seq = daemon.ctrl.sequencer
+    seq = started_plan(daemon.ctrl)
     msg = f"\n>>> {prompt}. Press Enter when done (Ctrl-C twice aborts): "
     if bar is not None:
         bar.clear()

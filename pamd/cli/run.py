@@ -204,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
                     notifier=Notifier.from_environ(), config_overrides=overrides,
                     telemetry=telemetry)
     testhooks.install(daemon)
-    daemon.keeper.restart_in_place = True  # a reload that reopens the devices execs again
+    daemon.keeper.allow_restart_in_place()  # a reload that reopens the devices execs again
     signalled = _install_signals(daemon)
     # Queued before the loop starts: applied on the first tick after start-up, so a
     # virtual run is the same every time.

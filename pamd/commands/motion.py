@@ -162,7 +162,7 @@ def _mode(ctrl: RigController, a: ModeArgs) -> dict[str, Any]:
     can_move(ctrl)
     if a.mode not in MODE_NAMES:
         raise CommandRefused(f"unknown mode {a.mode!r}; use {', '.join(MODE_NAMES)}")
-    seq = getattr(ctrl, "sequencer", None)
+    seq = ctrl.plan_run
     if seq is not None and not seq.outcome:
         raise CommandRefused("an experiment plan is running; its profiles are pressure "
                              "profiles (pause or stop it first)")

@@ -10,11 +10,11 @@ from pamd.commands.registry import Verb
 from pamd.commands.schema import CollectArgs, NoArgs
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
-from pamd.experiment.sequencer import Sequencer
+from pamd.experiment.sequencer import Sequencer, running_plan
 
 
 def _confirm(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
-    seq = ctrl.sequencer
+    seq = running_plan(ctrl)
     if seq is None or seq.outcome:
         raise CommandRefused("no experiment is running")
     try:
@@ -24,7 +24,7 @@ def _confirm(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
 
 
 def _pause(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
-    seq = ctrl.sequencer
+    seq = running_plan(ctrl)
     if seq is None or seq.outcome:
         raise CommandRefused("no experiment is running (use hold to freeze setpoints)")
     seq.pause_at_cycle_end = True
@@ -35,8 +35,9 @@ def _collect(ctrl: RigController, a: CollectArgs) -> dict[str, Any]:
     """`a.plan` is a Plan already read and checked outside the loop's thread."""
 
     can_move(ctrl)
-    if ctrl.sequencer is not None and not ctrl.sequencer.outcome:
-        raise CommandRefused(f"plan {ctrl.sequencer.plan.name!r} is still running")
+    running = running_plan(ctrl)
+    if running is not None and not running.outcome:
+        raise CommandRefused(f"plan {running.plan.name!r} is still running")
     plan = getattr(a, "plan", None)
     if plan is None:
         raise CommandRefused("collect: the plan was not loaded (pass it through the daemon)")
@@ -47,7 +48,7 @@ def _collect(ctrl: RigController, a: CollectArgs) -> dict[str, Any]:
     if not 0 <= a.start_step < len(plan.steps):
         raise CommandRefused(f"start_step {a.start_step} is not a step of the plan "
                              f"(0-{len(plan.steps) - 1})")
-    ctrl.sequencer = Sequencer(plan, ctrl, a.start_step)
+    ctrl.run_plan(Sequencer(plan, ctrl, a.start_step))
     return {"plan": plan.name, "steps": len(plan.steps), "start_step": a.start_step}
 
 

@@ -13,6 +13,7 @@ from pamd.commands.schema import EstopArgs, HomeArgs, LoadArgs, NoArgs, ReloadAr
 from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
+from pamd.experiment.sequencer import running_plan
 from pamd.safety.references import check_home, tare_offset
 from pamd.tick import State
 
@@ -27,7 +28,7 @@ def _resume(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     if ctrl.supervisor.state != State.HOLD:
         raise CommandRefused(f"resume only from HOLD (state is {ctrl.supervisor.state.name})")
     paused = ctrl.now - ctrl.hold_started
-    seq = ctrl.sequencer
+    seq = running_plan(ctrl)
     running = seq is not None and not seq.outcome
     for m in ctrl.muscles:
         if m.resume(paused):

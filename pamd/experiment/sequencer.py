@@ -17,8 +17,9 @@ of times per experiment, never in the per-tick checks.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, cast
 
+from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.experiment.plan import Plan, PlanStep
 from pamd.muscle import GRAVITY_M_S2
@@ -30,10 +31,24 @@ FORCE_AGREE_S = 0.5  # the force must agree this long to confirm a load
 FORCE_AGREE_TIMEOUT_S = 15.0
 
 
+def running_plan(ctrl: RigController) -> Sequencer | None:
+    """The controller's experiment plan (running or ended), or None: a `Sequencer`,
+    the only kind the `collect` command starts."""
+    return cast("Sequencer | None", ctrl.plan_run)
+
+
+def started_plan(ctrl: RigController) -> Sequencer:
+    """The plan a `collect` command has started (for the thread that sent it)."""
+    run = running_plan(ctrl)
+    if run is None:
+        raise RuntimeError("no experiment plan was started")
+    return run
+
+
 class Sequencer:
     """The running plan. The controller calls `tick(now)` once per tick."""
 
-    def __init__(self, plan: Plan, ctrl: Any, start_step: int = 0) -> None:
+    def __init__(self, plan: Plan, ctrl: RigController, start_step: int = 0) -> None:
         self.plan = plan
         self.ctrl = ctrl
         self.muscle = ctrl.by_name[plan.muscle]
@@ -96,7 +111,7 @@ class Sequencer:
             return
         step = self.plan.steps[self.index]
         self.step = step
-        self.ctrl.segment = self.index + 1  # the recorder starts the step's file here
+        self.ctrl.set_segment(self.index + 1)  # the recorder starts the step's file here
         m = self.muscle
         self.ctrl.sink.event(now, "segment", {
             "plan": self.plan.name, "step": step.name, "index": self.index,
@@ -251,7 +266,7 @@ class Sequencer:
 
     def _end(self, now: float, outcome: str) -> None:
         self.outcome = outcome
-        self.ctrl.segment = 0  # outside a plan again (the recorder's cue)
+        self.ctrl.set_segment(0)  # outside a plan again (the recorder's cue)
         self.step = self.step if outcome != "done" else None
         self._event(now, "plan_finished" if outcome == "done" else "plan_ended",
                     {"outcome": outcome})

@@ -39,6 +39,7 @@ from typing import Any
 from pamd.errors import CommandRefused, ConfigError, PamdError
 from pamd.experiment.manifest import Manifest, collection_name, step_records
 from pamd.experiment.plan import Plan
+from pamd.experiment.sequencer import running_plan
 from pamd.experiment.timeline import simulated_loads, timeline
 from pamd.net.seams import DaemonView
 from pamd.record import control
@@ -223,7 +224,7 @@ class Collections:
             if self.active is coll:
                 self.active = None
             return verdict
-        coll.seq = self.d.ctrl.sequencer
+        coll.seq = running_plan(self.d.ctrl)
         try:
             coll.manifest.save()
         except OSError as exc:
@@ -261,7 +262,7 @@ class Collections:
         c = self.active
         if c is None:
             return
-        seq = self.d.ctrl.sequencer
+        seq = running_plan(self.d.ctrl)
         if c.seq is None and seq is not None and seq.plan is c.plan:
             c.seq = seq  # taken by the loop, its verdict not yet seen
         if c.seq is None:  # the loop never took the plan

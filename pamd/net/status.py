@@ -20,6 +20,7 @@ from collections.abc import Callable
 from typing import Any
 
 from pamd.commands import REGISTRY
+from pamd.experiment.sequencer import running_plan
 from pamd.version import __version__
 
 
@@ -62,7 +63,7 @@ class StatusBuilder:
             ms["model"] = ff.describe() if ff is not None else None
             dm = deadman.get(m.name)
             ms["deadman_left_s"] = None if dm is None else max(0.0, dm[0] - ctrl.now)
-        seq = ctrl.sequencer
+        seq = running_plan(ctrl)
         experiment = None
         if seq is not None:
             experiment = {"plan": seq.plan.name, "step": seq.index, "phase": seq.phase,

@@ -86,9 +86,14 @@ class ServiceKeeper:
         self.deferred: ReloadPlan | None = None
         # changes that reopen the devices: `pamd run` can restart in place (a
         # library daemon, a virtual run cannot, and such a reload is refused)
-        self.restart_in_place = False
+        self._restart_in_place = False
         self.handover: str | None = None  # the changes a restart waiting for IDLE applies
         self.handing_over = False  # the loop was asked to end at an IDLE tick
+
+    def allow_restart_in_place(self) -> None:
+        """`pamd run` can exec itself again: a reload that reopens the devices restarts
+        in place instead of being refused."""
+        self._restart_in_place = True
 
     # -- life cycle (called by the Daemon) -------------------------------------------------
     def restore(self) -> FaultRecord | None:
@@ -353,7 +358,7 @@ class ServiceKeeper:
         """Changes that reopen the devices: a restart in place once the rig is IDLE
         (`_reload`), or refused where this daemon cannot restart in place."""
         what = describe(plan.restart, self.started_cfg, plan.cfg)
-        if not self.restart_in_place or self.daemon.loop.virtual:
+        if not self._restart_in_place or self.daemon.loop.virtual:
             why = ("a virtual-clock run" if self.daemon.loop.virtual
                    else "this daemon is not `pamd run`")
             log.error("reload refused, still running on the config loaded before: %s "

@@ -30,6 +30,7 @@ from pamd.daemon import Daemon
 from pamd.errors import PamdError
 from pamd.experiment.manifest import step_records
 from pamd.experiment.plan import Plan, load_plan
+from pamd.experiment.sequencer import started_plan
 from pamd.experiment.timeline import timeline
 from pamd.io.session import RecordingRequest
 from pamd.muscle import force_model
@@ -177,7 +178,7 @@ def _run_plan(cfg: LoadedConfig, plan: Plan, plan_file: str, lines: list[Any],
 
 
 def _follow(daemon: Daemon, plan: Plan, progress: Callable[[str], None] | None) -> str:
-    seq = daemon.ctrl.sequencer
+    seq = started_plan(daemon.ctrl)
     shown = ""
     while daemon.alive and not seq.outcome:
         daemon.service()

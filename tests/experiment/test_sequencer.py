@@ -10,6 +10,7 @@ import pytest
 from pamd.commands import Command, apply_command, parse_command
 from pamd.daemon import _PlanArgs
 from pamd.experiment.plan import parse_plan
+from pamd.experiment.sequencer import running_plan
 from pamd.harness import Harness
 from pamd.muscle import GRAVITY_M_S2
 
@@ -30,7 +31,7 @@ def start(h: Harness, text: str = PLAN, step: int = 0) -> dict[str, Any]:
 
 def run_until_done(h: Harness, limit_s: float = 60.0) -> None:
     t_end = h.t + limit_s
-    while not h.ctrl.sequencer.outcome and h.t < t_end:
+    while not running_plan(h.ctrl).outcome and h.t < t_end:
         h.step(0.1)
 
 
@@ -43,7 +44,7 @@ def test_plan_runs_every_step_on_the_simulated_rig(harness: Any) -> None:
     h.step(0.01)
     assert start(h)["ok"]
     run_until_done(h)
-    seq = h.ctrl.sequencer
+    seq = running_plan(h.ctrl)
     assert seq.outcome == "done" and seq.finished_steps == ["a", "b"]
     assert segments(h) == ["a", "b"]
     assert h.ctrl.segment == 0  # outside a plan again: the recorder's cue
@@ -61,7 +62,7 @@ def test_load_change_waits_for_the_operator_and_the_force(harness: Any) -> None:
     h.sim.change_load = lambda index, kg: False  # as on real hardware
     start(h, PLAN.replace("  - {name: b, load_kg: 50}\n", ""))
     h.step(2.0)
-    seq = h.ctrl.sequencer
+    seq = running_plan(h.ctrl)
     assert h.state == "LOAD_CHANGE" and "hang 15 kg on m1" in seq.awaiting_operator
     h.step(1.0)
     assert h.state == "LOAD_CHANGE"  # nothing happens without the operator
@@ -84,14 +85,14 @@ def test_wrong_load_is_a_fault_not_a_run(harness: Any) -> None:
     h.step(20.0)
     assert h.state == "FAULT"
     assert "does not agree with 15 kg" in h.ctrl.supervisor.fault_reason
-    assert h.ctrl.sequencer.outcome.startswith("fault")
+    assert running_plan(h.ctrl).outcome.startswith("fault")
 
 
 def test_pause_at_end_of_cycle_then_resume(harness: Any) -> None:
     h = harness()
     h.step(0.01)
     start(h, PLAN.replace("cycles: 2", "cycles: 3"))
-    seq = h.ctrl.sequencer
+    seq = running_plan(h.ctrl)
     while seq.phase != "profile":
         h.step(0.05)
     h.step(0.5)
@@ -113,7 +114,7 @@ def test_a_fault_ends_the_plan_in_the_safe_state(harness: Any) -> None:
     h.step(4.0)
     h.sim.inject_fault("m1", "force", "silent")
     h.step(1.0)
-    seq = h.ctrl.sequencer
+    seq = running_plan(h.ctrl)
     assert seq.outcome.startswith("fault") and "m1.force" in seq.outcome
     assert seq.finished_steps == [] and h.ctrl.segment == 0
 
@@ -123,7 +124,7 @@ def test_start_step_resumes_later_in_the_plan(harness: Any) -> None:
     h.step(0.01)
     start(h, step=1)
     run_until_done(h)
-    assert segments(h) == ["b"] and h.ctrl.sequencer.finished_steps == ["b"]
+    assert segments(h) == ["b"] and running_plan(h.ctrl).finished_steps == ["b"]
 
 
 def _cmd(verb: str) -> Any:
@@ -140,10 +141,10 @@ def test_stillness_held_too_briefly_times_out_even_at_exactly_zero_velocity(
     text = PLAN.replace("settle: {seconds: 1}", "settle: {seconds: 0.1, until_still: true, "
                         f"still_mm_s: 1.0e-6, still_for_s: {still_for_s}, timeout_s: 0.5}}")
     assert start(h, text)["ok"]
-    m = h.ctrl.sequencer.muscle
+    m = running_plan(h.ctrl).muscle
     t_end = h.t + 60.0
-    while not h.ctrl.sequencer.outcome and h.t < t_end:
-        if h.ctrl.sequencer.phase == "settle":
+    while not running_plan(h.ctrl).outcome and h.t < t_end:
+        if running_plan(h.ctrl).phase == "settle":
             m.inputs.velocity_mm_s = 0.0  # what the quantised encoder gives between steps
         h.step(0.001)
-    assert h.ctrl.sequencer.outcome.startswith(outcome), h.ctrl.sequencer.outcome
+    assert running_plan(h.ctrl).outcome.startswith(outcome), running_plan(h.ctrl).outcome

@@ -39,7 +39,7 @@ class Setup:
         self.plan_file.write_text(PLAN)
         self.d = SimpleNamespace(
             cfg=self.cfg, io=None, note="", loop=SimpleNamespace(lost_records=0),
-            ctrl=SimpleNamespace(tick_no=100, now=1.0, sequencer=None,
+            ctrl=SimpleNamespace(tick_no=100, now=1.0, plan_run=None,
                                  supervisor=Supervisor()),
             summary=SimpleNamespace(event=lambda t, kind, data: self.events.append(data)))
         self.c = Collections(self.d, str(self.rec) if record else None, self.send)
@@ -57,7 +57,7 @@ class Setup:
         """The loop took the plan; its sequencer as the main thread sees it."""
         seq = SimpleNamespace(plan=coll.plan, outcome=outcome, finished_steps=[],
                               step=coll.plan.steps[0])
-        self.d.ctrl.sequencer = seq
+        self.d.ctrl.plan_run = seq
         return seq
 
 
