@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import sys
 import threading
 import time
@@ -41,6 +40,7 @@ from pamd.commands.schema import (
 )
 from pamd.errors import CommandRefused
 from pamd.net import zconf
+from pamd.net.answer import StatusAnswer
 from pamd.net.board import Board
 from pamd.net.keys import Keys
 from pamd.net.ratelimit import RateLimiter
@@ -49,19 +49,13 @@ from pamd.net.spec import NetSpec
 from pamd.net.stats import TickStats
 from pamd.net.status import jsonsafe
 from pamd.net.telemetry import StateBatcher
-from pamd.tick import I_STATE, I_T, I_TICK, LOOP_FIELDS, MUSCLE_FIELDS, Mode, State
 
-#: what a status answer takes from the latest tick record rather than the snapshot
-LIVE_FIELDS = ("pressure_bar", "setpoint_bar", "valve_cmd_bar", "force_n", "length_mm",
-               "contraction")
 CLOSE_TIMEOUT_S = 3.0
 SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
 LIMITS_REFRESH_S = 1.0
 RATE_NOTE_S = 1.0
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
-SNAPSHOT_STALE_MIN_S, SNAPSHOT_STALE_PERIODS = 1.0, 5  # a snapshot older is stale
-LIVE_STALE_MIN_S, LIVE_STALE_TICKS = 0.5, 50  # tick records older are stale
 
 RecordFn = Callable[[float, str, dict[str, Any]], None]
 
@@ -83,10 +77,7 @@ class NetNode:
         self.keys = Keys(spec.rig_id)
         self.batcher = StateBatcher(spec.rig_id, spec.muscles, spec.every_ticks)
         self.stats = TickStats()
-        n_loop, n_m = len(LOOP_FIELDS), len(MUSCLE_FIELDS)
-        self.live = [(m, n_loop + k * n_m) for k, m in enumerate(spec.muscles)]
-        self.live_idx = [(f, MUSCLE_FIELDS.index(f)) for f in LIVE_FIELDS]
-        self.i_mode, self.i_flags = MUSCLE_FIELDS.index("mode"), MUSCLE_FIELDS.index("flags")
+        self.answer = StatusAnswer(spec, io_spec, self.stats)
         self.limiter = RateLimiter(spec.command_rate_per_s, spec.command_burst)
         self.session: Any = None
         self.board: Board | None = None
@@ -288,57 +279,9 @@ class NetNode:
     def _status(self, q: Query) -> None:
         self.counts["status_queries"] += 1
         got = self.board.read_status() if self.board is not None else None
-        if got is None:
-            body = json.dumps({"ok": False, "error": "no status yet: the daemon is starting"})
-            self._send(q, self.keys.status, body.encode())
-            return
-        blob, age = got
-        try:
-            st = json.loads(blob)
-        except ValueError:
-            st = {"error": "the status snapshot is not JSON"}
-        stale = self._staleness(age, time.monotonic())
-        if not any(r.startswith("no tick records") for r in stale):
-            self._live(st)  # the loop's latest values over the snapshot, when they are new
-        st.update(ok="error" not in st, snapshot_age_s=round(age, 4),
-                  stopping=self.stop_reason or st.get("stopping"), timing=self.stats.summary,
-                  io=dict(self.counts), stale=bool(stale), stale_reasons=stale)
-        self._send(q, self.keys.status, json.dumps(st, default=str).encode())
-
-    def _staleness(self, snapshot_age_s: float, now: float) -> list[str]:
-        """Why the answer may not be the rig's present state (empty: it is)."""
-        out = []
-        limit = max(SNAPSHOT_STALE_MIN_S, SNAPSHOT_STALE_PERIODS * self.spec.status_period_s)
-        if snapshot_age_s > limit:
-            out.append(f"the daemon's main thread has not refreshed the status for "
-                       f"{snapshot_age_s:.1f} s (it does every {self.spec.status_period_s:g} s)")
-        if self.stats.last is not None:
-            live_age = now - self.rows_mono
-            if live_age > max(LIVE_STALE_MIN_S, LIVE_STALE_TICKS / self.io_spec.rate_hz):
-                out.append(f"no tick records from the loop for {live_age:.1f} s: live values "
-                           "are the snapshot's")
-        return out
-
-    def _live(self, st: dict[str, Any]) -> None:
-        """The latest tick record's values over the snapshot's (which may be up to
-        1 / status_hz old)."""
-        row = self.stats.last
-        if row is None:
-            return
-        with contextlib.suppress(ValueError):
-            st["state"] = State(int(row[I_STATE])).name
-        st["tick"], st["t_s"] = int(row[I_TICK]), row[I_T]
-        ms = st.get("muscles") or {}
-        for name, base in self.live:
-            d = ms.get(name)
-            if d is None:
-                continue
-            for f, j in self.live_idx:
-                v = row[base + j]
-                d[f] = v if -math.inf < v < math.inf else None
-            with contextlib.suppress(ValueError):
-                d["mode"] = Mode(int(row[base + self.i_mode])).name.lower()
-            d["flags"] = int(row[base + self.i_flags])
+        body = self.answer.body(got, time.monotonic(), self.rows_mono, self.stop_reason,
+                                self.counts)
+        self._send(q, self.keys.status, body)
 
     def _send(self, q: Query, key: str, body: bytes) -> None:
         try:

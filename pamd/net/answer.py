@@ -1,0 +1,89 @@
+"""The answer to a `status` query (`pamd/<rig>/status`), built in the io process from
+the board's snapshot (the daemon's main thread writes it every 1 / status_hz) with the
+loop's latest tick record over it, and said to be stale, with the reasons, when either
+is old."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from typing import Any
+
+from pamd.net.seams import RunClock
+from pamd.net.spec import NetSpec
+from pamd.net.stats import TickStats
+from pamd.tick import I_STATE, I_T, I_TICK, LOOP_FIELDS, MUSCLE_FIELDS, Mode, State
+
+#: what a status answer takes from the latest tick record rather than the snapshot
+LIVE_FIELDS = ("pressure_bar", "setpoint_bar", "valve_cmd_bar", "force_n", "length_mm",
+               "contraction")
+SNAPSHOT_STALE_MIN_S, SNAPSHOT_STALE_PERIODS = 1.0, 5  # a snapshot older is stale
+LIVE_STALE_MIN_S, LIVE_STALE_TICKS = 0.5, 50  # tick records older are stale
+
+
+class StatusAnswer:
+    """Builds status answers for one node (its spec, its run clock, its tick stats)."""
+
+    def __init__(self, spec: NetSpec, io_spec: RunClock, stats: TickStats) -> None:
+        self.spec = spec
+        self.io_spec = io_spec
+        self.stats = stats
+        n_loop, n_m = len(LOOP_FIELDS), len(MUSCLE_FIELDS)
+        self.live = [(m, n_loop + k * n_m) for k, m in enumerate(spec.muscles)]
+        self.live_idx = [(f, MUSCLE_FIELDS.index(f)) for f in LIVE_FIELDS]
+        self.i_mode, self.i_flags = MUSCLE_FIELDS.index("mode"), MUSCLE_FIELDS.index("flags")
+
+    def body(self, snapshot: tuple[bytes, float] | None, now: float, rows_mono: float,
+             stopping: str | None, io_counts: dict[str, int]) -> bytes:
+        """The JSON answer: `snapshot` is the board's (blob, age in s) or None, `now` and
+        `rows_mono` (when tick records last came in) are monotonic times."""
+        if snapshot is None:
+            return json.dumps({"ok": False,
+                               "error": "no status yet: the daemon is starting"}).encode()
+        blob, age = snapshot
+        try:
+            st = json.loads(blob)
+        except ValueError:
+            st = {"error": "the status snapshot is not JSON"}
+        stale = self.staleness(age, now - rows_mono)
+        if not any(r.startswith("no tick records") for r in stale):
+            self._live(st)  # the loop's latest values over the snapshot, when they are new
+        st.update(ok="error" not in st, snapshot_age_s=round(age, 4),
+                  stopping=stopping or st.get("stopping"), timing=self.stats.summary,
+                  io=dict(io_counts), stale=bool(stale), stale_reasons=stale)
+        return json.dumps(st, default=str).encode()
+
+    def staleness(self, snapshot_age_s: float, live_age_s: float) -> list[str]:
+        """Why the answer may not be the rig's present state (empty: it is)."""
+        out = []
+        limit = max(SNAPSHOT_STALE_MIN_S, SNAPSHOT_STALE_PERIODS * self.spec.status_period_s)
+        if snapshot_age_s > limit:
+            out.append(f"the daemon's main thread has not refreshed the status for "
+                       f"{snapshot_age_s:.1f} s (it does every {self.spec.status_period_s:g} s)")
+        if self.stats.last is not None and live_age_s > max(
+                LIVE_STALE_MIN_S, LIVE_STALE_TICKS / self.io_spec.rate_hz):
+            out.append(f"no tick records from the loop for {live_age_s:.1f} s: live values "
+                       "are the snapshot's")
+        return out
+
+    def _live(self, st: dict[str, Any]) -> None:
+        """The latest tick record's values over the snapshot's (which may be up to
+        1 / status_hz old)."""
+        row = self.stats.last
+        if row is None:
+            return
+        with contextlib.suppress(ValueError):
+            st["state"] = State(int(row[I_STATE])).name
+        st["tick"], st["t_s"] = int(row[I_TICK]), row[I_T]
+        ms = st.get("muscles") or {}
+        for name, base in self.live:
+            d = ms.get(name)
+            if d is None:
+                continue
+            for f, j in self.live_idx:
+                v = row[base + j]
+                d[f] = v if -math.inf < v < math.inf else None
+            with contextlib.suppress(ValueError):
+                d["mode"] = Mode(int(row[base + self.i_mode])).name.lower()
+            d["flags"] = int(row[base + self.i_flags])
