@@ -26,6 +26,7 @@ import numpy as np
 
 from pamd.errors import RecordingError
 from pamd.record import files as io_files
+from pamd.record.tables import read_tables
 from pamd.view import fields
 
 
@@ -257,45 +258,14 @@ def open_recording(source: str | os.PathLike[str] | Sequence[str | os.PathLike[s
 
 def _read_file(path: str, only: str | None
                ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, np.ndarray]], list[Event]]:
-
-    dec = io_files.Decoder()
-    rows: dict[str, list[list[Any]]] = {}
-    names: dict[str, list[str]] = {}
-    loop_rows: list[list[Any]] = []
-    loop_names: list[str] = []
-    events: list[Event] = []
-    for ch, schema, msg in io_files.iter_messages(path):
-        topic = ch.topic
-        if "/state/" in topic:
-            m = ch.metadata.get("muscle") or topic.rsplit("/", 1)[1]
-            if only is not None and m != only:
-                continue
-            if m not in names:
-                names[m] = dec.columns(ch, schema) or []
-                rows[m] = []
-            row = dec.decode(ch, schema, msg.data)
-            if row is not None:
-                rows[m].append(row)
-        elif topic.endswith("/loop"):
-            loop_names = loop_names or dec.columns(ch, schema) or []
-            row = dec.decode(ch, schema, msg.data)
-            if row is not None:
-                loop_rows.append(row)
-        elif topic.endswith("/events"):
-            try:
-                ev = json.loads(msg.data)
-            except ValueError:
-                continue
-            if isinstance(ev, dict):
-                events.append(Event(t_s=float(ev.get("t_s") or 0.0), tick=int(ev.get("tick")
-                                                                                or 0),
-                                    kind=str(ev.get("kind")), data=ev.get("data") or {},
-                                    log_ns=msg.log_time, file=path))
-    if not loop_names and not names:
+    t = read_tables(path, only)
+    events = [Event(t_s=e.t_s, tick=e.tick, kind=e.kind, data=e.data, log_ns=e.log_ns,
+                    file=path) for e in t.events]
+    if not t.loop_names and not t.muscles:
         raise RecordingError(f"{path}: no pamd state or loop topic in this file (is it a "
                              "pamd recording?)")
-    loop = _columns(loop_names, loop_rows)
-    by_muscle = {m: _columns(names[m], rows[m]) for m in names}
+    loop = _columns(t.loop_names, t.loop_rows)
+    by_muscle = {m: _columns(names, rows) for m, (names, rows) in t.muscles.items()}
     return loop, by_muscle, events
 
 

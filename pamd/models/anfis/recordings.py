@@ -9,7 +9,6 @@ cannot be used is refused with `ModelError` naming the file and the problem.
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 from collections.abc import Sequence
@@ -20,6 +19,7 @@ import numpy as np
 from pamd.errors import ModelError, RecordingError
 from pamd.models.anfis.samples import Run
 from pamd.record import files
+from pamd.record.tables import read_tables
 from pamd.tick import Mode, State
 
 #: Accepted names of a CSV time column (case-insensitive) and their scale to seconds.
@@ -67,46 +67,17 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
         state_topics = {muscle: state_topics[muscle]}
     if not state_topics:
         raise ModelError(f"{path}: no /pamd/<rig>/state/<muscle> topic in this recording")
-    wanted = {t: m for m, t in state_topics.items()}
-    rows: dict[str, list[list[Any]]] = {t: [] for t in wanted}
-    cols: dict[str, list[str]] = {}
-    loop_rows: list[list[Any]] = []
-    loop_cols: list[str] = []
-    events: list[tuple[float, str, dict[str, Any]]] = []
-    dec = files.Decoder()
     try:
-        for ch, schema, msg in files.iter_messages(path):
-            topic = ch.topic
-            if topic in rows:
-                if topic not in cols:
-                    cols[topic] = dec.columns(ch, schema) or []
-                row = dec.decode(ch, schema, msg.data)
-                if row is not None:
-                    rows[topic].append(row)
-            elif topic.endswith("/loop"):
-                if not loop_cols:
-                    loop_cols = dec.columns(ch, schema) or []
-                row = dec.decode(ch, schema, msg.data)
-                if row is not None:
-                    loop_rows.append(row)
-            elif topic.endswith("/events"):
-                try:
-                    ev = json.loads(msg.data)
-                except ValueError:
-                    continue
-                if isinstance(ev, dict):
-                    events.append((float(ev.get("t_s") or 0.0), str(ev.get("kind")),
-                                   ev.get("data") or {}))
+        t = read_tables(path, muscle)
     except RecordingError as exc:
         raise ModelError(str(exc)) from None
     state_by_tick: dict[int, float] = {}
-    if loop_cols and "state" in loop_cols and "tick" in loop_cols:
-        it, ist = loop_cols.index("tick"), loop_cols.index("state")
-        state_by_tick = {int(r[it]): float(r[ist]) for r in loop_rows}
+    if "state" in t.loop_names and "tick" in t.loop_names:
+        it, ist = t.loop_names.index("tick"), t.loop_names.index("state")
+        state_by_tick = {int(r[it]): float(r[ist]) for r in t.loop_rows}
     runs = []
-    for topic, m in wanted.items():
-        names = cols.get(topic, [])
-        data = rows[topic]
+    for m, topic in state_topics.items():
+        names, data = t.muscles.get(m, ([], []))
         if not data:
             raise ModelError(f"{path}: topic {topic} holds no messages")
         arr = np.array(data, dtype=np.float64)
@@ -116,8 +87,8 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
         if state_by_tick and "tick" in columns:
             columns["state"] = np.array([state_by_tick.get(int(k), math.nan)
                                          for k in columns["tick"]])
-        muscle_events = [e for e in events
-                         if e[2].get("args", {}).get("muscle") in (None, m)]
+        muscle_events = [(e.t_s, e.kind, e.data) for e in t.events
+                         if e.data.get("args", {}).get("muscle") in (None, m)]
         runs.append(Run(source=path, muscle=m, t_s=columns["t_s"], columns=columns,
                         load_kg=loads.get(m), events=muscle_events,
                         meta={"rig_id": meta.get("pamd", {}).get("rig_id"),
