@@ -113,7 +113,12 @@ def test_rebooted_node_is_configured_again(bus: Bus) -> None:
 
 def test_emergency_and_wrong_length_frames(bus: Bus) -> None:
     enc = bus.encoder(7, physical=42)
-    d = bus.driver(node(7, heartbeat_ms=20), fault_after_s=0.1)
+    # Silence is not what this test is about: heartbeat and position timeouts no busy
+    # machine reaches, so the first problem the driver finds (and latches as its fault)
+    # is the emergency, then the short frame (a starved encoder thread would otherwise
+    # make it "silent" or "sends no position" first: the latched fault would name that).
+    d = bus.driver(node(7, heartbeat_ms=20, heartbeat_timeout_s=5.0, position_timeout_s=5.0),
+                   fault_after_s=0.1)
     assert wait_until(lambda: ready(d))
     enc.emergency(0x2310)
     assert wait_until(lambda: d.fault is not None and "0x2310" in d.fault)

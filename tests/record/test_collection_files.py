@@ -58,9 +58,13 @@ def read(path: str) -> dict[str, Any]:
     out: dict[str, Any] = {"ticks": [], "events": []}
     with open(path, "rb") as fh:
         r = make_reader(fh, decoder_factories=[DecoderFactory()])
+        decoders: dict[int, Any] = {}  # one ROS 2 decoder per schema, not per message
         for schema, ch, m in r.iter_messages():
             if ch.topic == "/pamd/sim/loop":
-                msg = DecoderFactory().decoder_for(ch.message_encoding, schema)(m.data)
+                if schema.id not in decoders:
+                    decoders[schema.id] = DecoderFactory().decoder_for(ch.message_encoding,
+                                                                       schema)
+                msg = decoders[schema.id](m.data)
                 out["ticks"].append((msg.tick, msg.segment))
             elif ch.topic == "/pamd/sim/events":
                 out["events"].append(json.loads(m.data))

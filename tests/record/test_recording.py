@@ -21,10 +21,13 @@ def read_all(path: str) -> dict[str, Any]:
     with open(path, "rb") as fh:
         r = make_reader(fh, decoder_factories=[DecoderFactory()])
         out["summary"] = r.get_summary()
+        decoders: dict[int, Any] = {}  # one ROS 2 decoder per schema, not per message
         for schema, ch, m in r.iter_messages():
             if ch.message_encoding == "cdr":
-                dec = DecoderFactory().decoder_for(ch.message_encoding, schema)
-                body = dec(m.data)
+                if schema.id not in decoders:
+                    decoders[schema.id] = DecoderFactory().decoder_for(ch.message_encoding,
+                                                                       schema)
+                body = decoders[schema.id](m.data)
             else:
                 body = json.loads(m.data)
             out["msgs"].setdefault(ch.topic, []).append((m.log_time, body))
