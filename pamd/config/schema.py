@@ -155,9 +155,14 @@ class IlcConfig:
 class PositionConfig:
     pid: PositionPidConfig = spec(PositionPidConfig(), "Outer position loop (position "
                                   "mode): corrects what the model misses.")
-    max_rate_per_s: float = spec(0.05, "Fastest change of a length target, contraction "
-                                 "(fraction) per second; faster length profiles and setpoint "
-                                 "ramps are refused.", unit="1/s", gt=0.0, max=1.0)
+    max_rate_per_s: float | None = spec(
+        None, "Fastest change of a length target, contraction (fraction) per second; "
+        "faster length profiles and setpoint ramps are refused, naming the frequency that "
+        "would pass. null (default): derived per muscle from what it can follow at its "
+        "configured load: the slew limit times the least contraction per bar of its usable "
+        "range (force model), bounded by the pressure loop's bandwidth (a sine over the "
+        "whole range at 1 / (2 pi rate_feedforward_s)); `pamd check-config` prints it.",
+        unit="1/s", gt=0.0, max=1.0)
     force_filter_s: float = spec(0.5, "position mode: time constant of the low-pass on the "
                                  "measured force fed to the model (the model is a "
                                  "quasi-static inverse; the force's fast part would close a "
