@@ -16,7 +16,15 @@ from pamd.config import load_config
 from pamd.config.loader import builtin_config_path, load_config_text
 from pamd.control.tuning import Fopdt, IdentificationError
 from pamd.errors import ConfigError
-from pamd.tune.report import Present, plot_fits, present_gains, print_comparison, print_fits
+from pamd.tune.relay import MAX_RELAY_BAR, mean_relay_model, print_relay, run_relay
+from pamd.tune.report import (
+    Present,
+    plot_fits,
+    present_gains,
+    print_comparison,
+    print_fits,
+    print_gains,
+)
 from pamd.tune.run import LOOPS, LoopPlan, TuneRefused, run_identification, with_levels
 from pamd.tune.steps import Step, check_model, fit_all, mean_model
 from pamd.tune.yamledit import YamlEditError, format_value, set_values
@@ -36,6 +44,17 @@ Every level must lie between the muscle's safe pressure and its pressure limit
 (level + step); a step larger than allowed (0.5 bar pressure, 1 bar position) is
 refused. How long: 6 s of rig time per level (about 20 s per muscle; a moment on
 the virtual clock).
+
+--method relay (pressure loop): instead of steps, a relay-feedback test per level
+(like Klipper's PID_CALIBRATE): the setpoint held at the level, then the loop's relay
+switches the regulator setpoint between level +/- --relay-bar (default 0.2, at most
+--relay-max-bar, 0.5) each time the measured pressure crosses where it rested (0.02
+bar hysteresis), 8 cycles. The ultimate gain and period give the FOPDT model; the
+gains follow as below. An oscillation that does not establish (no crossing within
+2 s) stops the run. About 1.5 s of rig time per level.
+
+The rig must be free: while another daemon (pamd run, the service, a collection,
+another tune) drives it, tune is refused naming that process (exit 8).
 
 From the recording it fits a first-order-plus-dead-time model to each step, takes
 their mean, and derives Skogestad's SIMC PI gains (tau_c = dead time) and, for the
@@ -62,7 +81,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         epilog="examples:\n"
         "  pamd tune --clock virtual                   # the built-in simulated rig\n"
         "  pamd tune --config rig.yaml --muscle m1 --plot tune.png\n"
-        "  pamd tune --config rig.yaml --save          # then: --loop position --save")
+        "  pamd tune --config rig.yaml --save          # then: --loop position --save\n"
+        "  pamd tune --config rig.yaml --method relay  # relay feedback instead of steps")
     p.add_argument("--config", metavar="RIG", help="rig config (default: built-in sim)")
     p.add_argument("--loop", choices=tuple(LOOPS), default="pressure",
                    help="which loop to identify (default: pressure)")
@@ -73,6 +93,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "pressure loop, 2.5,3.5 for the position loop)")
     p.add_argument("--step-bar", type=float, metavar="BAR",
                    help="the step size (default: 0.2 pressure, 0.5 position)")
+    p.add_argument("--method", choices=("step", "relay"), default="step",
+                   help="how the pressure loop is identified: setpoint steps (default) or "
+                   "a relay-feedback oscillation")
+    p.add_argument("--relay-bar", type=float, default=0.2, metavar="BAR",
+                   help="--method relay: the relay's amplitude around each level "
+                   "(default 0.2)")
+    p.add_argument("--relay-max-bar", type=float, default=MAX_RELAY_BAR, metavar="BAR",
+                   help=f"--method relay: the largest amplitude allowed (default "
+                   f"{MAX_RELAY_BAR:g}; never past the safe pressure or the pressure limit)")
     p.add_argument("--clock", choices=("real", "virtual"), help="override loop.clock")
     p.add_argument("--out", metavar="DIR", help="where the recording goes (default: "
                    "runs/tune-<loop>-<time>)")
@@ -103,6 +132,18 @@ def run(args: argparse.Namespace) -> int:
     lp = with_levels(LOOPS[args.loop], _levels(args.levels), args.step_bar)
     muscles = args.muscle or [m.name for m in cfg.rig.muscles]
     out = args.out or os.path.join("runs", f"tune-{lp.loop}-{time.strftime('%Y%m%d-%H%M%S')}")
+    if args.method == "relay":
+        if lp.loop != "pressure":
+            raise TuneRefused("--method relay identifies the pressure loop; the position "
+                              "loop is identified by steps (--method step)")
+        new = _relay(args, config_path, lp, muscles, out)
+        present = present_gains(cfg, lp.loop)
+        print_gains(lp.loop, present, new)
+        print(f"recording: {out}")
+        if not args.save:
+            print("nothing written (--save writes the new gains into the config file)")
+            return 0
+        return _save(config_path, new)
     fits_by_muscle: dict[str, list[tuple[Step, Fopdt]]] = {}
     for muscle in muscles:
         steps = run_identification(config_path, args.clock, muscle, lp,
@@ -124,6 +165,23 @@ def run(args: argparse.Namespace) -> int:
         print("nothing written (--save writes the new gains into the config file)")
         return 0
     return _save(config_path, new)
+
+
+def _relay(args: argparse.Namespace, config_path: str, lp: LoopPlan, muscles: list[str],
+           out: str) -> Present:
+    """The relay test of each muscle; the gains of the mean model."""
+    models = []
+    for muscle in muscles:
+        runs = run_relay(config_path, args.clock, muscle, lp.levels_bar, args.relay_bar,
+                         args.relay_max_bar, os.path.join(out, muscle), _progress)
+        model = mean_relay_model(runs)
+        print_relay(f"{muscle}: pressure loop by relay feedback (+/- {args.relay_bar:g} bar)",
+                    runs, model)
+        models.append(model)
+    mean = Fopdt(sum(m.gain for m in models) / len(models),
+                 sum(m.tau_s for m in models) / len(models),
+                 sum(m.dead_time_s for m in models) / len(models))
+    return Present.from_model("pressure", mean)
 
 
 def _progress(line: str) -> None:
