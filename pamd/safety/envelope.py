@@ -76,7 +76,7 @@ class MuscleEnvelope:
     @classmethod
     def from_config(cls, cfg: LoadedConfig, name: str) -> MuscleEnvelope:
         """The envelope of muscle `name` of a validated config."""
-        ctl = cfg.rig.control
+        ctl = cfg.control_of(name)
         return cls.build(cfg.muscle(name), cfg.limits[name], cfg.rig.safety,
                          ctl.slew_limit_bar_per_s, ctl.position.max_rate_per_s,
                          ctl.rate_feedforward_s)
@@ -92,7 +92,7 @@ class MuscleEnvelope:
     def derived_length_rate(cfg: LoadedConfig, name: str) -> LengthRate:
         """What `control.position.max_rate_per_s: null` derives for muscle `name`
         (`pamd check-config` prints it)."""
-        ctl, m = cfg.rig.control, cfg.muscle(name)
+        ctl, m = cfg.control_of(name), cfg.muscle(name)
         return _derive(force_model(m.force_model), m, cfg.limits[name], cfg.rig.safety,
                        ctl.slew_limit_bar_per_s, ctl.rate_feedforward_s)
 
