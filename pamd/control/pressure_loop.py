@@ -59,8 +59,10 @@ class PressureLoop:
                 self._i_before = 0.0
                 self.flags = 0
                 return relay.step(pressure_bar, dt)
-            relay.stop("the setpoint moved (a command, a stop or the safe state)" if close
-                       else "the pressure loop opened (untrusted pressure, a fault)")
+            if not close:
+                relay.stop("the pressure loop opened (untrusted pressure, a fault)")
+            elif relay.elapsed_s > 0.0:  # armed and still ramping to the center: wait
+                relay.stop("the setpoint moved (a command, a stop or the safe state)")
         if close:
             self._i_before = pid.i
             u = (setpoint_bar + self.rate_feedforward_s * rate_bar_per_s

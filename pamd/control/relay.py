@@ -29,6 +29,7 @@ class Relay:
         self.center_bar = self.amplitude_bar = self.hysteresis_bar = 0.0
         self.switch_bar = 0.0  # the level it switches on (measured, see settle_s)
         self.settle_s = 0.2
+        self.hold_s = 0.0
         self.timeout_s = 2.0
         self.cycles = 0
         self.switches = 0
@@ -40,11 +41,12 @@ class Relay:
         self._n = 0
 
     def start(self, center_bar: float, amplitude_bar: float, hysteresis_bar: float,
-              cycles: int, timeout_s: float, settle_s: float = 0.2) -> None:
-        """Arm the test (the caller checked the bounds); the next `step` begins it."""
+              cycles: int, timeout_s: float, settle_s: float = 0.2,
+              hold_s: float = 0.0) -> None:
+        """Arm the test (the caller checked the bounds); the first `step` begins it."""
         self.center_bar, self.amplitude_bar = center_bar, amplitude_bar
         self.hysteresis_bar, self.cycles = hysteresis_bar, cycles
-        self.timeout_s, self.settle_s = timeout_s, settle_s
+        self.timeout_s, self.settle_s, self.hold_s = timeout_s, settle_s, hold_s
         self.switches = 0
         self.elapsed_s = self._since_switch_s = self._sum = 0.0
         self.relay_start_s = 0.0
@@ -62,7 +64,9 @@ class Relay:
     def step(self, pressure_bar: float, dt: float) -> float:
         """The regulator setpoint this tick."""
         self.elapsed_s += dt
-        if self.elapsed_s <= self.settle_s:  # measure where the regulator rests
+        if self.elapsed_s <= self.hold_s:  # let the regulator settle at the center
+            return self.center_bar
+        if self.elapsed_s <= self.hold_s + self.settle_s:  # where the regulator rests
             self._sum += pressure_bar
             self._n += 1
             return self.center_bar

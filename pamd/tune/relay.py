@@ -85,7 +85,8 @@ def check_relay(cfg: LoadedConfig, muscle: str, levels_bar: tuple[float, ...],
 def run_relay(config_path: str | None, clock: str | None, muscle: str,
               levels_bar: tuple[float, ...], amplitude_bar: float, max_amplitude_bar: float,
               out_dir: str, progress: Callable[[str], None] | None = None) -> list[RelayRun]:
-    """Run the relay test at each level on the rig, recorded into `out_dir`."""
+    """Run the relay test at each level on the rig, each level a daemon run recorded
+    into `out_dir/<level>`; their oscillations and models."""
     overrides: dict[str, object] = {}
     if clock:
         overrides["loop"] = {"clock": clock}
@@ -93,66 +94,59 @@ def run_relay(config_path: str | None, clock: str | None, muscle: str,
     check_relay(base, muscle, levels_bar, amplitude_bar, max_amplitude_bar)
     overrides["control"] = ident_overrides(base, "pressure")
     cfg = load_config(config_path, overrides)
+    runs: list[RelayRun] = []
+    for level in levels_bar:
+        level_dir = os.path.join(out_dir, f"{level:g}-bar".replace(".", "_"))
+        rest = _one_level(cfg, muscle, level, amplitude_bar, max_amplitude_bar, level_dir,
+                          progress)
+        runs.append(analyse(level_dir, muscle, level, rest, amplitude_bar))
+    return runs
+
+
+def _one_level(cfg: LoadedConfig, muscle: str, level: float, amplitude_bar: float,
+               max_amplitude_bar: float, out_dir: str,
+               progress: Callable[[str], None] | None) -> float:
+    """The relay at `level`, one daemon run (the command queued before it starts, so
+    everything happens in loop time); the pressure where the regulator rested."""
     os.makedirs(out_dir, exist_ok=True)
-    daemon = Daemon(cfg, note=f"pamd tune --method relay, +/- {amplitude_bar:g} bar",
+    daemon = Daemon(cfg, note=f"pamd tune --method relay at {level:g} +/- "
+                    f"{amplitude_bar:g} bar",
                     recording=RecordingRequest(dir=out_dir, run_name=f"tune-relay-{muscle}"))
+    pending = PendingCommand()
+    daemon.mailbox.put(Command("relay", RelayArgs(
+        muscle=muscle, center_bar=level, amplitude_bar=amplitude_bar,
+        hysteresis_bar=HYSTERESIS_BAR, max_amplitude_bar=max_amplitude_bar, cycles=CYCLES,
+        timeout_s=TIMEOUT_S, hold_s=REST_S), pending.set))
     try:
         daemon.start()  # RigBusy while another daemon drives this rig
     except BaseException:
         daemon.close()
         raise
-    windows: list[tuple[float, float, float, float]] = []
+    relay = daemon.ctrl.by_name[muscle].pressure_loop.relay
+    patience = cfg.rig.safety.startup_timeout_s + 5.0
     try:
-        for level in levels_bar:
-            windows.append(_one_level(daemon, cfg, muscle, level, amplitude_bar,
-                                      max_amplitude_bar, progress))
+        verdict = pending.result(patience)
+        if not verdict["ok"]:
+            raise TuneRefused(f"{muscle}: the relay test was refused: {verdict['error']}")
+        if progress is not None:
+            progress(f"{muscle}: relay at {level:g} +/- {amplitude_bar:g} bar")
+        _wait(daemon, lambda: bool(relay.outcome), patience + CYCLES * 4 * TIMEOUT_S)
     finally:
         daemon.stop("tuning run ended")
         daemon.wait()
         daemon.close()
-    return analyse(out_dir, muscle, windows, amplitude_bar)
-
-
-def _command(daemon: Daemon, verb: str, args: object, timeout_s: float) -> dict[str, object]:
-    pending = PendingCommand()
-    daemon.mailbox.put(Command(verb, args, pending.set))
-    return pending.result(timeout_s)
-
-
-def _one_level(daemon: Daemon, cfg: LoadedConfig, muscle: str, level: float,
-               amplitude_bar: float, max_amplitude_bar: float,
-               progress: Callable[[str], None] | None) -> tuple[float, float, float, float]:
-    """(level, rested pressure, start, end) of the relay at `level`."""
-    patience = cfg.rig.safety.startup_timeout_s + 5.0
-    verdict = daemon.submit("setpoint", {"muscle": muscle, "bar": level}).result(patience)
-    if not verdict["ok"]:
-        raise TuneRefused(f"{muscle}: the tuning run was refused: {verdict['error']}")
-    ramp_s = float(verdict.get("ramp_s") or 0.0)
-    m = daemon.ctrl.by_name[muscle]
-    t_set = daemon.ctrl.now
-    _wait(daemon, lambda: daemon.ctrl.now >= t_set + ramp_s + REST_S, patience + ramp_s)
-    if progress is not None:
-        progress(f"{muscle}: relay at {level:g} +/- {amplitude_bar:g} bar")
-    verdict = _command(daemon, "relay", RelayArgs(
-        muscle=muscle, amplitude_bar=amplitude_bar, hysteresis_bar=HYSTERESIS_BAR,
-        max_amplitude_bar=max_amplitude_bar, cycles=CYCLES, timeout_s=TIMEOUT_S), patience)
-    if not verdict["ok"]:
-        raise TuneRefused(f"{muscle}: the relay test was refused: {verdict['error']}")
-    started = float(verdict["started_s"])  # type: ignore[arg-type]
-    relay = m.pressure_loop.relay
-    _wait(daemon, lambda: not relay.active, patience + CYCLES * 4 * TIMEOUT_S)
     if relay.outcome != DONE:
         fault = daemon.ctrl.supervisor.fault_reason or ""
-        why = relay.outcome or "the daemon stopped"
-        raise TuneRefused(f"{muscle}: the relay test at {level:g} bar stopped: {why}"
-                          + (f" ({fault})" if fault else "") + "; the present gains are kept")
+        raise TuneRefused(f"{muscle}: the relay test at {level:g} bar stopped: "
+                          f"{relay.outcome}" + (f" ({fault})" if fault else "")
+                          + f"; the present gains are kept; its recording is in {out_dir}")
     if progress is not None:
         progress(f"{muscle}: {relay.switches // 2} cycles at {level:g} bar")
-    return (level, relay.switch_bar, started + relay.relay_start_s, started + relay.elapsed_s)
+    return relay.switch_bar
 
 
 def _wait(daemon: Daemon, done: Callable[[], bool], timeout_s: float) -> None:
-    """Service the daemon until `done()` (loop time; wall-clock `timeout_s` at most)."""
+    """Service the daemon until `done()` (wall-clock `timeout_s` at most)."""
     t0 = time.monotonic()
     while not done():
         if not daemon.alive:
@@ -165,23 +159,30 @@ def _wait(daemon: Daemon, done: Callable[[], bool], timeout_s: float) -> None:
         time.sleep(0.01)
 
 
-def analyse(out_dir: str, muscle: str, windows: list[tuple[float, float, float, float]],
-            amplitude_bar: float) -> list[RelayRun]:
-    """The oscillation of each relay window of the recording and its FOPDT model."""
+def analyse(out_dir: str, muscle: str, level: float, rest: float,
+            amplitude_bar: float) -> RelayRun:
+    """The oscillation in the recording (where the regulator setpoint left the level by
+    the relay's amplitude) and its FOPDT model."""
     rec = open_recording(out_dir, muscle=muscle)[muscle]
     t = np.asarray(rec["t_s"], dtype=float)
+    u = np.asarray(rec["valve_cmd_bar"], dtype=float)
     p = np.asarray(rec["pressure_bar"], dtype=float)
-    runs: list[RelayRun] = []
-    for level, rest, start, end in windows:
-        sel = (t >= start) & (t <= end)
-        try:
-            osc = relay_oscillation(t[sel], p[sel], amplitude_bar)
-            model = relay_fopdt(osc, rest / level, HYSTERESIS_BAR)
-        except IdentificationError as exc:
-            raise TuneRefused(f"{muscle}: the relay test at {level:g} bar was not "
-                              f"identified: {exc}; the present gains are kept") from None
-        runs.append(RelayRun(level, rest, start, end, osc, model))
-    return runs
+    sp = np.asarray(rec["setpoint_bar"], dtype=float)
+    at_level = np.nonzero(np.abs(sp - level) < 1e-9)[0]  # the ramp there done
+    first = int(at_level[0]) if at_level.size else len(u)
+    left = first + np.nonzero(np.abs(sp[first:] - level) > 1e-9)[0]  # the stop's ramp
+    end = int(left[0]) if left.size else len(u)
+    on = first + np.nonzero(np.abs(u[first:end] - level) > 0.5 * amplitude_bar)[0]
+    try:
+        if on.size == 0:
+            raise IdentificationError("the relay never switched")
+        sel = slice(int(on[0]), int(on[-1]) + 1)
+        osc = relay_oscillation(t[sel], p[sel], amplitude_bar)
+        model = relay_fopdt(osc, rest / level, HYSTERESIS_BAR)
+    except IdentificationError as exc:
+        raise TuneRefused(f"{muscle}: the relay test at {level:g} bar was not "
+                          f"identified: {exc}; the present gains are kept") from None
+    return RelayRun(level, rest, float(t[sel][0]), float(t[sel][-1]), osc, model)
 
 
 def mean_relay_model(runs: list[RelayRun]) -> Fopdt:

@@ -38,8 +38,9 @@ class Present:
         return dict(self.gains)
 
 
-def present_gains(cfg: LoadedConfig, loop: str) -> Present:
-    c = cfg.rig.control
+def present_gains(cfg: LoadedConfig, loop: str, muscle: str | None = None) -> Present:
+    """The gains in force: the rig's, or those muscle `muscle` runs on (its own)."""
+    c = cfg.rig.control if muscle is None else cfg.control_of(muscle)
     if loop == "pressure":
         return Present(loop, {("control", "pid", "kp"): c.pid.kp,
                               ("control", "pid", "ki_per_s"): c.pid.ki_per_s,
@@ -89,7 +90,6 @@ def print_comparison(lp: LoopPlan, model: Fopdt, present: Present, new: Present,
     out_unit = "bar" if lp.output_column == "pressure_bar" else "mm"
     print(f"Model: gain {model.gain:.3f} {lp.unit}, dead time {1e3 * model.dead_time_s:.1f} ms, "
           f"lag {1e3 * model.tau_s:.1f} ms (mean of {len(fits)} steps)")
-    print_gains(lp.loop, present, new)
     step = fits[0][0]
     end = lp.record_s
     times = np.array([0.5, 1.0, 1.5, 2.0, 3.0, 5.0]) * model.t63_s

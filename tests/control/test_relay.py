@@ -67,6 +67,8 @@ def test_no_oscillation_stops_it_with_the_reason() -> None:
 def test_a_moved_setpoint_or_an_opened_loop_ends_it() -> None:
     loop = PressureLoop(PidConfig(kp=0.5, ki_per_s=40.0), 0.025)
     loop.relay.start(3.0, 0.2, 0.02, cycles=8, timeout_s=1.0)
+    loop.step(2.5, 5.0, 2.4, True, True, DT)  # still ramping to the center: it waits
+    assert loop.relay.active and loop.relay.elapsed_s == 0.0
     assert loop.step(3.0, 0.0, 2.9, True, True, DT) == 3.0  # settling: the center
     loop.step(3.1, 0.0, 2.9, True, True, DT)
     assert not loop.relay.active and "setpoint moved" in loop.relay.outcome
