@@ -69,6 +69,10 @@ the config file (control.pid.kp/ki_per_s and control.rate_feedforward_s, or
 control.position.pid.kp_bar_per_mm/ki_bar_per_mm_s), in place, keeping its comments
 and layout, after the diff is shown. If the file cannot be edited safely, the gains go
 to an overrides file beside it (CONFIG.tuned.yaml) and it says so.
+Rig-wide (the control section, from the mean model) when the muscles agree; each
+muscle's own gains into its muscles[].control section (the same key names) with
+--per-muscle, or by itself when only some of the rig's muscles were tuned, when their
+fits differ by more than 15 %, or when a muscle already has its own value of a key.
 
 A run that leaves the safe limits, a fault, a fit that does not converge or a model
 that is not physical (wrong sign, no response) stops it: the present gains are kept,
