@@ -144,6 +144,8 @@ def run(args: argparse.Namespace) -> int:
     if args.method == "relay" and lp.loop != "pressure":
         raise TuneRefused("--method relay identifies the pressure loop; the position "
                           "loop is identified by steps (--method step)")
+    if args.method == "relay" and args.plot:
+        raise TuneRefused("--plot draws step responses: it goes with --method step")
     if args.method == "relay":
         models = _relay(args, config_path, lp, muscles, out)
     else:
