@@ -30,6 +30,7 @@ from pamd.rig import Rig
 from pamd.safety import Transition
 from pamd.service.keeper import ServiceKeeper
 from pamd.service.notify import Notifier
+from pamd.service.riglock import RigLock
 from pamd.service.state import state_paths
 from pamd.summary import LocalMailbox, SummarySink
 from pamd.tick import State, TickLayout
@@ -82,12 +83,19 @@ class Daemon:
         self.keeper = ServiceKeeper(self, state_paths(cfg, state_dir), notifier,
                                     config_overrides)
         self.keeper.restore()
+        # one daemon per rig: taken by start() before anything opens, released by close()
+        self.rig_lock = RigLock(cfg.rig.rig_id)
 
     # -- life cycle -------------------------------------------------------------------
     def start(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
-        if self.io is not None:
-            self.io.start()  # refuses (RecordingError) before anything opens or moves
-        self.rig.open(self.loop.clock)
+        self.rig_lock.acquire()  # RigBusy (who holds the rig) before anything opens
+        try:
+            if self.io is not None:
+                self.io.start()  # refuses (RecordingError) before anything opens or moves
+            self.rig.open(self.loop.clock)
+        except BaseException:
+            self.rig_lock.release()
+            raise
         push_safe_outputs(self.ctrl)  # what modules with a comm watchdog fall back to
         self.keeper.started()  # ... and what `pamd safe-outputs` replays
         self._thread = threading.Thread(
@@ -149,6 +157,7 @@ class Daemon:
             self.io.close(self.result())  # finalises the file with the run summary
         self.rig.close()
         self.summary.close()
+        self.rig_lock.release()  # after the drivers let go of the hardware
 
     # -- commands and status -------------------------------------------------------------
     def submit(self, verb: str, payload: dict[str, Any] | None = None,

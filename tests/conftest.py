@@ -51,6 +51,16 @@ def sim_dict(load_kg: float = 30.0, **changes: Any) -> dict[str, Any]:
     return merge(base, changes)
 
 
+@pytest.fixture(autouse=True)
+def rig_lock_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """Each test its own directory of rig locks (pamd.service.riglock): tests running
+    at once (here or in another checkout on this machine) never share a rig's lock,
+    while two daemons on one rig within a test still meet it."""
+    path = tmp_path / "locks"
+    monkeypatch.setenv("PAMD_LOCK_DIR", str(path))
+    return path
+
+
 @pytest.fixture
 def sim_config(tmp_path: Path) -> Callable[..., LoadedConfig]:
     def make(load_kg: float = 30.0, **changes: Any) -> LoadedConfig:

@@ -6,6 +6,7 @@ import argparse
 
 from pamd.config import load_config
 from pamd.control.feedforward import load_models
+from pamd.safety.envelope import MuscleEnvelope
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -32,6 +33,12 @@ def run(args: argparse.Namespace) -> int:
               f" limits {lim.max_pressure_bar:g} bar, {100 * lim.max_contraction:g} % "
               f"contraction, {100 * lim.max_pretension:g} % stretch"
               + (f"; model {models[m.name].path}" if m.name in models else ""))
+        if rig.control.position.max_rate_per_s is None:
+            print(f"    length rate limit (control.position.max_rate_per_s: null): "
+                  f"{MuscleEnvelope.derived_length_rate(cfg, m.name).explain()}")
+        else:
+            print(f"    length rate limit: {rig.control.position.max_rate_per_s:g}/s "
+                  "(control.position.max_rate_per_s)")
         if m.actuation == "onoff":
             o = m.onoff
             print(f"    on/off valves: PWM {1e3 * o.pwm_period_s:g} ms, fill "

@@ -16,10 +16,19 @@ from pamd.config import load_config
 from pamd.config.loader import builtin_config_path, load_config_text
 from pamd.control.tuning import Fopdt, IdentificationError
 from pamd.errors import ConfigError
-from pamd.tune.report import Present, plot_fits, present_gains, print_comparison, print_fits
+from pamd.tune.placement import place
+from pamd.tune.relay import MAX_RELAY_BAR, mean_relay_model, print_relay, run_relay
+from pamd.tune.report import (
+    Present,
+    plot_fits,
+    present_gains,
+    print_comparison,
+    print_fits,
+    print_gains,
+)
 from pamd.tune.run import LOOPS, LoopPlan, TuneRefused, run_identification, with_levels
 from pamd.tune.steps import Step, check_model, fit_all, mean_model
-from pamd.tune.yamledit import YamlEditError, format_value, set_values
+from pamd.tune.yamledit import KeyPath, YamlEditError, format_value, set_values
 
 DESCRIPTION = """\
 Identify a control loop on the rig and derive its gains, like Klipper's PID_CALIBRATE.
@@ -37,6 +46,17 @@ Every level must lie between the muscle's safe pressure and its pressure limit
 refused. How long: 6 s of rig time per level (about 20 s per muscle; a moment on
 the virtual clock).
 
+--method relay (pressure loop): instead of steps, a relay-feedback test per level
+(like Klipper's PID_CALIBRATE): the setpoint held at the level, then the loop's relay
+switches the regulator setpoint between level +/- --relay-bar (default 0.2, at most
+--relay-max-bar, 0.5) each time the measured pressure crosses where it rested (0.02
+bar hysteresis), 8 cycles. The ultimate gain and period give the FOPDT model; the
+gains follow as below. An oscillation that does not establish (no crossing within
+2 s) stops the run. About 1.5 s of rig time per level.
+
+The rig must be free: while another daemon (pamd run, the service, a collection,
+another tune) drives it, tune is refused naming that process (exit 8).
+
 From the recording it fits a first-order-plus-dead-time model to each step, takes
 their mean, and derives Skogestad's SIMC PI gains (tau_c = dead time) and, for the
 pressure loop, rate_feedforward_s = dead time + lag (the gains are the rig's control
@@ -49,6 +69,10 @@ the config file (control.pid.kp/ki_per_s and control.rate_feedforward_s, or
 control.position.pid.kp_bar_per_mm/ki_bar_per_mm_s), in place, keeping its comments
 and layout, after the diff is shown. If the file cannot be edited safely, the gains go
 to an overrides file beside it (CONFIG.tuned.yaml) and it says so.
+Rig-wide (the control section, from the mean model) when the muscles agree; each
+muscle's own gains into its muscles[].control section (the same key names) with
+--per-muscle, or by itself when only some of the rig's muscles were tuned, when their
+fits differ by more than 15 %, or when a muscle already has its own value of a key.
 
 A run that leaves the safe limits, a fault, a fit that does not converge or a model
 that is not physical (wrong sign, no response) stops it: the present gains are kept,
@@ -62,7 +86,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         epilog="examples:\n"
         "  pamd tune --clock virtual                   # the built-in simulated rig\n"
         "  pamd tune --config rig.yaml --muscle m1 --plot tune.png\n"
-        "  pamd tune --config rig.yaml --save          # then: --loop position --save")
+        "  pamd tune --config rig.yaml --save          # then: --loop position --save\n"
+        "  pamd tune --config rig.yaml --method relay  # relay feedback instead of steps")
     p.add_argument("--config", metavar="RIG", help="rig config (default: built-in sim)")
     p.add_argument("--loop", choices=tuple(LOOPS), default="pressure",
                    help="which loop to identify (default: pressure)")
@@ -73,6 +98,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "pressure loop, 2.5,3.5 for the position loop)")
     p.add_argument("--step-bar", type=float, metavar="BAR",
                    help="the step size (default: 0.2 pressure, 0.5 position)")
+    p.add_argument("--method", choices=("step", "relay"), default="step",
+                   help="how the pressure loop is identified: setpoint steps (default) or "
+                   "a relay-feedback oscillation")
+    p.add_argument("--relay-bar", type=float, default=0.2, metavar="BAR",
+                   help="--method relay: the relay's amplitude around each level "
+                   "(default 0.2)")
+    p.add_argument("--relay-max-bar", type=float, default=MAX_RELAY_BAR, metavar="BAR",
+                   help=f"--method relay: the largest amplitude allowed (default "
+                   f"{MAX_RELAY_BAR:g}; never past the safe pressure or the pressure limit)")
     p.add_argument("--clock", choices=("real", "virtual"), help="override loop.clock")
     p.add_argument("--out", metavar="DIR", help="where the recording goes (default: "
                    "runs/tune-<loop>-<time>)")
@@ -80,6 +114,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "step responses (needs pamd[plot])")
     p.add_argument("--save", action="store_true",
                    help="write the new gains into the config file (after showing the diff)")
+    p.add_argument("--per-muscle", action="store_true",
+                   help="--save: each muscle's gains into its own muscles[].control section "
+                   "(automatic when only some muscles are tuned, their fits differ by more "
+                   "than 15 %%, or a muscle has its own gains already)")
     p.set_defaults(func=run)
 
 
@@ -103,6 +141,39 @@ def run(args: argparse.Namespace) -> int:
     lp = with_levels(LOOPS[args.loop], _levels(args.levels), args.step_bar)
     muscles = args.muscle or [m.name for m in cfg.rig.muscles]
     out = args.out or os.path.join("runs", f"tune-{lp.loop}-{time.strftime('%Y%m%d-%H%M%S')}")
+    if args.method == "relay" and lp.loop != "pressure":
+        raise TuneRefused("--method relay identifies the pressure loop; the position "
+                          "loop is identified by steps (--method step)")
+    if args.method == "relay" and args.plot:
+        raise TuneRefused("--plot draws step responses: it goes with --method step")
+    if args.method == "relay":
+        models = _relay(args, config_path, lp, muscles, out)
+    else:
+        models = _steps(args, config_path, lp, muscles, out)
+    by_muscle = {m: Present.from_model(lp.loop, model) for m, model in models.items()}
+    rig_wide = Present.from_model(lp.loop, Fopdt(
+        sum(m.gain for m in models.values()) / len(models),
+        sum(m.tau_s for m in models.values()) / len(models),
+        sum(m.dead_time_s for m in models.values()) / len(models)))
+    placement = place(cfg, by_muscle, rig_wide, args.per_muscle)
+    if placement.per_muscle:
+        for muscle, new in by_muscle.items():
+            print(f"{muscle}:")
+            print_gains(lp.loop, present_gains(cfg, lp.loop, muscle), new)
+        print(f"per muscle (muscles[].control): {placement.why}")
+    else:
+        print_gains(lp.loop, present_gains(cfg, lp.loop), rig_wide)
+        print(f"rig-wide (control): {placement.why}")
+    print(f"recording: {out}")
+    if not args.save:
+        print("nothing written (--save writes the new gains into the config file)")
+        return 0
+    return _save(config_path, placement.values)
+
+
+def _steps(args: argparse.Namespace, config_path: str, lp: LoopPlan, muscles: list[str],
+           out: str) -> dict[str, Fopdt]:
+    """The step runs of each muscle, their fits printed; each muscle's mean model."""
     fits_by_muscle: dict[str, list[tuple[Step, Fopdt]]] = {}
     for muscle in muscles:
         steps = run_identification(config_path, args.clock, muscle, lp,
@@ -113,17 +184,26 @@ def run(args: argparse.Namespace) -> int:
     for muscle, fits in fits_by_muscle.items():
         print_fits(f"{muscle}: {lp.loop} loop ({lp.input_column} -> {lp.output_column})",
                    lp.unit, fits, mean_model(fits))
-    present = present_gains(cfg, lp.loop)
-    new = Present.from_model(lp.loop, model)
-    print_comparison(lp, model, present, new, all_fits)
-    print(f"recording: {out}")
+    cfg = load_config(config_path)
+    print_comparison(lp, model, present_gains(cfg, lp.loop),
+                     Present.from_model(lp.loop, model), all_fits)
     if args.plot:
         plot_fits(args.plot, lp, model, fits_by_muscle)
         print(f"plot: {args.plot}")
-    if not args.save:
-        print("nothing written (--save writes the new gains into the config file)")
-        return 0
-    return _save(config_path, new)
+    return {m: mean_model(fits) for m, fits in fits_by_muscle.items()}
+
+
+def _relay(args: argparse.Namespace, config_path: str, lp: LoopPlan, muscles: list[str],
+           out: str) -> dict[str, Fopdt]:
+    """The relay test of each muscle; each muscle's mean model."""
+    models: dict[str, Fopdt] = {}
+    for muscle in muscles:
+        runs = run_relay(config_path, args.clock, muscle, lp.levels_bar, args.relay_bar,
+                         args.relay_max_bar, os.path.join(out, muscle), _progress)
+        models[muscle] = mean_relay_model(runs)
+        print_relay(f"{muscle}: pressure loop by relay feedback (+/- {args.relay_bar:g} bar)",
+                    runs, models[muscle])
+    return models
 
 
 def _progress(line: str) -> None:
@@ -143,15 +223,14 @@ def _fit(muscle: str, lp: LoopPlan, steps: list[Step]) -> list[tuple[Step, Fopdt
     return fits
 
 
-def _save(config_path: str, new: Present) -> int:
+def _save(config_path: str, values: dict[KeyPath, float]) -> int:
     with open(config_path, encoding="utf-8") as fh:
         text = fh.read()
-    values = new.key_values()
     try:
         edited = set_values(text, values)
         _check_loads(edited, config_path)
     except YamlEditError as exc:
-        return _write_overrides(config_path, new, str(exc))
+        return _write_overrides(config_path, values, str(exc))
     sys.stdout.writelines(difflib.unified_diff(
         text.splitlines(keepends=True), edited.splitlines(keepends=True),
         fromfile=config_path, tofile=config_path + " (tuned)"))
@@ -169,15 +248,23 @@ def _check_loads(text: str, path: str) -> None:
         raise YamlEditError(f"the edited config would not load: {exc}") from None
 
 
-def _write_overrides(config_path: str, new: Present, why: str) -> int:
+def _write_overrides(config_path: str, values: dict[KeyPath, float], why: str) -> int:
     root, _ = os.path.splitext(config_path)
     path = root + ".tuned.yaml"
     nested: dict[str, Any] = {}
-    for key_path, value in new.key_values().items():
+    items: dict[str, dict[str, Any]] = {}  # muscles[] items by name
+    for key_path, value in values.items():
         node = nested
-        for key in key_path[:-1]:
+        keys = key_path
+        if key_path[0] == "muscles":  # ("muscles", "[m1]", ...): that muscle's item
+            name = key_path[1][1:-1]
+            if name not in items:
+                items[name] = {"name": name}
+                nested.setdefault("muscles", []).append(items[name])
+            node, keys = items[name], key_path[2:]
+        for key in keys[:-1]:
             node = node.setdefault(key, {})
-        node[key_path[-1]] = float(format_value(value))
+        node[keys[-1]] = float(format_value(value))
     with open(path, "w", encoding="utf-8") as fh:
         fh.write(f"# pamd tune: gains for {os.path.basename(config_path)}, which could not "
                  f"be edited in place\n# ({why}). Merge these keys into it.\n")

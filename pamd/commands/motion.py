@@ -118,7 +118,7 @@ def _length_setpoint(ctrl: RigController, m: MuscleController, a: SetpointArgs) 
             raise CommandRefused(
                 f"{m.name}: reaching {a.length_mm:g} mm in {a.ramp_s:g} s needs "
                 f"{rate * l0:.3g} mm/s, above the length rate limit {max_rate * l0:.3g} mm/s "
-                "(control.position.max_rate_per_s)")
+                f"({env.length_rate_origin})")
         prof = length_profile(env, m.load_kg, m.target_length_mm, ctrl.now, "ramp",
                               min_contraction=None, max_contraction=None,
                               to_contraction=x, freq_hz=1.0, cycles=None,

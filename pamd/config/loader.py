@@ -15,7 +15,13 @@ from typing import Any, ClassVar, Protocol, cast
 
 from pamd.config.actuation import check_actuation, check_sim_sample_periods
 from pamd.config.names import NAME_RE, check_chunk
-from pamd.config.schema import MuscleConfig, RigConfig, SafetyConfig, SignalConfig
+from pamd.config.schema import (
+    ControlConfig,
+    MuscleConfig,
+    RigConfig,
+    SafetyConfig,
+    SignalConfig,
+)
 from pamd.errors import DriverError
 from pamd.muscle import MUSCLE_TYPES
 from pamd.plugins import load_driver_entry
@@ -62,6 +68,26 @@ class LoadedConfig:
             if m.name == name:
                 return m
         raise KeyError(name)
+
+    def control_of(self, name: str) -> ControlConfig:
+        """Muscle `name`'s control section: the rig's, with each gain its own
+        `muscles[].control` names in place of the rig-wide one."""
+        rig, own = self.rig.control, self.muscle(name).control
+        pid = _overridden(rig.pid, own.pid)
+        ppid = _overridden(rig.position.pid, own.position.pid)
+        rff = rig.rate_feedforward_s if own.rate_feedforward_s is None else \
+            own.rate_feedforward_s
+        if pid is rig.pid and ppid is rig.position.pid and rff == rig.rate_feedforward_s:
+            return rig
+        return dataclasses.replace(rig, pid=pid, rate_feedforward_s=rff,
+                                   position=dataclasses.replace(rig.position, pid=ppid))
+
+
+def _overridden(base: Any, over: Any) -> Any:
+    """`base` (a gains dataclass) with the fields `over` sets (not None) in place."""
+    changes = {f.name: getattr(over, f.name) for f in dataclasses.fields(over)
+               if getattr(over, f.name) is not None}
+    return dataclasses.replace(base, **changes) if changes else base
 
 
 def builtin_config_path(name: str = "sim.yaml") -> str:

@@ -155,9 +155,14 @@ class IlcConfig:
 class PositionConfig:
     pid: PositionPidConfig = spec(PositionPidConfig(), "Outer position loop (position "
                                   "mode): corrects what the model misses.")
-    max_rate_per_s: float = spec(0.05, "Fastest change of a length target, contraction "
-                                 "(fraction) per second; faster length profiles and setpoint "
-                                 "ramps are refused.", unit="1/s", gt=0.0, max=1.0)
+    max_rate_per_s: float | None = spec(
+        None, "Fastest change of a length target, contraction (fraction) per second; "
+        "faster length profiles and setpoint ramps are refused, naming the frequency that "
+        "would pass. null (default): derived per muscle from what it can follow at its "
+        "configured load: the slew limit times the least contraction per bar of its usable "
+        "range (force model), bounded by the pressure loop's bandwidth (a sine over the "
+        "whole range at 1 / (2 pi rate_feedforward_s)); `pamd check-config` prints it.",
+        unit="1/s", gt=0.0, max=1.0)
     force_filter_s: float = spec(0.5, "position mode: time constant of the low-pass on the "
                                  "measured force fed to the model (the model is a "
                                  "quasi-static inverse; the force's fast part would close a "
@@ -224,6 +229,44 @@ class OnOffConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class MusclePidConfig:
+    kp: float | None = spec(None, "This muscle's `control.pid.kp` (null: the rig's).",
+                            unit="bar/bar", min=0.0)
+    ki_per_s: float | None = spec(None, "This muscle's `control.pid.ki_per_s`.", unit="1/s",
+                                  min=0.0)
+    kd_s: float | None = spec(None, "This muscle's `control.pid.kd_s`.", unit="s", min=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MusclePositionPidConfig:
+    kp_bar_per_mm: float | None = spec(None, "This muscle's "
+                                       "`control.position.pid.kp_bar_per_mm` (null: the "
+                                       "rig's).", unit="bar/mm", min=0.0)
+    ki_bar_per_mm_s: float | None = spec(None, "This muscle's "
+                                         "`control.position.pid.ki_bar_per_mm_s`.",
+                                         unit="bar/(mm s)", min=0.0)
+    kd_bar_s_per_mm: float | None = spec(None, "This muscle's "
+                                         "`control.position.pid.kd_bar_s_per_mm`.",
+                                         unit="bar s/mm", min=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class MusclePositionConfig:
+    pid: MusclePositionPidConfig = spec(MusclePositionPidConfig(), "This muscle's position "
+                                        "loop gains.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class MuscleControlConfig:
+    pid: MusclePidConfig = spec(MusclePidConfig(), "This muscle's pressure loop gains.")
+    rate_feedforward_s: float | None = spec(None, "This muscle's "
+                                            "`control.rate_feedforward_s` (null: the rig's).",
+                                            unit="s", min=0.0, max=1.0)
+    position: MusclePositionConfig = spec(MusclePositionConfig(), "This muscle's position "
+                                          "loop.")
+
+
+@dataclass(frozen=True, kw_only=True)
 class MuscleConfig:
     name: str = spec(doc="Muscle name (used in signal, topic and key names).")
     type: Literal["dmsp20"] = spec("dmsp20", "Muscle type; fixes the ratings and force map.")
@@ -240,6 +283,10 @@ class MuscleConfig:
         "pulsed within `onoff.pwm_period_s` (seed 004).")
     onoff: OnOffConfig = spec(OnOffConfig(), "`actuation: onoff`: the valves' PWM period "
                               "and switching times.")
+    control: MuscleControlConfig = spec(
+        MuscleControlConfig(), "This muscle's own gains where muscles differ (`pamd tune "
+        "--save` writes them here when their fits differ): each key, named as in the rig's "
+        "`control` section, overrides the rig-wide value; absent or null, the rig's.")
     signals: MuscleSignals = spec(doc="Which driver channels carry this muscle's signals.")
     limits: MuscleLimits = spec(MuscleLimits(), "Limits tighter than the rating.")
     model_file: str | None = spec(

@@ -92,8 +92,8 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
                                                 to_contraction) if v is not None))
     lead = lead_in_per_s if lead_in_per_s is not None else 0.5 * max_rate
     if not 0 < lead <= max_rate:
-        raise CommandRefused(f"lead-in rate must be in (0, {max_rate:g}] contraction/s "
-                             "(control.position.max_rate_per_s)")
+        raise CommandRefused(f"lead-in rate must be in (0, {max_rate:.3g}] contraction/s "
+                             f"({env.length_rate_origin})")
     spec = ProfileSpec(kind=kind,
                        min_bar=min_contraction if min_contraction is not None else 0.0,
                        max_bar=max_contraction if max_contraction is not None else 0.0,
@@ -105,8 +105,8 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
     if rate > max_rate * (1 + 1e-9):
         raise CommandRefused(
             f"{kind} length profile needs {rate:.3g} contraction/s "
-            f"({rate * env.nominal_length_mm:.3g} mm/s) but the limit is {max_rate:g}/s "
-            f"(control.position.max_rate_per_s); {_what_would_pass(spec, rate, max_rate)}")
+            f"({rate * env.nominal_length_mm:.3g} mm/s) but the limit is {max_rate:.3g}/s "
+            f"({env.length_rate_origin}); {_what_would_pass(spec, rate, max_rate)}")
     if cycles is not None and cycles < 1:
         raise CommandRefused("cycles must be at least 1")
     return Profile(spec, now, env.contraction(target_length_mm), max_rate)

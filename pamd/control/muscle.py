@@ -84,7 +84,7 @@ class MuscleController:
         self.name = envelope.name
         self.signals = signals
         self._base = record_base
-        ctl, saf = cfg.rig.control, cfg.rig.safety
+        ctl, saf = cfg.control_of(self.name), cfg.rig.safety  # its own gains
         p, f, ln = signals.pressure, signals.force, signals.length
         self.plausibility = Plausibility(self.name, (p.name, f.name, ln.name),
                                          saf.plausibility, envelope.nominal_length_mm,

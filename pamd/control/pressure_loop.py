@@ -1,5 +1,7 @@
 """The pressure stage of one muscle's tick: the PID pressure loop (`pamd.control.pid`)
-plus the rate feedforward (`control.rate_feedforward_s` times the setpoint's rate).
+plus the rate feedforward (`control.rate_feedforward_s` times the setpoint's rate), or,
+while `pamd tune --method relay` runs, the relay test (`pamd.control.relay`) in their
+place.
 
 It closes its loop only on a trusted pressure and outside FAULT/ESTOP; otherwise
 the command is the setpoint itself (open loop, e.g. to the safe pressure) and the
@@ -14,6 +16,7 @@ import math
 
 from pamd.config.schema import PidConfig
 from pamd.control.pid import Pid
+from pamd.control.relay import Relay
 from pamd.tick import Flag
 
 F_SAT = int(Flag.OUTPUT_SATURATED)
@@ -29,6 +32,7 @@ class PressureLoop:
         self.closed = False  # the loop was closed this tick
         self.flags = 0
         self._i_before = 0.0
+        self.relay = Relay()
 
     def set_gains(self, gains: PidConfig, rate_feedforward_s: float) -> None:
         """A reload's gains; the PID keeps its state, the integral clamped to the new
@@ -48,6 +52,17 @@ class PressureLoop:
         """The command control wants (before the guards and the limiter), bar."""
         pid = self.pid
         self.closed = close
+        relay = self.relay
+        if relay.active:
+            if close and setpoint_bar == relay.center_bar:
+                pid.reset(pressure_bar)  # bumpless when the relay ends
+                self._i_before = 0.0
+                self.flags = 0
+                return relay.step(pressure_bar, dt)
+            if not close:
+                relay.stop("the pressure loop opened (untrusted pressure, a fault)")
+            elif relay.elapsed_s > 0.0:  # armed and still ramping to the center: wait
+                relay.stop("the setpoint moved (a command, a stop or the safe state)")
         if close:
             self._i_before = pid.i
             u = (setpoint_bar + self.rate_feedforward_s * rate_bar_per_s

@@ -146,7 +146,10 @@ def relay_oscillation(t_s: ArrayLike, y: ArrayLike, relay_amplitude: float,
         raise IdentificationError(f"the relay test gave {up.size} cycles; it needs at least "
                                   f"{skip_cycles + 3}: run it longer or raise the amplitude")
     crossings = up[skip_cycles:]
-    periods = np.diff(t[crossings])
+    # each crossing's time interpolated between its two samples (not the tick's)
+    y0, y1 = yv[crossings], yv[crossings + 1]
+    t_cross = t[crossings] + (mean - y0) / (y1 - y0) * (t[crossings + 1] - t[crossings])
+    periods = np.diff(t_cross)
     tu = float(np.median(periods))
     amps = [0.5 * float(yv[a:b].max() - yv[a:b].min()) for a, b in zip(crossings[:-1],
                                                                        crossings[1:],
@@ -157,16 +160,22 @@ def relay_oscillation(t_s: ArrayLike, y: ArrayLike, relay_amplitude: float,
     return RelayResult(4.0 * relay_amplitude / (math.pi * a), tu, a, len(amps))
 
 
-def relay_fopdt(relay: RelayResult, static_gain: float) -> Fopdt:
+def relay_fopdt(relay: RelayResult, static_gain: float, hysteresis: float = 0.0) -> Fopdt:
     """The FOPDT model with static gain K that oscillates as the relay test did:
-    |G(j wu)| = 1 / Ku and arg G(j wu) = -pi at wu = 2 pi / Tu."""
+    |G(j wu)| = 1 / Ku and arg G(j wu) = -pi + asin(eps / a) at wu = 2 pi / Tu (a relay
+    with hysteresis eps, on an oscillation of amplitude a, lags by asin(eps / a); 0
+    without)."""
     kk = static_gain * relay.ultimate_gain
     if kk <= 1.0:
         raise IdentificationError(f"K Ku = {kk:.3g} <= 1: the static gain and the relay test "
                                   "disagree (was the static gain measured on the same loop?)")
     wu = 2.0 * math.pi / relay.ultimate_period_s
     tau = math.sqrt(kk * kk - 1.0) / wu
-    theta = (math.pi - math.atan(wu * tau)) / wu
+    lag = math.asin(min(hysteresis / relay.amplitude, 1.0)) if hysteresis > 0.0 else 0.0
+    theta = (math.pi - lag - math.atan(wu * tau)) / wu
+    if theta <= 0.0:
+        raise IdentificationError("the oscillation is faster than a first-order lag with "
+                                  "dead time allows (is the hysteresis right?)")
     return Fopdt(static_gain, tau, theta)
 
 

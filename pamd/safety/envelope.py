@@ -20,6 +20,7 @@ from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig, SafetyConfig
 from pamd.muscle import MUSCLE_TYPES, ForceModel, MuscleType, force_model
 from pamd.safety import safe_pressure_bar
+from pamd.safety.length_rate import LengthRate, derive_length_rate
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,6 +46,7 @@ class MuscleEnvelope:
     slew_limit_bar_per_s: float
     estop_slew_bar_per_s: float
     max_length_rate_per_s: float  # control.position.max_rate_per_s (contraction/s)
+    length_rate_origin: str  # what refusals name: the key, or how it was derived
     estop_action: str
     # the safe pressure's inputs (with the load)
     stretch_margin: float
@@ -55,19 +57,29 @@ class MuscleEnvelope:
 
     @classmethod
     def build(cls, muscle: MuscleConfig, limits: MuscleLimitsResolved, safety: SafetyConfig,
-              slew_limit_bar_per_s: float, max_length_rate_per_s: float) -> MuscleEnvelope:
+              slew_limit_bar_per_s: float, max_length_rate_per_s: float | None,
+              rate_feedforward_s: float = 0.0) -> MuscleEnvelope:
+        """`max_length_rate_per_s` None: derived (`pamd.safety.length_rate`)."""
+        model = force_model(muscle.force_model)
+        origin = "control.position.max_rate_per_s"
+        if max_length_rate_per_s is None:
+            derived = _derive(model, muscle, limits, safety, slew_limit_bar_per_s,
+                              rate_feedforward_s)
+            max_length_rate_per_s = derived.max_rate_per_s
+            origin = f"control.position.max_rate_per_s: null, {derived.explain()}"
         return cls(name=muscle.name, muscle_type=muscle.type,
                    nominal_length_mm=muscle.nominal_length_mm,
-                   force_model=force_model(muscle.force_model),
-                   max_length_rate_per_s=max_length_rate_per_s,
+                   force_model=model,
+                   max_length_rate_per_s=max_length_rate_per_s, length_rate_origin=origin,
                    **_settings(limits, safety, slew_limit_bar_per_s))
 
     @classmethod
     def from_config(cls, cfg: LoadedConfig, name: str) -> MuscleEnvelope:
         """The envelope of muscle `name` of a validated config."""
-        ctl = cfg.rig.control
+        ctl = cfg.control_of(name)
         return cls.build(cfg.muscle(name), cfg.limits[name], cfg.rig.safety,
-                         ctl.slew_limit_bar_per_s, ctl.position.max_rate_per_s)
+                         ctl.slew_limit_bar_per_s, ctl.position.max_rate_per_s,
+                         ctl.rate_feedforward_s)
 
     def with_settings(self, limits: MuscleLimitsResolved, safety: SafetyConfig,
                       slew_limit_bar_per_s: float, nominal_length_mm: float) -> MuscleEnvelope:
@@ -75,6 +87,14 @@ class MuscleEnvelope:
         muscle type, its force model and the length rate limit stay)."""
         return replace(self, nominal_length_mm=nominal_length_mm,
                        **_settings(limits, safety, slew_limit_bar_per_s))
+
+    @staticmethod
+    def derived_length_rate(cfg: LoadedConfig, name: str) -> LengthRate:
+        """What `control.position.max_rate_per_s: null` derives for muscle `name`
+        (`pamd check-config` prints it)."""
+        ctl, m = cfg.control_of(name), cfg.muscle(name)
+        return _derive(force_model(m.force_model), m, cfg.limits[name], cfg.rig.safety,
+                       ctl.slew_limit_bar_per_s, ctl.rate_feedforward_s)
 
     @property
     def rating(self) -> MuscleType:
@@ -97,6 +117,18 @@ class MuscleEnvelope:
         """The contraction range a length target may use: inside the soft limits, where
         the tick's limit guards would start to fight the target."""
         return -self.max_pretension + self.soft_band_contraction, self.soft_max_contraction
+
+
+def _derive(model: ForceModel, muscle: MuscleConfig, limits: MuscleLimitsResolved,
+            safety: SafetyConfig, slew_limit_bar_per_s: float,
+            rate_feedforward_s: float) -> LengthRate:
+    """The length rate limit derived for the muscle at its configured load, over its
+    contraction range (`contraction_bounds`, from 0 up)."""
+    return derive_length_rate(
+        model, muscle.load_kg, limits.max_pressure_bar,
+        (-limits.max_pretension + safety.soft_band_contraction,
+         limits.max_contraction - safety.soft_band_contraction),
+        slew_limit_bar_per_s, rate_feedforward_s)
 
 
 def _settings(limits: MuscleLimitsResolved, safety: SafetyConfig,

@@ -4,7 +4,8 @@
 A new config that does not validate is refused and the daemon keeps running on
 the one it has, saying why. The changes of a valid one fall in three classes:
 
-* at once: control gains (`control.pid.*`, `control.rate_feedforward_s`) and
+* at once: control gains (`control.pid.*`, `control.rate_feedforward_s`, and a muscle's
+  own `muscles[].control.pid.*` and `rate_feedforward_s`) and
   timeouts (`safety.signal_timeout_s`, the signals' `timeout_s`,
   `safety.tracking_*`, `safety.hard_limit_hold_s`, `safety.startup_timeout_s`,
   `loop.stall_timeout_s`);
@@ -38,6 +39,7 @@ Kind = Literal["now", "idle", "restart"]
 _RULE_TEXT: tuple[tuple[str, Kind], ...] = (
     (r"^control\.pid\.", "now"),
     (r"^control\.rate_feedforward_s$", "now"),
+    (r"^muscles\[\d+\]\.control\.(pid\.|rate_feedforward_s$)", "now"),
     (r"^control\.slew_limit_bar_per_s$", "idle"),
     (r"^safety\.(signal_timeout_s|latency_margin_s|tracking_band_bar|tracking_time_s"
      r"|hard_limit_hold_s|startup_timeout_s)$", "now"),
@@ -123,8 +125,8 @@ def _muscle_settings(new: LoadedConfig, limits_cfg: LoadedConfig, i: int) -> Mus
     old_load = (limits_cfg.rig.muscles[i].load_kg if i < len(limits_cfg.rig.muscles)
                 else None)
     return MuscleSettings(
-        muscle=m.name, pid=new.rig.control.pid,
-        rate_feedforward_s=new.rig.control.rate_feedforward_s,
+        muscle=m.name, pid=new.control_of(m.name).pid,
+        rate_feedforward_s=new.control_of(m.name).rate_feedforward_s,
         pressure_timeout_s=effective_timeout_s(m.signals.pressure, safety),
         force_timeout_s=effective_timeout_s(m.signals.force, safety),
         length_timeout_s=effective_timeout_s(m.signals.length, safety),

@@ -38,8 +38,9 @@ class Present:
         return dict(self.gains)
 
 
-def present_gains(cfg: LoadedConfig, loop: str) -> Present:
-    c = cfg.rig.control
+def present_gains(cfg: LoadedConfig, loop: str, muscle: str | None = None) -> Present:
+    """The gains in force: the rig's, or those muscle `muscle` runs on (its own)."""
+    c = cfg.rig.control if muscle is None else cfg.control_of(muscle)
     if loop == "pressure":
         return Present(loop, {("control", "pid", "kp"): c.pid.kp,
                               ("control", "pid", "ki_per_s"): c.pid.ki_per_s,
@@ -89,13 +90,6 @@ def print_comparison(lp: LoopPlan, model: Fopdt, present: Present, new: Present,
     out_unit = "bar" if lp.output_column == "pressure_bar" else "mm"
     print(f"Model: gain {model.gain:.3f} {lp.unit}, dead time {1e3 * model.dead_time_s:.1f} ms, "
           f"lag {1e3 * model.tau_s:.1f} ms (mean of {len(fits)} steps)")
-    print("Gains (SIMC PI, tau_c = dead time"
-          + ("; rate feedforward = dead time + lag):" if lp.loop == "pressure" else "):"))
-    print(f"  {'key':36s} {'present':>10s} {'new':>10s} {'change':>8s}")
-    for key, value in new.gains.items():
-        old = present.gains[key]
-        change = f"{100 * (value - old) / old:+.0f} %" if old else "new"
-        print(f"  {'.'.join(key):36s} {old:10.4g} {value:10.4g} {change:>8s}")
     step = fits[0][0]
     end = lp.record_s
     times = np.array([0.5, 1.0, 1.5, 2.0, 3.0, 5.0]) * model.t63_s
@@ -108,6 +102,17 @@ def print_comparison(lp: LoopPlan, model: Fopdt, present: Present, new: Present,
     errs = [model_rms_error(model, s) for s, _ in fits]
     print(f"  the model against every step: rms error {min(errs):.4f} to {max(errs):.4f} "
           f"{out_unit}")
+
+
+def print_gains(loop: str, present: Present, new: Present) -> None:
+    """The new gains beside the present ones, by config key."""
+    print("Gains (SIMC PI, tau_c = dead time"
+          + ("; rate feedforward = dead time + lag):" if loop == "pressure" else "):"))
+    print(f"  {'key':36s} {'present':>10s} {'new':>10s} {'change':>8s}")
+    for key, value in new.gains.items():
+        old = present.gains.get(key, 0.0)
+        change = f"{100 * (value - old) / old:+.0f} %" if old else "new"
+        print(f"  {'.'.join(key):36s} {old:10.4g} {value:10.4g} {change:>8s}")
 
 
 def plot_fits(path: str, lp: LoopPlan, model: Fopdt,

@@ -159,7 +159,11 @@ def _run_plan(cfg: LoadedConfig, plan: Plan, plan_file: str, lines: list[Any],
         dir=out_dir, run_name=plan.name, segments=step_records(plan, lines),
         profile={"plan": plan.name, "plan_file": os.path.abspath(plan_file)}))
     pending = daemon.start_plan(plan, plan_file, 0)
-    daemon.start()
+    try:
+        daemon.start()  # RigBusy while another daemon drives this rig
+    except BaseException:
+        daemon.close()
+        raise
     outcome = "not started"
     try:
         verdict = pending.result(cfg.rig.safety.startup_timeout_s + 5.0)

@@ -1,6 +1,8 @@
 """Write numbers into a YAML config file's text in place, keeping its comments and
 layout: `set_values(text, {("control", "pid", "kp"): 0.5, ...})`.
 
+A path element `[NAME]` selects the item of a list whose `name` is NAME (a muscle:
+`("muscles", "[m1]", "control", "pid", "kp")`).
 A key that is present has its scalar's text replaced (block or flow style); an absent
 key is inserted into its mapping (a line in a block mapping, `, key: value` in a flow
 one), creating absent sections the same way. The result is parsed back and must hold
@@ -56,9 +58,25 @@ def _child(node: yaml.MappingNode, key: str) -> tuple[yaml.Node, yaml.Node] | No
     return None
 
 
+def _item_name(key: str) -> str | None:
+    return key[1:-1] if key.startswith("[") and key.endswith("]") else None
+
+
+def _item(node: yaml.SequenceNode, name: str) -> yaml.MappingNode | None:
+    for item in node.value:
+        if isinstance(item, yaml.MappingNode):
+            found = _child(item, "name")
+            if found is not None and isinstance(found[1], yaml.ScalarNode) and \
+                    found[1].value == name:
+                return item
+    return None
+
+
 def _set_one(text: str, path: KeyPath, value: str) -> str:
     node = _compose(text)
-    for depth, key in enumerate(path):
+    depth = 0
+    while depth < len(path):
+        key = path[depth]
         found = _child(node, key)
         if found is None:
             return _insert(text, node, path[depth:], value, depth)
@@ -68,9 +86,16 @@ def _set_one(text: str, path: KeyPath, value: str) -> str:
                 raise YamlEditError(f"{'.'.join(path)} is not a plain number in the file")
             a, b = child.start_mark.index, child.end_mark.index
             return text[:a] + value + text[b:]
+        name = _item_name(path[depth + 1])
+        if name is not None:  # a list item by its name
+            item = _item(child, name) if isinstance(child, yaml.SequenceNode) else None
+            if item is None:
+                raise YamlEditError(f"{key} has no item named {name!r}")
+            node, depth = item, depth + 2
+            continue
         if not isinstance(child, yaml.MappingNode):
             raise YamlEditError(f"{'.'.join(path[:depth + 1])} is not a section (mapping)")
-        node = child
+        node, depth = child, depth + 1
     raise YamlEditError(f"{'.'.join(path)}: an empty key path")
 
 
@@ -91,8 +116,7 @@ def _insert(text: str, node: yaml.MappingNode, keys: KeyPath, value: str,
     if node.value:
         first_key = node.value[0][0]
         indent = first_key.start_mark.column
-        last_value = node.value[-1][1]
-        at = last_value.end_mark.index
+        at = _last_end(node.value[-1][1])
         # after the line the last value ends on
         line_end = text.find("\n", at - 1 if text[at - 1:at] == "\n" else at)
         at = len(text) if line_end < 0 else line_end + 1
@@ -103,6 +127,16 @@ def _insert(text: str, node: yaml.MappingNode, keys: KeyPath, value: str,
     block = _block(keys, value, indent)
     prefix = "" if at == 0 or text[at - 1] == "\n" else "\n"
     return text[:at] + prefix + block + text[at:]
+
+
+def _last_end(node: yaml.Node) -> int:
+    """Where the last scalar (or flow collection) of `node` ends: a block collection's
+    own end mark runs on over the comments after it, up to the next key."""
+    while isinstance(node, (yaml.MappingNode, yaml.SequenceNode)) and not node.flow_style \
+            and node.value:
+        last = node.value[-1]
+        node = last[1] if isinstance(last, tuple) else last
+    return int(node.end_mark.index)
 
 
 def _flow(keys: KeyPath, value: str) -> str:
@@ -128,9 +162,16 @@ def _verify(before: str, after: str, values: dict[KeyPath, float]) -> None:
     for path, value in values.items():
         node = want
         for key in path[:-1]:
-            node = node.setdefault(key, {})
-            if not isinstance(node, dict):
+            name = _item_name(key)
+            if name is not None and isinstance(node, list):
+                node = next((i for i in node if isinstance(i, dict) and i.get("name") == name),
+                            None)
+            elif isinstance(node, dict):
+                node = node.setdefault(key, {}) if _item_name(key) is None else None
+            if not isinstance(node, (dict, list)):
                 raise YamlEditError(f"{'.'.join(path)}: not a section")
+        if not isinstance(node, dict):
+            raise YamlEditError(f"{'.'.join(path)}: not a section")
         node[path[-1]] = float(format_value(value))
     if got != want:
         raise YamlEditError("the edit would change more than the tuned keys")

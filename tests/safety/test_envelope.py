@@ -27,7 +27,9 @@ def test_the_envelope_holds_the_configs_limits_and_names(
                                                          lim.max_pretension)
     assert env.soft_max_contraction == lim.max_contraction - saf.soft_band_contraction
     assert env.slew_limit_bar_per_s == ctl.slew_limit_bar_per_s
-    assert env.max_length_rate_per_s == ctl.position.max_rate_per_s
+    assert ctl.position.max_rate_per_s is None  # derived (pamd.safety.length_rate)
+    assert env.max_length_rate_per_s == MuscleEnvelope.derived_length_rate(
+        cfg, "m1").max_rate_per_s
     assert env.nominal_length_mm == cfg.muscle("m1").nominal_length_mm
     assert env.safe_pressure_bar(50.0) == safe_pressure_bar(
         env.force_model, 50.0, lim.max_pretension, saf.stretch_margin,
@@ -57,6 +59,6 @@ def test_length_profiles_are_checked_from_the_config_alone(
     with pytest.raises(CommandRefused, match="outside the allowed"):
         check_length_profile_config(cfg, "m1", {"kind": "sine", "min_contraction": 0.05,
                                                 "max_contraction": 0.30})
-    with pytest.raises(CommandRefused, match="limit is 0.05/s"):
+    with pytest.raises(CommandRefused, match="limit is 0.102/s .*derived.* at most 0.325 Hz"):
         check_length_profile_config(cfg, "m1", {"kind": "sine", "min_contraction": 0.05,
                                                 "max_contraction": 0.15, "freq_hz": 1.0})

@@ -63,6 +63,8 @@ def test_the_unit_says_what_the_rig_needs() -> None:
     assert one["User"] == "pamd" and "dialout" in one["SupplementaryGroups"].split()
     assert int(one["LimitRTPRIO"]) >= 80 and one["LimitMEMLOCK"] == "infinity"
     assert one["StateDirectory"] == "pamd" and one["ConfigurationDirectory"] == "pamd"
+    # the rig locks: where a `pamd run` started by hand looks too (pamd.service.riglock)
+    assert one["RuntimeDirectory"] == "pamd" and one["RuntimeDirectoryPreserve"] == "yes"
     assert one["NoNewPrivileges"] == "yes" and one["ProtectSystem"] == "strict"
     assert one["ProtectHome"] == "yes" and one["PrivateTmp"] == "yes"
     assert "RestrictRealtime" not in s  # only the loop's thread takes SCHED_FIFO
