@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING
 from pamd.control.ilc import Ilc
 from pamd.control.pid import Pid
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
-from pamd.profiles import Profile
+from pamd.profiles import Profile, ProfilePoint
 from pamd.tick import Flag, Mode, State
 
 if TYPE_CHECKING:
@@ -46,6 +46,10 @@ if TYPE_CHECKING:
 
 #: Time constant of the setpoint's rate estimate (for the rate feedforward), s.
 SP_RATE_WINDOW_S = 0.05
+#: Step along the planned motion for the model's derivative (the planned rate), s.
+RATE_STEP_S = 0.005
+#: Standard gravity, m/s^2 (the planned force of a hanging load).
+G_M_S2 = 9.80665
 
 F_CLIP, F_SLEW = int(Flag.FF_CLIPPED), int(Flag.SLEW_LIMITED)
 S_RUNNING, S_LOAD = int(State.RUNNING), int(State.LOAD_CHANGE)
@@ -60,9 +64,19 @@ class LengthControl:
     run in its command methods (the loop's thread, between ticks), `step` in its tick."""
 
     def __init__(self, envelope: MuscleEnvelope, position: PositionConfig,
-                 feedforward: Feedforward | None) -> None:
+                 feedforward: Feedforward | None, rate_feedforward_s: float = 0.0) -> None:
         self.set_envelope(envelope)
         self.cfg = position
+        # position mode's dynamic feedforward (module docstring, "Feedforward that
+        # knows the motion")
+        self.preview_s = preview_s_of(position, rate_feedforward_s)
+        self.planned_rate = position.planned_rate
+        self.flow_bar_s_per_mm = position.flow_feedforward_bar_s_per_mm
+        self.planned_force = position.force_input == "planned"
+        self.load_kg = 0.0
+        self.ahead = ProfilePoint()  # the profile at now + preview_s
+        self.corr_rate = VelocityFilter(SP_RATE_WINDOW_S)  # d(correction)/dt, bar/s
+        self.flow_bar = 0.0  # the flow term: the muscle adds it to the valve command
         pc = position.pid
         self.pid = Pid(pc.kp_bar_per_mm, pc.ki_bar_per_mm_s, pc.kd_bar_s_per_mm,
                        pc.derivative_filter_hz, pc.integral_limit_bar, pc.output_limit_bar)
@@ -91,6 +105,10 @@ class LengthControl:
         self.target_rate_mm_s = 0.0  # the length profile's rate (0 at rest)
         self.feedforward_bar = 0.0
         self.setpoint_rate_bar_per_s = 0.0
+
+    def set_load(self, load_kg: float) -> None:
+        """The hanging load (kg): the planned force (`force_input: planned`)."""
+        self.load_kg = load_kg
 
     def set_envelope(self, envelope: MuscleEnvelope) -> None:
         """Nominal length, pressure limit and slew limit (set-up and IDLE reloads)."""
@@ -135,6 +153,8 @@ class LengthControl:
             self.bump = setpoint_bar - ff
         self.last_sp = setpoint_bar
         self.feedforward_bar = ff
+        self.corr_rate.reset(setpoint_bar - ff, 0.0)
+        self.flow_bar = 0.0
         self.active = True
 
     def reset_model(self, length_mm: float, force_n: float) -> None:
@@ -147,6 +167,7 @@ class LengthControl:
         """Back to pressure mode; the setpoint stays where it is (bumpless)."""
         self.active = False
         self.setpoint_rate_bar_per_s = 0.0
+        self.flow_bar = 0.0
         self.feedforward_bar = 0.0
         self.target_length_mm = self.target_force_n = math.nan
         self.ilc = None
@@ -181,45 +202,69 @@ class LengthControl:
              length_mm: float, force_n: float) -> float:
         """The pressure setpoint for this tick (bar), from the running length profile
         `prof` (if any) and the measured length and force; sets `target_length_mm`,
-        `feedforward_bar`, `setpoint_rate_bar_per_s` and `flags` (FF_CLIPPED,
-        SLEW_LIMITED)."""
+        `feedforward_bar`, `setpoint_rate_bar_per_s`, `flow_bar` and `flags`
+        (FF_CLIPPED, SLEW_LIMITED)."""
         flags = 0
         l0 = self.nominal_length_mm
-        if prof is not None and (state == S_RUNNING or state == S_LOAD):
+        pos = self.position
+        running = prof is not None and (state == S_RUNNING or state == S_LOAD)
+        acc_m = 0.0
+        if prof is not None and running:
             prof.sample(now)
             x_t = prof.value
             ln_t = l0 * (1.0 - x_t)
             self.target_length_mm = ln_t
-            self.target_rate_mm_s = -l0 * prof.rate
+            rate_t = self.target_rate_mm_s = -l0 * prof.rate
+            acc_m = -l0 * prof.accel
         else:
             ln_t = self.target_length_mm
             x_t = (l0 - ln_t) / l0
-            self.target_rate_mm_s = 0.0
-        v_t = self.target_vel.update(ln_t, dt)
+            rate_t = self.target_rate_mm_s = 0.0
+        # What the model sees: the present target, or in position mode the planned
+        # motion `preview_s` ahead (the PID below compares with the present target).
+        ln_m, x_m, rate_m = ln_t, x_t, rate_t
+        if pos and prof is not None and running and self.preview_s > 0.0:
+            pt = self.ahead
+            prof.evaluate(now + self.preview_s, pt)
+            x_m = pt.value
+            ln_m = l0 * (1.0 - x_m)
+            rate_m = -l0 * pt.rate
+            acc_m = -l0 * pt.accel
+        tv = self.target_vel
+        v_t = tv.update(ln_m, dt)
         f_in = self.target_force_n
-        if self.position:
+        if pos:
             fl = self.force_lp
             f_in = self.force_lp = fl + dt / (self.force_tau_s + dt) * (force_n - fl) if (
                 fl == fl) else force_n
-        ff = 0.0
-        if self.use_ff and self.ff is not None:
-            ff_obj = self.ff
-            ff = ff_obj.pressure(f_in, ln_t, x_t, v_t)
+            if self.planned_force:  # weight + inertia of the load on the planned motion
+                f_in = self.load_kg * (G_M_S2 - 0.001 * acc_m)
+        ff = ff_rate = 0.0
+        ff_obj = self.ff
+        planned = pos and self.planned_rate and ff_obj is not None and not ff_obj.stateful
+        if self.use_ff and ff_obj is not None:
+            ff = ff_obj.pressure(f_in, ln_m, x_m, v_t)
             if ff_obj.clipped:
                 flags |= F_CLIP
+            if planned:  # the model's derivative along the planned motion
+                h = RATE_STEP_S
+                ln_h = ln_m + rate_m * h
+                v_h = v_t + (rate_m - v_t) * h / (tv.window_s + h)
+                ff_rate = (ff_obj.pressure(f_in, ln_h, (l0 - ln_h) / l0, v_h) - ff) / h
         want = ff
         pid = self.pid
         i_before = pid.i
-        if self.position:
+        if pos:
             corr = pid.step(length_mm - ln_t, -length_mm, dt)
             ilc = self.ilc
-            if ilc is not None and prof is not None and not prof.done and (
-                    state == S_RUNNING or state == S_LOAD):
+            if ilc is not None and prof is not None and not prof.done and running:
                 tau = now - prof.t0_s - prof.lead_in_s
                 if tau >= 0.0:
                     corr += ilc.step(tau, length_mm - ln_t, dt)
             self.correction = corr
             want += corr
+            # the air the planned motion draws (shortening) or returns
+            self.flow_bar = -self.flow_bar_s_per_mm * rate_m
         else:
             b = self.bump
             if b != 0.0:
@@ -245,7 +290,18 @@ class LengthControl:
         if held or sp_prev != self.last_sp:  # clamped here or by the tick's soft limits
             pid.i = i_before
         self.feedforward_bar = ff
-        self.setpoint_rate_bar_per_s = self.sp_rate.update(want, dt)
+        rate = self.sp_rate.update(want, dt)
+        rest = self.corr_rate.update(want - ff, dt)
+        self.setpoint_rate_bar_per_s = ff_rate + rest if planned else rate
         self.last_sp = want
         self.flags = flags
         return want
+
+
+def preview_s_of(position: PositionConfig, rate_feedforward_s: float) -> float:
+    """The position mode's preview (s): `preview_s`, or by default the setpoint -> length
+    delay (`length_response_s`) less the pressure loop's part that the rate feedforward
+    cancels (`rate_feedforward_s`), never below 0."""
+    if position.preview_s is not None:
+        return position.preview_s
+    return max(0.0, position.length_response_s - rate_feedforward_s)

@@ -77,7 +77,8 @@ class MuscleController(MuscleView):
         self.safe_ramp = SafeRamp(envelope)
         self.profile_follower = ProfileFollower(envelope)
         self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
-                                            None if model is None else model.feedforward())
+                                            None if model is None else model.feedforward(),
+                                            ctl.rate_feedforward_s)
         self.onoff = cfg.muscle(self.name).actuation == "onoff"
         self.pressure_loop = PressureLoop(*self._pressure_gains(ctl.pid, ctl.rate_feedforward_s))
         self.limiter = Limiter()
@@ -125,6 +126,7 @@ class MuscleController(MuscleView):
         self._load_kg = load_kg
         self._safe_pressure_bar = self._envelope.safe_pressure_bar(load_kg)
         self.plausibility.set_load(load_kg)
+        self.length_control.set_load(load_kg)
 
     def apply_settings(self, s: MuscleSettings, with_limits: bool) -> None:
         """A reloaded config (SIGHUP), applied in the loop's thread at a tick boundary.
@@ -316,6 +318,8 @@ class MuscleController(MuscleView):
         venting = safe and self._safe_pressure_bar == 0.0 and sp <= VENT_BELOW_BAR
         loop = self.pressure_loop
         u = loop.step(sp, rate, p, p_ok and not latched and not venting, p_ok, dt)
+        if lc.active and lc.position and loop.closed and self._onoff is None:
+            u += lc.flow_bar  # the air the planned motion draws (position mode)
         flags |= loop.flags
         # -- limits: the guards' bounds (restoring direction, trusted length only) -------
         step = slew * dt
