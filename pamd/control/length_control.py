@@ -299,9 +299,9 @@ class LengthControl:
 
 
 def preview_s_of(position: PositionConfig, rate_feedforward_s: float) -> float:
-    """The position mode's preview (s): `preview_s`, or by default the setpoint -> length
-    delay (`length_response_s`) less the pressure loop's part that the rate feedforward
-    cancels (`rate_feedforward_s`), never below 0."""
+    """The position mode's preview (s): `preview_s`, or by default the delays between the
+    setpoint and the length: the pressure loop's (dead time + lag, which
+    `rate_feedforward_s` is set to) plus the position loop's (`length_response_s`)."""
     if position.preview_s is not None:
         return position.preview_s
-    return max(0.0, position.length_response_s - rate_feedforward_s)
+    return rate_feedforward_s + position.length_response_s
