@@ -120,15 +120,16 @@ def track(model: str | None, freq_hz: float, cycles: int, load_kg: float,
             "rows": rows}
 
 
-def fit_flow(rows: list[tuple[float, float, float]]) -> tuple[float, float]:
+def fit_flow(rows: list[tuple[float, float, float]]) -> tuple[float, float, float]:
     """Least squares: PID output = a + b setpoint + c velocity; the flow coefficient is
-    -c (bar per mm/s of shortening; velocity is d(length)/dt); and the fit's R^2."""
+    -c (bar per mm/s of shortening; velocity is d(length)/dt), held at 0 or above (the
+    config key's range); returns it, the fit's -c itself and its R^2."""
     arr = np.asarray(rows)
     X = np.column_stack([np.ones(len(arr)), arr[:, 1], arr[:, 2]])
     coef, *_ = np.linalg.lstsq(X, arr[:, 0], rcond=None)
     resid = arr[:, 0] - X @ coef
     r2 = 1.0 - float(resid @ resid) / float(((arr[:, 0] - arr[:, 0].mean()) ** 2).sum())
-    return max(0.0, -float(coef[2])), r2
+    return max(0.0, -float(coef[2])), -float(coef[2]), r2
 
 
 def model_file(out: str) -> str:
@@ -147,9 +148,9 @@ def validate(model: str, cycles: int) -> dict[str, Any]:
     base = {"planned_rate": True, "flow_feedforward_bar_s_per_mm": 0.0}
     r = track(model, 0.5, cycles, val["load_kg"], val["span"], {**base, "preview_s": 0.0},
               fit=True)
-    flow, r2 = fit_flow(r["rows"])
+    flow, k, r2 = fit_flow(r["rows"])
     print(f"  flow coefficient (0.5 Hz run, no flow term): PID output = a + b setpoint "
-          f"- k velocity: k = {flow:.4f} bar s/mm (R^2 {r2:.2f})")
+          f"- k velocity: k = {k:.2e} bar s/mm (R^2 {r2:.2f}) -> {flow:.4f}")
     best, best_score = 0.0, math.inf
     print("  preview_s  RMSE 0.5 Hz  RMSE 1 Hz (mm; flow term on)")
     grid = [None, *PREVIEW_GRID_S]

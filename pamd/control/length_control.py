@@ -15,6 +15,21 @@ Modes (`pamd.tick.Mode`), per muscle:
   (seed 003's PID-type ILC: u_{j+1}(t) = u_j(t) + Kp e_j(t + lead) + Kd de_j/dt). With
   ``feedforward: false`` the outer PID (+ ILC) runs alone, without a model.
 
+Feedforward that knows the motion (position mode, `control.position`): a length
+profile is known in advance, so the model is evaluated on the profile `preview_s`
+ahead (`Profile.evaluate`, which leaves the running profile alone), by default the
+delays between setpoint and length (the pressure loop's, `rate_feedforward_s`, plus
+the position loop's, `length_response_s`); the PID and the ILC still compare with the
+present target. With `planned_rate` the setpoint's rate for the pressure loop's rate
+feedforward is the model's derivative along the planned motion (its value one short
+step further along the previewed length, rate and velocity input: dP/dL dL/dt +
+dP/dv dv/dt) plus the outer loop's filtered rate, not the lagging numeric derivative
+of the whole setpoint. `flow_feedforward_bar_s_per_mm` times the planned shortening
+rate is added to the valve command (the air a moving muscle draws; the muscle adds
+`flow_bar` after its pressure loop). `force_input: planned` gives the model the
+load's weight plus its inertia on the previewed motion instead of the low-passed
+measured force.
+
 A model's velocity input is the target length run through the filter its training
 data went through (`pamd.models.velocity`, with the window stated in the model
 file), so it is the signal the model learned. The model itself is
