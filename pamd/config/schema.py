@@ -194,6 +194,14 @@ class PositionConfig:
         "from a simulator's parameters: the slope of the pressure loop's correction "
         "against the length rate on a recorded position run (bench/position_fast.py "
         "fits it on a validation run). 0: off.", unit="bar s/mm", min=0.0, max=1.0)
+    model_sweep_hz: float | None = spec(
+        None, "position mode: the frequency of the sweeps the model was trained on (e.g. "
+        "0.05 for the 0.05 Hz sweeps of the walk-through). Then a periodic length "
+        "profile at f Hz feeds the model's velocity input on a time axis stretched to "
+        "its training sweeps (its filter window and the velocity times model_sweep_hz / "
+        "f): the model sees the hysteresis branch at the same phase of the stroke as in "
+        "training, not a quarter period late at 1 Hz. Null: the velocity as filtered in "
+        "training, at any speed.", unit="Hz", gt=0.0, max=100.0)
     force_input: Literal["measured", "planned"] = spec(
         "measured", "position mode: the model's force input. `measured`: the measured "
         "force through the `force_filter_s` low-pass. `planned`: the hanging load's "

@@ -92,6 +92,9 @@ class LengthControl:
         self.ahead = ProfilePoint()  # the profile at now + preview_s
         self.corr_rate = VelocityFilter(SP_RATE_WINDOW_S)  # d(correction)/dt, bar/s
         self.flow_bar = 0.0  # the flow term: the muscle adds it to the valve command
+        self.model_sweep_hz = position.model_sweep_hz
+        self.vel_scale = 1.0  # the model's velocity input's time scale (`_new_profile`)
+        self.seen_profile: Profile | None = None
         pc = position.pid
         self.pid = Pid(pc.kp_bar_per_mm, pc.ki_bar_per_mm_s, pc.kd_bar_s_per_mm,
                        pc.derivative_filter_hz, pc.integral_limit_bar, pc.output_limit_bar)
@@ -140,7 +143,7 @@ class LengthControl:
         l0 = self.nominal_length_mm
         x = (l0 - ln) / l0
         f = self.force_lp if self.position else self.target_force_n
-        return self.ff.pressure(f, ln, x, self.target_vel.value)
+        return self.ff.pressure(f, ln, x, self.target_vel.value * self.vel_scale)
 
     def enter(self, mode: Mode, use_ff: bool, ilc: bool, *, from_pressure: bool,
               length_mm: float, force_n: float, setpoint_bar: float) -> None:
@@ -196,7 +199,7 @@ class LengthControl:
         before = self.model_value() if self.active else 0.0
         self.ff = ff
         self.reset_model(length_mm, force_n)
-        self.target_vel.window_s = ff.velocity_window_s
+        self.target_vel.window_s = ff.velocity_window_s * self.vel_scale
         if not self.active:
             return 0.0
         diff = before - self.model_value()
@@ -223,6 +226,8 @@ class LengthControl:
         l0 = self.nominal_length_mm
         pos = self.position
         running = prof is not None and (state == S_RUNNING or state == S_LOAD)
+        if prof is not self.seen_profile:
+            self._new_profile(prof)
         acc_m = 0.0
         if prof is not None and running:
             prof.sample(now)
@@ -246,7 +251,8 @@ class LengthControl:
             rate_m = -l0 * pt.rate
             acc_m = -l0 * pt.accel
         tv = self.target_vel
-        v_t = tv.update(ln_m, dt)
+        vs = self.vel_scale
+        v_t = tv.update(ln_m, dt) * vs
         f_in = self.target_force_n
         if pos:
             fl = self.force_lp
@@ -264,7 +270,7 @@ class LengthControl:
             if planned:  # the model's derivative along the planned motion
                 h = RATE_STEP_S
                 ln_h = ln_m + rate_m * h
-                v_h = v_t + (rate_m - v_t) * h / (tv.window_s + h)
+                v_h = v_t + (rate_m * vs - v_t) * h / (tv.window_s + h)
                 ff_rate = (ff_obj.pressure(f_in, ln_h, (l0 - ln_h) / l0, v_h) - ff) / h
         want = ff
         pid = self.pid
@@ -311,6 +317,26 @@ class LengthControl:
         self.last_sp = want
         self.flags = flags
         return want
+
+
+    def _new_profile(self, prof: Profile | None) -> None:
+        """A new length profile (or none): the time scale of the model's velocity input.
+        With `model_sweep_hz`, a periodic profile at f Hz feeds the model the velocity
+        it saw at the same phase of its training sweeps: the filter's window times
+        model_sweep_hz / f and the velocity times the same (a muscle's friction
+        hysteresis follows the path, not the clock; at 1 Hz the 3 s window would
+        otherwise tell the branch a quarter period late). Else 1. Not the tick's
+        normal path: once per profile."""
+        self.seen_profile = prof
+        scale = 1.0
+        if prof is not None and self.position and self.model_sweep_hz is not None and (
+                prof.period_s > 0.0):
+            scale = self.model_sweep_hz * prof.period_s
+        if scale != self.vel_scale:
+            tv = self.target_vel
+            tv.value *= self.vel_scale / scale  # the model input stays where it is
+            tv.window_s = tv.window_s * scale / self.vel_scale
+            self.vel_scale = scale
 
 
 def preview_s_of(position: PositionConfig, rate_feedforward_s: float) -> float:

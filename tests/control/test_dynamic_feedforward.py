@@ -179,6 +179,40 @@ def test_planned_force_is_the_loads_weight_plus_its_inertia(
         model_p(f, 200.0 * (1.0 - pt.value)), abs=2e-3)
 
 
+def test_model_sweep_hz_puts_the_velocity_input_on_the_training_sweeps_time_axis(
+        sim_config: Callable[..., LoadedConfig]) -> None:
+    """A model trained on 0.05 Hz sweeps, a 0.5 Hz profile: the model's velocity input is
+    the previewed length filtered with a window 0.05 / 0.5 of its own, times 0.1 (the
+    velocity a 0.05 Hz sweep had at that phase of the stroke)."""
+    rng = np.random.default_rng(4)
+    X = np.c_[rng.uniform(150.0, 450.0, 600), rng.uniform(150.0, 205.0, 600),
+              rng.uniform(-10.0, 10.0, 600)]
+    y = 3.0 + DP_DF * (X[:, 0] - 295.0) + DP_DL * (X[:, 1] - 180.0) + 0.05 * X[:, 2]
+    res = fit(X, y, TrainingOptions(n_mfs=2, epochs=5),
+              input_names=["force_n", "length_mm", "velocity_mm_s"],
+              input_units=["N", "mm", "mm/s"], output_name="pressure_bar", output_unit="bar",
+              derived_inputs={"velocity_mm_s": {"derived_from": "length_mm", "window_s": 3.0}})
+    cfg = sim_config()
+    lc = control(cfg, res.model, preview_s=0.05, model_sweep_hz=0.05)
+    prof = sine(0.5)
+    run(lc, prof, 1.3)
+    assert lc.target_vel.window_s == pytest.approx(0.3)
+    v, prev, t = 0.0, 175.0, 0.0
+    while t < 1.3 - 1e-9:  # the filter the tick runs, on the previewed length
+        t += DT
+        ln = length_at(prof, t + 0.05)
+        v += DT / (0.3 + DT) * ((ln - prev) / DT - v)
+        prev = ln
+    assert abs(v) > 20.0  # fast: the 0.5 Hz stroke
+    expected = model_p(294.0, length_at(prof, 1.35)) + 0.05 * 0.1 * v
+    assert lc.feedforward_bar == pytest.approx(expected, abs=5e-3)
+    # without it: the model's own 3 s window and the velocity as filtered
+    plain = control(cfg, res.model, preview_s=0.05)
+    run(plain, sine(0.5), 1.3)
+    assert plain.target_vel.window_s == pytest.approx(3.0)
+    assert abs(plain.feedforward_bar - lc.feedforward_bar) > 0.05
+
+
 # -- on the simulated rig -----------------------------------------------------------------
 @pytest.fixture(scope="module")
 def map_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
