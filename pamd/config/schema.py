@@ -168,19 +168,19 @@ class PositionConfig:
     ilc: IlcConfig = spec(IlcConfig(), "Iterative learning across repeated cycles "
                           "(position mode with `ilc: true`; seed 003's PID-type ILC).")
     length_response_s: float = spec(
-        0.0684, "Dead time + lag of the measured length after a pressure setpoint step "
-        "(the position loop's FOPDT fit: `pamd tune --loop position`, "
-        "bench/tune_pressure_loop.py --loop position; 36.9 + 31.5 ms on the simulated rig "
-        "at 30 kg). With `control.rate_feedforward_s` it sets the default `preview_s`.",
+        0.0684, "Dead time + lag of the measured length after a pressure setpoint step, "
+        "the pressure loop closed with its rate feedforward (the position loop's FOPDT "
+        "fit: `pamd tune --loop position`, bench/tune_pressure_loop.py --loop position; "
+        "36.9 + 31.5 ms on the simulated rig at 30 kg). Sets the default `preview_s`.",
         unit="s", min=0.0, max=2.0)
     preview_s: float | None = spec(
         None, "position mode: the model's feedforward (and the dynamic terms) are evaluated "
         "on the length profile this far ahead, so the pressure is there when the length is "
         "due; the position PID still compares with the present target. Null: "
-        "`control.rate_feedforward_s` + `length_response_s`, the delays of the two stages "
-        "between the setpoint and the length, the pressure loop's (its dead time + lag, "
-        "what the rate feedforward is set to) and the position loop's (0.094 s on the "
-        "simulated rig). 0: no preview.", unit="s", min=0.0, max=2.0)
+        "`length_response_s` - `control.rate_feedforward_s`, the setpoint -> length delay "
+        "less the pressure loop's dead time + lag, which the rate feedforward (fed the "
+        "model's planned rate) already cancels; 0.0429 s on the simulated rig. 0: no "
+        "preview.", unit="s", min=0.0, max=2.0)
     planned_rate: bool = spec(
         True, "position mode: the setpoint's rate fed to the pressure loop's rate "
         "feedforward is the model's derivative along the planned motion (dP/dL dL/dt + "

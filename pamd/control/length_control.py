@@ -18,17 +18,18 @@ Modes (`pamd.tick.Mode`), per muscle:
 Feedforward that knows the motion (position mode, `control.position`): a length
 profile is known in advance, so the model is evaluated on the profile `preview_s`
 ahead (`Profile.evaluate`, which leaves the running profile alone), by default the
-delays between setpoint and length (the pressure loop's, `rate_feedforward_s`, plus
-the position loop's, `length_response_s`); the PID and the ILC still compare with the
-present target. With `planned_rate` the setpoint's rate for the pressure loop's rate
-feedforward is the model's derivative along the planned motion (its value one short
-step further along the previewed length, rate and velocity input: dP/dL dL/dt +
-dP/dv dv/dt) plus the outer loop's filtered rate, not the lagging numeric derivative
-of the whole setpoint. `flow_feedforward_bar_s_per_mm` times the planned shortening
-rate is added to the valve command (the air a moving muscle draws; the muscle adds
-`flow_bar` after its pressure loop). `force_input: planned` gives the model the
-load's weight plus its inertia on the previewed motion instead of the low-passed
-measured force.
+setpoint -> length delay (`length_response_s`) less the pressure loop's share that
+the rate feedforward cancels (`rate_feedforward_s`); the PID and the ILC still
+compare with the present target. With `planned_rate` the setpoint's rate for the
+pressure loop's rate feedforward is the model's derivative along the planned motion
+(its value one short step further along the previewed length, rate and velocity
+input: dP/dL dL/dt + dP/dv dv/dt) plus the outer loop's filtered rate, not the
+lagging numeric derivative of the whole setpoint. `flow_feedforward_bar_s_per_mm`
+times the planned shortening rate is added to the valve command (the air a moving
+muscle draws; the muscle adds `flow_bar` after its pressure loop). `force_input:
+planned` gives the model the load's weight plus its inertia on the previewed motion
+instead of the low-passed measured force. `model_sweep_hz` puts the model's velocity
+input for a periodic profile on its training sweeps' time axis (`_new_profile`).
 
 A model's velocity input is the target length run through the filter its training
 data went through (`pamd.models.velocity`, with the window stated in the model
@@ -340,9 +341,9 @@ class LengthControl:
 
 
 def preview_s_of(position: PositionConfig, rate_feedforward_s: float) -> float:
-    """The position mode's preview (s): `preview_s`, or by default the delays between the
-    setpoint and the length: the pressure loop's (dead time + lag, which
-    `rate_feedforward_s` is set to) plus the position loop's (`length_response_s`)."""
+    """The position mode's preview (s): `preview_s`, or by default the setpoint -> length
+    delay (`length_response_s`) less the pressure loop's dead time + lag, which the rate
+    feedforward cancels (`rate_feedforward_s` is set to it), never below 0."""
     if position.preview_s is not None:
         return position.preview_s
-    return rate_feedforward_s + position.length_response_s
+    return max(0.0, position.length_response_s - rate_feedforward_s)

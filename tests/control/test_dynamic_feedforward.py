@@ -115,13 +115,13 @@ def test_the_model_sees_the_reference_preview_s_ahead(
     assert lc.feedforward_bar > model_p(294.0, length_at(prof, 0.1)) + 0.2
 
 
-def test_default_preview_is_the_pressure_and_position_loops_delays(
+def test_default_preview_is_the_length_response_less_the_rate_feedforward(
         sim_config: Callable[..., LoadedConfig]) -> None:
     pos = sim_config().rig.control.position
     assert pos.preview_s is None
-    assert preview_s_of(pos, 0.0255) == pytest.approx(0.0684 + 0.0255)
-    assert preview_s_of(replace(pos, preview_s=0.05), 0.0255) == 0.05
-    assert preview_s_of(PositionConfig(length_response_s=0.01), 0.02) == pytest.approx(0.03)
+    assert preview_s_of(pos, 0.0255) == pytest.approx(0.0684 - 0.0255)
+    assert preview_s_of(replace(pos, preview_s=0.1), 0.0255) == 0.1
+    assert preview_s_of(PositionConfig(length_response_s=0.01), 0.0255) == 0.0
 
 
 def test_setpoint_rate_is_the_models_derivative_along_the_planned_motion(
