@@ -49,7 +49,7 @@ from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
-from _common import REPO, sim_config  # noqa: E402
+from _common import REPO, controller_compute_us, percentile, sim_config  # noqa: E402
 from position_tracking import RANGES_BAR, TRAIN_LOADS_KG, record, train  # noqa: E402
 
 from pamd.control.feedforward import LoadedModel  # noqa: E402
@@ -192,6 +192,19 @@ def validate(model: str, cycles: int) -> dict[str, Any]:
     return {**chosen, "force_input": force}
 
 
+def compute_us(model: str, position: dict[str, Any], seconds: float = 10.0
+               ) -> tuple[float, float]:
+    """Controller compute per tick (us, p50 and p99) in position mode on the 1 Hz test
+    sine, plant excluded (as bench/controller_compute.py)."""
+    cfg = position_cfg(TEST["load_kg"], position)
+    models = {"m1": LoadedModel.read(model, cfg.muscle("m1"), cfg.limits["m1"])}
+    span = TEST["span"]
+    us = controller_compute_us(cfg, [("mode", {"mode": "position"}), (
+        "profile", {"muscle": "m1", "kind": "sine", "min_contraction": span[0],
+                    "max_contraction": span[1], "freq_hz": 1.0})], seconds, models)
+    return percentile(us, 50), percentile(us, 99)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cycles", type=int, default=6, help="cycles per run (the first two "
@@ -227,6 +240,11 @@ def main() -> None:
             r = track(mdl, f, cycles, load, span, pos, ilc=ilc)
             cells.append(f"{r['rmse']:8.3f} / {r['max']:6.2f}")
         print(f"  {name:<32}" + "".join(f"{c:>20}" for c in cells))
+    b50, b99 = compute_us(model, BEFORE)
+    d50, d99 = compute_us(model, chosen)
+    print(f"\ncontroller compute per tick, position mode at 1 Hz (plant excluded): before "
+          f"p50 {b50:.1f} us, p99 {b99:.1f} us; with the dynamic feedforward p50 {d50:.1f} "
+          f"us, p99 {d99:.1f} us ({d50 / b50:.2f} x, same run)")
     print("goals (RMSE): 0.2 Hz <= 0.15 mm, 0.5 Hz <= 0.3 mm, 1 Hz <= 0.6 mm; "
           f"total {time.perf_counter() - t_all:.0f} s")
 
