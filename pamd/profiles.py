@@ -55,8 +55,9 @@ class Shape:
         """The shape's duration after the lead-in; None: until stopped."""
         return None
 
-    def sample(self, run: Profile, tau: float) -> None:
-        """Set run.value, run.rate (and run.done, run.cycle) at `tau` s after the lead-in."""
+    def sample(self, run: Profile, tau: float, out: ProfilePoint) -> None:
+        """Set out.value, out.rate, out.accel (and out.done, out.cycle) at `tau` s after
+        the lead-in; `run` gives the constants (`out` is `run` itself when it runs)."""
         raise NotImplementedError
 
 
@@ -74,10 +75,10 @@ class Constant(Shape):
     def total_s(self, run: Profile) -> float | None:
         return run.spec.duration_s
 
-    def sample(self, run: Profile, tau: float) -> None:
-        run.value, run.rate = run.start_bar, 0.0
+    def sample(self, run: Profile, tau: float, out: ProfilePoint) -> None:
+        out.value, out.rate, out.accel = run.start_bar, 0.0, 0.0
         d = run.spec.duration_s
-        run.done = d is not None and tau >= d
+        out.done = d is not None and tau >= d
 
 
 class Ramp(Shape):
@@ -109,11 +110,12 @@ class Ramp(Shape):
     def total_s(self, run: Profile) -> float | None:
         return run.ramp_s
 
-    def sample(self, run: Profile, tau: float) -> None:
+    def sample(self, run: Profile, tau: float, out: ProfilePoint) -> None:
+        out.accel = 0.0
         if tau >= run.ramp_s:
-            run.value, run.rate, run.done = run.spec.to_bar, 0.0, True  # type: ignore[assignment]
+            out.value, out.rate, out.done = run.spec.to_bar, 0.0, True  # type: ignore[assignment]
         else:
-            run.value, run.rate = run.start_bar + run.ramp_rate * tau, run.ramp_rate
+            out.value, out.rate = run.start_bar + run.ramp_rate * tau, run.ramp_rate
 
 
 class Periodic(Shape):
@@ -134,22 +136,24 @@ class Periodic(Shape):
         cycles = run.spec.cycles
         return None if cycles is None else cycles * run.period_s
 
-    def sample(self, run: Profile, tau: float) -> None:
+    def sample(self, run: Profile, tau: float, out: ProfilePoint) -> None:
         cycles = run.spec.cycles
         cyc = int(tau * run.freq)
         if cycles is not None and cyc >= cycles:
-            run.done = True
-            run.cycle = cycles
+            out.done = True
+            out.cycle = cycles
             tau = cycles * run.period_s  # hold the end value
         else:
-            run.cycle = cyc
+            out.cycle = cyc
         phase = tau * run.freq - int(tau * run.freq)
-        if run.done:
+        if out.done:
             phase = 0.0
-        self.wave(run, tau, phase)
+        out.accel = 0.0
+        self.wave(run, tau, phase, out)
 
-    def wave(self, run: Profile, tau: float, phase: float) -> None:
-        """Set run.value and run.rate at `tau` (phase: the fraction of the cycle)."""
+    def wave(self, run: Profile, tau: float, phase: float, out: ProfilePoint) -> None:
+        """Set out.value and out.rate (a smooth shape also out.accel) at `tau` (phase:
+        the fraction of the cycle)."""
         raise NotImplementedError
 
 
@@ -166,22 +170,22 @@ class Step(Periodic):
     def begin(self, run: Profile, slew_limit: float) -> None:
         run.edge_s = run.spec.edge_s(slew_limit)
 
-    def wave(self, run: Profile, tau: float, phase: float) -> None:
+    def wave(self, run: Profile, tau: float, phase: float, out: ProfilePoint) -> None:
         t_in = phase / run.freq
         half = 0.5 * run.period_s
         e = run.edge_s
         r = run.span / e if e > 0 else 0.0
         if t_in < half:
-            if t_in < e and (run.cycle > 0 or run.done):
-                run.value, run.rate = run.hi - r * t_in, -r
+            if t_in < e and (out.cycle > 0 or out.done):
+                out.value, out.rate = run.hi - r * t_in, -r
             else:
-                run.value, run.rate = run.lo, 0.0
+                out.value, out.rate = run.lo, 0.0
         elif t_in - half < e:
-            run.value, run.rate = run.lo + r * (t_in - half), r
+            out.value, out.rate = run.lo + r * (t_in - half), r
         else:
-            run.value, run.rate = run.hi, 0.0
-        if run.done:
-            run.value, run.rate = run.hi, 0.0
+            out.value, out.rate = run.hi, 0.0
+        if out.done:
+            out.value, out.rate = run.hi, 0.0
 
 
 class Sine(Periodic):
@@ -196,10 +200,15 @@ class Sine(Periodic):
     def max_rate(self, spec: ProfileSpec, slew_limit: float) -> float:
         return math.pi * spec.freq_hz * (spec.max_bar - spec.min_bar)
 
-    def wave(self, run: Profile, tau: float, phase: float) -> None:
+    def wave(self, run: Profile, tau: float, phase: float, out: ProfilePoint) -> None:
         w = 2.0 * math.pi * run.freq
-        run.value = run.lo + 0.5 * run.span * (1.0 + math.sin(w * tau))
-        run.rate = 0.0 if run.done else 0.5 * run.span * w * math.cos(w * tau)
+        s = math.sin(w * tau)
+        out.value = run.lo + 0.5 * run.span * (1.0 + s)
+        if out.done:
+            out.rate = 0.0
+        else:
+            out.rate = 0.5 * run.span * w * math.cos(w * tau)
+            out.accel = -0.5 * run.span * w * w * s
 
 
 class Triangle(Periodic):
@@ -209,14 +218,14 @@ class Triangle(Periodic):
     def max_rate(self, spec: ProfileSpec, slew_limit: float) -> float:
         return 2.0 * (spec.max_bar - spec.min_bar) * spec.freq_hz
 
-    def wave(self, run: Profile, tau: float, phase: float) -> None:
+    def wave(self, run: Profile, tau: float, phase: float, out: ProfilePoint) -> None:
         slope = 2.0 * run.span * run.freq
         if phase < 0.5:
-            run.value, run.rate = run.lo + slope * phase / run.freq, slope
+            out.value, out.rate = run.lo + slope * phase / run.freq, slope
         else:
-            run.value, run.rate = run.hi - slope * (phase - 0.5) / run.freq, -slope
-        if run.done:
-            run.rate = 0.0
+            out.value, out.rate = run.hi - slope * (phase - 0.5) / run.freq, -slope
+        if out.done:
+            out.rate = 0.0
 
 
 SHAPES: dict[str, Shape] = {s.name: s for s in (Constant(), Step(), Ramp(), Sine(), Triangle())}
@@ -311,8 +320,25 @@ class ProfileSpec:
         return 1.0 / self.freq_hz if self.shape.periodic else 0.0
 
 
-class Profile:
-    """A running profile. Create with the spec, the present value and the start time."""
+class ProfilePoint:
+    """A profile's value, rate (per s) and acceleration (per s^2) at one time, with its
+    cycle and whether it has ended: what `Profile.evaluate` writes (a preview of the
+    profile's future, leaving the running profile untouched). Preallocate one and
+    reuse it: evaluating allocates nothing."""
+
+    __slots__ = ("value", "rate", "accel", "cycle", "done")
+
+    def __init__(self) -> None:
+        self.value = math.nan
+        self.rate = self.accel = 0.0
+        self.cycle = 0
+        self.done = False
+
+
+class Profile(ProfilePoint):
+    """A running profile. Create with the spec, the present value and the start time.
+    `sample(t)` moves its own point (value, rate, accel, cycle, done) to `t`;
+    `evaluate(t, point)` writes another point and changes nothing here."""
 
     def __init__(self, spec: ProfileSpec, t0_s: float, present_bar: float,
                  slew_limit: float) -> None:
@@ -332,7 +358,7 @@ class Profile:
         self.lead_in_s = abs(self.start_bar - present_bar) / spec.lead_in_bar_per_s
         self.lead_rate = math.copysign(spec.lead_in_bar_per_s, self.start_bar - present_bar)
         self.value = present_bar
-        self.rate = 0.0
+        self.rate = self.accel = 0.0
         self.cycle = 0
         self.done = False
 
@@ -342,9 +368,20 @@ class Profile:
         return None if shape_s is None else self.lead_in_s + shape_s
 
     def sample(self, t_s: float) -> None:
+        """Move the profile to `t_s` (the tick's present)."""
+        self.evaluate(t_s, self)
+
+    def evaluate(self, t_s: float, out: ProfilePoint) -> None:
+        """The profile at `t_s` into `out` (no allocation; `out` is not this profile:
+        nothing of the running profile changes)."""
         tau = t_s - self.t0_s
         if tau < self.lead_in_s:
-            self.value = self.from_bar + self.lead_rate * tau
-            self.rate = self.lead_rate
+            out.value = self.from_bar + self.lead_rate * tau
+            out.rate = self.lead_rate
+            out.accel = 0.0
+            out.cycle = 0
+            out.done = False
             return
-        self.shape.sample(self, tau - self.lead_in_s)
+        if out is not self:
+            out.done = False
+        self.shape.sample(self, tau - self.lead_in_s, out)

@@ -172,6 +172,46 @@ class PositionConfig:
                              unit="s", gt=0.0)
     ilc: IlcConfig = spec(IlcConfig(), "Iterative learning across repeated cycles "
                           "(position mode with `ilc: true`; seed 003's PID-type ILC).")
+    length_response_s: float = spec(
+        0.0684, "Dead time + lag of the measured length after a pressure setpoint step, "
+        "the pressure loop closed with its rate feedforward (the position loop's FOPDT "
+        "fit: `pamd tune --loop position`, bench/tune_pressure_loop.py --loop position; "
+        "36.9 + 31.5 ms on the simulated rig at 30 kg). Sets the default `preview_s`.",
+        unit="s", min=0.0, max=2.0)
+    preview_s: float | None = spec(
+        None, "position mode: the model's feedforward (and the dynamic terms) are evaluated "
+        "on the length profile this far ahead, so the pressure is there when the length is "
+        "due; the position PID still compares with the present target. Null: "
+        "`length_response_s` - `control.rate_feedforward_s`, the setpoint -> length delay "
+        "less the pressure loop's dead time + lag, which the rate feedforward (fed the "
+        "model's planned rate) already cancels; 0.0429 s on the simulated rig. 0: no "
+        "preview.", unit="s", min=0.0, max=2.0)
+    planned_rate: bool = spec(
+        True, "position mode: the setpoint's rate fed to the pressure loop's rate "
+        "feedforward is the model's derivative along the planned motion (dP/dL dL/dt + "
+        "dP/dv dv/dt at the preview, plus the outer loop's filtered rate) rather than the "
+        "filtered numeric derivative of the whole setpoint (which lags by its 50 ms "
+        "window). A stateful model keeps the numeric derivative.")
+    flow_feedforward_bar_s_per_mm: float = spec(
+        0.0, "position mode: added to the valve command per mm/s of planned shortening "
+        "(at the preview): the air a moving muscle draws (contracting) or returns makes "
+        "its pressure sag or rise behind the regulator's lag. Identified on the rig, never "
+        "from a simulator's parameters: the slope of the pressure loop's correction "
+        "against the length rate on a recorded position run (bench/position_fast.py "
+        "fits it on a validation run). 0: off.", unit="bar s/mm", min=0.0, max=1.0)
+    model_sweep_hz: float | None = spec(
+        None, "position mode: the frequency of the sweeps the model was trained on (e.g. "
+        "0.05 for the 0.05 Hz sweeps of the walk-through). Then a periodic length "
+        "profile at f Hz feeds the model's velocity input on a time axis stretched to "
+        "its training sweeps (its filter window and the velocity times model_sweep_hz / "
+        "f): the model sees the hysteresis branch at the same phase of the stroke as in "
+        "training, not a quarter period late at 1 Hz. Null: the velocity as filtered in "
+        "training, at any speed.", unit="Hz", gt=0.0, max=100.0)
+    force_input: Literal["measured", "planned"] = spec(
+        "measured", "position mode: the model's force input. `measured`: the measured "
+        "force through the `force_filter_s` low-pass. `planned`: the hanging load's "
+        "weight plus its inertia on the planned motion at the preview, load_kg (g - "
+        "d2L/dt2), no lag (a hanging load only; bench/position_fast.py measures it).")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -15,6 +15,22 @@ Modes (`pamd.tick.Mode`), per muscle:
   (seed 003's PID-type ILC: u_{j+1}(t) = u_j(t) + Kp e_j(t + lead) + Kd de_j/dt). With
   ``feedforward: false`` the outer PID (+ ILC) runs alone, without a model.
 
+Feedforward that knows the motion (position mode, `control.position`): a length
+profile is known in advance, so the model is evaluated on the profile `preview_s`
+ahead (`Profile.evaluate`, which leaves the running profile alone), by default the
+setpoint -> length delay (`length_response_s`) less the pressure loop's share that
+the rate feedforward cancels (`rate_feedforward_s`); the PID and the ILC still
+compare with the present target. With `planned_rate` the setpoint's rate for the
+pressure loop's rate feedforward is the model's derivative along the planned motion
+(its value one short step further along the previewed length, rate and velocity
+input: dP/dL dL/dt + dP/dv dv/dt) plus the outer loop's filtered rate, not the
+lagging numeric derivative of the whole setpoint. `flow_feedforward_bar_s_per_mm`
+times the planned shortening rate is added to the valve command (the air a moving
+muscle draws; the muscle adds `flow_bar` after its pressure loop). `force_input:
+planned` gives the model the load's weight plus its inertia on the previewed motion
+instead of the low-passed measured force. `model_sweep_hz` puts the model's velocity
+input for a periodic profile on its training sweeps' time axis (`_new_profile`).
+
 A model's velocity input is the target length run through the filter its training
 data went through (`pamd.models.velocity`, with the window stated in the model
 file), so it is the signal the model learned. The model itself is
@@ -36,7 +52,7 @@ from typing import TYPE_CHECKING
 from pamd.control.ilc import Ilc
 from pamd.control.pid import Pid
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
-from pamd.profiles import Profile
+from pamd.profiles import Profile, ProfilePoint
 from pamd.tick import Flag, Mode, State
 
 if TYPE_CHECKING:
@@ -46,6 +62,10 @@ if TYPE_CHECKING:
 
 #: Time constant of the setpoint's rate estimate (for the rate feedforward), s.
 SP_RATE_WINDOW_S = 0.05
+#: Step along the planned motion for the model's derivative (the planned rate), s.
+RATE_STEP_S = 0.005
+#: Standard gravity, m/s^2 (the planned force of a hanging load).
+G_M_S2 = 9.80665
 
 F_CLIP, F_SLEW = int(Flag.FF_CLIPPED), int(Flag.SLEW_LIMITED)
 S_RUNNING, S_LOAD = int(State.RUNNING), int(State.LOAD_CHANGE)
@@ -60,9 +80,22 @@ class LengthControl:
     run in its command methods (the loop's thread, between ticks), `step` in its tick."""
 
     def __init__(self, envelope: MuscleEnvelope, position: PositionConfig,
-                 feedforward: Feedforward | None) -> None:
+                 feedforward: Feedforward | None, rate_feedforward_s: float = 0.0) -> None:
         self.set_envelope(envelope)
         self.cfg = position
+        # position mode's dynamic feedforward (module docstring, "Feedforward that
+        # knows the motion")
+        self.preview_s = preview_s_of(position, rate_feedforward_s)
+        self.planned_rate = position.planned_rate
+        self.flow_bar_s_per_mm = position.flow_feedforward_bar_s_per_mm
+        self.planned_force = position.force_input == "planned"
+        self.load_kg = 0.0
+        self.ahead = ProfilePoint()  # the profile at now + preview_s
+        self.corr_rate = VelocityFilter(SP_RATE_WINDOW_S)  # d(correction)/dt, bar/s
+        self.flow_bar = 0.0  # the flow term: the muscle adds it to the valve command
+        self.model_sweep_hz = position.model_sweep_hz
+        self.vel_scale = 1.0  # the model's velocity input's time scale (`_new_profile`)
+        self.seen_profile: Profile | None = None
         pc = position.pid
         self.pid = Pid(pc.kp_bar_per_mm, pc.ki_bar_per_mm_s, pc.kd_bar_s_per_mm,
                        pc.derivative_filter_hz, pc.integral_limit_bar, pc.output_limit_bar)
@@ -92,6 +125,10 @@ class LengthControl:
         self.feedforward_bar = 0.0
         self.setpoint_rate_bar_per_s = 0.0
 
+    def set_load(self, load_kg: float) -> None:
+        """The hanging load (kg): the planned force (`force_input: planned`)."""
+        self.load_kg = load_kg
+
     def set_envelope(self, envelope: MuscleEnvelope) -> None:
         """Nominal length, pressure limit and slew limit (set-up and IDLE reloads)."""
         self.nominal_length_mm = envelope.nominal_length_mm
@@ -107,7 +144,7 @@ class LengthControl:
         l0 = self.nominal_length_mm
         x = (l0 - ln) / l0
         f = self.force_lp if self.position else self.target_force_n
-        return self.ff.pressure(f, ln, x, self.target_vel.value)
+        return self.ff.pressure(f, ln, x, self.target_vel.value * self.vel_scale)
 
     def enter(self, mode: Mode, use_ff: bool, ilc: bool, *, from_pressure: bool,
               length_mm: float, force_n: float, setpoint_bar: float) -> None:
@@ -135,6 +172,8 @@ class LengthControl:
             self.bump = setpoint_bar - ff
         self.last_sp = setpoint_bar
         self.feedforward_bar = ff
+        self.corr_rate.reset(setpoint_bar - ff, 0.0)
+        self.flow_bar = 0.0
         self.active = True
 
     def reset_model(self, length_mm: float, force_n: float) -> None:
@@ -147,6 +186,7 @@ class LengthControl:
         """Back to pressure mode; the setpoint stays where it is (bumpless)."""
         self.active = False
         self.setpoint_rate_bar_per_s = 0.0
+        self.flow_bar = 0.0
         self.feedforward_bar = 0.0
         self.target_length_mm = self.target_force_n = math.nan
         self.ilc = None
@@ -160,7 +200,7 @@ class LengthControl:
         before = self.model_value() if self.active else 0.0
         self.ff = ff
         self.reset_model(length_mm, force_n)
-        self.target_vel.window_s = ff.velocity_window_s
+        self.target_vel.window_s = ff.velocity_window_s * self.vel_scale
         if not self.active:
             return 0.0
         diff = before - self.model_value()
@@ -181,45 +221,72 @@ class LengthControl:
              length_mm: float, force_n: float) -> float:
         """The pressure setpoint for this tick (bar), from the running length profile
         `prof` (if any) and the measured length and force; sets `target_length_mm`,
-        `feedforward_bar`, `setpoint_rate_bar_per_s` and `flags` (FF_CLIPPED,
-        SLEW_LIMITED)."""
+        `feedforward_bar`, `setpoint_rate_bar_per_s`, `flow_bar` and `flags`
+        (FF_CLIPPED, SLEW_LIMITED)."""
         flags = 0
         l0 = self.nominal_length_mm
-        if prof is not None and (state == S_RUNNING or state == S_LOAD):
+        pos = self.position
+        running = prof is not None and (state == S_RUNNING or state == S_LOAD)
+        if prof is not self.seen_profile:
+            self._new_profile(prof)
+        acc_m = 0.0
+        if prof is not None and running:
             prof.sample(now)
             x_t = prof.value
             ln_t = l0 * (1.0 - x_t)
             self.target_length_mm = ln_t
-            self.target_rate_mm_s = -l0 * prof.rate
+            rate_t = self.target_rate_mm_s = -l0 * prof.rate
+            acc_m = -l0 * prof.accel
         else:
             ln_t = self.target_length_mm
             x_t = (l0 - ln_t) / l0
-            self.target_rate_mm_s = 0.0
-        v_t = self.target_vel.update(ln_t, dt)
+            rate_t = self.target_rate_mm_s = 0.0
+        # What the model sees: the present target, or in position mode the planned
+        # motion `preview_s` ahead (the PID below compares with the present target).
+        ln_m, x_m, rate_m = ln_t, x_t, rate_t
+        if pos and prof is not None and running and self.preview_s > 0.0:
+            pt = self.ahead
+            prof.evaluate(now + self.preview_s, pt)
+            x_m = pt.value
+            ln_m = l0 * (1.0 - x_m)
+            rate_m = -l0 * pt.rate
+            acc_m = -l0 * pt.accel
+        tv = self.target_vel
+        vs = self.vel_scale
+        v_t = tv.update(ln_m, dt) * vs
         f_in = self.target_force_n
-        if self.position:
+        if pos:
             fl = self.force_lp
             f_in = self.force_lp = fl + dt / (self.force_tau_s + dt) * (force_n - fl) if (
                 fl == fl) else force_n
-        ff = 0.0
-        if self.use_ff and self.ff is not None:
-            ff_obj = self.ff
-            ff = ff_obj.pressure(f_in, ln_t, x_t, v_t)
+            if self.planned_force:  # weight + inertia of the load on the planned motion
+                f_in = self.load_kg * (G_M_S2 - 0.001 * acc_m)
+        ff = ff_rate = 0.0
+        ff_obj = self.ff
+        planned = pos and self.planned_rate and ff_obj is not None and not ff_obj.stateful
+        if self.use_ff and ff_obj is not None:
+            ff = ff_obj.pressure(f_in, ln_m, x_m, v_t)
             if ff_obj.clipped:
                 flags |= F_CLIP
+            if planned:  # the model's derivative along the planned motion
+                h = RATE_STEP_S
+                ln_h = ln_m + rate_m * h
+                v_h = v_t + (rate_m * vs - v_t) * h / (tv.window_s + h)
+                ff_rate = (ff_obj.pressure(f_in, ln_h, (l0 - ln_h) / l0, v_h) - ff) / h
         want = ff
         pid = self.pid
         i_before = pid.i
-        if self.position:
+        if pos:
             corr = pid.step(length_mm - ln_t, -length_mm, dt)
             ilc = self.ilc
-            if ilc is not None and prof is not None and not prof.done and (
-                    state == S_RUNNING or state == S_LOAD):
+            if ilc is not None and prof is not None and not prof.done and running:
                 tau = now - prof.t0_s - prof.lead_in_s
                 if tau >= 0.0:
                     corr += ilc.step(tau, length_mm - ln_t, dt)
             self.correction = corr
             want += corr
+            # the air the planned motion draws (shortening) or returns
+            self.flow_bar = -self.flow_bar_s_per_mm * rate_m
         else:
             b = self.bump
             if b != 0.0:
@@ -245,7 +312,38 @@ class LengthControl:
         if held or sp_prev != self.last_sp:  # clamped here or by the tick's soft limits
             pid.i = i_before
         self.feedforward_bar = ff
-        self.setpoint_rate_bar_per_s = self.sp_rate.update(want, dt)
+        rate = self.sp_rate.update(want, dt)
+        rest = self.corr_rate.update(want - ff, dt)
+        self.setpoint_rate_bar_per_s = ff_rate + rest if planned else rate
         self.last_sp = want
         self.flags = flags
         return want
+
+
+    def _new_profile(self, prof: Profile | None) -> None:
+        """A new length profile (or none): the time scale of the model's velocity input.
+        With `model_sweep_hz`, a periodic profile at f Hz feeds the model the velocity
+        it saw at the same phase of its training sweeps: the filter's window times
+        model_sweep_hz / f and the velocity times the same (a muscle's friction
+        hysteresis follows the path, not the clock; at 1 Hz the 3 s window would
+        otherwise tell the branch a quarter period late). Else 1. Not the tick's
+        normal path: once per profile."""
+        self.seen_profile = prof
+        scale = 1.0
+        if prof is not None and self.position and self.model_sweep_hz is not None and (
+                prof.period_s > 0.0):
+            scale = self.model_sweep_hz * prof.period_s
+        if scale != self.vel_scale:
+            tv = self.target_vel
+            tv.value *= self.vel_scale / scale  # the model input stays where it is
+            tv.window_s = tv.window_s * scale / self.vel_scale
+            self.vel_scale = scale
+
+
+def preview_s_of(position: PositionConfig, rate_feedforward_s: float) -> float:
+    """The position mode's preview (s): `preview_s`, or by default the setpoint -> length
+    delay (`length_response_s`) less the pressure loop's dead time + lag, which the rate
+    feedforward cancels (`rate_feedforward_s` is set to it), never below 0."""
+    if position.preview_s is not None:
+        return position.preview_s
+    return max(0.0, position.length_response_s - rate_feedforward_s)

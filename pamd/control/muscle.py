@@ -16,7 +16,8 @@ against it) and nothing ratchets.
 What is fixed about the muscle (limits, nominal length, force model, rate limits)
 is its `MuscleEnvelope`. What changes is its state, which only this class writes:
 commands and the rig controller call its methods (`home`, `enter_mode`,
-`start_profile`, `go_safe`, `apply_settings`, ...) and read its properties.
+`start_profile`, `go_safe`, `apply_settings`, ...) and read its properties
+(`pamd.control.muscle_view.MuscleView`, which also writes the tick record).
 
 The tick path is plain float arithmetic on cached attributes, no I/O, no
 allocation on the normal path (only a fault builds its message string).
@@ -29,12 +30,12 @@ from array import array
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-from pamd.calibration import MuscleReference
 from pamd.config.loader import LoadedConfig
 from pamd.config.schema import PidConfig
 from pamd.control.actuation import Actuation, OnOffActuation, actuation_for
 from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
+from pamd.control.muscle_view import MuscleView
 from pamd.control.pressure_loop import PressureLoop
 from pamd.control.reference import ProfileFollower, SafeRamp
 from pamd.control.settings import MuscleSettings
@@ -44,26 +45,7 @@ from pamd.safety.envelope import MuscleEnvelope
 from pamd.safety.limiter import Limiter
 from pamd.safety.limits import F_AT_LIMIT, LimitMonitor
 from pamd.safety.plausibility import Plausibility
-from pamd.tick import (
-    M_CONTRACTION,
-    M_FEEDFORWARD,
-    M_FLAGS,
-    M_FORCE,
-    M_LENGTH,
-    M_MODE,
-    M_PID_D,
-    M_PID_I,
-    M_PID_P,
-    M_PRESSURE,
-    M_SAFE_PRESSURE,
-    M_SETPOINT,
-    M_TARGET_FORCE,
-    M_TARGET_LENGTH,
-    M_VALVE,
-    M_VELOCITY,
-    Mode,
-    State,
-)
+from pamd.tick import Mode, State
 
 if TYPE_CHECKING:
     from pamd.control.feedforward import Feedforward, LoadedModel
@@ -74,7 +56,7 @@ S_FAULT, S_ESTOP = int(State.FAULT), int(State.ESTOP)
 VENT_BELOW_BAR = 0.005
 
 
-class MuscleController:
+class MuscleController(MuscleView):
     """State and tick of one muscle (see the module docstring)."""
 
     def __init__(self, index: int, envelope: MuscleEnvelope, cfg: LoadedConfig,
@@ -95,7 +77,8 @@ class MuscleController:
         self.safe_ramp = SafeRamp(envelope)
         self.profile_follower = ProfileFollower(envelope)
         self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
-                                            None if model is None else model.feedforward())
+                                            None if model is None else model.feedforward(),
+                                            ctl.rate_feedforward_s)
         self.onoff = cfg.muscle(self.name).actuation == "onoff"
         self.pressure_loop = PressureLoop(*self._pressure_gains(ctl.pid, ctl.rate_feedforward_s))
         self.limiter = Limiter()
@@ -117,111 +100,6 @@ class MuscleController:
         self._load_kg = 0.0
         self._safe_pressure_bar = 0.0
         self.set_load(cfg.muscle(self.name).load_kg)
-
-    # -- what others read -------------------------------------------------------------
-    @property
-    def envelope(self) -> MuscleEnvelope:
-        return self._envelope
-
-    @property
-    def reference(self) -> MuscleReference:
-        """The length and force references (home, tare), saved in the calibration."""
-        return self.signals.reference
-
-    @property
-    def referenced(self) -> bool:
-        return self.signals.reference.length_referenced
-
-    @property
-    def pressure_bar(self) -> float:
-        return self.inputs.pressure_bar
-
-    @property
-    def force_n(self) -> float:
-        return self.inputs.force_n
-
-    @property
-    def length_mm(self) -> float:
-        return self.inputs.length_mm
-
-    @property
-    def contraction(self) -> float:
-        return self.inputs.contraction
-
-    @property
-    def velocity_mm_s(self) -> float:
-        return self.inputs.velocity_mm_s
-
-    @property
-    def setpoint_bar(self) -> float:
-        return self._setpoint_bar
-
-    @property
-    def valve_cmd_bar(self) -> float:
-        return self._valve_cmd_bar
-
-    @property
-    def feedforward_bar(self) -> float:
-        return self.length_control.feedforward_bar
-
-    @property
-    def target_length_mm(self) -> float:
-        return self.length_control.target_length_mm
-
-    @property
-    def target_force_n(self) -> float:
-        return self.length_control.target_force_n
-
-    @property
-    def safe_pressure_bar(self) -> float:
-        return self._safe_pressure_bar
-
-    @property
-    def load_kg(self) -> float:
-        return self._load_kg
-
-    @property
-    def mode(self) -> Mode:
-        return self._mode
-
-    @property
-    def profile(self) -> Profile | None:
-        return self._profile
-
-    @property
-    def started(self) -> bool:
-        return self._started
-
-    @property
-    def exhaust_open(self) -> bool:
-        return self.actuation.exhaust_open
-
-    @property
-    def in_length_mode(self) -> bool:
-        return self.length_control.active
-
-    @property
-    def has_model(self) -> bool:
-        return self.length_control.ff is not None
-
-    @property
-    def in_safe_ramp(self) -> bool:
-        """Ramping to the safe pressure outside FAULT/ESTOP (a stop, a deadman, a
-        start-up outside the limits)."""
-        return self._safe_ramp
-
-    def take_finding(self) -> str | None:
-        finding, self.finding = self.finding, None
-        return finding
-
-    def take_limit_report(self) -> str | None:
-        report, self.limit_report = self.limit_report, None
-        return report
-
-    def take_calibration_dirty(self) -> bool:
-        """Whether the device took a homed reference since the last call (then the
-        calibration is to be saved, outside the loop's thread)."""
-        return self.inputs.take_calibration_dirty()
 
     # -- set-up and settings (not the tick path) ----------------------------------------
     def _set_envelope(self, env: MuscleEnvelope) -> None:
@@ -248,6 +126,7 @@ class MuscleController:
         self._load_kg = load_kg
         self._safe_pressure_bar = self._envelope.safe_pressure_bar(load_kg)
         self.plausibility.set_load(load_kg)
+        self.length_control.set_load(load_kg)
 
     def apply_settings(self, s: MuscleSettings, with_limits: bool) -> None:
         """A reloaded config (SIGHUP), applied in the loop's thread at a tick boundary.
@@ -439,6 +318,8 @@ class MuscleController:
         venting = safe and self._safe_pressure_bar == 0.0 and sp <= VENT_BELOW_BAR
         loop = self.pressure_loop
         u = loop.step(sp, rate, p, p_ok and not latched and not venting, p_ok, dt)
+        if lc.active and lc.position and loop.closed and self._onoff is None:
+            u += lc.flow_bar  # the air the planned motion draws (position mode)
         flags |= loop.flags
         # -- limits: the guards' bounds (restoring direction, trusted length only) -------
         step = slew * dt
@@ -484,23 +365,3 @@ class MuscleController:
                     fault = stuck
         self._record(rec, flags)
         return fault
-
-    def _record(self, rec: array, flags: int) -> None:
-        b = self._base
-        inp, lc, pid = self.inputs, self.length_control, self.pressure_loop.pid
-        rec[b + M_PRESSURE] = inp.pressure_bar
-        rec[b + M_FORCE] = inp.force_n
-        rec[b + M_LENGTH] = inp.length_mm
-        rec[b + M_CONTRACTION] = inp.contraction
-        rec[b + M_VELOCITY] = inp.velocity_mm_s
-        rec[b + M_SETPOINT] = self._setpoint_bar
-        rec[b + M_FEEDFORWARD] = lc.feedforward_bar
-        rec[b + M_PID_P] = pid.p
-        rec[b + M_PID_I] = pid.i
-        rec[b + M_PID_D] = pid.d
-        rec[b + M_VALVE] = self._valve_cmd_bar
-        rec[b + M_TARGET_LENGTH] = lc.target_length_mm
-        rec[b + M_TARGET_FORCE] = lc.target_force_n
-        rec[b + M_SAFE_PRESSURE] = self._safe_pressure_bar
-        rec[b + M_MODE] = self._mode
-        rec[b + M_FLAGS] = flags
