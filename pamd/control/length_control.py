@@ -173,8 +173,8 @@ class LengthControl:
 
     def start_ilc(self, period_s: float) -> None:
         c = self.cfg.ilc
-        self.ilc = Ilc(period_s, c.gain_bar_per_mm, c.gain_d_bar_s_per_mm, c.lead_s,
-                       c.forgetting, c.limit_bar, c.resolution_s)
+        self.ilc = Ilc(period_s, c.gain, c.gain_d_s, c.lead_s, c.forgetting, c.limit_mm,
+                       c.resolution_s, c.cutoff_hz)
 
     # -- the tick --------------------------------------------------------------------------
     def step(self, now: float, dt: float, state: int, sp_prev: float, prof: Profile | None,
@@ -211,13 +211,14 @@ class LengthControl:
         pid = self.pid
         i_before = pid.i
         if self.position:
-            corr = pid.step(length_mm - ln_t, -length_mm, dt)
+            err = length_mm - ln_t
             ilc = self.ilc
             if ilc is not None and prof is not None and not prof.done and (
                     state == S_RUNNING or state == S_LOAD):
                 tau = now - prof.t0_s - prof.lead_in_s
-                if tau >= 0.0:
-                    corr += ilc.step(tau, length_mm - ln_t, dt)
+                if tau >= 0.0:  # the learned correction shifts what the PID aims at
+                    err += ilc.step(tau, err, dt)
+            corr = pid.step(err, -length_mm, dt)
             self.correction = corr
             want += corr
         else:
