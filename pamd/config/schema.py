@@ -148,7 +148,7 @@ class IlcConfig:
                          "(default: 36.8 + 31.3 ms, the simulated DMSP-20-200 at 30 kg). "
                          "Applied exactly, not rounded to `resolution_s`.", unit="s",
                          min=0.0, max=5.0)
-    cutoff_hz: float = spec(12.0, "Cut-off of the Q-filter, the zero-phase low-pass "
+    cutoff_hz: float = spec(6.0, "Cut-off of the Q-filter, the zero-phase low-pass "
                             "applied to the whole learned correction once a cycle (gain "
                             "1/2 here): what the learning may correct. Keep it below the "
                             "position loop's bandwidth and below 1 / (4 x the uncertainty "
