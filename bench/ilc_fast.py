@@ -11,8 +11,9 @@ The ILC's settings are the config's (`control.position.ilc`) unless `--gain`,
 --contraction 0.04 0.16`: another load and amplitude) by the worst ratio to the goals
 over 0.2/0.5/1 Hz (cycles 3-N RMSE, mm): cutoff 12 Hz 0.170/0.168/0.200 (0.2 Hz
 misses), 8 Hz 0.170/-/0.280, 6 Hz 0.131/0.177/0.363 (chosen), gain 0.3 with 6 Hz
-0.140 at 0.2 Hz; then this test profile was run once. Faster profiles need `control.position.max_rate_per_s` (1.0 here) and
-`control.slew_limit_bar_per_s` (25 bar/s here) raised, as a user must.
+0.140 at 0.2 Hz; then this test profile was run once. Faster profiles need
+`control.position.max_rate_per_s` (1.0 here) and `control.slew_limit_bar_per_s` (25
+bar/s here) raised, as a user must.
 
 Virtual clock, deterministic. Usage:
   python bench/ilc_fast.py [--freq 0.2 0.5 1] [--cycles 50] [--model FILE]
@@ -103,9 +104,11 @@ def main() -> None:
         t = time.perf_counter()
         if not args.no_baseline:
             base = track(f, args.cycles, None, args.load, tuple(args.contraction), args.model)
-            print(f"  {f:g} Hz PID alone:  {summary(base)}")
+            print(f"  {f:g} Hz {'model + PID' if args.model else 'PID alone'}:  "
+                  f"{summary(base)}")
         per = track(f, args.cycles, ilc, args.load, tuple(args.contraction), args.model)
-        print(f"  {f:g} Hz PID + ILC:  {summary(per)}  ({time.perf_counter() - t:.0f} s)")
+        print(f"  {f:g} Hz {'model + ' if args.model else ''}PID + ILC:  {summary(per)}  "
+              f"({time.perf_counter() - t:.0f} s)")
         if args.per_cycle:
             print("    per cycle RMSE: " + " ".join(f"{r:.3f}" for r, _ in per))
     print("  goals (issue 16, after the first two cycles): 0.2 Hz <= 0.15 mm, 0.5 Hz <= "
