@@ -11,8 +11,8 @@ Modes (`pamd.tick.Mode`), per muscle:
 * ``position``: a length target; the model takes the *measured* force and the target
   length (and the target's velocity) and gives the pressure it needs; an outer PID on
   the length error adds what the model misses; optionally an iterative learning
-  correction (ILC) learned over repeated cycles of a periodic length profile
-  (seed 003's PID-type ILC: u_{j+1}(t) = u_j(t) + Kp e_j(t + lead) + Kd de_j/dt). With
+  correction (ILC) of the PID's length target, learned over repeated cycles of a
+  periodic length profile (seed 003's PID-type ILC, filtered: `pamd.control.ilc`). With
   ``feedforward: false`` the outer PID (+ ILC) runs alone, without a model.
 
 A model's velocity input is the target length run through the filter its training
