@@ -136,19 +136,31 @@ class PositionPidConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class IlcConfig:
-    gain_bar_per_mm: float = spec(0.2, "Learning gain: each cycle, the correction at a phase "
-                                  "grows by this times the length error one `lead_s` later.",
-                                  unit="bar/mm", min=0.0)
-    gain_d_bar_s_per_mm: float = spec(0.0, "Learning gain on the error's rate of change.",
-                                      unit="bar s/mm", min=0.0)
-    lead_s: float = spec(0.3, "Phase lead of the learning update (covers the regulator and "
-                         "muscle lag).", unit="s", min=0.0, max=5.0)
-    forgetting: float = spec(0.02, "Share of the learned correction forgotten per cycle "
-                             "(keeps it bounded against noise).", min=0.0, max=0.5)
-    limit_bar: float = spec(1.0, "Largest learned correction.", unit="bar", min=0.0)
-    resolution_s: float = spec(0.2, "Time resolution of the learned correction over a "
-                               "cycle (bins; each is smoothed with its neighbours once a "
-                               "cycle).", unit="s", gt=0.0, max=2.0)
+    gain: float = spec(0.5, "Learning gain: each cycle, the correction of the position "
+                       "loop's target at a phase grows by this times the length error one "
+                       "`lead_s` later (mm per mm; converges for 0 < gain < 2 where the "
+                       "closed position loop follows its target).", min=0.0, max=2.0)
+    gain_d_s: float = spec(0.0, "Learning gain on the error's rate of change.", unit="s",
+                           min=0.0)
+    lead_s: float = spec(0.068, "Phase lead of the learning update: the delay from the "
+                         "position loop's target to the length, i.e. the position loop's "
+                         "dead time + lag that `pamd tune --loop position` measures "
+                         "(default: 36.8 + 31.3 ms, the simulated DMSP-20-200 at 30 kg). "
+                         "Applied exactly, not rounded to `resolution_s`.", unit="s",
+                         min=0.0, max=5.0)
+    cutoff_hz: float = spec(6.0, "Cut-off of the Q-filter, the zero-phase low-pass "
+                            "applied to the whole learned correction once a cycle (gain "
+                            "1/2 here): what the learning may correct. Keep it below the "
+                            "position loop's bandwidth and below 1 / (4 x the uncertainty "
+                            "of lead_s).", unit="Hz", gt=0.0)
+    forgetting: float = spec(0.0, "Share of the learned correction forgotten per cycle "
+                             "(bounds it against slow drift the Q-filter passes).", min=0.0,
+                             max=0.5)
+    limit_mm: float = spec(10.0, "Largest learned correction of the length target.",
+                           unit="mm", min=0.0)
+    resolution_s: float = spec(0.01, "Time resolution of the learned correction over a "
+                               "cycle (bins, read between their centres by linear "
+                               "interpolation).", unit="s", gt=0.0, max=2.0)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -11,8 +11,8 @@ Modes (`pamd.tick.Mode`), per muscle:
 * ``position``: a length target; the model takes the *measured* force and the target
   length (and the target's velocity) and gives the pressure it needs; an outer PID on
   the length error adds what the model misses; optionally an iterative learning
-  correction (ILC) learned over repeated cycles of a periodic length profile
-  (seed 003's PID-type ILC: u_{j+1}(t) = u_j(t) + Kp e_j(t + lead) + Kd de_j/dt). With
+  correction (ILC) of the PID's length target, learned over repeated cycles of a
+  periodic length profile (seed 003's PID-type ILC, filtered: `pamd.control.ilc`). With
   ``feedforward: false`` the outer PID (+ ILC) runs alone, without a model.
 
 Feedforward that knows the motion (position mode, `control.position`): a length
@@ -213,8 +213,8 @@ class LengthControl:
 
     def start_ilc(self, period_s: float) -> None:
         c = self.cfg.ilc
-        self.ilc = Ilc(period_s, c.gain_bar_per_mm, c.gain_d_bar_s_per_mm, c.lead_s,
-                       c.forgetting, c.limit_bar, c.resolution_s)
+        self.ilc = Ilc(period_s, c.gain, c.gain_d_s, c.lead_s, c.forgetting, c.limit_mm,
+                       c.resolution_s, c.cutoff_hz)
 
     # -- the tick --------------------------------------------------------------------------
     def step(self, now: float, dt: float, state: int, sp_prev: float, prof: Profile | None,
@@ -277,12 +277,13 @@ class LengthControl:
         pid = self.pid
         i_before = pid.i
         if pos:
-            corr = pid.step(length_mm - ln_t, -length_mm, dt)
+            err = length_mm - ln_t
             ilc = self.ilc
             if ilc is not None and prof is not None and not prof.done and running:
                 tau = now - prof.t0_s - prof.lead_in_s
-                if tau >= 0.0:
-                    corr += ilc.step(tau, length_mm - ln_t, dt)
+                if tau >= 0.0:  # the learned correction shifts what the PID aims at
+                    err += ilc.step(tau, err, dt)
+            corr = pid.step(err, -length_mm, dt)
             self.correction = corr
             want += corr
             # the air the planned motion draws (shortening) or returns
