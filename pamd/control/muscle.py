@@ -27,12 +27,13 @@ from __future__ import annotations
 import math
 from array import array
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from pamd.calibration import MuscleReference
 from pamd.config.loader import LoadedConfig
 from pamd.config.schema import PidConfig
 from pamd.control.actuation import Actuation, OnOffActuation, actuation_for
+from pamd.control.adapt import Adaptation
 from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
 from pamd.control.pressure_loop import PressureLoop
@@ -45,6 +46,8 @@ from pamd.safety.limiter import Limiter
 from pamd.safety.limits import F_AT_LIMIT, LimitMonitor
 from pamd.safety.plausibility import Plausibility
 from pamd.tick import (
+    M_ADAPT_DRIFT,
+    M_ADAPT_STATE,
     M_CONTRACTION,
     M_FEEDFORWARD,
     M_FLAGS,
@@ -96,6 +99,8 @@ class MuscleController:
         self.profile_follower = ProfileFollower(envelope)
         self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
                                             None if model is None else model.feedforward())
+        self.adaptation = Adaptation(self.name, cfg.muscle(self.name).adapt,  # the model's
+                                     self.length_control.ff)  # online adaptation (adapt.py)
         self.onoff = cfg.muscle(self.name).actuation == "onoff"
         self.pressure_loop = PressureLoop(*self._pressure_gains(ctl.pid, ctl.rate_feedforward_s))
         self.limiter = Limiter()
@@ -213,6 +218,14 @@ class MuscleController:
     def take_finding(self) -> str | None:
         finding, self.finding = self.finding, None
         return finding
+
+    @property
+    def adapt_report(self) -> dict[str, Any] | None:
+        """A freeze or a bound of the model's adaptation, not yet reported."""
+        return self.adaptation.report
+
+    def take_adapt_report(self) -> dict[str, Any] | None:
+        return self.adaptation.take_report()
 
     def take_limit_report(self) -> str | None:
         report, self.limit_report = self.limit_report, None
@@ -379,7 +392,17 @@ class MuscleController:
     def swap_model(self, feedforward: Feedforward) -> float:
         """A new inverse model; returns the pressure the outer loop takes up (bar)."""
         inp = self.inputs
-        return self.length_control.swap(feedforward, inp.length_mm, inp.force_n)
+        taken_up = self.length_control.swap(feedforward, inp.length_mm, inp.force_n)
+        self.adaptation.bind(feedforward)
+        return taken_up
+
+    def adapt(self, action: str) -> dict[str, Any]:
+        """The `adapt` command: on, off, reset, restore or status (`Adaptation.command`)."""
+        return self.adaptation.command(action)
+
+    def adapted_parameters(self) -> dict[str, Any]:
+        """A copy of the adapted consequents and their provenance (`Adaptation.snapshot`)."""
+        return self.adaptation.snapshot()
 
     # -- the tick -------------------------------------------------------------------------
     def tick(self, now: float, dt: float, state: int, rec: array) -> str | None:
@@ -482,6 +505,9 @@ class MuscleController:
                 self.finding = stuck
                 if fault is None:
                     fault = stuck
+        ad = self.adaptation
+        if ad.enabled:  # online adaptation of the model (pamd.control.adapt)
+            ad.step(dt, state, flags, inp, lc.active and lc.use_ff and not safe)
         self._record(rec, flags)
         return fault
 
@@ -504,3 +530,6 @@ class MuscleController:
         rec[b + M_SAFE_PRESSURE] = self._safe_pressure_bar
         rec[b + M_MODE] = self._mode
         rec[b + M_FLAGS] = flags
+        ad = self.adaptation
+        rec[b + M_ADAPT_DRIFT] = ad.drift_bar
+        rec[b + M_ADAPT_STATE] = ad.state
