@@ -10,13 +10,15 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 import pamd
 from pamd.config import load_config
 from pamd.control.adapt import AdaptState
-from pamd.control.feedforward import LoadedModel
+from pamd.control.feedforward import LoadedModel, load_models
 from pamd.daemon import Daemon, RecordingRequest
+from pamd.errors import ConfigError
 from pamd.models.anfis.adapted import save_adapted
 from pamd.models.registry import load_model
 from pamd.tick import State
@@ -78,3 +80,18 @@ def test_adapts_records_its_drift_and_saves_a_model_that_loads(trained, tmp_path
     trained_model = load_model(source)
     x = np.array([[294.0, 180.0], [300.0, 175.0]])
     assert not np.allclose(adapted.predict(x), trained_model.predict(x))  # type: ignore[attr-defined]
+
+
+def test_adapt_on_a_model_without_consequents_is_refused_at_its_config_line(
+        trained, tmp_path) -> None:
+    data = yaml.safe_load(SIM_YAML.read_text())
+    data["muscles"][0]["model_file"] = str(trained["polynomial"])
+    data["muscles"][0]["adapt"] = {"enabled": True}
+    cfg_path = tmp_path / "sim.yaml"
+    cfg_path.write_text(yaml.safe_dump(data, sort_keys=False))
+    with pytest.raises(ConfigError, match="a polynomial model") as err:
+        load_models(load_config(str(cfg_path)))
+    assert "adapt.enabled" in str(err.value) and "sim.yaml" in str(err.value)
+    data["muscles"][0]["adapt"] = {"enabled": False}  # the same model without adapt: fine
+    cfg_path.write_text(yaml.safe_dump(data, sort_keys=False))
+    assert set(load_models(load_config(str(cfg_path)))) == {"m1"}
