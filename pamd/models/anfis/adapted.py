@@ -31,7 +31,7 @@ from pamd.models.registry import load_model, save_model
 def _iso(unix: float | None) -> str | None:
     if unix is None:
         return None
-    return dt.datetime.fromtimestamp(unix, dt.UTC).isoformat(timespec="seconds")
+    return dt.datetime.fromtimestamp(unix, dt.timezone.utc).isoformat(timespec="seconds")
 
 
 def adapted_model(source: AnfisModel, snapshot: dict[str, Any]) -> AnfisModel:
@@ -48,7 +48,7 @@ def adapted_model(source: AnfisModel, snapshot: dict[str, Any]) -> AnfisModel:
     source.provenance = {**source.provenance, "adapted": {
         "source_file": snapshot.get("source"), "source_sha256": snapshot.get("sha256"),
         "started": _iso(snapshot.get("started_unix")),
-        "saved": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        "saved": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
         "method": "recursive least squares with forgetting on the rule consequents "
                   "(pamd.control.adapt); metrics are the source model's",
         **{k: snapshot.get(k) for k in keys}}}
