@@ -131,6 +131,8 @@ class Adaptation:
             self.why_not = None
         if self.why_not is not None:
             self.enabled = False
+        elif self.enabled:  # adapting goes on, now on this model
+            self.started_unix = time.time()
         self.state = int(AdaptState.ADAPTING if self.enabled else AdaptState.OFF)
         self._reset_window()
 

@@ -209,3 +209,15 @@ def test_a_model_without_consequents_is_refused_with_the_reason() -> None:
         ad.command("on")
     with pytest.raises(ValueError, match="no model"):
         Adaptation("m1", AdaptConfig(), None).command("on")
+
+
+def test_a_swapped_model_adapts_from_its_own_trained_consequents() -> None:
+    ad, ff = stage(max_rate_bar_per_s=1.0)
+    run(ad, truth_of(drifted(ff, 0.3)), 2.0)
+    assert ad.total_bar > 0.0
+    ff2 = Feedforward(model())  # the `model` command's swap (MuscleController.swap_model)
+    ad.bind(ff2)
+    assert ad.enabled and ad.total_bar == 0.0 and ad.drift_bar == 0.0
+    np.testing.assert_array_equal(ad.theta0, theta(ff2))
+    run(ad, truth_of(drifted(ff2, 0.3)), 2.0, t0=2.0)
+    assert not np.array_equal(theta(ff2), ad.theta0)
