@@ -133,6 +133,8 @@ class RigController:
                 self._finding(now, m)
             if m.limit_report is not None:  # rare path: a profile held at a soft limit
                 self._soft_limit(now, m)
+            if m.adapt_report is not None:  # rare path: the model's adaptation froze
+                self.sink.event(now, "adapt", m.take_adapt_report() or {})
         if fault is not None and not sup.latched and state != S_STARTING:
             sup.fault(now, fault)
         elif fault is not None and state == S_STARTING:

@@ -42,6 +42,8 @@ MUSCLE_FIELDS: tuple[str, ...] = (
     "safe_pressure_bar",  # present safe pressure for the hanging load
     "mode",  # control Mode
     "flags",  # Flag bits
+    "adapt_drift_bar",  # adapted minus trained model output at the last adaptation sample
+    "adapt_state",  # AdaptState: 0 off, 1 adapting, 2 paused, 3 frozen, 4 rate-limited
 )
 
 
@@ -130,6 +132,8 @@ I_TICK, I_T, I_WAKE, I_COMPUTE, I_OVERRUNS, I_STATE, I_LOST, I_SEGMENT = range(l
     M_SAFE_PRESSURE,
     M_MODE,
     M_FLAGS,
+    M_ADAPT_DRIFT,
+    M_ADAPT_STATE,
 ) = range(len(MUSCLE_FIELDS))
 
 

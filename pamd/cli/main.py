@@ -12,6 +12,7 @@ from typing import Protocol
 
 from pamd.cli import check_config, collect, emulate, evaluate, recordings, run, service, train, tune
 from pamd.cli import home as home_cli
+from pamd.cli import model as model_cli
 from pamd.cli import net as net_cli
 from pamd.cli import router as router_cli
 from pamd.cli import tare as tare_cli
@@ -32,7 +33,7 @@ COMMANDS: tuple[SubCommand, ...] = (
     # offline references on the configured rig (no daemon, no Zenoh)
     home_cli, tare_cli,
     # clients of a running daemon over Zenoh (status, cmd, watch) and the lab router
-    net_cli, router_cli,
+    net_cli, router_cli, model_cli,
     view_cli,  # pamd plot (pamd.view)
 )
 

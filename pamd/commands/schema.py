@@ -85,6 +85,16 @@ class ModelArgs:
                      "checked and compiled before the command reaches the loop.")
 
 
+@dataclass(frozen=True, kw_only=True)
+class AdaptArgs:
+    muscle: str | None = spec(None, "Muscle name (default: every muscle).")
+    action: str = spec("status", "on (adapt the model while a length mode runs; also "
+                       "resumes after a freeze), off (keep the adapted model, stop "
+                       "adapting), reset (the covariance to its start), restore (the "
+                       "trained model back), status, or parameters (a copy of the adapted "
+                       "consequents for `pamd model save`).")
+
+
 class PreparedModelArgs:
     """A `model` command whose file was loaded, checked and compiled outside the loop's
     thread (`prepare_command`); the loop only swaps `feedforward` in."""

@@ -3,7 +3,7 @@ experiment plans), in one registry."""
 
 from __future__ import annotations
 
-from pamd.commands import motion, plan, rig, tune
+from pamd.commands import adapt, motion, plan, rig, tune
 from pamd.commands.registry import VerbRegistry
 
-REGISTRY = VerbRegistry(motion.VERBS + rig.VERBS + plan.VERBS + tune.VERBS)
+REGISTRY = VerbRegistry(motion.VERBS + adapt.VERBS + rig.VERBS + plan.VERBS + tune.VERBS)

@@ -319,6 +319,31 @@ class MuscleControlConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class AdaptConfig:
+    enabled: bool = spec(False, "Adapt the inverse model's rule consequents online (recursive "
+                         "least squares with forgetting) from the measured force, length, "
+                         "velocity and pressure while a length mode runs; the `model` command "
+                         "switches it (`adapt=on|off|reset`). ANFIS/TS-fuzzy models only.")
+    memory_s: float = spec(120.0, "Forgetting: samples older than about this weigh less than "
+                           "1/e (the forgetting factor per update is exp(-update_period_s / "
+                           "memory_s)).", unit="s", gt=0.0, max=86400.0)
+    update_period_s: float = spec(0.02, "One update per this long, from the mean of the "
+                                  "samples over it (a sample with a bad tick in it is "
+                                  "dropped).", unit="s", gt=0.0, max=1.0)
+    initial_variance_bar2: float = spec(
+        0.01, "Covariance of the parameters at the start and after a reset (times the "
+        "identity); its trace is never let past its start (the bound against wind-up).",
+        unit="bar^2", gt=0.0, max=100.0)
+    max_rate_bar_per_s: float = spec(
+        0.01, "Largest change of the model per second, in bar of output anywhere in its "
+        "training ranges; a longer step is shortened to it.", unit="bar/s", gt=0.0)
+    max_total_bar: float = spec(
+        1.0, "Largest change from the trained model, in bar of output anywhere in its "
+        "training ranges; an update past it is refused and adaptation freezes.",
+        unit="bar", gt=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class MuscleConfig:
     name: str = spec(doc="Muscle name (used in signal, topic and key names).")
     type: Literal["dmsp20"] = spec("dmsp20", "Muscle type; fixes the ratings and force map.")
@@ -347,6 +372,7 @@ class MuscleConfig:
         "force_n and length_mm or contraction (and optionally velocity_mm_s, its filter "
         "stated) to pressure_bar with at most 125 rules, and its training lengths meet "
         "this muscle's. Swapped while running only by the `model` command.")
+    adapt: AdaptConfig = spec(AdaptConfig(), "Online adaptation of the model (length modes).")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -30,6 +30,9 @@ from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.schema.engine import Context, line_of
 from pamd.schema.yamlload import load_yaml_text
 
+#: Model kinds whose consequents online adaptation updates (`pamd.control.adapt`).
+ADAPTABLE_KINDS = ("anfis", "ts-fuzzy")
+
 
 class LoadedModel:
     """A model file read and checked for one muscle (`load_models`, or a `model`
@@ -77,6 +80,11 @@ def load_models(cfg: LoadedConfig) -> dict[str, LoadedModel]:
         file = os.path.join(base, os.path.expanduser(m.model_file))
         try:
             models[m.name] = LoadedModel.read(file, m, cfg.limits[m.name])
+            if m.adapt.enabled and models[m.name].model.kind not in ADAPTABLE_KINDS:
+                raise ModelError(f"adapt.enabled: adaptation updates the rule consequents "
+                                 f"of an ANFIS or TS-fuzzy model; {file} is a "
+                                 f"{models[m.name].model.kind} model (set adapt.enabled "
+                                 "false, or name an ANFIS model)")
         except ModelError as exc:
             if muscles_node is None:
                 muscles_node = load_yaml_text(cfg.text, cfg.path).get("muscles") or []

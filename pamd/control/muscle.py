@@ -28,11 +28,12 @@ from __future__ import annotations
 import math
 from array import array
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from pamd.config.loader import LoadedConfig
 from pamd.config.schema import PidConfig
 from pamd.control.actuation import Actuation, OnOffActuation, actuation_for
+from pamd.control.adapt import Adaptation
 from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
 from pamd.control.muscle_view import MuscleView
@@ -79,6 +80,8 @@ class MuscleController(MuscleView):
         self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
                                             None if model is None else model.feedforward(),
                                             ctl.rate_feedforward_s)
+        self.adaptation = Adaptation(self.name, cfg.muscle(self.name).adapt,  # the model's
+                                     self.length_control.ff)  # online adaptation (adapt.py)
         self.onoff = cfg.muscle(self.name).actuation == "onoff"
         self.pressure_loop = PressureLoop(*self._pressure_gains(ctl.pid, ctl.rate_feedforward_s))
         self.limiter = Limiter()
@@ -258,7 +261,17 @@ class MuscleController(MuscleView):
     def swap_model(self, feedforward: Feedforward) -> float:
         """A new inverse model; returns the pressure the outer loop takes up (bar)."""
         inp = self.inputs
-        return self.length_control.swap(feedforward, inp.length_mm, inp.force_n)
+        taken_up = self.length_control.swap(feedforward, inp.length_mm, inp.force_n)
+        self.adaptation.bind(feedforward)
+        return taken_up
+
+    def adapt(self, action: str) -> dict[str, Any]:
+        """The `adapt` command: on, off, reset, restore or status (`Adaptation.command`)."""
+        return self.adaptation.command(action)
+
+    def adapted_parameters(self) -> dict[str, Any]:
+        """A copy of the adapted consequents and their provenance (`Adaptation.snapshot`)."""
+        return self.adaptation.snapshot()
 
     # -- the tick -------------------------------------------------------------------------
     def tick(self, now: float, dt: float, state: int, rec: array) -> str | None:
@@ -363,5 +376,8 @@ class MuscleController(MuscleView):
                 self.finding = stuck
                 if fault is None:
                     fault = stuck
+        ad = self.adaptation
+        if ad.enabled:  # online adaptation of the model (pamd.control.adapt)
+            ad.step(dt, state, flags, inp, lc.active and lc.use_ff and not safe)
         self._record(rec, flags)
         return fault

@@ -10,9 +10,11 @@ preallocated record, on the tick path).
 from __future__ import annotations
 
 from array import array
+from typing import Any
 
 from pamd.calibration import MuscleReference
 from pamd.control.actuation import Actuation
+from pamd.control.adapt import Adaptation
 from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
 from pamd.control.pressure_loop import PressureLoop
@@ -20,6 +22,8 @@ from pamd.profiles import Profile
 from pamd.rig import MuscleSignals
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.tick import (
+    M_ADAPT_DRIFT,
+    M_ADAPT_STATE,
     M_CONTRACTION,
     M_FEEDFORWARD,
     M_FLAGS,
@@ -48,6 +52,7 @@ class MuscleView:
     signals: MuscleSignals
     inputs: Inputs
     length_control: LengthControl
+    adaptation: Adaptation
     pressure_loop: PressureLoop
     actuation: Actuation
     finding: str | None
@@ -158,6 +163,14 @@ class MuscleView:
         finding, self.finding = self.finding, None
         return finding
 
+    @property
+    def adapt_report(self) -> dict[str, Any] | None:
+        """A freeze or a bound of the model's adaptation, not yet reported."""
+        return self.adaptation.report
+
+    def take_adapt_report(self) -> dict[str, Any] | None:
+        return self.adaptation.take_report()
+
     def take_limit_report(self) -> str | None:
         report, self.limit_report = self.limit_report, None
         return report
@@ -186,3 +199,6 @@ class MuscleView:
         rec[b + M_SAFE_PRESSURE] = self._safe_pressure_bar
         rec[b + M_MODE] = self._mode
         rec[b + M_FLAGS] = flags
+        ad = self.adaptation
+        rec[b + M_ADAPT_DRIFT] = ad.drift_bar
+        rec[b + M_ADAPT_STATE] = ad.state

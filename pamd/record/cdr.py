@@ -27,7 +27,7 @@ PRIMITIVES: dict[str, tuple[str, int]] = {
 # Fields stored as float64 in the tick record but recorded as integers.
 INT_FIELDS: dict[str, str] = {
     "tick": "uint64", "overruns": "uint64", "lost_records": "uint64", "state": "uint8",
-    "mode": "uint8", "flags": "uint32", "segment": "uint16",
+    "mode": "uint8", "flags": "uint32", "segment": "uint16", "adapt_state": "uint8",
 }
 
 UNITS = {"_bar": "bar", "_n": "N", "_mm": "mm", "_mm_s": "mm/s", "_s": "s"}

@@ -9,7 +9,7 @@ from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS, Flag, Mode, State
 #: fields whose unit is not in their name
 _UNITS = {"tick": "tick", "contraction": "1", "state": "name", "mode": "name",
           "flags": "bits", "overruns": "periods", "lost_records": "records",
-          "segment": "step + 1", "load_kg": "kg"}
+          "segment": "step + 1", "load_kg": "kg", "adapt_state": "code"}
 _SUFFIXES = (("_mm_s", "mm/s"), ("_bar", "bar"), ("_n", "N"), ("_mm", "mm"), ("_s", "s"),
              ("_kg", "kg"))
 
@@ -49,6 +49,8 @@ DESCRIPTIONS: dict[str, str] = {
     "target_force_n": "force target (NaN outside length_force mode)",
     "safe_pressure_bar": "safe pressure for the hanging load", "mode": "control mode",
     "flags": "condition bits (see the flag table)",
+    "adapt_drift_bar": "adapted minus trained model output at the last adaptation sample",
+    "adapt_state": "model adaptation: 0 off, 1 adapting, 2 paused, 3 frozen, 4 rate-limited",
 }
 
 

@@ -16,6 +16,7 @@ from pamd.commands import (
     Command,
     Verb,
     VerbRegistry,
+    adapt,
     apply_command,
     motion,
     parse_command,
@@ -25,12 +26,12 @@ from pamd.commands import (
 from pamd.commands.schema import NoArgs
 from pamd.errors import CommandRefused
 
-PUBLIC = ("setpoint", "profile", "mode", "model", "hold", "resume", "stop", "estop", "reset",
-          "home", "tare", "load", "confirm", "pause", "collect")
+PUBLIC = ("setpoint", "profile", "mode", "model", "adapt", "hold", "resume", "stop", "estop",
+          "reset", "home", "tare", "load", "confirm", "pause", "collect")
 
 
 def test_the_registry_holds_every_declared_verb_once() -> None:
-    declared = motion.VERBS + rig.VERBS + plan.VERBS
+    declared = motion.VERBS + adapt.VERBS + rig.VERBS + plan.VERBS
     assert sorted(REGISTRY.names) == sorted(PUBLIC)
     assert [v.name for v in declared if not v.internal] == list(REGISTRY.names)
     assert [v.name for v in declared if v.internal] == ["reload"]

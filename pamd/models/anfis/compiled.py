@@ -22,6 +22,16 @@ A NaN input gives a NaN output and is not counted as clipped; the caller must tr
 NaN sensor values itself. The evaluator is a snapshot: later changes to the model do
 not reach it; compile again.
 
+Online adaptation (`pamd.control.adapt`): the rule consequents are read, on every
+call, from a mutable store, ``consequent_columns`` (one list of R floats per input,
+then the constants q; lists iterate as fast as the tuples they replaced, an
+``array('d')`` costs ~30 % more per dot product), which `set_consequents` overwrites
+in place between ticks. Each call also leaves its regressor behind without allocating
+(the firing-strength list it built anyway, their sum and the scaled inputs), and
+`regressor()` turns it into the vector phi with y = phi . theta, theta the
+consequents column by column (``theta_from``): phi = [wbar s_1, ..., wbar s_d, wbar]
+with wbar the normalised firing strengths (the batch model's `firing_strengths`).
+
 How: per-input memberships first (Gaussian: exp(-(s - c)^2 k) with the constant
 k = 1/(2 sigma^2) precomputed), then the rule firing strengths as the grid's outer
 product (same rule order as the model), then the output as
@@ -35,9 +45,12 @@ seeds 000 and 001) get a closure with the inputs unrolled; others a generic one.
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Callable
 from operator import mul
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from pamd.models.anfis.membership import UNDERFLOW_GUARD as _UNDERFLOW_GUARD
 
@@ -49,17 +62,65 @@ class CompiledAnfis:
     """Allocation-light single-sample evaluator of an `AnfisModel` (see module doc).
 
     Attributes: ``evaluate(*x) -> float`` (one float per input, in input units),
-    ``clipped`` (bool) and ``clipped_mask`` (int) of the last call, ``input_names``.
+    ``clipped`` (bool) and ``clipped_mask`` (int) of the last call, ``input_names``;
+    ``consequent_columns`` (the mutable store) and the last call's regressor parts
+    ``last_w``, ``last_den``, ``last_s``.
     """
 
-    __slots__ = ("clipped", "clipped_mask", "input_names", "n_inputs", "evaluate")
+    __slots__ = ("clipped", "clipped_mask", "input_names", "n_inputs", "n_rules", "evaluate",
+                 "consequent_columns", "last_w", "last_den", "last_s", "_wbar", "_phi",
+                 "_phi_rows")
 
     def __init__(self, model: AnfisModel) -> None:
         self.clipped: bool = False
         self.clipped_mask: int = 0
         self.input_names: tuple[str, ...] = tuple(v.name for v in model.inputs)
         self.n_inputs: int = model.n_inputs
+        self.n_rules: int = model.n_rules
+        d, r = self.n_inputs, self.n_rules
+        cons = model.consequents
+        #: p_1 .. p_d, q: one list of R floats each, read by every call.
+        self.consequent_columns: tuple[list[float], ...] = tuple(
+            [float(v) for v in cons[:, i]] for i in range(d + 1))
+        # The last call's regressor parts (written by the closure, no allocation).
+        self.last_w: list[float] = [math.nan] * r
+        self.last_den: float = math.nan
+        self.last_s: array = array("d", [math.nan] * d)
+        self._wbar = np.zeros(r)
+        self._phi = np.zeros((d + 1) * r)
+        self._phi_rows = tuple(self._phi[i * r:(i + 1) * r] for i in range(d + 1))
         self.evaluate: Callable[..., float] = _build(model, self)
+
+    @property
+    def n_consequents(self) -> int:
+        """Length of theta and phi: R (d + 1)."""
+        return (self.n_inputs + 1) * self.n_rules
+
+    def theta(self, out: np.ndarray) -> np.ndarray:
+        """The present consequents into `out` (length R (d + 1)), column by column."""
+        r = self.n_rules
+        for i, col in enumerate(self.consequent_columns):
+            out[i * r:(i + 1) * r] = col
+        return out
+
+    def set_consequents(self, theta: np.ndarray) -> None:
+        """Overwrite the consequents in place from theta (column by column, as
+        `theta`); between ticks only (the lists are what the next call reads)."""
+        r = self.n_rules
+        for i, col in enumerate(self.consequent_columns):
+            col[:] = theta[i * r:(i + 1) * r].tolist()
+
+    def regressor(self) -> np.ndarray:
+        """phi of the last call (y = phi . theta), in a buffer this object owns and
+        overwrites on the next `regressor()` call. NaN after a NaN input."""
+        wbar = self._wbar
+        wbar[:] = self.last_w
+        np.divide(wbar, self.last_den, out=wbar)
+        rows, s = self._phi_rows, self.last_s
+        for i in range(self.n_inputs):
+            np.multiply(wbar, s[i], out=rows[i])
+        np.copyto(rows[-1], wbar)
+        return self._phi
 
     def __call__(self, *x: float) -> float:
         return self.evaluate(*x)
@@ -78,9 +139,9 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
     hi = tuple(float(v) for v in model.input_hi)
     off = tuple(float(v) for v in model.scale_offset)
     span = tuple(float(v) for v in model.scale_span)
-    cons = model.consequents
-    q = tuple(cons[:, -1].tolist())
-    p = tuple(tuple(cons[:, i].tolist()) for i in range(d))
+    q = flags.consequent_columns[-1]
+    p = flags.consequent_columns[:-1]
+    last_s = flags.last_s
     exp = math.exp
     if model.mf_type == "gaussian":
         # k = 1 / (2 sigma^2) per MF, paired with its centre.
@@ -106,6 +167,7 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
         num = sum(map(mul, w, q))
         for si, pi in zip(s, p, strict=True):
             num += si * sum(map(mul, w, pi))
+        flags.last_w, flags.last_den = w, den
         return num / den
 
     def shifted(s: list[float]) -> list[list[float]]:
@@ -137,10 +199,14 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
             s2 = (x2 - o2) / sp2
             m1 = [exp(-(s1 - c) * (s1 - c) * k) for c, k in mf1]
             m2 = [exp(-(s2 - c) * (s2 - c) * k) for c, k in mf2]
+            last_s[0] = s1
+            last_s[1] = s2
             den = sum(m1) * sum(m2)
             if not den > _UNDERFLOW_GUARD:
                 return weighted_output(shifted([s1, s2]), [s1, s2])
             w = [a * b for a in m1 for b in m2]
+            flags.last_w = w
+            flags.last_den = den
             return (
                 sum(map(mul, w, q)) + s1 * sum(map(mul, w, p1)) + s2 * sum(map(mul, w, p2))
             ) / den
@@ -174,11 +240,16 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
             m1 = [exp(-(s1 - c) * (s1 - c) * k) for c, k in mf1]
             m2 = [exp(-(s2 - c) * (s2 - c) * k) for c, k in mf2]
             m3 = [exp(-(s3 - c) * (s3 - c) * k) for c, k in mf3]
+            last_s[0] = s1
+            last_s[1] = s2
+            last_s[2] = s3
             den = sum(m1) * sum(m2) * sum(m3)
             if not den > _UNDERFLOW_GUARD:
                 return weighted_output(shifted([s1, s2, s3]), [s1, s2, s3])
             w = [a * b for a in m1 for b in m2]
             w = [a * b for a in w for b in m3]
+            flags.last_w = w
+            flags.last_den = den
             num = sum(map(mul, w, q)) + s1 * sum(map(mul, w, p1))
             return (num + s2 * sum(map(mul, w, p2)) + s3 * sum(map(mul, w, p3))) / den
 
@@ -198,6 +269,7 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
             elif xi > hi_i:
                 xi, mask = hi_i, mask | bit
             s.append((xi - o_i) / sp_i)
+        last_s[:] = array("d", s)
         flags.clipped_mask = mask
         flags.clipped = mask != 0
         if gauss:

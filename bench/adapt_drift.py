@@ -1,0 +1,179 @@
+"""Benchmark: position tracking while the muscle drifts, with and without online
+adaptation of the inverse model (issue 16 item 4); prints figures.
+
+A 0.2 Hz sine over 5-20 % contraction with 30 kg hanging, position mode with the
+3-input ANFIS model (force, length, velocity; trained as bench/position_tracking.py
+trains it, on undrifted pressure sweeps) as feedforward + the position PID, for 10
+minutes of rig time (virtual clock, the flow plant of the default sim):
+
+  (a) undrifted,
+  (b) the muscle loses 10 % of its force over the 10 minutes (the sim's
+      `force_drift_per_hour` -0.6), the model as trained,
+  (c) the same drift, with `adapt.enabled` (RLS on the consequents).
+
+RMSE and max |error| of the length (mm) over the last `--last-cycles` cycles of the
+10 minutes (the first two cycles never count). Goal: (c) <= 1.2 x (a).
+
+The RLS settings (`adapt:` in the config) were chosen on a validation run (`--validate`:
+20 kg, drift -0.9 /h, i.e. 15 % over 10 minutes), never on the test run reported here.
+Also the controller's compute per tick with adaptation on (plant excluded, as
+bench/controller_compute.py) beside adaptation off, in the same run.
+
+Usage: python bench/adapt_drift.py [--minutes 10] [--keep DIR] [--validate]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import copy  # noqa: E402
+import math  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from typing import Any  # noqa: E402
+
+import yaml  # noqa: E402
+from _common import REPO, controller_compute_us, percentile, sim_config  # noqa: E402
+from position_tracking import RANGES_BAR, TRAIN_LOADS_KG, record, train  # noqa: E402
+
+from pamd.config import LoadedConfig  # noqa: E402
+from pamd.control.feedforward import LoadedModel  # noqa: E402
+from pamd.harness import Harness  # noqa: E402
+from pamd.tick import State  # noqa: E402
+
+FREQ_HZ = 0.2
+PERIOD_S = 1.0 / FREQ_HZ
+PROFILE = {"kind": "sine", "min_contraction": 0.05, "max_contraction": 0.20,
+           "freq_hz": FREQ_HZ}
+#: The RLS settings, chosen on the validation run (see the docstring).
+ADAPT = {"enabled": True, "memory_s": 120.0, "update_period_s": 0.02,
+         "initial_variance_bar2": 0.01, "max_rate_bar_per_s": 0.01, "max_total_bar": 1.0}
+#: test: 30 kg, 10 % over 10 minutes; validation: 20 kg, 15 % over 10 minutes
+TEST = {"load_kg": 30.0, "drift_per_hour": -0.6}
+VALIDATION = {"load_kg": 20.0, "drift_per_hour": -0.9}
+
+
+def bench_config(load_kg: float, drift_per_hour: float, adapt: dict[str, Any] | None
+                 ) -> LoadedConfig:
+    """config/sim.yaml, virtual clock, the load, the sim's force drift, a length rate
+    limit that lets a 0.2 Hz sine over 15 % through, and the muscle's `adapt`."""
+    data = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())
+    sim_m = copy.deepcopy(data["drivers"][0]["options"]["muscles"][0])
+    sim_m["force_drift_per_hour"] = drift_per_hour
+    sim_m["load_kg"] = load_kg
+    drivers = copy.deepcopy(data["drivers"])
+    drivers[0]["options"]["muscles"][0] = sim_m
+    control = copy.deepcopy(data["control"])
+    control["position"]["max_rate_per_s"] = 0.2  # the sine's peak: 0.094 /s
+    muscles = copy.deepcopy(data["muscles"])
+    muscles[0]["load_kg"] = load_kg
+    if adapt is not None:
+        muscles[0]["adapt"] = adapt
+    return sim_config("virtual", load_kg=load_kg, drivers=drivers, control=control,
+                      muscles=muscles)
+
+
+def track(model: str, load_kg: float, drift_per_hour: float, adapt: dict[str, Any] | None,
+          minutes: float, last_cycles: int) -> dict[str, Any]:
+    """Position tracking for `minutes`; RMSE / max |e| (mm) over the last cycles."""
+    cfg = bench_config(load_kg, drift_per_hour, adapt)
+    h = Harness(cfg, {"m1": LoadedModel.read(model, cfg.muscle("m1"), cfg.limits["m1"])})
+    h.step(0.05)
+    assert h.cmd("mode", muscle="m1", mode="position")["ok"]
+    cycles = int(round(minutes * 60.0 / PERIOD_S))
+    assert h.cmd("profile", muscle="m1", cycles=cycles, **PROFILE)["ok"]
+    m = h.m1
+    t0 = h.t + m.profile.lead_in_s
+    t_from = t0 + (cycles - last_cycles) * PERIOD_S
+    sq, n, worst = 0.0, 0, 0.0
+    drift_max, states = 0.0, [0] * 5
+    while h.ctrl.supervisor.state == State.RUNNING:
+        h.step(h.period_s)
+        if h.t >= t_from and m.profile is not None:
+            e = m.length_mm - m.target_length_mm
+            sq, n, worst = sq + e * e, n + 1, max(worst, abs(e))
+        ad = m.adaptation
+        drift_max = max(drift_max, abs(ad.drift_bar))
+        states[ad.state] += 1
+    status = h.cmd("adapt", muscle="m1", action="status")
+    h.rig.close()
+    events = [data for _, kind, data in h.sink.events if kind == "adapt"]
+    return {"rmse": math.sqrt(sq / n), "max": worst, "drift_max": drift_max,
+            "states": states, "status": status.get("muscles", {}).get("m1", {}),
+            "events": events}
+
+
+def compute_time(model: str, adapt: dict[str, Any] | None, seconds: float
+                 ) -> tuple[float, float, float, float]:
+    """Controller compute per tick (us), position mode, the sine running; p50, p99,
+    max, mean."""
+    cfg = bench_config(TEST["load_kg"], TEST["drift_per_hour"], adapt)
+    models = {"m1": LoadedModel.read(model, cfg.muscle("m1"), cfg.limits["m1"])}
+    us = controller_compute_us(cfg, [("mode", {"mode": "position"}),
+                                     ("profile", {"muscle": "m1", **PROFILE})], seconds,
+                               models)
+    return percentile(us, 50), percentile(us, 99), max(us), sum(us) / len(us)
+
+
+def line(name: str, r: dict[str, Any], base: float | None = None) -> None:
+    ratio = f" ({r['rmse'] / base:.2f} x undrifted)" if base else ""
+    st = r["status"]
+    extra = ""
+    if st.get("enabled"):
+        extra = (f"; adapted {st['adapted_s']:.0f} s in {st['updates']} updates, "
+                 f"model moved {st['total_bar']:.3f} bar (bound), |drift| up to "
+                 f"{r['drift_max']:.3f} bar, state {st['state']}, rate-limited "
+                 f"{st['rate_limited']}x, refused {st['refused']}x")
+    print(f"  {name:<40} RMSE {r['rmse']:.3f} mm, max |e| {r['max']:.3f} mm{ratio}{extra}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--minutes", type=float, default=10.0)
+    ap.add_argument("--last-cycles", type=int, default=10, help="cycles measured at the "
+                    "end of the run (default 10: the last 50 s)")
+    ap.add_argument("--validate", action="store_true", help="the validation run (20 kg, "
+                    "15 %% over 10 minutes): where the RLS settings are chosen")
+    ap.add_argument("--keep", metavar="DIR", help="keep (and reuse) recordings and the model")
+    ap.add_argument("--compute-s", type=float, default=20.0)
+    args = ap.parse_args()
+    out = args.keep or tempfile.mkdtemp(prefix="pamd-adapt-")
+    t_all = time.perf_counter()
+    model = os.path.join(out, "track3.json")
+    if not os.path.exists(model):
+        files = [record(load, lo, hi, out) for load in TRAIN_LOADS_KG for lo, hi in RANGES_BAR]
+        train(files, ("force_n", "length_mm", "velocity_mm_s"), 3, model)
+    run = VALIDATION if args.validate else TEST
+    load, drift = run["load_kg"], run["drift_per_hour"]
+    print(f"{'VALIDATION' if args.validate else 'test'} run: {FREQ_HZ:g} Hz sine over 5-20 % "
+          f"contraction, {load:g} kg, position mode, 3-input model + PID, "
+          f"{args.minutes:g} min; force drift {drift:g} /h ({-100 * drift * args.minutes / 60:.0f} "
+          f"% over the run); RMSE over the last {args.last_cycles} cycles:")
+    print(f"  adapt: {ADAPT}")
+    a = track(model, load, 0.0, None, args.minutes, args.last_cycles)
+    line("(a) undrifted", a)
+    b = track(model, load, drift, None, args.minutes, args.last_cycles)
+    line("(b) drifting, no adaptation", b, a["rmse"])
+    c = track(model, load, drift, ADAPT, args.minutes, args.last_cycles)
+    line("(c) drifting, adaptation on", c, a["rmse"])
+    for ev in c["events"][:5]:
+        print(f"    event: {ev.get('reason')}")
+    print(f"  goal (c) <= 1.2 x (a): {'met' if c['rmse'] <= 1.2 * a['rmse'] else 'NOT met'} "
+          f"({c['rmse'] / a['rmse']:.2f})")
+    if not args.validate:
+        off = compute_time(model, None, args.compute_s)
+        on = compute_time(model, ADAPT, args.compute_s)
+        print(f"\ncontroller compute per tick, position mode, {args.compute_s:g} s (plant "
+              "excluded):")
+        for name, (p50, p99, mx, mean) in (("adaptation off", off), ("adaptation on", on)):
+            print(f"  {name:<15} p50 {p50:.1f} us, p99 {p99:.1f} us, max {mx:.0f} us, mean "
+                  f"{mean:.1f} us")
+        print(f"  mean ratio on/off {on[3] / off[3]:.2f} (same run; budget: 1 ms tick)")
+    print(f"total {time.perf_counter() - t_all:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
