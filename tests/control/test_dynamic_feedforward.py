@@ -294,3 +294,26 @@ def test_entry_with_everything_on_is_bumpless(
     assert h.m1.valve_cmd_bar == pytest.approx(u, abs=0.05)
     assert h.m1.length_control.flow_bar == 0.0
     h.rig.close()
+
+
+def test_the_flow_term_reaches_the_valve_command(
+        sim_config: Callable[..., LoadedConfig], map_model: Path) -> None:
+    """The muscle adds `flow_bar` after its pressure loop: the valve command is the
+    setpoint + rate feedforward + PID + the flow term."""
+    cfg = sim_config(control={**FAST, "position": {
+        **FAST["position"], "flow_feedforward_bar_s_per_mm": 0.002}})
+    h = Harness(cfg, {"m1": LoadedModel.read(str(map_model), cfg.muscle("m1"),
+                                             cfg.limits["m1"])})
+    h.step(0.05)
+    assert h.cmd("mode", muscle="m1", mode="position")["ok"]
+    assert h.cmd("profile", muscle="m1", kind="sine", min_contraction=0.05,
+                 max_contraction=0.20, freq_hz=0.5, cycles=3)["ok"]
+    m = h.m1
+    assert m.profile is not None
+    h.step(m.profile.lead_in_s + 2.1)  # the second cycle's rise: shortening fast
+    lc, pid = m.length_control, m.pressure_loop.pid
+    assert lc.flow_bar > 0.05
+    loop = m.setpoint_bar + cfg.rig.control.rate_feedforward_s * \
+        lc.setpoint_rate_bar_per_s + pid.p + pid.i + pid.d
+    assert m.valve_cmd_bar == pytest.approx(loop + lc.flow_bar, abs=1e-9)
+    h.rig.close()
