@@ -55,7 +55,7 @@ def _relay(ctrl: RigController, a: RelayArgs) -> dict[str, Any]:
     m.pressure_loop.relay.start(center, a.amplitude_bar, a.hysteresis_bar, a.cycles,
                                 a.timeout_s, a.settle_s, a.hold_s)
     return {"muscle": m.name, "center_bar": center, "amplitude_bar": a.amplitude_bar,
-            "ramp_s": ramp["ramp_s"]}
+            "ramp_s": (ramp or {}).get("ramp_s")}
 
 
 _SETPOINT = next(v for v in MOTION_VERBS if v.name == "setpoint")
