@@ -51,11 +51,11 @@ def _relay(ctrl: RigController, a: RelayArgs) -> dict[str, Any]:
         raise CommandRefused(f"{m.name}: {center:g} +/- {a.amplitude_bar:g} bar leaves "
                              f"{low:.2f}-{env.max_pressure_bar:g} bar (safe pressure to "
                              "pressure limit)")
-    ramp = _SETPOINT.handler(ctrl, SetpointArgs(muscle=m.name, bar=center)) or {}
+    ramp = _SETPOINT.handler(ctrl, SetpointArgs(muscle=m.name, bar=center))
     m.pressure_loop.relay.start(center, a.amplitude_bar, a.hysteresis_bar, a.cycles,
                                 a.timeout_s, a.settle_s, a.hold_s)
     return {"muscle": m.name, "center_bar": center, "amplitude_bar": a.amplitude_bar,
-            "ramp_s": ramp.get("ramp_s")}
+            "ramp_s": (ramp or {}).get("ramp_s")}
 
 
 _SETPOINT = next(v for v in MOTION_VERBS if v.name == "setpoint")
