@@ -31,7 +31,7 @@ without it, what a lab would do on its own recording; `model_sweep_hz` null or 0
 comparison; the preview from a grid (beside the config's derived default); the force
 input by comparison. Then the test set (30 kg, 5-20 %) runs once with those.
 
-Usage: python bench/position_fast.py [--cycles 6] [--ilc] [--ilc-cycles 12] [--keep DIR]
+Usage: python bench/position_fast.py [--cycles 6] [--ilc] [--ilc-cycles 50] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -211,7 +211,7 @@ def main() -> None:
                     "are not scored)")
     ap.add_argument("--ilc", action="store_true", help="also with the ILC "
                     "(control.position.ilc, pamd.control.ilc as it is)")
-    ap.add_argument("--ilc-cycles", type=int, default=12)
+    ap.add_argument("--ilc-cycles", type=int, default=50)
     ap.add_argument("--model", metavar="FILE", help="a 3-input model file instead of "
                     "training one here")
     ap.add_argument("--keep", metavar="DIR", help="keep (and reuse) recordings and the model")
