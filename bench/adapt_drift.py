@@ -49,8 +49,12 @@ PERIOD_S = 1.0 / FREQ_HZ
 PROFILE = {"kind": "sine", "min_contraction": 0.05, "max_contraction": 0.20,
            "freq_hz": FREQ_HZ}
 #: The RLS settings, chosen on the validation run (see the docstring).
+#: Validation (20 kg, 15 % over 10 min; (a) 0.424 mm, (b) 0.518 mm): max_rate 0.01 bar/s
+#: -> (c) 0.447 mm (1.05 x), the model moved 0.98 bar; the same with memory_s 60 or
+#: max_total 2.0 -> 0.447; initial_variance 0.001 -> 0.478 (1.13 x); max_rate 0.02 ->
+#: 0.423 (1.00 x), moved 1.46 bar: taken, with max_total 2.0 for margin.
 ADAPT = {"enabled": True, "memory_s": 120.0, "update_period_s": 0.02,
-         "initial_variance_bar2": 0.01, "max_rate_bar_per_s": 0.01, "max_total_bar": 1.0}
+         "initial_variance_bar2": 0.01, "max_rate_bar_per_s": 0.02, "max_total_bar": 2.0}
 #: test: 30 kg, 10 % over 10 minutes; validation: 20 kg, 15 % over 10 minutes
 TEST = {"load_kg": 30.0, "drift_per_hour": -0.6}
 VALIDATION = {"load_kg": 20.0, "drift_per_hour": -0.9}
