@@ -49,8 +49,12 @@ PERIOD_S = 1.0 / FREQ_HZ
 PROFILE = {"kind": "sine", "min_contraction": 0.05, "max_contraction": 0.20,
            "freq_hz": FREQ_HZ}
 #: The RLS settings, chosen on the validation run (see the docstring).
+#: Validation (20 kg, 15 % over 10 min; (a) 0.424 mm, (b) 0.518 mm): max_rate 0.01 bar/s
+#: -> (c) 0.447 mm (1.05 x), the model moved 0.98 bar; the same with memory_s 60 or
+#: max_total 2.0 -> 0.447; initial_variance 0.001 -> 0.478 (1.13 x); max_rate 0.02 ->
+#: 0.423 (1.00 x), moved 1.46 bar: taken, with max_total 2.0 for margin.
 ADAPT = {"enabled": True, "memory_s": 120.0, "update_period_s": 0.02,
-         "initial_variance_bar2": 0.01, "max_rate_bar_per_s": 0.01, "max_total_bar": 1.0}
+         "initial_variance_bar2": 0.01, "max_rate_bar_per_s": 0.02, "max_total_bar": 2.0}
 #: test: 30 kg, 10 % over 10 minutes; validation: 20 kg, 15 % over 10 minutes
 TEST = {"load_kg": 30.0, "drift_per_hour": -0.6}
 VALIDATION = {"load_kg": 20.0, "drift_per_hour": -0.9}
@@ -118,6 +122,53 @@ def compute_time(model: str, adapt: dict[str, Any] | None, seconds: float
     return percentile(us, 50), percentile(us, 99), max(us), sum(us) / len(us)
 
 
+def update_cost_us(model: str, n: int = 3000) -> dict[str, tuple[float, float]]:
+    """Median and p99 (us) of one `Adaptation.step` that ends a window (the RLS update
+    of the 108 consequents, the regressor, the bounds, the copy into the evaluator),
+    of one that only sums the sample, and of one model evaluation, in the same run.
+    The sample comes from a stand-in for the muscle's inputs (plain attributes)."""
+    import gc
+    from types import SimpleNamespace
+
+    from pamd.config.schema import AdaptConfig
+    from pamd.control.adapt import Adaptation
+
+    cfg = bench_config(TEST["load_kg"], 0.0, None)
+    loaded = LoadedModel.read(model, cfg.muscle("m1"), cfg.limits["m1"])
+    ff, truth = loaded.feedforward(), loaded.feedforward()
+    settings = {k: v for k, v in ADAPT.items() if k != "enabled"}
+    out: dict[str, tuple[float, float]] = {}
+    clock = time.perf_counter_ns
+    for name, period in (("update", 0.0005), ("sum only", 100.0)):
+        stage = Adaptation("m1", AdaptConfig(**{**settings, "update_period_s": period}), ff)
+        stage.switch(True)
+        ns = []
+        gc.disable()
+        for i in range(n + 20000):  # the velocity filter's warm-up (9 s at 1 kHz) first
+            x = 0.125 + 0.075 * math.sin(0.001 * i)  # the muscle needs 0.05 bar more
+            f, ln = 294.0 + math.sin(0.01 * i), 200 * (1 - x)
+            p = truth.pressure(f, ln, x, 0.075 * 200 * 0.001 * math.cos(0.001 * i)) + 0.05
+            s = SimpleNamespace(force_n=f, length_mm=ln, contraction=x, pressure_bar=p,
+                                pressure_ok=True, length_ok=True,
+                                plausibility=SimpleNamespace(force_ok=True))
+            t0 = clock()
+            stage.step(0.001, int(State.RUNNING), 0, s, True)  # type: ignore[arg-type]
+            if i >= 20000:
+                ns.append(clock() - t0)
+        gc.enable()
+        assert stage.state != 3, stage.describe()  # never frozen: every call counted
+        ns.sort()
+        out[name] = (ns[len(ns) // 2] / 1e3, ns[int(0.99 * len(ns))] / 1e3)
+    ns = []
+    for i in range(n):
+        t0 = clock()
+        ff.pressure(294.0, 180.0 - 0.001 * i, 0.1, 1.0)
+        ns.append(clock() - t0)
+    ns.sort()
+    out["model evaluation"] = (ns[len(ns) // 2] / 1e3, ns[int(0.99 * len(ns))] / 1e3)
+    return out
+
+
 def line(name: str, r: dict[str, Any], base: float | None = None) -> None:
     ratio = f" ({r['rmse'] / base:.2f} x undrifted)" if base else ""
     st = r["status"]
@@ -130,6 +181,28 @@ def line(name: str, r: dict[str, Any], base: float | None = None) -> None:
     print(f"  {name:<40} RMSE {r['rmse']:.3f} mm, max |e| {r['max']:.3f} mm{ratio}{extra}")
 
 
+def print_compute(model: str, seconds: float) -> None:
+    """The controller's compute per tick with adaptation off and on (same run), and
+    the adaptation stage's own cost."""
+    off = compute_time(model, None, seconds)
+    on = compute_time(model, ADAPT, seconds)
+    print(f"\ncontroller compute per tick, position mode, {seconds:g} s (plant "
+          "excluded):")
+    for name, (p50, p99, mx, mean) in (("adaptation off", off), ("adaptation on", on)):
+        print(f"  {name:<15} p50 {p50:.1f} us, p99 {p99:.1f} us, max {mx:.0f} us, mean "
+              f"{mean:.1f} us")
+    print(f"  mean ratio on/off {on[3] / off[3]:.2f} (same run; budget: 1 ms tick)")
+    cost = update_cost_us(model)
+    print("adaptation stage alone (median, p99):")
+    for name, (med, p99) in cost.items():
+        print(f"  {name:<17} {med:7.1f} us, {p99:7.1f} us")
+    u, e = cost["update"][0], cost["model evaluation"][0]
+    per_tick = cost["sum only"][0] + (u - cost["sum only"][0]) * 0.001 / ADAPT[
+        "update_period_s"]
+    print(f"  one update = {u / e:.1f} model evaluations; mean per tick with one update "
+          f"per {ADAPT['update_period_s'] * 1000:g} ticks: {per_tick:.1f} us")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=10.0)
@@ -139,6 +212,7 @@ def main() -> None:
                     "15 %% over 10 minutes): where the RLS settings are chosen")
     ap.add_argument("--keep", metavar="DIR", help="keep (and reuse) recordings and the model")
     ap.add_argument("--compute-s", type=float, default=20.0)
+    ap.add_argument("--cost-only", action="store_true", help="only the compute figures")
     args = ap.parse_args()
     out = args.keep or tempfile.mkdtemp(prefix="pamd-adapt-")
     t_all = time.perf_counter()
@@ -146,6 +220,9 @@ def main() -> None:
     if not os.path.exists(model):
         files = [record(load, lo, hi, out) for load in TRAIN_LOADS_KG for lo, hi in RANGES_BAR]
         train(files, ("force_n", "length_mm", "velocity_mm_s"), 3, model)
+    if args.cost_only:
+        print_compute(model, args.compute_s)
+        return
     run = VALIDATION if args.validate else TEST
     load, drift = run["load_kg"], run["drift_per_hour"]
     print(f"{'VALIDATION' if args.validate else 'test'} run: {FREQ_HZ:g} Hz sine over 5-20 % "
@@ -164,14 +241,7 @@ def main() -> None:
     print(f"  goal (c) <= 1.2 x (a): {'met' if c['rmse'] <= 1.2 * a['rmse'] else 'NOT met'} "
           f"({c['rmse'] / a['rmse']:.2f})")
     if not args.validate:
-        off = compute_time(model, None, args.compute_s)
-        on = compute_time(model, ADAPT, args.compute_s)
-        print(f"\ncontroller compute per tick, position mode, {args.compute_s:g} s (plant "
-              "excluded):")
-        for name, (p50, p99, mx, mean) in (("adaptation off", off), ("adaptation on", on)):
-            print(f"  {name:<15} p50 {p50:.1f} us, p99 {p99:.1f} us, max {mx:.0f} us, mean "
-                  f"{mean:.1f} us")
-        print(f"  mean ratio on/off {on[3] / off[3]:.2f} (same run; budget: 1 ms tick)")
+        print_compute(model, args.compute_s)
     print(f"total {time.perf_counter() - t_all:.0f} s")
 
 

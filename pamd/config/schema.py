@@ -335,10 +335,10 @@ class AdaptConfig:
         "identity); its trace is never let past its start (the bound against wind-up).",
         unit="bar^2", gt=0.0, max=100.0)
     max_rate_bar_per_s: float = spec(
-        0.01, "Largest change of the model per second, in bar of output anywhere in its "
+        0.02, "Largest change of the model per second, in bar of output anywhere in its "
         "training ranges; a longer step is shortened to it.", unit="bar/s", gt=0.0)
     max_total_bar: float = spec(
-        1.0, "Largest change from the trained model, in bar of output anywhere in its "
+        2.0, "Largest change from the trained model, in bar of output anywhere in its "
         "training ranges; an update past it is refused and adaptation freezes.",
         unit="bar", gt=0.0)
 

@@ -61,6 +61,7 @@ class StatusBuilder:
                 "force_offset_n": ref.force_offset_n}
             ff = m.length_control.ff
             ms["model"] = ff.describe() if ff is not None else None
+            ms["adapt"] = m.adaptation.describe()  # online adaptation (pamd.control.adapt)
             dm = deadman.get(m.name)
             ms["deadman_left_s"] = None if dm is None else max(0.0, dm[0] - ctrl.now)
         seq = running_plan(ctrl)
