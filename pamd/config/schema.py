@@ -9,6 +9,21 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from pamd.config.control_schema import (
+    ControlConfig as ControlConfig,
+)
+from pamd.config.control_schema import (
+    IlcConfig as IlcConfig,
+)
+from pamd.config.control_schema import (
+    PidConfig as PidConfig,
+)
+from pamd.config.control_schema import (
+    PositionConfig as PositionConfig,
+)
+from pamd.config.control_schema import (
+    PositionPidConfig as PositionPidConfig,
+)
 from pamd.schema.engine import spec
 
 
@@ -98,145 +113,6 @@ class MuscleLimits:
                                          "(default: the rating).", min=0.0, max=1.0)
     max_pretension: float | None = spec(None, "Stretch limit as a fraction (default: the "
                                         "rating).", min=0.0, max=1.0)
-
-
-@dataclass(frozen=True, kw_only=True)
-class PidConfig:
-    kp: float = spec(0.54, "Proportional gain (default: SIMC PI on the simulated rig's "
-                     "measured step response, bench/tune_pressure_loop.py).", unit="bar/bar",
-                     min=0.0)
-    ki_per_s: float = spec(41.7, "Integral gain.", unit="1/s", min=0.0)
-    kd_s: float = spec(0.0, "Derivative gain (on measurement).", unit="s", min=0.0)
-    derivative_filter_hz: float = spec(30.0, "Cut-off of the derivative's low-pass filter.",
-                                       unit="Hz", gt=0.0)
-    integral_limit_bar: float = spec(1.0, "Anti-windup clamp of the integral term.",
-                                     unit="bar", min=0.0)
-    output_limit_bar: float = spec(1.5, "Largest correction the PID adds to the setpoint.",
-                                   unit="bar", min=0.0)
-
-
-@dataclass(frozen=True, kw_only=True)
-class PositionPidConfig:
-    kp_bar_per_mm: float = spec(0.0607, "Proportional gain on the length error (measured - "
-                                "target: too long means more pressure). Default: SIMC PI "
-                                "on the simulated rig's measured pressure -> length step "
-                                "response at 30 kg (bench/tune_pressure_loop.py).",
-                                unit="bar/mm", min=0.0)
-    ki_bar_per_mm_s: float = spec(1.93, "Integral gain.", unit="bar/(mm s)", min=0.0)
-    kd_bar_s_per_mm: float = spec(0.0, "Derivative gain (on the measured length).",
-                                  unit="bar s/mm", min=0.0)
-    derivative_filter_hz: float = spec(10.0, "Cut-off of the derivative's low-pass filter.",
-                                       unit="Hz", gt=0.0)
-    integral_limit_bar: float = spec(6.0, "Anti-windup clamp of the integral term (it carries "
-                                     "the whole pressure when there is no model).", unit="bar",
-                                     min=0.0)
-    output_limit_bar: float = spec(6.0, "Largest correction the position loop adds to the "
-                                   "model's pressure.", unit="bar", min=0.0)
-
-
-@dataclass(frozen=True, kw_only=True)
-class IlcConfig:
-    gain: float = spec(0.5, "Learning gain: each cycle, the correction of the position "
-                       "loop's target at a phase grows by this times the length error one "
-                       "`lead_s` later (mm per mm; converges for 0 < gain < 2 where the "
-                       "closed position loop follows its target).", min=0.0, max=2.0)
-    gain_d_s: float = spec(0.0, "Learning gain on the error's rate of change.", unit="s",
-                           min=0.0)
-    lead_s: float = spec(0.068, "Phase lead of the learning update: the delay from the "
-                         "position loop's target to the length, i.e. the position loop's "
-                         "dead time + lag that `pamd tune --loop position` measures "
-                         "(default: 36.8 + 31.3 ms, the simulated DMSP-20-200 at 30 kg). "
-                         "Applied exactly, not rounded to `resolution_s`.", unit="s",
-                         min=0.0, max=5.0)
-    cutoff_hz: float = spec(6.0, "Cut-off of the Q-filter, the zero-phase low-pass "
-                            "applied to the whole learned correction once a cycle (gain "
-                            "1/2 here): what the learning may correct. Keep it below the "
-                            "position loop's bandwidth and below 1 / (4 x the uncertainty "
-                            "of lead_s).", unit="Hz", gt=0.0)
-    forgetting: float = spec(0.0, "Share of the learned correction forgotten per cycle "
-                             "(bounds it against slow drift the Q-filter passes).", min=0.0,
-                             max=0.5)
-    limit_mm: float = spec(10.0, "Largest learned correction of the length target.",
-                           unit="mm", min=0.0)
-    resolution_s: float = spec(0.01, "Time resolution of the learned correction over a "
-                               "cycle (bins, read between their centres by linear "
-                               "interpolation).", unit="s", gt=0.0, max=2.0)
-
-
-@dataclass(frozen=True, kw_only=True)
-class PositionConfig:
-    pid: PositionPidConfig = spec(PositionPidConfig(), "Outer position loop (position "
-                                  "mode): corrects what the model misses.")
-    max_rate_per_s: float | None = spec(
-        None, "Fastest change of a length target, contraction (fraction) per second; "
-        "faster length profiles and setpoint ramps are refused, naming the frequency that "
-        "would pass. null (default): derived per muscle from what it can follow at its "
-        "configured load: the slew limit times the least contraction per bar of its usable "
-        "range (force model), bounded by the pressure loop's bandwidth (a sine over the "
-        "whole range at 1 / (2 pi rate_feedforward_s)); `pamd check-config` prints it.",
-        unit="1/s", gt=0.0, max=1.0)
-    force_filter_s: float = spec(0.5, "position mode: time constant of the low-pass on the "
-                                 "measured force fed to the model (the model is a "
-                                 "quasi-static inverse; the force's fast part would close a "
-                                 "loop through it).", unit="s", gt=0.0, max=10.0)
-    bumpless_s: float = spec(1.0, "length_force mode: the pressure difference found at a "
-                             "mode change or model swap fades with this time constant.",
-                             unit="s", gt=0.0)
-    ilc: IlcConfig = spec(IlcConfig(), "Iterative learning across repeated cycles "
-                          "(position mode with `ilc: true`; seed 003's PID-type ILC).")
-    length_response_s: float = spec(
-        0.0684, "Dead time + lag of the measured length after a pressure setpoint step, "
-        "the pressure loop closed with its rate feedforward (the position loop's FOPDT "
-        "fit: `pamd tune --loop position`, bench/tune_pressure_loop.py --loop position; "
-        "36.9 + 31.5 ms on the simulated rig at 30 kg). Sets the default `preview_s`.",
-        unit="s", min=0.0, max=2.0)
-    preview_s: float | None = spec(
-        None, "position mode: the model's feedforward (and the dynamic terms) are evaluated "
-        "on the length profile this far ahead, so the pressure is there when the length is "
-        "due; the position PID still compares with the present target. Null: "
-        "`length_response_s` - `control.rate_feedforward_s`, the setpoint -> length delay "
-        "less the pressure loop's dead time + lag, which the rate feedforward (fed the "
-        "model's planned rate) already cancels; 0.0429 s on the simulated rig. 0: no "
-        "preview.", unit="s", min=0.0, max=2.0)
-    planned_rate: bool = spec(
-        True, "position mode: the setpoint's rate fed to the pressure loop's rate "
-        "feedforward is the model's derivative along the planned motion (dP/dL dL/dt + "
-        "dP/dv dv/dt at the preview, plus the outer loop's filtered rate) rather than the "
-        "filtered numeric derivative of the whole setpoint (which lags by its 50 ms "
-        "window). A stateful model keeps the numeric derivative.")
-    flow_feedforward_bar_s_per_mm: float = spec(
-        0.0, "position mode: added to the valve command per mm/s of planned shortening "
-        "(at the preview): the air a moving muscle draws (contracting) or returns makes "
-        "its pressure sag or rise behind the regulator's lag. Identified on the rig, never "
-        "from a simulator's parameters: the slope of the pressure loop's correction "
-        "against the length rate on a recorded position run (bench/position_fast.py "
-        "fits it on a validation run). 0: off.", unit="bar s/mm", min=0.0, max=1.0)
-    model_sweep_hz: float | None = spec(
-        None, "position mode: the frequency of the sweeps the model was trained on (e.g. "
-        "0.05 for the 0.05 Hz sweeps of the walk-through). Then a periodic length "
-        "profile at f Hz feeds the model's velocity input on a time axis stretched to "
-        "its training sweeps (its filter window and the velocity times model_sweep_hz / "
-        "f): the model sees the hysteresis branch at the same phase of the stroke as in "
-        "training, not a quarter period late at 1 Hz. Null: the velocity as filtered in "
-        "training, at any speed.", unit="Hz", gt=0.0, max=100.0)
-    force_input: Literal["measured", "planned"] = spec(
-        "measured", "position mode: the model's force input. `measured`: the measured "
-        "force through the `force_filter_s` low-pass. `planned`: the hanging load's "
-        "weight plus its inertia on the planned motion at the preview, load_kg (g - "
-        "d2L/dt2), no lag (a hanging load only; bench/position_fast.py measures it).")
-
-
-@dataclass(frozen=True, kw_only=True)
-class ControlConfig:
-    pid: PidConfig = spec(PidConfig(), "PID pressure loop gains.")
-    position: PositionConfig = spec(PositionConfig(), "The length modes (length_force, "
-                                    "position): outer position loop and iterative learning.")
-    rate_feedforward_s: float = spec(
-        0.0255, "The setpoint's rate times this is added to the valve command; it cancels "
-        "the pressure loop's dead time plus lag, both measured from a step response "
-        "(bench/tune_pressure_loop.py).", unit="s", min=0.0, max=1.0)
-    slew_limit_bar_per_s: float = spec(5.0, "Fastest allowed setpoint change; faster "
-                                       "profiles are refused.", unit="bar/s", gt=0.0)
 
 
 @dataclass(frozen=True, kw_only=True)
