@@ -8,6 +8,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import copy  # noqa: E402
+import math  # noqa: E402
 import tempfile  # noqa: E402
 
 # The benchmarks' simulated rigs are in-process, each their own: their rig locks
@@ -122,3 +123,37 @@ def record_profile(cfg: LoadedConfig, out_dir: str, run_name: str,
         d.wait(timeout_s=60)
         d.close()
     return str(d.result()["recording"]["files"][0])
+
+
+class CycleErrors:
+    """A length error per cycle of a periodic profile that starts at `t0_s`: its sum of
+    squares, count and largest |error| per cycle (the position benchmarks' figures)."""
+
+    def __init__(self, cycles: int, period_s: float, t0_s: float) -> None:
+        self.period_s, self.t0_s = period_s, t0_s
+        self.sq = [0.0] * cycles
+        self.n = [0] * cycles
+        self.worst = [0.0] * cycles
+
+    def add(self, t_s: float, error_mm: float) -> int:
+        """Count one sample; returns its cycle, or -1 before the first or after the last."""
+        tau = t_s - self.t0_s
+        c = int(tau / self.period_s)
+        if tau <= 0 or c >= len(self.sq):
+            return -1
+        self.sq[c] += error_mm * error_mm
+        self.n[c] += 1
+        self.worst[c] = max(self.worst[c], abs(error_mm))
+        return c
+
+    def per_cycle(self) -> list[float]:
+        """Each cycle's RMSE (NaN for a cycle without samples)."""
+        return [math.sqrt(s / k) if k else math.nan for s, k in zip(self.sq, self.n,
+                                                                     strict=True)]
+
+    def rmse(self, first: int) -> float:
+        """RMSE over the cycles from `first` on."""
+        return math.sqrt(sum(self.sq[first:]) / max(1, sum(self.n[first:])))
+
+    def max(self, first: int) -> float:
+        return max(self.worst[first:])

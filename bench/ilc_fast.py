@@ -26,7 +26,7 @@ import math
 import time
 from typing import Any
 
-from _common import sim_config
+from _common import CycleErrors, sim_config
 
 from pamd.control.feedforward import LoadedModel
 from pamd.harness import Harness
@@ -53,23 +53,13 @@ def track(freq_hz: float, cycles: int, ilc: dict[str, float] | None, load_kg: fl
               max_contraction=contraction[1], freq_hz=freq_hz, cycles=cycles)
     assert v["ok"], v
     m = h.m1
-    period = 1.0 / freq_hz
-    t0 = h.t + m.profile.lead_in_s
-    sq = [0.0] * cycles
-    n = [0] * cycles
-    worst = [0.0] * cycles
+    errors = CycleErrors(cycles, 1.0 / freq_hz, h.t + m.profile.lead_in_s)
     while h.ctrl.supervisor.state == State.RUNNING:
         h.step(h.period_s)
-        tau = h.t - t0
-        c = int(tau / period)
-        if tau > 0 and c < cycles and m.profile is not None:
-            e = m.length_mm - m.target_length_mm
-            sq[c] += e * e
-            n[c] += 1
-            worst[c] = max(worst[c], abs(e))
+        if m.profile is not None:
+            errors.add(h.t, m.length_mm - m.target_length_mm)
     h.rig.close()
-    return [(math.sqrt(s / k) if k else math.nan, w) for s, k, w in zip(sq, n, worst,
-                                                                          strict=True)]
+    return list(zip(errors.per_cycle(), errors.worst, strict=True))
 
 
 def summary(per: list[tuple[float, float]]) -> str:

@@ -49,7 +49,13 @@ from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
-from _common import REPO, controller_compute_us, percentile, sim_config  # noqa: E402
+from _common import (  # noqa: E402
+    REPO,
+    CycleErrors,
+    controller_compute_us,
+    percentile,
+    sim_config,
+)
 from position_tracking import RANGES_BAR, TRAIN_LOADS_KG, record, train  # noqa: E402
 
 from pamd.control.feedforward import LoadedModel  # noqa: E402
@@ -99,29 +105,19 @@ def track(model: str | None, freq_hz: float, cycles: int, load_kg: float,
     assert v["ok"], v
     m = h.m1
     assert m.profile is not None
-    t0 = h.t + m.profile.lead_in_s
-    period = 1.0 / freq_hz
-    sq, n, worst = [0.0] * cycles, [0] * cycles, [0.0] * cycles
+    errors = CycleErrors(cycles, 1.0 / freq_hz, h.t + m.profile.lead_in_s)
     rows: list[tuple[float, float, float]] = []
     pid = m.pressure_loop.pid
     while h.ctrl.supervisor.state == State.RUNNING:
         h.step(h.period_s)
-        tau = h.t - t0
-        c = int(tau / period)
-        if tau > 0 and c < cycles and m.profile is not None:
-            e = m.length_mm - m.target_length_mm
-            sq[c] += e * e
-            n[c] += 1
-            worst[c] = max(worst[c], abs(e))
-            if fit and c >= SKIP_CYCLES:
-                rows.append((pid.p + pid.i + pid.d, m.setpoint_bar, m.velocity_mm_s))
+        if m.profile is None:
+            continue
+        c = errors.add(h.t, m.length_mm - m.target_length_mm)
+        if fit and c >= SKIP_CYCLES:
+            rows.append((pid.p + pid.i + pid.d, m.setpoint_bar, m.velocity_mm_s))
     h.rig.close()
-    after = slice(SKIP_CYCLES, cycles)
-    return {"rmse": math.sqrt(sum(sq[after]) / max(1, sum(n[after]))),
-            "max": max(worst[after]),
-            "per_cycle": [math.sqrt(s / k) if k else math.nan for s, k in zip(sq, n,
-                                                                              strict=True)],
-            "rows": rows}
+    return {"rmse": errors.rmse(SKIP_CYCLES), "max": errors.max(SKIP_CYCLES),
+            "per_cycle": errors.per_cycle(), "rows": rows}
 
 
 def fit_flow(rows: list[tuple[float, float, float]]) -> tuple[float, float, float]:

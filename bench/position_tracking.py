@@ -28,12 +28,17 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import glob  # noqa: E402
-import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from typing import Any  # noqa: E402
 
-from _common import controller_compute_us, percentile, record_profile, sim_config  # noqa: E402
+from _common import (  # noqa: E402
+    CycleErrors,
+    controller_compute_us,
+    percentile,
+    record_profile,
+    sim_config,
+)
 
 from pamd.control.feedforward import LoadedModel  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
@@ -92,28 +97,17 @@ def track(model: str | None, cycles: int, ilc: bool = False) -> dict[str, Any]:
     v = h.cmd("profile", muscle="m1", cycles=cycles, **PROFILE)
     assert v["ok"], v
     m = h.m1
-    t0 = h.t + m.profile.lead_in_s
-    sq = [0.0] * cycles
-    n = [0] * cycles
-    worst = [0.0] * cycles
+    errors = CycleErrors(cycles, PERIOD_S, h.t + m.profile.lead_in_s)
     clipped = 0
     clip_bit = int(Flag.FF_CLIPPED)
     while h.ctrl.supervisor.state == State.RUNNING:
         h.step(h.period_s)
-        tau = h.t - t0
-        c = int(tau / PERIOD_S)
-        if tau > 0 and c < cycles and m.profile is not None:
-            e = m.length_mm - m.target_length_mm
-            sq[c] += e * e
-            n[c] += 1
-            worst[c] = max(worst[c], abs(e))
+        if m.profile is not None and errors.add(h.t, m.length_mm - m.target_length_mm) >= 0:
             clipped += (m.length_control.flags & clip_bit) != 0
     h.rig.close()
-    rmse = [math.sqrt(s / k) if k else math.nan for s, k in zip(sq, n, strict=True)]
-    after = slice(1, cycles)
-    tot = math.sqrt(sum(sq[after]) / max(1, sum(n[after])))
-    return {"rmse": rmse, "max": worst, "rmse_after_first": tot,
-            "max_after_first": max(worst[after]) if cycles > 1 else worst[0],
+    return {"rmse": errors.per_cycle(), "max": errors.worst,
+            "rmse_after_first": errors.rmse(1),
+            "max_after_first": errors.max(1) if cycles > 1 else errors.worst[0],
             "clipped_ticks": clipped}
 
 
