@@ -5,7 +5,8 @@
 `signals.inflate` and `signals.exhaust` are required, each on a *digital* output of
 its driver (`pamd.drivers.Channel.digital`: the sim driver's NAME.inflate and
 NAME.exhaust, a Modbus coil), `signals.valve` is refused, and the PWM period must
-leave a valve the time to open and close within it. A simulated muscle's sensors
+leave a valve the time to open and close within it. An exhaust assist
+(`exhaust_assist_below_bar`) needs a regulator's dump valve. A simulated muscle's sensors
 must sample within the timeout of the signal that reads them (a device slower than
 its timeout is stale by construction). Every refusal names file, line and key.
 """
@@ -45,6 +46,10 @@ def _check_proportional(m: MuscleConfig, item: Any, sig_node: Any, base: str,
                 "the pressure regulator's setpoint output (actuation: proportional; for "
                 "solenoid valves set actuation: onoff with signals.inflate and "
                 "signals.exhaust)", "none")
+    if m.exhaust_assist_below_bar is not None and m.signals.exhaust is None:
+        ctx.add(line_of(item, "exhaust_assist_below_bar"), f"{base}.exhaust_assist_below_bar",
+                "a dump valve to assist with (signals.exhaust), or no exhaust assist",
+                f"{m.exhaust_assist_below_bar:g} bar without signals.exhaust")
     if m.signals.inflate is not None:
         ctx.add(line_of(sig_node, "inflate"), f"{base}.signals.inflate",
                 "no inflate valve with actuation: proportional (a regulator fills the "
@@ -53,6 +58,10 @@ def _check_proportional(m: MuscleConfig, item: Any, sig_node: Any, base: str,
 
 def _check_onoff(m: MuscleConfig, item: Any, sig_node: Any, base: str,
                  digital: dict[str, set[str]], ctx: Context) -> None:
+    if m.exhaust_assist_below_bar is not None:
+        ctx.add(line_of(item, "exhaust_assist_below_bar"), f"{base}.exhaust_assist_below_bar",
+                "no exhaust assist with actuation: onoff (its PWM drives the exhaust valve)",
+                f"{m.exhaust_assist_below_bar:g} bar")
     if m.signals.valve is not None:
         ctx.add(line_of(sig_node, "valve"), f"{base}.signals.valve",
                 "no regulator setpoint with actuation: onoff (the inflate and exhaust valves "

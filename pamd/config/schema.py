@@ -236,6 +236,13 @@ class MuscleConfig:
         "pulsed within `onoff.pwm_period_s` (seed 004).")
     onoff: OnOffConfig = spec(OnOffConfig(), "`actuation: onoff`: the valves' PWM period "
                               "and switching times.")
+    exhaust_assist_below_bar: float | None = spec(
+        None, "`actuation: proportional` with a dump valve (signals.exhaust): below this "
+        "command the dump valve opens while the measured pressure stands 0.1 bar or more "
+        "above the command, and shuts once it is within 0.03 bar. A regulator vents ever "
+        "slower as the pressure nears the atmosphere's; this lets a fast profile fall as "
+        "fast near 0 bar (the 1 Hz 0-6 bar sine: bench/tracking_sine.py). Null: the dump "
+        "valve opens only to vent to a safe pressure of 0.", unit="bar", gt=0.0, max=10.0)
     control: MuscleControlConfig = spec(
         MuscleControlConfig(), "This muscle's own gains where muscles differ (`pamd tune "
         "--save` writes them here when their fits differ): each key, named as in the rig's "

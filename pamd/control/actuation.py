@@ -45,6 +45,7 @@ How to add an actuation: a class with these members in `pamd/control/`, built by
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple, Protocol
 
 from pamd.config.schema import MuscleConfig, OnOffConfig
@@ -91,14 +92,25 @@ class Actuation(Protocol):
         ...
 
 
-class RegulatorActuation:
-    """A proportional pressure regulator's setpoint, plus the optional exhaust valve."""
+#: Exhaust assist: the dump valve opens with the pressure this far above the command,
+#: and shuts once it is within ASSIST_CLOSE_BAR (hysteresis against chatter).
+ASSIST_OPEN_BAR = 0.1
+ASSIST_CLOSE_BAR = 0.03
 
-    def __init__(self, valve: OutputBinding, exhaust: OutputBinding | None) -> None:
+
+class RegulatorActuation:
+    """A proportional pressure regulator's setpoint, plus the optional exhaust (dump)
+    valve: open to vent to a safe pressure of 0 (`vent`), and, with an exhaust assist,
+    while a command below `assist_below_bar` stands well under the measured pressure
+    (a regulator alone vents ever slower as the pressure nears the atmosphere's)."""
+
+    def __init__(self, valve: OutputBinding, exhaust: OutputBinding | None,
+                 assist_below_bar: float | None = None) -> None:
         self.valve = valve
         self.exhaust = exhaust
         self.exhaust_open = False
         self.switch_count = 0
+        self.assist_below_bar = -math.inf if assist_below_bar is None else assist_below_bar
 
     def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
               vent: bool) -> int:
@@ -106,6 +118,9 @@ class RegulatorActuation:
         exhaust = self.exhaust
         if exhaust is None:
             return 0
+        if not vent and command_bar < self.assist_below_bar:
+            gap = pressure_bar - command_bar  # NaN (untrusted pressure): shut
+            vent = gap > ASSIST_OPEN_BAR or (self.exhaust_open and gap > ASSIST_CLOSE_BAR)
         if vent != self.exhaust_open:
             exhaust.write_si(1.0 if vent else 0.0)
             self.exhaust_open = vent
@@ -359,4 +374,4 @@ def actuation_for(signals: MuscleSignals, muscle: MuscleConfig) -> Actuation:
                               muscle=muscle.name)
     if signals.valve is None:
         raise ValueError(f"muscle {muscle.name!r}: a regulator needs its valve output")
-    return RegulatorActuation(signals.valve, signals.exhaust)
+    return RegulatorActuation(signals.valve, signals.exhaust, muscle.exhaust_assist_below_bar)

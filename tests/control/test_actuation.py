@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import pytest
 
+from pamd.config import load_config
 from pamd.control.actuation import Actuation, RegulatorActuation
+from pamd.errors import ConfigError
 from pamd.tick import Flag
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_the_regulator_actuation_writes_the_setpoint_and_vents_on_request(
@@ -49,3 +54,49 @@ def test_the_tick_vents_only_at_a_safe_pressure_of_zero(harness: Any) -> None:
     assert any(flags) and not flags[0]  # opened once the ramp reached 0 bar
     toggles = sum(a != b for a, b in zip(flags, flags[1:], strict=False))
     assert h.m1.actuation.switch_count == toggles  # every switch is counted
+
+
+def test_the_exhaust_assist_opens_below_its_threshold_with_hysteresis(harness: Any) -> None:
+    h = harness()
+    h.step(0.01)
+    act = h.m1.actuation
+    valve, exhaust = act.valve, act.exhaust
+    assisted = RegulatorActuation(valve, exhaust, assist_below_bar=2.0)
+    reg = h.sim.plant("m1").regulator
+    assert assisted.write(1.0, 1.05, h.t, h.period_s, False) == 0  # 0.05 bar above: shut
+    assert assisted.write(1.0, 1.2, h.t, h.period_s, False) == int(Flag.EXHAUST_OPEN)
+    assert reg.exhaust_open and assisted.switch_count == 1
+    assert assisted.write(1.0, 1.05, h.t, h.period_s, False)  # within the hysteresis: open
+    assert assisted.write(1.0, 1.02, h.t, h.period_s, False) == 0  # within 0.03: shut
+    assert not reg.exhaust_open and assisted.switch_count == 2
+    assert assisted.write(2.5, 3.5, h.t, h.period_s, False) == 0  # above the threshold
+    assert assisted.write(1.0, float("nan"), h.t, h.period_s, False) == 0  # untrusted: shut
+    # without an assist (the default) the same gap never opens the dump valve
+    assert act.write(1.0, 1.5, h.t, h.period_s, False) == 0 and not reg.exhaust_open
+
+
+def test_an_exhaust_assist_needs_a_regulators_dump_valve(tmp_path: Path) -> None:
+    src = (REPO / "config" / "sim.yaml").read_text()
+    bad = src.replace("      exhaust:  {driver: sim, channel: m1.exhaust}\n", "").replace(
+        "\n    load_kg: 30 ", "\n    exhaust_assist_below_bar: 2.0\n    load_kg: 30 ", 1)
+    path = tmp_path / "bad.yaml"
+    path.write_text(bad)
+    with pytest.raises(ConfigError) as err:
+        load_config(str(path))
+    line = bad.splitlines().index("    exhaust_assist_below_bar: 2.0") + 1
+    assert f"bad.yaml:{line}" in str(err.value)
+    assert "muscles[0].exhaust_assist_below_bar" in str(err.value)
+    assert "signals.exhaust" in str(err.value)
+
+
+def test_on_off_valves_take_no_exhaust_assist(tmp_path: Path) -> None:
+    src = (REPO / "config" / "sim-onoff.yaml").read_text()
+    bad = src.replace("\n    actuation: onoff", "\n    actuation: onoff\n"
+                      "    exhaust_assist_below_bar: 2.0", 1)
+    path = tmp_path / "bad.yaml"
+    path.write_text(bad)
+    with pytest.raises(ConfigError) as err:
+        load_config(str(path))
+    line = bad.splitlines().index("    exhaust_assist_below_bar: 2.0") + 1
+    assert f"bad.yaml:{line}" in str(err.value)
+    assert "no exhaust assist with actuation: onoff" in str(err.value)
