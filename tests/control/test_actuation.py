@@ -75,28 +75,29 @@ def test_the_exhaust_assist_opens_below_its_threshold_with_hysteresis(harness: A
     assert act.write(1.0, 1.5, h.t, h.period_s, False) == 0 and not reg.exhaust_open
 
 
-def test_an_exhaust_assist_needs_a_regulators_dump_valve(tmp_path: Path) -> None:
-    src = (REPO / "config" / "sim.yaml").read_text()
-    bad = src.replace("      exhaust:  {driver: sim, channel: m1.exhaust}\n", "").replace(
-        "\n    load_kg: 30 ", "\n    exhaust_assist_below_bar: 2.0\n    load_kg: 30 ", 1)
+def _refusal(tmp_path: Path, config: str, edits: list[tuple[str, str]]) -> str:
+    """The ConfigError of config/`config` with its `edits` (old, new) made; it must name
+    the file and the line of the exhaust assist key."""
+    bad = (REPO / "config" / config).read_text()
+    for old, new in edits:
+        bad = bad.replace(old, new, 1)
     path = tmp_path / "bad.yaml"
     path.write_text(bad)
     with pytest.raises(ConfigError) as err:
         load_config(str(path))
     line = bad.splitlines().index("    exhaust_assist_below_bar: 2.0") + 1
     assert f"bad.yaml:{line}" in str(err.value)
-    assert "muscles[0].exhaust_assist_below_bar" in str(err.value)
-    assert "signals.exhaust" in str(err.value)
+    return str(err.value)
+
+
+def test_an_exhaust_assist_needs_a_regulators_dump_valve(tmp_path: Path) -> None:
+    err = _refusal(tmp_path, "sim.yaml", [
+        ("      exhaust:  {driver: sim, channel: m1.exhaust}\n", ""),
+        ("\n    load_kg: 30 ", "\n    exhaust_assist_below_bar: 2.0\n    load_kg: 30 ")])
+    assert "muscles[0].exhaust_assist_below_bar" in err and "signals.exhaust" in err
 
 
 def test_on_off_valves_take_no_exhaust_assist(tmp_path: Path) -> None:
-    src = (REPO / "config" / "sim-onoff.yaml").read_text()
-    bad = src.replace("\n    actuation: onoff", "\n    actuation: onoff\n"
-                      "    exhaust_assist_below_bar: 2.0", 1)
-    path = tmp_path / "bad.yaml"
-    path.write_text(bad)
-    with pytest.raises(ConfigError) as err:
-        load_config(str(path))
-    line = bad.splitlines().index("    exhaust_assist_below_bar: 2.0") + 1
-    assert f"bad.yaml:{line}" in str(err.value)
-    assert "no exhaust assist with actuation: onoff" in str(err.value)
+    err = _refusal(tmp_path, "sim-onoff.yaml", [
+        ("\n    actuation: onoff", "\n    actuation: onoff\n    exhaust_assist_below_bar: 2.0")])
+    assert "no exhaust assist with actuation: onoff" in err
