@@ -198,30 +198,24 @@ class Ilc:
             out[k] = w
 
     def forward(self, p: int, end: int) -> None:
-        n, warm = self.n, self.warm
-        a = self.pole
-        b = 1.0 - a
-        w = self.nxt
-        y = self.y
-        if p == 0:
-            y = w[(n - warm) % n]
-        for v in range(p, end):
-            idx = (v - warm) % n
-            y = a * y + b * w[idx]
-            if v >= warm:
-                w[idx] = y
-        self.y = y
+        self.low_pass(p, end, 1, 0)
 
     def backward(self, p: int, end: int) -> None:
+        self.low_pass(p, end, -1, -1)
+
+    def low_pass(self, p: int, end: int, sign: int, offset: int) -> None:
+        """One pass of the circular first-order low-pass over the next correction, bins
+        p to end of it (the first `warm` of them only warm the filter up): forward
+        (sign 1) from bin -warm, or backward (sign -1, offset -1) from bin warm - 1."""
         n, warm = self.n, self.warm
         a = self.pole
         b = 1.0 - a
         w = self.nxt
         y = self.y
         if p == 0:
-            y = w[(warm - 1) % n]
+            y = w[(offset - sign * warm) % n]
         for v in range(p, end):
-            idx = (warm - 1 - v) % n
+            idx = (sign * (v - warm) + offset) % n
             y = a * y + b * w[idx]
             if v >= warm:
                 w[idx] = y

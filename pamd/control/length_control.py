@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING
 from pamd.control.ilc import Ilc
 from pamd.control.pid import Pid
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
+from pamd.muscle import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfilePoint
 from pamd.tick import Flag, Mode, State
 
@@ -64,8 +65,6 @@ if TYPE_CHECKING:
 SP_RATE_WINDOW_S = 0.05
 #: Step along the planned motion for the model's derivative (the planned rate), s.
 RATE_STEP_S = 0.005
-#: Standard gravity, m/s^2 (the planned force of a hanging load).
-G_M_S2 = 9.80665
 
 F_CLIP, F_SLEW = int(Flag.FF_CLIPPED), int(Flag.SLEW_LIMITED)
 S_RUNNING, S_LOAD = int(State.RUNNING), int(State.LOAD_CHANGE)
@@ -260,7 +259,7 @@ class LengthControl:
             f_in = self.force_lp = fl + dt / (self.force_tau_s + dt) * (force_n - fl) if (
                 fl == fl) else force_n
             if self.planned_force:  # weight + inertia of the load on the planned motion
-                f_in = self.load_kg * (G_M_S2 - 0.001 * acc_m)
+                f_in = self.load_kg * (GRAVITY_M_S2 - 0.001 * acc_m)
         ff = ff_rate = 0.0
         ff_obj = self.ff
         planned = pos and self.planned_rate and ff_obj is not None and not ff_obj.stateful
@@ -319,7 +318,6 @@ class LengthControl:
         self.last_sp = want
         self.flags = flags
         return want
-
 
     def _new_profile(self, prof: Profile | None) -> None:
         """A new length profile (or none): the time scale of the model's velocity input.

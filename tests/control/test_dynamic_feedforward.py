@@ -16,11 +16,11 @@ import pytest
 from pamd.config import LoadedConfig
 from pamd.config.schema import PositionConfig, PositionPidConfig
 from pamd.control.feedforward import Feedforward, LoadedModel
-from pamd.control.length_control import G_M_S2, LengthControl, preview_s_of
+from pamd.control.length_control import LengthControl, preview_s_of
 from pamd.harness import Harness
 from pamd.models.anfis import TrainingOptions, fit, save
 from pamd.models.contract import InverseModel
-from pamd.muscle import force_model, pressure_for_force
+from pamd.muscle import GRAVITY_M_S2, force_model, pressure_for_force
 from pamd.profiles import Profile, ProfilePoint, ProfileSpec
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.tick import Mode, State
@@ -173,8 +173,8 @@ def test_planned_force_is_the_loads_weight_plus_its_inertia(
     pt = ProfilePoint()
     prof.evaluate(0.25, pt)  # the top of the stroke (most contracted)
     acc_m_s2 = -0.2 * pt.accel  # length's acceleration: contraction x 200 mm, in m/s^2
-    f = 30.0 * (G_M_S2 - acc_m_s2)
-    assert f < 30.0 * G_M_S2 - 10.0  # the load decelerates at the top: pulls less
+    f = 30.0 * (GRAVITY_M_S2 - acc_m_s2)
+    assert f < 30.0 * GRAVITY_M_S2 - 10.0  # the load decelerates at the top: pulls less
     assert lc.feedforward_bar == pytest.approx(
         model_p(f, 200.0 * (1.0 - pt.value)), abs=2e-3)
 
