@@ -14,9 +14,13 @@ import argparse
 import json
 import sys
 
+from pamd.cli.net import add_client_args
 from pamd.errors import CommandRefused
 from pamd.models.anfis.adapted import save_adapted
 from pamd.net.client import Client
+
+#: How long `pamd model save` waits for the daemon's answer by default, s.
+SAVE_TIMEOUT_S = 10.0
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -35,13 +39,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--muscle", required=True, help="the muscle whose model adapted")
     s.add_argument("--source", metavar="FILE", help="the source model file, if not at the "
                    "path the daemon loaded it from (e.g. on another machine)")
-    s.add_argument("--rig", help="rig id (default: the one rig alive)")
-    s.add_argument("--zenoh-config", metavar="FILE",
-                   help="Zenoh client config (JSON5), e.g. config/zenoh/lab-client.json5")
-    s.add_argument("--connect", metavar="ENDPOINT",
-                   help="connect here (default: tcp/127.0.0.1:7447)")
-    s.add_argument("--timeout", type=float, metavar="S", default=10.0,
-                   help="how long to wait for the daemon's answer (default 10 s)")
+    add_client_args(s)
     s.set_defaults(func=save)
 
 
@@ -49,7 +47,7 @@ def save(args: argparse.Namespace) -> int:
     with Client(args.zenoh_config, args.connect) as cl:
         rig = cl.rig(args.rig)
         verdict = cl.command(rig, "adapt", {"muscle": args.muscle, "action": "parameters"},
-                             timeout_s=args.timeout)
+                             timeout_s=args.timeout or SAVE_TIMEOUT_S)
     if not verdict.get("ok"):
         raise CommandRefused(f"adapt parameters refused: {verdict.get('error')}")
     path = save_adapted(verdict, args.out, args.source)

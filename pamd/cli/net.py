@@ -41,7 +41,8 @@ CMD_EPILOG = """examples:
 HELP_WIDTH = 88  # `pamd cmd --help`'s own paragraphs
 
 
-def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
+def add_client_args(p: argparse.ArgumentParser, suppress: bool = False) -> None:
+    """The options of every command that talks to a running daemon over Zenoh."""
     d: Any = argparse.SUPPRESS if suppress else None
     p.add_argument("--rig", default=d, help="rig id (default: the one rig alive)")
     p.add_argument("--zenoh-config", metavar="FILE", default=d,
@@ -49,14 +50,14 @@ def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
     p.add_argument("--connect", metavar="ENDPOINT", default=d,
                    help="connect here (default: tcp/127.0.0.1:7447)")
     p.add_argument("--timeout", type=float, metavar="S", default=d,
-                   help="how long to wait for an answer (status 3 s, cmd 10 s)")
+                   help="how long to wait for an answer (status 3 s; cmd, model save 10 s)")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     s = sub.add_parser("status", help="ask a running daemon how it is (over Zenoh)",
                        description="The daemon's status: state, faults, limits, references, "
                        "timing, profile and model, config hash.")
-    _common(s)
+    add_client_args(s)
     s.add_argument("--json", action="store_true", help="print the status as JSON")
     s.set_defaults(func=status)
 
@@ -68,7 +69,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                            "--help` lists them), --arg KEY=VALUE (JSON value) or --json "
                            "PAYLOAD.", HELP_WIDTH) + "\n\nverbs:\n" + verb_list(),
                        epilog=CMD_EPILOG)
-    _common(c)
+    add_client_args(c)
     c.add_argument("--user", help="the user the command declares (default: your login; "
                    "recorded, not authenticated)")
     c.add_argument("verb", help=", ".join(REGISTRY.names))
@@ -78,7 +79,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     w = sub.add_parser("watch", help="live table of a running daemon's muscles (over Zenoh)",
                        description="Each muscle's latest state and the message rate, "
                        "refreshed twice a second, plus the latest events.")
-    _common(w)
+    add_client_args(w)
     w.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     w.add_argument("--plain", action="store_true", help="append tables instead of redrawing")
     w.set_defaults(func=watch)
@@ -189,7 +190,7 @@ def verb_parser(verb: str) -> argparse.ArgumentParser:
     declared = REGISTRY.public(verb)
     p = argparse.ArgumentParser(prog=f"pamd cmd {verb}", add_help=True,
                                 description=declared.help if declared else None)
-    _common(p, suppress=True)
+    add_client_args(p, suppress=True)
     p.add_argument("--user", default=argparse.SUPPRESS)
     p.add_argument("--arg", action="append", default=[], metavar="KEY=VALUE",
                    help="a field, VALUE parsed as JSON when it can be")
