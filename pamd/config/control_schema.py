@@ -1,6 +1,6 @@
 """The `control` section of the rig configuration: the pressure loop's PID and rate
 feedforward, and the length modes' position loop, dynamic feedforward and iterative
-learning (`pamd.config.schema` holds the rest and re-exports these)."""
+learning (`pamd.config.schema` holds the rest)."""
 
 from __future__ import annotations
 

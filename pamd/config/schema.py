@@ -9,21 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from pamd.config.control_schema import (
-    ControlConfig as ControlConfig,
-)
-from pamd.config.control_schema import (
-    IlcConfig as IlcConfig,
-)
-from pamd.config.control_schema import (
-    PidConfig as PidConfig,
-)
-from pamd.config.control_schema import (
-    PositionConfig as PositionConfig,
-)
-from pamd.config.control_schema import (
-    PositionPidConfig as PositionPidConfig,
-)
+from pamd.config.control_schema import ControlConfig
 from pamd.schema.engine import spec
 
 

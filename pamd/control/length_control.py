@@ -57,7 +57,7 @@ from pamd.profiles import Profile, ProfilePoint
 from pamd.tick import Flag, Mode, State
 
 if TYPE_CHECKING:
-    from pamd.config.schema import PositionConfig
+    from pamd.config.control_schema import PositionConfig
     from pamd.control.feedforward import Feedforward
     from pamd.safety.envelope import MuscleEnvelope
 

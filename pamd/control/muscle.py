@@ -30,8 +30,8 @@ from array import array
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
+from pamd.config.control_schema import PidConfig
 from pamd.config.loader import LoadedConfig
-from pamd.config.schema import PidConfig
 from pamd.control.actuation import Actuation, OnOffActuation, actuation_for
 from pamd.control.adapt import Adaptation
 from pamd.control.inputs import Inputs

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-from pamd.config.schema import PidConfig
+from pamd.config.control_schema import PidConfig
 from pamd.control.pid import Pid
 from pamd.control.relay import Relay
 from pamd.tick import Flag

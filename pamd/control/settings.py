@@ -5,8 +5,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pamd.config.control_schema import PidConfig
 from pamd.config.loader import MuscleLimitsResolved
-from pamd.config.schema import PidConfig, SafetyConfig
+from pamd.config.schema import SafetyConfig
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.config.schema import PositionConfig, PositionPidConfig
+from pamd.config.control_schema import PositionConfig, PositionPidConfig
 from pamd.control.feedforward import Feedforward, LoadedModel
 from pamd.control.length_control import LengthControl, preview_s_of
 from pamd.harness import Harness

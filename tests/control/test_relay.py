@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pamd.config.schema import PidConfig
+from pamd.config.control_schema import PidConfig
 from pamd.control.pressure_loop import PressureLoop
 from pamd.control.relay import DONE, Relay
 from pamd.control.tuning import Fopdt, relay_fopdt, relay_oscillation, simc_pi

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
-from pamd.config.schema import ControlConfig, PositionPidConfig
+from pamd.config.control_schema import ControlConfig, PositionPidConfig
 
 REPO = Path(__file__).resolve().parents[2]
 
