@@ -14,8 +14,10 @@ minutes of rig time (virtual clock, the flow plant of the default sim):
 RMSE and max |error| of the length (mm) over the last `--last-cycles` cycles of the
 10 minutes (the first two cycles never count). Goal: (c) <= 1.2 x (a).
 
-The RLS settings (`adapt:` in the config) were chosen on a validation run (`--validate`:
-20 kg, drift -0.9 /h, i.e. 15 % over 10 minutes), never on the test run reported here.
+The RLS settings (`adapt:` in the config) were chosen on two validation runs
+(`--validate`: 20 kg losing 15 % over 10 minutes, and 25 kg losing 20 %, whose end
+asks as much of the muscle as the test's), by the worse of their two ratios, never on
+the test run reported here.
 Also the controller's compute per tick with adaptation on (plant excluded, as
 bench/controller_compute.py) beside adaptation off, in the same run.
 
@@ -48,16 +50,18 @@ FREQ_HZ = 0.2
 PERIOD_S = 1.0 / FREQ_HZ
 PROFILE = {"kind": "sine", "min_contraction": 0.05, "max_contraction": 0.20,
            "freq_hz": FREQ_HZ}
-#: The RLS settings, chosen on the validation run (see the docstring).
-#: Validation (20 kg, 15 % over 10 min; (a) 0.424 mm, (b) 0.518 mm): max_rate 0.01 bar/s
-#: -> (c) 0.447 mm (1.05 x), the model moved 0.98 bar; the same with memory_s 60 or
-#: max_total 2.0 -> 0.447; initial_variance 0.001 -> 0.478 (1.13 x); max_rate 0.02 ->
-#: 0.423 (1.00 x), moved 1.46 bar: taken, with max_total 2.0 for margin.
-ADAPT = {"enabled": True, "memory_s": 120.0, "update_period_s": 0.02,
-         "initial_variance_bar2": 0.01, "max_rate_bar_per_s": 0.02, "max_total_bar": 2.0}
-#: test: 30 kg, 10 % over 10 minutes; validation: 20 kg, 15 % over 10 minutes
+#: The RLS settings, chosen on the validation runs (see the docstring); (c) / (a):
+#: 20 kg losing 15 % ((a) 0.388 mm, (b) 0.483 mm) and 25 kg losing 20 % ((a) 0.473 mm,
+#: (b) 0.669 mm), max_rate 0.02 bar/s: memory_s 15 -> 0.92 x, 1.06 x; 30 -> 0.90 x,
+#: 1.06 x (0.350, 0.499 mm); 60 -> 0.90 x, 1.06 x; memory_s 30 with max_rate 0.05
+#: bar/s -> 0.86 x, 1.04 x (0.335, 0.494 mm; the model moved 1.44 and 1.10 bar):
+#: taken (the defaults of `muscles[].adapt`).
+ADAPT = {"enabled": True, "memory_s": 30.0, "update_period_s": 0.02,
+         "initial_variance_bar2": 0.01, "max_rate_bar_per_s": 0.05, "max_total_bar": 2.0}
+#: test: 30 kg, 10 % over 10 minutes; validation: 20 kg losing 15 %, 25 kg losing 20 %
 TEST = {"load_kg": 30.0, "drift_per_hour": -0.6}
-VALIDATION = {"load_kg": 20.0, "drift_per_hour": -0.9}
+VALIDATION = ({"load_kg": 20.0, "drift_per_hour": -0.9},
+              {"load_kg": 25.0, "drift_per_hour": -1.2})
 
 
 def bench_config(load_kg: float, drift_per_hour: float, adapt: dict[str, Any] | None
@@ -208,8 +212,9 @@ def main() -> None:
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--last-cycles", type=int, default=10, help="cycles measured at the "
                     "end of the run (default 10: the last 50 s)")
-    ap.add_argument("--validate", action="store_true", help="the validation run (20 kg, "
-                    "15 %% over 10 minutes): where the RLS settings are chosen")
+    ap.add_argument("--validate", action="store_true", help="the validation runs (20 kg "
+                    "losing 15 %%, 25 kg losing 20 %% over 10 minutes): where the RLS "
+                    "settings are chosen")
     ap.add_argument("--keep", metavar="DIR", help="keep (and reuse) recordings and the model")
     ap.add_argument("--compute-s", type=float, default=20.0)
     ap.add_argument("--cost-only", action="store_true", help="only the compute figures")
@@ -223,23 +228,25 @@ def main() -> None:
     if args.cost_only:
         print_compute(model, args.compute_s)
         return
-    run = VALIDATION if args.validate else TEST
-    load, drift = run["load_kg"], run["drift_per_hour"]
-    print(f"{'VALIDATION' if args.validate else 'test'} run: {FREQ_HZ:g} Hz sine over 5-20 % "
-          f"contraction, {load:g} kg, position mode, 3-input model + PID, "
-          f"{args.minutes:g} min; force drift {drift:g} /h ({-100 * drift * args.minutes / 60:.0f} "
-          f"% over the run); RMSE over the last {args.last_cycles} cycles:")
-    print(f"  adapt: {ADAPT}")
-    a = track(model, load, 0.0, None, args.minutes, args.last_cycles)
-    line("(a) undrifted", a)
-    b = track(model, load, drift, None, args.minutes, args.last_cycles)
-    line("(b) drifting, no adaptation", b, a["rmse"])
-    c = track(model, load, drift, ADAPT, args.minutes, args.last_cycles)
-    line("(c) drifting, adaptation on", c, a["rmse"])
-    for ev in c["events"][:5]:
-        print(f"    event: {ev.get('reason')}")
-    print(f"  goal (c) <= 1.2 x (a): {'met' if c['rmse'] <= 1.2 * a['rmse'] else 'NOT met'} "
-          f"({c['rmse'] / a['rmse']:.2f})")
+    for run in VALIDATION if args.validate else (TEST,):
+        load, drift = run["load_kg"], run["drift_per_hour"]
+        print(f"{'VALIDATION' if args.validate else 'test'} run: {FREQ_HZ:g} Hz sine over "
+              f"5-20 % contraction, {load:g} kg, position mode, 3-input model + PID, "
+              f"{args.minutes:g} min; force drift {drift:g} /h "
+              f"({-100 * drift * args.minutes / 60:.0f} % over the run); RMSE over the last "
+              f"{args.last_cycles} cycles:")
+        print(f"  adapt: {ADAPT}")
+        a = track(model, load, 0.0, None, args.minutes, args.last_cycles)
+        line("(a) undrifted", a)
+        b = track(model, load, drift, None, args.minutes, args.last_cycles)
+        line("(b) drifting, no adaptation", b, a["rmse"])
+        c = track(model, load, drift, ADAPT, args.minutes, args.last_cycles)
+        line("(c) drifting, adaptation on", c, a["rmse"])
+        for ev in c["events"][:5]:
+            print(f"    event: {ev.get('reason')}")
+        print(f"  goal (c) <= 1.2 x (a): "
+              f"{'met' if c['rmse'] <= 1.2 * a['rmse'] else 'NOT met'} "
+              f"({c['rmse'] / a['rmse']:.2f})")
     if not args.validate:
         print_compute(model, args.compute_s)
     print(f"total {time.perf_counter() - t_all:.0f} s")

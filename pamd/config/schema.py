@@ -183,10 +183,11 @@ class MuscleControlConfig:
 @dataclass(frozen=True, kw_only=True)
 class AdaptConfig:
     enabled: bool = spec(False, "Adapt the inverse model's rule consequents online (recursive "
-                         "least squares with forgetting) from the measured force, length, "
+                         "least squares with forgetting and a regularised covariance) from "
+                         "the measured force, length, "
                          "velocity and pressure while a length mode runs; the `model` command "
                          "switches it (`adapt=on|off|reset`). ANFIS/TS-fuzzy models only.")
-    memory_s: float = spec(120.0, "Forgetting: samples older than about this weigh less than "
+    memory_s: float = spec(30.0, "Forgetting: samples older than about this weigh less than "
                            "1/e (the forgetting factor per update is exp(-update_period_s / "
                            "memory_s)).", unit="s", gt=0.0, max=86400.0)
     update_period_s: float = spec(0.02, "One update per this long, from the mean of the "
@@ -194,14 +195,15 @@ class AdaptConfig:
                                   "dropped).", unit="s", gt=0.0, max=1.0)
     initial_variance_bar2: float = spec(
         0.01, "Covariance of the parameters at the start and after a reset (times the "
-        "identity); its trace is never let past its start (the bound against wind-up).",
+        "identity), and what it returns to where the samples do not excite the model (the "
+        "regularisation against wind-up); its trace is never let past twice its start.",
         unit="bar^2", gt=0.0, max=100.0)
     max_rate_bar_per_s: float = spec(
-        0.02, "Largest change of the model per second, in bar of output anywhere in its "
-        "training ranges; a longer step is shortened to it.", unit="bar/s", gt=0.0)
+        0.05, "Largest change of the model per second, in bar of output anywhere on a grid "
+        "over its training ranges; a longer step is shortened to it.", unit="bar/s", gt=0.0)
     max_total_bar: float = spec(
-        2.0, "Largest change from the trained model, in bar of output anywhere in its "
-        "training ranges; an update past it is refused and adaptation freezes.",
+        2.0, "Largest change from the trained model, in bar of output anywhere on a grid "
+        "over its training ranges; an update past it is refused and adaptation freezes.",
         unit="bar", gt=0.0)
 
 

@@ -12,12 +12,19 @@ behaviour this corrects):
   mean inputs (its regressor phi, `CompiledAnfis.regressor`) and the mean measured
   pressure is its target. The inverse model maps what the muscle does to the pressure
   that does it, so the measured pressure (not the command) is the truth.
+  With `control.position.model_sweep_hz` the velocity input is on the feedforward's
+  time scale (`LengthControl.vel_scale`: the filter's window and the velocity times
+  it), so the rules adapted are the rules the feedforward reads.
 * **Gated.** A window is dropped (state PAUSED) if any of its ticks was outside
-  RUNNING or LOAD_CHANGE, in a safe state, flagged bad (`BAD_FLAGS`: stale, at a
-  limit, slew-limited, saturated, feedforward clipped, pressure not following its
-  command, exhaust open, not referenced), had an untrusted signal, or if the sample's
-  own inputs fall outside the model's training ranges.
-* **Bounded**, in bar of output anywhere in the training ranges (`OutputBound`):
+  RUNNING or LOAD_CHANGE, in a safe state, had a flag that says the *measurement* is
+  not the muscle's (`BAD_FLAGS`: stale, not referenced, exhaust open, pressure not
+  following its command), had an untrusted signal, or if the sample's own inputs fall
+  outside the model's training ranges. Flags that say the *command* was limited
+  (pressure or contraction limit, slew limit, PID saturated, feedforward clipped) do
+  not: the muscle's measured state and pressure are still a true sample of its
+  inverse, and they come exactly where a weakening muscle needs the model most (at
+  the top of the stroke, near the pressure limit).
+* **Bounded**, in bar of output over the training ranges (`OutputBound`, on a grid):
   a step longer than `max_rate_bar_per_s` x the update period is shortened to it
   (the rate bound holds for every second); an update that would take the model
   further than `max_total_bar` from the trained one, or that is not finite, is
@@ -53,9 +60,8 @@ if TYPE_CHECKING:
     from pamd.control.inputs import Inputs
 
 S_RUNNING, S_LOAD = int(State.RUNNING), int(State.LOAD_CHANGE)
-BAD_FLAGS = int(Flag.STALE | Flag.SOFT_LIMIT_PRESSURE | Flag.SOFT_LIMIT_CONTRACTION
-                | Flag.PRETENSION_LIMIT | Flag.SLEW_LIMITED | Flag.OUTPUT_SATURATED
-                | Flag.FF_CLIPPED | Flag.NOT_REFERENCED | Flag.EXHAUST_OPEN | Flag.TRACKING)
+#: Flags that say a tick's measurement is not the muscle's own (module docstring).
+BAD_FLAGS = int(Flag.STALE | Flag.NOT_REFERENCED | Flag.EXHAUST_OPEN | Flag.TRACKING)
 #: What the `adapt` command can do.
 ACTIONS = ("on", "off", "reset", "restore", "status")
 #: Shortest time between two reports of the rate bound (the rest are counted).
@@ -90,6 +96,7 @@ class Adaptation:
         self.bound: OutputBound | None = None
         self.theta0 = np.zeros(0)
         self.vel = VelocityFilter()
+        self.vel_scale = 1.0  # the feedforward's velocity time scale (`step`)
         self.adapted_s = 0.0  # time of the windows taken
         self.started_unix: float | None = None
         self.refused = 0
@@ -121,12 +128,11 @@ class Adaptation:
             m: Any = ff.model
             self.compiled = c
             self.theta0 = c.theta(np.empty(c.n_consequents))
-            self.bound = OutputBound.for_model(m.input_lo, m.input_hi, m.scale_offset,
-                                               m.scale_span, c.n_rules)
+            self.bound = OutputBound.for_model(m)
             cfg = self.cfg
             lam = math.exp(-cfg.update_period_s / cfg.memory_s)
             self.rls = Rls(self.theta0, cfg.initial_variance_bar2, lam)
-            self.vel.window_s = ff.velocity_window_s
+            self.vel.window_s = ff.velocity_window_s * self.vel_scale
             self._uses_velocity = "velocity_mm_s" in c.input_names
             self.why_not = None
         if self.why_not is not None:
@@ -159,6 +165,8 @@ class Adaptation:
         self.rls.set_theta(self.theta0)
         self.rls.reset()
         self.compiled.set_consequents(self.theta0)
+        if self.bound is not None:
+            self.bound.clear()
         self.drift_bar = self.total_bar = 0.0
 
     def command(self, action: str) -> dict[str, Any]:
@@ -220,10 +228,16 @@ class Adaptation:
         self.vel.reset()
         self._warm_s = 3.0 * self.vel.window_s if self._uses_velocity else 0.0
 
-    def step(self, dt: float, state: int, flags: int, inp: Inputs, in_use: bool) -> None:
+    def step(self, dt: float, state: int, flags: int, inp: Inputs, in_use: bool,
+             vel_scale: float = 1.0) -> None:
         """One tick (enabled only): sum the sample, gate it, update at the window's end.
-        `in_use`: a length mode runs with the model, outside the safe states."""
+        `in_use`: a length mode runs with the model, outside the safe states;
+        `vel_scale`: the feedforward's velocity time scale (`LengthControl.vel_scale`)."""
         self._t += dt
+        if vel_scale != self.vel_scale:  # a new profile's time scale: start over on it
+            self.vel.window_s *= vel_scale / self.vel_scale
+            self.vel_scale = vel_scale
+            self._reset_window()
         if self.state == AdaptState.FROZEN:
             return
         if not in_use or not (state == S_RUNNING or state == S_LOAD):
@@ -256,7 +270,7 @@ class Adaptation:
         if bad:
             self.state = int(AdaptState.PAUSED)
             return
-        self._update(f, ln, x, self.vel.value, p, win)
+        self._update(f, ln, x, self.vel.value * self.vel_scale, p, win)
 
     def _update(self, f: float, ln: float, x: float, v: float, p: float, win: float) -> None:
         ff, c, rls, bound = self.ff, self.compiled, self.rls, self.bound
@@ -272,22 +286,24 @@ class Adaptation:
             return
         cfg = self.cfg
         limit = cfg.max_rate_bar_per_s * win
-        size = bound.bar(rls.step)
+        size = bound.propose(rls.step)
         state = AdaptState.ADAPTING
         if size > limit:
             rls.scale_step(limit / size)
+            bound.scale_step(limit / size)
             state = AdaptState.LIMITED
             self.limited += 1
         # the total bound, on the candidate against the trained consequents
-        np.subtract(cand, self.theta0, out=rls.step)  # step's buffer is free now
-        total = bound.bar(rls.step)
+        total = bound.total_with_step()
         if not total <= cfg.max_total_bar:
             self._refuse(f"the model would move {total:.3f} bar from the trained one, past "
                          f"adapt.max_total_bar {cfg.max_total_bar:g} bar", p)
             return
         rls.commit()
+        bound.commit()
         c.set_consequents(rls.theta)
         self.total_bar = total
+        np.subtract(rls.theta, self.theta0, out=rls.step)  # step's buffer is free now
         self.drift_bar = float(np.dot(phi, rls.step))
         self.adapted_s += win
         self.state = int(state)

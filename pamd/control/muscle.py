@@ -378,6 +378,7 @@ class MuscleController(MuscleView):
                     fault = stuck
         ad = self.adaptation
         if ad.enabled:  # online adaptation of the model (pamd.control.adapt)
-            ad.step(dt, state, flags, inp, lc.active and lc.use_ff and not safe)
+            ad.step(dt, state, flags, inp, lc.active and lc.use_ff and not safe,
+                    lc.vel_scale)
         self._record(rec, flags)
         return fault

@@ -105,8 +105,7 @@ def test_rate_bound_holds_every_update_and_every_second() -> None:
     rate = 0.02
     ad, ff = stage(max_rate_bar_per_s=rate, initial_variance_bar2=1.0)
     truth = truth_of(drifted(ff, 0.8))
-    bound = OutputBound.for_model(*(getattr(ff.model, k) for k in (
-        "input_lo", "input_hi", "scale_offset", "scale_span")), ff.compiled.n_rules)
+    bound = OutputBound.for_model(ff.model)  # type: ignore[arg-type]
     start = theta(ff)
     history = [start]
 
@@ -171,11 +170,35 @@ def test_nothing_is_learned_outside_running_or_from_a_bad_sample(how) -> None:
             ad.step(DT, RUN, 0, s, True)  # type: ignore[arg-type]
     else:
         run(ad, truth, 2.0, state=IDLE if how == "idle" else RUN,
-            flags=int(Flag.FF_CLIPPED) if how == "flagged" else 0, in_use=how != "safe")
+            flags=int(Flag.STALE) if how == "flagged" else 0, in_use=how != "safe")
     np.testing.assert_array_equal(theta(ff), trained)
     assert ad.state == AdaptState.PAUSED
     run(ad, truth, 2.0, t0=2.0)  # and it learns once the samples are good again
     assert not np.array_equal(theta(ff), trained)
+
+
+@pytest.mark.parametrize("flag", [Flag.STALE, Flag.NOT_REFERENCED, Flag.EXHAUST_OPEN,
+                                  Flag.TRACKING])
+def test_every_flag_that_says_the_measurement_is_bad_drops_the_sample(flag) -> None:
+    ad, ff = stage(max_rate_bar_per_s=1.0)
+    trained = theta(ff)
+    run(ad, truth_of(drifted(ff, 0.3)), 2.0, flags=int(flag))
+    np.testing.assert_array_equal(theta(ff), trained)
+    assert ad.state == AdaptState.PAUSED
+
+
+@pytest.mark.parametrize("flag", [Flag.SOFT_LIMIT_PRESSURE, Flag.SOFT_LIMIT_CONTRACTION,
+                                  Flag.PRETENSION_LIMIT, Flag.SLEW_LIMITED,
+                                  Flag.OUTPUT_SATURATED, Flag.FF_CLIPPED])
+def test_a_limited_command_still_is_a_true_sample(flag) -> None:
+    """A limit on the command leaves the measured state and pressure the muscle's own:
+    learned (a weakening muscle meets its pressure limit at the top of the stroke,
+    exactly where the model needs to follow it)."""
+    ad, ff = stage(max_rate_bar_per_s=1.0)
+    trained = theta(ff)
+    run(ad, truth_of(drifted(ff, 0.3)), 2.0, flags=int(flag))
+    assert not np.array_equal(theta(ff), trained)
+    assert ad.state in (AdaptState.ADAPTING, AdaptState.LIMITED)
 
 
 def test_load_change_counts_as_running() -> None:
@@ -221,3 +244,39 @@ def test_a_swapped_model_adapts_from_its_own_trained_consequents() -> None:
     np.testing.assert_array_equal(ad.theta0, theta(ff2))
     run(ad, truth_of(drifted(ff2, 0.3)), 2.0, t0=2.0)
     assert not np.array_equal(theta(ff2), ad.theta0)
+
+
+def velocity_model() -> AnfisModel:
+    """(force_n, length_mm, velocity_mm_s) -> pressure_bar, 2 x 2 x 2 Gaussian rules."""
+    rng = np.random.default_rng(2)
+    return AnfisModel(
+        [Variable("force_n", "N", 100.0, 500.0), Variable("length_mm", "mm", 150.0, 200.0),
+         Variable("velocity_mm_s", "mm/s", -50.0, 50.0)],
+        Variable("pressure_bar", "bar", 0.0, 8.0), mf_type="gaussian", scaling="minmax",
+        scale_offset=np.array([100.0, 150.0, -50.0]),
+        scale_span=np.array([400.0, 50.0, 100.0]),
+        centres=[np.linspace(0, 1, 2)] * 3, widths=[np.full(2, 0.4)] * 3,
+        consequents=np.c_[rng.uniform(2, 3, 8), rng.uniform(-3, -2, 8),
+                          rng.uniform(-0.5, 0.5, 8), rng.uniform(3, 4, 8)])
+
+
+@pytest.mark.parametrize("vel_scale", [1.0, 0.25])
+def test_the_velocity_input_is_on_the_feedforwards_time_scale(vel_scale) -> None:
+    """With `model_sweep_hz` the feedforward feeds the model the velocity times its time
+    scale, through the filter's window times the same (`LengthControl.vel_scale`): the
+    adaptation learns at that input too, so it adapts the rules the feedforward reads."""
+    ff = Feedforward(velocity_model())
+    ad = Adaptation("m1", AdaptConfig(enabled=True, max_rate_bar_per_s=1.0), ff)
+    v_mm_s = 3.0  # lengthening at a constant 3 mm/s, 152 -> 197 mm at most
+    t = 0.0
+    for _ in range(int(round(5.0 * ff.velocity_window_s * vel_scale / DT))):  # settled
+        s = SimpleNamespace(force_n=300.0, length_mm=152.0 + v_mm_s * t,
+                            contraction=(L0 - 152.0 - v_mm_s * t) / L0, pressure_bar=3.0,
+                            pressure_ok=True, length_ok=True,
+                            plausibility=SimpleNamespace(force_ok=True))
+        ad.step(DT, RUN, 0, s, True, vel_scale)  # type: ignore[arg-type]
+        t += DT
+    assert ad.vel.window_s == pytest.approx(ff.velocity_window_s * vel_scale)
+    assert ad.rls is not None and ad.rls.updates > 0  # it learned, at that velocity:
+    scaled_velocity = ff.compiled.last_s[2]  # the model's last call (the update's)
+    assert scaled_velocity * 100.0 - 50.0 == pytest.approx(v_mm_s * vel_scale, rel=0.01)

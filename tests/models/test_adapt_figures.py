@@ -31,11 +31,14 @@ def test_drift_figures_as_reported(tmp_path: Path) -> None:
     a = ad.track(model, load, 0.0, None, 10.0, 10)
     b = ad.track(model, load, drift, None, 10.0, 10)
     c = ad.track(model, load, drift, ad.ADAPT, 10.0, 10)
-    reported = {"a": 0.498, "b": 0.730, "c": 0.643}  # README, bench/adapt_drift.py
+    reported = {"a": 0.498, "b": 0.730, "c": 0.609}  # README, bench/adapt_drift.py
     got = {"a": a["rmse"], "b": b["rmse"], "c": c["rmse"]}
     for k, want in reported.items():
         assert got[k] == pytest.approx(want, abs=0.01), (k, got)
-    # adaptation recovers about half of what the drift costs; the goal (c) <= 1.2 x (a)
-    # is not met on the test run (1.29 x; 1.00 x on the validation run)
+    # adaptation takes back about half of what the drift costs and the largest error
+    # falls below the undrifted one; the goal (c) <= 1.2 x (a) is just missed on the
+    # test run (1.22 x; 0.86 x and 1.04 x on the validation runs): the drifted muscle
+    # meets its 6 bar rating at the top of the stroke
     assert a["rmse"] < c["rmse"] < b["rmse"]
+    assert c["max"] < a["max"]
     assert c["status"]["refused"] == 0

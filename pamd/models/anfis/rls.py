@@ -1,5 +1,6 @@
-"""Recursive least squares with a forgetting factor on a model linear in its parameters
-(an ANFIS model's rule consequents, `CompiledAnfis.regressor`), allocation-free.
+"""Recursive least squares with exponential forgetting and a regularised covariance,
+on a model linear in its parameters (an ANFIS model's rule consequents,
+`CompiledAnfis.regressor`), allocation-free.
 
 Role: one update from one sample (phi, y), with y = phi . theta the model's output:
 
@@ -8,10 +9,18 @@ Role: one update from one sample (phi, y), with y = phi . theta the model's outp
     P     = (P - k phi' P) / lambda
 
 lambda < 1 forgets old samples (memory about 1 / (1 - lambda) updates), so the
-estimate follows a truth that drifts. Without excitation, P grows by 1 / lambda each
-update ("wind-up") and the next sample would move theta a lot: its trace is held at
-or below `trace_max` (the whole of P scaled down). `reset()` puts P back to its
-initial p0 I.
+estimate follows a truth that drifts. Where the samples do not excite the
+parameters (a periodic trajectory excites a few of a model's 108 directions), P
+would grow by 1 / lambda every update ("wind-up") and the next sample there would
+move theta wildly; bounding P's trace instead (scaling the whole of P down) also
+shrinks the gain where the samples do excite it, and the estimate then follows a
+drift ever more slowly. So every update also adds the information
+(1 - lambda) n / p0 on one coordinate, in turn (a rank-one Sherman-Morrison step
+that leaves theta where it is): over n updates the information matrix gains
+(1 - lambda) / p0 I per update, what forgetting takes from a prior p0 I, so P stays
+near p0 I where nothing excites it and forgets as usual where the samples do
+(regularised forgetting, Gunnarsson 1996). The trace is still never let past twice
+its start (`trace_max`, a guard), and `reset()` puts P back to p0 I.
 
 An update is computed into candidate buffers and only taken by `commit()`: the
 caller checks the candidate (finite, within its bounds) first and the present
@@ -20,18 +29,27 @@ allocated once; an update is a dozen numpy calls on them (`out=` arguments), O(n
 for n parameters (108 for 27 rules of 3 inputs: about 20 us).
 
 `OutputBound` measures a change of the consequents in bar of output: the largest
-change of the model's output it can make anywhere in the training input ranges,
-max_r (|dq_r| + sum_i |dp_ri| max|s_i|), with s_i the scaled inputs over their
-ranges (the output is a convex mix of the rules' linear functions, so no input in
-range can move the output more). The adaptation bounds (`pamd.control.adapt`) are
-stated in it.
+change of the model's output it makes at a grid of points over the training input
+ranges (at most `GRID_MAX_POINTS`: 10 per input for 3 inputs, 31 for 2),
+max |Phi_grid delta|, one (points x n) product (about 20 us for 1000 x 108). The
+model's output is smooth between the points (Gaussian or bell memberships wider than
+the grid's spacing), so this is what an operator means by "the adapted model differs
+from the trained one by at most so many bar anywhere". The adaptation bounds
+(`pamd.control.adapt`) are stated in it.
 """
 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from pamd.models.anfis.model import AnfisModel
+
+#: Most points of `OutputBound`'s grid (one (points x n) product per bound check).
+GRID_MAX_POINTS = 1000
 
 
 class Rls:
@@ -39,6 +57,7 @@ class Rls:
 
     __slots__ = ("n", "theta", "P", "p0", "trace_max", "forgetting", "updates", "_cand_theta",
                  "_cand_P", "_Pphi", "_k", "_outer", "_step", "last_error", "_k_col",
+                 "_col", "_col_row", "_reg",
                  "_Pphi_row")
 
     def __init__(self, theta0: np.ndarray, p0: float, forgetting: float,
@@ -51,7 +70,7 @@ class Rls:
         self.n = n
         self.theta = np.array(theta0, dtype=np.float64)
         self.p0 = float(p0)
-        self.trace_max = n * self.p0 if trace_max is None else float(trace_max)
+        self.trace_max = 2.0 * n * self.p0 if trace_max is None else float(trace_max)
         self.forgetting = float(forgetting)
         self.P = np.zeros((n, n))
         self._cand_theta = np.zeros(n)
@@ -59,7 +78,10 @@ class Rls:
         self._Pphi = np.zeros(n)
         self._k = np.zeros(n)
         self._outer = np.zeros((n, n))
-        self._k_col = self._k[:, None]  # views for the outer product
+        self._col = np.zeros(n)
+        self._reg = (1.0 - self.forgetting) * n / self.p0  # information per regularisation
+        self._k_col = self._k[:, None]  # views for the outer products
+        self._col_row = self._col[None, :]
         self._Pphi_row = self._Pphi[None, :]
         self._step = np.zeros(n)
         self.updates = 0
@@ -103,6 +125,15 @@ class Rls:
         # a (n x 1)(1 x n) product: BLAS, 2-3 x faster than np.outer's ufunc
         np.subtract(P, self._outer, out=cand)
         np.divide(cand, lam, out=cand)
+        # regularisation: the information (1 - lambda) n / p0 on one coordinate, in turn
+        # (Sherman-Morrison; theta does not move): P stays about p0 I where nothing
+        # excites it (module doc)
+        j = self.updates % self.n
+        np.copyto(self._col, cand[:, j])
+        c = self._reg / (1.0 + self._reg * float(self._col[j]))
+        np.multiply(self._col, c, out=k)  # k's buffer: the step above is taken already
+        np.dot(self._k_col, self._col_row, out=self._outer)
+        np.subtract(cand, self._outer, out=cand)
         tr = float(np.trace(cand))
         if not (math.isfinite(tr) and np.isfinite(theta).all()):
             return None
@@ -131,30 +162,67 @@ class Rls:
 
 
 class OutputBound:
-    """The size of a consequent change in bar of output (see the module doc).
+    """The size of a consequent change in bar of output (see the module doc): the
+    largest change it makes at a grid over the training input ranges. `phi_grid`
+    holds the grid's regressors, one row per point (`CompiledAnfis.regressor` layout:
+    the consequents column by column).
 
-    `weights` holds max|s_i| over the training range per input, then 1 (the constant);
-    parameters are laid out column by column (`CompiledAnfis.theta`)."""
+    `bar(delta)` measures any change. The adaptation's two bounds per update take one
+    product, not two: `propose(step)` measures a step (keeping its change at the
+    grid), `scale_step` follows a shortened step, `total_with_step()` is the size of
+    the change since `clear()` plus the step (the change so far is kept at the grid,
+    not recomputed), and `commit()` adds the step to it."""
 
-    __slots__ = ("weights", "n_rules", "_abs", "_rows")
+    __slots__ = ("phi_grid", "_out", "_step", "_total")
 
-    def __init__(self, max_abs_scaled: np.ndarray, n_rules: int) -> None:
-        self.weights = np.concatenate([np.asarray(max_abs_scaled, dtype=np.float64), [1.0]])
-        self.n_rules = n_rules
-        self._abs = np.zeros((self.weights.size, n_rules))
-        self._rows = np.zeros(n_rules)
+    def __init__(self, phi_grid: np.ndarray) -> None:
+        self.phi_grid = np.ascontiguousarray(phi_grid, dtype=np.float64)
+        n_points = self.phi_grid.shape[0]
+        self._out = np.zeros(n_points)
+        self._step = np.zeros(n_points)  # the proposed step's change at the grid
+        self._total = np.zeros(n_points)  # the committed change at the grid
 
     @classmethod
-    def for_model(cls, lo: np.ndarray, hi: np.ndarray, offset: np.ndarray, span: np.ndarray,
-                  n_rules: int) -> OutputBound:
-        """From the training input ranges and the scaling of an ANFIS model."""
-        s_lo = np.abs((np.asarray(lo) - offset) / span)
-        s_hi = np.abs((np.asarray(hi) - offset) / span)
-        return cls(np.maximum(s_lo, s_hi), n_rules)
+    def for_model(cls, model: AnfisModel) -> OutputBound:
+        """The grid of an ANFIS model: as many points per input as keep the grid within
+        `GRID_MAX_POINTS` (at least 3), evenly over each input's training range."""
+        d = model.n_inputs
+        per_input = max(3, int(GRID_MAX_POINTS ** (1.0 / d) + 1e-9))
+        axes = [np.linspace(lo, hi, per_input) for lo, hi in zip(model.input_lo,
+                                                                   model.input_hi,
+                                                                   strict=True)]
+        X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, d)
+        S = model.scale(X)
+        W = model.firing_strengths(S)
+        return cls(np.hstack([W * S[:, i:i + 1] for i in range(d)] + [W]))
 
     def bar(self, delta: np.ndarray) -> float:
-        """The largest output change (bar) the parameter change `delta` can make."""
-        a = self._abs
-        np.abs(delta.reshape(a.shape), out=a)
-        np.dot(self.weights, a, out=self._rows)
-        return float(self._rows.max())
+        """The largest output change (bar) the parameter change `delta` makes on the
+        grid."""
+        out = self._out
+        np.dot(self.phi_grid, delta, out=out)
+        np.abs(out, out=out)
+        return float(out.max())
+
+    def propose(self, step: np.ndarray) -> float:
+        """The size of a proposed step (bar), kept for the calls below."""
+        np.dot(self.phi_grid, step, out=self._step)
+        np.abs(self._step, out=self._out)
+        return float(self._out.max())
+
+    def scale_step(self, factor: float) -> None:
+        np.multiply(self._step, factor, out=self._step)
+
+    def total_with_step(self) -> float:
+        """The size (bar) of the committed change plus the proposed step."""
+        out = self._out
+        np.add(self._total, self._step, out=out)
+        np.abs(out, out=out)
+        return float(out.max())
+
+    def commit(self) -> None:
+        np.add(self._total, self._step, out=self._total)
+
+    def clear(self) -> None:
+        """Back to no change (the trained consequents)."""
+        self._total.fill(0.0)
