@@ -175,6 +175,27 @@ class Decoder:
 
 # -- inspect -------------------------------------------------------------------------
 def inspect(path: str) -> dict[str, Any]:
+    """`describe` and what only reading every message tells: the faults (events and the
+    summary's), the lost records, and that every chunk reads."""
+    info, chans, schemas = _describe(path)
+    faults, lost_events_seen, last_lost = _events_and_loss(path, chans, schemas)
+    summ = info["metadata"].get("pamd.summary", {})
+    lost_records = _int(summ.get("lost_records"), last_lost)
+    if "faults" in summ:
+        with contextlib.suppress(ValueError):
+            faults = list(dict.fromkeys(faults + list(json.loads(summ["faults"]))))
+    info.update(faults=faults, lost_records=lost_records, lost_record_events=lost_events_seen)
+    return info
+
+
+def describe(path: str) -> dict[str, Any]:
+    """A recording's size, status, span, channels (with their message counts), metadata
+    and attachments: from a finalised file's summary, without reading its messages (a
+    reader that reads them anyway needs no second pass); an unfinished one is scanned."""
+    return _describe(path)[0]
+
+
+def _describe(path: str) -> tuple[dict[str, Any], dict[str, Channel], dict[int, Schema]]:
     size = check_file(path)
     final = is_finalised(path)
     counts: dict[str, int] = {}
@@ -224,12 +245,6 @@ def inspect(path: str) -> dict[str, Any]:
                     counts[sc.channels[m.channel_id].topic] += 1
                     start = m.log_time if start is None else min(start, m.log_time)
                     end = m.log_time if end is None else max(end, m.log_time)
-    faults, lost_events_seen, last_lost = _events_and_loss(path, chans, schemas)
-    summ = metadata.get("pamd.summary", {})
-    lost_records = _int(summ.get("lost_records"), last_lost)
-    if "faults" in summ:
-        with contextlib.suppress(ValueError):
-            faults = list(dict.fromkeys(faults + list(json.loads(summ["faults"]))))
     return {
         "file": path, "size_bytes": size, "status": status, "finalised": final,
         "chunks": chunks, "message_count": sum(counts.values()),
@@ -238,9 +253,8 @@ def inspect(path: str) -> dict[str, Any]:
         "channels": [{"topic": t, "encoding": c.message_encoding,
                       "schema": schemas[c.schema_id].name if c.schema_id in schemas else "",
                       "messages": counts[t]} for t, c in chans.items()],
-        "metadata": metadata, "attachments": attachments, "faults": faults,
-        "lost_records": lost_records, "lost_record_events": lost_events_seen,
-    }
+        "metadata": metadata, "attachments": attachments,
+    }, chans, schemas
 
 
 def _int(v: object, default: int) -> int:
