@@ -51,6 +51,19 @@ def sim_dict(load_kg: float = 30.0, **changes: Any) -> dict[str, Any]:
     return merge(base, changes)
 
 
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """A test module with a `start_early(chosen)` (tests/test_typing.py: mypy) may start
+    slow, self-contained work in the background as soon as the run's tests are chosen;
+    `chosen` is the names of its tests in this run. Its test then waits for the result."""
+    chosen: dict[Any, set[str]] = {}
+    for item in session.items:
+        module = getattr(item, "module", None)
+        if hasattr(module, "start_early"):
+            chosen.setdefault(module, set()).add(getattr(item, "originalname", item.name))
+    for module, names in chosen.items():
+        module.start_early(names)
+
+
 @pytest.fixture(autouse=True)
 def rig_lock_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """Each test its own directory of rig locks (pamd.service.riglock): tests running
