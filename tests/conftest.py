@@ -13,6 +13,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import copy  # noqa: E402
+import functools  # noqa: E402
 import shutil  # noqa: E402
 from collections.abc import Callable, Iterator  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -40,9 +41,15 @@ def merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+@functools.lru_cache(maxsize=4)
+def _parsed(text: str) -> dict[str, Any]:
+    return yaml.safe_load(text)
+
+
 def sim_dict(load_kg: float = 30.0, **changes: Any) -> dict[str, Any]:
-    """config/sim.yaml as a dict, virtual clock, real-time off, with changes."""
-    base = yaml.safe_load(SIM_YAML.read_text())
+    """config/sim.yaml as a dict, virtual clock, real-time off, with changes (the file
+    is parsed once per content, each call gets its own copy)."""
+    base = copy.deepcopy(_parsed(SIM_YAML.read_text()))
     base["loop"]["clock"] = "virtual"
     base["loop"]["realtime"] = {"enabled": False}
     base["telemetry"] = {"enabled": False}  # never on the default port 7447 in tests
