@@ -26,7 +26,7 @@ def _import_path_stamp() -> tuple[tuple[str, int | None], ...]:
     upgrading or removing a distribution adds or removes its metadata directory there,
     which changes the stamp (so a driver installed while the daemon runs is found at
     the next config load, as before)."""
-    stamp = []
+    stamp: list[tuple[str, int | None]] = []
     for entry in sys.path:
         try:
             stamp.append((entry, os.stat(entry or ".").st_mtime_ns))
