@@ -28,6 +28,7 @@ def _bytecode_for_the_processes_tests_start() -> None:
 _bytecode_for_the_processes_tests_start()
 
 import copy  # noqa: E402
+import dataclasses  # noqa: E402
 import functools  # noqa: E402
 from collections.abc import Callable, Iterator  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -36,6 +37,7 @@ from typing import Any  # noqa: E402
 import pytest  # noqa: E402
 import yaml  # noqa: E402
 
+from pamd.cli.main import main  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
 from pamd.daemon import Daemon  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
@@ -117,6 +119,38 @@ def harness(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[..., H
     yield make
     for h in made:
         h.rig.close()
+
+
+@dataclasses.dataclass
+class CliResult:
+    """What a `pamd` command returned and printed (as `subprocess.run` gives it)."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+@pytest.fixture
+def pamd_here(capsys: pytest.CaptureFixture[str],
+              monkeypatch: pytest.MonkeyPatch) -> Callable[..., CliResult]:
+    """`pamd ARGS` through the command line's `main()` in this process, from directory
+    `cwd`: for what a command answers before anything runs (a refusal, --help), where the
+    Python start-up of `python -m pamd` (~0.8 s) is not what the test is about. The
+    tests of the real process (exit codes from the interpreter, signals, the daemon)
+    start it."""
+
+    def run(*args: str | Path, cwd: Path | None = None) -> CliResult:
+        if cwd is not None:
+            monkeypatch.chdir(cwd)
+        capsys.readouterr()
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as exc:  # argparse: --help, a usage error
+            code = exc.code if isinstance(exc.code, int) else 1
+        out = capsys.readouterr()
+        return CliResult(code, out.out, out.err)
+
+    return run
 
 
 @pytest.fixture
