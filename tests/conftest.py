@@ -30,6 +30,7 @@ _bytecode_for_the_processes_tests_start()
 import copy  # noqa: E402
 import dataclasses  # noqa: E402
 import functools  # noqa: E402
+import logging  # noqa: E402
 from collections.abc import Callable, Iterator  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
@@ -135,18 +136,30 @@ def pamd_here(capsys: pytest.CaptureFixture[str],
               monkeypatch: pytest.MonkeyPatch) -> Callable[..., CliResult]:
     """`pamd ARGS` through the command line's `main()` in this process, from directory
     `cwd`: for what a command answers before anything runs (a refusal, --help), where the
-    Python start-up of `python -m pamd` (~0.8 s) is not what the test is about. The
-    tests of the real process (exit codes from the interpreter, signals, the daemon)
-    start it."""
+    Python start-up of `python -m pamd` (~0.8 s) is not what the test is about. Its log
+    goes to its stderr as `main()` sets it up in a process of its own (level, format,
+    the libraries' filter), so stderr reads as the process's would; an exception that
+    escapes `main()` (a traceback there) fails the test. The tests of the real process
+    (the interpreter's exit, signals, the daemon) start it."""
 
     def run(*args: str | Path, cwd: Path | None = None) -> CliResult:
+        argv = [str(a) for a in args]
         if cwd is not None:
             monkeypatch.chdir(cwd)
         capsys.readouterr()
+        root = logging.getLogger()
+        handler = logging.StreamHandler(sys.stderr)  # capsys's stderr, as of now
+        handler.setFormatter(logging.Formatter("pamd: %(message)s"))
+        level = root.level
+        root.addHandler(handler)
+        root.setLevel(logging.DEBUG if {"-v", "--verbose"} & set(argv) else logging.INFO)
         try:
-            code = main([str(a) for a in args])
+            code = main(argv)
         except SystemExit as exc:  # argparse: --help, a usage error
             code = exc.code if isinstance(exc.code, int) else 1
+        finally:
+            root.removeHandler(handler)
+            root.setLevel(level)
         out = capsys.readouterr()
         return CliResult(code, out.out, out.err)
 
