@@ -9,11 +9,28 @@ is the whole daemon (loop thread and all) on the simulated rig.
 from __future__ import annotations
 
 import os
+import shutil
+import sys
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+
+def _bytecode_for_the_processes_tests_start() -> None:
+    """Where the environment turns bytecode files off (PYTHONDONTWRITEBYTECODE, as on
+    the project's shared machine), every `python -m pamd` a test starts and every io
+    process compiled pamd from its source again (~0.2 s of each start, a few hundred
+    starts a run). This run writes them as Python does by default, in `__pycache__`
+    beside the sources (git ignores them); installed packages have theirs already."""
+    if os.environ.pop("PYTHONDONTWRITEBYTECODE", None):
+        sys.dont_write_bytecode = False  # this process writes what it imports from here on
+
+
+_bytecode_for_the_processes_tests_start()
+
 import copy  # noqa: E402
-import shutil  # noqa: E402
+import dataclasses  # noqa: E402
+import functools  # noqa: E402
+import logging  # noqa: E402
 from collections.abc import Callable, Iterator  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
@@ -21,6 +38,7 @@ from typing import Any  # noqa: E402
 import pytest  # noqa: E402
 import yaml  # noqa: E402
 
+from pamd.cli.main import main  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
 from pamd.daemon import Daemon  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
@@ -40,15 +58,34 @@ def merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+@functools.lru_cache(maxsize=4)
+def _parsed(text: str) -> dict[str, Any]:
+    return yaml.safe_load(text)
+
+
 def sim_dict(load_kg: float = 30.0, **changes: Any) -> dict[str, Any]:
-    """config/sim.yaml as a dict, virtual clock, real-time off, with changes."""
-    base = yaml.safe_load(SIM_YAML.read_text())
+    """config/sim.yaml as a dict, virtual clock, real-time off, with changes (the file
+    is parsed once per content, each call gets its own copy)."""
+    base = copy.deepcopy(_parsed(SIM_YAML.read_text()))
     base["loop"]["clock"] = "virtual"
     base["loop"]["realtime"] = {"enabled": False}
     base["telemetry"] = {"enabled": False}  # never on the default port 7447 in tests
     base["drivers"][0]["options"]["muscles"][0]["load_kg"] = load_kg
     base["muscles"][0]["load_kg"] = load_kg
     return merge(base, changes)
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """A test module with a `start_early(chosen)` (tests/test_typing.py: mypy) may start
+    slow, self-contained work in the background as soon as the run's tests are chosen;
+    `chosen` is the names of its tests in this run. Its test then waits for the result."""
+    chosen: dict[Any, set[str]] = {}
+    for item in session.items:
+        module = getattr(item, "module", None)
+        if hasattr(module, "start_early"):
+            chosen.setdefault(module, set()).add(getattr(item, "originalname", item.name))
+    for module, names in chosen.items():
+        module.start_early(names)
 
 
 @pytest.fixture(autouse=True)
@@ -83,6 +120,50 @@ def harness(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[..., H
     yield make
     for h in made:
         h.rig.close()
+
+
+@dataclasses.dataclass
+class CliResult:
+    """What a `pamd` command returned and printed (as `subprocess.run` gives it)."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+@pytest.fixture
+def pamd_here(capsys: pytest.CaptureFixture[str],
+              monkeypatch: pytest.MonkeyPatch) -> Callable[..., CliResult]:
+    """`pamd ARGS` through the command line's `main()` in this process, from directory
+    `cwd`: for what a command answers before anything runs (a refusal, --help), where the
+    Python start-up of `python -m pamd` (~0.8 s) is not what the test is about. Its log
+    goes to its stderr as `main()` sets it up in a process of its own (level, format,
+    the libraries' filter), so stderr reads as the process's would; an exception that
+    escapes `main()` (a traceback there) fails the test. The tests of the real process
+    (the interpreter's exit, signals, the daemon) start it."""
+
+    def run(*args: str | Path, cwd: Path | None = None) -> CliResult:
+        argv = [str(a) for a in args]
+        if cwd is not None:
+            monkeypatch.chdir(cwd)
+        capsys.readouterr()
+        root = logging.getLogger()
+        handler = logging.StreamHandler(sys.stderr)  # capsys's stderr, as of now
+        handler.setFormatter(logging.Formatter("pamd: %(message)s"))
+        level = root.level
+        root.addHandler(handler)
+        root.setLevel(logging.DEBUG if {"-v", "--verbose"} & set(argv) else logging.INFO)
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse: --help, a usage error
+            code = exc.code if isinstance(exc.code, int) else 1
+        finally:
+            root.removeHandler(handler)
+            root.setLevel(level)
+        out = capsys.readouterr()
+        return CliResult(code, out.out, out.err)
+
+    return run
 
 
 @pytest.fixture

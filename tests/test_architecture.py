@@ -12,6 +12,7 @@ another directory).
 from __future__ import annotations
 
 import ast
+import functools
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -71,6 +72,16 @@ def _package(module: str) -> str | None:
 
 def _imports(module: str, path: Path) -> Iterator[tuple[str, int, bool]]:
     """(imported module, line, inside a function) for every import of the file."""
+    yield from _parsed_imports(module, path)
+
+
+@functools.cache
+def _parsed_imports(module: str, path: Path) -> list[tuple[str, int, bool]]:
+    """`_imports`, each file parsed once per run (the tests below read every file)."""
+    return list(_parse_imports(module, path))
+
+
+def _parse_imports(module: str, path: Path) -> Iterator[tuple[str, int, bool]]:
     tree = ast.parse(path.read_text(), str(path))
     in_function: set[int] = set()
     for node in ast.walk(tree):

@@ -135,6 +135,9 @@ class EmulatedRig:
         from pamd.emulate.canopen_node import EmulatedEncoder
 
         net = canopen.Network()
+        # the notifier thread's idle wake-up: closing the network waits for it (1 s by
+        # default); frames are delivered as they come either way
+        net.NOTIFIER_CYCLE = 0.05
         if o.interface == "serial":
             pair = PtyPair(o.channel)
             self._ptys.append(pair)

@@ -19,10 +19,12 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from mcap.exceptions import McapError
+from mcap.data_stream import ReadDataStream
+from mcap.exceptions import EndOfFile, McapError
+from mcap.opcode import Opcode
 from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Chunk, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import StreamReader, breakup_chunk, get_chunk_data_stream
 
 from pamd.errors import RecordingError
 from pamd.record import cdr
@@ -118,7 +120,17 @@ def iter_messages(path: str) -> Iterator[tuple[Channel, Schema | None, Message]]
         try:
             with open(path, "rb") as fh:
                 reader = make_reader(fh)
-                yield from ((c, s, m) for s, c, m in reader.iter_messages(log_time_order=False))
+                summary = reader.get_summary()
+                if summary is None or not summary.chunk_indexes:
+                    yield from ((c, s, m) for s, c, m in
+                                reader.iter_messages(log_time_order=False))
+                    return
+                # the chunks in the summary's order, as the reader takes them
+                for index in summary.chunk_indexes:
+                    fh.seek(index.chunk_start_offset + 1 + 8)
+                    for m in _chunk_messages(Chunk.read(ReadDataStream(fh))):
+                        ch = summary.channels[m.channel_id]
+                        yield ch, summary.schemas[ch.schema_id] if ch.schema_id else None, m
             return
         except (McapError, struct.error, ValueError) as exc:
             raise RecordingError(f"{path}: unreadable MCAP file ({exc})") from None
@@ -131,6 +143,30 @@ def iter_messages(path: str) -> Iterator[tuple[Channel, Schema | None, Message]]
             if isinstance(m, Message):
                 ch = sc.channels[m.channel_id]
                 yield ch, sc.schemas.get(ch.schema_id), m
+
+
+_RECORD_HEAD = struct.Struct("<BQ")  # opcode, length
+_MESSAGE_HEAD = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
+
+
+def _chunk_messages(chunk: Chunk) -> Iterator[Message]:
+    """The Message records of a chunk in order, as `mcap`'s `breakup_chunk` reads them
+    (its decompression), parsed from the chunk's bytes at once: reading a recording is
+    mostly this loop, and `breakup_chunk` reads each field through a stream object."""
+    stream, size = get_chunk_data_stream(chunk)
+    data = stream.read(size)
+    head, fields = _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
+    pos = 0
+    while pos < size:
+        opcode, length = head(data, pos)
+        start = pos + 9
+        pos = start + length
+        if pos > size:
+            raise EndOfFile()
+        if opcode == Opcode.MESSAGE:
+            channel_id, sequence, log_time, publish_time = fields(data, start)
+            yield Message(channel_id=channel_id, log_time=log_time, data=data[start + 22:pos],
+                          publish_time=publish_time, sequence=sequence)
 
 
 # -- decoding ------------------------------------------------------------------------
@@ -175,6 +211,27 @@ class Decoder:
 
 # -- inspect -------------------------------------------------------------------------
 def inspect(path: str) -> dict[str, Any]:
+    """`describe` and what only reading every message tells: the faults (events and the
+    summary's), the lost records, and that every chunk reads."""
+    info, chans, schemas = _describe(path)
+    faults, lost_events_seen, last_lost = _events_and_loss(path, chans, schemas)
+    summ = info["metadata"].get("pamd.summary", {})
+    lost_records = _int(summ.get("lost_records"), last_lost)
+    if "faults" in summ:
+        with contextlib.suppress(ValueError):
+            faults = list(dict.fromkeys(faults + list(json.loads(summ["faults"]))))
+    info.update(faults=faults, lost_records=lost_records, lost_record_events=lost_events_seen)
+    return info
+
+
+def describe(path: str) -> dict[str, Any]:
+    """A recording's size, status, span, channels (with their message counts), metadata
+    and attachments: from a finalised file's summary, without reading its messages (a
+    reader that reads them anyway needs no second pass); an unfinished one is scanned."""
+    return _describe(path)[0]
+
+
+def _describe(path: str) -> tuple[dict[str, Any], dict[str, Channel], dict[int, Schema]]:
     size = check_file(path)
     final = is_finalised(path)
     counts: dict[str, int] = {}
@@ -224,12 +281,6 @@ def inspect(path: str) -> dict[str, Any]:
                     counts[sc.channels[m.channel_id].topic] += 1
                     start = m.log_time if start is None else min(start, m.log_time)
                     end = m.log_time if end is None else max(end, m.log_time)
-    faults, lost_events_seen, last_lost = _events_and_loss(path, chans, schemas)
-    summ = metadata.get("pamd.summary", {})
-    lost_records = _int(summ.get("lost_records"), last_lost)
-    if "faults" in summ:
-        with contextlib.suppress(ValueError):
-            faults = list(dict.fromkeys(faults + list(json.loads(summ["faults"]))))
     return {
         "file": path, "size_bytes": size, "status": status, "finalised": final,
         "chunks": chunks, "message_count": sum(counts.values()),
@@ -238,9 +289,8 @@ def inspect(path: str) -> dict[str, Any]:
         "channels": [{"topic": t, "encoding": c.message_encoding,
                       "schema": schemas[c.schema_id].name if c.schema_id in schemas else "",
                       "messages": counts[t]} for t, c in chans.items()],
-        "metadata": metadata, "attachments": attachments, "faults": faults,
-        "lost_records": lost_records, "lost_record_events": lost_events_seen,
-    }
+        "metadata": metadata, "attachments": attachments,
+    }, chans, schemas
 
 
 def _int(v: object, default: int) -> int:

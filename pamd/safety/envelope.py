@@ -13,6 +13,7 @@ which the muscle (`pamd.control.muscle.MuscleController`) owns.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -63,7 +64,7 @@ class MuscleEnvelope:
         model = force_model(muscle.force_model)
         origin = "control.position.max_rate_per_s"
         if max_length_rate_per_s is None:
-            derived = _derive(model, muscle, limits, safety, slew_limit_bar_per_s,
+            derived = _derive(muscle, limits, safety, slew_limit_bar_per_s,
                               rate_feedforward_s)
             max_length_rate_per_s = derived.max_rate_per_s
             origin = f"control.position.max_rate_per_s: null, {derived.explain()}"
@@ -93,8 +94,8 @@ class MuscleEnvelope:
         """What `control.position.max_rate_per_s: null` derives for muscle `name`
         (`pamd check-config` prints it)."""
         ctl, m = cfg.control_of(name), cfg.muscle(name)
-        return _derive(force_model(m.force_model), m, cfg.limits[name], cfg.rig.safety,
-                       ctl.slew_limit_bar_per_s, ctl.rate_feedforward_s)
+        return _derive(m, cfg.limits[name], cfg.rig.safety, ctl.slew_limit_bar_per_s,
+                       ctl.rate_feedforward_s)
 
     @property
     def rating(self) -> MuscleType:
@@ -119,16 +120,26 @@ class MuscleEnvelope:
         return -self.max_pretension + self.soft_band_contraction, self.soft_max_contraction
 
 
-def _derive(model: ForceModel, muscle: MuscleConfig, limits: MuscleLimitsResolved,
-            safety: SafetyConfig, slew_limit_bar_per_s: float,
-            rate_feedforward_s: float) -> LengthRate:
+def _derive(muscle: MuscleConfig, limits: MuscleLimitsResolved, safety: SafetyConfig,
+            slew_limit_bar_per_s: float, rate_feedforward_s: float) -> LengthRate:
     """The length rate limit derived for the muscle at its configured load, over its
     contraction range (`contraction_bounds`, from 0 up)."""
-    return derive_length_rate(
-        model, muscle.load_kg, limits.max_pressure_bar,
+    return _derived(
+        muscle.force_model, muscle.load_kg, limits.max_pressure_bar,
         (-limits.max_pretension + safety.soft_band_contraction,
          limits.max_contraction - safety.soft_band_contraction),
         slew_limit_bar_per_s, rate_feedforward_s)
+
+
+@functools.lru_cache(maxsize=256)
+def _derived(model_name: str, load_kg: float, max_pressure_bar: float,
+             contraction_bounds: tuple[float, float], slew_limit_bar_per_s: float,
+             rate_feedforward_s: float) -> LengthRate:
+    """`derive_length_rate` on the named force model, once per set of inputs: it is a
+    pure function of them (the model is the package's data) and costs ~10 ms of
+    bisections, paid at every config load, controller build and reload otherwise."""
+    return derive_length_rate(force_model(model_name), load_kg, max_pressure_bar,
+                              contraction_bounds, slew_limit_bar_per_s, rate_feedforward_s)
 
 
 def _settings(limits: MuscleLimitsResolved, safety: SafetyConfig,

@@ -230,7 +230,7 @@ def open_recording(source: str | os.PathLike[str] | Sequence[str | os.PathLike[s
             notes.append(note)
             warnings.warn(note, RecordingIncomplete, stacklevel=2)
         else:
-            metadata = io_files.inspect(path)["metadata"]
+            metadata = io_files.describe(path)["metadata"]
         exp = metadata.get("pamd.experiment", {})
         step = step or exp.get("step")
         load = load if load is not None else _float(exp.get("load_kg"))

@@ -11,6 +11,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import yaml
 from mcap.reader import make_reader
@@ -38,14 +39,15 @@ def collect(*args: str) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, timeout=180, cwd=REPO)
 
 
-def test_dry_run_prints_the_timeline_and_moves_nothing(tmp_path: Path) -> None:
-    r = collect(str(REPO / "config/experiments/sine-sweep.yaml"), "--dry-run")
+def test_dry_run_prints_the_timeline_and_moves_nothing(tmp_path: Path, pamd_here: Any) -> None:
+    r = pamd_here("collect", REPO / "config/experiments/sine-sweep.yaml", "--dry-run",
+                  "--no-progress", cwd=REPO)
     assert r.returncode == 0, r.stderr
     assert "5 steps" in r.stdout and "load-80kg" in r.stdout and "nothing moved" in r.stdout
     assert "sensors read" not in r.stderr
     bad = tmp_path / "bad.yaml"
     bad.write_text(GOOD.replace("load_kg: 50", "load_kg: 120"))
-    r = collect(str(bad), "--dry-run")
+    r = pamd_here("collect", bad, "--dry-run", "--no-progress", cwd=REPO)
     assert r.returncode == 2 and "steps[1] (heavy).load_kg" in r.stderr
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -85,11 +86,11 @@ def test_position_loop_agrees_with_the_bench_and_writes_nothing(rig: Path,
     (("--muscle", "m9"), "no muscle 'm9'"),
 ])
 def test_runs_outside_the_limits_are_refused(rig: Path, tmp_path: Path, args: tuple[str, ...],
-                                             reason: str) -> None:
+                                             reason: str, pamd_here: Any) -> None:
     rig.write_text(rig.read_text().replace("load_kg: 30", "load_kg: 80"))
     before = rig.read_text()
-    r = tune("--config", str(rig), "--out", str(tmp_path / "run"), "--save", *args,
-             cwd=tmp_path)
+    r = pamd_here("tune", "--clock", "virtual", "--config", str(rig), "--out",
+                  str(tmp_path / "run"), "--save", *args, cwd=tmp_path)
     assert r.returncode == 2 and reason in r.stderr, r.stderr
     assert rig.read_text() == before
     assert not list(tmp_path.rglob("*.mcap"))  # nothing ran
@@ -126,16 +127,14 @@ def test_a_fault_during_the_run_stops_it(rig: Path, tmp_path: Path) -> None:
     assert list((tmp_path / "run" / "m1").glob("*.mcap"))
 
 
-def test_save_needs_a_config_file(tmp_path: Path) -> None:
-    r = subprocess.run([sys.executable, "-m", "pamd", "tune", "--save"], capture_output=True,
-                       text=True, timeout=60, cwd=tmp_path)
+def test_save_needs_a_config_file(tmp_path: Path, pamd_here: Any) -> None:
+    r = pamd_here("tune", "--save", cwd=tmp_path)
     assert r.returncode == 2 and "name it with --config" in r.stderr
     assert not list(tmp_path.rglob("*.mcap"))
 
 
-def test_help_teaches() -> None:
-    r = subprocess.run([sys.executable, "-m", "pamd", "tune", "--help"], capture_output=True,
-                       text=True, timeout=60)
+def test_help_teaches(pamd_here: Any) -> None:
+    r = pamd_here("tune", "--help")
     assert r.returncode == 0
     for words in ("What it does to the rig", "How long", "What it writes", "--save"):
         assert words in r.stdout

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -37,31 +38,34 @@ def check_config(path: Path, timeout: float = 60) -> subprocess.CompletedProcess
                           capture_output=True, text=True, timeout=timeout, cwd=REPO)
 
 
-def refused(tmp_path: Path, data: bytes | str, where: str) -> str:
-    """check-config of `data` exits 2 with `where` (file:line[: key]) and no traceback."""
+def refused(tmp_path: Path, data: bytes | str, where: str, pamd_here: Any = None) -> str:
+    """check-config of `data` exits 2 with `where` (file:line[: key]) and no traceback;
+    through `pamd_here` (the command's main() in this process) where given, else in a
+    process of its own."""
     path = tmp_path / "rig.yaml"
     path.write_bytes(data if isinstance(data, bytes) else data.encode())
-    r = check_config(path)
+    r = check_config(path) if pamd_here is None else pamd_here("check-config", path, cwd=REPO)
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr and f"{path}:{where}" in r.stderr, r.stderr
     return r.stderr
 
 
-def test_non_utf8_bytes_name_their_line_and_key(tmp_path: Path) -> None:
+def test_non_utf8_bytes_name_their_line_and_key(tmp_path: Path, pamd_here: Any) -> None:
     data = SIM.encode().replace(b"clock: real", b"clock: r\xe9al")
-    err = refused(tmp_path, data, f"{line_of(SIM, 'clock: real')}: clock:")
+    err = refused(tmp_path, data, f"{line_of(SIM, 'clock: real')}: clock:", pamd_here=pamd_here)
     assert "UTF-8" in err and "0xe9" in err
 
 
-def test_control_characters_are_refused_with_their_line(tmp_path: Path) -> None:
+def test_control_characters_are_refused_with_their_line(tmp_path: Path, pamd_here: Any) -> None:
     text = SIM.replace("rig_id: sim", "rig_id: s\x01im")
-    err = refused(tmp_path, text, f"{line_of(SIM, 'rig_id: sim')}: rig_id:")
+    err = refused(tmp_path, text, f"{line_of(SIM, 'rig_id: sim')}: rig_id:", pamd_here=pamd_here)
     assert "U+0001" in err
 
 
-def test_a_5000_digit_integer_names_its_key(tmp_path: Path) -> None:
+def test_a_5000_digit_integer_names_its_key(tmp_path: Path, pamd_here: Any) -> None:
     text = SIM.replace("rate_hz: 1000 ", "rate_hz: " + "9" * 5000 + " ")
-    err = refused(tmp_path, text, f"{line_of(SIM, 'rate_hz: 1000')}: loop.rate_hz:")
+    err = refused(tmp_path, text, f"{line_of(SIM, 'rate_hz: 1000')}: loop.rate_hz:",
+                  pamd_here=pamd_here)
     assert "a number of 5000 digits" in err
 
 
@@ -73,9 +77,9 @@ def test_deep_nesting_is_refused_not_a_recursion_error(tmp_path: Path) -> None:
     assert "nesting" in err
 
 
-def test_non_mapping_roots_are_refused(tmp_path: Path) -> None:
+def test_non_mapping_roots_are_refused(tmp_path: Path, pamd_here: Any) -> None:
     for text in ("- a\n- b\n", "just text\n", "42\n", ""):
-        err = refused(tmp_path, text, "1:")
+        err = refused(tmp_path, text, "1:", pamd_here=pamd_here)
         assert "expected a mapping with drivers and muscles" in err
     # with overrides, as `pamd run --clock virtual` applies them
     path = tmp_path / "list.yaml"
@@ -85,6 +89,8 @@ def test_non_mapping_roots_are_refused(tmp_path: Path) -> None:
 
 
 def test_anchor_bombs_and_self_aliases_are_refused(tmp_path: Path) -> None:
+    # in a process of its own, as the deep nesting: an input built to exhaust memory or
+    # the stack must not be able to take the test run down with it
     laughs = "".join(f"a{i}: &a{i} [" + ",".join([f"*a{i - 1}" if i else "1"] * 9) + "]\n"
                      for i in range(12))
     start = time.monotonic()

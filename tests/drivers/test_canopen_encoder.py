@@ -29,6 +29,9 @@ class Bus:
     def __init__(self) -> None:
         self.channel = f"pamd-enc-test-{next(_ids)}-{time.monotonic_ns()}"
         self.net = canopen.Network()
+        # its notifier thread wakes every 0.05 s, not every 1 s, when no frame comes: the
+        # bus's close waits for that wake-up (frames are delivered as they come either way)
+        self.net.NOTIFIER_CYCLE = 0.05
         self.net.connect(interface="virtual", channel=self.channel)
         self.encoders: list[EmulatedEncoder] = []
         self.drivers: list[CanEncoderDriver] = []

@@ -312,6 +312,7 @@ class CanEncoderBench(Bench):
         super().__init__(tmp)
         self.channel = f"pamd-contract-{time.monotonic_ns()}"
         self.net = canopen.Network()
+        self.net.NOTIFIER_CYCLE = 0.05  # its close waits for one idle wake-up, not 1 s
         self.net.connect(interface="virtual", channel=self.channel)
         self.encoder = EmulatedEncoder(self.net, 5)
         self.encoder.physical = 12345

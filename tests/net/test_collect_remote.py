@@ -85,7 +85,9 @@ def read(path: str) -> dict[str, Any]:
     with open(path, "rb") as fh:
         r = make_reader(fh, decoder_factories=[DecoderFactory()])
         decoders: dict[int, Any] = {}  # one ROS 2 decoder per schema, not per message
-        for schema, ch, m in r.iter_messages():
+        # only the two topics read here go through the reader's log-time ordering
+        for schema, ch, m in r.iter_messages(topics=[f"/pamd/{RIG}/loop",
+                                                     f"/pamd/{RIG}/events"]):
             if ch.topic == f"/pamd/{RIG}/loop":
                 if schema.id not in decoders:
                     decoders[schema.id] = DecoderFactory().decoder_for(ch.message_encoding,

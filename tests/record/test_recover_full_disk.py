@@ -10,20 +10,39 @@ import resource
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
 
 import pytest
 
+from pamd.daemon import Daemon
 from pamd.errors import RecordingError
+from pamd.io.session import RecordingRequest
 from pamd.record import files
+
+from .conftest import make_sim_config
+
+
+@pytest.fixture(scope="module")
+def recorded_bytes(tmp_path_factory: pytest.TempPathFactory) -> bytes:
+    """A 2 s recording of the simulated rig (virtual clock), made once for the module:
+    every test cuts its own copy."""
+    tmp = tmp_path_factory.mktemp("recorded")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("PAMD_LOCK_DIR", str(tmp / "locks"))  # as tests/conftest.py's rig_lock_dir
+        d = Daemon(make_sim_config(tmp), recording=RecordingRequest(dir=str(tmp / "rec")))
+        d.start(2.0)
+        try:
+            d.wait(timeout_s=120)
+        finally:
+            d.stop("test finished")
+            d.wait(timeout_s=60)
+            d.close()
+    return Path(d.result()["recording"]["files"][0]).read_bytes()
 
 
 @pytest.fixture
-def cut_file(recorded_run: Any, tmp_path: Path) -> Path:
-    run = recorded_run(duration_s=2.0)
-    data = Path(run.files[0]).read_bytes()
+def cut_file(recorded_bytes: bytes, tmp_path: Path) -> Path:
     cut = tmp_path / "cut.mcap"
-    cut.write_bytes(data[: len(data) * 2 // 3])
+    cut.write_bytes(recorded_bytes[: len(recorded_bytes) * 2 // 3])
     assert cut.stat().st_size > 20_000
     return cut
 

@@ -4,9 +4,8 @@ the pressure loop's bandwidth (`control.position.max_rate_per_s: null`)."""
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 from collections.abc import Callable
+from typing import Any
 
 import pytest
 
@@ -75,8 +74,9 @@ def test_profiles_past_it_are_refused_naming_what_passes(
 
 
 def test_check_config_prints_the_derived_limit(
-        sim_config: Callable[..., LoadedConfig]) -> None:
+        sim_config: Callable[..., LoadedConfig], pamd_here: Any) -> None:
     cfg = sim_config()
-    out = subprocess.run([sys.executable, "-m", "pamd", "check-config", cfg.path],
-                         capture_output=True, text=True, timeout=60, check=True).stdout
+    r = pamd_here("check-config", cfg.path)
+    assert r.returncode == 0, r.stderr
+    out = r.stdout
     assert "length rate limit (control.position.max_rate_per_s: null): 0.102/s derived" in out

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -58,8 +59,9 @@ def rig(tmp_path: Path) -> Path:
      "leaves the pressure limit"),
 ])
 def test_a_relay_past_its_bounds_is_refused_before_anything_moves(
-        rig: Path, tmp_path: Path, args: tuple[str, ...], said: str) -> None:
-    r = tune("--config", str(rig), "--out", str(tmp_path / "run"), *args, cwd=tmp_path)
+        rig: Path, tmp_path: Path, args: tuple[str, ...], said: str, pamd_here: Any) -> None:
+    r = pamd_here("tune", "--clock", "virtual", "--method", "relay", "--config", str(rig),
+                  "--out", str(tmp_path / "run"), *args, cwd=tmp_path)
     assert r.returncode == 2, r.stderr
     assert said in r.stderr
     assert not (tmp_path / "run").exists()  # nothing ran, nothing recorded

@@ -51,7 +51,7 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
     """The runs of one recording: one per muscle state topic (or only `muscle`)."""
 
     try:
-        info = files.inspect(path)
+        info = files.describe(path)
     except RecordingError as exc:
         raise ModelError(str(exc)) from None
     if not info["finalised"]:

@@ -73,10 +73,10 @@ def dmsp20_force():
     return dmsp20_force_n
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """`pamd run --record` of two 0.2 Hz 0.5-5 bar sine cycles (virtual clock, ~1 s):
-    exactly one MCAP file."""
+    exactly one MCAP file, recorded once for the modules that read it (none writes it)."""
     d = tmp_path_factory.mktemp("rec")
     r = subprocess.run([sys.executable, "-m", "pamd", "run", "--clock", "virtual", "--profile",
                         "sine", "--freq-hz", "0.2", "--min-bar", "0.5", "--max-bar", "5",
