@@ -8,11 +8,19 @@ is the whole daemon (loop thread and all) on the simulated rig.
 
 from __future__ import annotations
 
+import atexit
 import os
 import shutil
 import sys
+import tempfile
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# The run's own directory of rig locks (pamd.service.riglock) for what starts before a
+# test's own (`rig_lock_dir`): session and module fixtures that run a daemon never meet
+# a `sim` rig running on this machine, nor another checkout's test run.
+_RUN_LOCK_DIR = tempfile.mkdtemp(prefix="pamd-test-locks-")
+os.environ["PAMD_LOCK_DIR"] = _RUN_LOCK_DIR
+atexit.register(shutil.rmtree, _RUN_LOCK_DIR, True)
 
 
 def _bytecode_for_the_processes_tests_start() -> None:
