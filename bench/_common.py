@@ -10,15 +10,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import copy  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
-
-# The benchmarks' simulated rigs are in-process, each their own: their rig locks
-# (pamd.service.riglock) in a directory of this run, so benchmarks run at once on one
-# machine do not refuse each other.
-os.environ.setdefault("PAMD_LOCK_DIR", tempfile.mkdtemp(prefix="pamd-bench-locks-"))
 from collections.abc import Mapping
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
+import _lockdir  # noqa: E402, F401  (the run's own rig-lock directory)
 import yaml  # noqa: E402
 
 from pamd.config import LoadedConfig, load_config  # noqa: E402

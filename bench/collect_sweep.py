@@ -12,6 +12,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import _lockdir  # noqa: F401  (the run's own rig-lock directory)
+
 REPO = Path(__file__).resolve().parents[1]
 
 

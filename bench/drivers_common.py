@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import _lockdir  # noqa: F401  (the run's own rig-lock directory)
 import yaml
 
 from pamd.config import load_config

@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import os
 
+import _lockdir  # noqa: F401  (the run's own rig-lock directory)
+
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
