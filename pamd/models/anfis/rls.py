@@ -26,12 +26,12 @@ An update is computed into candidate buffers and only taken by `commit()`: the
 caller checks the candidate (finite, within its bounds) first and the present
 parameters stay as they were if it refuses it (`OutputBound`). Every buffer is
 allocated once; an update is a dozen numpy calls on them (`out=` arguments), O(n^2)
-for n parameters (108 for 27 rules of 3 inputs: about 20 us).
+for n parameters (108 for 27 rules of 3 inputs: about 55 us with the regularisation).
 
 `OutputBound` measures a change of the consequents in bar of output: the largest
 change of the model's output it makes at a grid of points over the training input
 ranges (at most `GRID_MAX_POINTS`: 10 per input for 3 inputs, 31 for 2),
-max |Phi_grid delta|, one (points x n) product (about 20 us for 1000 x 108). The
+max |Phi_grid delta|, one (points x n) product (about 25 us for 1000 x 108). The
 model's output is smooth between the points (Gaussian or bell memberships wider than
 the grid's spacing), so this is what an operator means by "the adapted model differs
 from the trained one by at most so many bar anywhere". The adaptation bounds
@@ -44,6 +44,8 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from pamd.models.anfis.training import _design, _with_ones
 
 if TYPE_CHECKING:
     from pamd.models.anfis.model import AnfisModel
@@ -193,8 +195,12 @@ class OutputBound:
                                                                    strict=True)]
         X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, d)
         S = model.scale(X)
-        W = model.firing_strengths(S)
-        return cls(np.hstack([W * S[:, i:i + 1] for i in range(d)] + [W]))
+        # training's least-squares design matrix (rule by rule) in the evaluator's
+        # layout (input by input)
+        design = _design(model.firing_strengths(S), _with_ones(S))
+        n_points, n_rules = X.shape[0], model.n_rules
+        return cls(design.reshape(n_points, n_rules, d + 1).transpose(0, 2, 1)
+                   .reshape(n_points, -1))
 
     def bar(self, delta: np.ndarray) -> float:
         """The largest output change (bar) the parameter change `delta` makes on the
