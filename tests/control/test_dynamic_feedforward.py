@@ -18,9 +18,9 @@ from pamd.config.control_schema import PositionConfig, PositionPidConfig
 from pamd.control.feedforward import Feedforward, LoadedModel
 from pamd.control.length_control import LengthControl, preview_s_of
 from pamd.harness import Harness
-from pamd.models.anfis import TrainingOptions, fit, save
+from pamd.models.anfis import TrainingOptions, fit
 from pamd.models.contract import InverseModel
-from pamd.muscle import GRAVITY_M_S2, force_model, pressure_for_force
+from pamd.muscle import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfilePoint, ProfileSpec
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.tick import Mode, State
@@ -214,23 +214,6 @@ def test_model_sweep_hz_puts_the_velocity_input_on_the_training_sweeps_time_axis
 
 
 # -- on the simulated rig -----------------------------------------------------------------
-@pytest.fixture(scope="module")
-def map_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """(force, length) -> pressure of the sim's own force map, no friction (as
-    test_feedforward's static model)."""
-    fm = force_model("map")
-    rng = np.random.default_rng(0)
-    F = rng.uniform(100.0, 800.0, 1500)
-    x = rng.uniform(-0.03, 0.22, 1500)
-    p = np.array([pressure_for_force(fm, f, c, 6.0) for f, c in zip(F, x, strict=True)])
-    ok = (p > 0.05) & (p < 5.95)
-    res = fit(np.c_[F[ok], 200.0 * (1.0 - x[ok])], p[ok],
-              TrainingOptions(n_mfs=[2, 4], epochs=30),
-              input_names=["force_n", "length_mm"], input_units=["N", "mm"],
-              output_name="pressure_bar", output_unit="bar")
-    return save(res.model, tmp_path_factory.mktemp("model") / "map.json")
-
-
 FAST = {"slew_limit_bar_per_s": 20.0, "position": {"max_rate_per_s": 0.5}}
 BEFORE = {"preview_s": 0.0, "planned_rate": False}
 
@@ -258,14 +241,14 @@ def track_05hz(cfg: LoadedConfig, model: Path | None, cycles: int = 4) -> float:
 
 
 def test_position_at_half_a_hertz_beats_the_pid_alone(
-        sim_config: Callable[..., LoadedConfig], map_model: Path) -> None:
+        sim_config: Callable[..., LoadedConfig], static_model: Path) -> None:
     """The flow plant, 30 kg, 5-20 % at 0.5 Hz (bench/position_fast.py's test case, with
     the frictionless map model in place of the trained one)."""
     pid_alone = track_05hz(sim_config(control=FAST), None)
     before = track_05hz(sim_config(control={**FAST, "position": {
-        **FAST["position"], **BEFORE}}), map_model)
+        **FAST["position"], **BEFORE}}), static_model)
     dynamic = track_05hz(sim_config(control={**FAST, "position": {
-        **FAST["position"], "preview_s": 0.08, "force_input": "planned"}}), map_model)
+        **FAST["position"], "preview_s": 0.08, "force_input": "planned"}}), static_model)
     print(f"0.5 Hz RMSE: PID alone {pid_alone:.3f} mm, model + PID {before:.3f} mm, "
           f"+ preview/dynamic {dynamic:.3f} mm")
     assert pid_alone == pytest.approx(PID_ALONE_MM, rel=0.1)
@@ -278,11 +261,11 @@ PID_ALONE_MM, DYNAMIC_MM, FACTOR = 2.28, 0.741, 3.0
 
 
 def test_entry_with_everything_on_is_bumpless(
-        sim_config: Callable[..., LoadedConfig], map_model: Path) -> None:
+        sim_config: Callable[..., LoadedConfig], static_model: Path) -> None:
     cfg = sim_config(control={**FAST, "position": {
         **FAST["position"], "preview_s": 0.08, "force_input": "planned",
         "flow_feedforward_bar_s_per_mm": 0.002}})
-    h = Harness(cfg, {"m1": LoadedModel.read(str(map_model), cfg.muscle("m1"),
+    h = Harness(cfg, {"m1": LoadedModel.read(str(static_model), cfg.muscle("m1"),
                                              cfg.limits["m1"])})
     h.step(0.05)
     assert h.cmd("setpoint", muscle="m1", bar=3.0)["ok"]
@@ -297,12 +280,12 @@ def test_entry_with_everything_on_is_bumpless(
 
 
 def test_the_flow_term_reaches_the_valve_command(
-        sim_config: Callable[..., LoadedConfig], map_model: Path) -> None:
+        sim_config: Callable[..., LoadedConfig], static_model: Path) -> None:
     """The muscle adds `flow_bar` after its pressure loop: the valve command is the
     setpoint + rate feedforward + PID + the flow term."""
     cfg = sim_config(control={**FAST, "position": {
         **FAST["position"], "flow_feedforward_bar_s_per_mm": 0.002}})
-    h = Harness(cfg, {"m1": LoadedModel.read(str(map_model), cfg.muscle("m1"),
+    h = Harness(cfg, {"m1": LoadedModel.read(str(static_model), cfg.muscle("m1"),
                                              cfg.limits["m1"])})
     h.step(0.05)
     assert h.cmd("mode", muscle="m1", mode="position")["ok"]
