@@ -175,7 +175,7 @@ class RigController:
                 else:
                     ramped.append(f"{m.name} {why}: ramping from {m.setpoint_bar:.2f} bar to "
                                   f"its safe pressure {m.safe_pressure_bar:.2f} bar at "
-                                  f"{m.envelope.slew_limit_bar_per_s:g} bar/s")
+                                  f"{m.envelope.safe_slew_bar_per_s:g} bar/s")
                     self.sink.event(now, "startup", {
                         "muscle": m.name, "action": "safe_ramp", "reason": why,
                         "pressure_bar": m.setpoint_bar,

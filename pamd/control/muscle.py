@@ -334,7 +334,23 @@ class MuscleController(MuscleView):
         if lc.active and lc.position and loop.closed and self._onoff is None:
             u += lc.flow_bar  # the air the planned motion draws (position mode)
         flags |= loop.flags
+        # -- limits: the measured pressure must follow the last command (judged before
+        # this tick's command, so that a fault it finds shapes that command) -------------
+        reason = lim.track(now, p, prev_u, p_ok)
+        flags |= lim.flags
+        if reason is not None:
+            self.plausibility.distrust_pressure(reason)
+            self.finding = reason
+            if fault is None:
+                fault = reason
         # -- limits: the guards' bounds (restoring direction, trusted length only) -------
+        if not safe and (fault is not None or not p_ok):
+            # The safe state's entry: the tick that finds a fault (the supervisor latches
+            # it after this tick) or that lost the pressure (the loop just opened: its
+            # command would jump from the PID's output to the setpoint) is already held
+            # to the safe state's invariants, from the command written last.
+            safe = True
+            slew = self._envelope.safe_slew_bar_per_s
         step = slew * dt
         if prev_u != prev_u:  # nothing written yet
             prev_u = u
@@ -347,14 +363,6 @@ class MuscleController(MuscleView):
         flags |= limiter.flags
         if u != u_free:
             loop.unwind(u, u_free)
-        # -- limits: the measured pressure must follow the command -------------------------
-        reason = lim.track(now, p, prev_u, p_ok)
-        flags |= lim.flags
-        if reason is not None:
-            self.plausibility.distrust_pressure(reason)
-            self.finding = reason
-            if fault is None:
-                fault = reason
         if flags & F_AT_LIMIT or lim.holding_back:  # a profile held back at a soft limit
             report = lim.held_at_limit(now, flags, state == S_RUNNING or state == S_LOAD, sp, u)
             if report is not None:

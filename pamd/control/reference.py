@@ -33,7 +33,7 @@ class SafeRamp:
         self.slew_bar_per_s = self._slew  # the slew limit this tick (ESTOP's, inf: vent)
 
     def set_envelope(self, envelope: MuscleEnvelope) -> None:
-        self._slew = envelope.slew_limit_bar_per_s
+        self._slew = envelope.safe_slew_bar_per_s
         self._estop_slew = envelope.estop_slew_bar_per_s
         self._estop_holds = envelope.estop_action == "hold"
         self._estop_vents = envelope.estop_action == "vent"

@@ -36,7 +36,7 @@ from pamd.control.tuning import (
 )
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
-from pamd.tune.run import PRESSURE, TuneRefused, check_limits, ident_overrides
+from pamd.tune.run import PRESSURE, TuneRefused, check_limits, ident_overrides, safety_overrides
 from pamd.view.recording import open_recording
 
 #: the largest relay amplitude allowed unless --relay-max-bar says otherwise (bar): the
@@ -93,6 +93,7 @@ def run_relay(config_path: str | None, clock: str | None, muscle: str,
     base = load_config(config_path, overrides)
     check_relay(base, muscle, levels_bar, amplitude_bar, max_amplitude_bar)
     overrides["control"] = ident_overrides(base, "pressure")
+    overrides["safety"] = safety_overrides(base)
     cfg = load_config(config_path, overrides)
     runs: list[RelayRun] = []
     for level in levels_bar:

@@ -35,6 +35,7 @@ from pamd.experiment.timeline import timeline
 from pamd.io.session import RecordingRequest
 from pamd.muscle import force_model
 from pamd.safety import safe_pressure_bar
+from pamd.safety.envelope import MuscleEnvelope
 from pamd.tune.steps import Step, steps_in
 from pamd.view.recording import open_recording
 
@@ -87,6 +88,15 @@ def ident_overrides(cfg: LoadedConfig, loop: str) -> dict[str, Any]:
                 "slew_limit_bar_per_s": IDENT_SLEW_BAR_PER_S}
     return {"pid": {"kp": c.pid.kp, "ki_per_s": c.pid.ki_per_s, "kd_s": c.pid.kd_s},
             "slew_limit_bar_per_s": IDENT_SLEW_BAR_PER_S}
+
+
+def safety_overrides(cfg: LoadedConfig) -> dict[str, Any]:
+    """The safety section of the identification run: its fast slew limit moves the
+    steps only; a fault, a stop or a deadman ramps to the safe state at the rig's own
+    safe slew, as in `pamd run` (the slowest of its muscles', if they differ)."""
+    slews = [MuscleEnvelope.from_config(cfg, m.name).safe_slew_bar_per_s
+             for m in cfg.rig.muscles]
+    return {"safe_slew_bar_per_s": min(slews)}
 
 
 def check_limits(cfg: LoadedConfig, muscle: str, lp: LoopPlan) -> None:
@@ -142,6 +152,7 @@ def run_identification(config_path: str | None, clock: str | None, muscle: str,
     base = load_config(config_path, overrides)
     check_limits(base, muscle, lp)
     overrides["control"] = ident_overrides(base, lp.loop)
+    overrides["safety"] = safety_overrides(base)
     cfg = load_config(config_path, overrides)
     os.makedirs(out_dir, exist_ok=True)
     plan_file = os.path.join(out_dir, f"tune-{lp.loop}-{muscle}.plan.yaml")
