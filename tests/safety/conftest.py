@@ -165,3 +165,6 @@ def safety_rig(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[...
     yield make
     for h in made:
         h.rig.close()
+
+
+from tests.control.conftest import static_model  # noqa: E402, F401  (the one model fixture)
