@@ -234,6 +234,9 @@ class Daemon:
             "valve_switches": {m.name: m.actuation.switches() for m in self.ctrl.muscles},
             "faults": list(sup.faults),
             "final_state": sup.state.name,
+            "outputs": {m.name: {"valve_cmd_bar": m.valve_cmd_bar,
+                                 "safe_pressure_bar": m.safe_pressure_bar}
+                        for m in self.ctrl.muscles},
             "stop_reason": self.loop.stopped_reason,
             "realtime": {"applied": self.loop.rt.applied, "refused": self.loop.rt.warnings},
             "recording": self.io.result() if self.io is not None and self.io.recording

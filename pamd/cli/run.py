@@ -344,4 +344,9 @@ def print_summary(r: dict[str, Any]) -> None:
                   f"({rec['failure']['policy']})", file=out)
     faults = r["faults"]
     print(f"  faults: {'; '.join(faults) if faults else 'none'}", file=out)
+    outputs = r.get("outputs") or {}
+    if outputs:
+        print("  outputs at exit: " + ", ".join(
+            f"{n} {o['valve_cmd_bar']:.2f} bar (safe pressure {o['safe_pressure_bar']:.2f})"
+            for n, o in outputs.items()), file=out)
     print(f"  final state: {r['final_state']}", file=out)

@@ -90,6 +90,22 @@ def ident_overrides(cfg: LoadedConfig, loop: str) -> dict[str, Any]:
             "slew_limit_bar_per_s": IDENT_SLEW_BAR_PER_S}
 
 
+def tuning_config(config_path: str | None, clock: str | None, loop: str,
+                  check: Callable[[LoadedConfig], None] = lambda cfg: None
+                  ) -> LoadedConfig:
+    """The identification run's config: the rig's, with `ident_overrides` (a fast slew
+    limit for the steps) and `safety_overrides` (the safe state at the rig's own slew);
+    `check` refuses what the rig's own config does not allow, before anything opens."""
+    overrides: dict[str, Any] = {}
+    if clock:
+        overrides["loop"] = {"clock": clock}
+    base = load_config(config_path, overrides)
+    check(base)
+    overrides["control"] = ident_overrides(base, loop)
+    overrides["safety"] = safety_overrides(base)
+    return load_config(config_path, overrides)
+
+
 def safety_overrides(cfg: LoadedConfig) -> dict[str, Any]:
     """The safety section of the identification run: its fast slew limit moves the
     steps only; a fault, a stop or a deadman ramps to the safe state at the rig's own
@@ -146,14 +162,8 @@ def run_identification(config_path: str | None, clock: str | None, muscle: str,
                        lp: LoopPlan, out_dir: str,
                        progress: Callable[[str], None] | None = None) -> list[Step]:
     """Run the steps on the rig, recorded into `out_dir`; the steps of the recording."""
-    overrides: dict[str, Any] = {}
-    if clock:
-        overrides["loop"] = {"clock": clock}
-    base = load_config(config_path, overrides)
-    check_limits(base, muscle, lp)
-    overrides["control"] = ident_overrides(base, lp.loop)
-    overrides["safety"] = safety_overrides(base)
-    cfg = load_config(config_path, overrides)
+    cfg = tuning_config(config_path, clock, lp.loop,
+                        lambda base: check_limits(base, muscle, lp))
     os.makedirs(out_dir, exist_ok=True)
     plan_file = os.path.join(out_dir, f"tune-{lp.loop}-{muscle}.plan.yaml")
     with open(plan_file, "w", encoding="utf-8") as fh:
