@@ -21,6 +21,7 @@ from pamd.config import LoadedConfig
 from pamd.control.feedforward import LoadedModel
 from pamd.harness import Harness
 from pamd.tick import State
+from tests.experiment.test_sequencer import start
 
 from ..conftest import sim_dict
 from .conftest import SafetyRig, sim_driver
@@ -95,8 +96,6 @@ def test_a_fault_found_by_the_tracking_check_shapes_the_tick_that_finds_it(
 def test_a_fault_during_a_load_change_enters_without_a_step(
         safety_rig: Callable[..., SafetyRig]) -> None:
     # Before: +0.315 bar in one tick during LOAD_CHANGE
-    from tests.experiment.test_sequencer import start
-
     rig = safety_rig(30.0, 2.0, [{"at_s": 1.0, "muscle": "m1", "signal": "pressure",
                                   "kind": "silent"}])
     rig.run(0.01)

@@ -14,6 +14,7 @@ from pamd.experiment.sequencer import running_plan
 from pamd.harness import Harness
 from pamd.tick import State
 from pamd.tune.run import IDENT_SLEW_BAR_PER_S, tuning_config
+from tests.experiment.test_sequencer import start
 
 from .conftest import SafetyRig
 
@@ -58,8 +59,6 @@ def test_a_fault_during_the_relay_test_ramps_at_the_rigs_safe_slew(
 
 def test_a_fault_during_the_identification_steps_ramps_at_the_rigs_safe_slew(
         safety_rig: Callable[..., SafetyRig]) -> None:
-    from tests.experiment.test_sequencer import start
-
     rig = tuning_rig(safety_rig, "pressure")
     try:
         rig.run(0.01)
@@ -77,8 +76,6 @@ def test_a_fault_during_a_collection_profile_keeps_the_contract(
         safety_rig: Callable[..., SafetyRig]) -> None:
     """`pamd collect` and a remote `collect` command run the same Sequencer in the
     loop: a fault mid-profile ends the plan into the same safe state."""
-    from tests.experiment.test_sequencer import start
-
     rig = safety_rig(80.0, 3.0, [{"at_s": 2.5, "muscle": "m1", "signal": "pressure",
                                   "kind": "jump", "size": -1.0}])
     rig.run(0.01)
