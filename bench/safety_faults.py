@@ -6,7 +6,9 @@ second table, 0.1 s into a stop's safe ramp from 4.5 bar). Printed per fault: wh
 it was detected (the first `implausible` event or fault, after the fault struck),
 what named it, the valve command when the safe state began (a command below the
 safe pressure then only rises), the lowest command in the safe state once it had
-reached the safe pressure, the safe pressure, and the lowest true contraction
+reached the safe pressure, the safe pressure, the largest command step in one tick
+from the safe state's entry on (the tick that found the fault included; the slew
+limit allows 0.005 bar at 5 bar/s and 1 kHz), and the lowest true contraction
 after the fault (the pretension limit is -4 %).
 
     python bench/safety_faults.py [--load-kg 80] [--after-s 4]
@@ -52,19 +54,25 @@ def run_one(load_kg: float, signal: str, kind: str, scenario: str,
         entry_cmd = math.nan  # the command at the first tick of the safe state
         reached = False
         min_x = math.inf
+        max_step = 0.0  # the largest |command step| from the safe state's entry on
+        prev_cmd = math.nan
         t_end = at_s + after_s
         stopped = False
         while h.t < t_end:
             if scenario == "safe_ramp" and not stopped and h.t >= 2.0:
                 assert h.cmd("stop")["ok"]
                 stopped = True
+            before = m.valve_cmd_bar
             h.step(h.period_s)
             if h.t >= at_s:
                 min_x = min(min_x, plant.contraction)
             safe = ctrl.supervisor.state in (State.FAULT, State.ESTOP) or m.in_safe_ramp
             if safe and m.started and h.t >= at_s:
                 if entry_cmd != entry_cmd:
-                    entry_cmd = m.valve_cmd_bar
+                    entry_cmd = before  # the command written before the entry tick
+                    prev_cmd = before
+                max_step = max(max_step, abs(m.valve_cmd_bar - prev_cmd))
+                prev_cmd = m.valve_cmd_bar
                 reached = reached or m.valve_cmd_bar >= m.safe_pressure_bar - 1e-9
                 if reached:
                     min_cmd = min(min_cmd, m.valve_cmd_bar)
@@ -78,6 +86,7 @@ def run_one(load_kg: float, signal: str, kind: str, scenario: str,
                 named = data.get("reason", "")
                 break
         return {"detected_s": detected, "named": named, "min_cmd": min_cmd, "entry": entry_cmd,
+                "max_step": max_step,
                 "safe_bar": m.safe_pressure_bar, "min_x": min_x, "state": h.state}
     finally:
         h.rig.close()
@@ -92,7 +101,7 @@ def main() -> None:
                             ("safe_ramp", "fault 0.1 s into a stop's safe ramp from 4.5 bar")):
         print(f"\n{args.load_kg:g} kg, {title} (virtual clock, seed 1)")
         print(f"{'fault':<16} {'detected':>9} {'entry':>6} {'min cmd':>8} {'safe':>6} "
-              f"{'min x':>7}  state  named")
+              f"{'step':>6} {'min x':>7}  state  named")
         for signal, kind in FAULTS:
             r = run_one(args.load_kg, signal, kind, scenario, args.after_s)
             det = ("not" if r["detected_s"] is None
@@ -101,7 +110,7 @@ def main() -> None:
             named = r["named"].split(": ", 1)[-1][:70]
             entry = "-" if r["entry"] != r["entry"] else f"{r['entry']:.3f}"
             print(f"{signal + ' ' + kind:<16} {det:>9} {entry:>6} {cmd:>8} {r['safe_bar']:>6.3f} "
-                  f"{100 * r['min_x']:>6.2f}%  {r['state']:<6} {named}")
+                  f"{r['max_step']:>6.3f} {100 * r['min_x']:>6.2f}%  {r['state']:<6} {named}")
 
 
 if __name__ == "__main__":

@@ -27,6 +27,10 @@ S_STARTING, S_IDLE, S_RUNNING, S_HOLD = (int(State.STARTING), int(State.IDLE),
                                          int(State.RUNNING), int(State.HOLD))
 
 
+#: In FAULT or ESTOP, the valve command is at the safe pressure within this (bar).
+SAFE_CMD_BAND_BAR = 1e-3
+
+
 class PlanRun(Protocol):
     """A running experiment plan (`pamd.experiment.sequencer.Sequencer`): the controller
     ticks it; `pamd.experiment.sequencer.running_plan` gives it back, typed."""
@@ -72,8 +76,13 @@ class RigController:
         # the tick compares one float, the earliest deadline, and nothing else.
         self.deadman: dict[str, tuple[float, Any, float]] = {}
         self.deadman_at = math.inf
+        # What became of the last config reload (`pamd.commands.rig`): deferred until the
+        # next rest, refused (and why) or applied; status shows it.
+        self.reload_note: dict[str, Any] | None = None
 
     def _on_transition(self, tr: Transition) -> None:
+        if tr.new in (State.FAULT, State.ESTOP) and tr.old != State.STARTING:
+            self.pace_safe_entry(self.muscles, tr.new == State.ESTOP)
         self.sink.event(tr.t_s, "transition",
                         {"from": tr.old.name, "to": tr.new.name, "reason": tr.reason})
         for fn in self.listeners:
@@ -119,26 +128,32 @@ class RigController:
         if now > self.deadman_at:  # a streamed setpoint was not refreshed in time
             self._deadman(now)
             state = int(sup.state)
+        # A fault latches as soon as it is found, so that every muscle ticked after it
+        # enters the safe state in this same tick (a driver's fault: all of them); the
+        # muscle that found it holds its own command to the safe state's invariants.
+        # Start-up waits for its timeout before faulting.
         fault = None
         for drv in self.drivers:
             if drv.fault is not None:
                 fault = f"driver {drv.name!r}: {drv.fault}"
                 break
+        if fault is not None and not sup.latched and state != S_STARTING:
+            sup.fault(now, fault)
+            state = int(sup.state)
         rec = self.record
         for m in self.muscles:
             reason = m.tick(now, dt, state, rec)
-            if reason is not None and fault is None:
-                fault = reason
             if m.finding is not None:  # rare path: an implausible reading
                 self._finding(now, m)
             if m.limit_report is not None:  # rare path: a profile held at a soft limit
                 self._soft_limit(now, m)
             if m.adapt_report is not None:  # rare path: the model's adaptation froze
                 self.sink.event(now, "adapt", m.take_adapt_report() or {})
-        if fault is not None and not sup.latched and state != S_STARTING:
-            sup.fault(now, fault)
-        elif fault is not None and state == S_STARTING:
-            pass  # start-up waits for its timeout before faulting
+            if reason is not None and fault is None:
+                fault = reason
+                if not sup.latched and state != S_STARTING:
+                    sup.fault(now, fault)
+                    state = int(sup.state)
         seq = self._plan_run
         if seq is not None:
             seq.tick(now)
@@ -175,7 +190,7 @@ class RigController:
                 else:
                     ramped.append(f"{m.name} {why}: ramping from {m.setpoint_bar:.2f} bar to "
                                   f"its safe pressure {m.safe_pressure_bar:.2f} bar at "
-                                  f"{m.envelope.slew_limit_bar_per_s:g} bar/s")
+                                  f"{m.envelope.safe_slew_bar_per_s:g} bar/s")
                     self.sink.event(now, "startup", {
                         "muscle": m.name, "action": "safe_ramp", "reason": why,
                         "pressure_bar": m.setpoint_bar,
@@ -185,6 +200,7 @@ class RigController:
                 parts.append(f"holding measured pressure ({', '.join(held)})")
             if ramped:
                 parts.append("; ".join(ramped))
+            self.pace_safe_entry([m for m in self.muscles if m.in_safe_ramp], False)
             self.supervisor.go(now, State.IDLE, "sensors read; " + "; ".join(parts))
             if self.supervisor.fault_reason:  # restored latched fault (service restart)
                 self.supervisor.fault(now, self.supervisor.fault_reason)
@@ -286,14 +302,49 @@ class RigController:
         """End what runs and ramp every muscle to its safe pressure (IDLE)."""
         for m in self.muscles:
             m.go_safe()
+        self.pace_safe_entry(self.muscles, self.supervisor.state == State.ESTOP)
         if not self.supervisor.latched and self.supervisor.state != State.STARTING:
             self.supervisor.go(self.now, State.IDLE, reason)
 
+    def pace_safe_entry(self, muscles: list[MuscleController], estop: bool) -> None:
+        """The rig's coordinated entry into its safe state: every muscle's ramp to its
+        safe pressure lasts as long as the longest one at its own slew limit (each
+        never faster than its slew limit), so the muscles arrive together and an
+        antagonistic pair does not slam its joint by one muscle ramping alone. Called
+        when a fault or an emergency stop latches, on a stop (`go_safe`) and at
+        start-up for the muscles that start outside their limits."""
+        duration_s = max((m.safe_entry_s(estop) for m in muscles), default=0.0)
+        for m in muscles:
+            m.pace_safe_entry(duration_s, estop)
+
     def at_safe_state(self) -> bool:
         """True when every started muscle's setpoint has reached its safe pressure (or
-        nothing was ever written)."""
-        return all(not m.started or abs(m.setpoint_bar - m.safe_pressure_bar) <= 1e-6
+        nothing was ever written); in FAULT or ESTOP, where the pressure loop is open,
+        its valve command too (it follows the setpoint at the slew limit from the
+        command written when the fault struck)."""
+        latched = self.supervisor.latched
+        return all(not m.started or (abs(m.setpoint_bar - m.safe_pressure_bar) <= 1e-6 and (
+            not latched or abs(m.valve_cmd_bar - m.safe_pressure_bar) <= SAFE_CMD_BAND_BAR))
                    for m in self.muscles)
+
+    def at_rest(self) -> bool:
+        """IDLE with nothing moving: no profile, and every ramp to the safe state (a
+        stop, a deadman, a start-up outside the limits) has reached its safe pressure.
+        Where a reload's limits and loads apply."""
+        return self.supervisor.state == State.IDLE and all(
+            not m.started or (m.profile is None and (
+                not m.in_safe_ramp or abs(m.setpoint_bar - m.safe_pressure_bar) <= 1e-6))
+            for m in self.muscles)
+
+    def rest_text(self) -> str:
+        """Why the rig is not at rest (for a deferred reload's note)."""
+        state = self.supervisor.state
+        if state != State.IDLE:
+            return state.name
+        moving = [m.name for m in self.muscles if m.started and m.profile is not None]
+        if moving:
+            return f"IDLE, {', '.join(moving)} following a profile"
+        return "IDLE, ramping to the safe state"
 
     def status(self) -> dict[str, Any]:
         sup = self.supervisor
@@ -301,6 +352,7 @@ class RigController:
             "state": sup.state.name,
             "reason": sup.reason,
             "fault": sup.fault_reason,
+            "reload": self.reload_note,
             "muscles": {
                 m.name: {
                     "pressure_bar": m.pressure_bar, "setpoint_bar": m.setpoint_bar,

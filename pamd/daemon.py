@@ -78,6 +78,7 @@ class Daemon:
         self.transitions: deque[Transition] = deque(maxlen=1000)
         self.ctrl.listeners.append(self.transitions.append)
         self._thread: threading.Thread | None = None
+        self.end_on_fault = False  # start(end_on_fault=...)
         self.error: BaseException | None = None
         # systemd notify, the latched fault and safe outputs kept across restarts, reload
         self.keeper = ServiceKeeper(self, state_paths(cfg, state_dir), notifier,
@@ -87,7 +88,14 @@ class Daemon:
         self.rig_lock = RigLock(cfg.rig.rig_id)
 
     # -- life cycle -------------------------------------------------------------------
-    def start(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
+    def start(self, duration_s: float | None = None, stop_when_profile_done: bool = False,
+              end_on_fault: bool = False) -> None:
+        """Run the loop in its thread until `stop()`, `duration_s` or, with
+        `stop_when_profile_done`, the end of the profile's cycles. With `end_on_fault`, a
+        latched fault or emergency stop ends the run too (`service()` asks for the stop:
+        the loop returns once the safe state holds, every valve command at its safe
+        pressure); without it the rig holds its safe state until a reset or a stop."""
+        self.end_on_fault = end_on_fault
         self.rig_lock.acquire()  # RigBusy (who holds the rig) before anything opens
         try:
             if self.io is not None:
@@ -139,6 +147,9 @@ class Daemon:
 
     def service(self) -> None:
         """Housekeeping outside the loop's thread."""
+        sup = self.ctrl.supervisor
+        if self.end_on_fault and sup.latched and self.loop.stop_requested is None:
+            self.stop(f"{sup.state.name.lower()}: {sup.fault_reason}")
         while self.loop.notices:
             log.warning(self.loop.notices.popleft())
         while self.transitions:
@@ -223,6 +234,9 @@ class Daemon:
             "valve_switches": {m.name: m.actuation.switches() for m in self.ctrl.muscles},
             "faults": list(sup.faults),
             "final_state": sup.state.name,
+            "outputs": {m.name: {"valve_cmd_bar": m.valve_cmd_bar,
+                                 "safe_pressure_bar": m.safe_pressure_bar}
+                        for m in self.ctrl.muscles},
             "stop_reason": self.loop.stopped_reason,
             "realtime": {"applied": self.loop.rt.applied, "refused": self.loop.rt.warnings},
             "recording": self.io.result() if self.io is not None and self.io.recording

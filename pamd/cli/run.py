@@ -35,7 +35,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "Start-up reads every sensor before writing anything, then holds the measured "
         "pressure. A run ends when --duration is reached, when the --profile has "
         "finished its cycles, or on Ctrl-C / SIGTERM; it then ramps to the safe state "
-        "(the load-dependent safe pressure) and prints a summary.",
+        "(the load-dependent safe pressure) and prints a summary.\n\n"
+        "A fault (or an emergency stop) puts the rig in its safe state. A run with an end "
+        "of its own (--duration, --cycles) then ends by itself once every valve command "
+        "is at its safe pressure, with the fault in the summary and exit code 1 "
+        "(--stay-on-fault: hold the safe state until a reset or a signal). An open-ended "
+        "run, as the service runs, stays up for a reset (--end-on-fault: end as well).",
         epilog="examples:\n"
         "  pamd run --clock virtual --profile sine --cycles 2      # the seeds' sweep\n"
         "  pamd run --profile sine --freq-hz 0.05 --min-bar 0 --max-bar 6 --cycles 2\n"
@@ -47,6 +52,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.add_argument("--note", default="", help="operator note kept with the run")
+    f = p.add_mutually_exclusive_group()
+    f.add_argument("--stay-on-fault", action="store_true", help="a run with an end of its "
+                   "own (--duration, --cycles) that faults holds its safe state until a "
+                   "reset or a signal (default: it ends once the safe state holds, exit 1)")
+    f.add_argument("--end-on-fault", action="store_true", help="an open-ended run (no "
+                   "--duration or --cycles, as the service runs) ends once the safe state "
+                   "of a fault holds, exit 1 (default: it stays up for a reset)")
     p.add_argument("--state-dir", metavar="DIR", help="keep the latched fault and the safe "
                    "outputs in DIR (overrides state_dir of the config; the service uses "
                    "/var/lib/pamd)")
@@ -217,7 +229,7 @@ def run(args: argparse.Namespace) -> int:
         mode = daemon.submit("mode", mode_args)
     pending = daemon.submit("profile", profile) if profile is not None else None
     daemon.start(args.duration, stop_when_profile_done=profile is not None and
-                 args.cycles is not None)
+                 args.cycles is not None, end_on_fault=_end_on_fault(args))
     try:
         if mode is not None:
             _verdict(daemon, mode, cfg, "mode")
@@ -260,6 +272,15 @@ def run(args: argparse.Namespace) -> int:
         # so systemd does not count a clean stop as a failure.
         return 0
     return 1 if result["final_state"] in ("FAULT", "ESTOP") else 0
+
+
+def _end_on_fault(args: argparse.Namespace) -> bool:
+    """Whether a latched fault ends the run: by default a run with an end of its own
+    (--duration, --cycles: a script waits for it) ends once its safe state holds; an
+    open-ended one (the service, a rig driven by remote commands) stays up for a reset."""
+    if args.stay_on_fault or args.end_on_fault:
+        return bool(args.end_on_fault)
+    return args.duration is not None or args.cycles is not None
 
 
 def _install_signals(daemon: Daemon) -> list[str]:
@@ -323,4 +344,9 @@ def print_summary(r: dict[str, Any]) -> None:
                   f"({rec['failure']['policy']})", file=out)
     faults = r["faults"]
     print(f"  faults: {'; '.join(faults) if faults else 'none'}", file=out)
+    outputs = r.get("outputs") or {}
+    if outputs:
+        print("  outputs at exit: " + ", ".join(
+            f"{n} {o['valve_cmd_bar']:.2f} bar (safe pressure {o['safe_pressure_bar']:.2f})"
+            for n, o in outputs.items()), file=out)
     print(f"  final state: {r['final_state']}", file=out)

@@ -110,29 +110,45 @@ def _load(ctrl: RigController, a: LoadArgs) -> dict[str, Any]:
 
 def _reload(ctrl: RigController, a: ReloadArgs) -> dict[str, Any]:
     """A reloaded config: gains and timeouts at once; limits, slew, loads and nominal
-    lengths only while IDLE (otherwise reported as deferred: the daemon sends the
-    command again once the rig is IDLE). Refused as a whole, changing nothing, if
-    a held pressure is above a new pressure limit."""
+    lengths only at rest (`RigController.at_rest`: IDLE, nothing moving, a ramp to the
+    safe state completed; otherwise reported as deferred: the daemon sends the command
+    again at the next rest). Refused as a whole, changing nothing, if a held pressure
+    is above a new pressure limit. What became of it (deferred, refused and why,
+    applied) is the controller's `reload_note`, which status shows."""
     settings = a.plan
     if [s.muscle for s in settings] != [m.name for m in ctrl.muscles]:
-        raise CommandRefused("reload: the muscles differ from the running rig's; that "
-                             "needs a restart")
-    with_limits = bool(a.idle_only) and ctrl.supervisor.state == State.IDLE
+        raise _refused(ctrl, a, "reload: the muscles differ from the running rig's; that "
+                       "needs a restart")
+    with_limits = bool(a.idle_only) and ctrl.at_rest()
     if with_limits:
         for m, s in zip(ctrl.muscles, settings, strict=True):
             if m.started and m.setpoint_bar > s.limits.max_pressure_bar:
-                raise CommandRefused(
-                    f"reload: {m.name} holds {m.setpoint_bar:.2f} bar, above the new pressure "
-                    f"limit {s.limits.max_pressure_bar:g} bar; lower the setpoint first "
-                    "(nothing changed)")
+                raise _refused(
+                    ctrl, a, f"reload: {m.name} holds {m.setpoint_bar:.2f} bar, above the new "
+                    f"pressure limit {s.limits.max_pressure_bar:g} bar; lower the setpoint "
+                    "and send SIGHUP again (nothing changed)")
     for m, s in zip(ctrl.muscles, settings, strict=True):
         m.apply_settings(s, with_limits)
     ctrl.set_startup_timeout(a.startup_timeout_s)
     if with_limits:
         push_safe_outputs(ctrl)  # loads or limits may have moved the safe pressures
+    deferred = [] if with_limits or not a.idle_only else list(a.idle_only)
+    state = ctrl.supervisor.state.name
+    if deferred:
+        ctrl.reload_note = {"outcome": "deferred", "keys": deferred, "t_s": ctrl.now,
+                            "reason": f"the rig is not at rest ({ctrl.rest_text()}): "
+                            "applied at the next rest"}
+    else:
+        ctrl.reload_note = {"outcome": "applied", "keys": list(a.at_once) + list(
+            a.idle_only), "t_s": ctrl.now, "reason": ""}
     return {"applied": list(a.at_once) + (list(a.idle_only) if with_limits else []),
-            "deferred": [] if with_limits else list(a.idle_only),
-            "state": ctrl.supervisor.state.name}
+            "deferred": deferred, "state": state}
+
+
+def _refused(ctrl: RigController, a: ReloadArgs, reason: str) -> CommandRefused:
+    ctrl.reload_note = {"outcome": "refused", "keys": list(a.at_once) + list(a.idle_only),
+                        "t_s": ctrl.now, "reason": reason}
+    return CommandRefused(reason)
 
 
 VERBS: tuple[Verb, ...] = (

@@ -320,6 +320,12 @@ class SafetyConfig:
         "command, or vent (only honoured where the safe pressure is 0).")
     estop_slew_bar_per_s: float = spec(20.0, "Ramp rate of the emergency action.",
                                        unit="bar/s", gt=0.0)
+    safe_slew_bar_per_s: float | None = spec(
+        None, "Ramp rate of the safe state (a fault, a stop, a deadman, a start-up outside "
+        "the limits): its setpoint moves at most this fast and its command at most this "
+        "much per second from the one written when it began. null: the control slew limit "
+        "(`control.slew_limit_bar_per_s`). `pamd tune` sets it to the rig's own while its "
+        "identification steps use a fast slew limit.", unit="bar/s", gt=0.0, max=100.0)
     startup_timeout_s: float = spec(1.0, "Start-up waits this long for every sensor before "
                                     "faulting.", unit="s", gt=0.0, max=600.0)
     plausibility: PlausibilityConfig = spec(PlausibilityConfig(), "Plausibility checks of "

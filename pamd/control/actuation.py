@@ -33,6 +33,13 @@ In mode position an on/off muscle follows seed 004's sliding mode instead
 boundary layer, inflate / hold / exhaust; `position`), filling never above the
 limiter's ceiling; a safe state leaves the length mode, so PWM takes the safe ramp.
 
+In a safe state (`hold_floor`, every tick the muscle is in one) the exhaust never
+opens at or below the safe pressure plus what drains while it closes (the vent rate
+times its closing delay, plus the dead band), and the integral never holds the
+pressure below it: on/off valves do not hold a pressure by themselves, so without
+this floor the PI's wound-up integral vented a loaded muscle 0.35 bar under its
+safe pressure for a second after a fault (issue 23).
+
 Each valve's switchings are counted (`inflate_switches`, `exhaust_switches`):
 valve wear is what on/off users watch. Tick path: float arithmetic and the drivers'
 non-blocking `write`, only on a change.
@@ -198,6 +205,7 @@ class OnOffActuation:
         self._rest_s = 0.0
         self._p_ref = float("nan")
         self._fault: str | None = None
+        self._floor_bar = -math.inf  # the safe state's floor, this tick (hold_floor)
 
     def set_config(self, cfg: OnOffConfig) -> None:
         """Gains from the config (also a reload's; the state stays)."""
@@ -206,6 +214,8 @@ class OnOffActuation:
         self.response_s = cfg.response_s
         self.integral_time_s = INTEGRAL_TIMES * cfg.response_s
         self.dead_band_bar = cfg.dead_band_bar
+        # what still drains after the exhaust is told to close, plus the dead band
+        self.floor_margin_bar = cfg.vent_rate_bar_per_s * cfg.valve_off_delay_s + cfg.dead_band_bar
 
     @property
     def switch_count(self) -> int:
@@ -233,6 +243,11 @@ class OnOffActuation:
         self._target_mm = target_mm
         self._target_rate_mm_s = target_rate_mm_s
         self._ceiling_bar = ceiling_bar
+
+    def hold_floor(self, floor_bar: float) -> None:
+        """A safe state, this tick: the valves never vent the muscle below `floor_bar`
+        (its safe pressure). Called before `write`, every tick it applies."""
+        self._floor_bar = floor_bar
 
     def take_fault(self) -> str | None:
         """Why the pressure does not follow a valve (a tracking fault of the valves
@@ -293,6 +308,18 @@ class OnOffActuation:
         self._prev_command = command_bar
         positioning = self._positioning
         self._positioning = False
+        floor = self._floor_bar
+        self._floor_bar = -math.inf
+        if floor > 0.0:
+            state = self._pwm(command_bar, pressure_bar, now_s, dt_s, prev)
+            if pressure_bar <= floor + self.floor_margin_bar:
+                if self.integral_bar < 0.0:
+                    self.integral_bar = 0.0  # nothing wound up holds it down
+                if state == EXHAUST:
+                    self.pulser.reset()
+                    self.duty = 0.0
+                    return HOLD
+            return state
         if vent:
             self.integral_bar = 0.0
             self.duty = -1.0
@@ -307,6 +334,11 @@ class OnOffActuation:
             self.integral_bar = 0.0
             self.duty = self.sliding.surface
             return state
+        return self._pwm(command_bar, pressure_bar, now_s, dt_s, prev)
+
+    def _pwm(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
+             prev: float) -> int:
+        """The PWM pressure law (the module's docstring) toward `command_bar`."""
         rate = 0.0 if prev != prev else (command_bar - prev) / dt_s
         self._alpha = dt_s / (self._tau_s + dt_s)
         e = command_bar - pressure_bar

@@ -160,6 +160,7 @@ class MuscleController(MuscleView):
         self.pressure_loop.reset(p)
         self._profile = None
         self._safe_ramp = safe_ramp
+        self.safe_ramp.unpace()
         self._started = True
 
     def outside_limits(self) -> str | None:
@@ -182,9 +183,26 @@ class MuscleController(MuscleView):
         return None
 
     def go_safe(self) -> None:
-        """End what runs and ramp to the safe pressure."""
+        """End what runs and ramp to the safe pressure (at its own slew limit until the
+        rig paces it: `pace_safe_entry`)."""
         self._profile = None
         self._safe_ramp = True
+        self.safe_ramp.unpace()
+
+    def safe_entry_s(self, estop: bool) -> float:
+        """How long this muscle's ramp to its safe state takes from here at its own
+        slew limit (0 if never started)."""
+        if not self._started:
+            return 0.0
+        return self.safe_ramp.time_to_target_s(self._setpoint_bar, self._safe_pressure_bar,
+                                               estop)
+
+    def pace_safe_entry(self, duration_s: float, estop: bool) -> None:
+        """Ramp to the safe state in `duration_s`, the rig's common duration (never
+        faster than its own slew limit)."""
+        if self._started:
+            self.safe_ramp.pace(self._setpoint_bar, self._safe_pressure_bar, estop,
+                                duration_s)
 
     def clear_findings(self) -> None:
         """Trust every signal again; the checks start afresh."""
@@ -334,7 +352,23 @@ class MuscleController(MuscleView):
         if lc.active and lc.position and loop.closed and self._onoff is None:
             u += lc.flow_bar  # the air the planned motion draws (position mode)
         flags |= loop.flags
+        # -- limits: the measured pressure must follow the last command (judged before
+        # this tick's command, so that a fault it finds shapes that command) -------------
+        reason = lim.track(now, p, prev_u, p_ok)
+        flags |= lim.flags
+        if reason is not None:
+            self.plausibility.distrust_pressure(reason)
+            self.finding = reason
+            if fault is None:
+                fault = reason
         # -- limits: the guards' bounds (restoring direction, trusted length only) -------
+        if not safe and (fault is not None or not p_ok):
+            # The safe state's entry: the tick that finds a fault (the supervisor latches
+            # it after this tick) or that lost the pressure (the loop just opened: its
+            # command would jump from the PID's output to the setpoint) is already held
+            # to the safe state's invariants, from the command written last.
+            safe = True
+            slew = self._envelope.safe_slew_bar_per_s
         step = slew * dt
         if prev_u != prev_u:  # nothing written yet
             prev_u = u
@@ -347,14 +381,6 @@ class MuscleController(MuscleView):
         flags |= limiter.flags
         if u != u_free:
             loop.unwind(u, u_free)
-        # -- limits: the measured pressure must follow the command -------------------------
-        reason = lim.track(now, p, prev_u, p_ok)
-        flags |= lim.flags
-        if reason is not None:
-            self.plausibility.distrust_pressure(reason)
-            self.finding = reason
-            if fault is None:
-                fault = reason
         if flags & F_AT_LIMIT or lim.holding_back:  # a profile held back at a soft limit
             report = lim.held_at_limit(now, flags, state == S_RUNNING or state == S_LOAD, sp, u)
             if report is not None:
@@ -369,6 +395,8 @@ class MuscleController(MuscleView):
             onoff.position(inp.length_mm, inp.velocity_mm_s, lc.target_length_mm,
                                  lc.target_rate_mm_s,
                                  self._max_pressure_bar if hi > self._max_pressure_bar else hi)
+        if onoff is not None and safe and not venting:
+            onoff.hold_floor(self._safe_pressure_bar)  # the valves never vent below it
         flags |= self.actuation.write(u, p, now, dt, vent)
         if onoff is not None:
             stuck = onoff.take_fault()  # a valve open without the pressure moving its way

@@ -5,8 +5,13 @@ place.
 
 It closes its loop only on a trusted pressure and outside FAULT/ESTOP; otherwise
 the command is the setpoint itself (open loop, e.g. to the safe pressure) and the
-PID waits, reset, for a bumpless return. After the limiter has clamped the command
-(`unwind`), the integral may move away from the clamp, never into it.
+PID waits, reset, for a bumpless return. Where the loop opens because the pressure
+became untrusted or a fault was found, the setpoint may lie far from the PID's last
+output (a sensor reading low had the PID hold the command above it): the limiter,
+with that tick counted as the safe state's entry, moves the command from its last
+value at the safe slew, never below min(safe pressure, that value). After the
+limiter has clamped the command (`unwind`), the integral may move away from the
+clamp, never into it.
 Tick path: float arithmetic only.
 """
 

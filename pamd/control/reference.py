@@ -25,15 +25,53 @@ F_SLEW = int(Flag.SLEW_LIMITED)
 
 
 class SafeRamp:
-    """The setpoint of a safe state."""
+    """The setpoint of a safe state.
+
+    Its pace is the rig's (`pace`, by `pamd.controller.RigController.enter_safe_state`):
+    every muscle's ramp lasts as long as the longest, each at most at its own slew
+    limit, so that the muscles of a rig reach their safe pressures together (an
+    antagonistic pair never slams its joint by one muscle ramping alone). A ramp that
+    reaches its target, or starts afresh, goes at its own slew limit again."""
 
     def __init__(self, envelope: MuscleEnvelope) -> None:
         self.set_envelope(envelope)
         self.rate_bar_per_s = 0.0
         self.slew_bar_per_s = self._slew  # the slew limit this tick (ESTOP's, inf: vent)
+        self._paced_bar_per_s = math.inf  # the rig's pace for this ramp (inf: none)
+
+    def time_to_target_s(self, setpoint_bar: float, safe_pressure_bar: float,
+                         estop: bool) -> float:
+        """How long the ramp from `setpoint_bar` takes at its own slew limit."""
+        target, slew = self._target_and_slew(setpoint_bar, safe_pressure_bar, estop)
+        if slew == math.inf:
+            return 0.0
+        return abs(target - setpoint_bar) / slew
+
+    def pace(self, setpoint_bar: float, safe_pressure_bar: float, estop: bool,
+             duration_s: float) -> None:
+        """Ramp from `setpoint_bar` in `duration_s` (at least its own time: never faster
+        than its slew limit); a duration of 0 leaves its own pace."""
+        target, _ = self._target_and_slew(setpoint_bar, safe_pressure_bar, estop)
+        if duration_s > 0.0:
+            self._paced_bar_per_s = abs(target - setpoint_bar) / duration_s
+        else:
+            self._paced_bar_per_s = math.inf
+
+    def unpace(self) -> None:
+        self._paced_bar_per_s = math.inf
+
+    def _target_and_slew(self, sp: float, safe_pressure_bar: float,
+                         estop: bool) -> tuple[float, float]:
+        if not estop:
+            return safe_pressure_bar, self._slew
+        if self._estop_holds:
+            return sp, self._estop_slew
+        if self._estop_vents and safe_pressure_bar == 0.0:
+            return 0.0, math.inf
+        return safe_pressure_bar, self._estop_slew
 
     def set_envelope(self, envelope: MuscleEnvelope) -> None:
-        self._slew = envelope.slew_limit_bar_per_s
+        self._slew = envelope.safe_slew_bar_per_s
         self._estop_slew = envelope.estop_slew_bar_per_s
         self._estop_holds = envelope.estop_action == "hold"
         self._estop_vents = envelope.estop_action == "vent"
@@ -50,7 +88,10 @@ class SafeRamp:
             elif self._estop_vents and target == 0.0:
                 sp = 0.0  # vent at once: only where the load allows it
                 slew = math.inf
-        self.slew_bar_per_s = slew
+        self.slew_bar_per_s = slew  # what the limiter holds the command to
+        pace = self._paced_bar_per_s
+        if pace < slew:
+            slew = pace
         step = slew * dt
         if sp < target - step:
             self.rate_bar_per_s = slew
@@ -59,6 +100,7 @@ class SafeRamp:
             self.rate_bar_per_s = -slew
             return sp - step
         self.rate_bar_per_s = 0.0
+        self._paced_bar_per_s = math.inf  # there: a new target goes at the slew limit
         return target
 
 

@@ -45,6 +45,7 @@ class MuscleEnvelope:
     soft_max_contraction: float  # where the contraction guard starts (limit - band)
     # rate limits
     slew_limit_bar_per_s: float
+    safe_slew_bar_per_s: float  # the safe state's ramp (safety.safe_slew_bar_per_s)
     estop_slew_bar_per_s: float
     max_length_rate_per_s: float  # control.position.max_rate_per_s (contraction/s)
     length_rate_origin: str  # what refusals name: the key, or how it was derived
@@ -153,6 +154,8 @@ def _settings(limits: MuscleLimitsResolved, safety: SafetyConfig,
         soft_band_contraction=safety.soft_band_contraction,
         soft_max_contraction=limits.max_contraction - safety.soft_band_contraction,
         slew_limit_bar_per_s=slew_limit_bar_per_s,
+        safe_slew_bar_per_s=(slew_limit_bar_per_s if safety.safe_slew_bar_per_s is None
+                             else safety.safe_slew_bar_per_s),
         estop_slew_bar_per_s=safety.estop_slew_bar_per_s, estop_action=safety.estop_action,
         stretch_margin=safety.stretch_margin,
         safe_pressure_margin_bar=safety.safe_pressure_margin_bar,

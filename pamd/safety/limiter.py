@@ -9,9 +9,19 @@ below 0.
 In a safe state (FAULT, ESTOP, a safe ramp: a stop, a deadman, a start-up outside
 the limits):
 
-* the command moves at most at the slew limit (the ESTOP slew in ESTOP);
+* the command moves at most at the safe slew (the ESTOP slew in ESTOP);
 * it never falls below the safe pressure; a command still below it (the safe
   state began lower) never falls at all, it only rises towards it.
+
+The safe state's entry counts as the safe state: the tick that finds a fault (the
+supervisor latches it at once) or loses its pressure (the pressure loop opens there,
+and its command would jump from the PID's output to the setpoint) is held to these
+invariants from the command written last, whichever signal failed
+(`pamd.control.muscle.MuscleController.tick`). So the entry never takes the command
+below min(safe pressure, the command at entry) nor faster than the safe slew
+(`safety.safe_slew_bar_per_s`). Every path that moves the rig (`pamd run`, `pamd
+tune`, `pamd collect`, remote commands and collections) reaches the valves through
+this one limiter.
 
 The one exception is an ESTOP whose action is `vent`, honoured only where the safe
 pressure is 0 (the load needs no pressure): the command drops to 0 at once and

@@ -148,8 +148,11 @@ class ServiceKeeper:
     def status_text(self) -> str:
         sup = self.daemon.ctrl.supervisor
         text = f"{sup.state.name}: {sup.reason}"
+        note = self.daemon.ctrl.reload_note
         if self.deferred is not None:
-            text += " (config reload waiting for IDLE)"
+            text += " (config reload waiting for the rig to rest)"
+        elif note is not None and note["outcome"] == "refused":
+            text += f" (config reload refused: {note['reason']})"
         if self.handover is not None:
             text += " (restart in place for a config reload waiting for IDLE)"
         return text
@@ -304,9 +307,9 @@ class ServiceKeeper:
                         "restarts in place (%s)", self.handover)
             self.daemon.loop.request_handover(f"config reload: {self.handover}")
         elif (self.deferred is not None and self.pending is None
-              and self.daemon.ctrl.supervisor.state == State.IDLE):
+              and self.daemon.ctrl.at_rest()):  # not during a stop's ramp (issue 23)
             plan = self._plan(self.deferred.cfg)
-            log.info("the rig is IDLE: applying the deferred reload (%s)",
+            log.info("the rig is at rest: applying the deferred reload (%s)",
                      ", ".join(plan.idle) or "nothing left")
             self._submit(plan)
 
@@ -393,7 +396,7 @@ class ServiceKeeper:
             log.warning("reload: applied at once: %s", describe(plan.now, old_gains, plan.cfg))
         if verdict.get("deferred"):
             self.deferred = plan
-            log.warning("reload: deferred until the rig is IDLE (it is %s): %s",
+            log.warning("reload: deferred until the rig is at rest (it is %s): %s",
                         verdict.get("state"), ", ".join(verdict["deferred"]))
         else:
             self.deferred = None

@@ -54,6 +54,8 @@ STANDING_OPTIONS: tuple[tuple[str, str, bool], ...] = (
     ("zenoh_config", "--zenoh-config", True),
     ("foxglove", "--foxglove", True),
     ("model", "--model", True),
+    ("stay_on_fault", "--stay-on-fault", False),
+    ("end_on_fault", "--end-on-fault", False),
 )
 
 # How long systemd may wait for the first ping of the restarted daemon: start-up

@@ -25,7 +25,7 @@ import numpy as np
 from pamd.commands.pending import PendingCommand
 from pamd.commands.schema import Command
 from pamd.commands.tune import RelayArgs
-from pamd.config import LoadedConfig, load_config
+from pamd.config import LoadedConfig
 from pamd.control.relay import DONE
 from pamd.control.tuning import (
     Fopdt,
@@ -36,7 +36,7 @@ from pamd.control.tuning import (
 )
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
-from pamd.tune.run import PRESSURE, TuneRefused, check_limits, ident_overrides
+from pamd.tune.run import PRESSURE, TuneRefused, check_limits, tuning_config
 from pamd.view.recording import open_recording
 
 #: the largest relay amplitude allowed unless --relay-max-bar says otherwise (bar): the
@@ -87,13 +87,8 @@ def run_relay(config_path: str | None, clock: str | None, muscle: str,
               out_dir: str, progress: Callable[[str], None] | None = None) -> list[RelayRun]:
     """Run the relay test at each level on the rig, each level a daemon run recorded
     into `out_dir/<level>`; their oscillations and models."""
-    overrides: dict[str, object] = {}
-    if clock:
-        overrides["loop"] = {"clock": clock}
-    base = load_config(config_path, overrides)
-    check_relay(base, muscle, levels_bar, amplitude_bar, max_amplitude_bar)
-    overrides["control"] = ident_overrides(base, "pressure")
-    cfg = load_config(config_path, overrides)
+    cfg = tuning_config(config_path, clock, "pressure", lambda base: check_relay(
+        base, muscle, levels_bar, amplitude_bar, max_amplitude_bar))
     runs: list[RelayRun] = []
     for level in levels_bar:
         level_dir = os.path.join(out_dir, f"{level:g}-bar".replace(".", "_"))

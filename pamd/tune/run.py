@@ -35,6 +35,7 @@ from pamd.experiment.timeline import timeline
 from pamd.io.session import RecordingRequest
 from pamd.muscle import force_model
 from pamd.safety import safe_pressure_bar
+from pamd.safety.envelope import MuscleEnvelope
 from pamd.tune.steps import Step, steps_in
 from pamd.view.recording import open_recording
 
@@ -89,6 +90,31 @@ def ident_overrides(cfg: LoadedConfig, loop: str) -> dict[str, Any]:
             "slew_limit_bar_per_s": IDENT_SLEW_BAR_PER_S}
 
 
+def tuning_config(config_path: str | None, clock: str | None, loop: str,
+                  check: Callable[[LoadedConfig], None] = lambda cfg: None
+                  ) -> LoadedConfig:
+    """The identification run's config: the rig's, with `ident_overrides` (a fast slew
+    limit for the steps) and `safety_overrides` (the safe state at the rig's own slew);
+    `check` refuses what the rig's own config does not allow, before anything opens."""
+    overrides: dict[str, Any] = {}
+    if clock:
+        overrides["loop"] = {"clock": clock}
+    base = load_config(config_path, overrides)
+    check(base)
+    overrides["control"] = ident_overrides(base, loop)
+    overrides["safety"] = safety_overrides(base)
+    return load_config(config_path, overrides)
+
+
+def safety_overrides(cfg: LoadedConfig) -> dict[str, Any]:
+    """The safety section of the identification run: its fast slew limit moves the
+    steps only; a fault, a stop or a deadman ramps to the safe state at the rig's own
+    safe slew, as in `pamd run` (the slowest of its muscles', if they differ)."""
+    slews = [MuscleEnvelope.from_config(cfg, m.name).safe_slew_bar_per_s
+             for m in cfg.rig.muscles]
+    return {"safe_slew_bar_per_s": min(slews)}
+
+
 def check_limits(cfg: LoadedConfig, muscle: str, lp: LoopPlan) -> None:
     """Refuse (TuneRefused, with the reason) steps outside the muscle's safe range:
     above its pressure limit, below its safe pressure, or larger than allowed."""
@@ -136,13 +162,8 @@ def run_identification(config_path: str | None, clock: str | None, muscle: str,
                        lp: LoopPlan, out_dir: str,
                        progress: Callable[[str], None] | None = None) -> list[Step]:
     """Run the steps on the rig, recorded into `out_dir`; the steps of the recording."""
-    overrides: dict[str, Any] = {}
-    if clock:
-        overrides["loop"] = {"clock": clock}
-    base = load_config(config_path, overrides)
-    check_limits(base, muscle, lp)
-    overrides["control"] = ident_overrides(base, lp.loop)
-    cfg = load_config(config_path, overrides)
+    cfg = tuning_config(config_path, clock, lp.loop,
+                        lambda base: check_limits(base, muscle, lp))
     os.makedirs(out_dir, exist_ok=True)
     plan_file = os.path.join(out_dir, f"tune-{lp.loop}-{muscle}.plan.yaml")
     with open(plan_file, "w", encoding="utf-8") as fh:

@@ -53,10 +53,15 @@ class SafetyRig:
         for _ in range(round(seconds / h.period_s)):
             before = ctrl.supervisor.state
             h.step(h.period_s)
-            ran_in = ctrl.supervisor.state if before == State.STARTING else before
+            after = ctrl.supervisor.state
+            ran_in = after if before == State.STARTING else before
             if not m.started:
                 continue
-            self.ticks.append(Tick(h.t, ran_in, ran_in in SAFE_STATES or m.in_safe_ramp,
+            # the tick that found a fault (latched at its end) is the safe state's entry:
+            # it is held to the safe state's invariants too (issue 23)
+            entry = after in SAFE_STATES and before not in SAFE_STATES
+            self.ticks.append(Tick(h.t, ran_in, entry or ran_in in SAFE_STATES
+                                   or m.in_safe_ramp,
                                    m.setpoint_bar, m.valve_cmd_bar, m.safe_pressure_bar,
                                    plant.pressure_bar, plant.contraction))
 
@@ -78,7 +83,7 @@ class SafetyRig:
         """
         m = self.m
         eps = 1e-9
-        step = m.envelope.slew_limit_bar_per_s * self.h.period_s
+        step = m.envelope.safe_slew_bar_per_s * self.h.period_s
         estop_step = m.envelope.estop_slew_bar_per_s * self.h.period_s
         prev: Tick | None = None
         for k in self.ticks:
@@ -160,3 +165,6 @@ def safety_rig(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[...
     yield make
     for h in made:
         h.rig.close()
+
+
+from tests.control.conftest import static_model  # noqa: E402, F401  (the one model fixture)

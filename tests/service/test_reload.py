@@ -86,7 +86,7 @@ def test_gains_at_once_limits_deferred_until_idle(tmp_path: Path) -> None:
         assert (m.envelope.max_pressure_bar, m.load_kg, m.safe_pressure_bar) == (
             6.0, 30.0, safe_before)  # not yet
         assert d.keeper.deferred is not None
-        assert "waiting for IDLE" in d.keeper.status_text()
+        assert "waiting for the rig to rest" in d.keeper.status_text()
         assert d.command("stop")["ok"]
         assert wait_until(lambda: (d.service(), d.keeper.deferred is None
                                    and d.keeper.pending is None)[1], 20)

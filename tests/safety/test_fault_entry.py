@@ -1,0 +1,194 @@
+"""Issue 23 item 5: every fault entry is safe, whichever signal failed and whatever
+runs. The tick that finds the fault is held to the safe state's invariants (the
+contract's `check_invariants` counts it since issue 23): the command never falls
+below min(safe pressure, the command at entry) and never moves faster than the safe
+slew, including when the pressure itself became untrusted (the loop opens: the
+command used to jump from the PID's output to the setpoint). The reproductions of
+the issue's figures at 80 kg (safe pressure 1.58 bar), on the virtual clock.
+
+The coordinated entry (`RigController.pace_safe_entry`) and the on/off valves' floor
+are here too; the tuning run and collections are in test_fault_paths.py."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pamd.config import LoadedConfig
+from pamd.control.feedforward import LoadedModel
+from pamd.harness import Harness
+from pamd.tick import State
+from tests.experiment.test_sequencer import start
+
+from ..conftest import sim_dict
+from .conftest import SafetyRig, sim_driver
+
+
+def entry(rig: SafetyRig) -> tuple[Any, Any]:
+    """(the last tick before the fault's entry, the entry tick)."""
+    for a, b in zip(rig.ticks, rig.ticks[1:], strict=False):
+        if not a.safe and b.safe:
+            return a, b
+    raise AssertionError("no safe-state entry in the run")
+
+
+def assert_safe_entry(rig: SafetyRig) -> None:
+    """The whole run's contract, and from the entry on: never below min(safe pressure,
+    the command at entry), never faster than the safe slew."""
+    rig.check_invariants()
+    before, first = entry(rig)
+    m = rig.m
+    step = m.envelope.safe_slew_bar_per_s * rig.h.period_s
+    assert abs(first.cmd - before.cmd) <= step + 1e-9
+    floor = min(m.safe_pressure_bar, before.cmd)
+    after = [k for k in rig.ticks if k.t_s >= first.t_s]
+    assert min(k.cmd for k in after) >= floor - 1e-9
+
+
+def test_a_pressure_sensor_reading_low_then_silent_enters_without_a_step(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    # Before: 1.277 -> 1.000 bar in the first FAULT tick (-0.277 bar in 1 ms, 55x the
+    # slew limit): the stale pressure opened the loop and the command became the setpoint.
+    rig = safety_rig(80.0, 3.0, [
+        {"at_s": 1.0, "muscle": "m1", "signal": "pressure", "kind": "jump", "size": -0.28},
+        {"at_s": 2.0, "muscle": "m1", "signal": "pressure", "kind": "silent"}])
+    rig.run(0.01)
+    rig.cmd("setpoint", muscle="m1", bar=1.0)
+    rig.run(3.5)
+    assert rig.h.state == "FAULT" and "m1.pressure" in rig.h.ctrl.supervisor.fault_reason
+    before, _ = entry(rig)
+    assert before.cmd - before.sp > 0.2  # the PID held the command above the setpoint
+    assert before.cmd < rig.m.safe_pressure_bar  # ... and under the safe pressure
+    assert_safe_entry(rig)
+    assert rig.h.ctrl.at_safe_state()  # then up to the safe pressure, at the slew limit
+
+
+def test_a_noisy_pressure_sensor_enters_without_a_step(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    # Before: +0.945 bar in one tick when the jump check distrusted the pressure
+    rig = safety_rig(80.0, 3.0, [{"at_s": 1.5, "muscle": "m1", "signal": "pressure",
+                                  "kind": "noisy", "size": 0.3}])
+    rig.run(0.01)
+    rig.cmd("profile", kind="sine", min_bar=2.0, max_bar=5.0, freq_hz=0.25)
+    rig.run(3.0)
+    assert "m1.pressure jumped" in rig.h.ctrl.supervisor.fault_reason
+    assert_safe_entry(rig)
+
+
+def test_a_fault_found_by_the_tracking_check_shapes_the_tick_that_finds_it(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    """The measured pressure must follow the last command: judged before this tick's
+    command is made, so the tick that finds a stuck valve is already the safe entry."""
+    rig = safety_rig(80.0, 3.0, [{"at_s": 1.0, "muscle": "m1", "signal": "valve",
+                                  "kind": "stuck"}])
+    rig.run(0.01)
+    rig.cmd("profile", kind="sine", min_bar=2.0, max_bar=5.0, freq_hz=0.25)
+    rig.run(4.0)
+    assert "does not follow the command" in rig.h.ctrl.supervisor.fault_reason
+    rig.check_invariants(actuator_works=False)
+    before, first = entry(rig)
+    assert abs(first.cmd - before.cmd) <= rig.m.envelope.safe_slew_bar_per_s * 0.001 + 1e-9
+
+
+def test_a_fault_during_a_load_change_enters_without_a_step(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    # Before: +0.315 bar in one tick during LOAD_CHANGE
+    rig = safety_rig(30.0, 2.0, [{"at_s": 1.0, "muscle": "m1", "signal": "pressure",
+                                  "kind": "silent"}])
+    rig.run(0.01)
+    plan = ("name: load\nmuscle: m1\nsettle: {seconds: 1}\nsteps:\n"
+            "  - {name: heavy, load_kg: 80}\n")
+    assert start(rig.h, plan)["ok"]
+    rig.run(0.5)
+    assert rig.h.state == "LOAD_CHANGE"
+    rig.run(2.5)
+    assert rig.h.state == "FAULT"
+    assert [k for k in rig.ticks if k.state == State.LOAD_CHANGE]
+    assert_safe_entry(rig)
+
+
+def test_a_fault_with_adaptation_on_enters_without_a_step(
+        sim_config: Callable[..., LoadedConfig], static_model: Path) -> None:
+    # Before: -0.22 bar in one tick with the model's online adaptation on
+    muscle = {"name": "m1", "load_kg": 30.0, "initial_pressure_bar": 2.0}
+    faults = [{"at_s": 2.0, "muscle": "m1", "signal": "pressure", "kind": "noisy",
+               "size": 0.3}]
+    cfg = sim_config(30.0, drivers=[{"name": "sim", "type": "sim", "options": {
+        "seed": 1, "faults": faults, "muscles": [muscle]}}],
+        muscles=[{**sim_dict(30.0)["muscles"][0], "adapt": {"enabled": True}}])
+    h = Harness(cfg, {"m1": LoadedModel.read(str(static_model), cfg.muscle("m1"),
+                                             cfg.limits["m1"])})
+    rig = SafetyRig(h)
+    try:
+        rig.run(0.01)
+        rig.cmd("mode", mode="position")
+        rig.cmd("profile", kind="sine", min_contraction=0.05, max_contraction=0.15,
+                freq_hz=0.25)
+        rig.run(3.0)
+        assert rig.m.adaptation.enabled
+        assert h.state == "FAULT" and "m1.pressure" in h.ctrl.supervisor.fault_reason
+        assert [k for k in rig.ticks if k.state == State.RUNNING]
+        assert_safe_entry(rig)
+    finally:
+        h.rig.close()
+
+
+def test_onoff_valves_hold_the_safe_pressure_with_a_dead_encoder_at_80kg(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    # Before: in position mode the measured pressure stayed up to 0.36 bar under the
+    # safe pressure for 1.5 s (the PWM's integral, wound up on the ramp down, vented
+    # past it). Now the exhaust never opens at or below the safe pressure in FAULT.
+    rig = safety_rig(80.0, 3.0, [{"at_s": 2.0, "muscle": "m1", "signal": "length",
+                                  "kind": "dead"}], "onoff")
+    rig.run(0.01)
+    rig.cmd("mode", mode="position", feedforward=False)
+    rig.cmd("setpoint", muscle="m1", length_mm=185.0)
+    rig.run(4.0)
+    m = rig.m
+    assert rig.h.state == "FAULT" and "m1.length reads 0.00 mm" in (
+        rig.h.ctrl.supervisor.fault_reason)
+    fault = [k for k in rig.ticks if k.state == State.FAULT]
+    assert fault[0].pressure_true > m.safe_pressure_bar + 1.0  # it came down from above
+    assert min(k.pressure_true for k in fault) >= m.safe_pressure_bar
+    assert rig.plant.contraction > -m.envelope.max_pretension
+    rig.check_invariants()
+
+
+TWO = [{"name": "m1", "load_kg": 30.0, "initial_pressure_bar": 4.0},
+       {"name": "m2", "load_kg": 30.0, "initial_pressure_bar": 1.0}]
+
+
+def test_the_muscles_of_a_rig_reach_their_safe_state_together(
+        sim_config: Callable[..., LoadedConfig]) -> None:
+    """The coordinated entry: one ramp duration for every muscle (the longest at its
+    own slew limit), so an antagonistic pair does not slam its joint by one muscle
+    ramping alone. Here m1 has 4 bar to shed, m2 1 bar: both arrive at 0 bar in the
+    0.8 s m1 needs at 5 bar/s, m2 at a quarter of its slew limit."""
+    drivers = sim_driver(30.0, 0.0)
+    drivers[0]["options"]["muscles"] = TWO
+    drivers[0]["options"]["faults"] = [{"at_s": 1.0, "signal": "driver", "kind": "error",
+                                        "muscle": "m1"}]
+    base = sim_dict(30.0)["muscles"][0]
+    muscles = [{**base, "name": n, "signals": {
+        k: {**v, "channel": v["channel"].replace("m1.", f"{n}.")}
+        for k, v in base["signals"].items()}} for n in ("m1", "m2")]
+    h = Harness(sim_config(30.0, drivers=drivers, muscles=muscles))
+    try:
+        h.step(0.5)
+        m1, m2 = h.ctrl.muscles
+        assert (round(m1.setpoint_bar, 2), round(m2.setpoint_bar, 2)) == (4.0, 1.0)
+        arrived: dict[str, float] = {}
+        while h.t < 3.0:
+            h.step(h.period_s)
+            for m in (m1, m2):
+                if h.state == "FAULT" and m.name not in arrived and m.setpoint_bar == 0.0:
+                    arrived[m.name] = h.t
+        assert h.state == "FAULT" and "driver 'sim'" in h.ctrl.supervisor.fault_reason
+        t_fault = h.ctrl.supervisor.history[-1].t_s
+        assert arrived["m1"] - t_fault == pytest.approx(0.8, abs=0.005)
+        assert arrived["m2"] == pytest.approx(arrived["m1"], abs=0.002)
+    finally:
+        h.rig.close()
