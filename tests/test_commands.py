@@ -39,7 +39,8 @@ def test_tare_against_the_load_removes_the_drift_and_is_saved_by_the_daemon(
     sig = {k: {"driver": "sim", "channel": f"m1.{k}"} for k in ("pressure", "length")}
     sig["force"] = {"driver": "sim", "channel": "m1.force", "offset": 20.0}
     sig["valve"] = {"driver": "sim", "channel": "m1.valve", "raw_min": 0.0, "raw_max": 6.0}
-    d = sim_daemon(muscles=[{"name": "m1", "load_kg": 30.0, "signals": sig}])
+    d = sim_daemon(muscles=[{"name": "m1", "load_kg": 30.0, "signals": sig}],
+                   state_dir="state")  # a simulation keeps its references only if asked
     assert d.wait_for_state((State.IDLE,)) == State.IDLE
     assert d.ctrl.muscles[0].force_n == pytest.approx(30 * 9.80665 + 20.0, abs=5.0)
     refused = d.command("tare", {"muscle": "m1"})
