@@ -189,7 +189,7 @@ def interactive() -> bool:
     return sys.stdout.isatty()
 
 
-def _record_where(args: argparse.Namespace, cfg: LoadedConfig
+def record_where(args: argparse.Namespace, cfg: LoadedConfig
                   ) -> tuple[str | None, float | None]:
     """Where this run records (None: not at all) and its size cap: --no-record;
     --record DIR; --record alone: the config's dir, else ./runs; else the config's
@@ -256,7 +256,7 @@ def run(args: argparse.Namespace) -> int:
     if args.listen and args.no_telemetry:
         raise CommandRefused("--listen is where telemetry listens: it goes without "
                              "--no-telemetry")
-    record_dir, max_mb = _record_where(args, cfg)
+    record_dir, max_mb = record_where(args, cfg)
     recording = RecordingRequest(dir=record_dir, enabled=record_dir is not None,
                                  run_name=args.name, profile=profile, model_path=model_path,
                                  max_mb=max_mb)
