@@ -190,3 +190,20 @@ def test_listen_puts_the_daemon_where_asked(tmp_path: Path) -> None:
     assert bad.returncode == 2 and "not a Zenoh endpoint" in bad.stderr
     both = piped(["run", "--listen", f"tcp/127.0.0.1:{port}", "--no-telemetry"], tmp_path)
     assert both.returncode == 4 and "goes without --no-telemetry" in both.stderr
+
+
+def test_the_state_files_are_narrated_with_v_only(tmp_path: Path) -> None:
+    """`pamd tune` said "safe outputs saved" and then refused; outside the service
+    (whose journal keeps it) the state directory's bookkeeping is said with -v."""
+    data = sim_dict(state_dir="state", telemetry={"enabled": False})
+    data["loop"]["clock"] = "real"
+    cfg = tmp_path / "rig.yaml"
+    cfg.write_text(yaml.safe_dump(data, sort_keys=False))
+    quiet = piped(["run", "--config", str(cfg), "--duration", "0.2"], tmp_path)
+    assert quiet.returncode == 0, quiet.stderr
+    assert "safe outputs saved" not in quiet.stderr
+    assert (tmp_path / "state" / "safe-outputs.json").is_file()  # saved all the same
+    (tmp_path / "state" / "safe-outputs.json").unlink()
+    told = piped(["-v", "run", "--config", str(cfg), "--duration", "0.2"], tmp_path)
+    assert told.returncode == 0, told.stderr
+    assert told.stderr.count("safe outputs saved in") == 1
