@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.cli.test_first_run import in_a_terminal
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -93,6 +95,22 @@ def test_the_installed_package_runs_from_elsewhere(installed: tuple[Path, Path],
     assert files[1].endswith(os.path.join("pamd", "drivers", "sim.py"))
     r = _run(python, tmp_path, "-m", "pamd", "--help")
     assert r.returncode == 0 and "usage: pamd" in r.stdout, r.stderr
+
+
+def test_the_readmes_first_command_records_in_a_terminal(installed: tuple[Path, Path],
+                                                         tmp_path: Path) -> None:
+    """`pamd run --duration 10 --profile sine` (here 2 s, and without telemetry: the
+    machine may have a daemon on the default port), as the installed console script,
+    in a terminal: it records into ./runs and says what to do with the file."""
+    _clone_root, python = installed
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    code, out = in_a_terminal(["run", "--duration", "2", "--profile", "sine",
+                               "--no-telemetry"], tmp_path, pamd=(str(python.parent / "pamd"),),
+                              env=env)
+    assert code == 0, out
+    files = list((tmp_path / "runs").glob("*.mcap"))
+    assert len(files) == 1, out
+    assert f"next: pamd inspect runs/{files[0].name}" in out
 
 
 def test_a_bench_script_imports_pamd_from_the_clone(installed: tuple[Path, Path]) -> None:

@@ -35,10 +35,13 @@ SHORT = ["--clock", "virtual", "--rate-hz", "250", "--profile", "sine", "--freq-
          "--min-bar", "2", "--max-bar", "4", "--cycles", "2", "--no-telemetry"]
 
 
-def in_a_terminal(args: list[str], cwd: Path, timeout_s: float = 120.0) -> tuple[int, str]:
-    """`python -m pamd ARGS` with a pty as its stdout (a person at a terminal)."""
+def in_a_terminal(args: list[str], cwd: Path, timeout_s: float = 120.0,
+                  pamd: tuple[str, ...] = (sys.executable, "-m", "pamd"),
+                  env: dict[str, str] | None = None) -> tuple[int, str]:
+    """`pamd ARGS` (by default `python -m pamd ARGS`) with a pty as its stdout (a
+    person at a terminal)."""
     master, slave = pty.openpty()
-    proc = subprocess.Popen([sys.executable, "-m", "pamd", *args], cwd=cwd, stdout=slave,
+    proc = subprocess.Popen([*pamd, *args], cwd=cwd, stdout=slave, env=env,
                             stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
     os.close(slave)
     out = b""
