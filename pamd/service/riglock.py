@@ -171,8 +171,8 @@ class ResourceLock:
         return (f"{self.resource} is in use by another pamd daemon{rig}: "
                 f"{describe_holder(info)}; nothing was opened or moved. Stop it first: "
                 "`systemctl stop pamd` for the service, Ctrl-C (or `kill "
-                f"{info.get('pid', '<pid>')}`) for a `pamd run`, `pamd collect` or "
-                f"`pamd tune` in a terminal; then try again (lock: {self.path})")
+                f"{info.get('pid', '<pid>')}`) for a `pamd run`, `pamd collect`, `pamd "
+                f"tune` or `pamd emulate` in a terminal; then try again (lock: {self.path})")
 
 
 class RunLocks:
