@@ -49,7 +49,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         f"{DEFAULT_RECORD_MAX_MB:g} MB a run) and ends naming the file and what to do with "
         "it; --no-record skips that. Otherwise (a service, a script) it records as the "
         "config's recording section says, or with --record.\n\n"
-        "A virtual-clock run is a private simulation: no lock, no port, no state. A "
+        "A virtual-clock run is a private simulation: no lock, no state, no port unless "
+        "--listen asks for one. A "
         "real-clock run locks what it opens (its serial ports, fieldbus devices, CAN "
         "channels, state directory), so a second daemon on them is refused naming the "
         "first.",
@@ -68,7 +69,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--state-dir", metavar="DIR", help="keep the latched fault, the safe "
                    "outputs and the home/tare references in DIR (overrides state_dir of the "
                    "config; default: ~/.local/state/pamd/<rig_id> for a real-clock run of "
-                   "a config, none for a simulation; the service uses /var/lib/pamd)")
+                   "a config, none for a virtual-clock run or the built-in sim; the service "
+                   "uses /var/lib/pamd)")
     r = p.add_argument_group("recording (MCAP, written by the io process)")
     r.add_argument("--record", metavar="DIR", nargs="?", const="", help="record the run "
                    "into DIR (overrides recording.dir of the config; without DIR: the "
