@@ -69,7 +69,7 @@ def in_a_terminal(args: list[str], cwd: Path, timeout_s: float = 120.0,
 
 def piped(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "pamd", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=300)
 
 
 def test_in_a_terminal_the_first_run_records_and_says_what_next(tmp_path: Path) -> None:
