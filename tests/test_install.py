@@ -55,7 +55,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     r = subprocess.run(
         [sys.executable, "-m", "pip", "--python", str(python), "install", "-q", "--no-deps",
          "--no-build-isolation", "--no-index", "."], cwd=clone, capture_output=True,
-        text=True, timeout=240)
+        text=True, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
     return clone, python
 
@@ -63,7 +63,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 def _run(python: Path, cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     return subprocess.run([str(python), *args], cwd=cwd, capture_output=True, text=True,
-                          env=env, timeout=120)
+                          env=env, timeout=300)
 
 
 def test_python_m_pamd_runs_from_the_clones_root(installed: tuple[Path, Path]) -> None:

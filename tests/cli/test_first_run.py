@@ -35,7 +35,7 @@ SHORT = ["--clock", "virtual", "--rate-hz", "250", "--profile", "sine", "--freq-
          "--min-bar", "2", "--max-bar", "4", "--cycles", "2", "--no-telemetry"]
 
 
-def in_a_terminal(args: list[str], cwd: Path, timeout_s: float = 120.0,
+def in_a_terminal(args: list[str], cwd: Path, timeout_s: float = 300.0,
                   pamd: tuple[str, ...] = (sys.executable, "-m", "pamd"),
                   env: dict[str, str] | None = None) -> tuple[int, str]:
     """`pamd ARGS` (by default `python -m pamd ARGS`) with a pty as its stdout (a
