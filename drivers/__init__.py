@@ -16,6 +16,7 @@ Drivers are registered in the `pamd.drivers` entry-point group:
 from __future__ import annotations
 
 import math
+import os
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -114,6 +115,13 @@ class Driver(ABC):
         """Output index -> raw value the device should apply by itself if the host goes
         silent (a module's communication watchdog). Never blocks; no-op by default."""
 
+    def claims(self) -> tuple[str, ...]:
+        """What this driver opens that one process at a time may use, one name each
+        (`serial_port_claim`, "Modbus TCP device HOST:PORT id N", "CAN channel
+        INTERFACE:CHANNEL"): the daemon locks each before it opens anything
+        (pamd.service.riglock). Simulated devices open nothing: () by default."""
+        return ()
+
     def health(self) -> DriverHealth:
         return DriverHealth(ok=self.fault is None, fault=self.fault)
 
@@ -128,6 +136,17 @@ class Driver(ABC):
             if c.name == channel:
                 return i
         raise KeyError(channel)
+
+
+def serial_port_claim(port: str) -> tuple[str, ...]:
+    """The claim of a serial port or pyserial URL: the device itself (symlinks such as
+    /dev/serial/by-id/... resolved, so two names of one port meet); none for
+    `loop://`, which lives inside one process."""
+    if not port or port.startswith("loop://"):
+        return ()
+    if "://" in port:
+        return (f"serial port {port}",)
+    return (f"serial port {os.path.realpath(port)}",)
 
 
 def available_drivers() -> dict[str, EntryPoint]:

@@ -27,7 +27,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from pamd.drivers import Channel
+from pamd.drivers import Channel, serial_port_claim
 from pamd.drivers.can_frames import (
     EMCY_BASE,
     HEARTBEAT_BASE,
@@ -152,6 +152,16 @@ class CanEncoderDriver(ThreadedDriver):
         if index < len(o.encoders):
             return o.encoders[index].absolute
         return o.frames[index - len(o.encoders)].absolute
+
+    def claims(self) -> tuple[str, ...]:
+        """The bus (the nodes are configured through it); python-can's `serial`
+        interface is a serial port; `virtual` lives inside one process."""
+        o: CanEncoderOptions = self.options
+        if o.interface == "virtual":
+            return ()
+        if o.interface in ("serial", "slcan"):
+            return serial_port_claim(o.channel)
+        return (f"CAN channel {o.interface}:{o.channel}",)
 
     def describe(self) -> str:
         o: CanEncoderOptions = self.options

@@ -28,7 +28,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from pamd.drivers import Channel
+from pamd.drivers import Channel, serial_port_claim
 from pamd.drivers.device import Backoff, ThreadedDriver
 from pamd.drivers.modbus_map import (
     MAX_WRITE_REGISTERS,
@@ -165,6 +165,14 @@ class ModbusDriver(ThreadedDriver):
             elif v == v:
                 want[i] = v
         self._safe_want = want
+
+    def claims(self) -> tuple[str, ...]:
+        """RTU: the serial port (one master on the line); TCP: the device behind the
+        address (a gateway may serve other device ids to other daemons)."""
+        o: ModbusOptions = self.options
+        if o.transport == "rtu":
+            return serial_port_claim(o.serial_port)
+        return (f"Modbus TCP device {o.host.lower()}:{o.port} id {o.device_id}",)
 
     def describe(self) -> str:
         o: ModbusOptions = self.options

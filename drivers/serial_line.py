@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from pamd.drivers import Channel
+from pamd.drivers import Channel, serial_port_claim
 from pamd.drivers.device import Backoff, ThreadedDriver
 
 from pamd.errors import DriverError
@@ -141,6 +141,9 @@ class SerialLineDriver(ThreadedDriver):
 
     def write(self, index: int, value: float) -> None:
         raise DriverError(f"{self.describe()} has no outputs")
+
+    def claims(self) -> tuple[str, ...]:
+        return serial_port_claim(self.options.port)
 
     def describe(self) -> str:
         o: SerialLineOptions = self.options

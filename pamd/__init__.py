@@ -14,7 +14,13 @@ The Python API (stable; nothing else is promised):
 from __future__ import annotations
 
 import importlib
+import importlib.abc
+import importlib.machinery
+import importlib.util
 import os
+import sys
+from collections.abc import Sequence
+from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 # Before anything loads numpy: one BLAS thread. The loop's own numpy calls (the model's
@@ -22,7 +28,41 @@ from typing import TYPE_CHECKING, Any
 # wake-ups and contention on the rig PC's cores. A value set by the user stays.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from pamd.version import __version__
+
+
+class _SourceDrivers(importlib.abc.MetaPathFinder):
+    """`pamd.drivers` of a source tree: the design keeps the drivers at the top level
+    (`drivers/`, beside `pamd/`) and the installed package has them as `pamd/drivers`
+    (pyproject's package-dir). Imported from a clone (`python -m pamd` in its root,
+    where the clone's `pamd/` comes first on the path, even with pamd installed; the
+    test suite; an editable install), `pamd/` has no `drivers/`: this finder maps
+    `pamd.drivers` to the clone's `drivers/`, and its modules follow from there."""
+
+    def __init__(self, directory: str) -> None:
+        self.directory = directory
+
+    def find_spec(self, fullname: str, path: Sequence[str] | None,
+                  target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
+        if fullname != "pamd.drivers":
+            return None
+        return importlib.util.spec_from_file_location(
+            fullname, os.path.join(self.directory, "__init__.py"),
+            submodule_search_locations=[self.directory])
+
+
+def _find_source_drivers() -> None:
+    here = os.path.dirname(os.path.abspath(__file__))
+    if os.path.isdir(os.path.join(here, "drivers")):
+        return  # installed: pamd/drivers is there
+    source = os.path.join(os.path.dirname(here), "drivers")
+    if os.path.isfile(os.path.join(source, "__init__.py")) and not any(
+            isinstance(f, _SourceDrivers) for f in sys.meta_path):
+        sys.meta_path.insert(0, _SourceDrivers(source))
+
+
+_find_source_drivers()
+
+from pamd.version import __version__  # noqa: E402
 
 __all__ = [
     "CommandRefused", "Event", "MuscleData", "NoDaemon", "PamdError", "Recording",

@@ -37,9 +37,10 @@ class Calibration:
         return self.muscles.setdefault(name, MuscleReference())
 
 
-def load_calibration(path: str) -> Calibration:
-    """The references in `path`, or empty ones if the file does not exist yet."""
-    if not os.path.exists(path):
+def load_calibration(path: str | None) -> Calibration:
+    """The references in `path`, or empty ones if the file does not exist yet (or
+    there is none: a run that keeps no state)."""
+    if path is None or not os.path.exists(path):
         return Calibration()
     raw = load_yaml_file(path) or {}
     ctx = Context(path)
@@ -57,6 +58,7 @@ def save_calibration(cal: Calibration, path: str) -> None:
     """Write atomically (temp file + rename) so a power cut never leaves half a file."""
     data = {"muscles": {k: asdict(v) for k, v in cal.muscles.items()}}
     directory = os.path.dirname(os.path.abspath(path))
+    os.makedirs(directory, exist_ok=True)  # a state directory's first reference
     fd, tmp = tempfile.mkstemp(prefix=".cal-", dir=directory)
     with os.fdopen(fd, "w", encoding="utf-8") as fh:
         fh.write("# pamd signal references (home/tare); written by pamd\n")

@@ -7,6 +7,7 @@ notices, saves references changed by home/tare, and handles signals.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import threading
 from collections import deque
@@ -30,8 +31,8 @@ from pamd.rig import Rig
 from pamd.safety import Transition
 from pamd.service.keeper import ServiceKeeper
 from pamd.service.notify import Notifier
-from pamd.service.riglock import RigLock
-from pamd.service.state import state_paths
+from pamd.service.riglock import RunLocks
+from pamd.service.state import calibration_path, state_paths
 from pamd.summary import LocalMailbox, SummarySink
 from pamd.tick import State, TickLayout
 
@@ -57,11 +58,16 @@ class Daemon:
                  models: Mapping[str, LoadedModel] | None = None) -> None:
         """`models`: each muscle's inverse model, loaded; by default the daemon loads
         the config's `model_file`s (`load_models`: a ConfigError before anything opens).
-        `state_dir` overrides the config's (see pamd.service.state); `notifier`
+        `state_dir` overrides the config's (see pamd.service.state: where the fault,
+        the safe outputs and the references are kept, if anywhere); `notifier`
         talks to systemd (the CLI passes `Notifier.from_environ()`);
         `config_overrides` are re-applied when the config is reloaded (SIGHUP);
         `telemetry` asks for Zenoh telemetry and commands as the config's
         `telemetry` section says (None: off; `pamd run` asks unless --no-telemetry)."""
+        self.state = state_paths(cfg, state_dir)
+        # the references' file as this run keeps it (the state directory's by default)
+        self.calibration_path = calibration_path(cfg, self.state)
+        cfg = dataclasses.replace(cfg, calibration_path=self.calibration_path)
         self.cfg = cfg
         self.note = note
         self.calibration = load_calibration(cfg.calibration_path)
@@ -71,6 +77,7 @@ class Daemon:
         self.mailbox = LocalMailbox()
         self.ctrl = RigController(cfg, self.rig, self.summary, self.calibration,
                                   load_models(cfg) if models is None else models)
+        self.summary.follow_cycles(self.ctrl.muscles)  # tracking after the first cycle
         self.loop = Loop(cfg, self.ctrl, self.mailbox)
         # the io process (MCAP recording, Zenoh telemetry): its sink goes downstream of
         # the summary
@@ -81,11 +88,16 @@ class Daemon:
         self.end_on_fault = False  # start(end_on_fault=...)
         self.error: BaseException | None = None
         # systemd notify, the latched fault and safe outputs kept across restarts, reload
-        self.keeper = ServiceKeeper(self, state_paths(cfg, state_dir), notifier,
-                                    config_overrides)
+        self.keeper = ServiceKeeper(self, self.state, notifier, config_overrides)
         self.keeper.restore()
-        # one daemon per rig: taken by start() before anything opens, released by close()
-        self.rig_lock = RigLock(cfg.rig.rig_id)
+        # what this run opens, one daemon at a time each (its drivers' ports, devices and
+        # buses, its state directory; a simulation: nothing): taken by start() before
+        # anything opens, released by close()
+        claims = [c for drv in self.rig.drivers.values() for c in drv.claims()]
+        if self.state is not None:
+            claims.append(self.state.claim)
+        self.locks = RunLocks(claims, cfg.rig.rig_id)
+        self._unsaved_said = False
 
     # -- life cycle -------------------------------------------------------------------
     def start(self, duration_s: float | None = None, stop_when_profile_done: bool = False,
@@ -96,13 +108,15 @@ class Daemon:
         the loop returns once the safe state holds, every valve command at its safe
         pressure); without it the rig holds its safe state until a reset or a stop."""
         self.end_on_fault = end_on_fault
-        self.rig_lock.acquire()  # RigBusy (who holds the rig) before anything opens
         try:
+            self.locks.acquire()  # RigBusy (what is held, by whom) before anything opens
             if self.io is not None:
                 self.io.start()  # refuses (RecordingError) before anything opens or moves
             self.rig.open(self.loop.clock)
         except BaseException:
-            self.rig_lock.release()
+            if self.io is not None:
+                self.io.discard()  # its shared memory and process: nothing left behind
+            self.locks.release()
             raise
         push_safe_outputs(self.ctrl)  # what modules with a comm watchdog fall back to
         self.keeper.started()  # ... and what `pamd safe-outputs` replays
@@ -157,7 +171,13 @@ class Daemon:
             level = logging.ERROR if tr.new in (State.FAULT, State.ESTOP) else logging.INFO
             log.log(level, "%s -> %s: %s", tr.old.name, tr.new.name, tr.reason)
         if self.ctrl.take_calibration_dirty():
-            save_calibration(self.calibration, self.cfg.calibration_path)
+            if self.calibration_path is not None:
+                save_calibration(self.calibration, self.calibration_path)
+            elif not self._unsaved_said:
+                self._unsaved_said = True
+                log.warning("the new home/tare references hold for this run only: it keeps "
+                            "no state (a simulation); --state-dir DIR (or state_dir, or "
+                            "calibration_file in the config) keeps them")
         self.keeper.service()
         if self.io is not None:
             self.io.service()  # telemetry: status snapshot, collect/model commands
@@ -168,7 +188,7 @@ class Daemon:
             self.io.close(self.result())  # finalises the file with the run summary
         self.rig.close()
         self.summary.close()
-        self.rig_lock.release()  # after the drivers let go of the hardware
+        self.locks.release()  # after the drivers let go of the hardware
 
     # -- commands and status -------------------------------------------------------------
     def submit(self, verb: str, payload: dict[str, Any] | None = None,
@@ -230,6 +250,7 @@ class Daemon:
             "wake_latency_us": {"p50": t.wake_p50_us, "p99": t.wake_p99_us, "max": t.wake_max_us},
             "compute_us": {"p50": t.compute_p50_us, "p99": t.compute_p99_us,
                            "max": t.compute_max_us},
+            "loads_kg": {m.name: m.load_kg for m in self.ctrl.muscles},
             "tracking": self.summary.tracking(),
             "valve_switches": {m.name: m.actuation.switches() for m in self.ctrl.muscles},
             "faults": list(sup.faults),

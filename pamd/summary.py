@@ -7,7 +7,8 @@ import math
 import queue
 from array import array
 from collections import deque
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, Protocol
 
 from pamd.safety.limiter import held_back
 from pamd.tick import (
@@ -24,6 +25,19 @@ from pamd.tick import (
     TickLayout,
 )
 
+
+class _Cycles(Protocol):
+    @property
+    def cycle(self) -> int: ...
+
+
+class _Follows(Protocol):
+    """A muscle as the summary reads it (`pamd.control.muscle_view.MuscleView`)."""
+
+    @property
+    def profile(self) -> _Cycles | None: ...
+
+
 _RUNNING = float(int(State.RUNNING))
 _AT_LIMIT = int(Flag.SOFT_LIMIT_PRESSURE | Flag.SOFT_LIMIT_CONTRACTION | Flag.PRETENSION_LIMIT)
 EVENTS_KEPT = 1000
@@ -35,6 +49,9 @@ class SummarySink:
     limit holds back shows as tracking error; in the length modes measured length vs
     target length), the time a soft limit held the valve command back while RUNNING,
     and the run's events (`soft_limit` events: a profile held at a limit > 1 s).
+    With the muscles to follow (`follow_cycles`), the tracking errors also after the
+    profile's first cycle (its lead-in and first cycle left out: the span the README's
+    and the benchmarks' tracking figures are computed over).
     Constant work per tick; no allocation."""
 
     def __init__(self, layout: TickLayout) -> None:
@@ -48,6 +65,9 @@ class SummarySink:
         self.len_count = [0] * n
         self.limited_s = [0.0] * n
         self.limit_events = [0] * n
+        # after the first cycle: [squares, max |e|, count] of pressure, then of length
+        self.steady = [[0.0, 0.0, 0, 0.0, 0.0, 0] for _ in range(n)]
+        self._muscles: Sequence[_Follows] = ()
         self._last_t = 0.0
         self.ticks = 0
         # the latest events (the recording keeps them all): a daemon that runs for
@@ -56,13 +76,23 @@ class SummarySink:
         self._bases = [b for b in layout.muscle_base]
         self.downstream: list[Any] = []
 
+    def follow_cycles(self, muscles: Sequence[_Follows]) -> None:
+        """Read each muscle's running profile (same order as the layout) to tell the
+        ticks after its first cycle."""
+        self._muscles = muscles
+
     def put(self, record: array) -> bool:
         self.ticks += 1
         t = record[I_T]
         dt = t - self._last_t
         self._last_t = t
         if record[I_STATE] == _RUNNING:
+            muscles = self._muscles
             for k, b in enumerate(self._bases):
+                if muscles:
+                    p = muscles[k].profile
+                    if p is not None and p.cycle >= 1:
+                        self._steady(k, record, b)
                 flags = int(record[b + M_FLAGS])
                 if flags & _AT_LIMIT and held_back(flags, record[b + M_SETPOINT],
                                                    record[b + M_VALVE]):
@@ -84,6 +114,21 @@ class SummarySink:
             ok = d.put(record) and ok
         return ok
 
+    def _steady(self, k: int, record: array, b: int) -> None:
+        s = self.steady[k]
+        e = record[b + M_SETPOINT] - record[b + M_PRESSURE]
+        if e == e:
+            s[0] += e * e
+            s[2] += 1
+            if abs(e) > s[1]:
+                s[1] = abs(e)
+        e = record[b + M_TARGET_LENGTH] - record[b + M_LENGTH]
+        if e == e:
+            s[3] += e * e
+            s[5] += 1
+            if abs(e) > s[4]:
+                s[4] = abs(e)
+
     def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
         self.events.append((t_s, kind, data))
         if kind == "soft_limit" and data.get("muscle") in self.layout.muscles:
@@ -99,11 +144,14 @@ class SummarySink:
         """Per muscle: pressure tracking against the profile's target (`rmse_bar`,
         `max_error_bar`, `samples`), length tracking in the length modes
         (`length_rmse_mm`, `length_max_error_mm`, `length_samples`), None where nothing
-        was tracked; and how long a soft limit held the command back while RUNNING
-        (`soft_limit_s`) with the number of `soft_limit` events (held > 1 s)."""
+        was tracked; the same after the profile's first cycle (`..._after_first_cycle`:
+        None for a profile of one cycle or none); and how long a soft limit held the
+        command back while RUNNING (`soft_limit_s`) with the number of `soft_limit`
+        events (held > 1 s)."""
         out: dict[str, dict[str, float | None]] = {}
         for k, m in enumerate(self.layout.muscles):
             n, n_len = self.count[k], self.len_count[k]
+            sq, mx, ns, lsq, lmx, nls = self.steady[k]
             out[m] = {
                 "rmse_bar": math.sqrt(self.sq[k] / n) if n else None,
                 "max_error_bar": self.max_abs[k] if n else None,
@@ -111,6 +159,12 @@ class SummarySink:
                 "length_rmse_mm": math.sqrt(self.len_sq[k] / n_len) if n_len else None,
                 "length_max_error_mm": self.len_max_abs[k] if n_len else None,
                 "length_samples": n_len,
+                "rmse_bar_after_first_cycle": math.sqrt(sq / ns) if ns else None,
+                "max_error_bar_after_first_cycle": mx if ns else None,
+                "samples_after_first_cycle": int(ns),
+                "length_rmse_mm_after_first_cycle": math.sqrt(lsq / nls) if nls else None,
+                "length_max_error_mm_after_first_cycle": lmx if nls else None,
+                "length_samples_after_first_cycle": int(nls),
                 "soft_limit_s": round(self.limited_s[k], 3),
                 "soft_limit_events": self.limit_events[k],
             }

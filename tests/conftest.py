@@ -21,6 +21,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 _RUN_LOCK_DIR = tempfile.mkdtemp(prefix="pamd-test-locks-")
 os.environ["PAMD_LOCK_DIR"] = _RUN_LOCK_DIR
 atexit.register(shutil.rmtree, _RUN_LOCK_DIR, True)
+# ... and its own state home (pamd.service.state: where a real-clock run keeps its state
+# by default), never the user's ~/.local/state
+_RUN_STATE_HOME = tempfile.mkdtemp(prefix="pamd-test-state-")
+os.environ["XDG_STATE_HOME"] = _RUN_STATE_HOME
+atexit.register(shutil.rmtree, _RUN_STATE_HOME, True)
 
 
 def _bytecode_for_the_processes_tests_start() -> None:
@@ -103,6 +108,7 @@ def rig_lock_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     while two daemons on one rig within a test still meet it."""
     path = tmp_path / "locks"
     monkeypatch.setenv("PAMD_LOCK_DIR", str(path))
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "xdg-state"))  # the test's own
     return path
 
 

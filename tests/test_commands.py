@@ -39,7 +39,8 @@ def test_tare_against_the_load_removes_the_drift_and_is_saved_by_the_daemon(
     sig = {k: {"driver": "sim", "channel": f"m1.{k}"} for k in ("pressure", "length")}
     sig["force"] = {"driver": "sim", "channel": "m1.force", "offset": 20.0}
     sig["valve"] = {"driver": "sim", "channel": "m1.valve", "raw_min": 0.0, "raw_max": 6.0}
-    d = sim_daemon(muscles=[{"name": "m1", "load_kg": 30.0, "signals": sig}])
+    d = sim_daemon(muscles=[{"name": "m1", "load_kg": 30.0, "signals": sig}],
+                   state_dir="state")  # a simulation keeps its references only if asked
     assert d.wait_for_state((State.IDLE,)) == State.IDLE
     assert d.ctrl.muscles[0].force_n == pytest.approx(30 * 9.80665 + 20.0, abs=5.0)
     refused = d.command("tare", {"muscle": "m1"})
@@ -51,6 +52,22 @@ def test_tare_against_the_load_removes_the_drift_and_is_saved_by_the_daemon(
     assert cal.muscles["m1"].tared_at
     d.wait_for_state((State.RUNNING,), timeout_s=0.1)  # let a few ticks pass
     assert d.ctrl.muscles[0].force_n == pytest.approx(30 * 9.80665, abs=5.0)
+
+
+def test_a_simulations_references_hold_for_its_run_only_and_it_says_so(
+        sim_daemon: Any, caplog: pytest.LogCaptureFixture, tmp_path: Path) -> None:
+    sig = {k: {"driver": "sim", "channel": f"m1.{k}"} for k in ("pressure", "length")}
+    sig["force"] = {"driver": "sim", "channel": "m1.force", "offset": 20.0}
+    sig["valve"] = {"driver": "sim", "channel": "m1.valve", "raw_min": 0.0, "raw_max": 6.0}
+    d = sim_daemon(muscles=[{"name": "m1", "load_kg": 30.0, "signals": sig}])
+    assert d.calibration_path is None and d.state is None  # virtual clock: no state
+    assert d.wait_for_state((State.IDLE,)) == State.IDLE
+    for _ in range(2):
+        assert d.command("tare", {"muscle": "m1", "load_kg": 30.0})["ok"]
+        d.service()
+    said = [r.getMessage() for r in caplog.records if "for this run only" in r.getMessage()]
+    assert len(said) == 1 and "--state-dir" in said[0]  # once, with what keeps them
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sim.yaml"]  # no file, no lock
 
 
 def test_hold_freezes_and_resume_continues_the_profile(harness: Any) -> None:

@@ -13,6 +13,10 @@ import time
 from types import FrameType
 
 from pamd.config import load_config
+from pamd.config.loader import LoadedConfig
+from pamd.drivers import load_driver_class
+from pamd.errors import DriverError
+from pamd.service.riglock import RunLocks
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -50,7 +54,25 @@ def run(args: argparse.Namespace) -> int:
     from pamd.emulate.rig import EmulatedRig
 
     cfg = load_config(args.config)
-    rig = EmulatedRig(cfg, seed=args.seed, loads_kg=_loads(args.load))
+    # one emulator per device: a second one would take over the first's pty links
+    # (RigBusy naming the first, before anything is made)
+    locks = RunLocks(emulated_devices(cfg), cfg.rig.rig_id)
+    locks.acquire()
+    try:
+        return _serve(args, cfg, EmulatedRig)
+    finally:
+        locks.release()
+
+
+def emulated_devices(cfg: LoadedConfig) -> list[str]:
+    """What an emulator of `cfg` serves, as lock names: "emulator of" each device the
+    daemon would open (its drivers' claims)."""
+    return [f"emulator of {claim}" for d in cfg.rig.drivers
+            for claim in load_driver_class(d.type)(d.name, d.options).claims()]
+
+
+def _serve(args: argparse.Namespace, cfg: LoadedConfig, make: type) -> int:
+    rig = make(cfg, seed=args.seed, loads_kg=_loads(args.load))
     done = threading.Event()
 
     def handler(signum: int, frame: FrameType | None) -> None:
@@ -59,7 +81,10 @@ def run(args: argparse.Namespace) -> int:
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, handler)
         signal.signal(signal.SIGTERM, handler)
-    rig.start()
+    try:
+        rig.start()
+    except (OSError, RuntimeError) as exc:  # a port taken, socat missing: said, no trace
+        raise DriverError(f"the emulated rig of {cfg.path} cannot start: {exc}") from None
     try:
         ready = {"ready": True, "endpoints": rig.endpoints, "notices": rig.notices,
                  "true_length_mm": rig.plant.true_lengths_mm()}

@@ -27,13 +27,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--muscle", required=True, help="the muscle to reference")
     p.add_argument("--length-mm", type=float, required=True, metavar="MM",
                    help="its true length now, in mm")
+    p.add_argument("--state-dir", metavar="DIR", help="the state directory whose "
+                   "calibration.yaml keeps the references (the service's: /var/lib/pamd; "
+                   "default: as `pamd run` keeps it, see state_dir)")
     p.add_argument("--json", action="store_true", help="print the verdict as JSON")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     verdict = apply_offline(args.config, "home",
-                            {"muscle": args.muscle, "length_mm": args.length_mm})
+                            {"muscle": args.muscle, "length_mm": args.length_mm},
+                            args.state_dir)
     if not args.json:
         print(f"pamd home: {args.muscle} referenced at {args.length_mm:g} mm; saved")
     print_verdict(verdict, args.json)

@@ -230,8 +230,16 @@ def cmd(args: argparse.Namespace) -> int:
                              timeout_s=args.timeout or 10.0)
     print(json.dumps(verdict))
     if not verdict.get("ok"):
-        raise CommandRefused(f"{args.verb} refused: {verdict.get('error')}")
+        raise CommandRefused(refusal(args.verb, str(verdict.get("error"))))
     return 0
+
+
+def refusal(verb: str, error: str) -> str:
+    """A refused command's reason, said once: the daemon's own words when they name the
+    verb already ("model refused: ..."), else "VERB refused: REASON"."""
+    if error.startswith((f"{verb} ", f"{verb}:")):
+        return error
+    return f"{verb} refused: {error}"
 
 
 # -- watch -------------------------------------------------------------------------------

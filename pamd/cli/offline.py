@@ -33,11 +33,13 @@ def _at_rest(d: Daemon) -> bool:
         for m in ctrl.muscles)
 
 
-def apply_offline(config: str | None, verb: str, payload: dict[str, Any]) -> dict[str, Any]:
-    """Open the rig, apply `verb` once it rests, save the references; the verdict.
-    CommandRefused when refused (nothing saved), DriverError if the rig never read."""
+def apply_offline(config: str | None, verb: str, payload: dict[str, Any],
+                  state_dir: str | None = None) -> dict[str, Any]:
+    """Open the rig, apply `verb` once it rests, save the references (in the state
+    directory, or the config's `calibration_file`); the verdict. CommandRefused when
+    refused (nothing saved), DriverError if the rig never read."""
     cfg = load_config(config)
-    d = Daemon(cfg)
+    d = Daemon(cfg, state_dir=state_dir)
     d.start()
     try:
         st = d.wait_for_state((State.IDLE, State.FAULT, State.ESTOP), SETTLE_TIMEOUT_S)
@@ -60,7 +62,7 @@ def apply_offline(config: str | None, verb: str, payload: dict[str, Any]) -> dic
         d.close()
     if not verdict.get("ok"):
         raise CommandRefused(verdict.get("error", f"{verb} refused"))
-    verdict["calibration_file"] = cfg.calibration_path
+    verdict["calibration_file"] = d.calibration_path or "none (kept for that run only)"
     return verdict
 
 

@@ -6,6 +6,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
+import re
+import shlex
 import signal
 import sys
 import threading
@@ -25,6 +28,12 @@ from pamd.service.notify import Notifier
 from pamd.service.restart import restart_in_place, run_argv, unblock_signals
 from pamd.view.spec import parse_listen
 
+log = logging.getLogger("pamd")
+
+#: where an interactive run records when nothing else is said, and its size cap
+DEFAULT_RECORD_DIR = "runs"
+DEFAULT_RECORD_MAX_MB = 500.0
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -40,11 +49,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "of its own (--duration, --cycles) then ends by itself once every valve command "
         "is at its safe pressure, with the fault in the summary and exit code 1 "
         "(--stay-on-fault: hold the safe state until a reset or a signal). An open-ended "
-        "run, as the service runs, stays up for a reset (--end-on-fault: end as well).",
+        "run, as the service runs, stays up for a reset (--end-on-fault: end as well).\n\n"
+        "In a terminal a run records by default (MCAP, into ./runs, at most "
+        f"{DEFAULT_RECORD_MAX_MB:g} MB a run) and ends naming the file and what to do with "
+        "it; --no-record skips that. Otherwise (a service, a script) it records as the "
+        "config's recording section says, or with --record.\n\n"
+        "A virtual-clock run is a private simulation: no lock, no state, no port unless "
+        "--listen asks for one. A "
+        "real-clock run locks what it opens (its serial ports, fieldbus devices, CAN "
+        "channels, state directory), so a second daemon on them is refused naming the "
+        "first.",
         epilog="examples:\n"
         "  pamd run --clock virtual --profile sine --cycles 2      # the seeds' sweep\n"
         "  pamd run --profile sine --freq-hz 0.05 --min-bar 0 --max-bar 6 --cycles 2\n"
-        "  pamd run --config rig.yaml --duration 60 --json")
+        "  pamd run --config rig.yaml --duration 60 --json\n"
+        "  pamd run --listen tcp/127.0.0.1:7448      # beside a daemon on the default port")
     p.add_argument("--config", metavar="FILE", help="rig config (default: built-in sim)")
     p.add_argument("--clock", choices=("real", "virtual"),
                    help="override loop.clock (virtual: as fast as possible, deterministic)")
@@ -59,18 +78,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--end-on-fault", action="store_true", help="an open-ended run (no "
                    "--duration or --cycles, as the service runs) ends once the safe state "
                    "of a fault holds, exit 1 (default: it stays up for a reset)")
-    p.add_argument("--state-dir", metavar="DIR", help="keep the latched fault and the safe "
-                   "outputs in DIR (overrides state_dir of the config; the service uses "
-                   "/var/lib/pamd)")
+    p.add_argument("--state-dir", metavar="DIR", help="keep the latched fault, the safe "
+                   "outputs and the home/tare references in DIR (overrides state_dir of the "
+                   "config; default: ~/.local/state/pamd/<rig_id> for a real-clock run of "
+                   "a config, none for a virtual-clock run or the built-in sim; the service "
+                   "uses /var/lib/pamd)")
     r = p.add_argument_group("recording (MCAP, written by the io process)")
-    r.add_argument("--record", metavar="DIR", help="record the run into DIR (overrides "
-                   "recording.dir of the config)")
-    r.add_argument("--no-record", action="store_true", help="do not record, even if the "
-                   "config names a directory")
+    r.add_argument("--record", metavar="DIR", nargs="?", const="", help="record the run "
+                   "into DIR (overrides recording.dir of the config; without DIR: the "
+                   "config's recording.dir, else ./runs)")
+    r.add_argument("--no-record", action="store_true", help="do not record, even in a "
+                   "terminal or if the config names a directory")
     r.add_argument("--name", help="run name in the file name (default: recording.run_name)")
     t = p.add_argument_group("telemetry and remote commands (Zenoh, in the io process)")
     t.add_argument("--no-telemetry", action="store_true", help="no Zenoh session: no state, "
                    "status or remote commands (default: as telemetry.enabled says, on)")
+    t.add_argument("--listen", metavar="ENDPOINT", type=_endpoint, help="where the "
+                   "daemon's Zenoh session listens, e.g. tcp/127.0.0.1:7448 (overrides "
+                   "telemetry.listen and a Zenoh config's listen endpoints; turns telemetry "
+                   "on, with the virtual clock too); clients reach it with --connect")
     t.add_argument("--zenoh-config", metavar="FILE", help="Zenoh config (JSON5) of the "
                    "daemon's session (overrides telemetry.zenoh_config; default: listen on "
                    "telemetry.listen, tcp/127.0.0.1:7447)")
@@ -109,6 +135,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     lm.add_argument("--to-contraction", type=float, help="length profile: "
                     f"{kinds_reading('to_bar', '/')} target (fraction)")
     p.set_defaults(func=run)
+
+
+def _endpoint(text: str) -> str:
+    """--listen's Zenoh endpoint, checked before anything starts."""
+    if not re.fullmatch(r"[a-z0-9]+/(\[[0-9A-Fa-f:.]+\]|[^/:\s]+):\d{1,5}(#\S*)?", text):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a Zenoh endpoint: PROTOCOL/HOST:PORT, e.g. tcp/127.0.0.1:7448")
+    port = int(text.split("#", 1)[0].rsplit(":", 1)[1])
+    if not 0 < port < 65536:
+        raise argparse.ArgumentTypeError(f"{text!r}: port {port} is not 1-65535")
+    return text
 
 
 def _listen(text: str) -> str:
@@ -161,6 +198,29 @@ def _length_profile(args: argparse.Namespace, cfg: Any) -> dict[str, Any]:
     return payload
 
 
+def interactive() -> bool:
+    """A person at a terminal ran this (not the service, not a script's pipe)."""
+    return sys.stdout.isatty()
+
+
+def record_where(args: argparse.Namespace, cfg: LoadedConfig
+                  ) -> tuple[str | None, float | None]:
+    """Where this run records (None: not at all) and its size cap: --no-record;
+    --record DIR; --record alone: the config's dir, else ./runs; else the config's
+    recording.dir (the service's own settings, uncapped); else, in a terminal, ./runs
+    capped at DEFAULT_RECORD_MAX_MB."""
+    if args.no_record:
+        return None, None
+    configured = cfg.rig.recording.dir
+    if args.record:
+        return args.record, None
+    if args.record == "" or configured:
+        return configured or DEFAULT_RECORD_DIR, None
+    if interactive():
+        return DEFAULT_RECORD_DIR, DEFAULT_RECORD_MAX_MB
+    return None, None
+
+
 def _verdict(daemon: Daemon, pending: Any, cfg: Any, what: str) -> None:
     """Wait for a command queued before start-up; a refusal stops the run (nothing moved)."""
     waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
@@ -207,10 +267,15 @@ def run(args: argparse.Namespace) -> int:
             profile["muscle"] = args.muscle
     if length_mode and args.profile is not None:
         profile = _length_profile(args, cfg)
-    recording = RecordingRequest(dir=args.record, enabled=not args.no_record,
-                                 run_name=args.name, profile=profile, model_path=model_path)
+    if args.listen and args.no_telemetry:
+        raise CommandRefused("--listen is where telemetry listens: it goes without "
+                             "--no-telemetry")
+    record_dir, max_mb = record_where(args, cfg)
+    recording = RecordingRequest(dir=record_dir, enabled=record_dir is not None,
+                                 run_name=args.name, profile=profile, model_path=model_path,
+                                 max_mb=max_mb)
     telemetry = TelemetryRequest(enabled=not args.no_telemetry, zenoh_config=args.zenoh_config,
-                                 foxglove=args.foxglove)
+                                 foxglove=args.foxglove, listen=args.listen)
     daemon = Daemon(cfg, note=args.note, recording=recording, state_dir=args.state_dir,
                     models=models,
                     notifier=Notifier.from_environ(), config_overrides=overrides,
@@ -230,6 +295,9 @@ def run(args: argparse.Namespace) -> int:
     pending = daemon.submit("profile", profile) if profile is not None else None
     daemon.start(args.duration, stop_when_profile_done=profile is not None and
                  args.cycles is not None, end_on_fault=_end_on_fault(args))
+    if record_dir is not None and not args.json:
+        cap = f", at most {max_mb:g} MB" if max_mb else ""
+        log.info("recording into %s%s (--no-record: none)", record_dir, cap)
     try:
         if mode is not None:
             _verdict(daemon, mode, cfg, "mode")
@@ -308,8 +376,11 @@ def _install_signals(daemon: Daemon) -> list[str]:
 def print_summary(r: dict[str, Any]) -> None:
     out = sys.stdout
     w, c = r["wake_latency_us"], r["compute_us"]
+    loads = ", ".join(f"{m} {kg:g} kg" for m, kg in r.get("loads_kg", {}).items())
     print(f"pamd run: {r['ticks']} ticks ({r['duration_s']:.1f} s, {r['clock']} clock at "
           f"{r['rate_hz']:g} Hz), stopped: {r['stop_reason'] or 'n/a'}", file=out)
+    if loads:
+        print(f"  load: {loads}", file=out)
     print(f"  overruns {r['overruns']}, lost records {r['lost_records']}", file=out)
     print(f"  wake-up latency p50 {w['p50']:.0f} us, p99 {w['p99']:.0f} us, max "
           f"{w['max']:.0f} us", file=out)
@@ -319,10 +390,20 @@ def print_summary(r: dict[str, Any]) -> None:
         if t["samples"]:
             print(f"  {name}: pressure tracking RMSE {t['rmse_bar']:.4f} bar, max error "
                   f"{t['max_error_bar']:.4f} bar ({t['samples']} ticks running)", file=out)
+            if t.get("samples_after_first_cycle"):
+                print(f"  {name}:   after the first cycle: RMSE "
+                      f"{t['rmse_bar_after_first_cycle']:.4f} bar, max error "
+                      f"{t['max_error_bar_after_first_cycle']:.4f} bar "
+                      f"({t['samples_after_first_cycle']} ticks)", file=out)
             if t.get("length_samples"):
                 print(f"  {name}: length tracking RMSE {t['length_rmse_mm']:.3f} mm, max "
                       f"error {t['length_max_error_mm']:.3f} mm ({t['length_samples']} "
                       "ticks with a length target)", file=out)
+            if t.get("length_samples_after_first_cycle"):
+                print(f"  {name}:   after the first cycle: RMSE "
+                      f"{t['length_rmse_mm_after_first_cycle']:.3f} mm, max error "
+                      f"{t['length_max_error_mm_after_first_cycle']:.3f} mm "
+                      f"({t['length_samples_after_first_cycle']} ticks)", file=out)
             if t.get("soft_limit_s"):
                 print(f"  {name}: held back by a soft limit for {t['soft_limit_s']:.1f} s "
                       f"while running ({t['soft_limit_events']} time(s) over 1 s): the "
@@ -339,6 +420,10 @@ def print_summary(r: dict[str, Any]) -> None:
         files = ", ".join(rec["files"]) or "none"
         print(f"  recording: {files} ({rec['ticks_recorded']} ticks, lost records "
               f"{rec['lost_records']}, lost events {rec['lost_events']})", file=out)
+        cap = rec.get("max_mb")
+        if cap and rec["ticks_recorded"] + rec["lost_records"] < r["ticks"]:
+            print(f"  recording stopped at its size cap of {cap:g} MB (the run's later "
+                  "ticks are not in it): --record DIR records a run whole", file=out)
         if rec.get("failure"):
             print(f"  recording FAILED: {rec['failure']['reason']} "
                   f"({rec['failure']['policy']})", file=out)
@@ -350,3 +435,13 @@ def print_summary(r: dict[str, Any]) -> None:
             f"{n} {o['valve_cmd_bar']:.2f} bar (safe pressure {o['safe_pressure_bar']:.2f})"
             for n, o in outputs.items()), file=out)
     print(f"  final state: {r['final_state']}", file=out)
+    if rec and rec["files"]:
+        print(next_steps(rec["files"]), file=out)
+
+
+def next_steps(files: list[str]) -> str:
+    """What to do with the run's recording: the commands, with its file."""
+    first = shlex.quote(files[0])
+    return (f"next: pamd inspect {first}    # what it holds\n"
+            f"      pamd plot {first}       # pressure, length, force (PNG)\n"
+            f"      pamd export {first} --csv DIR   # tables for a spreadsheet")

@@ -28,6 +28,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--muscle", help="the muscle to tare (default: every muscle)")
     p.add_argument("--load-kg", type=float, metavar="KG",
                    help="the load hanging on the load cell now (default: none)")
+    p.add_argument("--state-dir", metavar="DIR", help="the state directory whose "
+                   "calibration.yaml keeps the references (the service's: /var/lib/pamd; "
+                   "default: as `pamd run` keeps it, see state_dir)")
     p.add_argument("--json", action="store_true", help="print the verdict as JSON")
     p.set_defaults(func=run)
 
@@ -38,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
         payload["muscle"] = args.muscle
     if args.load_kg is not None:
         payload["load_kg"] = args.load_kg
-    verdict = apply_offline(args.config, "tare", payload)
+    verdict = apply_offline(args.config, "tare", payload, args.state_dir)
     if not args.json:
         print("pamd tare: force offsets saved")
     print_verdict(verdict, args.json)

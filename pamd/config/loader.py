@@ -51,7 +51,9 @@ class LoadedConfig:
     path: str
     text: str
     limits: dict[str, MuscleLimitsResolved]
-    calibration_path: str
+    #: the config's own `calibration_file`, resolved; None: in the run's state directory
+    #: (pamd.service.state.calibration_path), or for the run only without one
+    calibration_path: str | None
     #: values above their safe ceiling that `safety.relax_ceilings` let pass (said at start)
     warnings: tuple[str, ...] = ()
 
@@ -125,8 +127,8 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     check_actuation(rig, raw.get("muscles", []), digital, ctx)
     check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
     ctx.raise_if_any()
-    cal = rig.calibration_file or os.path.splitext(os.path.basename(path))[0] + ".cal.yaml"
-    cal_path = os.path.join(os.path.dirname(os.path.abspath(path)), cal)
+    cal_path = None if not rig.calibration_file else os.path.join(
+        os.path.dirname(os.path.abspath(path)), os.path.expanduser(rig.calibration_file))
     for warning in warnings:
         log.warning("%s", warning)
     return LoadedConfig(rig, path, text, limits, cal_path, warnings)

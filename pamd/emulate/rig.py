@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
+import select
 import threading
+import time
 from collections.abc import Coroutine
 from typing import Any, TypeVar
 
@@ -39,6 +42,37 @@ async def _cancel_all() -> None:
     for task in asyncio.all_tasks():
         if task is not me:
             task.cancel()
+
+
+#: longest a heartbeat task may take to see its stop (its period: 0x1017, 100 ms here)
+CYCLIC_JOIN_S = 2.0
+
+
+def _join_cyclic_senders(hosts: list[str], timeout_s: float) -> None:
+    """Wait for python-can's periodic-send threads (the nodes' heartbeats) to end.
+    `stop()` only flags them: a thread asleep until its next frame wakes and sends once
+    more, and one whose daemon has gone is blocked writing into a full pty (nobody reads
+    the host end); either, on the closed bus, was a traceback on the emulator's stderr
+    when an operator's `pamd emulate` ended. So the host ends are read (and what they
+    hold thrown away) until every such thread has seen its stop."""
+    senders = [t for t in threading.enumerate()
+               if t.name.startswith("Cyclic send task") and t is not threading.current_thread()]
+    fds = []
+    for host in hosts:
+        with contextlib.suppress(OSError):
+            fds.append(os.open(host, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK))
+    deadline = time.monotonic() + timeout_s
+    try:
+        while any(t.is_alive() for t in senders) and time.monotonic() < deadline:
+            ready = select.select(fds, [], [], 0.01)[0] if fds else []
+            for fd in ready:
+                with contextlib.suppress(OSError):
+                    os.read(fd, 65536)
+            if not fds:
+                time.sleep(0.01)
+    finally:
+        for fd in fds:
+            os.close(fd)
 
 
 class EmulatedRig:
@@ -79,6 +113,11 @@ class EmulatedRig:
     def stop(self) -> None:
         for enc in self.encoders.values():
             enc.stop()
+        for net in self._networks:
+            if net.bus is not None:  # the nodes' heartbeats: python-can's own threads
+                net.bus.stop_all_periodic_tasks()
+        # none may send on the bus once it is closed
+        _join_cyclic_senders([p.host for p in self._ptys], CYCLIC_JOIN_S)
         for net in self._networks:
             with contextlib.suppress(Exception):
                 net.disconnect()

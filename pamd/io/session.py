@@ -52,6 +52,7 @@ class RecordingRequest:
     script: tuple[tuple[int, str, dict], ...] = ()  # io-side commands (tick, verb, payload)
     fsize_limit_bytes: int | None = None  # tests: make writes fail for real
     segments: tuple[dict[str, Any], ...] = ()  # experiment steps: one file each
+    max_mb: float | None = None  # the run's files stop taking ticks past this size
 
 
 class IoSession:
@@ -64,6 +65,7 @@ class IoSession:
         self.virtual = loop.virtual
         self.failure: dict[str, Any] | None = None
         self.recording = record_dir is not None  # False: telemetry alone
+        self.max_mb = req.max_mb
         clock0 = 0.0 if self.virtual else time.monotonic()
         wall0 = time.time_ns()
         rate = cfg.rig.loop.rate_hz
@@ -73,7 +75,7 @@ class IoSession:
             cfg, daemon.calibration, record_dir=record_dir, note=daemon.note,
             run_name=req.run_name, model_path=req.model_path, profile=req.profile,
             virtual=self.virtual, wall0_ns=wall0, fsize_limit_bytes=req.fsize_limit_bytes,
-            steps=req.segments)
+            steps=req.segments, max_mb=req.max_mb)
         # Telemetry: the status board the main thread writes (pamd.net.board)
         self.board: Board | None = None
         self.host: NetHost | None = None
@@ -129,6 +131,16 @@ class IoSession:
             logging.getLogger("pamd").info("foxglove: live view on %s (Foxglove: Open "
                                            "connection, Foxglove WebSocket)", self.viewer.url)
 
+    def discard(self) -> None:
+        """The run was refused before it started (a lock held, a device missing): stop
+        the io process if it runs, free the shared block and the status board, so
+        nothing is left behind (no leaked shared memory, no warning at exit)."""
+        if not self.link.closed:
+            self.link.close()
+        if self.board is not None:
+            self.board.close()
+            self.board = None
+
     def service(self) -> None:
         """The main thread's share (Daemon.service): status snapshot, main-thread
         commands (collect, model)."""
@@ -182,6 +194,7 @@ class IoSession:
         st["lost_records"] = self.sink.lost_records
         st["lost_events"] = max(self.sink.lost_events, st.get("lost_events") or 0)
         st["failure"] = self.failure
+        st["max_mb"] = self.max_mb
         return st
 
     def telemetry(self) -> dict[str, Any] | None:

@@ -3,6 +3,7 @@ tells the io process (`NetSpec`, picklable, handed over at spawn)."""
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass
 
@@ -22,6 +23,10 @@ class TelemetryRequest:
     # The live Foxglove view (pamd.view.spec.resolve): None as telemetry.foxglove says,
     # "default" on at its listen address, "HOST:PORT" on there. Independent of `enabled`.
     foxglove: str | None = None
+    # `pamd run --listen ENDPOINT`: where the daemon's session listens (overrides
+    # telemetry.listen, and the listen endpoints of a Zenoh config file); asking for it
+    # turns telemetry on, a virtual-clock run's too
+    listen: str | None = None
 
 
 @dataclass(frozen=True)
@@ -46,6 +51,8 @@ def resolve(cfg: LoadedConfig, req: TelemetryRequest | None) -> NetSpec | None:
     starts (ConfigError)."""
     tc = cfg.rig.telemetry
     on = tc.enabled if tc.enabled is not None else cfg.rig.loop.clock == "real"
+    if req is not None and req.enabled and req.listen:
+        on = True
     if req is None or not req.enabled or not on:
         return None
 
@@ -58,7 +65,9 @@ def resolve(cfg: LoadedConfig, req: TelemetryRequest | None) -> NetSpec | None:
         file = os.path.join(os.path.dirname(os.path.abspath(cfg.path)),
                             os.path.expanduser(tc.zenoh_config))
     rate = cfg.rig.loop.rate_hz
-    zcfg = zconf.daemon_config(file, tc.listen)
+    zcfg = zconf.daemon_config(file, req.listen or tc.listen)
+    if file is not None and req.listen:
+        zcfg.insert_json5("listen/endpoints", json.dumps([req.listen]))
     listen, connect = zconf.endpoints(zcfg, "listen"), zconf.endpoints(zcfg, "connect")
     where = "; ".join(w for w in (listen and "listening on " + ", ".join(listen),
                                   connect and "connecting to " + ", ".join(connect)) if w)

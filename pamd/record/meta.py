@@ -26,7 +26,7 @@ def build_record_spec(cfg: LoadedConfig, calibration: Calibration, *, record_dir
                       note: str = "", run_name: str | None = None,
                       model_path: str | None = None, profile: dict[str, Any] | None = None,
                       virtual: bool, wall0_ns: int,
-                      fsize_limit_bytes: int | None = None,
+                      fsize_limit_bytes: int | None = None, max_mb: float | None = None,
                       steps: tuple[dict[str, Any], ...] = ()) -> RecordSpec:
     rc = cfg.rig.recording
     started = time.strftime("%Y%m%d-%H%M%S", time.localtime(wall0_ns / 1e9))
@@ -51,12 +51,12 @@ def build_record_spec(cfg: LoadedConfig, calibration: Calibration, *, record_dir
         "pamd.calibration": {
             name: json.dumps(dataclasses.asdict(ref))
             for name, ref in sorted(calibration.muscles.items())
-        } | {"file": cfg.calibration_path},
+        } | {"file": cfg.calibration_path or ""},
         "pamd.loads": {m.name: _s(m.load_kg) for m in rig.muscles},
     }
     atts: list[tuple[str, str, bytes]] = [
         (os.path.basename(cfg.path) or "config.yaml", "application/yaml", cfg.text.encode())]
-    if os.path.exists(cfg.calibration_path):
+    if cfg.calibration_path and os.path.exists(cfg.calibration_path):
         with open(cfg.calibration_path, "rb") as fh:
             atts.append((os.path.basename(cfg.calibration_path), "application/yaml", fh.read()))
     if profile:
@@ -70,4 +70,5 @@ def build_record_spec(cfg: LoadedConfig, calibration: Calibration, *, record_dir
         dir=record_dir, run_name=run_name or rc.run_name, rotate_mb=rc.rotate_mb,
         rotate_s=rc.rotate_s, chunk_kb=rc.chunk_kb, flush_s=rc.flush_s,
         compression=rc.compression, started_at=started, metadata=meta,
-        attachments=tuple(atts), fsize_limit_bytes=fsize_limit_bytes, steps=steps)
+        attachments=tuple(atts), fsize_limit_bytes=fsize_limit_bytes, steps=steps,
+        max_mb=max_mb)

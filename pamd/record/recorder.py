@@ -108,6 +108,9 @@ class Recorder:
         self.chunk_max = self.rs.chunk_kb * 1024
         self.rotate_bytes = int(self.rs.rotate_mb * 1e6) if self.rs.rotate_mb else None
         self.rotate_ns = int(self.rs.rotate_s * 1e9) if self.rs.rotate_s else None
+        self.max_bytes = int(self.rs.max_mb * 1e6) if self.rs.max_mb else None
+        self.done_bytes = 0  # the run's finished files
+        self.capped = False  # past max_bytes: ticks are no longer written
         self.chunk_t0 = -1  # log time of the open chunk's first tick
         self.chunk_opened = 0.0  # monotonic time the open chunk got its first message
         self.file_t0 = -1
@@ -182,6 +185,7 @@ class Recorder:
 
     def _rotate(self) -> None:
         assert self.writer is not None
+        self.done_bytes += self.writer.pos
         self.writer.add_metadata("pamd.segment", {
             "segment": str(self.segment), "next_file": self._suffixed(file_name(
                 self.rs.started_at, self.spec.rig_id, self.rs.run_name, self.segment + 1,
@@ -193,6 +197,7 @@ class Recorder:
     def _switch(self, rs: RecordSpec, step_no: int) -> None:
         """Finish the file and open the next one: the step's, or the run's again."""
         assert self.writer is not None
+        self.done_bytes += self.writer.pos
         self.writer.finish()
         if rs is not self.rs:
             self.rs = rs
@@ -251,6 +256,8 @@ class Recorder:
 
     # -- the hot path -----------------------------------------------------------------
     def tick(self, v: tuple[float, ...]) -> None:
+        if self.capped:
+            return
         w = self.writer
         assert w is not None
         tick = int(v[0])
@@ -294,9 +301,25 @@ class Recorder:
         assert w is not None
         w.close_chunk()
         self.chunk_t0 = -1
+        if self.max_bytes is not None and self.done_bytes + w.pos >= self.max_bytes:
+            self._cap(log_ns)
+            return
         if (self.rotate_bytes and w.pos >= self.rotate_bytes) or (
                 self.rotate_ns and self.file_t0 >= 0 and log_ns - self.file_t0 >= self.rotate_ns):
             self._rotate()
+
+    def _cap(self, log_ns: int) -> None:
+        """The run's files reached max_mb: no more ticks (events still go in)."""
+        self.capped = True
+        mb = self.max_bytes / 1e6 if self.max_bytes else 0.0
+        t_abs = self.spec.clock0_s + (log_ns - self.spec.wall0_ns) / 1e9
+        self.event(t_abs, "recording", {
+            "message": f"recording stopped at its size cap of {mb:g} MB after "
+                       f"{self.ticks} ticks; control goes on", "max_mb": mb})
+        assert self.writer is not None
+        self.writer.close_chunk()
+        self.chunk_t0 = -1
+        self.writer.sync()
 
     def event(self, t_abs_s: float, kind: str, data: dict[str, Any]) -> None:
         w = self.writer
@@ -331,7 +354,8 @@ class Recorder:
             return
         meta = {"io_stop": stop_reason, "ticks_recorded": str(self.ticks),
                 "last_tick": str(self.last_tick), "events_recorded": str(self.events),
-                "files": json.dumps([os.path.basename(f) for f in self.files])}
+                "files": json.dumps([os.path.basename(f) for f in self.files]),
+                "capped": "true" if self.capped else "false"}
         if summary:
             for k, v in summary.items():
                 meta[k] = v if isinstance(v, str) else json.dumps(sanitize(v))

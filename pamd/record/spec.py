@@ -25,6 +25,10 @@ class RecordSpec:
     # Experiment steps: the file of step k (tick field `segment` = k + 1) is named after
     # steps[k]["step"] and states steps[k] as its `pamd.experiment` metadata.
     steps: tuple[dict[str, Any], ...] = ()
+    # The run's files together stop taking ticks past this size (events still go in),
+    # said in the file and the summary: the cap of an interactive `pamd run`'s default
+    # recording. None: no cap.
+    max_mb: float | None = None
 
 
 class RecordedRun(Protocol):

@@ -11,6 +11,7 @@ replaced by the pamd that runs this command.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 import subprocess
@@ -19,7 +20,7 @@ from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
-from pamd.config import load_config
+from pamd.config import LoadedConfig, load_config
 from pamd.errors import ConfigError
 
 PLACEHOLDER = "/opt/pamd/bin/pamd"
@@ -30,6 +31,40 @@ FILES = (  # (source in systemd/, target below the prefix)
 )
 CONFIG = "etc/pamd/pamd.yaml"
 STATE_DIR = "/var/lib/pamd"
+RECORDINGS = f"{STATE_DIR}/recordings"  # made by pamd.tmpfiles.conf
+#: what the unit's sandbox hides from the service, and which setting does it
+HIDDEN = (
+    (("/home", "/root", "/run/user"), "ProtectHome=yes hides /home, /root and /run/user "
+     "from the service"),
+    (("/tmp", "/var/tmp"), "PrivateTmp=yes gives the service a /tmp and /var/tmp of its "
+     "own (empty)"),
+)
+
+
+def hidden_by_sandbox(path: str) -> str | None:
+    """Why the service cannot see `path` (None: it can): the unit's ProtectHome= and
+    PrivateTmp=."""
+    path = os.path.abspath(path)
+    for roots, why in HIDDEN:
+        if any(path == r or path.startswith(r + "/") for r in roots):
+            return why
+    return None
+
+
+def executable_paths(pamd: str) -> list[str]:
+    """What ExecStart= needs to reach: the pamd script, where its links lead, its
+    interpreter (the #! line of a console script) and where that leads."""
+    paths = [pamd, os.path.realpath(pamd)]
+    try:
+        with open(pamd, "rb") as fh:
+            first = fh.readline(512)
+    except OSError:
+        first = b""
+    if first.startswith(b"#!"):
+        interp = first[2:].decode(errors="replace").strip().split()
+        if interp and interp[0].startswith("/") and not interp[0].endswith("/env"):
+            paths += [interp[0], os.path.realpath(interp[0])]
+    return list(dict.fromkeys(paths))
 
 
 def unit_text(name: str) -> str:
@@ -80,6 +115,7 @@ def install(prefix: str = "/", dry_run: bool = False, pamd_path: str | None = No
             os.replace(tmp, target)
         say(f"{verb} {target}")
     say(f"  ExecStart= {pamd} run --config /etc/pamd/pamd.yaml --state-dir {STATE_DIR}")
+    _check_executable(pamd, say)
     commands = [["systemd-sysusers", "/etc/sysusers.d/pamd.conf"],
                 ["systemd-tmpfiles", "--create", "/etc/tmpfiles.d/pamd.conf"],
                 ["systemctl", "daemon-reload"]]
@@ -106,11 +142,25 @@ def _run(cmd: list[str]) -> int:
     return subprocess.run(cmd, check=False).returncode
 
 
+def _check_executable(pamd: str, say: Callable[[str], None]) -> None:
+    """Warn when the service could not start the pamd it is given."""
+    for path in executable_paths(pamd):
+        why = hidden_by_sandbox(path)
+        if why:
+            say(f"WARNING: the service cannot start {pamd}: {path} is hidden from it ({why}). "
+                "Install pamd where the service sees it, e.g. python3 -m venv /opt/pamd && "
+                "/opt/pamd/bin/pip install . && sudo /opt/pamd/bin/pamd install-service; "
+                "or relax it in a drop-in (systemctl edit pamd: [Service] "
+                "ProtectHome=read-only)")
+            return
+
+
 def _check_config(path: str, say: Callable[[str], None]) -> None:
     """Say what the config still needs to run under the service's sandbox."""
     if not os.path.exists(path):
         say(f"next: put the rig config at {path} (`pamd check-config` it first), with "
-            f"calibration_file: {STATE_DIR}/pamd.cal.yaml")
+            f"recording: {{dir: {RECORDINGS}}} (the service records only where its config "
+            f"says); its fault, safe outputs and references go to {STATE_DIR}")
         return
 
     try:
@@ -120,10 +170,60 @@ def _check_config(path: str, say: Callable[[str], None]) -> None:
         return
     say(f"config {path}: valid (rig {cfg.rig.rig_id!r})")
     cal = cfg.calibration_path
-    if not cal.startswith(STATE_DIR + "/"):
+    if cal and not cal.startswith(STATE_DIR + "/"):
         say(f"  calibration file {cal} is read-only to the service (ProtectSystem=strict); "
-            f"set calibration_file: {STATE_DIR}/pamd.cal.yaml")
+            f"remove calibration_file (the references then go to {STATE_DIR}) or set "
+            f"calibration_file: {STATE_DIR}/calibration.yaml")
     rec = cfg.rig.recording.dir
-    if rec and os.path.isabs(rec) and not rec.startswith(STATE_DIR):
+    if not rec:
+        say(f"  the service will not record: add recording: {{dir: {RECORDINGS}}}")
+    elif os.path.isabs(rec) and not rec.startswith(STATE_DIR) and not hidden_by_sandbox(rec):
         say(f"  recording.dir {rec} is outside {STATE_DIR}: allow it with a drop-in "
             f"(systemctl edit pamd): [Service] ReadWritePaths={rec}")
+    for key, used in _paths_used(cfg):
+        why = hidden_by_sandbox(used)
+        if why:
+            say(f"  WARNING: {key} {used} is hidden from the service ({why}): move it "
+                f"(e.g. to /etc/pamd or {STATE_DIR})")
+
+
+def _paths_used(cfg: LoadedConfig) -> list[tuple[str, str]]:
+    """Every absolute path the config makes the service open: files it names (relative
+    ones are resolved as pamd does) and the drivers' device paths."""
+    base = os.path.dirname(os.path.abspath(cfg.path))
+    rig = cfg.rig
+    found: list[tuple[str, str]] = []
+    if rig.recording.dir and os.path.isabs(rig.recording.dir):
+        found.append(("recording.dir", rig.recording.dir))
+    if cfg.calibration_path:
+        found.append(("calibration_file", cfg.calibration_path))
+    if rig.telemetry.zenoh_config:
+        found.append(("telemetry.zenoh_config", os.path.join(base, rig.telemetry.zenoh_config)))
+    if rig.telemetry.models_dir:
+        found.append(("telemetry.models_dir", os.path.join(base, rig.telemetry.models_dir)))
+    for m in rig.muscles:
+        if m.model_file:
+            found.append((f"muscles[{m.name}].model_file", os.path.join(base, m.model_file)))
+    for d in rig.drivers:
+        for key, value in _strings(d.options):
+            if value.startswith("/"):
+                found.append((f"drivers[{d.name}].options.{key}", value))
+    return found
+
+
+def _strings(options: object, prefix: str = "") -> list[tuple[str, str]]:
+    """(key, value) of every string in a driver's options (dataclasses, lists, dicts)."""
+    if isinstance(options, str):
+        return [(prefix, options)]
+    if dataclasses.is_dataclass(options) and not isinstance(options, type):
+        return [kv for f in dataclasses.fields(options)
+                for kv in _strings(getattr(options, f.name), _join(prefix, f.name))]
+    if isinstance(options, dict):
+        return [kv for k, v in options.items() for kv in _strings(v, _join(prefix, str(k)))]
+    if isinstance(options, (list, tuple)):
+        return [kv for i, v in enumerate(options) for kv in _strings(v, f"{prefix}[{i}]")]
+    return []
+
+
+def _join(prefix: str, key: str) -> str:
+    return f"{prefix}.{key}" if prefix else key

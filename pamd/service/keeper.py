@@ -282,7 +282,10 @@ class ServiceKeeper:
         if self._io("save the safe outputs", write_safe_outputs, self.paths.safe_outputs, doc):
             self._safe_key = key
             loads = ", ".join(f"{m.name} {m.safe_pressure_bar:.2f} bar" for m in ctrl.muscles)
-            log.info("safe outputs saved in %s (%s)", self.paths.safe_outputs, loads)
+            # the service's journal says it; a run in a terminal (and `pamd tune`, whose
+            # refusal would follow "saved") says it with -v only
+            log.log(logging.INFO if self.notifier.enabled else logging.DEBUG,
+                    "safe outputs saved in %s (%s)", self.paths.safe_outputs, loads)
 
     # -- reload (SIGHUP) -----------------------------------------------------------------------
     def _reload(self) -> None:

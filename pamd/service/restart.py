@@ -52,6 +52,7 @@ STANDING_OPTIONS: tuple[tuple[str, str, bool], ...] = (
     ("name", "--name", True),
     ("no_telemetry", "--no-telemetry", False),
     ("zenoh_config", "--zenoh-config", True),
+    ("listen", "--listen", True),
     ("foxglove", "--foxglove", True),
     ("model", "--model", True),
     ("stay_on_fault", "--stay-on-fault", False),
@@ -70,8 +71,8 @@ def run_argv(args: argparse.Namespace, remaining_s: float | None) -> list[str]:
         value = getattr(args, dest, None)
         if takes_value and value not in (None, ""):
             argv += [flag, str(value)]
-        elif not takes_value and value:
-            argv.append(flag)
+        elif (not takes_value and value) or (dest == "record" and value == ""):
+            argv.append(flag)  # a switch; or --record without a directory
     if remaining_s is not None:
         argv += ["--duration", repr(remaining_s)]
     return argv

@@ -6,13 +6,17 @@ written atomically (temp file, fsync, rename, fsync of the directory):
 * the last known-good safe outputs (`safe-outputs.json`): per driver its type and
   options, and per output channel the raw value of the present safe state. The
   second-line command `pamd safe-outputs` replays them when the daemon is gone and
-  the config may be unreadable.
+  the config may be unreadable;
+* the home/tare references (`calibration.yaml`) unless the config names its own
+  `calibration_file`.
 
-Where: `--state-dir DIR` (the service: /var/lib/pamd) or the config's `state_dir`
-(relative to the config file) hold `fault.json` and `safe-outputs.json`; with
-neither, they sit beside the config as `<config name>.fault.json` and
-`<config name>.safe-outputs.json`. The built-in simulated rig (no `--config`)
-keeps no state unless `--state-dir` is given.
+The state directory is, the first that applies: `--state-dir DIR` (the service:
+/var/lib/pamd); the config's `state_dir` (relative to the config file); for a
+real-clock run of a config, `$XDG_STATE_HOME/pamd/<rig_id>` (by default
+~/.local/state/pamd/<rig_id>): never beside the config. A private simulation keeps
+no state unless a directory is named: a virtual-clock run, and the built-in
+simulated rig (no `--config`). A run that keeps state locks its state directory
+(pamd.service.riglock): two daemons never write one fault file.
 
 Everything here is file I/O: it runs in the daemon's main thread, never in the
 loop's.
@@ -38,6 +42,7 @@ SAFE_OUTPUTS_FORMAT = "pamd-safe-outputs"
 FORMAT_VERSION = 1
 FAULT_FILE = "fault.json"
 SAFE_OUTPUTS_FILE = "safe-outputs.json"
+CALIBRATION_FILE = "calibration.yaml"
 EARLIER_KEPT = 10
 
 
@@ -54,26 +59,50 @@ class StatePaths:
     directory: str
     fault: str
     safe_outputs: str
+    calibration: str
 
     @classmethod
     def in_dir(cls, directory: str) -> StatePaths:
-        d = os.path.abspath(directory)
-        return cls(d, os.path.join(d, FAULT_FILE), os.path.join(d, SAFE_OUTPUTS_FILE))
+        d = os.path.abspath(os.path.expanduser(directory))
+        return cls(d, os.path.join(d, FAULT_FILE), os.path.join(d, SAFE_OUTPUTS_FILE),
+                   os.path.join(d, CALIBRATION_FILE))
+
+    @property
+    def claim(self) -> str:
+        """The state directory as a resource a run locks (pamd.service.riglock)."""
+        return f"state directory {self.directory}"
+
+
+def state_home() -> str:
+    """Where real-clock runs keep their state by default: `$XDG_STATE_HOME/pamd`, else
+    ~/.local/state/pamd."""
+    base = os.environ.get("XDG_STATE_HOME") or os.path.join(
+        os.path.expanduser("~"), ".local", "state")
+    return os.path.join(base, "pamd")
 
 
 def state_paths(cfg: LoadedConfig, state_dir: str | None = None) -> StatePaths | None:
     """The state paths of `cfg` (`state_dir` overrides the config's `state_dir`);
-    None for the built-in simulated rig without an explicit directory."""
+    None for a private simulation (virtual clock, or the built-in simulated rig)
+    without an explicit directory."""
     if state_dir:
         return StatePaths.in_dir(state_dir)
     config_dir = os.path.dirname(os.path.abspath(cfg.path))
     if cfg.rig.state_dir:
-        return StatePaths.in_dir(os.path.join(config_dir, cfg.rig.state_dir))
+        return StatePaths.in_dir(os.path.join(config_dir, os.path.expanduser(cfg.rig.state_dir)))
+    if cfg.rig.loop.clock == "virtual":
+        return None  # a simulation as fast as possible: private, deterministic
     if os.path.abspath(cfg.path) == os.path.abspath(builtin_config_path()):
-        return None  # never write into the installed package
-    stem = os.path.splitext(os.path.basename(cfg.path))[0]
-    return StatePaths(config_dir, os.path.join(config_dir, f"{stem}.{FAULT_FILE}"),
-                      os.path.join(config_dir, f"{stem}.{SAFE_OUTPUTS_FILE}"))
+        return None
+    return StatePaths.in_dir(os.path.join(state_home(), cfg.rig.rig_id))
+
+
+def calibration_path(cfg: LoadedConfig, paths: StatePaths | None) -> str | None:
+    """Where the home/tare references are kept: the config's `calibration_file`, else
+    the state directory's calibration.yaml; None: for this run only (no state)."""
+    if cfg.calibration_path:
+        return cfg.calibration_path
+    return paths.calibration if paths is not None else None
 
 
 def now_iso() -> str:

@@ -15,6 +15,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,7 @@ ROBUST = {  # a busy 2-core test machine: slower loop, generous timeouts
                "startup_timeout_s": 5.0},
 }
 PATIENT_S = 3.0  # the tracking run's timeouts
+HEARTBEATS_PILE_UP_S = 5.0  # the emulator runs on after the daemon, as an operator's does
 
 
 def config(tmp: Path, can: str, patient: bool = False) -> Any:
@@ -101,11 +103,13 @@ def test_silent_device_leads_to_the_safe_state_and_reset(
 
 
 def test_daemon_tracks_the_sine_against_the_emulator_process(tmp_path: Path) -> None:
+    """... and the emulator, left running after the daemon went (its nodes' heartbeats
+    filling a pty nobody reads), ends quietly: no thread's traceback."""
     cfg = config(tmp_path, "serial", patient=True)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
+    errors = (tmp_path / "emulate.err").open("w+")
     emu = subprocess.Popen([sys.executable, "-m", "pamd", "emulate", "--config", cfg.path],
-                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                           env=env)
+                           stdout=subprocess.PIPE, stderr=errors, text=True, env=env)
     daemon = None
     try:
         assert emu.stdout is not None
@@ -132,8 +136,13 @@ def test_daemon_tracks_the_sine_against_the_emulator_process(tmp_path: Path) -> 
     finally:
         if daemon is not None:
             daemon.close()
+        time.sleep(HEARTBEATS_PILE_UP_S)
         emu.send_signal(signal.SIGTERM)
         out, _ = emu.communicate(timeout=20)
+    errors.seek(0)
+    said = errors.read()
+    assert "Traceback" not in said and "Exception" not in said, said
+    assert emu.returncode == 0
     stats = json.loads(out.strip().splitlines()[-1])
     assert stats["stopped"] and stats["modbus_requests"]["io"] > 1000
     assert sum(stats["tpdo_frames"].values()) > 1000

@@ -127,12 +127,14 @@ def test_pamd_home_offline_references_and_saves(tmp_path: Path,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
     path = _config(tmp_path, 30.0)
     true_mm = 200.0 * (1.0 - equilibrium_contraction(force_model("map"), 0.0, 30.0, -0.5, 0.9))
-    cal = tmp_path / "rig.cal.yaml"
-    assert main(["home", "--config", str(path), "--muscle", "m1", "--length-mm", "150"]) == 4
+    state = tmp_path / "state"  # a simulation keeps references where it is told
+    cal = state / "calibration.yaml"
+    assert main(["home", "--config", str(path), "--muscle", "m1", "--length-mm", "150",
+                 "--state-dir", str(state)]) == 4
     assert "disagrees with the" in capsys.readouterr().err
     assert not cal.exists()  # refused: nothing saved
     assert main(["home", "--config", str(path), "--muscle", "m1", "--length-mm",
-                 f"{true_mm:.2f}", "--json"]) == 0
+                 f"{true_mm:.2f}", "--json", "--state-dir", str(state)]) == 0
     out = capsys.readouterr().out
     assert '"ok": true' in out
     ref = load_calibration(str(cal)).muscles["m1"]
@@ -143,10 +145,13 @@ def test_pamd_home_offline_references_and_saves(tmp_path: Path,
 def test_pamd_tare_offline_needs_the_load_declared(tmp_path: Path,
                                                   capsys: pytest.CaptureFixture[str]) -> None:
     path = _config(tmp_path, 30.0)
-    cal = tmp_path / "rig.cal.yaml"
-    assert main(["tare", "--config", str(path), "--muscle", "m1"]) == 4
+    state = tmp_path / "state"
+    cal = state / "calibration.yaml"
+    assert main(["tare", "--config", str(path), "--muscle", "m1", "--state-dir",
+                 str(state)]) == 4
     assert "holds the configured load of 30 kg" in capsys.readouterr().err
     assert not cal.exists()
-    assert main(["tare", "--config", str(path), "--muscle", "m1", "--load-kg", "30"]) == 0
+    assert main(["tare", "--config", str(path), "--muscle", "m1", "--load-kg", "30",
+                 "--state-dir", str(state)]) == 0
     ref = load_calibration(str(cal)).muscles["m1"]
     assert ref.tared_at and abs(ref.force_offset_n) < 5.0

@@ -9,6 +9,8 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
+
 from pamd.config import LoadedConfig
 from pamd.daemon import Daemon
 from pamd.service.state import state_paths
@@ -31,9 +33,10 @@ def finish(d: Daemon) -> None:
 
 def test_a_latched_fault_comes_back_after_a_restart_until_reset(
         sim_config: Callable[..., LoadedConfig]) -> None:
-    cfg = sim_config()
+    cfg = sim_config(state_dir="state")
     paths = state_paths(cfg)
-    assert paths is not None and paths.fault.endswith("sim.fault.json")  # beside the config
+    assert paths is not None and paths.fault == str(Path(cfg.path).parent / "state" /
+                                                    "fault.json")  # relative to the config
     d1 = run_daemon(cfg)
     try:
         assert d1.wait_for_state((State.IDLE,), 10) == State.IDLE
@@ -116,6 +119,27 @@ def test_an_unreadable_fault_file_latches(tmp_path: Path,
         assert wait_until(lambda: (d.service(), not (state / "fault.json").exists())[1], 10)
     finally:
         finish(d)
+
+
+def test_a_simulation_keeps_no_state_and_a_real_clock_run_never_beside_the_config(
+        sim_config: Callable[..., LoadedConfig], tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    virtual = sim_config()
+    assert state_paths(virtual) is None  # private: no fault latched across runs, no lock
+    d = run_daemon(virtual)
+    try:
+        assert d.wait_for_state((State.IDLE,), 10) == State.IDLE
+        assert d.command("estop", {"reason": "in a simulation"})["ok"]
+        d.service()
+    finally:
+        finish(d)
+    assert sorted(p.name for p in Path(virtual.path).parent.iterdir()
+                  if not p.name.startswith(("locks", "xdg"))) == ["sim.yaml"]
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "xdg"))
+    real = sim_config(loop={"clock": "real"})
+    paths = state_paths(real)
+    assert paths is not None and paths.directory == str(tmp_path / "xdg" / "pamd" / "sim")
+    assert paths.calibration == str(tmp_path / "xdg" / "pamd" / "sim" / "calibration.yaml")
 
 
 def test_no_state_for_the_builtin_rig_unless_asked(tmp_path: Path) -> None:

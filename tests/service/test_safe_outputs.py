@@ -97,13 +97,13 @@ def test_replays_the_saved_safe_outputs_without_the_config(tmp_path: Path,
 
 
 def test_sim_only_nothing_saved_and_unreadable(tmp_path: Path) -> None:
-    cfg = load_config(str(write_yaml(tmp_path / "sim.yaml", sim_dict())))
+    cfg = load_config(str(write_yaml(tmp_path / "sim.yaml", sim_dict(state_dir="state"))))
     d = Daemon(cfg)
     d.start()
     d.stop("test finished")
     d.wait(timeout_s=30)
     d.close()
-    saved = tmp_path / "sim.safe-outputs.json"  # beside the config by default
+    saved = tmp_path / "state" / "safe-outputs.json"  # the config's state_dir
     r = safe_outputs("--file", saved)
     assert r.returncode == 0 and "no device to reach" in r.stdout, r.stdout + r.stderr
     r = safe_outputs("--file", saved, "--dry-run")

@@ -121,13 +121,15 @@ def test_install_service_writes_the_files_with_the_real_pamd(tmp_path: Path) -> 
     text = "\n".join(lines)
     assert "systemd-sysusers /etc/sysusers.d/pamd.conf" in text  # told, not run
     assert "put the rig config at" in text and "systemctl enable --now pamd" in text
+    assert "recording: {dir: /var/lib/pamd/recordings}" in text  # the service's own
     # a config already there is checked against the sandbox
     cfg = root / "etc/pamd/pamd.yaml"
     cfg.parent.mkdir(parents=True)
     cfg.write_text((REPO / "config" / "sim.yaml").read_text())
     lines.clear()
     install(prefix=str(root), pamd_path="/x/bin/pamd", say=lines.append)
-    assert any("read-only to the service" in ln for ln in lines)
+    assert any("the service will not record: add recording: {dir: /var/lib/pamd/recordings}"
+               in ln for ln in lines)
 
 
 def test_install_service_cli_dry_run() -> None:
