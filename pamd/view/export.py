@@ -196,18 +196,18 @@ def column_decimals(name: str) -> int | None:
 
 
 def _column(values: np.ndarray, decimals: int | None) -> list[Any]:
-    """A column as Python values whose `str` is the CSV cell: integers as integers;
-    floats rounded to `decimals` (then `str`, the shortest text of the rounded value, is
-    at most as long as the stored value's); NaN as "NaN"."""
+    """A column as the CSV's cells: integers as integers; floats rounded to `decimals`,
+    then as `repr`, the shortest text of the rounded value (so at most as long as the
+    stored value's); NaN as "NaN". Each distinct value is written out once: a sensor's
+    readings take few distinct values (a quantised pressure, an encoder's counts)."""
     if values.dtype.kind in "iub":
         return values.astype(np.int64).tolist()
     a = values.astype(np.float64)
     if decimals is not None:
         a = np.round(a, decimals) + 0.0  # + 0.0: no "-0.0" for a value rounded to zero
-    out: list[Any] = a.tolist()
-    for i in np.flatnonzero(np.isnan(a)).tolist():
-        out[i] = "NaN"
-    return out
+    distinct, at = np.unique(a, return_inverse=True)
+    text = np.array(["NaN" if v != v else repr(v) for v in distinct.tolist()], dtype=object)
+    return text[at.ravel()].tolist()
 
 
 def _names(codes: np.ndarray, name_of: Callable[[float], str]) -> np.ndarray:

@@ -18,6 +18,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+from pamd.config import load_config
+from pamd.experiment.plan import load_plan
+from pamd.experiment.timeline import timeline
+
 REPO = Path(__file__).resolve().parents[2]
 LOADS_KG = (20, 30, 40)
 RANGES_BAR = (("full", 0.0, 6.0), ("low", 0.0, 3.0), ("mid", 1.5, 4.5), ("high", 3.0, 6.0))
@@ -91,3 +95,23 @@ def test_collect_train_track_evaluate(tmp_path: Path) -> None:
     for part in ("prediction", "error", "membership", "surface"):
         png = tmp_path / f"eval_{part}.png"
         assert png.stat().st_size > 5000
+
+
+def test_the_half_range_plan_covers_the_seeds_loads_over_three_half_ranges() -> None:
+    """The walk-through's second plan: at each load of the seeds' sweep, the lower,
+    middle and upper half of its range at the same frequency (at 80 kg, where 0 bar
+    over-stretches the muscle, the lower half from 1 bar), and it fits the rig."""
+    cfg = load_config()
+    seeds = load_plan(str(REPO / "config/experiments/sine-sweep.yaml"), cfg)
+    half = load_plan(str(REPO / "config/experiments/half-range-sweeps.yaml"), cfg)
+    ranges: dict[float, list[tuple[float, float]]] = {}
+    for step in half.steps:
+        prof = step.profile or half.profile
+        assert step.load_kg is not None and prof is not None and prof.freq_hz == 0.05
+        ranges.setdefault(step.load_kg, []).append((prof.min_bar, prof.max_bar))
+    assert list(ranges) == [s.load_kg for s in seeds.steps]
+    for load, rs in ranges.items():
+        low = (1.0, 3.5) if load == 80 else (0.0, 3.0)
+        assert rs == [low, (1.5, 4.5), (3.0, 6.0)], (load, rs)
+    lines = timeline(half, cfg, simulated=True)
+    assert 12 * 60 < sum(s.duration_s for s in lines) < 14 * 60  # the README: 13 min
