@@ -18,6 +18,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from pamd.config import load_config
 from pamd.experiment.plan import load_plan
 from pamd.experiment.timeline import timeline
@@ -57,6 +59,9 @@ def figure(pattern: str, out: str) -> str:
     return m.group(1)
 
 
+# About 30 s of CPU time; the limit is for a shared machine's wall clock (two cores,
+# many users), not a speed check.
+@pytest.mark.timeout(1200)
 def test_collect_train_track_evaluate(tmp_path: Path) -> None:
     plan = tmp_path / "plan.yaml"
     plan.write_text(PLAN)
