@@ -37,7 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         + "".join(f"  {k.name:<11} seed {k.seed}: {k.summary}\n" for k in KINDS.values()),
         epilog="examples:\n"
         "  pamd train runs/sweep --out model.json             # a collection (pamd collect)\n"
-        "  pamd train runs/sweep runs/loops --out model.json --inputs force_n,length_mm,"
+        "  pamd train runs/sweep runs/half --out model.json --inputs force_n,length_mm,"
         "velocity_mm_s\n"
         "  pamd train runs/*.mcap --out model.json\n"
         "  pamd train runs/*.mcap --out model3.json --inputs force_n,length_mm,"
