@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from collections.abc import Mapping, Sequence
 from typing import Any, TextIO
@@ -15,11 +16,12 @@ from typing import Any, TextIO
 from pamd.errors import ModelError
 from pamd.models.anfis.extraction import load_samples
 from pamd.models.anfis.model import AnfisModel
-from pamd.models.anfis.plots import write_plots
+from pamd.models.anfis.plots import require_matplotlib, write_plots
 from pamd.models.anfis.samples import Samples
 from pamd.models.compare import Judged, common_options, format_comparison, judge
 from pamd.models.plots import write_overlay
 from pamd.models.registry import load_model
+from pamd.view.recording import recording_files
 
 #: Table rows: metric key, label, format.
 METRIC_ROWS: tuple[tuple[str, str, str], ...] = (
@@ -47,9 +49,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         epilog="examples:\n"
         "  pamd evaluate model.json runs/50kg.mcap\n"
         "  pamd evaluate model.json runs/50kg.mcap --json --plot figs/50kg\n"
+        "  pamd evaluate model.json runs/track          # every recording in a directory\n"
         "  pamd evaluate anfis.json tsf.json sarosi.json runs/50kg.mcap --plot figs/cmp")
     p.add_argument("files", nargs="+", metavar="MODEL.json... DATA...",
-                   help="model files (.json) then MCAP recordings or CSV files")
+                   help="model files (.json) then MCAP recordings, CSV files or directories "
+                   "(a collection, or a --record directory)")
     p.add_argument("--json", action="store_true",
                    help='print one JSON object: {"models": [{"file", "kind", "n_params", '
                    '"metrics": {...}}, ...]} (with one model also its metrics at the top '
@@ -77,6 +81,16 @@ def split_files(files: Sequence[str]) -> tuple[list[str], list[str]]:
     return models, data
 
 
+def data_files(paths: Sequence[str]) -> list[str]:
+    """The data files `paths` name: a file as given; a directory as `pamd inspect`, `plot`
+    and `export` read it (a collection: its manifest's step files, in order, not the
+    collection's own load-change recording; a `--record` directory: its .mcap files)."""
+    out: list[str] = []
+    for p in paths:
+        out += [f for f, _, _ in recording_files(p)] if os.path.isdir(p) else [p]
+    return out
+
+
 def format_table(rows: Mapping[str, Mapping[str, float]], unit: str = "",
                  out: TextIO | None = None) -> None:
     """The metrics table: one column per data set (train, validation, test, ...)."""
@@ -100,9 +114,11 @@ def format_table(rows: Mapping[str, Mapping[str, float]], unit: str = "",
 
 def run(args: argparse.Namespace) -> int:
     files, data = split_files(args.files)
+    if args.plot:
+        require_matplotlib()  # before the models are read and judged, not after
     models = [load_model(f) for f in files]
     opts = common_options(models, args.muscle, args.settle_s, args.rate_hz)
-    samples = load_samples(data, opts)
+    samples = load_samples(data_files(data), opts)
     judged = judge(files, models, samples, timing=not args.no_timing)
     note = f"{len(samples)} samples from {len(samples.runs)} run(s)"
     clip_notes = [f"{j.file}: {int(j.clipped.sum())} "

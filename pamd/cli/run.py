@@ -18,6 +18,7 @@ from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.length_targets import check_length_profile_config
+from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused
 from pamd.io.session import RecordingRequest
@@ -250,6 +251,10 @@ def run(args: argparse.Namespace) -> int:
     needs_model = args.mode == "length_force" or (args.mode == "position"
                                                   and not args.no_feedforward)
     for m in cfg.rig.muscles:
+        if (args.mode == "position" and not args.no_feedforward and m.actuation == "onoff"
+                and args.muscle in (None, m.name)):
+            raise CommandRefused(f"{m.name}: --mode position with a model: "
+                                 f"{POSITION_TAKES_NO_MODEL}")
         if needs_model and args.muscle in (None, m.name) and m.name not in models:
             raise CommandRefused(f"{m.name}: --mode {args.mode} needs a model: --model FILE "
                                  "or model_file in the config (position mode runs without "
@@ -387,9 +392,11 @@ def print_summary(r: dict[str, Any]) -> None:
     print(f"  compute time    p50 {c['p50']:.0f} us, p99 {c['p99']:.0f} us, max "
           f"{c['max']:.0f} us", file=out)
     for name, t in r["tracking"].items():
-        if t["samples"]:
-            print(f"  {name}: pressure tracking RMSE {t['rmse_bar']:.4f} bar, max error "
-                  f"{t['max_error_bar']:.4f} bar ({t['samples']} ticks running)", file=out)
+        if t["samples"] or t.get("length_samples"):
+            if t["samples"]:  # none where no pressure setpoint ran (on/off positioning)
+                print(f"  {name}: pressure tracking RMSE {t['rmse_bar']:.4f} bar, max error "
+                      f"{t['max_error_bar']:.4f} bar ({t['samples']} ticks running)",
+                      file=out)
             if t.get("samples_after_first_cycle"):
                 print(f"  {name}:   after the first cycle: RMSE "
                       f"{t['rmse_bar_after_first_cycle']:.4f} bar, max error "

@@ -9,7 +9,7 @@ import os
 import sys
 from typing import Any
 
-from pamd.cli.evaluate import format_table
+from pamd.cli.evaluate import data_files, format_table
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.extraction import derived_inputs, load_samples
@@ -36,13 +36,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--kind picks the model (the seeds' models; default anfis):\n"
         + "".join(f"  {k.name:<11} seed {k.seed}: {k.summary}\n" for k in KINDS.values()),
         epilog="examples:\n"
+        "  pamd train runs/sweep --out model.json             # a collection (pamd collect)\n"
+        "  pamd train runs/sweep runs/half --out model.json --inputs force_n,length_mm,"
+        "velocity_mm_s\n"
         "  pamd train runs/*.mcap --out model.json\n"
         "  pamd train runs/*.mcap --out model3.json --inputs force_n,length_mm,"
         "velocity_mm_s --mfs 3\n"
         "  pamd train lab_export.csv --out model.json --val-split 0 --epochs 50\n"
         "  pamd train runs/*.mcap --out tsf.json --kind ts-fuzzy --tuner mga --epochs 60\n"
         "  pamd train runs/*.mcap --out sarosi.json --kind sarosi")
-    p.add_argument("data", nargs="+", metavar="DATA", help="MCAP recordings or CSV files")
+    p.add_argument("data", nargs="+", metavar="DATA",
+                   help="MCAP recordings, CSV files or directories: a collection (pamd "
+                   "collect; its steps' files, as the manifest lists them) or a directory of "
+                   "recordings (pamd run --record)")
     p.add_argument("--out", required=True, metavar="MODEL.json", help="model file to write")
     p.add_argument("--kind", default="anfis", choices=list(KINDS),
                    help="model kind (default anfis; see above)")
@@ -131,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
     d = os.path.dirname(os.path.abspath(args.out))
     if not os.path.isdir(d):
         raise ModelError(f"--out {args.out}: directory {d} does not exist")
-    samples = load_samples(args.data, opts)
+    samples = load_samples(data_files(args.data), opts)
     parts = split(samples, args.val_split, args.test_split, by=args.split_by,
                   block_s=args.block_s, seed=args.seed)
     tr, va, te = parts.train, parts.validation, parts.test

@@ -21,6 +21,7 @@ from pamd.commands.schema import (
 from pamd.control.length_control import MODE_NAMES
 from pamd.control.length_targets import length_profile
 from pamd.control.muscle import MuscleController
+from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
 from pamd.profiles import Profile, ProfileSpec
@@ -180,6 +181,9 @@ def _mode(ctrl: RigController, a: ModeArgs) -> dict[str, Any]:
                              "off")
     need_reference(ms)
     for m in ms:
+        if mode == Mode.POSITION and a.feedforward and m.onoff:
+            raise CommandRefused(f"{m.name}: position mode with feedforward: "
+                                 f"{POSITION_TAKES_NO_MODEL}")
         if a.feedforward and not m.has_model:
             raise CommandRefused(
                 f"{m.name}: no model for {a.mode} mode; name model_file in the config, `pamd "

@@ -43,6 +43,8 @@ from pamd.tick import (
     Mode,
 )
 
+NAN = float("nan")
+
 
 class MuscleView:
     """The read side of a muscle's state (see the module docstring); the attributes
@@ -59,6 +61,7 @@ class MuscleView:
     limit_report: str | None
     _base: int
     _envelope: MuscleEnvelope
+    onoff: bool  # on/off valves (actuation: onoff)
     _setpoint_bar: float
     _valve_cmd_bar: float
     _safe_pressure_bar: float
@@ -188,7 +191,10 @@ class MuscleView:
         rec[b + M_LENGTH] = inp.length_mm
         rec[b + M_CONTRACTION] = inp.contraction
         rec[b + M_VELOCITY] = inp.velocity_mm_s
-        rec[b + M_SETPOINT] = self._setpoint_bar
+        # on/off valves in mode position move on the length alone (seed 004's sliding
+        # mode, pamd.control.onoff): no pressure setpoint there, and none recorded
+        rec[b + M_SETPOINT] = (NAN if self.onoff and lc.active and lc.position
+                               else self._setpoint_bar)
         rec[b + M_FEEDFORWARD] = lc.feedforward_bar
         rec[b + M_PID_P] = pid.p
         rec[b + M_PID_I] = pid.i

@@ -14,7 +14,10 @@ error and its rate, s = lambda e + de/dt (e = length - target, so s > 0 asks for
 contraction), with a boundary layer |s| <= phi against chattering: outside it the
 valve opens fully toward the surface, inside it pulses with a duty s / phi, and
 within `hold_band_mm` of the target at rest it holds (the muscle's friction keeps
-it there with its air shut in) until the error leaves twice the band.
+it there with its air shut in) until the error leaves twice the band. It needs no
+model and takes none (`POSITION_TAKES_NO_MODEL`: position mode with feedforward is
+refused on on/off valves), and the muscle has no pressure setpoint meanwhile (the
+tick record's `setpoint_bar` is NaN, so the summary has no pressure tracking there).
 
 Pure float arithmetic, nothing allocated: both run on the tick path.
 """
@@ -22,6 +25,16 @@ Pure float arithmetic, nothing allocated: both run on the tick path.
 from __future__ import annotations
 
 INFLATE, HOLD, EXHAUST = 1, 0, -1
+
+#: Why mode position on on/off valves takes no model (seed 004 positions without one):
+#: the sliding mode chooses inflate / hold / exhaust from the length error and its rate
+#: alone; no pressure command reaches the valves for a model's feedforward to add to.
+POSITION_TAKES_NO_MODEL = (
+    "on/off valves position the muscle by seed 004's sliding mode, on the length error and "
+    "its rate alone: no pressure command reaches the valves for a model's feedforward to "
+    "add to, so a model would go unused. Run position mode without feedforward (pamd run "
+    "--no-feedforward; the mode command's feedforward false), or length_force mode, where "
+    "the valves' PWM follows the model's pressure")
 
 
 class Pulser:

@@ -62,8 +62,26 @@ def test_csv_with_names_rounded_times_and_a_sidecar(recorded: Recorded, tmp_path
         assert rows[k]["t_s"] == f"{int(rows[k]['tick']) / 1000:.3f}"
     assert {r["state"] for r in rows} >= {"IDLE", "RUNNING"}
     assert {r["mode"] for r in rows} == {"pressure"}
-    assert float(rows[500]["force_n"]) == rec["force_n"][500]
     side = json.loads((out / f"{stem}.meta.json").read_text())
+    # every value to the decimals its sidecar states (what a sensor resolves), never
+    # longer than the stored float's shortest exact text
+    assert side["columns"]["force_n"]["decimals"] == 3
+    assert side["columns"]["pressure_bar"]["decimals"] == 4
+    assert side["columns"]["contraction"]["decimals"] == 7
+    for name, doc in side["columns"].items():
+        d = doc.get("decimals")
+        if name not in rows[0] or name in ("state", "mode", "t_s") or d is None:
+            continue
+        want = rec[name].astype(np.float64)
+        for k in range(0, len(rows), 97):
+            cell = rows[k][name]
+            if np.isnan(want[k]):
+                assert cell == "NaN", name
+                continue
+            assert abs(float(cell) - want[k]) <= 0.5 * 10.0 ** -d + 1e-12, (name, cell)
+            assert len(cell) <= len(repr(float(want[k]))), (name, cell, want[k])
+            assert not cell.startswith("-0.0") or float(cell) != 0.0, (name, cell)
+    assert float(rows[500]["force_n"]) == round(float(rec["force_n"][500]), 3)
     assert side["columns"]["pressure_bar"]["unit"] == "bar"
     assert side["columns"]["contraction"]["unit"] == "1"
     assert side["flags"]["SLEW_LIMITED"]["bit"] == 16 and side["states"]["2"] == "RUNNING"
@@ -127,3 +145,27 @@ def test_inspect_a_directory_without_manifest_and_a_broken_manifest(
     (bad / "manifest.json").write_text("{not json")
     assert main(["inspect", str(bad)]) == 6
     assert "not a pamd collection manifest" in capsys.readouterr().err
+
+
+def test_csv_cells_are_what_the_sensors_resolve(tmp_path: Path) -> None:
+    from pamd.view.export import _write_table  # noqa: PLC0415 - the writer itself
+
+    cols = {"tick": np.array([1, 2, 3], dtype=np.int64),
+            "t_s": np.array([0.001, 0.002, 0.003]),
+            "pressure_bar": np.array([0.1 + 0.2, -1e-9, 2.5]),
+            "force_n": np.array([294.02581437, np.nan, 1e3]),
+            "contraction": np.array([0.123456789, 0.0, 1.0 / 3.0]),
+            "mode": np.array([0, 0, 2], dtype=np.int64),
+            "odd": np.array([1.0 / 3.0, 2.0, 1e-20])}
+    path = tmp_path / "t.csv"
+    _write_table(str(path), cols, {"mode": np.array(["pressure", "pressure", "a,b"],
+                                                    dtype=object)}, 3)
+    lines = path.read_text().splitlines()
+    assert lines[0] == "tick,t_s,pressure_bar,force_n,contraction,mode,odd"
+    # bar to 0.1 mbar, N to 1 mN, a fraction to 1e-7; a rounded zero is "0.0", not
+    # "-0.0"; NaN by name; a unit without a resolution: the shortest exact text
+    assert lines[1] == "1,0.001,0.3,294.026,0.1234568,pressure,0.3333333333333333"
+    assert lines[2] == "2,0.002,0.0,NaN,0.0,pressure,2.0"
+    assert lines[3] == '3,0.003,2.5,1000.0,0.3333333,"a,b",1e-20'
+    with open(path, newline="") as fh:
+        assert list(csv.reader(fh))[3][5] == "a,b"

@@ -31,6 +31,12 @@ def _pyplot() -> Any:
     return plt
 
 
+def require_matplotlib() -> None:
+    """Raise the plots' `ModelError` now if matplotlib cannot be imported: a command
+    that will plot checks this before its long work, not after it."""
+    _pyplot()
+
+
 def _label(name: str, unit: str) -> str:
     return f"{name} [{unit}]" if unit else name
 
