@@ -71,11 +71,12 @@ class Driver(ABC):
         self.output_channels = [c for c in chans if c.direction == "out"]
         self.in_values: list[float] = [math.nan] * len(self.input_channels)
         self.in_stamps_s: list[float] = [-math.inf] * len(self.input_channels)
-        # How much earlier than its stamp each value may have been taken: 0 where the
-        # stamp is the device's sample time; where the protocol gives none, the value is
-        # stamped on arrival and this says how long it may have waited (a request's round
-        # trip; a frame read from a backlog after the thread was held up). The
-        # plausibility checks judge a change over stamp difference + this.
+        # How far from its stamp each value may have been taken: 0 where the stamp is
+        # the device's sample time; where the protocol gives none, the value is stamped
+        # on arrival and this says how long it may have waited (a request's round trip;
+        # a frame read from a backlog after the thread was held up), or where a sample
+        # clock bounds it only from below, how much later. The plausibility checks
+        # judge a change over the stamps' difference plus both values' jitter.
         self.in_jitter_s: list[float] = [0.0] * len(self.input_channels)
         self.preset_counts: list[int] = [0] * len(self.input_channels)
         self.fault: str | None = None

@@ -154,7 +154,7 @@ class ThreadedDriver(Driver):
     def stamp(self, index: int, value: float, now_s: float, jitter_s: float = 0.0) -> None:
         """Publish one input: value and jitter first, then its stamp. `now_s` is the
         device's sample time where the protocol gives one, else the arrival; then
-        `jitter_s` says how much earlier the value may have been taken."""
+        `jitter_s` says how far from it the value may have been taken."""
         self.in_values[index] = value
         self.in_jitter_s[index] = jitter_s
         self.in_stamps_s[index] = now_s

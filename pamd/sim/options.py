@@ -355,9 +355,10 @@ class SimMuscleOptions:
     pressure_burst_s: float = _f(
         0.0,
         "Pressure input: bursty delivery. Every burst_every_s the link holds its samples "
-        "this long, then the backlog arrives at once (oldest first); such a sensor is "
-        "stamped on arrival with a declared jitter, as a protocol without a sample time "
-        "is. 0: no bursts, stamped with the sample's time.",
+        "this long, then the backlog rushes in (oldest first, three samples per plant "
+        "step, as a driver thread drains its socket); such a sensor is stamped on arrival "
+        "with a declared jitter, as a protocol without a sample time is. 0: no bursts, "
+        "stamped with the sample's time.",
         "s",
         0.0,
         10.0,
