@@ -164,11 +164,13 @@ def test_reset_trusts_the_signal_again_once_it_reads_right(
     assert rig.h.state == "IDLE" and rig.m.plausibility.length_ok
 
 
+@pytest.mark.parametrize("sensors", SENSOR_SETS)
 @pytest.mark.parametrize("load_kg, low, high", [(0.0, 0.0, 6.0), (30.0, 0.0, 6.0),
                                                 (80.0, 1.6, 6.0)])
 def test_full_sweeps_raise_no_false_alarm(safety_rig: Callable[..., SafetyRig],
-                                          load_kg: float, low: float, high: float) -> None:
-    rig = safety_rig(load_kg, low)
+                                          load_kg: float, low: float, high: float,
+                                          sensors: str) -> None:
+    rig = safety_rig(load_kg, low, sensors=sensors)
     rig.run(0.01)
     rig.cmd("profile", kind="sine", min_bar=low, max_bar=high, freq_hz=0.25, cycles=1)
     rig.run(6.0)
@@ -176,13 +178,13 @@ def test_full_sweeps_raise_no_false_alarm(safety_rig: Callable[..., SafetyRig],
     assert not [e for e in rig.h.sink.events if e[1] == "implausible"]
 
 
+@pytest.mark.parametrize("sensors", SENSOR_SETS)
 def test_an_isometric_clamp_is_not_a_frozen_length_nor_a_lost_load(
-        safety_rig: Callable[..., SafetyRig]) -> None:
+        safety_rig: Callable[..., SafetyRig], sensors: str) -> None:
     # equal hard stops hold the muscle at 5 % contraction: the length does not move
     # while pressure and force do, and the load cell may read nothing at 0 bar
-    rig = safety_rig(30.0, 0.0, drivers=[{"name": "sim", "type": "sim", "options": {
-        "seed": 1, "muscles": [{"name": "m1", "load_kg": 30.0, "stop_contraction": 0.05,
-                                "stop_stretch_contraction": 0.05}]}}])
+    rig = safety_rig(30.0, 0.0, sensors=sensors, drivers=sim_driver(
+        30.0, 0.0, sensors=sensors, stop_contraction=0.05, stop_stretch_contraction=0.05))
     rig.run(0.01)
     rig.cmd("profile", kind="sine", min_bar=0.0, max_bar=6.0, freq_hz=0.25, cycles=1)
     rig.run(5.0)
