@@ -10,7 +10,10 @@ and exhaust solenoid valves). Inputs of muscle k are channels 3k..3k+2, outputs
 2k..2k+1.
 
 The loop calls `advance(dt_s)` once per tick and then reads `in_values` /
-`in_stamps_s` (stamped with the loop's clock at the end of `advance`). The
+`in_stamps_s` / `in_jitter_s`: each reading stamped, on the loop's clock, with when
+its simulated device took the sample (jitter 0), or for a sensor on a bursty link
+(`..._burst_s`) with its arrival and the jitter a real driver could vouch for
+(`pamd.sim.sensors`). A failed sensor's value changes with a new sample only. The
 physics lives in `pamd.sim.plant`. Tests and the CLI can change a load while
 running (`set_load_kg`) and inject faults (`inject_fault`, `clear_faults`); the
 options' `faults` schedule injects them at set times after `open`, so a rig's

@@ -511,4 +511,9 @@ def check_options(options: SimOptions) -> list[str]:
         if f.size is not None and (not math.isfinite(f.size) or
                                    (f.kind == "noisy" and f.size <= 0.0)):
             problems.append(f"{where}: size must be finite (and > 0 for noisy), got {f.size}")
+        elif f.kind == "jump" and f.size == 0.0:
+            problems.append(f"{where}: a jump of size 0 changes nothing: no fault to script")
+        elif f.size is not None and f.kind not in ("noisy", "jump"):
+            problems.append(f"{where}: size applies to noisy and jump faults only, not "
+                            f"{f.kind!r}")
     return problems
