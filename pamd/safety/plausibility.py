@@ -47,7 +47,8 @@ The checks, what each relies on, and when it fires (defaults of
   pressure and length (a dead weight moving along its equilibrium keeps that constant
   but for friction, which holds up to `frozen_force_change_n` either way, so the map
   swings by twice that across a reversal while the weight's pull stays; a muscle that
-  lets the load fall, or pulls against a stop or a clamp, moves it further), and, with
+  lets the load fall, or pulls against a clamp, moves it further; at the muscle's stops
+  the stop may carry that, so the map is not used there), and, with
   a known load, the load's mean acceleration over the frozen time from the length
   (m |dv / dt| beyond `frozen_force_change_n`). Found as soon as either says so (a
   stuck reading that agrees with both is harmless: the reading is right).
@@ -326,7 +327,10 @@ class Plausibility:
         if m0 != m0:  # the span began untrusted: start it now
             self._f_map0, self._f_v0 = self._force_map(p, length), self._v_lp
             return None
-        map_df = self._force_map(p, length) - m0
+        x = self._contraction(length)
+        # at a stop the stop may carry what the map says: the load cell need not see it
+        map_df = (self._force_map(p, length) - m0 if self.stop_lo < x < self.stop_hi
+                  else 0.0)
         # the dead weight's m (g - a): its change from the load's mean acceleration
         dw_df = (self.mass_kg * 1e-3 * (self._v_lp - self._f_v0) / span
                  if load_known and self.weight_n > 0.0 else 0.0)

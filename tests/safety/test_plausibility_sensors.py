@@ -35,6 +35,9 @@ SENSORS: dict[str, tuple[dict[str, Any], dict[str, dict[str, float]], float]] = 
     "dead-weight-load-cell": (ADC16, {}, 80.0),
 }
 MINUTE_S = 60.0
+#: where the old false alarm's premise is asserted to occur (a load cell repeating one
+#: value for frozen_s while the muscle moved 0.5 mm)
+PREMISE = ("quantised-16bit", "dead-weight-load-cell")
 
 
 @pytest.mark.parametrize("name", list(SENSORS))
@@ -51,7 +54,9 @@ def test_a_realistic_healthy_sensor_raises_no_fault_in_a_minute_of_motion(
     frozen_s = h.cfg.rig.safety.plausibility.frozen_s
     last_f, since, l0 = drv.in_values[fi], h.t, drv.in_values[li]
     premise = False  # the force identical for frozen_s while the muscle moved 0.5 mm
-    for _ in range(round(MINUTE_S / h.period_s)):
+    if name not in PREMISE:
+        h.step(MINUTE_S)
+    for _ in range(round(MINUTE_S / h.period_s) if name in PREMISE else 0):
         h.step(h.period_s)
         f, length = drv.in_values[fi], drv.in_values[li]
         if f != last_f:
@@ -61,7 +66,7 @@ def test_a_realistic_healthy_sensor_raises_no_fault_in_a_minute_of_motion(
     assert h.ctrl.supervisor.faults == [], h.ctrl.supervisor.fault_reason
     assert not [e for e in h.sink.events if e[1] == "implausible"]
     assert h.state == "RUNNING"  # still going: three 20 s cycles
-    if name in ("quantised-16bit", "dead-weight-load-cell"):
+    if name in PREMISE:
         assert premise, "the load cell never held one value while the muscle moved"
 
 

@@ -113,3 +113,22 @@ def test_an_adc_saturates_and_reads_in_its_steps() -> None:
     with pytest.raises(ValueError, match="burst_every_s"):
         SampledSensor(burst_s=0.5, burst_every_s=0.5)
     assert math.isinf(SampledSensor().range_max)
+
+
+@pytest.mark.parametrize("contraction, stuck", [(0.245, False), (-0.035, False),
+                                                (0.10, True)])
+def test_a_length_standing_while_the_pressure_moves_is_stuck_only_away_from_the_stops(
+        contraction: float, stuck: bool) -> None:
+    """At the contraction stop (25 %) or the pretension stop the length rightly stands
+    still while the pressure moves, and the load cell need not see the stop's share;
+    in between, a muscle whose pressure rises 1 bar with an unchanged force has moved."""
+    pl = _plaus()
+    length = L0 * (1.0 - contraction)
+    found = None
+    for k in range(400):  # 1 kHz, the pressure ramping 0.0025 bar a sample
+        t = 1.0 + 0.001 * k
+        found = found or pl.check(t, 2.0 + 0.0025 * k, t, 500.0 + 0.0 * k, t, length, t,
+                                  True, 3.0, True)
+    assert (found is not None) == stuck, found
+    if stuck:
+        assert found is not None and "m2.length frozen at" in found
