@@ -2,7 +2,7 @@
 
 A driver owns one device (or one simulated rig) and knows nothing about muscles.
 It exposes numbered input and output channels. Its own thread does the bus I/O and
-keeps `in_values` / `in_stamps_s` current; the loop only reads those lists and calls
+keeps `in_values` / `in_stamps_s` / `in_jitter_s` current; the loop only reads those lists and calls
 `write()`, which must never block. A driver that cannot deliver sets `fault` to a
 sentence naming the device; the supervisor turns that (or a stale stamp) into a
 safe-state fault.
@@ -72,6 +72,13 @@ class Driver(ABC):
         self.output_channels = [c for c in chans if c.direction == "out"]
         self.in_values: list[float] = [math.nan] * len(self.input_channels)
         self.in_stamps_s: list[float] = [-math.inf] * len(self.input_channels)
+        # How far from its stamp each value may have been taken: 0 where the stamp is
+        # the device's sample time; where the protocol gives none, the value is stamped
+        # on arrival and this says how long it may have waited (a request's round trip;
+        # a frame read from a backlog after the thread was held up), or where a sample
+        # clock bounds it only from below, how much later. The plausibility checks
+        # judge a change over the stamps' difference plus both values' jitter.
+        self.in_jitter_s: list[float] = [0.0] * len(self.input_channels)
         self.preset_counts: list[int] = [0] * len(self.input_channels)
         self.fault: str | None = None
 

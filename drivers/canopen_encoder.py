@@ -4,7 +4,10 @@ python-can bus.
 Per encoder node the driver's thread configures TPDO1 to carry the position
 (0x6004) on an event timer and sets the heartbeat time (0x1017) by SDO, starts
 the node (NMT start), then publishes every position frame, scaled counts -> mm and
-stamped with the loop's clock on arrival. It watches the heartbeat: a silent node,
+stamped with the loop's clock on arrival (CiA 406 carries no sample time) and a
+jitter: how long the frame may have waited in the socket (`ArrivalWindow`: since the
+thread last found the bus idle; a backlog read after the process was held up gets
+the whole hold). It watches the heartbeat: a silent node,
 one that stops sending positions, one that reports an emergency (EMCY) or sends
 frames of the wrong length is counted and named in `health()`, and when that lasts
 `fault_after_s` it sets `fault` (safe state). A node that reboots (boot-up message)
@@ -45,7 +48,7 @@ from pamd.drivers.can_frames import (
     sdo_reply,
     tpdo1_setup,
 )
-from pamd.drivers.device import Backoff, ThreadedDriver
+from pamd.drivers.device import ArrivalWindow, Backoff, ThreadedDriver
 
 from pamd.errors import DriverError
 from pamd.schema.engine import spec
@@ -121,6 +124,7 @@ class CanEncoderDriver(ThreadedDriver):
             raise DriverError(f"canopen-encoder driver {name!r}: " + "; ".join(problems))
         super().__init__(name, o)
         self.fault_after_s = o.fault_after_s
+        self._window = ArrivalWindow()
         self.nodes = [_Node(e, i) for i, e in enumerate(o.encoders)]
         self._by_cob: dict[int, tuple[str, Any]] = {}
         for n in self.nodes:
@@ -242,8 +246,11 @@ class CanEncoderDriver(ThreadedDriver):
         bus = self._bus
         if bus is None:
             return None
+        window = self._window
+        window.before_read(self.clock())
         try:
             msg = bus.recv(timeout_s)
+            window.after_read(self.clock(), msg is not None)
         except Exception as exc:  # noqa: BLE001 - a broken link or garbage on the wire
             self.error("bus_errors", f"receive failed: {exc}")
             self.release()
@@ -276,13 +283,14 @@ class CanEncoderDriver(ThreadedDriver):
         raw = self._raw.get((cid, bool(msg.is_extended_id)))
         if raw is not None:
             now = self.clock()
+            jitter = self._window.jitter_s(now)
             for idx, f in raw:
                 v = raw_frame_value(f, data)
                 if v is None:
                     self._bad(f"frame 0x{cid:X} for {f.name} has {len(data)} bytes, needs "
                               f"{f.byte_offset + f.length}", (f.name,))
                 else:
-                    self.stamp(idx, v, now)
+                    self.stamp(idx, v, now, jitter)
             self.count("frames")
             return
         hit = None if msg.is_extended_id else self._by_cob.get(cid)
@@ -297,7 +305,9 @@ class CanEncoderDriver(ThreadedDriver):
                 return
             counts = int.from_bytes(data[:4], "little", signed=n.spec.signed)
             n.last_pdo = time.monotonic()
-            self.stamp(n.index, counts * n.spec.mm_per_count + n.spec.offset_mm, self.clock())
+            now = self.clock()
+            self.stamp(n.index, counts * n.spec.mm_per_count + n.spec.offset_mm, now,
+                       self._window.jitter_s(now))
             self.count("positions")
         elif kind == "hb":
             self._heartbeat(n, data)

@@ -151,7 +151,39 @@ class ThreadedDriver(Driver):
                             counters=counters, device=self.describe(),
                             connected=self.connected, errors=list(self.recent_errors))
 
-    def stamp(self, index: int, value: float, now_s: float) -> None:
-        """Publish one input: value first, then its stamp."""
+    def stamp(self, index: int, value: float, now_s: float, jitter_s: float = 0.0) -> None:
+        """Publish one input: value and jitter first, then its stamp. `now_s` is the
+        device's sample time where the protocol gives one, else the arrival; then
+        `jitter_s` says how far from it the value may have been taken."""
         self.in_values[index] = value
+        self.in_jitter_s[index] = jitter_s
         self.in_stamps_s[index] = now_s
+
+
+class ArrivalWindow:
+    """When a value read from a stream (CAN frames, serial lines) was taken, as far as
+    the reader knows: no earlier than the last time it found the stream idle (a read
+    that had to wait, so nothing was queued). A frame read at once after the thread was
+    held up may have waited in the socket since then: `jitter_s(now)` says how long.
+
+    `before_read(t)` just before a blocking read, `after_read(t, got)` after it."""
+
+    #: a read that waited this long found the queue empty
+    WAITED_S = 0.0002
+
+    def __init__(self) -> None:
+        self.idle_at_s = -math.inf
+        self._called_s = -math.inf
+
+    def before_read(self, t_s: float) -> None:
+        self._called_s = t_s
+
+    def after_read(self, t_s: float, got: bool) -> None:
+        if not got:
+            self.idle_at_s = t_s  # nothing came: the queue is empty now
+        elif t_s - self._called_s >= self.WAITED_S:
+            self.idle_at_s = self._called_s  # it waited: it came after the call
+
+    def jitter_s(self, now_s: float) -> float:
+        j = now_s - self.idle_at_s
+        return j if j < 1e9 else 0.0

@@ -3,8 +3,11 @@
 Channels come from a register map (`drivers/modbus_map.py`; built-in maps in
 `drivers/modbus_presets.py`): inputs are read in as few requests as the map allows
 once per poll cycle, each value stamped with the loop's clock when its response
-arrived, or, for a module with a sample clock (`sample_clock`: a sample counter or
-sample-age register), with the time the module took the sample; outputs are sent
+arrived and a jitter, the request's round trip (the module sampled it in between),
+or, for a module with a sample clock (`sample_clock`: a sample counter or
+sample-age register), with the time the module took the sample (jitter: what the
+clock leaves open, a counter's interval between reads, an age register's unit and
+round trip); outputs are sent
 when their register value changes and re-sent every `write_refresh_s`, never before
 the loop has written them (start-up reads before it writes). Values are in the
 channel's unit (volts); the rig's signal calibration goes on to SI.
@@ -141,6 +144,7 @@ class ModbusDriver(ThreadedDriver):
         self._counter: int | None = None  # the sample counter as last read
         self._counter_read_s = -math.inf  # when it was last read
         self._sample_s = -math.inf  # stamp of the present sample (sample_clock)
+        self._sample_jitter_s = 0.0
 
     # -- Driver protocol ----------------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
@@ -262,11 +266,13 @@ class ModbusDriver(ThreadedDriver):
                 return problem or "link lost"
             fn = {"holding": "read_holding_registers", "input": "read_input_registers",
                   "coil": "read_coils", "discrete": "read_discrete_inputs"}[blk.function]
+            sent = clock()
             rr = self._request(fn, blk.start, blk.count, blk.names, blk.label)
             if isinstance(rr, str):
                 problem = problem or rr
                 continue
             now = clock()
+            jitter = now - sent
             data = rr.bits if blk.function in ("coil", "discrete") else rr.registers
             if len(data) < blk.count:
                 problem = problem or self.error(
@@ -278,8 +284,8 @@ class ModbusDriver(ThreadedDriver):
             if self._clock_index >= 0:
                 for i, off in blk.members:
                     if i == self._clock_index:
-                        self._sample_clock(data[off] & 0xFFFF, now)
-                now = self._sample_s
+                        self._sample_clock(data[off] & 0xFFFF, now, jitter)
+                now, jitter = self._sample_s, self._sample_jitter_s
             for i, off in blk.members:
                 if i == self._clock_index:
                     continue
@@ -288,22 +294,27 @@ class ModbusDriver(ThreadedDriver):
                     raw = 1.0 if data[off] else 0.0
                 else:
                     raw = decode(pt, data[off:off + pt.words])
-                self.stamp(i, to_value(pt, raw), now)
+                self.stamp(i, to_value(pt, raw), now, jitter)
             self.count("reads")
         return problem
 
-    def _sample_clock(self, word: int, now: float) -> None:
+    def _sample_clock(self, word: int, now: float, round_trip_s: float) -> None:
         """Set `_sample_s`, the stamp of the values read with (or after) the sample clock
-        register. Counter: a step since its last read means a sample taken after that
-        read (its time: the conservative stamp); no step, the same sample as before."""
+        register, and `_sample_jitter_s`. Counter: a step since its last read means a
+        sample taken after that read (its time: the conservative stamp; it may be as
+        late as this read); no step, the same sample as before. Age: the age in its
+        unit, read within the round trip."""
         sc = self.options.sample_clock
         assert sc is not None
         if sc.kind == "age":
             self._sample_s = now - word * sc.unit_s
+            self._sample_jitter_s = sc.unit_s + round_trip_s
         elif self._counter is None:
             self._sample_s = now  # the first read: stamped as read (no earlier bound)
+            self._sample_jitter_s = round_trip_s
         elif word != self._counter:
             self._sample_s = self._counter_read_s
+            self._sample_jitter_s = now - self._counter_read_s
         self._counter, self._counter_read_s = word, now
 
     def _write_outputs(self) -> str | None:

@@ -5,7 +5,9 @@ Either the device streams lines by itself (`mode: stream`) or the driver sends
 `request` and waits for one answer line (`mode: poll`). Each line is checked
 (optional checksum), then every channel takes its number from a regex group or
 from a delimited field, scaled `value = number * scale + offset`, and is stamped
-with the loop's clock when the line arrived. A line that fails any of this is
+with the loop's clock when the line arrived and a jitter, how much earlier the
+device may have measured it (poll: since the request went out; stream: since the
+thread last found the port idle, `ArrivalWindow`). A line that fails any of this is
 counted and logged with the device and channel named, and none of its values is
 used. Silence, a vanished port and persistent garbage set `fault` after
 `fault_after_s`; the port is re-opened with backoff. Load-cell transmitters that
@@ -16,6 +18,7 @@ from __future__ import annotations
 
 import codecs
 import contextlib
+import math
 import re
 import time
 from collections.abc import Sequence
@@ -23,7 +26,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from pamd.drivers import Channel, serial_port_claim
-from pamd.drivers.device import Backoff, ThreadedDriver
+from pamd.drivers.device import ArrivalWindow, Backoff, ThreadedDriver
 
 from pamd.errors import DriverError
 from pamd.schema.engine import spec
@@ -134,6 +137,8 @@ class SerialLineDriver(ThreadedDriver):
         self._port: Any = None
         self._buf = bytearray()
         self._last_line = time.monotonic()
+        self._window = ArrivalWindow()
+        self._sent_at = -math.inf  # the loop's clock when the last request went out
         self.last_problem: str | None = None
 
     def channels(self) -> Sequence[Channel]:
@@ -217,6 +222,7 @@ class SerialLineDriver(ThreadedDriver):
         port = self._port
         port.reset_input_buffer()
         self._buf.clear()
+        self._sent_at = self.clock()
         port.write(self.request_bytes)
         self.count("requests")
         deadline = time.monotonic() + o.timeout_s
@@ -231,7 +237,9 @@ class SerialLineDriver(ThreadedDriver):
     def _read_lines(self) -> int:
         """Read what is there; parse every complete line. Returns lines parsed."""
         port = self._port
+        self._window.before_read(self.clock())
         chunk = port.read(max(1, port.in_waiting))
+        self._window.after_read(self.clock(), bool(chunk))
         if chunk:
             self._buf += chunk
         n = 0
@@ -279,6 +287,7 @@ class SerialLineDriver(ThreadedDriver):
                                                (c.name,))
                 return
         now = self.clock()
+        jitter = (now - self._sent_at if o.mode == "poll" else self._window.jitter_s(now))
         for i, v in enumerate(values):
             if v != v or v in (float("inf"), float("-inf")):
                 self.last_problem = self.error("malformed_lines",
@@ -286,6 +295,6 @@ class SerialLineDriver(ThreadedDriver):
                                                (names[i],))
                 return
         for i, v in enumerate(values):
-            self.stamp(i, v, now)
+            self.stamp(i, v, now, jitter)
         self.count("lines")
         self.last_problem = None

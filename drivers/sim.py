@@ -10,7 +10,10 @@ and exhaust solenoid valves). Inputs of muscle k are channels 3k..3k+2, outputs
 2k..2k+1.
 
 The loop calls `advance(dt_s)` once per tick and then reads `in_values` /
-`in_stamps_s` (stamped with the loop's clock at the end of `advance`). The
+`in_stamps_s` / `in_jitter_s`: each reading stamped, on the loop's clock, with when
+its simulated device took the sample (jitter 0), or for a sensor on a bursty link
+(`..._burst_s`) with its arrival and the jitter a real driver could vouch for
+(`pamd.sim.sensors`). A failed sensor's value changes with a new sample only. The
 physics lives in `pamd.sim.plant`. Tests and the CLI can change a load while
 running (`set_load_kg`) and inject faults (`inject_fault`, `clear_faults`); the
 options' `faults` schedule injects them at set times after `open`, so a rig's
@@ -271,7 +274,13 @@ class SimDriver(Driver):
             return
         values = self.in_values
         stamps = self.in_stamps_s
+        jitters = self.in_jitter_s
         zero = self._len_zero_mm
+        for k, plant in enumerate(self._plants):  # 0 unless a sensor's link is bursty
+            i = 3 * k
+            jitters[i] = plant.pressure_jitter_s
+            jitters[i + 1] = plant.force_jitter_s
+            jitters[i + 2] = plant.length_jitter_s
         if not self._any_sensor_fault:
             i = 0
             for k, plant in enumerate(self._plants):
@@ -279,7 +288,8 @@ class SimDriver(Driver):
                 values[i + 1] = plant.force_read_n
                 values[i + 2] = plant.length_read_mm - zero[k]
                 # Stamped with when the device took the sample (its age is 0 for a
-                # sensor sampled at every step without latency).
+                # sensor sampled at every step without latency), or on a bursty link
+                # with its arrival (and the jitter above).
                 stamps[i] = now_s - plant.pressure_age_s
                 stamps[i + 1] = now_s - plant.force_age_s
                 stamps[i + 2] = now_s - plant.length_age_s
@@ -294,16 +304,20 @@ class SimDriver(Driver):
             ages = (plant.pressure_age_s, plant.force_age_s, plant.length_age_s)
             for j in range(INPUTS_PER_MUSCLE):
                 mode = modes[i]
-                if mode == _OK:
-                    values[i] = readings[j]
-                elif mode == _DEAD:
-                    values[i] = 0.0
-                elif mode == _NOISY:
-                    values[i] = readings[j] + gauss(0.0, sizes[i])
-                elif mode == _JUMP:
-                    values[i] = readings[j] + sizes[i]
+                stamp = now_s - ages[j]
+                # a failed sensor's value changes with a new sample only, as a device's
+                # (a slow or held one keeps its last until the next)
+                if mode == _OK or (mode != _SILENT and stamp > stamps[i] + 1e-9):
+                    if mode == _OK:
+                        values[i] = readings[j]
+                    elif mode == _DEAD:
+                        values[i] = 0.0
+                    elif mode == _NOISY:
+                        values[i] = readings[j] + gauss(0.0, sizes[i])
+                    elif mode == _JUMP:
+                        values[i] = readings[j] + sizes[i]
                 if mode != _SILENT:
-                    stamps[i] = now_s - ages[j]
+                    stamps[i] = stamp
                 i += 1
 
 

@@ -95,7 +95,8 @@ def _check_onoff(m: MuscleConfig, item: Any, sig_node: Any, base: str,
 def check_sim_sample_periods(rig: RigConfig, node: Any, ctx: Context,
                              timeout_of: Callable[[SignalConfig, SafetyConfig], float]
                              ) -> None:
-    """A simulated muscle's sensor whose sample period plus latency exceeds the timeout
+    """A simulated muscle's sensor whose sample period plus latency (plus a bursty
+    link's hold) exceeds the timeout
     of the signal that reads it (`timeout_of`, the loader's stale age) is refused, at
     the sim driver's option; `node` is the raw `drivers` list."""
     sims = {d.name: (i, d) for i, d in enumerate(rig.drivers)
@@ -113,7 +114,8 @@ def check_sim_sample_periods(rig: RigConfig, node: Any, ctx: Context,
             for j, sm in enumerate(drv.options.muscles):
                 if sm.name != sim_name or sensor != signal:
                     continue
-                age_s = getattr(sm, period_key) + getattr(sm, latency_key)
+                age_s = (getattr(sm, period_key) + getattr(sm, latency_key)
+                         + getattr(sm, f"{signal}_burst_s", 0.0))  # a held link ages it
                 timeout = timeout_of(sig, rig.safety)
                 if age_s > timeout:
                     opts = (drivers_node[k].get("options") or {}) if k < len(drivers_node) else {}
@@ -121,7 +123,7 @@ def check_sim_sample_periods(rig: RigConfig, node: Any, ctx: Context,
                     mnode = mnode[j] if j < len(mnode) and isinstance(mnode[j], dict) else {}
                     ctx.add(line_of(mnode, period_key) or line_of(mnode),
                             f"drivers[{k}].options.muscles[{j}].{period_key}",
-                            f"a sample period plus latency within the timeout of "
+                            f"a sample period plus latency (and burst hold) within the timeout of "
                             f"muscle {m.name!r}'s {signal} signal ({timeout:g} s): a slower "
                             "device is stale by construction; raise the signal's timeout_s",
                             f"{age_s:g} s")

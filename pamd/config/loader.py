@@ -15,6 +15,7 @@ from typing import Any, ClassVar, Protocol, cast
 
 from pamd.config.actuation import check_actuation, check_sim_sample_periods
 from pamd.config.names import NAME_RE, check_chunk
+from pamd.config.plausibility import check_plausibility_thresholds
 from pamd.config.schema import (
     ControlConfig,
     MuscleConfig,
@@ -126,6 +127,7 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
     check_actuation(rig, raw.get("muscles", []), digital, ctx)
     check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
+    check_plausibility_thresholds(rig, raw, limits, ctx)
     ctx.raise_if_any()
     cal_path = None if not rig.calibration_file else os.path.join(
         os.path.dirname(os.path.abspath(path)), os.path.expanduser(rig.calibration_file))

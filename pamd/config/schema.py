@@ -252,7 +252,9 @@ class PlausibilityConfig:
                          "fault naming the sensor, and nothing trusts that signal until reset.")
     length_max_rate_mm_s: float = spec(
         2000.0, "A length reading changing faster than this (plus length_jump_mm) between two "
-        "samples has jumped: faster than the muscle can move.", unit="mm/s", gt=0.0)
+        "samples has jumped: faster than the muscle can move. Over the time between the "
+        "samples' stamps plus their declared jitter, never the loop's period.", unit="mm/s",
+        gt=0.0)
     length_jump_mm: float = spec(1.0, "Allowance on top of length_max_rate_mm_s (encoder counts, "
                                  "sampling).", unit="mm", min=0.0)
     pressure_max_rate_bar_per_s: float = spec(
@@ -268,15 +270,21 @@ class PlausibilityConfig:
                                   "100 %) is physically impossible.", min=0.0, max=1.0)
     frozen_pressure_change_bar: float = spec(
         0.5, "A length that stays within frozen_length_mm while the pressure changes this much, "
-        "and the force does not change as it would at a fixed length, is frozen.",
+        "and the force does not change as it would at a fixed length, is frozen (away from "
+        "the stops, the contraction and pretension limits, where it rightly stands).",
         unit="bar", gt=0.0)
     frozen_length_mm: float = spec(0.05, "Length change still counted as not moving.",
                                    unit="mm", min=0.0)
     frozen_force_change_n: float = spec(
-        100.0, "... and the force model at that length must change by more than this (more "
-        "than friction can hold the muscle against).", unit="N", min=0.0)
+        100.0, "What friction can hold the muscle against: a frozen length needs the force "
+        "model at that length to change by more than this; a frozen load cell is stuck once "
+        "the model at the measured pressure and length moves by more than twice this (a "
+        "friction reversal swings it by that while a dead weight's pull stays) or the load's "
+        "acceleration says its pull m (g - a) moved by more than this.", unit="N", min=0.0)
     frozen_s: float = spec(0.2, "A force or pressure reading repeating the identical value this "
-                           "long while the muscle moves or the command changes is frozen.",
+                           "long where the physics says it changed is frozen: the force "
+                           "(frozen_force_change_n), the pressure while the muscle moves "
+                           "0.5 mm under its load.",
                            unit="s", gt=0.0)
     force_zero_fraction: float = spec(
         0.2, "A force below this share of the known load's weight for force_zero_s reads zero "

@@ -1,5 +1,7 @@
 """The inputs stage of one muscle's tick: its three readings in SI units, their age
-against the timeouts, the velocity, and their plausibility (`pamd.safety.plausibility`);
+against the timeouts, the velocity (over the length samples' own stamps, never the
+loop's period: a slow encoder or a late tick does not make a step a speed), and their
+plausibility (`pamd.safety.plausibility`, with each value's stamp and jitter);
 and their references (`home`, `tare`, a device's confirmation of a homed preset).
 
 What it leaves for the later stages: `pressure_bar`, `force_n`, `length_mm`,
@@ -38,6 +40,8 @@ class Inputs:
         self._pv, self._pt, self._pi = p.driver.in_values, p.driver.in_stamps_s, p.index
         self._fv, self._ft, self._fi = f.driver.in_values, f.driver.in_stamps_s, f.index
         self._lv, self._lt, self._li = ln.driver.in_values, ln.driver.in_stamps_s, ln.index
+        self._pj, self._fj, self._lj = (p.driver.in_jitter_s, f.driver.in_jitter_s,
+                                        ln.driver.in_jitter_s)
         self._pg, self._po = p.gain, p.offset
         self._fg, self._fo = f.gain, f.offset
         self._lg, self._lo = ln.gain, ln.offset
@@ -45,6 +49,7 @@ class Inputs:
         self.pressure_bar = self.force_n = self.length_mm = self.contraction = math.nan
         self.velocity_mm_s = 0.0
         self._prev_length_mm = math.nan
+        self._prev_length_t = math.nan  # the stamp of that length sample
         self.pressure_ok = self.length_ok = False
         self.flags = 0
         self.finding: str | None = None  # a new plausibility finding, this tick
@@ -147,9 +152,11 @@ class Inputs:
             flags |= F_STALE
             fault = self.stale_reason(now)
         l0 = self.nominal_length_mm
-        self.velocity_mm_s = velocity_step(self.velocity_mm_s, self._prev_length_mm, length, dt,
-                                           VELOCITY_WINDOW_S)
-        self._prev_length_mm = length
+        if lt != self._prev_length_t:  # a new sample: its rate over the samples' stamps
+            self.velocity_mm_s = velocity_step(self.velocity_mm_s, self._prev_length_mm,
+                                               length, lt - self._prev_length_t,
+                                               VELOCITY_WINDOW_S)
+            self._prev_length_mm, self._prev_length_t = length, lt
         self.pressure_bar, self.force_n, self.length_mm = p, f, length
         self.contraction = (l0 - length) / l0
         referenced = ref.length_referenced
@@ -157,7 +164,7 @@ class Inputs:
             flags |= F_NOREF
         plaus = self.plausibility
         finding = plaus.check(now, p, pt, f, ft, length, lt, referenced, last_command_bar,
-                              load_known)
+                              load_known, self._pj[pi], self._fj[fi], self._lj[li])
         if finding is not None:
             self.finding = finding
             if fault is None:

@@ -114,6 +114,7 @@ class MuscleController(MuscleView):
         self.profile_follower.set_envelope(env)
         self.length_control.set_envelope(env)
         self.inputs.set_nominal_length(env.nominal_length_mm)
+        self.plausibility.set_stops(env.max_contraction, env.max_pretension)
 
     def _pressure_gains(self, pid: PidConfig, rate_feedforward_s: float
                         ) -> tuple[PidConfig, float]:
@@ -357,7 +358,9 @@ class MuscleController(MuscleView):
         reason = lim.track(now, p, prev_u, p_ok)
         flags |= lim.flags
         if reason is not None:
-            self.plausibility.distrust_pressure(reason)
+            inp = self.inputs  # what the force and length point to (the fault path)
+            reason = self.plausibility.distrust_pressure(reason, p, prev_u, inp.force_n,
+                                                         inp.length_mm)
             self.finding = reason
             if fault is None:
                 fault = reason

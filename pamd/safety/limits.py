@@ -119,8 +119,7 @@ class LimitMonitor:
             elif now - self._track_since >= self.track_s:
                 return (f"{self.muscle}: measured pressure {p:.2f} bar ({self.p_name}) does "
                         f"not follow the command {command:.2f} bar for "
-                        f"{now - self._track_since:.1f} s (leak, dead sensor, stuck valve or "
-                        "no supply?)")
+                        f"{now - self._track_since:.1f} s")
         else:
             self._track_since = math.inf
         return None

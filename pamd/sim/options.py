@@ -319,6 +319,63 @@ class SimMuscleOptions:
     length_latency_s: float = _f(
         0.0, "Encoder: time from taking a sample to its delivery.", "s", 0.0, 10.0
     )
+    length_filter_s: float = _f(
+        0.0, "Encoder: time constant of its interface's filter (0: none).", "s", 0.0, 10.0
+    )
+    pressure_adc_bits: int = _f(
+        0,
+        "Pressure input: bits of its converter over pressure_adc_min_bar .. "
+        "pressure_adc_max_bar (readings saturate there and move in steps of the range / "
+        "(2^bits - 1); a 16-bit input over 0-10 bar reads in 0.15 mbar steps); 0: no "
+        "converter (a continuous reading).",
+        "",
+        0,
+        32,
+    )
+    pressure_adc_min_bar: float = _f(
+        0.0, "Pressure input: the converter's lowest reading.", "bar", -1.0, 100.0
+    )
+    pressure_adc_max_bar: float = _f(
+        10.0, "Pressure input: the converter's highest reading.", "bar", 0.01, 100.0
+    )
+    force_adc_bits: int = _f(
+        0,
+        "Load cell: bits of its converter over force_adc_min_n .. force_adc_max_n (a "
+        "16-bit input over +-2000 N reads in 0.061 N steps); 0: no converter.",
+        "",
+        0,
+        32,
+    )
+    force_adc_min_n: float = _f(
+        -2000.0, "Load cell: the converter's lowest reading.", "N", -100000.0, 100000.0
+    )
+    force_adc_max_n: float = _f(
+        2000.0, "Load cell: the converter's highest reading.", "N", -100000.0, 100000.0
+    )
+    pressure_burst_s: float = _f(
+        0.0,
+        "Pressure input: bursty delivery. Every burst_every_s the link holds its samples "
+        "this long, then the backlog rushes in (oldest first, three samples per plant "
+        "step, as a driver thread drains its socket); such a sensor is stamped on arrival "
+        "with a declared jitter, as a protocol without a sample time is. 0: no bursts, "
+        "stamped with the sample's time.",
+        "s",
+        0.0,
+        10.0,
+    )
+    force_burst_s: float = _f(
+        0.0, "Load cell: bursty delivery (as pressure_burst_s).", "s", 0.0, 10.0
+    )
+    length_burst_s: float = _f(
+        0.0, "Encoder: bursty delivery (as pressure_burst_s).", "s", 0.0, 10.0
+    )
+    burst_every_s: float = _f(
+        1.0,
+        "How often a bursty sensor's link holds (longer than its ..._burst_s).",
+        "s",
+        0.001,
+        3600.0,
+    )
     length_absolute: bool = _f(
         True,
         "True: the length reads the true length (an absolute sensor; the muscle starts "
@@ -417,6 +474,19 @@ def check_options(options: SimOptions) -> list[str]:
         if m.name in seen:
             problems.append(f"{where}: the muscle name is used twice")
         seen.add(m.name)
+        for what, bits, lo, hi in (("pressure", m.pressure_adc_bits, m.pressure_adc_min_bar,
+                                    m.pressure_adc_max_bar),
+                                   ("force", m.force_adc_bits, m.force_adc_min_n,
+                                    m.force_adc_max_n)):
+            if bits and not lo < hi:
+                problems.append(f"{where}: {what}_adc_min ({lo}) must be below "
+                                f"{what}_adc_max ({hi})")
+        for what in ("pressure", "force", "length"):
+            burst = getattr(m, f"{what}_burst_s")
+            if burst and not m.burst_every_s > burst:
+                problems.append(f"{where}: {what}_burst_s ({burst} s) must be shorter than "
+                                f"burst_every_s ({m.burst_every_s} s): a link that never "
+                                "delivers is a silent sensor (a fault kind), not a burst")
         if m.stop_stretch_contraction > m.stop_contraction:
             problems.append(
                 f"{where}: stop_stretch_contraction ({m.stop_stretch_contraction}) "
@@ -441,4 +511,9 @@ def check_options(options: SimOptions) -> list[str]:
         if f.size is not None and (not math.isfinite(f.size) or
                                    (f.kind == "noisy" and f.size <= 0.0)):
             problems.append(f"{where}: size must be finite (and > 0 for noisy), got {f.size}")
+        elif f.kind == "jump" and f.size == 0.0:
+            problems.append(f"{where}: a jump of size 0 changes nothing: no fault to script")
+        elif f.size is not None and f.kind not in ("noisy", "jump"):
+            problems.append(f"{where}: size applies to noisy and jump faults only, not "
+                            f"{f.kind!r}")
     return problems

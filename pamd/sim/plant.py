@@ -23,8 +23,12 @@ is unconditionally stable and its rest point is the exact static equilibrium.
 Hard stops at both ends are perfectly inelastic (position clamped, velocity
 zeroed); equal stops hold the muscle isometric.
 
-`T` is what the in-line load cell measures. Sensors add gaussian noise
-(one `random.Random` per muscle) and quantise the length like an encoder.
+`T` is what the in-line load cell measures: with the load hanging freely it is
+the dead weight's m (g - a) (m the load and the moving mass, a its acceleration
+upwards), so a noiseless load cell reads a constant while the load moves at a
+steady speed. Sensors add gaussian noise (one `random.Random` per muscle, none at
+a noise of 0), quantise the length like an encoder and, with `..._adc_bits`,
+pressure and force like a converter (`pamd.sim.sensors`).
 Pure Python and allocation-free per step: `advance` runs inside the 1 kHz tick.
 """
 
@@ -136,8 +140,11 @@ class MusclePlant:
         self.pressure_read_bar = 0.0
         self.force_read_n = 0.0
         self.length_read_mm = 0.0
-        # How old each reading is (s): when it was sampled, before this plant time.
+        # How old each reading's stamp is (s): when it was sampled (or, on a bursty
+        # link, when it arrived), before this plant time; and how much earlier than its
+        # stamp it may have been taken (0 where the stamp is the sample's time).
         self.pressure_age_s = self.force_age_s = self.length_age_s = 0.0
+        self.pressure_jitter_s = self.force_jitter_s = self.length_jitter_s = 0.0
         self._sensors = _sampled_sensors(o, rng.gauss)
         self._sensor_dt_s = 0.0
         self._sensors_every_step = False
@@ -316,9 +323,12 @@ class MusclePlant:
         self.pressure_read_bar = p_sensor.value
         self.force_read_n = f_sensor.value
         self.length_read_mm = l_sensor.value
-        self.pressure_age_s = t - p_sensor.sampled_at_s
-        self.force_age_s = t - f_sensor.sampled_at_s
-        self.length_age_s = t - l_sensor.sampled_at_s
+        self.pressure_age_s = t - p_sensor.stamp_s
+        self.force_age_s = t - f_sensor.stamp_s
+        self.length_age_s = t - l_sensor.stamp_s
+        self.pressure_jitter_s = p_sensor.jitter_s
+        self.force_jitter_s = f_sensor.jitter_s
+        self.length_jitter_s = l_sensor.jitter_s
 
 
 def _samples_every_step(sensors: tuple[SampledSensor, ...] | None, dt_s: float) -> bool:
@@ -326,8 +336,11 @@ def _samples_every_step(sensors: tuple[SampledSensor, ...] | None, dt_s: float) 
     once, unfiltered: reading the plant directly then gives the same readings."""
     if sensors is None:
         return True
+    p_sensor, f_sensor, _ = sensors
+    if p_sensor.resolution or f_sensor.resolution:
+        return False  # an ADC: only the sensor quantises pressure and force
     return all(s.period_s <= dt_s + 1e-12 and s.latency_s == 0.0 and s.filter_tau_s == 0.0
-               for s in sensors)
+               and not s.bursty for s in sensors)
 
 
 def _sampled_sensors(
@@ -338,14 +351,21 @@ def _sampled_sensors(
     the same readings)."""
     if not (o.pressure_sample_period_s or o.pressure_latency_s or o.pressure_filter_s
             or o.force_sample_period_s or o.force_latency_s or o.force_filter_s
-            or o.length_sample_period_s or o.length_latency_s):
+            or o.length_sample_period_s or o.length_latency_s or o.pressure_adc_bits
+            or o.force_adc_bits or o.pressure_burst_s or o.force_burst_s or o.length_burst_s):
         return None
     return (
         SampledSensor(period_s=o.pressure_sample_period_s, latency_s=o.pressure_latency_s,
                       noise_sd=o.pressure_noise_bar, filter_tau_s=o.pressure_filter_s,
-                      gauss=gauss),
+                      gauss=gauss, adc_bits=o.pressure_adc_bits,
+                      range_min=o.pressure_adc_min_bar, range_max=o.pressure_adc_max_bar,
+                      burst_s=o.pressure_burst_s, burst_every_s=o.burst_every_s),
         SampledSensor(period_s=o.force_sample_period_s, latency_s=o.force_latency_s,
-                      noise_sd=o.force_noise_n, filter_tau_s=o.force_filter_s, gauss=gauss),
+                      noise_sd=o.force_noise_n, filter_tau_s=o.force_filter_s, gauss=gauss,
+                      adc_bits=o.force_adc_bits, range_min=o.force_adc_min_n,
+                      range_max=o.force_adc_max_n, burst_s=o.force_burst_s,
+                      burst_every_s=o.burst_every_s),
         SampledSensor(period_s=o.length_sample_period_s, latency_s=o.length_latency_s,
-                      resolution=o.encoder_resolution_mm),
+                      resolution=o.encoder_resolution_mm, filter_tau_s=o.length_filter_s,
+                      burst_s=o.length_burst_s, burst_every_s=o.burst_every_s),
     )

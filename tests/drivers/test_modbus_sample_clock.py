@@ -113,3 +113,21 @@ def test_the_rig_binds_each_input_with_its_device_aware_timeout(tmp_path: Any) -
         assert m2.pressure.timeout_s == 0.05  # no sample period stated: the timeout
     finally:
         rig.close()
+
+
+@pytest.mark.parametrize("kind", [None, "counter", "age"])
+def test_each_value_declares_how_far_from_its_stamp_it_was_taken(module: Any,
+                                                                 kind: str | None) -> None:
+    """Stamped on arrival: the request's round trip (the module sampled it in between);
+    by a counter: the time between the two reads that saw it step; by an age register:
+    its unit plus the round trip. Never 0 where the protocol leaves time open, never as
+    long as the sample period (the checks would then excuse any change)."""
+    dev, drv = module(None if kind is None else SampleClock(address=100, kind=kind),
+                      SAMPLE_PERIOD_S)
+    jitters = []
+    end = time.monotonic() + 0.5
+    while time.monotonic() < end:
+        jitters.append(drv.in_jitter_s[0])
+        time.sleep(0.003)
+    assert min(jitters) > 0.0, jitters
+    assert max(jitters) < SAMPLE_PERIOD_S, max(jitters)  # reads every 2 ms, on loopback

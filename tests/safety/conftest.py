@@ -5,16 +5,22 @@ invariant checks."""
 
 from __future__ import annotations
 
+import copy
+import functools
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import pytest
+import yaml
 
 from pamd.config import LoadedConfig
 from pamd.harness import Harness
 from pamd.tick import State
+
+from ..conftest import sim_dict
 
 SAFE_STATES = (State.FAULT, State.ESTOP)
 
@@ -125,13 +131,52 @@ class SafetyRig:
         return low
 
 
+HARSH_YAML = Path(__file__).resolve().parents[2] / "config" / "sim-harsh.yaml"
+#: the sensor sets the safety and plausibility suites run on: config/sim.yaml's (a 1 kHz
+#: DAQ card with noise) and config/sim-harsh.yaml's (quantised, noiseless, filtered, slow,
+#: late and bursty: a real rig's worst case)
+SENSOR_SETS = ("sim", "harsh")
+
+
+@functools.cache
+def _harsh() -> dict[str, Any]:
+    return yaml.safe_load(HARSH_YAML.read_text())
+
+
+def sensor_options(sensors: str) -> dict[str, Any]:
+    """The sim muscle's sensor options of a sensor set (nothing for config/sim.yaml's)."""
+    if sensors == "sim":
+        return {}
+    muscle = dict(_harsh()["drivers"][0]["options"]["muscles"][0])
+    for key in ("name", "nominal_length_mm", "load_kg"):
+        muscle.pop(key, None)
+    return muscle
+
+
+def sensor_signals(sensors: str) -> dict[str, Any]:
+    """The rig's `signals:` of m1 in a sensor set (periods and timeouts that fit them)."""
+    base = _harsh() if sensors == "harsh" else yaml.safe_load(
+        (HARSH_YAML.parent / "sim.yaml").read_text())
+    return copy.deepcopy(base["muscles"][0]["signals"])
+
+
+def sensor_delay_s(sensors: str, signal: str) -> float:
+    """How long after a change its sensor may take to show it: a sample period, the
+    latency and a burst's hold (0 for config/sim.yaml's 1 kHz card)."""
+    o = sensor_options(sensors)
+    return (o.get(f"{signal}_sample_period_s", 0.0) + o.get(f"{signal}_latency_s", 0.0)
+            + o.get(f"{signal}_burst_s", 0.0))
+
+
 def sim_driver(load_kg: float, initial_bar: float,
                faults: list[dict[str, Any]] | None = None,
-               actuation: str = "proportional") -> list[dict[str, Any]]:
+               actuation: str = "proportional", sensors: str = "sim",
+               **muscle_options: Any) -> list[dict[str, Any]]:
     """The `drivers:` of a rig with one muscle carrying `load_kg`, its regulator (or its
-    on/off valves) holding `initial_bar` at power-up, and the fault schedule."""
+    on/off valves) holding `initial_bar` at power-up, its sensors as in the sensor set
+    `sensors`, and the fault schedule."""
     muscle = {"name": "m1", "load_kg": load_kg, "initial_pressure_bar": initial_bar,
-              "actuation": actuation}
+              "actuation": actuation, **sensor_options(sensors), **muscle_options}
     return [{"name": "sim", "type": "sim", "options": {
         "seed": 1, "faults": faults or [], "muscles": [muscle]}}]
 
@@ -153,10 +198,15 @@ def safety_rig(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[...
 
     def make(load_kg: float, initial_bar: float = 0.0,
              faults: list[dict[str, Any]] | None = None, actuation: str = "proportional",
-             **changes: Any) -> SafetyRig:
-        changes.setdefault("drivers", sim_driver(load_kg, initial_bar, faults, actuation))
+             sensors: str = "sim", **changes: Any) -> SafetyRig:
+        changes.setdefault("drivers", sim_driver(load_kg, initial_bar, faults, actuation,
+                                                 sensors))
         if actuation == "onoff":
             changes.setdefault("muscles", onoff_muscles(load_kg))
+        elif sensors != "sim":
+            muscle = copy.deepcopy(sim_dict(load_kg)["muscles"][0])
+            muscle["signals"] = sensor_signals(sensors)
+            changes.setdefault("muscles", [muscle])
         cfg = sim_config(load_kg, **changes)
         h = Harness(cfg)
         made.append(h)

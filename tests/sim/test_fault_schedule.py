@@ -99,6 +99,8 @@ def test_a_driver_error_on_schedule() -> None:
     (SimFault(muscle="m1", signal="supply", kind="dead"), "a supply fault is one of lost"),
     (SimFault(muscle="m1", signal="valve", kind="noisy"), "a valve fault is one of stuck"),
     (SimFault(muscle="m1", signal="force", kind="noisy", size=-1.0), "size must be"),
+    (SimFault(muscle="m1", signal="length", kind="jump", size=0.0), "a jump of size 0"),
+    (SimFault(muscle="m1", signal="length", kind="dead", size=5.0), "size applies to noisy"),
 ])
 def test_a_schedule_naming_what_does_not_exist_is_refused(fault: SimFault, said: str) -> None:
     with pytest.raises(DriverError, match=said.replace("(", r"\(")):

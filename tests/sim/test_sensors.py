@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import math
 import random
+from collections.abc import Callable
+from typing import Any
 
 import pytest
 
+from pamd.sim.options import SimMuscleOptions
 from pamd.sim.sensors import SampledSensor
 
 DT = 0.001
@@ -54,3 +57,23 @@ def test_the_filter_smooths_a_step_with_its_time_constant() -> None:
     trace = run(s, lambda t: 0.0 if t < 0.1 else 1.0, 0.3)
     at_tau = next(v for t, v, _ in trace if t >= 0.15 - 1e-9)
     assert at_tau == pytest.approx(1.0 - math.exp(-1.0), abs=0.02)
+
+
+def test_the_driver_publishes_a_bursty_links_arrival_stamps_and_their_jitter(
+        make_rig: Callable[..., Any]) -> None:
+    rig = make_rig(SimMuscleOptions(length_burst_s=0.04, burst_every_s=0.5,
+                                    force_adc_bits=16, force_noise_n=0.0))
+    li, fi = rig.driver.input_index("m1.length"), rig.driver.input_index("m1.force")
+    seen = []
+    for _ in range(700):
+        rig.step(0.001)
+        seen.append((rig.t_s, rig.driver.in_stamps_s[li], rig.driver.in_jitter_s[li],
+                     rig.driver.in_values[fi]))
+    # held 0.50 .. 0.54 s: the stamp stands still, then arrivals carry the hold as jitter
+    held = {st for t, st, _, _ in seen if 0.501 <= t < 0.54}
+    assert len(held) == 1
+    assert max(j for t, _, j, _ in seen if 0.54 <= t < 0.56) >= 0.039
+    assert max(j for t, _, j, _ in seen if 0.2 <= t < 0.5) <= 0.001 + 1e-9
+    assert rig.driver.in_jitter_s[fi] == 0.0  # the load cell says when it sampled
+    # a 16-bit noiseless load cell under a dead weight at rest: one constant value
+    assert len({f for t, _, _, f in seen if t > 0.3}) == 1

@@ -1,0 +1,53 @@
+"""The safety contract (test_contract.py's invariants) on config/sim-harsh.yaml's sensors:
+quantised, noiseless, filtered, a 10 samples/s load cell, a late pressure, a bursty
+encoder. Whatever fails, in whichever state, the command stays within the limits, in
+a safe state never below the safe pressure nor faster than the slew limit, and the
+muscle inside its hard contraction limits where the physics allows; and no healthy
+run before the fault strikes has faulted. At 80 kg (the safe pressure 1.6 bar, the
+load off the stops) on the regulator, in the states where the sensors matter most."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from .conftest import SafetyRig
+
+FAULTS = ([(s, k) for s in ("length", "force", "pressure")
+           for k in ("dead", "stuck", "noisy", "jump", "silent")]
+          + [("supply", "lost"), ("valve", "stuck"), ("driver", "error")])
+STATES = ("idle", "running", "safe_ramp")
+FAULT_AT_S = {"idle": 0.5, "running": 1.3, "safe_ramp": 2.1}
+AFTER_S = 2.5
+
+
+def _scenario(rig: SafetyRig, state: str) -> None:
+    rig.run(0.01)
+    if state == "idle":
+        rig.run(FAULT_AT_S["idle"] - 0.01 + AFTER_S)
+    elif state == "running":
+        rig.cmd("profile", kind="sine", min_bar=2.0, max_bar=5.0, freq_hz=0.25)
+        rig.run(FAULT_AT_S["running"] - 0.01 + AFTER_S)
+    else:  # a safe ramp down from a high pressure: a stop
+        rig.cmd("setpoint", muscle="m1", bar=4.5)
+        rig.run(2.0 - 0.01)
+        rig.cmd("stop")
+        assert rig.m.in_safe_ramp
+        rig.run(FAULT_AT_S["safe_ramp"] - 2.0 + AFTER_S)
+
+
+@pytest.mark.parametrize("state", STATES)
+@pytest.mark.parametrize("signal, kind", FAULTS, ids=[f"{s}-{k}" for s, k in FAULTS])
+def test_the_invariants_hold_on_harsh_sensors_whatever_fails(
+        safety_rig: Callable[..., SafetyRig], signal: str, kind: str, state: str) -> None:
+    at_s = FAULT_AT_S[state]
+    fault: dict[str, Any] = {"at_s": at_s, "signal": signal, "kind": kind,
+                             "muscle": "*" if signal == "driver" else "m1"}
+    rig = safety_rig(80.0, 3.0, [fault], sensors="harsh")
+    _scenario(rig, state)
+    rig.check_invariants(signal not in ("supply", "valve", "driver"))
+    sup = rig.h.ctrl.supervisor
+    first = next((t.t_s for t in sup.history if t.new.name == "FAULT"), None)
+    assert first is None or first >= at_s - 1e-6, (first, sup.fault_reason)  # none before
