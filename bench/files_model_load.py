@@ -63,7 +63,8 @@ def run(cfg: str, model: str, seconds: float, every_s: float, port: int,
     rec = str(Path(cfg).parent / "rec")
     proc = subprocess.Popen([sys.executable, "-m", "pamd", "run", "--config", cfg, "--json",
                              "--record", rec, "--duration", str(seconds + 8)],
-                            stdout=subprocess.PIPE, stderr=log, text=True, env=env)
+                            stdout=subprocess.PIPE, stderr=log, text=True, env=env,
+                            cwd=Path(cfg).parent)  # not this checkout's pamd by accident
     verdicts: list[str] = []
     try:
         wait_listening(port)
