@@ -176,7 +176,10 @@ class Manifest:
             "ticks": result.get("ticks"), "lost_records": result.get("lost_records"),
             "files": files, **(extra or {})})
 
-    def save(self) -> None:
+    def save(self, durable: bool = True) -> None:
+        """Write it atomically (a temporary file renamed over it). `durable` fsyncs it
+        first, so a power cut finds it too; without, only a process crash does (what a
+        verdict with a deadline can afford: the daemon saves it durably after)."""
         # Made like the recordings beside it (mode 0644 less the umask), not mkstemp's
         # 0600: whoever may read the step files may read what they are.
         tmp = os.path.join(self.directory, f".manifest-{os.getpid()}-{uuid.uuid4().hex}.tmp")
@@ -184,5 +187,6 @@ class Manifest:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(self.data, fh, indent=2)
             fh.flush()
-            os.fsync(fh.fileno())
+            if durable:
+                os.fsync(fh.fileno())
         os.replace(tmp, self.path)

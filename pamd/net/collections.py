@@ -69,6 +69,7 @@ class Collection:
     end_sent: bool = False
     closed: bool = False  # the io process has closed its files
     steps_saved: int = 0  # finished steps the manifest on disk knows of
+    save_due: bool = False  # the loop took the plan: the manifest is to be written
     ticks: int | None = None  # tick records its files hold
 
     def describe(self) -> dict[str, Any]:
@@ -228,10 +229,14 @@ class Collections:
                 self.active = None
             return verdict
         coll.seq = running_plan(self.d.ctrl)
+        # written now (a process crash finds it), made durable by service() after the
+        # reply has gone: an fsync can take seconds on a disk busy with recordings, and
+        # the verdict has a deadline
         try:
-            coll.manifest.save()
+            coll.manifest.save(durable=False)
         except OSError as exc:
             log.error("collection %s: cannot write its manifest: %s", coll.dir, exc)
+        coll.save_due = True
         self._event("started", coll, plan=coll.plan.name, sender=coll.sender, user=coll.user)
         log.info("collection %s: plan %s from step %d (requested by %s %s)", coll.dir,
                  coll.plan.name, coll.start + 1, coll.sender, coll.user)
@@ -256,9 +261,11 @@ class Collections:
         finished = list(c.seq.finished_steps)  # appended by the loop's thread
         if len(finished) > c.steps_saved:  # a step has ended: the manifest says so now
             c.steps_saved = len(finished)
+            c.save_due = c.manifest.steps_finished(finished, c.start) or c.save_due
+        if c.save_due:
+            c.save_due = False
             try:
-                if c.manifest.steps_finished(finished, c.start):
-                    c.manifest.save()
+                c.manifest.save()
             except OSError as exc:
                 log.error("collection %s: cannot write its manifest: %s", c.dir, exc)
         if c.seq.outcome and not c.end_sent:
