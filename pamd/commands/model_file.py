@@ -20,7 +20,7 @@ import math
 import os
 import time
 
-from pamd.commands.named_files import MODEL_MAX_BYTES, PARSE_TIME_LIMIT_S, read_limited
+from pamd.commands.named_files import MODEL_MAX_BYTES, parse_time_limit_s, read_limited
 from pamd.commands.offload import run_isolated
 from pamd.commands.schema import MAX_ERROR_CHARS, Command, PreparedModelArgs, cap_text
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
@@ -118,6 +118,6 @@ def prepare_model_from(cmd: Command, cfg: LoadedConfig, src: ModelSource) -> Com
         names = ", ".join(m.name for m in cfg.rig.muscles)
         raise CommandRefused(f"no muscle named {a.muscle!r}; muscles: {names}") from None
     lm = run_isolated(read_model, src, mcfg, cfg.limits[a.muscle], cfg.period_s,
-                      time_limit_s=PARSE_TIME_LIMIT_S, what=f"model refused: {src.name!r}")
+                      time_limit_s=parse_time_limit_s(cfg), what=f"model refused: {src.name!r}")
     return dataclasses.replace(cmd, args=PreparedModelArgs(a.muscle, src.path,
                                                            lm.feedforward()))

@@ -22,6 +22,7 @@ import re
 import stat
 from dataclasses import dataclass
 
+from pamd.config.loader import LoadedConfig
 from pamd.errors import CommandRefused
 from pamd.models.registry import MAX_FILE_BYTES
 
@@ -30,6 +31,15 @@ PLAN_MAX_BYTES = 1 << 20
 MODEL_MAX_BYTES = MAX_FILE_BYTES
 #: A file a command names is read, parsed and checked within this (seconds), or refused.
 PARSE_TIME_LIMIT_S = 3.0
+#: ... and within this share of `telemetry.command_timeout_s`, where that is shorter.
+PARSE_TIMEOUT_SHARE = 0.6
+
+
+def parse_time_limit_s(cfg: LoadedConfig) -> float:
+    """How long a command's file may take to read: PARSE_TIME_LIMIT_S, or less where
+    the config's command timeout would not leave the rest of the way its time."""
+    return min(PARSE_TIME_LIMIT_S,
+               PARSE_TIMEOUT_SHARE * cfg.rig.telemetry.command_timeout_s)
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.+-]{0,127}$")
 
 

@@ -42,6 +42,6 @@ def read_plan(name: str, cfg: LoadedConfig, isolated: bool = True) -> tuple[Plan
     if not isolated:
         return parse_named_plan(path, name, cfg), path
     plan = run_isolated(parse_named_plan, path, name, cfg,
-                        time_limit_s=named_files.PARSE_TIME_LIMIT_S,
+                        time_limit_s=named_files.parse_time_limit_s(cfg),
                         what=f"collect: plan refused: {name!r}")
     return plan, path
