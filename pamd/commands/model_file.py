@@ -25,7 +25,7 @@ from pamd.commands.offload import run_isolated
 from pamd.commands.schema import MAX_ERROR_CHARS, Command, PreparedModelArgs, cap_text
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig
-from pamd.control.feedforward import LoadedModel
+from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.model_check import SOURCES
 from pamd.errors import CommandRefused, ModelError
 
@@ -121,3 +121,19 @@ def prepare_model_from(cmd: Command, cfg: LoadedConfig, src: ModelSource) -> Com
                       time_limit_s=parse_time_limit_s(cfg), what=f"model refused: {src.name!r}")
     return dataclasses.replace(cmd, args=PreparedModelArgs(a.muscle, src.path,
                                                            lm.feedforward()))
+
+
+#: A reload's model files are read within this (no client waits on it; it only must end).
+RELOAD_TIME_LIMIT_S = 60.0
+
+
+def check_models_isolated(cfg: LoadedConfig) -> None:
+    """`load_models(cfg)` in a child process, for a reload while the loop runs: the
+    same ConfigError (file, line, key) if a `model_file` does not load or fit;
+    nothing comes back (the daemon loads them again only if it restarts)."""
+    run_isolated(_check_models, cfg, time_limit_s=RELOAD_TIME_LIMIT_S,
+                 what=f"{cfg.path}: the model files")
+
+
+def _check_models(cfg: LoadedConfig) -> None:
+    load_models(cfg)
