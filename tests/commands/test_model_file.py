@@ -13,12 +13,17 @@ import numpy as np
 import pytest
 
 from pamd.commands import parse_command, prepare_command
-from pamd.commands.model_file import MODEL_TICK_FRACTION, ModelSource, read_model
+from pamd.commands.model_file import (
+    MODEL_TICK_FRACTION,
+    ModelSource,
+    check_models_isolated,
+    read_model,
+)
 from pamd.commands.named_files import MODEL_MAX_BYTES
 from pamd.commands.offload import run_isolated
 from pamd.commands.schema import PreparedModelArgs
 from pamd.config import LoadedConfig, load_config
-from pamd.errors import CommandRefused
+from pamd.errors import CommandRefused, ConfigError
 from pamd.models import registry
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.anfis.serialize import to_dict
@@ -104,3 +109,18 @@ def test_models_are_capped_alike_by_every_reader() -> None:
     assert MODEL_MAX_BYTES == registry.MAX_FILE_BYTES == 8 * 1024 * 1024
     readme = (REPO / "README.md").read_text()
     assert "a model 8 MiB" in readme and "16 MiB" not in readme
+
+
+def test_a_reload_checks_its_model_files_in_a_child_with_line_and_key(tmp_path: Path) -> None:
+    write(tmp_path / "big.json", anfis((40, 40)))
+    text = (REPO / "config" / "sim.yaml").read_text()
+    marker = "    load_kg: 30                # what the operator"
+    assert marker in text
+    cfg_path = tmp_path / "rig.yaml"
+    cfg_path.write_text(text.replace(marker, "    model_file: big.json\n" + marker))
+    cfg = load_config(str(cfg_path))
+    with pytest.raises(ConfigError) as exc:
+        check_models_isolated(cfg)
+    (issue,) = exc.value.issues
+    assert issue.path == "muscles[0].model_file" and issue.line is not None
+    assert "1600 rules is too many for the tick" in issue.found
