@@ -34,6 +34,9 @@ from pamd.net.status import StatusBuilder, jsonsafe
 
 log = logging.getLogger("pamd")
 
+#: collect/model commands whose files are being read at once, at most (more are refused)
+MAX_PREPARING = 4
+
 
 @dataclass(frozen=True)
 class PlanArgs:
@@ -141,6 +144,9 @@ class NetHost:
             cmd = parse_command(r.verb, r.payload, sender=r.sender, user=r.user,
                                 reply=r.p.set)
             if r.verb in ("collect", "model"):  # a file: read in a child process
+                if len(self.preparing) >= MAX_PREPARING:  # a flood reads no more files
+                    raise CommandRefused(f"{r.verb}: the daemon is reading "
+                                         f"{len(self.preparing)} files already; try again")
                 self.preparing.append((r, self.preparer.submit(self._files, cmd)))
                 return
         except Exception as exc:
