@@ -25,6 +25,7 @@ import multiprocessing
 import os
 import pickle
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from multiprocessing import forkserver
@@ -44,11 +45,13 @@ _CTX.set_forkserver_preload(["pamd.commands.model_file", "pamd.experiment.plan"]
 _lock = threading.Lock()
 
 
-def warm_up() -> None:
-    """Start the forkserver now (it imports pamd once, about a second of a core), so
-    the first command that names a file does not wait for it."""
+def warm_up(time_limit_s: float = 120.0) -> None:
+    """Start the forkserver now and wait until it has imported pamd (about a second of
+    a core) and forked a first child, so that the first command that names a file
+    does not wait for it: the daemon does this before its loop starts."""
     with _lock:
         forkserver.ensure_running()
+    run_isolated(int, time_limit_s=time_limit_s, what="the file reader's start")
 
 
 def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
@@ -76,6 +79,7 @@ def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
 def run_isolated(fn: Callable[..., T], *args: Any, time_limit_s: float, what: str) -> T:
     """`fn(*args)` in a child process (see the module doc); `what` names the job in a
     refusal ("model file 'x.json'")."""
+    deadline = time.monotonic() + time_limit_s  # the child's start included
     reader, writer = _CTX.Pipe(duplex=False)
     with _lock:  # one start at a time: the forkserver's socket is shared
         proc = _CTX.Process(target=_child, args=(writer, fn, args), daemon=True,
@@ -83,7 +87,7 @@ def run_isolated(fn: Callable[..., T], *args: Any, time_limit_s: float, what: st
         proc.start()
     writer.close()
     try:
-        if not reader.poll(time_limit_s):
+        if not reader.poll(max(0.0, deadline - time.monotonic())):
             raise CommandRefused(f"{what}: not read within {time_limit_s:g} s (the limit "
                                  "for a file a command names); a smaller file reads faster")
         try:

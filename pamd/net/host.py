@@ -76,7 +76,13 @@ class NetHost:
         self.preparing: list[tuple[_Request, Future[Any]]] = []
         cfg = daemon.cfg
         if any(named_files.configured_dir(cfg, k) for k in ("plans_dir", "models_dir")):
-            self.preparer.submit(warm_up)  # the forkserver up before the first such command
+            # the file reader up before the loop starts, not at the first such command
+            # (whose verdict has a deadline)
+            try:
+                warm_up()
+            except CommandRefused as exc:
+                log.warning("the reader of the files commands name did not start (%s); "
+                            "it starts with the first such command", exc)
 
     def service(self) -> None:
         now = time.monotonic()
