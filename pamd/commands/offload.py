@@ -5,7 +5,7 @@ thread needs, so done in the daemon it stalls the loop however it is threaded.
 
 `run_isolated(fn, *args)` runs `fn` in a child forked from the `forkserver` (a clean,
 single-threaded process that has imported pamd once: a job starts in milliseconds,
-not a second) at a lower priority (nice +10) than the loop, waits for it without
+not a second) at the daemon's own priority, waits for it without
 holding the interpreter lock, and returns its result, pickled back: a small object
 (a checked model, a plan), so taking it in costs the loop's process little (measured:
 `bench/files_model_load.py`). The child is killed past `time_limit_s`, and the
@@ -35,8 +35,10 @@ from pamd.errors import CommandRefused, PamdError
 
 T = TypeVar("T")
 
-#: The child's priority relative to the daemon (the loop keeps its core).
-CHILD_NICE = 10
+#: The child's priority relative to the daemon: the same. What keeps the loop on time
+#: is the separate process (no interpreter lock shared), not a lower priority; a niced
+#: child on a machine busy with other work starves, and a small plan's verdict with it.
+CHILD_NICE = 0
 #: Largest result taken back (bytes): a checked model or plan is far smaller.
 MAX_RESULT_BYTES = 4 << 20
 
@@ -55,8 +57,9 @@ def warm_up(time_limit_s: float = 120.0) -> None:
 
 
 def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
-    with contextlib.suppress(OSError):
-        os.nice(CHILD_NICE)
+    if CHILD_NICE:
+        with contextlib.suppress(OSError):
+            os.nice(CHILD_NICE)
     # (True, result) | (False, an exception that says it all) | (False, what went wrong)
     out: tuple[bool, Any]
     try:
