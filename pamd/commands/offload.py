@@ -50,7 +50,7 @@ _lock = threading.Lock()
 def warm_up(time_limit_s: float = 120.0) -> None:
     """Start the forkserver now and wait until it has imported pamd (about a second of
     a core) and forked a first child, so that the first command that names a file
-    does not wait for it: the daemon does this before its loop starts."""
+    does not wait for it (the daemon does this in a worker thread as it starts)."""
     with _lock:
         forkserver.ensure_running()
     run_isolated(int, time_limit_s=time_limit_s, what="the file reader's start")

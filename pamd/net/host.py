@@ -76,13 +76,10 @@ class NetHost:
         self.preparing: list[tuple[_Request, Future[Any]]] = []
         cfg = daemon.cfg
         if any(named_files.configured_dir(cfg, k) for k in ("plans_dir", "models_dir")):
-            # the file reader up before the loop starts, not at the first such command
-            # (whose verdict has a deadline)
-            try:
-                warm_up()
-            except CommandRefused as exc:
-                log.warning("the reader of the files commands name did not start (%s); "
-                            "it starts with the first such command", exc)
+            # the file reader started now, not by the first such command (whose
+            # verdict has a deadline, the reader's start included); in a worker
+            # thread, so that the daemon's start-up does not wait for it
+            self.preparer.submit(warm_up)
 
     def service(self) -> None:
         now = time.monotonic()

@@ -20,7 +20,7 @@ from pamd.commands.model_file import (
     read_model,
 )
 from pamd.commands.named_files import MODEL_MAX_BYTES
-from pamd.commands.offload import run_isolated
+from pamd.commands.offload import run_isolated, warm_up
 from pamd.commands.schema import PreparedModelArgs
 from pamd.config import LoadedConfig, load_config
 from pamd.errors import CommandRefused, ConfigError
@@ -51,6 +51,7 @@ def write(path: Path, model: AnfisModel) -> Path:
 
 @pytest.fixture(scope="module")
 def cfg() -> LoadedConfig:
+    warm_up()  # as the daemon does when it starts: a file's time limit includes it
     return load_config(str(REPO / "config" / "sim.yaml"))
 
 
