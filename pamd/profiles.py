@@ -257,6 +257,11 @@ def shape_of(kind: str) -> Shape:
     return shape
 
 
+#: Longest profile (s): one cycle or all of them (30 days, as a time in the config,
+#: `pamd.schema.domains`).
+MAX_PROFILE_S = 30 * 86400.0
+
+
 @dataclass(frozen=True)
 class ProfileSpec:
     """What an operator asks for; validated by `check` before anything moves. An
@@ -304,6 +309,7 @@ class ProfileSpec:
         lo, hi = self.span()
         if self.cycles is not None and self.cycles < 1:
             raise CommandRefused(f"{k} profile: cycles must be at least 1")
+        self.check_duration()
         if lo < low_bar - 1e-9 or hi > high_bar + 1e-9:
             raise CommandRefused(
                 f"{k} profile spans {lo:g}-{hi:g} bar but the allowed range is "
@@ -315,6 +321,27 @@ class ProfileSpec:
                 f"; lower freq_hz or the span, or raise control.slew_limit_bar_per_s")
         if not 0 < self.lead_in_bar_per_s <= slew_limit:
             raise CommandRefused(f"lead-in rate must be in (0, {slew_limit:g}] bar/s")
+
+    def check_duration(self) -> None:
+        """Refuse a profile whose one cycle, or whole run, is longer than
+        MAX_PROFILE_S (a frequency of 1e-300 Hz, a billion cycles): its times would not
+        even be finite, and no rig runs unattended that long."""
+        k = self.kind
+        if self.shape.periodic:
+            period = 1.0 / self.freq_hz if self.freq_hz > 0 else math.inf
+            if not period <= MAX_PROFILE_S:
+                raise CommandRefused(f"{k} profile: one cycle at freq_hz {self.freq_hz:g} "
+                                     f"lasts longer than {MAX_PROFILE_S / 86400:g} days; "
+                                     "raise freq_hz")
+            if self.cycles is not None and not self.cycles * period <= MAX_PROFILE_S:
+                raise CommandRefused(
+                    f"{k} profile: {self.cycles} cycles at {self.freq_hz:g} Hz last "
+                    f"{self.cycles * period / 86400:.3g} days, longer than "
+                    f"{MAX_PROFILE_S / 86400:g} days; run fewer cycles (or several plans)")
+        d = self.duration_s
+        if d is not None and not d <= MAX_PROFILE_S:
+            raise CommandRefused(f"{k} profile: duration_s {d:g} s is longer than "
+                                 f"{MAX_PROFILE_S / 86400:g} days")
 
     def shape_period_s(self) -> float:
         return 1.0 / self.freq_hz if self.shape.periodic else 0.0

@@ -11,6 +11,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from contextlib import AbstractContextManager
 from types import FrameType
 from typing import Any, Protocol
@@ -67,6 +68,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.resume:
         manifest = Manifest.load(args.resume)
+        stale = manifest.reconcile()
+        if stale:  # a crash between a step's end and the manifest's write
+            print(f"{args.resume}: the manifest was stale; brought in line with the step "
+                  f"files: {'; '.join(stale)}")
+            manifest.save()
         if manifest.plan_name != plan.name:
             raise CommandRefused(f"{args.resume} holds plan {manifest.plan_name!r}, not "
                                  f"{plan.name!r}")
@@ -83,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
                 f"continue it with --resume {out}, or name a new directory with --out")
         os.makedirs(out, exist_ok=True)
         manifest = Manifest.new(out, plan, args.plan, cfg)
+        manifest.save()  # before anything moves: a crash leaves one to resume from
         start = 0
     print(f"collecting into {out}, from step {start + 1} ({plan.steps[start].name})")
     daemon = Daemon(cfg, note=plan.metadata.notes, recording=RecordingRequest(
@@ -96,7 +103,8 @@ def run(args: argparse.Namespace) -> int:
         verdict = pending.result(cfg.rig.safety.startup_timeout_s + 5.0)
         if not verdict["ok"]:
             raise CommandRefused(verdict["error"])
-        outcome = _follow(daemon, lines, start, interrupts, not args.no_progress)
+        outcome = _follow(daemon, lines, start, interrupts, not args.no_progress,
+                          lambda done: _step_ended(manifest, done, start))
     finally:
         daemon.stop("collection ended")
         daemon.wait()
@@ -107,6 +115,16 @@ def run(args: argparse.Namespace) -> int:
     print(f"{outcome}; {len(seq.finished_steps) if seq else 0} step(s) finished; "
           f"manifest: {os.path.join(out, 'manifest.json')}")
     return 0 if outcome == "done" else 1
+
+
+def _step_ended(manifest: Manifest, finished: list[str], start: int) -> None:
+    """A step has ended: the manifest says so now (atomically), so a crash later in
+    the plan loses none of it."""
+    try:
+        if manifest.steps_finished(finished, start):
+            manifest.save()
+    except OSError as exc:
+        _say(f"pamd: cannot update the manifest: {exc}")
 
 
 class ProgressBar(Protocol):
@@ -146,13 +164,13 @@ def _say(text: str) -> None:
 
 
 def _follow(daemon: Daemon, lines: list[StepLine], start: int, interrupts: dict[str, int],
-            show: bool) -> str:
+            show: bool, step_ended: Callable[[list[str]], object] | None = None) -> str:
     """Show progress and talk to the operator until the plan ends."""
     seq = started_plan(daemon.ctrl)
     total = sum(s.duration_s for s in lines[start:])
     bar = _bar(total, show)
     with _logs_above(bar):
-        outcome = _follow_loop(daemon, seq, bar, total, interrupts)
+        outcome = _follow_loop(daemon, seq, bar, total, interrupts, step_ended)
     if bar is not None:
         if outcome == "done":
             bar.n = total
@@ -170,12 +188,17 @@ def _logs_above(bar: ProgressBar | None) -> AbstractContextManager[object]:
 
 
 def _follow_loop(daemon: Daemon, seq: Sequencer, bar: ProgressBar | None, total: float,
-                 interrupts: dict[str, int]) -> str:
+                 interrupts: dict[str, int],
+                 step_ended: Callable[[list[str]], object] | None = None) -> str:
     ctrl = daemon.ctrl
     t0 = None
     asked = ""
+    saved = 0
     while daemon.alive and not seq.outcome:
         daemon.service()
+        if step_ended is not None and len(seq.finished_steps) > saved:
+            saved = len(seq.finished_steps)  # the manifest says so now (atomically)
+            step_ended(list(seq.finished_steps))
         if t0 is None and ctrl.supervisor.state != State.STARTING:
             t0 = ctrl.now
         if bar is not None and t0 is not None:

@@ -1,6 +1,10 @@
 """Files a remote command names (a `collect`'s plan, a `model`'s model file): only by
 name, only from the directory the config allows (`telemetry.plans_dir`,
-`telemetry.models_dir`), with a size and a nesting limit.
+`telemetry.models_dir`), with a size, a nesting and a time limit: a plan at most 1 MiB,
+a model 8 MiB (`pamd.models.registry.MAX_FILE_BYTES`, the one cap every reader of model
+files applies; the largest kind, an offline svr, stays far below it), nested at most 64
+deep, read and parsed within `PARSE_TIME_LIMIT_S` in a child process
+(`pamd.commands.offload`), so within a client's default 5 s command timeout.
 
 Every refusal names the file and, where it applies, the line and column; none ever
 quotes the file's contents (a request may name any file the daemon could read, and
@@ -18,11 +22,24 @@ import re
 import stat
 from dataclasses import dataclass
 
+from pamd.config.loader import LoadedConfig
 from pamd.errors import CommandRefused
+from pamd.models.registry import MAX_FILE_BYTES
 
 MAX_DEPTH = 64
 PLAN_MAX_BYTES = 1 << 20
-MODEL_MAX_BYTES = 16 << 20
+MODEL_MAX_BYTES = MAX_FILE_BYTES
+#: A file a command names is read, parsed and checked within this (seconds), or refused.
+PARSE_TIME_LIMIT_S = 3.0
+#: ... and within this share of `telemetry.command_timeout_s`, where that is shorter.
+PARSE_TIMEOUT_SHARE = 0.6
+
+
+def parse_time_limit_s(cfg: LoadedConfig) -> float:
+    """How long a command's file may take to read: PARSE_TIME_LIMIT_S, or less where
+    the config's command timeout would not leave the rest of the way its time."""
+    return min(PARSE_TIME_LIMIT_S,
+               PARSE_TIMEOUT_SHARE * cfg.rig.telemetry.command_timeout_s)
 _NAME_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.+-]{0,127}$")
 
 

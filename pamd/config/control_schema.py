@@ -9,14 +9,34 @@ from typing import Literal
 
 from pamd.schema.engine import spec
 
+# Gain caps (what `pamd tune` always satisfies: `pamd.control.tuning.simc_pi` slows its
+# closed loop until they hold). Pressure loop: kp 20 makes a 5 mbar sensor quantum a
+# 0.1 bar valve step, and SIMC's Kc = tau / (K 2 theta) stays below it for any
+# regulator whose lag is under 40 dead times (K ~ 1 bar/bar); ki 2000/s integrates a
+# whole error in half a millisecond, faster than the 1 kHz loop can act on it; kd 0.1 s
+# turns a 1 bar/s measured rate into 0.1 bar. Position loop: 5 bar/mm asks the whole
+# pressure range for a 1 mm error; 100 bar/(mm s) and 1 bar s/mm likewise.
+PID_KP_MAX = 20.0
+PID_KI_MAX_PER_S = 2000.0
+PID_KD_MAX_S = 0.1
+POSITION_KP_MAX_BAR_PER_MM = 5.0
+POSITION_KI_MAX_BAR_PER_MM_S = 100.0
+POSITION_KD_MAX_BAR_S_PER_MM = 1.0
+#: Fastest setpoint slew: a proportional regulator (Festo VPPM class) fills a DMSP-20
+#: at a few tens of bar/s at most, so at 500 bar/s (what `pamd tune`'s identification
+#: run sets, "a step is a step") the regulator, not the limit, sets the pace; above
+#: it the limit limits nothing (the config does not state the regulator's own rate).
+SLEW_LIMIT_MAX_BAR_PER_S = 500.0
+
 
 @dataclass(frozen=True, kw_only=True)
 class PidConfig:
     kp: float = spec(0.54, "Proportional gain (default: SIMC PI on the simulated rig's "
                      "measured step response, bench/tune_pressure_loop.py).", unit="bar/bar",
-                     min=0.0)
-    ki_per_s: float = spec(41.7, "Integral gain.", unit="1/s", min=0.0)
-    kd_s: float = spec(0.0, "Derivative gain (on measurement).", unit="s", min=0.0)
+                     min=0.0, max=PID_KP_MAX)
+    ki_per_s: float = spec(41.7, "Integral gain.", unit="1/s", min=0.0, max=PID_KI_MAX_PER_S)
+    kd_s: float = spec(0.0, "Derivative gain (on measurement).", unit="s", min=0.0,
+                       max=PID_KD_MAX_S)
     derivative_filter_hz: float = spec(30.0, "Cut-off of the derivative's low-pass filter.",
                                        unit="Hz", gt=0.0)
     integral_limit_bar: float = spec(1.0, "Anti-windup clamp of the integral term.",
@@ -31,10 +51,11 @@ class PositionPidConfig:
                                 "target: too long means more pressure). Default: SIMC PI "
                                 "on the simulated rig's measured pressure -> length step "
                                 "response at 30 kg (bench/tune_pressure_loop.py).",
-                                unit="bar/mm", min=0.0)
-    ki_bar_per_mm_s: float = spec(1.93, "Integral gain.", unit="bar/(mm s)", min=0.0)
+                                unit="bar/mm", min=0.0, max=POSITION_KP_MAX_BAR_PER_MM)
+    ki_bar_per_mm_s: float = spec(1.93, "Integral gain.", unit="bar/(mm s)", min=0.0,
+                                  max=POSITION_KI_MAX_BAR_PER_MM_S)
     kd_bar_s_per_mm: float = spec(0.0, "Derivative gain (on the measured length).",
-                                  unit="bar s/mm", min=0.0)
+                                  unit="bar s/mm", min=0.0, max=POSITION_KD_MAX_BAR_S_PER_MM)
     derivative_filter_hz: float = spec(10.0, "Cut-off of the derivative's low-pass filter.",
                                        unit="Hz", gt=0.0)
     integral_limit_bar: float = spec(6.0, "Anti-windup clamp of the integral term (it carries "
@@ -146,4 +167,5 @@ class ControlConfig:
         "the pressure loop's dead time plus lag, both measured from a step response "
         "(bench/tune_pressure_loop.py).", unit="s", min=0.0, max=1.0)
     slew_limit_bar_per_s: float = spec(5.0, "Fastest allowed setpoint change; faster "
-                                       "profiles are refused.", unit="bar/s", gt=0.0)
+                                       "profiles are refused.", unit="bar/s", gt=0.0,
+                                       max=SLEW_LIMIT_MAX_BAR_PER_S)

@@ -9,7 +9,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from pamd.config.control_schema import ControlConfig
+from pamd.config.control_schema import (
+    PID_KD_MAX_S,
+    PID_KI_MAX_PER_S,
+    PID_KP_MAX,
+    POSITION_KD_MAX_BAR_S_PER_MM,
+    POSITION_KI_MAX_BAR_PER_MM_S,
+    POSITION_KP_MAX_BAR_PER_MM,
+    ControlConfig,
+)
 from pamd.schema.engine import spec
 
 
@@ -145,23 +153,28 @@ class OnOffConfig:
 @dataclass(frozen=True, kw_only=True)
 class MusclePidConfig:
     kp: float | None = spec(None, "This muscle's `control.pid.kp` (null: the rig's).",
-                            unit="bar/bar", min=0.0)
+                            unit="bar/bar", min=0.0,
+                            max=PID_KP_MAX)
     ki_per_s: float | None = spec(None, "This muscle's `control.pid.ki_per_s`.", unit="1/s",
-                                  min=0.0)
-    kd_s: float | None = spec(None, "This muscle's `control.pid.kd_s`.", unit="s", min=0.0)
+                                  min=0.0, max=PID_KI_MAX_PER_S)
+    kd_s: float | None = spec(None, "This muscle's `control.pid.kd_s`.", unit="s", min=0.0,
+                              max=PID_KD_MAX_S)
 
 
 @dataclass(frozen=True, kw_only=True)
 class MusclePositionPidConfig:
     kp_bar_per_mm: float | None = spec(None, "This muscle's "
                                        "`control.position.pid.kp_bar_per_mm` (null: the "
-                                       "rig's).", unit="bar/mm", min=0.0)
+                                       "rig's).", unit="bar/mm", min=0.0,
+                                       max=POSITION_KP_MAX_BAR_PER_MM)
     ki_bar_per_mm_s: float | None = spec(None, "This muscle's "
                                          "`control.position.pid.ki_bar_per_mm_s`.",
-                                         unit="bar/(mm s)", min=0.0)
+                                         unit="bar/(mm s)", min=0.0,
+                                         max=POSITION_KI_MAX_BAR_PER_MM_S)
     kd_bar_s_per_mm: float | None = spec(None, "This muscle's "
                                          "`control.position.pid.kd_bar_s_per_mm`.",
-                                         unit="bar s/mm", min=0.0)
+                                         unit="bar s/mm", min=0.0,
+                                         max=POSITION_KD_MAX_BAR_S_PER_MM)
 
 
 @dataclass(frozen=True, kw_only=True)

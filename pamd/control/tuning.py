@@ -186,13 +186,27 @@ class PiGains:
     closed_loop_tau_s: float
 
 
-def simc_pi(model: Fopdt, closed_loop_tau_s: float | None = None) -> PiGains:
-    """Skogestad's SIMC PI gains for the model (tau_c = theta by default)."""
+def simc_pi(model: Fopdt, closed_loop_tau_s: float | None = None,
+            kp_max: float = math.inf, ki_max: float = math.inf) -> PiGains:
+    """Skogestad's SIMC PI gains for the model (tau_c = theta by default). With caps
+    (the config's: `pamd.config.control_schema`), a closed loop that would need larger
+    gains is made slower (tau_c raised) until both hold: the rule's own way to
+    trade speed for gain, so its results always pass the config's checks."""
     tau_c = model.dead_time_s if closed_loop_tau_s is None else closed_loop_tau_s
     tau_c = max(tau_c, 1e-4)
+    kc, ki = _simc(model, tau_c)
+    for _ in range(200):
+        if kc <= kp_max and ki <= ki_max:
+            break
+        tau_c *= 1.1
+        kc, ki = _simc(model, tau_c)
+    return PiGains(min(kc, kp_max), min(ki, ki_max), tau_c)
+
+
+def _simc(model: Fopdt, tau_c: float) -> tuple[float, float]:
     kc = model.tau_s / (model.gain * (tau_c + model.dead_time_s))
     ti = min(model.tau_s, 4.0 * (tau_c + model.dead_time_s))
-    return PiGains(kc, kc / ti, tau_c)
+    return kc, kc / ti
 
 
 def rate_feedforward_s(model: Fopdt) -> float:

@@ -1,6 +1,10 @@
 """The manifest of a collection: the plan, each step's status and files, and every
 run that worked on it. `--resume` reads it to continue from the first unfinished
-step. Written atomically, so a crash never leaves half a manifest.
+step. Written atomically, so a crash never leaves half a manifest, and again each
+time a step ends (`steps_finished`), so a crash loses at most the step it stopped in;
+one left stale all the same (the main process killed between a step's end and the
+write) is brought in line with the step files' own metadata (`reconcile`,
+`pamd.experiment.stepfiles`) by `pamd inspect`, `--resume` and a remote resume.
 
 Also what `pamd collect` and a collection started over the network
 (`pamd.net.collections`) share: the collection directory's name and what each step's
@@ -17,6 +21,7 @@ from typing import Any
 from pamd.config.loader import LoadedConfig
 from pamd.errors import ConfigError, ConfigIssue
 from pamd.experiment.plan import Plan
+from pamd.experiment.stepfiles import read_step_file
 from pamd.experiment.timeline import StepLine
 from pamd.version import __version__
 
@@ -65,7 +70,16 @@ class Manifest:
         })
 
     @classmethod
-    def load(cls, directory: str) -> Manifest:
+    def load(cls, directory: str, reconcile: bool = False) -> Manifest:
+        """The manifest in `directory`; with `reconcile`, brought in line with its step
+        files and saved if it was stale (what a resume does)."""
+        m = cls._load(directory)
+        if reconcile and m.reconcile():
+            m.save()
+        return m
+
+    @classmethod
+    def _load(cls, directory: str) -> Manifest:
         path = os.path.join(directory, "manifest.json")
         try:
             with open(path, encoding="utf-8") as fh:
@@ -77,6 +91,61 @@ class Manifest:
             raise ConfigError([ConfigIssue(path, None, "format", f"{FORMAT} v{VERSION}",
                                            f"{data.get('format')} v{data.get('version')}")])
         return cls(directory, data)
+
+    def _tag(self, s: dict[str, Any]) -> str:
+        return f"_{s['index'] + 1:02d}-{s['name']}"
+
+    def _on_disk(self) -> list[str]:
+        try:
+            return sorted(f for f in os.listdir(self.directory) if f.endswith(".mcap"))
+        except OSError:
+            return []
+
+    def steps_finished(self, finished: list[str], start: int = 0) -> bool:
+        """Mark the steps named in `finished` done, with their files (named after the
+        step, in the directory): what the daemon saves as each step ends. True if
+        anything changed."""
+        names = set(finished)
+        on_disk = self._on_disk()
+        changed = False
+        for s in self.data["steps"][start:]:
+            if s["name"] in names and s["status"] != "done":
+                own = [f for f in on_disk if self._tag(s) in f]
+                s["files"] = sorted(set(s["files"]) | set(own))
+                s["status"] = "done"
+                changed = True
+        return changed
+
+    def reconcile(self) -> list[str]:
+        """Bring each step's status and files in line with what the step files in the
+        directory say of themselves (their `pamd.experiment` metadata and
+        `step_finished` event); returns what changed (empty: the manifest was up to
+        date). Only files of steps not yet done, or named by no step, are read."""
+        steps = self.data["steps"]
+        named = {f: s for s in steps for f in s["files"]}
+        changes: list[str] = []
+        for f in self._on_disk():
+            owner = named.get(f)
+            if owner is not None and owner["status"] == "done":
+                continue
+            sf = read_step_file(os.path.join(self.directory, f))
+            if sf is None or sf.plan != self.plan_name or not 0 <= sf.index < len(steps):
+                continue
+            s = steps[sf.index]
+            if s["name"] != sf.step:
+                continue
+            if f not in s["files"]:
+                s["files"] = sorted([*s["files"], f])
+                changes.append(f"step {sf.index + 1} ({sf.step}): file {f}")
+            status = "done" if sf.finished else (
+                s["status"] if s["status"] != "pending" else "interrupted")
+            if status != s["status"]:
+                changes.append(f"step {sf.index + 1} ({sf.step}): {s['status']} -> {status}")
+                s["status"] = status
+        if changes:
+            self.data["rebuilt"] = {"at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+                                    "changes": changes[:100]}
+        return changes
 
     def first_unfinished(self) -> int | None:
         for s in self.data["steps"]:
@@ -107,7 +176,10 @@ class Manifest:
             "ticks": result.get("ticks"), "lost_records": result.get("lost_records"),
             "files": files, **(extra or {})})
 
-    def save(self) -> None:
+    def save(self, durable: bool = True) -> None:
+        """Write it atomically (a temporary file renamed over it). `durable` fsyncs it
+        first, so a power cut finds it too; without, only a process crash does (what a
+        verdict with a deadline can afford: the daemon saves it durably after)."""
         # Made like the recordings beside it (mode 0644 less the umask), not mkstemp's
         # 0600: whoever may read the step files may read what they are.
         tmp = os.path.join(self.directory, f".manifest-{os.getpid()}-{uuid.uuid4().hex}.tmp")
@@ -115,5 +187,6 @@ class Manifest:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(self.data, fh, indent=2)
             fh.flush()
-            os.fsync(fh.fileno())
+            if durable:
+                os.fsync(fh.fileno())
         os.replace(tmp, self.path)

@@ -17,8 +17,10 @@ own under the daemon's recording directory: `<recording dir>/<plan>-<YYYYmmdd-HH
   the last step's file and goes back to an ordinary run file in its own directory;
   then the manifest is written, recording the run as `pamd collect` does
   (`Manifest.record_run`, with who asked). A daemon that stops first writes it as it
-  closes. The manifest is also written when the loop takes the plan, so a crash
-  leaves one to resume from.
+  closes. The manifest is also written when the loop takes the plan and each time a
+  step ends, so a crash leaves one to resume from; one still stale is brought in line
+  with the step files' own metadata when the collection is resumed
+  (`Manifest.reconcile`).
 
 Everything here runs in the daemon's main thread (`NetHost.service`, and the io
 session's close): the directory, the manifest (file I/O), and the control message that
@@ -66,6 +68,8 @@ class Collection:
     seq: Any = None  # the loop's sequencer, once the loop took the plan
     end_sent: bool = False
     closed: bool = False  # the io process has closed its files
+    steps_saved: int = 0  # finished steps the manifest on disk knows of
+    save_due: bool = False  # the loop took the plan: the manifest is to be written
     ticks: int | None = None  # tick records its files hold
 
     def describe(self) -> dict[str, Any]:
@@ -125,7 +129,7 @@ class Collections:
         cfg = self.d.cfg
         try:
             manifest = (Manifest.new(directory, plan, plan_file, cfg) if created
-                        else Manifest.load(directory))
+                        else Manifest.load(directory, reconcile=True))
             before = frozenset(os.listdir(directory))
         except (OSError, PamdError) as exc:
             raise CommandRefused(f"collect: {exc}") from None
@@ -175,7 +179,7 @@ class Collections:
                                  "under the daemon's recording directory, not a path")
         path = os.path.join(self.record_dir, name)
         try:
-            m = Manifest.load(path)
+            m = Manifest.load(path, reconcile=True)
         except (ConfigError, OSError) as exc:
             raise CommandRefused(f"collect: collection {name!r}: {exc}") from None
         if m.plan_name != plan.name or [s["name"] for s in m.data["steps"]] != [
@@ -225,10 +229,14 @@ class Collections:
                 self.active = None
             return verdict
         coll.seq = running_plan(self.d.ctrl)
+        # written now (a process crash finds it), made durable by service() after the
+        # reply has gone: an fsync can take seconds on a disk busy with recordings, and
+        # the verdict has a deadline
         try:
-            coll.manifest.save()
+            coll.manifest.save(durable=False)
         except OSError as exc:
             log.error("collection %s: cannot write its manifest: %s", coll.dir, exc)
+        coll.save_due = True
         self._event("started", coll, plan=coll.plan.name, sender=coll.sender, user=coll.user)
         log.info("collection %s: plan %s from step %d (requested by %s %s)", coll.dir,
                  coll.plan.name, coll.start + 1, coll.sender, coll.user)
@@ -250,6 +258,16 @@ class Collections:
         c = self.active
         if c is None or c.seq is None:
             return
+        finished = list(c.seq.finished_steps)  # appended by the loop's thread
+        if len(finished) > c.steps_saved:  # a step has ended: the manifest says so now
+            c.steps_saved = len(finished)
+            c.save_due = c.manifest.steps_finished(finished, c.start) or c.save_due
+        if c.save_due:
+            c.save_due = False
+            try:
+                c.manifest.save()
+            except OSError as exc:
+                log.error("collection %s: cannot write its manifest: %s", c.dir, exc)
         if c.seq.outcome and not c.end_sent:
             c.end_sent = True  # a collection whose first step never began is dropped
             self._queue(control.end_message(c.id))

@@ -17,20 +17,25 @@ import dataclasses
 import json
 import logging
 import time
+from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
-from pamd.commands import Command, named_files, parse_command, prepare_command
+from pamd.commands import Command, named_files, parse_command
+from pamd.commands.model_file import ModelSource, prepare_model_from
+from pamd.commands.offload import Preparer, warm_up
+from pamd.commands.plan_file import read_plan
 from pamd.commands.schema import args_for_record
-from pamd.config.loader import LoadedConfig
-from pamd.errors import CommandRefused, PamdError
-from pamd.experiment.plan import Plan, parse_plan
+from pamd.errors import CommandRefused
 from pamd.net.board import Board
 from pamd.net.collections import Collection, Collections
 from pamd.net.seams import DaemonView
 from pamd.net.status import StatusBuilder, jsonsafe
 
 log = logging.getLogger("pamd")
+
+#: collect/model commands whose files are being read at once, at most (more are refused)
+MAX_PREPARING = 4
 
 
 @dataclass(frozen=True)
@@ -65,6 +70,16 @@ class NetHost:
         self.last_t = -1e9
         self.pending: dict[int, _Pending] = {}
         self.outbox: list[bytes] = []  # replies waiting for room in the ring
+        # collect/model: their files read in a child process (pamd.commands.offload),
+        # waited for by a worker thread, taken up by service()
+        self.preparer = Preparer()
+        self.preparing: list[tuple[_Request, Future[Any]]] = []
+        cfg = daemon.cfg
+        if any(named_files.configured_dir(cfg, k) for k in ("plans_dir", "models_dir")):
+            # the file reader started now, not by the first such command (whose
+            # verdict has a deadline, the reader's start included); in a worker
+            # thread, so that the daemon's start-up does not wait for it
+            self.preparer.submit(warm_up)
 
     def service(self) -> None:
         now = time.monotonic()
@@ -73,6 +88,7 @@ class NetHost:
             self.write_status(now)
         while (blob := self.board.requests.get_blob()) is not None:
             self._request(blob)
+        self._take_prepared()
         for rid, p in list(self.pending.items()):
             if p.verdict is not None:
                 del self.pending[rid]
@@ -90,6 +106,7 @@ class NetHost:
 
     def close(self, reason: str) -> None:
         """The io process has ended: a collection still open gets its manifest."""
+        self.preparer.close()
         self.collections.close(reason)
 
     def write_status(self, now: float | None = None) -> None:
@@ -124,68 +141,96 @@ class NetHost:
             rid = int(req["id"])
         except (ValueError, KeyError, TypeError, RecursionError):
             return
-        verb, payload = str(req.get("verb")), req.get("payload")
-        sender, user = str(req.get("sender", "zenoh")), str(req.get("user", ""))
-        p = _Pending()
+        r = _Request(rid, str(req.get("verb")), req.get("payload"),
+                     str(req.get("sender", "zenoh")), str(req.get("user", "")), _Pending())
         try:
-            cmd = self._prepare(verb, payload, sender, user, p)
-        except CommandRefused as exc:
-            error = str(exc)
-        except Exception as exc:  # the daemon never dies of a request
-            log.exception("%s request from %s", verb, sender)
-            error = (f"{verb}: refused: it failed while being prepared "
-                     f"({exc.__class__.__name__}); the daemon goes on")
-        else:
-            self.pending[rid] = p
-            self.d.mailbox.put(cmd)
+            cmd = parse_command(r.verb, r.payload, sender=r.sender, user=r.user,
+                                reply=r.p.set)
+            if r.verb in ("collect", "model"):  # a file: read in a child process
+                if len(self.preparing) >= MAX_PREPARING:  # a flood reads no more files
+                    raise CommandRefused(f"{r.verb}: the daemon is reading "
+                                         f"{len(self.preparing)} files already; try again")
+                self.preparing.append((r, self.preparer.submit(self._files, cmd)))
+                return
+        except Exception as exc:
+            self._refuse(r, exc)
             return
+        self._queue(r, cmd)
+
+    def _take_prepared(self) -> None:
+        """The collect/model commands whose files have been read: on to the loop."""
+        waiting = []
+        for r, fut in self.preparing:
+            if not fut.done():
+                waiting.append((r, fut))
+                continue
+            try:
+                cmd = fut.result()
+                if r.verb == "collect":
+                    a = cmd.args
+                    r.p.collection = self.collections.prepare(
+                        a.plan, a.plan_file, a.start_step, r.sender, r.user, a.collection)
+                    cmd = Command("collect", PlanArgs(a.plan_file, a.start_step, a.plan),
+                                  r.p.set, r.sender, r.user)
+            except Exception as exc:
+                self._refuse(r, exc)
+                continue
+            self._queue(r, cmd)
+        self.preparing = waiting
+
+    def _queue(self, r: _Request, cmd: Command) -> None:
+        self.pending[r.rid] = r.p
+        self.d.mailbox.put(cmd)
+
+    def _refuse(self, r: _Request, exc: BaseException) -> None:
+        if isinstance(exc, CommandRefused):
+            error = str(exc)
+        else:  # the daemon never dies of a request
+            log.error("%s request from %s: %s", r.verb, r.sender, exc, exc_info=exc)
+            error = (f"{r.verb}: refused: it failed while being prepared "
+                     f"({exc.__class__.__name__}); the daemon goes on")
         verdict = {"ok": False, "error": error}
         try:
             ctrl = self.d.ctrl
             self.d.summary.event(ctrl.now, "command", {
-                "verb": verb, "args": args_for_record(payload), "sender": sender,
-                "user": user, "by": "daemon", **verdict})
+                "verb": r.verb, "args": args_for_record(r.payload), "sender": r.sender,
+                "user": r.user, "by": "daemon", **verdict})
         finally:
-            self._reply(rid, verdict)
+            self._reply(r.rid, verdict)
 
-    def _prepare(self, verb: str, payload: object, sender: str, user: str,
-                 p: _Pending) -> Command:
-        """The command ready for the loop, its file read and checked here (collect: the
-        plan; model: the model), only by name from the directory the config allows."""
+    def _files(self, cmd: Command) -> Command:
+        """In a worker thread: the command's file read, parsed and checked in a child
+        process (collect: the plan; model: the model, then compiled here), only by name
+        from the directory the config allows. A collect comes back as a
+        `_ReadPlan` for `_take_prepared` (its directory is made in the main thread)."""
         cfg = self.d.cfg
-        cmd = parse_command(verb, payload, sender=sender, user=user, reply=p.set)
-        if verb == "collect":
-            a = cmd.args
+        a = cmd.args
+        if cmd.verb == "collect":
             plan, path = read_plan(a.plan_file, cfg)
-            p.collection = self.collections.prepare(plan, path, a.start_step, sender, user,
-                                                    a.collection)
-            return Command("collect", PlanArgs(path, a.start_step, plan), p.set, sender,
-                           user)
-        if verb == "model":
-            a = cmd.args
-            path = named_files.resolve(a.file, named_files.configured_dir(cfg, "models_dir"),
-                                       "model", "models_dir")
-            nf = named_files.read_limited(path, a.file, "model", named_files.MODEL_MAX_BYTES)
-            return prepare_command(dataclasses.replace(cmd, args=dataclasses.replace(
-                a, file=path)), cfg, nf.text.encode("utf-8"))
-        return cmd
+            return dataclasses.replace(cmd, args=_ReadPlan(path, a.start_step, plan,
+                                                           a.collection))
+        path = named_files.resolve(a.file, named_files.configured_dir(cfg, "models_dir"),
+                                   "model", "models_dir")
+        return prepare_model_from(dataclasses.replace(cmd, args=dataclasses.replace(
+            a, file=path)), cfg, ModelSource(path, a.file, named=True))
 
 
-def read_plan(name: str, cfg: LoadedConfig) -> tuple[Plan, str]:
-    """A remote collect's plan: file `name` in `telemetry.plans_dir`, within the limits
-    (`pamd.commands.named_files`), parsed and checked against the rig; the refusal
-    names file, line and key and never quotes the file."""
+@dataclass(frozen=True)
+class _Request:
+    rid: int
+    verb: str
+    payload: object
+    sender: str
+    user: str
+    p: _Pending
 
-    try:
-        path = named_files.resolve(name, named_files.configured_dir(cfg, "plans_dir"),
-                                   "plan", "plans_dir")
-        nf = named_files.read_limited(path, name, "plan", named_files.PLAN_MAX_BYTES)
-    except CommandRefused as exc:
-        raise CommandRefused(f"collect: plan refused: {exc}") from None
-    try:
-        return parse_plan(nf.text, path, cfg), path
-    except PamdError as exc:
-        raise CommandRefused(f"collect: plan refused: "
-                             f"{named_files.issues_text(exc, name)}") from None
-    except RecursionError:
-        raise CommandRefused(f"collect: plan refused: {name!r} is nested too deep") from None
+
+@dataclass(frozen=True)
+class _ReadPlan:
+    plan_file: str
+    start_step: int
+    plan: Any
+    collection: str | None
+
+
+__all__ = ["NetHost", "PlanArgs", "read_plan"]

@@ -2,7 +2,8 @@
 reported by file, line and key path.
 
 A schema is a frozen dataclass whose fields carry metadata: `doc` (one sentence),
-optional `unit`, `min`, `max` (inclusive) and `gt` (exclusive lower bound), and
+optional `unit`, `min`, `max` (inclusive) and `gt` (exclusive lower bound), always
+within the domain of the field's unit (`pamd.schema.domains`: every number has one), and
 `ceiling`: a safe upper value below `max` that only `safety.relax_ceilings: true` lets a
 value pass (values above it are collected in `Context.over_ceiling`, never silently).
 Supported field types: bool, int, float, str, Literal[...], X | None, nested
@@ -22,6 +23,7 @@ from dataclasses import MISSING, dataclass, field
 from typing import Any, Literal, Union
 
 from pamd.errors import ConfigError, ConfigIssue
+from pamd.schema.domains import bounds, subnormal
 from pamd.schema.yamlload import LinedDict, LinedList
 
 #: A field's type as the schema writes it: a class (bool, int, float, str, a dataclass),
@@ -161,6 +163,11 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
             if not math.isfinite(value):
                 ctx.add(line, path, "a finite number", describe(value))
                 return None
+            if subnormal(value):
+                ctx.add(line, path, "a number of a physical size (0, or at least 2.2e-308 in "
+                        "magnitude)", describe(value))
+                return None
+        meta = bounds(tp, meta)
         bad = (
             ("gt" in meta and not value > meta["gt"])
             or ("min" in meta and value < meta["min"])

@@ -29,9 +29,9 @@ import time
 from typing import Any
 
 from pamd.commands import Command
+from pamd.commands.model_file import check_models_isolated
 from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig, load_config
-from pamd.control.feedforward import load_models
 from pamd.errors import PamdError
 from pamd.service.notify import Notifier
 from pamd.service.reload import ReloadPlan, describe, plan_reload
@@ -329,7 +329,8 @@ class ServiceKeeper:
         log.info("SIGHUP: reloading %s", path)
         try:
             new = load_config(path, self.config_overrides)
-            load_models(new)  # a model_file that does not fit is refused now, not at restart
+            check_models_isolated(new)  # a model_file that does not fit is refused now
+            # (read in a child process: a model's parse would stall the loop running here)
         except PamdError as exc:
             log.error("reload refused, still running on the config loaded before: %s", exc)
             self._finish()

@@ -21,6 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pamd.config.control_schema import (
+    PID_KI_MAX_PER_S,
+    PID_KP_MAX,
+    POSITION_KI_MAX_BAR_PER_MM_S,
+    POSITION_KP_MAX_BAR_PER_MM,
+)
 from pamd.control.tuning import Fopdt, IdentificationError, fit_step, rate_feedforward_s, simc_pi
 
 #: A fit whose rms error exceeds this fraction of the step's change is not a FOPDT
@@ -128,10 +134,11 @@ def check_model(loop: str, fits: list[tuple[Step, Fopdt]], model: Fopdt) -> None
 
 
 def pressure_gains(model: Fopdt) -> PressureGains:
-    pi = simc_pi(model)
+    pi = simc_pi(model, kp_max=PID_KP_MAX, ki_max=PID_KI_MAX_PER_S)
     return PressureGains(pi.kp, pi.ki_per_s, rate_feedforward_s(model))
 
 
 def position_gains(model: Fopdt) -> PositionGains:
-    pi = simc_pi(Fopdt(abs(model.gain), model.tau_s, model.dead_time_s))
+    pi = simc_pi(Fopdt(abs(model.gain), model.tau_s, model.dead_time_s),
+                 kp_max=POSITION_KP_MAX_BAR_PER_MM, ki_max=POSITION_KI_MAX_BAR_PER_MM_S)
     return PositionGains(pi.kp, pi.ki_per_s)

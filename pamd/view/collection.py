@@ -1,6 +1,7 @@
 """What a collection directory holds (`pamd inspect DIR`): the plan, each step's load,
-status, files and duration from the manifest and the files themselves, the runs that
-worked on it, and any file the manifest does not name. A directory without a manifest
+status, files and duration from the manifest and the files themselves (a manifest
+left stale by a crash is shown as the step files' own metadata says: `Manifest.reconcile`),
+the runs that worked on it, and any file the manifest does not name. A directory without a manifest
 is listed file by file."""
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import os
 from typing import Any
 
 from pamd.errors import RecordingError
+from pamd.experiment.manifest import Manifest
 from pamd.record import files as io_files
 
 
@@ -43,11 +45,14 @@ def inspect_collection(directory: str) -> dict[str, Any]:
                                  "collection or a recording directory")
         fs = [_file(os.path.join(directory, n)) for n in on_disk]
         return {"directory": directory, "manifest": None, "plan": None, "steps": [],
-                "other_files": fs, "runs": [], "summary": _summary(fs, [])}
+                "other_files": fs, "runs": [], "stale": [], "summary": _summary(fs, [])}
     try:
         with open(manifest_path, encoding="utf-8") as fh:
             man = json.load(fh)
         steps_in = man["steps"]
+        # a manifest left stale by a crash: shown as the step files say (not written:
+        # inspecting changes nothing; a resume writes it)
+        stale = Manifest(directory, man).reconcile()
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise RecordingError(f"{manifest_path}: not a pamd collection manifest ({exc})"
                              ) from None
@@ -66,7 +71,7 @@ def inspect_collection(directory: str) -> dict[str, Any]:
     return {"directory": directory, "manifest": manifest_path, "plan": plan.get("name"),
             "plan_file": plan.get("file"), "rig_id": rig.get("rig_id"),
             "created": man.get("created"), "steps": steps, "other_files": others,
-            "runs": man.get("runs", []),
+            "runs": man.get("runs", []), "stale": stale,
             "summary": _summary([f for s in steps for f in s["files"]] + others, steps)}
 
 
@@ -88,6 +93,9 @@ def print_collection(info: dict[str, Any]) -> None:
         print(f"{info['directory']}: collection of plan {info['plan']} (rig "
               f"{info['rig_id']}), created {info['created']}; {s['steps_done']} of "
               f"{s['steps']} steps done")
+        if info.get("stale"):
+            print(f"  the manifest was stale (a crash?); shown as the step files say: "
+                  f"{'; '.join(info['stale'])} (`pamd collect --resume` writes it)")
         print(f"  {'step':<5} {'name':<18} {'load':>7}  {'status':<12} {'duration':>9}  files")
         for st in info["steps"]:
             load = "-" if st["load_kg"] is None else f"{st['load_kg']:g} kg"

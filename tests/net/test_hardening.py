@@ -83,9 +83,9 @@ def test_a_100000_deep_model_or_plan_is_refused_with_its_position(rig: RigProc) 
     v = rig.cmd("collect", {"plan_file": "deep.yaml"})
     assert not v["ok"] and "nested more than 64 levels deep at line 1, column 72" in v[
         "error"], v
-    (rig.tmp / "models" / "huge.json").write_bytes(b" " * (16 * 1024 * 1024 + 1))
+    (rig.tmp / "models" / "huge.json").write_bytes(b" " * (8 * 1024 * 1024 + 1))
     v = rig.cmd("model", {"muscle": "m1", "file": "huge.json"})
-    assert not v["ok"] and "above the limit of 16777216 bytes" in v["error"], v
+    assert not v["ok"] and "above the limit of 8388608 bytes" in v["error"], v
     alive(rig)
 
 

@@ -1,0 +1,135 @@
+"""A file a command names is read and parsed in a short-lived child process, never in
+the loop's process: the parse of a large file is one long C call (`json.loads` of an
+8 MiB model takes 0.7-1.3 s on a busy PC) that holds the interpreter lock the loop's
+thread needs, so done in the daemon it stalls the loop however it is threaded.
+
+`run_isolated(fn, *args)` runs `fn` in a child forked from the `forkserver` (a clean,
+single-threaded process that has imported pamd once: a job starts in milliseconds,
+not a second) at the daemon's own priority, waits for it without
+holding the interpreter lock, and returns its result, pickled back: a small object
+(a checked model, a plan), so taking it in costs the loop's process little (measured:
+`bench/files_model_load.py`). The child is killed past `time_limit_s`, and the
+refusal says so; a `CommandRefused` or `PamdError` it raises comes back as it is; any
+other failure (even the child's death: a hostile file that exhausts memory) is a
+refusal naming the file's role and the kind of failure, never its contents.
+
+The caller's thread blocks (waiting in a pipe, the lock released): the daemon's main
+thread hands the wait to a worker thread (`Preparer`) so that status and other
+commands go on meanwhile.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import pickle
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from multiprocessing import forkserver
+from typing import Any, TypeVar
+
+from pamd.errors import CommandRefused, PamdError
+
+T = TypeVar("T")
+
+#: The child's priority relative to the daemon: the same. What keeps the loop on time
+#: is the separate process (no interpreter lock shared), not a lower priority; a niced
+#: child on a machine busy with other work starves, and a small plan's verdict with it.
+CHILD_NICE = 0
+#: Largest result taken back (bytes): a checked model or plan is far smaller.
+MAX_RESULT_BYTES = 4 << 20
+
+_CTX = multiprocessing.get_context("forkserver")
+_CTX.set_forkserver_preload(["pamd.commands.model_file", "pamd.experiment.plan"])
+_lock = threading.Lock()
+
+
+def warm_up(time_limit_s: float = 120.0) -> None:
+    """Start the forkserver now and wait until it has imported pamd (about a second of
+    a core) and forked a first child, so that the first command that names a file
+    does not wait for it (the daemon does this in a worker thread as it starts)."""
+    with _lock:
+        forkserver.ensure_running()
+    run_isolated(int, time_limit_s=time_limit_s, what="the file reader's start")
+
+
+def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
+    if CHILD_NICE:
+        with contextlib.suppress(OSError):
+            os.nice(CHILD_NICE)
+    # (True, result) | (False, an exception that says it all) | (False, what went wrong)
+    out: tuple[bool, Any]
+    try:
+        out = (True, fn(*args))
+    except (CommandRefused, PamdError) as exc:
+        out = (False, exc)
+    except RecursionError:
+        out = (False, "nested too deep to read")
+    except MemoryError:
+        out = (False, "too large to read (out of memory)")
+    except Exception as exc:  # the parent refuses with the kind, never the contents
+        out = (False, f"it could not be read ({exc.__class__.__name__})")
+    try:
+        conn.send(out)
+    except Exception as exc:  # an unpicklable result
+        conn.send((False, f"its result could not be handed back ({exc.__class__.__name__})"))
+    conn.close()
+
+
+def run_isolated(fn: Callable[..., T], *args: Any, time_limit_s: float, what: str) -> T:
+    """`fn(*args)` in a child process (see the module doc); `what` names the job in a
+    refusal ("model file 'x.json'")."""
+    deadline = time.monotonic() + time_limit_s  # the child's start included
+    reader, writer = _CTX.Pipe(duplex=False)
+    with _lock:  # one start at a time: the forkserver's socket is shared
+        proc = _CTX.Process(target=_child, args=(writer, fn, args), daemon=True,
+                            name="pamd-file")
+        proc.start()
+    writer.close()
+    try:
+        if not reader.poll(max(0.0, deadline - time.monotonic())):
+            raise CommandRefused(f"{what}: not read within {time_limit_s:g} s (the limit "
+                                 "for a file a command names); a smaller file reads faster")
+        try:
+            blob = reader.recv_bytes(MAX_RESULT_BYTES)
+        except OSError:
+            raise CommandRefused(f"{what}: larger than {MAX_RESULT_BYTES} bytes once "
+                                 "read") from None
+        except EOFError:
+            proc.join(1.0)
+            raise CommandRefused(f"{what}: the process reading it ended (exit code "
+                                 f"{proc.exitcode}) without an answer") from None
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        proc.join(5.0)
+        reader.close()
+        proc.close()
+    ok, value = pickle.loads(blob)
+    if not ok:
+        if isinstance(value, BaseException):
+            raise value
+        raise CommandRefused(f"{what}: {value}")
+    return value
+
+
+class Preparer:
+    """A worker thread of the daemon's main process for the waits of `run_isolated`:
+    `submit(fn, ...)` returns a Future the main thread polls (`done()`), so a
+    command's file is read while status and other commands go on."""
+
+    def __init__(self) -> None:
+        self._pool: ThreadPoolExecutor | None = None
+
+    def submit(self, fn: Callable[..., T], *args: Any) -> Future[T]:
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="pamd-prepare")
+        return self._pool.submit(fn, *args)
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
