@@ -165,9 +165,9 @@ def main() -> int:
     args = p.parse_args()
     rigs = ("sim", "emulated") if args.rig == "both" else (args.rig,)
     loads = ("hogs", "daemons") if args.load == "both" else (args.load,)
+    rt_runtime = Path("/proc/sys/kernel/sched_rt_runtime_us").read_text().strip()
     print(f"shared machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, "
-          f"sched_rt_runtime_us {Path('/proc/sys/kernel/sched_rt_runtime_us').read_text().strip()}, "
-          f"{args.minutes:g} min per case")
+          f"sched_rt_runtime_us {rt_runtime}, {args.minutes:g} min per case")
     rows = []
     for rig in rigs:
         for load in loads:

@@ -14,13 +14,18 @@ The loop calls `advance(dt_s)` once per tick and then reads `in_values` /
 physics lives in `pamd.sim.plant`. Tests and the CLI can change a load while
 running (`set_load_kg`) and inject faults (`inject_fault`, `clear_faults`); the
 options' `faults` schedule injects them at set times after `open`, so a rig's
-reaction to each fault can be shown from the CLI (`pamd run --config ...`).
+reaction to each fault can be shown from the CLI (`pamd run --config ...`); a
+scheduled `stall` (signal `loop`) stops the loop's whole process for its
+`duration_s` instead (`stall_process`).
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import math
 import random
+import time
 from collections.abc import Sequence
 
 from pamd.drivers import Channel, Clock, Driver, DriverHealth
@@ -49,6 +54,14 @@ SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
 _OK, _STUCK, _DEAD, _SILENT, _NOISY, _JUMP = 0, 1, 2, 3, 4, 5
 _FAULT_CODES = {"stuck": _STUCK, "dead": _DEAD, "silent": _SILENT, "noisy": _NOISY,
                 "jump": _JUMP}
+
+
+class _Timespec(ctypes.Structure):
+    _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+
+# libc through PyDLL: its calls keep the interpreter lock (a stall of the whole process)
+_GIL_HOLDING_LIBC = ctypes.PyDLL(ctypes.util.find_library("c") or "libc.so.6")
 
 
 def muscle_rng(seed: int, muscle: str) -> random.Random:
@@ -94,6 +107,7 @@ class SimDriver(Driver):
         self._steps = 0
         self._writes = 0
         self._dropped_writes = 0
+        self.stalls = 0  # scheduled stalls of the loop's process done
 
     # --- Driver protocol --------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
@@ -159,7 +173,11 @@ class SimDriver(Driver):
             while self._next_fault < len(sched) and sched[self._next_fault].at_s <= elapsed:
                 f = sched[self._next_fault]
                 self._next_fault += 1
-                self.inject_fault(f.muscle, f.signal, f.kind, f.size)
+                if f.kind == "stall":
+                    self.stall_process(f.duration_s or 0.0)
+                    now_s = clock() if clock is not None else math.nan
+                else:
+                    self.inject_fault(f.muscle, f.signal, f.kind, f.size)
         if clock is not None:
             self._publish(now_s)
 
@@ -179,6 +197,7 @@ class SimDriver(Driver):
                 "steps": self._steps,
                 "writes": self._writes,
                 "dropped_writes": self._dropped_writes,
+                "stalls": self.stalls,
                 "valve_switchings": sum(p.regulator.switchings for p in self._plants
                                         if isinstance(p.regulator, OnOffValves)),
             },
@@ -247,6 +266,20 @@ class SimDriver(Driver):
         elif kind == "jump":
             self._sizes[i] = JUMP_DEFAULT[signal] if size is None else size
         self._any_sensor_fault = True
+
+    def stall_process(self, duration_s: float) -> None:
+        """Stop the loop's whole process for `duration_s` (a scheduled `stall`): the
+        calling thread (the loop's, in a tick) sleeps in a C call that keeps Python's
+        interpreter lock, so no other thread of the process runs either, as when the
+        process gets no CPU. Interrupted sleeps go on to the end."""
+        self.stalls += 1
+        end = time.monotonic() + duration_s
+        while True:
+            left = end - time.monotonic()
+            if left <= 0.0:
+                return
+            ts = _Timespec(int(left), int((left % 1.0) * 1e9))
+            _GIL_HOLDING_LIBC.nanosleep(ctypes.byref(ts), None)
 
     def clear_faults(self) -> None:
         """Remove every injected fault."""

@@ -335,6 +335,7 @@ FAULT_KINDS: dict[str, tuple[str, ...]] = {
     "supply": ("lost",),
     "valve": ("stuck",),
     "driver": ("error",),
+    "loop": ("stall",),
 }
 
 
@@ -344,19 +345,28 @@ class SimFault:
     driver's `clear_faults`, e.g. by a test)."""
 
     at_s: float = _f(0.0, "Time after the driver opened at which the fault starts.", "s", 0.0)
-    muscle: str = _f("*", "The muscle it hits ('*' only for the whole driver, signal: driver).")
-    signal: Literal["pressure", "force", "length", "supply", "valve", "driver"] = _f(
+    muscle: str = _f("*", "The muscle it hits ('*' only for the whole driver, signal: driver, "
+                     "or the loop's process, signal: loop).")
+    signal: Literal["pressure", "force", "length", "supply", "valve", "driver", "loop"] = _f(
         "driver",
         "What fails: a sensor (pressure, force, length), the air supply, the regulator "
-        "(valve) or the whole device (driver).",
+        "(valve), the whole device (driver), or the loop's process (loop).",
     )
-    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error"] = _f(
+    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error", "stall"] = _f(
         "error",
         "Sensors: dead (reads 0), stuck (repeats its last value), noisy (adds noise of "
         "standard deviation `size`), jump (steps by `size` and stays), silent (no new "
         "samples); supply: lost; valve: stuck (the regulator ignores new setpoints); "
-        "driver: error (readings stop, writes dropped).",
+        "driver: error (readings stop, writes dropped); loop: stall (the loop's process "
+        "stops for `duration_s`, once: the tick holds Python's interpreter lock, so no "
+        "thread of the process runs, as when the process gets no CPU; needs the real "
+        "clock, a virtual one does not move meanwhile).",
     )
+    duration_s: float | None = spec(
+        None, "stall: how long the loop's process stops (required there, refused "
+        "elsewhere). Past the loop's stall fault limit (`loop.stall_fault_s`, derived "
+        "from the actuation) it latches FAULT; a shorter one is a `stall` event.",
+        unit="s", gt=0.0, max=10.0)
     size: float | None = _f(
         None,
         "noisy: noise standard deviation; jump: step; in the signal's unit (default: 0.3 "
@@ -430,7 +440,11 @@ def check_options(options: SimOptions) -> list[str]:
                 f"{where}: a {f.signal} fault is one of {', '.join(FAULT_KINDS[f.signal])}, "
                 f"not {f.kind!r}"
             )
-        if f.signal == "driver":
+        if f.signal == "loop":
+            if f.muscle != "*":
+                problems.append(f"{where}: a loop stall stops the whole process: muscle "
+                                f"'*', not {f.muscle!r}")
+        elif f.signal == "driver":
             if f.muscle not in ("*", *names):
                 problems.append(f"{where}: no muscle {f.muscle!r} (muscles: {', '.join(names)})")
         elif f.muscle not in names:
@@ -438,6 +452,10 @@ def check_options(options: SimOptions) -> list[str]:
                 f"{where}: no muscle {f.muscle!r} in this sim driver (muscles: "
                 f"{', '.join(names)}); a {f.signal} fault names its muscle"
             )
+        if (f.kind == "stall") != (f.duration_s is not None):
+            problems.append(f"{where}: duration_s is " + (
+                "required by a stall (how long the loop's process stops)"
+                if f.kind == "stall" else f"only for a stall, not a {f.kind} fault"))
         if f.size is not None and (not math.isfinite(f.size) or
                                    (f.kind == "noisy" and f.size <= 0.0)):
             problems.append(f"{where}: size must be finite (and > 0 for noisy), got {f.size}")
