@@ -108,6 +108,10 @@ class SimDriver(Driver):
         self._writes = 0
         self._dropped_writes = 0
         self.stalls = 0  # scheduled stalls of the loop's process done
+        cs = options.comm_safety
+        self._watchdog_s: float | None = cs.timeout_s if cs is not None else None
+        self._safe_outputs: dict[int, float] = {}
+        self.watchdog_trips = 0  # steps that outlasted the comm watchdog
 
     # --- Driver protocol --------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
@@ -157,11 +161,18 @@ class SimDriver(Driver):
         self._clock = None
 
     def advance(self, dt_s: float) -> None:
-        """Advance every muscle by `dt_s`, then publish readings stamped `clock()`."""
-        for plant in self._plants:
-            plant.advance(dt_s)
-        if self.supply_line is not None:
-            self.supply_line.step(dt_s)
+        """Advance every muscle by `dt_s`, then publish readings stamped `clock()`. A
+        step longer than the comm watchdog time (`comm_safety`: the loop stalled) runs
+        that long on the outputs as they were, then on the safe outputs."""
+        wd = self._watchdog_s
+        if wd is not None and dt_s > wd and self._safe_outputs:
+            self._step_plants(wd)
+            self.watchdog_trips += 1
+            for index, value in self._safe_outputs.items():
+                self.write(index, value)
+            self._step_plants(dt_s - wd)
+        else:
+            self._step_plants(dt_s)
         self._steps += 1
         self._t_s += dt_s
         clock = self._clock
@@ -181,6 +192,17 @@ class SimDriver(Driver):
         if clock is not None:
             self._publish(now_s)
 
+    def _step_plants(self, dt_s: float) -> None:
+        for plant in self._plants:
+            plant.advance(dt_s)
+        if self.supply_line is not None:
+            self.supply_line.step(dt_s)
+
+    def set_safe_outputs(self, values: dict[int, float]) -> None:
+        """The outputs' safe values, for the comm watchdog (`comm_safety`)."""
+        self._safe_outputs = {i: v for i, v in values.items()
+                              if 0 <= i < len(self.output_channels) and math.isfinite(v)}
+
     def is_absolute(self, index: int) -> bool:
         """Pressure and force are absolute; a length unless its muscle's
         `length_absolute` is false (an incremental encoder that needs `home`)."""
@@ -198,6 +220,7 @@ class SimDriver(Driver):
                 "writes": self._writes,
                 "dropped_writes": self._dropped_writes,
                 "stalls": self.stalls,
+                "watchdog_trips": self.watchdog_trips,
                 "valve_switchings": sum(p.regulator.switchings for p in self._plants
                                         if isinstance(p.regulator, OnOffValves)),
             },

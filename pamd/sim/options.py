@@ -380,6 +380,17 @@ JUMP_DEFAULT = {"pressure": 1.0, "force": 200.0, "length": 20.0}
 
 
 @dataclass(frozen=True)
+class SimCommSafety:
+    """The simulated I/O's communication watchdog, as an I/O module's 'Comm Safety':
+    when the loop has not stepped the rig for `timeout_s` (it stalled), the outputs go to
+    the safe values pamd handed the driver (`set_safe_outputs`: on/off valves closed, a
+    regulator at its safe pressure) for the rest of the stall."""
+
+    timeout_s: float = spec(0.1, "Watchdog time: the outputs go to their safe values once "
+                            "the loop has been silent this long.", unit="s", gt=0.0, max=10.0)
+
+
+@dataclass(frozen=True)
 class SimOptions:
     """Options of the `sim` driver: a simulated rig of one or more muscles."""
 
@@ -404,6 +415,11 @@ class SimOptions:
         1.0,
         1000000.0,
     )
+    comm_safety: SimCommSafety | None = _f(
+        None, "The simulated I/O's communication watchdog (null: none; the outputs stay as "
+        "the loop set them through a stall). With on/off valves it bounds how long a valve "
+        "stays open while the loop stalls; it also sets the loop's stall fault limit "
+        "(`loop.stall_fault_s`).")
     faults: tuple[SimFault, ...] = _f(
         (),
         "Scripted faults, each {at_s, muscle, signal, kind[, size]}: how a rig reacts to a "
