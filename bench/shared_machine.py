@@ -12,6 +12,12 @@ recording to MCAP (the io process). Two loads:
   daemons  two other real-clock simulated pamd daemons (SCHED_FIFO at the same
            priority, each running its own sine and recording).
 
+The emulator stands in for I/O modules and encoders, which have CPUs of their own: by
+default it runs at SCHED_FIFO 1 (`--emulator-priority`, 0 for normal priority), so
+the load starves the daemon, not the devices it reads. At normal priority, beside this
+load, the emulator itself falls silent for 100 ms and more and the daemon rightly says
+so (`m2.force from driver 'lc2' is stale`): a real load-cell transmitter does not.
+
 Per case it prints the faults latched (the goal is none), the stalls (gaps with no tick
 completed longer than `loop.stall_timeout_s`: the daemon's `stalls` counter where it
 has one, else the "loop stalled" lines it logged), the overruns, the wake-up latency
@@ -38,7 +44,7 @@ from typing import Any
 import _lockdir  # noqa: F401  (the run's own rig-lock directory)
 import yaml
 
-from pamd.emulate.testing import REPO, emulated_dict, free_port, start_emulator, stop_emulator
+from pamd.emulate.testing import REPO, emulated_dict, free_port, stop_emulator
 
 PRIORITY = 80
 SINE = ["--profile", "sine", "--freq-hz", "0.5", "--min-bar", "1", "--max-bar", "4"]
@@ -92,6 +98,19 @@ def pamd_run(config: str, seconds: float, tmp: Path, name: str,
         env=dict(os.environ, PYTHONUNBUFFERED="1"))
 
 
+def start_emulator(config: str, priority: int) -> subprocess.Popen[str]:
+    """`pamd emulate` (and the socat it starts) at SCHED_FIFO `priority` (0: normal)."""
+    prefix = ["chrt", "-f", str(priority)] if priority > 0 else []
+    proc = subprocess.Popen([*prefix, sys.executable, "-m", "pamd", "emulate", "--config",
+                             config], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
+    assert proc.stdout is not None
+    if not proc.stdout.readline():
+        proc.wait(10)
+        raise RuntimeError(f"pamd emulate exited ({proc.returncode}) before it was ready")
+    return proc
+
+
 def start_load(kind: str, tmp: Path, seconds: float) -> list[subprocess.Popen[Any]]:
     procs: list[subprocess.Popen[Any]] = []
     if kind == "hogs":
@@ -122,14 +141,14 @@ def stop_load(procs: list[subprocess.Popen[Any]]) -> None:
 GAP = re.compile(r"no tick completed for (?:at least )?(\d+) ms")
 
 
-def run_case(rig: str, load: str, minutes: float) -> dict[str, Any]:
+def run_case(rig: str, load: str, minutes: float, emulator_priority: int) -> dict[str, Any]:
     seconds = 60.0 * minutes
     with tempfile.TemporaryDirectory(prefix="pamd-shared-") as tmpname:
         tmp = Path(tmpname)
         emulator = None
         config = sim_config(tmp, "target") if rig == "sim" else emulated_config(tmp)
         if rig == "emulated":
-            emulator, _ = start_emulator(config)
+            emulator = start_emulator(config, emulator_priority)
         procs = start_load(load, tmp, seconds)
         try:
             target = pamd_run(config, seconds, tmp, "target", profile=rig == "sim")
@@ -168,17 +187,21 @@ def main() -> int:
     p.add_argument("--minutes", type=float, default=10.0, help="per case (10)")
     p.add_argument("--rig", choices=("sim", "emulated", "both"), default="both")
     p.add_argument("--load", choices=("hogs", "daemons", "both"), default="both")
+    p.add_argument("--emulator-priority", type=int, default=1, metavar="N",
+                   help="SCHED_FIFO priority of `pamd emulate` (1; 0: normal priority)")
     p.add_argument("--json", metavar="FILE", help="also write the rows to FILE")
     args = p.parse_args()
     rigs = ("sim", "emulated") if args.rig == "both" else (args.rig,)
     loads = ("hogs", "daemons") if args.load == "both" else (args.load,)
     rt_runtime = Path("/proc/sys/kernel/sched_rt_runtime_us").read_text().strip()
     print(f"shared machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, "
-          f"sched_rt_runtime_us {rt_runtime}, {args.minutes:g} min per case")
+          f"sched_rt_runtime_us {rt_runtime}, {args.minutes:g} min per case, emulator at "
+          + (f"SCHED_FIFO {args.emulator_priority}" if args.emulator_priority > 0
+             else "normal priority"))
     rows = []
     for rig in rigs:
         for load in loads:
-            r = run_case(rig, load, args.minutes)
+            r = run_case(rig, load, args.minutes, args.emulator_priority)
             rows.append(r)
             print(f"  {rig:8s} beside {load:7s}: faults {len(r['faults'])}, stalls {r['stalls']} "
                   f"(longest gap {r['longest_gap_ms']} ms), overruns {r['overruns']}, "

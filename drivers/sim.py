@@ -184,9 +184,8 @@ class SimDriver(Driver):
             while self._next_fault < len(sched) and sched[self._next_fault].at_s <= elapsed:
                 f = sched[self._next_fault]
                 self._next_fault += 1
-                if f.kind == "stall":
-                    self.stall_process(f.duration_s or 0.0)
-                    now_s = clock() if clock is not None else math.nan
+                if f.kind == "stall":  # the readings keep this step's time: the
+                    self.stall_process(f.duration_s or 0.0)  # plant catches up next step
                 else:
                     self.inject_fault(f.muscle, f.signal, f.kind, f.size)
         if clock is not None:
