@@ -14,9 +14,11 @@ recording to MCAP (the io process). Two loads:
 
 The emulator stands in for I/O modules and encoders, which have CPUs of their own: by
 default it runs at SCHED_FIFO 1 (`--emulator-priority`, 0 for normal priority), so
-the load starves the daemon, not the devices it reads. At normal priority, beside this
-load, the emulator itself falls silent for 100 ms and more and the daemon rightly says
-so (`m2.force from driver 'lc2' is stale`): a real load-cell transmitter does not.
+the load starves the daemon, not the devices it reads. Measured either way, the
+emulated rig's remaining fault is `m2.force from driver 'lc2' is stale (111 ms old,
+timeout 110 ms)` with no loop stall: the Modbus RTU driver treats one unanswered
+request (timeout_s 0.05) as a lost link and reconnects, which with the next request
+outlasts the signal's 110 ms (its health shows `timeouts` = `disconnects`).
 
 Per case it prints the faults latched (the goal is none), the stalls (gaps with no tick
 completed longer than `loop.stall_timeout_s`: the daemon's `stalls` counter where it
