@@ -16,7 +16,8 @@ The emulator stands in for I/O modules and encoders, which have CPUs of their ow
 default it runs at SCHED_FIFO 1 (`--emulator-priority`, 0 for normal priority), so
 the load starves the daemon, not the devices it reads. Measured either way, the
 emulated rig's remaining fault is `m2.force from driver 'lc2' is stale (111 ms old,
-timeout 110 ms)` with no loop stall: the Modbus RTU driver treats one unanswered
+timeout 110 ms)` with no loop stall. The likely cause (seen in the driver's counters, not yet
+proven to be this fault): the Modbus RTU driver treats one unanswered
 request (timeout_s 0.05) as a lost link and reconnects, which with the next request
 outlasts the signal's 110 ms (its health shows `timeouts` = `disconnects`).
 
