@@ -17,13 +17,18 @@ its simulated device took the sample (jitter 0), or for a sensor on a bursty lin
 physics lives in `pamd.sim.plant`. Tests and the CLI can change a load while
 running (`set_load_kg`) and inject faults (`inject_fault`, `clear_faults`); the
 options' `faults` schedule injects them at set times after `open`, so a rig's
-reaction to each fault can be shown from the CLI (`pamd run --config ...`).
+reaction to each fault can be shown from the CLI (`pamd run --config ...`); a
+scheduled `stall` (signal `loop`) stops the loop's whole process for its
+`duration_s` instead (`stall_process`).
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import math
 import random
+import time
 from collections.abc import Sequence
 
 from pamd.drivers import Channel, Clock, Driver, DriverHealth
@@ -52,6 +57,14 @@ SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
 _OK, _STUCK, _DEAD, _SILENT, _NOISY, _JUMP = 0, 1, 2, 3, 4, 5
 _FAULT_CODES = {"stuck": _STUCK, "dead": _DEAD, "silent": _SILENT, "noisy": _NOISY,
                 "jump": _JUMP}
+
+
+class _Timespec(ctypes.Structure):
+    _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
+
+
+# libc through PyDLL: its calls keep the interpreter lock (a stall of the whole process)
+_GIL_HOLDING_LIBC = ctypes.PyDLL(ctypes.util.find_library("c") or "libc.so.6")
 
 
 def muscle_rng(seed: int, muscle: str) -> random.Random:
@@ -97,6 +110,11 @@ class SimDriver(Driver):
         self._steps = 0
         self._writes = 0
         self._dropped_writes = 0
+        self.stalls = 0  # scheduled stalls of the loop's process done
+        cs = options.comm_safety
+        self._watchdog_s: float | None = cs.timeout_s if cs is not None else None
+        self._safe_outputs: dict[int, float] = {}
+        self.watchdog_trips = 0  # steps that outlasted the comm watchdog
 
     # --- Driver protocol --------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
@@ -146,11 +164,18 @@ class SimDriver(Driver):
         self._clock = None
 
     def advance(self, dt_s: float) -> None:
-        """Advance every muscle by `dt_s`, then publish readings stamped `clock()`."""
-        for plant in self._plants:
-            plant.advance(dt_s)
-        if self.supply_line is not None:
-            self.supply_line.step(dt_s)
+        """Advance every muscle by `dt_s`, then publish readings stamped `clock()`. A
+        step longer than the comm watchdog time (`comm_safety`: the loop stalled) runs
+        that long on the outputs as they were, then on the safe outputs."""
+        wd = self._watchdog_s
+        if wd is not None and dt_s > wd and self._safe_outputs:
+            self._step_plants(wd)
+            self.watchdog_trips += 1
+            for index, value in self._safe_outputs.items():
+                self.write(index, value)
+            self._step_plants(dt_s - wd)
+        else:
+            self._step_plants(dt_s)
         self._steps += 1
         self._t_s += dt_s
         clock = self._clock
@@ -162,9 +187,23 @@ class SimDriver(Driver):
             while self._next_fault < len(sched) and sched[self._next_fault].at_s <= elapsed:
                 f = sched[self._next_fault]
                 self._next_fault += 1
-                self.inject_fault(f.muscle, f.signal, f.kind, f.size)
+                if f.kind == "stall":  # the readings keep this step's time: the
+                    self.stall_process(f.duration_s or 0.0)  # plant catches up next step
+                else:
+                    self.inject_fault(f.muscle, f.signal, f.kind, f.size)
         if clock is not None:
             self._publish(now_s)
+
+    def _step_plants(self, dt_s: float) -> None:
+        for plant in self._plants:
+            plant.advance(dt_s)
+        if self.supply_line is not None:
+            self.supply_line.step(dt_s)
+
+    def set_safe_outputs(self, values: dict[int, float]) -> None:
+        """The outputs' safe values, for the comm watchdog (`comm_safety`)."""
+        self._safe_outputs = {i: v for i, v in values.items()
+                              if 0 <= i < len(self.output_channels) and math.isfinite(v)}
 
     def is_absolute(self, index: int) -> bool:
         """Pressure and force are absolute; a length unless its muscle's
@@ -182,6 +221,8 @@ class SimDriver(Driver):
                 "steps": self._steps,
                 "writes": self._writes,
                 "dropped_writes": self._dropped_writes,
+                "stalls": self.stalls,
+                "watchdog_trips": self.watchdog_trips,
                 "valve_switchings": sum(p.regulator.switchings for p in self._plants
                                         if isinstance(p.regulator, OnOffValves)),
             },
@@ -250,6 +291,20 @@ class SimDriver(Driver):
         elif kind == "jump":
             self._sizes[i] = JUMP_DEFAULT[signal] if size is None else size
         self._any_sensor_fault = True
+
+    def stall_process(self, duration_s: float) -> None:
+        """Stop the loop's whole process for `duration_s` (a scheduled `stall`): the
+        calling thread (the loop's, in a tick) sleeps in a C call that keeps Python's
+        interpreter lock, so no other thread of the process runs either, as when the
+        process gets no CPU. Interrupted sleeps go on to the end."""
+        self.stalls += 1
+        end = time.monotonic() + duration_s
+        while True:
+            left = end - time.monotonic()
+            if left <= 0.0:
+                return
+            ts = _Timespec(int(left), int((left % 1.0) * 1e9))
+            _GIL_HOLDING_LIBC.nanosleep(ctypes.byref(ts), None)
 
     def clear_faults(self) -> None:
         """Remove every injected fault."""

@@ -115,6 +115,17 @@ class RigController:
         self.t_start = t_s
         self.now = t_s
 
+    def excuse_stall(self, excuse_s: float) -> float:
+        """The loop stalled (or stalls no more: 0): the inputs excuse `excuse_s` of a
+        sample's age (`pamd.stalls`). Returns how long to keep the excuse: the longest
+        signal timeout, after which every sample from before the stall is judged stale
+        anyway."""
+        hold = 0.0
+        for m in self.muscles:
+            m.inputs.stall_excuse_s = excuse_s
+            hold = max(hold, *m.inputs.timeouts_s)
+        return hold
+
     # -- the tick -------------------------------------------------------------------
     def tick(self, now: float, dt: float) -> array:
         self.now = now

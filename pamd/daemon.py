@@ -246,6 +246,7 @@ class Daemon:
             "ticks": t.ticks,
             "duration_s": t.ticks * self.cfg.period_s,
             "overruns": t.overruns,
+            "stalls": self.loop.stalls.summary(),
             "lost_records": self.loop.lost_records,
             "wake_latency_us": {"p50": t.wake_p50_us, "p99": t.wake_p99_us, "max": t.wake_max_us},
             "compute_us": {"p50": t.compute_p50_us, "p99": t.compute_p99_us,

@@ -1,6 +1,8 @@
 """The fixed-rate loop: absolute deadlines on the monotonic clock (or a virtual
 clock that runs as fast as possible), per-tick timing, overrun handling, stall
-detection, garbage collection only in slack time, commands once per tick.
+detection (`pamd.stalls`: an event and a warning, FAULT only past what the outputs
+hold by themselves; samples that aged during a stall are excused), garbage
+collection only in slack time, commands once per tick.
 
 The loop's thread does no I/O: notices for the operator go into `notices`, which
 another thread prints.
@@ -20,6 +22,7 @@ from pamd.commands import apply_command
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
 from pamd.rt import RealtimeSession
+from pamd.stalls import StallWatch, stall_limit
 from pamd.tick import I_COMPUTE, I_LOST, I_OVERRUNS, I_WAKE, Mailbox, State
 from pamd.timing import TickTiming
 
@@ -99,7 +102,8 @@ class Loop:
         lc = cfg.rig.loop
         self.virtual = lc.clock == "virtual"
         self.skip_overruns = lc.overrun_policy == "skip"
-        self.stall_s = lc.stall_timeout_s
+        self.stalls = StallWatch(lc.stall_timeout_s, stall_limit(cfg.rig))
+        self.stall_s = self.stalls.check_s  # a longer gap with no tick completed: a stall
         self.clock: Callable[[], float] = VirtualClock() if self.virtual else time.monotonic
         self.timing = TickTiming()
         self.notices: deque[str] = deque(maxlen=256)
@@ -132,9 +136,17 @@ class Loop:
         """The reason of a requested stop, or None."""
         return self._stop_reason
 
-    def set_stall_timeout(self, stall_s: float) -> None:
-        """A reload's `loop.stall_timeout_s` (the main thread reads it)."""
-        self.stall_s = stall_s
+    @property
+    def stall_fault_s(self) -> float:
+        """A stall longer than this latches FAULT."""
+        return self.stalls.limit.fault_s
+
+    def set_stall_limits(self, cfg: LoadedConfig) -> None:
+        """A reload's `loop.stall_timeout_s` / `stall_fault_s` and the limit its
+        actuation allows (the main thread reads them)."""
+        self.stalls.limit = stall_limit(cfg.rig)
+        self.stalls.timeout_s = cfg.rig.loop.stall_timeout_s
+        self.stall_s = self.stalls.check_s
 
     def request_stop(self, reason: str) -> None:
         """Ask the loop to reach the safe state and return (any thread)."""
@@ -149,11 +161,19 @@ class Loop:
         if self._handover_reason is None:
             self._handover_reason = reason
 
-    def _stalled(self, done: float) -> None:
-        gap_ms = 1000 * (done - self.last_tick_done)
-        if not self.ctrl.supervisor.latched:
-            self.ctrl.supervisor.fault(self.ctrl.now, f"loop stalled: no tick completed for "
-                                       f"{gap_ms:.0f} ms (limit {1000 * self.stall_s:.0f} ms)")
+    def _stalled(self, gap_s: float) -> None:
+        """A stall that ended: an event, a count and a warning; FAULT past the limit."""
+        ctrl, watch = self.ctrl, self.stalls
+        fault = watch.record(gap_s)
+        text = watch.describe(gap_s)
+        ctrl.sink.event(ctrl.now, "stall", {
+            "gap_ms": round(1000 * gap_s, 1), "count": watch.count, "fault": fault,
+            "fault_ms": round(1000 * watch.limit.fault_s, 1)})
+        if fault:
+            if not ctrl.supervisor.latched:
+                ctrl.supervisor.fault(ctrl.now, text)
+        else:
+            self.notices.append(f"{text}; not a fault, the loop goes on")
 
     def run(self, duration_s: float | None = None, stop_when_profile_done: bool = False) -> None:
         ctrl = self.ctrl
@@ -195,6 +215,8 @@ class Loop:
         self.running = True
         self.last_tick_done = mono()
         saw_running = False
+        excuse_after = 2.0 * period  # a tick this late excuses its samples' age
+        excuse = excused_until = 0.0
         # virtual clock: deterministic, so no budget by the machine's speed
         command_budget_s = math.inf if virtual else COMMAND_BUDGET_FRACTION * period
         while True:
@@ -209,7 +231,27 @@ class Loop:
                     sleep(next_t - now)
                     now = mono()
                 wake = now - next_t
+                if wake >= period and self.skip_overruns:
+                    # woken periods late (the process got no CPU): this tick runs at
+                    # the present deadline with dt over the whole gap, so a stepped
+                    # plant and its samples' stamps agree (no jump "in 1 ms")
+                    missed = int(wake / period)
+                    timing.overruns += missed
+                    next_t += missed * period
+                    dt += missed * period
+                    if next_t - last_warn >= 1.0:
+                        last_warn = next_t
+                        self.notices.append(f"overrun: {missed} period(s) missed "
+                                            f"({timing.overruns} so far)")
                 t_wake = perf()
+                gap = now - self.last_tick_done
+                if gap > excuse_after:  # the drivers may have stalled with the loop
+                    if gap - period >= excuse or now > excused_until:
+                        excuse = gap - period  # a larger one stands until its own end
+                        excused_until = now + ctrl.excuse_stall(excuse)
+                elif excuse and now > excused_until:
+                    excuse = 0.0
+                    ctrl.excuse_stall(0.0)
             # -- commands (held until the sensors are read), then the tick -------------
             rec = tick_once(ctrl, intake, next_t, dt, t_wake + command_budget_s)
             compute = perf() - t_wake
@@ -224,7 +266,7 @@ class Loop:
             timing.ticks += 1
             done = mono()
             if done - self.last_tick_done > self.stall_s and not virtual:
-                self._stalled(done)
+                self._stalled(done - self.last_tick_done)
             self.last_tick_done = done
             # -- end of run, safe state ----------------------------------------------
             state = ctrl.supervisor.state

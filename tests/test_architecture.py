@@ -37,7 +37,7 @@ LAYERS: list[list[str]] = [
     ["safety"],
     ["rig", "emulate", "models"],
     ["drivers", "record"],
-    ["sim", "rt", "calibration"],
+    ["sim", "rt", "stalls", "calibration"],
     ["config"],
     ["schema", "plugins", "ipc", "metrics", "timing", "muscle", "tick", "profiles"],
     ["errors", "version"],

@@ -8,7 +8,9 @@ NAME.exhaust, a Modbus coil), `signals.valve` is refused, and the PWM period mus
 leave a valve the time to open and close within it. An exhaust assist
 (`exhaust_assist_below_bar`) needs a regulator's dump valve. A simulated muscle's sensors
 must sample within the timeout of the signal that reads them (a device slower than
-its timeout is stale by construction). Every refusal names file, line and key.
+its timeout is stale by construction), and a scheduled stall of the loop's process
+needs the real clock (a virtual one does not move while the process is stopped).
+Every refusal names file, line and key.
 """
 
 from __future__ import annotations
@@ -127,3 +129,24 @@ def check_sim_sample_periods(rig: RigConfig, node: Any, ctx: Context,
                             f"muscle {m.name!r}'s {signal} signal ({timeout:g} s): a slower "
                             "device is stale by construction; raise the signal's timeout_s",
                             f"{age_s:g} s")
+
+
+def check_sim_stalls(rig: RigConfig, node: Any, ctx: Context) -> None:
+    """A sim driver's scheduled `stall` (signal loop) cannot happen with a virtual
+    clock: refused at its `kind`; `node` is the raw `drivers` list."""
+    if rig.loop.clock != "virtual":
+        return
+    drivers_node = node if isinstance(node, list) else []
+    for k, d in enumerate(rig.drivers):
+        faults = getattr(d.options, "faults", ()) if d.type == "sim" else ()
+        for j, f in enumerate(faults):
+            if getattr(f, "kind", None) != "stall":
+                continue
+            dnode = drivers_node[k] if k < len(drivers_node) else {}
+            opts = (dnode.get("options") or {}) if isinstance(dnode, dict) else {}
+            fnode = (opts.get("faults") or [{}])
+            fnode = fnode[j] if j < len(fnode) and isinstance(fnode[j], dict) else {}
+            ctx.add(line_of(fnode, "kind") or line_of(fnode), f"drivers[{k}].options.faults[{j}]"
+                    ".kind", "loop.clock real for a stall of the loop's process (a virtual "
+                    "clock does not move while the process is stopped, so the loop would "
+                    "never see it)", "stall with loop.clock virtual")

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from importlib import resources
 from typing import Any, ClassVar, Protocol, cast
 
-from pamd.config.actuation import check_actuation, check_sim_sample_periods
+from pamd.config.actuation import check_actuation, check_sim_sample_periods, check_sim_stalls
 from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.plausibility import check_plausibility_thresholds
 from pamd.config.schema import (
@@ -128,6 +128,7 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     check_actuation(rig, raw.get("muscles", []), digital, ctx)
     check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
     check_plausibility_thresholds(rig, raw, limits, ctx)
+    check_sim_stalls(rig, drivers_node, ctx)
     ctx.raise_if_any()
     cal_path = None if not rig.calibration_file else os.path.join(
         os.path.dirname(os.path.abspath(path)), os.path.expanduser(rig.calibration_file))

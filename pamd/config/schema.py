@@ -26,6 +26,14 @@ class RealtimeConfig:
     enabled: bool = spec(True, "Try real-time settings for the loop's thread; each one the OS "
                          "refuses is warned about, never fatal.")
     priority: int = spec(80, "SCHED_FIFO priority of the loop's thread.", min=1, max=99)
+    other_threads_priority: int | None = spec(
+        1, "SCHED_FIFO priority of the loop process's other threads (the main thread, the "
+        "drivers' I/O threads), at most `priority` - 1. They share Python's interpreter lock "
+        "with the loop: one that holds it at normal priority when the loop wakes makes the "
+        "real-time loop wait behind every busy process on the machine (priority inversion; "
+        "50-200 ms stalls beside CPU hogs, bench/shared_machine.py). 1 is enough to run "
+        "before every normal process and after every other real-time thread. null: leave "
+        "them at normal priority.", min=1, max=98)
     cpu: int | None = spec(None, "CPU the loop's thread is pinned to (null: no pinning).", min=0)
     lock_memory: bool = spec(True, "mlockall() so the loop never page-faults.")
     timer_slack_ns: int = spec(1, "Timer slack of the loop's thread.", unit="ns", min=1)
@@ -43,8 +51,19 @@ class LoopConfig:
     overrun_policy: Literal["skip", "catch_up"] = spec(
         "skip", "After a late tick: skip the missed periods (keep the phase) or run them "
         "back to back.")
-    stall_timeout_s: float = spec(0.05, "Fault when no tick has completed for this long.",
-                                  unit="s", gt=0.0, ceiling=1.0, max=10.0)
+    stall_timeout_s: float = spec(
+        0.05, "A gap this long with no tick completed is a stall: a `stall` event, a count "
+        "in the summary and a warning; it latches FAULT only past `stall_fault_s`.",
+        unit="s", gt=0.0, ceiling=1.0, max=10.0)
+    stall_fault_s: float | None = spec(
+        None, "A stall longer than this latches FAULT. null: derived from the actuation "
+        "(README, Safety): a proportional regulator holds its pressure, so the I/O "
+        "module's comm watchdog time (`comm_safety.timeout_s` of the valve's driver), or "
+        "0.5 s without one; on/off valves do not hold, so the time an open valve takes to "
+        "move the pressure by `safety.tracking_band_bar` (at the larger of "
+        "`onoff.fill_rate_bar_per_s` and `vent_rate_bar_per_s`; 107 ms by default), or "
+        "their module's watchdog time if shorter. The shortest muscle's wins.",
+        unit="s", gt=0.0, ceiling=1.0, max=10.0)
     realtime: RealtimeConfig = spec(RealtimeConfig(), "Real-time options of the loop's thread.")
 
 

@@ -53,6 +53,9 @@ class Inputs:
         self.pressure_ok = self.length_ok = False
         self.flags = 0
         self.finding: str | None = None  # a new plausibility finding, this tick
+        # How much of a sample's age a stalled loop excuses (`pamd.stalls`; the rig
+        # controller sets it after a late tick, 0 otherwise): not a dead sensor.
+        self.stall_excuse_s = 0.0
         # A homed reference the device confirms later: (its preset counts, index, count).
         self._pending_preset: tuple[list[int], int, int] | None = None
         self._calibration_dirty = False
@@ -146,11 +149,12 @@ class Inputs:
         length = self._lg * self._lv[li] + self._lo + ref.length_offset_mm
         flags = 0
         fault = None
-        p_fresh = now - pt <= self._pto
-        l_fresh = now - lt <= self._lto
-        if not (p_fresh and l_fresh and now - ft <= self._fto):
+        aged = now - self.stall_excuse_s  # the time the samples' ages are judged at
+        p_fresh = aged - pt <= self._pto
+        l_fresh = aged - lt <= self._lto
+        if not (p_fresh and l_fresh and aged - ft <= self._fto):
             flags |= F_STALE
-            fault = self.stale_reason(now)
+            fault = self.stale_reason(aged)
         l0 = self.nominal_length_mm
         if lt != self._prev_length_t:  # a new sample: its rate over the samples' stamps
             self.velocity_mm_s = velocity_step(self.velocity_mm_s, self._prev_length_mm,

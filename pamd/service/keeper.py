@@ -11,9 +11,9 @@ under systemd for months. `Daemon.service()` calls `ServiceKeeper.service()` eve
   supervisor latches it and removed when it is reset; a daemon started again comes
   back latched (`restore()`, before start). The present safe outputs are saved
   whenever they change, for `pamd safe-outputs`;
-* a loop the main thread sees stalled (no tick within `loop.stall_timeout_s`) is
-  persisted as a fault at once, so a daemon the watchdog had to kill comes back
-  latched;
+* a loop the main thread sees stalled past the stall fault limit (`pamd.stalls`:
+  `loop.stall_fault_s` or what the actuation holds by itself) is persisted as a
+  fault at once, so a daemon the watchdog had to kill comes back latched;
 * SIGHUP: the config is read again, validated and applied through the loop's
   mailbox (`pamd.service.reload`); changes that reopen the devices wait for IDLE
   and then restart the daemon in place (`pamd.service.restart`), where `pamd run`
@@ -50,6 +50,8 @@ from pamd.tick import State
 
 log = logging.getLogger("pamd")
 
+RT_SCAN_S = 1.0  # how often threads started meanwhile are raised below the loop
+
 
 class ServiceKeeper:
     """Main-thread housekeeping of one daemon: notify, persistence, reload."""
@@ -68,6 +70,7 @@ class ServiceKeeper:
         self.pings = 0
         self._next_ping = 0.0
         self._withholding = False
+        self._next_rt_scan = 0.0
         # persistence
         self.persisted: tuple[str, str] | None = None  # (state, reason) the fault file holds
         self.earlier: list[str] = []  # reasons persisted before, never reset
@@ -138,6 +141,14 @@ class ServiceKeeper:
         self.service_persistence()
         self._notify()
         self._reload()
+        self._raise_new_threads()
+
+    def _raise_new_threads(self) -> None:
+        loop = self.daemon.loop
+        now = time.monotonic()
+        if loop.running and now >= self._next_rt_scan:
+            self._next_rt_scan = now + RT_SCAN_S
+            loop.rt.raise_others(loop.notices.append)
 
     def service_persistence(self) -> None:
         self._persist_fault()
@@ -251,10 +262,10 @@ class ServiceKeeper:
         if self.paths is None or loop.virtual or not loop.running or self._stall_persisted:
             return
         gap = self.tick_gap_s()
-        if not gap > loop.stall_s or self.daemon.ctrl.supervisor.latched:
+        if not gap > loop.stall_fault_s or self.daemon.ctrl.supervisor.latched:
             return
         reason = (f"loop stalled: no tick completed for at least {1000 * gap:.0f} ms (limit "
-                  f"{1000 * loop.stall_s:.0f} ms), seen by the main thread")
+                  f"{1000 * loop.stall_fault_s:.0f} ms), seen by the main thread")
         if self._write_fault("FAULT", reason, ("FAULT", reason)):
             self._stall_persisted = True
             log.error("%s; saved as a latched fault in %s", reason, self.paths.fault)
@@ -395,7 +406,7 @@ class ServiceKeeper:
             self._finish()
             return
         old_gains, self.gains_cfg = self.gains_cfg, plan.cfg
-        self.daemon.loop.set_stall_timeout(plan.cfg.rig.loop.stall_timeout_s)
+        self.daemon.loop.set_stall_limits(plan.cfg)
         if plan.now:
             log.warning("reload: applied at once: %s", describe(plan.now, old_gains, plan.cfg))
         if verdict.get("deferred"):

@@ -8,7 +8,7 @@ the one it has, saying why. The changes of a valid one fall in three classes:
   own `muscles[].control.pid.*` and `rate_feedforward_s`) and
   timeouts (`safety.signal_timeout_s`, the signals' `timeout_s`,
   `safety.tracking_*`, `safety.hard_limit_hold_s`, `safety.startup_timeout_s`,
-  `loop.stall_timeout_s`);
+  `loop.stall_timeout_s`, `loop.stall_fault_s`);
 * only while IDLE (deferred until the rig is IDLE): limits and muscle data
   (`muscles[].limits.*`, `muscles[].load_kg`, `muscles[].nominal_length_mm`,
   the other `safety.*` keys, `control.slew_limit_bar_per_s`);
@@ -45,6 +45,7 @@ _RULE_TEXT: tuple[tuple[str, Kind], ...] = (
      r"|hard_limit_hold_s|startup_timeout_s)$", "now"),
     (r"^safety\.", "idle"),
     (r"^loop\.stall_timeout_s$", "now"),
+    (r"^loop\.stall_fault_s$", "now"),
     (r"^muscles\[\d+\]\.signals\.\w+\.(timeout_s|sample_period_s)$", "now"),
     (r"^muscles\[\d+\]\.(load_kg|nominal_length_mm)$", "idle"),
     (r"^muscles\[\d+\]\.limits\.", "idle"),

@@ -392,6 +392,7 @@ FAULT_KINDS: dict[str, tuple[str, ...]] = {
     "supply": ("lost",),
     "valve": ("stuck",),
     "driver": ("error",),
+    "loop": ("stall",),
 }
 
 
@@ -401,19 +402,28 @@ class SimFault:
     driver's `clear_faults`, e.g. by a test)."""
 
     at_s: float = _f(0.0, "Time after the driver opened at which the fault starts.", "s", 0.0)
-    muscle: str = _f("*", "The muscle it hits ('*' only for the whole driver, signal: driver).")
-    signal: Literal["pressure", "force", "length", "supply", "valve", "driver"] = _f(
+    muscle: str = _f("*", "The muscle it hits ('*' only for the whole driver, signal: driver, "
+                     "or the loop's process, signal: loop).")
+    signal: Literal["pressure", "force", "length", "supply", "valve", "driver", "loop"] = _f(
         "driver",
         "What fails: a sensor (pressure, force, length), the air supply, the regulator "
-        "(valve) or the whole device (driver).",
+        "(valve), the whole device (driver), or the loop's process (loop).",
     )
-    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error"] = _f(
+    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error", "stall"] = _f(
         "error",
         "Sensors: dead (reads 0), stuck (repeats its last value), noisy (adds noise of "
         "standard deviation `size`), jump (steps by `size` and stays), silent (no new "
         "samples); supply: lost; valve: stuck (the regulator ignores new setpoints); "
-        "driver: error (readings stop, writes dropped).",
+        "driver: error (readings stop, writes dropped); loop: stall (the loop's process "
+        "stops for `duration_s`, once: the tick holds Python's interpreter lock, so no "
+        "thread of the process runs, as when the process gets no CPU; needs the real "
+        "clock, a virtual one does not move meanwhile).",
     )
+    duration_s: float | None = spec(
+        None, "stall: how long the loop's process stops (required there, refused "
+        "elsewhere). Past the loop's stall fault limit (`loop.stall_fault_s`, derived "
+        "from the actuation) it latches FAULT; a shorter one is a `stall` event.",
+        unit="s", gt=0.0, max=10.0)
     size: float | None = _f(
         None,
         "noisy: noise standard deviation; jump: step; in the signal's unit (default: 0.3 "
@@ -424,6 +434,17 @@ class SimFault:
 #: Default `size` of a noisy / jump fault per sensor.
 NOISE_DEFAULT = {"pressure": 0.3, "force": 50.0, "length": 5.0}
 JUMP_DEFAULT = {"pressure": 1.0, "force": 200.0, "length": 20.0}
+
+
+@dataclass(frozen=True)
+class SimCommSafety:
+    """The simulated I/O's communication watchdog, as an I/O module's 'Comm Safety':
+    when the loop has not stepped the rig for `timeout_s` (it stalled), the outputs go to
+    the safe values pamd handed the driver (`set_safe_outputs`: on/off valves closed, a
+    regulator at its safe pressure) for the rest of the stall."""
+
+    timeout_s: float = spec(0.1, "Watchdog time: the outputs go to their safe values once "
+                            "the loop has been silent this long.", unit="s", gt=0.0, max=10.0)
 
 
 @dataclass(frozen=True)
@@ -451,6 +472,11 @@ class SimOptions:
         1.0,
         1000000.0,
     )
+    comm_safety: SimCommSafety | None = _f(
+        None, "The simulated I/O's communication watchdog (null: none; the outputs stay as "
+        "the loop set them through a stall). With on/off valves it bounds how long a valve "
+        "stays open while the loop stalls; it also sets the loop's stall fault limit "
+        "(`loop.stall_fault_s`).")
     faults: tuple[SimFault, ...] = _f(
         (),
         "Scripted faults, each {at_s, muscle, signal, kind[, size]}: how a rig reacts to a "
@@ -500,7 +526,11 @@ def check_options(options: SimOptions) -> list[str]:
                 f"{where}: a {f.signal} fault is one of {', '.join(FAULT_KINDS[f.signal])}, "
                 f"not {f.kind!r}"
             )
-        if f.signal == "driver":
+        if f.signal == "loop":
+            if f.muscle != "*":
+                problems.append(f"{where}: a loop stall stops the whole process: muscle "
+                                f"'*', not {f.muscle!r}")
+        elif f.signal == "driver":
             if f.muscle not in ("*", *names):
                 problems.append(f"{where}: no muscle {f.muscle!r} (muscles: {', '.join(names)})")
         elif f.muscle not in names:
@@ -508,6 +538,10 @@ def check_options(options: SimOptions) -> list[str]:
                 f"{where}: no muscle {f.muscle!r} in this sim driver (muscles: "
                 f"{', '.join(names)}); a {f.signal} fault names its muscle"
             )
+        if (f.kind == "stall") != (f.duration_s is not None):
+            problems.append(f"{where}: duration_s is " + (
+                "required by a stall (how long the loop's process stops)"
+                if f.kind == "stall" else f"only for a stall, not a {f.kind} fault"))
         if f.size is not None and (not math.isfinite(f.size) or
                                    (f.kind == "noisy" and f.size <= 0.0)):
             problems.append(f"{where}: size must be finite (and > 0 for noisy), got {f.size}")
