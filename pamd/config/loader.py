@@ -14,6 +14,7 @@ from importlib import resources
 from typing import Any, ClassVar, Protocol, cast
 
 from pamd.config.actuation import check_actuation, check_sim_sample_periods
+from pamd.config.chain import check_safety_chain
 from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.schema import (
     ControlConfig,
@@ -124,6 +125,7 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
     check_actuation(rig, raw.get("muscles", []), digital, ctx)
     check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
+    check_safety_chain(rig, raw.get("safety_chain"), ctx)
     ctx.raise_if_any()
     cal = rig.calibration_file or os.path.splitext(os.path.basename(path))[0] + ".cal.yaml"
     cal_path = os.path.join(os.path.dirname(os.path.abspath(path)), cal)

@@ -335,6 +335,7 @@ FAULT_KINDS: dict[str, tuple[str, ...]] = {
     "supply": ("lost",),
     "valve": ("stuck",),
     "driver": ("error",),
+    "safety_chain": ("open", "closed"),
 }
 
 
@@ -345,17 +346,23 @@ class SimFault:
 
     at_s: float = _f(0.0, "Time after the driver opened at which the fault starts.", "s", 0.0)
     muscle: str = _f("*", "The muscle it hits ('*' only for the whole driver, signal: driver).")
-    signal: Literal["pressure", "force", "length", "supply", "valve", "driver"] = _f(
+    signal: Literal["pressure", "force", "length", "supply", "valve", "driver",
+                    "safety_chain"] = _f(
         "driver",
-        "What fails: a sensor (pressure, force, length), the air supply, the regulator "
-        "(valve) or the whole device (driver).",
+        "What fails: a sensor (pressure, force, length), the air supply (of one muscle, or "
+        "with muscle '*' the rig's: the `supply` input reads 0), the regulator (valve), "
+        "the whole device (driver) or the hardware safety chain (safety_chain, muscle "
+        "'*').",
     )
-    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error"] = _f(
+    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error", "open",
+                  "closed"] = _f(
         "error",
         "Sensors: dead (reads 0), stuck (repeats its last value), noisy (adds noise of "
         "standard deviation `size`), jump (steps by `size` and stays), silent (no new "
         "samples); supply: lost; valve: stuck (the regulator ignores new setpoints); "
-        "driver: error (readings stop, writes dropped).",
+        "driver: error (readings stop, writes dropped); safety_chain: open (an e-stop "
+        "pressed: the chain's input reads 0 and the chain cuts the supply of every "
+        "muscle) or closed (released again: the air returns).",
     )
     size: float | None = _f(
         None,
@@ -394,6 +401,16 @@ class SimOptions:
         1.0,
         1000000.0,
     )
+    heartbeat_watchdog_s: float = _f(
+        0.0,
+        "A safety relay watching the `heartbeat` output: once it has toggled, a heartbeat "
+        "that stands still this long opens the safety chain (cutting the supply) until "
+        "the chain is closed again (a `closed` fault, `clear_faults`). 0: nothing "
+        "watches it.",
+        "s",
+        0.0,
+        10.0,
+    )
     faults: tuple[SimFault, ...] = _f(
         (),
         "Scripted faults, each {at_s, muscle, signal, kind[, size]}: how a rig reacts to a "
@@ -430,8 +447,10 @@ def check_options(options: SimOptions) -> list[str]:
                 f"{where}: a {f.signal} fault is one of {', '.join(FAULT_KINDS[f.signal])}, "
                 f"not {f.kind!r}"
             )
-        if f.signal == "driver":
-            if f.muscle not in ("*", *names):
+        if f.signal in ("driver", "supply", "safety_chain"):
+            if f.signal == "safety_chain" and f.muscle != "*":
+                problems.append(f"{where}: the safety chain is the rig's: muscle '*'")
+            elif f.muscle not in ("*", *names):
                 problems.append(f"{where}: no muscle {f.muscle!r} (muscles: {', '.join(names)})")
         elif f.muscle not in names:
             problems.append(
