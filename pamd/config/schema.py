@@ -361,6 +361,11 @@ class SafetyChainConfig:
         None, "A digital output the loop toggles every tick while it runs and no fault is "
         "latched, for an external safety relay or watchdog timer: it stops within one "
         "tick of a stall, a FAULT or an ESTOP.")
+    heartbeat_toggle_s: float = spec(
+        0.0, "Time between two changes of the heartbeat's level (0: every tick). A "
+        "field-bus output whose driver sends the latest value once per poll (Modbus) "
+        "needs several poll periods here, or the toggles alias away; the heartbeat still "
+        "stops within one tick of a stall or a fault.", unit="s", min=0.0, max=1.0)
     reset: SignalConfig | None = spec(
         None, "A physical reset button: a digital input, 1 = pressed. Its press (0 -> 1) "
         "acknowledges a latched FAULT or ESTOP as `pamd cmd reset` does, once the chain is "

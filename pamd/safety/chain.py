@@ -12,9 +12,10 @@ cannot make that chain safer, but it can see it and be seen by it
 * `supply`, the supply pressure (or a pressure switch). Below `supply_min_bar` the
   pressure loops hold their integrators (no PID wind-up while the air cannot
   follow); out for `supply_lost_s`, a FAULT "supply lost", the air held likewise.
-* `heartbeat`, a digital output toggled once per tick while the rig runs and no
-  fault is latched: a safety relay or watchdog timer sees it stop within one tick
-  of a stall (no tick toggles it), a FAULT or an ESTOP.
+* `heartbeat`, a digital output toggled once per tick (or every
+  `heartbeat_toggle_s`) while the rig runs and no fault is latched: a safety relay
+  or watchdog timer sees it stop within one tick of a stall (no tick toggles it), a
+  FAULT or an ESTOP.
 * `reset`, a push button: its press acknowledges a latched FAULT or ESTOP as the
   `reset` command does. The restart interlock: after the chain opened, nothing
   moves until an operator acknowledges, and not while the chain is open or the
@@ -64,6 +65,9 @@ class SafetyChain:
                                                       self.reset_input, self.heartbeat))
         self.supply_digital = (self.supply is not None and self.supply.driver.input_channels[
             self.supply.index].digital)
+        # ticks between two changes of the heartbeat's level
+        self.beat_ticks = max(1, round(c.heartbeat_toggle_s / cfg.period_s))
+        self._ticks_since_beat = 0
         self.supply_min_bar = c.supply_min_bar
         self.supply_lost_s = c.supply_lost_s
         self.reset_by = c.reset_by
@@ -147,8 +151,12 @@ class SafetyChain:
         stands still, and the relay watching it sees it stop."""
         hb = self.heartbeat
         if hb is not None and alive:
-            self.level = 1.0 - self.level
-            hb.write_si(self.level)
+            n = self._ticks_since_beat + 1
+            if n >= self.beat_ticks:
+                n = 0
+                self.level = 1.0 - self.level
+                hb.write_si(self.level)
+            self._ticks_since_beat = n
 
     def reset_block(self, by: str) -> str | None:
         """Why a reset `by` ("command" or "input") may not acknowledge now (the restart

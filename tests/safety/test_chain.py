@@ -143,6 +143,17 @@ def test_the_heartbeat_toggles_every_tick_and_stops_within_one_tick_of_a_fault(
     assert rig.h.sim.heartbeat_toggles - toggles0 == first
 
 
+def test_a_slower_heartbeat_for_a_field_bus_changes_every_heartbeat_toggle_s(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    rig = safety_rig(30.0, 3.0, safety_chain={**CHAIN, "heartbeat_toggle_s": 0.005})
+    rig.h.keep = True
+    rig.run(0.2)
+    beats = heartbeats(rig)
+    changes = [i for i in range(1, len(beats)) if beats[i] != beats[i - 1]]
+    assert len(changes) >= 35
+    assert {b - a for a, b in zip(changes, changes[1:], strict=False)} == {5}
+
+
 def test_a_stalled_loop_stops_the_heartbeat_and_the_relay_opens_the_chain(
         safety_rig: Callable[..., SafetyRig]) -> None:
     """The sim's safety relay watches the heartbeat (heartbeat_watchdog_s): a loop that
