@@ -408,9 +408,11 @@ class RigController:
         """True when every started muscle's setpoint has reached its safe pressure (or
         nothing was ever written); in FAULT or ESTOP, where the pressure loop is open,
         its valve command too (it follows the setpoint at the slew limit from the
-        command written when the fault struck)."""
+        command written when the fault struck). A muscle holding its air after the
+        safety chain opened or the supply was lost is at its safe state where it holds."""
         latched = self.supervisor.latched
-        return all(not m.started or (abs(m.setpoint_bar - m.safe_pressure_bar) <= 1e-6 and (
+        return all(not m.started or (latched and m.holding_air) or (
+            abs(m.setpoint_bar - m.safe_pressure_bar) <= 1e-6 and (
             not latched or abs(m.valve_cmd_bar - m.safe_pressure_bar) <= SAFE_CMD_BAND_BAR))
                    for m in self.muscles)
 

@@ -6,7 +6,9 @@ stall, and a lost supply holds the integrators and is named."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from pamd.tick import Flag, State
@@ -215,3 +217,20 @@ def test_a_lost_supply_holds_the_integrators_and_is_named(
     free = run()
     wound = [r["m1"]["pid_i_bar"] for r in free.h.records[at + 1:at + 480]]
     assert wound[-1] - wound[0] > 0.3
+
+
+def test_the_shipped_chain_rig_runs_to_an_estop_holding_its_air_from_the_cli(
+        pamd_here: Callable[..., Any], tmp_path: Path) -> None:
+    """config/sim-chain.yaml end to end (config, CLI, sim): the e-stop pressed at 2 s is
+    an ESTOP naming the chain; the run ends once its muscle holds its air (a hold is
+    the safe state there: it never ramps down to the safe pressure, so a run waiting
+    for that would go on to its duration and the 30 s ramp deadline after it)."""
+    cfg = Path(__file__).resolve().parents[2] / "config" / "sim-chain.yaml"
+    r = pamd_here("run", "--config", cfg, "--clock", "virtual", "--duration", "60",
+                  "--state-dir", tmp_path, "--no-record", "--json")
+    s = json.loads(r.stdout)
+    assert r.returncode == 1 and s["final_state"] == "ESTOP"
+    assert s["faults"][0].startswith("safety chain open (safety_chain.estop")
+    assert s["duration_s"] < 10.0  # ended once its air was held, not by the duration
+    assert s["outputs"]["m1"]["valve_cmd_bar"] >= 5.0  # held, never vented
+    assert "IDLE -> ESTOP: safety chain open" in r.stderr
