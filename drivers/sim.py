@@ -9,6 +9,14 @@ valve), or with on/off actuation `X.inflate` and `X.exhaust` (0 / 1: the inflate
 and exhaust solenoid valves). Inputs of muscle k are channels 3k..3k+2, outputs
 2k..2k+1.
 
+After the muscles' channels come the rig's hardware safety chain: inputs
+`safety_chain` (digital, 1 = the chain is closed), `supply` (bar, the supply
+pressure) and `reset` (digital, 1 = the reset button pressed), and the digital
+output `heartbeat`. The chain opening (the `safety_chain` fault `open`: an e-stop
+pressed, or the relay of `heartbeat_watchdog_s` seeing the heartbeat stand still)
+cuts the supply of every muscle, as a hardwired emergency stop does; `closed` (or
+`clear_faults`) brings the air back.
+
 The loop calls `advance(dt_s)` once per tick and then reads `in_values` /
 `in_stamps_s` / `in_jitter_s`: each reading stamped, on the loop's clock, with when
 its simulated device took the sample (jitter 0), or for a sensor on a bursty link
@@ -52,6 +60,8 @@ INPUTS_PER_MUSCLE = 3  # pressure, force, length
 OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
 
 SIGNALS: tuple[str, ...] = ("pressure", "force", "length")
+#: The rig's safety-chain inputs after the muscles' (their offsets from 3 x muscles).
+CHAIN_INPUTS: tuple[str, ...] = ("safety_chain", "supply", "reset")
 SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
 
 _OK, _STUCK, _DEAD, _SILENT, _NOISY, _JUMP = 0, 1, 2, 3, 4, 5
@@ -115,6 +125,16 @@ class SimDriver(Driver):
         self._watchdog_s: float | None = cs.timeout_s if cs is not None else None
         self._safe_outputs: dict[int, float] = {}
         self.watchdog_trips = 0  # steps that outlasted the comm watchdog
+        # the hardware safety chain (the rig's, beside the muscles)
+        self._n_muscle_in = INPUTS_PER_MUSCLE * len(options.muscles)
+        self._n_muscle_out = OUTPUTS_PER_MUSCLE * len(options.muscles)
+        self.chain_open = False
+        self.chain_opened_by = ""  # why it opened last ("e-stop", "heartbeat watchdog")
+        self.supply_lost = False  # the rig's supply (a `supply` fault of muscle '*')
+        self.reset_pressed = False
+        self.heartbeat = 0.0  # the heartbeat output's level as last written
+        self.heartbeat_toggles = 0
+        self._heartbeat_at: float | None = None  # when it last changed (None: never)
 
     # --- Driver protocol --------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
@@ -130,6 +150,9 @@ class SimDriver(Driver):
             first = (Channel(f"{m.name}.inflate", "out", "", digital=True)
                      if m.actuation == "onoff" else Channel(f"{m.name}.valve", "out", "bar"))
             outs += [first, Channel(f"{m.name}.exhaust", "out", "", digital=True)]
+        ins += [Channel("safety_chain", "in", "", digital=True), Channel("supply", "in", "bar"),
+                Channel("reset", "in", "", digital=True)]
+        outs.append(Channel("heartbeat", "out", "", digital=True))
         return ins + outs
 
     def open(self, clock: Clock) -> None:
@@ -146,6 +169,17 @@ class SimDriver(Driver):
         """
         if not 0 <= index < len(self.output_channels):
             raise IndexError(f"sim driver {self.name!r} has no output channel {index}")
+        if index >= self._n_muscle_out:  # the heartbeat
+            if self._driver_error or not math.isfinite(value):
+                self._dropped_writes += 1
+                return
+            self._writes += 1
+            level = 1.0 if value >= 0.5 else 0.0
+            if level != self.heartbeat:
+                self.heartbeat = level
+                self.heartbeat_toggles += 1
+                self._heartbeat_at = self._clock() if self._clock is not None else self._t_s
+            return
         k, j = divmod(index, OUTPUTS_PER_MUSCLE)
         plant = self._plants[k]
         if self._driver_error or not math.isfinite(value):
@@ -180,6 +214,11 @@ class SimDriver(Driver):
         self._t_s += dt_s
         clock = self._clock
         now_s = clock() if clock is not None else math.nan
+        wd = self.options.heartbeat_watchdog_s
+        if wd > 0.0 and self._heartbeat_at is not None and not self.chain_open:
+            t = now_s if clock is not None else self._t_s
+            if t - self._heartbeat_at > wd:  # the relay drops out: the chain opens
+                self._open_chain("heartbeat watchdog")
         if self._next_fault < len(self._schedule):
             # the schedule runs on the loop's clock (this tick's time), else on the steps
             elapsed = now_s - self._t_open + 1e-9 if clock is not None else self._t_s
@@ -210,6 +249,8 @@ class SimDriver(Driver):
         `length_absolute` is false (an incremental encoder that needs `home`)."""
         if not 0 <= index < len(self.input_channels):
             return False
+        if index >= self._n_muscle_in:  # the safety chain's inputs
+            return True
         k, j = divmod(index, INPUTS_PER_MUSCLE)
         return j != 2 or self.options.muscles[k].length_absolute
 
@@ -239,6 +280,8 @@ class SimDriver(Driver):
 
     def change_load(self, input_index: int, load_kg: float) -> bool:
         """The muscle whose input this is gets the new load at once."""
+        if not 0 <= input_index < self._n_muscle_in:
+            return False
         self._plants[input_index // INPUTS_PER_MUSCLE].set_load_kg(load_kg)
         return True
 
@@ -264,6 +307,22 @@ class SimDriver(Driver):
                 raise ValueError(f"driver fault kind must be 'error', got {kind!r}")
             self._driver_error = True
             self.fault = f"simulated rig {self.name!r} stopped answering (injected driver error)"
+            return
+        if signal == "safety_chain":
+            if kind == "open":
+                self._open_chain("e-stop")
+            elif kind == "closed":
+                self.chain_open = False
+                self._supply_air()
+            else:
+                raise ValueError(f"safety_chain fault kind must be 'open' or 'closed', "
+                                 f"got {kind!r}")
+            return
+        if signal == "supply" and muscle == "*":
+            if kind != "lost":
+                raise ValueError(f"supply fault kind must be 'lost', got {kind!r}")
+            self.supply_lost = True
+            self._supply_air()
             return
         k = self._muscle_index(muscle)
         if signal == "supply":
@@ -315,6 +374,33 @@ class SimDriver(Driver):
             plant.regulator.stuck = False
         self._driver_error = False
         self.fault = None
+        self.chain_open = False
+        self.supply_lost = False
+
+    def press_reset(self, pressed: bool = True) -> None:
+        """The reset button at the rig (the `reset` input): held while `pressed`."""
+        self.reset_pressed = pressed
+
+    @property
+    def supply_bar(self) -> float:
+        """What the supply's pressure sensor reads: the line's pressure (the highest
+        muscle supply without a shared line), 0 with the air cut."""
+        if self.chain_open or self.supply_lost:
+            return 0.0
+        if self.supply_line is not None:
+            return self.supply_line.pressure_bar
+        return max(m.supply_bar for m in self.options.muscles)
+
+    def _open_chain(self, by: str) -> None:
+        """The safety chain opens: its input reads 0 and it cuts every muscle's supply."""
+        self.chain_open = True
+        self.chain_opened_by = by
+        self._supply_air()
+
+    def _supply_air(self) -> None:
+        ok = not (self.chain_open or self.supply_lost)
+        for plant in self._plants:
+            plant.set_supply(ok)
 
     # --- internals ---------------------------------------------------------------
     def _muscle_index(self, muscle: str) -> int:
@@ -330,6 +416,11 @@ class SimDriver(Driver):
         values = self.in_values
         stamps = self.in_stamps_s
         jitters = self.in_jitter_s
+        c = self._n_muscle_in  # the safety chain's inputs, sampled at every step
+        values[c] = 0.0 if self.chain_open else 1.0
+        values[c + 1] = self.supply_bar
+        values[c + 2] = 1.0 if self.reset_pressed else 0.0
+        stamps[c] = stamps[c + 1] = stamps[c + 2] = now_s
         zero = self._len_zero_mm
         for k, plant in enumerate(self._plants):  # 0 unless a sensor's link is bursty
             i = 3 * k

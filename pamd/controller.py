@@ -20,8 +20,20 @@ from pamd.control.feedforward import LoadedModel
 from pamd.control.muscle import MuscleController
 from pamd.rig import Rig
 from pamd.safety import Supervisor, Transition
+from pamd.safety.chain import SafetyChain
 from pamd.safety.envelope import MuscleEnvelope
-from pamd.tick import I_SEGMENT, I_STATE, I_T, I_TICK, Sink, State, TickLayout
+from pamd.tick import (
+    I_CHAIN,
+    I_HEARTBEAT,
+    I_SEGMENT,
+    I_STATE,
+    I_SUPPLY,
+    I_T,
+    I_TICK,
+    Sink,
+    State,
+    TickLayout,
+)
 
 S_STARTING, S_IDLE, S_RUNNING, S_HOLD = (int(State.STARTING), int(State.IDLE),
                                          int(State.RUNNING), int(State.HOLD))
@@ -62,6 +74,8 @@ class RigController:
         ]
         self.by_name = {m.name: m for m in self.muscles}
         self.drivers = list(rig.drivers.values())
+        self.chain = SafetyChain(cfg, rig)  # the hardware safety chain's signals
+        self._air_out = False
         self.steppers = rig.steppers
         self.startup_timeout_s = cfg.rig.safety.startup_timeout_s
         self.t_start = 0.0
@@ -139,6 +153,12 @@ class RigController:
         if now > self.deadman_at:  # a streamed setpoint was not refreshed in time
             self._deadman(now)
             state = int(sup.state)
+        chain = self.chain
+        if chain.configured:
+            chain.read(now)
+            if state != S_STARTING:
+                self._chain(now, chain)
+                state = int(sup.state)
         # A fault latches as soon as it is found, so that every muscle ticked after it
         # enters the safe state in this same tick (a driver's fault: all of them); the
         # muscle that found it holds its own command to the safe state's invariants.
@@ -174,6 +194,13 @@ class RigController:
         rec[I_T] = now - self.t_start
         rec[I_STATE] = int(sup.state)
         rec[I_SEGMENT] = self._segment
+        if chain.configured:
+            chain.beat(not sup.latched)  # stands still from the tick a fault latches
+            rec[I_CHAIN] = chain.closed
+            rec[I_SUPPLY] = chain.supply_bar
+            rec[I_HEARTBEAT] = chain.level if chain.heartbeat is not None else math.nan
+        else:
+            rec[I_CHAIN] = rec[I_SUPPLY] = rec[I_HEARTBEAT] = math.nan
         self.tick_no += 1
         return rec
 
@@ -184,11 +211,11 @@ class RigController:
         untrusted length) ramps from its measured pressure to its safe pressure at the
         slew limit. The transition and one `startup` event per muscle say which, and
         why."""
-        missing = None
+        missing = self.chain.missing(now)
         for m in self.muscles:
-            missing = m.missing_input(now)
             if missing is not None:
                 break
+            missing = m.missing_input(now)
         if missing is None:
             held, ramped = [], []
             for m in self.muscles:
@@ -221,6 +248,66 @@ class RigController:
         elif now - self.t_start > self.startup_timeout_s:
             self.supervisor.fault(now, f"start-up: no reading from {missing} within "
                                   f"{self.startup_timeout_s:g} s; nothing was written")
+
+    def _chain(self, now: float, chain: SafetyChain) -> None:
+        """The safety chain's signals, read this tick (rare paths only past the first
+        comparisons): the chain open is an ESTOP, the supply lost a FAULT, each holding
+        the air; the supply out holds the integrators; the reset button acknowledges."""
+        sup = self.supervisor
+        air_out = chain.air_out
+        if air_out != self._air_out:
+            self._air_out = air_out
+            for m in self.muscles:
+                m.set_air_out(air_out)
+            self.sink.event(now, "supply", {
+                "state": "out" if air_out else "back", "supply_bar": chain.supply_bar,
+                "safety_chain": chain.closed})
+        why = chain.open_reason
+        if why is not None:
+            if sup.state != State.ESTOP:
+                self.sink.event(now, "safety_chain", {"state": "open", "reason": why})
+                for m in self.muscles:
+                    m.stop_profile()
+                sup.estop(now, why)
+            self._hold_air()  # also under an ESTOP latched before: the air is cut
+        elif why is None and chain.supply_reason is not None:
+            if not sup.latched:
+                sup.fault(now, chain.supply_reason)
+            if sup.latched:
+                self._hold_air()
+        if chain.reset_pressed and sup.latched:
+            refused = self.reset_latched("input")
+            self.sink.event(now, "reset", {"by": "input", "ok": refused is None,
+                                           "reason": refused or sup.reason})
+
+    def _hold_air(self) -> None:
+        for m in self.muscles:
+            m.hold_air()
+
+    def reset_latched(self, by: str) -> str | None:
+        """Acknowledge a latched FAULT or ESTOP (`by` "command" or "input": the reset
+        button). Returns why not (nothing changed), or None: every signal trusted
+        again, each muscle closing its loop from where it stands, IDLE. The restart
+        interlock: never while the safety chain is open or the supply out."""
+        sup = self.supervisor
+        if not sup.latched:
+            return f"nothing to reset: the rig is {sup.state.name}"
+        if self.chain.configured:
+            block = self.chain.reset_block(by)
+            if block is not None:
+                return f"cannot reset: {block}"
+        for m in self.muscles:
+            if m.started:
+                missing = m.missing_input(self.now)
+                if missing is not None:
+                    return f"cannot reset: {missing} still has no fresh reading"
+        for drv in self.drivers:
+            if drv.fault is not None:
+                return f"cannot reset: driver {drv.name!r} still reports {drv.fault}"
+        for m in self.muscles:
+            m.reset()  # every signal trusted again; the checks start afresh
+        sup.reset(self.now, "reset by operator" + (" (reset input)" if by == "input" else ""))
+        return None
 
     def _finding(self, now: float, m: MuscleController) -> None:
         """A reading that is no longer trusted: an event, whatever the state (a fault
@@ -332,9 +419,11 @@ class RigController:
         """True when every started muscle's setpoint has reached its safe pressure (or
         nothing was ever written); in FAULT or ESTOP, where the pressure loop is open,
         its valve command too (it follows the setpoint at the slew limit from the
-        command written when the fault struck)."""
+        command written when the fault struck). A muscle holding its air after the
+        safety chain opened or the supply was lost is at its safe state where it holds."""
         latched = self.supervisor.latched
-        return all(not m.started or (abs(m.setpoint_bar - m.safe_pressure_bar) <= 1e-6 and (
+        return all(not m.started or (latched and m.holding_air) or (
+            abs(m.setpoint_bar - m.safe_pressure_bar) <= 1e-6 and (
             not latched or abs(m.valve_cmd_bar - m.safe_pressure_bar) <= SAFE_CMD_BAND_BAR))
                    for m in self.muscles)
 
@@ -364,6 +453,14 @@ class RigController:
             "reason": sup.reason,
             "fault": sup.fault_reason,
             "reload": self.reload_note,
+            "safety_chain": None if not self.chain.configured else {
+                "closed": None if self.chain.closed != self.chain.closed
+                else bool(self.chain.closed),
+                "supply_bar": None if self.chain.supply_bar != self.chain.supply_bar
+                else self.chain.supply_bar,
+                "supply_out": self.chain.supply_out,
+                "reset_by": self.chain.reset_by,
+            },
             "muscles": {
                 m.name: {
                     "pressure_bar": m.pressure_bar, "setpoint_bar": m.setpoint_bar,

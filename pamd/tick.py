@@ -23,6 +23,9 @@ LOOP_FIELDS: tuple[str, ...] = (
     "state",  # supervisor State
     "lost_records",  # records the sink could not take since start (cumulative)
     "segment",  # experiment step + 1 (0 outside a plan): a new recording file each step
+    "safety_chain",  # the hardware safety chain: 1 closed, 0 open, NaN no chain input
+    "supply_bar",  # the supply pressure (safety_chain.supply; a switch: 0/1), NaN none
+    "heartbeat",  # the heartbeat output's level as written this tick (0/1; NaN none)
 )
 
 MUSCLE_FIELDS: tuple[str, ...] = (
@@ -114,7 +117,8 @@ class TickLayout:
 
 
 # Loop field offsets, for the tick path (no lookups per tick).
-I_TICK, I_T, I_WAKE, I_COMPUTE, I_OVERRUNS, I_STATE, I_LOST, I_SEGMENT = range(len(LOOP_FIELDS))
+(I_TICK, I_T, I_WAKE, I_COMPUTE, I_OVERRUNS, I_STATE, I_LOST, I_SEGMENT, I_CHAIN, I_SUPPLY,
+ I_HEARTBEAT) = range(len(LOOP_FIELDS))
 (
     M_PRESSURE,
     M_FORCE,

@@ -55,20 +55,9 @@ def _estop(ctrl: RigController, a: EstopArgs) -> dict[str, Any]:
 
 
 def _reset(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
-    sup = ctrl.supervisor
-    if not sup.latched:
-        raise CommandRefused(f"nothing to reset: the rig is {sup.state.name}")
-    for m in ctrl.muscles:
-        if m.started:
-            missing = m.missing_input(ctrl.now)
-            if missing is not None:
-                raise CommandRefused(f"cannot reset: {missing} still has no fresh reading")
-    for drv in ctrl.drivers:
-        if drv.fault is not None:
-            raise CommandRefused(f"cannot reset: driver {drv.name!r} still reports {drv.fault}")
-    for m in ctrl.muscles:
-        m.reset()  # every signal trusted again; the checks start afresh
-    sup.reset(ctrl.now)
+    refused = ctrl.reset_latched("command")  # the restart interlock included
+    if refused is not None:
+        raise CommandRefused(refused)
     return {}
 
 

@@ -14,6 +14,7 @@ from importlib import resources
 from typing import Any, ClassVar, Protocol, cast
 
 from pamd.config.actuation import check_actuation, check_sim_sample_periods, check_sim_stalls
+from pamd.config.chain import check_safety_chain
 from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.plausibility import check_plausibility_thresholds
 from pamd.config.schema import (
@@ -129,6 +130,7 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
     check_plausibility_thresholds(rig, raw, limits, ctx)
     check_sim_stalls(rig, drivers_node, ctx)
+    check_safety_chain(rig, raw.get("safety_chain"), ctx)
     ctx.raise_if_any()
     cal_path = None if not rig.calibration_file else os.path.join(
         os.path.dirname(os.path.abspath(path)), os.path.expanduser(rig.calibration_file))

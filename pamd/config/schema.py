@@ -385,6 +385,43 @@ class SafetyConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SafetyChainConfig:
+    estop: SignalConfig | None = spec(
+        None, "The emergency-stop input: a digital input of a driver that reads 1 while the "
+        "rig's hardware safety chain is closed (e-stop buttons, guards, the safety relay). "
+        "Read every tick: 0, or no fresh reading, is an ESTOP with the reason \"safety "
+        "chain open\", and the muscles hold their air (the chain cuts the supply: nothing "
+        "vents). null: no chain input (the chain still cuts the air; pamd then sees a "
+        "supply or tracking fault).")
+    supply: SignalConfig | None = spec(
+        None, "The supply pressure, SI unit bar (an analog input), or a pressure switch (a "
+        "digital input, 1 = pressure present). Below `supply_min_bar` the pressure loops "
+        "hold their integrators; for `supply_lost_s` it is a FAULT \"supply lost\".")
+    heartbeat: SignalConfig | None = spec(
+        None, "A digital output the loop toggles every tick while it runs and no fault is "
+        "latched, for an external safety relay or watchdog timer: it stops within one "
+        "tick of a stall, a FAULT or an ESTOP.")
+    heartbeat_toggle_s: float = spec(
+        0.0, "Time between two changes of the heartbeat's level (0: every tick). A "
+        "field-bus output whose driver sends the latest value once per poll (Modbus) "
+        "needs several poll periods here, or the toggles alias away; the heartbeat still "
+        "stops within one tick of a stall or a fault.", unit="s", min=0.0, max=1.0)
+    reset: SignalConfig | None = spec(
+        None, "A physical reset button: a digital input, 1 = pressed. Its press (0 -> 1) "
+        "acknowledges a latched FAULT or ESTOP as `pamd cmd reset` does, once the chain is "
+        "closed and the supply back.")
+    reset_by: Literal["either", "command", "input"] = spec(
+        "either", "Who may acknowledge a latched FAULT or ESTOP (the restart interlock): "
+        "`either` the `reset` command or the reset input; `input` only the "
+        "button at the rig (needs `reset`); `command` only `pamd cmd reset`.")
+    supply_min_bar: float = spec(4.0, "Supply pressure below which the supply counts as "
+                                 "out.", unit="bar", gt=0.0, max=16.0)
+    supply_lost_s: float = spec(0.1, "The supply out this long is a FAULT \"supply lost\" "
+                                "(shorter dips only hold the integrators).", unit="s",
+                                min=0.0, ceiling=1.0, max=10.0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class RecordingConfig:
     dir: str | None = spec(None, "Directory for the run's MCAP files (relative to the working "
                            "directory; null: no recording unless `pamd run --record DIR`).")
@@ -478,6 +515,10 @@ class RigConfig:
     muscles: tuple[MuscleConfig, ...] = spec(doc="The muscles of the rig.")
     control: ControlConfig = spec(ControlConfig(), "Control gains and slew limit.")
     safety: SafetyConfig = spec(SafetyConfig(), "Limits, timeouts and the safe state.")
+    safety_chain: SafetyChainConfig = spec(
+        SafetyChainConfig(), "The rig's hardware safety chain as signals: the emergency-stop "
+        "input, the supply pressure, the heartbeat output and the reset button "
+        "(docs/safety.md).")
     recording: RecordingConfig = spec(RecordingConfig(), "MCAP recording by the io process.")
     telemetry: TelemetryConfig = spec(TelemetryConfig(), "Live state, events, status and "
                                       "remote commands over Zenoh (pamd.net, in the io "

@@ -97,6 +97,8 @@ class MuscleController(MuscleView):
         self._valve_cmd_bar = math.nan
         self._profile: Profile | None = None
         self._safe_ramp = False
+        self._air_hold_bar = math.nan  # the air cut (safety chain, supply): held here
+        self._air_out = False
         self.finding: str | None = None  # a new plausibility finding (take_finding)
         self.limit_report: str | None = None  # a profile held at a soft limit (> 1 s)
         self._set_envelope(envelope)
@@ -205,6 +207,38 @@ class MuscleController(MuscleView):
             self.safe_ramp.pace(self._setpoint_bar, self._safe_pressure_bar, estop,
                                 duration_s)
 
+    def hold_air(self) -> None:
+        """The safety chain opened or the supply is lost (the rig controller, once the
+        ESTOP or FAULT latched): the air there is is all there will be, so the valves
+        close and hold it; nothing vents, not even to the safe pressure. The command
+        stands at the higher of the last command and the measured pressure (a regulator
+        commanded below its pressure would vent), and stays there until the reset."""
+        if not self._started or self._air_hold_bar == self._air_hold_bar:
+            return
+        u = self._valve_cmd_bar
+        p = self.inputs.pressure_bar
+        hold = u if not (self.inputs.pressure_ok and p > u) else p
+        self._air_hold_bar = hold if hold < self._max_pressure_bar else self._max_pressure_bar
+
+    def set_air_out(self, out: bool) -> None:
+        """The supply is out (`out`) or back. While out the pressure loop's integral
+        holds. When the air returns to a muscle still holding its air, the hold comes
+        down to the measured pressure, so that the returning air moves nothing before
+        the operator's reset (a leak while the air was cut is not refilled)."""
+        if out == self._air_out:
+            return
+        self._air_out = out
+        self.pressure_loop.hold_integral = out
+        hold = self._air_hold_bar
+        p = self.inputs.pressure_bar
+        if not out and hold == hold and self.inputs.pressure_ok and p < hold:
+            self._air_hold_bar = p if p > 0.0 else 0.0
+
+    @property
+    def holding_air(self) -> bool:
+        """The valves hold the air after the chain opened or the supply was lost."""
+        return self._air_hold_bar == self._air_hold_bar
+
     def clear_findings(self) -> None:
         """Trust every signal again; the checks start afresh."""
         self.plausibility.clear()
@@ -216,6 +250,7 @@ class MuscleController(MuscleView):
         started muscle closes its loop again from where it is, one never started holds
         its measured pressure."""
         self.clear_findings()
+        self._air_hold_bar = math.nan
         if self._started:
             self.pressure_loop.reset(self.inputs.pressure_bar)
             self._safe_ramp = False
@@ -317,7 +352,15 @@ class MuscleController(MuscleView):
         latched = state == S_FAULT or state == S_ESTOP
         safe = latched or self._safe_ramp
         lc = self.length_control
-        if safe:
+        air_hold = latched and self._air_hold_bar == self._air_hold_bar
+        if air_hold:  # the air is cut: the valves close and hold (hold_air)
+            if lc.active:
+                self.leave_length_mode()
+            sp = self._air_hold_bar
+            rate = 0.0
+            slew = (self._envelope.estop_slew_bar_per_s if state == S_ESTOP
+                    else self._envelope.safe_slew_bar_per_s)
+        elif safe:
             if lc.active:  # the safe state drops a length mode for good
                 self.leave_length_mode()
             ramp = self.safe_ramp
@@ -347,7 +390,8 @@ class MuscleController(MuscleView):
         # At a safe pressure of 0, once the setpoint is there, the loop stays open: the
         # exhaust vents, and a PID running on the sensor's noise would lift the command
         # off 0 and make the exhaust chatter.
-        venting = safe and self._safe_pressure_bar == 0.0 and sp <= VENT_BELOW_BAR
+        venting = (safe and not air_hold and self._safe_pressure_bar == 0.0
+                   and sp <= VENT_BELOW_BAR)
         loop = self.pressure_loop
         u = loop.step(sp, rate, p, p_ok and not latched and not venting, p_ok, dt)
         if lc.active and lc.position and loop.closed and self._onoff is None:
@@ -398,9 +442,11 @@ class MuscleController(MuscleView):
             onoff.position(inp.length_mm, inp.velocity_mm_s, lc.target_length_mm,
                                  lc.target_rate_mm_s,
                                  self._max_pressure_bar if hi > self._max_pressure_bar else hi)
-        if onoff is not None and safe and not venting:
+        if onoff is not None and safe and not venting and not air_hold:
             onoff.hold_floor(self._safe_pressure_bar)  # the valves never vent below it
-        flags |= self.actuation.write(u, p, now, dt, vent)
+        # Holding the air, no pressure is acted on: on/off valves both shut, a dump
+        # valve shut, the regulator at the held command.
+        flags |= self.actuation.write(u, math.nan if air_hold else p, now, dt, vent)
         if onoff is not None:
             stuck = onoff.take_fault()  # a valve open without the pressure moving its way
             if stuck is not None:

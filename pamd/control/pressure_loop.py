@@ -11,7 +11,10 @@ output (a sensor reading low had the PID hold the command above it): the limiter
 with that tick counted as the safe state's entry, moves the command from its last
 value at the safe slew, never below min(safe pressure, that value). After the
 limiter has clamped the command (`unwind`), the integral may move away from the
-clamp, never into it.
+clamp, never into it. While the supply is out (`hold_integral`, the safety chain's
+supply input: `pamd.safety.chain`) the integral holds: the pressure cannot follow
+without air, and a PID that integrated that error would have wound up by the time
+the air returns.
 Tick path: float arithmetic only.
 """
 
@@ -37,6 +40,7 @@ class PressureLoop:
         self.closed = False  # the loop was closed this tick
         self.flags = 0
         self._i_before = 0.0
+        self.hold_integral = False  # the supply is out: the integral holds
         self.relay = Relay()
 
     def set_gains(self, gains: PidConfig, rate_feedforward_s: float) -> None:
@@ -72,6 +76,9 @@ class PressureLoop:
             self._i_before = pid.i
             u = (setpoint_bar + self.rate_feedforward_s * rate_bar_per_s
                  + pid.step(setpoint_bar - pressure_bar, pressure_bar, dt))
+            if self.hold_integral:  # no air: the error is not the loop's to integrate
+                u -= pid.i - self._i_before
+                pid.i = self._i_before
             self.flags = F_SAT if pid.saturated else 0
             return u
         self._i_before = 0.0

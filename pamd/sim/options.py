@@ -393,6 +393,7 @@ FAULT_KINDS: dict[str, tuple[str, ...]] = {
     "valve": ("stuck",),
     "driver": ("error",),
     "loop": ("stall",),
+    "safety_chain": ("open", "closed"),
 }
 
 
@@ -403,13 +404,17 @@ class SimFault:
 
     at_s: float = _f(0.0, "Time after the driver opened at which the fault starts.", "s", 0.0)
     muscle: str = _f("*", "The muscle it hits ('*' only for the whole driver, signal: driver, "
-                     "or the loop's process, signal: loop).")
-    signal: Literal["pressure", "force", "length", "supply", "valve", "driver", "loop"] = _f(
+                     "the loop's process, signal: loop, or the safety chain).")
+    signal: Literal["pressure", "force", "length", "supply", "valve", "driver", "loop",
+                    "safety_chain"] = _f(
         "driver",
-        "What fails: a sensor (pressure, force, length), the air supply, the regulator "
-        "(valve), the whole device (driver), or the loop's process (loop).",
+        "What fails: a sensor (pressure, force, length), the air supply (of one muscle, or "
+        "with muscle '*' the rig's: the `supply` input reads 0), the regulator (valve), "
+        "the whole device (driver), the loop's process (loop) or the hardware safety "
+        "chain (safety_chain, muscle '*').",
     )
-    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error", "stall"] = _f(
+    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error", "stall",
+                  "open", "closed"] = _f(
         "error",
         "Sensors: dead (reads 0), stuck (repeats its last value), noisy (adds noise of "
         "standard deviation `size`), jump (steps by `size` and stays), silent (no new "
@@ -417,7 +422,9 @@ class SimFault:
         "driver: error (readings stop, writes dropped); loop: stall (the loop's process "
         "stops for `duration_s`, once: the tick holds Python's interpreter lock, so no "
         "thread of the process runs, as when the process gets no CPU; needs the real "
-        "clock, a virtual one does not move meanwhile).",
+        "clock, a virtual one does not move meanwhile); safety_chain: open (an e-stop "
+        "pressed: the chain's input reads 0 and the chain cuts the supply of every "
+        "muscle) or closed (released again: the air returns).",
     )
     duration_s: float | None = spec(
         None, "stall: how long the loop's process stops (required there, refused "
@@ -477,6 +484,16 @@ class SimOptions:
         "the loop set them through a stall). With on/off valves it bounds how long a valve "
         "stays open while the loop stalls; it also sets the loop's stall fault limit "
         "(`loop.stall_fault_s`).")
+    heartbeat_watchdog_s: float = _f(
+        0.0,
+        "A safety relay watching the `heartbeat` output: once it has toggled, a heartbeat "
+        "that stands still this long opens the safety chain (cutting the supply) until "
+        "the chain is closed again (a `closed` fault, `clear_faults`). 0: nothing "
+        "watches it.",
+        "s",
+        0.0,
+        10.0,
+    )
     faults: tuple[SimFault, ...] = _f(
         (),
         "Scripted faults, each {at_s, muscle, signal, kind[, size]}: how a rig reacts to a "
@@ -530,8 +547,10 @@ def check_options(options: SimOptions) -> list[str]:
             if f.muscle != "*":
                 problems.append(f"{where}: a loop stall stops the whole process: muscle "
                                 f"'*', not {f.muscle!r}")
-        elif f.signal == "driver":
-            if f.muscle not in ("*", *names):
+        elif f.signal in ("driver", "supply", "safety_chain"):
+            if f.signal == "safety_chain" and f.muscle != "*":
+                problems.append(f"{where}: the safety chain is the rig's: muscle '*'")
+            elif f.muscle not in ("*", *names):
                 problems.append(f"{where}: no muscle {f.muscle!r} (muscles: {', '.join(names)})")
         elif f.muscle not in names:
             problems.append(

@@ -27,9 +27,11 @@ def test_registered_as_sim_and_steps_with_the_loop() -> None:
 
 def test_empty_options_give_one_muscle_m1() -> None:
     drv = SimDriver("sim", SimOptions())
-    assert [c.name for c in drv.input_channels] == ["m1.pressure", "m1.force", "m1.length"]
-    assert [c.unit for c in drv.input_channels] == ["bar", "N", "mm"]
-    assert [c.name for c in drv.output_channels] == ["m1.valve", "m1.exhaust"]
+    # the muscle's, then the rig's safety chain (pamd.safety.chain)
+    assert [c.name for c in drv.input_channels] == ["m1.pressure", "m1.force", "m1.length",
+                                                     "safety_chain", "supply", "reset"]
+    assert [c.unit for c in drv.input_channels] == ["bar", "N", "mm", "", "bar", ""]
+    assert [c.name for c in drv.output_channels] == ["m1.valve", "m1.exhaust", "heartbeat"]
     assert drv.is_absolute(drv.input_index("m1.length"))
 
 
@@ -71,9 +73,9 @@ def test_two_muscles_have_their_own_channels_and_physics(make_rig) -> None:
 def test_stamps_are_the_clock_at_the_end_of_advance(make_rig) -> None:
     rig = make_rig()
     rig.step(0.001)
-    assert rig.driver.in_stamps_s == [0.001] * 3
+    assert rig.driver.in_stamps_s == [0.001] * 6  # the muscle's and the chain's
     rig.step(0.003)  # after skipped periods
-    assert rig.driver.in_stamps_s == [0.004] * 3
+    assert rig.driver.in_stamps_s == [0.004] * 6
     assert rig.plant.t_s == pytest.approx(0.004)
 
 
@@ -189,7 +191,7 @@ def test_driver_error_sets_fault_stops_readings_and_drops_writes(make_rig) -> No
     t_fault = rig.t_s
     rig.valve(3.0)
     rig.run(0.3)
-    assert rig.driver.in_stamps_s == [pytest.approx(t_fault)] * 3
+    assert rig.driver.in_stamps_s == [pytest.approx(t_fault)] * 6
     assert abs(rig.plant.pressure_bar) < 1e-9  # the failed device took no output
     rig.driver.clear_faults()
     assert rig.driver.fault is None and rig.driver.health().ok
@@ -296,6 +298,6 @@ def test_hard_stop_does_not_bounce(make_rig) -> None:
 def test_write_to_a_missing_channel_is_an_index_error(make_rig) -> None:
     drv = make_rig().driver
     with pytest.raises(IndexError):
-        drv.write(2, 1.0)
+        drv.write(3, 1.0)  # 0, 1: the muscle's valve and exhaust; 2: the heartbeat
     with pytest.raises(IndexError):
         drv.write(-1, 1.0)

@@ -85,7 +85,7 @@ def test_on_off_valves_conserve_air() -> None:
 def test_the_sim_driver_gives_an_onoff_muscle_digital_valve_outputs() -> None:
     drv = SimDriver("sim", SimOptions(muscles=(SimMuscleOptions(actuation="onoff"),)))
     names = [c.name for c in drv.output_channels]
-    assert names == ["m1.inflate", "m1.exhaust"]
+    assert names == ["m1.inflate", "m1.exhaust", "heartbeat"]  # + the safety chain's
     drv.open(lambda: 0.0)
     plant = drv.plant("m1")
     drv.write(drv.output_index("m1.inflate"), 1.0)
