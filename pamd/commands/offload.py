@@ -56,6 +56,17 @@ def warm_up(time_limit_s: float = 120.0) -> None:
     run_isolated(int, time_limit_s=time_limit_s, what="the file reader's start")
 
 
+def stop() -> None:
+    """Stop the forkserver and reap it, if it runs (before a restart in place: at the
+    exec it would see its pipe close, exit, and stay a zombie of the new daemon)."""
+    server = getattr(forkserver, "_forkserver", None)  # private, 3.4+
+    stop_server = getattr(server, "_stop", None)
+    if stop_server is None:
+        return
+    with _lock, contextlib.suppress(Exception):  # a leftover zombie: no reason not to go on
+        stop_server()
+
+
 def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
     if CHILD_NICE:
         with contextlib.suppress(OSError):

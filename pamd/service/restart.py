@@ -34,6 +34,7 @@ import threading
 from multiprocessing import resource_tracker
 from typing import NoReturn
 
+from pamd.commands import offload
 from pamd.service.notify import Notifier
 
 log = logging.getLogger("pamd")
@@ -98,6 +99,7 @@ def restart_in_place(argv: list[str], reason: str, stop_received: bool) -> NoRet
     log.warning("restarting in place (pid %d) to apply the new config: %s", os.getpid(),
                 reason)
     _stop_resource_tracker()
+    offload.stop()  # the file reader's forkserver, reaped (the new daemon starts its own)
     notifier = Notifier.from_environ()
     if notifier.watchdog_s is not None:  # widened; the new daemon's READY=1 sets it back
         notifier.send("WATCHDOG=1", f"WATCHDOG_USEC={int(STARTUP_WATCHDOG_S * 1e6)}")

@@ -77,6 +77,8 @@ class DaemonProc:
             env.pop(k, None)
         if "--duration" not in args:  # a daemon a test loses track of stops by itself
             args = [*args, "--duration", "600"]
+        if "--end-on-fault" not in args:  # it stands in for the service: a fault waits
+            args = [*args, "--stay-on-fault"]  # for a reset (a run with an end would end)
         with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
             self.proc = subprocess.Popen([sys.executable, "-m", "pamd", "run", "--json", *args],
                                          stdout=out, stderr=err, env=env, cwd=tmp)
