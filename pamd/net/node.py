@@ -15,9 +15,16 @@ mistyped fields, non-finite numbers (`parse_command`), muscles the rig lacks and
 pressures outside the limits, senders over their rate, anything while stopping.
 What passes goes through the loop's mailbox (or, for the verbs declared `main_thread`,
 `collect` and `model`, through the board to the daemon's main thread); the reply is
-the loop's verdict. The sender is the Zenoh id the query declares (`source_info`), the
-user the `user` selector parameter (`pamd/sim/cmd/hold?user=ana`): both declared, not
-authenticated.
+the loop's verdict, with the `rig` that gave it. The sender is the Zenoh id the query
+declares (`source_info`), the user the `user` selector parameter
+(`pamd/sim/cmd/hold?user=ana`): both declared, not authenticated.
+
+Who may command: a query whose attachment carries the daemon's token
+(`pamd.net.credential`), to this rig by name: a pattern (`pamd/*/cmd/...`) is refused.
+An `estop` acts from anyone, credential and pattern or not, and is recorded with who
+sent it; an `estop` or `stop` acts whatever its size or extra fields, the rest cut and
+recorded (`pamd.net.urgent`). Refusals are recorded one per kind per second, the next
+with the count of those between (a flood cannot grow the recording).
 """
 
 from __future__ import annotations
@@ -42,19 +49,22 @@ from pamd.errors import CommandRefused
 from pamd.net import zconf
 from pamd.net.answer import StatusAnswer
 from pamd.net.board import Board
+from pamd.net.credential import matches
 from pamd.net.keys import Keys
-from pamd.net.ratelimit import RateLimiter
+from pamd.net.ranges import PressureRanges
+from pamd.net.ratelimit import LineLimiter, RateLimiter, kind_of
 from pamd.net.seams import CommandPort, LoopStart, Query, RunClock, Verdict
 from pamd.net.spec import NetSpec
 from pamd.net.stats import TickStats
 from pamd.net.status import jsonsafe
 from pamd.net.telemetry import StateBatcher
+from pamd.net.urgent import salvage
 
 CLOSE_TIMEOUT_S = 3.0
 SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
-LIMITS_REFRESH_S = 1.0
-RATE_NOTE_S = 1.0
+RECORD_INTERVAL_S = 1.0  # a refusal of each kind recorded at most once per this
+ESTOP = "estop"
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
 
 RecordFn = Callable[[float, str, dict[str, Any]], None]
@@ -79,6 +89,7 @@ class NetNode:
         self.stats = TickStats()
         self.answer = StatusAnswer(spec, io_spec, self.stats)
         self.limiter = RateLimiter(spec.command_rate_per_s, spec.command_burst)
+        self.ranges = PressureRanges(spec.muscles, lambda: self.board)
         self.session: Any = None
         self.board: Board | None = None
         self.token: Any = None
@@ -94,11 +105,10 @@ class NetNode:
         self.last_t_s = 0.0
         self.rows_mono = time.monotonic()  # when tick records last came in
         self.t0_wall: float | None = None
-        self._limits: dict[str, float] = {}
-        self._limits_t = -1e9
-        self._rate_note_t = -1e9
+        self.records = LineLimiter(RECORD_INTERVAL_S)  # refusals recorded per kind
+        self.notes: dict[int, str] = {}  # what was cut of an estop or stop, by query
         self.counts = {"state_puts": 0, "events": 0, "commands": 0, "refused_here": 0,
-                       "rate_limited": 0, "status_queries": 0}
+                       "rate_limited": 0, "no_credential": 0, "status_queries": 0}
 
     # -- life cycle ---------------------------------------------------------------------
     def open(self) -> str | None:
@@ -251,6 +261,11 @@ class NetNode:
                             f"no verdict from the loop within "
                             f"{self.spec.command_timeout_s:g} s; the {verb} command may "
                             "still be applied (see status)")})
+        if self.records.dropped:
+            with self.lock:  # the rest of a flood of refusals, counted
+                for kind, n in self.records.due(time.monotonic()):
+                    self._record_io("refusals", {"kind": kind, "refused_unrecorded": n,
+                                                 "rig": self.spec.rig_id})
         if self.to_record:
             self._flush_records()
         self.stats.refresh(now)
@@ -293,17 +308,50 @@ class NetNode:
 
     # -- commands ---------------------------------------------------------------------------
     def _refuse(self, q: Query, key: str, verb: str, args: bytes, sender: str, user: str,
-                error: str, record: bool = True) -> None:
+                error: str, record: bool = True, kind: str | None = None) -> None:
+        """Answer a refusal; record it (one per kind per RECORD_INTERVAL_S, the next
+        saying how many like it were refused meanwhile: a flood of refusals cannot
+        grow the recording)."""
         self.counts["refused_here"] += 1
-        verdict = {"ok": False, "error": error}
+        verdict = {"ok": False, "error": error, "rig": self.spec.rig_id}
+        dropped = None
         if record:
+            dropped = self.records.admit(kind or kind_of(f"{verb[:40]}:{error}", 80),
+                                         time.monotonic())
+        if dropped is not None:
             data = {"verb": cap_text(verb, 40), "args": args_for_record(args),
                     "sender": sender, "user": user, "by": "io", **verdict}
-            now = self.loop_now()
-            self.to_record.append((now, "command", data))  # recorded by the io loop
-            t0 = self._t_start()
-            self._publish_event("command", data, None if t0 is None else now - t0)
+            if dropped:
+                data["refused_unrecorded"] = dropped  # like it since the last recorded
+            self._record_io("command", data)
         self._send(q, key, json.dumps(verdict).encode())
+
+    def _record_io(self, kind: str, data: dict[str, Any]) -> None:
+        now = self.loop_now()
+        self.to_record.append((now, kind, data))  # recorded by the io loop
+        t0 = self._t_start()
+        self._publish_event(kind, data, None if t0 is None else now - t0)
+
+    def _note_cut(self, verb: str, raw: bytes, sender: str, user: str, note: str) -> None:
+        """An estop or stop honoured with part of its payload cut: recorded (as its
+        refusals are, one per interval with the count)."""
+        dropped = self.records.admit(f"cut:{verb}", time.monotonic())
+        if dropped is not None:
+            data: dict[str, Any] = {"verb": verb, "args": args_for_record(raw),
+                                    "sender": sender, "user": user, "note": note}
+            if dropped:
+                data["cut_unrecorded"] = dropped
+            self._record_io("command_cut", data)
+
+    def _credentialed(self, q: Query) -> bool:
+        if not self.spec.token_sha256:
+            return True  # a spec without a token (built by hand): commands are open
+        try:
+            att = q.attachment
+            presented = att.to_bytes() if att is not None else None
+        except Exception:
+            presented = None
+        return matches(presented, self.spec.token_sha256)
 
     def _on_command(self, q: Query) -> None:
         """Zenoh's callback thread: refused at once, or into the loop's mailbox."""
@@ -332,40 +380,63 @@ class NetNode:
         sender = f"zenoh:{zid}" if zid else "zenoh"
         user = cap_text(q.parameters.get("user") or "", MAX_WHO_CHARS)
         raw = q.payload.to_bytes() if q.payload is not None else b""
-        if len(raw) > MAX_PAYLOAD_BYTES:
-            self._refuse(q, key, cap_text(verb, 40), raw, sender, user,
-                         f"payload of {len(raw)} bytes, above the limit of "
-                         f"{MAX_PAYLOAD_BYTES} bytes; not taken")
-            return
-        text = raw.decode("utf-8", "replace")
         if "*" in verb or "$" in verb:
             self._refuse(q, key, verb, raw, sender, user,
                          "name one verb: pamd/<rig>/cmd/<verb>", record=False)
             return
         urgent = REGISTRY.is_urgent(verb)  # estop, stop: they reach the loop while it runs
+        pattern = Keys.rig_of(key) != self.spec.rig_id  # `pamd/*/cmd/...`, `pamd/**`
+        credentialed = self._credentialed(q)
+        if verb == ESTOP:  # anyone who reaches the daemon may stop the rig
+            if not credentialed:
+                sender = cap_text(f"{sender} (no credential)", MAX_WHO_CHARS)
+        elif pattern:
+            self._refuse(q, key, verb, raw, sender, user, (
+                f"name the rig: pamd/{self.spec.rig_id}/cmd/{verb}, not the pattern "
+                f"{cap_text(key, 80)!r}; rig ids are names (only an estop acts on a "
+                "pattern); not taken"), kind="pattern")
+            return
+        elif not credentialed:
+            self.counts["no_credential"] += 1
+            self._refuse(q, key, verb, raw, sender, user, (
+                f"{verb} needs the daemon's command credential: the token in "
+                f"{self.spec.token_file or 'its token file'} (readable by the daemon's user "
+                "and group; pamd cmd and pamd.connect find it there, or give --token-file "
+                "/ PAMD_TOKEN_FILE); not taken"), kind="credential")
+            return
         if (self.stop_reason is not None and not urgent) or self.closing:
             self._refuse(q, key, verb, raw, sender, user,
                          f"the daemon is stopping ({self.stop_reason}); command not taken")
             return
         if not urgent and not self.limiter.allow(zid or "unidentified", now):
             self.counts["rate_limited"] += 1
-            note = now - self._rate_note_t >= RATE_NOTE_S
-            if note:
-                self._rate_note_t = now
             self._refuse(q, key, verb, raw, sender, user, (
                 f"rate limited: more than {self.spec.command_rate_per_s:g} commands/s "
-                f"(burst {self.spec.command_burst}) from {sender}; not taken"), record=note)
+                f"(burst {self.spec.command_burst}) from {sender}; not taken"), kind="rate")
             return
-        try:
-            payload = json.loads(text) if text.strip() else {}
-        except (ValueError, RecursionError) as exc:
-            why = exc if isinstance(exc, ValueError) else "nested too deep"
-            self._refuse(q, key, verb, raw, sender, user, f"malformed JSON: {why}")
+        note = ""
+        if urgent:  # honoured whatever came with it; the rest cut and said so
+            payload, note = salvage(verb, raw)
+            if note:
+                self._note_cut(verb, raw, sender, user, note)
+        elif len(raw) > MAX_PAYLOAD_BYTES:
+            self._refuse(q, key, cap_text(verb, 40), raw, sender, user,
+                         f"payload of {len(raw)} bytes, above the limit of "
+                         f"{MAX_PAYLOAD_BYTES} bytes; not taken", kind="size")
             return
+        else:
+            text = raw.decode("utf-8", "replace")
+            try:
+                payload = json.loads(text) if text.strip() else {}
+            except (ValueError, RecursionError) as exc:
+                why = exc if isinstance(exc, ValueError) else "nested too deep"
+                self._refuse(q, key, verb, raw, sender, user, f"malformed JSON: {why}",
+                             kind="json")
+                return
         try:
             parse_command(verb, payload, sender=sender, user=user)
             payload = cap_payload(payload)  # what goes on: text fields capped
-            self._check_ranges(verb, payload)
+            self.ranges.check(verb, payload)
         except CommandRefused as exc:
             self._refuse(q, key, verb, raw, sender, user, str(exc))
             return
@@ -373,6 +444,8 @@ class NetNode:
         self.next_id += 1
         deadline = now + self.spec.command_timeout_s
         self.waiting[k] = (q, deadline, verb, None)
+        if note:
+            self.notes[k] = note
         if verb in REGISTRY.main_thread:
             assert self.board is not None
             blob = json.dumps({"id": k, "verb": verb, "payload": payload, "sender": sender,
@@ -402,39 +475,9 @@ class NetNode:
         if cid is not None:
             self.port.waiting.pop(cid, None)
         out = {key: v for key, v in verdict.items() if key != "id"}
+        out["rig"] = self.spec.rig_id  # every verdict names the rig that gave it
+        note = self.notes.pop(k, None)
+        if note:
+            out["cut"] = note
         body = json.dumps(jsonsafe(out), default=str).encode()
         self._send(q, self.keys.cmd(verb), body)
-
-    def _check_ranges(self, verb: str, p: dict[str, Any]) -> None:
-        """Muscle names and pressures against the limits, before the mailbox (the loop
-        checks again against the present state)."""
-        muscle = p.get("muscle")
-        if isinstance(muscle, str) and muscle not in self.spec.muscles:
-            raise CommandRefused(f"no muscle named {muscle!r}; muscles: "
-                                 f"{', '.join(self.spec.muscles)}")
-        fields = REGISTRY.pressure_fields.get(verb)
-        if not fields:
-            return
-        limits = self._pressure_limits()
-        for name in [muscle] if isinstance(muscle, str) else list(self.spec.muscles):
-            top = limits.get(name)
-            for f in fields:
-                v = p.get(f)
-                if isinstance(v, (int, float)) and not isinstance(v, bool) and (
-                        v < 0.0 or (top is not None and v > top)):
-                    rng = f"0-{top:g} bar" if top is not None else "at least 0 bar"
-                    raise CommandRefused(f"{name}: {f}={v:g} is outside {rng}")
-
-    def _pressure_limits(self) -> dict[str, float]:
-        now = time.monotonic()
-        if now - self._limits_t >= LIMITS_REFRESH_S and self.board is not None:
-            got = self.board.read_status()
-            if got is not None:
-                self._limits_t = now
-                try:
-                    ms = json.loads(got[0]).get("muscles", {})
-                    self._limits = {n: float(m["limits"]["max_pressure_bar"])
-                                    for n, m in ms.items()}
-                except (ValueError, KeyError, TypeError, AttributeError):
-                    pass
-        return self._limits
