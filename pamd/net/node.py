@@ -51,6 +51,7 @@ from pamd.net.answer import StatusAnswer
 from pamd.net.board import Board
 from pamd.net.credential import matches
 from pamd.net.keys import Keys
+from pamd.net.memory import trim_heap
 from pamd.net.ranges import PressureRanges
 from pamd.net.ratelimit import LineLimiter, RateLimiter, kind_of
 from pamd.net.seams import CommandPort, LoopStart, Query, RunClock, Verdict
@@ -65,6 +66,7 @@ SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most t
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
 RECORD_INTERVAL_S = 1.0  # a refusal of each kind recorded at most once per this
 ESTOP = "estop"
+TRIM_PERIOD_S = 5.0  # the heap's free memory goes back to the system this often
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
 
 RecordFn = Callable[[float, str, dict[str, Any]], None]
@@ -105,6 +107,7 @@ class NetNode:
         self.last_t_s = 0.0
         self.rows_mono = time.monotonic()  # when tick records last came in
         self.t0_wall: float | None = None
+        self.trim_t = time.monotonic()
         self.records = LineLimiter(RECORD_INTERVAL_S)  # refusals recorded per kind
         self.notes: dict[int, str] = {}  # what was cut of an estop or stop, by query
         self.counts = {"state_puts": 0, "events": 0, "commands": 0, "refused_here": 0,
@@ -268,6 +271,9 @@ class NetNode:
                                                  "rig": self.spec.rig_id})
         if self.to_record:
             self._flush_records()
+        if now - self.trim_t >= TRIM_PERIOD_S:
+            self.trim_t = now
+            trim_heap()
         self.stats.refresh(now)
         return work
 

@@ -19,6 +19,9 @@ from pamd.errors import ConfigError, ConfigIssue, PamdError
 from pamd.net.tlsprobe import diagnose, listen_error
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+#: client sessions a daemon's own endpoint takes at once (each costs the io process
+#: some 170 kB while connected): memory bounded, whatever clients do
+MAX_SESSIONS = 100
 SCOUTING_KEYS = ("scouting/multicast/enabled", "scouting/gossip/enabled")
 
 
@@ -79,14 +82,16 @@ def endpoints(cfg: ZenohConfig, which: str) -> list[str]:
 
 
 def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN) -> Any:
-    """The daemon's session: the file as given, or a peer listening on `listen`."""
+    """The daemon's session: the file as given, or a peer listening on `listen` that
+    takes at most MAX_SESSIONS client sessions at once."""
     zenoh = _zenoh()
     if file is not None:
         cfg = load_file(file)
     else:
         cfg = zenoh.Config.from_json5(json.dumps(
             {"mode": "peer", "listen": {"endpoints": [listen]},
-             "connect": {"endpoints": []}}))
+             "connect": {"endpoints": []},
+             "transport": {"unicast": {"max_sessions": MAX_SESSIONS}}}))
     return secure(cfg)
 
 
