@@ -133,7 +133,7 @@ class NetNode:
                                               priority=zenoh.Priority.DATA_HIGH)
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         self.status_q = s.declare_queryable(k.status, self._on_status, complete=True)
-        self.cmd_q = s.declare_queryable(k.cmd_all, self._on_command, complete=True)
+        self.cmd_q = s.declare_queryable(k.cmd_all, self.on_command, complete=True)
         self.token = s.liveliness().declare_token(k.alive)
         self.zid = str(s.zid())
         self._publish_event("run_start", {"rig_id": self.spec.rig_id, "zid": self.zid,
@@ -154,7 +154,7 @@ class NetNode:
                 self._resolve(k, {"ok": False, "error": f"the daemon stopped ({reason}) "
                                   "before the loop gave its verdict; the command was not "
                                   "applied"})
-        self._flush_records()
+        self.flush_records()
         s = self.session
         self.session = None
 
@@ -270,7 +270,7 @@ class NetNode:
                     self._record_io("refusals", {"kind": kind, "refused_unrecorded": n,
                                                  "rig": self.spec.rig_id})
         if self.to_record:
-            self._flush_records()
+            self.flush_records()
         if now - self.trim_t >= TRIM_PERIOD_S:
             self.trim_t = now
             trim_heap()
@@ -282,7 +282,7 @@ class NetNode:
         on the board's request ring by the next poll (the io loop's thread)."""
         self.to_main.append(json.dumps({"notice": msg}, default=str).encode())
 
-    def _flush_records(self) -> None:
+    def flush_records(self) -> None:
         """Events of the query callbacks into the recording (the io loop's thread)."""
         while self.to_record:
             self.record(*self.to_record.popleft())
@@ -359,7 +359,7 @@ class NetNode:
             presented = None
         return matches(presented, self.spec.token_sha256)
 
-    def _on_command(self, q: Query) -> None:
+    def on_command(self, q: Query) -> None:
         """Zenoh's callback thread: refused at once, or into the loop's mailbox."""
         with self.lock:
             try:

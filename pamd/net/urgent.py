@@ -97,7 +97,7 @@ def salvage(verb: str, raw: bytes) -> tuple[dict[str, Any], str]:
         reason = out.get("reason")
         base = reason if isinstance(reason, str) else DEFAULT_REASON.get(verb, verb)
         tail = f" [pamd: {note}]"
-        room = max(MAX_TEXT_CHARS - len(tail), 40)
+        room = max(MAX_TEXT_CHARS - len(tail) - 3, 40)
         out["reason"] = (base if len(base) <= room else base[:room] + "...") + tail
     return out, note
 
