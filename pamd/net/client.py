@@ -22,6 +22,7 @@ import json
 import re
 from typing import Any
 
+from pamd.commands import REGISTRY
 from pamd.config.names import CHUNK_RE
 from pamd.errors import PamdError
 from pamd.net import zconf
@@ -100,10 +101,14 @@ class Client:
 
     # -- queries ----------------------------------------------------------------------------
     def _get(self, selector: str, payload: bytes | None, timeout_s: float,
-             token: str | None = None) -> dict[str, Any]:
+             token: str | None = None, urgent: bool = False) -> dict[str, Any]:
+        """`urgent` (an estop or stop): never dropped on the way (a large one goes in
+        fragments, which the drop policy may lose), at the highest priority."""
         z = self.zenoh
-        kw: dict[str, Any] = {"timeout": timeout_s,
-                              "congestion_control": z.CongestionControl.DROP}
+        kw: dict[str, Any] = {"timeout": timeout_s, "congestion_control": (
+            z.CongestionControl.BLOCK if urgent else z.CongestionControl.DROP)}
+        if urgent:
+            kw["priority"] = z.Priority.REAL_TIME
         if payload is not None:
             kw.update(payload=payload, encoding=z.Encoding.APPLICATION_JSON,
                       source_info=z.SourceInfo(self.session.id, next(self._sn)))
@@ -149,7 +154,7 @@ class Client:
         user = re.sub(r"[^\w.@-]", "_", user)  # one selector parameter, nothing more
         sel = Keys(rig).cmd(verb) + (f"?user={user}" if user else "")
         token, where = find_token(rig, self.token_file)
-        verdict = self._get(sel, body, timeout_s, token)
+        verdict = self._get(sel, body, timeout_s, token, REGISTRY.is_urgent(verb))
         if token is None and "credential" in str(verdict.get("error", "")):
             verdict["error"] = f"{verdict['error']} (no token found: looked in {where})"
         return verdict
