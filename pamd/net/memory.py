@@ -4,7 +4,7 @@ Zenoh (Rust, on the system allocator) and the Foxglove server allocate per clien
 session (buffers, queues); freed, that memory stays in glibc's arenas, so the io
 process's RSS grew with each wave of clients (+1.5 MB a wave of 50, 4 waves) although
 nothing leaked. `trim_heap` (glibc `malloc_trim(0)`, a few ms at most, the interpreter
-lock released) returns what is free; the io loop calls it every few seconds. Not
+lock released) returns what is free; the io loop calls it every 2 s. Not
 glibc: nothing to do.
 """
 

@@ -66,7 +66,7 @@ SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most t
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
 RECORD_INTERVAL_S = 1.0  # a refusal of each kind recorded at most once per this
 ESTOP = "estop"
-TRIM_PERIOD_S = 5.0  # the heap's free memory goes back to the system this often
+TRIM_PERIOD_S = 2.0  # the heap's free memory goes back to the system this often
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
 
 RecordFn = Callable[[float, str, dict[str, Any]], None]
