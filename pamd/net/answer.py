@@ -39,7 +39,7 @@ class StatusAnswer:
         """The JSON answer: `snapshot` is the board's (blob, age in s) or None, `now` and
         `rows_mono` (when tick records last came in) are monotonic times."""
         if snapshot is None:
-            return json.dumps({"ok": False,
+            return json.dumps({"ok": False, "rig_id": self.spec.rig_id,
                                "error": "no status yet: the daemon is starting"}).encode()
         blob, age = snapshot
         try:

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from pamd.net import credential as cr
-from pamd.net.client import BadRigName, rig_name
+from pamd.net.client import BadRigName, Client, rig_name
+from pamd.net.zconf import NoDaemon
 
 
 @pytest.fixture
@@ -90,3 +91,15 @@ def test_a_rig_id_that_is_a_pattern_is_refused_by_the_client(rig: str) -> None:
 
 def test_a_rig_name_passes() -> None:
     assert rig_name("sim") == "sim" and rig_name("lab-2.rig_a") == "lab-2.rig_a"
+
+
+def test_a_client_with_no_rig_named_refuses_when_several_answer_and_lists_them() -> None:
+    c = Client.__new__(Client)  # no session: the rigs alive are given
+    c.where = "tcp/127.0.0.1:7447"
+    c.rigs = lambda timeout_s=1.5: ["bench-a", "sim"]  # type: ignore[method-assign]
+    with pytest.raises(NoDaemon, match="several rigs answer via tcp/127.0.0.1:7447: "
+                       "bench-a, sim; name one with --rig"):
+        c.rig(None)
+    assert c.rig("sim") == "sim"  # named: no question asked
+    c.rigs = lambda timeout_s=1.5: ["sim"]  # type: ignore[method-assign]
+    assert c.rig(None) == "sim"
