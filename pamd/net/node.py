@@ -23,8 +23,10 @@ Who may command: a query whose attachment carries the daemon's token
 (`pamd.net.credential`), to this rig by name: a pattern (`pamd/*/cmd/...`) is refused.
 An `estop` acts from anyone, credential and pattern or not, and is recorded with who
 sent it; an `estop` or `stop` acts whatever its size or extra fields, the rest cut and
-recorded (`pamd.net.urgent`). Refusals are recorded one per kind per second, the next
-with the count of those between (a flood cannot grow the recording).
+recorded (`pamd.net.urgent`); beyond its sender's rate it joins the same verb's
+command that waits for its verdict, if any, and gets that verdict. Refusals are
+recorded one per kind per second, the next with the count of those between (a flood
+cannot grow the recording).
 """
 
 from __future__ import annotations
@@ -41,7 +43,6 @@ from typing import Any, Protocol
 from pamd.commands import REGISTRY, parse_command
 from pamd.commands.schema import (
     MAX_WHO_CHARS,
-    args_for_record,
     cap_payload,
     cap_text,
 )
@@ -53,7 +54,8 @@ from pamd.net.credential import matches
 from pamd.net.keys import Keys
 from pamd.net.memory import trim_heap
 from pamd.net.ranges import PressureRanges
-from pamd.net.ratelimit import LineLimiter, RateLimiter, kind_of
+from pamd.net.ratelimit import RateLimiter
+from pamd.net.refusals import RefusalLog
 from pamd.net.seams import CommandPort, LoopStart, Query, RunClock, Verdict
 from pamd.net.spec import NetSpec
 from pamd.net.stats import TickStats
@@ -64,7 +66,6 @@ from pamd.net.urgent import salvage
 CLOSE_TIMEOUT_S = 3.0
 SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
-RECORD_INTERVAL_S = 1.0  # a refusal of each kind recorded at most once per this
 ESTOP = "estop"
 TRIM_PERIOD_S = 2.0  # the heap's free memory goes back to the system this often
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
@@ -108,10 +109,12 @@ class NetNode:
         self.rows_mono = time.monotonic()  # when tick records last came in
         self.t0_wall: float | None = None
         self.trim_t = time.monotonic()
-        self.records = LineLimiter(RECORD_INTERVAL_S)  # refusals recorded per kind
+        self.refusals = RefusalLog(self._record_io, spec.rig_id)  # recorded per kind
         self.notes: dict[int, str] = {}  # what was cut of an estop or stop, by query
+        self.joined: dict[int, list[Query]] = {}  # estops or stops answered with another's
         self.counts = {"state_puts": 0, "events": 0, "commands": 0, "refused_here": 0,
-                       "rate_limited": 0, "no_credential": 0, "status_queries": 0}
+                       "rate_limited": 0, "no_credential": 0, "joined": 0,
+                       "status_queries": 0}
 
     # -- life cycle ---------------------------------------------------------------------
     def open(self) -> str | None:
@@ -264,11 +267,9 @@ class NetNode:
                             f"no verdict from the loop within "
                             f"{self.spec.command_timeout_s:g} s; the {verb} command may "
                             "still be applied (see status)")})
-        if self.records.dropped:
+        if self.refusals.pending:
             with self.lock:  # the rest of a flood of refusals, counted
-                for kind, n in self.records.due(time.monotonic()):
-                    self._record_io("refusals", {"kind": kind, "refused_unrecorded": n,
-                                                 "rig": self.spec.rig_id})
+                self.refusals.flush_due()
         if self.to_record:
             self.flush_records()
         if now - self.trim_t >= TRIM_PERIOD_S:
@@ -320,16 +321,8 @@ class NetNode:
         grow the recording)."""
         self.counts["refused_here"] += 1
         verdict = {"ok": False, "error": error, "rig": self.spec.rig_id}
-        dropped = None
         if record:
-            dropped = self.records.admit(kind or kind_of(f"{verb[:40]}:{error}", 80),
-                                         time.monotonic())
-        if dropped is not None:
-            data = {"verb": cap_text(verb, 40), "args": args_for_record(args),
-                    "sender": sender, "user": user, "by": "io", **verdict}
-            if dropped:
-                data["refused_unrecorded"] = dropped  # like it since the last recorded
-            self._record_io("command", data)
+            self.refusals.refused(verb, args, sender, user, verdict, kind)
         self._send(q, key, json.dumps(verdict).encode())
 
     def _record_io(self, kind: str, data: dict[str, Any]) -> None:
@@ -337,17 +330,6 @@ class NetNode:
         self.to_record.append((now, kind, data))  # recorded by the io loop
         t0 = self._t_start()
         self._publish_event(kind, data, None if t0 is None else now - t0)
-
-    def _note_cut(self, verb: str, raw: bytes, sender: str, user: str, note: str) -> None:
-        """An estop or stop honoured with part of its payload cut: recorded (as its
-        refusals are, one per interval with the count)."""
-        dropped = self.records.admit(f"cut:{verb}", time.monotonic())
-        if dropped is not None:
-            data: dict[str, Any] = {"verb": verb, "args": args_for_record(raw),
-                                    "sender": sender, "user": user, "note": note}
-            if dropped:
-                data["cut_unrecorded"] = dropped
-            self._record_io("command_cut", data)
 
     def _credentialed(self, q: Query) -> bool:
         if not self.spec.token_sha256:
@@ -414,7 +396,10 @@ class NetNode:
             self._refuse(q, key, verb, raw, sender, user,
                          f"the daemon is stopping ({self.stop_reason}); command not taken")
             return
-        if not urgent and not self.limiter.allow(zid or "unidentified", now):
+        allowed = self.limiter.allow(zid or "unidentified", now)
+        if urgent and not allowed and self._join(q, verb):
+            return  # a flood of estops: one reaches the loop at a time, all are answered
+        if not urgent and not allowed:
             self.counts["rate_limited"] += 1
             self._refuse(q, key, verb, raw, sender, user, (
                 f"rate limited: more than {self.spec.command_rate_per_s:g} commands/s "
@@ -424,7 +409,7 @@ class NetNode:
         if urgent:  # honoured whatever came with it; the rest cut and said so
             payload, note = salvage(verb, raw)
             if note:
-                self._note_cut(verb, raw, sender, user, note)
+                self.refusals.cut(verb, raw, sender, user, note)
         elif len(raw) > MAX_PAYLOAD_BYTES:
             self._refuse(q, key, cap_text(verb, 40), raw, sender, user,
                          f"payload of {len(raw)} bytes, above the limit of "
@@ -473,6 +458,17 @@ class NetNode:
         if cid is not None and k in self.waiting:
             self.waiting[k] = (q, deadline, verb, cid)
 
+    def _join(self, q: Query, verb: str) -> bool:
+        """An estop or stop beyond its sender's rate joins the same verb's command that
+        waits for the loop's verdict, if any (answered with it): so a flood of them
+        neither fills the loop's mailbox nor the recording, and each still acts."""
+        for k, (_q, _deadline, v, _cid) in self.waiting.items():
+            if v == verb:
+                self.joined.setdefault(k, []).append(q)
+                self.counts["joined"] += 1
+                return True
+        return False
+
     def _resolve(self, k: int, verdict: Verdict) -> None:
         entry = self.waiting.pop(k, None)
         if entry is None:
@@ -487,3 +483,6 @@ class NetNode:
             out["cut"] = note
         body = json.dumps(jsonsafe(out), default=str).encode()
         self._send(q, self.keys.cmd(verb), body)
+        for other in self.joined.pop(k, ()):  # estops or stops that joined this one
+            self._send(other, self.keys.cmd(verb), json.dumps(jsonsafe(
+                {**out, "joined": True}), default=str).encode())

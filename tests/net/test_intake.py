@@ -152,3 +152,30 @@ def test_a_flood_of_refusals_is_recorded_once_per_kind_per_interval_and_counted(
     rest = [d for k, d in recorded if k == "refusals"]
     assert sorted(d["refused_unrecorded"] for d in rest) == [499, 499], recorded
     assert len(recorded) == 4  # and nothing more, however long the flood
+
+
+class SlowPort(Port):
+    """A loop that has not given its verdict yet: `verdict()` gives it."""
+
+    def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
+             on_verdict: Any = None) -> int | None:
+        self.sent.append((verb, dict(payload or {}), sender))
+        self.pending_verdict = on_verdict
+        return len(self.sent)
+
+
+def test_a_flood_of_estops_beyond_the_rate_joins_the_one_in_flight_and_all_are_answered(
+        ) -> None:
+    n, _port, recorded = make()
+    port = SlowPort()
+    n.port = port
+    n.limiter.rate, n.limiter.burst = 1.0, 1.0  # one at once, then the rate
+    qs = [Query("pamd/sim/cmd/estop", b'{"reason": "flood"}', token=None) for _ in range(200)]
+    for q in qs:
+        n.on_command(q)
+    assert len(port.sent) == 1  # one reached the loop; the others wait on it
+    assert n.counts["joined"] == 199 and not any(q.replies for q in qs)
+    port.pending_verdict({"ok": True, "state": "ESTOP"})
+    assert all(len(q.replies) == 1 and q.replies[0]["ok"] for q in qs)
+    assert sum(bool(q.replies[0].get("joined")) for q in qs) == 199
+    assert n.waiting == {} and n.joined == {}
