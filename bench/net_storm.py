@@ -8,8 +8,9 @@ run, each storm against a quiet window of the same length just before it:
    minute; meanwhile `--pingers` well-behaved WebSocket clients ping every 0.5 s
    (keepalives answered, worst round trip).
 2. **50 Zenoh clients** (`--clients`), each its own session, subscribed to the state
-   and asking status, held for `--seconds`, then closed: the io process's RSS before,
-   during and after (after `--settle` seconds).
+   and asking status 10 times a second, held for `--seconds`, then closed, in
+   `--waves` waves: the io process's RSS before, during and after each wave (after
+   `--settle` seconds).
 3. The loop's overruns (from status) in each storm window against its quiet window.
 
     python bench/net_storm.py [--seconds 10] [--clients 50] [--pingers 5]
@@ -170,6 +171,7 @@ def main() -> None:
             afters: list[float] = []
             peak = before
             storm_overruns = 0
+            queries = 0
             for _wave in range(args.waves):
                 o_w = overruns(cl)
                 clients, subs = [], []
@@ -178,10 +180,14 @@ def main() -> None:
                     c = Client(connect=f"tcp/127.0.0.1:{port}")
                     clients.append(c)
                     subs.append(c.subscribe("pamd/sim/state/m1", 64))
-                while time.monotonic() - t0 < w:
+                rounds = 0
+                while time.monotonic() - t0 < w:  # every client asks status 10 times a s
                     for c in clients:
                         c.status("sim", 3.0)
+                    rounds += 1
                     peak = max(peak, rss_mb(iop))
+                    time.sleep(max(0.0, t0 + rounds * 0.1 - time.monotonic()))
+                queries += rounds * len(clients)
                 storm_overruns += overruns(cl) - o_w
                 for s in subs:
                     s.undeclare()
@@ -192,8 +198,8 @@ def main() -> None:
             print(f"{args.clients} Zenoh clients x {args.waves} waves of {w:g} s: io RSS before "
                   f"{before:.1f} MB, during (peak) {peak:.1f} MB, after each wave "
                   f"{', '.join(f'{a:.1f}' for a in afters)} MB ({args.settle:g} s after they "
-                  f"left); overruns quiet {o4 - o3} storm {storm_overruns / args.waves:.0f} "
-                  "(per window)", flush=True)
+                  f"left); {queries / (w * args.waves):.0f} status queries/s; overruns quiet "
+                  f"{o4 - o3} storm {storm_overruns / args.waves:.0f} (per window)", flush=True)
             cl.close()
         finally:
             proc.send_signal(15)

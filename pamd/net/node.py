@@ -67,6 +67,7 @@ CLOSE_TIMEOUT_S = 3.0
 SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
 ESTOP = "estop"
+STATUS_REUSE_S = 0.02  # a status answer serves the queries of this long
 TRIM_PERIOD_S = 2.0  # the heap's free memory goes back to the system this often
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
 
@@ -109,6 +110,8 @@ class NetNode:
         self.rows_mono = time.monotonic()  # when tick records last came in
         self.t0_wall: float | None = None
         self.trim_t = time.monotonic()
+        self._status_body: bytes | None = None  # the latest status answer, and when
+        self._status_t = -1e9
         self.refusals = RefusalLog(self._record_io, spec.rig_id)  # recorded per kind
         self.notes: dict[int, str] = {}  # what was cut of an estop or stop, by query
         self.joined: dict[int, list[Query]] = {}  # estops or stops answered with another's
@@ -299,11 +302,16 @@ class NetNode:
                     {"ok": False, "error": f"status failed: {exc!r}"}).encode())
 
     def _status(self, q: Query) -> None:
+        """One answer serves every query within STATUS_REUSE_S: a storm of status
+        queries costs the io process a bounded rate of answers to build."""
         self.counts["status_queries"] += 1
-        got = self.board.read_status() if self.board is not None else None
-        body = self.answer.body(got, time.monotonic(), self.rows_mono, self.stop_reason,
-                                self.counts)
-        self._send(q, self.keys.status, body)
+        now = time.monotonic()
+        if self._status_body is None or now - self._status_t >= STATUS_REUSE_S:
+            got = self.board.read_status() if self.board is not None else None
+            self._status_body = self.answer.body(got, now, self.rows_mono, self.stop_reason,
+                                                 self.counts)
+            self._status_t = now
+        self._send(q, self.keys.status, self._status_body)
 
     def _send(self, q: Query, key: str, body: bytes) -> None:
         try:

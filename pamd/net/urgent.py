@@ -85,7 +85,7 @@ def salvage(verb: str, raw: bytes) -> tuple[dict[str, Any], str]:
         if tp is None or not _fits(v, tp):
             dropped.append(cap_text(str(k), 40))
             continue
-        if isinstance(v, str) and len(v) > MAX_TEXT_CHARS:
+        if isinstance(v, str) and len(v) > MAX_TEXT_CHARS and len(raw) <= PARSE_MAX_BYTES:
             notes.append(f"{k} cut from {len(v)} characters")
         out[k] = v
     if dropped:
