@@ -67,7 +67,6 @@ CLOSE_TIMEOUT_S = 3.0
 SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
 ESTOP = "estop"
-STATUS_REUSE_S = 0.02  # a status answer serves the queries of this long
 TRIM_PERIOD_S = 2.0  # the heap's free memory goes back to the system this often
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
 
@@ -110,8 +109,6 @@ class NetNode:
         self.rows_mono = time.monotonic()  # when tick records last came in
         self.t0_wall: float | None = None
         self.trim_t = time.monotonic()
-        self._status_body: bytes | None = None  # the latest status answer, and when
-        self._status_t = -1e9
         self.refusals = RefusalLog(self._record_io, spec.rig_id)  # recorded per kind
         self.notes: dict[int, str] = {}  # what was cut of an estop or stop, by query
         self.joined: dict[int, list[Query]] = {}  # estops or stops answered with another's
@@ -302,16 +299,11 @@ class NetNode:
                     {"ok": False, "error": f"status failed: {exc!r}"}).encode())
 
     def _status(self, q: Query) -> None:
-        """One answer serves every query within STATUS_REUSE_S: a storm of status
-        queries costs the io process a bounded rate of answers to build."""
         self.counts["status_queries"] += 1
-        now = time.monotonic()
-        if self._status_body is None or now - self._status_t >= STATUS_REUSE_S:
-            got = self.board.read_status() if self.board is not None else None
-            self._status_body = self.answer.body(got, now, self.rows_mono, self.stop_reason,
-                                                 self.counts)
-            self._status_t = now
-        self._send(q, self.keys.status, self._status_body)
+        board = self.board
+        body = self.answer.serve(board.read_status if board is not None else lambda: None,
+                                 time.monotonic(), self.rows_mono, self.stop_reason, self.counts)
+        self._send(q, self.keys.status, body)
 
     def _send(self, q: Query, key: str, body: bytes) -> None:
         try:
@@ -433,7 +425,12 @@ class NetNode:
                              kind="json")
                 return
         try:
-            parse_command(verb, payload, sender=sender, user=user)
+            try:
+                parse_command(verb, payload, sender=sender, user=user)
+            except CommandRefused:
+                if not urgent:
+                    raise
+                payload = {}  # what salvage kept did not parse: the verb alone, with defaults
             payload = cap_payload(payload)  # what goes on: text fields capped
             self.ranges.check(verb, payload)
         except CommandRefused as exc:
@@ -469,7 +466,7 @@ class NetNode:
     def _join(self, q: Query, verb: str) -> bool:
         """An estop or stop beyond its sender's rate joins the same verb's command that
         waits for the loop's verdict, if any (answered with it): so a flood of them
-        neither fills the loop's mailbox nor the recording, and each still acts."""
+        neither fills the loop's mailbox nor the recording; the one in flight acts."""
         for k, (_q, _deadline, v, _cid) in self.waiting.items():
             if v == verb:
                 self.joined.setdefault(k, []).append(q)

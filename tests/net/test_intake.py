@@ -179,3 +179,17 @@ def test_a_flood_of_estops_beyond_the_rate_joins_the_one_in_flight_and_all_are_a
     assert all(len(q.replies) == 1 and q.replies[0]["ok"] for q in qs)
     assert sum(bool(q.replies[0].get("joined")) for q in qs) == 199
     assert n.waiting == {} and n.joined == {}
+
+
+def test_a_storm_of_status_queries_builds_one_answer_per_interval() -> None:
+    n, _port, _ = make()
+    reads = []
+
+    def read() -> tuple[bytes, float]:
+        reads.append(1)
+        return json.dumps({"rig_id": "sim", "state": "IDLE"}).encode(), 0.01
+
+    bodies = {n.answer.serve(read, 100.0 + i * 0.001, 100.0, None, n.counts)
+              for i in range(1000)}  # 1000 queries in 1 s
+    assert 45 <= len(reads) <= 51 and len(bodies) <= len(reads)  # one per 20 ms
+    assert all(json.loads(b)["state"] == "IDLE" for b in bodies)
