@@ -157,6 +157,7 @@ class NetNode:
                 self._resolve(k, {"ok": False, "error": f"the daemon stopped ({reason}) "
                                   "before the loop gave its verdict; the command was not "
                                   "applied"})
+            self.refusals.flush_due(final=True)  # none goes uncounted
         self.flush_records()
         s = self.session
         self.session = None

@@ -53,8 +53,9 @@ class RefusalLog:
     def pending(self) -> bool:
         return bool(self.limiter.dropped)
 
-    def flush_due(self) -> None:
-        """The rest of a flood, counted, once its kind's interval has passed."""
-        for kind, n in self.limiter.due(time.monotonic()):
+    def flush_due(self, final: bool = False) -> None:
+        """The rest of a flood, counted, once its kind's interval has passed (`final`:
+        all of it, as the daemon stops)."""
+        for kind, n in self.limiter.due(float("inf") if final else time.monotonic()):
             self.record("refusals", {"kind": kind, "refused_unrecorded": n,
                                      "rig": self.rig_id})
