@@ -27,9 +27,18 @@ from tests.net.conftest import RigProc, wait_until
 RIG = "sim"
 
 
+def stay_on_fault() -> tuple[str, ...]:
+    """`--stay-on-fault` where `pamd run` has it: a run with an end of its own (the test
+    daemon's --duration) that latches ESTOP then holds it until `reset`, as these tests
+    do, rather than ending (issue 23's "a faulted run ends")."""
+    out = subprocess.run([sys.executable, "-m", "pamd", "run", "--help"], capture_output=True,
+                         text=True, timeout=60).stdout
+    return ("--stay-on-fault",) if "--stay-on-fault" in out else ()
+
+
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RigProc]:
-    r = RigProc(tmp_path_factory.mktemp("adv-cmd"), RIG)
+    r = RigProc(tmp_path_factory.mktemp("adv-cmd"), RIG, args=stay_on_fault())
     r.agent.call("subscribe", name="events", key=f"pamd/{RIG}/events")
     yield r
     r.close()
