@@ -29,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from net_common import free_port, pct, wait_listening, wait_status, write_config  # noqa: E402
 
 from pamd.net.client import Client  # noqa: E402
+from pamd.net.credential import attachment, find_token  # noqa: E402
 
 
 def overruns(client: Client) -> int:
@@ -69,6 +70,9 @@ def burst(sessions: list, n: int, seconds: float) -> tuple[int, int, int, list[f
                     done.set()
         return on_reply
 
+    token, where = find_token("sim")  # the daemon's command credential
+    if token is None:
+        raise SystemExit(f"no command token for rig sim (looked in {where})")
     t_start = time.perf_counter()
     for i in range(n):
         target = t_start + i * seconds / n
@@ -78,7 +82,7 @@ def burst(sessions: list, n: int, seconds: float) -> tuple[int, int, int, list[f
         body = json.dumps({"muscle": "m1", "bar": bar}).encode()
         s = sessions[i % len(sessions)]
         s.get("pamd/sim/cmd/setpoint", handler(time.perf_counter()), payload=body,
-              timeout=30.0, target=zenoh.QueryTarget.ALL)
+              timeout=30.0, target=zenoh.QueryTarget.ALL, attachment=attachment(token))
     done.wait(60)
     return ok, refused, n - answered[0], rtts
 

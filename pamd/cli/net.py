@@ -3,8 +3,10 @@
 Each opens its own Zenoh session in client mode: to `tcp/127.0.0.1:7447` by default,
 to `--connect ENDPOINT`, or as `--zenoh-config FILE` says (a client config such as
 config/zenoh/lab-client.json5; given a daemon's config, it connects where that daemon
-listens). With no `--rig`, the one rig alive is used. Exit codes: 0 ok, 4 command
-refused, 7 no daemon answers (or not allowed), 2 bad arguments or config.
+listens). With no `--rig`, the one rig alive is used (several: refused, listing them);
+a rig id is a name, never a pattern. Commands carry the daemon's token
+(`pamd.net.credential`; `--token-file`). Exit codes: 0 ok, 4 command refused, 7 no
+daemon answers (or not allowed), 2 bad arguments, config or rig name.
 """
 
 from __future__ import annotations
@@ -51,6 +53,10 @@ def add_client_args(p: argparse.ArgumentParser, suppress: bool = False) -> None:
                    help="connect here (default: tcp/127.0.0.1:7447)")
     p.add_argument("--timeout", type=float, metavar="S", default=d,
                    help="how long to wait for an answer (status 3 s; cmd, model save 10 s)")
+    p.add_argument("--token-file", metavar="FILE", default=d,
+                   help="the daemon's command credential (default: $PAMD_TOKEN_FILE, "
+                   "$PAMD_TOKEN, else pamd-<rig>.token where the daemon writes it: "
+                   "$PAMD_TOKEN_DIR, $XDG_RUNTIME_DIR/pamd, /tmp/pamd-<uid>, /run/pamd)")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -87,7 +93,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _client(args: argparse.Namespace) -> Any:
 
-    return Client(args.zenoh_config, args.connect)
+    return Client(args.zenoh_config, args.connect, getattr(args, "token_file", None))
 
 
 # -- status ------------------------------------------------------------------------------
@@ -110,7 +116,8 @@ def print_status(st: dict[str, Any]) -> None:
     if not st.get("ok", True):
         print(f"status: {st.get('error')}")
         return
-    print(f"rig {st.get('rig_id')}: {st.get('state')} ({st.get('reason')})")
+    print(f"rig {st.get('rig_id')} (daemon of {st.get('user') or '?'}, pid "
+          f"{st.get('pid') or '?'}): {st.get('state')} ({st.get('reason')})")
     for why in st.get("stale_reasons") or []:
         print(f"  STALE: {why}")
     if st.get("fault"):

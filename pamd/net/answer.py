@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+from collections.abc import Callable
 from typing import Any
 
 from pamd.net.seams import RunClock
@@ -20,6 +21,7 @@ LIVE_FIELDS = ("pressure_bar", "setpoint_bar", "valve_cmd_bar", "force_n", "leng
                "contraction")
 SNAPSHOT_STALE_MIN_S, SNAPSHOT_STALE_PERIODS = 1.0, 5  # a snapshot older is stale
 LIVE_STALE_MIN_S, LIVE_STALE_TICKS = 0.5, 50  # tick records older are stale
+STATUS_REUSE_S = 0.02  # an answer serves the status queries of this long
 
 
 class StatusAnswer:
@@ -33,13 +35,24 @@ class StatusAnswer:
         self.live = [(m, n_loop + k * n_m) for k, m in enumerate(spec.muscles)]
         self.live_idx = [(f, MUSCLE_FIELDS.index(f)) for f in LIVE_FIELDS]
         self.i_mode, self.i_flags = MUSCLE_FIELDS.index("mode"), MUSCLE_FIELDS.index("flags")
+        self._served: bytes | None = None  # the latest answer, and when it was built
+        self._served_t = -1e9
+
+    def serve(self, read: Callable[[], tuple[bytes, float] | None], now: float,
+              rows_mono: float, stopping: str | None, io_counts: dict[str, int]) -> bytes:
+        """`body`, built at most once per STATUS_REUSE_S (`read`: the board's snapshot):
+        a storm of status queries costs the io process a bounded rate of answers."""
+        if self._served is None or now - self._served_t >= STATUS_REUSE_S:
+            self._served = self.body(read(), now, rows_mono, stopping, io_counts)
+            self._served_t = now
+        return self._served
 
     def body(self, snapshot: tuple[bytes, float] | None, now: float, rows_mono: float,
              stopping: str | None, io_counts: dict[str, int]) -> bytes:
         """The JSON answer: `snapshot` is the board's (blob, age in s) or None, `now` and
         `rows_mono` (when tick records last came in) are monotonic times."""
         if snapshot is None:
-            return json.dumps({"ok": False,
+            return json.dumps({"ok": False, "rig_id": self.spec.rig_id,
                                "error": "no status yet: the daemon is starting"}).encode()
         blob, age = snapshot
         try:

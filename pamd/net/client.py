@@ -4,8 +4,14 @@ status`, `pamd cmd`, `pamd watch`), the tests and the benchmarks; a lab script c
 use it too, or talk to the key space with any Zenoh client.
 
 Each command query declares this session's Zenoh id (`source_info`) and the user
-(`?user=NAME`); the daemon records both but authenticates neither: authorization is
-the router's access control (config/zenoh/lab-router.json5).
+(`?user=NAME`); the daemon records both but authenticates neither. What it checks is
+the command credential, the daemon's token, carried in the query's attachment and
+found as `pamd.net.credential.find_token` says (on a lab network the router's access
+control decides, besides, who reaches the daemon at all: config/zenoh/lab-router.json5).
+
+Rig ids are names, never key patterns: `*`, `**`, `$*`, `?` or `/` in a rig id is
+refused here before anything is sent (a pattern reached every daemon of a lab). A
+read-only subscription may take a pattern, named as such (`subscribe_pattern`).
 """
 
 from __future__ import annotations
@@ -16,15 +22,38 @@ import json
 import re
 from typing import Any
 
+from pamd.commands import REGISTRY
+from pamd.config.names import CHUNK_RE
+from pamd.errors import PamdError
 from pamd.net import zconf
+from pamd.net.credential import attachment, find_token
 from pamd.net.keys import ROOT, Keys
 from pamd.net.zconf import NoDaemon
 
 DEFAULT_TIMEOUT_S = 3.0
 
 
+class BadRigName(PamdError):
+    """A rig id that is not a name (a key pattern, or not a key chunk at all)."""
+
+    exit_code = 2
+
+
+def rig_name(rig: str) -> str:
+    """`rig` if it is a rig's name; BadRigName (saying why) if not."""
+    if CHUNK_RE.match(rig):
+        return rig
+    shown = rig if len(rig) <= 80 else rig[:80] + "..."
+    raise BadRigName(f"rig {shown!r} is not a rig's name: a rig id is letters, digits, "
+                     "'_', '-' and '.', never a pattern ('*', '**', '$*'): a command "
+                     "goes to one rig, named (`pamd status` with no --rig lists them)")
+
+
 class Client:
-    def __init__(self, zenoh_config: str | None = None, connect: str | None = None) -> None:
+    def __init__(self, zenoh_config: str | None = None, connect: str | None = None,
+                 token_file: str | None = None) -> None:
+        """`token_file`: the command credential's file (default: as
+        `pamd.net.credential.find_token` finds it for the rig)."""
         import zenoh
 
         self.zenoh = zenoh
@@ -36,6 +65,7 @@ class Client:
             raise NoDaemon(f"no daemon or router to talk to: {zconf.open_error(exc, cfg)}"
                            ) from None
         self._sn = itertools.count(1)
+        self.token_file = token_file
 
     def close(self) -> None:
         self.session.close()
@@ -56,25 +86,34 @@ class Client:
         return sorted(found)
 
     def rig(self, rig: str | None, timeout_s: float = 1.5) -> str:
-        """`rig` itself, or the one rig alive; NoDaemon if none, or several."""
-        if rig:
-            return rig
+        """`rig` itself (a name: BadRigName if a pattern), or the one rig alive;
+        NoDaemon if none, or several (it lists them)."""
+        if rig is not None:
+            return rig_name(rig)
         rigs = self.rigs(timeout_s)
         if not rigs:
             raise NoDaemon(f"no pamd daemon is alive via {self.where} (none declares "
                            f"{ROOT}/<rig>/alive; is pamd running with telemetry on?)")
         if len(rigs) > 1:
-            raise NoDaemon(f"several rigs are alive ({', '.join(rigs)}); pick one with --rig")
+            raise NoDaemon(f"several rigs answer via {self.where}: {', '.join(rigs)}; name "
+                           "one with --rig (pamd.connect(rig=...))")
         return rigs[0]
 
     # -- queries ----------------------------------------------------------------------------
-    def _get(self, selector: str, payload: bytes | None, timeout_s: float) -> dict[str, Any]:
+    def _get(self, selector: str, payload: bytes | None, timeout_s: float,
+             token: str | None = None, urgent: bool = False) -> dict[str, Any]:
+        """`urgent` (an estop or stop): never dropped on the way (a large one goes in
+        fragments, which the drop policy may lose), at the highest priority."""
         z = self.zenoh
-        kw: dict[str, Any] = {"timeout": timeout_s,
-                              "congestion_control": z.CongestionControl.DROP}
+        kw: dict[str, Any] = {"timeout": timeout_s, "congestion_control": (
+            z.CongestionControl.BLOCK if urgent else z.CongestionControl.DROP)}
+        if urgent:
+            kw["priority"] = z.Priority.REAL_TIME
         if payload is not None:
             kw.update(payload=payload, encoding=z.Encoding.APPLICATION_JSON,
                       source_info=z.SourceInfo(self.session.id, next(self._sn)))
+        if token is not None:
+            kw["attachment"] = attachment(token)
         for r in self.session.get(selector, **kw):
             if r.ok is not None:
                 try:
@@ -91,12 +130,14 @@ class Client:
                        "cannot command)")
 
     def status(self, rig: str, timeout_s: float = DEFAULT_TIMEOUT_S) -> dict[str, Any]:
-        return self._get(Keys(rig).status, None, timeout_s)
+        return self._get(Keys(rig_name(rig)).status, None, timeout_s)
 
     def command(self, rig: str, verb: str, payload: dict[str, Any] | str | bytes | None = None,
                 user: str | None = None, timeout_s: float = 10.0) -> dict[str, Any]:
-        """Send a command; the reply is the loop's verdict (or the io process's
-        refusal). A str/bytes payload is sent as is (malformed JSON too)."""
+        """Send a command to rig `rig` (a name) with the rig's credential; the reply
+        is the loop's verdict (or the io process's refusal). A str/bytes payload is
+        sent as is (malformed JSON too)."""
+        rig = rig_name(rig)
         if payload is None:
             body = b"{}"
         elif isinstance(payload, bytes):
@@ -112,8 +153,20 @@ class Client:
                 user = ""
         user = re.sub(r"[^\w.@-]", "_", user)  # one selector parameter, nothing more
         sel = Keys(rig).cmd(verb) + (f"?user={user}" if user else "")
-        return self._get(sel, body, timeout_s)
+        token, where = find_token(rig, self.token_file)
+        verdict = self._get(sel, body, timeout_s, token, REGISTRY.is_urgent(verb))
+        if token is None and "credential" in str(verdict.get("error", "")):
+            verdict["error"] = f"{verdict['error']} (no token found: looked in {where})"
+        return verdict
 
     def subscribe(self, key: str, capacity: int = 4096) -> Any:
-        """A subscriber with a ring channel (`try_recv`, no callback thread)."""
-        return self.session.declare_subscriber(key, self.zenoh.handlers.RingChannel(capacity))
+        """A subscriber with a ring channel (`try_recv`, no callback thread) to `key` of
+        one rig: its rig chunk must be a name (BadRigName if a pattern)."""
+        rig_name(Keys.rig_of(key))
+        return self.subscribe_pattern(key, capacity)
+
+    def subscribe_pattern(self, pattern: str, capacity: int = 4096) -> Any:
+        """A read-only subscription that may span rigs (`pamd/*/events`): named as a
+        pattern, for watching; commands never take one."""
+        return self.session.declare_subscriber(pattern,
+                                               self.zenoh.handlers.RingChannel(capacity))

@@ -15,9 +15,18 @@ mistyped fields, non-finite numbers (`parse_command`), muscles the rig lacks and
 pressures outside the limits, senders over their rate, anything while stopping.
 What passes goes through the loop's mailbox (or, for the verbs declared `main_thread`,
 `collect` and `model`, through the board to the daemon's main thread); the reply is
-the loop's verdict. The sender is the Zenoh id the query declares (`source_info`), the
-user the `user` selector parameter (`pamd/sim/cmd/hold?user=ana`): both declared, not
-authenticated.
+the loop's verdict, with the `rig` that gave it. The sender is the Zenoh id the query
+declares (`source_info`), the user the `user` selector parameter
+(`pamd/sim/cmd/hold?user=ana`): both declared, not authenticated.
+
+Who may command: a query whose attachment carries the daemon's token
+(`pamd.net.credential`), to this rig by name: a pattern (`pamd/*/cmd/...`) is refused.
+An `estop` acts from anyone, credential and pattern or not, and is recorded with who
+sent it; an `estop` or `stop` acts whatever its size or extra fields, the rest cut and
+recorded (`pamd.net.urgent`); beyond its sender's rate it joins the same verb's
+command that waits for its verdict, if any, and gets that verdict. Refusals are
+recorded one per kind per second, the next with the count of those between (a flood
+cannot grow the recording).
 """
 
 from __future__ import annotations
@@ -34,7 +43,6 @@ from typing import Any, Protocol
 from pamd.commands import REGISTRY, parse_command
 from pamd.commands.schema import (
     MAX_WHO_CHARS,
-    args_for_record,
     cap_payload,
     cap_text,
 )
@@ -42,19 +50,24 @@ from pamd.errors import CommandRefused
 from pamd.net import zconf
 from pamd.net.answer import StatusAnswer
 from pamd.net.board import Board
+from pamd.net.credential import matches
 from pamd.net.keys import Keys
+from pamd.net.memory import trim_heap
+from pamd.net.ranges import PressureRanges
 from pamd.net.ratelimit import RateLimiter
+from pamd.net.refusals import RefusalLog
 from pamd.net.seams import CommandPort, LoopStart, Query, RunClock, Verdict
 from pamd.net.spec import NetSpec
 from pamd.net.stats import TickStats
 from pamd.net.status import jsonsafe
 from pamd.net.telemetry import StateBatcher
+from pamd.net.urgent import salvage
 
 CLOSE_TIMEOUT_S = 3.0
 SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
-LIMITS_REFRESH_S = 1.0
-RATE_NOTE_S = 1.0
+ESTOP = "estop"
+TRIM_PERIOD_S = 2.0  # the heap's free memory goes back to the system this often
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
 
 RecordFn = Callable[[float, str, dict[str, Any]], None]
@@ -79,6 +92,7 @@ class NetNode:
         self.stats = TickStats()
         self.answer = StatusAnswer(spec, io_spec, self.stats)
         self.limiter = RateLimiter(spec.command_rate_per_s, spec.command_burst)
+        self.ranges = PressureRanges(spec.muscles, lambda: self.board)
         self.session: Any = None
         self.board: Board | None = None
         self.token: Any = None
@@ -94,11 +108,13 @@ class NetNode:
         self.last_t_s = 0.0
         self.rows_mono = time.monotonic()  # when tick records last came in
         self.t0_wall: float | None = None
-        self._limits: dict[str, float] = {}
-        self._limits_t = -1e9
-        self._rate_note_t = -1e9
+        self.trim_t = time.monotonic()
+        self.refusals = RefusalLog(self._record_io, spec.rig_id)  # recorded per kind
+        self.notes: dict[int, str] = {}  # what was cut of an estop or stop, by query
+        self.joined: dict[int, list[Query]] = {}  # estops or stops answered with another's
         self.counts = {"state_puts": 0, "events": 0, "commands": 0, "refused_here": 0,
-                       "rate_limited": 0, "status_queries": 0}
+                       "rate_limited": 0, "no_credential": 0, "joined": 0,
+                       "status_queries": 0}
 
     # -- life cycle ---------------------------------------------------------------------
     def open(self) -> str | None:
@@ -120,7 +136,7 @@ class NetNode:
                                               priority=zenoh.Priority.DATA_HIGH)
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         self.status_q = s.declare_queryable(k.status, self._on_status, complete=True)
-        self.cmd_q = s.declare_queryable(k.cmd_all, self._on_command, complete=True)
+        self.cmd_q = s.declare_queryable(k.cmd_all, self.on_command, complete=True)
         self.token = s.liveliness().declare_token(k.alive)
         self.zid = str(s.zid())
         self._publish_event("run_start", {"rig_id": self.spec.rig_id, "zid": self.zid,
@@ -141,7 +157,8 @@ class NetNode:
                 self._resolve(k, {"ok": False, "error": f"the daemon stopped ({reason}) "
                                   "before the loop gave its verdict; the command was not "
                                   "applied"})
-        self._flush_records()
+            self.refusals.flush_due(final=True)  # none goes uncounted
+        self.flush_records()
         s = self.session
         self.session = None
 
@@ -251,8 +268,14 @@ class NetNode:
                             f"no verdict from the loop within "
                             f"{self.spec.command_timeout_s:g} s; the {verb} command may "
                             "still be applied (see status)")})
+        if self.refusals.pending:
+            with self.lock:  # the rest of a flood of refusals, counted
+                self.refusals.flush_due()
         if self.to_record:
-            self._flush_records()
+            self.flush_records()
+        if now - self.trim_t >= TRIM_PERIOD_S:
+            self.trim_t = now
+            trim_heap()
         self.stats.refresh(now)
         return work
 
@@ -261,7 +284,7 @@ class NetNode:
         on the board's request ring by the next poll (the io loop's thread)."""
         self.to_main.append(json.dumps({"notice": msg}, default=str).encode())
 
-    def _flush_records(self) -> None:
+    def flush_records(self) -> None:
         """Events of the query callbacks into the recording (the io loop's thread)."""
         while self.to_record:
             self.record(*self.to_record.popleft())
@@ -278,9 +301,9 @@ class NetNode:
 
     def _status(self, q: Query) -> None:
         self.counts["status_queries"] += 1
-        got = self.board.read_status() if self.board is not None else None
-        body = self.answer.body(got, time.monotonic(), self.rows_mono, self.stop_reason,
-                                self.counts)
+        board = self.board
+        body = self.answer.serve(board.read_status if board is not None else lambda: None,
+                                 time.monotonic(), self.rows_mono, self.stop_reason, self.counts)
         self._send(q, self.keys.status, body)
 
     def _send(self, q: Query, key: str, body: bytes) -> None:
@@ -293,19 +316,33 @@ class NetNode:
 
     # -- commands ---------------------------------------------------------------------------
     def _refuse(self, q: Query, key: str, verb: str, args: bytes, sender: str, user: str,
-                error: str, record: bool = True) -> None:
+                error: str, record: bool = True, kind: str | None = None) -> None:
+        """Answer a refusal; record it (one per kind per RECORD_INTERVAL_S, the next
+        saying how many like it were refused meanwhile: a flood of refusals cannot
+        grow the recording)."""
         self.counts["refused_here"] += 1
-        verdict = {"ok": False, "error": error}
+        verdict = {"ok": False, "error": error, "rig": self.spec.rig_id}
         if record:
-            data = {"verb": cap_text(verb, 40), "args": args_for_record(args),
-                    "sender": sender, "user": user, "by": "io", **verdict}
-            now = self.loop_now()
-            self.to_record.append((now, "command", data))  # recorded by the io loop
-            t0 = self._t_start()
-            self._publish_event("command", data, None if t0 is None else now - t0)
+            self.refusals.refused(verb, args, sender, user, verdict, kind)
         self._send(q, key, json.dumps(verdict).encode())
 
-    def _on_command(self, q: Query) -> None:
+    def _record_io(self, kind: str, data: dict[str, Any]) -> None:
+        now = self.loop_now()
+        self.to_record.append((now, kind, data))  # recorded by the io loop
+        t0 = self._t_start()
+        self._publish_event(kind, data, None if t0 is None else now - t0)
+
+    def _credentialed(self, q: Query) -> bool:
+        if not self.spec.token_sha256:
+            return True  # a spec without a token (built by hand): commands are open
+        try:
+            att = q.attachment
+            presented = att.to_bytes() if att is not None else None
+        except Exception:
+            presented = None
+        return matches(presented, self.spec.token_sha256)
+
+    def on_command(self, q: Query) -> None:
         """Zenoh's callback thread: refused at once, or into the loop's mailbox."""
         with self.lock:
             try:
@@ -332,40 +369,71 @@ class NetNode:
         sender = f"zenoh:{zid}" if zid else "zenoh"
         user = cap_text(q.parameters.get("user") or "", MAX_WHO_CHARS)
         raw = q.payload.to_bytes() if q.payload is not None else b""
-        if len(raw) > MAX_PAYLOAD_BYTES:
-            self._refuse(q, key, cap_text(verb, 40), raw, sender, user,
-                         f"payload of {len(raw)} bytes, above the limit of "
-                         f"{MAX_PAYLOAD_BYTES} bytes; not taken")
-            return
-        text = raw.decode("utf-8", "replace")
         if "*" in verb or "$" in verb:
             self._refuse(q, key, verb, raw, sender, user,
                          "name one verb: pamd/<rig>/cmd/<verb>", record=False)
             return
         urgent = REGISTRY.is_urgent(verb)  # estop, stop: they reach the loop while it runs
+        pattern = Keys.rig_of(key) != self.spec.rig_id  # `pamd/*/cmd/...`, `pamd/**`
+        credentialed = self._credentialed(q)
+        if verb == ESTOP:  # anyone who reaches the daemon may stop the rig
+            if not credentialed:
+                sender = cap_text(f"{sender} (no credential)", MAX_WHO_CHARS)
+        elif pattern:
+            self._refuse(q, key, verb, raw, sender, user, (
+                f"name the rig: pamd/{self.spec.rig_id}/cmd/{verb}, not the pattern "
+                f"{cap_text(key, 80)!r}; rig ids are names (only an estop acts on a "
+                "pattern); not taken"), kind="pattern")
+            return
+        elif not credentialed:
+            self.counts["no_credential"] += 1
+            self._refuse(q, key, verb, raw, sender, user, (
+                f"{verb} needs the daemon's command credential: the token in "
+                f"{self.spec.token_file or 'its token file'} (readable by the daemon's user "
+                "and group; pamd cmd and pamd.connect find it there, or give --token-file "
+                "/ PAMD_TOKEN_FILE); not taken"), kind="credential")
+            return
         if (self.stop_reason is not None and not urgent) or self.closing:
             self._refuse(q, key, verb, raw, sender, user,
                          f"the daemon is stopping ({self.stop_reason}); command not taken")
             return
-        if not urgent and not self.limiter.allow(zid or "unidentified", now):
+        allowed = self.limiter.allow(zid or "unidentified", now)
+        if urgent and not allowed and self._join(q, verb):
+            return  # a flood of estops: one reaches the loop at a time, all are answered
+        if not urgent and not allowed:
             self.counts["rate_limited"] += 1
-            note = now - self._rate_note_t >= RATE_NOTE_S
-            if note:
-                self._rate_note_t = now
             self._refuse(q, key, verb, raw, sender, user, (
                 f"rate limited: more than {self.spec.command_rate_per_s:g} commands/s "
-                f"(burst {self.spec.command_burst}) from {sender}; not taken"), record=note)
+                f"(burst {self.spec.command_burst}) from {sender}; not taken"), kind="rate")
             return
-        try:
-            payload = json.loads(text) if text.strip() else {}
-        except (ValueError, RecursionError) as exc:
-            why = exc if isinstance(exc, ValueError) else "nested too deep"
-            self._refuse(q, key, verb, raw, sender, user, f"malformed JSON: {why}")
+        note = ""
+        if urgent:  # honoured whatever came with it; the rest cut and said so
+            payload, note = salvage(verb, raw)
+            if note:
+                self.refusals.cut(verb, raw, sender, user, note)
+        elif len(raw) > MAX_PAYLOAD_BYTES:
+            self._refuse(q, key, cap_text(verb, 40), raw, sender, user,
+                         f"payload of {len(raw)} bytes, above the limit of "
+                         f"{MAX_PAYLOAD_BYTES} bytes; not taken", kind="size")
             return
+        else:
+            text = raw.decode("utf-8", "replace")
+            try:
+                payload = json.loads(text) if text.strip() else {}
+            except (ValueError, RecursionError) as exc:
+                why = exc if isinstance(exc, ValueError) else "nested too deep"
+                self._refuse(q, key, verb, raw, sender, user, f"malformed JSON: {why}",
+                             kind="json")
+                return
         try:
-            parse_command(verb, payload, sender=sender, user=user)
+            try:
+                parse_command(verb, payload, sender=sender, user=user)
+            except CommandRefused:
+                if not urgent:
+                    raise
+                payload = {}  # what salvage kept did not parse: the verb alone, with defaults
             payload = cap_payload(payload)  # what goes on: text fields capped
-            self._check_ranges(verb, payload)
+            self.ranges.check(verb, payload)
         except CommandRefused as exc:
             self._refuse(q, key, verb, raw, sender, user, str(exc))
             return
@@ -373,6 +441,8 @@ class NetNode:
         self.next_id += 1
         deadline = now + self.spec.command_timeout_s
         self.waiting[k] = (q, deadline, verb, None)
+        if note:
+            self.notes[k] = note
         if verb in REGISTRY.main_thread:
             assert self.board is not None
             blob = json.dumps({"id": k, "verb": verb, "payload": payload, "sender": sender,
@@ -394,6 +464,17 @@ class NetNode:
         if cid is not None and k in self.waiting:
             self.waiting[k] = (q, deadline, verb, cid)
 
+    def _join(self, q: Query, verb: str) -> bool:
+        """An estop or stop beyond its sender's rate joins the same verb's command that
+        waits for the loop's verdict, if any (answered with it): so a flood of them
+        neither fills the loop's mailbox nor the recording; the one in flight acts."""
+        for k, (_q, _deadline, v, _cid) in self.waiting.items():
+            if v == verb:
+                self.joined.setdefault(k, []).append(q)
+                self.counts["joined"] += 1
+                return True
+        return False
+
     def _resolve(self, k: int, verdict: Verdict) -> None:
         entry = self.waiting.pop(k, None)
         if entry is None:
@@ -402,39 +483,12 @@ class NetNode:
         if cid is not None:
             self.port.waiting.pop(cid, None)
         out = {key: v for key, v in verdict.items() if key != "id"}
+        out["rig"] = self.spec.rig_id  # every verdict names the rig that gave it
+        note = self.notes.pop(k, None)
+        if note:
+            out["cut"] = note
         body = json.dumps(jsonsafe(out), default=str).encode()
         self._send(q, self.keys.cmd(verb), body)
-
-    def _check_ranges(self, verb: str, p: dict[str, Any]) -> None:
-        """Muscle names and pressures against the limits, before the mailbox (the loop
-        checks again against the present state)."""
-        muscle = p.get("muscle")
-        if isinstance(muscle, str) and muscle not in self.spec.muscles:
-            raise CommandRefused(f"no muscle named {muscle!r}; muscles: "
-                                 f"{', '.join(self.spec.muscles)}")
-        fields = REGISTRY.pressure_fields.get(verb)
-        if not fields:
-            return
-        limits = self._pressure_limits()
-        for name in [muscle] if isinstance(muscle, str) else list(self.spec.muscles):
-            top = limits.get(name)
-            for f in fields:
-                v = p.get(f)
-                if isinstance(v, (int, float)) and not isinstance(v, bool) and (
-                        v < 0.0 or (top is not None and v > top)):
-                    rng = f"0-{top:g} bar" if top is not None else "at least 0 bar"
-                    raise CommandRefused(f"{name}: {f}={v:g} is outside {rng}")
-
-    def _pressure_limits(self) -> dict[str, float]:
-        now = time.monotonic()
-        if now - self._limits_t >= LIMITS_REFRESH_S and self.board is not None:
-            got = self.board.read_status()
-            if got is not None:
-                self._limits_t = now
-                try:
-                    ms = json.loads(got[0]).get("muscles", {})
-                    self._limits = {n: float(m["limits"]["max_pressure_bar"])
-                                    for n, m in ms.items()}
-                except (ValueError, KeyError, TypeError, AttributeError):
-                    pass
-        return self._limits
+        for other in self.joined.pop(k, ()):  # estops or stops that joined this one
+            self._send(other, self.keys.cmd(verb), json.dumps(jsonsafe(
+                {**out, "joined": True}), default=str).encode())

@@ -1,8 +1,25 @@
-"""Token buckets for commands: one per sender (its Zenoh id, as its queries declare
-it; queries that declare none share one bucket) and one for all senders together, so
-a flood is refused in the io process and never reaches the loop's mailbox."""
+"""Rate limits of what clients can make the io process do.
+
+`RateLimiter`: token buckets for commands, one per sender (its Zenoh id, as its
+queries declare it; queries that declare none share one bucket) and one for all
+senders together, so a flood is refused in the io process and never reaches the
+loop's mailbox.
+
+`LineLimiter` and `RateLimitedHandler`: what the io process writes about what clients
+send (a log line, a recorded refusal) is one line per kind per interval, and the next
+line of that kind says how many were dropped meanwhile; the kinds it keeps are
+bounded too. So nothing a client sends can grow a log, the recording or the io
+process without bound (a Foxglove client sending garbage frames made the server write
+a line per frame: 108 MB in 100 s).
+"""
 
 from __future__ import annotations
+
+import logging
+import re
+import sys
+import time
+from typing import TextIO
 
 MAX_SENDERS = 1024  # buckets kept; the idlest are forgotten beyond this
 
@@ -49,3 +66,102 @@ class RateLimiter:
         if not ok:
             self.refused += 1
         return ok
+
+
+LINE_INTERVAL_S = 10.0  # one line per kind per this
+MAX_KINDS = 256  # kinds kept; beyond, every new kind shares one
+OTHER_KIND = "(other kinds)"
+_NUMBERS = re.compile(r"\d+")
+
+
+def kind_of(text: str, limit: int = 120) -> str:
+    """A line's kind: its text with every number (addresses, ports, ids, sizes) as `#`."""
+    return _NUMBERS.sub("#", text[:limit])
+
+
+class LineLimiter:
+    """`admit(kind, now)`: None when a line of `kind` is to be dropped (one went out
+    less than `interval_s` ago), else how many of that kind were dropped since the
+    last that went out."""
+
+    def __init__(self, interval_s: float = LINE_INTERVAL_S, max_kinds: int = MAX_KINDS
+                 ) -> None:
+        self.interval_s = interval_s
+        self.max_kinds = max_kinds
+        self.last: dict[str, float] = {}
+        self.dropped: dict[str, int] = {}
+        self.total_dropped = 0
+
+    def admit(self, kind: str, now: float) -> int | None:
+        if kind not in self.last and len(self.last) >= self.max_kinds:
+            kind = OTHER_KIND
+        t = self.last.get(kind)
+        if t is not None and now - t < self.interval_s:
+            self.dropped[kind] = self.dropped.get(kind, 0) + 1
+            self.total_dropped += 1
+            return None
+        self.last[kind] = now
+        return self.dropped.pop(kind, 0)
+
+    def due(self, now: float) -> list[tuple[str, int]]:
+        """The kinds whose interval has passed with lines dropped: (kind, how many),
+        said now so that the last of a flood is counted too (the interval starts
+        again)."""
+        out = []
+        for kind, n in list(self.dropped.items()):
+            if now - self.last.get(kind, -1e18) >= self.interval_s:
+                out.append((kind, n))
+                del self.dropped[kind]
+                self.last[kind] = now
+        return out
+
+
+class RateLimitedHandler(logging.Handler):
+    """A logging handler writing one line per kind (logger and message, numbers
+    aside) per interval to `stream` (stderr), each saying how many like it were
+    dropped before it."""
+
+    def __init__(self, prefix: str, interval_s: float = LINE_INTERVAL_S,
+                 stream: TextIO | None = None) -> None:
+        super().__init__()
+        self.prefix = prefix
+        self.limiter = LineLimiter(interval_s)
+        self.stream = stream
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            msg = record.getMessage()
+            dropped = self.limiter.admit(f"{record.name}:{kind_of(msg)}", time.monotonic())
+            if dropped is None:
+                return
+            more = (f" ({dropped} more like it in the last "
+                    f"{self.limiter.interval_s:g} s not shown)" if dropped else "")
+            self._write(f"{self.prefix}{msg[:300]}{more}")
+        except Exception:
+            self.handleError(record)
+
+    def flush_due(self, now: float) -> None:
+        """Say the counts of kinds whose interval passed with lines dropped."""
+        for kind, n in self.limiter.due(now):
+            self._write(f"{self.prefix}{n} more like \"{kind.split(':', 1)[-1][:80]}\" in "
+                        f"the last {self.limiter.interval_s:g} s not shown")
+
+    def _write(self, line: str) -> None:
+        stream = self.stream or sys.stderr
+        stream.write(line + "\n")
+        stream.flush()
+
+
+def limit_logger(name: str, prefix: str, level: int = logging.WARNING,
+                 interval_s: float = LINE_INTERVAL_S) -> RateLimitedHandler:
+    """Route logger `name` (and its children) through one rate-limited handler of
+    its own (no propagation to the root's handlers); the handler."""
+    logger = logging.getLogger(name)
+    for h in list(logger.handlers):
+        if isinstance(h, RateLimitedHandler):
+            return h
+    handler = RateLimitedHandler(prefix, interval_s)
+    logger.addHandler(handler)
+    logger.setLevel(level)
+    logger.propagate = False
+    return handler

@@ -11,6 +11,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.config.names import check_chunk
 from pamd.errors import ConfigError, ConfigIssue
 from pamd.net import zconf
+from pamd.net.credential import ensure_token
 
 
 @dataclass(frozen=True)
@@ -42,13 +43,16 @@ class NetSpec:
     status_period_s: float = 0.1  # the main thread's status snapshot refresh
     where: str = ""  # where the session listens or connects, for the operator
     board_name: str = ""  # the shared status board (pamd.net.board), set at creation
+    token_sha256: str = ""  # the command credential's hash ("": commands need none)
+    token_file: str = ""  # where the token is, for a refusal to say
 
 
 def resolve(cfg: LoadedConfig, req: TelemetryRequest | None) -> NetSpec | None:
     """The io process's telemetry spec, or None when telemetry is off (by the request,
     by `telemetry.enabled`, or, when that is null, by the virtual clock). A bad Zenoh
     config file or a rig id that cannot be a key is refused here, before anything
-    starts (ConfigError)."""
+    starts (ConfigError). The command token (`pamd.net.credential`) is kept or made
+    here: commands need it, loopback included."""
     tc = cfg.rig.telemetry
     on = tc.enabled if tc.enabled is not None else cfg.rig.loop.clock == "real"
     if req is not None and req.enabled and req.listen:
@@ -71,8 +75,10 @@ def resolve(cfg: LoadedConfig, req: TelemetryRequest | None) -> NetSpec | None:
     listen, connect = zconf.endpoints(zcfg, "listen"), zconf.endpoints(zcfg, "connect")
     where = "; ".join(w for w in (listen and "listening on " + ", ".join(listen),
                                   connect and "connecting to " + ", ".join(connect)) if w)
+    token_file, token_sha256 = ensure_token(cfg.rig.rig_id)
     return NetSpec(
-        rig_id=cfg.rig.rig_id, muscles=tuple(m.name for m in cfg.rig.muscles),
+        token_file=token_file, token_sha256=token_sha256, rig_id=cfg.rig.rig_id,
+        muscles=tuple(m.name for m in cfg.rig.muscles),
         zenoh_json=str(zcfg), where=where or "no endpoints",
         every_ticks=max(1, round(rate / tc.rate_hz)),
         publish_period_s=1.0 / tc.publish_hz,

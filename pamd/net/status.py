@@ -4,7 +4,8 @@ by the loop's thread, never per tick) and answered by the io process from the bo
 Keys: `rig_id`, `state`, `reason`, `fault`, `faults`, `muscles` (measured values,
 setpoints, limits, references, mode, profile, model, deadman), `experiment` (with the
 `collection` a remote collect writes into: directory, manifest),
-`config_sha256`, `clock`, `rate_hz`, `verbs`, `recording`, `t_wall_s`, `uptime_s`.
+`config_sha256`, `clock`, `rate_hz`, `verbs`, `recording`, `pid` and `user` (whose
+daemon it is), `t_wall_s`, `uptime_s`.
 It costs the main thread some 50 us. The io process, when it answers, puts in the
 live values of the latest tick record it drained (state, measured values, setpoint,
 valve command, mode, flags), `timing` (from the tick records: pamd.net.stats), `ok`,
@@ -13,6 +14,7 @@ valve command, mode, flags), `timing` (from the tick records: pamd.net.stats), `
 
 from __future__ import annotations
 
+import getpass
 import math
 import os
 import time
@@ -22,6 +24,13 @@ from typing import Any
 from pamd.commands import REGISTRY
 from pamd.experiment.sequencer import running_plan
 from pamd.version import __version__
+
+
+def _user() -> str:
+    try:
+        return getpass.getuser()
+    except (KeyError, OSError):
+        return f"uid {os.getuid()}"
 
 
 def jsonsafe(x: Any) -> Any:
@@ -44,6 +53,7 @@ class StatusBuilder:
         self.d = daemon
         self.t0 = time.monotonic()
         self.collection = collection
+        self.user = _user()  # whose daemon it is (a status says so)
 
     def build(self, now: float) -> dict[str, Any]:
         d = self.d
@@ -81,5 +91,5 @@ class StatusBuilder:
             config_path=os.path.abspath(cfg.path), clock="virtual" if d.loop.virtual else "real",
             rate_hz=cfg.rig.loop.rate_hz, verbs=sorted(REGISTRY.names), recording=rec,
             stopping=d.loop.stop_requested, pamd_version=__version__, pid=os.getpid(),
-            t_wall_s=time.time(), uptime_s=now - self.t0)
+            user=self.user, t_wall_s=time.time(), uptime_s=now - self.t0)
         return jsonsafe(st)

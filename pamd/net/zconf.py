@@ -19,6 +19,15 @@ from pamd.errors import ConfigError, ConfigIssue, PamdError
 from pamd.net.tlsprobe import diagnose, listen_error
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+#: client sessions a daemon's own endpoint takes at once (each costs the io process
+#: some 170 kB while connected): memory bounded, whatever clients do
+MAX_SESSIONS = 100
+#: the largest message a client may send it (Zenoh's default is 1 GiB, held whole in
+#: the io process while it is reassembled); a command's JSON is refused above 64 KiB
+#: anyway, and an estop or stop up to this size still acts
+MAX_MESSAGE_BYTES = 4 << 20
+# Zenoh's shared-memory transport stays off: with it, the first local subscriber made
+# the io process map a 16 MiB pool it kept (+28 MB RSS for 50 clients, never returned)
 SCOUTING_KEYS = ("scouting/multicast/enabled", "scouting/gossip/enabled")
 
 
@@ -79,14 +88,19 @@ def endpoints(cfg: ZenohConfig, which: str) -> list[str]:
 
 
 def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN) -> Any:
-    """The daemon's session: the file as given, or a peer listening on `listen`."""
+    """The daemon's session: the file as given, or a peer listening on `listen` that
+    takes at most MAX_SESSIONS client sessions at once, messages of at most
+    MAX_MESSAGE_BYTES, and no shared-memory transport."""
     zenoh = _zenoh()
     if file is not None:
         cfg = load_file(file)
     else:
         cfg = zenoh.Config.from_json5(json.dumps(
             {"mode": "peer", "listen": {"endpoints": [listen]},
-             "connect": {"endpoints": []}}))
+             "connect": {"endpoints": []},
+             "transport": {"unicast": {"max_sessions": MAX_SESSIONS},
+                           "link": {"rx": {"max_message_size": MAX_MESSAGE_BYTES}},
+                           "shared_memory": {"enabled": False}}}))
     return secure(cfg)
 
 

@@ -7,8 +7,10 @@
             print(batch["pressure_bar"].mean())
 
 The same key space `pamd status`, `pamd cmd` and `pamd watch` use (`pamd.net.client`):
-commands are checked by the io process and the loop, and answered with the loop's
-verdict; a refusal raises `CommandRefused` (or, with `check=False`, is returned).
+commands carry the daemon's token (found where the daemon writes it, or
+`token_file=`), are checked by the io process and the loop, and answered with the loop's
+verdict (which names the `rig` that gave it); a refusal raises `CommandRefused` (or,
+with `check=False`, is returned).
 """
 
 from __future__ import annotations
@@ -60,9 +62,9 @@ class RigClient:
     """One rig of a running daemon. Close it (or use `with`)."""
 
     def __init__(self, rig: str | None = None, endpoint: str | None = None,
-                 zenoh_config: str | None = None, timeout_s: float = 3.0) -> None:
-
-        self._client = Client(zenoh_config, endpoint)
+                 zenoh_config: str | None = None, timeout_s: float = 3.0,
+                 token_file: str | None = None) -> None:
+        self._client = Client(zenoh_config, endpoint, token_file)
         try:
             self.rig: str = self._client.rig(rig, timeout_s=timeout_s)
         except BaseException:
@@ -127,8 +129,11 @@ class RigClient:
 
 
 def connect(rig: str | None = None, endpoint: str | None = None,
-            zenoh_config: str | None = None, timeout_s: float = 3.0) -> RigClient:
-    """A client of the running daemon of `rig` (None: the one rig alive), reached at
+            zenoh_config: str | None = None, timeout_s: float = 3.0,
+            token_file: str | None = None) -> RigClient:
+    """A client of the running daemon of `rig` (a name, never a pattern: BadRigName;
+    None: the one rig alive, NoDaemon listing them if several answer), reached at
     `endpoint` (default tcp/127.0.0.1:7447) or as the Zenoh client config file says.
-    NoDaemon (a PamdError) if none answers."""
-    return RigClient(rig, endpoint, zenoh_config, timeout_s)
+    Commands carry the daemon's token, from `token_file` or found as
+    `pamd.net.credential.find_token` says. NoDaemon (a PamdError) if none answers."""
+    return RigClient(rig, endpoint, zenoh_config, timeout_s, token_file)

@@ -17,6 +17,12 @@ viewer has a bounded queue (`BACKLOG`) whose oldest data is dropped when the vie
 does not keep up (the server disconnects a viewer whose control messages back up).
 The server takes no commands (no client publishing, no services): commands stay on
 Zenoh, where the router authenticates them.
+
+What the server says of its clients (a garbage frame, a subscribe to an unknown
+channel, a dropped connection) comes through Python's logging (logger `foxglove`) and
+goes to stderr one line per kind per 10 s, each saying how many like it were dropped
+(`pamd.net.ratelimit`): a client cannot grow the daemon's log (one line per bad frame
+was 108 MB in 100 s).
 """
 
 from __future__ import annotations
@@ -24,9 +30,11 @@ from __future__ import annotations
 import contextlib
 import json
 import sys
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from pamd.net.ratelimit import RateLimitedHandler, limit_logger
 from pamd.net.seams import RunClock
 from pamd.record import cdr
 from pamd.record.recorder import record_schemas, sanitize
@@ -34,6 +42,8 @@ from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 from pamd.view.spec import ViewerSpec
 
 BACKLOG = 1024  # messages queued per viewer before its oldest are dropped
+LOG_FLUSH_S = 1.0
+FOXGLOVE_LOGGER = "foxglove"  # the SDK's (Rust) log records come out under this
 
 
 class LiveView:
@@ -59,6 +69,8 @@ class LiveView:
         self.loop_ch: Any = None
         self.events_ch: Any = None
         self.sent = 0
+        self.log: RateLimitedHandler | None = None  # what the server says, rate limited
+        self.log_t = 0.0
 
     def open(self) -> str | None:
         """Start the server and declare the channels; an error text if it cannot."""
@@ -68,6 +80,7 @@ class LiveView:
             return ("the foxglove-sdk package is not installed (pip install "
                     "'foxglove-sdk>=0.30.3,<0.31')")
         sp = self.spec
+        self.log = limit_logger(FOXGLOVE_LOGGER, "pamd: foxglove: ")
         # ours alone (nothing else logs into it); kept: a dropped context closes its channels
         ctx = self.ctx = foxglove.Context()
         try:
@@ -106,6 +119,10 @@ class LiveView:
         ends the view alone (said once); recording and telemetry go on."""
         if self.server is None:
             return
+        now = time.monotonic()
+        if self.log is not None and now - self.log_t >= LOG_FLUSH_S:
+            self.log_t = now
+            self.log.flush_due(now)  # the counts of a flood that ended
         try:
             self._ticks(rows)
         except Exception as exc:

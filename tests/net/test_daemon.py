@@ -46,7 +46,9 @@ def test_state_status_and_liveliness(rig: RigProc) -> None:
     assert "setpoint" in st["verbs"] and st["snapshot_age_s"] < 10
 
 
-BAD: list[tuple[str, dict[str, Any], str]] = [  # verb, request, what the error must say
+# verb, request, what the error must say (an estop or stop is never refused for its
+# payload: it acts, the rest cut: tests/adversary/test_net_commands.py)
+BAD: list[tuple[str, dict[str, Any], str]] = [
     ("setpoint", {"raw": "{not json"}, "malformed JSON"),
     ("setpoint", {"raw": "[1, 2]"}, "must be a JSON object"),
     ("fly", {"payload": {}}, "unknown command 'fly'"),
@@ -69,7 +71,6 @@ BAD: list[tuple[str, dict[str, Any], str]] = [  # verb, request, what the error 
     ("load", {"payload": {"muscle": "m1", "load_kg": 500.0}}, "exceeds"),
     ("home", {"payload": {"muscle": "m1", "length_mm": -5.0}}, "greater than 0"),
     ("mode", {"payload": {"mode": "warp"}}, "mode"),
-    ("estop", {"payload": {"reason": 5}}, "reason: expected text"),
     ("hold", {"payload": {"x": 1}}, "x:"),
     ("resume", {"payload": {}}, "resume only from HOLD"),
     ("reset", {"payload": {}}, "nothing to reset"),
@@ -127,7 +128,8 @@ def test_cli_clients(rig: RigProc) -> None:
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["rig_id"] == RIG
     r = pamd_cli("status", "--connect", ep)
-    assert r.returncode == 0 and "rig sim:" in r.stdout and "m1:" in r.stdout, r.stderr
+    assert r.returncode == 0 and "rig sim (daemon of " in r.stdout and "m1:" in r.stdout, \
+        r.stderr
     r = pamd_cli("cmd", "--connect", ep, "hold")
     assert r.returncode == 0 and json.loads(r.stdout)["ok"], r.stdout + r.stderr
     r = pamd_cli("cmd", "--connect", ep, "resume", "--user", "cli-tester")
@@ -163,10 +165,13 @@ def test_stop_withdraws_and_the_recording_says_it_all(rig: RigProc) -> None:
             setpoints.append((msg.log_time, dict(zip(cols, row, strict=False))))
     cmds = [e["data"] for e in events if e["kind"] == "command"]
     sender = f"zenoh:{rig.zid}"
-    # every bad command is in the recording, refused, with who sent it
+    # every bad command is in the recording, refused, with who sent it (those refused
+    # like another in the same second counted by the next record of their kind)
     bad = [c for c in cmds if c["sender"] == sender and c["user"] == "tester"
            and c["ok"] is False]
-    assert len(bad) >= len(BAD)
+    counted = sum(1 + c.get("refused_unrecorded", 0) for c in bad) + sum(
+        e["data"]["refused_unrecorded"] for e in events if e["kind"] == "refusals")
+    assert counted >= len(BAD)
     assert {c["verb"] for c in bad} >= {verb for verb, _r, _w in BAD}
     assert any(c.get("by") == "io" and "malformed JSON" in c["error"] for c in bad)
     # ... and the good ones, with their verdicts

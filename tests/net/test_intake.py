@@ -1,0 +1,195 @@
+"""The io process's command intake (`NetNode.on_command`) without a network: who may
+command (the token; an estop from anyone), rig ids as names (a pattern refused, an
+estop on a pattern acts), an estop or stop that always acts whatever its payload, and
+refusals recorded one per kind per interval with the count of the others."""
+
+from __future__ import annotations
+
+import json
+import threading
+from types import SimpleNamespace
+from typing import Any
+
+from pamd.net import node as node_mod
+from pamd.net.credential import attachment, digest
+from pamd.net.node import NetNode
+from pamd.net.spec import NetSpec
+
+TOKEN = "t" * 43
+
+
+class Bytes:
+    def __init__(self, b: bytes) -> None:
+        self.b = b
+
+    def to_bytes(self) -> bytes:
+        return self.b
+
+
+class Query:
+    def __init__(self, key: str, payload: bytes = b"{}", token: str | None = TOKEN,
+                 zid: str = "abc") -> None:
+        self.key_expr = key
+        self.parameters = {"user": "ana"}
+        self.payload = Bytes(payload)
+        self.attachment = None if token is None else Bytes(attachment(token))
+        self.source_info = SimpleNamespace(source_id=SimpleNamespace(zid=zid))
+        self.replies: list[dict[str, Any]] = []
+
+    def reply(self, key: str, body: bytes, encoding: str = "") -> None:
+        self.replies.append(json.loads(body))
+
+    def drop(self) -> None:
+        pass
+
+
+class Port:
+    """The loop's mailbox: what was sent, each given the verdict ok at once."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.waiting: dict[int, Any] = {}
+        self.sent: list[tuple[str, dict[str, Any], str]] = []
+
+    def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
+             on_verdict: Any = None) -> int | None:
+        self.sent.append((verb, dict(payload or {}), sender))
+        if on_verdict is not None:
+            on_verdict({"ok": True})
+        return len(self.sent)
+
+
+def make(**kw: Any) -> tuple[NetNode, Port, list[tuple[str, dict[str, Any]]]]:
+    spec = NetSpec(rig_id="sim", muscles=("m1",), zenoh_json="{}", every_ticks=10,
+                   publish_period_s=0.01, command_rate_per_s=1000.0, command_burst=1000,
+                   command_timeout_s=5.0, token_sha256=digest(TOKEN),
+                   token_file="/run/pamd/pamd-sim.token", **kw)
+    port = Port()
+    recorded: list[tuple[str, dict[str, Any]]] = []
+    n = NetNode(spec, SimpleNamespace(virtual=True, wall0_ns=0, clock0_s=0.0),
+                SimpleNamespace(t_start=lambda: 0.0), port,  # type: ignore[arg-type]
+                lambda t, kind, data: recorded.append((kind, data)))
+    n.events_pub = SimpleNamespace(put=lambda *a, **k: None)
+    return n, port, recorded
+
+
+def send(n: NetNode, q: Query) -> dict[str, Any]:
+    n.on_command(q)
+    n.flush_records()
+    assert len(q.replies) == 1, q.replies
+    return q.replies[0]
+
+
+def test_a_command_with_the_token_is_taken_and_its_verdict_names_the_rig() -> None:
+    n, port, _ = make()
+    v = send(n, Query("pamd/sim/cmd/hold"))
+    assert v == {"ok": True, "rig": "sim"}
+    assert port.sent == [("hold", {}, "zenoh:abc")]
+
+
+def test_a_command_without_or_with_a_wrong_token_is_refused_and_recorded() -> None:
+    n, port, recorded = make()
+    for tok in (None, "w" * 43, TOKEN[:-1], ""):
+        v = send(n, Query("pamd/sim/cmd/setpoint", b'{"muscle": "m1", "bar": 3.0}', tok))
+        assert not v["ok"] and "needs the daemon's command credential" in v["error"], v
+        assert "/run/pamd/pamd-sim.token" in v["error"] and v["rig"] == "sim"
+    assert port.sent == []  # nothing reached the loop
+    kinds = [(k, d.get("error", "")) for k, d in recorded]
+    assert kinds and kinds[0][0] == "command" and "credential" in kinds[0][1]
+    assert n.counts["no_credential"] == 4
+
+
+def test_an_estop_acts_without_the_token_and_is_recorded_as_such() -> None:
+    n, port, _ = make()
+    v = send(n, Query("pamd/sim/cmd/estop", b'{"reason": "hand in"}', token=None))
+    assert v["ok"], v
+    assert port.sent == [("estop", {"reason": "hand in"}, "zenoh:abc (no credential)")]
+    v = send(n, Query("pamd/sim/cmd/stop", b"{}", token=None))  # a stop needs it
+    assert not v["ok"] and "credential" in v["error"]
+
+
+def test_rig_patterns_are_refused_but_an_estop_on_one_acts() -> None:
+    n, port, _ = make()
+    for key in ("pamd/*/cmd/setpoint", "pamd/s*/cmd/hold", "pamd/$*/cmd/stop"):
+        v = send(n, Query(key, b'{"muscle": "m1", "bar": 3.0}'))
+        assert not v["ok"] and "not the pattern" in v["error"], (key, v)
+    assert port.sent == []
+    assert send(n, Query("pamd/*/cmd/estop"))["ok"]
+    assert [s[0] for s in port.sent] == ["estop"]
+
+
+def test_an_estop_or_stop_acts_whatever_its_size_or_fields() -> None:
+    n, port, recorded = make()
+    big = json.dumps({"reason": "r" * 100_000, "extra": [1] * 1000}).encode()
+    v = send(n, Query("pamd/sim/cmd/estop", big))
+    assert v["ok"] and "reason cut from 100000 characters" in v["cut"], v
+    verb, payload, _ = port.sent[-1]
+    assert verb == "estop" and len(payload["reason"]) <= 260
+    assert "fields dropped: extra" in payload["reason"]
+    v = send(n, Query("pamd/sim/cmd/stop", b'{"why": "x", "pad": "' + b"p" * 2_000_000 + b'"}'))
+    assert v["ok"] and "read in part" in v["cut"], v
+    assert port.sent[-1][:2] == ("stop", {})
+    assert send(n, Query("pamd/sim/cmd/estop", b"\xff not json"))["ok"]
+    assert [k for k, _ in recorded].count("command_cut") >= 2  # what was cut, recorded
+    # the same size is refused for any other verb, unread
+    v = send(n, Query("pamd/sim/cmd/hold", big))
+    assert not v["ok"] and "above the limit of 65536 bytes" in v["error"]
+
+
+def test_a_flood_of_refusals_is_recorded_once_per_kind_per_interval_and_counted(
+        monkeypatch: Any) -> None:
+    clock = [100.0]
+    monkeypatch.setattr(node_mod.time, "monotonic", lambda: clock[0])
+    n, _port, recorded = make()
+    for _ in range(500):
+        send(n, Query("pamd/sim/cmd/setpoint", b"{not json"))
+        send(n, Query("pamd/sim/cmd/hold", token=None))
+    assert len(recorded) == 2  # one of each kind
+    clock[0] += 1.5
+    n.session = SimpleNamespace()  # poll works on an open node
+    n.batcher.pending = 0
+    n.poll(clock[0])
+    rest = [d for k, d in recorded if k == "refusals"]
+    assert sorted(d["refused_unrecorded"] for d in rest) == [499, 499], recorded
+    assert len(recorded) == 4  # and nothing more, however long the flood
+
+
+class SlowPort(Port):
+    """A loop that has not given its verdict yet: `verdict()` gives it."""
+
+    def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
+             on_verdict: Any = None) -> int | None:
+        self.sent.append((verb, dict(payload or {}), sender))
+        self.pending_verdict = on_verdict
+        return len(self.sent)
+
+
+def test_a_flood_of_estops_beyond_the_rate_joins_the_one_in_flight_and_all_are_answered(
+        ) -> None:
+    n, _port, recorded = make()
+    port = SlowPort()
+    n.port = port
+    n.limiter.rate, n.limiter.burst = 1.0, 1.0  # one at once, then the rate
+    qs = [Query("pamd/sim/cmd/estop", b'{"reason": "flood"}', token=None) for _ in range(200)]
+    for q in qs:
+        n.on_command(q)
+    assert len(port.sent) == 1  # one reached the loop; the others wait on it
+    assert n.counts["joined"] == 199 and not any(q.replies for q in qs)
+    port.pending_verdict({"ok": True, "state": "ESTOP"})
+    assert all(len(q.replies) == 1 and q.replies[0]["ok"] for q in qs)
+    assert sum(bool(q.replies[0].get("joined")) for q in qs) == 199
+    assert n.waiting == {} and n.joined == {}
+
+
+def test_a_storm_of_status_queries_builds_one_answer_per_interval() -> None:
+    n, _port, _ = make()
+    reads = []
+
+    def read() -> tuple[bytes, float]:
+        reads.append(1)
+        return json.dumps({"rig_id": "sim", "state": "IDLE"}).encode(), 0.01
+
+    bodies = {n.answer.serve(read, 100.0 + i * 0.001, 100.0, None, n.counts)
+              for i in range(1000)}  # 1000 queries in 1 s
+    assert 45 <= len(reads) <= 51 and len(bodies) <= len(reads)  # one per 20 ms
+    assert all(json.loads(b)["state"] == "IDLE" for b in bodies)
