@@ -35,7 +35,8 @@ class Rig:
             mailbox=SimpleNamespace(put=h.queue.waiting.append),
             loop=SimpleNamespace(virtual=True, running=False, stopped_reason="",
                                  timing=SimpleNamespace(ticks=0),
-                                 set_stall_timeout=lambda s: None))
+                                 set_stall_timeout=lambda s: None,
+                                 set_stall_limits=lambda cfg: None))
         self.keeper = ServiceKeeper(daemon, None)
 
     def sighup(self, max_pressure_bar: float) -> None:
