@@ -27,7 +27,7 @@ has one, else the "loop stalled" lines it logged), the overruns, the wake-up lat
 p99 and max, and the longest gap between two ticks.
 
 usage: python bench/shared_machine.py [--minutes 10] [--rig sim|emulated|both]
-                                      [--load hogs|daemons|both]
+                                      [--load hogs|daemons|both] [--lost-after N]
 """
 
 from __future__ import annotations
@@ -81,8 +81,11 @@ def sim_config(tmp: Path, rig_id: str) -> str:
     return _write(tmp, f"{rig_id}.yaml", d)
 
 
-def emulated_config(tmp: Path) -> str:
+def emulated_config(tmp: Path, lost_after: int = 0) -> str:
     d = emulated_dict(tmp, free_port())
+    for drv in d["drivers"]:
+        if drv["type"] == "modbus" and lost_after > 0:
+            drv["options"]["lost_after"] = lost_after
     d["loop"]["realtime"] = {"enabled": True, "priority": PRIORITY}
     # the emulator shares the loaded CPUs: its first CAN frames may take longer than 1 s
     d["safety"]["startup_timeout_s"] = 10.0
@@ -144,12 +147,13 @@ def stop_load(procs: list[subprocess.Popen[Any]]) -> None:
 GAP = re.compile(r"no tick completed for (?:at least )?(\d+) ms")
 
 
-def run_case(rig: str, load: str, minutes: float, emulator_priority: int) -> dict[str, Any]:
+def run_case(rig: str, load: str, minutes: float, emulator_priority: int,
+             lost_after: int = 0) -> dict[str, Any]:
     seconds = 60.0 * minutes
     with tempfile.TemporaryDirectory(prefix="pamd-shared-") as tmpname:
         tmp = Path(tmpname)
         emulator = None
-        config = sim_config(tmp, "target") if rig == "sim" else emulated_config(tmp)
+        config = sim_config(tmp, "target") if rig == "sim" else emulated_config(tmp, lost_after)
         if rig == "emulated":
             emulator = start_emulator(config, emulator_priority)
         procs = start_load(load, tmp, seconds)
@@ -192,6 +196,10 @@ def main() -> int:
     p.add_argument("--load", choices=("hogs", "daemons", "both"), default="both")
     p.add_argument("--emulator-priority", type=int, default=1, metavar="N",
                    help="SCHED_FIFO priority of `pamd emulate` (1; 0: normal priority)")
+    p.add_argument("--lost-after", type=int, default=0, metavar="N",
+                   help="emulated rig: the Modbus drivers' lost_after (0: the config's; 1: "
+                   "every unanswered request drops the link, pamd's behaviour before it "
+                   "retried, for a before/after comparison)")
     p.add_argument("--json", metavar="FILE", help="also write the rows to FILE")
     args = p.parse_args()
     rigs = ("sim", "emulated") if args.rig == "both" else (args.rig,)
@@ -204,7 +212,7 @@ def main() -> int:
     rows = []
     for rig in rigs:
         for load in loads:
-            r = run_case(rig, load, args.minutes, args.emulator_priority)
+            r = run_case(rig, load, args.minutes, args.emulator_priority, args.lost_after)
             rows.append(r)
             print(f"  {rig:8s} beside {load:7s}: faults {len(r['faults'])}, stalls {r['stalls']} "
                   f"(longest gap {r['longest_gap_ms']} ms), overruns {r['overruns']}, "
