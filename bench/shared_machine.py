@@ -14,12 +14,14 @@ recording to MCAP (the io process). Two loads:
 
 The emulator stands in for I/O modules and encoders, which have CPUs of their own: by
 default it runs at SCHED_FIFO 1 (`--emulator-priority`, 0 for normal priority), so
-the load starves the daemon, not the devices it reads. Measured either way, the
-emulated rig's remaining fault is `m2.force from driver 'lc2' is stale (111 ms old,
-timeout 110 ms)` with no loop stall. The likely cause (seen in the driver's counters, not yet
-proven to be this fault): the Modbus RTU driver treats one unanswered
-request (timeout_s 0.05) as a lost link and reconnects, which with the next request
-outlasts the signal's 110 ms (its health shows `timeouts` = `disconnects`).
+the load starves the daemon, not the devices it reads. Before the Modbus drivers
+retried (`--lost-after 1` gives that behaviour back), the emulated rig faulted with
+`m2.force from driver 'lc2' is stale (111 ms old, timeout 110 ms)` and no loop stall,
+likely (not proven: a run ends at its first fault and prints no driver counters) an
+unanswered RTU request taken for a lost link and reconnected. Since then one
+unanswered request is re-sent (`lost_after`, drivers/modbus.py); in the runs of
+2026-11-26 (2 min, beside hogs) the first fault was another driver's instead
+(`m1.length from driver 'enc'`, `m1.pressure from driver 'io'`, 101 ms old).
 
 Per case it prints the faults latched (the goal is none), the stalls (gaps with no tick
 completed longer than `loop.stall_timeout_s`: the daemon's `stalls` counter where it
