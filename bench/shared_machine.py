@@ -14,12 +14,14 @@ recording to MCAP (the io process). Two loads:
 
 The emulator stands in for I/O modules and encoders, which have CPUs of their own: by
 default it runs at SCHED_FIFO 1 (`--emulator-priority`, 0 for normal priority), so
-the load starves the daemon, not the devices it reads. Measured either way, the
-emulated rig's remaining fault is `m2.force from driver 'lc2' is stale (111 ms old,
-timeout 110 ms)` with no loop stall. The likely cause (seen in the driver's counters, not yet
-proven to be this fault): the Modbus RTU driver treats one unanswered
-request (timeout_s 0.05) as a lost link and reconnects, which with the next request
-outlasts the signal's 110 ms (its health shows `timeouts` = `disconnects`).
+the load starves the daemon, not the devices it reads. Before the Modbus drivers
+retried (`--lost-after 1` gives that behaviour back), the emulated rig faulted with
+`m2.force from driver 'lc2' is stale (111 ms old, timeout 110 ms)` and no loop stall,
+likely (not proven: a run ends at its first fault and prints no driver counters) an
+unanswered RTU request taken for a lost link and reconnected. Since then one
+unanswered request is re-sent (`lost_after`, drivers/modbus.py); in the runs of
+2026-11-26 (2 min, beside hogs) the first fault was another driver's instead
+(`m1.length from driver 'enc'`, `m1.pressure from driver 'io'`, 101 ms old).
 
 Per case it prints the faults latched (the goal is none), the stalls (gaps with no tick
 completed longer than `loop.stall_timeout_s`: the daemon's `stalls` counter where it
@@ -27,7 +29,7 @@ has one, else the "loop stalled" lines it logged), the overruns, the wake-up lat
 p99 and max, and the longest gap between two ticks.
 
 usage: python bench/shared_machine.py [--minutes 10] [--rig sim|emulated|both]
-                                      [--load hogs|daemons|both]
+                                      [--load hogs|daemons|both] [--lost-after N]
 """
 
 from __future__ import annotations
@@ -81,8 +83,11 @@ def sim_config(tmp: Path, rig_id: str) -> str:
     return _write(tmp, f"{rig_id}.yaml", d)
 
 
-def emulated_config(tmp: Path) -> str:
+def emulated_config(tmp: Path, lost_after: int = 0) -> str:
     d = emulated_dict(tmp, free_port())
+    for drv in d["drivers"]:
+        if drv["type"] == "modbus" and lost_after > 0:
+            drv["options"]["lost_after"] = lost_after
     d["loop"]["realtime"] = {"enabled": True, "priority": PRIORITY}
     # the emulator shares the loaded CPUs: its first CAN frames may take longer than 1 s
     d["safety"]["startup_timeout_s"] = 10.0
@@ -144,12 +149,13 @@ def stop_load(procs: list[subprocess.Popen[Any]]) -> None:
 GAP = re.compile(r"no tick completed for (?:at least )?(\d+) ms")
 
 
-def run_case(rig: str, load: str, minutes: float, emulator_priority: int) -> dict[str, Any]:
+def run_case(rig: str, load: str, minutes: float, emulator_priority: int,
+             lost_after: int = 0) -> dict[str, Any]:
     seconds = 60.0 * minutes
     with tempfile.TemporaryDirectory(prefix="pamd-shared-") as tmpname:
         tmp = Path(tmpname)
         emulator = None
-        config = sim_config(tmp, "target") if rig == "sim" else emulated_config(tmp)
+        config = sim_config(tmp, "target") if rig == "sim" else emulated_config(tmp, lost_after)
         if rig == "emulated":
             emulator = start_emulator(config, emulator_priority)
         procs = start_load(load, tmp, seconds)
@@ -192,6 +198,10 @@ def main() -> int:
     p.add_argument("--load", choices=("hogs", "daemons", "both"), default="both")
     p.add_argument("--emulator-priority", type=int, default=1, metavar="N",
                    help="SCHED_FIFO priority of `pamd emulate` (1; 0: normal priority)")
+    p.add_argument("--lost-after", type=int, default=0, metavar="N",
+                   help="emulated rig: the Modbus drivers' lost_after (0: the config's; 1: "
+                   "every unanswered request drops the link, pamd's behaviour before it "
+                   "retried, for a before/after comparison)")
     p.add_argument("--json", metavar="FILE", help="also write the rows to FILE")
     args = p.parse_args()
     rigs = ("sim", "emulated") if args.rig == "both" else (args.rig,)
@@ -204,7 +214,7 @@ def main() -> int:
     rows = []
     for rig in rigs:
         for load in loads:
-            r = run_case(rig, load, args.minutes, args.emulator_priority)
+            r = run_case(rig, load, args.minutes, args.emulator_priority, args.lost_after)
             rows.append(r)
             print(f"  {rig:8s} beside {load:7s}: faults {len(r['faults'])}, stalls {r['stalls']} "
                   f"(longest gap {r['longest_gap_ms']} ms), overruns {r['overruns']}, "

@@ -14,9 +14,21 @@ channel's unit (volts); the rig's signal calibration goes on to SI.
 
 All bus I/O runs on the driver's thread with pymodbus's synchronous client.
 Exception responses, timeouts and disconnects are counted per kind and per
-channel and logged with the device and channel named (`health()`); the link is
-re-opened with backoff; failure that lasts `fault_after_s` sets `fault`, which
-the supervisor turns into the safe state. A module with a communication watchdog
+channel and logged with the device and channel named (`health()`).
+
+A request left unanswered for `timeout_s` is re-sent at once, not taken for a lost
+link. The physics: a real line (RS-485 noise, a CRC error, a device busy for a
+moment) loses a reply now and then, and a reply lost that way is independent of the
+next one (losing k in a row has probability p**k); a dead device, a cut cable or an
+unplugged adapter misses every one. So only `lost_after` unanswered requests in a
+row mean the link is lost: it is then closed and re-opened with backoff. One lost
+reply costs one retry (`timeout_s` plus a round trip: `lost_reply_s()`, which the
+config loader keeps within the timeout of every signal read through this driver);
+a dead device is found as before: failure (from the first unanswered request) that
+lasts `fault_after_s` sets `fault`, which the supervisor turns into the safe state.
+An I/O error of the port or socket (not a missing reply) drops the link at once.
+
+A module with a communication watchdog
 gets the outputs' safe values (`set_safe_outputs`) written to its safe-value
 registers, so it reaches the safe state by itself if this PC goes silent.
 """
@@ -79,6 +91,9 @@ class ModbusOptions:
     reconnect_max_s: float = spec(2.0, "Longest reconnect delay.", unit="s", gt=0.0)
     fault_after_s: float = spec(0.3, "Failure lasting this long sets the driver's fault.",
                                 unit="s", gt=0.0)
+    lost_after: int = spec(3, "Unanswered requests in a row that mean the link is lost (it "
+                           "is re-opened); fewer are re-sent at once: a reply lost to noise "
+                           "costs one retry.", min=1, max=20)
     max_gap: int = spec(0, "Read across up to this many unmapped registers to save requests "
                         "(only if the device answers for them).", min=0, max=100)
     preset: Literal["none", "adam-6024", "wago-750-559"] = spec(
@@ -145,6 +160,7 @@ class ModbusDriver(ThreadedDriver):
         self._counter_read_s = -math.inf  # when it was last read
         self._sample_s = -math.inf  # stamp of the present sample (sample_clock)
         self._sample_jitter_s = 0.0
+        self._unanswered = 0  # requests unanswered in a row (lost_after: the link is lost)
 
     # -- Driver protocol ----------------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
@@ -183,6 +199,21 @@ class ModbusDriver(ThreadedDriver):
         where = (f"tcp {o.host}:{o.port}" if o.transport == "tcp"
                  else f"rtu {o.serial_port} {o.baud} {o.bytesize}{o.parity}{o.stopbits}")
         return f"modbus {self.name!r} ({where}, id {o.device_id})"
+
+    def lost_reply_s(self) -> float:
+        """How much later than usual a fresh input can arrive when one reply is lost:
+        the wait for it (`timeout_s`), the retry's round trip and the poll period (the
+        loader keeps every signal's timeout above this plus its sample period). RTU:
+        the round trip is the longest read's request and response frames on the line
+        (11 bits a byte with start, stop and parity bits, at `baud`) plus the 3.5
+        characters of silence that end each frame; TCP: `timeout_s` dominates."""
+        o: ModbusOptions = self.options
+        rtt_s = 0.0
+        if o.transport == "rtu" and self.read_blocks:
+            words = max(b.count if b.function in ("holding", "input") else (b.count + 15) // 16
+                        for b in self.read_blocks)
+            rtt_s = (8 + 5 + 2 * words + 7) * 11.0 / o.baud
+        return o.timeout_s + rtt_s + o.poll_period_s
 
     # -- the I/O thread ---------------------------------------------------------------
     def _connect(self) -> bool:
@@ -388,22 +419,38 @@ class ModbusDriver(ThreadedDriver):
     def _request(self, fn: str, address: int, arg: Any, names: tuple[str, ...],
                  label: str) -> Any:
         """One transaction; returns the response, or a message (str) naming the device,
-        the request and its channels. Link failures drop the link for a reconnect."""
+        the request and its channels. An unanswered request is re-sent at once until
+        `lost_after` in a row went unanswered; then, or on an I/O error, the link is
+        dropped for a reconnect (module docstring: the physics)."""
         client = self._client
         if client is None:
             return f"{label}: not connected"
-        dev = self.options.device_id
-        try:
-            if fn.startswith("read"):
-                rr = getattr(client, fn)(address, count=arg, device_id=dev)
-            else:
-                rr = getattr(client, fn)(address, arg, device_id=dev)
-        except Exception as exc:  # noqa: BLE001 - timeouts, resets, garbage: all counted
-            kind = "timeouts" if "No response" in str(exc) or "timed out" in str(exc) \
-                else "link_errors"
-            self._drop()
-            self.count("disconnects")
-            return self.error(kind, f"{label}: {type(exc).__name__}: {exc}", names)
+        o: ModbusOptions = self.options
+        dev = o.device_id
+        while True:
+            try:
+                if fn.startswith("read"):
+                    rr = getattr(client, fn)(address, count=arg, device_id=dev)
+                else:
+                    rr = getattr(client, fn)(address, arg, device_id=dev)
+            except Exception as exc:  # noqa: BLE001 - timeouts, resets, garbage: all counted
+                text = f"{label}: {type(exc).__name__}: {exc}"
+                if "No response" not in str(exc) and "timed out" not in str(exc):
+                    self._drop()
+                    self.count("disconnects")
+                    return self.error("link_errors", text, names)
+                self._unanswered += 1
+                self.error("timeouts", text, names)
+                self.failing(text)  # failure starts with the first unanswered request
+                if self._unanswered < o.lost_after:
+                    self.count("retries")
+                    continue
+                self._drop()
+                self.count("disconnects")
+                return (f"{self.describe()}: {label}: no response to {self._unanswered} "
+                        f"requests in a row (lost_after {o.lost_after}): link lost")
+            self._unanswered = 0
+            break
         if rr.isError():
             code = getattr(rr, "exception_code", 0)
             what = EXCEPTION_NAMES.get(code, f"code {code}")

@@ -11,12 +11,13 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import resources
-from typing import Any, ClassVar, Protocol, cast
+from typing import Any, ClassVar, Protocol, cast, runtime_checkable
 
 from pamd.config.actuation import check_actuation, check_sim_sample_periods, check_sim_stalls
 from pamd.config.chain import check_safety_chain
 from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.plausibility import check_plausibility_thresholds
+from pamd.config.request_timeouts import check_request_timeouts
 from pamd.config.schema import (
     ControlConfig,
     MuscleConfig,
@@ -124,10 +125,11 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
     ctx.raise_if_any()
     warnings = _check_safety_bounds(rig, raw, ctx)
     drivers_node = raw.get("drivers", [])
-    rig, channels, digital = _check_drivers(rig, drivers_node, ctx)
+    rig, channels, digital, lost_reply = _check_drivers(rig, drivers_node, ctx)
     limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
     check_actuation(rig, raw.get("muscles", []), digital, ctx)
     check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
+    check_request_timeouts(rig, drivers_node, lost_reply, ctx, effective_timeout_s)
     check_plausibility_thresholds(rig, raw, limits, ctx)
     check_sim_stalls(rig, drivers_node, ctx)
     check_safety_chain(rig, raw.get("safety_chain"), ctx)
@@ -206,6 +208,14 @@ class _HasChannels(Protocol):
     def channels(self) -> Sequence[_ChannelLike]: ...
 
 
+@runtime_checkable
+class _RetriesLostReplies(Protocol):
+    """A driver that re-sends an unanswered request (pamd.drivers.modbus): how much
+    later a fresh input can arrive when one reply is lost."""
+
+    def lost_reply_s(self) -> float: ...
+
+
 class _ChannelLike(Protocol):
     @property
     def name(self) -> str: ...
@@ -227,14 +237,17 @@ def _driver_type(type_name: str) -> DriverType:
 
 
 def _check_drivers(rig: RigConfig, node: Any, ctx: Context
-                   ) -> tuple[RigConfig, dict[str, dict[str, str]], dict[str, set[str]]]:
+                   ) -> tuple[RigConfig, dict[str, dict[str, str]], dict[str, set[str]],
+                              dict[str, float]]:
     """Validate each driver's type and options; returns the config with typed options
-    and, per driver whose options are valid, {channel name: 'in' | 'out'} and the
-    names of its digital outputs."""
+    and, per driver whose options are valid, {channel name: 'in' | 'out'}, the
+    names of its digital outputs and, for a driver that retries lost replies, its
+    `lost_reply_s()`."""
     seen: set[str] = set()
     built = []
     channel_map: dict[str, dict[str, str]] = {}
     digital: dict[str, set[str]] = {}
+    lost_reply: dict[str, float] = {}
     for i, drv in enumerate(rig.drivers):
         item = node[i]
         _check_name(ctx, drv.name, seen, line_of(item, "name"), f"drivers[{i}].name")
@@ -250,7 +263,8 @@ def _check_drivers(rig: RigConfig, node: Any, ctx: Context
                                   f"drivers[{i}].options", line_of(item, "options"))
         if len(ctx.issues) == n_before:
             try:  # the driver's own cross-field checks (it must not do I/O here)
-                channels = cls(drv.name, options).channels()
+                built_driver = cls(drv.name, options)
+                channels = built_driver.channels()
             except (DriverError, ValueError) as exc:
                 ctx.add(line_of(item, "options"), f"drivers[{i}].options",
                         f"options that driver type {drv.type!r} accepts", str(exc))
@@ -258,8 +272,10 @@ def _check_drivers(rig: RigConfig, node: Any, ctx: Context
                 channel_map[drv.name] = {c.name: c.direction for c in channels}
                 digital[drv.name] = {c.name for c in channels
                                      if c.direction == "out" and c.digital}
+                if isinstance(built_driver, _RetriesLostReplies):
+                    lost_reply[drv.name] = built_driver.lost_reply_s()
         built.append(dataclasses.replace(drv, options=options))
-    return dataclasses.replace(rig, drivers=tuple(built)), channel_map, digital
+    return dataclasses.replace(rig, drivers=tuple(built)), channel_map, digital, lost_reply
 
 
 def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]],

@@ -103,6 +103,9 @@ def test_the_rig_binds_each_input_with_its_device_aware_timeout(tmp_path: Any) -
 
     d = emulated_dict(tmp_path, free_port(), can="virtual")
     d["safety"].update(signal_timeout_s=0.05, latency_margin_s=0.05)
+    # a 0.05 s request timeout would let one lost reply stale the 0.051 s pressure
+    # (refused: pamd.config.request_timeouts); a loopback module answers in < 1 ms
+    d["drivers"][0]["options"]["timeout_s"] = 0.02
     d["muscles"][0]["signals"]["force"].update(sample_period_s=SAMPLE_PERIOD_S, timeout_s=0.1)
     d["muscles"][1]["signals"]["pressure"].pop("sample_period_s")
     rig = Rig(load_config(str(write_config(tmp_path, d))), Calibration())

@@ -94,7 +94,7 @@ def test_a_missing_device_is_ready_in_fault_and_the_fault_survives_a_restart(
     d = sim_dict()
     d["drivers"].append({"name": "io", "type": "modbus", "options": {
         "transport": "tcp", "host": "127.0.0.1", "port": closed, "preset": "adam-6024",
-        "timeout_s": 0.05, "fault_after_s": 0.3}})
+        "timeout_s": 0.02, "fault_after_s": 0.3}})  # one lost reply within m1.pressure's 0.05 s
     d["muscles"][0]["signals"]["pressure"] = {"driver": "io", "channel": "ai0"}
     missing = write_yaml(tmp_path / "missing.yaml", d)
     p = pamd_run("--config", missing, "--state-dir", state, "--json",
