@@ -26,8 +26,12 @@ steps:
   - {name: light, load_kg: 15}
   - name: heavy
     load_kg: 50
-    profile: {kind: sine, min_bar: 0.0, max_bar: 3.0, freq_hz: 0.5, cycles: 8}
+    profile: {kind: sine, min_bar: 0.0, max_bar: 3.0, freq_hz: 0.5, cycles: 40}
 """
+# Step 2 is 80 s of rig time (3-4 s of wall time on the virtual clock), so the SIGKILL,
+# sent as soon as its file appears, lands inside it even when this test's process waits
+# for a core: with 8 cycles (16 s, under a second) a busy machine once let step 2 end
+# first, and its file then rightly counted it done.
 
 
 def wait_for(check, timeout_s: float, what: str):  # type: ignore[no-untyped-def]
