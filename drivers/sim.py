@@ -43,16 +43,9 @@ from pamd.drivers import Channel, Clock, Driver, DriverHealth
 
 from pamd.errors import DriverError
 from pamd.muscle import ForceModel, force_model
+from pamd.sim.faults import FAULT_KINDS, JUMP_DEFAULT, NOISE_DEFAULT, SimFault
 from pamd.sim.onoff import OnOffValves
-from pamd.sim.options import (
-    FAULT_KINDS,
-    JUMP_DEFAULT,
-    NOISE_DEFAULT,
-    SimFault,
-    SimMuscleOptions,
-    SimOptions,
-    check_options,
-)
+from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
 from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
 

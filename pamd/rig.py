@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 from pamd.calibration import Calibration, MuscleReference
 from pamd.config.loader import LoadedConfig, effective_timeout_s
-from pamd.config.schema import SafetyConfig, SignalConfig
+from pamd.config.safety_schema import SafetyConfig
+from pamd.config.schema import SignalConfig
 from pamd.drivers import Clock, Driver, load_driver_class
 from pamd.errors import ConfigError, ConfigIssue, DriverError
 

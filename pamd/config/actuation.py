@@ -18,7 +18,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from pamd.config.schema import MuscleConfig, RigConfig, SafetyConfig, SignalConfig
+from pamd.config.safety_schema import SafetyConfig
+from pamd.config.schema import MuscleConfig, RigConfig, SignalConfig
 from pamd.schema.engine import Context, line_of
 
 #: The sim driver's sensor options, per input signal: (sample period, latency).

@@ -14,7 +14,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from pamd.config.schema import RigConfig, SafetyConfig, SignalConfig
+from pamd.config.safety_schema import SafetyConfig
+from pamd.config.schema import RigConfig, SignalConfig
 from pamd.schema.engine import Context, line_of
 
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from pamd.config.control_schema import PidConfig
 from pamd.config.loader import MuscleLimitsResolved
-from pamd.config.schema import SafetyConfig
+from pamd.config.safety_schema import SafetyConfig
 
 
 @dataclass(frozen=True, kw_only=True)

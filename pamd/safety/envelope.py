@@ -18,7 +18,8 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
-from pamd.config.schema import MuscleConfig, SafetyConfig
+from pamd.config.safety_schema import SafetyConfig
+from pamd.config.schema import MuscleConfig
 from pamd.muscle import MUSCLE_TYPES, ForceModel, MuscleType, force_model
 from pamd.safety import safe_pressure_bar
 from pamd.safety.length_rate import LengthRate, derive_length_rate

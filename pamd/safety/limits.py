@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from pamd.config.schema import SafetyConfig
+from pamd.config.safety_schema import SafetyConfig
 from pamd.safety.limiter import held_back
 from pamd.tick import Flag
 

@@ -11,7 +11,7 @@ import math
 import pytest
 from pamd.drivers.device import ArrivalWindow
 
-from pamd.config.schema import PlausibilityConfig
+from pamd.config.safety_schema import PlausibilityConfig
 from pamd.muscle import force_model
 from pamd.safety.plausibility import Plausibility
 from pamd.sim.sensors import SampledSensor

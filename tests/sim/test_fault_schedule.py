@@ -16,7 +16,8 @@ from pamd.drivers.sim import SimDriver
 
 from pamd.config import load_config
 from pamd.errors import ConfigError, DriverError
-from pamd.sim.options import SimFault, SimMuscleOptions, SimOptions
+from pamd.sim.faults import SimFault
+from pamd.sim.options import SimMuscleOptions, SimOptions
 
 REPO = Path(__file__).resolve().parents[2]
 
