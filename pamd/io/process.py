@@ -131,6 +131,7 @@ class IoProcess:
         self.last_tick = -1
         self.failed = False
         self.reply_t = 0.0
+        self._next_event: dict[str, Any] | None = None  # read, newer than a step's end
 
     def _fail(self, what: str, exc: BaseException) -> None:
         reason = f"{what}: {exc.__class__.__name__}: {exc}"
@@ -266,8 +267,11 @@ class IoProcess:
         if rec is not None:
             if rec.t_start is None:
                 rec.t_start = self.block.t_start()
+            i_seg, half_period_s = rec.i_segment, 0.5 / self.spec.rate_hz
             try:
                 for row in rows:
+                    if row[i_seg] != rec.seg_seen:  # a step's file ends: its events first
+                        self._drain_events((rec.t_start or 0.0) + row[1] - half_period_s)
                     rec.tick(row)
             except Exception as exc:
                 self._fail("recording write failed", exc)
@@ -278,16 +282,28 @@ class IoProcess:
         self.last_tick = int(rows[-1][0])
         return n
 
-    def _drain_events(self) -> tuple[int, dict[str, Any] | None]:
+    def _drain_events(self, before_t_s: float | None = None
+                      ) -> tuple[int, dict[str, Any] | None]:
+        """Events into telemetry and the recording. With `before_t_s` (the first tick of
+        a new step file is about to be written), every event older than that tick, so
+        each goes into the file of the step it happened in (the loop writes a tick's
+        events into their ring before its record; ticks are drained in batches first):
+        the first newer one waits for the next drain."""
         ring = self.block.events
         n = 0
         summary = None
-        while n < 64:
-            blob = ring.get_blob()
-            if blob is None:
+        while n < 64 or before_t_s is not None:
+            ev = self._next_event
+            self._next_event = None
+            if ev is None:
+                blob = ring.get_blob()
+                if blob is None:
+                    break
+                ev = json.loads(blob)
+            if before_t_s is not None and ev["t"] >= before_t_s:
+                self._next_event = ev
                 break
             n += 1
-            ev = json.loads(blob)
             kind, data = ev["kind"], ev["data"]
             if kind == "reply":
                 self.reply_t = ev["t"]

@@ -1,0 +1,71 @@
+"""The io process puts each event into the file of the step it happened in.
+
+The loop writes a tick's events into their ring before the tick's record, and the io
+process drains the ticks' ring in batches before the events'. On a busy machine one
+batch spans a step's end: the step's `step_finished` event (on its last tick) must
+still go into that step's file, which a crashed collection is later rebuilt from
+(`pamd.experiment.stepfiles`), and the next step's first event into the next file."""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import time
+from pathlib import Path
+
+from pamd.experiment.stepfiles import read_step_file
+from pamd.io.process import IoProcess
+from pamd.io.spec import IoSpec
+from pamd.ipc.ring import BlockLayout, SharedBlock
+from pamd.record.recorder import Recorder
+from pamd.record.spec import RecordSpec
+from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
+
+RATE_HZ = 100.0
+STEPS = ({"step": "light", "index": 0, "plan": "quick", "load_kg": 15.0},
+         {"step": "heavy", "index": 1, "plan": "quick", "load_kg": 50.0})
+
+
+def test_a_batch_across_a_step_end_keeps_each_event_in_its_steps_file(
+        tmp_path: Path) -> None:
+    n = len(LOOP_FIELDS) + len(MUSCLE_FIELDS)
+    layout = BlockLayout(record_bytes=8 * n, tick_slots=64)
+    block = SharedBlock(layout, create=True)
+    try:
+        rs = RecordSpec(dir=str(tmp_path), run_name="quick", rotate_mb=None, rotate_s=None,
+                        chunk_kb=64, flush_s=1.0, compression="zstd",
+                        started_at="20250101-000000", steps=STEPS)
+        spec = IoSpec(shm_name=block.name, layout=layout, rig_id="sim", muscles=("m1",),
+                      rate_hz=RATE_HZ, virtual=True, wall0_ns=time.time_ns(), clock0_s=0.0,
+                      parent_pid=os.getpid(), record=rs)
+        io = IoProcess(spec, block)
+        io.recorder = rec = Recorder(spec)
+        rec.t_start = 0.0
+        rec.open()
+        pack = struct.Struct(f"<{n}d").pack
+        i_seg = LOOP_FIELDS.index("segment")
+
+        def event(tick: int, what: str, step: str) -> None:
+            blob = json.dumps({"t": tick / RATE_HZ, "kind": "experiment", "data": {
+                "plan": "quick", "what": what, "step": step}}).encode()
+            assert block.events.put_blob(blob)
+
+        # as the loop writes them: 20 ticks of step 1, its last with step_finished,
+        # then step 2 begins (its first tick's event before its record)
+        for k in range(40):
+            if k == 19:
+                event(k, "step_finished", "light")
+            if k == 20:
+                event(k, "step_started", "heavy")
+            row = [0.0] * n
+            row[0], row[1], row[i_seg] = float(k), k / RATE_HZ, 1.0 if k < 20 else 2.0
+            assert block.ticks.put(pack(*row))
+        assert io._drain_ticks() == 40  # one batch, across the step's end
+        io._drain_events()
+        rec.finish(None, "test")
+        light, heavy = (read_step_file(f) for f in rec.files[-2:])  # after the run's own
+        assert light is not None and light.step == "light" and light.finished
+        assert heavy is not None and heavy.step == "heavy" and not heavy.finished
+    finally:
+        block.close()
