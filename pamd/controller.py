@@ -141,7 +141,7 @@ class RigController:
         return hold
 
     # -- the tick -------------------------------------------------------------------
-    def tick(self, now: float, dt: float) -> array:
+    def tick(self, now: float, dt: float) -> array[float]:
         self.now = now
         for drv in self.steppers:
             drv.advance(dt)

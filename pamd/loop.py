@@ -82,7 +82,7 @@ class CommandIntake:
 
 
 def tick_once(ctrl: RigController, intake: CommandIntake, now_s: float, dt_s: float,
-              commands_until: float) -> array:
+              commands_until: float) -> array[float]:
     """One tick, as both `Loop` and `pamd.harness.Harness` run it: the waiting commands
     first (held in the mailbox until the sensors are read: none while STARTING), then
     the controller's tick. Returns the tick record."""

@@ -81,7 +81,7 @@ class SummarySink:
         ticks after its first cycle."""
         self._muscles = muscles
 
-    def put(self, record: array) -> bool:
+    def put(self, record: array[float]) -> bool:
         self.ticks += 1
         t = record[I_T]
         dt = t - self._last_t
@@ -114,7 +114,7 @@ class SummarySink:
             ok = d.put(record) and ok
         return ok
 
-    def _steady(self, k: int, record: array, b: int) -> None:
+    def _steady(self, k: int, record: array[float], b: int) -> None:
         s = self.steady[k]
         e = record[b + M_SETPOINT] - record[b + M_PRESSURE]
         if e == e:

@@ -9,7 +9,7 @@ from pamd.control.feedforward import load_models
 from pamd.safety.envelope import MuscleEnvelope
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "check-config", help="validate a rig config file",
         description="Validate a rig config: syntax, unknown keys, types, units and bounds, "

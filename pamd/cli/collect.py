@@ -27,7 +27,7 @@ from pamd.io.session import RecordingRequest
 from pamd.tick import State
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "collect", help="run an experiment plan (e.g. the 0.05 Hz sine sweep under loads)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -184,7 +184,8 @@ def _logs_above(bar: ProgressBar | None) -> AbstractContextManager[object]:
         return contextlib.nullcontext()
     from tqdm.contrib.logging import logging_redirect_tqdm
 
-    return logging_redirect_tqdm()
+    redirect: AbstractContextManager[object] = logging_redirect_tqdm()  # tqdm is untyped
+    return redirect
 
 
 def _follow_loop(daemon: Daemon, seq: Sequencer, bar: ProgressBar | None, total: float,
@@ -259,7 +260,9 @@ def _bar(total_s: float, show: bool) -> ProgressBar | None:
         from tqdm import tqdm
     except ImportError:  # progress is a nicety, not a requirement
         return None
-    return tqdm(total=round(total_s, 1), unit="s", unit_scale=False, dynamic_ncols=True,
-                bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} s rig time "
-                "[{elapsed}<{remaining}] {postfix}", file=sys.stderr)
+    bar: ProgressBar = tqdm(  # tqdm is untyped
+        total=round(total_s, 1), unit="s", unit_scale=False, dynamic_ncols=True,
+        bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} s rig time "
+        "[{elapsed}<{remaining}] {postfix}", file=sys.stderr)
+    return bar
 

@@ -19,7 +19,7 @@ from pamd.errors import DriverError
 from pamd.service.riglock import RunLocks
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "emulate", help="serve an emulated rig through real protocols",
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -8,7 +8,7 @@ import argparse
 from pamd.cli.offline import apply_offline, print_verdict
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "home", help="reference a muscle's length (offline, on the configured rig)",
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -24,7 +24,7 @@ from pamd.version import __version__
 class SubCommand(Protocol):
     """A sub-command module: it adds its parser (whose `func` runs it)."""
 
-    def add_parser(self, sub: argparse._SubParsersAction) -> None: ...
+    def add_parser(self, sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None: ...
 
 
 #: The sub-commands, in the order `pamd --help` lists them.

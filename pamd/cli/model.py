@@ -23,7 +23,7 @@ from pamd.net.client import Client
 SAVE_TIMEOUT_S = 10.0
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("model", help="the adapted model of a running daemon (over Zenoh)",
                        description="Model files from a running daemon.")
     msub = p.add_subparsers(dest="model_command", metavar="ACTION", required=True)

@@ -17,7 +17,7 @@ from pamd.view import export
 from pamd.view.collection import inspect_collection, print_collection
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("inspect", help="what a recording or a collection holds (channels, "
                        "counts, metadata, faults, lost records; steps, loads, files)",
                        description="FILE: an MCAP recording's channels, counts, metadata, "

@@ -15,7 +15,7 @@ from pamd.net import zconf
 from pamd.net.zconf import NoDaemon
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("router", help="run a Zenoh router (for a lab with TLS and access "
                        "control)", description=__doc__)
     p.add_argument("--zenoh-config", metavar="FILE", required=True,

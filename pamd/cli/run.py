@@ -36,7 +36,7 @@ DEFAULT_RECORD_DIR = "runs"
 DEFAULT_RECORD_MAX_MB = 500.0
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "run", help="run the rig (default: the simulated rig)",
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -13,7 +13,7 @@ from pamd.service.safe_outputs import replay
 from pamd.service.state import SAFE_OUTPUTS_FILE, StateFileError, read_safe_outputs
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "safe-outputs", help="write the last known-good safe outputs to the devices",
         formatter_class=argparse.RawDescriptionHelpFormatter,

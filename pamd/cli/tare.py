@@ -9,7 +9,7 @@ from typing import Any
 from pamd.cli.offline import apply_offline, print_verdict
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "tare", help="zero a load cell (offline, on the configured rig)",
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -79,7 +79,7 @@ that is not physical (wrong sign, no response) stops it: the present gains are k
 the reason printed, exit status 2."""
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "tune", help="identify the pressure or position loop on the rig and derive its gains",
         formatter_class=argparse.RawDescriptionHelpFormatter, description=DESCRIPTION,

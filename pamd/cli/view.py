@@ -11,7 +11,7 @@ from pamd.view.plots import write_plots
 from pamd.view.recording import RecordingIncomplete, open_recording
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "plot", help="figures of a recording: pressure, length, force, hysteresis (PNG)",
         formatter_class=argparse.RawDescriptionHelpFormatter,

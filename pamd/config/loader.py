@@ -15,16 +15,12 @@ from typing import Any, ClassVar, Protocol, cast, runtime_checkable
 
 from pamd.config.actuation import check_actuation, check_sim_sample_periods, check_sim_stalls
 from pamd.config.chain import check_safety_chain
+from pamd.config.control_schema import ControlConfig
 from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.plausibility import check_plausibility_thresholds
 from pamd.config.request_timeouts import check_request_timeouts
-from pamd.config.schema import (
-    ControlConfig,
-    MuscleConfig,
-    RigConfig,
-    SafetyConfig,
-    SignalConfig,
-)
+from pamd.config.safety_schema import SafetyConfig
+from pamd.config.schema import MuscleConfig, RigConfig, SignalConfig
 from pamd.errors import DriverError
 from pamd.muscle import MUSCLE_TYPES
 from pamd.plugins import load_driver_entry

@@ -127,7 +127,7 @@ class Feedforward:
 
     def pressure(self, force_n: float, length_mm: float, contraction: float,
                  velocity_mm_s: float) -> float:
-        y = self._call(force_n, length_mm, contraction, velocity_mm_s)
+        y: float = self._call(force_n, length_mm, contraction, velocity_mm_s)
         clipped = self.compiled.clipped
         # Inside the inputs' ranges but off the data (a load and length never seen
         # together) a model can still answer nonsense: its output is held to the range

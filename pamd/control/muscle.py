@@ -328,7 +328,7 @@ class MuscleController(MuscleView):
         return self.adaptation.snapshot()
 
     # -- the tick -------------------------------------------------------------------------
-    def tick(self, now: float, dt: float, state: int, rec: array) -> str | None:
+    def tick(self, now: float, dt: float, state: int, rec: array[float]) -> str | None:
         """Run one tick; returns a fault reason, or None."""
         # -- inputs --------------------------------------------------------------------
         inp = self.inputs

@@ -183,7 +183,7 @@ class MuscleView:
         calibration is to be saved, outside the loop's thread)."""
         return self.inputs.take_calibration_dirty()
 
-    def _record(self, rec: array, flags: int) -> None:
+    def _record(self, rec: array[float], flags: int) -> None:
         b = self._base
         inp, lc, pid = self.inputs, self.length_control, self.pressure_loop.pid
         rec[b + M_PRESSURE] = inp.pressure_bar

@@ -51,7 +51,7 @@ class Manifest:
 
     @property
     def plan_name(self) -> str:
-        return self.data["plan"]["name"]
+        return str(self.data["plan"]["name"])
 
     @classmethod
     def new(cls, directory: str, plan: Plan, plan_file: str, cfg: LoadedConfig) -> Manifest:

@@ -10,8 +10,10 @@ operator. Each step becomes one recording file.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
-from pamd.config.loader import NAME_RE, LoadedConfig
+from pamd.config.loader import LoadedConfig
+from pamd.config.names import NAME_RE
 from pamd.errors import CommandRefused
 from pamd.muscle import MUSCLE_TYPES, equilibrium_contraction, force_model
 from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
@@ -106,7 +108,7 @@ def load_plan(path: str, rig: LoadedConfig) -> Plan:
 def parse_plan(text: str, path: str, rig: LoadedConfig) -> Plan:
     raw = load_yaml_text(text, path)
     ctx = Context(path)
-    plan = build_dataclass(Plan, raw, ctx, "", 1)
+    plan: Plan = build_dataclass(Plan, raw, ctx, "", 1)
     ctx.raise_if_any()
     steps_node = raw.get("steps", [])
     check_plan(plan, rig, ctx, steps_node)
@@ -114,7 +116,7 @@ def parse_plan(text: str, path: str, rig: LoadedConfig) -> Plan:
     return plan
 
 
-def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list) -> None:
+def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[Any]) -> None:
     """Limits, loads, slew and contraction of every step, against the rig."""
     if not NAME_RE.match(plan.name):  # it names the collection's files and directory
         ctx.add(None, "name", "a name of letters, digits, '_', '-'", repr(plan.name))

@@ -193,7 +193,8 @@ class SharedBlock:
     def t_start(self) -> float | None:
         if not self.u64[C_T_START_SET]:
             return None
-        return _F64.unpack_from(self.buf, C_T_START * 8)[0]
+        t_s: float = _F64.unpack_from(self.buf, C_T_START * 8)[0]
+        return t_s
 
     def _set_text(self, off: int, cap: int, text: str) -> None:
         data = text.encode("utf-8", "replace")[:cap]

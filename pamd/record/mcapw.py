@@ -21,6 +21,7 @@ import struct
 import tempfile
 import zlib
 from array import array
+from collections.abc import Callable
 from typing import Any
 
 from mcap.data_stream import RecordBuilder
@@ -61,6 +62,12 @@ def _compressor(kind: str) -> Any:
     raise ValueError(f"unknown compression {kind!r}; use zstd, lz4 or none")
 
 
+
+def _built(b: RecordBuilder) -> bytes:
+    """The records `b` built (mcap's `RecordBuilder.end` carries no type hints)."""
+    end: Callable[[], bytes] = b.end
+    return end()
+
 class McapWriter:
     """Writes one MCAP file. Not thread-safe; one owner."""
 
@@ -72,7 +79,7 @@ class McapWriter:
         self.compress = _compressor(compression)
         self.compression = "" if self.compress is None else compression
         self.chunk = bytearray()
-        self.index: dict[int, array] = {}  # channel -> flat (log_time, offset) pairs
+        self.index: dict[int, array[int]] = {}  # channel -> flat (log_time, offset) pairs
         self.schemas: list[Schema] = []
         self.channels: list[Channel] = []
         # Chunk indexes, needed only for the summary at the end, go to an unnamed
@@ -101,7 +108,7 @@ class McapWriter:
     def _record(self, rec: Any) -> tuple[int, int]:
         b = RecordBuilder()
         rec.write(b)
-        data = b.end()
+        data = _built(b)
         off = self.pos
         self._write(data)
         return off, len(data)
@@ -155,7 +162,7 @@ class McapWriter:
         b = RecordBuilder()
         Message(channel_id=channel_id, sequence=sequence & 0xFFFFFFFF, log_time=log_ns,
                 publish_time=log_ns, data=data).write(b)
-        self.add_record(channel_id, log_ns, b.end())
+        self.add_record(channel_id, log_ns, _built(b))
 
     def close_chunk(self) -> None:
         """Compress and write the open chunk and its message indexes (if any)."""
@@ -163,7 +170,7 @@ class McapWriter:
         if not raw:
             return
         start, end = 2**64 - 1, 0
-        in_chunk: list[tuple[int, array]] = []
+        in_chunk: list[tuple[int, array[int]]] = []
         for ch, idx in self.index.items():
             if idx:
                 times = idx[0::2]
@@ -212,7 +219,7 @@ class McapWriter:
                 dir=os.path.dirname(os.path.abspath(self.path)), prefix=".pamd-chunk-index-")
         b = RecordBuilder()
         ci.write(b)
-        self._chunk_index_file.write(b.end())
+        self._chunk_index_file.write(_built(b))
         self.chunk_count += 1
 
     def _close_spill(self) -> None:
@@ -248,7 +255,7 @@ class McapWriter:
             b = RecordBuilder()
             for r in records:
                 r.write(b)
-            data = b.end()
+            data = _built(b)
             offsets.append(SummaryOffset(group_opcode=opcode, group_start=self.pos,
                                          group_length=len(data)))
             emit(data)
@@ -278,13 +285,13 @@ class McapWriter:
         b = RecordBuilder()
         for o in offsets:
             o.write(b)
-        emit(b.end())
+        emit(_built(b))
         crc = zlib.crc32(struct.pack("<BQQQ", Opcode.FOOTER, 20, summary_start,
                                      summary_offset_start), crc)
         fb = RecordBuilder()
         Footer(summary_start=summary_start, summary_offset_start=summary_offset_start,
                summary_crc=crc).write(fb)
-        self._write(fb.end() + MAGIC)
+        self._write(_built(fb) + MAGIC)
         self.sync()
         os.close(self.fd)
         self.finished = True

@@ -11,6 +11,7 @@ each key, so validation errors can name the line an operator has to edit.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from typing import Any
 
 import yaml
@@ -30,14 +31,14 @@ MAX_DIGITS = 40
 MAX_BYTES = 1 << 20
 
 
-class LinedDict(dict):
+class LinedDict(dict[Any, Any]):
     """A mapping from YAML with `line` (its own) and `key_lines` (per key), 1-based."""
 
     line: int | None = None
     key_lines: dict[YamlKey, int]
 
 
-class LinedList(list):
+class LinedList(list[Any]):
     """A sequence from YAML with `line` and `item_lines`, 1-based."""
 
     line: int | None = None
@@ -84,7 +85,8 @@ class _Loader(yaml.SafeLoader):
         self._path.append(part)
         try:
             if len(self._path) > MAX_DEPTH + 1:
-                mark = self.peek_event().start_mark
+                peek: Callable[[], Any] = self.peek_event  # untyped in PyYAML's stubs
+                mark = peek().start_mark
                 raise _issue(self.name, mark.line + 1, _path_text(self._path[:-1]),
                              f"nesting at most {MAX_DEPTH} levels deep",
                              "deeper nesting")

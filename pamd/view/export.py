@@ -21,7 +21,7 @@ import math
 import os
 import re
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -83,6 +83,11 @@ def _meta(rec: Recording) -> dict[str, Any]:
 
 
 # -- MATLAB ------------------------------------------------------------------------------
+def cell(xs: Iterable[Any]) -> np.ndarray:
+    """A MATLAB cell array of `xs`."""
+    return np.array(list(xs), dtype=object)
+
+
 def export_mat(source: RecordingSource, out: str) -> dict[str, Any]:
     """Write `out` (.mat); what was written (muscles, ticks, events)."""
     try:
@@ -90,7 +95,6 @@ def export_mat(source: RecordingSource, out: str) -> dict[str, Any]:
     except ImportError:
         raise RecordingError("MATLAB export needs scipy: pip install 'pamd[mat]'") from None
     rec = _complete(source)
-    cell = lambda xs: np.array(list(xs), dtype=object)  # noqa: E731 - a MATLAB cell array
     tables: dict[str, Any] = {}
     for m, data in rec.muscles.items():
         st: dict[str, Any] = {k: v.astype(np.float64) for k, v in data.columns.items()}
@@ -201,13 +205,15 @@ def _column(values: np.ndarray, decimals: int | None) -> list[Any]:
     stored value's); NaN as "NaN". Each distinct value is written out once: a sensor's
     readings take few distinct values (a quantised pressure, an encoder's counts)."""
     if values.dtype.kind in "iub":
-        return values.astype(np.int64).tolist()
+        ints: list[Any] = values.astype(np.int64).tolist()
+        return ints
     a = values.astype(np.float64)
     if decimals is not None:
         a = np.round(a, decimals) + 0.0  # + 0.0: no "-0.0" for a value rounded to zero
     distinct, at = np.unique(a, return_inverse=True)
     text = np.array(["NaN" if v != v else repr(v) for v in distinct.tolist()], dtype=object)
-    return text[at.ravel()].tolist()
+    cells: list[Any] = text[at.ravel()].tolist()
+    return cells
 
 
 def _names(codes: np.ndarray, name_of: Callable[[float], str]) -> np.ndarray:

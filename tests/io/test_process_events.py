@@ -61,8 +61,8 @@ def test_a_batch_across_a_step_end_keeps_each_event_in_its_steps_file(
             row = [0.0] * n
             row[0], row[1], row[i_seg] = float(k), k / RATE_HZ, 1.0 if k < 20 else 2.0
             assert block.ticks.put(pack(*row))
-        assert io._drain_ticks() == 40  # one batch, across the step's end
-        io._drain_events()
+        assert io._drain_ticks() == 40  # noqa: SLF001 - one batch, across the step's end
+        io._drain_events()  # noqa: SLF001 - the io loop's next call
         rec.finish(None, "test")
         light, heavy = (read_step_file(f) for f in rec.files[-2:])  # after the run's own
         assert light is not None and light.step == "light" and light.finished
