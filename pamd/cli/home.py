@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from pamd.cli.offline import apply_offline, print_verdict
+from pamd.cli.offline import add_state_args, apply_offline, print_verdict
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -27,10 +27,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("--muscle", required=True, help="the muscle to reference")
     p.add_argument("--length-mm", type=float, required=True, metavar="MM",
                    help="its true length now, in mm")
-    p.add_argument("--state-dir", metavar="DIR", help="the state directory whose "
-                   "calibration.yaml keeps the references (the service's: /var/lib/pamd; "
-                   "default: as `pamd run` keeps it, see state_dir)")
-    p.add_argument("--json", action="store_true", help="print the verdict as JSON")
+    add_state_args(p)
     p.set_defaults(func=run)
 
 

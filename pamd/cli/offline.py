@@ -12,6 +12,7 @@ safe state, unless it is latched in FAULT or ESTOP.
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from typing import Any
@@ -31,6 +32,14 @@ def _at_rest(d: Daemon) -> bool:
     return all(abs(m.velocity_mm_s) < AT_REST_MM_S and (
         not m.in_safe_ramp or abs(m.setpoint_bar - m.safe_pressure_bar) < 1e-6)
         for m in ctrl.muscles)
+
+
+def add_state_args(p: argparse.ArgumentParser) -> None:
+    """--state-dir and --json, as every offline reference command takes them."""
+    p.add_argument("--state-dir", metavar="DIR", help="the state directory whose "
+                   "calibration.yaml keeps the references (the service's: /var/lib/pamd; "
+                   "default: as `pamd run` keeps it, see state_dir)")
+    p.add_argument("--json", action="store_true", help="print the verdict as JSON")
 
 
 def apply_offline(config: str | None, verb: str, payload: dict[str, Any],
