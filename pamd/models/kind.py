@@ -15,9 +15,11 @@ Role: a kind module builds one `Kind` (or one per kind it holds) from
 * whether online adaptation can update it (`adaptable`), how training reports
   progress (`progress`), what its forward model predicts (`forward`, for the
   ``forward_*`` metrics) and the extra figures `pamd evaluate --plot` draws for
-  one model of the kind (`plots`).
+  one model of the kind (`plots`), and what outputs it can be trained for (`outputs`).
 
-A leaf of `pamd.models` beside the contract: it imports no kind.
+How a model evaluates is the model's own (the contract: `predict`, `compile`, and
+`stateful`, which makes `pamd evaluate` and the test score run it over whole runs in
+time order). This module imports no kind: only the contract and the sample types.
 """
 
 from __future__ import annotations
