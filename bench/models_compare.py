@@ -63,7 +63,7 @@ from pamd.models.compare import (  # noqa: E402
 from pamd.models.contract import InverseModel  # noqa: E402
 from pamd.models.registry import save_model  # noqa: E402
 from pamd.models.static_force import fit_coefficients, gain_offset  # noqa: E402
-from pamd.models.training import KindOptions, fit_split  # noqa: E402
+from pamd.models.training import fit_split  # noqa: E402
 from pamd.tick import State  # noqa: E402
 
 ALL_INPUTS = ("force_n", "length_mm", "contraction", "velocity_mm_s")
@@ -81,9 +81,12 @@ I2, I3 = ("force_n", "length_mm"), ("force_n", "length_mm", "velocity_mm_s")
 IC = ("force_n", "contraction")
 
 #: name -> (kind, inputs, options changes)
+#: Kind options by name shared across the candidates (each kind takes those it has).
+Settings = dict[str, Any]
+
 CANDIDATES: dict[str, tuple[str, tuple[str, ...], dict[str, Any]]] = {
-    "anfis 5x5": ("anfis", I2, {"n_mfs": 5, "epochs": 50}),
-    "anfis 3x3x3": ("anfis", I3, {"n_mfs": 3, "epochs": 50}),
+    "anfis 5x5": ("anfis", I2, {"mfs": (5,), "epochs": 50}),
+    "anfis 3x3x3": ("anfis", I3, {"mfs": (3,), "epochs": 50}),
     "ts-fuzzy gd": ("ts-fuzzy", I3, {"tuner": "gd", "epochs": 100}),
     "ts-fuzzy ga": ("ts-fuzzy", I3, {"tuner": "ga"}),
     "ts-fuzzy mga": ("ts-fuzzy", I3, {"tuner": "mga"}),
@@ -110,22 +113,22 @@ def columns(samples: Samples, inputs: tuple[str, ...]) -> Samples:
     return dataclasses.replace(samples, X=samples.X[:, idx], inputs=inputs)
 
 
-def train(name: str, samples: Samples, opts: KindOptions) -> tuple[InverseModel, float]:
+def train(name: str, samples: Samples, opts: Settings) -> tuple[InverseModel, float]:
     kind, inputs, changes = CANDIDATES[name]
     s = columns(samples, inputs)
     parts = split(s, 0.2, 0.0, by="block", block_s=10.0, seed=0)
     t0 = time.perf_counter()
-    model = fit_split(kind, s, parts, opts=dataclasses.replace(opts, **changes),
+    model = fit_split(kind, s, parts, options={**opts, **changes}, ignore_unknown=True,
                       derived_inputs=derived_inputs(inputs, WINDOW_S),
                       provenance={"data": s.provenance(), "split": parts.how})
     return model, time.perf_counter() - t0
 
 
-def pick_ridge(samples: Samples, opts: KindOptions) -> float:
+def pick_ridge(samples: Samples, opts: Settings) -> float:
     """The ts-fuzzy ridge with the least validation RMSE (gd tuner)."""
     scores = {}
     for r in RIDGES:
-        m, _ = train("ts-fuzzy gd", samples, dataclasses.replace(opts, ridge=r))
+        m, _ = train("ts-fuzzy gd", samples, {**opts, "ridge": r})
         scores[r] = m.metrics["validation"]["rmse"]
     best = min(scores, key=scores.__getitem__)
     print("  ts-fuzzy ridge on the validation blocks (gd): " + ", ".join(
@@ -133,7 +136,7 @@ def pick_ridge(samples: Samples, opts: KindOptions) -> float:
     return best
 
 
-def part1(out: str, opts: KindOptions, ridge: float | None) -> float:
+def part1(out: str, opts: Settings, ridge: float | None) -> float:
     """The comparison on the 50 kg test; returns the ts-fuzzy ridge chosen."""
     t0 = time.perf_counter()
     runs = {load: read_runs([record(load, 0.0, 6.0, 3, out, "sweep")])
@@ -148,7 +151,7 @@ def part1(out: str, opts: KindOptions, ridge: float | None) -> float:
           f"blocks); test at {TEST_LOAD_KG:g} kg: {len(test)} samples, never trained on")
     if ridge is None:
         ridge = pick_ridge(train_s, opts)
-    opts = dataclasses.replace(opts, ridge=ridge)
+    opts = {**opts, "ridge": ridge}
     judged, files, seconds = [], {}, {}
     for name, (kind, inputs, _) in CANDIDATES.items():
         model, sec = train(name, qupi_s if kind == "qupi" else train_s, opts)
@@ -234,7 +237,7 @@ def track(model: str | None, cycles: int) -> tuple[float, str]:
     return math.sqrt(sq / max(n, 1)), ""
 
 
-def part2(out: str, opts: KindOptions, cycles: int) -> None:
+def part2(out: str, opts: Settings, cycles: int) -> None:
     t0 = time.perf_counter()
     files = {(load, lo, hi): record(load, lo, hi, 2, out, "track")
              for load in TRACK_TRAIN_LOADS_KG for lo, hi in TRACK_RANGES_BAR}
@@ -272,13 +275,13 @@ def main() -> None:
     args = ap.parse_args()
     out = args.keep or tempfile.mkdtemp(prefix="pamd-models-")
     os.makedirs(out, exist_ok=True)
-    opts = KindOptions(epochs=args.generations, seed=0)
+    opts: Settings = {"epochs": args.generations}  # the split and the kinds: seed 0
     t0 = time.perf_counter()
     ridge = args.ridge
     if args.part in ("1", "both"):
         ridge = part1(out, opts, ridge)
     if args.part in ("2", "both"):
-        part2(out, dataclasses.replace(opts, ridge=0.01 if ridge is None else ridge),
+        part2(out, {**opts, "ridge": 0.01 if ridge is None else ridge},
               args.cycles)
     print(f"\ntotal {time.perf_counter() - t0:.0f} s")
 

@@ -15,12 +15,11 @@ from typing import Any, TextIO
 
 from pamd.errors import ModelError
 from pamd.models.anfis.extraction import load_samples
-from pamd.models.anfis.model import AnfisModel
-from pamd.models.anfis.plots import require_matplotlib, write_plots
+from pamd.models.anfis.plots import require_matplotlib
 from pamd.models.anfis.samples import Samples
 from pamd.models.compare import Judged, common_options, format_comparison, judge
 from pamd.models.plots import write_overlay
-from pamd.models.registry import load_model
+from pamd.models.registry import KINDS, load_model
 from pamd.view.recording import recording_files
 
 #: Table rows: metric key, label, format.
@@ -37,8 +36,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "evaluate", help="metrics and plots of inverse models on recorded data",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Evaluate one or several model files (any kind: anfis, ts-fuzzy, "
-        "polynomial, sarosi, mlp, svr, qupi) on recorded runs (MCAP or CSV). Arguments "
+        description="Evaluate one or several model files (any kind: "
+        f"{', '.join(KINDS)}) on recorded runs (MCAP or CSV). Arguments "
         "ending in .json are models, the rest data. The samples are extracted once, as "
         "for training (same filter, same drops; settings from the first model file "
         "unless overridden), and every model is judged on the same samples. Inputs "
@@ -59,8 +58,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    '"metrics": {...}}, ...]} (with one model also its metrics at the top '
                    "level: rmse, mae, ndei, ...)")
     p.add_argument("--plot", metavar="PREFIX", help="write PREFIX_prediction.png and "
-                   "_error.png (models overlaid); with one ANFIS model also _membership.png, "
-                   "_surface.png (and _training.png); needs matplotlib")
+                   "_error.png (models overlaid); with one model of a kind that draws more ("
+                   + ", ".join(k.name for k in KINDS.values() if k.plots is not None)
+                   + ") also its own figures (ANFIS structure: _membership.png, "
+                   "_surface.png and _training.png); needs matplotlib")
     p.add_argument("--muscle", help="MCAP: only this muscle (default: every muscle)")
     p.add_argument("--settle-s", type=float, help="drop this long after each start "
                    "(default: as in training)")
@@ -153,9 +154,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _plots(prefix: str, judged: list[Judged], samples: Samples, what: str) -> list[str]:
     j = judged[0]
-    if len(judged) == 1 and isinstance(j.model, AnfisModel):
-        return write_plots(prefix, j.model, samples.time_axis(), samples.y, j.y_hat,
-                           j.clipped, title=f"{j.model.output.name}: {what}")
+    plots = KINDS[j.model.kind].plots if j.model.kind in KINDS else None
+    if len(judged) == 1 and plots is not None:
+        return plots(prefix, j.model, samples.time_axis(), samples.y, j.y_hat, j.clipped,
+                     f"{j.model.output.name}: {what}")
 
     return write_overlay(prefix, judged, samples.time_axis(), samples.y,
                          title=f"{judged[0].model.output.name}: {what}")

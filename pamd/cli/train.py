@@ -13,13 +13,60 @@ from pamd.cli.evaluate import data_files, format_table
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.extraction import derived_inputs, load_samples
-from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
-from pamd.models.anfis.splitting import Split, split
-from pamd.models.anfis.training import TrainingOptions, fit
+from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
+from pamd.models.anfis.splitting import split
 from pamd.models.compare import predict_samples
-from pamd.models.registry import KINDS, save_model
-from pamd.models.training import DEFAULT_INPUTS, KindOptions, fit_split, rows_of
+from pamd.models.kind import Kind, OptionSpec
+from pamd.models.registry import KINDS, declared, save_model
+from pamd.models.training import fit_with, rows_of
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
+
+#: Option parsers argparse applies itself; any other runs after parsing (its ModelError
+#: names the flag and what to give).
+_ARGPARSE_TYPES = (int, float, str)
+
+
+def kind_flags() -> dict[str, list[tuple[Kind[Any], OptionSpec]]]:
+    """Each kind option's flag with the kinds that declare it (registry order); kinds
+    that share an option name share the flag."""
+    flags: dict[str, list[tuple[Kind[Any], OptionSpec]]] = {}
+    for k in KINDS.values():
+        for spec in k.option_specs:
+            flags.setdefault(spec.name, []).append((k, spec))
+    return flags
+
+
+def _add_kind_options(p: argparse.ArgumentParser) -> None:
+    group = p.add_argument_group(
+        "kind options", "each flag applies to the kinds it names (another kind refuses it)")
+    for name, users in kind_flags().items():
+        spec = users[0][1]
+        if any(s.parse is not spec.parse or s.choices != spec.choices for _, s in users):
+            raise ModelError(f"the kinds {', '.join(k.name for k, _ in users)} share the "
+                             f"option {name} but parse it differently: rename one")
+        group.add_argument(
+            spec.flag, dest=name, default=None, metavar=spec.metavar,
+            type=spec.parse if spec.parse in _ARGPARSE_TYPES else str, choices=spec.choices,
+            help="; ".join(f"{k.name}: {s.help} (default {s.default_text})"
+                           for k, s in users))
+
+
+def kind_options_given(args: argparse.Namespace, kind: Kind[Any]) -> dict[str, Any]:
+    """The kind options on the command line, parsed; one this kind lacks is refused."""
+    given: dict[str, Any] = {}
+    mine = {s.name: s for s in kind.option_specs}
+    for name, users in kind_flags().items():
+        value = getattr(args, name, None)
+        if value is None:
+            continue
+        spec = mine.get(name)
+        if spec is None:
+            raise ModelError(f"{users[0][1].flag} is an option of "
+                             f"{', '.join(k.name for k, _ in users)}, not of --kind "
+                             f"{kind.name} (its options: "
+                             f"{', '.join(s.flag for s in mine.values()) or 'none'})")
+        given[name] = value if spec.parse in _ARGPARSE_TYPES else spec.parse(value)
+    return given
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -34,7 +81,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "first --settle-s of each run are dropped; the rest is decimated to --rate-hz and "
         "split into training / validation (/ test) sets by whole time blocks or runs.\n\n"
         "--kind picks the model (the seeds' models; default anfis):\n"
-        + "".join(f"  {k.name:<11} seed {k.seed}: {k.summary}\n" for k in KINDS.values()),
+        + "".join(f"  {k.help_line()}\n" for k in KINDS.values()),
         epilog="examples:\n"
         "  pamd train runs/sweep --out model.json             # a collection (pamd collect)\n"
         "  pamd train runs/sweep runs/half --out model.json --inputs force_n,length_mm,"
@@ -55,35 +102,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--inputs", default=None,
                    help=f"comma-separated model inputs from {', '.join(INPUT_UNITS)} "
                    "(default per kind: " + "; ".join(
-                       f"{k} {','.join(v)}" for k, v in DEFAULT_INPUTS.items()) + ")")
+                       f"{k.name} {','.join(k.default_inputs)}" for k in KINDS.values()) + ")")
     p.add_argument("--output", default="pressure_bar", choices=sorted(OUTPUT_UNITS),
-                   help="model output (default pressure_bar)")
-    p.add_argument("--mfs", default=None, help="membership functions per input: one number "
-                   "or one per input (e.g. 5,5,3); default 5 for two inputs, 3 for three "
-                   "(the seeds' layouts: 25 and 27 rules)")
-    p.add_argument("--mf-type", choices=("gaussian", "bell"), default="gaussian")
-    p.add_argument("--epochs", type=int, default=None, help="training epochs (anfis, "
-                   "ts-fuzzy gd; default 100), generations (ts-fuzzy ga/mga; default 60) or "
-                   "iterations (mlp; default 500)")
-    p.add_argument("--tuner", choices=("gd", "ga", "mga"), default="mga",
-                   help="ts-fuzzy: how the premises are tuned (gradient descent, genetic "
-                   "algorithm, modified GA; default mga)")
-    p.add_argument("--population", type=int, default=100,
-                   help="ts-fuzzy ga/mga: strings per generation (default 100)")
-    p.add_argument("--hidden", type=int, default=8,
-                   help="mlp: tanh neurons in the hidden layer (default 8, seed 001's ANN)")
-    p.add_argument("--svr-c", type=float, default=10.0, help="svr: regularisation C "
-                   "(default 10)")
-    p.add_argument("--svr-epsilon", type=float, default=0.02, help="svr: epsilon tube in "
-                   "bar (default 0.02; wider gives fewer support vectors)")
-    p.add_argument("--operators", type=int, default=10,
-                   help="qupi: play operators per branch, Na = Nb (default 10, seed 003; "
-                   "the tick evaluates Na x Nb of them)")
-    p.add_argument("--ridge", type=float, default=0.01,
-                   help="ts-fuzzy: ridge on the consequents' least squares, scaled units "
-                   "(default 0.01; 0 = plain SVD; choose it on the validation split)")
-    p.add_argument("--step", type=float, default=0.01, help="initial step size of the "
-                   "premise gradient descent (default 0.01)")
+                   help="model output (default pressure_bar; another only for the kinds "
+                   "that can predict it: " + "; ".join(
+                       f"{k.name} {','.join(k.outputs)}" for k in KINDS.values()) + ")")
     p.add_argument("--val-split", type=float, default=0.2, metavar="FRACTION",
                    help="share of the data held out for validation (the best epoch on it is "
                    "kept); 0 trains on all DATA (default 0.2)")
@@ -105,35 +128,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="time constant of the velocity input's filter, stored in the model "
                    f"and used by the tick (default {MODEL_VELOCITY_WINDOW_S:g} s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_kind_options(p)
     p.set_defaults(func=run)
 
 
-def parse_mfs(text: str | None, n_inputs: int) -> int | list[int]:
-    if text is None:
-        return 5 if n_inputs <= 2 else 3
-    try:
-        vals = [int(v) for v in text.split(",")]
-    except ValueError:
-        raise ModelError(f"--mfs {text!r}: give a whole number or one per input, e.g. "
-                         "5,5,3") from None
-    if any(v < 1 for v in vals):
-        raise ModelError(f"--mfs {text!r}: every input needs at least one membership function")
-    if len(vals) == 1:
-        return vals[0]
-    if len(vals) != n_inputs:
-        raise ModelError(f"--mfs {text!r}: {len(vals)} numbers for {n_inputs} inputs")
-    return vals
-
-
 def run(args: argparse.Namespace) -> int:
-    text = args.inputs if args.inputs is not None else ",".join(DEFAULT_INPUTS[args.kind])
+    kind = declared(args.kind)
+    options = kind.make_options(kind_options_given(args, kind))
+    text = args.inputs if args.inputs is not None else ",".join(kind.default_inputs)
     inputs = tuple(s.strip() for s in text.split(",") if s.strip())
+    if args.output not in kind.outputs:
+        raise ModelError(f"--output {args.output}: a {kind.name} model predicts "
+                         f"{' or '.join(kind.outputs)}")
     opts = ExtractOptions(inputs=inputs, output=args.output, muscle=args.muscle,
                           settle_s=args.settle_s, rate_hz=args.rate_hz,
                           velocity_window_s=args.velocity_window_s)
-    n_mfs = parse_mfs(args.mfs, len(inputs))
-    if args.epochs is not None and args.epochs < 1:
-        raise ModelError("--epochs must be at least 1")
+    options.check(inputs)
     d = os.path.dirname(os.path.abspath(args.out))
     if not os.path.isdir(d):
         raise ModelError(f"--out {args.out}: directory {d} does not exist")
@@ -145,83 +155,29 @@ def run(args: argparse.Namespace) -> int:
           f"({', '.join(inputs)} -> {args.output}); training {len(tr)}, validation "
           f"{len(va) if va else 0}, test {len(te) if te else 0} (split by {args.split_by})",
           file=sys.stderr)
-    if args.kind != "anfis":
-        return _run_kind(args, inputs, samples, parts)
-    args.epochs = args.epochs or 100
-    topts = TrainingOptions(n_mfs=n_mfs, mf_type=args.mf_type, epochs=args.epochs,
-                            initial_step=args.step, seed=args.seed)
-    bar = _progress(args.epochs, args.quiet)
-
-    def progress(epoch: int, rmse: float, val: float | None) -> None:
-        if bar is not None:
-            bar.update(1)
-            post = f"train RMSE {rmse:.4g}" + (f", val RMSE {val:.4g}" if val is not None
-                                               else "")
-            bar.set_postfix_str(post, refresh=False)
-
-    prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how}
-    try:
-        result = fit(tr.X, tr.y, topts, input_names=list(inputs),
-                     input_units=tr.input_units, output_name=args.output,
-                     output_unit=tr.output_unit,
-                     validation=(va.X, va.y) if va is not None else None,
-                     callback=progress,
-                     derived_inputs=derived_inputs(inputs, args.velocity_window_s),
-                     provenance=prov)
-    finally:
-        if bar is not None:
-            bar.close()
-    model = result.model
-    model.provenance["training_curve"] = {
-        "train_rmse": result.train_rmse.tolist(),
-        "val_rmse": None if result.val_rmse is None else result.val_rmse.tolist()}
-    rows = {"train": model.metrics["train"]}
-    if "validation" in model.metrics:
-        rows["validation"] = model.metrics["validation"]
-    if te is not None:
-        model.metrics["test"] = regression_metrics(te.y, model.predict(te.X), model.n_params)
-        rows["test"] = model.metrics["test"]
-    save_model(model, args.out)
-    print(f"{args.out}: {model!r}, {model.n_params} parameters; best epoch "
-          f"{result.best_epoch} of {result.train_rmse.size} (on {result.selected_on}), "
-          f"{result.seconds:.2f} s")
-    format_table(rows, model.output.unit)
-    return 0
-
-
-def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Samples,
-              parts: Split) -> int:
-    """Every kind but anfis: `pamd.models.training.fit_kind`, then the same report."""
-    te = parts.test
-    default_epochs = {"ts-fuzzy": 100 if args.tuner == "gd" else 60, "mlp": 500}
-    epochs = args.epochs or default_epochs.get(args.kind, 1)
-    kopts = KindOptions(epochs=epochs, seed=args.seed, tuner=args.tuner,
-                        population=args.population, ridge=args.ridge,
-                        hidden=args.hidden, operators=args.operators, svr_c=args.svr_c,
-                        svr_epsilon=args.svr_epsilon,
-                        n_mfs=None if args.mfs is None else parse_mfs(args.mfs, len(inputs)))
-    iterative = args.kind == "ts-fuzzy"
-    bar = _progress(epochs, args.quiet, "generation" if args.tuner != "gd" else "epoch"
-                    ) if iterative else None
+    steps, unit, error = kind.progress(options) if kind.progress else (0, "", "")
+    bar = _progress(steps, args.quiet, unit) if kind.progress else None
 
     def progress(step: int, err: float, val: float | None) -> None:
         if bar is not None:
             bar.update(1)
-            bar.set_postfix_str(f"train MSE {err:.4g}", refresh=False)
+            post = f"train {error} {err:.4g}" + (f", val {error} {val:.4g}"
+                                                 if val is not None else "")
+            bar.set_postfix_str(post, refresh=False)
 
     prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how}
     try:
-        model = fit_split(args.kind, samples, parts, opts=kopts,
+        fitted = fit_with(kind.name, samples, parts, options, seed=args.seed,
                           derived_inputs=derived_inputs(inputs, args.velocity_window_s),
                           provenance=prov, callback=progress)
     finally:
         if bar is not None:
             bar.close()
+    model = fitted.model
     rows: dict[str, dict[str, float]] = {
         k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
     if te is not None:
         if model.stateful:  # over whole runs, scored on the test rows
-
             y_all, _ = predict_samples(model, samples.X, samples.run)
             y_hat = y_all[rows_of(samples, te)]
         else:
@@ -229,14 +185,13 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Sample
         model.metrics["test"] = regression_metrics(te.y, y_hat, model.n_params)
         rows["test"] = model.metrics["test"]
     save_model(model, args.out)
-    print(f"{args.out}: {model.kind} model {model!r}, {model.n_params} parameters")
+    print(f"{args.out}: " + (fitted.summary or f"{model.kind} model {model!r}, "
+                             f"{model.n_params} parameters"))
     format_table(rows, model.output.unit)
     fwd = {k[len("forward_"):]: v for k, v in model.metrics.items() if k.startswith("forward_")}
-    if fwd:
-        qupi = model.kind == "qupi"
-        print("  forward model (" + ("length from the pressure history" if qupi else
-                                     "force from pressure and contraction") + "):")
-        format_table(fwd, "mm" if qupi else "N")
+    if fwd and kind.forward is not None:
+        print(f"  forward model ({kind.forward.label}):")
+        format_table(fwd, kind.forward.unit)
     return 0
 
 

@@ -25,13 +25,10 @@ from pamd.config.schema import MuscleConfig
 from pamd.control.model_check import SOURCES, check_model_for, velocity_window
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
-from pamd.models.registry import load_model
+from pamd.models.registry import adaptable, load_model
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.schema.engine import Context, line_of
 from pamd.schema.yamlload import load_yaml_text
-
-#: Model kinds whose consequents online adaptation updates (`pamd.control.adapt`).
-ADAPTABLE_KINDS = ("anfis", "ts-fuzzy")
 
 
 class LoadedModel:
@@ -80,7 +77,7 @@ def load_models(cfg: LoadedConfig) -> dict[str, LoadedModel]:
         file = os.path.join(base, os.path.expanduser(m.model_file))
         try:
             models[m.name] = LoadedModel.read(file, m, cfg.limits[m.name])
-            if m.adapt.enabled and models[m.name].model.kind not in ADAPTABLE_KINDS:
+            if m.adapt.enabled and not adaptable(models[m.name].model):
                 raise ModelError(f"adapt.enabled: adaptation updates the rule consequents "
                                  f"of an ANFIS or TS-fuzzy model; {file} is a "
                                  f"{models[m.name].model.kind} model (set adapt.enabled "

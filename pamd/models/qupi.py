@@ -35,6 +35,7 @@ is held to it and flagged (clipped), and so is a pressure outside [p0, pm].
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, Literal, overload
 
 import numpy as np
@@ -44,6 +45,7 @@ from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import Envelope, Variable, describe_common, tick_problems
 from pamd.models.document import field, footer, header, mapping, numbers, read_header
+from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions, option
 
 VERSION = 1
 DEFAULT_OPERATORS = 10  # Na = Nb (seed 003)
@@ -332,4 +334,33 @@ def fit_qupi(length_mm: np.ndarray, p_bar: np.ndarray, run: np.ndarray, *,
     return model
 
 
-__all__ = ["CompiledQupi", "Qupi", "QupiModel", "fit_qupi", "from_dict"]
+# -- the kind ----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class QupiOptions(KindOptions):
+    operators: int = option(DEFAULT_OPERATORS, "play operators per branch, Na = Nb (seed "
+                            "003; the tick evaluates Na x Nb of them)", minimum=1)
+
+    def check(self, inputs: Sequence[str]) -> None:
+        if tuple(inputs) != ("length_mm",):
+            raise ModelError("a qupi model takes the one input length_mm (the target "
+                             "length; it is identified at one load)")
+
+
+def fit_kind(job: FitJob[QupiOptions]) -> Fitted:
+    """A stateful kind: the operators run over every row of each run, in time order;
+    the weights are fitted and scored only on the rows of their set."""
+    job.options.check(job.inputs)
+    s, parts = job.samples, job.parts
+    return Fitted(fit_qupi(s.X[:, 0], s.y, s.run, n_operators=job.options.operators,
+                           train=job.mask(parts.train),
+                           validation=None if parts.validation is None
+                           else job.mask(parts.validation),
+                           derived_inputs=job.derived_inputs, provenance=job.provenance))
+
+
+KIND = Kind("qupi", "003", "inverse quadratic unparallel Prandtl-Ishlinskii hysteresis model "
+            "(target length -> pressure, stateful; one load)", from_dict, ("length_mm",),
+            fit_kind, QupiOptions, forward=Forward("length from the pressure history", "mm"))
+
+__all__ = ["KIND", "CompiledQupi", "Qupi", "QupiModel", "fit_qupi", "from_dict"]

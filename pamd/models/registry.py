@@ -7,56 +7,63 @@ A file without a ``kind`` is an ANFIS file (``"format": "pamd-anfis"``, seed 000
 an unknown kind, a future version or a broken file raise `ModelError` naming the
 file and the field.
 
-Kinds (`KINDS`): anfis (seed 000), ts-fuzzy (001), polynomial (002), sarosi (004),
-mlp and svr (002; trained through scikit-learn, run on numpy-free arrays), qupi
-(003). Each kind module gives ``from_dict(doc) -> model``; training lives beside it
-(`pamd.models.training` dispatches `pamd train --kind`).
+Kinds (`KINDS`): each is declared once, in its own module, as a `pamd.models.kind.Kind`
+(file reader, default inputs, training options and fit, adaptable or not, progress,
+forward model, figures); `pamd train`, `pamd evaluate`, the feedforward's adaptation
+check and the docs read the declarations. A new kind is its module and one `register`
+line below: anfis (seed 000), ts-fuzzy (001), polynomial (002), sarosi (004), mlp and
+svr (002; trained through scikit-learn, run on numpy-free arrays), qupi (003).
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from pamd.errors import ModelError
-from pamd.models import learned, qupi, static_force
+from pamd.models import anfis_kind, learned, qupi, static_force, ts_fuzzy
 from pamd.models.anfis import modelfile as anfis_file
 from pamd.models.contract import InverseModel
 from pamd.models.document import field, format_json, parse_json
+from pamd.models.kind import Kind
 
 #: Largest model file read (bytes): the largest kind (svr) stays far below it.
 MAX_FILE_BYTES = 8 * 1024 * 1024
 
-
-@dataclass(frozen=True)
-class Kind:
-    """One model kind: its name, the seed paper it comes from and its file reader."""
-
-    name: str
-    seed: str
-    summary: str
-    from_dict: Callable[[Any], InverseModel]
+#: The kinds by name, in the order help lists them (`register`).
+KINDS: dict[str, Kind[Any]] = {}
 
 
-KINDS: dict[str, Kind] = {k.name: k for k in (
-    Kind("anfis", "000", "first-order Sugeno ANFIS, hybrid learning",
-         anfis_file.from_dict),
-    Kind("ts-fuzzy", "001", "Takagi-Sugeno fuzzy (force, length, velocity; 27 rules), "
-         "premises tuned by gradient descent, GA or modified GA", anfis_file.from_dict),
-    Kind("polynomial", "002", "forward force F = p (a1 h^2 + a2 h + a3) + a4, inverted in "
-         "closed form", static_force.from_dict),
-    Kind("sarosi", "004", "forward force F = (a p + b) e^(c k + d) + (e p + f) k + g p + h, "
-         "inverted in closed form", static_force.from_dict),
-    Kind("mlp", "002", "multilayer perceptron (one tanh layer), fitted by scikit-learn",
-         learned.from_dict),
-    Kind("svr", "002", "support vector regression (RBF), fitted by scikit-learn; offline "
-         "only with more than 24 support vectors", learned.from_dict),
-    Kind("qupi", "003", "inverse quadratic unparallel Prandtl-Ishlinskii hysteresis model "
-         "(target length -> pressure, stateful; one load)", qupi.from_dict),
-)}
+def register(kind: Kind[Any]) -> Kind[Any]:
+    """Make `kind` known to every user of model kinds (files, train, evaluate, help)."""
+    if kind.name in KINDS and KINDS[kind.name] is not kind:
+        raise ModelError(f"model kind {kind.name!r} is declared twice")
+    KINDS[kind.name] = kind
+    return kind
+
+
+def declared(name: str) -> Kind[Any]:
+    """The declaration of kind `name`; ModelError lists the known kinds."""
+    if name not in KINDS:
+        raise ModelError(f"kind {name!r} is not known to this pamd (known: "
+                         f"{', '.join(KINDS)})")
+    return KINDS[name]
+
+
+def adaptable(model: InverseModel) -> bool:
+    """Whether online adaptation can update `model` (its kind says so)."""
+    return model.kind in KINDS and KINDS[model.kind].adaptable
+
+
+register(anfis_kind.KIND)
+register(ts_fuzzy.KIND)
+register(static_force.POLYNOMIAL)
+register(static_force.SAROSI)
+register(learned.MLP)
+register(learned.SVR)
+register(qupi.KIND)
 
 
 def kind_of(doc: object) -> str:
@@ -113,9 +120,7 @@ def load_model(source: str | os.PathLike[str] | bytes | Mapping[str, Any], *,
 
 
 def dumps_model(model: InverseModel) -> str:
-    """The model file text of any kind."""
-    if model.kind in anfis_file.KINDS:
-        return anfis_file.dumps(model)  # type: ignore[arg-type]
+    """The model file text of any kind (indented JSON, short lists on one line)."""
     return format_json(model.to_dict(), 0) + "\n"
 
 

@@ -8,7 +8,11 @@ fixed contraction, F = A(k) p + B(k), so the pressure that gives a force F at
 contraction k is p = (F - B(k)) / A(k) in closed form: that is the inverse the
 tick evaluates (inputs force_n and contraction, output pressure_bar).
 
-Fitting (`fit_static`): the polynomial is linear in its four coefficients (least
+`PolynomialModel` and `SarosiModel` share their base, `StaticForceModel` (the
+inverse, its checks, the file); each gives its A(k), B(k) and fit. `POLYNOMIAL` and
+`SAROSI` declare the two kinds (`pamd.models.kind`).
+
+Fitting (`StaticForceModel.fit`): the polynomial is linear in its four coefficients (least
 squares by SVD). Sarosi's model is linear in (a, b, e, f, g, h) once c is fixed
 (variable projection): a grid over c, then golden-section refinement of the best
 bracket, each step an SVD least-squares solve. Its d is not identifiable from data
@@ -24,8 +28,9 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
-from typing import Any, Literal, overload
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -40,65 +45,70 @@ from pamd.models.contract import (
     tick_problems,
 )
 from pamd.models.document import field, footer, header, numbers, read_header
+from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions
 
 VERSION = 1
-COEFFS: dict[str, tuple[str, ...]] = {
-    "polynomial": ("a1", "a2", "a3", "a4"),
-    "sarosi": ("a", "b", "c", "d", "e", "f", "g", "h"),
-}
 #: The least pressure gain A(k) (N/bar) accepted over the identified range.
 MIN_GAIN_N_PER_BAR = 1.0
 _SAROSI_C_GRID = np.concatenate([np.linspace(-1.5, -0.01, 50), np.linspace(0.01, 0.5, 15)])
 
 
-def gain_offset(kind: str, co: dict[str, float], k_pct: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """A(k) (N/bar) and B(k) (N) with F = A p + B, k in %."""
-    if kind == "polynomial":
-        return co["a1"] * k_pct ** 2 + co["a2"] * k_pct + co["a3"], np.full_like(k_pct,
-                                                                                    co["a4"])
-    ex = np.exp(co["c"] * k_pct + co["d"])
-    return (co["a"] * ex + co["e"] * k_pct + co["g"],
-            co["b"] * ex + co["f"] * k_pct + co["h"])
-
-
 class StaticForceModel:
-    """A forward force model F(p, k) run as an inverse (see the module doc)."""
+    """A forward force model F(p, k) = A(k) p + B(k) run as an inverse (see the module
+    doc). A subclass is one kind: its coefficients (`COEFFS`), A and B over many
+    contractions (`gain_offset`) and at one (`scalar_gain_offset`, for the tick), and
+    its fit (`fit_coefficients`)."""
 
     stateful = False
+    kind: str = ""
+    COEFFS: tuple[str, ...] = ()
+    FIT_METHOD = ""
 
-    def __init__(self, kind: str, coefficients: dict[str, float], inputs: Sequence[Variable],
+    def __init__(self, coefficients: dict[str, float], inputs: Sequence[Variable],
                  output: Variable, *, derived_inputs: dict[str, Any] | None = None,
                  provenance: dict[str, Any] | None = None,
                  metrics: dict[str, Any] | None = None) -> None:
-        if kind not in COEFFS:
-            raise ModelError(f"unknown static force model {kind!r}")
-        self.kind = kind
+        kind = self.kind
         names = [v.name for v in inputs]
         if names != ["force_n", "contraction"]:
             raise ModelError(f"a {kind} model takes the inputs force_n, contraction "
                              f"(in that order), not {', '.join(names)}")
-        missing = [c for c in COEFFS[kind] if c not in coefficients]
+        missing = [c for c in self.COEFFS if c not in coefficients]
         if missing:
             raise ModelError(f"{kind} model: missing coefficient(s) {', '.join(missing)}")
-        bad = [c for c in COEFFS[kind] if not math.isfinite(coefficients[c])]
+        bad = [c for c in self.COEFFS if not math.isfinite(coefficients[c])]
         if bad:
             raise ModelError(f"{kind} model: coefficient(s) {', '.join(bad)} not finite")
-        self.coefficients = {c: float(coefficients[c]) for c in COEFFS[kind]}
+        self.coefficients = {c: float(coefficients[c]) for c in self.COEFFS}
         self.inputs = list(inputs)
         self.output = output
         self.derived_inputs = dict(derived_inputs or {})
         self.provenance = dict(provenance or {})
         self.metrics = dict(metrics or {})
 
+    @staticmethod
+    def gain_offset(co: dict[str, float], k_pct: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A(k) (N/bar) and B(k) (N) with F = A p + B, k in %."""
+        raise NotImplementedError
+
+    def scalar_gain_offset(self) -> Callable[[float], tuple[float, float]]:
+        """A(k) and B(k) at one contraction k (%), in plain Python for the tick."""
+        raise NotImplementedError
+
+    @staticmethod
+    def fit_coefficients(p_bar: np.ndarray, k_pct: np.ndarray,
+                         force_n: np.ndarray) -> dict[str, float]:
+        """Least-squares coefficients for forces at pressures and contractions (%)."""
+        raise NotImplementedError
+
     @property
     def n_params(self) -> int:
-        return 4 if self.kind == "polynomial" else 7  # sarosi: d is not a free parameter
+        return len(self.COEFFS)
 
     def forward_force(self, p_bar: ArrayLike, contraction: ArrayLike) -> np.ndarray:
         """The force model itself: F (N) at pressure p (bar) and contraction (fraction)."""
-        A, B = gain_offset(self.kind, self.coefficients,
-                           100.0 * np.asarray(contraction, dtype=np.float64))
+        A, B = self.gain_offset(self.coefficients,
+                                100.0 * np.asarray(contraction, dtype=np.float64))
         return A * np.asarray(p_bar, dtype=np.float64) + B
 
     @overload
@@ -112,7 +122,7 @@ class StaticForceModel:
         """Pressure (bar) for rows (force_n, contraction), inputs and output held to their
         identified ranges; `clipped` marks rows where either was held."""
         Xc, clipped = clip_inputs(self.inputs, X)
-        A, B = gain_offset(self.kind, self.coefficients, 100.0 * Xc[:, 1])
+        A, B = self.gain_offset(self.coefficients, 100.0 * Xc[:, 1])
         with np.errstate(divide="ignore", invalid="ignore"):
             p = (Xc[:, 0] - B) / A
         p = np.where(A > MIN_GAIN_N_PER_BAR, p, self.output.max)
@@ -135,7 +145,7 @@ class StaticForceModel:
         """Why the inverse is meaningless over the identified contractions ("" if it
         is not): the force must rise with pressure there."""
         x = self.inputs[1]
-        A, _ = gain_offset(self.kind, self.coefficients, 100.0 * np.linspace(x.min, x.max, 101))
+        A, _ = self.gain_offset(self.coefficients, 100.0 * np.linspace(x.min, x.max, 101))
         if np.all(A > MIN_GAIN_N_PER_BAR):
             return ""
         return (f"its force does not rise with pressure over contractions {x.min:.3f}-"
@@ -150,6 +160,133 @@ class StaticForceModel:
         co = ", ".join(f"{k}={v:.5g}" for k, v in self.coefficients.items())
         return f"StaticForceModel({self.kind}: {co})"
 
+    @classmethod
+    def from_dict(cls, doc: object) -> StaticForceModel:
+        inputs, output, derived, params, prov, metrics = read_header(doc, cls.kind, VERSION)
+        co_doc = field(params, "coefficients", dict, "parameters")
+        co = {n: numbers({"v": [co_doc.get(n)]}, "v", f"parameters.coefficients.{n}", 1)[0]
+              if n in co_doc else math.nan for n in cls.COEFFS}
+        missing = [n for n in cls.COEFFS if n not in co_doc]
+        if missing:
+            raise ModelError(f"field parameters.coefficients: missing {', '.join(missing)}")
+        return cls(co, inputs, output, derived_inputs=derived, provenance=prov,
+                   metrics=metrics)
+
+    @classmethod
+    def fit(cls, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
+            validation: tuple[np.ndarray, np.ndarray] | None = None,
+            derived_inputs: dict[str, Any] | None = None,
+            provenance: dict[str, Any] | None = None) -> StaticForceModel:
+        """Fit to samples X = (force_n, contraction), y = pressure_bar: the forward model
+        F(p, k) by least squares, then checked as an inverse. The model's metrics hold
+        the inverse's (pressure) and the forward model's (force) fit."""
+        kind = cls.kind
+        if X.shape[1] != 2:
+            raise ModelError(f"a {kind} model takes the inputs force_n, contraction")
+        F, x = X[:, 0], X[:, 1]
+        co = cls.fit_coefficients(y, 100.0 * x, F)
+        if not all(math.isfinite(v) for v in co.values()):
+            raise ModelError(f"{kind} fit did not converge (non-finite coefficients)")
+        x_lo, x_hi = invertible_range(cls, co, x)
+        inputs = [Variable("force_n", input_units[0], float(F.min()), float(F.max())),
+                  Variable("contraction", input_units[1], x_lo, x_hi)]
+        output = Variable("pressure_bar", "bar", float(y.min()), float(y.max()))
+        prov = {**(provenance or {}), "fit": {"method": cls.FIT_METHOD}}
+        model = cls(co, inputs, output, derived_inputs=derived_inputs, provenance=prov)
+        gain = model.gain_problem()
+        if gain:
+            raise ModelError(f"{kind} fit is not invertible: {gain}")
+        sets = {"train": (X, y)}
+        if validation is not None:
+            sets["validation"] = validation
+        for name, (Xs, ys) in sets.items():
+            model.metrics[name] = regression_metrics(ys, model.predict(Xs), model.n_params)
+            model.metrics[f"forward_{name}"] = regression_metrics(
+                Xs[:, 0], model.forward_force(ys, Xs[:, 1]), model.n_params)
+        return model
+
+
+class PolynomialModel(StaticForceModel):
+    """Seed 002: F = p (a1 h^2 + a2 h + a3) + a4."""
+
+    kind = "polynomial"
+    COEFFS = ("a1", "a2", "a3", "a4")
+    FIT_METHOD = "linear least squares (SVD)"
+
+    @staticmethod
+    def gain_offset(co: dict[str, float], k_pct: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return co["a1"] * k_pct ** 2 + co["a2"] * k_pct + co["a3"], np.full_like(k_pct,
+                                                                                    co["a4"])
+
+    def scalar_gain_offset(self) -> Callable[[float], tuple[float, float]]:
+        a1, a2, a3, a4 = (self.coefficients[n] for n in self.COEFFS)
+
+        def at(k: float) -> tuple[float, float]:
+            return (a1 * k + a2) * k + a3, a4
+
+        return at
+
+    @staticmethod
+    def fit_coefficients(p_bar: np.ndarray, k_pct: np.ndarray,
+                         force_n: np.ndarray) -> dict[str, float]:
+        D = np.column_stack([p_bar * k_pct ** 2, p_bar * k_pct, p_bar, np.ones_like(p_bar)])
+        theta, _, rank = _lstsq(D, force_n)
+        if rank < 4:
+            raise ModelError("polynomial fit: the data do not determine the 4 coefficients "
+                             "(need several pressures and contractions)")
+        return dict(zip(PolynomialModel.COEFFS, theta.tolist(), strict=True))
+
+
+class SarosiModel(StaticForceModel):
+    """Seed 004, eq. 2: F = (a p + b) e^(c k + d) + (e p + f) k + g p + h."""
+
+    kind = "sarosi"
+    COEFFS = ("a", "b", "c", "d", "e", "f", "g", "h")
+    FIT_METHOD = ("variable projection: grid + golden section on c, SVD least squares for "
+                  "the rest; d held at 0")
+
+    @property
+    def n_params(self) -> int:
+        return 7  # d is not a free parameter
+
+    @staticmethod
+    def gain_offset(co: dict[str, float], k_pct: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ex = np.exp(co["c"] * k_pct + co["d"])
+        return (co["a"] * ex + co["e"] * k_pct + co["g"],
+                co["b"] * ex + co["f"] * k_pct + co["h"])
+
+    def scalar_gain_offset(self) -> Callable[[float], tuple[float, float]]:
+        a, b, c, d, e, f, g, h = (self.coefficients[n] for n in self.COEFFS)
+        exp = math.exp
+
+        def at(k: float) -> tuple[float, float]:
+            ex = exp(c * k + d)
+            return a * ex + e * k + g, b * ex + f * k + h
+
+        return at
+
+    @staticmethod
+    def fit_coefficients(p_bar: np.ndarray, k_pct: np.ndarray,
+                         force_n: np.ndarray) -> dict[str, float]:
+        return _fit_sarosi(p_bar, k_pct, force_n)
+
+
+#: The static force kinds by name.
+MODELS: dict[str, type[StaticForceModel]] = {m.kind: m for m in (PolynomialModel, SarosiModel)}
+COEFFS: dict[str, tuple[str, ...]] = {k: m.COEFFS for k, m in MODELS.items()}
+
+
+def model_class(kind: str) -> type[StaticForceModel]:
+    if kind not in MODELS:
+        raise ModelError(f"unknown static force model {kind!r}")
+    return MODELS[kind]
+
+
+def gain_offset(kind: str, co: dict[str, float], k_pct: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """A(k) (N/bar) and B(k) (N) of `kind` with F = A p + B, k in %."""
+    return model_class(kind).gain_offset(co, k_pct)
+
 
 class CompiledStaticForce:
     """Single-sample closed-form inverse p = (F - B(k)) / A(k) for the tick."""
@@ -163,14 +300,8 @@ class CompiledStaticForce:
         f_lo, f_hi = model.inputs[0].min, model.inputs[0].max
         x_lo, x_hi = model.inputs[1].min, model.inputs[1].max
         p_lo, p_hi = model.output.min, model.output.max
-        co = model.coefficients
-        exp = math.exp
         g_min = MIN_GAIN_N_PER_BAR
-        sarosi = model.kind == "sarosi"
-        if sarosi:
-            a, b, c, d, e, f, g, h = (co[n] for n in COEFFS["sarosi"])
-        else:
-            a1, a2, a3, a4 = (co[n] for n in COEFFS["polynomial"])
+        gain_offset_at = model.scalar_gain_offset()
 
         def evaluate(force_n: float, contraction: float) -> float:
             mask = 0
@@ -182,14 +313,7 @@ class CompiledStaticForce:
                 contraction, mask = x_lo, mask | 2
             elif contraction > x_hi:
                 contraction, mask = x_hi, mask | 2
-            k = 100.0 * contraction
-            if sarosi:
-                ex = exp(c * k + d)
-                gain = a * ex + e * k + g
-                offset = b * ex + f * k + h
-            else:
-                gain = (a1 * k + a2) * k + a3
-                offset = a4
+            gain, offset = gain_offset_at(100.0 * contraction)
             held = False
             if gain > g_min:
                 p = (force_n - offset) / gain
@@ -210,16 +334,8 @@ class CompiledStaticForce:
 
 
 def from_dict(doc: object) -> StaticForceModel:
-    kind = field(doc, "kind", str, "")
-    inputs, output, derived, params, prov, metrics = read_header(doc, kind, VERSION)
-    co_doc = field(params, "coefficients", dict, "parameters")
-    co = {n: numbers({"v": [co_doc.get(n)]}, "v", f"parameters.coefficients.{n}", 1)[0]
-          if n in co_doc else math.nan for n in COEFFS[kind]}
-    missing = [n for n in COEFFS[kind] if n not in co_doc]
-    if missing:
-        raise ModelError(f"field parameters.coefficients: missing {', '.join(missing)}")
-    return StaticForceModel(kind, co, inputs, output, derived_inputs=derived,
-                            provenance=prov, metrics=metrics)
+    """A polynomial or sarosi model from its parsed file (the file's kind picks)."""
+    return model_class(field(doc, "kind", str, "")).from_dict(doc)
 
 
 # -- fitting ----------------------------------------------------------------------------------
@@ -239,14 +355,11 @@ def _sarosi_design(p: np.ndarray, k: np.ndarray, c: float) -> np.ndarray:
 def fit_coefficients(kind: str, p_bar: np.ndarray, k_pct: np.ndarray,
                      force_n: np.ndarray) -> dict[str, float]:
     """Least-squares coefficients of `kind` for forces at pressures and contractions (%)."""
-    if kind == "polynomial":
-        D = np.column_stack([p_bar * k_pct ** 2, p_bar * k_pct, p_bar, np.ones_like(p_bar)])
-        theta, _, rank = _lstsq(D, force_n)
-        if rank < 4:
-            raise ModelError("polynomial fit: the data do not determine the 4 coefficients "
-                             "(need several pressures and contractions)")
-        return dict(zip(COEFFS["polynomial"], theta.tolist(), strict=True))
+    return model_class(kind).fit_coefficients(p_bar, k_pct, force_n)
 
+
+def _fit_sarosi(p_bar: np.ndarray, k_pct: np.ndarray, force_n: np.ndarray) -> dict[str, float]:
+    """Sarosi's coefficients by variable projection (see the module doc)."""
     def sse(c: float) -> float:
         return _lstsq(_sarosi_design(p_bar, k_pct, c), force_n)[1]
 
@@ -277,14 +390,16 @@ def fit_coefficients(kind: str, p_bar: np.ndarray, k_pct: np.ndarray,
     return {"a": a, "b": b, "c": c, "d": 0.0, "e": e, "f": f, "g": g, "h": h}
 
 
-def invertible_range(kind: str, co: dict[str, float], x: np.ndarray) -> tuple[float, float]:
+def invertible_range(model: type[StaticForceModel], co: dict[str, float], x: np.ndarray
+                     ) -> tuple[float, float]:
     """The contraction range the inverse is used on: the data's, narrowed to the
     stretch around the median where the fitted force rises with pressure (a low-order
     fit may bend its gain below zero at the travel's end; contractions beyond are then
     held to the range and flagged, never inverted). `ModelError` if that leaves less
     than half of the samples."""
     grid = np.linspace(float(x.min()), float(x.max()), 401)
-    ok = gain_offset(kind, co, 100.0 * grid)[0] > MIN_GAIN_N_PER_BAR
+    kind = model.kind
+    ok = model.gain_offset(co, 100.0 * grid)[0] > MIN_GAIN_N_PER_BAR
     i = int(np.searchsorted(grid, float(np.median(x))))
     i = min(i, grid.size - 1)
     if not ok[i]:
@@ -307,34 +422,50 @@ def fit_static(kind: str, X: np.ndarray, y: np.ndarray, *, input_units: Sequence
                validation: tuple[np.ndarray, np.ndarray] | None = None,
                derived_inputs: dict[str, Any] | None = None,
                provenance: dict[str, Any] | None = None) -> StaticForceModel:
-    """Fit `kind` to samples X = (force_n, contraction), y = pressure_bar: the forward
-    model F(p, k) by least squares, then checked as an inverse. The model's metrics
-    hold the inverse's (pressure) and the forward model's (force) fit."""
-    if X.shape[1] != 2:
-        raise ModelError(f"a {kind} model takes the inputs force_n, contraction")
-    F, x = X[:, 0], X[:, 1]
-    co = fit_coefficients(kind, y, 100.0 * x, F)
-    if not all(math.isfinite(v) for v in co.values()):
-        raise ModelError(f"{kind} fit did not converge (non-finite coefficients)")
-    x_lo, x_hi = invertible_range(kind, co, x)
-    inputs = [Variable("force_n", input_units[0], float(F.min()), float(F.max())),
-              Variable("contraction", input_units[1], x_lo, x_hi)]
-    output = Variable("pressure_bar", "bar", float(y.min()), float(y.max()))
-    prov = {**(provenance or {}), "fit": {"method": "linear least squares (SVD)"
-                                          if kind == "polynomial" else
-                                          "variable projection: grid + golden section on c, "
-                                          "SVD least squares for the rest; d held at 0"}}
-    model = StaticForceModel(kind, co, inputs, output, derived_inputs=derived_inputs,
-                             provenance=prov)
-    gain = model.gain_problem()
-    if gain:
-        raise ModelError(f"{kind} fit is not invertible: {gain}")
-    sets = {"train": (X, y)}
-    if validation is not None:
-        sets["validation"] = validation
-    for name, (Xs, ys) in sets.items():
-        model.metrics[name] = regression_metrics(ys, model.predict(Xs), model.n_params)
-        model.metrics[f"forward_{name}"] = regression_metrics(
-            Xs[:, 0], model.forward_force(ys, Xs[:, 1]), model.n_params)
-    return model
+    """Fit `kind` (`StaticForceModel.fit`)."""
+    return model_class(kind).fit(X, y, input_units=input_units, validation=validation,
+                                 derived_inputs=derived_inputs, provenance=provenance)
 
+
+# -- the kinds ----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class StaticOptions(KindOptions):
+    """No training options: a static force model is a least-squares fit."""
+
+    model: ClassVar[type[StaticForceModel]] = StaticForceModel
+
+    def check(self, inputs: Sequence[str]) -> None:
+        if tuple(inputs) != ("force_n", "contraction"):
+            raise ModelError(f"a {self.model.kind} model takes the inputs force_n,contraction "
+                             "(its force is a function of pressure and contraction)")
+
+
+@dataclass(frozen=True)
+class PolynomialOptions(StaticOptions):
+    model: ClassVar[type[StaticForceModel]] = PolynomialModel
+
+
+@dataclass(frozen=True)
+class SarosiOptions(StaticOptions):
+    model: ClassVar[type[StaticForceModel]] = SarosiModel
+
+
+def fit_kind(job: FitJob[StaticOptions]) -> Fitted:
+    job.options.check(job.inputs)
+    X, y = job.train
+    return Fitted(job.options.model.fit(X, y, input_units=job.input_units,
+                                        validation=job.validation,
+                                        derived_inputs=job.derived_inputs,
+                                        provenance=job.provenance))
+
+
+FORWARD = Forward("force from pressure and contraction", "N")
+POLYNOMIAL: Kind[StaticOptions] = Kind(
+    "polynomial", "002", "forward force F = p (a1 h^2 + a2 h + a3) + a4, inverted in "
+    "closed form", PolynomialModel.from_dict, ("force_n", "contraction"), fit_kind,
+    PolynomialOptions, forward=FORWARD)
+SAROSI: Kind[StaticOptions] = Kind(
+    "sarosi", "004", "forward force F = (a p + b) e^(c k + d) + (e p + f) k + g p + h, "
+    "inverted in closed form", SarosiModel.from_dict, ("force_n", "contraction"), fit_kind,
+    SarosiOptions, forward=FORWARD)

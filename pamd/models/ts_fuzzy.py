@@ -42,6 +42,7 @@ import numpy as np
 
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
+from pamd.models.anfis import modelfile
 from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
 from pamd.models.anfis.membership import log_membership
 from pamd.models.anfis.model import AnfisModel, init_model, rule_firing
@@ -52,7 +53,9 @@ from pamd.models.anfis.training import (
     solve_consequents,
     train,
 )
+from pamd.models.anfis_kind import anfis_plots, parse_mfs
 from pamd.models.genetic import GaOptions, GaResult, minimise
+from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
 
 TUNERS: tuple[str, ...] = ("gd", "ga", "mga")
 CENTRE_BOUNDS = (-0.25, 1.25)
@@ -169,3 +172,52 @@ def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[
     model.provenance["tuning"]["seconds"] = round(time.perf_counter() - t0, 3)
     model.provenance["tuning"]["seed"] = opts.seed
     return model, np.asarray(history)
+
+
+# -- the kind -----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class TsFuzzyKindOptions(KindOptions):
+    """`pamd train --kind ts-fuzzy`'s options (`TsFuzzyOptions` once resolved)."""
+
+    tuner: str = option("mga", "how the premises are tuned: gradient descent, genetic "
+                        "algorithm, modified GA", choices=TUNERS)
+    epochs: int | None = option(None, "epochs (gd) or generations (ga, mga)", parse=int,
+                                minimum=1, default_text="100 for gd, 60 for ga/mga")
+    population: int = option(100, "ga/mga: strings per generation", minimum=2)
+    ridge: float = option(0.01, "ridge on the consequents' least squares, scaled units (0 = "
+                          "plain SVD; choose it on the validation split)", minimum=0.0)
+    mfs: tuple[int, ...] | None = option(None, "membership functions per input, the same "
+                                         "number on every input", parse=parse_mfs,
+                                         metavar="N[,N...]",
+                                         default_text="3, seed 001's 27 rules")
+
+    @property
+    def steps(self) -> int:
+        """Epochs or generations: as given, else 100 (gd) or 60 (ga, mga)."""
+        return self.epochs or (100 if self.tuner == "gd" else 60)
+
+    def check(self, inputs: Sequence[str]) -> None:
+        if self.mfs is not None and len(self.mfs) != 1:
+            raise ModelError("ts-fuzzy has the same number of MFs on every input (seed 001: 3)")
+
+
+def fit_kind(job: FitJob[TsFuzzyKindOptions]) -> Fitted:
+    o = job.options
+    o.check(job.inputs)
+    X, y = job.train
+    model, _ = fit_ts_fuzzy(X, y, TsFuzzyOptions(tuner=o.tuner, n_mfs=o.mfs[0] if o.mfs else 3,
+                                                 epochs=o.steps, population=o.population,
+                                                 seed=job.seed, ridge=o.ridge),
+                            input_names=job.inputs, input_units=job.input_units,
+                            validation=job.validation, derived_inputs=job.derived_inputs,
+                            provenance=job.provenance, callback=job.callback)
+    return Fitted(model)
+
+
+KIND = Kind("ts-fuzzy", "001", "Takagi-Sugeno fuzzy (force, length, velocity; 27 rules), "
+            "premises tuned by gradient descent, GA or modified GA", modelfile.from_dict,
+            ("force_n", "length_mm", "velocity_mm_s"), fit_kind, TsFuzzyKindOptions,
+            adaptable=True,
+            progress=lambda o: (o.steps, "epoch" if o.tuner == "gd" else "generation", "MSE"),
+            plots=anfis_plots)

@@ -20,7 +20,7 @@ from pamd.control.adapt import Adaptation, AdaptState  # noqa: E402
 from pamd.control.feedforward import Feedforward  # noqa: E402
 from pamd.models.anfis import AnfisModel, Variable  # noqa: E402
 from pamd.models.anfis.rls import OutputBound  # noqa: E402
-from pamd.models.static_force import StaticForceModel  # noqa: E402
+from pamd.models.static_force import PolynomialModel  # noqa: E402
 from pamd.tick import Flag, State  # noqa: E402
 
 DT = 0.001
@@ -222,8 +222,8 @@ def test_covariance_reset_and_off() -> None:
 
 
 def test_a_model_without_consequents_is_refused_with_the_reason() -> None:
-    poly = StaticForceModel(
-        "polynomial", {"a1": 0.0, "a2": 0.0, "a3": 100.0, "a4": -50.0},
+    poly = PolynomialModel(
+        {"a1": 0.0, "a2": 0.0, "a3": 100.0, "a4": -50.0},
         [Variable("force_n", "N", 0.0, 600.0), Variable("contraction", "", 0.0, 0.25)],
         Variable("pressure_bar", "bar", 0.0, 6.0))
     ad = Adaptation("m1", AdaptConfig(enabled=True), Feedforward(poly))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pamd.models.contract import ModelEnvelope
-from pamd.models.learned import MAX_TICK_SUPPORT_VECTORS, fit_learned
+from pamd.models.learned import MAX_TICK_SUPPORT_VECTORS, MlpModel, SvrModel
 from pamd.models.registry import load_model, save_model
 
 NAMES = ["force_n", "length_mm"]
@@ -27,8 +27,9 @@ def data(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
                                       ("svr", {"svr_epsilon": 0.05})])
 def test_fit_export_and_tick_agree(kind: str, kw: dict, tmp_path: Path) -> None:
     X, y = data(400, 0)
-    model = fit_learned(kind, X, y, input_names=NAMES, input_units=["N", "mm"],
-                        validation=data(100, 1), **kw)
+    fit = MlpModel.fit if kind == "mlp" else SvrModel.fit
+    model = fit(X, y, input_names=NAMES, input_units=["N", "mm"], validation=data(100, 1),
+                **kw)
     assert model.metrics["validation"]["rmse"] < 0.1  # bar, on a 0.5-6.5 bar map
     back = load_model(save_model(model, tmp_path / f"{kind}.json"))
     assert back.kind == kind
@@ -44,9 +45,8 @@ def test_fit_export_and_tick_agree(kind: str, kw: dict, tmp_path: Path) -> None:
 
 def test_an_svr_too_big_for_the_tick_is_offline_only() -> None:
     X, y = data(400, 0)
-    big = fit_learned("svr", X, y, input_names=NAMES, input_units=["N", "mm"],
-                      svr_epsilon=0.005)
-    assert big.n_support_vectors > MAX_TICK_SUPPORT_VECTORS
+    big = SvrModel.fit(X, y, input_names=NAMES, input_units=["N", "mm"], svr_epsilon=0.005)
+    assert isinstance(big, SvrModel) and big.n_support_vectors > MAX_TICK_SUPPORT_VECTORS
     assert any("offline evaluation only" in p for p in big.problems(ENV))
-    mlp = fit_learned("mlp", X, y, input_names=NAMES, input_units=["N", "mm"], max_iter=50)
+    mlp = MlpModel.fit(X, y, input_names=NAMES, input_units=["N", "mm"], max_iter=50)
     assert mlp.problems(ENV) == []

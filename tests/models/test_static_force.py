@@ -12,7 +12,7 @@ import pytest
 from pamd.errors import ModelError
 from pamd.models.contract import ModelEnvelope
 from pamd.models.registry import load_model, save_model
-from pamd.models.static_force import StaticForceModel, fit_coefficients, fit_static
+from pamd.models.static_force import PolynomialModel, fit_coefficients, fit_static
 
 #: rig-physics.md's smooth fit of the DMSP-20 force map (d = 0): a known Sarosi model.
 SAROSI = {"a": -10.1206, "b": 236.3164, "c": -0.3378, "d": 0.0, "e": -7.9242,
@@ -96,9 +96,9 @@ def test_wrong_inputs_are_refused() -> None:
     from pamd.models.contract import Variable
 
     with pytest.raises(ModelError, match="takes the inputs force_n, contraction"):
-        StaticForceModel("polynomial", POLY, [Variable("force_n", "N", 0, 1),
-                                              Variable("length_mm", "mm", 150, 200)],
-                         Variable("pressure_bar", "bar", 0, 6))
+        PolynomialModel(POLY, [Variable("force_n", "N", 0, 1),
+                               Variable("length_mm", "mm", 150, 200)],
+                        Variable("pressure_bar", "bar", 0, 6))
 
 
 def test_the_inverse_is_held_where_the_fitted_gain_turns_negative() -> None:

@@ -1,0 +1,92 @@
+"""Kind ``anfis`` (seed 000): a first-order Sugeno ANFIS trained by hybrid learning
+(`pamd.models.anfis`), declared for the registry (`KIND`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pamd.errors import ModelError
+from pamd.models.anfis import modelfile
+from pamd.models.anfis.plots import write_plots
+from pamd.models.anfis.samples import OUTPUT_UNITS
+from pamd.models.anfis.training import TrainingOptions, fit
+from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
+
+
+def parse_mfs(text: str) -> tuple[int, ...]:
+    """`--mfs`: one whole number, or one per input (e.g. 5,5,3)."""
+    try:
+        vals = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise ModelError(f"--mfs {text!r}: give a whole number or one per input, e.g. "
+                         "5,5,3") from None
+    if any(v < 1 for v in vals):
+        raise ModelError(f"--mfs {text!r}: every input needs at least one membership function")
+    return vals
+
+
+def mfs_for(mfs: Sequence[int] | None, n_inputs: int) -> int | list[int]:
+    """Membership functions per input: the seeds' layouts by default (5 for two inputs,
+    3 for three: 25 and 27 rules), one number for all, or one per input."""
+    if mfs is None:
+        return 5 if n_inputs <= 2 else 3
+    if len(mfs) == 1:
+        return mfs[0]
+    if len(mfs) != n_inputs:
+        raise ModelError(f"--mfs {','.join(map(str, mfs))}: {len(mfs)} numbers for "
+                         f"{n_inputs} inputs")
+    return list(mfs)
+
+
+MFS_HELP = ("membership functions per input: one number or one per input (e.g. 5,5,3)")
+
+
+@dataclass(frozen=True)
+class AnfisOptions(KindOptions):
+    epochs: int = option(100, "training epochs", minimum=1)
+    mfs: tuple[int, ...] | None = option(
+        None, MFS_HELP, parse=parse_mfs, metavar="N[,N...]",
+        default_text="5 for two inputs, 3 for three: the seeds' 25 and 27 rules")
+    mf_type: str = option("gaussian", "membership function shape",
+                          choices=("gaussian", "bell"))
+    step: float = option(0.01, "initial step size of the premise gradient descent",
+                         minimum=0.0)
+
+    def check(self, inputs: Sequence[str]) -> None:
+        mfs_for(self.mfs, len(inputs))
+
+
+def fit_anfis(job: FitJob[AnfisOptions]) -> Fitted:
+    o = job.options
+    s = job.samples
+    X, y = job.train
+    result = fit(X, y, TrainingOptions(n_mfs=mfs_for(o.mfs, len(job.inputs)),
+                                       mf_type=o.mf_type, epochs=o.epochs,
+                                       initial_step=o.step, seed=job.seed),
+                 input_names=list(job.inputs), input_units=job.input_units,
+                 output_name=s.output, output_unit=s.output_unit,
+                 validation=job.validation, callback=job.callback,
+                 derived_inputs=job.derived_inputs, provenance=job.provenance)
+    model = result.model
+    model.provenance["training_curve"] = {
+        "train_rmse": result.train_rmse.tolist(),
+        "val_rmse": None if result.val_rmse is None else result.val_rmse.tolist()}
+    return Fitted(model, f"{model!r}, {model.n_params} parameters; best epoch "
+                  f"{result.best_epoch} of {result.train_rmse.size} (on "
+                  f"{result.selected_on}), {result.seconds:.2f} s")
+
+
+def anfis_plots(prefix: str, model: Any, t_s: np.ndarray, y: np.ndarray, y_hat: np.ndarray,
+                clipped: np.ndarray, title: str) -> list[str]:
+    """Prediction, error, membership functions, surface (and the training curve)."""
+    return write_plots(prefix, model, t_s, y, y_hat, clipped, title=title)
+
+
+KIND = Kind("anfis", "000", "first-order Sugeno ANFIS, hybrid learning",
+            modelfile.from_dict, ("force_n", "length_mm"), fit_anfis, AnfisOptions,
+            adaptable=True, progress=lambda o: (o.epochs, "epoch", "RMSE"),
+            plots=anfis_plots, outputs=tuple(OUTPUT_UNITS))
