@@ -142,6 +142,8 @@ def signal_stats(probe: Probe, muscle: str, signal: str, max_rate: float) -> Sig
             st.noise = float(np.std(vr - np.polyval(coef, tr - tr[0])))
         else:
             st.noise = float(np.std(vr))
+        if st.noise < 1e-9 * max(1.0, abs(st.rest_mean)):
+            st.noise = 0.0  # the fit's rounding: a noiseless sensor
     st.quantum = _quantum(np.diff(vs)[same])
     block = np.concatenate(([0], np.cumsum(~same)))
     moving = ph != PHASE_REST

@@ -20,7 +20,7 @@ the measurements give (each with its rule, printed with it).
 - **stall timeout** (`loop.stall_timeout_s`) against the loop's worst wake-up lateness
   (the real clock only): proposed max(`STALL_FACTOR` x it, `STALL_PERIODS` periods),
   rounded up to 5 ms.
-A present threshold the healthy rig reached (the measured figure at or past it) is
+A present threshold the healthy rig passed (the measured figure beyond it) is
 marked FIRES: it faults (or warns) on this rig as it is.
 """
 
@@ -64,7 +64,7 @@ class Threshold:
 
     @property
     def fires(self) -> bool:
-        return math.isfinite(self.measured) and self.measured >= self.present
+        return math.isfinite(self.measured) and self.measured > self.present
 
     @property
     def changed(self) -> bool:
@@ -137,7 +137,7 @@ def thresholds(cfg: LoadedConfig, meas: Measurements) -> tuple[list[Threshold], 
     gaps = [st.worst_gap_s for st in meas.signals.values()
             if st.name.endswith((".pressure", ".force")) and math.isfinite(st.worst_gap_s)]
     if gaps:
-        need = FROZEN_GAPS * max(gaps)
+        need = round(FROZEN_GAPS * max(gaps), 6)
         prop = up_to(need, 0.01) if pl.frozen_s < need else pl.frozen_s
         rows.append(Threshold(
             ("safety", "plausibility", "frozen_s"), "s", pl.frozen_s, need,

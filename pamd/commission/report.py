@@ -57,7 +57,7 @@ def text(config: str, rig_id: str, clock: str, out: Outcome,
         lines.append(f"the loop: {lp.ticks} ticks on the virtual clock (no wake-up jitter to "
                      "measure: commission on the real clock for it)")
     lines.append("")
-    lines.append("thresholds (margin = present - measured; FIRES: the healthy rig reached it)")
+    lines.append("thresholds (margin = present - measured; FIRES: the healthy rig passed it)")
     lines.append(f"  {'key':<42}{'present':>10}  {'measured':>28}  {'margin':>10}  "
                  f"{'proposed':>9}  rule")
     for r in rows:
