@@ -116,7 +116,7 @@ def signal_stats(probe: Probe, muscle: str, signal: str, max_rate: float) -> Sig
     if not seen.any():
         return st
     age = t[seen] - stamp[seen]
-    st.worst_age_s = float(age.max())
+    st.worst_age_s = max(float(age.max()), 0.0)  # a stamp on the tick's own time: 0
     new = seen.copy()
     idx = np.flatnonzero(seen)
     new[idx[1:]] = stamp[idx[1:]] != stamp[idx[:-1]]

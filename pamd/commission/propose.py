@@ -19,7 +19,8 @@ the measurements give (each with its rule, printed with it).
   times), else proposed at that.
 - **stall timeout** (`loop.stall_timeout_s`) against the loop's worst wake-up lateness
   (the real clock only): proposed max(`STALL_FACTOR` x it, `STALL_PERIODS` periods),
-  rounded up to 5 ms.
+  rounded up to 5 ms, and never below the present one: a run of a minute does not see
+  the rare worst case of a busy PC, so it only raises a timeout the rig passed.
 A present threshold the healthy rig passed (the measured figure beyond it) is
 marked FIRES: it faults (or warns) on this rig as it is.
 """
@@ -149,11 +150,11 @@ def thresholds(cfg: LoadedConfig, meas: Measurements) -> tuple[list[Threshold], 
     if lp.ticks:
         prop_s: float | None = None
         if lp.measured:
-            prop_s = up_to(max(STALL_FACTOR * lp.wake_max_s, STALL_PERIODS * cfg.period_s),
-                           0.005)
+            prop_s = max(stall, up_to(max(STALL_FACTOR * lp.wake_max_s,
+                                          STALL_PERIODS * cfg.period_s), 0.005))
         rows.append(Threshold(
             ("loop", "stall_timeout_s"), "s", stall, lp.wake_max_s if lp.measured else math.nan,
             "worst wake-up" if lp.measured else "not measured (virtual clock)",
             prop_s, f"max({STALL_FACTOR:g} x worst wake-up lateness, {STALL_PERIODS:g} "
-            "periods), up to 5 ms; the real clock only"))
+            "periods), up to 5 ms, never lowered; the real clock only"))
     return rows, refusals
