@@ -82,6 +82,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="how long the rig rests first (default 10; at least 1)")
     p.add_argument("--hold-s", type=float, default=2.0, metavar="S",
                    help="how long each level and step is held (default 2; at least 0.5)")
+    p.add_argument("--state-dir", metavar="DIR",
+                   help="as `pamd run --state-dir`: where the latched fault and the home/tare "
+                   "references are kept (default: the config's state_dir, else the rig's "
+                   "own for a real-clock run; a virtual-clock run keeps none)")
     p.add_argument("--save", action="store_true",
                    help="write the proposed thresholds into CONFIG (after showing the diff)")
     p.add_argument("--json", action="store_true",
@@ -117,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         _progress(f"{mv.muscle}: rest {mv.rest_s:g} s, then steps of {mv.step_bar:g} bar at "
                   f"{', '.join(f'{lv:g}' for lv in mv.levels_bar)} bar (safe pressure "
                   f"{mv.safe_bar:.2f}, limit {mv.max_bar:g} bar)")
-    out = commission(cfg, moves, _progress)
+    out = commission(cfg, moves, _progress, args.state_dir)
     rows, refusals = thresholds(cfg, out.measurements)
     out.refusals += refusals
     clock = cfg.rig.loop.clock

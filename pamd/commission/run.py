@@ -46,11 +46,14 @@ class Outcome:
     duration_s: float = 0.0
 
 
-def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress) -> Outcome:
-    """Run the plans of `moves` (one per muscle) on the rig of `cfg`."""
+def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
+               state_dir: str | None = None) -> Outcome:
+    """Run the plans of `moves` (one per muscle) on the rig of `cfg`; `state_dir` as
+    `pamd run --state-dir` (the latched fault, the references: the rig's own by
+    default, so that commissioning sees the references `tare` and `home` set)."""
     all_plans = {mv.muscle: plans(cfg, mv) for mv in moves}  # checked before anything opens
     seconds = sum(_plan_s(p, cfg) for ps in all_plans.values() for _, p in ps)
-    daemon = Daemon(cfg, note="pamd commission")
+    daemon = Daemon(cfg, note="pamd commission", state_dir=state_dir)
     probe = Probe(daemon.ctrl, daemon.layout.names(), daemon.layout.muscles,
                   [(s.pressure, s.force, s.length) for s in daemon.rig.muscles],
                   int((seconds + SPARE_S) * cfg.rig.loop.rate_hz))
