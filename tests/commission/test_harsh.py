@@ -1,7 +1,7 @@
 """`pamd commission` on config/sim-harsh.yaml, the simulated rig read through the
 field's worst sensors (16-bit noiseless inputs, a 10 samples/s load cell, a bursty
 encoder link): it measures what they are, proposes thresholds that raise no false
-fault over two minutes and still find a dead sensor, and saves them keeping the
+fault over a minute (five with -m slow) and still find a dead sensor, and saves them keeping the
 file's comments."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import pytest
 
 from pamd.config import load_config
 
-from .conftest import commission, copy_config, proposed
+from .conftest import LONG_SOAK_S, QUICK, SOAK_S, commission, copy_config, proposed
 from .soak import finds, no_false_fault
 
 
@@ -23,7 +23,7 @@ def harsh(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, Any
     """config/sim-harsh.yaml commissioned with --save (its copy), and the report."""
     path = copy_config("sim-harsh.yaml", tmp_path_factory.mktemp("harsh"))
     before = path.read_text()
-    rc, report, err = commission(path, "--save")
+    rc, report, err = commission(path, "--save", *QUICK)
     assert rc == 0, (err, report.get("refusals"))
     return path, report, before
 
@@ -88,7 +88,13 @@ def test_save_keeps_the_comments_and_loads(harsh: tuple[Path, dict[str, Any], st
 
 def test_the_proposed_thresholds_raise_no_false_fault(
         harsh: tuple[Path, dict[str, Any], str]) -> None:
-    no_false_fault(harsh[0])
+    no_false_fault(harsh[0], SOAK_S)
+
+
+@pytest.mark.slow
+def test_the_proposed_thresholds_raise_no_false_fault_in_five_minutes(
+        harsh: tuple[Path, dict[str, Any], str]) -> None:
+    no_false_fault(harsh[0], LONG_SOAK_S)
 
 
 @pytest.mark.parametrize(("signal", "kind"), [("force", "silent"), ("length", "silent"),

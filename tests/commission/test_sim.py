@@ -1,6 +1,7 @@
 """`pamd commission` on config/sim.yaml, the default simulated rig (sensors on a 1 kHz
-DAQ card, with noise): the report, the proposals saved, no false fault over two
-minutes with them and every dead sensor still found; the text report and --help."""
+DAQ card, with noise): the report, the proposals saved, no false fault over a minute
+(five with -m slow) with them and every dead sensor still found; the text report and
+--help."""
 
 from __future__ import annotations
 
@@ -13,14 +14,14 @@ import pytest
 
 from pamd.cli.main import main
 
-from .conftest import REPO, commission, copy_config
+from .conftest import LONG_SOAK_S, QUICK, REPO, SOAK_S, commission, copy_config
 from .soak import finds, no_false_fault
 
 
 @pytest.fixture(scope="module")
 def sim(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, Any]]:
     path = copy_config("sim.yaml", tmp_path_factory.mktemp("sim"))
-    rc, report, err = commission(path, "--save")
+    rc, report, err = commission(path, "--save", *QUICK)
     assert rc == 0, (err, report.get("refusals"))
     return path, report
 
@@ -48,7 +49,13 @@ def test_the_report_of_the_default_rig(sim: tuple[Path, dict[str, Any]]) -> None
 
 
 def test_no_false_fault_with_the_proposals(sim: tuple[Path, dict[str, Any]]) -> None:
-    no_false_fault(sim[0])
+    no_false_fault(sim[0], SOAK_S)
+
+
+@pytest.mark.slow
+def test_no_false_fault_with_the_proposals_in_five_minutes(
+        sim: tuple[Path, dict[str, Any]]) -> None:
+    no_false_fault(sim[0], LONG_SOAK_S)
 
 
 @pytest.mark.parametrize(("signal", "kind"), [("force", "silent"), ("length", "silent"),
