@@ -92,6 +92,7 @@ def test_the_proposed_thresholds_raise_no_false_fault(
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)
 def test_the_proposed_thresholds_raise_no_false_fault_in_five_minutes(
         harsh: tuple[Path, dict[str, Any], str]) -> None:
     no_false_fault(harsh[0], LONG_SOAK_S)

@@ -53,6 +53,7 @@ def test_no_false_fault_with_the_proposals(sim: tuple[Path, dict[str, Any]]) -> 
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)
 def test_no_false_fault_with_the_proposals_in_five_minutes(
         sim: tuple[Path, dict[str, Any]]) -> None:
     no_false_fault(sim[0], LONG_SOAK_S)
