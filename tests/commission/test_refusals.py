@@ -11,10 +11,11 @@ import io
 from pathlib import Path
 
 import pytest
+import yaml
 
 from pamd.cli.main import main
 
-from .conftest import commission, copy_config
+from .conftest import REPO, commission, copy_config
 
 SHORT = ("--rest-s", "2", "--hold-s", "1")
 PRESSURE = "pressure: {driver: sim, channel: m1.pressure}"
@@ -131,3 +132,26 @@ def test_a_level_below_the_safe_pressure_is_refused(tmp_path: Path) -> None:
         rc = main(["commission", str(path), "--clock", "virtual", "--levels", "0.5"])
     assert rc == 4
     assert "level 0.5 bar is below the safe pressure" in err.getvalue()
+
+
+def test_two_muscles_one_after_the_other_and_the_wrong_one_named(tmp_path: Path) -> None:
+    """m1 is commissioned whole; m2's encoder counts the wrong way: refused at m2's
+    first step, naming m2 (m1's moves done, none of m2's others)."""
+    d = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())
+    d["drivers"][0]["options"]["muscles"].append(
+        {"name": "m2", "nominal_length_mm": 200, "load_kg": 20})
+    m2 = yaml.safe_load(yaml.safe_dump(d["muscles"][0]))
+    m2["name"], m2["load_kg"] = "m2", 20
+    for sig in m2["signals"].values():
+        sig["channel"] = sig["channel"].replace("m1", "m2")
+    m2["signals"]["length"].update(gain=-1.0, offset=400.0)
+    d["muscles"].append(m2)
+    path = tmp_path / "two.yaml"
+    path.write_text(yaml.safe_dump(d, sort_keys=False))
+    report, why = refused(path)
+    assert why.startswith("m2: the length grew as the pressure rose")
+    assert "muscles[m2].signals.length.gain" in why
+    done = [(s["muscle"], s["name"]) for s in report["steps"]]
+    assert ("m1", "back") in done  # m1 was commissioned whole
+    assert {n for m, n in done if m == "m2"} <= {"level-a", "up-a", "down-a"}
+    assert any(c.startswith("m1 (moves)") for c in report["checks"])
