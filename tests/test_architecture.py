@@ -23,6 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LAYERS: list[list[str]] = [
     ["__main__"],
     ["cli"],
+    ["commission"],
     ["tune"],
     ["daemon"],
     ["service", "io"],

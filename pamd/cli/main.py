@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from typing import Protocol
 
 from pamd.cli import check_config, collect, emulate, evaluate, recordings, run, service, train, tune
+from pamd.cli import commission as commission_cli
 from pamd.cli import home as home_cli
 from pamd.cli import model as model_cli
 from pamd.cli import net as net_cli
@@ -29,7 +30,7 @@ class SubCommand(Protocol):
 
 #: The sub-commands, in the order `pamd --help` lists them.
 COMMANDS: tuple[SubCommand, ...] = (
-    run, check_config, collect, tune, recordings, emulate, train, evaluate, service,
+    run, check_config, collect, tune, commission_cli, recordings, emulate, train, evaluate, service,
     # offline references on the configured rig (no daemon, no Zenoh)
     home_cli, tare_cli,
     # clients of a running daemon over Zenoh (status, cmd, watch) and the lab router

@@ -4,18 +4,13 @@ setpoint steps, and derive its gains; `--save` writes them into the config file.
 from __future__ import annotations
 
 import argparse
-import difflib
 import os
 import sys
 import time
-from typing import Any
-
-import yaml
 
 from pamd.config import load_config
-from pamd.config.loader import builtin_config_path, load_config_text
+from pamd.config.loader import builtin_config_path
 from pamd.control.tuning import Fopdt, IdentificationError
-from pamd.errors import ConfigError
 from pamd.tune.placement import place
 from pamd.tune.relay import MAX_RELAY_BAR, mean_relay_model, print_relay, run_relay
 from pamd.tune.report import (
@@ -27,8 +22,8 @@ from pamd.tune.report import (
     print_gains,
 )
 from pamd.tune.run import LOOPS, LoopPlan, TuneRefused, run_identification, with_levels
+from pamd.tune.save import save_values
 from pamd.tune.steps import Step, check_model, fit_all, mean_model
-from pamd.tune.yamledit import KeyPath, YamlEditError, format_value, set_values
 
 DESCRIPTION = """\
 Identify a control loop on the rig and derive its gains, like Klipper's PID_CALIBRATE.
@@ -168,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.save:
         print("nothing written (--save writes the new gains into the config file)")
         return 0
-    return _save(config_path, placement.values)
+    return save_values(config_path, placement.values)
 
 
 def _steps(args: argparse.Namespace, config_path: str, lp: LoopPlan, muscles: list[str],
@@ -221,54 +216,3 @@ def _fit(muscle: str, lp: LoopPlan, steps: list[Step]) -> list[tuple[Step, Fopdt
         raise TuneRefused(f"{muscle}: {lp.loop} loop not identified: {exc}; the present "
                           "gains are kept") from None
     return fits
-
-
-def _save(config_path: str, values: dict[KeyPath, float]) -> int:
-    with open(config_path, encoding="utf-8") as fh:
-        text = fh.read()
-    try:
-        edited = set_values(text, values)
-        _check_loads(edited, config_path)
-    except YamlEditError as exc:
-        return _write_overrides(config_path, values, str(exc))
-    sys.stdout.writelines(difflib.unified_diff(
-        text.splitlines(keepends=True), edited.splitlines(keepends=True),
-        fromfile=config_path, tofile=config_path + " (tuned)"))
-    with open(config_path, "w", encoding="utf-8") as fh:
-        fh.write(edited)
-    print(f"saved the new gains into {config_path}")
-    return 0
-
-
-def _check_loads(text: str, path: str) -> None:
-    """The edited config must still be a valid config."""
-    try:
-        load_config_text(text, path)
-    except ConfigError as exc:
-        raise YamlEditError(f"the edited config would not load: {exc}") from None
-
-
-def _write_overrides(config_path: str, values: dict[KeyPath, float], why: str) -> int:
-    root, _ = os.path.splitext(config_path)
-    path = root + ".tuned.yaml"
-    nested: dict[str, Any] = {}
-    items: dict[str, dict[str, Any]] = {}  # muscles[] items by name
-    for key_path, value in values.items():
-        node = nested
-        keys = key_path
-        if key_path[0] == "muscles":  # ("muscles", "[m1]", ...): that muscle's item
-            name = key_path[1][1:-1]
-            if name not in items:
-                items[name] = {"name": name}
-                nested.setdefault("muscles", []).append(items[name])
-            node, keys = items[name], key_path[2:]
-        for key in keys[:-1]:
-            node = node.setdefault(key, {})
-        node[keys[-1]] = float(format_value(value))
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write(f"# pamd tune: gains for {os.path.basename(config_path)}, which could not "
-                 f"be edited in place\n# ({why}). Merge these keys into it.\n")
-        fh.write(yaml.safe_dump(nested, sort_keys=False))
-    print(f"{config_path} could not be edited in place ({why}); the new gains are in "
-          f"{path}: merge them into the config")
-    return 0

@@ -204,7 +204,7 @@ class EmulatedModbusDevice:
         fn = _FC_READ.get(fc)
         if fn is None:
             return None
-        if fn in ("holding", "input"):
+        if fn in ("holding", "input", "discrete"):  # discrete: a digital input module
             self.refresh_inputs()
         t = self.tables[fn]
         if fn in ("coil", "discrete"):  # registers hold 16 bits each, from bit 16*start

@@ -32,7 +32,10 @@ class EmulatedPlant:
     """Simulated muscles of a rig config, and the map (driver, channel) -> signal."""
 
     def __init__(self, cfg: LoadedConfig, seed: int = 1,
-                 loads_kg: dict[str, float] | None = None) -> None:
+                 loads_kg: dict[str, float] | None = None,
+                 heartbeat_watchdog_s: float = 0.0) -> None:
+        """`heartbeat_watchdog_s`: the safety relay watching the heartbeat output opens
+        the chain when it stands still this long (0: no relay)."""
         loads_kg = loads_kg or {}
         muscles = tuple(
             SimMuscleOptions(name=m.name, nominal_length_mm=m.nominal_length_mm,
@@ -41,7 +44,8 @@ class EmulatedPlant:
                              valve_on_delay_s=m.onoff.valve_on_delay_s,
                              valve_off_delay_s=m.onoff.valve_off_delay_s)
             for m in cfg.rig.muscles)
-        self.sim = SimDriver("emulated", SimOptions(seed=seed, muscles=muscles))
+        self.sim = SimDriver("emulated", SimOptions(seed=seed, muscles=muscles,
+                                                    heartbeat_watchdog_s=heartbeat_watchdog_s))
         self.sim.open(time.monotonic)
         self.inputs: dict[tuple[str, str], Binding] = {}
         self.outputs: dict[tuple[str, str], Binding] = {}
@@ -56,10 +60,43 @@ class EmulatedPlant:
             if s.exhaust is not None:
                 self.outputs[(s.exhaust.driver, s.exhaust.channel)] = Binding(
                     2 * k + 1, s.exhaust.gain, s.exhaust.offset)
+        self._bind_chain(cfg)
         self.lock = threading.Lock()
         self.steps = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+
+    def _bind_chain(self, cfg: LoadedConfig) -> None:
+        """The hardware safety chain's signals (`safety_chain`): the emergency-stop,
+        supply and reset inputs show the simulated rig's own (`safety_chain`, `supply`,
+        `reset`), the heartbeat output drives its heartbeat (and, with
+        `heartbeat_watchdog_s`, the relay watching it)."""
+        chain = cfg.rig.safety_chain
+        for sig, sim_channel in ((chain.estop, "safety_chain"), (chain.supply, "supply"),
+                                 (chain.reset, "reset")):
+            if sig is not None:
+                self.inputs[(sig.driver, sig.channel)] = Binding(
+                    self.sim.input_index(sim_channel), sig.gain, sig.offset)
+        hb = chain.heartbeat
+        if hb is not None:
+            self.outputs[(hb.driver, hb.channel)] = Binding(
+                self.sim.output_index("heartbeat"), hb.gain, hb.offset)
+
+    # -- the safety chain at the rig (tests, `pamd emulate` users) -----------------------------
+    def open_chain(self) -> None:
+        """An emergency stop pressed: the chain opens and cuts every muscle's supply."""
+        with self.lock:
+            self.sim.inject_fault("*", "safety_chain", "open")
+
+    def close_chain(self) -> None:
+        """The emergency stop released: the chain closes, the air returns."""
+        with self.lock:
+            self.sim.inject_fault("*", "safety_chain", "closed")
+
+    def press_reset(self, pressed: bool = True) -> None:
+        """The reset button at the rig, held while `pressed`."""
+        with self.lock:
+            self.sim.press_reset(pressed)
 
     def raw_input(self, driver: str, channel: str) -> float | None:
         """What the device carrying (driver, channel) shows now (None: not bound)."""

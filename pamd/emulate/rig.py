@@ -79,9 +79,10 @@ class EmulatedRig:
     """Start with `start()`, stop with `stop()`; `endpoints` says what serves where."""
 
     def __init__(self, cfg: LoadedConfig, seed: int = 1,
-                 loads_kg: dict[str, float] | None = None) -> None:
+                 loads_kg: dict[str, float] | None = None,
+                 heartbeat_watchdog_s: float = 0.0) -> None:
         self.cfg = cfg
-        self.plant = EmulatedPlant(cfg, seed, loads_kg)
+        self.plant = EmulatedPlant(cfg, seed, loads_kg, heartbeat_watchdog_s)
         self.modbus: dict[str, EmulatedModbusDevice] = {}
         self.encoders: dict[str, Any] = {}  # "driver.channel" -> EmulatedEncoder
         self.endpoints: dict[str, str] = {}

@@ -1,0 +1,147 @@
+"""`pamd commission`: measure a rig's signals and timing at rest and in small, slow
+moves inside its limits, check its sensors' signs and scaling, and propose the sensor
+and timing thresholds of its config from what was measured; `--save` writes them."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+
+from pamd.commission.moves import MAX_STEP_BAR, CommissionRefused, Moves, choose
+from pamd.commission.propose import thresholds
+from pamd.commission.report import as_json, text
+from pamd.commission.run import commission
+from pamd.config import load_config
+from pamd.config.loader import builtin_config_path
+from pamd.tune.save import save_values
+
+DESCRIPTION = f"""\
+Bring up a rig: measure what its sensors and its loop really do, check that each
+sensor reads the right way round, and set the config's thresholds from measurements
+instead of the simulated rig's defaults.
+
+What it does to the rig (any config `pamd run` accepts; its own clock, or --clock):
+  1. rest (--rest-s, default 10 s): nothing moves, the rig holds the pressure it
+     found. Every signal must deliver samples; the force must read the declared load
+     (a dead weight hanging still pulls m g).
+  2. first step, per muscle (--muscle, default all): a ramp at half the slew limit to
+     the lower level, a step up and back down, each held --hold-s (default 2 s). The
+     pressure must rise when the valve opens (0.5 to 2 bar per bar of command) and the
+     length must shorten as the pressure rises (within a factor 5 of the force model).
+     A wrong sign or scale stops the run here, saying which signal and what to check.
+  3. the same at the upper level, then back to the lower one.
+The levels lie a quarter and a half of the way from the muscle's safe pressure (with
+its declared load) to its pressure limit, the step is 5 % of that span (at most
+{MAX_STEP_BAR:g} bar; --levels, --step-bar to choose). A level below the safe pressure
+or a level + step above the pressure limit is refused before anything opens, and every
+move goes through the daemon's limits like any command: nothing moves outside them.
+The rig must be free: another daemon on it is refused naming it (exit 8).
+
+What it measures, per signal from its samples' stamps: update period, jitter, worst
+gap, worst age (what the timeout is compared with), noise at rest, quantisation step,
+and the latency from the valve command to the measured pressure and length; the loop's
+wake-up lateness (real clock). What it prints: those, the checks that held, and the
+thresholds table: each present threshold (signal timeouts, plausibility jump
+allowances, frozen time, loop stall timeout) beside the figure it guards against,
+the margin, FIRES where the healthy rig reached it, and the proposed value with its
+rule (e.g. timeout = max(2 x worst age, worst age + safety.latency_margin_s)).
+
+What it writes: nothing, unless --save: then the proposed thresholds go into the
+config file in place, after the diff is shown, comments kept (as `pamd tune --save`);
+a file that cannot be edited safely gets an overrides file beside it
+(CONFIG.tuned.yaml). A refused or faulted run saves nothing.
+
+Exit status: 0 done, 1 the rig faulted during the run (the fault is printed), 2 bad
+config, 4 refused (a wrong sign or scale, a silent or constant signal, moves outside
+the limits, a threshold that cannot be proposed), 8 the rig is in use."""
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "commission", help="measure a rig's signals, check their signs, propose thresholds",
+        formatter_class=argparse.RawDescriptionHelpFormatter, description=DESCRIPTION,
+        epilog="examples:\n"
+        "  pamd commission --clock virtual                  # the built-in simulated rig\n"
+        "  pamd commission rig.yaml                         # measure and propose\n"
+        "  pamd commission rig.yaml --save                  # ... and write them\n"
+        "  pamd commission rig.yaml --json > commission.json  # for scripts\n"
+        "  pamd commission rig.yaml --muscle m1 --levels 2,3 --step-bar 0.2")
+    p.add_argument("config", nargs="?", metavar="CONFIG",
+                   help="rig config (default: the built-in simulated rig)")
+    p.add_argument("--clock", choices=("real", "virtual"), help="override loop.clock")
+    p.add_argument("--muscle", action="append", metavar="NAME",
+                   help="a muscle to move (repeatable; default: all, one after the other)")
+    p.add_argument("--levels", metavar="BAR,BAR,...",
+                   help="the pressures the steps start from (default: 1/4 and 1/2 of the "
+                   "way from the safe pressure to the pressure limit)")
+    p.add_argument("--step-bar", type=float, metavar="BAR",
+                   help=f"the step (default: 5 %% of that span, at most {MAX_STEP_BAR:g})")
+    p.add_argument("--rest-s", type=float, default=10.0, metavar="S",
+                   help="how long the rig rests first (default 10; at least 1)")
+    p.add_argument("--hold-s", type=float, default=2.0, metavar="S",
+                   help="how long each level and step is held (default 2; at least 0.5)")
+    p.add_argument("--state-dir", metavar="DIR",
+                   help="as `pamd run --state-dir`: where the latched fault and the home/tare "
+                   "references are kept (default: the config's state_dir, else the rig's "
+                   "own for a real-clock run; a virtual-clock run keeps none)")
+    p.add_argument("--save", action="store_true",
+                   help="write the proposed thresholds into CONFIG (after showing the diff)")
+    p.add_argument("--json", action="store_true",
+                   help="print the report as one JSON object (progress stays on stderr)")
+    p.set_defaults(func=run)
+
+
+def _levels(text_: str | None) -> tuple[float, ...] | None:
+    if not text_:
+        return None
+    try:
+        return tuple(float(v) for v in text_.split(","))
+    except ValueError:
+        raise CommissionRefused(f"--levels {text_!r}: give pressures in bar separated by "
+                                "commas, e.g. 2,3.5") from None
+
+
+def _progress(line: str) -> None:
+    print(f"pamd commission: {line}", file=sys.stderr, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.save and not args.config:
+        raise CommissionRefused("--save writes into the config file: name it (the built-in "
+                                "simulated rig's config is part of the installed package; "
+                                "copy it first: pamd commission my-sim.yaml --save)")
+    path = args.config or builtin_config_path()
+    cfg = load_config(path, {"loop": {"clock": args.clock}} if args.clock else None)
+    names = args.muscle or [m.name for m in cfg.rig.muscles]
+    moves: list[Moves] = [choose(cfg, n, args.rest_s, args.hold_s, _levels(args.levels),
+                                 args.step_bar) for n in names]
+    for mv in moves:
+        _progress(f"{mv.muscle}: rest {mv.rest_s:g} s, then steps of {mv.step_bar:g} bar at "
+                  f"{', '.join(f'{lv:g}' for lv in mv.levels_bar)} bar (safe pressure "
+                  f"{mv.safe_bar:.2f}, limit {mv.max_bar:g} bar)")
+    out = commission(cfg, moves, _progress, args.state_dir)
+    rows, refusals = thresholds(cfg, out.measurements)
+    out.refusals += refusals
+    clock = cfg.rig.loop.clock
+    saved = False
+    if args.save and not (out.refusals or out.faults):
+        values = {r.key: r.proposed for r in rows if r.changed and r.proposed is not None}
+        with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):
+            if values:
+                save_values(path, values, "thresholds", "pamd commission", "commissioned")
+                saved = True
+            else:
+                print("the present thresholds are the proposed ones: nothing to save")
+    if args.json:
+        print(json.dumps(as_json(path, cfg.rig.rig_id, clock, out, rows, saved), indent=2))
+    else:
+        print(text(path, cfg.rig.rig_id, clock, out, rows))
+        if args.save and (out.refusals or out.faults):
+            print("nothing saved: the run was refused or faulted")
+        elif not args.save:
+            print("nothing written (--save writes the proposed thresholds into the config)")
+    if out.refusals:
+        return CommissionRefused.exit_code
+    return 1 if out.faults else 0

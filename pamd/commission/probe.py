@@ -1,0 +1,107 @@
+"""What `pamd commission` measures, taken tick by tick: a sink downstream of the
+daemon's summary sink (`Daemon.summary.downstream`) that copies, at each tick of an
+armed phase, the clock time, how late the loop woke, the supervisor state, and per
+muscle each input's value (SI, as the loop uses it), its sample stamp and declared
+jitter (the driver's `in_stamps_s` / `in_jitter_s`), the valve command and the setpoint.
+
+Tick path: a few float copies into a preallocated array (no allocation, no I/O); a
+full array stops taking rows and counts them (`dropped`), it never blocks.
+"""
+
+from __future__ import annotations
+
+from array import array
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+import numpy as np
+
+#: Per-muscle columns, in this order after the loop's `LOOP_COLUMNS`.
+SIGNALS = ("pressure", "force", "length")
+LOOP_COLUMNS = ("t", "wake_s", "state", "phase", "segment")
+MUSCLE_COLUMNS = tuple(f"{s}{suffix}" for s in SIGNALS for suffix in ("", "_stamp", "_jitter")
+                       ) + ("valve_cmd", "setpoint")
+#: the tick record's fields each value column copies
+_RECORD_FIELD = {"pressure": "pressure_bar", "force": "force_n", "length": "length_mm",
+                 "valve_cmd": "valve_cmd_bar", "setpoint": "setpoint_bar"}
+
+
+class _Input(Protocol):
+    """An input binding of the rig (`pamd.rig.InputBinding`)."""
+
+    @property
+    def driver(self) -> Any: ...
+
+    @property
+    def index(self) -> int: ...
+
+
+class _Now(Protocol):
+    @property
+    def now(self) -> float: ...
+
+
+class Probe:
+    """The commissioning run's per-tick copy (see the module's doc)."""
+
+    def __init__(self, clock: _Now, record_names: Sequence[str], muscles: Sequence[str],
+                 inputs: Sequence[Sequence[_Input]], capacity: int) -> None:
+        """`inputs[k]`: muscle k's pressure, force and length bindings."""
+        self.clock = clock
+        self.muscles = tuple(muscles)
+        self.columns = list(LOOP_COLUMNS) + [f"{m}.{c}" for m in muscles
+                                             for c in MUSCLE_COLUMNS]
+        self.rows = np.full((capacity, len(self.columns)), np.nan)
+        self.n = 0
+        self.dropped = 0
+        self.phase = 0  # 0: not armed (nothing taken); set by the commissioning thread
+        names = list(record_names)
+        self._wake = names.index("wake_latency_s")
+        self._state = names.index("state")
+        self._segment = names.index("segment")
+        # per column of a muscle: where it comes from
+        self._copies = array("l")  # record index -> column (values, commands)
+        self._stamps: list[tuple[list[float], list[float], int, int]] = []
+        for k, m in enumerate(muscles):
+            base = len(LOOP_COLUMNS) + k * len(MUSCLE_COLUMNS)
+            for j, col in enumerate(MUSCLE_COLUMNS):
+                if col in _RECORD_FIELD:
+                    self._copies.extend((names.index(f"{m}.{_RECORD_FIELD[col]}"), base + j))
+            for s, binding in enumerate(inputs[k]):
+                at = base + MUSCLE_COLUMNS.index(f"{SIGNALS[s]}_stamp")
+                drv = binding.driver
+                self._stamps.append((drv.in_stamps_s, drv.in_jitter_s, binding.index, at))
+
+    def column(self, name: str) -> np.ndarray:
+        """The taken rows of one column (a view)."""
+        return self.rows[:self.n, self.columns.index(name)]
+
+    # -- the sink (tick path) -----------------------------------------------------------
+    def put(self, record: array) -> bool:
+        phase = self.phase
+        if not phase:
+            return True
+        n = self.n
+        if n >= len(self.rows):
+            self.dropped += 1
+            return True
+        row = self.rows[n]
+        row[0] = self.clock.now
+        row[1] = record[self._wake]
+        row[2] = record[self._state]
+        row[3] = phase
+        row[4] = record[self._segment]
+        c = self._copies
+        for i in range(0, len(c), 2):
+            row[c[i + 1]] = record[c[i]]
+        for stamps, jitters, index, col in self._stamps:
+            row[col] = stamps[index]
+            row[col + 1] = jitters[index]
+        self.n = n + 1
+        return True
+
+    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+        pass
+
+    def close(self) -> None:
+        pass

@@ -1,0 +1,148 @@
+"""The commissioning run: the rig's own daemon (any config `pamd run` accepts, on its
+own clock or `--clock virtual`), with a `Probe` downstream of its summary sink, through
+the plans of `pamd.commission.moves`: the rest first, then for each muscle its first
+step, whose signs and scaling are checked before anything else moves, then its other
+moves. A refusal (a wrong sign, a signal that never updates, a fault) stops the daemon
+at once: it ramps to the safe state as at the end of any run.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from pamd.commission.checks import check_changes, check_rest, check_step
+from pamd.commission.measure import (
+    PHASE_FIRST,
+    PHASE_MOVES,
+    PHASE_REST,
+    Measurements,
+    loop_stats,
+    signal_stats,
+    steps_of,
+)
+from pamd.commission.moves import CommissionRefused, Moves, plans
+from pamd.commission.probe import SIGNALS, Probe
+from pamd.config import LoadedConfig
+from pamd.daemon import Daemon
+from pamd.experiment.plan import Plan
+from pamd.experiment.sequencer import started_plan
+
+Progress = Callable[[str], None]
+#: the probe's room beyond the plans' own time (the virtual clock runs on between them)
+SPARE_S = 60.0
+
+
+@dataclass
+class Outcome:
+    """What the run measured, and why it stopped early (empty: it did not)."""
+
+    measurements: Measurements
+    checks: list[str] = field(default_factory=list)  # what held
+    refusals: list[str] = field(default_factory=list)
+    faults: list[str] = field(default_factory=list)
+    duration_s: float = 0.0
+
+
+def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
+               state_dir: str | None = None) -> Outcome:
+    """Run the plans of `moves` (one per muscle) on the rig of `cfg`; `state_dir` as
+    `pamd run --state-dir` (the latched fault, the references: the rig's own by
+    default, so that commissioning sees the references `tare` and `home` set)."""
+    all_plans = {mv.muscle: plans(cfg, mv) for mv in moves}  # checked before anything opens
+    seconds = sum(_plan_s(p, cfg) for ps in all_plans.values() for _, p in ps)
+    daemon = Daemon(cfg, note="pamd commission", state_dir=state_dir)
+    probe = Probe(daemon.ctrl, daemon.layout.names(), daemon.layout.muscles,
+                  [(s.pressure, s.force, s.length) for s in daemon.rig.muscles],
+                  int((seconds + SPARE_S) * cfg.rig.loop.rate_hz))
+    daemon.summary.downstream.append(probe)
+    out = Outcome(Measurements())
+    daemon.start()  # RigBusy (exit 8) while another daemon drives this rig
+    try:
+        first = moves[0]
+        _phase(daemon, probe, PHASE_REST, all_plans[first.muscle][0][1], progress)
+        _measure(cfg, probe, out.measurements)
+        out.checks += check_rest(cfg, out.measurements)
+        for mv in moves:
+            for phase, (name, plan) in ((PHASE_FIRST, all_plans[mv.muscle][1]),
+                                        (PHASE_MOVES, all_plans[mv.muscle][2])):
+                failed: CommissionRefused | None = None
+                try:
+                    _phase(daemon, probe, phase, plan, progress)
+                except CommissionRefused as exc:
+                    failed = exc  # a wrong sign, where the data show one, says more
+                steps = steps_of(probe, mv.muscle, phase, [s.name for s in plan.steps])
+                out.measurements.steps += steps
+                if steps or failed is None:
+                    out.checks += check_step(cfg, mv, steps, name, signs_only=failed is not None)
+                if failed is not None:
+                    raise failed
+        _measure(cfg, probe, out.measurements)
+        out.measurements.loop = loop_stats(probe, cfg.rig.loop.clock == "virtual")
+        out.checks += check_changes(out.measurements)
+    except CommissionRefused as exc:
+        out.refusals.append(str(exc))
+        _measure(cfg, probe, out.measurements)
+        out.measurements.loop = loop_stats(probe, cfg.rig.loop.clock == "virtual")
+    finally:
+        probe.phase = 0
+        daemon.stop("commissioning ended")
+        daemon.wait()
+        daemon.close()
+    out.faults = list(daemon.ctrl.supervisor.faults)
+    col = probe.column("t")
+    out.duration_s = float(col[-1] - col[0]) if len(col) else 0.0
+    if probe.dropped:
+        progress(f"{probe.dropped} ticks not measured (the probe was full)")
+    return out
+
+
+def _plan_s(plan: Plan, cfg: LoadedConfig) -> float:
+    slew = cfg.rig.control.slew_limit_bar_per_s
+    total = 0.0
+    for step in plan.steps:
+        total += step.hold_s + (step.settle.seconds if step.settle else 0.0)
+        total += 6.0 / (0.5 * slew) if step.profile is not None else 0.0  # ramps
+    return total
+
+
+def _measure(cfg: LoadedConfig, probe: Probe, into: Measurements) -> None:
+    pl = cfg.rig.safety.plausibility
+    rates = {"pressure": pl.pressure_max_rate_bar_per_s, "force": 0.0,
+             "length": pl.length_max_rate_mm_s}
+    for m in probe.muscles:
+        for s in SIGNALS:
+            st = signal_stats(probe, m, s, rates[s])
+            into.signals[st.name] = st
+
+
+def _phase(daemon: Daemon, probe: Probe, phase: int, plan: Plan, progress: Progress) -> None:
+    """Run one plan with the probe taking rows; CommissionRefused when it does not
+    finish (a fault, a refusal)."""
+    probe.phase = phase
+    try:
+        pending = daemon.start_plan(plan, f"<{plan.name}>", 0)
+        verdict: dict[str, Any] = pending.result(
+            daemon.cfg.rig.safety.startup_timeout_s + 5.0)
+        if not verdict["ok"]:
+            raise CommissionRefused(f"{plan.name}: the rig refused the plan: "
+                                    f"{verdict['error']}")
+        seq = started_plan(daemon.ctrl)
+        shown = ""
+        while daemon.alive and not seq.outcome:
+            daemon.service()
+            pr = seq.progress()
+            line = f"{plan.name}: step {pr['index'] + 1}/{pr['steps']} {pr['step']} {pr['phase']}"
+            if line != shown and pr["step"]:
+                shown = line
+                progress(line)
+            time.sleep(0.02)
+        outcome = seq.outcome or "aborted"
+    finally:
+        probe.phase = 0
+    if outcome != "done":
+        fault = daemon.ctrl.supervisor.fault_reason or ""
+        why = outcome if not fault or fault in outcome else f"{outcome}: {fault}"
+        raise CommissionRefused(f"{plan.name} stopped ({why}); nothing moved past it")
