@@ -154,8 +154,10 @@ class EmulatedEncoder:
     def _run(self) -> None:
         next_t = time.monotonic()
         while not self._stop.is_set():
-            self.lateness.note(time.monotonic() - next_t)
+            late_s = time.monotonic() - next_t
             ok, period = self._tpdo_enabled()
+            if ok:  # a frame was due (not while a full wire blocked an unstarted node)
+                self.lateness.note(late_s)
             next_t += period
             if ok and not self.silent:
                 data = struct.pack("<I", self.position())[: self.pdo_length]
@@ -167,7 +169,6 @@ class EmulatedEncoder:
                     pass
             delay = next_t - time.monotonic()
             if delay < -0.05:
-                self.lateness.note(-delay)
                 next_t = time.monotonic()
             elif delay > 0:
                 self._stop.wait(delay)
