@@ -70,11 +70,29 @@ class CanEncoderOptions:
                                  "its timers.", unit="s", gt=0.0, max=0.1)
     fault_after_s: float = spec(0.3, "Failure lasting this long sets the driver's fault.",
                                 unit="s", gt=0.0)
+    lost_after: int = spec(3, "Failed reads in a row (a garbled or cut frame) or SDO requests "
+                           "unanswered in a row that mean the link is lost (the bus is "
+                           "re-opened; an SDO is given up); fewer are skipped or re-sent at "
+                           "once: one lost frame or reply costs one retry.", min=1, max=20)
     reconnect_min_s: float = spec(0.05, "First retry delay (bus or node configuration).",
                                   unit="s", gt=0.0)
     reconnect_max_s: float = spec(2.0, "Longest retry delay.", unit="s", gt=0.0)
     encoders: tuple[EncoderNode, ...] = spec((), "CiA 406 encoder nodes on this bus.")
     frames: tuple[RawFrame, ...] = spec((), "Values in raw CAN frames (not CANopen).")
+
+
+def link_gone(exc: BaseException) -> bool:
+    """True if a receive error means the link itself failed (an OS or port error
+    anywhere in its chain: the adapter unplugged, the port closed), False for a frame
+    that could not be decoded (cut short, a bad delimiter or length)."""
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        if isinstance(e, OSError):  # serial.SerialException is one too
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False
 
 
 class _Node:
@@ -141,6 +159,7 @@ class CanEncoderDriver(ThreadedDriver):
         self._bad_msg = ""
         self._sdo_wait: int | None = None
         self._sdo_answer: bytes | None = None
+        self._failed_reads = 0  # receive errors in a row (lost_after: the link is lost)
 
     # -- Driver protocol ----------------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
@@ -252,9 +271,20 @@ class CanEncoderDriver(ThreadedDriver):
             msg = bus.recv(timeout_s)
             window.after_read(self.clock(), msg is not None)
         except Exception as exc:  # noqa: BLE001 - a broken link or garbage on the wire
-            self.error("bus_errors", f"receive failed: {exc}")
-            self.release()
+            self._failed_reads += 1
+            text = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+            if link_gone(exc) or self._failed_reads >= self.options.lost_after:
+                self.error("bus_errors", f"receive failed ({self._failed_reads} in a row): "
+                           f"{text}")
+                self.release()
+                self._failed_reads = 0
+                return None
+            # a frame cut short or garbled (python-can's serial interface reads a frame
+            # byte by byte with the read timeout): that frame is lost, the link is not
+            self.count("failed_reads")
+            self._bad(f"a frame could not be read ({text}); skipped", ())
             return None
+        self._failed_reads = 0
         if msg is not None:
             self._dispatch(msg)
         return msg
@@ -355,20 +385,28 @@ class CanEncoderDriver(ThreadedDriver):
         while waiting."""
         o: CanEncoderOptions = self.options
         self._sdo_wait, self._sdo_answer = SDO_TX_BASE + n.id, None
+        answer = None
         try:
-            if not self._send(SDO_RX_BASE + n.id, sdo_download(index, sub, value, size)):
-                return f"{n.label}: could not send the SDO request"
-            deadline = time.monotonic() + o.sdo_timeout_s
-            while self._sdo_answer is None and time.monotonic() < deadline:
-                if self._bus is None:
-                    return f"{n.label}: bus lost during SDO"
-                self._receive(min(o.recv_timeout_s, max(0.0, deadline - time.monotonic())))
-            answer = self._sdo_answer
+            for attempt in range(o.lost_after):  # a lost reply costs a retry (downloads
+                if attempt:  # of a value are idempotent: sending one twice is harmless)
+                    self.count("sdo_retries")
+                if not self._send(SDO_RX_BASE + n.id, sdo_download(index, sub, value, size)):
+                    return f"{n.label}: could not send the SDO request"
+                deadline = time.monotonic() + o.sdo_timeout_s
+                while self._sdo_answer is None and time.monotonic() < deadline:
+                    if self._bus is None:
+                        return f"{n.label}: bus lost during SDO"
+                    self._receive(min(o.recv_timeout_s,
+                                      max(0.0, deadline - time.monotonic())))
+                answer = self._sdo_answer
+                if answer is not None:
+                    break
+                self.count("sdo_timeouts")
         finally:
             self._sdo_wait = None
         if answer is None:
-            self.count("sdo_timeouts")
-            return f"{n.label}: no SDO answer to 0x{index:04X}:{sub} within {o.sdo_timeout_s:g} s"
+            return (f"{n.label}: no SDO answer to 0x{index:04X}:{sub} within "
+                    f"{o.sdo_timeout_s:g} s, {o.lost_after} times in a row")
         ok, why = sdo_reply(answer, index, sub)
         return None if ok else f"{n.label}: {why}"
 

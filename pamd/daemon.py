@@ -260,6 +260,10 @@ class Daemon:
                                  "safe_pressure_bar": m.safe_pressure_bar}
                         for m in self.ctrl.muscles},
             "stop_reason": self.loop.stopped_reason,
+            # each driver's counters (retries, timeouts, reconnects, ...) and its last
+            # errors: what a fault came from
+            "drivers": {name: {"counters": h.counters, "errors": getattr(h, "errors", [])[-3:]}
+                        for name, h in ((n, d.health()) for n, d in self.rig.drivers.items())},
             "realtime": {"applied": self.loop.rt.applied, "refused": self.loop.rt.warnings},
             "recording": self.io.result() if self.io is not None and self.io.recording
             else None,

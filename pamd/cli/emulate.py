@@ -36,6 +36,15 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("--load", action="append", default=[], metavar="MUSCLE=KG",
                    help="true hanging load of a muscle (default: the config's load_kg)")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--realtime-priority", type=int, default=0, metavar="N",
+                   choices=range(0, 100),
+                   help="run the emulated devices (and their socat links) at SCHED_FIFO N "
+                   "(0: normal priority, the default). Real I/O modules and encoders have "
+                   "CPUs of their own; on a busy PC an emulator at normal priority is "
+                   "starved and answers late, which faults the daemon for the emulator's "
+                   "sake. Give it a priority below the daemon's loop (1 is enough) when "
+                   "testing pamd on a shared machine. The closing statistics say how late "
+                   "the devices were (`lateness`).")
     p.set_defaults(func=run)
 
 
@@ -72,6 +81,12 @@ def emulated_devices(cfg: LoadedConfig) -> list[str]:
 
 
 def _serve(args: argparse.Namespace, cfg: LoadedConfig, make: type) -> int:
+    from pamd.emulate.rig import realtime_priority
+
+    if getattr(args, "realtime_priority", 0) > 0:
+        refused = realtime_priority(args.realtime_priority)
+        if refused is not None:
+            print(f"pamd emulate: {refused}", file=sys.stderr, flush=True)
     rig = make(cfg, seed=args.seed, loads_kg=_loads(args.load))
     done = threading.Event()
 
@@ -99,6 +114,8 @@ def _serve(args: argparse.Namespace, cfg: LoadedConfig, make: type) -> int:
              "modbus_requests": {k: d.requests for k, d in rig.modbus.items()},
              "watchdog_trips": {k: d.trips for k, d in rig.modbus.items()},
              "tpdo_frames": {k: e.sent for k, e in rig.encoders.items()}}
+    if hasattr(rig, "lateness"):
+        stats["lateness"] = rig.lateness()
     print(json.dumps(stats), flush=True)
     sys.stdout.flush()
     return 0

@@ -138,9 +138,12 @@ def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = No
 
 
 def effective_timeout_s(sig: SignalConfig, safety: SafetyConfig) -> float:
-    """The age at which an input signal is stale: its `timeout_s` (or the safety
-    default), and never less than its device's sample period plus the latency margin
-    (a value is as old as its sample)."""
+    """The age at which an input signal is stale. The physics: a healthy device delivers
+    a fresh sample at least once per update period (`sample_period_s`), late by at most
+    the delivery latency the rig declares (`safety.latency_margin_s`: a lost reply's
+    retry, a driver thread held up, a frame waiting in a socket); a value older than
+    their sum comes from a device that stopped. Never less than the signal's
+    `timeout_s` (or the safety default)."""
     timeout = sig.timeout_s or safety.signal_timeout_s
     if sig.sample_period_s is None:
         return timeout

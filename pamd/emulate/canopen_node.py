@@ -21,6 +21,8 @@ import canopen
 from canopen import objectdictionary as od
 from canopen.sdo import SdoArray, SdoRecord, SdoVariable
 
+from pamd.emulate.lateness import Lateness
+
 U8, U16, U32, I32 = (od.UNSIGNED8, od.UNSIGNED16, od.UNSIGNED32, od.INTEGER32)
 
 
@@ -75,6 +77,7 @@ class EmulatedEncoder:
         self.silent = False
         self.pdo_length = 4  # tests: a wrong length
         self.sent = 0
+        self.lateness = Lateness()  # of the TPDO1 frames against the event timer
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -151,7 +154,10 @@ class EmulatedEncoder:
     def _run(self) -> None:
         next_t = time.monotonic()
         while not self._stop.is_set():
+            late_s = time.monotonic() - next_t
             ok, period = self._tpdo_enabled()
+            if ok:  # a frame was due (not while a full wire blocked an unstarted node)
+                self.lateness.note(late_s)
             next_t += period
             if ok and not self.silent:
                 data = struct.pack("<I", self.position())[: self.pdo_length]

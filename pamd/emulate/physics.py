@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
 from pamd.drivers.sim import SimDriver
+from pamd.emulate.lateness import Lateness
 from pamd.sim.options import SimMuscleOptions, SimOptions
 
 STEP_S = 0.001
@@ -63,6 +64,7 @@ class EmulatedPlant:
         self._bind_chain(cfg)
         self.lock = threading.Lock()
         self.steps = 0
+        self.lateness = Lateness()  # of the physics steps against their 1 ms schedule
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -136,9 +138,10 @@ class EmulatedPlant:
             delay = next_t - mono()
             if delay > 0:
                 time.sleep(delay)
-            elif delay < -0.1:
-                next_t = mono()
             now = mono()
+            self.lateness.note(now - next_t)
+            if now - next_t > 0.1:
+                next_t = now
             if now <= last:
                 continue
             with self.lock:

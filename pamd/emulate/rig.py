@@ -29,6 +29,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.drivers.can_frames import EncoderNode
 from pamd.drivers.canopen_encoder import CanEncoderOptions
 from pamd.drivers.modbus import ModbusOptions
+from pamd.emulate.lateness import Lateness
 from pamd.emulate.modbus_device import EmulatedModbusDevice, serve_rtu, serve_tcp
 from pamd.emulate.physics import EmulatedPlant
 from pamd.emulate.ptys import PtyPair
@@ -42,6 +43,34 @@ async def _cancel_all() -> None:
     for task in asyncio.all_tasks():
         if task is not me:
             task.cancel()
+
+
+#: how often the Modbus servers' event loop is checked for lag
+LAG_CHECK_S = 0.01
+
+
+def realtime_priority(priority: int) -> str | None:
+    """Put the calling thread on SCHED_FIFO `priority` before the devices start: their
+    threads and the socat links inherit it. The emulator stands in for I/O modules and
+    encoders, which have CPUs of their own; at normal priority on a busy PC it is
+    starved and its devices answer late, a fault no real rig would have. Returns why it
+    could not (the emulator runs on at normal priority), or None."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (OSError, AttributeError) as exc:
+        return (f"could not run the emulated devices at SCHED_FIFO {priority} ({exc}); they "
+                "run at normal priority and a busy PC can make them answer late (needs "
+                "CAP_SYS_NICE or an RLIMIT_RTPRIO of at least the priority)")
+    return None
+
+
+async def _watch_lag(lateness: Lateness) -> None:
+    """Note how late the event loop (the Modbus servers) wakes from a short sleep."""
+    loop = asyncio.get_running_loop()
+    while True:
+        due = loop.time() + LAG_CHECK_S
+        await asyncio.sleep(LAG_CHECK_S)
+        lateness.note(loop.time() - due)
 
 
 #: longest a heartbeat task may take to see its stop (its period: 0x1017, 100 ms here)
@@ -93,11 +122,13 @@ class EmulatedRig:
         self._loop = asyncio.new_event_loop()
         self._loop_thread = threading.Thread(target=self._loop.run_forever,
                                              name="emu-asyncio", daemon=True)
+        self.server_lateness = Lateness()  # of the Modbus servers' event loop
 
     # -- life cycle -----------------------------------------------------------------------
     def start(self) -> None:
         self.plant.start()
         self._loop_thread.start()
+        asyncio.run_coroutine_threadsafe(_watch_lag(self.server_lateness), self._loop)
         try:
             for drv in self.cfg.rig.drivers:
                 if drv.type == "modbus":
@@ -110,6 +141,8 @@ class EmulatedRig:
         except BaseException:
             self.stop()
             raise
+        for lateness in self._latenesses():  # from here on the devices serve
+            lateness.reset()
 
     def stop(self) -> None:
         for enc in self.encoders.values():
@@ -135,6 +168,20 @@ class EmulatedRig:
         for p in self._ptys:
             p.close()
         self.plant.stop()
+
+    def _latenesses(self) -> list[Lateness]:
+        return [self.plant.lateness, self.server_lateness,
+                *(e.lateness for e in self.encoders.values())]
+
+    def lateness(self) -> dict[str, dict[str, float]]:
+        """How late each timed part of the emulator woke, worst and count (`Lateness`):
+        a device late by more than its signal's timeout makes a stale fault by itself."""
+        out = {"physics": self.plant.lateness.summary()}
+        if self.modbus:
+            out["modbus_servers"] = self.server_lateness.summary()
+        for name, enc in self.encoders.items():
+            out[name] = enc.lateness.summary()
+        return out
 
     def _run(self, coro: Coroutine[Any, Any, _T]) -> _T:
         return asyncio.run_coroutine_threadsafe(coro, self._loop).result(10.0)
