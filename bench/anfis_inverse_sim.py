@@ -3,8 +3,9 @@ simulated rig, trained on some loads and tested on a load it never saw; prints f
 
 Data: the seeds' experiment. Under PID pressure control, 0.05 Hz 0-6 bar sine sweeps
 (3 cycles each) with a hanging load, recorded to MCAP by the daemon on the virtual
-clock (simulated DMSP-20 with its default friction: 50 N Dahl friction at 5 bar, so
-the length lags the pressure in a hysteresis loop). The recordings go through the
+clock (simulated DMSP-20 with its default friction: Dahl friction from the braid's
+normal load, 6 N/bar + 0.06 x the pull, so the length lags the pressure in a
+hysteresis loop that widens with the load). The recordings go through the
 same path as `pamd train`: read back; fault / soft-limit / idle / lead-in / settling
 samples dropped; velocity by the tick's filter function at 1 kHz (model window 3 s);
 decimated to 50 Hz; split by 10 s blocks (20 % validation, best epoch kept).

@@ -17,7 +17,7 @@ fault (`loop.stall_fault_s`; null derives it here, per muscle, the shortest wins
 * **on/off valves** do not hold: an inflate or exhaust valve left open keeps moving
   the pressure at up to `onoff.fill_rate_bar_per_s` / `vent_rate_bar_per_s`. The
   stall may last until that moves the pressure by `safety.tracking_band_bar`, the
-  pressure error the rig already tolerates (0.5 bar at 4.68 bar/s: 107 ms), or the
+  pressure error the rig already tolerates (0.5 bar at 4.64 bar/s: 108 ms), or the
   valves' module watchdog, whichever is shorter.
 
 The derived limit is never below `loop.stall_timeout_s` (a shorter gap is not a

@@ -71,7 +71,7 @@ def test_on_off_valves_are_bounded_by_how_fast_an_open_valve_moves_the_pressure(
     assert limit.fault_s == 0.1 and "driver 'sim'" in limit.why
     del data["drivers"][0]["options"]["comm_safety"]
     limit = stall_limit(_load(tmp_path, data).rig)
-    assert limit.fault_s == pytest.approx(0.5 / 4.68)  # tracking band / fill rate: 107 ms
+    assert limit.fault_s == pytest.approx(0.5 / 4.64)  # tracking band / fill rate: 108 ms
     assert "on/off valve left open" in limit.why
     data["safety"]["tracking_band_bar"] = 0.3
     data["muscles"][0]["onoff"]["vent_rate_bar_per_s"] = 6.0  # the faster valve decides

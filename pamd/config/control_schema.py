@@ -31,10 +31,10 @@ SLEW_LIMIT_MAX_BAR_PER_S = 500.0
 
 @dataclass(frozen=True, kw_only=True)
 class PidConfig:
-    kp: float = spec(0.54, "Proportional gain (default: SIMC PI on the simulated rig's "
+    kp: float = spec(0.516, "Proportional gain (default: SIMC PI on the simulated rig's "
                      "measured step response, bench/tune_pressure_loop.py).", unit="bar/bar",
                      min=0.0, max=PID_KP_MAX)
-    ki_per_s: float = spec(41.7, "Integral gain.", unit="1/s", min=0.0, max=PID_KI_MAX_PER_S)
+    ki_per_s: float = spec(41.2, "Integral gain.", unit="1/s", min=0.0, max=PID_KI_MAX_PER_S)
     kd_s: float = spec(0.0, "Derivative gain (on measurement).", unit="s", min=0.0,
                        max=PID_KD_MAX_S)
     derivative_filter_hz: float = spec(30.0, "Cut-off of the derivative's low-pass filter.",
@@ -47,12 +47,12 @@ class PidConfig:
 
 @dataclass(frozen=True, kw_only=True)
 class PositionPidConfig:
-    kp_bar_per_mm: float = spec(0.0607, "Proportional gain on the length error (measured - "
+    kp_bar_per_mm: float = spec(0.0656, "Proportional gain on the length error (measured - "
                                 "target: too long means more pressure). Default: SIMC PI "
                                 "on the simulated rig's measured pressure -> length step "
                                 "response at 30 kg (bench/tune_pressure_loop.py).",
                                 unit="bar/mm", min=0.0, max=POSITION_KP_MAX_BAR_PER_MM)
-    ki_bar_per_mm_s: float = spec(1.93, "Integral gain.", unit="bar/(mm s)", min=0.0,
+    ki_bar_per_mm_s: float = spec(2.08, "Integral gain.", unit="bar/(mm s)", min=0.0,
                                   max=POSITION_KI_MAX_BAR_PER_MM_S)
     kd_bar_s_per_mm: float = spec(0.0, "Derivative gain (on the measured length).",
                                   unit="bar s/mm", min=0.0, max=POSITION_KD_MAX_BAR_S_PER_MM)
@@ -76,7 +76,7 @@ class IlcConfig:
     lead_s: float = spec(0.068, "Phase lead of the learning update: the delay from the "
                          "position loop's target to the length, i.e. the position loop's "
                          "dead time + lag that `pamd tune --loop position` measures "
-                         "(default: 36.8 + 31.3 ms, the simulated DMSP-20-200 at 30 kg). "
+                         "(default: 36.1 + 31.5 ms, the simulated DMSP-20-200 at 30 kg). "
                          "Applied exactly, not rounded to `resolution_s`.", unit="s",
                          min=0.0, max=5.0)
     cutoff_hz: float = spec(6.0, "Cut-off of the Q-filter, the zero-phase low-pass "
@@ -116,10 +116,10 @@ class PositionConfig:
     ilc: IlcConfig = spec(IlcConfig(), "Iterative learning across repeated cycles "
                           "(position mode with `ilc: true`; seed 003's PID-type ILC).")
     length_response_s: float = spec(
-        0.0684, "Dead time + lag of the measured length after a pressure setpoint step, "
+        0.0678, "Dead time + lag of the measured length after a pressure setpoint step, "
         "the pressure loop closed with its rate feedforward (the position loop's FOPDT "
         "fit: `pamd tune --loop position`, bench/tune_pressure_loop.py --loop position; "
-        "36.9 + 31.5 ms on the simulated rig at 30 kg). Sets the default `preview_s`.",
+        "36.2 + 31.6 ms on the simulated rig at 30 kg). Sets the default `preview_s`.",
         unit="s", min=0.0, max=2.0)
     preview_s: float | None = spec(
         None, "position mode: the model's feedforward (and the dynamic terms) are evaluated "
@@ -163,7 +163,7 @@ class ControlConfig:
     position: PositionConfig = spec(PositionConfig(), "The length modes (length_force, "
                                     "position): outer position loop and iterative learning.")
     rate_feedforward_s: float = spec(
-        0.0255, "The setpoint's rate times this is added to the valve command; it cancels "
+        0.0253, "The setpoint's rate times this is added to the valve command; it cancels "
         "the pressure loop's dead time plus lag, both measured from a step response "
         "(bench/tune_pressure_loop.py).", unit="s", min=0.0, max=1.0)
     slew_limit_bar_per_s: float = spec(5.0, "Fastest allowed setpoint change; faster "

@@ -62,7 +62,7 @@ class LoopConfig:
         "module's comm watchdog time (`comm_safety.timeout_s` of the valve's driver), or "
         "0.5 s without one; on/off valves do not hold, so the time an open valve takes to "
         "move the pressure by `safety.tracking_band_bar` (at the larger of "
-        "`onoff.fill_rate_bar_per_s` and `vent_rate_bar_per_s`; 107 ms by default), or "
+        "`onoff.fill_rate_bar_per_s` and `vent_rate_bar_per_s`; 108 ms by default), or "
         "their module's watchdog time if shorter. The shortest muscle's wins.",
         unit="s", gt=0.0, ceiling=1.0, max=10.0)
     realtime: RealtimeConfig = spec(RealtimeConfig(), "Real-time options of the loop's thread.")
@@ -141,25 +141,25 @@ class OnOffConfig:
     valve_off_delay_s: float = spec(0.005, "The valves' switching time from release to "
                                     "closed (about 2-5 ms).", unit="s", min=0.0, max=0.5)
     fill_rate_bar_per_s: float = spec(
-        4.68, "How fast the inflate valve, held open, fills the muscle at mid pressure (3 "
+        4.64, "How fast the inflate valve, held open, fills the muscle at mid pressure (3 "
         "bar): the PWM's gain, measured by a step test on the rig (bench/tune_onoff.py).",
         unit="bar/s", gt=0.0)
     vent_rate_bar_per_s: float = spec(
-        3.68, "How fast the exhaust valve, held open, vents the muscle at 3 bar (the same "
+        3.76, "How fast the exhaust valve, held open, vents the muscle at 3 bar (the same "
         "step test).", unit="bar/s", gt=0.0)
     response_s: float = spec(
         0.1, "Time constant the PWM pressure loop aims for (its proportional gain is "
         "1 / (rate x response_s), its integral time 5 x response_s).", unit="s", gt=0.0,
         max=10.0)
     dead_band_bar: float = spec(
-        0.014, "Within this of a steady command both valves hold (no chatter at rest); "
+        0.0143, "Within this of a steady command both valves hold (no chatter at rest); "
         "about half the pressure step of the shortest pulse.", unit="bar", min=0.0, max=1.0)
     position_lambda_per_s: float = spec(
-        17.6, "Mode position (seed 004's sliding mode): the sliding surface s = lambda e + "
+        14.2, "Mode position (seed 004's sliding mode): the sliding surface s = lambda e + "
         "de/dt on the length error e; the error decays at this rate on the surface. From "
         "the step test (bench/tune_onoff.py).", unit="1/s", gt=0.0)
     position_boundary_mm_s: float = spec(
-        17.6, "Mode position: the boundary layer |s| <= this, inside which the valves pulse "
+        14.2, "Mode position: the boundary layer |s| <= this, inside which the valves pulse "
         "with a duty s / boundary (against chattering); outside it one valve is open.",
         unit="mm/s", gt=0.0)
     position_hold_band_mm: float = spec(

@@ -8,7 +8,8 @@ Three places hold simulation code, in this order of layers:
   - `options`: the sim driver's option dataclasses (per rig and per muscle), with
     their bounds, documentation and the scripted `faults` schedule.
   - `plant`: one muscle with its hanging load: the static force map, Dahl friction
-    with Stribeck stiction, slow force drift, and its sensors.
+    whose level follows the braid's normal load (pressure and the muscle's pull) with
+    Stribeck stiction, slow force drift, and its sensors.
   - `regulator` (lag pneumatics: the setpoint through a dead time and a lag) or
     `vppm` + `pneumatics` (flow pneumatics: a proportional regulator as a device
     feeding a chamber through ISO 6358 orifices from a shared supply line); `pilot`

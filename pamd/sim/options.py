@@ -57,12 +57,22 @@ class SimMuscleOptions:
     force_scale: float = _f(
         1.0, "Factor on the datasheet force (real specimens are 0-40 % weaker).", "", 0.1, 2.0
     )
-    friction_n_at_5bar: float = _f(
-        50.0,
-        "Dahl friction level at 5 bar (it scales in proportion to pressure).",
-        "N",
+    friction_n_per_bar: float = _f(
+        6.0,
+        "Coulomb friction of the bladder pressed against the braid: the sliding "
+        "friction level's share that grows with pressure (contact force ~ p x area).",
+        "N/bar",
         0.0,
-        1000.0,
+        200.0,
+    )
+    friction_per_tension: float = _f(
+        0.06,
+        "Coulomb friction where the braid's strands cross, pressed together by the "
+        "tension they carry: the sliding friction level's share per newton of the "
+        "muscle's static pull; 0 leaves friction to pressure alone.",
+        "",
+        0.0,
+        1.0,
     )
     friction_presliding_mm: float = _f(
         0.2,

@@ -9,7 +9,19 @@ with m the load plus a small moving mass, W the load's weight, F the static forc
 model (`pamd.muscle.force_model`) times the force scale `s`, c a viscous damper
 (larger while contracting) and Ff a Dahl friction state in the same coordinate,
 
-    dFf = (Fc(p) sign(dL) - Ff) |dL| / delta,   Fc(p) = Fc5 p / 5 bar.
+    dFf = (Fc sign(dL) - Ff) |dL| / delta,   Fc = mu_p p + mu_T max(s F(p, x), 0).
+
+Fc is Coulomb friction proportional to the braid's normal load (Chou and Hannaford,
+as seed 004 cites them: the hysteresis is mostly Coulomb friction of the bladder on
+the braid and of the braid's strands on each other). The bladder is pressed onto the
+braid by the pressure (contact force ~ p times the contact area: mu_p p, with
+`friction_n_per_bar`); the strands press on each other where they cross with a force
+that follows the tension they carry, the muscle's static pull (mu_T s F, with
+`friction_per_tension`; a slack braid, F < 0, adds none). With a hanging load the
+static pull is about the weight, so the friction level, and the hysteresis loop,
+grow with the load as seed 003 observes (`bench/hysteresis_width.py` measures the
+width per load). `friction_per_tension: 0` gives friction from pressure alone (the
+plant before issue 29: 10 N/bar, so 50 N at 5 bar, whatever the load).
 
 The muscle is stiff (dF/dL ~ 125 N/mm against a 0.2 kg moving mass and a
 1000 N s/m damper), so explicit Euler diverges. Each step is backward Euler with
@@ -100,7 +112,8 @@ class MusclePlant:
         self._mass_kg = 0.0
         self._weight_n = 0.0
         self.set_load_kg(o.load_kg)
-        self._fric_per_bar = o.friction_n_at_5bar / 5.0
+        self._fric_per_bar = o.friction_n_per_bar
+        self._fric_per_tension = o.friction_per_tension
         self._delta_m = o.friction_presliding_mm * 1e-3
         self._c_contract = o.damping_contracting_n_s_per_m
         self._c_relax = o.damping_relaxing_n_s_per_m
@@ -231,12 +244,16 @@ class MusclePlant:
         v = self._velocity_m_s
         ff = self._friction_n
         m = self._mass_kg
+        fs = scale * force_fn(p, x)
+        # Coulomb level from the braid's normal load: the bladder pressed onto it by
+        # the pressure, its strands pressed together by the tension they carry.
+        fc = self._fric_per_bar * p if p > 0.0 else 0.0
+        if fs > 0.0:
+            fc += self._fric_per_tension * fs
         # Stribeck: at rest the friction can reach the breakaway level, sliding less.
-        fric_per_bar = self._fric_per_bar
         if self._stiction_extra != 0.0:
             w = v * self._inv_stribeck_m_s
-            fric_per_bar *= 1.0 + self._stiction_extra * math.exp(-w * w)
-        fs = scale * force_fn(p, x)
+            fc *= 1.0 + self._stiction_extra * math.exp(-w * w)
         # Step residual R(dL) = a dL + b + Ff_new(dL) with b as below; R rises with dL.
         b = fs - self._weight_n - m * v / dt
         r0 = b + ff
@@ -245,7 +262,6 @@ class MusclePlant:
             stiff = 0.0
             c = 0.0
         else:
-            fc = fric_per_bar * p if p > 0.0 else 0.0
             delta = self._delta_m
             sigma = fc / delta
             probe = self._probe_m
@@ -282,12 +298,9 @@ class MusclePlant:
         else:
             v = dl / dt
         if dl != 0.0:
-            fc = fric_per_bar * p if p > 0.0 else 0.0
             delta = self._delta_m
             ff = (ff + fc / delta * dl) / (1.0 + abs(dl) / delta)
-        else:
-            fc = fric_per_bar * p if p > 0.0 else 0.0
-        # Less contact pressure, less friction: the stored friction cannot exceed it.
+        # Less contact force, less friction: the stored friction cannot exceed it.
         if ff > fc:
             ff = fc
         elif ff < -fc:

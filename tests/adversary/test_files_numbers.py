@@ -18,7 +18,7 @@ def pamd(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_check_config_refuses_absurd_gains_slew_and_load(tmp_path: Path) -> None:
-    text = (SIM.replace("pid: {kp: 0.54, ki_per_s: 41.7, kd_s: 0.0}",
+    text = (SIM.replace("pid: {kp: 0.516, ki_per_s: 41.2, kd_s: 0.0}",
                         "pid: {kp: 1000, ki_per_s: 1e6, kd_s: 10}")
             .replace("slew_limit_bar_per_s: 5.0", "slew_limit_bar_per_s: 1e308")
             .replace("    load_kg: 30                # what the operator",

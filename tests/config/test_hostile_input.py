@@ -104,10 +104,10 @@ def test_anchor_bombs_and_self_aliases_are_refused(tmp_path: Path) -> None:
 
 
 def test_ordinary_anchors_still_work() -> None:
-    text = SIM.replace("  pid: {kp: 0.54", "  pid: &gains {kp: 0.54")
+    text = SIM.replace("  pid: {kp: 0.516", "  pid: &gains {kp: 0.516")
     assert "&gains" in text
     cfg = load_config_text(text + "\n", "rig.yaml")
-    assert cfg.rig.control.pid.kp == 0.54
+    assert cfg.rig.control.pid.kp == 0.516
     data = load_yaml_text("base: &b {x: 1}\nother:\n  <<: *b\n  y: 2\n", "f.yaml")
     assert data["other"] == {"x": 1, "y": 2}
 

@@ -18,7 +18,7 @@ def test_config_reference_is_current() -> None:
 def test_reference_lists_every_key_with_unit() -> None:
     text = generate()
     for key in ("`loop.rate_hz`", "`safety.signal_timeout_s`", "`control.pid.ki_per_s`",
-                "`muscles[].signals.valve.raw_max`", "`options.muscles[].friction_n_at_5bar`"):
+                "`muscles[].signals.valve.raw_max`", "`options.muscles[].friction_n_per_bar`"):
         assert key in text
     row = next(ln for ln in text.splitlines() if ln.startswith("| `loop.rate_hz`"))
     assert "| Hz |" in row and "`1000.0`" in row

@@ -119,7 +119,7 @@ def test_default_preview_is_the_length_response_less_the_rate_feedforward(
         sim_config: Callable[..., LoadedConfig]) -> None:
     pos = sim_config().rig.control.position
     assert pos.preview_s is None
-    assert preview_s_of(pos, 0.0255) == pytest.approx(0.0684 - 0.0255)
+    assert preview_s_of(pos, 0.0253) == pytest.approx(0.0678 - 0.0253)
     assert preview_s_of(replace(pos, preview_s=0.1), 0.0255) == 0.1
     assert preview_s_of(PositionConfig(length_response_s=0.01), 0.0255) == 0.0
 

@@ -16,18 +16,19 @@ def test_train_writes_each_kind(trained: dict[str, Path], capsys: Any) -> None:
     # Validation RMSE (bar) on unseen 2 s blocks of the three sweeps (virtual clock:
     # deterministic). The polynomial's offset a4 cannot follow the force at zero
     # pressure, which changes by ~270 N over the contraction range: it is the weakest.
-    want = {"anfis": 0.360, "ts-fuzzy": 0.178, "polynomial": 1.672, "sarosi": 0.403}
+    want = {"anfis": 0.390, "ts-fuzzy": 0.127, "polynomial": 1.781, "sarosi": 0.436}
     for kind, path in trained.items():
         m = load_model(path)
         assert m.kind == kind and "validation" in m.metrics
         assert m.metrics["validation"]["rmse"] == pytest.approx(want[kind], rel=0.1), kind
     poly = load_model(trained["polynomial"])
-    assert poly.metrics["forward_train"]["nrmse_fit_pct"] == pytest.approx(24.5, abs=2.0)
+    assert poly.metrics["forward_train"]["nrmse_fit_pct"] == pytest.approx(24.6, abs=2.0)
     sar = load_model(trained["sarosi"])
-    # The forward force fit: 83.6 % on these three loads. The sim's Dahl friction
-    # (about 50 N at 5 bar) puts the two branches of the loop ~+-25 N off any static
-    # F(p, k); the bench's seven loads over 10-80 kg give a wider force range.
-    assert sar.metrics["forward_train"]["nrmse_fit_pct"] == pytest.approx(83.6, abs=1.0)
+    # The forward force fit: 78.6 % on these three loads. The sim's Dahl friction
+    # (6 N/bar + 0.06 x the pull: 42-65 N at 5 bar with 20-60 kg) puts the two branches
+    # of the loop that far off any static F(p, k); the bench's seven loads over 10-80 kg
+    # give a wider force range.
+    assert sar.metrics["forward_train"]["nrmse_fit_pct"] == pytest.approx(78.6, abs=1.0)
     tsf = load_model(trained["ts-fuzzy"])
     assert [v.name for v in tsf.inputs] == ["force_n", "length_mm", "velocity_mm_s"]
     assert tsf.provenance["tuning"]["tuner"] == "mga"

@@ -51,10 +51,11 @@ def position_rmse(h: Harness, feedforward: bool) -> float:
 # (deterministic: virtual clock); PID alone for comparison.
 # The fixture's small 3 x 3 ANFIS (force, length) is worse than no model here: at
 # 30 kg, between its training loads, its validation-selected epoch is the first.
-# (Measured on the flow plant with the gains of bench/tune_pressure_loop.py; on the old
+# (Measured on the flow plant with the gains of bench/tune_pressure_loop.py and the
+# friction of issue 29; before it 0.490, 0.140, 0.159, 0.152 and 0.259; on the old
 # lag plant and its hand-set gains they were 0.369, 0.118, 0.124, 0.124 and 0.182.)
-TRACKING_MM = {"anfis": 0.490, "ts-fuzzy": 0.140, "polynomial": 0.159, "sarosi": 0.152}
-PID_ALONE_MM = 0.259
+TRACKING_MM = {"anfis": 0.630, "ts-fuzzy": 0.142, "polynomial": 0.155, "sarosi": 0.157}
+PID_ALONE_MM = 0.252
 
 
 @pytest.mark.parametrize("kind", sorted(TRACKING_MM))

@@ -33,7 +33,7 @@ def test_the_shipped_sim_derives_0_102_per_s(sim_config: Callable[..., LoadedCon
              - equilibrium_contraction(env.force_model, p - 0.025, 30.0)) / 0.05
     assert slope == pytest.approx(d.contraction_per_bar, rel=1e-6)
     assert p > 5.0
-    assert d.bandwidth_bound_per_s == pytest.approx(d.span / (2 * 0.0255))
+    assert d.bandwidth_bound_per_s == pytest.approx(d.span / (2 * 0.0253))
     assert env.max_length_rate_per_s == d.max_rate_per_s
 
 

@@ -112,7 +112,8 @@ def test_same_seed_same_readings_other_seed_other_noise(make_rig) -> None:
 
 
 def test_load_change_while_running_moves_the_equilibrium(make_rig) -> None:
-    rig = make_rig(load_kg=30.0, friction_n_at_5bar=0.0, regulator_backlash_bar=0.0)
+    rig = make_rig(load_kg=30.0, friction_n_per_bar=0.0, friction_per_tension=0.0,
+                   regulator_backlash_bar=0.0)
     rig.valve(3.0)
     rig.run(1.5)
     model = force_model("map")
@@ -266,7 +267,8 @@ def test_a_long_stall_is_integrated_in_short_steps(make_rig) -> None:
 UNDAMPED = {
     "damping_contracting_n_s_per_m": 0.0,
     "damping_relaxing_n_s_per_m": 0.0,
-    "friction_n_at_5bar": 0.0,
+    "friction_n_per_bar": 0.0,
+    "friction_per_tension": 0.0,
 }
 
 

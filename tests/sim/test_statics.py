@@ -72,7 +72,7 @@ def test_equilibrium_table_is_reproduced_when_the_rig_settles(make_rig, pneumati
         start_bar = 6.0 if pressure < 3.0 else 0.0
         rig = make_rig(
             load_kg=mass,
-            friction_n_at_5bar=0.0,
+            friction_n_per_bar=0.0, friction_per_tension=0.0,
             regulator_backlash_bar=0.0,
             initial_pressure_bar=start_bar,
             pneumatics=pneumatics,
@@ -98,7 +98,8 @@ def test_fit_model_settles_at_its_own_equilibrium(make_rig, mass_kg, pressure_ba
     """With force_model 'fit' the rig settles where the smooth fit balances the load
     (the fit differs from the map by up to 1.5 % where the map is sparse)."""
     rig = make_rig(
-        load_kg=mass_kg, force_model="fit", friction_n_at_5bar=0.0, regulator_backlash_bar=0.0
+        load_kg=mass_kg, force_model="fit", friction_n_per_bar=0.0, friction_per_tension=0.0,
+        regulator_backlash_bar=0.0,
     )
     rig.valve(pressure_bar)
     rig.run(2.0)
