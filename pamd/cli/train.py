@@ -9,10 +9,10 @@ import os
 import sys
 from typing import Any
 
-from pamd.cli.evaluate import data_files, format_table
+from pamd.cli.evaluate import format_table
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
-from pamd.models.anfis.extraction import derived_inputs, load_samples
+from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
 from pamd.models.anfis.splitting import Split, split
 from pamd.models.anfis.training import TrainingOptions, fit
@@ -20,6 +20,8 @@ from pamd.models.compare import predict_samples
 from pamd.models.registry import KINDS, save_model
 from pamd.models.training import DEFAULT_INPUTS, KindOptions, fit_split, rows_of
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
+from pamd.view.judging import coverage, poor_fit
+from pamd.view.tables import load_samples
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -104,6 +106,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--velocity-window-s", type=float, default=MODEL_VELOCITY_WINDOW_S,
                    help="time constant of the velocity input's filter, stored in the model "
                    f"and used by the tick (default {MODEL_VELOCITY_WINDOW_S:g} s)")
+    p.add_argument("--allow-poor-fit", action="store_true", help="write the model even if "
+                   "it fits worse than a constant (NRMSE fit <= 0 %% on the validation set; "
+                   "refused by default)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -137,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
     d = os.path.dirname(os.path.abspath(args.out))
     if not os.path.isdir(d):
         raise ModelError(f"--out {args.out}: directory {d} does not exist")
-    samples = load_samples(data_files(args.data), opts)
+    samples = load_samples(args.data, opts)  # recordings and tables (CSV, MAT)
     parts = split(samples, args.val_split, args.test_split, by=args.split_by,
                   block_s=args.block_s, seed=args.seed)
     tr, va, te = parts.train, parts.validation, parts.test
@@ -159,7 +164,8 @@ def run(args: argparse.Namespace) -> int:
                                                else "")
             bar.set_postfix_str(post, refresh=False)
 
-    prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how}
+    prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how,
+                            "coverage": coverage(tr.X, inputs)}  # where the data lay
     try:
         result = fit(tr.X, tr.y, topts, input_names=list(inputs),
                      input_units=tr.input_units, output_name=args.output,
@@ -181,6 +187,7 @@ def run(args: argparse.Namespace) -> int:
     if te is not None:
         model.metrics["test"] = regression_metrics(te.y, model.predict(te.X), model.n_params)
         rows["test"] = model.metrics["test"]
+    _refuse_poor_fit(model.metrics, args)
     save_model(model, args.out)
     print(f"{args.out}: {model!r}, {model.n_params} parameters; best epoch "
           f"{result.best_epoch} of {result.train_rmse.size} (on {result.selected_on}), "
@@ -209,7 +216,8 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Sample
             bar.update(1)
             bar.set_postfix_str(f"train MSE {err:.4g}", refresh=False)
 
-    prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how}
+    prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how,
+                            "coverage": coverage(parts.train.X, inputs)}
     try:
         model = fit_split(args.kind, samples, parts, opts=kopts,
                           derived_inputs=derived_inputs(inputs, args.velocity_window_s),
@@ -228,6 +236,7 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Sample
             y_hat = model.predict(te.X)
         model.metrics["test"] = regression_metrics(te.y, y_hat, model.n_params)
         rows["test"] = model.metrics["test"]
+    _refuse_poor_fit(model.metrics, args)
     save_model(model, args.out)
     print(f"{args.out}: {model.kind} model {model!r}, {model.n_params} parameters")
     format_table(rows, model.output.unit)
@@ -238,6 +247,16 @@ def _run_kind(args: argparse.Namespace, inputs: tuple[str, ...], samples: Sample
                                      "force from pressure and contraction") + "):")
         format_table(fwd, "mm" if qupi else "N")
     return 0
+
+
+def _refuse_poor_fit(metrics: dict[str, Any], args: argparse.Namespace) -> None:
+    why = poor_fit(metrics)
+    if why is not None and not args.allow_poor_fit:
+        raise ModelError(f"{args.out} not written: {why}; check the inputs, the data and the "
+                         "layout, or write it anyway with --allow-poor-fit")
+    if why is not None:
+        print(f"pamd train: WARNING: {why}; written anyway (--allow-poor-fit)",
+              file=sys.stderr)
 
 
 def _progress(total: int, quiet: bool, unit: str = "epoch") -> Any:
