@@ -15,7 +15,7 @@ from pamd.metrics import regression_metrics
 from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
 from pamd.models.anfis.splitting import Split, split
-from pamd.models.anfis.training import TrainingOptions, fit
+from pamd.models.anfis.training import TrainingOptions, fit, width_starts
 from pamd.models.compare import predict_samples
 from pamd.models.registry import KINDS, save_model
 from pamd.models.training import DEFAULT_INPUTS, KindOptions, fit_split, rows_of
@@ -155,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
     args.epochs = args.epochs or 100
     topts = TrainingOptions(n_mfs=n_mfs, mf_type=args.mf_type, epochs=args.epochs,
                             initial_step=args.step, seed=args.seed)
-    bar = _progress(args.epochs, args.quiet)
+    bar = _progress(args.epochs * len(width_starts(topts)), args.quiet)  # one run per start
 
     def progress(epoch: int, rmse: float, val: float | None) -> None:
         if bar is not None:
