@@ -191,7 +191,8 @@ def run(args: argparse.Namespace) -> int:
     save_model(model, args.out)
     print(f"{args.out}: {model!r}, {model.n_params} parameters; best epoch "
           f"{result.best_epoch} of {result.train_rmse.size} (on {result.selected_on}), "
-          f"{result.seconds:.2f} s")
+          f"initial MF width {model.provenance['training']['width_starts']['kept']:g} of "
+          f"{len(width_starts(topts))} start(s), {result.seconds:.2f} s")
     format_table(rows, model.output.unit)
     return 0
 
