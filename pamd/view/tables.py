@@ -161,6 +161,8 @@ def read_table_csv(path: str) -> Run:
     text_cols: dict[str, str] = {}
     comma = dialect.delimiter != ","
     for j, head in enumerate(header):
+        if not head.strip():  # a trailing separator (LabVIEW) or an unnamed column
+            head = f"column_{j + 1}"
         where = f"{path}:{skip + 1}:{head.strip()}"
         name, factor, how = parse_name(head, where)
         if name in columns:

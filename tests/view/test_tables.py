@@ -51,11 +51,12 @@ def test_the_datasheet_map_trains_and_evaluates(tmp_path: Path,
 
 def test_units_in_brackets_are_converted_and_said(tmp_path: Path) -> None:
     """The same map as a lab writes it (kPa, %, kN; ';' and decimal commas, a comment
-    line, a notes column): the same samples, each conversion stated."""
+    line, a notes column, a trailing separator): the same samples, each conversion
+    stated."""
     rows = map_rows()
     lab = tmp_path / "lab.csv"
-    lines = ["# DMSP-20 datasheet, digitised", "Pressure [kPa];Contraction (%);Force (kN);notes"]
-    lines += [f"{p * 100:g};{x * 100:g};{f / 1000:g};ok".replace(".", ",") for p, x, f in rows]
+    lines = ["# DMSP-20 datasheet, digitised", "Pressure [kPa];Contraction (%);Force (kN);notes;"]
+    lines += [f"{p * 100:g};{x * 100:g};{f / 1000:g};ok;".replace(".", ",") for p, x, f in rows]
     lab.write_text("\n".join(lines) + "\n")
     said: list[str] = []
     got = load_samples([str(lab)], MAP_OPTS, report=said.append)
