@@ -14,13 +14,14 @@ from collections.abc import Mapping, Sequence
 from typing import Any, TextIO
 
 from pamd.errors import ModelError
-from pamd.models.anfis.extraction import load_samples
 from pamd.models.anfis.plots import require_matplotlib
 from pamd.models.anfis.samples import Samples
-from pamd.models.compare import Judged, common_options, format_comparison, judge
+from pamd.models.compare import Judged, common_options, format_comparison
 from pamd.models.plots import write_overlay
 from pamd.models.registry import KINDS, load_model
+from pamd.view.judging import judge_as_tick
 from pamd.view.recording import recording_files
+from pamd.view.tables import load_samples
 
 #: Table rows: metric key, label, format.
 METRIC_ROWS: tuple[tuple[str, str, str], ...] = (
@@ -119,8 +120,9 @@ def run(args: argparse.Namespace) -> int:
         require_matplotlib()  # before the models are read and judged, not after
     models = [load_model(f) for f in files]
     opts = common_options(models, args.muscle, args.settle_s, args.rate_hz)
-    samples = load_samples(data_files(data), opts)
-    judged = judge(files, models, samples, timing=not args.no_timing)
+    samples = load_samples(data, opts)  # recordings and tables (CSV, MAT)
+    pairs = judge_as_tick(files, models, samples, timing=not args.no_timing)  # as the tick
+    judged = [j for j, _ in pairs]
     note = f"{len(samples)} samples from {len(samples.runs)} run(s)"
     clip_notes = [f"{j.file}: {int(j.clipped.sum())} "
                   f"({100.0 * j.clipped.sum() / len(samples):.1f} %) clipped" for j in judged]
@@ -128,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         doc: dict[str, Any] = {}
         if len(judged) == 1:
             doc.update({k: _json_float(v) for k, v in judged[0].metrics.items()})
-        doc["models"] = [j.as_json() for j in judged]
+        doc["models"] = [{**j.as_json(), "tick": r.as_json()} for j, r in pairs]
         print(json.dumps(doc, indent=2))
         print(f"pamd evaluate: {note}; " + "; ".join(clip_notes), file=sys.stderr)
     elif len(judged) == 1:
@@ -146,6 +148,10 @@ def run(args: argparse.Namespace) -> int:
               "tick us = compiled evaluator per sample on this machine)")
         for c in clip_notes:
             print(f"  {c}")
+    for j, r in pairs:
+        print(f"  {j.file}: {r.summary()}", file=sys.stderr if args.json else sys.stdout)
+        for w in r.warnings(j.file):
+            print(f"pamd evaluate: {w}", file=sys.stderr)
     if args.plot:
         paths = _plots(args.plot, judged, samples, ", ".join(data)[:80])
         print(f"plots: {', '.join(paths)}", file=sys.stderr if args.json else sys.stdout)

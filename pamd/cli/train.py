@@ -9,10 +9,10 @@ import os
 import sys
 from typing import Any
 
-from pamd.cli.evaluate import data_files, format_table
+from pamd.cli.evaluate import format_table
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
-from pamd.models.anfis.extraction import derived_inputs, load_samples
+from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
 from pamd.models.anfis.splitting import split
 from pamd.models.compare import predict_samples
@@ -20,6 +20,8 @@ from pamd.models.kind import Kind, OptionSpec
 from pamd.models.registry import KINDS, declared, save_model
 from pamd.models.training import fit_with, rows_of
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
+from pamd.view.judging import coverage, poor_fit
+from pamd.view.tables import load_samples
 
 #: Option parsers argparse applies itself; any other runs after parsing (its ModelError
 #: names the flag and what to give).
@@ -127,6 +129,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--velocity-window-s", type=float, default=MODEL_VELOCITY_WINDOW_S,
                    help="time constant of the velocity input's filter, stored in the model "
                    f"and used by the tick (default {MODEL_VELOCITY_WINDOW_S:g} s)")
+    p.add_argument("--allow-poor-fit", action="store_true", help="write the model even if "
+                   "it fits worse than a constant (NRMSE fit <= 0 %% on the validation set; "
+                   "refused by default)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_kind_options(p)
     p.set_defaults(func=run)
@@ -147,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
     d = os.path.dirname(os.path.abspath(args.out))
     if not os.path.isdir(d):
         raise ModelError(f"--out {args.out}: directory {d} does not exist")
-    samples = load_samples(data_files(args.data), opts)
+    samples = load_samples(args.data, opts)  # recordings and tables (CSV, MAT)
     parts = split(samples, args.val_split, args.test_split, by=args.split_by,
                   block_s=args.block_s, seed=args.seed)
     tr, va, te = parts.train, parts.validation, parts.test
@@ -165,7 +170,8 @@ def run(args: argparse.Namespace) -> int:
                                                  if val is not None else "")
             bar.set_postfix_str(post, refresh=False)
 
-    prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how}
+    prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how,
+                            "coverage": coverage(tr.X, inputs)}  # where the data lay
     try:
         fitted = fit_with(kind.name, samples, parts, options, seed=args.seed,
                           derived_inputs=derived_inputs(inputs, args.velocity_window_s),
@@ -184,6 +190,7 @@ def run(args: argparse.Namespace) -> int:
             y_hat = model.predict(te.X)
         model.metrics["test"] = regression_metrics(te.y, y_hat, model.n_params)
         rows["test"] = model.metrics["test"]
+    _refuse_poor_fit(model.metrics, args)
     save_model(model, args.out)
     print(f"{args.out}: " + (fitted.summary or f"{model.kind} model {model!r}, "
                              f"{model.n_params} parameters"))
@@ -193,6 +200,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"  forward model ({kind.forward.label}):")
         format_table(fwd, kind.forward.unit)
     return 0
+
+
+def _refuse_poor_fit(metrics: dict[str, Any], args: argparse.Namespace) -> None:
+    why = poor_fit(metrics)
+    if why is not None and not args.allow_poor_fit:
+        raise ModelError(f"{args.out} not written: {why}; check the inputs, the data and the "
+                         "layout, or write it anyway with --allow-poor-fit")
+    if why is not None:
+        print(f"pamd train: WARNING: {why}; written anyway (--allow-poor-fit)",
+              file=sys.stderr)
 
 
 def _progress(total: int, quiet: bool, unit: str = "epoch") -> Any:

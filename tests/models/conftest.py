@@ -63,7 +63,9 @@ def trained(sweeps: list[Path], tmp_path_factory: pytest.TempPathFactory) -> dic
     args = {
         "anfis": ["--epochs", "20", "--mfs", "3"],
         "ts-fuzzy": ["--tuner", "mga", "--epochs", "4", "--population", "16"],
-        "polynomial": [],
+        # fits worse than a constant on these 2 s validation blocks (NRMSE fit -15.7 %):
+        # refused by default since #28; the tests need a file of the kind all the same
+        "polynomial": ["--allow-poor-fit"],
         "sarosi": [],
     }
     paths = {}

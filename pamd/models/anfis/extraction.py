@@ -124,7 +124,8 @@ def _extract_run(run: Run, o: ExtractOptions) -> tuple[np.ndarray, np.ndarray, n
         edges = np.flatnonzero(accepted[1:] & ~accepted[:-1]) + 1
         starts += [float(t[i]) for i in edges]
     settle = np.zeros(n, dtype=bool)
-    for s in starts:
+    timeless = run.meta.get("time") == "rows"  # a table of samples (pamd.view.tables)
+    for s in [] if timeless else starts:
         settle |= (t >= s) & (t < s + o.settle_s)
     drop(settle, "settling")
     lead = np.zeros(n, dtype=bool)
@@ -151,13 +152,19 @@ def _extract_run(run: Run, o: ExtractOptions) -> tuple[np.ndarray, np.ndarray, n
         col = cols[name][kept_idx]
         bad = ~np.isfinite(col)
         if bad.any():
-            first_t = float(t[kept_idx[np.flatnonzero(bad)[0]]])
+            at = int(kept_idx[np.flatnonzero(bad)[0]])
+            if "row_offset" in run.meta:  # a table: its file row and column
+                raise ModelError(f"{run.source}:{at + run.meta['row_offset']}:{name}: "
+                                 f"{cols[name][at]} in a sample kept for training "
+                                 f"({int(bad.sum())} NaN/inf value(s) in the column); "
+                                 "repair or cut that row")
+            first_t = float(t[at])
             raise ModelError(f"{run.label}: column {name!r} has {int(bad.sum())} NaN/inf "
                              f"value(s) among the samples kept for training, first at "
                              f"t = {first_t:.3f} s; repair or cut that part of the data")
     # Decimate: the first kept sample in each 1/rate_hz bin.
     bins = np.floor(t * o.rate_hz).astype(np.int64)
-    if kept_idx.size:
+    if kept_idx.size and not timeless:
         b = bins[kept_idx]
         first = np.ones(kept_idx.size, dtype=bool)
         first[1:] = b[1:] != b[:-1]

@@ -57,7 +57,28 @@ def overfitting_case():
     Xv = rng.uniform(0, 1, (200, 1))
     y = np.sin(6 * X[:, 0]) + rng.normal(0, 0.3, 60)
     yv = np.sin(6 * Xv[:, 0]) + rng.normal(0, 0.3, 200)
-    return X, y, Xv, yv, TrainingOptions(n_mfs=8, epochs=60, initial_step=0.05)
+    return X, y, Xv, yv, TrainingOptions(n_mfs=8, epochs=60, initial_step=0.05,
+                                         width_factor=1.0)  # one start: its epochs
+
+
+def test_several_starts_keep_the_best_one() -> None:
+    """The default starts from each width of WIDTH_STARTS in turn (the callback counts on
+    across them) and keeps the one whose kept epoch scores best on validation."""
+    X, y, Xv, yv, opts = overfitting_case()
+    opts.epochs, opts.width_factor = 12, (1.0, 3.0)
+    calls: list[tuple[int, float, float | None]] = []
+    result = fit(X, y, opts, validation=(Xv, yv), callback=lambda *a: calls.append(a))
+    assert [c[0] for c in calls] == list(range(1, 25))
+    starts = result.model.provenance["training"]["width_starts"]
+    assert starts["widths"] == [1.0, 3.0] and starts["on"] == "validation"
+    assert starts["kept"] == starts["widths"][int(np.argmin(starts["scores"]))]
+    for w, score in zip(starts["widths"], starts["scores"], strict=True):
+        one = fit(X, y, TrainingOptions(n_mfs=8, epochs=12, initial_step=0.05, width_factor=w),
+                  validation=(Xv, yv))
+        assert one.val_rmse is not None and score == pytest.approx(one.val_rmse.min(),
+                                                                   rel=1e-12)
+    assert rmse(result.model.predict(Xv), yv) == pytest.approx(min(starts["scores"]),
+                                                               rel=1e-12)
 
 
 def test_best_validation_epoch_is_restored() -> None:

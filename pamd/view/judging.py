@@ -1,0 +1,180 @@
+"""Models judged as the tick runs them, and told when they do not know.
+
+Role: `pamd evaluate`'s predictions come from the feedforward stage itself
+(`pamd.control.feedforward.Feedforward.pressure`, the code the tick calls): inputs held
+to the model's training ranges, the output held to its training range, a stateful
+model reset from the measured signals at the start of each run. So the figures are
+those of the model as it acts on the rig, and every held sample is counted (inputs held,
+output held). The model alone (inputs held, output free, as `predict` gives it) is
+reported beside it, so a model that only the clamp rescues shows as such.
+
+Off the data: each input can lie inside its training range while the combination
+was never seen (a load between the trained ones at a length it never had). The rule
+(`OFF_DATA_RULE`): the training inputs, each scaled to [0, 1] by its training range,
+are binned on a grid of `COVERAGE_BINS` equal bins per input, and the occupied cells
+are stored in the model file (`provenance.coverage`, written by `pamd train`). A test
+point (inputs held to the ranges, as the tick holds them) is off the data when its cell
+holds no training sample. `pamd evaluate` warns when more than `WARN_OFF_DATA_PCT` % of
+the points are off the data (its figures are then an extrapolation's), and when the
+output clamp rescued the model (unclamped RMSE over `RESCUED_RATIO` x the clamped one).
+
+A fit worse than a constant (`poor_fit`): NRMSE fit <= 0 % on the validation set (on
+the training set without one) means predicting the mean does at least as well;
+`pamd train` refuses to write such a model unless told to (`--allow-poor-fit`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pamd.control.feedforward import Feedforward
+from pamd.metrics import regression_metrics
+from pamd.models.anfis.samples import Samples
+from pamd.models.compare import Judged, columns_for, predict_samples, tick_cost_us
+from pamd.models.contract import SOURCES, InverseModel
+
+COVERAGE_BINS = 10
+WARN_OFF_DATA_PCT = 1.0
+#: the output clamp "rescues" a model whose unclamped RMSE is this many times its RMSE
+#: as the tick runs it: `pamd evaluate` then warns (and says both)
+RESCUED_RATIO = 1.1
+OFF_DATA_RULE = (f"a point is off the training data when its cell of a grid of "
+                 f"{COVERAGE_BINS} equal bins over each input's training range holds no "
+                 "training sample")
+
+
+def coverage(X: np.ndarray, inputs: Sequence[str]) -> dict[str, Any]:
+    """The occupied grid cells of the training inputs X (n x d), for the model file."""
+    Xa = np.asarray(X, dtype=np.float64)
+    lo, hi = Xa.min(axis=0), Xa.max(axis=0)
+    cells = np.unique(_cells(Xa, lo, hi))
+    return {"rule": OFF_DATA_RULE, "bins": COVERAGE_BINS, "inputs": list(inputs),
+            "lo": lo.tolist(), "hi": hi.tolist(), "cells": cells.tolist()}
+
+
+def _cells(X: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+           bins: int = COVERAGE_BINS) -> np.ndarray:
+    span = np.where(hi > lo, hi - lo, 1.0)
+    k = np.floor((np.clip(X, lo, hi) - lo) / span * bins).astype(np.int64)
+    k = np.clip(k, 0, bins - 1)  # the top of a range falls in the last bin
+    flat = np.zeros(X.shape[0], dtype=np.int64)
+    for j in range(X.shape[1]):
+        flat = flat * bins + k[:, j]
+    return flat
+
+
+def off_data(model: InverseModel, X: np.ndarray) -> np.ndarray | None:
+    """Which rows of X (the model's input order) are off its training data, or None
+    when the model file does not say where its data lay (trained before the rule)."""
+    cov = model.provenance.get("coverage")
+    if not isinstance(cov, dict) or cov.get("inputs") != [v.name for v in model.inputs]:
+        return None
+    lo, hi = np.array(cov["lo"], dtype=np.float64), np.array(cov["hi"], dtype=np.float64)
+    cells = _cells(np.asarray(X, dtype=np.float64), lo, hi, int(cov["bins"]))
+    return np.asarray(~np.isin(cells, np.array(cov["cells"], dtype=np.int64)))
+
+
+def poor_fit(metrics: dict[str, Any]) -> str | None:
+    """Why a trained model is worse than a constant (None if it is not)."""
+    for key in ("validation", "train"):
+        m = metrics.get(key)
+        if isinstance(m, dict) and "nrmse_fit_pct" in m:
+            fit = float(m["nrmse_fit_pct"])
+            if not fit > 0.0:
+                return (f"NRMSE fit {fit:.2f} % on the {key} set: predicting the mean does "
+                        "at least as well (fit 0 %)")
+            return None
+    return None
+
+
+def tick_predict(model: InverseModel, samples: Samples
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(output, inputs held, output held) per sample, from `Feedforward.pressure` as
+    the tick calls it, the model reset from the first sample of each run."""
+    full = np.full((len(samples), len(SOURCES)), math.nan)
+    for v in model.inputs:
+        full[:, SOURCES.index(v.name)] = samples.X[:, samples.inputs.index(v.name)]
+    ff = Feedforward(model)
+    y = np.empty(len(samples))
+    held_in = np.zeros(len(samples), dtype=bool)
+    held_any = np.zeros(len(samples), dtype=bool)
+    rows = full.tolist()
+    pressure, compiled = ff.pressure, ff.compiled
+    for r in np.unique(samples.run):
+        idx = np.flatnonzero(samples.run == r).tolist()
+        ff.reset(*rows[idx[0]])
+        for i in idx:
+            y[i] = pressure(*rows[i])
+            held_in[i] = compiled.clipped
+            held_any[i] = ff.clipped
+    held_out = held_any & ((y == ff.out_lo) | (y == ff.out_hi))
+    return y, held_in, held_out
+
+
+@dataclass
+class TickReport:
+    """How a model fared as the tick runs it."""
+
+    n: int
+    inputs_held: int
+    output_held: int
+    off_data: int | None  # None: the model file does not say where its data lay
+    model_alone: dict[str, float]  # metrics of predict (inputs held, output free)
+    tick_rmse: float  # RMSE as the tick runs it
+
+    def pct(self, k: int) -> float:
+        return 100.0 * k / self.n if self.n else 0.0
+
+    def summary(self) -> str:
+        off = ("off the training data: not known (the model file predates the rule; "
+               "retrain to get it)" if self.off_data is None else
+               f"{self.off_data} ({self.pct(self.off_data):.1f} %) off the training data")
+        return (f"as the tick runs it: {self.inputs_held} ({self.pct(self.inputs_held):.1f} %)"
+                f" with inputs held to the training ranges, {self.output_held} "
+                f"({self.pct(self.output_held):.1f} %) with the output held to its range; "
+                f"{off}")
+
+    def warnings(self, file: str) -> list[str]:
+        out = []
+        if self.off_data is not None and self.pct(self.off_data) > WARN_OFF_DATA_PCT:
+            out.append(f"warning: {file}: {self.pct(self.off_data):.1f} % of the points lie "
+                       "outside the training data jointly (each input may be inside its "
+                       f"range; rule: {OFF_DATA_RULE}); these figures are extrapolation")
+        alone = self.model_alone.get("rmse", math.nan)
+        if self.output_held and alone > RESCUED_RATIO * self.tick_rmse:
+            out.append(f"warning: {file}: the output was held to its training range at "
+                       f"{self.output_held} point(s), which the figures above count as the "
+                       f"tick does; the model alone (unclamped) scores RMSE {alone:.4g}, "
+                       f"not {self.tick_rmse:.4g}")
+        return out
+
+    def as_json(self) -> dict[str, Any]:
+        return {"samples": self.n, "inputs_held": self.inputs_held,
+                "output_held": self.output_held, "off_data": self.off_data,
+                "off_data_rule": OFF_DATA_RULE,
+                "model_alone": {k: None if isinstance(v, float) and not math.isfinite(v)
+                                else v for k, v in self.model_alone.items()}}
+
+
+def judge_as_tick(files: Sequence[str], models: Sequence[InverseModel], samples: Samples,
+                  *, timing: bool = True) -> list[tuple[Judged, TickReport]]:
+    """Each model judged on the samples as the tick runs it (see the module doc)."""
+    out = []
+    for file, m in zip(files, models, strict=True):
+        X = columns_for(m, samples)
+        y, held_in, held_out = tick_predict(m, samples)
+        alone, _ = predict_samples(m, X, samples.run)
+        off = off_data(m, X)
+        metrics = regression_metrics(samples.y, y, m.n_params)
+        judged = Judged(file, m, y, held_in | held_out, metrics,
+                        tick_cost_us(m, X) if timing else math.nan)
+        out.append((judged, TickReport(
+            len(samples), int(held_in.sum()), int(held_out.sum()),
+            None if off is None else int(off.sum()),
+            regression_metrics(samples.y, alone, m.n_params), float(metrics["rmse"]))))
+    return out
