@@ -180,7 +180,7 @@ def muscle_message() -> tuple[Field, ...]:
     return (*(BY_NAME[n] for n in MUSCLE_MESSAGE_HEAD), *MUSCLE)
 
 
-def _check() -> None:
+def check_table() -> None:
     """The table's own consistency, at import (a wrong table is a bug, found at once)."""
     names = [f.name for f in (*LOOP, *MUSCLE, *DERIVED)]
     twice = sorted({n for n in names if names.count(n) > 1})
@@ -197,4 +197,4 @@ def _check() -> None:
             raise ValueError(f"{enum.__name__}: every member needs a meaning")
 
 
-_check()
+check_table()

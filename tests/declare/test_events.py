@@ -71,7 +71,8 @@ def test_every_emitted_kind_is_declared_and_its_literal_payload_matches() -> Non
             continue
         if not isinstance(data, ast.Dict):
             continue  # built elsewhere: checked at run time (tests/record/test_declared.py)
-        keys = {d.value for d in data.keys if isinstance(d, ast.Constant)}
+        keys = {d.value for d in data.keys
+                if isinstance(d, ast.Constant) and isinstance(d.value, str)}
         spread = any(d is None for d in data.keys)
         declared = {p.name for p in k.payload}
         extra = sorted(keys - declared) if not k.open else []

@@ -40,8 +40,8 @@ def test_the_reference_names_every_field_flag_and_event() -> None:
 
 
 def test_tick_layout_and_offsets_follow_the_table() -> None:
-    assert tick.LOOP_FIELDS == tuple(f.name for f in fields.LOOP)
-    assert tick.MUSCLE_FIELDS == tuple(f.name for f in fields.MUSCLE)
+    assert tuple(f.name for f in fields.LOOP) == tick.LOOP_FIELDS
+    assert tuple(f.name for f in fields.MUSCLE) == tick.MUSCLE_FIELDS
     layout = tick.TickLayout(["a", "b"])
     assert layout.size == len(fields.LOOP) + 2 * len(fields.MUSCLE)
     assert layout.names()[len(fields.LOOP)] == f"a.{fields.MUSCLE[0].name}"
@@ -54,7 +54,7 @@ def test_tick_layout_and_offsets_follow_the_table() -> None:
     assert sorted(v for n, v in offsets.items() if n.startswith("M_")) == list(
         range(len(fields.MUSCLE)))
     assert tick.M_FLAGS == tick.muscle_offset("flags") == tick.MUSCLE_FIELDS.index("flags")
-    assert tick.I_SEGMENT == tick.LOOP_FIELDS.index("segment")
+    assert tick.LOOP_FIELDS.index("segment") == tick.I_SEGMENT
     with pytest.raises(KeyError, match="not a muscle field"):
         tick.muscle_offset("no_such_field")
 
@@ -97,7 +97,7 @@ def test_the_export_tables_are_the_table() -> None:
         assert view_fields.DESCRIPTIONS[f.name] == f.description
     assert view_fields.MUSCLE_COLUMNS[:2 + len(fields.MUSCLE)] == tuple(
         f.name for f in fields.muscle_message())
-    assert view_fields.FLAG_MEANINGS == {f.name: m for f, m in fields.FLAG_MEANINGS.items()}
+    assert {f.name: m for f, m in fields.FLAG_MEANINGS.items()} == view_fields.FLAG_MEANINGS
     assert view_fields.unit_of("an_old_column_bar") == "bar"  # older recordings' columns
 
 
@@ -114,8 +114,8 @@ def test_a_bad_table_is_refused_at_import(monkeypatch: pytest.MonkeyPatch) -> No
     monkeypatch.setattr(fields, "DERIVED", (*fields.DERIVED, fields.Field(
         "load_kg", "kg", "float64", "twice")))
     with pytest.raises(ValueError, match="declared twice"):
-        fields._check()
+        fields.check_table()
     monkeypatch.setattr(fields, "DERIVED", (fields.Field("x", "kg", "float33", "bad"),))
     monkeypatch.setattr(fields, "BY_NAME", {"x": fields.DERIVED[0]})
     with pytest.raises(ValueError, match="float33"):
-        fields._check()
+        fields.check_table()
