@@ -111,7 +111,8 @@ class Sink(Protocol):
         """Take one tick record; False if it had to be dropped."""
 
     def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
-        """A discrete event: supervisor transition, command outcome, marker."""
+        """A discrete event: supervisor transition, command outcome, ...: a kind
+        declared, with its payload's keys, in pamd.declare.events."""
 
     def close(self) -> None: ...
 
