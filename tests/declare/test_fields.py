@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 from mcap_ros2._vendor.rosidl_adapter.parser import parse_message_string
 
-from pamd import tick
+from pamd import controller, loop, tick
+from pamd.control import muscle_view
 from pamd.declare import docs, fields
 from pamd.record import cdr
 from pamd.record.recorder import record_schemas
@@ -47,16 +48,28 @@ def test_tick_layout_and_offsets_follow_the_table() -> None:
     assert layout.names()[len(fields.LOOP)] == f"a.{fields.MUSCLE[0].name}"
     offsets = {n: v for n, v in vars(tick).items()
                if (n.startswith("I_") or n.startswith("M_")) and isinstance(v, int)}
-    assert len(offsets) == len(fields.LOOP) + len(fields.MUSCLE)
-    # every constant is the position of a distinct field of its block
-    assert sorted(v for n, v in offsets.items() if n.startswith("I_")) == list(
-        range(len(fields.LOOP)))
-    assert sorted(v for n, v in offsets.items() if n.startswith("M_")) == list(
-        range(len(fields.MUSCLE)))
+    # every constant is the position of a distinct field of its block (a stage may
+    # also take its own: `muscle_offset(name)` at import)
+    loop = [v for n, v in offsets.items() if n.startswith("I_")]
+    muscle = [v for n, v in offsets.items() if n.startswith("M_")]
+    assert len(set(loop)) == len(loop) and set(loop) <= set(range(len(fields.LOOP)))
+    assert len(set(muscle)) == len(muscle) and set(muscle) <= set(range(len(fields.MUSCLE)))
     assert tick.M_FLAGS == tick.muscle_offset("flags") == tick.MUSCLE_FIELDS.index("flags")
     assert tick.LOOP_FIELDS.index("segment") == tick.I_SEGMENT
     with pytest.raises(KeyError, match="not a muscle field"):
         tick.muscle_offset("no_such_field")
+
+
+def _stored(tree: ast.AST, prefix: str) -> set[str]:
+    """Names starting with `prefix` in the index of a subscript store (rec[b + M_X] = ...)."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Assign):
+            for target in node.targets:
+                if isinstance(target, ast.Subscript):
+                    out |= {n.id for n in ast.walk(target.slice)
+                            if isinstance(n, ast.Name) and n.id.startswith(prefix)}
+    return out
 
 
 def test_the_muscle_stage_writes_every_muscle_field() -> None:
@@ -64,14 +77,20 @@ def test_the_muscle_stage_writes_every_muscle_field() -> None:
     src = (ROOT / "pamd" / "control" / "muscle_view.py").read_text()
     fn = next(n for n in ast.walk(ast.parse(src))
               if isinstance(n, ast.FunctionDef) and n.name == "_record")
-    written = set()
-    for node in ast.walk(fn):
-        if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Subscript):
-            written |= {n.id for n in ast.walk(node.targets[0].slice) if isinstance(n, ast.Name)
-                        and n.id.startswith("M_")}
-    by_offset = {getattr(tick, n): n for n in written}
-    missing = [f.name for i, f in enumerate(fields.MUSCLE) if i not in by_offset]
+    offsets = {getattr(muscle_view, n) for n in _stored(fn, "M_")}
+    missing = [f.name for i, f in enumerate(fields.MUSCLE) if i not in offsets]
     assert not missing, f"declared muscle fields the stage never writes: {missing}"
+
+
+def test_the_loop_writes_every_loop_field() -> None:
+    """The controller's and the loop's record stores cover the table's loop fields."""
+    offsets: set[int] = set()
+    for module in (controller, loop):
+        assert module.__file__ is not None
+        tree = ast.parse(Path(module.__file__).read_text())
+        offsets |= {getattr(module, n) for n in _stored(tree, "I_")}
+    missing = [f.name for i, f in enumerate(fields.LOOP) if i not in offsets]
+    assert not missing, f"declared loop fields nothing writes: {missing}"
 
 
 def test_the_ros2_schemas_are_the_table() -> None:
