@@ -10,6 +10,7 @@ import ast
 import json
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import jsonschema
 import pytest
@@ -149,3 +150,25 @@ def test_one_json_encoder() -> None:
     assert jsonsafe(x) == {"a": None, "1": [None, 2.5, [None]], "s": "t"}
     assert dumps(x) == '{"a":null,"1":[null,2.5,[null]],"s":"t"}'
     assert json.loads(dumps({"p": Path("/x")})) == {"p": "/x"}  # odd values: their text
+
+
+def test_a_run_of_the_controller_says_only_declared_events_and_verdicts(harness: Any) -> None:
+    """The tick stepped by hand: start-up, commands done and refused, a deadman, an ESTOP
+    and its reset; every event the controller emits and every verdict it gives is as
+    declared (the payloads built away from the emission sites are checked here)."""
+    h = harness()
+    h.step(0.1)
+    verdicts = [h.cmd("setpoint", muscle="m1", bar=2.0, deadman_s=0.2),
+                h.cmd("setpoint", muscle="m1", bar=99.0),  # refused: over the limit
+                h.cmd("mode", muscle="m1", mode="position")]  # refused: not referenced
+    h.step(0.5)  # the deadman fires
+    verdicts += [h.cmd("estop", reason="test"), h.cmd("hold"), h.cmd("reset")]
+    h.step(0.1)
+    assert [v["ok"] for v in verdicts] == [True, False, False, True, False, True]
+    kinds = {k for _, k, _ in h.sink.events}
+    assert {"startup", "transition", "command", "deadman"} <= kinds
+    wrong = [(k, p) for _, k, d in h.sink.events if (p := events.problems(k, json.loads(
+        dumps(d))))]
+    assert not wrong
+    for i, v in enumerate(verdicts):
+        assert events.problems("reply", {"id": i, **json.loads(dumps(v))}) == [], v
