@@ -2,8 +2,9 @@
 carry it out of the loop (sink) and commands into it (mailbox).
 
 The layout is fixed at start-up from the muscle names: a header of loop fields,
-then the same block of fields for each muscle. The loop writes into one reused
-`array('d')` and hands it to the sink; nothing is allocated per tick. Integers
+then the same block of fields for each muscle, both declared in the field table
+(`pamd.declare.fields`, with the State, Mode and Flag codes). The loop writes into one
+reused `array('d')` and hands it to the sink; nothing is allocated per tick. Integers
 (tick number, state, flags) are stored exactly as float64.
 """
 
@@ -11,78 +12,32 @@ from __future__ import annotations
 
 from array import array
 from collections.abc import Sequence
-from enum import IntEnum, IntFlag
 from typing import Any, Protocol
 
-LOOP_FIELDS: tuple[str, ...] = (
-    "tick",  # tick number since start, 0-based
-    "t_s",  # scheduled tick time since start, s (virtual or monotonic)
-    "wake_latency_s",  # how late the loop woke for this tick, s
-    "compute_s",  # compute time of the previous tick, s
-    "overruns",  # periods skipped since start (cumulative)
-    "state",  # supervisor State
-    "lost_records",  # records the sink could not take since start (cumulative)
-    "segment",  # experiment step + 1 (0 outside a plan): a new recording file each step
-    "safety_chain",  # the hardware safety chain: 1 closed, 0 open, NaN no chain input
-    "supply_bar",  # the supply pressure (safety_chain.supply; a switch: 0/1), NaN none
-    "heartbeat",  # the heartbeat output's level as written this tick (0/1; NaN none)
-)
+from pamd.declare import fields
 
-MUSCLE_FIELDS: tuple[str, ...] = (
-    "pressure_bar",  # measured pressure
-    "force_n",  # measured force
-    "length_mm",  # measured length
-    "contraction",  # (nominal - length) / nominal, fraction
-    "velocity_mm_s",  # filtered d(length)/dt
-    "setpoint_bar",  # pressure reference given to the PID
-    "feedforward_bar",  # inverse-model (ANFIS) part of the setpoint
-    "pid_p_bar",
-    "pid_i_bar",
-    "pid_d_bar",
-    "valve_cmd_bar",  # command written to the regulator after all limits
-    "target_length_mm",  # length target (length modes), NaN otherwise
-    "target_force_n",  # force target (length_force mode), NaN otherwise
-    "safe_pressure_bar",  # present safe pressure for the hanging load
-    "mode",  # control Mode
-    "flags",  # Flag bits
-    "adapt_drift_bar",  # adapted minus trained model output at the last adaptation sample
-    "adapt_state",  # AdaptState: 0 off, 1 adapting, 2 paused, 3 frozen, 4 rate-limited
-)
+# declared with the field table; imported from here by the rest of pamd
+from pamd.declare.fields import Flag as Flag
+from pamd.declare.fields import Mode as Mode
+from pamd.declare.fields import State as State
+
+#: the loop's fields, then each muscle's block: names from the field table
+LOOP_FIELDS: tuple[str, ...] = fields.LOOP_NAMES
+MUSCLE_FIELDS: tuple[str, ...] = fields.MUSCLE_NAMES
 
 
-class State(IntEnum):
-    """Supervisor states."""
-
-    STARTING = 0  # sensors not yet read; nothing written
-    IDLE = 1  # holding a pressure, no profile
-    RUNNING = 2  # following a profile or remote setpoints
-    HOLD = 3  # frozen at the present setpoints
-    FAULT = 4  # latched; safe pressure held until reset
-    ESTOP = 5  # latched; emergency action taken
-    LOAD_CHANGE = 6  # an experiment holds a working pressure while the load is changed
+def loop_offset(name: str) -> int:
+    """Offset of loop field `name` in the tick record (at import, never per tick)."""
+    if name not in LOOP_FIELDS:
+        raise KeyError(f"{name!r} is not a loop field of pamd.declare.fields.LOOP")
+    return LOOP_FIELDS.index(name)
 
 
-class Mode(IntEnum):
-    """Control modes per muscle."""
-
-    PRESSURE = 0
-    LENGTH_FORCE = 1
-    POSITION = 2
-
-
-class Flag(IntFlag):
-    """Per-muscle condition bits recorded every tick."""
-
-    STALE = 1 << 0  # a signal of this muscle is older than its timeout
-    SOFT_LIMIT_PRESSURE = 1 << 1  # command clamped at the pressure limit
-    SOFT_LIMIT_CONTRACTION = 1 << 2  # command reduced near the contraction limit
-    PRETENSION_LIMIT = 1 << 3  # stretched past the pretension limit: pressure raised
-    SLEW_LIMITED = 1 << 4  # setpoint rate limited
-    OUTPUT_SATURATED = 1 << 5  # PID output at its limit
-    FF_CLIPPED = 1 << 6  # feedforward inputs outside the model's trained range
-    NOT_REFERENCED = 1 << 7  # length not referenced (home)
-    EXHAUST_OPEN = 1 << 8  # exhaust valve open
-    TRACKING = 1 << 9  # pressure outside the tracking band (timer running)
+def muscle_offset(name: str) -> int:
+    """Offset of muscle field `name` in a muscle's block (at import, never per tick)."""
+    if name not in MUSCLE_FIELDS:
+        raise KeyError(f"{name!r} is not a muscle field of pamd.declare.fields.MUSCLE")
+    return MUSCLE_FIELDS.index(name)
 
 
 class TickLayout:
@@ -116,29 +71,37 @@ class TickLayout:
         return out
 
 
-# Loop field offsets, for the tick path (no lookups per tick).
-(I_TICK, I_T, I_WAKE, I_COMPUTE, I_OVERRUNS, I_STATE, I_LOST, I_SEGMENT, I_CHAIN, I_SUPPLY,
- I_HEARTBEAT) = range(len(LOOP_FIELDS))
-(
-    M_PRESSURE,
-    M_FORCE,
-    M_LENGTH,
-    M_CONTRACTION,
-    M_VELOCITY,
-    M_SETPOINT,
-    M_FEEDFORWARD,
-    M_PID_P,
-    M_PID_I,
-    M_PID_D,
-    M_VALVE,
-    M_TARGET_LENGTH,
-    M_TARGET_FORCE,
-    M_SAFE_PRESSURE,
-    M_MODE,
-    M_FLAGS,
-    M_ADAPT_DRIFT,
-    M_ADAPT_STATE,
-) = range(len(MUSCLE_FIELDS))
+# Field offsets for the tick path: module constants computed once at import from the
+# field table (a name the table does not declare fails the import; no lookup per tick).
+I_TICK = loop_offset("tick")
+I_T = loop_offset("t_s")
+I_WAKE = loop_offset("wake_latency_s")
+I_COMPUTE = loop_offset("compute_s")
+I_OVERRUNS = loop_offset("overruns")
+I_STATE = loop_offset("state")
+I_LOST = loop_offset("lost_records")
+I_SEGMENT = loop_offset("segment")
+I_CHAIN = loop_offset("safety_chain")
+I_SUPPLY = loop_offset("supply_bar")
+I_HEARTBEAT = loop_offset("heartbeat")
+M_PRESSURE = muscle_offset("pressure_bar")
+M_FORCE = muscle_offset("force_n")
+M_LENGTH = muscle_offset("length_mm")
+M_CONTRACTION = muscle_offset("contraction")
+M_VELOCITY = muscle_offset("velocity_mm_s")
+M_SETPOINT = muscle_offset("setpoint_bar")
+M_FEEDFORWARD = muscle_offset("feedforward_bar")
+M_PID_P = muscle_offset("pid_p_bar")
+M_PID_I = muscle_offset("pid_i_bar")
+M_PID_D = muscle_offset("pid_d_bar")
+M_VALVE = muscle_offset("valve_cmd_bar")
+M_TARGET_LENGTH = muscle_offset("target_length_mm")
+M_TARGET_FORCE = muscle_offset("target_force_n")
+M_SAFE_PRESSURE = muscle_offset("safe_pressure_bar")
+M_MODE = muscle_offset("mode")
+M_FLAGS = muscle_offset("flags")
+M_ADAPT_DRIFT = muscle_offset("adapt_drift_bar")
+M_ADAPT_STATE = muscle_offset("adapt_state")
 
 
 class Sink(Protocol):
@@ -148,7 +111,8 @@ class Sink(Protocol):
         """Take one tick record; False if it had to be dropped."""
 
     def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
-        """A discrete event: supervisor transition, command outcome, marker."""
+        """A discrete event: supervisor transition, command outcome, ...: a kind
+        declared, with its payload's keys, in pamd.declare.events."""
 
     def close(self) -> None: ...
 

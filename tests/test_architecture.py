@@ -41,7 +41,7 @@ LAYERS: list[list[str]] = [
     ["sim", "rt", "stalls", "calibration"],
     ["config"],
     ["schema", "plugins", "ipc", "metrics", "timing", "muscle", "tick", "profiles"],
-    ["errors", "version"],
+    ["errors", "version", "declare"],
     ["data"],
 ]
 

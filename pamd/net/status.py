@@ -15,13 +15,13 @@ valve command, mode, flags), `timing` (from the tick records: pamd.net.stats), `
 from __future__ import annotations
 
 import getpass
-import math
 import os
 import time
 from collections.abc import Callable
 from typing import Any
 
 from pamd.commands import REGISTRY
+from pamd.declare.jsonsafe import jsonsafe as jsonsafe
 from pamd.experiment.sequencer import running_plan
 from pamd.version import __version__
 
@@ -31,17 +31,6 @@ def _user() -> str:
         return getpass.getuser()
     except (KeyError, OSError):
         return f"uid {os.getuid()}"
-
-
-def jsonsafe(x: Any) -> Any:
-    """Strict-JSON copy: non-finite floats become null."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {str(k): jsonsafe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonsafe(v) for v in x]
-    return x
 
 
 class StatusBuilder:

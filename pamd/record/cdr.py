@@ -13,7 +13,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Sequence
 
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
+from pamd.declare import fields
 
 CDR_LE = b"\x00\x01\x00\x00"
 
@@ -24,13 +24,9 @@ PRIMITIVES: dict[str, tuple[str, int]] = {
     "float32": ("f", 4), "float64": ("d", 8),
 }
 
-# Fields stored as float64 in the tick record but recorded as integers.
-INT_FIELDS: dict[str, str] = {
-    "tick": "uint64", "overruns": "uint64", "lost_records": "uint64", "state": "uint8",
-    "mode": "uint8", "flags": "uint32", "segment": "uint16", "adapt_state": "uint8",
-}
-
-UNITS = {"_bar": "bar", "_n": "N", "_mm": "mm", "_mm_s": "mm/s", "_s": "s"}
+#: fields stored as float64 in the tick record but recorded as integers (from the table)
+INT_FIELDS: dict[str, str] = {f.name: f.type for f in (*fields.LOOP, *fields.MUSCLE)
+                              if f.type != "float64"}
 
 # Schema names: all `pamd_msgs/msg/...`. Readers go by topic and encoding, never by
 # schema name, so recordings made before the event schema was renamed (from
@@ -46,20 +42,26 @@ OP_MESSAGE = 5
 
 
 def muscle_fields() -> list[tuple[str, str]]:
-    """(name, ros2 type) of the per-muscle message: tick, t_s, then MUSCLE_FIELDS."""
-    out = [("tick", "uint64"), ("t_s", "float64")]
-    out += [(f, INT_FIELDS.get(f, "float64")) for f in MUSCLE_FIELDS]
-    return out
+    """(name, ros2 type) of the per-muscle message: tick, t_s, then the muscle fields
+    (pamd.declare.fields)."""
+    return [(f.name, f.type) for f in fields.muscle_message()]
 
 
 def loop_fields() -> list[tuple[str, str]]:
-    return [(f, INT_FIELDS.get(f, "float64")) for f in LOOP_FIELDS]
+    """(name, ros2 type) of the loop message: the loop fields (pamd.declare.fields)."""
+    return [(f.name, f.type) for f in fields.LOOP]
 
 
-def schema_text(fields: Sequence[tuple[str, str]], title: str) -> bytes:
+def schema_text(names_types: Sequence[tuple[str, str]], title: str) -> bytes:
+    """The ros2msg text; a declared field's unit and description follow it as a comment
+    (readers skip comments; a person reading the file's schema learns what it holds)."""
     lines = [f"# {title}"]
-    for name, typ in fields:
-        lines.append(f"{typ} {name}")
+    for name, typ in names_types:
+        f = fields.BY_NAME.get(name)
+        note = f"  # {f.unit}: {f.description}" if f is not None else ""
+        if f is not None and f.codes:
+            note += " (" + ", ".join(f"{k} {v}" for k, v in f.codes.items()) + ")"
+        lines.append(f"{typ} {name}{note}")
     return ("\n".join(lines) + "\n").encode()
 
 

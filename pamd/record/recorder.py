@@ -4,8 +4,9 @@ optional rotation), metadata and attachments stating what the run was.
 Topics (they match the Zenoh key names):
   /pamd/<rig>/state/<muscle>  pamd_msgs/msg/MuscleState, cdr, one per muscle per tick
   /pamd/<rig>/loop            pamd_msgs/msg/LoopTiming,  cdr, one per tick
-  /pamd/<rig>/events          pamd_msgs/msg/Event, json (jsonschema): transitions, commands
-                              and verdicts, markers, lost records, recording notices
+  /pamd/<rig>/events          pamd_msgs/msg/Event, json (jsonschema): every recorded kind
+                              of pamd.declare.events (transitions, commands and verdicts,
+                              lost records, recording notices, ...)
 Log time: wall-clock ns of the tick's scheduled time in real time; with the virtual
 clock, run start (wall clock) + tick x period, so the time axis is the rig's.
 
@@ -20,39 +21,20 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import struct
 import time
 from typing import Any
 
+from pamd.declare import events
+from pamd.declare.jsonsafe import dumps, jsonsafe
 from pamd.record import cdr, control
 from pamd.record.mcapw import McapWriter
 from pamd.record.spec import RecordedRun, RecordSpec
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
-EVENT_SCHEMA = {
-    "title": "pamd event",
-    "type": "object",
-    "properties": {
-        "t_s": {"type": "number", "description": "loop time since the run start, s"},
-        "tick": {"type": "integer", "description": "tick number of the loop"},
-        "kind": {"type": "string", "description": "transition, command, reply, marker, "
-                 "lost_records, recording, experiment, segment, collection, summary"},
-        "data": {"type": "object"},
-    },
-}
-
-
-def sanitize(x: object) -> Any:
-    """JSON-safe copy: non-finite floats become null (Foxglove parses strict JSON)."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {str(k): sanitize(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [sanitize(v) for v in x]
-    return x
+#: the recorded event's JSON schema, from the event registry (pamd.declare.events)
+EVENT_SCHEMA = events.json_schema()
 
 
 def record_schemas() -> list[tuple[str, str, bytes]]:
@@ -327,8 +309,7 @@ class Recorder:
         t0 = self.t_start if self.t_start is not None else t_abs_s
         log_ns = self.log_ns_of(t_abs_s)
         tick = round((t_abs_s - t0) * self.spec.rate_hz)
-        body = json.dumps(sanitize({"t_s": t_abs_s - t0, "tick": tick, "kind": kind,
-                                    "data": data}), separators=(",", ":"))
+        body = dumps({"t_s": t_abs_s - t0, "tick": tick, "kind": kind, "data": data})
         w.add_message(self.ch_events, log_ns, body.encode(), self.events)
         self.events += 1
         if self.chunk_t0 < 0:
@@ -358,7 +339,7 @@ class Recorder:
                 "capped": "true" if self.capped else "false"}
         if summary:
             for k, v in summary.items():
-                meta[k] = v if isinstance(v, str) else json.dumps(sanitize(v))
+                meta[k] = v if isinstance(v, str) else json.dumps(jsonsafe(v))
         w.add_metadata("pamd.summary", meta)
         w.finish()
         self.writer = None

@@ -68,9 +68,7 @@ def decimals_of(rate_hz: float | None) -> int:
 
 
 def _columns_doc(names: list[str]) -> dict[str, dict[str, str]]:
-    return {n: {"unit": fields.unit_of(n), "description": fields.DESCRIPTIONS.get(n, {
-        "load_kg": "hanging load of the file's step (or the config's)",
-        "file": "index of the file the tick came from (0-based)"}.get(n, ""))}
+    return {n: {"unit": fields.unit_of(n), "description": fields.DESCRIPTIONS.get(n, "")}
             for n in names}
 
 

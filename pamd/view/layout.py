@@ -21,7 +21,17 @@ from collections.abc import Sequence
 from typing import Any
 
 from pamd.config import load_config
+from pamd.declare import fields
 from pamd.tick import Mode, State
+
+#: the plot panels of a muscle's tab: title, y unit, series colours in order; the
+#: series are the field table's fields with that `plot` (pamd.declare.fields)
+PANELS: dict[str, tuple[str, str, tuple[str, ...]]] = {
+    "pressure": ("pressure vs setpoint, valve command", "bar",
+                 ("#1f77b4", "#ff7f0e", "#7f7f7f", "#2ca02c")),
+    "length": ("length vs target", "mm", ("#1f77b4", "#ff7f0e", "#7f7f7f")),
+    "force": ("force", "N", ("#2ca02c", "#ff7f0e", "#7f7f7f")),
+}
 
 _COLORS = {"STARTING": "#9e9e9e", "IDLE": "#1f77b4", "RUNNING": "#2ca02c", "HOLD": "#ff7f0e",
            "FAULT": "#d62728", "ESTOP": "#7f0000", "LOAD_CHANGE": "#9467bd"}
@@ -62,17 +72,12 @@ def build_layout(rig_id: str, muscles: Sequence[str]) -> dict[str, Any]:
     tabs = []
     for m in muscles:
         st = f"{root}/state/{m}"
-        ids = [f"Plot!{m}-pressure", f"Plot!{m}-length", f"Plot!{m}-force"]
-        config[ids[0]] = _plot(f"{m}: pressure vs setpoint, valve command", "bar", [
-            _series(f"{st}.pressure_bar", "pressure", "#1f77b4"),
-            _series(f"{st}.setpoint_bar", "setpoint", "#ff7f0e"),
-            _series(f"{st}.valve_cmd_bar", "valve command", "#7f7f7f")])
-        config[ids[1]] = _plot(f"{m}: length vs target", "mm", [
-            _series(f"{st}.length_mm", "length", "#1f77b4"),
-            _series(f"{st}.target_length_mm", "target", "#ff7f0e")])
-        config[ids[2]] = _plot(f"{m}: force", "N", [
-            _series(f"{st}.force_n", "force", "#2ca02c"),
-            _series(f"{st}.target_force_n", "force target", "#ff7f0e")])
+        ids = [f"Plot!{m}-{panel}" for panel in PANELS]
+        for pid, (panel, (title, unit, colors)) in zip(ids, PANELS.items(), strict=True):
+            shown = [f for f in fields.MUSCLE if f.plot == panel]
+            config[pid] = _plot(f"{m}: {title}", unit, [
+                _series(f"{st}.{f.name}", f.label, colors[k % len(colors)])
+                for k, f in enumerate(shown)])
         tabs.append({"title": m, "layout": _stack(ids)})
     state_id, events_id = "StateTransitions!pamd-state", "RawMessages!pamd-events"
     state_paths = [dict(_series(f"{root}/loop.state", "supervisor state"),

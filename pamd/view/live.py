@@ -28,16 +28,16 @@ was 108 MB in 100 s).
 from __future__ import annotations
 
 import contextlib
-import json
 import sys
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from pamd.declare.jsonsafe import dumps
 from pamd.net.ratelimit import RateLimitedHandler, limit_logger
 from pamd.net.seams import RunClock
 from pamd.record import cdr
-from pamd.record.recorder import record_schemas, sanitize
+from pamd.record.recorder import record_schemas
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 from pamd.view.spec import ViewerSpec
 
@@ -157,10 +157,8 @@ class LiveView:
         t0 = t_abs_s if t0 is None else t0
         log_ns = io.wall0_ns + round((t_abs_s - io.clock0_s) * 1e9)
         try:
-            body = json.dumps(sanitize({"t_s": t_abs_s - t0,
-                                        "tick": round((t_abs_s - t0) * io.rate_hz),
-                                        "kind": kind, "data": data}), separators=(",", ":"),
-                              default=str)
+            body = dumps({"t_s": t_abs_s - t0, "tick": round((t_abs_s - t0) * io.rate_hz),
+                          "kind": kind, "data": data})
             self.events_ch.log(body.encode(), log_time=log_ns)
         except Exception as exc:
             self._give_up(exc)

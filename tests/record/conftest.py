@@ -4,6 +4,7 @@ while a capture sink keeps, in-process, every record and event the loop produced
 from __future__ import annotations
 
 import copy
+import json
 import math
 from array import array
 from collections.abc import Callable
@@ -15,6 +16,8 @@ import yaml
 
 from pamd.config import LoadedConfig, load_config
 from pamd.daemon import Daemon
+from pamd.declare import events
+from pamd.declare.jsonsafe import dumps
 from pamd.io.session import RecordingRequest
 
 SIM_YAML = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
@@ -46,11 +49,14 @@ def sim_config(tmp_path: Path) -> Callable[..., LoadedConfig]:
 
 
 class CaptureSink:
-    """What the loop saw: a copy of every tick record and every event."""
+    """What the loop saw: a copy of every tick record and every event; each event is
+    checked against its declaration (pamd.declare.events) as it comes, and the
+    `recorded_run` fixture fails on any that drifted."""
 
     def __init__(self) -> None:
         self.rows: list[list[float]] = []
         self.events: list[tuple[float, str, dict[str, Any]]] = []
+        self.undeclared: list[str] = []
 
     def put(self, record: array) -> bool:
         self.rows.append(record.tolist())
@@ -58,6 +64,7 @@ class CaptureSink:
 
     def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
         self.events.append((t_s, kind, data))
+        self.undeclared += events.problems(kind, json.loads(dumps(data)))
 
     def close(self) -> None:
         pass
@@ -103,6 +110,7 @@ def recorded_run(tmp_path: Path, sim_config: Callable[..., Any]) -> Callable[...
             d.stop("test finished")
             d.wait(timeout_s=60)
             d.close()
+        assert not cap.undeclared, cap.undeclared
         return Run(d, cap, d.result())
 
     return run
