@@ -39,7 +39,7 @@ from pamd.models.anfis.model import AnfisModel  # noqa: E402
 from pamd.models.anfis.serialize import to_dict  # noqa: E402
 from pamd.models.contract import Variable  # noqa: E402
 from pamd.models.registry import save_model  # noqa: E402
-from pamd.net.client import Client  # noqa: E402
+from pamd.net.client.client import Client  # noqa: E402
 from pamd.view.recording import open_recording  # noqa: E402
 
 

@@ -18,7 +18,6 @@ from typing import Any
 from pamd.calibration import load_calibration, save_calibration
 from pamd.commands import Command, parse_command, prepare_command
 from pamd.commands.pending import PendingCommand
-from pamd.commands.schema import args_for_record
 from pamd.config.loader import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.controller import RigController
@@ -35,6 +34,7 @@ from pamd.service.riglock import RunLocks
 from pamd.service.state import calibration_path, state_paths
 from pamd.summary import LocalMailbox, SummarySink
 from pamd.tick import State, TickLayout
+from pamd.verbs.schema import args_for_record
 
 log = logging.getLogger("pamd")
 

@@ -17,7 +17,7 @@ import sys
 from pamd.cli.net import add_client_args
 from pamd.errors import CommandRefused
 from pamd.models.anfis.adapted import save_adapted
-from pamd.net.client import Client
+from pamd.net.client.client import Client
 
 #: How long `pamd model save` waits for the daemon's answer by default, s.
 SAVE_TIMEOUT_S = 10.0

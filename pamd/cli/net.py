@@ -20,13 +20,13 @@ import time
 import typing
 from typing import Any
 
-from pamd.commands import REGISTRY
 from pamd.errors import CommandRefused
-from pamd.net.client import Client
+from pamd.net.client.client import Client
 from pamd.net.keys import Keys
 from pamd.net.telemetry import decode
 from pamd.net.zconf import NoDaemon
 from pamd.tick import Mode, State
+from pamd.verbs.table import VERBS
 
 CMD_EPILOG = """examples:
   pamd cmd setpoint --muscle m1 --bar 3.0
@@ -78,7 +78,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_client_args(c)
     c.add_argument("--user", help="the user the command declares (default: your login; "
                    "recorded, not authenticated)")
-    c.add_argument("verb", help=", ".join(REGISTRY.names))
+    c.add_argument("verb", help=", ".join(VERBS.names))
     c.add_argument("rest", nargs=argparse.REMAINDER, help="the verb's options")
     c.set_defaults(func=cmd)
 
@@ -186,15 +186,15 @@ def _field_type(tp: Any) -> Any:
 
 def verb_list() -> str:
     """One line per verb a client may send, from its declaration."""
-    width = max(len(v.name) for v in REGISTRY)
+    width = max(len(v.name) for v in VERBS)
     return "\n".join(textwrap.fill(v.help, HELP_WIDTH,
                                    initial_indent=f"  {v.name.ljust(width)}  ",
-                                   subsequent_indent=" " * (width + 4)) for v in REGISTRY)
+                                   subsequent_indent=" " * (width + 4)) for v in VERBS)
 
 
 def verb_parser(verb: str) -> argparse.ArgumentParser:
     """The options of one verb, from its argument dataclass."""
-    declared = REGISTRY.public(verb)
+    declared = VERBS.public(verb)
     p = argparse.ArgumentParser(prog=f"pamd cmd {verb}", add_help=True,
                                 description=declared.help if declared else None)
     add_client_args(p, suppress=True)

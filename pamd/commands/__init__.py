@@ -1,10 +1,10 @@
 """Commands to the running loop: their verbs, argument schemas and what each one does.
 
-A verb is declared once (`registry.Verb`: argument dataclass, handler, routing
-properties, CLI help) in the module of its kind (`motion`, `rig`, `plan`, sharing
-`guards`); `verbs.REGISTRY` holds them all and everything else derives from it.
-`parse_command` (`parse`) checks a payload's shape (unknown fields, types, NaN) and can
-run anywhere (the io process does it before anything reaches the loop);
+The loop side of the command verbs: each verb's handler, declared in the module of
+its kind (`motion`, `rig`, `plan`, sharing `guards`) against its spec in
+`pamd.verbs.VERBS` (name, argument dataclass, routing, help: what the io process
+parses and routes by, without these modules); `verbs.REGISTRY` holds them all.
+`parse_command` (`pamd.verbs.table`, re-exported) checks a payload's shape;
 `prepare_command` does a command's I/O (a `model` file) outside the loop's thread.
 `apply_command` (`apply`) runs in the loop's thread at the start of a tick, checks the
 command against the present state and limits, and returns the verdict. A refused

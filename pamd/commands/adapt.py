@@ -13,6 +13,7 @@ from pamd.commands.schema import AdaptArgs
 from pamd.control.adapt import ACTIONS
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
+from pamd.verbs.table import VERBS as SPECS
 
 
 def _adapt(ctrl: RigController, a: AdaptArgs) -> dict[str, Any]:
@@ -41,6 +42,5 @@ def _adapt(ctrl: RigController, a: AdaptArgs) -> dict[str, Any]:
 
 
 VERBS: tuple[Verb, ...] = (
-    Verb("adapt", AdaptArgs, _adapt, "online adaptation of the inverse model (length "
-         "modes): on, off, reset, restore, status, parameters"),
+    Verb(SPECS["adapt"], _adapt),
 )

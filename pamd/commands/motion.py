@@ -13,7 +13,6 @@ from pamd.commands.registry import Verb
 from pamd.commands.schema import (
     LENGTH_PROFILE_FIELDS,
     ModeArgs,
-    ModelArgs,
     PreparedModelArgs,
     ProfileArgs,
     SetpointArgs,
@@ -26,6 +25,7 @@ from pamd.controller import RigController
 from pamd.errors import CommandRefused
 from pamd.profiles import Profile, ProfileSpec
 from pamd.tick import Mode, State
+from pamd.verbs.table import VERBS as SPECS
 
 
 def _start(ctrl: RigController, ms: list[MuscleController], spec_: ProfileSpec) -> float | None:
@@ -208,11 +208,8 @@ def _model(ctrl: RigController, a: object) -> dict[str, Any]:
 
 
 VERBS: tuple[Verb, ...] = (
-    Verb("setpoint", SetpointArgs, _setpoint, "one muscle's pressure (or length/force) "
-         "target, reached by a ramp; --deadman-s for streamed setpoints"),
-    Verb("profile", ProfileArgs, _profile, "run a reference profile (constant, step, ramp, "
-         "sine, triangle) in pressure, or in contraction in a length mode"),
-    Verb("mode", ModeArgs, _mode, "control mode: pressure, length_force or position"),
-    Verb("model", ModelArgs, _model, "swap in an inverse model file (by name, from "
-         "telemetry.models_dir)", main_thread=True, prepare=prepare_model),
+    Verb(SPECS["setpoint"], _setpoint),
+    Verb(SPECS["profile"], _profile),
+    Verb(SPECS["mode"], _mode),
+    Verb(SPECS["model"], _model, prepare=prepare_model),
 )

@@ -1,48 +1,16 @@
-"""A command from its verb and payload, by its verb's declaration (`REGISTRY`).
-
-`parse_command` checks a payload's shape (unknown fields, types, NaN) and can run
-anywhere (the io process does it before anything reaches the loop).
-`prepare_command` does a command's I/O (a `model` file) before it is queued.
-"""
+"""`prepare_command`: a command's I/O (a `model` file) before it is queued, by its
+verb's loop-side declaration. `parse_command` (a payload's shape checked by its
+verb's spec) is `pamd.verbs.table`, which the io process uses without the loop's
+modules; it is re-exported here for the loop's side."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
-from pamd.commands.schema import (
-    MAX_ERROR_CHARS,
-    MAX_WHO_CHARS,
-    Command,
-    cap_payload,
-    cap_text,
-)
 from pamd.commands.verbs import REGISTRY
 from pamd.config.loader import LoadedConfig
-from pamd.errors import CommandRefused
-from pamd.schema.engine import Context, build_dataclass
+from pamd.verbs.schema import Command
+from pamd.verbs.table import parse_command
 
-
-def parse_command(verb: str, payload: Any, sender: str = "local", user: str = "",
-                  reply: Callable[[dict[str, Any]], None] | None = None) -> Command:
-    """Shape checks only; raises CommandRefused saying what was wrong. Text fields
-    are capped here (MAX_TEXT_CHARS; sender and user MAX_WHO_CHARS)."""
-    declared = REGISTRY.public(verb)
-    if declared is None:
-        raise CommandRefused(f"unknown command {cap_text(repr(verb), 80)}; known: "
-                             f"{', '.join(REGISTRY.names)}")
-    if payload is None:
-        payload = {}
-    if not isinstance(payload, dict):
-        raise CommandRefused(f"{verb}: the payload must be a JSON object")
-    ctx = Context(f"cmd/{verb}")
-    args = build_dataclass(declared.args, cap_payload(payload), ctx, "", None)
-    if ctx.issues:
-        raise CommandRefused(cap_text("; ".join(
-            f"{i.path}: expected {i.expected}" + (f", found {i.found}" if i.found else "")
-            for i in ctx.issues), MAX_ERROR_CHARS))
-    return Command(verb, args, reply, cap_text(str(sender), MAX_WHO_CHARS),
-                   cap_text(str(user), MAX_WHO_CHARS))
+__all__ = ["parse_command", "prepare_command"]
 
 
 def prepare_command(cmd: Command, cfg: LoadedConfig, data: bytes | None = None) -> Command:

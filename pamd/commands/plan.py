@@ -11,6 +11,7 @@ from pamd.commands.schema import CollectArgs, NoArgs
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import Sequencer, running_plan
+from pamd.verbs.table import VERBS as SPECS
 
 
 def _confirm(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
@@ -53,8 +54,7 @@ def _collect(ctrl: RigController, a: CollectArgs) -> dict[str, Any]:
 
 
 VERBS: tuple[Verb, ...] = (
-    Verb("confirm", NoArgs, _confirm, "confirm the load change an experiment plan waits for"),
-    Verb("pause", NoArgs, _pause, "pause an experiment plan at the end of its present cycle"),
-    Verb("collect", CollectArgs, _collect, "run an experiment plan (by name, from "
-         "telemetry.plans_dir)", main_thread=True),
+    Verb(SPECS["confirm"], _confirm),
+    Verb(SPECS["pause"], _pause),
+    Verb(SPECS["collect"], _collect),
 )

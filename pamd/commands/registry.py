@@ -1,22 +1,23 @@
-"""What a command verb is: one `Verb` declaration (its name, argument dataclass, handler,
-routing properties and CLI help), and the `VerbRegistry` everything else reads.
+"""The loop side of a command verb: its handler (and the file I/O done before it is
+queued), declared against its spec (`pamd.verbs.table.VerbSpec`: name, argument
+dataclass, routing, help), and the `VerbRegistry` the loop dispatches by.
 
-Each handler module (`motion`, `rig`, `plan`) declares its verbs in a `VERBS` tuple;
-`pamd.commands.verbs.REGISTRY` holds them all. The parser (`parse_command`), the
-loop's dispatcher (`apply_command`), the io process's routing (urgent verbs, verbs
-that need the daemon's main thread), the status's verb list and `pamd cmd --help`
-derive from it: a new verb is one declaration.
+Each handler module (`motion`, `rig`, `plan`, ...) declares its verbs in a `VERBS`
+tuple; `pamd.commands.verbs.REGISTRY` holds them all and checks them against
+`pamd.verbs.VERBS`: every public spec has exactly one handler. The internal verbs
+(`reload`, `relay`) have their spec here, beside their handler: no client can send
+them, so the io process never needs them.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from pamd.commands.guards import Handler
-from pamd.commands.schema import Command
 from pamd.config.loader import LoadedConfig
+from pamd.verbs.schema import Command
+from pamd.verbs.table import VerbSpec, VerbTable
 
 Prepare = Callable[[Command, LoadedConfig, bytes | None], Command]
 """(command, loaded config, the file's bytes already read or None) -> the command
@@ -25,41 +26,58 @@ ready for the loop; runs outside the loop's thread and raises CommandRefused."""
 
 @dataclass(frozen=True)
 class Verb:
-    """One command verb, declared once."""
+    """One verb's loop side: its spec, handler and (optional) preparation."""
 
-    name: str
-    args: type  # the argument dataclass (`pamd.commands.schema`), parsed and capped once
+    spec: VerbSpec
     handler: Handler  # the loop's thread: (controller, args) -> verdict fields
-    help: str  # one line for `pamd cmd --help`
-    urgent: bool = False
-    """Never rate limited, taken while the daemon stops, queued ahead of a waiting burst."""
-    main_thread: bool = False
-    """Over the network, its file is read and checked in the daemon's main thread (by
-    name, from a configured directory) before the loop sees it."""
     prepare: Prepare | None = None
     """File I/O done before the command is queued (never in the loop's thread)."""
-    internal: bool = False
-    """Built by the daemon itself (reload on SIGHUP): no client can send it."""
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def args(self) -> type:
+        return self.spec.args
+
+    @property
+    def help(self) -> str:
+        return self.spec.help
+
+    @property
+    def urgent(self) -> bool:
+        return self.spec.urgent
+
+    @property
+    def main_thread(self) -> bool:
+        return self.spec.main_thread
+
+    @property
+    def internal(self) -> bool:
+        return self.spec.internal
 
 
 class VerbRegistry:
-    """The verbs by name, in declaration order."""
+    """The verbs with their handlers, by name, in declaration order."""
 
-    def __init__(self, verbs: tuple[Verb, ...]) -> None:
-        self._by_name: dict[str, Verb] = {}
-        for v in verbs:
-            if v.name in self._by_name:
-                raise ValueError(f"verb {v.name!r} is declared twice")
-            self._by_name[v.name] = v
-        public = tuple(v for v in verbs if not v.internal)
-        self.names: tuple[str, ...] = tuple(v.name for v in public)
+    def __init__(self, verbs: tuple[Verb, ...], specs: VerbTable | None = None) -> None:
+        self.table = VerbTable(tuple(v.spec for v in verbs))  # raises on a name twice
+        self._by_name = {v.name: v for v in verbs}
+        if specs is not None:
+            missing = [s.name for s in specs if s.name not in self._by_name]
+            unknown = [v.name for v in verbs if not v.internal and v.name not in specs]
+            if missing or unknown:
+                raise ValueError(f"verbs without a handler: {missing}; handlers without a "
+                                 f"public spec: {unknown}")
+            if self.table.names != specs.names:
+                raise ValueError("the handlers are declared in another order than the "
+                                 f"specs: {self.table.names} != {specs.names}")
+        self.names = self.table.names
         """The verbs a client may send, in declaration order."""
-        self.urgent: tuple[str, ...] = tuple(v.name for v in public if v.urgent)
-        self.main_thread: tuple[str, ...] = tuple(v.name for v in public if v.main_thread)
-        self.pressure_fields: dict[str, tuple[str, ...]] = {
-            v.name: fs for v in public if (fs := pressure_fields(v.args))}
-        """Per verb, its fields in bar (the io process checks them against the limits
-        before the mailbox)."""
+        self.urgent = self.table.urgent
+        self.main_thread = self.table.main_thread
+        self.pressure_fields = self.table.pressure_fields
 
     def get(self, name: str) -> Verb | None:
         """The verb so named, internal ones included (the loop's dispatcher)."""
@@ -71,7 +89,7 @@ class VerbRegistry:
         return None if v is None or v.internal else v
 
     def is_urgent(self, name: str) -> bool:
-        return name in self.urgent
+        return self.table.is_urgent(name)
 
     def __iter__(self) -> Iterator[Verb]:
         """The verbs a client may send."""
@@ -79,8 +97,3 @@ class VerbRegistry:
 
     def __contains__(self, name: object) -> bool:
         return name in self.names
-
-
-def pressure_fields(args: type) -> tuple[str, ...]:
-    """The fields of an argument dataclass that are pressures (unit bar)."""
-    return tuple(f.name for f in dataclasses.fields(args) if f.metadata.get("unit") == "bar")

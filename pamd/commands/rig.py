@@ -16,6 +16,8 @@ from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import running_plan
 from pamd.safety.references import check_home, tare_offset
 from pamd.tick import State
+from pamd.verbs.table import VERBS as SPECS
+from pamd.verbs.table import VerbSpec
 
 
 def _hold(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
@@ -141,15 +143,13 @@ def _refused(ctrl: RigController, a: ReloadArgs, reason: str) -> CommandRefused:
 
 
 VERBS: tuple[Verb, ...] = (
-    Verb("hold", NoArgs, _hold, "freeze every setpoint where it is"),
-    Verb("resume", NoArgs, _resume, "go on from HOLD (a profile continues where it was)"),
-    Verb("stop", NoArgs, _stop, "ramp to the safe state", urgent=True),
-    Verb("estop", EstopArgs, _estop, "emergency stop: safety.estop_action at once, latched "
-         "until reset", urgent=True),
-    Verb("reset", NoArgs, _reset, "leave FAULT or ESTOP once its cause is gone"),
-    Verb("home", HomeArgs, _home, "reference a muscle's length: its true length now"),
-    Verb("tare", TareArgs, _tare, "zero the load cells (optionally against a known load)"),
-    Verb("load", LoadArgs, _load, "the hanging load now on a muscle (moves its safe "
-         "pressure)"),
-    Verb("reload", ReloadArgs, _reload, "a reloaded config (SIGHUP)", internal=True),
+    Verb(SPECS["hold"], _hold),
+    Verb(SPECS["resume"], _resume),
+    Verb(SPECS["stop"], _stop),
+    Verb(SPECS["estop"], _estop),
+    Verb(SPECS["reset"], _reset),
+    Verb(SPECS["home"], _home),
+    Verb(SPECS["tare"], _tare),
+    Verb(SPECS["load"], _load),
+    Verb(VerbSpec("reload", ReloadArgs, "a reloaded config (SIGHUP)", internal=True), _reload),
 )

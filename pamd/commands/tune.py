@@ -14,6 +14,7 @@ from pamd.commands.registry import Verb
 from pamd.commands.schema import SetpointArgs
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
+from pamd.verbs.table import VerbSpec
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,6 @@ _SETPOINT = next(v for v in MOTION_VERBS if v.name == "setpoint")
 
 
 VERBS: tuple[Verb, ...] = (
-    Verb("relay", RelayArgs, _relay, "the relay-feedback test of a muscle's pressure loop "
-         "(pamd tune --method relay)", internal=True),
+    Verb(VerbSpec("relay", RelayArgs, "the relay-feedback test of a muscle's pressure loop "
+                  "(pamd tune --method relay)", internal=True), _relay),
 )

@@ -27,7 +27,6 @@ from collections.abc import Callable
 from multiprocessing.process import BaseProcess
 from typing import Any
 
-from pamd.commands import Command, parse_command
 from pamd.errors import CommandRefused, RecordingError
 from pamd.io.process import io_main
 from pamd.io.spec import IoSpec
@@ -45,6 +44,8 @@ from pamd.ipc.ring import (
 )
 from pamd.summary import LocalMailbox
 from pamd.tick import I_TICK, Mailbox
+from pamd.verbs.schema import Command
+from pamd.verbs.table import parse_command
 
 QUIET_TICKS = 1
 HELD_EVENTS_MAX = 4096  # events (a burst's verdicts) waiting for room in the ring, and

@@ -1,5 +1,5 @@
 """The io process: drains the loop's rings into the recorder and the Zenoh node
-(`pamd.net.node`: telemetry, status, remote commands), bumps the heartbeat the loop
+(`pamd.net.node.node`: telemetry, status, remote commands), bumps the heartbeat the loop
 watches, sends commands to the loop and routes their verdicts.
 
 With telemetry, it also takes recording control from the daemon's main thread (the
@@ -20,13 +20,13 @@ import os
 import resource
 import signal
 import struct
+import sys
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from pamd.commands import REGISTRY
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import (
     C_HEARTBEAT,
@@ -38,9 +38,12 @@ from pamd.ipc.ring import (
     IO_READY,
     SharedBlock,
 )
-from pamd.net.node import NetNode
+from pamd.net.node.node import NetNode
 from pamd.record.recorder import Recorder
-from pamd.view.live import LiveView
+from pamd.verbs.table import VERBS
+
+if TYPE_CHECKING:  # imported when a run asks for the live view (`_open_viewer`)
+    from pamd.view.live import LiveView
 
 IDLE_SLEEP_S = 0.0005
 BACKLOG_MAX = 1024  # commands waiting for room in the loop's mailbox
@@ -84,7 +87,7 @@ class RingCommandPort:
                 return None
             if on_verdict is not None:
                 self.waiting[cid] = on_verdict
-            if REGISTRY.is_urgent(verb):
+            if VERBS.is_urgent(verb):
                 self.backlog.appendleft((cid, blob))
             else:
                 self.backlog.append((cid, blob))
@@ -116,6 +119,18 @@ def io_main(spec: IoSpec) -> None:
         IoProcess(spec, block).run()
     finally:
         block.close()
+        report_modules(os.environ.get(MODULES_ENV))
+
+
+MODULES_ENV = "PAMD_TEST_IO_MODULES"
+"""A test hook (off unless set): the file the io process writes, as it exits, the names
+of the modules it imported (tests/io/test_io_imports.py: what it takes is what it needs)."""
+
+
+def report_modules(path: str | None) -> None:
+    if path:
+        with open(path, "w") as f:
+            json.dump(sorted(sys.modules), f)
 
 
 class IoProcess:
@@ -214,7 +229,7 @@ class IoProcess:
                     break
             if n == 0 and m == 0 and k == 0:
                 # a remote command waits for its verdict: look for it sooner
-                time.sleep(VERDICT_SLEEP_S if self.net is not None and self.net.waiting
+                time.sleep(VERDICT_SLEEP_S if self.net is not None and self.net.intake.waiting
                            else IDLE_SLEEP_S)
         if self.net is not None:  # token withdrawn, pending queries answered, closed
             self.net.close(stop_reason)
@@ -234,6 +249,9 @@ class IoProcess:
         before any file opens."""
 
         assert self.spec.viewer is not None
+        # only a run with the live view pays for it (see LAZY_OWN in the layer test)
+        from pamd.view.live import LiveView
+
         self.viewer = LiveView(self.spec.viewer, self.spec, self.block.t_start)
         err = self.viewer.open()
         if err is None:

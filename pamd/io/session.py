@@ -21,10 +21,10 @@ from pamd.io.link import IoLink, MultiMailbox, RingMailbox, RingSink
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import BlockLayout, pow2_at_least
 from pamd.net.board import Board
-from pamd.net.host import NetHost
-from pamd.net.seams import DaemonView
+from pamd.net.host.host import NetHost
+from pamd.net.host.ports import DaemonView
+from pamd.net.host.resolve import resolve as resolve_net
 from pamd.net.spec import NetSpec, TelemetryRequest
-from pamd.net.spec import resolve as resolve_net
 from pamd.record.meta import build_record_spec
 from pamd.tick import TickLayout
 from pamd.view.spec import ViewerSpec

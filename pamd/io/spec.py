@@ -4,12 +4,14 @@ spawn (the io process imports nothing of the daemon's live objects)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pamd.ipc.ring import BlockLayout
 from pamd.net.spec import NetSpec
 from pamd.record.spec import RecordSpec
-from pamd.view.spec import ViewerSpec
+
+if TYPE_CHECKING:  # a type only: a run without the live view never imports pamd.view
+    from pamd.view.spec import ViewerSpec
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,11 @@
-"""What telemetry (`pamd.net`) needs of its collaborators, as small Protocols.
+"""What the io process's telemetry (`pamd.net.node`, `pamd.view.live`) needs of its
+collaborators, as small Protocols.
 
 The io process (`pamd.io`, a layer above) builds the Zenoh node and hands it its
-command port and its spec; Zenoh hands it queries; the daemon (above both) hands the
-main-process host itself. Telemetry depends on these shapes only, so it imports
-neither the io process nor the daemon, nor (outside `NetNode.open`) Zenoh itself.
+command port and its spec; Zenoh hands it queries. The node depends on these shapes
+only, so it imports neither the io process nor the loop's modules, nor (outside
+`NetNode.open`) Zenoh itself. The daemon's side has its own ports
+(`pamd.net.host.ports`).
 """
 
 from __future__ import annotations
@@ -11,11 +13,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from contextlib import AbstractContextManager
 from typing import Any, Protocol
-
-from pamd.config.loader import LoadedConfig
-from pamd.controller import RigController
-from pamd.loop import Loop
-from pamd.summary import LocalMailbox, SummarySink
 
 #: a command's verdict, as the loop gives it: {"ok": bool, "error": str, ...}
 Verdict = dict[str, Any]
@@ -35,34 +32,6 @@ class CommandPort(Protocol):
     def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
              on_verdict: Callable[[Verdict], None] | None = None) -> int | None:
         """Queue a command for the loop; its id, or None (and a refusal verdict)."""
-
-
-class RecordingState(Protocol):
-    """The daemon's io session as the telemetry host sees it (`pamd.io.session`)."""
-
-    @property
-    def failure(self) -> dict[str, Any] | None:
-        """Why the recording stopped ({"reason": ...}), or None while it goes on."""
-
-
-class DaemonView(Protocol):
-    """What the main-process side of telemetry (`NetHost`, `Collections`) uses of the
-    daemon (`pamd.daemon.Daemon`, a layer above)."""
-
-    @property
-    def cfg(self) -> LoadedConfig: ...
-    @property
-    def note(self) -> str: ...
-    @property
-    def ctrl(self) -> RigController: ...
-    @property
-    def loop(self) -> Loop: ...
-    @property
-    def summary(self) -> SummarySink: ...
-    @property
-    def mailbox(self) -> LocalMailbox: ...
-    @property
-    def io(self) -> RecordingState | None: ...
 
 
 class RunClock(Protocol):

@@ -6,7 +6,7 @@
         for batch in rig.stream("m1", duration_s=2.0):           # numpy columns
             print(batch["pressure_bar"].mean())
 
-The same key space `pamd status`, `pamd cmd` and `pamd watch` use (`pamd.net.client`):
+The same key space `pamd status`, `pamd cmd` and `pamd watch` use (`pamd.net.client.client`):
 commands carry the daemon's token (found where the daemon writes it, or
 `token_file=`), are checked by the io process and the loop, and answered with the loop's
 verdict (which names the `rig` that gave it); a refusal raises `CommandRefused` (or,
@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from pamd.errors import CommandRefused
-from pamd.net.client import Client
+from pamd.net.client.client import Client
 from pamd.net.keys import Keys
 from pamd.net.telemetry import decode
 

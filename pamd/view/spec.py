@@ -6,9 +6,12 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from pamd.config.loader import LoadedConfig
 from pamd.errors import ConfigError, ConfigIssue
+
+if TYPE_CHECKING:  # a type only: the io process unpickles a ViewerSpec without the config
+    from pamd.config.loader import LoadedConfig
 
 DEFAULT_LISTEN = "127.0.0.1:8765"
 _LISTEN = re.compile(r"^(?:\[(?P<v6>[0-9a-fA-F:.]+)\]|(?P<host>[A-Za-z0-9.\-]+)):(?P<port>\d+)$")

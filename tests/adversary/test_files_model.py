@@ -25,7 +25,7 @@ import yaml
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.anfis.serialize import to_dict
 from pamd.models.contract import Variable
-from pamd.net.client import Client
+from pamd.net.client.client import Client
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 import pamd
-from pamd.net.client import BadRigName, Client
+from pamd.net.client.client import BadRigName, Client
 from pamd.net.credential import attachment, find_token
 from tests.net.conftest import RigProc, wait_until
 

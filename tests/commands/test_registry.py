@@ -1,6 +1,6 @@
-"""Each command verb is declared once (`pamd.commands.registry.Verb`); the parser, the
-loop's dispatcher, the io process's routing, the status and `pamd cmd --help` derive
-from the registry."""
+"""Each command verb's spec is declared once (`pamd.verbs.VERBS`) and its handler once
+(`pamd.commands.registry.Verb`); the parser, the loop's dispatcher, the io process's
+routing, the status and `pamd cmd --help` derive from them."""
 
 from __future__ import annotations
 
@@ -25,6 +25,7 @@ from pamd.commands import (
 )
 from pamd.commands.schema import NoArgs
 from pamd.errors import CommandRefused
+from pamd.verbs.table import VERBS, VerbSpec, VerbTable
 
 PUBLIC = ("setpoint", "profile", "mode", "model", "adapt", "hold", "resume", "stop", "estop",
           "reset", "home", "tare", "load", "confirm", "pause", "collect")
@@ -88,10 +89,29 @@ def test_cmd_help_and_each_verbs_options_come_from_the_declarations(
     assert ns.field_muscle == "m1" and ns.field_load_kg == 30.0
 
 
-def test_a_new_verb_is_one_declaration() -> None:
+def test_a_new_verb_is_its_spec_and_its_handler() -> None:
+    """The spec (what the io process parses and routes by) and the loop's handler are
+    declared apart; the registry refuses one without the other."""
     def _ping(ctrl: Any, a: NoArgs) -> dict[str, Any]:
         return {"pong": True}
 
-    reg = VerbRegistry(rig.VERBS + (Verb("ping", NoArgs, _ping, "answer pong", urgent=True),))
+    ping = VerbSpec("ping", NoArgs, "answer pong", urgent=True)
+    reg = VerbRegistry(rig.VERBS + (Verb(ping, _ping),))
     assert reg.names[-1] == "ping" and reg.is_urgent("ping") and "ping" in reg
     assert reg.get("ping").handler(None, NoArgs()) == {"pong": True}  # type: ignore[union-attr]
+    specs = VerbTable(tuple(v.spec for v in rig.VERBS if not v.internal) + (ping,))
+    with pytest.raises(ValueError, match=r"without a handler: \['ping'\]"):
+        VerbRegistry(rig.VERBS, specs)
+    with pytest.raises(ValueError, match=r"without a public spec: \['ping'\]"):
+        VerbRegistry(rig.VERBS + (Verb(ping, _ping),), VerbTable(specs_of(rig.VERBS)))
+
+
+def specs_of(verbs: tuple[Verb, ...]) -> tuple[VerbSpec, ...]:
+    return tuple(v.spec for v in verbs if not v.internal)
+
+
+def test_the_io_side_specs_are_the_loops_verbs() -> None:
+    """`pamd.verbs.VERBS` (the io process's) and the loop's registry name the same
+    public verbs, in the same order, with the same specs."""
+    assert VERBS.names == REGISTRY.names
+    assert all(REGISTRY.public(s.name).spec is s for s in VERBS)  # type: ignore[union-attr]

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from pamd.net import credential as cr
-from pamd.net.client import BadRigName, Client, rig_name
+from pamd.net.client.client import BadRigName, Client, rig_name
 from pamd.net.zconf import NoDaemon
 
 

@@ -170,7 +170,7 @@ def test_the_recording_keeps_refusals_small_and_no_file_contents(rig: RigProc) -
                     assert len(ev["data"]["args"]["head"]) == 256
                 elif ev["kind"] == "refusals" and ev["data"]["kind"] == "size":
                     counted += ev["data"]["refused_unrecorded"]  # the rest, said later
-    # one recorded per second (pamd.net.node.RECORD_INTERVAL_S), each saying how many
+    # one recorded per second (pamd.net.node.intake.RECORD_INTERVAL_S), each saying how many
     # like it were refused since the last: all 200 counted, none more than once
     assert n_events > 0 and 1 <= big < 200 and counted == 200, (big, counted)
     total = sum(os.path.getsize(f) for f in summary["recording"]["files"])

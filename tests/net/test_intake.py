@@ -10,9 +10,9 @@ import threading
 from types import SimpleNamespace
 from typing import Any
 
-from pamd.net import node as node_mod
 from pamd.net.credential import attachment, digest
-from pamd.net.node import NetNode
+from pamd.net.node import node as node_mod
+from pamd.net.node.node import NetNode
 from pamd.net.spec import NetSpec
 
 TOKEN = "t" * 43
@@ -74,7 +74,7 @@ def make(**kw: Any) -> tuple[NetNode, Port, list[tuple[str, dict[str, Any]]]]:
 
 
 def send(n: NetNode, q: Query) -> dict[str, Any]:
-    n.on_command(q)
+    n.intake.on_command(q)
     n.flush_records()
     assert len(q.replies) == 1, q.replies
     return q.replies[0]
@@ -168,17 +168,17 @@ def test_a_flood_of_estops_beyond_the_rate_joins_the_one_in_flight_and_all_are_a
         ) -> None:
     n, _port, recorded = make()
     port = SlowPort()
-    n.port = port
-    n.limiter.rate, n.limiter.burst = 1.0, 1.0  # one at once, then the rate
+    n.intake.port = port
+    n.intake.limiter.rate, n.intake.limiter.burst = 1.0, 1.0  # one at once, then the rate
     qs = [Query("pamd/sim/cmd/estop", b'{"reason": "flood"}', token=None) for _ in range(200)]
     for q in qs:
-        n.on_command(q)
+        n.intake.on_command(q)
     assert len(port.sent) == 1  # one reached the loop; the others wait on it
     assert n.counts["joined"] == 199 and not any(q.replies for q in qs)
     port.pending_verdict({"ok": True, "state": "ESTOP"})
     assert all(len(q.replies) == 1 and q.replies[0]["ok"] for q in qs)
     assert sum(bool(q.replies[0].get("joined")) for q in qs) == 199
-    assert n.waiting == {} and n.joined == {}
+    assert n.intake.waiting == {} and n.intake.joined == {}
 
 
 def test_a_storm_of_status_queries_builds_one_answer_per_interval() -> None:

@@ -12,7 +12,7 @@ from types import SimpleNamespace
 from typing import Any
 
 from pamd.io.process import RingCommandPort
-from pamd.net.node import NetNode
+from pamd.net.node.node import NetNode
 from pamd.net.spec import NetSpec
 
 
@@ -61,8 +61,8 @@ def test_a_late_verdict_is_answered_and_a_stop_answers_what_waits() -> None:
     log: list[str] = []
     n = node(log)
     late, waiting = Query("pamd/sim/cmd/setpoint"), Query("pamd/sim/cmd/hold")
-    n.waiting[1] = (late, 0.0, "setpoint", None)
-    n.waiting[2] = (waiting, 1e9, "hold", None)
+    n.intake.waiting[1] = (late, 0.0, "setpoint", None)
+    n.intake.waiting[2] = (waiting, 1e9, "hold", None)
     n.poll(1.0)  # the first one's deadline has passed
     assert late.dropped and late.replies[0][1]["ok"] is False
     assert "no verdict from the loop within 0.5 s" in late.replies[0][1]["error"]
@@ -72,7 +72,7 @@ def test_a_late_verdict_is_answered_and_a_stop_answers_what_waits() -> None:
     err = waiting.replies[0][1]["error"]
     assert "stopped (SIGTERM received)" in err and "not applied" in err
     assert log.index("undeclare token") < log.index("close session")
-    assert n.waiting == {} and n.closing
+    assert n.intake.waiting == {} and n.intake.closing
 
 
 def test_close_does_not_hang_on_a_session_that_will_not_close() -> None:

@@ -14,8 +14,9 @@ from pamd.cli.net import _parse_bool, build_payload, verb_parser
 from pamd.errors import ConfigError
 from pamd.net import zconf
 from pamd.net.board import Board
+from pamd.net.host.resolve import resolve
 from pamd.net.ratelimit import RateLimiter
-from pamd.net.spec import TelemetryRequest, resolve
+from pamd.net.spec import TelemetryRequest
 from pamd.net.telemetry import LOOP_COLUMNS, StateBatcher, decode, rows
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS, State, TickLayout
 from pamd.timing import Histogram
@@ -157,8 +158,8 @@ def test_cmd_payloads_from_options() -> None:
 
 
 def test_status_snapshot_from_a_running_daemon(sim_daemon: Any) -> None:
-    from pamd.net.stats import TickStats
-    from pamd.net.status import StatusBuilder
+    from pamd.net.host.status import StatusBuilder
+    from pamd.net.node.stats import TickStats
 
     d = sim_daemon(duration_s=None)
     assert d.wait_for_state((State.IDLE,)) == State.IDLE

@@ -43,7 +43,7 @@ from pamd.experiment.manifest import Manifest, collection_name, step_records
 from pamd.experiment.plan import Plan
 from pamd.experiment.sequencer import running_plan
 from pamd.experiment.timeline import simulated_loads, timeline
-from pamd.net.seams import DaemonView
+from pamd.net.host.ports import DaemonView
 from pamd.record import control
 
 log = logging.getLogger("pamd")

@@ -1,7 +1,7 @@
 """The daemon's main-process side of telemetry: writes the status snapshot into the
 board at `telemetry.status_hz`, and does the work of the commands that need the main
 thread (`collect`: read and check the plan file, make the collection's directory and
-manifest and tell the io process's recorder (`pamd.net.collections`), then queue
+manifest and tell the io process's recorder (`pamd.net.host.collections`), then queue
 it; `model`: load, check and compile the model file, then queue it) before the loop
 gives its verdict, which goes back to the io process by id. It also takes the io
 process's notices (a collection's files closed) and writes a collection's manifest
@@ -25,12 +25,13 @@ from pamd.commands import Command, named_files, parse_command
 from pamd.commands.model_file import ModelSource, prepare_model_from
 from pamd.commands.offload import Preparer, warm_up
 from pamd.commands.plan_file import read_plan
-from pamd.commands.schema import args_for_record
 from pamd.errors import CommandRefused
 from pamd.net.board import Board
-from pamd.net.collections import Collection, Collections
-from pamd.net.seams import DaemonView
-from pamd.net.status import StatusBuilder, jsonsafe
+from pamd.net.host.collections import Collection, Collections
+from pamd.net.host.ports import DaemonView
+from pamd.net.host.status import StatusBuilder
+from pamd.net.status import jsonsafe
+from pamd.verbs.schema import args_for_record
 
 log = logging.getLogger("pamd")
 

@@ -22,13 +22,13 @@ import json
 import re
 from typing import Any
 
-from pamd.commands import REGISTRY
 from pamd.config.names import CHUNK_RE
 from pamd.errors import PamdError
 from pamd.net import zconf
 from pamd.net.credential import attachment, find_token
 from pamd.net.keys import ROOT, Keys
 from pamd.net.zconf import NoDaemon
+from pamd.verbs.table import VERBS
 
 DEFAULT_TIMEOUT_S = 3.0
 
@@ -154,7 +154,7 @@ class Client:
         user = re.sub(r"[^\w.@-]", "_", user)  # one selector parameter, nothing more
         sel = Keys(rig).cmd(verb) + (f"?user={user}" if user else "")
         token, where = find_token(rig, self.token_file)
-        verdict = self._get(sel, body, timeout_s, token, REGISTRY.is_urgent(verb))
+        verdict = self._get(sel, body, timeout_s, token, VERBS.is_urgent(verb))
         if token is None and "credential" in str(verdict.get("error", "")):
             verdict["error"] = f"{verdict['error']} (no token found: looked in {where})"
         return verdict

@@ -11,9 +11,9 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+from pamd.net.node.stats import TickStats
 from pamd.net.seams import RunClock
 from pamd.net.spec import NetSpec
-from pamd.net.stats import TickStats
 from pamd.tick import I_STATE, I_T, I_TICK, LOOP_FIELDS, MUSCLE_FIELDS, Mode, State
 
 #: what a status answer takes from the latest tick record rather than the snapshot

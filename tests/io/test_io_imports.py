@@ -1,0 +1,101 @@
+"""The io process, as actually spawned, imports only what it needs: the recorder, the
+Zenoh node and the command schemas, never the controller, the models, the loop's
+command handlers, the config engine's rig schema, the CLI or numpy.
+
+A real recorded run with telemetry is started through the console script (generated
+from pyproject's `[project.scripts]` as pip writes it: multiprocessing's spawn runs the
+parent's main module again in the child, so what the console script imports at its
+top is what the io process pays for). The io process writes the modules it imported as
+it exits (`pamd.io.process.MODULES_ENV`, a test hook).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+from pamd.io.process import MODULES_ENV
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: at most this many of pamd's modules (packages included) in the io process
+MAX_PAMD_MODULES = 40
+
+#: never in the io process: the loop's side, the models, the CLI, numpy
+FORBIDDEN = ("pamd.controller", "pamd.loop", "pamd.harness", "pamd.control", "pamd.models",
+             "pamd.commands", "pamd.safety", "pamd.config", "pamd.experiment", "pamd.cli",
+             "pamd.daemon", "pamd.service", "pamd.net.host", "pamd.net.client", "pamd.rig",
+             "pamd.drivers", "pamd.sim", "numpy")
+
+
+def console_script(tmp: Path) -> Path:
+    """The `pamd` console script as pip writes it from the entry point."""
+    scripts = (ROOT / "pyproject.toml").read_text().split("[project.scripts]", 1)[1]
+    found = re.search(r'^pamd\s*=\s*"([\w.]+):(\w+)"', scripts, re.M)
+    assert found, "no pamd console script in pyproject.toml"
+    module, attr = found.groups()
+    path = tmp / "pamd"
+    path.write_text(f"import re\nimport sys\nfrom {module} import {attr}\n"
+                    "if __name__ == '__main__':\n"
+                    "    sys.argv[0] = re.sub(r'(-script\\.pyw|\\.exe)?$', '', sys.argv[0])\n"
+                    f"    sys.exit({attr}())\n")
+    return path
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def io_modules(tmp: Path, *extra: str) -> list[str]:
+    out = tmp / "modules.json"
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", **{MODULES_ENV: str(out)})
+    for k in ("NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID"):
+        env.pop(k, None)
+    args = [sys.executable, str(console_script(tmp)), "run", "--config",
+            str(ROOT / "config" / "sim.yaml"), "--clock", "virtual", "--duration", "2",
+            "--record", str(tmp / "rec"), "--state-dir", str(tmp / "state"), "--json",
+            "--profile", "sine", "--freq-hz", "0.2", "--max-bar", "3", *extra]
+    done = subprocess.run(args, capture_output=True, text=True, env=env, cwd=tmp, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert list((tmp / "rec").glob("*.mcap")), "the run recorded nothing"
+    names: list[str] = json.loads(out.read_text())
+    return names
+
+
+def check(names: list[str]) -> list[str]:
+    pamd = [m for m in names if m == "pamd" or m.startswith("pamd.")]
+    wrong = [m for m in names for f in FORBIDDEN if m == f or m.startswith(f + ".")]
+    assert not wrong, f"the io process imported {wrong}"
+    assert len(pamd) <= MAX_PAMD_MODULES, f"{len(pamd)} pamd modules: {pamd}"
+    return pamd
+
+
+def test_the_io_process_of_a_recorded_run_with_telemetry_imports_what_it_needs(
+        tmp_path: Path) -> None:
+    names = io_modules(tmp_path, "--listen", f"tcp/127.0.0.1:{free_port()}")
+    pamd = check(names)
+    # it did what it is there for: recorded, and served Zenoh with the command schemas
+    for needed in ("pamd.record.recorder", "pamd.net.node.node", "pamd.verbs.table",
+                   "zenoh"):
+        assert needed in names, needed
+    assert "pamd.__main__" in pamd and "pamd.cli.main" not in pamd
+
+
+def test_the_check_sees_a_forbidden_module() -> None:
+    """The check itself: the loop's controller, or one module too many, is caught."""
+    light = ["pamd", "pamd.io.process", "zenoh"]
+    assert check(light) == ["pamd", "pamd.io.process"]
+    for heavy in (light + ["pamd.controller"], light + ["numpy.linalg"],
+                  light + [f"pamd.x{i}" for i in range(MAX_PAMD_MODULES)]):
+        try:
+            check(heavy)
+        except AssertionError:
+            continue
+        raise AssertionError(f"not caught: {heavy[3:5]}")
