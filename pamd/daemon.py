@@ -88,7 +88,9 @@ class Daemon:
         self.end_on_fault = False  # start(end_on_fault=...)
         self.error: BaseException | None = None
         # systemd notify, the latched fault and safe outputs kept across restarts, reload
-        self.keeper = ServiceKeeper(self, self.state, notifier, config_overrides)
+        self.keeper = ServiceKeeper(self.ctrl, self.loop, self.mailbox.put, lambda: self.cfg,
+                                    self._apply_config, self.state, notifier,
+                                    config_overrides)
         self.keeper.restore()
         # what this run opens, one daemon at a time each (its drivers' ports, devices and
         # buses, its state directory; a simulation: nothing): taken by start() before
@@ -98,6 +100,10 @@ class Daemon:
             claims.append(self.state.claim)
         self.locks = RunLocks(claims, cfg.rig.rig_id)
         self._unsaved_said = False
+
+    def _apply_config(self, cfg: LoadedConfig) -> None:
+        """A reloaded config, now in force (the keeper's reload)."""
+        self.cfg = cfg
 
     # -- life cycle -------------------------------------------------------------------
     def start(self, duration_s: float | None = None, stop_when_profile_done: bool = False,

@@ -102,6 +102,10 @@ class IoSession:
         daemon.summary.downstream.append(self.sink)
         loop.mailbox = MultiMailbox(daemon.mailbox, self.mailbox)
 
+    def files(self) -> list[str]:
+        """The recording's files so far (the status says them)."""
+        return self.link.files()
+
     @classmethod
     def attach(cls, daemon: DaemonParts, req: RecordingRequest | None,
                telemetry: TelemetryRequest | None = None) -> IoSession | None:

@@ -26,13 +26,17 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Any
+from collections import deque
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
 
 from pamd.commands import Command
 from pamd.commands.model_file import check_models_isolated
 from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig, load_config
 from pamd.errors import PamdError
+from pamd.rt import RealtimeSession
+from pamd.safety.supervisor import Supervisor
 from pamd.service.notify import Notifier
 from pamd.service.reload import ReloadPlan, describe, plan_reload
 from pamd.service.state import (
@@ -47,18 +51,73 @@ from pamd.service.state import (
     write_safe_outputs,
 )
 from pamd.tick import State
+from pamd.timing import TickTiming
 
 log = logging.getLogger("pamd")
 
 RT_SCAN_S = 1.0  # how often threads started meanwhile are raised below the loop
 
 
-class ServiceKeeper:
-    """Main-thread housekeeping of one daemon: notify, persistence, reload."""
+class KeptRig(Protocol):
+    """What the keeper uses of the rig's controller (`pamd.controller.RigController`):
+    its supervisor (the latched fault, the state), the reload's fate, the muscles' safe
+    pressures (the safe outputs kept)."""
 
-    def __init__(self, daemon: Any, paths: StatePaths | None, notifier: Notifier | None = None,
+    @property
+    def supervisor(self) -> Supervisor: ...
+    @property
+    def reload_note(self) -> dict[str, Any] | None: ...
+    @property
+    def muscles(self) -> Sequence[SafeMuscleView]: ...
+    def at_rest(self) -> bool: ...
+
+
+class SafeMuscleView(Protocol):
+    @property
+    def name(self) -> str: ...
+    @property
+    def safe_pressure_bar(self) -> float: ...
+    @property
+    def load_kg(self) -> float: ...
+
+
+class KeptLoop(Protocol):
+    """What the keeper uses of the loop (`pamd.loop.Loop`): whether it ticks and when it
+    last did (systemd's watchdog, the stall the main thread sees), how it ended, the
+    real-time session of its process, and the reload's hand-over and stall limits."""
+
+    running: bool
+    virtual: bool
+    handed_over: bool
+    stopped_reason: str
+    last_tick_done: float
+    stall_s: float
+    timing: TickTiming
+    rt: RealtimeSession
+    notices: deque[str]
+
+    @property
+    def stall_fault_s(self) -> float: ...
+    def request_handover(self, reason: str) -> None: ...
+    def set_stall_limits(self, cfg: LoadedConfig) -> None: ...
+
+
+class ServiceKeeper:
+    """Main-thread housekeeping of one daemon: notify, persistence, reload. It gets the
+    parts it looks after, not the daemon: the rig's controller and the loop (read
+    through `KeptRig`, `KeptLoop`), `submit` (a command into the loop's mailbox) and the
+    config in force (`config`, and `apply_config` once a reload is in force)."""
+
+    def __init__(self, rig: KeptRig, loop: KeptLoop, submit: Callable[[Command], None],
+                 config: Callable[[], LoadedConfig], apply_config: Callable[[LoadedConfig], None],
+                 paths: StatePaths | None, notifier: Notifier | None = None,
                  config_overrides: dict[str, Any] | None = None) -> None:
-        self.daemon = daemon
+        self.rig = rig
+        self.supervisor = rig.supervisor
+        self.loop = loop
+        self.submit = submit
+        self.config = config
+        self.apply_config = apply_config
         self.paths = paths
         self.notifier = notifier if notifier is not None else Notifier(None)
         self.config_overrides = config_overrides
@@ -82,9 +141,9 @@ class ServiceKeeper:
         self._io_errors: set[str] = set()
         # reload
         self.reload_requested = False
-        self.started_cfg: LoadedConfig = daemon.cfg
-        self.gains_cfg: LoadedConfig = daemon.cfg
-        self.limits_cfg: LoadedConfig = daemon.cfg
+        self.started_cfg: LoadedConfig = config()
+        self.gains_cfg: LoadedConfig = self.started_cfg
+        self.limits_cfg: LoadedConfig = self.started_cfg
         self.pending: tuple[ReloadPlan, Any] | None = None
         self.deferred: ReloadPlan | None = None
         # changes that reopen the devices: `pamd run` can restart in place (a
@@ -113,7 +172,7 @@ class ServiceKeeper:
         if rec is None:
             return None
         text = rec.restored_reason()
-        self.daemon.ctrl.supervisor.restore_fault_reason(text)
+        self.supervisor.restore_fault_reason(text)
         self.restored = rec
         self.persisted = ("FAULT", text)
         self.earlier, self._plain = list(rec.earlier), rec.reason
@@ -144,7 +203,7 @@ class ServiceKeeper:
         self._raise_new_threads()
 
     def _raise_new_threads(self) -> None:
-        loop = self.daemon.loop
+        loop = self.loop
         now = time.monotonic()
         if loop.running and now >= self._next_rt_scan:
             self._next_rt_scan = now + RT_SCAN_S
@@ -157,9 +216,9 @@ class ServiceKeeper:
 
     # -- notify ----------------------------------------------------------------------------
     def status_text(self) -> str:
-        sup = self.daemon.ctrl.supervisor
+        sup = self.supervisor
         text = f"{sup.state.name}: {sup.reason}"
-        note = self.daemon.ctrl.reload_note
+        note = self.rig.reload_note
         if self.deferred is not None:
             text += " (config reload waiting for the rig to rest)"
         elif note is not None and note["outcome"] == "refused":
@@ -170,7 +229,7 @@ class ServiceKeeper:
 
     def _notify(self) -> None:
         n = self.notifier
-        loop = self.daemon.loop
+        loop = self.loop
         status = self.status_text()
         if not self.ready_sent and loop.running and loop.timing.ticks > 0:
             self.ready_sent = True
@@ -203,17 +262,17 @@ class ServiceKeeper:
     def tick_gap_s(self) -> float:
         """Seconds since the loop last completed a tick (NaN before the first)."""
         now = time.monotonic()  # read first: a late main thread never sees a false gap
-        return now - self.daemon.loop.last_tick_done
+        return now - self.loop.last_tick_done
 
     def loop_on_time(self) -> bool:
-        loop = self.daemon.loop
+        loop = self.loop
         return loop.running and self.tick_gap_s() < loop.stall_s
 
     def _send_stopping(self) -> None:
-        if self.stopping_sent or self.daemon.loop.handed_over:
+        if self.stopping_sent or self.loop.handed_over:
             return  # a restart in place is a reload, not a stop
         self.stopping_sent = True
-        reason = self.stop_reason or self.daemon.loop.stopped_reason or "shutting down"
+        reason = self.stop_reason or self.loop.stopped_reason or "shutting down"
         self.notifier.stopping(f"stopping ({reason}): ramping to the safe state and "
                                "finalising the recording")
 
@@ -233,7 +292,7 @@ class ServiceKeeper:
     def _persist_fault(self) -> None:
         if self.paths is None:
             return
-        sup = self.daemon.ctrl.supervisor
+        sup = self.supervisor
         state, reason = sup.state, sup.fault_reason
         if state in (State.FAULT, State.ESTOP):
             if reason is None:  # a reset half done in the loop's thread: next time
@@ -258,11 +317,11 @@ class ServiceKeeper:
     def _persist_stall(self) -> None:
         """A loop seen stalled is saved as a latched fault now: if it never ticks
         again, systemd kills pamd and the restarted daemon comes back latched."""
-        loop = self.daemon.loop
+        loop = self.loop
         if self.paths is None or loop.virtual or not loop.running or self._stall_persisted:
             return
         gap = self.tick_gap_s()
-        if not gap > loop.stall_fault_s or self.daemon.ctrl.supervisor.latched:
+        if not gap > loop.stall_fault_s or self.supervisor.latched:
             return
         reason = (f"loop stalled: no tick completed for at least {1000 * gap:.0f} ms (limit "
                   f"{1000 * loop.stall_fault_s:.0f} ms), seen by the main thread")
@@ -276,7 +335,7 @@ class ServiceKeeper:
         earlier = [*self.earlier, self._plain] if self.persisted is not None else self.earlier
         rec = FaultRecord(state, reason, now_iso(), tuple(earlier))
         if not self._io("save the latched fault", write_fault, self.paths.fault, rec,
-                        self.daemon.cfg):
+                        self.config()):
             return False
         self.earlier, self.persisted, self._plain = list(earlier), key, reason
         return True
@@ -284,8 +343,8 @@ class ServiceKeeper:
     def _save_safe_outputs(self) -> None:
         if self.paths is None:
             return
-        ctrl = self.daemon.ctrl
-        cfg = self.daemon.cfg
+        ctrl = self.rig
+        cfg = self.config()
         key = (cfg.sha256, *((m.safe_pressure_bar, m.load_kg) for m in ctrl.muscles))
         if key == self._safe_key:
             return
@@ -314,14 +373,14 @@ class ServiceKeeper:
                 log.exception("reload failed; still running on the config loaded before")
                 self._finish()
         elif (self.handover is not None and not self.handing_over and self.pending is None
-              and self.daemon.ctrl.supervisor.state == State.IDLE):
+              and self.supervisor.state == State.IDLE):
             self.handing_over = True
             self.notifier.reloading()
             log.warning("the rig is IDLE: the loop ends holding the outputs, then pamd "
                         "restarts in place (%s)", self.handover)
-            self.daemon.loop.request_handover(f"config reload: {self.handover}")
+            self.loop.request_handover(f"config reload: {self.handover}")
         elif (self.deferred is not None and self.pending is None
-              and self.daemon.ctrl.at_rest()):  # not during a stop's ramp (issue 23)
+              and self.rig.at_rest()):  # not during a stop's ramp (issue 23)
             plan = self._plan(self.deferred.cfg)
             log.info("the rig is at rest: applying the deferred reload (%s)",
                      ", ".join(plan.idle) or "nothing left")
@@ -335,7 +394,7 @@ class ServiceKeeper:
         self.notifier.ready(self.last_status)
 
     def _begin_reload(self) -> None:
-        path = self.daemon.cfg.path
+        path = self.config().path
         self.notifier.reloading()
         log.info("SIGHUP: reloading %s", path)
         try:
@@ -376,8 +435,8 @@ class ServiceKeeper:
         """Changes that reopen the devices: a restart in place once the rig is IDLE
         (`_reload`), or refused where this daemon cannot restart in place."""
         what = describe(plan.restart, self.started_cfg, plan.cfg)
-        if not self._restart_in_place or self.daemon.loop.virtual:
-            why = ("a virtual-clock run" if self.daemon.loop.virtual
+        if not self._restart_in_place or self.loop.virtual:
+            why = ("a virtual-clock run" if self.loop.virtual
                    else "this daemon is not `pamd run`")
             log.error("reload refused, still running on the config loaded before: %s "
                       "changed, which reopens the devices, and %s cannot restart in place: "
@@ -386,7 +445,7 @@ class ServiceKeeper:
             return
         self.deferred = None  # the restart applies everything
         self.handover = what
-        state = self.daemon.ctrl.supervisor.state
+        state = self.supervisor.state
         log.warning("reload: %s changed, which reopens the devices: pamd restarts in place "
                     "%s", what, "now (the rig is IDLE)" if state == State.IDLE else
                     f"once the rig is IDLE (it is {state.name}; `pamd cmd stop` ends what "
@@ -396,7 +455,7 @@ class ServiceKeeper:
 
     def _submit(self, plan: ReloadPlan) -> None:
         pending = PendingCommand()
-        self.daemon.mailbox.put(Command("reload", plan.args, pending.set, sender="SIGHUP"))
+        self.submit(Command("reload", plan.args, pending.set, sender="SIGHUP"))
         self.pending = (plan, pending)
 
     def _reload_verdict(self, plan: ReloadPlan, verdict: dict[str, Any]) -> None:
@@ -406,7 +465,7 @@ class ServiceKeeper:
             self._finish()
             return
         old_gains, self.gains_cfg = self.gains_cfg, plan.cfg
-        self.daemon.loop.set_stall_limits(plan.cfg)
+        self.loop.set_stall_limits(plan.cfg)
         if plan.now:
             log.warning("reload: applied at once: %s", describe(plan.now, old_gains, plan.cfg))
         if verdict.get("deferred"):
@@ -419,5 +478,5 @@ class ServiceKeeper:
                 log.warning("reload: applied while IDLE: %s",
                             describe(plan.idle, self.limits_cfg, plan.cfg))
             self.limits_cfg = plan.cfg
-            self.daemon.cfg = plan.cfg  # everything in it is now in force
+            self.apply_config(plan.cfg)  # everything in it is now in force
         self._finish()

@@ -158,13 +158,16 @@ def test_cmd_payloads_from_options() -> None:
 
 
 def test_status_snapshot_from_a_running_daemon(sim_daemon: Any) -> None:
-    from pamd.net.host.status import StatusBuilder
+    from pamd.net.host.status import StatusBuilder, recording_status
     from pamd.net.node.stats import TickStats
+    from pamd.net.status import MUSCLE_STATUS_FIELDS, STATUS_FIELDS
 
     d = sim_daemon(duration_s=None)
     assert d.wait_for_state((State.IDLE,)) == State.IDLE
-    st = StatusBuilder(d).build(0.0)
+    st = StatusBuilder(d.ctrl, d.loop, lambda: d.cfg, lambda: recording_status(d.io)).build(0.0)
     json.dumps(st, allow_nan=False)  # strict JSON
+    # every declared field, and only those (pamd.net.status declares them)
+    assert tuple(st) == STATUS_FIELDS and tuple(st["muscles"]["m1"]) == MUSCLE_STATUS_FIELDS
     assert st["rig_id"] == "sim" and st["config_sha256"] == d.cfg.sha256
     assert st["muscles"]["m1"]["references"]["length_referenced"] is True
     assert "setpoint" in st["verbs"] and "timing" not in st  # the io process adds it

@@ -30,14 +30,16 @@ class Rig:
         self.h = h
         self.path = Path(h.cfg.path)
         self.original = yaml.safe_load(self.path.read_text())
-        daemon = SimpleNamespace(
-            cfg=h.cfg, ctrl=h.ctrl,
-            mailbox=SimpleNamespace(put=h.queue.waiting.append),
-            loop=SimpleNamespace(virtual=True, running=False, stopped_reason="",
-                                 timing=SimpleNamespace(ticks=0),
-                                 set_stall_timeout=lambda s: None,
-                                 set_stall_limits=lambda cfg: None))
-        self.keeper = ServiceKeeper(daemon, None)
+        loop = SimpleNamespace(virtual=True, running=False, stopped_reason="",
+                               timing=SimpleNamespace(ticks=0),
+                               set_stall_timeout=lambda s: None,
+                               set_stall_limits=lambda cfg: None)
+        self.cfg = h.cfg
+        self.keeper = ServiceKeeper(h.ctrl, loop, h.queue.waiting.append,  # type: ignore[arg-type]
+                                    lambda: self.cfg, self._apply, None)
+
+    def _apply(self, cfg: Any) -> None:
+        self.cfg = cfg
 
     def sighup(self, max_pressure_bar: float) -> None:
         data = yaml.safe_load(self.path.read_text())

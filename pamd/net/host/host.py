@@ -29,7 +29,7 @@ from pamd.errors import CommandRefused
 from pamd.net.board import Board
 from pamd.net.host.collections import Collection, Collections
 from pamd.net.host.ports import DaemonView
-from pamd.net.host.status import StatusBuilder
+from pamd.net.host.status import StatusBuilder, recording_status
 from pamd.net.status import jsonsafe
 from pamd.verbs.schema import args_for_record
 
@@ -67,7 +67,9 @@ class NetHost:
         self.board = board
         self.period_s = 1.0 / status_hz
         self.collections = Collections(daemon, record_dir, board.control.put_blob)
-        self.builder = StatusBuilder(daemon, self.collections.describe)
+        self.builder = StatusBuilder(daemon.ctrl, daemon.loop, lambda: daemon.cfg,
+                                     lambda: recording_status(daemon.io),
+                                     self.collections.describe)
         self.last_t = -1e9
         self.pending: dict[int, _Pending] = {}
         self.outbox: list[bytes] = []  # replies waiting for room in the ring

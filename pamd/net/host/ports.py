@@ -15,8 +15,13 @@ class RecordingState(Protocol):
     """The daemon's io session as the telemetry host sees it (`pamd.io.session`)."""
 
     @property
+    def recording(self) -> bool:
+        """False: the io process serves telemetry alone."""
+    @property
     def failure(self) -> dict[str, Any] | None:
         """Why the recording stopped ({"reason": ...}), or None while it goes on."""
+    def files(self) -> list[str]:
+        """The recording's files so far."""
 
 
 class DaemonView(Protocol):

@@ -8,10 +8,20 @@ import getpass
 import os
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol, cast
 
+from pamd.config.loader import LoadedConfig
+from pamd.control.muscle import MuscleController
+from pamd.controller import RigController
 from pamd.experiment.sequencer import running_plan
-from pamd.net.status import jsonsafe
+from pamd.net.host.ports import RecordingState
+from pamd.net.status import (
+    ExperimentStatus,
+    MuscleStatus,
+    RecordingStatus,
+    Status,
+    jsonsafe,
+)
 from pamd.verbs.table import VERBS
 from pamd.version import __version__
 
@@ -23,52 +33,90 @@ def _user() -> str:
         return f"uid {os.getuid()}"
 
 
-class StatusBuilder:
-    """Builds the snapshot from a running `Daemon` (its main thread)."""
+def recording_status(io: RecordingState | None) -> RecordingStatus | None:
+    """What the status says of the recording (None: nothing records)."""
+    if io is None or not io.recording:
+        return None
+    return {"files": io.files(), "failure": io.failure}
 
-    def __init__(self, daemon: Any,
+
+class StatusLoop(Protocol):
+    """What the status says of the loop (`pamd.loop.Loop`)."""
+
+    virtual: bool
+
+    @property
+    def stop_requested(self) -> str | None: ...
+
+
+class StatusBuilder:
+    """Builds the status (`pamd.net.status.Status`, every field declared there) in the
+    daemon's main thread, in this one place. It gets what it reads, not the daemon:
+    the rig's controller, the loop, the config in force (`config`), the recording's
+    state (`recording`: None when nothing records) and the remote collection that
+    runs, if any (`collection`)."""
+
+    def __init__(self, ctrl: RigController, loop: StatusLoop,
+                 config: Callable[[], LoadedConfig],
+                 recording: Callable[[], RecordingStatus | None] = lambda: None,
                  collection: Callable[[], dict[str, Any] | None] = lambda: None) -> None:
-        """`collection`: the collection started over the network that runs, if any."""
-        self.d = daemon
-        self.t0 = time.monotonic()
+        self.ctrl = ctrl
+        self.loop = loop
+        self.config = config
+        self.recording = recording
         self.collection = collection
+        self.t0 = time.monotonic()
         self.user = _user()  # whose daemon it is (a status says so)
 
-    def build(self, now: float) -> dict[str, Any]:
-        d = self.d
-        ctrl, cfg = d.ctrl, d.cfg
-        st = ctrl.status()
-        deadman = getattr(ctrl, "deadman", {})
-        for m in ctrl.muscles:
-            ms = st["muscles"].get(m.name)
-            if ms is None:
-                continue
-            ref = m.reference
-            ms["references"] = {
-                "length_referenced": ref.length_referenced, "homed_at": ref.homed_at,
-                "tared_at": ref.tared_at, "length_offset_mm": ref.length_offset_mm,
-                "force_offset_n": ref.force_offset_n}
-            ff = m.length_control.ff
-            ms["model"] = ff.describe() if ff is not None else None
-            ms["adapt"] = m.adaptation.describe()  # online adaptation (pamd.control.adapt)
-            dm = deadman.get(m.name)
-            ms["deadman_left_s"] = None if dm is None else max(0.0, dm[0] - ctrl.now)
+    def build(self, now: float) -> Status:
+        ctrl, cfg, sup, chain = self.ctrl, self.config(), self.ctrl.supervisor, self.ctrl.chain
         seq = running_plan(ctrl)
-        experiment = None
+        experiment: ExperimentStatus | None = None
         if seq is not None:
             experiment = {"plan": seq.plan.name, "step": seq.index, "phase": seq.phase,
                           "outcome": seq.outcome or None,
                           "awaiting_operator": seq.awaiting_operator or None,
                           "collection": self.collection()}
-        io = getattr(d, "io", None)
-        rec = None
-        if io is not None and getattr(io, "recording", True):
-            rec = {"files": io.link.files(), "failure": io.failure}
-        st.update(
-            rig_id=cfg.rig.rig_id, faults=list(ctrl.supervisor.faults),
-            experiment=experiment, config_sha256=cfg.sha256,
-            config_path=os.path.abspath(cfg.path), clock="virtual" if d.loop.virtual else "real",
-            rate_hz=cfg.rig.loop.rate_hz, verbs=sorted(VERBS.names), recording=rec,
-            stopping=d.loop.stop_requested, pamd_version=__version__, pid=os.getpid(),
-            user=self.user, t_wall_s=time.time(), uptime_s=now - self.t0)
-        return jsonsafe(st)
+        st: Status = {
+            "rig_id": cfg.rig.rig_id, "state": sup.state.name, "reason": sup.reason,
+            "fault": sup.fault_reason, "faults": list(sup.faults), "reload": ctrl.reload_note,
+            "safety_chain": None if not chain.configured else {
+                "closed": None if chain.closed != chain.closed else bool(chain.closed),
+                "supply_bar": None if chain.supply_bar != chain.supply_bar
+                else chain.supply_bar,
+                "supply_out": chain.supply_out, "reset_by": chain.reset_by},
+            "muscles": {m.name: self._muscle(m) for m in ctrl.muscles},
+            "experiment": experiment, "config_sha256": cfg.sha256,
+            "config_path": os.path.abspath(cfg.path),
+            "clock": "virtual" if self.loop.virtual else "real",
+            "rate_hz": cfg.rig.loop.rate_hz, "verbs": sorted(VERBS.names),
+            "recording": self.recording(), "stopping": self.loop.stop_requested,
+            "pamd_version": __version__, "pid": os.getpid(), "user": self.user,
+            "t_wall_s": time.time(), "uptime_s": now - self.t0,
+        }
+        return cast(Status, jsonsafe(st))
+
+    def _muscle(self, m: MuscleController) -> MuscleStatus:
+        ref, env, pl = m.reference, m.envelope, m.plausibility
+        ff = m.length_control.ff
+        dm = self.ctrl.deadman.get(m.name)
+        return {
+            "pressure_bar": m.pressure_bar, "setpoint_bar": m.setpoint_bar,
+            "valve_cmd_bar": m.valve_cmd_bar, "force_n": m.force_n, "length_mm": m.length_mm,
+            "contraction": m.contraction, "load_kg": m.load_kg,
+            "safe_pressure_bar": m.safe_pressure_bar, "referenced": m.referenced,
+            "mode": m.mode.name.lower(), "safe_ramp": m.in_safe_ramp,
+            "trusted": {"pressure": pl.pressure_ok, "force": pl.force_ok,
+                        "length": pl.length_ok},
+            "profile": m.profile.spec.kind if m.profile else None,
+            "limits": {"max_pressure_bar": env.max_pressure_bar,
+                       "max_contraction": env.max_contraction,
+                       "max_pretension": env.max_pretension},
+            "references": {
+                "length_referenced": ref.length_referenced, "homed_at": ref.homed_at,
+                "tared_at": ref.tared_at, "length_offset_mm": ref.length_offset_mm,
+                "force_offset_n": ref.force_offset_n},
+            "model": ff.describe() if ff is not None else None,
+            "adapt": m.adaptation.describe(),  # online adaptation (pamd.control.adapt)
+            "deadman_left_s": None if dm is None else max(0.0, dm[0] - self.ctrl.now),
+        }
