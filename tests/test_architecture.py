@@ -17,6 +17,8 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+import tomllib  # tests run on Python >= 3.11
+
 ROOT = Path(__file__).resolve().parents[1]
 
 #: top to bottom, each named for what it is. A package imports only from the layers
@@ -196,3 +198,14 @@ def test_the_check_sees_an_upward_and_a_lazy_import(tmp_path: Path) -> None:
     assert layer["control"] < layer["config"] and layer["daemon"] < layer["config"]
     assert _package("pamd.net.node.intake") == "net.node" and _package("pamd.net.keys") == "net"
     assert layer["net.node"] < layer["net"] and layer["io"] < layer["net.node"]
+
+
+def test_every_package_of_the_tree_is_installed() -> None:
+    """`pip install .` ships the packages pyproject lists: a new package left out of the
+    list imports from the clone and fails from an installed pamd (tests/test_install.py
+    finds it too, slowly)."""
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+                 ["packages"])
+    tree = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "pamd").rglob(
+        "__init__.py") if "__pycache__" not in p.parts}
+    assert tree <= listed, f"not in pyproject's packages: {sorted(tree - listed)}"
