@@ -52,6 +52,9 @@ class Probe:
         self.columns = list(LOOP_COLUMNS) + [f"{m}.{c}" for m in muscles
                                              for c in MUSCLE_COLUMNS]
         self.rows = np.full((capacity, len(self.columns)), np.nan)
+        # the tick writes plain floats into the same memory: no numpy call per value
+        self._flat = memoryview(self.rows.reshape(-1))
+        self._width = len(self.columns)
         self.n = 0
         self.dropped = 0
         self.phase = 0  # 0: not armed (nothing taken); set by the commissioning thread
@@ -85,18 +88,18 @@ class Probe:
         if n >= len(self.rows):
             self.dropped += 1
             return True
-        row = self.rows[n]
-        row[0] = self.clock.now
-        row[1] = record[self._wake]
-        row[2] = record[self._state]
-        row[3] = phase
-        row[4] = record[self._segment]
+        flat, b = self._flat, n * self._width
+        flat[b] = self.clock.now
+        flat[b + 1] = record[self._wake]
+        flat[b + 2] = record[self._state]
+        flat[b + 3] = phase
+        flat[b + 4] = record[self._segment]
         c = self._copies
         for i in range(0, len(c), 2):
-            row[c[i + 1]] = record[c[i]]
+            flat[b + c[i + 1]] = record[c[i]]
         for stamps, jitters, index, col in self._stamps:
-            row[col] = stamps[index]
-            row[col + 1] = jitters[index]
+            flat[b + col] = stamps[index]
+            flat[b + col + 1] = jitters[index]
         self.n = n + 1
         return True
 
