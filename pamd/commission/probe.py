@@ -10,6 +10,7 @@ full array stops taking rows and counts them (`dropped`), it never blocks.
 
 from __future__ import annotations
 
+import math
 from array import array
 from collections.abc import Sequence
 from typing import Any, Protocol
@@ -51,10 +52,11 @@ class Probe:
         self.muscles = tuple(muscles)
         self.columns = list(LOOP_COLUMNS) + [f"{m}.{c}" for m in muscles
                                              for c in MUSCLE_COLUMNS]
-        self.rows = np.full((capacity, len(self.columns)), np.nan)
-        # the tick writes plain floats into the same memory: no numpy call per value
-        self._flat = memoryview(self.rows.reshape(-1))
         self._width = len(self.columns)
+        # the tick writes plain floats into a flat array; `rows` is numpy's view of it
+        # (no numpy call per value on the tick path)
+        self._flat = array("d", [math.nan]) * (capacity * self._width)
+        self.rows = np.frombuffer(self._flat, dtype=np.float64).reshape(capacity, self._width)
         self.n = 0
         self.dropped = 0
         self.phase = 0  # 0: not armed (nothing taken); set by the commissioning thread
