@@ -14,7 +14,10 @@ command changes nothing.
 from pamd.commands.apply import apply_command
 from pamd.commands.parse import parse_command, prepare_command
 from pamd.commands.registry import Verb, VerbRegistry
-from pamd.commands.schema import (
+from pamd.commands.schema import PreparedModelArgs, ReloadArgs
+from pamd.commands.verbs import REGISTRY
+from pamd.control.settings import MuscleSettings
+from pamd.verbs.schema import (
     LENGTH_PROFILE_FIELDS,
     CollectArgs,
     Command,
@@ -23,14 +26,10 @@ from pamd.commands.schema import (
     LoadArgs,
     ModeArgs,
     ModelArgs,
-    MuscleSettings,
     NoArgs,
-    PreparedModelArgs,
     ProfileArgs,
-    ReloadArgs,
     SetpointArgs,
 )
-from pamd.commands.verbs import REGISTRY
 
 __all__ = [
     "LENGTH_PROFILE_FIELDS", "REGISTRY", "CollectArgs", "Command", "EstopArgs", "HomeArgs",

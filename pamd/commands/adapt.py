@@ -9,10 +9,10 @@ from typing import Any
 
 from pamd.commands.guards import named_muscles
 from pamd.commands.registry import Verb
-from pamd.commands.schema import AdaptArgs
 from pamd.control.adapt import ACTIONS
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
+from pamd.verbs.schema import AdaptArgs
 from pamd.verbs.table import VERBS as SPECS
 
 

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from pamd.commands.schema import MAX_ERROR_CHARS, Command, cap_text
 from pamd.commands.verbs import REGISTRY
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
+from pamd.verbs.schema import MAX_ERROR_CHARS, Command, cap_text
 
 
 def apply_command(ctrl: RigController, cmd: Command) -> dict[str, Any]:

@@ -22,12 +22,13 @@ import time
 
 from pamd.commands.named_files import MODEL_MAX_BYTES, parse_time_limit_s, read_limited
 from pamd.commands.offload import run_isolated
-from pamd.commands.schema import MAX_ERROR_CHARS, Command, PreparedModelArgs, cap_text
+from pamd.commands.schema import PreparedModelArgs
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.model_check import SOURCES
 from pamd.errors import CommandRefused, ModelError
+from pamd.verbs.schema import MAX_ERROR_CHARS, Command, cap_text
 
 #: Largest share of the loop's period one evaluation of a model may take.
 MODEL_TICK_FRACTION = 0.25

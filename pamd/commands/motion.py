@@ -10,13 +10,7 @@ from typing import Any
 from pamd.commands.guards import can_move, named_muscles, need_reference
 from pamd.commands.model_file import prepare_model
 from pamd.commands.registry import Verb
-from pamd.commands.schema import (
-    LENGTH_PROFILE_FIELDS,
-    ModeArgs,
-    PreparedModelArgs,
-    ProfileArgs,
-    SetpointArgs,
-)
+from pamd.commands.schema import PreparedModelArgs
 from pamd.control.length_control import MODE_NAMES
 from pamd.control.length_targets import length_profile
 from pamd.control.muscle import MuscleController
@@ -25,6 +19,7 @@ from pamd.controller import RigController
 from pamd.errors import CommandRefused
 from pamd.profiles import Profile, ProfileSpec
 from pamd.tick import Mode, State
+from pamd.verbs.schema import LENGTH_PROFILE_FIELDS, ModeArgs, ProfileArgs, SetpointArgs
 from pamd.verbs.table import VERBS as SPECS
 
 

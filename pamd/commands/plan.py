@@ -7,10 +7,10 @@ from typing import Any
 
 from pamd.commands.guards import can_move, need_reference
 from pamd.commands.registry import Verb
-from pamd.commands.schema import CollectArgs, NoArgs
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import Sequencer, running_plan
+from pamd.verbs.schema import CollectArgs, NoArgs
 from pamd.verbs.table import VERBS as SPECS
 
 

@@ -9,13 +9,14 @@ from typing import Any
 
 from pamd.commands.guards import can_move, idle_or_hold, named_muscles
 from pamd.commands.registry import Verb
-from pamd.commands.schema import EstopArgs, HomeArgs, LoadArgs, NoArgs, ReloadArgs, TareArgs
+from pamd.commands.schema import ReloadArgs
 from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import running_plan
 from pamd.safety.references import check_home, tare_offset
 from pamd.tick import State
+from pamd.verbs.schema import EstopArgs, HomeArgs, LoadArgs, NoArgs, TareArgs
 from pamd.verbs.table import VERBS as SPECS
 from pamd.verbs.table import VerbSpec
 

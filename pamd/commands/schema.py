@@ -1,7 +1,7 @@
 """The loop side's own argument types: a `model` command once its file is compiled
 (`PreparedModelArgs`) and the internal `reload` (`ReloadArgs`), which carry live
 objects no client sends. The argument schemas a client's payload is parsed into are
-`pamd.verbs.schema` (re-exported here for the loop's handlers)."""
+`pamd.verbs.schema`."""
 
 from __future__ import annotations
 
@@ -9,33 +9,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from pamd.control.settings import MuscleSettings
-from pamd.verbs.schema import (
-    LENGTH_PROFILE_FIELDS,
-    MAX_ERROR_CHARS,
-    MAX_TEXT_CHARS,
-    MAX_WHO_CHARS,
-    AdaptArgs,
-    CollectArgs,
-    Command,
-    EstopArgs,
-    HomeArgs,
-    LoadArgs,
-    ModeArgs,
-    ModelArgs,
-    NoArgs,
-    ProfileArgs,
-    SetpointArgs,
-    TareArgs,
-    args_for_record,
-    cap_text,
-)
-
-__all__ = [
-    "LENGTH_PROFILE_FIELDS", "MAX_ERROR_CHARS", "MAX_TEXT_CHARS", "MAX_WHO_CHARS", "AdaptArgs",
-    "CollectArgs", "Command", "EstopArgs", "HomeArgs", "LoadArgs", "ModeArgs", "ModelArgs",
-    "NoArgs", "PreparedModelArgs", "ProfileArgs", "ReloadArgs", "SetpointArgs", "TareArgs",
-    "args_for_record", "cap_text",
-]
 
 
 class PreparedModelArgs:

@@ -11,9 +11,9 @@ from typing import Any
 from pamd.commands.guards import can_move, named_muscles
 from pamd.commands.motion import VERBS as MOTION_VERBS
 from pamd.commands.registry import Verb
-from pamd.commands.schema import SetpointArgs
 from pamd.controller import RigController
 from pamd.errors import CommandRefused
+from pamd.verbs.schema import SetpointArgs
 from pamd.verbs.table import VerbSpec
 
 

@@ -23,7 +23,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pamd.commands.pending import PendingCommand
-from pamd.commands.schema import Command
 from pamd.commands.tune import RelayArgs
 from pamd.config import LoadedConfig
 from pamd.control.relay import DONE
@@ -37,6 +36,7 @@ from pamd.control.tuning import (
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
 from pamd.tune.run import PRESSURE, TuneRefused, check_limits, tuning_config
+from pamd.verbs.schema import Command
 from pamd.view.recording import open_recording
 
 #: the largest relay amplitude allowed unless --relay-max-bar says otherwise (bar): the

@@ -23,8 +23,8 @@ from pamd.commands import (
     plan,
     rig,
 )
-from pamd.commands.schema import NoArgs
 from pamd.errors import CommandRefused
+from pamd.verbs.schema import NoArgs
 from pamd.verbs.table import VERBS, VerbSpec, VerbTable
 
 PUBLIC = ("setpoint", "profile", "mode", "model", "adapt", "hold", "resume", "stop", "estop",

@@ -11,7 +11,6 @@ import typing
 import pytest
 
 from pamd.cli.main import build_parser
-from pamd.commands.schema import ProfileArgs
 from pamd.errors import CommandRefused
 from pamd.experiment.plan import PlanProfile
 from pamd.profiles import (
@@ -23,6 +22,7 @@ from pamd.profiles import (
     kinds_text,
     shape_of,
 )
+from pamd.verbs.schema import ProfileArgs
 
 SLEW = 5.0
 PARAMS = {"min_bar": 1.0, "max_bar": 4.0, "freq_hz": 0.2, "cycles": 2, "to_bar": 3.5,
