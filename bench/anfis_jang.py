@@ -39,6 +39,7 @@ from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from anfis_mackey_glass import load_series  # noqa: E402  (this directory, run or imported)
 
 from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
 from pamd.models.anfis.training import WIDTH_STARTS  # noqa: E402
@@ -50,15 +51,8 @@ Data = tuple[np.ndarray, np.ndarray]
 
 
 def mackey_glass_series(path: Path = MACKEY_GLASS_CSV) -> np.ndarray:
-    """x indexed by integer t ('#' lines are comments; columns t, x)."""
-    lines = [ln.strip() for ln in path.read_text().splitlines()]
-    lines = [ln for ln in lines if ln and not ln.startswith("#")]
-    header = [h.strip() for h in lines[0].split(",")]
-    rows = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
-    t, x = rows[:, header.index("t")], rows[:, header.index("x")]
-    if not np.array_equal(t, np.arange(t.size)):
-        raise SystemExit(f"{path}: expected t = 0, 1, 2, ... in steps of 1")
-    return x
+    """x indexed by integer t (the reader of bench/anfis_mackey_glass.py)."""
+    return load_series(path)
 
 
 def mackey_glass(path: Path = MACKEY_GLASS_CSV) -> tuple[Data, Data]:
