@@ -45,7 +45,7 @@ from pamd.models.anfis.extraction import derived_inputs, extract  # noqa: E402
 from pamd.models.anfis.recordings import read_runs  # noqa: E402
 from pamd.models.anfis.samples import ExtractOptions, Run  # noqa: E402
 from pamd.models.anfis.splitting import split  # noqa: E402
-from pamd.muscle import SmoothForceFit, force_model, pressure_for_force  # noqa: E402
+from pamd.muscle_type import SmoothForceFit, force_model, pressure_for_force  # noqa: E402
 
 LOAD_SETS_KG = {"A (15, 30, 80 kg)": (15.0, 30.0, 80.0),
                 "B (every 10 kg but 50)": (10.0, 20.0, 30.0, 40.0, 60.0, 70.0, 80.0)}

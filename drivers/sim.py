@@ -42,7 +42,7 @@ from collections.abc import Sequence
 from pamd.drivers import Channel, Clock, Driver, DriverHealth
 
 from pamd.errors import DriverError
-from pamd.muscle import ForceModel, force_model
+from pamd.muscle_type import ForceModel, force_model
 from pamd.sim.faults import FAULT_KINDS, JUMP_DEFAULT, NOISE_DEFAULT, SimFault
 from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options

@@ -35,7 +35,7 @@ LAYERS: list[tuple[str, list[str]]] = [
     ("hardware, models, recordings",
      ["rig", "emulate", "models", "drivers", "record", "sim", "rt", "stalls", "calibration"]),
     ("verbs and config", ["verbs", "config", "schema", "plugins"]),
-    ("leaves", ["ipc", "metrics", "timing", "muscle", "tick", "profiles", "errors", "version",
+    ("leaves", ["ipc", "metrics", "timing", "muscle_type", "tick", "profiles", "errors", "version",
                 "declare", "data"]),
 ]
 MAX_LAYERS = 10

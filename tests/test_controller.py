@@ -9,7 +9,7 @@ import pytest
 from pamd.calibration import load_calibration
 from pamd.controller import RigController
 from pamd.loop import VirtualClock
-from pamd.muscle import GRAVITY_M_S2, force_model
+from pamd.muscle_type import GRAVITY_M_S2, force_model
 from pamd.rig import Rig
 from pamd.summary import SummarySink
 from pamd.tick import Flag, TickLayout

@@ -20,7 +20,7 @@ from typing import Any
 from pamd.config import load_config
 from pamd.daemon import Daemon
 from pamd.errors import CommandRefused, DriverError
-from pamd.safety.references import AT_REST_MM_S
+from pamd.safety.datums import AT_REST_MM_S
 from pamd.tick import State
 
 #: How long the rig may take to read its sensors and come to rest.

@@ -14,7 +14,7 @@ from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import running_plan
-from pamd.safety.references import check_home, tare_offset
+from pamd.safety.datums import check_home, tare_offset
 from pamd.tick import State
 from pamd.verbs.schema import EstopArgs, HomeArgs, LoadArgs, NoArgs, TareArgs
 from pamd.verbs.table import VERBS as SPECS

@@ -25,7 +25,7 @@ from __future__ import annotations
 from pamd.commission.measure import Measurements, Step
 from pamd.commission.moves import CommissionRefused, Moves
 from pamd.config import LoadedConfig
-from pamd.muscle import GRAVITY_M_S2, equilibrium_contraction, force_model
+from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction, force_model
 
 FORCE_TOLERANCE = 0.1
 PRESSURE_GAIN = (0.5, 2.0)

@@ -22,7 +22,7 @@ from pamd.config.request_timeouts import check_request_timeouts
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import MuscleConfig, RigConfig, SignalConfig
 from pamd.errors import DriverError
-from pamd.muscle import MUSCLE_TYPES
+from pamd.muscle_type import MUSCLE_TYPES
 from pamd.plugins import load_driver_entry
 from pamd.schema.engine import Context, build_dataclass, describe, line_of
 from pamd.schema.yamlload import load_yaml_text, read_text

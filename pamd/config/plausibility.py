@@ -21,7 +21,7 @@ from collections.abc import Mapping
 from typing import Any, Protocol
 
 from pamd.config.schema import RigConfig
-from pamd.muscle import MUSCLE_TYPES
+from pamd.muscle_type import MUSCLE_TYPES
 from pamd.schema.engine import Context, line_of
 
 #: A healthy load cell under a hanging load reads the weight give or take friction and

@@ -1,7 +1,7 @@
 """The rig configuration schema: every key, its type, unit, bounds and default.
 
 The docs in `spec(...)` are the config reference (`docs/config-reference.md` is
-generated from them by `python -m pamd.config.reference`).
+generated from them by `python -m pamd.config.docs`).
 """
 
 from __future__ import annotations

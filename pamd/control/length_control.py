@@ -52,7 +52,7 @@ from typing import TYPE_CHECKING
 from pamd.control.ilc import Ilc
 from pamd.control.pid import Pid
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
-from pamd.muscle import GRAVITY_M_S2
+from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfilePoint
 from pamd.tick import Flag, Mode, State
 

@@ -13,7 +13,7 @@ from typing import Any
 
 from pamd.config.loader import LoadedConfig
 from pamd.errors import CommandRefused
-from pamd.muscle import equilibrium_contraction
+from pamd.muscle_type import equilibrium_contraction
 from pamd.profiles import Profile, ProfileSpec, shape_of
 from pamd.safety.envelope import MuscleEnvelope
 

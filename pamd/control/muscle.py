@@ -4,7 +4,7 @@ inputs     read its signals, their age and plausibility (`pamd.control.inputs`)
 limits     hard limits now; later the guards' bounds and the tracking check
            (`pamd.safety.limits`)
 reference  the pressure setpoint by mode: a pressure profile, length control or the
-           safe ramp (`pamd.control.reference`, `pamd.control.length_control`)
+           safe ramp (`pamd.control.setpoint`, `pamd.control.length_control`)
 pressure   the PID pressure loop + rate feedforward (`pamd.control.pressure_loop`)
 limiter    the supervisor's invariants, last (`pamd.safety.limiter`)
 actuation  the command to the valves (`pamd.control.actuation`); the tick record
@@ -38,7 +38,7 @@ from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
 from pamd.control.muscle_view import MuscleView
 from pamd.control.pressure_loop import PressureLoop
-from pamd.control.reference import ProfileFollower, SafeRamp
+from pamd.control.setpoint import ProfileFollower, SafeRamp
 from pamd.control.settings import MuscleSettings
 from pamd.profiles import Profile
 from pamd.rig import MuscleSignals
@@ -260,11 +260,11 @@ class MuscleController(MuscleView):
     # -- references (loop thread) --------------------------------------------------------
     def home(self, length_mm: float, raw_length_mm: float, at: str) -> float:
         """Reference the length (`Inputs.home`; the caller has run
-        `pamd.safety.references.check_home`). Returns the offset."""
+        `pamd.safety.datums.check_home`). Returns the offset."""
         return self.inputs.home(length_mm, raw_length_mm, at)
 
     def tare(self, force_offset_n: float, at: str) -> None:
-        """The force reference (checked by `pamd.safety.references.tare_offset`)."""
+        """The force reference (checked by `pamd.safety.datums.tare_offset`)."""
         self.inputs.tare(force_offset_n, at)
 
     # -- motion (loop thread) ------------------------------------------------------------

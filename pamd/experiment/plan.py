@@ -15,7 +15,7 @@ from typing import Any
 from pamd.config.loader import LoadedConfig
 from pamd.config.names import NAME_RE
 from pamd.errors import CommandRefused
-from pamd.muscle import MUSCLE_TYPES, equilibrium_contraction, force_model
+from pamd.muscle_type import MUSCLE_TYPES, equilibrium_contraction, force_model
 from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
 from pamd.schema.engine import Context, build_dataclass, spec
 from pamd.schema.yamlload import load_yaml_text, read_text

@@ -22,7 +22,7 @@ from typing import Any, cast
 from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.experiment.plan import Plan, PlanStep
-from pamd.muscle import GRAVITY_M_S2
+from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfileSpec
 from pamd.tick import State
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
 from pamd.experiment.plan import Plan, profile_range
-from pamd.muscle import equilibrium_contraction, force_model
+from pamd.muscle_type import equilibrium_contraction, force_model
 from pamd.profiles import Profile
 from pamd.safety import safe_pressure_bar
 

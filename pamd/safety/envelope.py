@@ -20,7 +20,7 @@ from typing import Any
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import MuscleConfig
-from pamd.muscle import MUSCLE_TYPES, ForceModel, MuscleType, force_model
+from pamd.muscle_type import MUSCLE_TYPES, ForceModel, MuscleType, force_model
 from pamd.safety import safe_pressure_bar
 from pamd.safety.length_rate import LengthRate, derive_length_rate
 
@@ -31,7 +31,7 @@ class MuscleEnvelope:
     names and units)."""
 
     name: str
-    muscle_type: str  # `muscles[].type`: the ratings (`pamd.muscle.MUSCLE_TYPES`)
+    muscle_type: str  # `muscles[].type`: the ratings (`pamd.muscle_type.MUSCLE_TYPES`)
     nominal_length_mm: float
     force_model: ForceModel
     # limits (`pamd.config.loader.MuscleLimitsResolved`)
@@ -54,7 +54,7 @@ class MuscleEnvelope:
     # the safe pressure's inputs (with the load)
     stretch_margin: float
     safe_pressure_margin_bar: float
-    # reference checks (`pamd.safety.references`)
+    # reference checks (`pamd.safety.datums`)
     home_tolerance: float
     tare_tolerance_n: float
 

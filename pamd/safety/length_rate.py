@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from pamd.muscle import ForceModel, equilibrium_contraction
+from pamd.muscle_type import ForceModel, equilibrium_contraction
 
 #: pressure grid of the stiffness search (bar): fine against the force map's 0.5 bar
 #: levels, cheap (config time only)

@@ -78,7 +78,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from pamd.muscle import GRAVITY_M_S2, ForceModel
+from pamd.muscle_type import GRAVITY_M_S2, ForceModel
 
 #: A measured force change below this share of the model's change at a fixed
 #: length means the muscle moved (so a length that did not change is frozen).

@@ -13,7 +13,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from pamd.muscle import GRAVITY_M_S2, ForceModel, pressure_for_force
+from pamd.muscle_type import GRAVITY_M_S2, ForceModel, pressure_for_force
 from pamd.tick import State
 
 

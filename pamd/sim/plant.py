@@ -6,7 +6,7 @@ x = 1 - L / L0): the load hangs from the muscle, so
     m dv/dt = W - T,   T = s F(p, x) + Ff + c v
 
 with m the load plus a small moving mass, W the load's weight, F the static force
-model (`pamd.muscle.force_model`) times the force scale `s`, c a viscous damper
+model (`pamd.muscle_type.force_model`) times the force scale `s`, c a viscous damper
 (larger while contracting) and Ff a Dahl friction state in the same coordinate,
 
     dFf = (Fc sign(dL) - Ff) |dL| / delta,   Fc = mu_p p + mu_T max(s F(p, x), 0).
@@ -50,7 +50,7 @@ import math
 import random
 from collections.abc import Callable
 
-from pamd.muscle import GRAVITY_M_S2, ForceModel, equilibrium_contraction, force_model
+from pamd.muscle_type import GRAVITY_M_S2, ForceModel, equilibrium_contraction, force_model
 from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions
 from pamd.sim.pneumatics import StiffSupply, SupplyLine

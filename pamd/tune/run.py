@@ -33,7 +33,7 @@ from pamd.experiment.plan import Plan, load_plan
 from pamd.experiment.sequencer import started_plan
 from pamd.experiment.timeline import timeline
 from pamd.io.session import RecordingRequest
-from pamd.muscle import force_model
+from pamd.muscle_type import force_model
 from pamd.safety import safe_pressure_bar
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.tune.steps import Step, steps_in

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pamd.models.anfis import TrainingOptions, fit, save
-from pamd.muscle import force_model, pressure_for_force
+from pamd.muscle_type import force_model, pressure_for_force
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ from pamd.control.length_control import LengthControl, preview_s_of
 from pamd.harness import Harness
 from pamd.models.anfis import TrainingOptions, fit
 from pamd.models.contract import InverseModel
-from pamd.muscle import GRAVITY_M_S2
+from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfilePoint, ProfileSpec
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.tick import Mode, State

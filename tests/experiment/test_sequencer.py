@@ -12,7 +12,7 @@ from pamd.daemon import _PlanArgs
 from pamd.experiment.plan import parse_plan
 from pamd.experiment.sequencer import running_plan
 from pamd.harness import Harness
-from pamd.muscle import GRAVITY_M_S2
+from pamd.muscle_type import GRAVITY_M_S2
 
 PLAN = """name: short
 muscle: m1

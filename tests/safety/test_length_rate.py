@@ -12,7 +12,7 @@ import pytest
 from pamd.config import LoadedConfig
 from pamd.control.length_targets import check_length_profile_config
 from pamd.errors import CommandRefused
-from pamd.muscle import equilibrium_contraction
+from pamd.muscle_type import equilibrium_contraction
 from pamd.safety.envelope import MuscleEnvelope
 
 

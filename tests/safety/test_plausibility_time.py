@@ -12,7 +12,7 @@ import pytest
 from pamd.drivers.device import ArrivalWindow
 
 from pamd.config.safety_schema import PlausibilityConfig
-from pamd.muscle import force_model
+from pamd.muscle_type import force_model
 from pamd.safety.plausibility import Plausibility
 from pamd.sim.sensors import SampledSensor
 

@@ -12,7 +12,7 @@ from pamd.drivers import load_driver_class
 from pamd.drivers.sim import SimDriver
 
 from pamd.errors import DriverError
-from pamd.muscle import equilibrium_contraction, force_model
+from pamd.muscle_type import equilibrium_contraction, force_model
 from pamd.sim.options import SimMuscleOptions, SimOptions
 
 # --- protocol and options -------------------------------------------------------

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from pamd.muscle import equilibrium_contraction, force_model
+from pamd.muscle_type import equilibrium_contraction, force_model
 
 # Datasheet force at zero contraction, 0..6 bar [data].
 ZERO_CONTRACTION_FORCE_N = (0.0, 253.0, 518.0, 771.0, 1012.0, 1264.0, 1515.0)

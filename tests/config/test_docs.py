@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pamd.config.reference import generate
+from pamd.config.docs import generate
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "config-reference.md"
 
 
 def test_config_reference_is_current() -> None:
     assert DOC.read_text() == generate(), (
-        "docs/config-reference.md is stale: run `python -m pamd.config.reference > "
+        "docs/config-reference.md is stale: run `python -m pamd.config.docs > "
         "docs/config-reference.md`")
 
 

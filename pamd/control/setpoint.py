@@ -1,4 +1,4 @@
-"""The reference stage of one muscle's tick: the pressure setpoint, chosen by mode.
+"""The setpoint stage of one muscle's tick: the pressure setpoint, chosen by mode.
 
 * `SafeRamp`: in a safe state (FAULT, ESTOP, a safe ramp after a stop, a deadman or
   a start-up outside the limits) the setpoint ramps to the safe pressure at the slew

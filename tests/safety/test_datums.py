@@ -13,7 +13,7 @@ import yaml
 
 from pamd.calibration import load_calibration
 from pamd.cli.main import main
-from pamd.muscle import GRAVITY_M_S2, equilibrium_contraction, force_model
+from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction, force_model
 
 from .conftest import SafetyRig
 

@@ -1,8 +1,8 @@
-"""References that cannot lie: the checks `home` and `tare` pass before they change
-a muscle's length or force reference (`pamd.commands.rig`, and offline `pamd home`
+"""Datums that cannot lie: the checks `home` and `tare` pass before they change
+a muscle's length datum or force zero (`pamd.commands.rig`, and offline `pamd home`
 / `pamd tare`).
 
-A wrong length reference makes the contraction limits guard the wrong length (a
+A wrong length datum makes the contraction limits guard the wrong length (a
 muscle "at its contraction limit" that was never pressurised, or one stretched
 past its pretension limit that looks relaxed); a tare under a load makes the load
 cell read zero with 80 kg hanging. So:
@@ -24,13 +24,13 @@ from typing import Protocol
 
 from pamd.calibration import MuscleReference
 from pamd.errors import CommandRefused
-from pamd.muscle import GRAVITY_M_S2, equilibrium_contraction
+from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction
 from pamd.rig import MuscleSignals
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.safety.plausibility import Plausibility
 
 
-class ReferencedMuscle(Protocol):
+class DatumMuscle(Protocol):
     """What the rules read of a muscle (`pamd.control.muscle.MuscleController`)."""
 
     name: str
@@ -57,13 +57,13 @@ AT_REST_MM_S = 2.0
 LOAD_AGREES_KG = 0.5
 
 
-def _at_rest(m: ReferencedMuscle, verb: str) -> None:
+def _at_rest(m: DatumMuscle, verb: str) -> None:
     if abs(m.velocity_mm_s) > AT_REST_MM_S:
         raise CommandRefused(f"{m.name}: moving at {m.velocity_mm_s:.1f} mm/s; {verb} once "
                              "the load rests")
 
 
-def expected_length_mm(m: ReferencedMuscle) -> tuple[float, float]:
+def expected_length_mm(m: DatumMuscle) -> tuple[float, float]:
     """The length the muscle should have now (nominal length, its load, the measured
     pressure), and the contraction that gives it."""
     x = equilibrium_contraction(m.envelope.force_model, max(m.pressure_bar, 0.0), m.load_kg,
@@ -71,7 +71,7 @@ def expected_length_mm(m: ReferencedMuscle) -> tuple[float, float]:
     return m.envelope.length_mm(x), x
 
 
-def check_home(m: ReferencedMuscle, length_mm: float) -> None:
+def check_home(m: DatumMuscle, length_mm: float) -> None:
     """Refuse (CommandRefused) a `home` that would make the length reference lie."""
     b = m.signals.length
     if m.length_absolute:
@@ -98,7 +98,7 @@ def check_home(m: ReferencedMuscle, length_mm: float) -> None:
             "or correct nominal_length_mm or load_kg")
 
 
-def tare_offset(m: ReferencedMuscle, load_kg: float | None) -> float:
+def tare_offset(m: DatumMuscle, load_kg: float | None) -> float:
     """The new force offset of a `tare` (against `load_kg` hanging, default none), or
     CommandRefused if it would make the force reference lie."""
     b = m.signals.force

@@ -1,5 +1,5 @@
 """Generates the config reference (docs/config-reference.md) from the schema, so the
-reference cannot drift from the code: `python -m pamd.config.reference > FILE`.
+reference cannot drift from the code: `python -m pamd.config.docs > FILE`.
 A test checks the committed file is current."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pamd.schema.engine import _type_name
 
 HEADER = """# pamd config reference
 
-Generated from the schema by `python -m pamd.config.reference`; do not edit by hand.
+Generated from the schema by `python -m pamd.config.docs`; do not edit by hand.
 Every key, its type, unit and default. Unknown keys are errors. Units are in the key
 names. `pamd check-config FILE` validates a file and names file, line and key of
 every problem.
