@@ -44,7 +44,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from pamd.drivers import Channel, serial_port_claim
-from pamd.drivers.device import Backoff, ThreadedDriver
+from pamd.drivers.device import Backoff, DeviceHealth, ThreadedDriver
 from pamd.drivers.modbus_map import (
     MAX_WRITE_REGISTERS,
     Block,
@@ -234,7 +234,7 @@ class ModbusDriver(ThreadedDriver):
         except Exception:  # noqa: BLE001 - any failure to open is "not connected"
             ok = False
         if not ok:
-            client.close()
+            client.close()  # type: ignore[no-untyped-call]  # pymodbus: close() unannotated
             return False
         self._client = client
         self.connected = True
@@ -458,7 +458,7 @@ class ModbusDriver(ThreadedDriver):
                               f"({what})", names)
         return rr
 
-    def health(self):  # noqa: ANN201 - DeviceHealth
+    def health(self) -> DeviceHealth:
         h = super().health()
         h.counters["cycles"] = self.cycles
         return h

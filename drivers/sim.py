@@ -382,7 +382,8 @@ class SimDriver(Driver):
             return 0.0
         if self.supply_line is not None:
             return self.supply_line.pressure_bar
-        return max(m.supply_bar for m in self.options.muscles)
+        supply_bar: float = max(m.supply_bar for m in self.options.muscles)
+        return supply_bar
 
     def _open_chain(self, by: str) -> None:
         """The safety chain opens: its input reads 0 and it cuts every muscle's supply."""

@@ -50,7 +50,7 @@ class TickLayout:
             len(LOOP_FIELDS) + i * len(MUSCLE_FIELDS) for i in range(len(self.muscles))
         ]
 
-    def new_record(self) -> array:
+    def new_record(self) -> array[float]:
         return array("d", bytes(8 * self.size))
 
     def muscle_index(self, muscle: int, name: str) -> int:
@@ -107,7 +107,7 @@ M_ADAPT_STATE = muscle_offset("adapt_state")
 class Sink(Protocol):
     """Where tick records and events go. `put` must not block in real time."""
 
-    def put(self, record: array) -> bool:
+    def put(self, record: array[float]) -> bool:
         """Take one tick record; False if it had to be dropped."""
 
     def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:

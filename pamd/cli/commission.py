@@ -58,7 +58,7 @@ config, 4 refused (a wrong sign or scale, a silent or constant signal, moves out
 the limits, a threshold that cannot be proposed), 8 the rig is in use."""
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "commission", help="measure a rig's signals, check their signs, propose thresholds",
         formatter_class=argparse.RawDescriptionHelpFormatter, description=DESCRIPTION,

@@ -33,7 +33,7 @@ METRIC_ROWS: tuple[tuple[str, str, str], ...] = (
 MODEL_SUFFIX = ".json"
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "evaluate", help="metrics and plots of inverse models on recorded data",
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -18,6 +18,7 @@ import sys
 import textwrap
 import time
 import typing
+from enum import IntEnum
 from typing import Any
 
 from pamd.errors import CommandRefused
@@ -59,7 +60,7 @@ def add_client_args(p: argparse.ArgumentParser, suppress: bool = False) -> None:
                    "$PAMD_TOKEN_DIR, $XDG_RUNTIME_DIR/pamd, /tmp/pamd-<uid>, /run/pamd)")
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     s = sub.add_parser("status", help="ask a running daemon how it is (over Zenoh)",
                        description="The daemon's status: state, faults, limits, references, "
                        "timing, profile and model, config hash.")
@@ -218,7 +219,8 @@ def build_payload(verb: str, rest: list[str], args: argparse.Namespace) -> str |
     if ns.json is not None:
         if ns.arg or any(k.startswith("field_") and v is not None for k, v in vars(ns).items()):
             raise SystemExit("pamd cmd: --json is the whole payload; give no other fields")
-        return ns.json
+        text: str = ns.json  # --json PAYLOAD
+        return text
     payload: dict[str, Any] = {k[len("field_"):]: v for k, v in vars(ns).items()
                                if k.startswith("field_") and v is not None}
     for item in ns.arg:
@@ -254,7 +256,7 @@ COLUMNS = ("muscle", "state", "p bar", "sp bar", "valve", "force N", "len mm", "
            "mode", "flags", "puts/s", "samples/s", "dropped")
 
 
-def _name(enum: Any, v: Any) -> str:
+def _name(enum: type[IntEnum], v: Any) -> str:  # v: a value of the JSON state
     try:
         return enum(int(v)).name
     except (TypeError, ValueError):

@@ -71,7 +71,7 @@ def kind_options_given(args: argparse.Namespace, kind: Kind[Any]) -> dict[str, A
     return given
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "train", help="train an inverse model (ANFIS or another kind) from recorded runs",
         formatter_class=argparse.RawDescriptionHelpFormatter,

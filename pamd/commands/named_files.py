@@ -161,12 +161,12 @@ def _shown(value: object) -> str:
     return text if len(text) <= 80 else text[:77] + "..."
 
 
-def configured_dir(cfg: object, key: str) -> str | None:
+def configured_dir(cfg: LoadedConfig, key: str) -> str | None:
     """`telemetry.<key>` of a loaded config, absolute (relative to the config file)."""
-    rel = getattr(cfg.rig.telemetry, key, None)  # type: ignore[attr-defined]
+    rel: str | None = getattr(cfg.rig.telemetry, key, None)  # plans_dir, models_dir
     if not rel:
         return None
-    base = os.path.dirname(os.path.abspath(cfg.path))  # type: ignore[attr-defined]
+    base = os.path.dirname(os.path.abspath(cfg.path))
     return os.path.join(base, os.path.expanduser(rel))
 
 

@@ -124,7 +124,8 @@ def run_isolated(fn: Callable[..., T], *args: Any, time_limit_s: float, what: st
         if isinstance(value, BaseException):
             raise value
         raise CommandRefused(f"{what}: {value}")
-    return value
+    result: T = value  # what fn returned, unpickled (the child ran fn: its type is T)
+    return result
 
 
 class Preparer:

@@ -82,7 +82,7 @@ class Probe:
         return self.rows[:self.n, self.columns.index(name)]
 
     # -- the sink (tick path) -----------------------------------------------------------
-    def put(self, record: array) -> bool:
+    def put(self, record: array[float]) -> bool:
         phase = self.phase
         if not phase:
             return True

@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import canopen
 from canopen import objectdictionary as od
-from canopen.sdo import SdoArray, SdoRecord, SdoVariable
+from canopen.sdo.base import SdoArray, SdoRecord, SdoVariable
 
 from pamd.emulate.lateness import Lateness
 

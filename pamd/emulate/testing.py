@@ -69,7 +69,7 @@ class AioThread:
 def emulated_dict(tmp: Path, port: int, can: str = "serial", **changes: Any) -> dict[str, Any]:
     """config/rig-emulated.yaml on `port`, with pty paths under `tmp` and, for
     can='virtual', the CAN bus in this process; real-time settings off."""
-    d = yaml.safe_load(RIG_EMULATED.read_text())
+    d: dict[str, Any] = yaml.safe_load(RIG_EMULATED.read_text())  # the YAML file's mapping
     d["loop"]["realtime"] = {"enabled": False}
     d["telemetry"] = {"enabled": False}  # tests and benches keep off the default port
     for drv in d["drivers"]:

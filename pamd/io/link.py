@@ -162,7 +162,7 @@ class RingSink:
         self.notify = notify
         self.active = True
         self.failure: str | None = None
-        self._rec: array | None = None
+        self._rec: array[float] | None = None
         self._mv: memoryview | None = None
         self._hb = -1
         self._quiet = 0
@@ -195,7 +195,7 @@ class RingSink:
         self.block.set_t_start(self.t_start())
 
     # -- the tick path ----------------------------------------------------------------
-    def put(self, record: array) -> bool:
+    def put(self, record: array[float]) -> bool:
         if not self.active:
             return True
         u = self.u64
@@ -390,7 +390,7 @@ class MultiMailbox:
 
     def poll(self) -> Command | None:
         for b in self.boxes:
-            cmd = b.poll()
+            cmd: Command | None = b.poll()  # tick.Mailbox says Any: it cannot name Command
             if cmd is not None:
                 return cmd
         return None

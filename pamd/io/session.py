@@ -49,7 +49,7 @@ class RecordingRequest:
     run_name: str | None = None
     model_path: str | None = None  # the ANFIS model in use, attached to the file
     profile: dict[str, Any] | None = None  # the profile or experiment step, as metadata
-    script: tuple[tuple[int, str, dict], ...] = ()  # io-side commands (tick, verb, payload)
+    script: tuple[tuple[int, str, dict[str, Any]], ...] = ()  # io-side (tick, verb, payload)
     fsize_limit_bytes: int | None = None  # tests: make writes fail for real
     segments: tuple[dict[str, Any], ...] = ()  # experiment steps: one file each
     max_mb: float | None = None  # the run's files stop taking ticks past this size

@@ -21,12 +21,14 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Iterable
-from typing import Any, NoReturn, SupportsFloat, TypeGuard
+from typing import Any, NoReturn, SupportsFloat, TypeGuard, TypeVar, overload
 
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel, Variable
 
 FORMAT = "pamd-model"
+
+T = TypeVar("T")
 
 
 def floats(values: Iterable[SupportsFloat]) -> list[float]:
@@ -76,7 +78,12 @@ def mapping(doc: object, where: str) -> dict[str, Any]:
     return doc
 
 
-def field(doc: object, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+@overload
+def field(doc: object, key: str, kind: type[T], where: str) -> T: ...
+@overload
+def field(doc: object, key: str, kind: tuple[type[int], type[float]], where: str) -> float: ...
+def field(doc: object, key: str, kind: type | tuple[type, ...], where: str) -> object:
+    """`doc[key]`, checked to be of `kind` (a bool is not a number)."""
     doc = mapping(doc, where)
     if key not in doc:
         raise ModelError(f"missing field {where + '.' if where else ''}{key}")

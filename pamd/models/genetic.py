@@ -57,14 +57,16 @@ def decode(bits: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """(pop, n * BITS) bits -> (pop, n) parameters on [lo, hi]."""
     weights = 1 << np.arange(BITS - 1, -1, -1)
     ints = bits.reshape(bits.shape[0], -1, BITS) @ weights
-    return lo + (hi - lo) * ints / _LEVELS
+    out: np.ndarray = lo + (hi - lo) * ints / _LEVELS
+    return out
 
 
 def encode(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """(pop, n) parameters -> (pop, n * BITS) bits (nearest level, held to the box)."""
     ints = np.rint(np.clip((x - lo) / (hi - lo), 0.0, 1.0) * _LEVELS).astype(np.int64)
     bits = (ints[..., None] >> np.arange(BITS - 1, -1, -1)) & 1
-    return bits.reshape(x.shape[0], -1).astype(np.uint8)
+    out: np.ndarray = bits.reshape(x.shape[0], -1).astype(np.uint8)
+    return out
 
 
 def minimise(cost: Callable[[np.ndarray], float], lo: np.ndarray, hi: np.ndarray,
@@ -124,7 +126,7 @@ def _roulette(costs: np.ndarray, rng: np.random.Generator, k: int) -> np.ndarray
 
 
 def _crossover(pop: np.ndarray, rate: float, rng: np.random.Generator) -> np.ndarray:
-    out = pop.copy()
+    out: np.ndarray = pop.copy()
     n_bits = pop.shape[1]
     for a in range(0, pop.shape[0] - 1, 2):
         if rng.random() < rate:

@@ -109,7 +109,8 @@ class StaticForceModel:
         """The force model itself: F (N) at pressure p (bar) and contraction (fraction)."""
         A, B = self.gain_offset(self.coefficients,
                                 100.0 * np.asarray(contraction, dtype=np.float64))
-        return A * np.asarray(p_bar, dtype=np.float64) + B
+        out: np.ndarray = A * np.asarray(p_bar, dtype=np.float64) + B
+        return out
 
     @overload
     def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False

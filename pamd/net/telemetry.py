@@ -78,7 +78,8 @@ class StateBatcher:
 
 def decode(payload: bytes) -> dict[str, Any]:
     """A state put as a dict of columns (clients, tests)."""
-    return json.loads(payload)
+    state: dict[str, Any] = json.loads(payload)
+    return state
 
 
 def rows(msg: dict[str, Any]) -> list[dict[str, Any]]:

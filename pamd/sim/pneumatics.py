@@ -161,7 +161,8 @@ class Chamber:
         ratio = self.volume_m3 / new_volume_m3
         if ratio == 1.0:
             return self.pressure_pa
-        return self.pressure_pa * ratio ** self.polytropic
+        pressure_pa: float = self.pressure_pa * ratio ** self.polytropic
+        return pressure_pa
 
     def pressure_per_kg(self, volume_m3: float) -> float:
         """Pressure rise (Pa) per kg of air let in at the reference temperature."""

@@ -13,8 +13,9 @@ bell) membership functions, trained by Jang's hybrid learning, written on numpy.
 
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.compiled import CompiledAnfis
-from pamd.models.anfis.model import AnfisModel, Variable, init_model
-from pamd.models.anfis.modelfile import FORMAT, VERSION, dumps, load, loads, save
+from pamd.models.anfis.model import AnfisModel, init_model
+from pamd.models.anfis.modelfile import dumps, load, loads, save
+from pamd.models.anfis.serialize import FORMAT, VERSION
 from pamd.models.anfis.training import (
     StepSizeState,
     TrainingOptions,
@@ -25,6 +26,7 @@ from pamd.models.anfis.training import (
     train,
     update_step_size,
 )
+from pamd.models.contract import Variable
 
 __all__ = [
     "FORMAT",

@@ -85,7 +85,7 @@ class CompiledAnfis:
         # The last call's regressor parts (written by the closure, no allocation).
         self.last_w: list[float] = [math.nan] * r
         self.last_den: float = math.nan
-        self.last_s: array = array("d", [math.nan] * d)
+        self.last_s: array[float] = array("d", [math.nan] * d)
         self._wbar = np.zeros(r)
         self._phi = np.zeros((d + 1) * r)
         self._phi_rows = tuple(self._phi[i * r:(i + 1) * r] for i in range(d + 1))
@@ -168,7 +168,8 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
         for si, pi in zip(s, p, strict=True):
             num += si * sum(map(mul, w, pi))
         flags.last_w, flags.last_den = w, den
-        return num / den
+        out: float = num / den
+        return out
 
     def shifted(s: list[float]) -> list[list[float]]:
         mus = []
@@ -207,9 +208,10 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
             w = [a * b for a in m1 for b in m2]
             flags.last_w = w
             flags.last_den = den
-            return (
+            out: float = (
                 sum(map(mul, w, q)) + s1 * sum(map(mul, w, p1)) + s2 * sum(map(mul, w, p2))
             ) / den
+            return out
 
         return evaluate2
 
@@ -251,7 +253,8 @@ def _build(model: AnfisModel, flags: CompiledAnfis) -> Callable[..., float]:
             flags.last_w = w
             flags.last_den = den
             num = sum(map(mul, w, q)) + s1 * sum(map(mul, w, p1))
-            return (num + s2 * sum(map(mul, w, p2)) + s3 * sum(map(mul, w, p3))) / den
+            out: float = (num + s2 * sum(map(mul, w, p2)) + s3 * sum(map(mul, w, p3))) / den
+            return out
 
         return evaluate3
 

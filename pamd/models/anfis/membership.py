@@ -87,9 +87,11 @@ def log_membership(
     broadcasts to it) and the parameters are (K,). Returns (n, K)."""
     d = x - centres
     if mf_type == "gaussian":
-        return -(d * d) / (2.0 * widths * widths)
+        log_mu: np.ndarray = -(d * d) / (2.0 * widths * widths)
+        return log_mu
     t = _bell_t(d / widths, slopes)
-    return -np.logaddexp(0.0, t)
+    log_bell: np.ndarray = -np.logaddexp(0.0, t)
+    return log_bell
 
 
 def log_membership_grads(
@@ -134,4 +136,5 @@ def _bell_t(z: np.ndarray, slopes: np.ndarray | None) -> np.ndarray:
     z2 = z * z
     log_z2 = np.full_like(z2, -np.inf)
     np.log(z2, out=log_z2, where=z2 > 0.0)
-    return slopes * log_z2
+    out: np.ndarray = slopes * log_z2
+    return out

@@ -263,7 +263,9 @@ class AnfisModel:
     def rule_index(self) -> np.ndarray:
         """(d x R) ints: entry (i, r) is the flat index of rule r's MF on input i."""
         offsets = np.concatenate([[0], np.cumsum(self.n_mfs)[:-1]])
-        return (np.array(self.rule_mfs, dtype=np.intp).reshape(-1, self.n_inputs) + offsets).T
+        flat = np.array(self.rule_mfs, dtype=np.intp).reshape(-1, self.n_inputs)
+        out: np.ndarray = (flat + offsets).T
+        return out
 
     def log_memberships(self, S: np.ndarray) -> np.ndarray:
         """log mu of every MF (flat order) at scaled inputs S (n x d): (n x sum(n_mfs))."""
@@ -277,7 +279,8 @@ class AnfisModel:
         """Output for scaled inputs S (n x d), no clipping."""
         wbar = self.firing_strengths(S)
         f = np.hstack([S, np.ones((S.shape[0], 1))]) @ self.consequents.T
-        return np.einsum("nr,nr->n", wbar, f)
+        out: np.ndarray = np.einsum("nr,nr->n", wbar, f)
+        return out
 
     @overload
     def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False

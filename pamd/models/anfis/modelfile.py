@@ -39,7 +39,8 @@ from typing import Any
 
 from pamd.errors import ModelError
 from pamd.models.anfis.model import AnfisModel
-from pamd.models.anfis.serialize import FORMAT, VERSION, to_dict
+from pamd.models.anfis.serialize import FORMAT as FORMAT  # re-exported: pamd.models.registry
+from pamd.models.anfis.serialize import VERSION, to_dict
 from pamd.models.document import field as _field
 from pamd.models.document import format_json as _format
 from pamd.models.document import mapping as _mapping

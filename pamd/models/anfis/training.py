@@ -163,11 +163,13 @@ def solve_consequents(
                     x = (inv @ ((A.T @ y) / d)) / d
                     # One refinement step on the normal-equation residual.
                     r = A.T @ (y - A @ x) - ridge * x
-                    return x + (inv @ (r / d)) / d
+                    out: np.ndarray = x + (inv @ (r / d)) / d
+                    return out
     if ridge > 0:
         A = np.vstack([A, math.sqrt(ridge) * np.eye(p)])
         y = np.concatenate([y, np.zeros(p)])
-    return np.linalg.lstsq(A, y, rcond=None)[0]
+    theta: np.ndarray = np.linalg.lstsq(A, y, rcond=None)[0]
+    return theta
 
 
 class _Layout:
@@ -198,7 +200,8 @@ class _Layout:
     def predict(self, vec: np.ndarray, theta: np.ndarray, Sa: np.ndarray) -> np.ndarray:
         """Output for scaled inputs with a ones column, Sa = [S, 1] (n x (d + 1))."""
         log_mu = log_membership(self.mf_type, Sa[:, self.mf_input], *self.params(vec))
-        return np.einsum("nr,nr->n", rule_firing(log_mu, self.rule_index), Sa @ theta.T)
+        out: np.ndarray = np.einsum("nr,nr->n", rule_firing(log_mu, self.rule_index), Sa @ theta.T)
+        return out
 
     def gradient(
         self,
@@ -227,7 +230,8 @@ class _Layout:
 
 def _design(wbar: np.ndarray, Sa: np.ndarray) -> np.ndarray:
     """Least-squares design matrix: column r*(d+1)+k is wbar_r * [s, 1]_k."""
-    return np.einsum("nr,nk->nrk", wbar, Sa).reshape(wbar.shape[0], -1)
+    out: np.ndarray = np.einsum("nr,nk->nrk", wbar, Sa).reshape(wbar.shape[0], -1)
+    return out
 
 
 def _with_ones(S: np.ndarray) -> np.ndarray:

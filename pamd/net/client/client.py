@@ -117,7 +117,8 @@ class Client:
         for r in self.session.get(selector, **kw):
             if r.ok is not None:
                 try:
-                    return json.loads(r.ok.payload.to_bytes())
+                    answer: dict[str, Any] = json.loads(r.ok.payload.to_bytes())
+                    return answer
                 except ValueError:
                     return {"ok": False, "error": "the reply is not JSON: "
                             + r.ok.payload.to_bytes()[:200].decode("utf-8", "replace")}

@@ -17,7 +17,7 @@ from pamd.tick import I_COMPUTE, I_LOST, I_OVERRUNS, I_TICK, I_WAKE
 MAX_US = 100_000
 
 
-def percentiles(bins: array, qs: tuple[float, ...], top: int = MAX_US) -> list[float]:
+def percentiles(bins: array[int], qs: tuple[float, ...], top: int = MAX_US) -> list[float]:
     """The bins' percentiles `qs` (in bins, 1 us each): the first bin whose cumulative
     count reaches q% of the total (numpy's searchsorted, side left). Plain Python (C
     speed: accumulate, bisect), so the io process needs no numpy. `top`: the highest
