@@ -61,6 +61,15 @@ LAZY_OWN = {
     "pamd/io/process.py": "pamd.view.live",
 }
 
+#: the modules that import by name (`importlib.import_module`), which the checks
+#: above cannot read, and the modules each may name: the public API's lazy names, and
+#: the command line's sub-commands (pamd.cli.main.COMMANDS), each imported only when
+#: chosen so that `pamd --help` and `pamd status` do not import the daemon
+LAZY_BY_NAME = {
+    "pamd/__init__.py": "pamd.",
+    "pamd/cli/main.py": "pamd.cli.",
+}
+
 
 def _sources() -> Iterator[tuple[str, Path]]:
     for base, prefix in (("pamd", "pamd"), ("drivers", "pamd.drivers")):
@@ -185,6 +194,32 @@ def test_no_import_hides_in_a_function() -> None:
             kind = "the standard library" if top in stdlib else "pamd" if top == "pamd" else top
             wrong.append(f"{rel}:{line}: {target} ({kind}) imported inside a function")
     assert not wrong, "\n".join(wrong)
+
+
+def test_only_the_named_modules_import_by_name() -> None:
+    wrong = []
+    for _, path in _sources():
+        rel = str(path.relative_to(ROOT))
+        if rel in LAZY_BY_NAME:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), rel)):
+            if (isinstance(node, ast.Attribute) and node.attr == "import_module"
+                    or isinstance(node, ast.Name) and node.id == "__import__"):
+                wrong.append(f"{rel}:{node.lineno}: imports by name")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_cli_imports_only_its_own_subcommands_by_name() -> None:
+    """pamd.cli.main imports a sub-command's module by its declared name: each one a
+    module of pamd.cli (so the layers hold), and none imported at the top."""
+    from pamd.cli.main import COMMANDS
+
+    prefix = LAZY_BY_NAME["pamd/cli/main.py"]
+    for command in COMMANDS:
+        assert command.module.startswith(prefix), command
+        assert (ROOT / (command.module.replace(".", "/") + ".py")).is_file(), command
+    main = ROOT / "pamd" / "cli" / "main.py"
+    assert not [t for t, _, _ in _imports("pamd.cli.main", main) if t.startswith(prefix)]
 
 
 def test_the_check_sees_an_upward_and_a_lazy_import(tmp_path: Path) -> None:

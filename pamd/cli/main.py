@@ -1,23 +1,25 @@
 """The `pamd` command: one sub-command per job. Errors that pamd raises on purpose
-are printed as one clear message (no traceback) with the error's exit code."""
+are printed as one clear message (no traceback) with the error's exit code.
+
+The sub-commands are declared here by name (`COMMANDS`: name, module, one line of
+help), and a sub-command's module is imported only when it is chosen: `pamd --help`
+lists them all from the declaration without importing the daemon, the controller or
+the models, and `pamd status` does not import the daemon either
+(bench/cli_startup.py prints the cost). `build_parser()` builds every sub-command's
+full parser (for tests and tools that read them all).
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import os
 import sys
 from collections.abc import Sequence
-from typing import Protocol
+from dataclasses import dataclass
+from typing import Protocol, cast
 
-from pamd.cli import check_config, collect, emulate, evaluate, recordings, run, service, train, tune
-from pamd.cli import commission as commission_cli
-from pamd.cli import home as home_cli
-from pamd.cli import model as model_cli
-from pamd.cli import net as net_cli
-from pamd.cli import router as router_cli
-from pamd.cli import tare as tare_cli
-from pamd.cli import view as view_cli
 from pamd.errors import PamdError
 from pamd.version import __version__
 
@@ -28,18 +30,63 @@ class SubCommand(Protocol):
     def add_parser(self, sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None: ...
 
 
+@dataclass(frozen=True)
+class Command:
+    """One sub-command, declared without importing it: its name, the pamd.cli module
+    whose `add_parser` adds it (one module may add several), and the line that
+    `pamd --help` shows (the module's own `help=` says the same; tests/cli checks)."""
+
+    name: str
+    module: str
+    help: str
+
+
+def _commands(module: str, *pairs: tuple[str, str]) -> tuple[Command, ...]:
+    return tuple(Command(name, f"pamd.cli.{module}", text) for name, text in pairs)
+
+
 #: The sub-commands, in the order `pamd --help` lists them.
-COMMANDS: tuple[SubCommand, ...] = (
-    run, check_config, collect, tune, commission_cli, recordings, emulate, train, evaluate, service,
-    # offline references on the configured rig (no daemon, no Zenoh)
-    home_cli, tare_cli,
+COMMANDS: tuple[Command, ...] = (
+    *_commands("run", ("run", "run the rig (default: the simulated rig)")),
+    *_commands("check_config", ("check-config", "validate a rig config file")),
+    *_commands("collect", ("collect", "run an experiment plan (e.g. the 0.05 Hz sine sweep "
+                                      "under loads)")),
+    *_commands("tune", ("tune", "identify the pressure or position loop on the rig and "
+                                "derive its gains")),
+    *_commands("commission", ("commission", "measure a rig's signals, check their signs, "
+                                            "propose thresholds")),
+    *_commands("recordings",
+               ("inspect", "what a recording or a collection holds (channels, counts, "
+                           "metadata, faults, lost records; steps, loads, files)"),
+               ("export", "a recording for MATLAB (.mat) or as named CSV tables"),
+               ("recover", "turn an unfinished recording (crash, SIGKILL, power cut) into a "
+                           "valid file holding every complete chunk")),
+    *_commands("emulate", ("emulate", "serve an emulated rig through real protocols")),
+    *_commands("train", ("train", "train an inverse model (ANFIS or another kind) from "
+                                  "recorded runs")),
+    *_commands("evaluate", ("evaluate", "metrics and plots of inverse models on recorded "
+                                        "data")),
+    *_commands("service",
+               ("safe-outputs", "write the last known-good safe outputs to the devices"),
+               ("install-service", "install the systemd unit, its user and directories")),
+    # offline datums on the configured rig (no daemon, no Zenoh)
+    *_commands("home", ("home", "reference a muscle's length (offline, on the configured "
+                                "rig)")),
+    *_commands("tare", ("tare", "zero a load cell (offline, on the configured rig)")),
     # clients of a running daemon over Zenoh (status, cmd, watch) and the lab router
-    net_cli, router_cli, model_cli,
-    view_cli,  # pamd plot (pamd.view)
+    *_commands("net",
+               ("status", "ask a running daemon how it is (over Zenoh)"),
+               ("cmd", "command a running daemon (over Zenoh)"),
+               ("watch", "live table of a running daemon's muscles (over Zenoh)")),
+    *_commands("router", ("router", "run a Zenoh router (for a lab with TLS and access "
+                                    "control)")),
+    *_commands("model", ("model", "the adapted model of a running daemon (over Zenoh)")),
+    *_commands("view", ("plot", "figures of a recording: pressure, length, force, "
+                                "hysteresis (PNG)")),
 )
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _top_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pamd",
         description="Controller daemon for pneumatic artificial muscle test beds. "
@@ -49,10 +96,49 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"pamd {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="more log output")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for mod in COMMANDS:
-        mod.add_parser(sub)
     return parser
+
+
+def _module(name: str) -> SubCommand:
+    """The sub-command module, imported now (the one lazy import of the CLI)."""
+    return cast(SubCommand, importlib.import_module(name))
+
+
+def _build(full: set[str]) -> argparse.ArgumentParser:
+    """The parser with the full sub-parsers of the modules in `full`; every other
+    sub-command only as its declared name and help line (enough for `pamd --help`
+    and for argparse to list the choices of a misspelt one)."""
+    parser = _top_parser()
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    added: set[str] = set()
+    for command in COMMANDS:
+        if command.module not in full:
+            sub.add_parser(command.name, help=command.help)
+        elif command.module not in added:
+            _module(command.module).add_parser(sub)
+            added.add(command.module)
+    return parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Every sub-command's full parser (imports every sub-command's module)."""
+    return _build({command.module for command in COMMANDS})
+
+
+def chosen_command(argv: Sequence[str]) -> Command | None:
+    """The sub-command `argv` names: its first word that is not an option (the
+    top-level options take no value), or None (none, or not a declared name)."""
+    for word in argv:
+        if word == "--" or not word.startswith("-"):
+            return next((c for c in COMMANDS if c.name == word), None)
+    return None
+
+
+def build_parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
+    """The parser for this command line: the chosen sub-command's module imported and
+    its parser full, the others declared only."""
+    command = chosen_command(argv)
+    return _build({command.module} if command else set())
 
 
 #: Exit status of a verb whose reader went away (`pamd status | head`): 128 + SIGPIPE,
@@ -67,8 +153,9 @@ def _quiet_libraries(record: logging.LogRecord) -> bool:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser_for(words)
+    args = parser.parse_args(words)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
                         format="pamd: %(message)s", stream=sys.stderr)
     if not args.verbose:

@@ -1,14 +1,16 @@
 """The CLI entry point: a reader that goes away (`pamd status | head`) ends the verb
-quietly, and library chatter stays out of the operator's terminal."""
+quietly, library chatter stays out of the operator's terminal, and a sub-command's
+module is imported only when it is chosen."""
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
 import sys
 from pathlib import Path
 
-from pamd.cli.main import EXIT_BROKEN_PIPE
+from pamd.cli.main import COMMANDS, EXIT_BROKEN_PIPE, build_parser, chosen_command
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -50,3 +52,52 @@ def test_emulate_is_quiet_and_stops_without_a_traceback(tmp_path: Path, socat: s
     assert "Traceback" not in err and "Exception" not in err, err
     # pymodbus's "Server listening", canopen's NMT chatter: below warning, not shown
     assert "listening" not in err and "NMT" not in err, err
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> list[tuple[str, str | None]]:
+    # argparse keeps the sub-commands' help lines nowhere public
+    sub = next(a for a in parser._actions  # noqa: SLF001
+               if isinstance(a, argparse._SubParsersAction))  # noqa: SLF001
+    return [(str(a.dest), a.help) for a in sub._choices_actions]  # noqa: SLF001
+
+
+def test_the_declared_subcommands_are_what_their_modules_add() -> None:
+    """`pamd --help` lists the declaration (COMMANDS); each module's own parser must say
+    the same name and help line, in the same order, or the listing lies."""
+    declared = [(c.name, c.help) for c in COMMANDS]
+    assert _subcommands(build_parser()) == declared
+
+
+def _imported_by(*argv: str) -> tuple[set[str], str]:
+    """The pamd modules a fresh `pamd ARGV` imported, and what it printed."""
+    code = ("import sys\nfrom pamd.cli.main import main\ntry:\n    main(sys.argv[1:])\n"
+            "except SystemExit:\n    pass\n"
+            "print('MODULES', *sorted(m for m in sys.modules if m.startswith('pamd')))")
+    out = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
+                         cwd=REPO, timeout=120, check=True).stdout
+    text, _, modules = out.rpartition("MODULES")
+    return set(modules.split()), text
+
+
+def test_help_lists_every_subcommand_without_importing_them() -> None:
+    modules, text = _imported_by("--help")
+    for command in COMMANDS:
+        assert f"    {command.name}" in text, command.name
+    assert not {c.module for c in COMMANDS} & modules
+    assert "pamd.daemon" not in modules and "pamd.controller" not in modules
+
+
+def test_a_chosen_subcommand_imports_its_module_only() -> None:
+    modules, text = _imported_by("status", "--help")
+    assert "--connect" in text and "pamd.cli.net" in modules  # status's own parser
+    assert "pamd.cli.run" not in modules and "pamd.daemon" not in modules
+    modules, text = _imported_by("-v", "run", "--help")
+    assert "--profile" in text and "pamd.cli.run" in modules
+
+
+def test_the_chosen_subcommand_is_the_first_word_not_an_option() -> None:
+    assert chosen_command(["-v", "run", "--duration", "3"]) == COMMANDS[0]
+    status = chosen_command(["--verbose", "status", "--json"])
+    assert status is not None and status.name == "status"
+    assert chosen_command(["--help"]) is None and chosen_command([]) is None
+    assert chosen_command(["rnu"]) is None  # argparse then lists the choices
