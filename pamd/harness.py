@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 from pamd.calibration import load_calibration
 from pamd.commands import Command, parse_command
@@ -16,6 +16,8 @@ from pamd.config import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.muscle import MuscleController
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
+from pamd.drivers.sim import SimDriver
 from pamd.loop import CommandIntake, VirtualClock, tick_once
 from pamd.rig import Rig
 from pamd.summary import SummarySink
@@ -52,12 +54,12 @@ class Harness:
         self.rig.open(self.clock)
         self.ctrl.start(0.0)
         self.t = 0.0
-        self.records: list[dict[str, Any]] = []
+        self.records: list[JsonObject] = []
         self.keep = False
 
     @property
-    def sim(self) -> Any:
-        return self.rig.drivers["sim"]
+    def sim(self) -> SimDriver:
+        return cast("SimDriver", self.rig.drivers["sim"])  # the harness's rig is the sim's
 
     @property
     def m1(self) -> MuscleController:
@@ -75,11 +77,11 @@ class Harness:
             self.records.append(self.layout.as_dict(rec))
         self.t += self.period_s
 
-    def cmd(self, verb: str, **payload: Any) -> dict[str, Any]:
+    def cmd(self, verb: str, **payload: Any) -> JsonObject:
         """Apply a command at this tick boundary and return its verdict, as the loop
         would at the start of the next tick. While the rig is starting, the command
         waits (the clock steps on) until the sensors are read, as in the daemon."""
-        verdicts: list[dict[str, Any]] = []
+        verdicts: list[JsonObject] = []
         self.queue.waiting.append(parse_command(verb, payload, reply=verdicts.append))
         while self.ctrl.supervisor.state == State.STARTING:
             self._tick()

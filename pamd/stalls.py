@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from pamd.config.schema import MuscleConfig, RigConfig
+from pamd.declare.jsonsafe import JsonObject
 
 HOLD_S = 0.5  # a proportional regulator without a module watchdog: see the docstring
 
@@ -123,7 +124,7 @@ class StallWatch:
                 f"{self.count}; limit {1000 * self.limit.fault_s:.0f} ms: "
                 f"{self.limit.why})")
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonObject:
         return {"count": self.count, "longest_ms": round(1000 * self.longest_s, 1),
                 "timeout_ms": 1000 * self.timeout_s,
                 "fault_ms": round(1000 * self.limit.fault_s, 1), "why": self.limit.why}

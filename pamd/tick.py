@@ -20,6 +20,7 @@ from pamd.declare import fields
 from pamd.declare.fields import Flag as Flag
 from pamd.declare.fields import Mode as Mode
 from pamd.declare.fields import State as State
+from pamd.declare.jsonsafe import JsonObject
 
 #: the loop's fields, then each muscle's block: names from the field table
 LOOP_FIELDS: tuple[str, ...] = fields.LOOP_NAMES
@@ -62,9 +63,9 @@ class TickLayout:
             out += [f"{m}.{f}" for f in MUSCLE_FIELDS]
         return out
 
-    def as_dict(self, record: Sequence[float]) -> dict[str, Any]:
+    def as_dict(self, record: Sequence[float]) -> JsonObject:
         """Decode a record (for tests, status and tools; not for the tick)."""
-        out: dict[str, Any] = {n: record[i] for i, n in enumerate(LOOP_FIELDS)}
+        out: JsonObject = {n: record[i] for i, n in enumerate(LOOP_FIELDS)}
         for k, m in enumerate(self.muscles):
             base = self.muscle_base[k]
             out[m] = {f: record[base + j] for j, f in enumerate(MUSCLE_FIELDS)}
@@ -110,7 +111,7 @@ class Sink(Protocol):
     def put(self, record: array[float]) -> bool:
         """Take one tick record; False if it had to be dropped."""
 
-    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+    def event(self, t_s: float, kind: str, data: JsonObject) -> None:
         """A discrete event: supervisor transition, command outcome, ...: a kind
         declared, with its payload's keys, in pamd.declare.events."""
 

@@ -14,10 +14,11 @@ import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager
 from types import FrameType
-from typing import Any, Protocol
+from typing import Protocol
 
 from pamd.config import load_config
 from pamd.daemon import Daemon
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.experiment.manifest import Manifest, collection_name, step_records
 from pamd.experiment.plan import load_plan
@@ -55,7 +56,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def run(args: argparse.Namespace) -> int:
-    overrides: dict[str, Any] = {}
+    overrides: JsonObject = {}
     if args.clock:
         overrides["loop"] = {"clock": args.clock}
     cfg = load_config(args.config, overrides)

@@ -18,9 +18,10 @@ import sys
 import textwrap
 import time
 import typing
+from collections.abc import Callable
 from enum import IntEnum
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import CommandRefused
 from pamd.net.client.client import Client
 from pamd.net.keys import Keys
@@ -46,7 +47,7 @@ HELP_WIDTH = 88  # `pamd cmd --help`'s own paragraphs
 
 def add_client_args(p: argparse.ArgumentParser, suppress: bool = False) -> None:
     """The options of every command that talks to a running daemon over Zenoh."""
-    d: Any = argparse.SUPPRESS if suppress else None
+    d: str | None = argparse.SUPPRESS if suppress else None
     p.add_argument("--rig", default=d, help="rig id (default: the one rig alive)")
     p.add_argument("--zenoh-config", metavar="FILE", default=d,
                    help="Zenoh client config (JSON5), e.g. config/zenoh/lab-client.json5")
@@ -92,7 +93,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     w.set_defaults(func=watch)
 
 
-def _client(args: argparse.Namespace) -> Any:
+def _client(args: argparse.Namespace) -> Client:
 
     return Client(args.zenoh_config, args.connect, getattr(args, "token_file", None))
 
@@ -109,11 +110,11 @@ def status(args: argparse.Namespace) -> int:
     return 0 if st.get("ok", True) else 1
 
 
-def _f(v: Any, fmt: str = ".3f") -> str:
+def _f(v: JsonValue, fmt: str = ".3f") -> str:
     return "-" if v is None else format(v, fmt) if isinstance(v, (int, float)) else str(v)
 
 
-def print_status(st: dict[str, Any]) -> None:
+def print_status(st: JsonObject) -> None:
     if not st.get("ok", True):
         print(f"status: {st.get('error')}")
         return
@@ -172,17 +173,18 @@ def _parse_bool(text: str) -> bool:
     raise argparse.ArgumentTypeError(f"expected true or false, found {text!r}")
 
 
-def _json_value(text: str) -> Any:
+def _json_value(text: str) -> JsonValue:
     try:
         return json.loads(text)
     except ValueError:
         return text
 
 
-def _field_type(tp: Any) -> Any:
+def _field_type(tp: object) -> Callable[[str], object]:
     args = [a for a in typing.get_args(tp) if a is not type(None)] or [tp]
     base = args[0]
-    return {bool: _parse_bool, int: int, float: float}.get(base, str)
+    parsers: dict[object, Callable[[str], object]] = {bool: _parse_bool, int: int, float: float}
+    return parsers.get(base, str)
 
 
 def verb_list() -> str:
@@ -214,14 +216,14 @@ def verb_parser(verb: str) -> argparse.ArgumentParser:
     return p
 
 
-def build_payload(verb: str, rest: list[str], args: argparse.Namespace) -> str | dict[str, Any]:
+def build_payload(verb: str, rest: list[str], args: argparse.Namespace) -> str | JsonObject:
     ns = verb_parser(verb).parse_args(rest, namespace=args)
     if ns.json is not None:
         if ns.arg or any(k.startswith("field_") and v is not None for k, v in vars(ns).items()):
             raise SystemExit("pamd cmd: --json is the whole payload; give no other fields")
         text: str = ns.json  # --json PAYLOAD
         return text
-    payload: dict[str, Any] = {k[len("field_"):]: v for k, v in vars(ns).items()
+    payload: JsonObject = {k[len("field_"):]: v for k, v in vars(ns).items()
                                if k.startswith("field_") and v is not None}
     for item in ns.arg:
         key, eq, value = item.partition("=")
@@ -256,7 +258,7 @@ COLUMNS = ("muscle", "state", "p bar", "sp bar", "valve", "force N", "len mm", "
            "mode", "flags", "puts/s", "samples/s", "dropped")
 
 
-def _name(enum: type[IntEnum], v: Any) -> str:  # v: a value of the JSON state
+def _name(enum: type[IntEnum], v: JsonValue) -> str:
     try:
         return enum(int(v)).name
     except (TypeError, ValueError):
@@ -270,7 +272,7 @@ def watch(args: argparse.Namespace) -> int:
         keys = Keys(rig)
         sub = cl.subscribe(keys.state_all)
         evs = cl.subscribe(keys.events, 256)
-        latest: dict[str, dict[str, Any]] = {}
+        latest: dict[str, JsonObject] = {}
         puts: dict[str, int] = {}
         samples: dict[str, int] = {}
         gaps: dict[str, int] = {}

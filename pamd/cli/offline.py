@@ -15,10 +15,10 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from typing import Any
 
 from pamd.config import load_config
 from pamd.daemon import Daemon
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused, DriverError
 from pamd.safety.datums import AT_REST_MM_S
 from pamd.tick import State
@@ -42,8 +42,8 @@ def add_state_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the verdict as JSON")
 
 
-def apply_offline(config: str | None, verb: str, payload: dict[str, Any],
-                  state_dir: str | None = None) -> dict[str, Any]:
+def apply_offline(config: str | None, verb: str, payload: JsonObject,
+                  state_dir: str | None = None) -> JsonObject:
     """Open the rig, apply `verb` once it rests, save the references (in the state
     directory, or the config's `calibration_file`); the verdict. CommandRefused when
     refused (nothing saved), DriverError if the rig never read."""
@@ -75,7 +75,7 @@ def apply_offline(config: str | None, verb: str, payload: dict[str, Any],
     return verdict
 
 
-def print_verdict(verdict: dict[str, Any], as_json: bool) -> None:
+def print_verdict(verdict: JsonObject, as_json: bool) -> None:
     if as_json:
         print(json.dumps(verdict, sort_keys=True))
         return

@@ -12,14 +12,16 @@ import shlex
 import signal
 import sys
 import threading
-from typing import Any
+from types import FrameType
 
+from pamd.commands.pending import PendingCommand
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.length_targets import check_length_profile_config
 from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.daemon import Daemon
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.io.session import RecordingRequest
 from pamd.net.spec import TelemetryRequest
@@ -183,11 +185,11 @@ def _models(cfg: LoadedConfig, args: argparse.Namespace
     return {**models, **loaded}, args.model
 
 
-def _length_profile(args: argparse.Namespace, cfg: Any) -> dict[str, Any]:
+def _length_profile(args: argparse.Namespace, cfg: LoadedConfig) -> JsonObject:
     """The --profile of a length mode as a profile command (contraction), checked
     against each muscle's limits, load and rate limit before anything opens."""
 
-    payload: dict[str, Any] = {"kind": args.profile, "freq_hz": args.freq_hz}
+    payload: JsonObject = {"kind": args.profile, "freq_hz": args.freq_hz}
     for key in ("min_contraction", "max_contraction", "to_contraction", "cycles"):
         if getattr(args, key) is not None:
             payload[key] = getattr(args, key)
@@ -222,7 +224,7 @@ def record_where(args: argparse.Namespace, cfg: LoadedConfig
     return None, None
 
 
-def _verdict(daemon: Daemon, pending: Any, cfg: Any, what: str) -> None:
+def _verdict(daemon: Daemon, pending: PendingCommand, cfg: LoadedConfig, what: str) -> None:
     """Wait for a command queued before start-up; a refusal stops the run (nothing moved)."""
     waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
     while not pending.done and waited < patience and daemon.alive:
@@ -236,7 +238,7 @@ def _verdict(daemon: Daemon, pending: Any, cfg: Any, what: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    overrides: dict[str, Any] = {}
+    overrides: JsonObject = {}
     if args.clock:
         overrides.setdefault("loop", {})["clock"] = args.clock
     if args.rate_hz:
@@ -292,7 +294,7 @@ def run(args: argparse.Namespace) -> int:
     # virtual run is the same every time.
     mode = None
     if args.mode is not None:  # before the profile, so both land on the first tick
-        mode_args: dict[str, Any] = {"mode": args.mode, "feedforward": not args.no_feedforward,
+        mode_args: JsonObject = {"mode": args.mode, "feedforward": not args.no_feedforward,
                                      "ilc": args.ilc}
         if args.muscle:
             mode_args["muscle"] = args.muscle
@@ -363,12 +365,12 @@ def _install_signals(daemon: Daemon) -> list[str]:
     if threading.current_thread() is not threading.main_thread():
         return received
 
-    def handler(signum: int, frame: Any) -> None:
+    def handler(signum: int, frame: FrameType | None) -> None:
         name = signal.Signals(signum).name
         received.append(name)
         daemon.stop(f"{name} received")
 
-    def reload(signum: int, frame: Any) -> None:
+    def reload(signum: int, frame: FrameType | None) -> None:
         daemon.request_reload()  # done by daemon.service(), in this (main) thread
 
     signal.signal(signal.SIGINT, handler)
@@ -378,7 +380,7 @@ def _install_signals(daemon: Daemon) -> list[str]:
     return received
 
 
-def print_summary(r: dict[str, Any]) -> None:
+def print_summary(r: JsonObject) -> None:
     out = sys.stdout
     w, c = r["wake_latency_us"], r["compute_us"]
     loads = ", ".join(f"{m} {kg:g} kg" for m, kg in r.get("loads_kg", {}).items())

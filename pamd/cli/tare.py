@@ -4,9 +4,9 @@ with the rules of the running daemon's `tare` command."""
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 from pamd.cli.offline import add_state_args, apply_offline, print_verdict
+from pamd.declare.jsonsafe import JsonObject
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def run(args: argparse.Namespace) -> int:
-    payload: dict[str, Any] = {}
+    payload: JsonObject = {}
     if args.muscle:
         payload["muscle"] = args.muscle
     if args.load_kg is not None:

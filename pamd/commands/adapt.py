@@ -5,18 +5,17 @@ model restored, its state read, or a copy of its parameters taken between two ti
 
 from __future__ import annotations
 
-from typing import Any
-
 from pamd.commands.guards import named_muscles
 from pamd.commands.registry import Verb
 from pamd.control.adapt import ACTIONS
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.verbs.schema import AdaptArgs
 from pamd.verbs.table import VERBS as SPECS
 
 
-def _adapt(ctrl: RigController, a: AdaptArgs) -> dict[str, Any]:
+def _adapt(ctrl: RigController, a: AdaptArgs) -> JsonObject:
     ms = named_muscles(ctrl, a.muscle)
     if a.action not in (*ACTIONS, "parameters"):
         raise CommandRefused(f"adapt: unknown action {a.action!r}; use "

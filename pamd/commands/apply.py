@@ -8,22 +8,21 @@ the loop goes on ticking."""
 
 from __future__ import annotations
 
-from typing import Any
-
 from pamd.commands.verbs import REGISTRY
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.verbs.schema import MAX_ERROR_CHARS, Command, cap_text
 
 
-def apply_command(ctrl: RigController, cmd: Command) -> dict[str, Any]:
+def apply_command(ctrl: RigController, cmd: Command) -> JsonObject:
     """Apply in the loop's thread; returns the verdict (never raises)."""
     try:
         declared = REGISTRY.get(cmd.verb)  # internal verbs too (reload)
         if declared is None:
             raise CommandRefused(f"unknown command {cmd.verb!r}")
         result = declared.handler(ctrl, cmd.args)
-        verdict: dict[str, Any] = {"ok": True, **(result or {})}
+        verdict: JsonObject = {"ok": True, **(result or {})}
     except CommandRefused as exc:
         verdict = {"ok": False, "error": cap_text(str(exc), MAX_ERROR_CHARS)}
     except Exception as exc:  # the loop never dies of a request

@@ -8,10 +8,11 @@ from typing import Any
 
 from pamd.control.muscle import MuscleController
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.tick import State
 
-Handler = Callable[[Any, Any], dict[str, Any] | None]
+Handler = Callable[[Any, Any], JsonObject | None]
 """A verb's handler: (controller, args) -> verdict fields; raises CommandRefused."""
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
 
 from pamd.commands.guards import can_move, named_muscles, need_reference
 from pamd.commands.model_file import prepare_model
@@ -16,6 +15,7 @@ from pamd.control.length_targets import length_profile
 from pamd.control.muscle import MuscleController
 from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.profiles import Profile, ProfileSpec
 from pamd.tick import Mode, State
@@ -35,7 +35,7 @@ def _start(ctrl: RigController, ms: list[MuscleController], spec_: ProfileSpec) 
     return total
 
 
-def _setpoint(ctrl: RigController, a: SetpointArgs) -> dict[str, Any]:
+def _setpoint(ctrl: RigController, a: SetpointArgs) -> JsonObject:
     can_move(ctrl)
     ms = named_muscles(ctrl, a.muscle)
     need_reference(ms)
@@ -65,7 +65,7 @@ def _setpoint(ctrl: RigController, a: SetpointArgs) -> dict[str, Any]:
             "deadman_s": a.deadman_s}
 
 
-def _profile(ctrl: RigController, a: ProfileArgs) -> dict[str, Any]:
+def _profile(ctrl: RigController, a: ProfileArgs) -> JsonObject:
     can_move(ctrl)
     ms = named_muscles(ctrl, a.muscle)
     need_reference(ms)
@@ -80,7 +80,7 @@ def _profile(ctrl: RigController, a: ProfileArgs) -> dict[str, Any]:
     return {"duration_s": total}
 
 
-def _length_setpoint(ctrl: RigController, m: MuscleController, a: SetpointArgs) -> dict[str, Any]:
+def _length_setpoint(ctrl: RigController, m: MuscleController, a: SetpointArgs) -> JsonObject:
     """A length (and force) target in the length modes, reached by a ramp."""
 
     mode = m.mode.name.lower()
@@ -102,7 +102,7 @@ def _length_setpoint(ctrl: RigController, m: MuscleController, a: SetpointArgs) 
     if a.force_n is not None and a.force_n > rated:
         raise CommandRefused(f"{m.name}: {a.force_n:g} N exceeds the {env.muscle_type}'s "
                              f"theoretical force ({rated:g} N)")
-    out: dict[str, Any] = {"muscle": m.name, "mode": mode}
+    out: JsonObject = {"muscle": m.name, "mode": mode}
     prof = None
     if a.length_mm is not None:
         l0 = env.nominal_length_mm
@@ -130,7 +130,7 @@ def _length_setpoint(ctrl: RigController, m: MuscleController, a: SetpointArgs) 
 
 
 def _length_profile(ctrl: RigController, ms: list[MuscleController],
-                    a: ProfileArgs) -> dict[str, Any]:
+                    a: ProfileArgs) -> JsonObject:
     """A length profile (contraction units) on muscles in a length mode."""
 
     for m in ms:
@@ -153,7 +153,7 @@ def _length_profile(ctrl: RigController, ms: list[MuscleController],
     return {"duration_s": total, "length_profile": True}
 
 
-def _mode(ctrl: RigController, a: ModeArgs) -> dict[str, Any]:
+def _mode(ctrl: RigController, a: ModeArgs) -> JsonObject:
 
     can_move(ctrl)
     if a.mode not in MODE_NAMES:
@@ -192,7 +192,7 @@ def _mode(ctrl: RigController, a: ModeArgs) -> dict[str, Any]:
             "feedforward_bar": {m.name: m.feedforward_bar for m in ms}}
 
 
-def _model(ctrl: RigController, a: object) -> dict[str, Any]:
+def _model(ctrl: RigController, a: object) -> JsonObject:
     """Swap in a model compiled outside the loop (`prepare_command`)."""
     if not isinstance(a, PreparedModelArgs):
         raise CommandRefused("model: the file was not loaded (send the command through the "

@@ -4,7 +4,8 @@ service keeper's reload) and set by the loop's thread."""
 from __future__ import annotations
 
 import threading
-from typing import Any
+
+from pamd.declare.jsonsafe import JsonObject
 
 
 class PendingCommand:
@@ -12,9 +13,9 @@ class PendingCommand:
 
     def __init__(self) -> None:
         self._done = threading.Event()
-        self.verdict: dict[str, Any] = {}
+        self.verdict: JsonObject = {}
 
-    def set(self, verdict: dict[str, Any]) -> None:
+    def set(self, verdict: JsonObject) -> None:
         self.verdict = verdict
         self._done.set()
 
@@ -22,7 +23,7 @@ class PendingCommand:
     def done(self) -> bool:
         return self._done.is_set()
 
-    def result(self, timeout_s: float) -> dict[str, Any]:
+    def result(self, timeout_s: float) -> JsonObject:
         if not self._done.wait(timeout_s):
             return {"ok": False, "error": f"no verdict from the loop within {timeout_s:g} s"}
         return self.verdict

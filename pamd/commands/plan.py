@@ -3,18 +3,17 @@ checked outside the loop), confirm (a load change) and pause (at a cycle's end).
 
 from __future__ import annotations
 
-from typing import Any
-
 from pamd.commands.guards import can_move, need_reference
 from pamd.commands.registry import Verb
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import Sequencer, running_plan
 from pamd.verbs.schema import CollectArgs, NoArgs
 from pamd.verbs.table import VERBS as SPECS
 
 
-def _confirm(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
+def _confirm(ctrl: RigController, a: NoArgs) -> JsonObject:
     seq = running_plan(ctrl)
     if seq is None or seq.outcome:
         raise CommandRefused("no experiment is running")
@@ -24,7 +23,7 @@ def _confirm(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
         raise CommandRefused(str(exc)) from None
 
 
-def _pause(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
+def _pause(ctrl: RigController, a: NoArgs) -> JsonObject:
     seq = running_plan(ctrl)
     if seq is None or seq.outcome:
         raise CommandRefused("no experiment is running (use hold to freeze setpoints)")
@@ -32,7 +31,7 @@ def _pause(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     return {"message": "pausing at the end of the present cycle"}
 
 
-def _collect(ctrl: RigController, a: CollectArgs) -> dict[str, Any]:
+def _collect(ctrl: RigController, a: CollectArgs) -> JsonObject:
     """`a.plan` is a Plan already read and checked outside the loop's thread."""
 
     can_move(ctrl)

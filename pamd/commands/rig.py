@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any
 
 from pamd.commands.guards import can_move, idle_or_hold, named_muscles
 from pamd.commands.registry import Verb
 from pamd.commands.schema import ReloadArgs
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import running_plan
@@ -21,13 +21,13 @@ from pamd.verbs.table import VERBS as SPECS
 from pamd.verbs.table import VerbSpec
 
 
-def _hold(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
+def _hold(ctrl: RigController, a: NoArgs) -> JsonObject:
     can_move(ctrl)
     ctrl.enter_hold(ctrl.now, "hold: setpoints frozen")
     return {}
 
 
-def _resume(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
+def _resume(ctrl: RigController, a: NoArgs) -> JsonObject:
     if ctrl.supervisor.state != State.HOLD:
         raise CommandRefused(f"resume only from HOLD (state is {ctrl.supervisor.state.name})")
     paused = ctrl.now - ctrl.hold_started
@@ -42,7 +42,7 @@ def _resume(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     return {}
 
 
-def _stop(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
+def _stop(ctrl: RigController, a: NoArgs) -> JsonObject:
     if ctrl.supervisor.latched:
         raise CommandRefused(f"the rig is already in {ctrl.supervisor.state.name}, at its safe "
                              "state")
@@ -50,21 +50,21 @@ def _stop(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
     return {}
 
 
-def _estop(ctrl: RigController, a: EstopArgs) -> dict[str, Any]:
+def _estop(ctrl: RigController, a: EstopArgs) -> JsonObject:
     for m in ctrl.muscles:
         m.stop_profile()
     ctrl.supervisor.estop(ctrl.now, f"emergency stop: {a.reason}")
     return {}
 
 
-def _reset(ctrl: RigController, a: NoArgs) -> dict[str, Any]:
+def _reset(ctrl: RigController, a: NoArgs) -> JsonObject:
     refused = ctrl.reset_latched("command")  # the restart interlock included
     if refused is not None:
         raise CommandRefused(refused)
     return {}
 
 
-def _home(ctrl: RigController, a: HomeArgs) -> dict[str, Any]:
+def _home(ctrl: RigController, a: HomeArgs) -> JsonObject:
     idle_or_hold(ctrl, "home")
     m = named_muscles(ctrl, a.muscle)[0]
     raw_len = m.length_mm - m.reference.length_offset_mm
@@ -77,7 +77,7 @@ def _home(ctrl: RigController, a: HomeArgs) -> dict[str, Any]:
     return {"muscle": m.name, "length_offset_mm": offset}
 
 
-def _tare(ctrl: RigController, a: TareArgs) -> dict[str, Any]:
+def _tare(ctrl: RigController, a: TareArgs) -> JsonObject:
     idle_or_hold(ctrl, "tare")
     ms = named_muscles(ctrl, a.muscle)
     offsets = [tare_offset(m, a.load_kg) for m in ms]  # all checked before any changes
@@ -89,7 +89,7 @@ def _tare(ctrl: RigController, a: TareArgs) -> dict[str, Any]:
     return {"force_offset_n": out}
 
 
-def _load(ctrl: RigController, a: LoadArgs) -> dict[str, Any]:
+def _load(ctrl: RigController, a: LoadArgs) -> JsonObject:
     m = named_muscles(ctrl, a.muscle)[0]
     rated = m.envelope.rating.max_load_kg
     if a.load_kg > rated:
@@ -100,7 +100,7 @@ def _load(ctrl: RigController, a: LoadArgs) -> dict[str, Any]:
     return {"muscle": m.name, "load_kg": a.load_kg, "safe_pressure_bar": m.safe_pressure_bar}
 
 
-def _reload(ctrl: RigController, a: ReloadArgs) -> dict[str, Any]:
+def _reload(ctrl: RigController, a: ReloadArgs) -> JsonObject:
     """A reloaded config: gains and timeouts at once; limits, slew, loads and nominal
     lengths only at rest (`RigController.at_rest`: IDLE, nothing moving, a ramp to the
     safe state completed; otherwise reported as deferred: the daemon sends the command

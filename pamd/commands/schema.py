@@ -6,19 +6,20 @@ objects no client sends. The argument schemas a client's payload is parsed into 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
+from pamd.control.feedforward import Feedforward
 from pamd.control.settings import MuscleSettings
+from pamd.declare.jsonsafe import JsonObject
 
 
 class PreparedModelArgs:
     """A `model` command whose file was loaded, checked and compiled outside the loop's
     thread (`prepare_command`); the loop only swaps `feedforward` in."""
 
-    def __init__(self, muscle: str, file: str, feedforward: Any) -> None:
+    def __init__(self, muscle: str, file: str, feedforward: Feedforward) -> None:
         self.muscle, self.file, self.feedforward = muscle, file, feedforward
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {"muscle": self.muscle, **self.feedforward.describe()}
 
 

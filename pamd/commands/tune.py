@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
 
 from pamd.commands.guards import can_move, named_muscles
 from pamd.commands.motion import VERBS as MOTION_VERBS
 from pamd.commands.registry import Verb
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.verbs.schema import SetpointArgs
 from pamd.verbs.table import VerbSpec
@@ -34,7 +34,7 @@ class RelayArgs:
     hold_s: float = 0.5
 
 
-def _relay(ctrl: RigController, a: RelayArgs) -> dict[str, Any]:
+def _relay(ctrl: RigController, a: RelayArgs) -> JsonObject:
     can_move(ctrl)
     m = named_muscles(ctrl, a.muscle)[0]
     if m.in_length_mode:

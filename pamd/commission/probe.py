@@ -13,9 +13,12 @@ from __future__ import annotations
 import math
 from array import array
 from collections.abc import Sequence
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
+
+from pamd.declare.jsonsafe import JsonObject
+from pamd.drivers import Driver
 
 #: Per-muscle columns, in this order after the loop's `LOOP_COLUMNS`.
 SIGNALS = ("pressure", "force", "length")
@@ -31,7 +34,7 @@ class _Input(Protocol):
     """An input binding of the rig (`pamd.rig.InputBinding`)."""
 
     @property
-    def driver(self) -> Any: ...
+    def driver(self) -> Driver: ...
 
     @property
     def index(self) -> int: ...
@@ -105,7 +108,7 @@ class Probe:
         self.n = n + 1
         return True
 
-    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+    def event(self, t_s: float, kind: str, data: JsonObject) -> None:
         pass
 
     def close(self) -> None:

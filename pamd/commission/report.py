@@ -5,11 +5,11 @@ proposed, rule); as text for the operator or one JSON object for scripts."""
 from __future__ import annotations
 
 import math
-from typing import Any
 
 from pamd.commission.measure import Measurements, SignalStats, Step
 from pamd.commission.propose import Threshold
 from pamd.commission.run import Outcome
+from pamd.declare.jsonsafe import JsonObject
 
 
 def _ms(x: float) -> str:
@@ -87,7 +87,7 @@ def _signal_line(st: SignalStats, m: Measurements) -> str:
 
 
 def as_json(config: str, rig_id: str, clock: str, out: Outcome, rows: list[Threshold],
-            saved: bool) -> dict[str, Any]:
+            saved: bool) -> JsonObject:
     m = out.measurements
     return {
         "config": config, "rig_id": rig_id, "clock": clock, "duration_s": out.duration_s,

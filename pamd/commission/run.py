@@ -11,7 +11,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 from pamd.commission.checks import check_changes, check_rest, check_step
 from pamd.commission.measure import (
@@ -27,6 +26,7 @@ from pamd.commission.moves import CommissionRefused, Moves, plans
 from pamd.commission.probe import SIGNALS, Probe
 from pamd.config import LoadedConfig
 from pamd.daemon import Daemon
+from pamd.declare.jsonsafe import JsonObject
 from pamd.experiment.plan import Plan
 from pamd.experiment.sequencer import started_plan
 
@@ -124,7 +124,7 @@ def _phase(daemon: Daemon, probe: Probe, phase: int, plan: Plan, progress: Progr
     probe.phase = phase
     try:
         pending = daemon.start_plan(plan, f"<{plan.name}>", 0)
-        verdict: dict[str, Any] = pending.result(
+        verdict: JsonObject = pending.result(
             daemon.cfg.rig.safety.startup_timeout_s + 5.0)
         if not verdict["ok"]:
             raise CommissionRefused(f"{plan.name}: the rig refused the plan: "

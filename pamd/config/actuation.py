@@ -16,10 +16,10 @@ Every refusal names file, line and key.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import MuscleConfig, RigConfig, SignalConfig
+from pamd.declare.jsonsafe import JsonValue
 from pamd.schema.engine import Context, line_of
 
 #: The sim driver's sensor options, per input signal: (sample period, latency).
@@ -28,7 +28,7 @@ _SIM_SENSORS = {"pressure": ("pressure_sample_period_s", "pressure_latency_s"),
                 "length": ("length_sample_period_s", "length_latency_s")}
 
 
-def check_actuation(rig: RigConfig, node: Any, digital: dict[str, set[str]],
+def check_actuation(rig: RigConfig, node: JsonValue, digital: dict[str, set[str]],
                     ctx: Context) -> None:
     """The actuation rules for every muscle; `node` is the raw `muscles` list and
     `digital` the digital output channels per driver whose options are valid."""
@@ -42,7 +42,7 @@ def check_actuation(rig: RigConfig, node: Any, digital: dict[str, set[str]],
             _check_onoff(m, item, sig_node, base, digital, ctx)
 
 
-def _check_proportional(m: MuscleConfig, item: Any, sig_node: Any, base: str,
+def _check_proportional(m: MuscleConfig, item: JsonValue, sig_node: JsonValue, base: str,
                         ctx: Context) -> None:
     if m.signals.valve is None:
         ctx.add(line_of(sig_node) or line_of(item, "signals"), f"{base}.signals.valve",
@@ -59,7 +59,7 @@ def _check_proportional(m: MuscleConfig, item: Any, sig_node: Any, base: str,
                 "muscle; set actuation: onoff to drive solenoid valves)", "an inflate signal")
 
 
-def _check_onoff(m: MuscleConfig, item: Any, sig_node: Any, base: str,
+def _check_onoff(m: MuscleConfig, item: JsonValue, sig_node: JsonValue, base: str,
                  digital: dict[str, set[str]], ctx: Context) -> None:
     if m.exhaust_assist_below_bar is not None:
         ctx.add(line_of(item, "exhaust_assist_below_bar"), f"{base}.exhaust_assist_below_bar",
@@ -95,7 +95,7 @@ def _check_onoff(m: MuscleConfig, item: Any, sig_node: Any, base: str,
                 "a period)", f"{o.pwm_period_s:g} s")
 
 
-def check_sim_sample_periods(rig: RigConfig, node: Any, ctx: Context,
+def check_sim_sample_periods(rig: RigConfig, node: JsonValue, ctx: Context,
                              timeout_of: Callable[[SignalConfig, SafetyConfig], float]
                              ) -> None:
     """A simulated muscle's sensor whose sample period plus latency (plus a bursty
@@ -132,7 +132,7 @@ def check_sim_sample_periods(rig: RigConfig, node: Any, ctx: Context,
                             f"{age_s:g} s")
 
 
-def check_sim_stalls(rig: RigConfig, node: Any, ctx: Context) -> None:
+def check_sim_stalls(rig: RigConfig, node: JsonValue, ctx: Context) -> None:
     """A sim driver's scheduled `stall` (signal loop) cannot happen with a virtual
     clock: refused at its `kind`; `node` is the raw `drivers` list."""
     if rig.loop.clock != "virtual":

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from typing import Any, cast
 
 from pamd.config.schema import RigConfig, SignalConfig
+from pamd.declare.jsonsafe import JsonValue
 from pamd.plugins import load_driver_entry
 from pamd.schema.engine import Context, line_of
 
@@ -45,7 +46,7 @@ def _channels(rig: RigConfig, driver: str) -> list[tuple[str, str, bool]] | None
     return None
 
 
-def check_safety_chain(rig: RigConfig, node: Any, ctx: Context) -> None:
+def check_safety_chain(rig: RigConfig, node: JsonValue, ctx: Context) -> None:
     """`node` is the raw `safety_chain` mapping (or None)."""
     chain = rig.safety_chain
     node = node if isinstance(node, dict) else {}

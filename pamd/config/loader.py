@@ -21,6 +21,7 @@ from pamd.config.plausibility import check_plausibility_thresholds
 from pamd.config.request_timeouts import check_request_timeouts
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import MuscleConfig, RigConfig, SignalConfig
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import DriverError
 from pamd.muscle_type import MUSCLE_TYPES
 from pamd.plugins import load_driver_entry
@@ -84,7 +85,7 @@ class LoadedConfig:
                                    position=dataclasses.replace(rig.position, pid=ppid))
 
 
-def _overridden(base: Any, over: Any) -> Any:
+def _overridden(base: JsonValue, over: JsonValue) -> JsonValue:
     """`base` (a gains dataclass) with the fields `over` sets (not None) in place."""
     changes = {f.name: getattr(over, f.name) for f in dataclasses.fields(over)
                if getattr(over, f.name) is not None}
@@ -96,7 +97,7 @@ def builtin_config_path(name: str = "sim.yaml") -> str:
     return str(resources.files("pamd.data").joinpath(name))
 
 
-def load_config(path: str | None = None, overrides: dict[str, Any] | None = None) -> LoadedConfig:
+def load_config(path: str | None = None, overrides: JsonObject | None = None) -> LoadedConfig:
     """Read, parse and validate a rig config file (default: the built-in sim rig).
 
     `overrides` replaces top-level sections' keys after parsing (e.g. the CLI's
@@ -105,7 +106,7 @@ def load_config(path: str | None = None, overrides: dict[str, Any] | None = None
     return load_config_text(read_text(path, "a readable config file"), path, overrides)
 
 
-def load_config_text(text: str, path: str, overrides: dict[str, Any] | None = None) -> LoadedConfig:
+def load_config_text(text: str, path: str, overrides: JsonObject | None = None) -> LoadedConfig:
     raw = load_yaml_text(text, path)
     ctx = Context(path)
     if not isinstance(raw, dict):
@@ -150,7 +151,7 @@ def effective_timeout_s(sig: SignalConfig, safety: SafetyConfig) -> float:
     return max(timeout, sig.sample_period_s + safety.latency_margin_s)
 
 
-def _check_safety_bounds(rig: RigConfig, raw: Any, ctx: Context) -> tuple[str, ...]:
+def _check_safety_bounds(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[str, ...]:
     """Checks that keep safety on: a key-safe rig id, a loop the stall check can watch,
     sample periods within their timeouts, and the safe ceilings (refused, or with
     `safety.relax_ceilings` let through as warnings)."""
@@ -235,7 +236,7 @@ def _driver_type(type_name: str) -> DriverType:
     return cast(DriverType, found)
 
 
-def _check_drivers(rig: RigConfig, node: Any, ctx: Context
+def _check_drivers(rig: RigConfig, node: JsonValue, ctx: Context
                    ) -> tuple[RigConfig, dict[str, dict[str, str]], dict[str, set[str]],
                               dict[str, float]]:
     """Validate each driver's type and options; returns the config with typed options
@@ -277,7 +278,7 @@ def _check_drivers(rig: RigConfig, node: Any, ctx: Context
     return dataclasses.replace(rig, drivers=tuple(built)), channel_map, digital, lost_reply
 
 
-def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]],
+def _check_muscles(rig: RigConfig, node: JsonValue, channels: dict[str, dict[str, str]],
                    ctx: Context) -> dict[str, MuscleLimitsResolved]:
     known_drivers = {d.name for d in rig.drivers}
     seen: set[str] = set()
@@ -336,7 +337,7 @@ def _check_muscles(rig: RigConfig, node: Any, channels: dict[str, dict[str, str]
     return limits
 
 
-def _check_valve(m: MuscleConfig, limit_bar: float, rated_bar: float, vnode: Any, base: str,
+def _check_valve(m: MuscleConfig, limit_bar: float, rated_bar: float, vnode: JsonValue, base: str,
                  ctx: Context) -> None:
     """A regulator's full scale must be clamped in config to the muscle's rating."""
     v = m.signals.valve

@@ -18,9 +18,10 @@ load with the reason (`safety.plausibility`; the checks and their physics are in
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, Protocol
+from typing import Protocol
 
 from pamd.config.schema import RigConfig
+from pamd.declare.jsonsafe import JsonValue
 from pamd.muscle_type import MUSCLE_TYPES
 from pamd.schema.engine import Context, line_of
 
@@ -46,7 +47,7 @@ class _Limits(Protocol):
     def hard_max_pretension(self) -> float: ...
 
 
-def check_plausibility_thresholds(rig: RigConfig, raw: Any,
+def check_plausibility_thresholds(rig: RigConfig, raw: JsonValue,
                                   limits: Mapping[str, _Limits],
                                   ctx: Context) -> None:
     """Add an issue for each threshold of `safety.plausibility` that can never fire or

@@ -12,14 +12,14 @@ driver's `timeout_s` with the largest value that fits.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import RigConfig, SignalConfig
+from pamd.declare.jsonsafe import JsonValue
 from pamd.schema.engine import Context, line_of
 
 
-def check_request_timeouts(rig: RigConfig, node: Any, lost_reply: dict[str, float],
+def check_request_timeouts(rig: RigConfig, node: JsonValue, lost_reply: dict[str, float],
                            ctx: Context,
                            timeout_of: Callable[[SignalConfig, SafetyConfig], float]) -> None:
     """Refuse a driver whose `lost_reply` (seconds, by driver name) plus an input

@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.models.anfis.compiled import CompiledAnfis
 from pamd.models.anfis.rls import OutputBound, Rls
 from pamd.models.velocity import VelocityFilter
@@ -88,7 +89,7 @@ class Adaptation:
         self.state = int(AdaptState.OFF)
         self.drift_bar = 0.0
         self.total_bar = 0.0  # OutputBound of (theta - theta0)
-        self.report: dict[str, Any] | None = None
+        self.report: JsonObject | None = None
         self.why_not: str | None = "no model"
         self.ff: Feedforward | None = None
         self.compiled: CompiledAnfis | None = None
@@ -125,7 +126,7 @@ class Adaptation:
                             f"TS-fuzzy model; a {ff.model.kind} model has none")
         else:
             c = ff.compiled
-            m: Any = ff.model
+            m: Any = ff.model  # an ANFIS or TS-fuzzy model (checked above): their rule grid
             self.compiled = c
             self.theta0 = c.theta(np.empty(c.n_consequents))
             self.bound = OutputBound.for_model(m)
@@ -169,7 +170,7 @@ class Adaptation:
             self.bound.clear()
         self.drift_bar = self.total_bar = 0.0
 
-    def command(self, action: str) -> dict[str, Any]:
+    def command(self, action: str) -> JsonObject:
         """The `adapt` command's action (ValueError with the reason if refused)."""
         if action == "on":
             self.switch(True)
@@ -187,11 +188,11 @@ class Adaptation:
             raise ValueError(f"unknown action {action!r}; use {', '.join(ACTIONS)}")
         return self.describe()
 
-    def take_report(self) -> dict[str, Any] | None:
+    def take_report(self) -> JsonObject | None:
         r, self.report = self.report, None
         return r
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         """What a verdict, a status or a saved model's provenance says of it."""
         cfg = self.cfg
         return {"muscle": self.muscle, "enabled": self.enabled,
@@ -207,7 +208,7 @@ class Adaptation:
                            "initial_variance_bar2": cfg.initial_variance_bar2},
                 **({"why_not": self.why_not} if self.why_not else {})}
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> JsonObject:
         """A copy of the present consequents (column by column, `CompiledAnfis.theta`)
         with what a saved model's provenance needs (`pamd.models.anfis.adapted`);
         ValueError if there is no model that adapts."""

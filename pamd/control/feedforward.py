@@ -18,17 +18,20 @@ from __future__ import annotations
 import hashlib
 import os
 from collections.abc import Callable
-from typing import Any
+from typing import TypeVar
 
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig
 from pamd.control.model_check import SOURCES, check_model_for, velocity_window
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
 from pamd.models.registry import adaptable, load_model
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.schema.engine import Context, line_of
 from pamd.schema.yamlload import load_yaml_text
+
+R = TypeVar("R")  # what the compiled model's call returns (evaluate: float, reset: None)
 
 
 class LoadedModel:
@@ -142,17 +145,16 @@ class Feedforward:
         no-op for the stateless kinds."""
         self._reset(force_n, length_mm, contraction, velocity_mm_s)
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {"file": self.source, "sha256": self.sha256, **self.model.describe()}
 
 
-def _wire(ev: Callable[..., Any], idx: list[int]) -> Callable[[float, float, float, float],
-                                                              Any]:
+def _wire(ev: Callable[..., R], idx: list[int]) -> Callable[[float, float, float, float], R]:
     """A call taking all four tick signals and passing the model its own inputs."""
     if len(idx) == 2:
         i, j = idx
 
-        def call2(f: float, ln: float, x: float, v: float) -> Any:
+        def call2(f: float, ln: float, x: float, v: float) -> R:
             a = (f, ln, x, v)
             return ev(a[i], a[j])
 
@@ -160,13 +162,13 @@ def _wire(ev: Callable[..., Any], idx: list[int]) -> Callable[[float, float, flo
     if len(idx) == 3:
         i, j, k = idx
 
-        def call3(f: float, ln: float, x: float, v: float) -> Any:
+        def call3(f: float, ln: float, x: float, v: float) -> R:
             a = (f, ln, x, v)
             return ev(a[i], a[j], a[k])
 
         return call3
 
-    def call(f: float, ln: float, x: float, v: float) -> Any:
+    def call(f: float, ln: float, x: float, v: float) -> R:
         a = (f, ln, x, v)
         return ev(*[a[n] for n in idx])
 

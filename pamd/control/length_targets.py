@@ -9,9 +9,9 @@ tick) and `pamd run --profile` (config only, before the rig starts) run.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
 
 from pamd.config.loader import LoadedConfig
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.muscle_type import equilibrium_contraction
 from pamd.profiles import Profile, ProfileSpec, shape_of
@@ -113,7 +113,7 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
 
 
 def check_length_profile_config(cfg: LoadedConfig, muscle: str,
-                                payload: dict[str, Any]) -> None:
+                                payload: JsonObject) -> None:
     """`length_profile`'s checks from the config alone (limits, load, rate), for a
     profile asked for before the rig starts (`pamd run --mode position --profile`):
     the muscle at its nominal length with its configured load."""

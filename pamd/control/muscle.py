@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from array import array
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from pamd.config.control_schema import PidConfig
 from pamd.config.loader import LoadedConfig
@@ -40,6 +40,7 @@ from pamd.control.muscle_view import MuscleView
 from pamd.control.pressure_loop import PressureLoop
 from pamd.control.setpoint import ProfileFollower, SafeRamp
 from pamd.control.settings import MuscleSettings
+from pamd.declare.jsonsafe import JsonObject
 from pamd.profiles import Profile
 from pamd.rig import MuscleSignals
 from pamd.safety.envelope import MuscleEnvelope
@@ -319,11 +320,11 @@ class MuscleController(MuscleView):
         self.adaptation.bind(feedforward)
         return taken_up
 
-    def adapt(self, action: str) -> dict[str, Any]:
+    def adapt(self, action: str) -> JsonObject:
         """The `adapt` command: on, off, reset, restore or status (`Adaptation.command`)."""
         return self.adaptation.command(action)
 
-    def adapted_parameters(self) -> dict[str, Any]:
+    def adapted_parameters(self) -> JsonObject:
         """A copy of the adapted consequents and their provenance (`Adaptation.snapshot`)."""
         return self.adaptation.snapshot()
 

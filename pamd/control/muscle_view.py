@@ -10,7 +10,6 @@ preallocated record, on the tick path).
 from __future__ import annotations
 
 from array import array
-from typing import Any
 
 from pamd.calibration import MuscleReference
 from pamd.control.actuation import Actuation
@@ -18,6 +17,7 @@ from pamd.control.adapt import Adaptation
 from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
 from pamd.control.pressure_loop import PressureLoop
+from pamd.declare.jsonsafe import JsonObject
 from pamd.profiles import Profile
 from pamd.rig import MuscleSignals
 from pamd.safety.envelope import MuscleEnvelope
@@ -167,11 +167,11 @@ class MuscleView:
         return finding
 
     @property
-    def adapt_report(self) -> dict[str, Any] | None:
+    def adapt_report(self) -> JsonObject | None:
         """A freeze or a bound of the model's adaptation, not yet reported."""
         return self.adaptation.report
 
-    def take_adapt_report(self) -> dict[str, Any] | None:
+    def take_adapt_report(self) -> JsonObject | None:
         return self.adaptation.take_report()
 
     def take_limit_report(self) -> str | None:

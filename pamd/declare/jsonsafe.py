@@ -6,10 +6,33 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any
+from typing import Any, TypeAlias
+
+# The types of JSON and YAML values at pamd's edges, named once (here, beside the one
+# JSON encoder, so the io process imports no extra module for them).
+#
+# pamd's one `Any` for data lives here (`mypy --strict` runs over pamd/ and drivers/;
+# other `Any`s say beside them why they are one). A JSON or YAML value is whatever its
+# text said until a checker narrows it, so its static type is the edge's `Any`:
+#
+# * in: a command's payload (checked by pamd.verbs), a config file's nodes (pamd.schema,
+#   pamd.config, which name file, line and key), a model file (pamd.models.document),
+#   a status answer, a recording's metadata or events (pamd.record, pamd.view);
+# * out: an event's payload, a verdict, the status, a model file's provenance and
+#   metrics: any value `jsonsafe` below can write (it writes what JSON cannot hold
+#   as its text).
+#
+# A recursive union (`dict[str, JsonValue] | list[JsonValue] | str | float | ...`) would
+# make every reader narrow each step again after the checker did; the aliases name the
+# edge instead, so a reader sees that the dict came from (or goes to) JSON.
+
+#: a JSON or YAML value: object, array, string, number, bool or null (see above)
+JsonValue: TypeAlias = Any
+#: a JSON or YAML object: keys are strings, values `JsonValue`s
+JsonObject: TypeAlias = dict[str, Any]
 
 
-def jsonsafe(x: object) -> Any:
+def jsonsafe(x: object) -> JsonValue:
     """Strict-JSON copy: non-finite floats become null, keys strings, tuples lists."""
     if isinstance(x, float):
         return x if math.isfinite(x) else None

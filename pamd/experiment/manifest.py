@@ -16,11 +16,12 @@ import json
 import os
 import time
 import uuid
-from typing import Any
 
 from pamd.config.loader import LoadedConfig
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ConfigError, ConfigIssue
 from pamd.experiment.plan import Plan
+from pamd.experiment.sequencer import Sequencer
 from pamd.experiment.stepfiles import read_step_file
 from pamd.experiment.timeline import StepLine
 from pamd.version import __version__
@@ -33,7 +34,7 @@ def collection_name(plan: Plan, wall_s: float | None = None) -> str:
     return f"{plan.name}-{time.strftime('%Y%m%d-%H%M%S', time.localtime(wall_s))}"
 
 
-def step_records(plan: Plan, lines: list[StepLine]) -> tuple[dict[str, Any], ...]:
+def step_records(plan: Plan, lines: list[StepLine]) -> tuple[JsonObject, ...]:
     """Per step, what its recording file is named after and states as `pamd.experiment`
     metadata: the plan, the step's name and index, and the load it runs under."""
     return tuple({"step": s.name, "index": i, "plan": plan.name, "load_kg": lines[i].load_kg}
@@ -41,7 +42,7 @@ def step_records(plan: Plan, lines: list[StepLine]) -> tuple[dict[str, Any], ...
 
 
 class Manifest:
-    def __init__(self, directory: str, data: dict[str, Any]) -> None:
+    def __init__(self, directory: str, data: JsonObject) -> None:
         self.directory = directory
         self.data = data
 
@@ -92,7 +93,7 @@ class Manifest:
                                            f"{data.get('format')} v{data.get('version')}")])
         return cls(directory, data)
 
-    def _tag(self, s: dict[str, Any]) -> str:
+    def _tag(self, s: JsonObject) -> str:
         return f"_{s['index'] + 1:02d}-{s['name']}"
 
     def _on_disk(self) -> list[str]:
@@ -153,8 +154,8 @@ class Manifest:
                 return int(s["index"])
         return None
 
-    def record_run(self, seq: Any, result: dict[str, Any], start: int,
-                   outcome: str | None = None, extra: dict[str, Any] | None = None) -> None:
+    def record_run(self, seq: Sequencer | None, result: JsonObject, start: int,
+                   outcome: str | None = None, extra: JsonObject | None = None) -> None:
         """Mark what this run finished, failed or left, and which files it wrote.
         `outcome` overrides the sequencer's (a daemon that stopped before the plan
         ended); `extra` goes into the run's entry (who asked for a remote collection)."""

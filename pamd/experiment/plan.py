@@ -10,10 +10,10 @@ operator. Each step becomes one recording file.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from pamd.config.loader import LoadedConfig
 from pamd.config.names import NAME_RE
+from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import CommandRefused
 from pamd.muscle_type import MUSCLE_TYPES, equilibrium_contraction, force_model
 from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
@@ -116,7 +116,7 @@ def parse_plan(text: str, path: str, rig: LoadedConfig) -> Plan:
     return plan
 
 
-def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[Any]) -> None:
+def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[JsonValue]) -> None:
     """Limits, loads, slew and contraction of every step, against the rig."""
     if not NAME_RE.match(plan.name):  # it names the collection's files and directory
         ctx.add(None, "name", "a name of letters, digits, '_', '-'", repr(plan.name))

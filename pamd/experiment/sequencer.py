@@ -17,9 +17,10 @@ of times per experiment, never in the per-tick checks.
 from __future__ import annotations
 
 import math
-from typing import Any, cast
+from typing import cast
 
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.experiment.plan import Plan, PlanStep
 from pamd.muscle_type import GRAVITY_M_S2
@@ -258,7 +259,7 @@ class Sequencer:
         self.phase = phase
         self.phase_t0 = now
 
-    def _event(self, now: float, what: str, extra: dict[str, Any] | None = None) -> None:
+    def _event(self, now: float, what: str, extra: JsonObject | None = None) -> None:
         step = self.step
         self.ctrl.sink.event(now, "experiment", {
             "plan": self.plan.name, "what": what, "step": step.name if step else None,
@@ -273,7 +274,7 @@ class Sequencer:
         if outcome == "done" and self.ctrl.supervisor.state == State.RUNNING:
             self.ctrl.supervisor.go(now, State.IDLE, f"plan {self.plan.name} finished")
 
-    def progress(self) -> dict[str, Any]:
+    def progress(self) -> JsonObject:
         """For progress bars and status (read from other threads: plain values)."""
         step = self.step
         p = self.muscle.profile

@@ -25,8 +25,8 @@ from array import array
 from collections import deque
 from collections.abc import Callable
 from multiprocessing.process import BaseProcess
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused, RecordingError
 from pamd.io.process import io_main
 from pamd.io.spec import IoSpec
@@ -64,7 +64,7 @@ class IoLink:
         self.block = block
         self.proc: BaseProcess | None = None
         self.closed = False
-        self._status: dict[str, Any] = {}  # the last status, kept once the block is closed
+        self._status: JsonObject = {}  # the last status, kept once the block is closed
         self._files: list[str] = []
 
     @classmethod
@@ -109,7 +109,7 @@ class IoLink:
     def files(self) -> list[str]:
         return self.block.files() if not self.closed else self._files
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> JsonObject:
         if self.closed:
             return dict(self._status)
         st = self.block.get(C_IO_STATE)
@@ -174,7 +174,7 @@ class RingSink:
         self.lost_records = 0
         self.lost_events = 0
         self._producer: int | None = None  # the loop's thread, bound at the first put
-        self._pending: deque[tuple[float, str, dict[str, Any]]] = deque()
+        self._pending: deque[tuple[float, str, JsonObject]] = deque()
         self._held: deque[bytes] = deque()  # events waiting for room in the ring
 
     # -- watch ------------------------------------------------------------------------
@@ -263,7 +263,7 @@ class RingSink:
                                     "total": self.lost_records})
 
     # -- events -----------------------------------------------------------------------
-    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+    def event(self, t_s: float, kind: str, data: JsonObject) -> None:
         if not self.active:
             return
         if threading.get_ident() != self._producer:
@@ -296,7 +296,7 @@ class RingSink:
         st = self.u64[C_IO_STATE]
         return st == IO_DONE or (st == IO_FAILED and not self.keeps_draining)
 
-    def _encode(self, t_s: float, kind: str, data: dict[str, Any]) -> bytes:
+    def _encode(self, t_s: float, kind: str, data: JsonObject) -> bytes:
         blob = json.dumps({"t": t_s, "kind": kind, "data": data}, default=str).encode()
         cap = self.events_ring.slot_bytes - 4
         if len(blob) > cap:
@@ -324,7 +324,7 @@ class RingSink:
             t_s, kind, data = self._pending.popleft()
             self.event(t_s, kind, data)
 
-    def finish(self, summary: dict[str, Any]) -> None:
+    def finish(self, summary: JsonObject) -> None:
         """Last words, from the thread that owns the rings once the loop has ended."""
         self._producer = threading.get_ident()
         if not self._started:
@@ -363,7 +363,7 @@ class RingMailbox:
         except (ValueError, AttributeError, TypeError, RecursionError):
             return None  # not the io process's: it always sends an object with an id
 
-        def reply(verdict: dict[str, Any], _cid: int = cid) -> None:
+        def reply(verdict: JsonObject, _cid: int = cid) -> None:
             self.sink.event(self.now(), "reply", {"id": _cid, **verdict})
 
         try:

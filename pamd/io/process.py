@@ -25,8 +25,9 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import (
     C_HEARTBEAT,
@@ -63,12 +64,12 @@ class RingCommandPort:
     def __init__(self, block: SharedBlock) -> None:
         self.ring = block.commands
         self.next_id = 1
-        self.waiting: dict[int, Callable[[dict[str, Any]], None]] = {}
+        self.waiting: dict[int, Callable[[JsonObject], None]] = {}
         self.backlog: deque[tuple[int, bytes]] = deque()
         self.lock = threading.RLock()
 
-    def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
-             on_verdict: Callable[[dict[str, Any]], None] | None = None) -> int | None:
+    def send(self, verb: str, payload: JsonObject | None, sender: str, user: str = "",
+             on_verdict: Callable[[JsonObject], None] | None = None) -> int | None:
         """Queue a command; None (and a refusal verdict) if it cannot be queued."""
         with self.lock:
             cid = self.next_id
@@ -103,7 +104,7 @@ class RingCommandPort:
                 n += 1
         return n
 
-    def on_reply(self, data: dict[str, Any]) -> None:
+    def on_reply(self, data: JsonObject) -> None:
         with self.lock:
             fn = self.waiting.pop(int(data.get("id", -1)), None)
             if fn is not None:
@@ -146,7 +147,7 @@ class IoProcess:
         self.last_tick = -1
         self.failed = False
         self.reply_t = 0.0
-        self._next_event: dict[str, Any] | None = None  # read, newer than a step's end
+        self._next_event: JsonObject | None = None  # read, newer than a step's end
 
     def _fail(self, what: str, exc: BaseException) -> None:
         reason = f"{what}: {exc.__class__.__name__}: {exc}"
@@ -195,7 +196,7 @@ class IoProcess:
                 return
         block.set(C_IO_STATE, IO_READY)
         stop_reason = "stopped by the daemon"
-        summary: dict[str, Any] | None = None
+        summary: JsonObject | None = None
         hb = 0
         mono = time.monotonic
         last_parent_check = mono()
@@ -301,7 +302,7 @@ class IoProcess:
         return n
 
     def _drain_events(self, before_t_s: float | None = None
-                      ) -> tuple[int, dict[str, Any] | None]:
+                      ) -> tuple[int, JsonObject | None]:
         """Events into telemetry and the recording. With `before_t_s` (the first tick of
         a new step file is about to be written), every event older than that tick, so
         each goes into the file of the step it happened in (the loop writes a tick's
@@ -359,7 +360,7 @@ class IoProcess:
                 self.net.event((self.block.t_start() or 0.0) + t_s, "collection", msg)
         rec.notices.clear()
 
-    def _record_event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+    def _record_event(self, t_s: float, kind: str, data: JsonObject) -> None:
         """An event of the io process's own (a command it refused) into the recording."""
         rec = self.recorder
         if rec is None:
@@ -376,7 +377,7 @@ class IoProcess:
             _tick, verb, payload = self.script.pop(0)
             self.port.send(verb, payload, sender="script", on_verdict=self._scripted_verdict)
 
-    def _scripted_verdict(self, data: dict[str, Any]) -> None:
+    def _scripted_verdict(self, data: JsonObject) -> None:
         """The verdict came back to the io process: say so in the recording."""
         if self.recorder is not None:
             try:

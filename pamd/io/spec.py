@@ -4,8 +4,9 @@ spawn (the io process imports nothing of the daemon's live objects)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.ipc.ring import BlockLayout
 from pamd.net.spec import NetSpec
 from pamd.record.spec import RecordSpec
@@ -28,7 +29,7 @@ class IoSpec:
     record: RecordSpec | None
     # Commands the io process sends to the loop at a given tick: (tick, verb, payload).
     # The Zenoh session will be the real source; this one proves the path end to end.
-    script: tuple[tuple[int, str, dict[str, Any]], ...] = ()
+    script: tuple[tuple[int, str, JsonObject], ...] = ()
     # Telemetry and remote commands; None: no Zenoh session.
     net: NetSpec | None = None
     # The live Foxglove view; None: no Foxglove server.

@@ -14,10 +14,11 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, TextIO
+from typing import TextIO
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
@@ -44,7 +45,7 @@ class Judged:
     metrics: dict[str, float]
     tick_cost_us: float
 
-    def as_json(self) -> dict[str, Any]:
+    def as_json(self) -> JsonObject:
         return {"file": self.file, "kind": self.model.kind, "n_params": self.model.n_params,
                 "metrics": {k: _json_float(v) for k, v in self.metrics.items()},
                 "tick_cost_us": _json_float(self.tick_cost_us),
@@ -160,5 +161,5 @@ def format_comparison(rows: Sequence[Judged], out: TextIO | None = None) -> None
         print(f"  {name:<{w}}" + "".join(cells), file=out)
 
 
-def _json_float(v: object) -> Any:
+def _json_float(v: object) -> JsonValue:
     return None if isinstance(v, float) and not math.isfinite(v) else v

@@ -26,11 +26,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol, overload, runtime_checkable
+from typing import Literal, Protocol, overload, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 
 #: Signals a model input can be fed from, in the order `Feedforward.pressure` takes them.
@@ -92,9 +93,9 @@ class InverseModel(Protocol):
     kind: str
     inputs: list[Variable]
     output: Variable
-    derived_inputs: dict[str, Any]
-    provenance: dict[str, Any]
-    metrics: dict[str, Any]
+    derived_inputs: JsonObject
+    provenance: JsonObject
+    metrics: JsonObject
 
     @property
     def n_params(self) -> int: ...
@@ -109,9 +110,9 @@ class InverseModel(Protocol):
                 ) -> tuple[np.ndarray, np.ndarray]: ...
 
     def compile(self) -> CompiledModel: ...
-    def describe(self) -> dict[str, Any]: ...
+    def describe(self) -> JsonObject: ...
     def problems(self, envelope: Envelope) -> list[str]: ...
-    def to_dict(self) -> dict[str, Any]: ...
+    def to_dict(self) -> JsonObject: ...
 
 
 def velocity_window(model: InverseModel) -> float | None:
@@ -160,7 +161,7 @@ def tick_problems(model: InverseModel, envelope: Envelope, *,
     return out
 
 
-def describe_common(model: InverseModel) -> dict[str, Any]:
+def describe_common(model: InverseModel) -> JsonObject:
     """The part of `describe()` every kind shares."""
     return {"kind": model.kind, "inputs": [v.name for v in model.inputs],
             "output": model.output.name, "n_params": model.n_params,

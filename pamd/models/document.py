@@ -21,8 +21,9 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Iterable
-from typing import Any, NoReturn, SupportsFloat, TypeGuard, TypeVar, overload
+from typing import NoReturn, SupportsFloat, TypeGuard, TypeVar, overload
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel, Variable
 
@@ -35,7 +36,7 @@ def floats(values: Iterable[SupportsFloat]) -> list[float]:
     return [float(v) for v in values]
 
 
-def plain(obj: object) -> Any:
+def plain(obj: object) -> JsonValue:
     """Free-form dicts -> JSON-safe values (numpy scalars/arrays, non-finite -> null)."""
     if isinstance(obj, dict):
         return {str(k): plain(v) for k, v in obj.items()}
@@ -63,7 +64,7 @@ def format_json(obj: object, level: int, in_list: bool = False) -> str:
     return json.dumps(obj, allow_nan=False)
 
 
-def _is_nested_list(obj: object) -> TypeGuard[list[Any]]:
+def _is_nested_list(obj: object) -> TypeGuard[list[JsonValue]]:
     return isinstance(obj, list) and any(isinstance(v, (dict, list)) for v in obj)
 
 
@@ -71,7 +72,7 @@ def _reject_constant(name: str) -> NoReturn:
     raise ValueError(f"non-finite number {name}")
 
 
-def mapping(doc: object, where: str) -> dict[str, Any]:
+def mapping(doc: object, where: str) -> JsonObject:
     """`doc` as a JSON object; ModelError if it is not one."""
     if not isinstance(doc, dict):
         raise ModelError(f"{where or 'document'}: expected an object")
@@ -115,7 +116,7 @@ def variable(doc: object, where: str) -> Variable:
     return Variable(field(doc, "name", str, where), field(doc, "unit", str, where), lo, hi)
 
 
-def parse_json(text: str, source: str) -> Any:
+def parse_json(text: str, source: str) -> JsonValue:
     """Parsed JSON; NaN/Infinity and broken text refused (`ModelError` naming `source`)."""
     try:
         return json.loads(text, parse_constant=_reject_constant)
@@ -125,7 +126,7 @@ def parse_json(text: str, source: str) -> Any:
         raise ModelError(f"model file {source}: not valid JSON{hint}: {exc}") from exc
 
 
-def header(model: InverseModel, kind: str, version: int) -> dict[str, Any]:
+def header(model: InverseModel, kind: str, version: int) -> JsonObject:
     """The common part of a kind's document (parameters go in between)."""
     return {
         "format": FORMAT, "kind": kind, "version": version,
@@ -137,13 +138,13 @@ def header(model: InverseModel, kind: str, version: int) -> dict[str, Any]:
     }
 
 
-def footer(model: InverseModel) -> dict[str, Any]:
+def footer(model: InverseModel) -> JsonObject:
     return {"provenance": plain(model.provenance), "metrics": plain(model.metrics)}
 
 
 def read_header(doc: object, kind: str, version: int
-                ) -> tuple[list[Variable], Variable, dict[str, Any], dict[str, Any],
-                           dict[str, Any], dict[str, Any]]:
+                ) -> tuple[list[Variable], Variable, JsonObject, JsonObject,
+                           JsonObject, JsonObject]:
     """(inputs, output, derived_inputs, parameters, provenance, metrics) of a document
     of `kind`, its version checked."""
     doc = mapping(doc, "")
@@ -161,7 +162,7 @@ def read_header(doc: object, kind: str, version: int
     output = variable(field(doc, "output", dict, ""), "output")
     params = field(doc, "parameters", dict, "")
 
-    def opt(key: str) -> dict[str, Any]:
+    def opt(key: str) -> JsonObject:
         return field(doc, key, dict, "") if key in doc else {}
 
     return inputs, output, opt("derived_inputs"), params, opt("provenance"), opt("metrics")

@@ -23,6 +23,8 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
+
 VELOCITY_WINDOW_S = 0.05
 """Time constant of the recorded velocity (`velocity_mm_s` of the tick record), s."""
 
@@ -82,7 +84,7 @@ def filtered_velocity(t_s: Sequence[float] | Any, length_mm: Sequence[float] | A
     return out
 
 
-def derivation(window_s: float = MODEL_VELOCITY_WINDOW_S) -> dict[str, Any]:
+def derivation(window_s: float = MODEL_VELOCITY_WINDOW_S) -> JsonObject:
     """How a model's `velocity_mm_s` input is computed (stored in the model file)."""
     return {"derived_from": "length_mm", "unit": "mm/s", "window_s": window_s,
             "method": VELOCITY_METHOD, "function": "pamd.models.velocity.velocity_step"}

@@ -14,8 +14,10 @@ from collections.abc import Callable
 from contextlib import AbstractContextManager
 from typing import Any, Protocol
 
+from pamd.declare.jsonsafe import JsonObject
+
 #: a command's verdict, as the loop gives it: {"ok": bool, "error": str, ...}
-Verdict = dict[str, Any]
+Verdict = JsonObject
 
 
 class CommandPort(Protocol):
@@ -29,7 +31,7 @@ class CommandPort(Protocol):
     def waiting(self) -> dict[int, Callable[[Verdict], None]]:
         """Verdict callbacks by command id (the node drops one whose query timed out)."""
 
-    def send(self, verb: str, payload: dict[str, Any] | None, sender: str, user: str = "",
+    def send(self, verb: str, payload: JsonObject | None, sender: str, user: str = "",
              on_verdict: Callable[[Verdict], None] | None = None) -> int | None:
         """Queue a command for the loop; its id, or None (and a refusal verdict)."""
 

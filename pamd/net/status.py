@@ -10,8 +10,9 @@ setpoint, valve command, mode, flags) and what only it knows (`IoStatus`).
 
 from __future__ import annotations
 
-from typing import Any, TypedDict
+from typing import TypedDict
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.declare.jsonsafe import jsonsafe as jsonsafe  # the one JSON encoder's
 
 
@@ -53,8 +54,8 @@ class MuscleStatus(TypedDict):
     profile: str | None  # the running profile's shape
     limits: MuscleLimits
     references: References
-    model: dict[str, Any] | None  # the inverse model's description (JSON edge)
-    adapt: dict[str, Any]  # online adaptation (pamd.control.adapt; JSON edge)
+    model: JsonObject | None  # the inverse model's description (JSON edge)
+    adapt: JsonObject  # online adaptation (pamd.control.adapt; JSON edge)
     deadman_left_s: float | None
 
 
@@ -71,12 +72,12 @@ class ExperimentStatus(TypedDict):
     phase: str
     outcome: str | None
     awaiting_operator: str | None
-    collection: dict[str, Any] | None  # the collection a remote collect writes into
+    collection: JsonObject | None  # the collection a remote collect writes into
 
 
 class RecordingStatus(TypedDict):
     files: list[str]
-    failure: dict[str, Any] | None  # why the recording stopped, or None
+    failure: JsonObject | None  # why the recording stopped, or None
 
 
 class Status(TypedDict):
@@ -87,7 +88,7 @@ class Status(TypedDict):
     reason: str
     fault: str | None  # the latched fault's reason, or None
     faults: list[str]
-    reload: dict[str, Any] | None  # a config reload's fate (RigController.reload_note)
+    reload: JsonObject | None  # a config reload's fate (RigController.reload_note)
     safety_chain: SafetyChainStatus | None
     muscles: dict[str, MuscleStatus]
     experiment: ExperimentStatus | None
@@ -113,7 +114,7 @@ class IoStatus(TypedDict, total=False):
     tick: int
     t_s: float
     snapshot_age_s: float
-    timing: dict[str, Any]  # from the tick records (pamd.net.node.stats)
+    timing: JsonObject  # from the tick records (pamd.net.node.stats)
     io: dict[str, int]  # its own counters
     stale: bool
     stale_reasons: list[str]

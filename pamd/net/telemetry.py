@@ -23,6 +23,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 VERSION = 1
@@ -50,7 +51,7 @@ class MuscleBatch:
         self.n += 1
 
     def take(self, t0_wall_s: float | None) -> bytes:
-        msg: dict[str, Any] = dict(self.head, seq=self.seq, t0_wall_s=t0_wall_s)
+        msg: JsonObject = dict(self.head, seq=self.seq, t0_wall_s=t0_wall_s)
         for name, col in zip(self.names, self.cols, strict=True):
             msg[name] = col
         self.cols = [[] for _ in self.names]
@@ -76,13 +77,13 @@ class StateBatcher:
         self.pending += 1
 
 
-def decode(payload: bytes) -> dict[str, Any]:
+def decode(payload: bytes) -> JsonObject:
     """A state put as a dict of columns (clients, tests)."""
-    state: dict[str, Any] = json.loads(payload)
+    state: JsonObject = json.loads(payload)
     return state
 
 
-def rows(msg: dict[str, Any]) -> list[dict[str, Any]]:
+def rows(msg: JsonObject) -> list[JsonObject]:
     """A decoded state put as one dict per sample."""
     names = [k for k, v in msg.items() if isinstance(v, list)]
     return [{k: msg[k][i] for k in names} for i in range(len(msg.get("tick", [])))]

@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.record.spec import RecordSpec
 
 BEGIN, END = "begin", "end"
@@ -36,7 +36,7 @@ BEGUN, CLOSED, DROPPED = "begun", "closed", "dropped"
 
 
 def begin_message(cid: int, directory: str, run_name: str, started_at: str,
-                  steps: tuple[dict[str, Any], ...],
+                  steps: tuple[JsonObject, ...],
                   metadata: dict[str, dict[str, str]]) -> bytes:
     """A collection's files: in `directory`, `<started_at>_<rig>_<run_name>_NN-<step>`,
     each with its step as `pamd.experiment` and `metadata` merged over the run's."""
@@ -49,7 +49,7 @@ def end_message(cid: int) -> bytes:
     return json.dumps({"op": END, "id": cid}).encode()
 
 
-def collection_spec(base: RecordSpec, msg: dict[str, Any]) -> RecordSpec:
+def collection_spec(base: RecordSpec, msg: JsonObject) -> RecordSpec:
     """The run's recording spec turned into the collection's (io process)."""
     meta = {name: dict(rec) for name, rec in base.metadata.items()}
     for name, rec in msg.get("metadata", {}).items():
@@ -59,6 +59,6 @@ def collection_spec(base: RecordSpec, msg: dict[str, Any]) -> RecordSpec:
                                steps=tuple(msg["steps"]))
 
 
-def notice(what: str, msg: dict[str, Any], **extra: Any) -> dict[str, Any]:
+def notice(what: str, msg: JsonObject, **extra: JsonValue) -> JsonObject:
     """A notice of the recorder about collection `msg` (a `begin` message)."""
     return {"what": what, "id": msg["id"], "dir": msg["dir"], **extra}

@@ -26,6 +26,7 @@ from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Chunk, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk, get_chunk_data_stream
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import RecordingError
 from pamd.record import cdr
 from pamd.record.mcapw import MAGIC, McapWriter
@@ -210,7 +211,7 @@ class Decoder:
 
 
 # -- inspect -------------------------------------------------------------------------
-def inspect(path: str) -> dict[str, Any]:
+def inspect(path: str) -> JsonObject:
     """`describe` and what only reading every message tells: the faults (events and the
     summary's), the lost records, and that every chunk reads."""
     info, chans, schemas = _describe(path)
@@ -224,21 +225,21 @@ def inspect(path: str) -> dict[str, Any]:
     return info
 
 
-def describe(path: str) -> dict[str, Any]:
+def describe(path: str) -> JsonObject:
     """A recording's size, status, span, channels (with their message counts), metadata
     and attachments: from a finalised file's summary, without reading its messages (a
     reader that reads them anyway needs no second pass); an unfinished one is scanned."""
     return _describe(path)[0]
 
 
-def _describe(path: str) -> tuple[dict[str, Any], dict[str, Channel], dict[int, Schema]]:
+def _describe(path: str) -> tuple[JsonObject, dict[str, Channel], dict[int, Schema]]:
     size = check_file(path)
     final = is_finalised(path)
     counts: dict[str, int] = {}
     chans: dict[str, Channel] = {}
     schemas: dict[int, Schema] = {}
     metadata: dict[str, dict[str, str]] = {}
-    attachments: list[dict[str, Any]] = []
+    attachments: list[JsonObject] = []
     start = end = None
     chunks = 0
     status = "finalised"
@@ -399,7 +400,7 @@ def _check_room(out: str, need_bytes: int) -> None:
                              "recover onto another disk with --out DIR")
 
 
-def recover(path: str, out: str | None = None, force: bool = False) -> dict[str, Any]:
+def recover(path: str, out: str | None = None, force: bool = False) -> JsonObject:
     """Write a finalised copy of `path` holding every complete chunk."""
     check_file(path)
     if is_finalised(path) and not force:

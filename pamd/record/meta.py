@@ -10,10 +10,10 @@ import platform
 import socket
 import sys
 import time
-from typing import Any
 
 from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
+from pamd.declare.jsonsafe import JsonObject
 from pamd.record.spec import RecordSpec
 from pamd.version import __version__
 
@@ -24,10 +24,10 @@ def _s(v: object) -> str:
 
 def build_record_spec(cfg: LoadedConfig, calibration: Calibration, *, record_dir: str,
                       note: str = "", run_name: str | None = None,
-                      model_path: str | None = None, profile: dict[str, Any] | None = None,
+                      model_path: str | None = None, profile: JsonObject | None = None,
                       virtual: bool, wall0_ns: int,
                       fsize_limit_bytes: int | None = None, max_mb: float | None = None,
-                      steps: tuple[dict[str, Any], ...] = ()) -> RecordSpec:
+                      steps: tuple[JsonObject, ...] = ()) -> RecordSpec:
     rc = cfg.rig.recording
     started = time.strftime("%Y%m%d-%H%M%S", time.localtime(wall0_ns / 1e9))
     rig = cfg.rig

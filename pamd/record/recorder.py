@@ -24,10 +24,9 @@ import json
 import os
 import struct
 import time
-from typing import Any
 
 from pamd.declare import events
-from pamd.declare.jsonsafe import dumps, jsonsafe
+from pamd.declare.jsonsafe import JsonObject, dumps, jsonsafe
 from pamd.record import cdr, control
 from pamd.record.mcapw import McapWriter
 from pamd.record.spec import RecordedRun, RecordSpec
@@ -50,7 +49,7 @@ def record_schemas() -> list[tuple[str, str, bytes]]:
 
 
 def file_name(started_at: str, rig_id: str, run_name: str, segment: int,
-              step: dict[str, Any] | None = None) -> str:
+              step: JsonObject | None = None) -> str:
     """`<time>_<rig>_<run>[_NN-<step>][_NNN].mcap`: an experiment step's files carry
     its number and name; a rotated file its segment number."""
     seg = f"_{segment:03d}" if segment else ""
@@ -101,10 +100,10 @@ class Recorder:
         self.i_segment = LOOP_FIELDS.index("segment")
         self.seg_seen = 0.0  # the tick field `segment` of the last tick
         self.base: RecordSpec = self.rs  # the run's own spec (a collection swaps rs)
-        self.pending: dict[str, Any] | None = None  # a collection announced (`begin`)
-        self.coll: dict[str, Any] | None = None  # the collection being recorded
+        self.pending: JsonObject | None = None  # a collection announced (`begin`)
+        self.coll: JsonObject | None = None  # the collection being recorded
         self.coll_files = self.coll_ticks = 0  # where it started in files and ticks
-        self.notices: list[dict[str, Any]] = []  # for the daemon (pamd.record.control)
+        self.notices: list[JsonObject] = []  # for the daemon (pamd.record.control)
         self.name_suffix = ""  # "-2"... when the plain name was taken by an earlier run
 
     # -- files ------------------------------------------------------------------------
@@ -161,7 +160,7 @@ class Recorder:
         stem, ext = os.path.splitext(name)
         return f"{stem}{self.name_suffix}{ext}"
 
-    def _step(self) -> dict[str, Any] | None:
+    def _step(self) -> JsonObject | None:
         k = self.step_no - 1
         return self.rs.steps[k] if 0 <= k < len(self.rs.steps) else None
 
@@ -189,7 +188,7 @@ class Recorder:
         self.open()
 
     # -- experiment steps and collections ------------------------------------------------
-    def control(self, msg: dict[str, Any]) -> None:
+    def control(self, msg: JsonObject) -> None:
         """A control message of the daemon's main thread (pamd.record.control)."""
         if msg.get("op") == control.BEGIN:
             self.pending = msg
@@ -303,7 +302,7 @@ class Recorder:
         self.chunk_t0 = -1
         self.writer.sync()
 
-    def event(self, t_abs_s: float, kind: str, data: dict[str, Any]) -> None:
+    def event(self, t_abs_s: float, kind: str, data: JsonObject) -> None:
         w = self.writer
         assert w is not None
         t0 = self.t_start if self.t_start is not None else t_abs_s
@@ -329,7 +328,7 @@ class Recorder:
             self.last_sync = now_mono
             self.writer.sync()  # type: ignore[union-attr]
 
-    def finish(self, summary: dict[str, Any] | None, stop_reason: str) -> None:
+    def finish(self, summary: JsonObject | None, stop_reason: str) -> None:
         w = self.writer
         if w is None:
             return

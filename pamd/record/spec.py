@@ -4,7 +4,9 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Protocol
+
+from pamd.declare.jsonsafe import JsonObject
 
 
 @dataclass(frozen=True)
@@ -24,7 +26,7 @@ class RecordSpec:
     fsize_limit_bytes: int | None = None  # tests: RLIMIT_FSIZE, so writes fail for real
     # Experiment steps: the file of step k (tick field `segment` = k + 1) is named after
     # steps[k]["step"] and states steps[k] as its `pamd.experiment` metadata.
-    steps: tuple[dict[str, Any], ...] = ()
+    steps: tuple[JsonObject, ...] = ()
     # The run's files together stop taking ticks past this size (events still go in),
     # said in the file and the summary: the cap of an interactive `pamd run`'s default
     # recording. None: no cap.

@@ -8,6 +8,7 @@ import json
 from dataclasses import dataclass, field
 from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.record import files
 
 
@@ -18,7 +19,7 @@ class RawEvent:
     t_s: float
     tick: int
     kind: str
-    data: dict[str, Any]
+    data: JsonObject
     log_ns: int
 
 

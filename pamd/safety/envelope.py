@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, replace
-from typing import Any
 
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import MuscleConfig
+from pamd.declare.jsonsafe import JsonObject
 from pamd.muscle_type import MUSCLE_TYPES, ForceModel, MuscleType, force_model
 from pamd.safety import safe_pressure_bar
 from pamd.safety.length_rate import LengthRate, derive_length_rate
@@ -145,7 +145,7 @@ def _derived(model_name: str, load_kg: float, max_pressure_bar: float,
 
 
 def _settings(limits: MuscleLimitsResolved, safety: SafetyConfig,
-              slew_limit_bar_per_s: float) -> dict[str, Any]:
+              slew_limit_bar_per_s: float) -> JsonObject:
     """The fields a reload may change (IDLE only), besides the nominal length."""
     return dict(
         max_pressure_bar=limits.max_pressure_bar,

@@ -76,8 +76,8 @@ Tick path: float arithmetic only; a message string is built only on a finding.
 from __future__ import annotations
 
 import math
-from typing import Any
 
+from pamd.config.safety_schema import PlausibilityConfig
 from pamd.muscle_type import GRAVITY_M_S2, ForceModel
 
 #: A measured force change below this share of the model's change at a fixed
@@ -98,7 +98,7 @@ _PRESSURE_SEARCH_BAR = (0.0, 10.0)
 class Plausibility:
     """The plausibility state of one muscle's three readings."""
 
-    def __init__(self, muscle: str, names: tuple[str, str, str], cfg: Any,
+    def __init__(self, muscle: str, names: tuple[str, str, str], cfg: PlausibilityConfig,
                  nominal_length_mm: float, model: ForceModel,
                  stops: tuple[float, float] = (0.25, 0.04)) -> None:
         self.muscle = muscle
@@ -111,7 +111,7 @@ class Plausibility:
         self.mass_kg = 0.0
         self.clear()
 
-    def configure(self, cfg: Any) -> None:
+    def configure(self, cfg: PlausibilityConfig) -> None:
         """Thresholds (set-up and reloads): a `PlausibilityConfig`."""
         self.enabled = cfg.enabled
         self.max_rate, self.jump_mm = cfg.length_max_rate_mm_s, cfg.length_jump_mm

@@ -16,6 +16,7 @@ from typing import Any
 
 import yaml
 
+from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ConfigError, ConfigIssue
 
 #: What a key in a YAML mapping may be (a plain value; lists and mappings are refused).
@@ -31,14 +32,14 @@ MAX_DIGITS = 40
 MAX_BYTES = 1 << 20
 
 
-class LinedDict(dict[Any, Any]):
+class LinedDict(dict[Any, Any]):  # a YAML mapping: its keys need not be strings
     """A mapping from YAML with `line` (its own) and `key_lines` (per key), 1-based."""
 
     line: int | None = None
     key_lines: dict[YamlKey, int]
 
 
-class LinedList(list[Any]):
+class LinedList(list[JsonValue]):
     """A sequence from YAML with `line` and `item_lines`, 1-based."""
 
     line: int | None = None
@@ -190,7 +191,7 @@ _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _constr
 _Loader.add_constructor("tag:yaml.org,2002:int", _construct_int)
 
 
-def load_yaml_text(text: str, file: str) -> Any:
+def load_yaml_text(text: str, file: str) -> JsonValue:
     """Parse YAML text; every problem becomes a ConfigError with the line."""
     loader: _Loader | None = None
     try:
@@ -246,6 +247,6 @@ def read_text(path: str, what: str = "a readable YAML file") -> str:
                      "file as UTF-8)") from None
 
 
-def load_yaml_file(path: str) -> Any:
+def load_yaml_file(path: str) -> JsonValue:
     """Read and parse a YAML file; a missing or unreadable file is a ConfigError."""
     return load_yaml_text(read_text(path), path)

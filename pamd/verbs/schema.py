@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.profiles import kinds_reading, kinds_text
 from pamd.schema.engine import spec
 
@@ -143,7 +144,7 @@ class Command:
 
     verb: str
     args: Any
-    reply: Callable[[dict[str, Any]], None] | None = None
+    reply: Callable[[JsonObject], None] | None = None
     sender: str = "local"
     user: str = ""
 
@@ -163,13 +164,13 @@ def cap_text(text: str, limit: int = MAX_TEXT_CHARS) -> str:
     return f"{text[:limit]}... [{len(text) - limit} more characters cut]"
 
 
-def cap_payload(payload: dict[str, Any]) -> dict[str, Any]:
+def cap_payload(payload: JsonObject) -> JsonObject:
     """A payload whose text values and field names are capped (see MAX_TEXT_CHARS)."""
     return {cap_text(str(k)): cap_text(v) if isinstance(v, str) else v
             for k, v in payload.items()}
 
 
-def args_for_record(payload: Any) -> dict[str, Any]:
+def args_for_record(payload: JsonValue) -> JsonObject:
     """What a recorded refusal keeps of a request: the payload if small, else its first
     RECORD_HEAD_BYTES bytes (as text) and its size."""
     if isinstance(payload, (bytes, bytearray)):

@@ -14,8 +14,8 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import CommandRefused
 from pamd.schema.engine import Context, build_dataclass
 from pamd.verbs.schema import (
@@ -128,8 +128,8 @@ VERBS = VerbTable((
 their handlers in `pamd.commands`)."""
 
 
-def parse_command(verb: str, payload: Any, sender: str = "local", user: str = "",
-                  reply: Callable[[dict[str, Any]], None] | None = None) -> Command:
+def parse_command(verb: str, payload: JsonValue, sender: str = "local", user: str = "",
+                  reply: Callable[[JsonObject], None] | None = None) -> Command:
     """Shape checks only; raises CommandRefused saying what was wrong. Text fields
     are capped here (MAX_TEXT_CHARS; sender and user MAX_WHO_CHARS)."""
     declared = VERBS.public(verb)

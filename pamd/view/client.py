@@ -19,10 +19,10 @@ import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import CommandRefused
 from pamd.net.client.client import Client
 from pamd.net.keys import Keys
@@ -48,7 +48,7 @@ class StateBatch:
         return len(self.columns.get("tick", ()))
 
 
-def to_batch(msg: dict[str, Any]) -> StateBatch:
+def to_batch(msg: JsonObject) -> StateBatch:
     cols: dict[str, np.ndarray] = {}
     for k, v in msg.items():
         if isinstance(v, list):
@@ -79,18 +79,18 @@ class RigClient:
     def __enter__(self) -> RigClient:
         return self
 
-    def __exit__(self, *exc: Any) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     def __repr__(self) -> str:
         return f"RigClient(rig={self.rig!r}, via {self._client.where})"
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> JsonObject:
         """The daemon's status: state, muscles (latest values, limits), timing, faults."""
         return self._client.status(self.rig, self.timeout_s)
 
     def command(self, verb: str, check: bool = True, timeout_s: float = 10.0,
-                **fields: Any) -> dict[str, Any]:
+                **fields: JsonValue) -> JsonObject:
         """Send `verb` with `fields` (as `pamd cmd` does); the loop's verdict. A refusal
         raises CommandRefused with the reason, unless `check=False`."""
         verdict = self._client.command(self.rig, verb, fields, timeout_s=timeout_s)

@@ -8,14 +8,14 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import RecordingError
 from pamd.experiment.manifest import Manifest
 from pamd.record import files as io_files
 
 
-def _file(path: str) -> dict[str, Any]:
+def _file(path: str) -> JsonObject:
     """One file's summary; a file that cannot be read is described, not raised."""
     name = os.path.basename(path)
     if not os.path.exists(path):
@@ -34,7 +34,7 @@ def _file(path: str) -> dict[str, Any]:
             "size_bytes": info["size_bytes"], "faults": info["faults"]}
 
 
-def inspect_collection(directory: str) -> dict[str, Any]:
+def inspect_collection(directory: str) -> JsonObject:
     if not os.path.isdir(directory):
         raise RecordingError(f"{directory}: not a directory")
     on_disk = sorted(n for n in os.listdir(directory) if n.endswith(".mcap"))
@@ -75,7 +75,7 @@ def inspect_collection(directory: str) -> dict[str, Any]:
             "summary": _summary([f for s in steps for f in s["files"]] + others, steps)}
 
 
-def _summary(fs: list[dict[str, Any]], steps: list[dict[str, Any]]) -> dict[str, Any]:
+def _summary(fs: list[JsonObject], steps: list[JsonObject]) -> JsonObject:
     done = sum(1 for s in steps if s.get("status") == "done")
     return {"files": len(fs), "duration_s": sum(f["duration_s"] for f in fs),
             "size_bytes": sum(f["size_bytes"] for f in fs),
@@ -84,7 +84,7 @@ def _summary(fs: list[dict[str, Any]], steps: list[dict[str, Any]]) -> dict[str,
             "faults": [x for f in fs for x in f["faults"]]}
 
 
-def print_collection(info: dict[str, Any]) -> None:
+def print_collection(info: JsonObject) -> None:
     s = info["summary"]
     if info["manifest"] is None:
         print(f"{info['directory']}: {s['files']} recording(s), no manifest (not a "

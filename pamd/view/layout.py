@@ -22,6 +22,7 @@ from typing import Any
 
 from pamd.config import load_config
 from pamd.declare import fields
+from pamd.declare.jsonsafe import JsonObject
 from pamd.tick import Mode, State
 
 #: the plot panels of a muscle's tab: title, y unit, series colours in order; the
@@ -37,22 +38,22 @@ _COLORS = {"STARTING": "#9e9e9e", "IDLE": "#1f77b4", "RUNNING": "#2ca02c", "HOLD
            "FAULT": "#d62728", "ESTOP": "#7f0000", "LOAD_CHANGE": "#9467bd"}
 
 
-def _series(path: str, label: str, color: str | None = None) -> dict[str, Any]:
-    s: dict[str, Any] = {"value": path, "enabled": True, "timestampMethod": "receiveTime",
+def _series(path: str, label: str, color: str | None = None) -> JsonObject:
+    s: JsonObject = {"value": path, "enabled": True, "timestampMethod": "receiveTime",
                          "label": label}
     if color:
         s["color"] = color
     return s
 
 
-def _plot(title: str, ylabel: str, series: list[dict[str, Any]]) -> dict[str, Any]:
+def _plot(title: str, ylabel: str, series: list[JsonObject]) -> JsonObject:
     return {"paths": series, "showXAxisLabels": True, "showYAxisLabels": True,
             "showLegend": True, "legendDisplay": "floating", "showPlotValuesInLegend": True,
             "isSynced": True, "xAxisVal": "timestamp", "yAxisLabel": ylabel,
             "sidebarDimension": 240, "foxglovePanelTitle": title}
 
 
-def _discrete(names: dict[int, str]) -> dict[str, Any]:
+def _discrete(names: dict[int, str]) -> JsonObject:
     return {"type": "discrete", "states": [
         {"value": str(v), "label": n, "color": _COLORS.get(n)} for v, n in names.items()]}
 
@@ -65,10 +66,10 @@ def _stack(ids: Sequence[Any], direction: str = "column") -> Any:
             "splitPercentage": round(100.0 / len(ids), 2)}
 
 
-def build_layout(rig_id: str, muscles: Sequence[str]) -> dict[str, Any]:
+def build_layout(rig_id: str, muscles: Sequence[str]) -> JsonObject:
     """The layout (Foxglove's layout file format) of a rig with these muscles."""
     root = f"/pamd/{rig_id}"
-    config: dict[str, Any] = {}
+    config: JsonObject = {}
     tabs = []
     for m in muscles:
         st = f"{root}/state/{m}"

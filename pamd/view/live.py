@@ -33,7 +33,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from pamd.declare.jsonsafe import dumps
+from pamd.declare.jsonsafe import JsonObject, dumps
 from pamd.net.ratelimit import RateLimitedHandler, limit_logger
 from pamd.net.seams import RunClock
 from pamd.record import cdr
@@ -148,7 +148,7 @@ class LiveView:
                 ch.log(self.mus_payload.pack(hdr, *mv), log_time=log_ns)
             self.sent += 1
 
-    def event(self, t_abs_s: float, kind: str, data: dict[str, Any]) -> None:
+    def event(self, t_abs_s: float, kind: str, data: JsonObject) -> None:
         """An event as the recording writes it (`t_s`, `tick`, `kind`, `data`)."""
         if self.server is None or kind == "summary":
             return

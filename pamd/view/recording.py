@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import RecordingError
 from pamd.record import files as io_files
 from pamd.record.tables import read_tables
@@ -41,7 +42,7 @@ class Event:
     t_s: float  # loop time since the run start
     tick: int
     kind: str
-    data: dict[str, Any]
+    data: JsonObject
     log_ns: int  # wall-clock time of the event, ns since the epoch
     file: str
 
@@ -95,7 +96,7 @@ class MuscleData:
         """A pandas DataFrame: one row per tick, states and modes as names (categories),
         units in `df.attrs["units"]`."""
         pd = _pandas()
-        data: dict[str, Any] = dict(self.columns)
+        data: dict[str, Any] = dict(self.columns)  # Any: arrays, then pandas columns
         data["state"] = pd.Categorical(self.states(), categories=list(
             fields.STATE_NAMES.values()))
         data["mode"] = pd.Categorical(self.modes(), categories=list(fields.MODE_NAMES.values()))

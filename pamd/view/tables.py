@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.extraction import extract
 from pamd.models.anfis.recordings import read_mcap
@@ -183,7 +184,7 @@ def read_table_csv(path: str) -> Run:
         columns[name] = values * factor
         if how:
             notes.append(how)
-    meta: dict[str, Any] = {"row_offset": first_row, "conversions": notes,
+    meta: JsonObject = {"row_offset": first_row, "conversions": notes,
                             "text_columns": text_cols}
     muscle, load = "", None
     if side is not None:
@@ -197,7 +198,7 @@ def read_table_csv(path: str) -> Run:
     return _run(path, muscle, columns, meta, load)
 
 
-def _csv_events(path: str, muscle: str) -> list[tuple[float, str, dict[str, Any]]]:
+def _csv_events(path: str, muscle: str) -> list[tuple[float, str, JsonObject]]:
     try:
         with open(path, newline="", encoding="utf-8") as fh:
             rows = list(csv.DictReader(fh))
@@ -207,7 +208,7 @@ def _csv_events(path: str, muscle: str) -> list[tuple[float, str, dict[str, Any]
 
 
 def _events(rows: list[tuple[float, str, str]], muscle: str
-            ) -> list[tuple[float, str, dict[str, Any]]]:
+            ) -> list[tuple[float, str, JsonObject]]:
     """(t_s, kind, data) of the events that concern `muscle` (as `read_mcap` keeps them)."""
     out = []
     for t, kind, text in rows:
@@ -244,7 +245,7 @@ def _floats(cells: list[str], comma: bool) -> tuple[np.ndarray, int | None]:
     return out, None
 
 
-def _sidecar(path: str) -> dict[str, Any] | None:
+def _sidecar(path: str) -> JsonObject | None:
     """The `pamd export --csv` sidecar naming this table: its muscle, units, loads."""
     base = os.path.basename(path)
     for meta in sorted(glob.glob(os.path.join(glob.escape(os.path.dirname(path) or "."),
@@ -265,7 +266,7 @@ def _sidecar(path: str) -> dict[str, Any] | None:
     return None
 
 
-def _check_side_unit(side: dict[str, Any] | None, name: str, head: str, where: str) -> None:
+def _check_side_unit(side: JsonObject | None, name: str, head: str, where: str) -> None:
     if side is None:
         return
     said = ((side.get("columns") or {}).get(head.strip()) or {}).get("unit")
@@ -310,8 +311,8 @@ def read_table_mat(path: str) -> list[Run]:
     return runs
 
 
-def _mat_events(path: str, ev: dict[str, Any], muscle: str
-                ) -> list[tuple[float, str, dict[str, Any]]]:
+def _mat_events(path: str, ev: dict[str, Any], muscle: str  # Any: a .mat struct's fields
+                ) -> list[tuple[float, str, JsonObject]]:
     try:
         t = np.atleast_1d(np.asarray(ev["t_s"], dtype=np.float64)).tolist()
         kinds = np.atleast_1d(np.asarray(ev["kind"], dtype=object)).tolist()
@@ -322,7 +323,7 @@ def _mat_events(path: str, ev: dict[str, Any], muscle: str
         raise ModelError(f"{path}: cannot read the exported events ({exc})") from None
 
 
-def _mat_run(path: str, muscle: str, st: dict[str, Any], var: str) -> Run:
+def _mat_run(path: str, muscle: str, st: dict[str, Any], var: str) -> Run:  # a .mat struct
     units = st.get("units") if isinstance(st.get("units"), dict) else {}
     columns: dict[str, np.ndarray] = {}
     notes = []
@@ -352,7 +353,7 @@ def _mat_run(path: str, muscle: str, st: dict[str, Any], var: str) -> Run:
 
 
 # -- both ------------------------------------------------------------------------------------
-def _run(source: str, muscle: str, columns: dict[str, np.ndarray], meta: dict[str, Any],
+def _run(source: str, muscle: str, columns: dict[str, np.ndarray], meta: JsonObject,
          load: float | None) -> Run:
     off = meta["row_offset"]
     t = columns.get("t_s")

@@ -23,6 +23,7 @@ import re
 from typing import Any
 
 from pamd.config.names import CHUNK_RE
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import PamdError
 from pamd.net import zconf
 from pamd.net.credential import attachment, find_token
@@ -73,7 +74,7 @@ class Client:
     def __enter__(self) -> Client:
         return self
 
-    def __exit__(self, *exc: Any) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # -- finding rigs ----------------------------------------------------------------------
@@ -101,12 +102,13 @@ class Client:
 
     # -- queries ----------------------------------------------------------------------------
     def _get(self, selector: str, payload: bytes | None, timeout_s: float,
-             token: str | None = None, urgent: bool = False) -> dict[str, Any]:
+             token: str | None = None, urgent: bool = False) -> JsonObject:
         """`urgent` (an estop or stop): never dropped on the way (a large one goes in
         fragments, which the drop policy may lose), at the highest priority."""
         z = self.zenoh
         kw: dict[str, Any] = {"timeout": timeout_s, "congestion_control": (
-            z.CongestionControl.BLOCK if urgent else z.CongestionControl.DROP)}
+            z.CongestionControl.BLOCK if urgent else z.CongestionControl.DROP)}  # Any: zenoh's
+        # own option objects, for Session.get(**kw)
         if urgent:
             kw["priority"] = z.Priority.REAL_TIME
         if payload is not None:
@@ -117,7 +119,7 @@ class Client:
         for r in self.session.get(selector, **kw):
             if r.ok is not None:
                 try:
-                    answer: dict[str, Any] = json.loads(r.ok.payload.to_bytes())
+                    answer: JsonObject = json.loads(r.ok.payload.to_bytes())
                     return answer
                 except ValueError:
                     return {"ok": False, "error": "the reply is not JSON: "
@@ -130,11 +132,11 @@ class Client:
                        "daemon for that rig, telemetry off, or not allowed: a viewer "
                        "cannot command)")
 
-    def status(self, rig: str, timeout_s: float = DEFAULT_TIMEOUT_S) -> dict[str, Any]:
+    def status(self, rig: str, timeout_s: float = DEFAULT_TIMEOUT_S) -> JsonObject:
         return self._get(Keys(rig_name(rig)).status, None, timeout_s)
 
-    def command(self, rig: str, verb: str, payload: dict[str, Any] | str | bytes | None = None,
-                user: str | None = None, timeout_s: float = 10.0) -> dict[str, Any]:
+    def command(self, rig: str, verb: str, payload: JsonObject | str | bytes | None = None,
+                user: str | None = None, timeout_s: float = 10.0) -> JsonObject:
         """Send a command to rig `rig` (a name) with the rig's credential; the reply
         is the loop's verdict (or the io process's refusal). A str/bytes payload is
         sent as is (malformed JSON too)."""

@@ -9,8 +9,8 @@ import contextlib
 import json
 import math
 from collections.abc import Callable
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.net.node.stats import TickStats
 from pamd.net.seams import RunClock
 from pamd.net.spec import NetSpec
@@ -80,7 +80,7 @@ class StatusAnswer:
                        "are the snapshot's")
         return out
 
-    def _live(self, st: dict[str, Any]) -> None:
+    def _live(self, st: JsonObject) -> None:
         """The latest tick record's values over the snapshot's (which may be up to
         1 / status_hz old)."""
         row = self.stats.last

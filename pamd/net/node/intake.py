@@ -42,8 +42,8 @@ import re
 import time
 import typing
 from collections.abc import Callable
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import CommandRefused
 from pamd.net.board import Board
 from pamd.net.credential import matches
@@ -65,7 +65,7 @@ NOTE_CHARS = 120
 _FIELD = r'"{name}"\s*:\s*"((?:[^"\\]|\\.)*)'
 
 
-def _declared(verb: str) -> dict[str, Any]:
+def _declared(verb: str) -> dict[str, object]:
     """The verb's fields and their types."""
     declared = VERBS.public(verb)
     if declared is None:
@@ -74,7 +74,7 @@ def _declared(verb: str) -> dict[str, Any]:
     return {f.name: hints[f.name] for f in dataclasses.fields(declared.args)}
 
 
-def _fits(value: Any, tp: Any) -> bool:
+def _fits(value: JsonValue, tp: object) -> bool:
     allowed = [a for a in typing.get_args(tp)] or [tp]
     if isinstance(value, bool):
         return bool in allowed
@@ -84,10 +84,10 @@ def _fits(value: Any, tp: Any) -> bool:
                if isinstance(a, type))
 
 
-def _from_head(raw: bytes, fields: dict[str, Any]) -> dict[str, Any]:
+def _from_head(raw: bytes, fields: dict[str, object]) -> JsonObject:
     """Text fields read from the head of a payload too large (or too broken) to parse."""
     head = raw[:HEAD_BYTES].decode("utf-8", "replace")
-    out: dict[str, Any] = {}
+    out: JsonObject = {}
     for name, tp in fields.items():
         if str in (typing.get_args(tp) or [tp]):
             m = re.search(_FIELD.format(name=re.escape(name)), head)
@@ -99,12 +99,12 @@ def _from_head(raw: bytes, fields: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def salvage(verb: str, raw: bytes) -> tuple[dict[str, Any], str]:
+def salvage(verb: str, raw: bytes) -> tuple[JsonObject, str]:
     """(payload the verb's parser takes, note of what was cut or dropped: "" if
     nothing)."""
     fields = _declared(verb)
     notes = []
-    got: Any = None
+    got: JsonValue = None
     if len(raw) <= PARSE_MAX_BYTES:
         text = raw.decode("utf-8", "replace")
         try:
@@ -118,7 +118,7 @@ def salvage(verb: str, raw: bytes) -> tuple[dict[str, Any], str]:
     elif not isinstance(got, dict):
         notes.append("payload not a JSON object")
         got = {}
-    out: dict[str, Any] = {}
+    out: JsonObject = {}
     dropped = []
     for k, v in got.items():
         tp = fields.get(k)
@@ -155,7 +155,7 @@ class PressureRanges:
         self._limits: dict[str, float] = {}
         self._limits_t = -1e9
 
-    def check(self, verb: str, p: dict[str, Any]) -> None:
+    def check(self, verb: str, p: JsonObject) -> None:
         """Muscle names and pressures against the limits, before the mailbox (the loop
         checks again against the present state)."""
         muscle = p.get("muscle")
@@ -192,7 +192,7 @@ class PressureRanges:
 
 RECORD_INTERVAL_S = 1.0  # a refusal of each kind recorded at most once per this
 
-RecordIo = Callable[[str, dict[str, Any]], None]
+RecordIo = Callable[[str, JsonObject], None]
 
 
 class RefusalLog:
@@ -203,7 +203,7 @@ class RefusalLog:
         self.limiter = LineLimiter(RECORD_INTERVAL_S)
 
     def refused(self, verb: str, raw: bytes, sender: str, user: str,
-                verdict: dict[str, Any], kind: str | None = None) -> None:
+                verdict: JsonObject, kind: str | None = None) -> None:
         dropped = self.limiter.admit(kind or kind_of(f"{verb[:40]}:{verdict['error']}", 80),
                                      time.monotonic())
         if dropped is None:
@@ -219,7 +219,7 @@ class RefusalLog:
         dropped = self.limiter.admit(f"cut:{verb}", time.monotonic())
         if dropped is None:
             return
-        data: dict[str, Any] = {"verb": verb, "args": args_for_record(raw),
+        data: JsonObject = {"verb": verb, "args": args_for_record(raw),
                                 "sender": sender, "user": user, "note": note}
         if dropped:
             data["cut_unrecorded"] = dropped

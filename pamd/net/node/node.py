@@ -36,6 +36,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any, Protocol
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.net import zconf
 from pamd.net.board import Board
 from pamd.net.keys import Keys
@@ -52,7 +53,7 @@ SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most t
 PUT_BURST = 2.0  # state puts a late pass may catch up with (keeps the phase)
 TRIM_PERIOD_S = 2.0  # the heap's free memory goes back to the system this often
 
-RecordFn = Callable[[float, str, dict[str, Any]], None]
+RecordFn = Callable[[float, str, JsonObject], None]
 
 
 class _Declared(Protocol):
@@ -77,7 +78,7 @@ class NetNode:
         self.board: Board | None = None
         self.token: Any = None
         self.lock = port.lock  # one lock for the mailbox, the board and the queries
-        self.to_record: deque[tuple[float, str, dict[str, Any]]] = deque()
+        self.to_record: deque[tuple[float, str, JsonObject]] = deque()
         self.to_main: deque[bytes] = deque()  # notices for the daemon's main thread
         self.put_tokens = PUT_BURST
         self.put_t = 0.0
@@ -179,7 +180,7 @@ class NetNode:
         self.last_t_s = rows[-1][1]
         self.rows_mono = time.monotonic()
 
-    def event(self, t: float, kind: str, data: dict[str, Any]) -> None:
+    def event(self, t: float, kind: str, data: JsonObject) -> None:
         if kind == "reply":
             return
         if kind == "summary":
@@ -187,7 +188,7 @@ class NetNode:
         t0 = self._t_start()
         self._publish_event(kind, data, None if t0 is None else t - t0)
 
-    def _publish_event(self, kind: str, data: dict[str, Any], t_s: float | None = None) -> None:
+    def _publish_event(self, kind: str, data: JsonObject, t_s: float | None = None) -> None:
         w0 = self._wall0()
         msg = {"t_s": t_s, "wall_s": (w0 + t_s) if (w0 is not None and t_s is not None)
                else time.time(), "kind": kind, "data": jsonsafe(data)}
@@ -243,7 +244,7 @@ class NetNode:
         self.stats.refresh(now)
         return work
 
-    def notify_main(self, msg: dict[str, Any]) -> None:
+    def notify_main(self, msg: JsonObject) -> None:
         """A notice for the daemon's main thread (the recorder's: pamd.record.control), sent
         on the board's request ring by the next poll (the io loop's thread)."""
         self.to_main.append(json.dumps({"notice": msg}, default=str).encode())
@@ -272,7 +273,7 @@ class NetNode:
         send_reply(q, self.keys.status, body)
 
     # -- commands -------------------------------------------------------------------------
-    def _record_io(self, kind: str, data: dict[str, Any]) -> None:
+    def _record_io(self, kind: str, data: JsonObject) -> None:
         """What the command intake records (refusals, cut estops): into the recording
         by the io loop, and onto the events key now."""
         now = self.loop_now()

@@ -10,8 +10,8 @@ import bisect
 import itertools
 from array import array
 from collections.abc import Sequence
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.tick import I_COMPUTE, I_LOST, I_OVERRUNS, I_TICK, I_WAKE
 
 MAX_US = 100_000
@@ -42,7 +42,7 @@ class TickStats:
         self.last: Sequence[float] | None = None
         self.period_s = period_s
         self.t = -1e9
-        self.summary: dict[str, Any] = {}
+        self.summary: JsonObject = {}
 
     def add(self, rows: Sequence[Sequence[float]]) -> None:
         wake, comp, top = self.wake, self.compute, MAX_US
