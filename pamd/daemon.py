@@ -23,7 +23,7 @@ from pamd.control.feedforward import LoadedModel, load_models
 from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
-from pamd.io.session import IoSession, RecordingRequest
+from pamd.io.session import IoParts, IoSession, RecordingRequest
 from pamd.loop import Loop
 from pamd.net.spec import TelemetryRequest
 from pamd.rig import Rig
@@ -80,8 +80,10 @@ class Daemon:
         self.summary.follow_cycles(self.ctrl.muscles)  # tracking after the first cycle
         self.loop = Loop(cfg, self.ctrl, self.mailbox)
         # the io process (MCAP recording, Zenoh telemetry): its sink goes downstream of
-        # the summary
-        self.io = IoSession.attach(self, recording, telemetry)
+        # the summary. It gets the parts it uses, not the daemon.
+        self.io = IoSession.attach(
+            IoParts(lambda: self.cfg, note, self.layout, self.calibration, self.ctrl,
+                    self.loop, self.summary, self.mailbox), recording, telemetry)
         self.transitions: deque[Transition] = deque(maxlen=1000)
         self.ctrl.listeners.append(self.transitions.append)
         self._thread: threading.Thread | None = None

@@ -71,6 +71,20 @@ LAZY_BY_NAME = {
 }
 
 
+#: no class is longer than this (lines, its decorators excluded): a longer one does
+#: several jobs, each of which gets a module of its own (issue 26)
+MAX_CLASS_LINES = 300
+
+#: the classes still longer, each to be split by job (the list only shrinks)
+LONG_CLASSES = {
+    "pamd/control/muscle.py:MuscleController",
+    "pamd/sim/options.py:SimMuscleOptions",
+    "drivers/sim.py:SimDriver",
+    "drivers/modbus.py:ModbusDriver",
+    "drivers/canopen_encoder.py:CanEncoderDriver",
+}
+
+
 def _sources() -> Iterator[tuple[str, Path]]:
     for base, prefix in (("pamd", "pamd"), ("drivers", "pamd.drivers")):
         for path in sorted((ROOT / base).rglob("*.py")):
@@ -220,6 +234,23 @@ def test_the_cli_imports_only_its_own_subcommands_by_name() -> None:
         assert (ROOT / (command.module.replace(".", "/") + ".py")).is_file(), command
     main = ROOT / "pamd" / "cli" / "main.py"
     assert not [t for t, _, _ in _imports("pamd.cli.main", main) if t.startswith(prefix)]
+
+
+def _long_classes(path: Path, rel: str) -> Iterator[tuple[str, int]]:
+    for node in ast.walk(ast.parse(path.read_text(), rel)):
+        if isinstance(node, ast.ClassDef):
+            lines = (node.end_lineno or node.lineno) - node.lineno + 1
+            if lines > MAX_CLASS_LINES:
+                yield f"{rel}:{node.name}", lines
+
+
+def test_no_class_is_over_300_lines() -> None:
+    found = {name: lines for _, path in _sources()
+             for name, lines in _long_classes(path, str(path.relative_to(ROOT)))}
+    new = {name: lines for name, lines in found.items() if name not in LONG_CLASSES}
+    assert not new, f"split these by job (over {MAX_CLASS_LINES} lines): {new}"
+    gone = LONG_CLASSES - set(found)
+    assert not gone, f"no longer over {MAX_CLASS_LINES} lines: take out of LONG_CLASSES: {gone}"
 
 
 def test_the_check_sees_an_upward_and_a_lazy_import(tmp_path: Path) -> None:

@@ -31,7 +31,7 @@ class SubCommand(Protocol):
 
 
 @dataclass(frozen=True)
-class Command:
+class SubCommandEntry:
     """One sub-command, declared without importing it: its name, the pamd.cli module
     whose `add_parser` adds it (one module may add several), and the line that
     `pamd --help` shows (the module's own `help=` says the same; tests/cli checks)."""
@@ -41,12 +41,12 @@ class Command:
     help: str
 
 
-def _commands(module: str, *pairs: tuple[str, str]) -> tuple[Command, ...]:
-    return tuple(Command(name, f"pamd.cli.{module}", text) for name, text in pairs)
+def _commands(module: str, *pairs: tuple[str, str]) -> tuple[SubCommandEntry, ...]:
+    return tuple(SubCommandEntry(name, f"pamd.cli.{module}", text) for name, text in pairs)
 
 
 #: The sub-commands, in the order `pamd --help` lists them.
-COMMANDS: tuple[Command, ...] = (
+COMMANDS: tuple[SubCommandEntry, ...] = (
     *_commands("run", ("run", "run the rig (default: the simulated rig)")),
     *_commands("check_config", ("check-config", "validate a rig config file")),
     *_commands("collect", ("collect", "run an experiment plan (e.g. the 0.05 Hz sine sweep "
@@ -125,7 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
     return _build({command.module for command in COMMANDS})
 
 
-def chosen_command(argv: Sequence[str]) -> Command | None:
+def chosen_command(argv: Sequence[str]) -> SubCommandEntry | None:
     """The sub-command `argv` names: its first word that is not an option (the
     top-level options take no value), or None (none, or not a declared name)."""
     for word in argv:

@@ -13,31 +13,46 @@ import dataclasses
 import logging
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 from pamd.calibration import Calibration
+from pamd.config.loader import LoadedConfig
+from pamd.controller import RigController
 from pamd.io.link import IoLink, MultiMailbox, RingMailbox, RingSink
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import BlockLayout, pow2_at_least
+from pamd.loop import Loop
 from pamd.net.board import Board
 from pamd.net.host.host import NetHost
-from pamd.net.host.ports import DaemonView
+from pamd.net.host.ports import HostParts
 from pamd.net.host.resolve import resolve as resolve_net
 from pamd.net.spec import NetSpec, TelemetryRequest
 from pamd.record.meta import build_record_spec
+from pamd.summary import LocalMailbox, SummarySink
 from pamd.tick import TickLayout
 from pamd.view.spec import ViewerSpec
 from pamd.view.spec import resolve as resolve_viewer
 
 
-class DaemonParts(DaemonView, Protocol):
-    """What an io session uses of the daemon (`pamd.daemon.Daemon`, a layer above)."""
+@dataclass(frozen=True)
+class IoParts:
+    """What the daemon (`pamd.daemon.Daemon`) hands its io session, never itself: the
+    config in force (`config()`: a reload replaces it), the run's note, the tick's
+    layout and the references (the recording's metadata), the rig's controller (its
+    clock, counters and supervisor: a lost io process may fault it), the loop (its
+    clock kind, notices, and the mailbox the ring's commands join), the summary sink
+    (the ring sink goes downstream of it) and the loop's local mailbox."""
 
-    @property
-    def layout(self) -> TickLayout: ...
-    @property
-    def calibration(self) -> Calibration: ...
+    config: Callable[[], LoadedConfig]
+    note: str
+    layout: TickLayout
+    calibration: Calibration
+    ctrl: RigController
+    loop: Loop
+    summary: SummarySink
+    mailbox: LocalMailbox
 
 
 @dataclass(frozen=True)
@@ -56,12 +71,12 @@ class RecordingRequest:
 
 
 class IoSession:
-    def __init__(self, daemon: DaemonParts, req: RecordingRequest, record_dir: str | None,
+    def __init__(self, parts: IoParts, req: RecordingRequest, record_dir: str | None,
                  net: NetSpec | None = None, viewer: ViewerSpec | None = None) -> None:
-        self.daemon = daemon
-        cfg = daemon.cfg
+        self.parts = parts
+        cfg = parts.config()
         self.rc = cfg.rig.recording
-        loop = daemon.loop
+        loop = parts.loop
         self.virtual = loop.virtual
         self.failure: dict[str, Any] | None = None
         self.recording = record_dir is not None  # False: telemetry alone
@@ -69,10 +84,10 @@ class IoSession:
         clock0 = 0.0 if self.virtual else time.monotonic()
         wall0 = time.time_ns()
         rate = cfg.rig.loop.rate_hz
-        layout = BlockLayout(record_bytes=8 * daemon.layout.size,
+        layout = BlockLayout(record_bytes=8 * parts.layout.size,
                              tick_slots=pow2_at_least(max(64, int(self.rc.ring_s * rate))))
         rspec = None if record_dir is None else build_record_spec(
-            cfg, daemon.calibration, record_dir=record_dir, note=daemon.note,
+            cfg, parts.calibration, record_dir=record_dir, note=parts.note,
             run_name=req.run_name, model_path=req.model_path, profile=req.profile,
             virtual=self.virtual, wall0_ns=wall0, fsize_limit_bytes=req.fsize_limit_bytes,
             steps=req.segments, max_mb=req.max_mb)
@@ -82,43 +97,45 @@ class IoSession:
         if net is not None:
             self.board = Board(create=True)
             net = dataclasses.replace(net, board_name=self.board.name)
-            self.host = NetHost(daemon, self.board, cfg.rig.telemetry.status_hz,
-                                record_dir)
+            host_parts = HostParts(parts.ctrl, parts.loop, parts.config, parts.note,
+                                   parts.summary, parts.mailbox, self)
+            self.host = NetHost(host_parts, self.board, cfg.rig.telemetry.status_hz, record_dir)
         self.net = net
         self.viewer = viewer
 
         def make_spec(shm_name: str) -> IoSpec:
             return IoSpec(shm_name=shm_name, layout=layout, rig_id=cfg.rig.rig_id,
-                          muscles=tuple(daemon.layout.muscles), rate_hz=rate,
+                          muscles=tuple(parts.layout.muscles), rate_hz=rate,
                           virtual=self.virtual, wall0_ns=wall0, clock0_s=clock0,
                           parent_pid=os.getpid(), record=rspec, script=tuple(req.script),
                           net=net, viewer=viewer)
 
         self.link = IoLink.create(make_spec, layout)
-        ctrl = daemon.ctrl
+        ctrl = parts.ctrl
         self.sink = RingSink(self.link, self.virtual, lambda: ctrl.t_start, self._failed,
                              loop.notices.append, keeps_draining=net is not None)
         self.mailbox = RingMailbox(self.link, self.sink, lambda: ctrl.now)
-        daemon.summary.downstream.append(self.sink)
-        loop.mailbox = MultiMailbox(daemon.mailbox, self.mailbox)
+        parts.summary.downstream.append(self.sink)
+        loop.mailbox = MultiMailbox(parts.mailbox, self.mailbox)
 
     def files(self) -> list[str]:
         """The recording's files so far (the status says them)."""
         return self.link.files()
 
     @classmethod
-    def attach(cls, daemon: DaemonParts, req: RecordingRequest | None,
+    def attach(cls, parts: IoParts, req: RecordingRequest | None,
                telemetry: TelemetryRequest | None = None) -> IoSession | None:
         """An io process when the run records, publishes (telemetry), or both."""
         req = req or RecordingRequest()
-        record_dir = req.dir or daemon.cfg.rig.recording.dir
+        cfg = parts.config()
+        record_dir = req.dir or cfg.rig.recording.dir
         if not req.enabled or not record_dir:
             record_dir = None
-        net = resolve_net(daemon.cfg, telemetry)  # ConfigError before anything starts
-        viewer = resolve_viewer(daemon.cfg, telemetry.foxglove if telemetry else None)
+        net = resolve_net(cfg, telemetry)  # ConfigError before anything starts
+        viewer = resolve_viewer(cfg, telemetry.foxglove if telemetry else None)
         if record_dir is None and net is None and viewer is None:
             return None
-        return cls(daemon, req, record_dir, net, viewer)
+        return cls(parts, req, record_dir, net, viewer)
 
     def start(self) -> None:
         try:
@@ -161,7 +178,7 @@ class IoSession:
         """In the loop's thread: the io process died or could not write."""
         policy = self.rc.on_io_death if what == "death" else self.rc.on_failure
         key = "on_io_death" if what == "death" else "on_failure"
-        ctrl = self.daemon.ctrl
+        ctrl = self.parts.ctrl
         gone = "recording" if what == "write" else " and ".join(
             w for w, on in (("recording", self.recording),
                             ("telemetry", self.net is not None),
@@ -174,8 +191,8 @@ class IoSession:
                    f"(recording.{key}: continue)")
         self.failure = {"what": what, "reason": reason, "policy": policy,
                         "tick": ctrl.tick_no}
-        self.daemon.loop.notices.append(msg)
-        self.daemon.summary.event(ctrl.now, "recording", dict(self.failure, message=msg))
+        self.parts.loop.notices.append(msg)
+        self.parts.summary.event(ctrl.now, "recording", dict(self.failure, message=msg))
         if policy == "safe_state":
             ctrl.supervisor.fault(ctrl.now, f"recording: {reason}")
 

@@ -43,7 +43,7 @@ from pamd.experiment.manifest import Manifest, collection_name, step_records
 from pamd.experiment.plan import Plan
 from pamd.experiment.sequencer import running_plan
 from pamd.experiment.timeline import simulated_loads, timeline
-from pamd.net.host.ports import DaemonView
+from pamd.net.host.ports import HostParts
 from pamd.record import control
 
 log = logging.getLogger("pamd")
@@ -80,9 +80,12 @@ class Collection:
 class Collections:
     """The daemon's collections started over the network, one at a time."""
 
-    def __init__(self, daemon: DaemonView, record_dir: str | None,
+    def __init__(self, parts: HostParts, record_dir: str | None,
                  send: Callable[[bytes], bool]) -> None:
-        self.d = daemon
+        """`parts`: what it uses of the daemon (the config, the run's note, the
+        recording's state, the controller's plan and counters, the events); `send`:
+        into the board's control ring."""
+        self.d = parts
         self.record_dir = os.path.abspath(record_dir) if record_dir else None
         self.send = send  # into the board's control ring (main -> io)
         self.active: Collection | None = None

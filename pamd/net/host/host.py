@@ -28,7 +28,7 @@ from pamd.commands.plan_file import read_plan
 from pamd.errors import CommandRefused
 from pamd.net.board import Board
 from pamd.net.host.collections import Collection, Collections
-from pamd.net.host.ports import DaemonView
+from pamd.net.host.ports import HostParts
 from pamd.net.host.status import StatusBuilder, recording_status
 from pamd.net.status import jsonsafe
 from pamd.verbs.schema import args_for_record
@@ -59,16 +59,16 @@ class _Pending:
 
 
 class NetHost:
-    def __init__(self, daemon: DaemonView, board: Board, status_hz: float,
+    def __init__(self, parts: HostParts, board: Board, status_hz: float,
                  record_dir: str | None = None) -> None:
-        """`record_dir`: where the daemon records (None: it does not, and a collect is
-        refused)."""
-        self.d = daemon
+        """`parts`: what it uses of the daemon (never the daemon); `record_dir`: where
+        the daemon records (None: it does not, and a collect is refused)."""
+        self.d = parts
         self.board = board
         self.period_s = 1.0 / status_hz
-        self.collections = Collections(daemon, record_dir, board.control.put_blob)
-        self.builder = StatusBuilder(daemon.ctrl, daemon.loop, lambda: daemon.cfg,
-                                     lambda: recording_status(daemon.io),
+        self.collections = Collections(parts, record_dir, board.control.put_blob)
+        self.builder = StatusBuilder(parts.ctrl, parts.loop, parts.config,
+                                     lambda: recording_status(parts.io),
                                      self.collections.describe)
         self.last_t = -1e9
         self.pending: dict[int, _Pending] = {}
@@ -77,7 +77,7 @@ class NetHost:
         # waited for by a worker thread, taken up by service()
         self.preparer = Preparer()
         self.preparing: list[tuple[_Request, Future[Any]]] = []
-        cfg = daemon.cfg
+        cfg = parts.cfg
         if any(named_files.configured_dir(cfg, k) for k in ("plans_dir", "models_dir")):
             # the file reader started now, not by the first such command (whose
             # verdict has a deadline, the reader's start included); in a worker

@@ -1,14 +1,18 @@
 """What the daemon's side of telemetry (`NetHost`, `Collections`, the status builder)
-needs of the daemon, as small Protocols: the daemon hands them these, never itself."""
+gets of the daemon: the parts it reads and the ways in it calls, bundled here
+(`HostParts`, built by the io session from what the daemon handed it), never the
+daemon itself."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, Protocol
 
+from pamd.commands import Command
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
 from pamd.loop import Loop
-from pamd.summary import LocalMailbox, SummarySink
 
 
 class RecordingState(Protocol):
@@ -24,21 +28,34 @@ class RecordingState(Protocol):
         """The recording's files so far."""
 
 
-class DaemonView(Protocol):
-    """What the main-process side of telemetry (`NetHost`, `Collections`) uses of the
-    daemon (`pamd.daemon.Daemon`, a layer above)."""
+class EventLog(Protocol):
+    """Where an event is recorded (the daemon's summary sink, upstream of the ring)."""
+
+    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None: ...
+
+
+class CommandInbox(Protocol):
+    """The loop's mailbox as the main thread fills it (`pamd.summary.LocalMailbox`)."""
+
+    def put(self, cmd: Command) -> None: ...
+
+
+@dataclass(frozen=True)
+class HostParts:
+    """What the main-process side of telemetry uses of a running daemon: the rig's
+    controller and the loop (read for status, plans and counters), the config in
+    force (`config()`: a reload replaces it), the run's note, where events are
+    recorded, the loop's mailbox (commands in) and the recording's state."""
+
+    ctrl: RigController
+    loop: Loop
+    config: Callable[[], LoadedConfig]
+    note: str
+    summary: EventLog
+    mailbox: CommandInbox
+    io: RecordingState | None
 
     @property
-    def cfg(self) -> LoadedConfig: ...
-    @property
-    def note(self) -> str: ...
-    @property
-    def ctrl(self) -> RigController: ...
-    @property
-    def loop(self) -> Loop: ...
-    @property
-    def summary(self) -> SummarySink: ...
-    @property
-    def mailbox(self) -> LocalMailbox: ...
-    @property
-    def io(self) -> RecordingState | None: ...
+    def cfg(self) -> LoadedConfig:
+        """The config in force now."""
+        return self.config()

@@ -1,0 +1,63 @@
+"""The rig's start-up (one job of the rig controller, `pamd.controller`): read before
+writing. Nothing is written until every input is fresh; then a muscle inside its
+limits holds its measured pressure, and one outside them (stretched past its
+pretension limit under its load, over-contracted, above the pressure limit, or with an
+untrusted length) ramps from its measured pressure to its safe pressure at the slew
+limit. What must hold for the start-up to fault: no fresh reading of some input within
+`safety.startup_timeout_s` of the loop's start (and then nothing was written)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from pamd.control.muscle import MuscleController
+from pamd.control.rig_safe_state import pace_safe_entry
+from pamd.safety import Supervisor
+from pamd.safety.chain import SafetyChain
+from pamd.tick import Sink, State
+
+
+def start_up(now: float, since_start_s: float, timeout_s: float,
+             muscles: Sequence[MuscleController], chain: SafetyChain,
+             supervisor: Supervisor, sink: Sink) -> None:
+    """One tick in STARTING (`since_start_s`: the loop's time since its start). Once
+    every input is fresh: the transition to IDLE and one `startup` event per muscle
+    say what each does, and why; a latched fault restored by a service restart or a
+    reading found implausible while starting latches again at once."""
+    missing = chain.missing(now)
+    for m in muscles:
+        if missing is not None:
+            break
+        missing = m.missing_input(now)
+    if missing is None:
+        held, ramped = [], []
+        for m in muscles:
+            why = m.outside_limits()
+            m.hold_measured(safe_ramp=why is not None)
+            if why is None:
+                held.append(f"{m.name} {m.setpoint_bar:.2f} bar")
+                sink.event(now, "startup", {"muscle": m.name, "action": "hold",
+                                            "pressure_bar": m.setpoint_bar})
+            else:
+                ramped.append(f"{m.name} {why}: ramping from {m.setpoint_bar:.2f} bar to "
+                              f"its safe pressure {m.safe_pressure_bar:.2f} bar at "
+                              f"{m.envelope.safe_slew_bar_per_s:g} bar/s")
+                sink.event(now, "startup", {
+                    "muscle": m.name, "action": "safe_ramp", "reason": why,
+                    "pressure_bar": m.setpoint_bar,
+                    "safe_pressure_bar": m.safe_pressure_bar})
+        parts = []
+        if held:
+            parts.append(f"holding measured pressure ({', '.join(held)})")
+        if ramped:
+            parts.append("; ".join(ramped))
+        pace_safe_entry([m for m in muscles if m.in_safe_ramp], False)
+        supervisor.go(now, State.IDLE, "sensors read; " + "; ".join(parts))
+        if supervisor.fault_reason:  # restored latched fault (service restart)
+            supervisor.fault(now, supervisor.fault_reason)
+        for m in muscles:  # a reading found implausible while starting
+            if m.plausibility.reason is not None:
+                supervisor.fault(now, m.plausibility.reason)
+    elif since_start_s > timeout_s:
+        supervisor.fault(now, f"start-up: no reading from {missing} within "
+                         f"{timeout_s:g} s; nothing was written")

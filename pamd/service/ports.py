@@ -1,0 +1,65 @@
+"""What the service keeper (`pamd.service.keeper`) and its parts use of the daemon's
+rig controller and loop: narrow ports, so that the keeper gets the parts it looks
+after and not the daemon (nor the controller's and loop's classes)."""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+from pamd.config.loader import LoadedConfig
+from pamd.rt import RealtimeSession
+from pamd.safety.supervisor import Supervisor
+from pamd.timing import TickTiming
+
+
+class KeptRig(Protocol):
+    """What the keeper uses of the rig's controller (`pamd.controller.RigController`):
+    its supervisor (the latched fault, the state), the reload's fate, the muscles' safe
+    pressures (the safe outputs kept)."""
+
+    @property
+    def supervisor(self) -> Supervisor: ...
+    @property
+    def reload_note(self) -> dict[str, Any] | None: ...
+    @property
+    def muscles(self) -> Sequence[SafeMuscleView]: ...
+    def at_rest(self) -> bool: ...
+
+
+class SafeMuscleView(Protocol):
+    @property
+    def name(self) -> str: ...
+    @property
+    def safe_pressure_bar(self) -> float: ...
+    @property
+    def load_kg(self) -> float: ...
+
+
+class KeptLoop(Protocol):
+    """What the keeper uses of the loop (`pamd.loop.Loop`): whether it ticks and when it
+    last did (systemd's watchdog, the stall the main thread sees), how it ended, the
+    real-time session of its process, and the reload's hand-over and stall limits."""
+
+    running: bool
+    virtual: bool
+    handed_over: bool
+    stopped_reason: str
+    last_tick_done: float
+    stall_s: float
+    timing: TickTiming
+    rt: RealtimeSession
+    notices: deque[str]
+
+    @property
+    def stall_fault_s(self) -> float: ...
+    def request_handover(self, reason: str) -> None: ...
+    def set_stall_limits(self, cfg: LoadedConfig) -> None: ...
+
+
+def tick_gap_s(loop: KeptLoop) -> float:
+    """Seconds since the loop last completed a tick (NaN before the first)."""
+    now = time.monotonic()  # read first: a late main thread never sees a false gap
+    return now - loop.last_tick_done
