@@ -1,5 +1,7 @@
-"""How late a pty delivers bytes, against a socket, beside CPU hogs: the wire of the
-emulated rig's Modbus RTU and CAN links (socat pty pairs, `pamd.emulate.ptys`).
+"""How late a pty delivers bytes, against a socket, beside CPU hogs: the wire the
+emulated rig's Modbus RTU and CAN links used (socat pty pairs, `pamd.emulate.ptys`;
+since issue 23 they run over loopback sockets by default, RTU frames over TCP and
+socketcand, and ptys are an option: this is why).
 
 A writer thread puts its clock into the link every millisecond, a reader thread of
 the same process takes it out; both run at SCHED_FIFO (priority 2, as an emulator and

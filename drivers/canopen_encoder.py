@@ -16,14 +16,19 @@ operator resets. `preset_position()` sets the encoder's own reference through
 the preset object 0x6003 (for `home`), without blocking the caller.
 
 Raw frames (`frames:`) read a field of any CAN frame for devices that are not
-CANopen. Interfaces: anything python-can opens (`socketcan`, `pcan`, ...; `serial`
-over a pty pair for the emulated rig, `virtual` in one process for tests).
+CANopen. Interfaces: anything python-can opens (`socketcan`, `pcan`, ...;
+`socketcand`, a CAN bus carried over TCP, `host`/`port`: the emulated rig's bus;
+`serial` over a pty pair, the emulated rig's older link; `virtual` in one process for
+tests). A socketcand server that closes the connection is a lost link: the bus is
+re-opened and the nodes configured again.
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
+import socket
 import time
 from collections import deque
 from collections.abc import Sequence
@@ -61,8 +66,13 @@ class CanEncoderOptions:
     """Options of the `canopen-encoder` driver."""
 
     interface: str = spec("socketcan", "python-can interface (socketcan, pcan, kvaser, "
-                          "serial, virtual, ...).")
-    channel: str = spec("can0", "python-can channel (can0; a serial device for 'serial').")
+                          "socketcand, serial, virtual, ...).")
+    channel: str = spec("can0", "python-can channel (can0; a serial device or pyserial URL "
+                        "for 'serial'; the bus's name on the server for 'socketcand').")
+    host: str = spec("", "socketcand: the server's address (a CAN bus carried over TCP; "
+                     "the emulated rig's, or a socketcand daemon on a CAN gateway).")
+    port: int = spec(29536, "socketcand: the server's TCP port (socketcand's default 29536).",
+                     min=1, max=65535)
     bitrate: int = spec(500000, "Bus bit rate (ignored by serial and virtual).", unit="bit/s",
                         min=10000, max=1000000)
     sdo_timeout_s: float = spec(0.2, "Wait this long for an SDO answer.", unit="s", gt=0.0)
@@ -93,6 +103,21 @@ def link_gone(exc: BaseException) -> bool:
         seen.add(id(e))
         e = e.__cause__ or e.__context__
     return False
+
+
+def server_closed(bus: object) -> bool:
+    """True if python-can's socketcand client's connection was closed by the server (a
+    read would return nothing). python-can does not say so (its client takes an empty
+    read for no frame), so its socket is asked directly; False where it has none."""
+    sock = getattr(bus, "_SocketCanDaemonBus__socket", None)
+    if not isinstance(sock, socket.socket):
+        return False
+    try:
+        return sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+    except BlockingIOError:
+        return False
+    except OSError:
+        return True
 
 
 class _Node:
@@ -135,6 +160,8 @@ class CanEncoderDriver(ThreadedDriver):
             problems.append("node ids must be unique")
         if not names:
             problems.append("needs at least one encoder or frame")
+        if o.interface == "socketcand" and not o.host:
+            problems.append("interface socketcand needs host (the server's address)")
         if o.interface == "udp_multicast":
             problems.append("interface udp_multicast sends off this machine; use socketcan, "
                             "serial or virtual")
@@ -184,11 +211,14 @@ class CanEncoderDriver(ThreadedDriver):
             return ()
         if o.interface in ("serial", "slcan"):
             return serial_port_claim(o.channel)
+        if o.interface == "socketcand":
+            return (f"CAN channel socketcand:{o.host.lower()}:{o.port}:{o.channel}",)
         return (f"CAN channel {o.interface}:{o.channel}",)
 
     def describe(self) -> str:
         o: CanEncoderOptions = self.options
-        return f"canopen-encoder {self.name!r} ({o.interface} {o.channel})"
+        where = f" at {o.host}:{o.port}" if o.interface == "socketcand" else ""
+        return f"canopen-encoder {self.name!r} ({o.interface} {o.channel}{where})"
 
     def preset_input(self, index: int, raw_value: float) -> bool:
         """`home` through the encoder's preset object (0x6003); raw frames cannot."""
@@ -214,6 +244,19 @@ class CanEncoderDriver(ThreadedDriver):
         kwargs: dict[str, Any] = {}
         if o.interface == "serial":
             kwargs["timeout"] = o.recv_timeout_s
+        elif o.interface == "socketcand":
+            # its client logs a warning for every frame split across two reads (normal
+            # on TCP); the driver counts what matters
+            logging.getLogger("can.interfaces.socketcand").setLevel(logging.ERROR)
+            # python-can's client retries a refused connect for 10 s without a pause,
+            # on this (real-time) thread: ask once here, and back off if nobody answers
+            try:
+                socket.create_connection((o.host, o.port), timeout=o.sdo_timeout_s).close()
+            except OSError as exc:
+                self.error("bus_open_failures", f"cannot open the bus: socketcand server "
+                           f"{o.host}:{o.port}: {exc}")
+                return False
+            kwargs.update(host=o.host, port=o.port, tcp_tune=True)  # TCP_NODELAY
         elif o.interface != "virtual":
             kwargs["bitrate"] = o.bitrate
         try:
@@ -287,6 +330,14 @@ class CanEncoderDriver(ThreadedDriver):
         self._failed_reads = 0
         if msg is not None:
             self._dispatch(msg)
+        elif self.options.interface == "socketcand" and server_closed(bus):
+            # python-can's client reads nothing from a closed connection without a word
+            # (and spins until its timeout): re-open, and configure the nodes again (the
+            # server, a gateway or the emulator, may have restarted with them)
+            self.error("bus_errors", "the socketcand server closed the connection")
+            self.release()
+            for n in self.nodes:
+                n.needs_config, n.retry_at = True, 0.0
         return msg
 
     def _send(self, can_id: int, data: bytes) -> bool:

@@ -1,4 +1,5 @@
-"""The `modbus` driver: analog and digital I/O modules over Modbus TCP or RTU.
+"""The `modbus` driver: analog and digital I/O modules over Modbus TCP or RTU (on a
+serial port, or RTU frames over TCP through an RS-485 device server).
 
 Channels come from a register map (`drivers/modbus_map.py`; built-in maps in
 `drivers/modbus_presets.py`): inputs are read in as few requests as the map allows
@@ -72,11 +73,17 @@ EXCEPTION_NAMES = {1: "illegal function", 2: "illegal data address", 3: "illegal
 class ModbusOptions:
     """Options of the `modbus` driver."""
 
-    transport: Literal["tcp", "rtu"] = spec("tcp", "Modbus TCP (Ethernet) or RTU (RS-485).")
-    host: str = spec("127.0.0.1", "TCP: the module's address.")
-    port: int = spec(502, "TCP: the module's port.", min=1, max=65535)
-    serial_port: str = spec("", "RTU: serial device or pyserial URL (/dev/ttyUSB0).")
-    baud: int = spec(115200, "RTU: baud rate.", unit="baud", min=300, max=4000000)
+    transport: Literal["tcp", "rtu", "rtu-tcp"] = spec(
+        "tcp", "Modbus TCP (Ethernet), RTU (RS-485 on a serial port) or rtu-tcp: RTU frames "
+        "over a TCP connection (an RS-485 device server in transparent mode; the emulated "
+        "rig's RTU line).")
+    host: str = spec("127.0.0.1", "TCP and rtu-tcp: the module's (device server's) address.")
+    port: int = spec(502, "TCP and rtu-tcp: the module's (device server's) port.", min=1,
+                     max=65535)
+    serial_port: str = spec("", "RTU: serial device or pyserial URL (/dev/ttyUSB0, "
+                            "socket://host:port).")
+    baud: int = spec(115200, "RTU and rtu-tcp: baud rate of the RS-485 line.", unit="baud",
+                     min=300, max=4000000)
     parity: Literal["N", "E", "O"] = spec("N", "RTU: parity.")
     stopbits: int = spec(1, "RTU: stop bits.", min=1, max=2)
     bytesize: int = spec(8, "RTU: data bits.", min=7, max=8)
@@ -187,29 +194,33 @@ class ModbusDriver(ThreadedDriver):
         self._safe_want = want
 
     def claims(self) -> tuple[str, ...]:
-        """RTU: the serial port (one master on the line); TCP: the device behind the
-        address (a gateway may serve other device ids to other daemons)."""
+        """RTU: the serial port (one master on the line); rtu-tcp: the device server's
+        address (its line has one master too); TCP: the device behind the address (a
+        gateway may serve other device ids to other daemons)."""
         o: ModbusOptions = self.options
         if o.transport == "rtu":
             return serial_port_claim(o.serial_port)
+        if o.transport == "rtu-tcp":
+            return (f"Modbus RTU line at {o.host.lower()}:{o.port}",)
         return (f"Modbus TCP device {o.host.lower()}:{o.port} id {o.device_id}",)
 
     def describe(self) -> str:
         o: ModbusOptions = self.options
-        where = (f"tcp {o.host}:{o.port}" if o.transport == "tcp"
+        where = (f"{o.transport} {o.host}:{o.port}" if o.transport != "rtu"
                  else f"rtu {o.serial_port} {o.baud} {o.bytesize}{o.parity}{o.stopbits}")
         return f"modbus {self.name!r} ({where}, id {o.device_id})"
 
     def lost_reply_s(self) -> float:
         """How much later than usual a fresh input can arrive when one reply is lost:
         the wait for it (`timeout_s`), the retry's round trip and the poll period (the
-        loader keeps every signal's timeout above this plus its sample period). RTU:
-        the round trip is the longest read's request and response frames on the line
-        (11 bits a byte with start, stop and parity bits, at `baud`) plus the 3.5
-        characters of silence that end each frame; TCP: `timeout_s` dominates."""
+        loader keeps every signal's timeout above this plus its sample period). RTU
+        (and rtu-tcp, whose device server has the line behind it): the round trip is
+        the longest read's request and response frames on the line (11 bits a byte
+        with start, stop and parity bits, at `baud`) plus the 3.5 characters of
+        silence that end each frame; TCP: `timeout_s` dominates."""
         o: ModbusOptions = self.options
         rtt_s = 0.0
-        if o.transport == "rtu" and self.read_blocks:
+        if o.transport != "tcp" and self.read_blocks:
             words = max(b.count if b.function in ("holding", "input") else (b.count + 15) // 16
                         for b in self.read_blocks)
             rtt_s = (8 + 5 + 2 * words + 7) * 11.0 / o.baud
@@ -225,6 +236,9 @@ class ModbusDriver(ThreadedDriver):
         client: ModbusTcpClient | ModbusSerialClient
         if o.transport == "tcp":
             client = ModbusTcpClient(o.host, port=o.port, timeout=o.timeout_s, retries=0)
+        elif o.transport == "rtu-tcp":
+            client = ModbusTcpClient(o.host, port=o.port, framer=FramerType.RTU,
+                                     timeout=o.timeout_s, retries=0)
         else:
             client = ModbusSerialClient(o.serial_port, framer=FramerType.RTU, baudrate=o.baud,
                                         bytesize=o.bytesize, parity=o.parity,

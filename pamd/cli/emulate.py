@@ -1,6 +1,7 @@
 """`pamd emulate`: serve a rig config's field devices from simulated muscles through
-the real protocols (Modbus TCP on loopback, Modbus RTU and CAN over socat pty
-pairs), so `pamd run --config` the same file drives an emulated rig end to end."""
+the real protocols (Modbus TCP, Modbus RTU frames over TCP and CAN through a
+socketcand server, all on loopback; RTU and CAN over socat pty pairs as an option), so
+`pamd run --config` the same file drives an emulated rig end to end."""
 
 from __future__ import annotations
 
@@ -24,10 +25,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "emulate", help="serve an emulated rig through real protocols",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Play the devices a rig config expects, with the simulated DMSP-20 "
-        "muscles behind them: a Modbus TCP module on loopback, Modbus RTU on a pty pair "
-        "(the config's serial_port is the daemon's end; <port>.dev the emulator's), and "
-        "CiA 406 encoders on a CAN bus carried by python-can's serial interface over a "
-        "pty pair. Needs socat for the pty pairs. Prints one JSON line when ready.",
+        "muscles behind them, on loopback: a Modbus TCP module, a Modbus RTU device "
+        "behind an RS-485 device server (transport rtu-tcp, or rtu on a socket:// URL), "
+        "and CiA 406 encoders on a CAN bus served by a socketcand server (interface "
+        "socketcand). Over ptys instead (socat needed): Modbus RTU on a serial_port path "
+        "(the daemon's end; <port>.dev the emulator's) and CAN by python-can's serial "
+        "interface. Prints one JSON line when ready.",
         epilog="example:\n"
         "  pamd emulate --config config/rig-emulated.yaml &\n"
         "  pamd run --config config/rig-emulated.yaml --duration 30")
@@ -38,7 +41,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     p.add_argument("--realtime-priority", type=int, default=0, metavar="N",
                    choices=range(0, 100),
-                   help="run the emulated devices (and their socat links) at SCHED_FIFO N "
+                   help="run the emulated devices (and any socat links) at SCHED_FIFO N "
                    "(0: normal priority, the default). Real I/O modules and encoders have "
                    "CPUs of their own; on a busy PC an emulator at normal priority is "
                    "starved and answers late, which faults the daemon for the emulator's "

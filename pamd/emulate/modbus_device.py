@@ -1,5 +1,6 @@
 """An emulated Modbus I/O module: the register map of a `modbus` driver's options
-served by pymodbus's simulator (`SimDevice` / `SimData`) over TCP or RTU.
+served by pymodbus's simulator (`SimDevice` / `SimData`) over TCP, RTU on a serial
+port (one end of a pty pair) or RTU frames over TCP.
 
 Input channels are refreshed from a value source on every request (so a read sees
 the physics of that instant), or, with `sample_period_s`, once per sample period
@@ -252,6 +253,19 @@ async def serve_rtu(device: EmulatedModbusDevice, port: str, baud: int, parity: 
     server = ModbusSerialServer(device.simdevice, framer=FramerType.RTU, port=port,
                                 baudrate=baud, parity=parity, stopbits=stopbits,
                                 bytesize=bytesize, timeout=0.5, reconnect_delay=0.2)
+    await server.serve_forever(background=True)
+    device.start_watchdog()
+    return server
+
+
+async def serve_rtu_tcp(device: EmulatedModbusDevice, host: str, port: int) -> Any:
+    """Start a server of Modbus RTU frames over TCP for `device` (an RS-485 device server
+    in transparent mode: the driver's `rtu-tcp` transport, or its `rtu` transport on a
+    pyserial `socket://host:port` URL): RTU framing and CRC without a pty between."""
+    from pymodbus.framer import FramerType
+    from pymodbus.server import ModbusTcpServer
+
+    server = ModbusTcpServer(device.simdevice, framer=FramerType.RTU, address=(host, port))
     await server.serve_forever(background=True)
     device.start_watchdog()
     return server

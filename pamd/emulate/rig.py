@@ -3,11 +3,18 @@ protocols, with the simulated muscles behind them.
 
 For every driver in the config the emulator plays the device that driver expects:
 - `modbus` over TCP: a Modbus TCP server on the configured (loopback) host/port;
-- `modbus` over RTU: a Modbus RTU server on the far end of a socat pty pair whose
-  near end is the driver's `serial_port`;
+- `modbus` over rtu-tcp, or RTU on a pyserial `socket://host:port` URL: a server of
+  Modbus RTU frames over TCP on that (loopback) address;
+- `modbus` over RTU on a device path: a Modbus RTU server on the far end of a socat
+  pty pair whose near end is the driver's `serial_port`;
 - `canopen-encoder`: one emulated CiA 406 node per encoder on a canopen network:
-  python-can's `serial` interface over a pty pair (between processes) or
-  `virtual` (in one process, for tests).
+  `socketcand` (a socketcand server on the driver's loopback host/port,
+  `socketcand.py`), python-can's `serial` interface over a pty pair, or `virtual` (in
+  one process, for tests).
+Links between processes go over loopback sockets by default (config/rig-emulated.yaml):
+a pty's data passes the kernel's tty layer, which beside CPU hogs delivered up to 91 ms
+late (bench/pty_delivery.py) and made the daemon's readings stale; ptys stay an option
+(a real USB-RS485 adapter is a tty).
 The devices' channels are wired to the simulated muscles through the config's own
 signal bindings (`physics.EmulatedPlant`), so the daemon running the same config
 sees a consistent rig. `sim` drivers are skipped; `serial-line` devices and raw CAN
@@ -30,9 +37,15 @@ from pamd.drivers.can_frames import EncoderNode
 from pamd.drivers.canopen_encoder import CanEncoderOptions
 from pamd.drivers.modbus import ModbusOptions
 from pamd.emulate.lateness import Lateness
-from pamd.emulate.modbus_device import EmulatedModbusDevice, serve_rtu, serve_tcp
+from pamd.emulate.modbus_device import (
+    EmulatedModbusDevice,
+    serve_rtu,
+    serve_rtu_tcp,
+    serve_tcp,
+)
 from pamd.emulate.physics import EmulatedPlant
 from pamd.emulate.ptys import PtyPair
+from pamd.emulate.socketcand import SocketcandServer
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 _T = TypeVar("_T")
@@ -104,6 +117,24 @@ def _join_cyclic_senders(hosts: list[str], timeout_s: float) -> None:
             os.close(fd)
 
 
+def loopback(driver: str, host: str) -> str:
+    """`host` if it is a loopback address; the emulator serves nothing else."""
+    if host not in LOOPBACK:
+        raise RuntimeError(f"driver {driver!r}: the emulator serves on loopback only, "
+                           f"not {host}")
+    return host
+
+
+def socket_url(port: str) -> tuple[str, int] | None:
+    """(host, port) of a pyserial `socket://host:port` URL, else None."""
+    if not port.startswith("socket://"):
+        return None
+    host, _, number = port[len("socket://"):].partition("?")[0].rpartition(":")
+    if not host or not number.isdigit():
+        raise RuntimeError(f"serial port {port!r}: a socket URL is socket://host:port")
+    return host, int(number)
+
+
 class EmulatedRig:
     """Start with `start()`, stop with `stop()`; `endpoints` says what serves where."""
 
@@ -119,6 +150,7 @@ class EmulatedRig:
         self._ptys: list[PtyPair] = []
         self._servers: list[Any] = []
         self._networks: list[Any] = []
+        self._socketcand: list[SocketcandServer] = []
         self._loop = asyncio.new_event_loop()
         self._loop_thread = threading.Thread(target=self._loop.run_forever,
                                              name="emu-asyncio", daemon=True)
@@ -152,6 +184,8 @@ class EmulatedRig:
                 net.bus.stop_all_periodic_tasks()
         # none may send on the bus once it is closed
         _join_cyclic_senders([p.host for p in self._ptys], CYCLIC_JOIN_S)
+        for server in self._socketcand:
+            server.stop()
         for net in self._networks:
             with contextlib.suppress(Exception):
                 net.disconnect()
@@ -194,12 +228,14 @@ class EmulatedRig:
             sink=lambda ch, v: plant.set_output(name, ch, v), label=name,
             sample_period_s=self.sample_period_s(name))
         self.modbus[name] = dev
+        url = socket_url(o.serial_port) if o.transport == "rtu" else None
         if o.transport == "tcp":
-            if o.host not in LOOPBACK:
-                raise RuntimeError(f"driver {name!r}: the emulator serves on loopback only, "
-                                   f"not {o.host}")
-            self._servers.append(self._run(serve_tcp(dev, o.host, o.port)))
+            self._servers.append(self._run(serve_tcp(dev, loopback(name, o.host), o.port)))
             self.endpoints[name] = f"modbus tcp {o.host}:{o.port} id {o.device_id}"
+        elif o.transport == "rtu-tcp" or url is not None:
+            host, port = url or (o.host, o.port)
+            self._servers.append(self._run(serve_rtu_tcp(dev, loopback(name, host), port)))
+            self.endpoints[name] = f"modbus rtu over tcp {host}:{port} id {o.device_id}"
         else:
             pair = PtyPair(o.serial_port)
             self._ptys.append(pair)
@@ -225,7 +261,14 @@ class EmulatedRig:
         # the notifier thread's idle wake-up: closing the network waits for it (1 s by
         # default); frames are delivered as they come either way
         net.NOTIFIER_CYCLE = 0.05
-        if o.interface == "serial":
+        if o.interface == "socketcand":
+            local = f"pamd-emu-{name}-{os.getpid()}-{id(self)}"
+            net.connect(interface="virtual", channel=local)
+            server = SocketcandServer(loopback(name, o.host), o.port, o.channel, local)
+            server.start()
+            self._socketcand.append(server)
+            where = f"socketcand {o.host}:{o.port} bus {o.channel}"
+        elif o.interface == "serial":
             pair = PtyPair(o.channel)
             self._ptys.append(pair)
             net.connect(interface="serial", channel=pair.device, timeout=0.01)
@@ -234,8 +277,9 @@ class EmulatedRig:
             net.connect(interface="virtual", channel=o.channel)
             where = f"python-can virtual {o.channel} (this process only)"
         else:
-            raise RuntimeError(f"driver {name!r}: the emulator serves CAN over the 'serial' "
-                               f"(pty pair) or 'virtual' interface, not {o.interface!r}")
+            raise RuntimeError(f"driver {name!r}: the emulator serves CAN over the "
+                               "'socketcand', 'serial' (pty pair) or 'virtual' interface, "
+                               f"not {o.interface!r}")
         self._networks.append(net)
         plant = self.plant
         for e in o.encoders:

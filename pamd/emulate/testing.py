@@ -1,7 +1,7 @@
 """Helpers for tests and benchmarks of the drivers and the emulated rig: free
 loopback ports, an asyncio loop in a thread for emulated devices, polling waits
 (generous timeouts instead of timing asserts), and variants of
-config/rig-emulated.yaml on free ports and private pty paths."""
+config/rig-emulated.yaml on free ports (or private pty paths)."""
 
 from __future__ import annotations
 
@@ -66,9 +66,24 @@ class AioThread:
         self.thread.join(5.0)
 
 
-def emulated_dict(tmp: Path, port: int, can: str = "serial", **changes: Any) -> dict[str, Any]:
-    """config/rig-emulated.yaml on `port`, with pty paths under `tmp` and, for
-    can='virtual', the CAN bus in this process; real-time settings off."""
+def emulated_dict(tmp: Path, port: int, can: str | None = None, links: str = "socket",
+                  **changes: Any) -> dict[str, Any]:
+    """config/rig-emulated.yaml on `port` (its Modbus TCP module; its other links on
+    other free ports), real-time settings off. `links`: "socket" (the shipped loopback
+    sockets: RTU frames over TCP, CAN through socketcand) or "pty" (socat pty pairs
+    under `tmp`, the older links); `can` overrides the CAN link alone: "socketcand",
+    "serial" (a pty), or "virtual" (the CAN bus inside one process)."""
+    if links not in ("socket", "pty"):
+        raise ValueError(f"links is 'socket' or 'pty', not {links!r}")
+    can = can or ("socketcand" if links == "socket" else "serial")
+    taken = {port}
+
+    def another_port() -> int:  # free, and not one handed out already
+        while (p := free_port()) in taken:
+            pass
+        taken.add(p)
+        return p
+
     d: dict[str, Any] = yaml.safe_load(RIG_EMULATED.read_text())  # the YAML file's mapping
     d["loop"]["realtime"] = {"enabled": False}
     d["telemetry"] = {"enabled": False}  # tests and benches keep off the default port
@@ -76,11 +91,20 @@ def emulated_dict(tmp: Path, port: int, can: str = "serial", **changes: Any) -> 
         o = drv["options"]
         if drv["type"] == "modbus" and o["transport"] == "tcp":
             o["port"] = port
+        elif drv["type"] == "modbus" and links == "pty":
+            o.pop("host", None)
+            o.pop("port", None)
+            o.update(transport="rtu", serial_port=str(tmp / "rtu"))
         elif drv["type"] == "modbus":
-            o["serial_port"] = str(tmp / "rtu")
+            o["port"] = another_port()
         elif drv["type"] == "canopen-encoder":
+            o.pop("host", None)
+            o.pop("port", None)
             o["interface"] = can
-            o["channel"] = str(tmp / "can") if can == "serial" else f"pamd-test-{port}"
+            if can == "socketcand":
+                o.update(host="127.0.0.1", port=another_port(), channel="can0")
+            else:
+                o["channel"] = str(tmp / "can") if can == "serial" else f"pamd-test-{port}"
     for k, v in changes.items():
         d[k] = v
     return d

@@ -35,7 +35,7 @@ def test_emulate_is_quiet_and_stops_without_a_traceback(tmp_path: Path, socat: s
 
     from pamd.emulate.testing import emulated_dict, free_port, write_config
 
-    cfg = write_config(tmp_path, emulated_dict(tmp_path, free_port(), can="serial"))
+    cfg = write_config(tmp_path, emulated_dict(tmp_path, free_port(), links="pty"))
     proc = subprocess.Popen([sys.executable, "-m", "pamd", "emulate", "--config", str(cfg)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=REPO, start_new_session=True)

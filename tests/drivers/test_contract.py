@@ -1,7 +1,8 @@
 """The driver contract, one suite run against every driver of the `pamd.drivers` entry
 points (as python-can runs one suite over its interfaces): sim, modbus (over loopback
-TCP and over RTU on socat ptys, against the emulated module), serial-line (a pty) and
-canopen-encoder (python-can's virtual bus, against an emulated CiA 406 node).
+TCP, over RTU on socat ptys and RTU frames over TCP, against the emulated module),
+serial-line (a pty) and canopen-encoder (python-can's virtual bus, and its socketcand
+client against the emulator's socketcand server, with an emulated CiA 406 node).
 
 What `pamd.drivers.Driver` promises: found by its entry point, options a documented
 frozen dataclass and bad ones refused with a DriverError naming the driver; channels
@@ -36,8 +37,14 @@ from pamd.drivers.serial_line import LineField, SerialLineOptions
 from pamd.drivers.sim import SimDriver
 
 from pamd.config import load_config
-from pamd.emulate.modbus_device import EmulatedModbusDevice, serve_rtu, serve_tcp
+from pamd.emulate.modbus_device import (
+    EmulatedModbusDevice,
+    serve_rtu,
+    serve_rtu_tcp,
+    serve_tcp,
+)
 from pamd.emulate.ptys import PtyPair
+from pamd.emulate.socketcand import SocketcandServer
 from pamd.emulate.testing import AioThread, emulated_dict, free_port, wait_until, write_config
 from pamd.errors import DriverError
 from pamd.sim.options import SimMuscleOptions, SimOptions
@@ -346,9 +353,117 @@ class CanEncoderBench(Bench):
         self.net.disconnect()
 
 
+class ModbusRtuTcpBench(Bench):
+    """The load-cell transmitter of config/rig-emulated.yaml: RTU frames over TCP (an
+    RS-485 device server), pymodbus's TCP client with its RTU framer against the
+    emulator's server; the device server switched off and on again."""
+
+    type_name = "modbus"
+    fault_words = ("rtu-tcp 127.0.0.1",)
+
+    def __init__(self, tmp: Path) -> None:
+        super().__init__(tmp)
+        cfg = load_config(str(write_config(tmp, emulated_dict(tmp, free_port(),
+                                                              can="virtual"))))
+        lc2 = next(d.options for d in cfg.rig.drivers if d.name == "lc2")
+        assert lc2.transport == "rtu-tcp"  # the shipped link
+        self.opts = dataclasses.replace(lc2, fault_after_s=0.2, reconnect_max_s=0.2)
+        self.aio = AioThread()
+        self.device = EmulatedModbusDevice(self.opts, {"force": 294.3}.get, lambda k, v: None)
+        self.server: Any = None
+        self.restore()
+
+    def options(self) -> ModbusOptions:
+        return self.opts
+
+    def bad_options(self) -> tuple[Any, str]:
+        return dataclasses.replace(self.opts, transport="rtu", serial_port=""), "serial_port"
+
+    def absent_options(self) -> ModbusOptions:
+        return dataclasses.replace(self.opts, port=free_port())
+
+    def silence(self) -> None:
+        self.aio.run(self.server.shutdown())
+        self.server = None
+
+    def check_recovered(self, d: Driver) -> None:
+        assert d.health().counters["connects"] >= 2  # it reconnected
+
+    def restore(self) -> None:
+        self.server = self.aio.run(serve_rtu_tcp(self.device, "127.0.0.1", self.opts.port))
+
+    def close(self) -> None:
+        if self.server is not None:
+            self.silence()
+        self.aio.stop()
+
+
+class CanSocketcandBench(Bench):
+    """A CiA 406 encoder behind the emulator's socketcand server, read through
+    python-can's own `socketcand` client; the server switched off and on again (the
+    link lost: the bus re-opened, the node configured again)."""
+
+    type_name = "canopen-encoder"
+    fault_words = ("socketcand can0 at 127.0.0.1",)
+
+    def __init__(self, tmp: Path) -> None:
+        import canopen
+
+        from pamd.emulate.canopen_node import EmulatedEncoder
+
+        super().__init__(tmp)
+        self.channel = f"pamd-contract-cand-{time.monotonic_ns()}"
+        self.port = free_port()
+        self.net = canopen.Network()
+        self.net.NOTIFIER_CYCLE = 0.05
+        self.net.connect(interface="virtual", channel=self.channel)
+        self.encoder = EmulatedEncoder(self.net, 5)
+        self.encoder.physical = 12345
+        self.encoder.start()
+        self.server: SocketcandServer | None = None
+        self.restore()
+
+    def options(self) -> CanEncoderOptions:
+        return CanEncoderOptions(interface="socketcand", host="127.0.0.1", port=self.port,
+                                 channel="can0", fault_after_s=0.1,
+                                 encoders=(EncoderNode(name="pos", node_id=5,
+                                                       heartbeat_ms=20),))
+
+    def bad_options(self) -> tuple[Any, str]:
+        return CanEncoderOptions(interface="socketcand", channel="can0",
+                                 encoders=(EncoderNode(name="pos", node_id=5),)), "host"
+
+    def absent_options(self) -> CanEncoderOptions:
+        return dataclasses.replace(self.options(), port=free_port())
+
+    def silence(self) -> None:
+        assert self.server is not None
+        self.server.stop()
+        self.server = None
+
+    def check_recovered(self, d: Driver) -> None:
+        c = d.health().counters
+        assert c["bus_opens"] >= 2 and c["nodes_started"] >= 2 and c["bus_errors"] >= 1
+
+    def check_absent(self, d: Driver) -> None:
+        assert "cannot open" in d.fault  # type: ignore[operator]
+        assert wait_until(lambda: d.health().counters.get("bus_open_failures", 0) >= 2)
+
+    def restore(self) -> None:
+        self.server = SocketcandServer("127.0.0.1", self.port, "can0", self.channel)
+        self.server.start()
+
+    def close(self) -> None:
+        if self.server is not None:
+            self.silence()
+        self.encoder.stop()
+        self.net.disconnect()
+
+
 BENCHES: dict[str, type[Bench]] = {
     "sim": SimBench, "modbus-tcp": ModbusTcpBench, "modbus-rtu": ModbusRtuBench,
-    "serial-line": SerialLineBench, "canopen-encoder": CanEncoderBench,
+    "modbus-rtu-tcp": ModbusRtuTcpBench, "serial-line": SerialLineBench,
+    "canopen-encoder": CanEncoderBench, "canopen-socketcand": CanSocketcandBench,
 }
 
 

@@ -3,9 +3,11 @@
 In-process (CAN on python-can's `virtual` bus): a device that stops answering
 makes its signals stale, the supervisor faults naming the signal and driver and
 goes to the safe state; when the device answers again the driver's fault clears
-and `reset` is accepted. Across processes (`pamd emulate`, Modbus TCP on loopback,
-Modbus RTU and CAN over socat pty pairs): the daemon tracks the 0.05 Hz pressure
-sine (shortened here; bench/drivers_tracking.py runs the full figure)."""
+and `reset` is accepted. Across processes (`pamd emulate` over the shipped loopback
+links: Modbus TCP, Modbus RTU frames over TCP, CAN through the emulator's socketcand
+server): the daemon tracks the 0.05 Hz pressure sine (shortened here;
+bench/drivers_tracking.py runs the full figure). The pty links (socat): test_modbus_rtu.py,
+test_contract.py and tests/cli/test_main_cli.py."""
 
 from __future__ import annotations
 
@@ -45,7 +47,7 @@ TRACKED_RMSE_BAR = 0.5
 HEARTBEATS_PILE_UP_S = 5.0  # the emulator runs on after the daemon, as an operator's does
 
 
-def config(tmp: Path, can: str, patient: bool = False) -> Any:
+def config(tmp: Path, can: str | None, patient: bool = False) -> Any:
     """The emulated rig's config; `patient`: timeouts no busy machine reaches (for
     the tracking run, where staleness is not what is tested)."""
     d = emulated_dict(tmp, free_port(), can=can, **copy.deepcopy(ROBUST))  # not shared
@@ -108,9 +110,11 @@ def test_silent_device_leads_to_the_safe_state_and_reset(
 
 
 def test_daemon_tracks_the_sine_against_the_emulator_process(tmp_path: Path) -> None:
-    """... and the emulator, left running after the daemon went (its nodes' heartbeats
-    filling a pty nobody reads), ends quietly: no thread's traceback."""
-    cfg = config(tmp_path, "serial", patient=True)
+    """Over the shipped links (loopback sockets: Modbus TCP, RTU frames over TCP, CAN
+    through the emulator's socketcand server) ... and the emulator, left running after
+    the daemon went (its nodes' heartbeats sent to nobody), ends quietly: no thread's
+    traceback."""
+    cfg = config(tmp_path, None, patient=True)
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     errors = (tmp_path / "emulate.err").open("w+")
     emu = subprocess.Popen([sys.executable, "-m", "pamd", "emulate", "--config", cfg.path],
@@ -120,6 +124,9 @@ def test_daemon_tracks_the_sine_against_the_emulator_process(tmp_path: Path) -> 
         assert emu.stdout is not None
         ready = json.loads(emu.stdout.readline())
         assert ready["ready"] and set(ready["endpoints"]) == {"io", "lc2", "enc"}
+        assert "rtu over tcp" in ready["endpoints"]["lc2"]
+        assert "socketcand" in ready["endpoints"]["enc"]
+        assert not list(tmp_path.glob("rtu*")) and not list(tmp_path.glob("can*"))  # no pty
         daemon = Daemon(cfg)
         daemon.start()
         assert daemon.wait_for_state((State.IDLE, State.FAULT), 20) == State.IDLE

@@ -60,8 +60,8 @@ def test_realtime_priority_runs_the_devices_on_sched_fifo_and_says_how_late(
     """The emulator stands in for devices with CPUs of their own: `--realtime-priority`
     puts its threads (and socat) on SCHED_FIFO, and its closing line says how late each
     timed part of it woke (a stale fault in a test of pamd can be told from a device
-    that was itself late)."""
-    cfg = write_config(tmp_path, emulated_dict(tmp_path, free_port()))
+    that was itself late). With the pty links, the socat processes carrying them too."""
+    cfg = write_config(tmp_path, emulated_dict(tmp_path, free_port(), links="pty"))
     proc = subprocess.Popen([sys.executable, "-m", "pamd", "emulate", "--config", str(cfg),
                              "--realtime-priority", "1"], cwd=tmp_path, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)

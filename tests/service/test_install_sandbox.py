@@ -58,6 +58,14 @@ def test_files_and_devices_the_config_names_under_tmp_or_home(tmp_path: Path) ->
     cfg.parent.mkdir(parents=True)
     emulated = yaml.safe_load((REPO / "config" / "rig-emulated.yaml").read_text())
     emulated["recording"] = {"dir": "/var/lib/pamd/recordings"}
+    for drv in emulated["drivers"]:  # its pty links (an option: the shipped ones are sockets)
+        o = drv["options"]
+        if drv["name"] == "lc2":
+            o.pop("host"), o.pop("port")
+            o.update(transport="rtu", serial_port="/tmp/pamd-emu/rtu")
+        elif drv["name"] == "enc":
+            o.pop("host"), o.pop("port")
+            o.update(interface="serial", channel="/tmp/pamd-emu/can")
     cfg.write_text(yaml.safe_dump(emulated, sort_keys=False))
     lines: list[str] = []
     install(prefix=str(root), pamd_path="/opt/pamd/bin/pamd", say=lines.append)
