@@ -55,7 +55,8 @@ def rows(quick: bool) -> list[SeedRow]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="30 kg only (about 20 s of CPU)")
+    ap.add_argument("--quick", action="store_true",
+                    help="30 kg only (a few seconds; full: the four loads)")
     ap.add_argument("--markdown", action="store_true", help="the rows as a Markdown table")
     a = ap.parse_args()
     rs = rows(a.quick)
