@@ -12,9 +12,10 @@ what keeps them still at rest.
 `SlidingModePosition` is seed 004's positioning: a sliding surface on the length
 error and its rate, s = lambda e + de/dt (e = length - target, so s > 0 asks for
 contraction), with a boundary layer |s| <= phi against chattering: outside it the
-valve opens fully toward the surface, inside it pulses with a duty s / phi, and
-within `hold_band_mm` of the target at rest it holds (the muscle's friction keeps
-it there with its air shut in) until the error leaves twice the band. It needs no
+valve opens fully toward the surface, inside it pulses with a duty s / phi (near the
+target, shortest pulses one at a time, each from rest), and within `hold_band_mm` of
+the target, at rest, it holds (the muscle's friction keeps it there with its air
+shut in) until the length rests outside twice the band. It needs no
 model and takes none (`POSITION_TAKES_NO_MODEL`: position mode with feedforward is
 refused on on/off valves), and the muscle has no pressure setpoint meanwhile (the
 tick record's `setpoint_bar` is NaN, so the summary has no pressure tracking there).
