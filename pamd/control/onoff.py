@@ -15,7 +15,7 @@ contraction), with a boundary layer |s| <= phi against chattering: outside it th
 valve opens fully toward the surface, inside it pulses with a duty s / phi (near the
 target, shortest pulses one at a time, each from rest), and within `hold_band_mm` of
 the target, at rest, it holds (the muscle's friction keeps it there with its air
-shut in) until the length rests outside twice the band. It needs no
+shut in) until the length rests beyond 1.5 bands. It needs no
 model and takes none (`POSITION_TAKES_NO_MODEL`: position mode with feedforward is
 refused on on/off valves), and the muscle has no pressure setpoint meanwhile (the
 tick record's `setpoint_bar` is NaN, so the summary has no pressure tracking there).
@@ -125,8 +125,8 @@ class SlidingModePosition:
     `rest_mm_s`): a pulse sent into the last one's motion adds to it. Within
     `hold_band_mm` both valves hold, and keep holding while the muscle rings out after
     its last pulse: they open again only once the length is still (within the band
-    for `STILL_S`) outside twice the band, or when the surface leaves the boundary
-    layer (a push, a new target)."""
+    for `STILL_S`) beyond 1.5 bands, or when the surface leaves the boundary layer (a
+    push, a new target)."""
 
     def __init__(self, *, lambda_per_s: float, boundary_mm_s: float, hold_band_mm: float,
                  period_s: float, min_pulse_s: float) -> None:
@@ -169,11 +169,13 @@ class SlidingModePosition:
         if target_velocity_mm_s == 0.0:
             band = self.hold_band_mm
             if self.holding:
-                # holding: until the length rests outside twice the band (the ringing
-                # after the last pulse, an encoder count of noise or creep does not
-                # start the valves again), or the surface leaves the layer
+                # holding: until the length rests beyond one and a half bands (the
+                # ringing after the last pulse, an encoder count of noise or creep does
+                # not start the valves again; resting two counts off, read in counts,
+                # can be 2.5 counts true: 0.025 mm with a 0.01 mm encoder), or the
+                # surface leaves the layer
                 self.holding = -phi <= s <= phi and (
-                    -2.0 * band <= e <= 2.0 * band or not still)
+                    -1.5 * band <= e <= 1.5 * band or not still)
             else:
                 # entered at rest only: passing through the band, the muscle would
                 # coast on, or spring back (the braid's presliding friction), out of it
