@@ -11,11 +11,19 @@ turn, inflate then exhaust:
 2. the shortest pulse the PWM sends (`pamd.control.actuation.min_pulse_s`): half the
    smaller of its two pressure steps is `dead_band_bar` (no pulse can place the
    pressure closer), the smallest length change seen is the encoder's count;
-3. a 150 ms pulse: the fastest length change seen (over 50 ms) is the valve's speed
-   on the muscle; the slower of the two valves sets the boundary layer
-   (`position_boundary_mm_s`: a duty s / boundary of 1 at that speed), and
-   `position_lambda_per_s` = boundary / 1 mm puts the layer's edge 1 mm from a target
-   at rest; `position_hold_band_mm` is one encoder count.
+3. a 300 ms pulse: the fastest length change seen (over 50 ms) is the valve's speed
+   on the muscle, held open (the muscle reaches it within about 0.2 s; a 150 ms pulse
+   measured the exhaust at half its speed, issue 29). The *faster* of the two valves
+   sets the boundary layer (`position_boundary_mm_s`): the duty s / boundary is then a
+   velocity feedback of gain (valve speed / boundary) <= 1 for both valves. With the
+   boundary at the slower valve's underestimated speed (14.2 mm/s against 43 and 31
+   mm/s) the gain was 2-3, the surface left the layer at every swing and the valves
+   relayed fully open against the hanging load's oscillation: the +-2 mm hunting of
+   issue 29. `position_lambda_per_s` = boundary / 3 mm puts the layer's edge 3 mm from
+   a target at rest (chosen on issue 14's single 10 mm step from 3 bar at 30 kg, not
+   on issue 29's plateaus: 5 mm left that step 0.22 mm short after 6 s, the last
+   creep pulses too small for the stuck muscle; 1 mm relays most of a 5 mm step);
+   `position_hold_band_mm` is one encoder count.
 
 `response_s` is 5 PWM periods (the PWM averages over a few). Each measurement is
 the mean of 50 samples before and after the pulse, so sensor noise averages out.
@@ -46,9 +54,9 @@ REPO = Path(__file__).resolve().parents[1]
 DT = 0.001
 LEVEL_BAR = 3.0
 RATE_PULSE_S = 0.04
-SPEED_PULSE_S = 0.15
+SPEED_PULSE_S = 0.3
 SPEED_WINDOW_S = 0.05  # a speed over 50 ms: 0.2 mm/s per encoder count
-LAYER_MM = 1.0  # the boundary layer's edge from a target at rest
+LAYER_MM = 3.0  # the boundary layer's edge from a target at rest
 RESPONSE_PERIODS = 5.0
 
 
@@ -128,7 +136,7 @@ def tune(config: Path, load_kg: float) -> dict[str, float]:
         count_mm = steps[0] if steps else 0.01
     finally:
         h.rig.close()
-    boundary = min(v_fill, v_vent)
+    boundary = max(v_fill, v_vent)  # velocity gain <= 1 for both valves
     out = {
         "fill_rate_bar_per_s": dp_fill / RATE_PULSE_S,
         "vent_rate_bar_per_s": -dp_vent / RATE_PULSE_S,

@@ -155,12 +155,14 @@ class OnOffConfig:
         0.0143, "Within this of a steady command both valves hold (no chatter at rest); "
         "about half the pressure step of the shortest pulse.", unit="bar", min=0.0, max=1.0)
     position_lambda_per_s: float = spec(
-        14.2, "Mode position (seed 004's sliding mode): the sliding surface s = lambda e + "
+        14.5, "Mode position (seed 004's sliding mode): the sliding surface s = lambda e + "
         "de/dt on the length error e; the error decays at this rate on the surface. From "
-        "the step test (bench/tune_onoff.py).", unit="1/s", gt=0.0)
+        "the step test (bench/tune_onoff.py): the boundary / 3 mm.", unit="1/s", gt=0.0)
     position_boundary_mm_s: float = spec(
-        14.2, "Mode position: the boundary layer |s| <= this, inside which the valves pulse "
-        "with a duty s / boundary (against chattering); outside it one valve is open.",
+        43.4, "Mode position: the boundary layer |s| <= this, inside which the valves pulse "
+        "with a duty s / boundary (against chattering); outside it one valve is open. The "
+        "faster valve's speed on the muscle, held open (the step test): a smaller one "
+        "relays the valves against the load's oscillation.",
         unit="mm/s", gt=0.0)
     position_hold_band_mm: float = spec(
         0.01, "Mode position: within this of a length target at rest both valves hold "

@@ -1,0 +1,66 @@
+"""bench/seeds.py: one table of the seeds' rows; a seed module not written yet prints
+"not measured", one that fails prints its error, and the others still run."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def seeds(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> ModuleType:
+    (tmp_path / "seed997.py").write_text(
+        "from seed_table import SeedRow\n"
+        "def rows(quick):\n"
+        "    return [SeedRow('997', 'a figure', '1 %', '2 %' if quick else '3 %', 'yes')]\n")
+    (tmp_path / "seed998.py").write_text(
+        "def rows(quick):\n    raise RuntimeError('the sim broke')\n")
+    (tmp_path / "seed996.py").write_text("import no_such_dependency_xyz\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.syspath_prepend(str(REPO / "bench"))
+    sys.modules.pop("seeds", None)
+    return __import__("seeds")
+
+
+def test_a_seed_module_not_written_yet_is_not_measured(seeds: ModuleType) -> None:
+    (row,) = seeds.seed_rows("999", quick=True)
+    assert row.seed == "999" and row.pamd == "not measured"
+    assert "seed999.py" in row.like_for_like
+
+
+def test_a_failing_seed_says_why_and_a_missing_dependency_is_not_hidden(
+        seeds: ModuleType) -> None:
+    (row,) = seeds.seed_rows("998", quick=True)
+    assert row.pamd == "failed: RuntimeError: the sim broke"
+    (row,) = seeds.seed_rows("996", quick=True)
+    assert row.pamd.startswith("failed:") and "no_such_dependency_xyz" in row.pamd
+
+
+def test_quick_reaches_the_seed_and_the_table_prints_as_markdown(
+        seeds: ModuleType, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert seeds.seed_rows("997", quick=True)[0].pamd == "2 %"
+    assert seeds.seed_rows("997", quick=False)[0].pamd == "3 %"
+    asked: list[tuple[str, bool]] = []
+    real = seeds.seed_rows
+
+    def fake(seed: str, quick: bool) -> list[object]:
+        asked.append((seed, quick))
+        rows: list[object] = real("997" if seed == "004" else "999", quick)
+        return rows
+
+    monkeypatch.setattr(seeds, "seed_rows", fake)
+    assert seeds.main(["--quick", "--markdown", "--seed", "003", "--seed", "004"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert asked == [("003", True), ("004", True)]
+    assert out[0] == "| seed | figure | paper | pamd | like for like |"
+    assert out[2].startswith("| 999 | (all) | - | not measured |")
+    assert out[3] == "| 997 | a figure | 1 % | 2 % | yes |"
+    seeds.main(["--seed", "004"])
+    text = capsys.readouterr().out
+    assert "a figure" in text and "3 %" in text and "|" not in text
