@@ -58,15 +58,18 @@ class SummarySink:
         self.layout = layout
         n = len(layout.muscles)
         self.sq = [0.0] * n
+        self.abs_sum = [0.0] * n  # sum |e|: the MAE (seed 003's tracking metric)
         self.max_abs = [0.0] * n
         self.count = [0] * n
         self.len_sq = [0.0] * n
+        self.len_abs_sum = [0.0] * n
         self.len_max_abs = [0.0] * n
         self.len_count = [0] * n
         self.limited_s = [0.0] * n
         self.limit_events = [0] * n
-        # after the first cycle: [squares, max |e|, count] of pressure, then of length
-        self.steady = [[0.0, 0.0, 0, 0.0, 0.0, 0] for _ in range(n)]
+        # after the first cycle: [squares, max |e|, count] of pressure, then of length,
+        # then sum |e| of pressure and of length
+        self.steady = [[0.0, 0.0, 0, 0.0, 0.0, 0, 0.0, 0.0] for _ in range(n)]
         self._muscles: Sequence[_Follows] = ()
         self._last_t = 0.0
         self.ticks = 0
@@ -99,16 +102,20 @@ class SummarySink:
                     self.limited_s[k] += dt
                 e = record[b + M_SETPOINT] - record[b + M_PRESSURE]
                 if e == e:
+                    a = abs(e)
                     self.sq[k] += e * e
+                    self.abs_sum[k] += a
                     self.count[k] += 1
-                    if abs(e) > self.max_abs[k]:
-                        self.max_abs[k] = abs(e)
+                    if a > self.max_abs[k]:
+                        self.max_abs[k] = a
                 e = record[b + M_TARGET_LENGTH] - record[b + M_LENGTH]  # NaN: no target
                 if e == e:
+                    a = abs(e)
                     self.len_sq[k] += e * e
+                    self.len_abs_sum[k] += a
                     self.len_count[k] += 1
-                    if abs(e) > self.len_max_abs[k]:
-                        self.len_max_abs[k] = abs(e)
+                    if a > self.len_max_abs[k]:
+                        self.len_max_abs[k] = a
         ok = True
         for d in self.downstream:
             ok = d.put(record) and ok
@@ -120,12 +127,14 @@ class SummarySink:
         if e == e:
             s[0] += e * e
             s[2] += 1
+            s[6] += abs(e)
             if abs(e) > s[1]:
                 s[1] = abs(e)
         e = record[b + M_TARGET_LENGTH] - record[b + M_LENGTH]
         if e == e:
             s[3] += e * e
             s[5] += 1
+            s[7] += abs(e)
             if abs(e) > s[4]:
                 s[4] = abs(e)
 
@@ -142,8 +151,9 @@ class SummarySink:
 
     def tracking(self) -> dict[str, dict[str, float | None]]:
         """Per muscle: pressure tracking against the profile's target (`rmse_bar`,
-        `max_error_bar`, `samples`), length tracking in the length modes
-        (`length_rmse_mm`, `length_max_error_mm`, `length_samples`), None where nothing
+        `mae_bar`, `max_error_bar`, `samples`), length tracking in the length modes
+        (`length_rmse_mm`, `length_mae_mm`, `length_max_error_mm`, `length_samples`;
+        MAE and RMSE are seed 003's tracking metrics), None where nothing
         was tracked; the same after the profile's first cycle (`..._after_first_cycle`:
         None for a profile of one cycle or none); and how long a soft limit held the
         command back while RUNNING (`soft_limit_s`) with the number of `soft_limit`
@@ -151,18 +161,22 @@ class SummarySink:
         out: dict[str, dict[str, float | None]] = {}
         for k, m in enumerate(self.layout.muscles):
             n, n_len = self.count[k], self.len_count[k]
-            sq, mx, ns, lsq, lmx, nls = self.steady[k]
+            sq, mx, ns, lsq, lmx, nls, sa, lsa = self.steady[k]
             out[m] = {
                 "rmse_bar": math.sqrt(self.sq[k] / n) if n else None,
+                "mae_bar": self.abs_sum[k] / n if n else None,
                 "max_error_bar": self.max_abs[k] if n else None,
                 "samples": n,
                 "length_rmse_mm": math.sqrt(self.len_sq[k] / n_len) if n_len else None,
+                "length_mae_mm": self.len_abs_sum[k] / n_len if n_len else None,
                 "length_max_error_mm": self.len_max_abs[k] if n_len else None,
                 "length_samples": n_len,
                 "rmse_bar_after_first_cycle": math.sqrt(sq / ns) if ns else None,
+                "mae_bar_after_first_cycle": sa / ns if ns else None,
                 "max_error_bar_after_first_cycle": mx if ns else None,
                 "samples_after_first_cycle": int(ns),
                 "length_rmse_mm_after_first_cycle": math.sqrt(lsq / nls) if nls else None,
+                "length_mae_mm_after_first_cycle": lsa / nls if nls else None,
                 "length_max_error_mm_after_first_cycle": lmx if nls else None,
                 "length_samples_after_first_cycle": int(nls),
                 "soft_limit_s": round(self.limited_s[k], 3),

@@ -126,11 +126,15 @@ def run(args: argparse.Namespace) -> int:
     note = f"{len(samples)} samples from {len(samples.runs)} run(s)"
     clip_notes = [f"{j.file}: {int(j.clipped.sum())} "
                   f"({100.0 * j.clipped.sum() / len(samples):.1f} %) clipped" for j in judged]
+    forward = {j.file: _forward(j.model, samples) for j in judged}
     if args.json:
         doc: dict[str, Any] = {}
         if len(judged) == 1:
             doc.update({k: _json_float(v) for k, v in judged[0].metrics.items()})
-        doc["models"] = [{**j.as_json(), "tick": r.as_json()} for j, r in pairs]
+        doc["models"] = [{**j.as_json(), "tick": r.as_json(),
+                          **({"forward": {k: {m: _json_float(v) for m, v in t.items()}
+                                          for k, t in forward[j.file].items()}}
+                             if forward[j.file] else {})} for j, r in pairs]
         print(json.dumps(doc, indent=2))
         print(f"pamd evaluate: {note}; " + "; ".join(clip_notes), file=sys.stderr)
     elif len(judged) == 1:
@@ -140,6 +144,9 @@ def run(args: argparse.Namespace) -> int:
               " %) had inputs outside the training ranges or an output held (clipped)")
         format_table({"evaluation": j.metrics}, j.model.output.unit)
         print(f"  tick cost of the compiled model: {j.tick_cost_us:.2f} us per sample")
+        if forward[j.file]:
+            print("  forward models against the measured length (seed 003's MAE, RMSE):")
+            format_table(forward[j.file], "mm")
     else:
         print(f"{len(judged)} models on the same {note} ({', '.join(data)[:100]}):")
         format_comparison(judged)
@@ -167,6 +174,19 @@ def _plots(prefix: str, judged: list[Judged], samples: Samples, what: str) -> li
 
     return write_overlay(prefix, judged, samples.time_axis(), samples.y,
                          title=f"{judged[0].model.output.name}: {what}")
+
+
+def _forward(model: object, samples: Samples) -> dict[str, dict[str, float]]:
+    """A kind with a forward model of the length (fn-qupi: FN-QUPI and QUPI alone) scored
+    against the measured length over whole runs in time order, at each run's load; {}
+    for the other kinds."""
+    score = getattr(model, "forward_metrics", None)
+    if score is None or "length_mm" not in samples.inputs:
+        return {}
+    col = samples.inputs.index("length_mm")
+    out: dict[str, dict[str, float]] = score(samples.X[:, col], samples.y, samples.run,
+                                             [r.get("load_kg") for r in samples.runs])
+    return out
 
 
 def _json_float(v: object) -> Any:

@@ -396,21 +396,25 @@ def print_summary(r: JsonObject) -> None:
     for name, t in r["tracking"].items():
         if t["samples"] or t.get("length_samples"):
             if t["samples"]:  # none where no pressure setpoint ran (on/off positioning)
-                print(f"  {name}: pressure tracking RMSE {t['rmse_bar']:.4f} bar, max error "
+                print(f"  {name}: pressure tracking RMSE {t['rmse_bar']:.4f} bar, MAE "
+                      f"{t['mae_bar']:.4f} bar, max error "
                       f"{t['max_error_bar']:.4f} bar ({t['samples']} ticks running)",
                       file=out)
             if t.get("samples_after_first_cycle"):
                 print(f"  {name}:   after the first cycle: RMSE "
-                      f"{t['rmse_bar_after_first_cycle']:.4f} bar, max error "
+                      f"{t['rmse_bar_after_first_cycle']:.4f} bar, MAE "
+                      f"{t['mae_bar_after_first_cycle']:.4f} bar, max error "
                       f"{t['max_error_bar_after_first_cycle']:.4f} bar "
                       f"({t['samples_after_first_cycle']} ticks)", file=out)
             if t.get("length_samples"):
-                print(f"  {name}: length tracking RMSE {t['length_rmse_mm']:.3f} mm, max "
+                print(f"  {name}: length tracking RMSE {t['length_rmse_mm']:.3f} mm, MAE "
+                      f"{t['length_mae_mm']:.3f} mm, max "
                       f"error {t['length_max_error_mm']:.3f} mm ({t['length_samples']} "
                       "ticks with a length target)", file=out)
             if t.get("length_samples_after_first_cycle"):
                 print(f"  {name}:   after the first cycle: RMSE "
-                      f"{t['length_rmse_mm_after_first_cycle']:.3f} mm, max error "
+                      f"{t['length_rmse_mm_after_first_cycle']:.3f} mm, MAE "
+                      f"{t['length_mae_mm_after_first_cycle']:.3f} mm, max error "
                       f"{t['length_max_error_mm_after_first_cycle']:.3f} mm "
                       f"({t['length_samples_after_first_cycle']} ticks)", file=out)
             if t.get("soft_limit_s"):

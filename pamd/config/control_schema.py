@@ -95,9 +95,59 @@ class IlcConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class IncrementalPidConfig:
+    method: Literal[1, 2] = spec(
+        2, "Seed 003's control method: 1, the increment alone is the compensation (sec. "
+        "3.3, u(k) = du(k)); 2, the increments accumulated (sec. 3.4, u(k) = u(k-1) + "
+        "du(k)). du(k) = Kp (e(k) - e(k-1)) + Ki e(k) + Kd (e(k) - 2 e(k-1) + e(k-2)).")
+    sample_period_s: float | None = spec(
+        None, "The controller's sample period: the increments are computed this often (the "
+        "gains are per sample). Null: every tick (1 / loop.rate_hz), where method 2 with "
+        "the derived gains is the position PID itself (seed 003 does not state its "
+        "period).", unit="s", gt=0.0, max=1.0)
+    kp_bar_per_mm: float | None = spec(
+        None, "Kp, on the error's change per sample. Null: derived from `position.pid` "
+        "(method 2: kp; method 1: kd / sample_period_s).", unit="bar/mm", min=0.0,
+        max=POSITION_KP_MAX_BAR_PER_MM)
+    ki_bar_per_mm: float | None = spec(
+        None, "Ki, on the error. Null: derived from `position.pid` (method 2: ki_bar_per_mm_s "
+        "x sample_period_s, the same integral action; method 1: kp, since its Ki e(k) is "
+        "a proportional term). Seed 003's Table 3 (its own muscle and units): method 1 "
+        "9.5/1.3/0.5, method 2 5.0/0.5/0.1.", unit="bar/mm", min=0.0,
+        max=POSITION_KP_MAX_BAR_PER_MM)
+    kd_bar_per_mm: float | None = spec(
+        None, "Kd, on the error's second difference per sample. Null: derived from "
+        "`position.pid` (kd_bar_s_per_mm / sample_period_s for method 2, 0 for method 1).",
+        unit="bar/mm", min=0.0, max=POSITION_KP_MAX_BAR_PER_MM)
+    output_limit_bar: float = spec(6.0, "Largest compensation it adds to the model's "
+                                   "pressure.", unit="bar", min=0.0)
+
+    def period_s(self, tick_period_s: float) -> float:
+        return tick_period_s if self.sample_period_s is None else self.sample_period_s
+
+    def gains(self, pid: PositionPidConfig, tick_period_s: float
+              ) -> tuple[float, float, float]:
+        """(Kp, Ki, Kd) per sample: as given, else derived from the position PID."""
+        t = self.period_s(tick_period_s)
+        if self.method == 2:
+            kp, ki, kd = pid.kp_bar_per_mm, pid.ki_bar_per_mm_s * t, pid.kd_bar_s_per_mm / t
+        else:
+            kp, ki, kd = pid.kd_bar_s_per_mm / t, pid.kp_bar_per_mm, 0.0
+        return (kp if self.kp_bar_per_mm is None else self.kp_bar_per_mm,
+                ki if self.ki_bar_per_mm is None else self.ki_bar_per_mm,
+                kd if self.kd_bar_per_mm is None else self.kd_bar_per_mm)
+
+
+@dataclass(frozen=True, kw_only=True)
 class PositionConfig:
     pid: PositionPidConfig = spec(PositionPidConfig(), "Outer position loop (position "
                                   "mode): corrects what the model misses.")
+    feedback: Literal["pid", "incremental"] = spec(
+        "pid", "position mode's feedback: `pid`, the PID of `position.pid`; "
+        "`incremental`, seed 003's incremental PID in velocity form (Method 1 or 2, "
+        "`position.incremental`).")
+    incremental: IncrementalPidConfig = spec(IncrementalPidConfig(), "Seed 003's "
+                                             "incremental PID (`feedback: incremental`).")
     max_rate_per_s: float | None = spec(
         None, "Fastest change of a length target, contraction (fraction) per second; "
         "faster length profiles and setpoint ramps are refused, naming the frequency that "

@@ -13,7 +13,9 @@ Modes (`pamd.tick.Mode`), per muscle:
   the length error adds what the model misses; optionally an iterative learning
   correction (ILC) of the PID's length target, learned over repeated cycles of a
   periodic length profile (seed 003's PID-type ILC, filtered: `pamd.control.ilc`). With
-  ``feedforward: false`` the outer PID (+ ILC) runs alone, without a model.
+  ``feedforward: false`` the outer PID (+ ILC) runs alone, without a model. With
+  `position.feedback: incremental` seed 003's incremental PID in velocity form
+  (Method 1 or 2, `pamd.control.incremental_pid`) takes the outer PID's place.
 
 Feedforward that knows the motion (position mode, `control.position`): a length
 profile is known in advance, so the model is evaluated on the profile `preview_s`
@@ -50,6 +52,7 @@ import math
 from typing import TYPE_CHECKING
 
 from pamd.control.ilc import Ilc
+from pamd.control.incremental_pid import IncrementalPid
 from pamd.control.pid import Pid
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
 from pamd.muscle_type import GRAVITY_M_S2
@@ -79,7 +82,8 @@ class LengthControl:
     run in its command methods (the loop's thread, between ticks), `step` in its tick."""
 
     def __init__(self, envelope: MuscleEnvelope, position: PositionConfig,
-                 feedforward: Feedforward | None, rate_feedforward_s: float = 0.0) -> None:
+                 feedforward: Feedforward | None, rate_feedforward_s: float = 0.0,
+                 tick_period_s: float = 0.001) -> None:
         self.set_envelope(envelope)
         self.cfg = position
         # position mode's dynamic feedforward (module docstring, "Feedforward that
@@ -98,6 +102,11 @@ class LengthControl:
         pc = position.pid
         self.pid = Pid(pc.kp_bar_per_mm, pc.ki_bar_per_mm_s, pc.kd_bar_s_per_mm,
                        pc.derivative_filter_hz, pc.integral_limit_bar, pc.output_limit_bar)
+        self.inc: IncrementalPid | None = None  # seed 003's incremental PID instead
+        if position.feedback == "incremental":
+            ic = position.incremental
+            self.inc = IncrementalPid(ic.method, *ic.gains(pc, tick_period_s),
+                                      ic.period_s(tick_period_s), ic.output_limit_bar)
         self.ff = feedforward
         self.active = False  # a length mode runs
         self.use_ff = True
@@ -167,6 +176,8 @@ class LengthControl:
         if self.position:
             self.pid.i = max(-self.pid.integral_limit,
                              min(self.pid.integral_limit, setpoint_bar - ff))
+            if self.inc is not None:  # Method 2 bumpless; Method 1 has no sum to preset
+                self.inc.reset(setpoint_bar - ff)
         else:
             self.bump = setpoint_bar - ff
         self.last_sp = setpoint_bar
@@ -206,6 +217,8 @@ class LengthControl:
         if self.position:
             il = self.pid.integral_limit
             self.pid.i = max(-il, min(il, self.pid.i + diff))
+            if self.inc is not None and self.inc.method == 2:
+                self.inc.reset(self.inc.u + diff)
         else:
             self.bump += diff
         return diff
@@ -275,6 +288,8 @@ class LengthControl:
         want = ff
         pid = self.pid
         i_before = pid.i
+        inc = self.inc
+        u_before = inc.u if inc is not None else 0.0
         if pos:
             err = length_mm - ln_t
             ilc = self.ilc
@@ -282,7 +297,7 @@ class LengthControl:
                 tau = now - prof.t0_s - prof.lead_in_s
                 if tau >= 0.0:  # the learned correction shifts what the PID aims at
                     err += ilc.step(tau, err, dt)
-            corr = pid.step(err, -length_mm, dt)
+            corr = pid.step(err, -length_mm, dt) if inc is None else inc.step(now, err)
             self.correction = corr
             want += corr
             # the air the planned motion draws (shortening) or returns
@@ -311,6 +326,8 @@ class LengthControl:
             flags |= F_SLEW
         if held or sp_prev != self.last_sp:  # clamped here or by the tick's soft limits
             pid.i = i_before
+            if inc is not None:
+                inc.hold(u_before)
         self.feedforward_bar = ff
         rate = self.sp_rate.update(want, dt)
         rest = self.corr_rate.update(want - ff, dt)

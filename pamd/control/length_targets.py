@@ -14,7 +14,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.muscle_type import equilibrium_contraction
-from pamd.profiles import Profile, ProfileSpec, shape_of
+from pamd.profiles import Harmonic, Profile, ProfileSpec, shape_of
 from pamd.safety.envelope import MuscleEnvelope
 
 #: Length targets keep this far (contraction) inside what the load lets the muscle reach.
@@ -69,7 +69,8 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
                    max_contraction: float | None, to_contraction: float | None,
                    freq_hz: float, cycles: int | None, rate_per_s: float | None,
                    rise_s: float | None, duration_s: float | None,
-                   lead_in_per_s: float | None) -> Profile:
+                   lead_in_per_s: float | None,
+                   harmonics: tuple[tuple[int, float], ...] | None = None) -> Profile:
     """A length profile for the muscle of `env` with `load_kg` hanging, starting from
     its present `target_length_mm`, in contraction (fraction) units, checked against
     the contraction limits and the length rate limit before anything moves."""
@@ -99,8 +100,17 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
                        max_bar=max_contraction if max_contraction is not None else 0.0,
                        freq_hz=freq_hz, cycles=cycles, to_bar=to_contraction,
                        rate_bar_per_s=rate_per_s, rise_s=rise_s, duration_s=duration_s,
-                       lead_in_bar_per_s=lead)
+                       lead_in_bar_per_s=lead, harmonics=harmonics)
     # ProfileSpec is unit-free arithmetic; here its "bar" fields hold contraction.
+    if isinstance(spec.shape, Harmonic):  # the sum of harmonics within limits and reach
+        c_lo, c_hi = env.contraction_bounds()
+        fm, p_hi = env.force_model, env.max_pressure_bar
+        r_lo = equilibrium_contraction(fm, 0.0, load_kg) + REACH_MARGIN
+        r_hi = equilibrium_contraction(fm, p_hi, load_kg) - REACH_MARGIN
+        spec.shape.check_params(spec)
+        spec.shape.check_harmonics(
+            spec, max(c_lo, r_lo), min(c_hi, r_hi), max_rate, "% contraction", 100.0,
+            f" (soft limits, reach with {load_kg:g} kg, {env.length_rate_origin})")
     rate = spec.shape_max_rate(max_rate)
     if rate > max_rate * (1 + 1e-9):
         raise CommandRefused(
@@ -126,4 +136,5 @@ def check_length_profile_config(cfg: LoadedConfig, muscle: str,
                    freq_hz=payload.get("freq_hz", 0.05), cycles=payload.get("cycles"),
                    rate_per_s=payload.get("rate_per_s"), rise_s=payload.get("rise_s"),
                    duration_s=payload.get("duration_s"),
-                   lead_in_per_s=payload.get("lead_in_per_s"))
+                   lead_in_per_s=payload.get("lead_in_per_s"),
+                   harmonics=payload.get("harmonics"))

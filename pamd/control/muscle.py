@@ -80,7 +80,8 @@ class MuscleController(MuscleView):
         self.profile_follower = ProfileFollower(envelope)
         self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
                                             None if model is None else model.feedforward(),
-                                            ctl.rate_feedforward_s)
+                                            ctl.rate_feedforward_s,
+                                            1.0 / cfg.rig.loop.rate_hz)
         self.adaptation = Adaptation(self.name, cfg.muscle(self.name).adapt,  # the model's
                                      self.length_control.ff)  # online adaptation (adapt.py)
         self.onoff = cfg.muscle(self.name).actuation == "onoff"

@@ -22,6 +22,12 @@ from pamd.schema.yamlload import load_yaml_text, read_text
 
 
 @dataclass(frozen=True, kw_only=True)
+class PlanHarmonic:
+    number: int = spec(doc="Harmonic number (1: the fundamental at freq_hz).", min=1)
+    share: float = spec(doc="Amplitude as a share of the half span (max_bar - min_bar) / 2.")
+
+
+@dataclass(frozen=True, kw_only=True)
 class PlanProfile:
     kind: ProfileKind = spec("sine", "Profile shape.")
     min_bar: float = spec(0.0, "Lowest pressure.", unit="bar", min=0.0)
@@ -33,11 +39,16 @@ class PlanProfile:
                                 min=0.0)
     duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
                                     unit="s", gt=0.0)
+    harmonics: tuple[PlanHarmonic, ...] | None = spec(
+        None, f"Harmonics ({kinds_reading('harmonics')}; default: seed 003's signal as "
+        "pamd builds it, harmonics 1, 2, 3 with shares 0.6, 0.25, 0.15).")
 
     def as_spec(self) -> ProfileSpec:
+        harm = None if self.harmonics is None else tuple(
+            (h.number, h.share) for h in self.harmonics)
         return ProfileSpec(kind=self.kind, min_bar=self.min_bar, max_bar=self.max_bar,
                            freq_hz=self.freq_hz, cycles=self.cycles, to_bar=self.to_bar,
-                           duration_s=self.duration_s)
+                           duration_s=self.duration_s, harmonics=harm)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from pamd.errors import ModelError
-from pamd.models import anfis_kind, learned, qupi, static_force, ts_fuzzy
+from pamd.models import anfis_kind, fn_qupi, learned, qupi, static_force, ts_fuzzy
 from pamd.models.anfis import modelfile as anfis_file
 from pamd.models.contract import InverseModel
 from pamd.models.document import field, format_json, parse_json
@@ -64,6 +64,7 @@ register(static_force.SAROSI)
 register(learned.MLP)
 register(learned.SVR)
 register(qupi.KIND)
+register(fn_qupi.KIND)
 
 
 def kind_of(doc: object) -> str:

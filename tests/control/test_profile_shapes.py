@@ -68,19 +68,20 @@ def test_each_shape_runs_as_it_declares(kind: str) -> None:
 
 
 def test_an_unknown_kind_is_refused_naming_the_registered_ones() -> None:
-    assert kinds_text() == "constant, step, ramp, sine or triangle"
+    assert kinds_text() == ("constant, step, ramp, sine, triangle, multisine or "
+                            "multitriangle")
     for make in (lambda: ProfileSpec(kind="zigzag"), lambda: shape_of("zigzag")):
         with pytest.raises(CommandRefused) as exc:
             make()
         assert str(exc.value) == ("unknown profile kind 'zigzag'; use constant, step, ramp, "
-                                  "sine or triangle")
+                                  "sine, triangle, multisine or multitriangle")
 
 
 def test_every_place_that_names_the_kinds_reads_the_registry() -> None:
     assert typing.get_args(typing.get_type_hints(PlanProfile)["kind"]) == SHAPE_NAMES
     docs = {f.name: f.metadata["doc"] for f in dataclasses.fields(ProfileArgs)}
     assert docs["kind"] == kinds_text() + "."
-    assert docs["freq_hz"] == "Frequency (step, sine, triangle)."
+    assert docs["freq_hz"] == "Frequency (step, sine, triangle, multisine, multitriangle)."
     assert kinds_reading("to_bar") == "constant, ramp"
     parser = build_parser()  # `pamd run --profile` takes every shape and nothing else
     for name in SHAPE_NAMES:
