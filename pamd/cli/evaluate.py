@@ -185,9 +185,9 @@ def held_out_curves(samples: Samples, files: Sequence[str], models: Sequence[Inv
         held = sorted(float(c) for c in curves)
     if "pressure_bar" in samples.inputs:
         p = samples.X[:, samples.inputs.index("pressure_bar")]
+    elif samples.output == "pressure_bar":
+        p = samples.y
     else:
-        p = samples.y if samples.output == "pressure_bar" else None
-    if p is None:
         raise ModelError("--held-out: the samples have no pressure_bar to find the curves by")
     mask = np.isin(np.round(p, 6), np.round(np.array(held or []), 6))
     if not mask.any():

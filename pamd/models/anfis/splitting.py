@@ -72,10 +72,11 @@ def split(samples: Samples, val_fraction: float = 0.2, test_fraction: float = 0.
     in_test = np.isin(units, test_ids)
     in_val = np.isin(units, val_ids)
     train = samples.subset(~in_test & ~in_val)
-    how = {"by": by, "block_s": block_s if by == "block" else None, "seed": seed,
-           "units": int(n), "validation_units": int(n_val), "test_units": int(n_test),
-           "train_samples": len(train), "validation_samples": int(in_val.sum()),
-           "test_samples": int(in_test.sum())}
+    how: dict[str, Any] = {
+        "by": by, "block_s": block_s if by == "block" else None, "seed": seed,
+        "units": int(n), "validation_units": int(n_val), "test_units": int(n_test),
+        "train_samples": len(train), "validation_samples": int(in_val.sum()),
+        "test_samples": int(in_test.sum())}
     if by == "curve":
         how["validation_curves_bar"] = sorted(float(pressures[i]) for i in val_ids)
         how["test_curves_bar"] = sorted(float(pressures[i]) for i in test_ids)
