@@ -75,13 +75,13 @@ def _unpack(w: np.ndarray, d: int, h: int) -> tuple[np.ndarray, np.ndarray, np.n
     return w1, b1, w2, float(w[-1])
 
 
-def _outputs(w: np.ndarray, S: np.ndarray, h: int) -> tuple[np.ndarray, np.ndarray]:
+def network_outputs(w: np.ndarray, S: np.ndarray, h: int) -> tuple[np.ndarray, np.ndarray]:
     w1, b1, w2, b2 = _unpack(w, S.shape[1], h)
     a = np.tanh(S @ w1.T + b1)
     return a @ w2 + b2, a
 
 
-def _jacobian(w: np.ndarray, S: np.ndarray, a: np.ndarray, h: int) -> np.ndarray:
+def jacobian(w: np.ndarray, S: np.ndarray, a: np.ndarray, h: int) -> np.ndarray:
     """d output / d weights (n x P), seed 002's eq. 4-5."""
     n, d = S.shape
     w2 = w[h * d + h:h * d + 2 * h]
@@ -119,7 +119,7 @@ def fit_network(S: np.ndarray, z: np.ndarray, *, hidden: int, solver: str = "br"
     w = _nguyen_widrow(d, h, np.random.default_rng(seed))
     P = w.size
     bayes = solver == "br"
-    y_hat, a = _outputs(w, S, h)
+    y_hat, a = network_outputs(w, S, h)
     e = y_hat - z
     sse, ssw = float(e @ e), float(w @ w)
     alpha, beta = 0.0, 1.0
@@ -133,7 +133,7 @@ def fit_network(S: np.ndarray, z: np.ndarray, *, hidden: int, solver: str = "br"
     I_P = np.eye(P)
     epoch = 0
     for epoch in range(1, epochs + 1):
-        J = _jacobian(w, S, a, h)
+        J = jacobian(w, S, a, h)
         JtJ = J.T @ J
         grad = beta * (J.T @ e) + alpha * w
         if float(np.linalg.norm(grad)) < MIN_GRAD:
@@ -147,7 +147,7 @@ def fit_network(S: np.ndarray, z: np.ndarray, *, hidden: int, solver: str = "br"
                 step = None
             if step is not None:
                 w_new = w + step
-                y_new, a_new = _outputs(w_new, S, h)
+                y_new, a_new = network_outputs(w_new, S, h)
                 e_new = y_new - z
                 sse_new, ssw_new = float(e_new @ e_new), float(w_new @ w_new)
                 if beta * sse_new + alpha * ssw_new < cost:
@@ -171,7 +171,7 @@ def fit_network(S: np.ndarray, z: np.ndarray, *, hidden: int, solver: str = "br"
             beta = max(n - gamma, 1.0) / (2.0 * max(sse, 1e-12))
         val_sse = None
         if validation is not None:
-            yv, _ = _outputs(w, validation[0], h)
+            yv, _ = network_outputs(w, validation[0], h)
             ev = yv - validation[1]
             val_sse = float(ev @ ev)
         if callback is not None:
