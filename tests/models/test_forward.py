@@ -6,6 +6,7 @@ options that do not apply refused."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -167,3 +168,26 @@ def test_bad_maps_are_refused_naming_row_and_column(header: str, row: str, where
     assert main(["train", str(table), "--out", str(tmp_path / "m.json"), "--kind",
                  "polynomial", *FORWARD, "--quiet"]) == 5
     assert f"{table}{where}" in capsys.readouterr().err
+
+
+def test_seed_002_figures_as_the_readme_reports() -> None:
+    """bench/seed002.py's protocol (leave-one-curve-out over 1-5 bar, the kinds' defaults,
+    seed 0) gives the README's figures for the polynomial, the best MLP and the cubic and
+    fine-Gaussian SVMs (deterministic: no clock, no load dependence)."""
+    bench = Path(__file__).resolve().parents[2] / "bench"
+    sys.path.insert(0, str(bench))
+    try:
+        import seed002  # type: ignore[import-not-found]
+    finally:
+        sys.path.remove(str(bench))
+    want = {"DMSP-20": {"polynomial": 67.77, "mlp 5": 98.62, "svr cubic": 89.73,
+                        "svr fine-gaussian": 13.26},
+            "DMSP-40": {"polynomial": 75.03, "svr cubic": 90.91}}
+    models = seed002.models(quick=False)
+    for muscle, figures in want.items():
+        samples = load_samples([str(DATA / seed002.MAPS[muscle])], seed002.OPTS,
+                               report=lambda _line: None)
+        for label, fit in figures.items():
+            kind, options = models[label]
+            m = seed002.judge_held_out_curves(samples, kind, options)
+            assert m["nrmse_fit_pct"] == pytest.approx(fit, abs=0.01), (muscle, label)
