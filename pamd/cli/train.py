@@ -75,7 +75,8 @@ def kind_options_given(args: argparse.Namespace, kind: Kind[Any]) -> dict[str, A
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "train", help="train an inverse model (ANFIS or another kind) from recorded runs",
+        "train", help="train an inverse model (ANFIS or another kind) or a forward force "
+        "model from recorded runs or tables",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Train an inverse model (by default a first-order Sugeno ANFIS, "
         "hybrid learning) that maps the muscle's force and length (and optionally its "
@@ -84,6 +85,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "columns. Faults, limit-flagged samples, idle stretches, lead-in ramps and the "
         "first --settle-s of each run are dropped; the rest is decimated to --rate-hz and "
         "split into training / validation (/ test) sets by whole time blocks or runs.\n\n"
+        "--target force_n --inputs pressure_bar,contraction trains a forward force model "
+        "instead (seed 002's F(p, k)), e.g. on a datasheet map (a table without time: its "
+        "rows are samples); --split-by curve holds out whole pressure curves and pamd "
+        "evaluate --held-out judges them. A forward model is judged offline: the tick "
+        "runs inverse models.\n\n"
         "--kind picks the model (the seeds' models; default anfis):\n"
         + "".join(f"  {k.help_line()}\n" for k in KINDS.values()),
         epilog="examples:\n"
