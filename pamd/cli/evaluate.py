@@ -13,10 +13,13 @@ import sys
 from collections.abc import Mapping, Sequence
 from typing import Any, TextIO
 
+import numpy as np
+
 from pamd.errors import ModelError
 from pamd.models.anfis.plots import require_matplotlib
 from pamd.models.anfis.samples import Samples
 from pamd.models.compare import Judged, common_options, format_comparison
+from pamd.models.contract import InverseModel
 from pamd.models.plots import write_overlay
 from pamd.models.registry import KINDS, load_model
 from pamd.view.judging import judge_as_tick
@@ -68,6 +71,10 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "(default: as in training)")
     p.add_argument("--rate-hz", type=float, help="decimate to this rate (default: as in "
                    "training)")
+    p.add_argument("--held-out", choices=("validation", "test"), default=None,
+                   help="judge only the pressure curves the models' training held out "
+                   "(pamd train --split-by curve lists them in the model file); the models "
+                   "must have held out the same curves. Seed 002 judges on held-out data")
     p.add_argument("--no-timing", action="store_true", help="skip the tick-cost measurement")
     p.set_defaults(func=run)
 
@@ -121,6 +128,8 @@ def run(args: argparse.Namespace) -> int:
     models = [load_model(f) for f in files]
     opts = common_options(models, args.muscle, args.settle_s, args.rate_hz)
     samples = load_samples(data, opts)  # recordings and tables (CSV, MAT)
+    if args.held_out:
+        samples = held_out_curves(samples, files, models, args.held_out)
     pairs = judge_as_tick(files, models, samples, timing=not args.no_timing)  # as the tick
     judged = [j for j, _ in pairs]
     note = f"{len(samples)} samples from {len(samples.runs)} run(s)"
@@ -163,6 +172,37 @@ def run(args: argparse.Namespace) -> int:
         paths = _plots(args.plot, judged, samples, ", ".join(data)[:80])
         print(f"plots: {', '.join(paths)}", file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def held_out_curves(samples: Samples, files: Sequence[str], models: Sequence[InverseModel],
+                    part: str) -> Samples:
+    """The samples on the pressure curves every model's training held out as `part`."""
+    key = f"{part}_curves_bar"
+    held: list[float] | None = None
+    for f, m in zip(files, models, strict=True):
+        how = m.provenance.get("split") or {}
+        curves = how.get(key) if isinstance(how, dict) else None
+        if not isinstance(curves, list) or not curves:
+            flag = "--test-split" if part == "test" else "--val-split"
+            raise ModelError(f"--held-out {part}: {f} lists no held-out {part} curves (train "
+                             f"it with --split-by curve and {flag} above 0)")
+        if held is not None and sorted(curves) != held:
+            raise ModelError(f"--held-out {part}: {f} held out {sorted(curves)} bar, the "
+                             f"first model {held} bar; judge such models separately")
+        held = sorted(float(c) for c in curves)
+    if "pressure_bar" in samples.inputs:
+        p = samples.X[:, samples.inputs.index("pressure_bar")]
+    elif samples.output == "pressure_bar":
+        p = samples.y
+    else:
+        raise ModelError("--held-out: the samples have no pressure_bar to find the curves by")
+    mask = np.isin(np.round(p, 6), np.round(np.array(held or []), 6))
+    if not mask.any():
+        raise ModelError(f"--held-out {part}: no sample of the data lies on the held-out "
+                         f"curves {held} bar; give the map the models were trained on")
+    print(f"pamd evaluate: judging the held-out {part} curves {held} bar "
+          f"({int(mask.sum())} of {len(samples)} samples)", file=sys.stderr)
+    return samples.subset(mask)
 
 
 def _plots(prefix: str, judged: list[Judged], samples: Samples, what: str) -> list[str]:

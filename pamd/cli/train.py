@@ -1,6 +1,8 @@
-"""`pamd train DATA... --out MODEL.json [--kind KIND]`: train an inverse model (force,
-length[, velocity] -> pressure; ANFIS by default, or any kind of `pamd.models`) from
-recorded runs, with a progress bar and a final metrics table."""
+"""`pamd train DATA... --out MODEL.json [--kind KIND] [--target SIGNAL]`: train an inverse
+model (force, length[, velocity] -> pressure; ANFIS by default, or any kind of
+`pamd.models`) or, with `--target force_n --inputs pressure_bar,contraction`, a forward
+force model (seed 002's F(p, k)), from recorded runs or tables, with a progress bar and a
+final metrics table."""
 
 from __future__ import annotations
 
@@ -73,7 +75,8 @@ def kind_options_given(args: argparse.Namespace, kind: Kind[Any]) -> dict[str, A
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
-        "train", help="train an inverse model (ANFIS or another kind) from recorded runs",
+        "train", help="train an inverse model (ANFIS or another kind) or a forward force "
+        "model from recorded runs or tables",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Train an inverse model (by default a first-order Sugeno ANFIS, "
         "hybrid learning) that maps the muscle's force and length (and optionally its "
@@ -82,6 +85,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "columns. Faults, limit-flagged samples, idle stretches, lead-in ramps and the "
         "first --settle-s of each run are dropped; the rest is decimated to --rate-hz and "
         "split into training / validation (/ test) sets by whole time blocks or runs.\n\n"
+        "--target force_n --inputs pressure_bar,contraction trains a forward force model "
+        "instead (seed 002's F(p, k)), e.g. on a datasheet map (a table without time: its "
+        "rows are samples); --split-by curve holds out whole pressure curves and pamd "
+        "evaluate --held-out judges them. A forward model is judged offline: the tick "
+        "runs inverse models.\n\n"
         "--kind picks the model (the seeds' models; default anfis):\n"
         + "".join(f"  {k.help_line()}\n" for k in KINDS.values()),
         epilog="examples:\n"
@@ -93,7 +101,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "velocity_mm_s --mfs 3\n"
         "  pamd train lab_export.csv --out model.json --val-split 0 --epochs 50\n"
         "  pamd train runs/*.mcap --out tsf.json --kind ts-fuzzy --tuner mga --epochs 60\n"
-        "  pamd train runs/*.mcap --out sarosi.json --kind sarosi")
+        "  pamd train runs/*.mcap --out sarosi.json --kind sarosi\n"
+        "  pamd train map.csv --out f.json --kind polynomial --target force_n "
+        "--inputs pressure_bar,contraction --split-by curve   # seed 002's forward model")
     p.add_argument("data", nargs="+", metavar="DATA",
                    help="MCAP recordings, CSV files or directories: a collection (pamd "
                    "collect; its steps' files, as the manifest lists them) or a directory of "
@@ -105,18 +115,25 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    help=f"comma-separated model inputs from {', '.join(INPUT_UNITS)} "
                    "(default per kind: " + "; ".join(
                        f"{k.name} {','.join(k.default_inputs)}" for k in KINDS.values()) + ")")
-    p.add_argument("--output", default="pressure_bar", choices=sorted(OUTPUT_UNITS),
-                   help="model output (default pressure_bar; another only for the kinds "
-                   "that can predict it: " + "; ".join(
-                       f"{k.name} {','.join(k.outputs)}" for k in KINDS.values()) + ")")
+    p.add_argument("--target", "--output", dest="target", default="pressure_bar",
+                   choices=sorted(OUTPUT_UNITS), metavar="SIGNAL",
+                   help="the signal the model predicts, one of "
+                   f"{', '.join(sorted(OUTPUT_UNITS))} (default pressure_bar, the inverse "
+                   "model the feedforward runs; force_n with --inputs pressure_bar,contraction"
+                   " is seed 002's forward force model F(p, k), judged offline; without "
+                   "--inputs, the kind's default inputs with the target replaced by "
+                   "pressure_bar). Another target only for the kinds that can predict it: "
+                   + "; ".join(f"{k.name} {','.join(k.outputs)}" for k in KINDS.values()))
     p.add_argument("--val-split", type=float, default=0.2, metavar="FRACTION",
                    help="share of the data held out for validation (the best epoch on it is "
                    "kept); 0 trains on all DATA (default 0.2)")
     p.add_argument("--test-split", type=float, default=0.0, metavar="FRACTION",
                    help="share held out as a test set, reported and never trained on "
                    "(default 0: test with pamd evaluate on other runs)")
-    p.add_argument("--split-by", choices=("block", "run"), default="block",
-                   help="hold out whole time blocks (default) or whole runs")
+    p.add_argument("--split-by", choices=("block", "run", "curve"), default="block",
+                   help="hold out whole time blocks (default), whole runs, or whole "
+                   "pressure curves of a map (rows sharing a pressure_bar value: a "
+                   "datasheet map is judged on curves it never saw)")
     p.add_argument("--block-s", type=float, default=10.0, help="block length for "
                    "--split-by block (default 10 s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the split and of the "
@@ -140,12 +157,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 def run(args: argparse.Namespace) -> int:
     kind = declared(args.kind)
     options = kind.make_options(kind_options_given(args, kind))
-    text = args.inputs if args.inputs is not None else ",".join(kind.default_inputs)
-    inputs = tuple(s.strip() for s in text.split(",") if s.strip())
-    if args.output not in kind.outputs:
-        raise ModelError(f"--output {args.output}: a {kind.name} model predicts "
+    inputs = model_inputs(args.inputs, kind, args.target)
+    if args.target not in kind.outputs:
+        raise ModelError(f"--target {args.target}: a {kind.name} model predicts "
                          f"{' or '.join(kind.outputs)}")
-    opts = ExtractOptions(inputs=inputs, output=args.output, muscle=args.muscle,
+    opts = ExtractOptions(inputs=inputs, output=args.target, muscle=args.muscle,
                           settle_s=args.settle_s, rate_hz=args.rate_hz,
                           velocity_window_s=args.velocity_window_s)
     options.check(inputs)
@@ -157,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
                   block_s=args.block_s, seed=args.seed)
     tr, va, te = parts.train, parts.validation, parts.test
     print(f"pamd train: {len(samples)} samples from {len(samples.runs)} run(s) "
-          f"({', '.join(inputs)} -> {args.output}); training {len(tr)}, validation "
+          f"({', '.join(inputs)} -> {args.target}); training {len(tr)}, validation "
           f"{len(va) if va else 0}, test {len(te) if te else 0} (split by {args.split_by})",
           file=sys.stderr)
     steps, unit, error = kind.progress(options) if kind.progress else (0, "", "")
@@ -200,6 +216,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"  forward model ({kind.forward.label}):")
         format_table(fwd, kind.forward.unit)
     return 0
+
+
+def model_inputs(text: str | None, kind: Kind[Any], target: str) -> tuple[str, ...]:
+    """The inputs `--inputs` names, or the kind's defaults with the target (when it is
+    one of them) replaced by pressure_bar: a forward model of the same signals."""
+    if text is not None:
+        return tuple(s.strip() for s in text.split(",") if s.strip())
+    return tuple("pressure_bar" if n == target else n for n in kind.default_inputs)
 
 
 def _refuse_poor_fit(metrics: dict[str, Any], args: argparse.Namespace) -> None:

@@ -1,4 +1,4 @@
-"""The static force models of seeds 002 and 004, used as inverse models.
+"""The static force models of seeds 002 and 004, as forward models or inverted.
 
 Role: kinds ``polynomial`` (seed 002: F = p (a1 h^2 + a2 h + a3) + a4) and
 ``sarosi`` (seed 004, eq. 2: F = (a p + b) e^(c k + d) + (e p + f) k + g p + h),
@@ -7,6 +7,13 @@ forward models, force from pressure and contraction; both are affine in p for a
 fixed contraction, F = A(k) p + B(k), so the pressure that gives a force F at
 contraction k is p = (F - B(k)) / A(k) in closed form: that is the inverse the
 tick evaluates (inputs force_n and contraction, output pressure_bar).
+
+A model is one of two orientations, told by its inputs: the inverse (force_n,
+contraction -> pressure_bar, the default, for the feedforward) or the forward model
+itself (pressure_bar, contraction -> force_n; `pamd train --target force_n --inputs
+pressure_bar,contraction`), as seed 002 fits and judges it on datasheet maps. Both
+have the same coefficients and the same file; the forward one is not checked for
+invertibility (it is never inverted) and cannot drive a muscle (`problems` says so).
 
 `PolynomialModel` and `SarosiModel` share their base, `StaticForceModel` (the
 inverse, its checks, the file); each gives its A(k), B(k) and fit. `POLYNOMIAL` and
@@ -48,6 +55,9 @@ from pamd.models.document import field, footer, header, numbers, read_header
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions
 
 VERSION = 1
+#: The two orientations: inputs -> output (the inverse, and the forward model itself).
+ORIENTATIONS: dict[tuple[str, ...], str] = {("force_n", "contraction"): "pressure_bar",
+                                            ("pressure_bar", "contraction"): "force_n"}
 #: The least pressure gain A(k) (N/bar) accepted over the identified range.
 MIN_GAIN_N_PER_BAR = 1.0
 _SAROSI_C_GRID = np.concatenate([np.linspace(-1.5, -0.01, 50), np.linspace(0.01, 0.5, 15)])
@@ -70,9 +80,10 @@ class StaticForceModel:
                  metrics: dict[str, Any] | None = None) -> None:
         kind = self.kind
         names = [v.name for v in inputs]
-        if names != ["force_n", "contraction"]:
-            raise ModelError(f"a {kind} model takes the inputs force_n, contraction "
-                             f"(in that order), not {', '.join(names)}")
+        if tuple(names) not in ORIENTATIONS or ORIENTATIONS[tuple(names)] != output.name:
+            raise ModelError(f"a {kind} model takes the inputs force_n, contraction (output "
+                             "pressure_bar) or pressure_bar, contraction (output force_n), "
+                             f"in that order, not {', '.join(names)} -> {output.name}")
         missing = [c for c in self.COEFFS if c not in coefficients]
         if missing:
             raise ModelError(f"{kind} model: missing coefficient(s) {', '.join(missing)}")
@@ -105,6 +116,11 @@ class StaticForceModel:
     def n_params(self) -> int:
         return len(self.COEFFS)
 
+    @property
+    def is_forward(self) -> bool:
+        """True for the forward model (pressure, contraction -> force)."""
+        return self.inputs[0].name == "pressure_bar"
+
     def forward_force(self, p_bar: ArrayLike, contraction: ArrayLike) -> np.ndarray:
         """The force model itself: F (N) at pressure p (bar) and contraction (fraction)."""
         A, B = self.gain_offset(self.coefficients,
@@ -121,8 +137,12 @@ class StaticForceModel:
     def predict(self, X: ArrayLike, *, return_clipped: bool = False
                 ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """Pressure (bar) for rows (force_n, contraction), inputs and output held to their
-        identified ranges; `clipped` marks rows where either was held."""
+        identified ranges; `clipped` marks rows where either was held. The forward model:
+        force (N) for rows (pressure_bar, contraction), inputs held."""
         Xc, clipped = clip_inputs(self.inputs, X)
+        if self.is_forward:
+            F = self.forward_force(Xc[:, 0], Xc[:, 1])
+            return (F, clipped) if return_clipped else F
         A, B = self.gain_offset(self.coefficients, 100.0 * Xc[:, 1])
         with np.errstate(divide="ignore", invalid="ignore"):
             p = (Xc[:, 0] - B) / A
@@ -131,15 +151,15 @@ class StaticForceModel:
         clipped = clipped | (held != p)
         return (held, clipped) if return_clipped else held
 
-    def compile(self) -> CompiledStaticForce:
-        return CompiledStaticForce(self)
+    def compile(self) -> CompiledStaticForce | CompiledForwardForce:
+        return CompiledForwardForce(self) if self.is_forward else CompiledStaticForce(self)
 
     def describe(self) -> dict[str, Any]:
         return {**describe_common(self), "coefficients": dict(self.coefficients)}
 
     def problems(self, envelope: Envelope) -> list[str]:
         out = tick_problems(self, envelope)
-        gain = self.gain_problem()
+        gain = "" if self.is_forward else self.gain_problem()
         return [*out, gain] if gain else out
 
     def gain_problem(self) -> str:
@@ -177,13 +197,20 @@ class StaticForceModel:
     def fit(cls, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
             validation: tuple[np.ndarray, np.ndarray] | None = None,
             derived_inputs: dict[str, Any] | None = None,
-            provenance: dict[str, Any] | None = None) -> StaticForceModel:
+            provenance: dict[str, Any] | None = None,
+            input_names: Sequence[str] = ("force_n", "contraction")) -> StaticForceModel:
         """Fit to samples X = (force_n, contraction), y = pressure_bar: the forward model
         F(p, k) by least squares, then checked as an inverse. The model's metrics hold
-        the inverse's (pressure) and the forward model's (force) fit."""
+        the inverse's (pressure) and the forward model's (force) fit. With `input_names`
+        (pressure_bar, contraction), y = force_n: the forward model itself."""
         kind = cls.kind
-        if X.shape[1] != 2:
-            raise ModelError(f"a {kind} model takes the inputs force_n, contraction")
+        names = tuple(input_names)
+        if X.shape[1] != 2 or names not in ORIENTATIONS:
+            raise ModelError(f"a {kind} model takes the inputs force_n, contraction or "
+                             "pressure_bar, contraction")
+        if names[0] == "pressure_bar":
+            return cls._fit_forward(X, y, input_units=input_units, validation=validation,
+                                    derived_inputs=derived_inputs, provenance=provenance)
         F, x = X[:, 0], X[:, 1]
         co = cls.fit_coefficients(y, 100.0 * x, F)
         if not all(math.isfinite(v) for v in co.values()):
@@ -204,6 +231,28 @@ class StaticForceModel:
             model.metrics[name] = regression_metrics(ys, model.predict(Xs), model.n_params)
             model.metrics[f"forward_{name}"] = regression_metrics(
                 Xs[:, 0], model.forward_force(ys, Xs[:, 1]), model.n_params)
+        return model
+
+    @classmethod
+    def _fit_forward(cls, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
+                     validation: tuple[np.ndarray, np.ndarray] | None,
+                     derived_inputs: dict[str, Any] | None,
+                     provenance: dict[str, Any] | None) -> StaticForceModel:
+        """The forward model F(p, k) from X = (pressure_bar, contraction), y = force_n."""
+        p, x = X[:, 0], X[:, 1]
+        co = cls.fit_coefficients(p, 100.0 * x, y)
+        if not all(math.isfinite(v) for v in co.values()):
+            raise ModelError(f"{cls.kind} fit did not converge (non-finite coefficients)")
+        inputs = [Variable("pressure_bar", input_units[0], float(p.min()), float(p.max())),
+                  Variable("contraction", input_units[1], float(x.min()), float(x.max()))]
+        output = Variable("force_n", "N", float(y.min()), float(y.max()))
+        prov = {**(provenance or {}), "fit": {"method": cls.FIT_METHOD}}
+        model = cls(co, inputs, output, derived_inputs=derived_inputs, provenance=prov)
+        sets = {"train": (X, y)}
+        if validation is not None:
+            sets["validation"] = validation
+        for name, (Xs, ys) in sets.items():
+            model.metrics[name] = regression_metrics(ys, model.predict(Xs), model.n_params)
         return model
 
 
@@ -334,6 +383,40 @@ class CompiledStaticForce:
         """Nothing to reset: the model has no state."""
 
 
+class CompiledForwardForce:
+    """Single-sample forward model F = A(k) p + B(k), inputs held to their ranges."""
+
+    __slots__ = ("clipped", "clipped_mask", "input_names", "evaluate")
+
+    def __init__(self, model: StaticForceModel) -> None:
+        self.clipped = False
+        self.clipped_mask = 0
+        self.input_names = tuple(v.name for v in model.inputs)
+        p_lo, p_hi = model.inputs[0].min, model.inputs[0].max
+        x_lo, x_hi = model.inputs[1].min, model.inputs[1].max
+        gain_offset_at = model.scalar_gain_offset()
+
+        def evaluate(pressure_bar: float, contraction: float) -> float:
+            mask = 0
+            if pressure_bar < p_lo:
+                pressure_bar, mask = p_lo, 1
+            elif pressure_bar > p_hi:
+                pressure_bar, mask = p_hi, 1
+            if contraction < x_lo:
+                contraction, mask = x_lo, mask | 2
+            elif contraction > x_hi:
+                contraction, mask = x_hi, mask | 2
+            gain, offset = gain_offset_at(100.0 * contraction)
+            self.clipped_mask = mask
+            self.clipped = mask != 0
+            return gain * pressure_bar + offset
+
+        self.evaluate = evaluate
+
+    def reset(self, *x: float) -> None:
+        """Nothing to reset: the model has no state."""
+
+
 def from_dict(doc: object) -> StaticForceModel:
     """A polynomial or sarosi model from its parsed file (the file's kind picks)."""
     return model_class(field(doc, "kind", str, "")).from_dict(doc)
@@ -437,9 +520,11 @@ class StaticOptions(KindOptions):
     model: ClassVar[type[StaticForceModel]] = StaticForceModel
 
     def check(self, inputs: Sequence[str]) -> None:
-        if tuple(inputs) != ("force_n", "contraction"):
+        if tuple(inputs) not in ORIENTATIONS:
             raise ModelError(f"a {self.model.kind} model takes the inputs force_n,contraction "
-                             "(its force is a function of pressure and contraction)")
+                             "(the inverse, target pressure_bar) or pressure_bar,contraction "
+                             "(the forward model, target force_n): its force is a function "
+                             "of pressure and contraction")
 
 
 @dataclass(frozen=True)
@@ -454,19 +539,23 @@ class SarosiOptions(StaticOptions):
 
 def fit_kind(job: FitJob[StaticOptions]) -> Fitted:
     job.options.check(job.inputs)
+    want = ORIENTATIONS[job.inputs]
+    if job.samples.output != want:
+        raise ModelError(f"a {job.options.model.kind} model of {','.join(job.inputs)} "
+                         f"predicts {want}, not {job.samples.output} (--target {want})")
     X, y = job.train
     return Fitted(job.options.model.fit(X, y, input_units=job.input_units,
                                         validation=job.validation,
                                         derived_inputs=job.derived_inputs,
-                                        provenance=job.provenance))
+                                        provenance=job.provenance, input_names=job.inputs))
 
 
 FORWARD = Forward("force from pressure and contraction", "N")
 POLYNOMIAL: Kind[StaticOptions] = Kind(
     "polynomial", "002", "forward force F = p (a1 h^2 + a2 h + a3) + a4, inverted in "
     "closed form", PolynomialModel.from_dict, ("force_n", "contraction"), fit_kind,
-    PolynomialOptions, forward=FORWARD)
+    PolynomialOptions, forward=FORWARD, outputs=("pressure_bar", "force_n"))
 SAROSI: Kind[StaticOptions] = Kind(
     "sarosi", "004", "forward force F = (a p + b) e^(c k + d) + (e p + f) k + g p + h, "
     "inverted in closed form", SarosiModel.from_dict, ("force_n", "contraction"), fit_kind,
-    SarosiOptions, forward=FORWARD)
+    SarosiOptions, forward=FORWARD, outputs=("pressure_bar", "force_n"))

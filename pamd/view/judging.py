@@ -18,6 +18,10 @@ holds no training sample. `pamd evaluate` warns when more than `WARN_OFF_DATA_PC
 the points are off the data (its figures are then an extrapolation's), and when the
 output clamp rescued the model (unclamped RMSE over `RESCUED_RATIO` x the clamped one).
 
+A model the tick cannot run (a forward force model, seed 002's F(p, k): its target is not
+the pressure, or an input is not a signal of the tick) is judged as `predict` gives it:
+inputs held to the training ranges (counted), its output free; its report says so.
+
 A fit worse than a constant (`poor_fit`): NRMSE fit <= 0 % on the validation set (on
 the training set without one) means predicting the mean does at least as well;
 `pamd train` refuses to write such a model unless told to (`--allow-poor-fit`).
@@ -36,7 +40,7 @@ from pamd.control.feedforward import Feedforward
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.samples import Samples
 from pamd.models.compare import Judged, columns_for, predict_samples, tick_cost_us
-from pamd.models.contract import SOURCES, InverseModel
+from pamd.models.contract import MODEL_OUTPUT, SOURCES, InverseModel
 
 COVERAGE_BINS = 10
 WARN_OFF_DATA_PCT = 1.0
@@ -92,6 +96,12 @@ def poor_fit(metrics: dict[str, Any]) -> str | None:
     return None
 
 
+def tick_runs(model: InverseModel) -> bool:
+    """Whether the feedforward can run `model`: it predicts the pressure from signals of
+    the tick (a forward force model does not)."""
+    return model.output.name == MODEL_OUTPUT and all(v.name in SOURCES for v in model.inputs)
+
+
 def tick_predict(model: InverseModel, samples: Samples
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(output, inputs held, output held) per sample, from `Feedforward.pressure` as
@@ -126,6 +136,7 @@ class TickReport:
     off_data: int | None  # None: the model file does not say where its data lay
     model_alone: dict[str, float]  # metrics of predict (inputs held, output free)
     tick_rmse: float  # RMSE as the tick runs it
+    offline: bool = False  # a model the tick cannot run (judged as predict gives it)
 
     def pct(self, k: int) -> float:
         return 100.0 * k / self.n if self.n else 0.0
@@ -134,6 +145,10 @@ class TickReport:
         off = ("off the training data: not known (the model file predates the rule; "
                "retrain to get it)" if self.off_data is None else
                f"{self.off_data} ({self.pct(self.off_data):.1f} %) off the training data")
+        if self.offline:
+            return (f"a model the tick does not run (judged offline): {self.inputs_held} "
+                    f"({self.pct(self.inputs_held):.1f} %) with inputs held to the training "
+                    f"ranges; {off}")
         return (f"as the tick runs it: {self.inputs_held} ({self.pct(self.inputs_held):.1f} %)"
                 f" with inputs held to the training ranges, {self.output_held} "
                 f"({self.pct(self.output_held):.1f} %) with the output held to its range; "
@@ -154,7 +169,7 @@ class TickReport:
         return out
 
     def as_json(self) -> dict[str, Any]:
-        return {"samples": self.n, "inputs_held": self.inputs_held,
+        return {"samples": self.n, "offline": self.offline, "inputs_held": self.inputs_held,
                 "output_held": self.output_held, "off_data": self.off_data,
                 "off_data_rule": OFF_DATA_RULE,
                 "model_alone": {k: None if isinstance(v, float) and not math.isfinite(v)
@@ -167,8 +182,12 @@ def judge_as_tick(files: Sequence[str], models: Sequence[InverseModel], samples:
     out = []
     for file, m in zip(files, models, strict=True):
         X = columns_for(m, samples)
-        y, held_in, held_out = tick_predict(m, samples)
-        alone, _ = predict_samples(m, X, samples.run)
+        offline = not tick_runs(m)
+        alone, alone_held = predict_samples(m, X, samples.run)
+        if offline:
+            y, held_in, held_out = alone, alone_held, np.zeros(len(samples), dtype=bool)
+        else:
+            y, held_in, held_out = tick_predict(m, samples)
         off = off_data(m, X)
         metrics = regression_metrics(samples.y, y, m.n_params)
         judged = Judged(file, m, y, held_in | held_out, metrics,
@@ -176,5 +195,6 @@ def judge_as_tick(files: Sequence[str], models: Sequence[InverseModel], samples:
         out.append((judged, TickReport(
             len(samples), int(held_in.sum()), int(held_out.sum()),
             None if off is None else int(off.sum()),
-            regression_metrics(samples.y, alone, m.n_params), float(metrics["rmse"]))))
+            regression_metrics(samples.y, alone, m.n_params), float(metrics["rmse"]),
+            offline)))
     return out

@@ -168,7 +168,7 @@ def test_a_flag_of_another_kind_or_out_of_bounds_is_refused(
             (["--kind", "toy", "--hidden", "4"], "--hidden is an option of mlp, not of "
                                                  "--kind toy (its options: --degree)"),
             (["--kind", "toy", "--degree", "0"], "--degree must be at least 1"),
-            (["--kind", "mlp", "--output", "force_n"], "a mlp model predicts pressure_bar"),
+            (["--kind", "qupi", "--output", "force_n"], "a qupi model predicts pressure_bar"),
             (["--kind", "ts-fuzzy", "--mfs", "3,3,2"], "the same number of MFs on every")):
         assert main(["train", str(sweeps[0]), "--out", str(out), "--quiet", *args]) == 5
         assert message in capsys.readouterr().err, args

@@ -17,12 +17,15 @@ from pamd.errors import ModelError
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.tick import Flag
 
-#: Model inputs this module can produce, with units.
+#: Model inputs this module can produce, with units (pressure_bar: a forward model's
+#: input, seed 002's F(p, k); the tick feeds none, so such a model cannot drive a muscle).
 INPUT_UNITS: dict[str, str] = {
     "force_n": "N", "length_mm": "mm", "contraction": "", "velocity_mm_s": "mm/s",
+    "pressure_bar": "bar",
 }
-#: Outputs it can produce (measured signals), with units.
-OUTPUT_UNITS: dict[str, str] = {"pressure_bar": "bar", "force_n": "N", "length_mm": "mm"}
+#: Targets (outputs) it can produce (measured signals), with units.
+OUTPUT_UNITS: dict[str, str] = {"pressure_bar": "bar", "force_n": "N", "length_mm": "mm",
+                                "contraction": ""}
 
 #: Flag bits whose samples are not training data.
 DROP_FLAGS = int(Flag.STALE | Flag.SOFT_LIMIT_PRESSURE | Flag.SOFT_LIMIT_CONTRACTION
