@@ -3,7 +3,8 @@
 Role: fit a model to data. Each epoch (batch, vectorised numpy):
 
 1. Forward pass: with the premise (MF) parameters fixed, the output is linear in the
-   consequents, so they are solved by linear least squares over all training
+   consequents (p and q of every rule, or only q with constant consequents), so they
+   are solved by linear least squares over all training
    samples (`solve_consequents`: the normal equations behind a condition-number
    check, with one refinement step, else SVD-based `numpy.linalg.lstsq`).
 2. Backward pass: with the consequents fixed, the analytic gradient of
@@ -34,7 +35,7 @@ from numpy.typing import ArrayLike
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
 from pamd.models.anfis.membership import log_membership, log_membership_grads
-from pamd.models.anfis.model import AnfisModel, init_model, rule_firing
+from pamd.models.anfis.model import CONSEQUENTS, AnfisModel, init_model, rule_firing
 from pamd.version import __version__
 
 #: Progress callback: (epoch 1-based, training RMSE, validation RMSE or None).
@@ -64,6 +65,7 @@ class TrainingOptions:
 
     n_mfs: int | Sequence[int] = 3  # MFs per input (one int for all, or one per input)
     mf_type: str = "gaussian"  # "gaussian" or "bell"
+    consequent: str = "linear"  # "linear" (first-order Sugeno) or "constant" (zero-order)
     scaling: str = "minmax"  # "minmax" ([0, 1]) or "zscore"
     # initial MF width relative to the grid spacing (1 = neighbours cross at 0.5); several
     # are several starts, the best kept (`fit`): see WIDTH_STARTS
@@ -181,9 +183,19 @@ class _Layout:
         self.rule_index = model.rule_index
         self.n_rules = model.n_rules
         self.cons_shape = (model.n_rules, model.n_inputs + 1)
+        #: the consequent columns that are parameters: all (linear) or q alone (constant)
+        self.cons_cols = model.n_consequent_columns
         # indicator[r, k] = 1 if rule r uses MF k (flat order).
         self.indicator = np.zeros((self.n_rules, self.k))
         self.indicator[np.arange(self.n_rules), self.rule_index] = 1.0
+
+    def consequents(self, theta: np.ndarray) -> np.ndarray:
+        """The solved parameters as the model's (R x (d + 1)) array (p = 0 if constant)."""
+        if self.cons_cols == self.cons_shape[1]:
+            return theta.reshape(self.cons_shape)
+        full = np.zeros(self.cons_shape)
+        full[:, -self.cons_cols:] = theta.reshape(self.n_rules, self.cons_cols)
+        return full
 
     def params(self, vec: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         k = self.k
@@ -290,8 +302,8 @@ def train(
     best = (math.inf, 0, vec.copy(), theta.copy())
     for epoch in range(1, opts.epochs + 1):
         wbar, dlogs = layout.forward(vec, Sa)
-        theta = solve_consequents(_design(wbar, Sa), ya, solver=opts.solver, ridge=opts.ridge)
-        theta = theta.reshape(layout.cons_shape)
+        theta = layout.consequents(solve_consequents(
+            _design(wbar, Sa[:, -layout.cons_cols:]), ya, solver=opts.solver, ridge=opts.ridge))
         F = Sa @ theta.T
         y_hat = np.einsum("nr,nr->n", wbar, F)
         err = y_hat - ya
@@ -345,6 +357,8 @@ def _check_options(opts: TrainingOptions) -> None:
             ("step_increase", opts.step_increase, opts.step_increase >= 1, "must be >= 1"),
             ("step_decrease", opts.step_decrease, 0 < opts.step_decrease <= 1, "in (0, 1]"),
             ("ridge", opts.ridge, opts.ridge >= 0, "must be >= 0"),
+            ("consequent", opts.consequent, opts.consequent in CONSEQUENTS,
+             f"one of {CONSEQUENTS}"),
             ("min_width", opts.min_width, opts.min_width > 0, "must be > 0"),
             ("width_factor", opts.width_factor,
              bool(width_starts(opts)) and all(w > 0 for w in width_starts(opts)),
@@ -441,6 +455,7 @@ def fit(
             mf_type=opts.mf_type,
             scaling=opts.scaling,
             width_factor=width,
+            consequent=opts.consequent,
             input_names=input_names,
             input_units=input_units,
             output_name=output_name,
