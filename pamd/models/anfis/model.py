@@ -52,7 +52,7 @@ from pamd.models.contract import (
 SCALINGS: tuple[str, ...] = ("minmax", "zscore")
 #: Rule consequents: "linear" f = p . s + q (first-order Sugeno, seed 000's; Jang's
 #: ANFIS) or "constant" f = q (zero-order Sugeno; seed 002 compares both).
-CONSEQUENTS: tuple[str, ...] = ("linear", "constant")
+CONSEQUENTS: tuple[str, ...] = ("constant", "linear")
 
 
 class AnfisModel:

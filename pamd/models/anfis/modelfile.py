@@ -153,9 +153,9 @@ def from_dict(doc: object) -> AnfisModel:
             raise ModelError(f"field {where}.q: non-finite number")
         if consequent == "linear":
             consequents.append([*_numbers(rule, "p", where, d), float(q)])
-        elif "p" in rule:
-            raise ModelError(f"field {where}.p: a model with constant consequents has none "
-                             "(f = q)")
+        elif "p" in rule and any(v != 0.0 for v in _numbers(rule, "p", where, d)):
+            raise ModelError(f"field {where}.p: a model with constant consequents has p = 0 "
+                             "(f = q; written without p)")
         else:
             consequents.append([*([0.0] * d), float(q)])
     model = AnfisModel(

@@ -82,6 +82,8 @@ def test_the_file_says_constant_and_reads_back_bit_for_bit(model_factory) -> Non
     assert np.array_equal(back.predict(X), model.predict(X))
     linear = json.loads(dumps(model_factory("gaussian", (3, 3), seed=2)))
     assert "consequent" not in linear and all("p" in r for r in linear["rules"])
+    doc["rules"][0]["p"] = [0.0, 0.0]  # p = 0 written out is read as well
+    assert np.array_equal(loads(json.dumps(doc)).consequents, model.consequents)
 
 
 @pytest.mark.parametrize(("edit", "message"), [
