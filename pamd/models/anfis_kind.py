@@ -1,5 +1,6 @@
 """Kind ``anfis`` (seed 000): a first-order Sugeno ANFIS trained by hybrid learning
-(`pamd.models.anfis`), declared for the registry (`KIND`)."""
+(`pamd.models.anfis`), declared for the registry (`KIND`); ``--consequent constant``
+makes it zero order (one constant per rule: seed 002 compares both)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 
 from pamd.errors import ModelError
 from pamd.models.anfis import modelfile
+from pamd.models.anfis.model import CONSEQUENTS
 from pamd.models.anfis.plots import write_plots
 from pamd.models.anfis.samples import OUTPUT_UNITS
 from pamd.models.anfis.training import TrainingOptions, fit
@@ -55,6 +57,10 @@ class AnfisOptions(KindOptions):
                           choices=("gaussian", "bell"))
     step: float = option(0.01, "initial step size of the premise gradient descent",
                          minimum=0.0)
+    consequent: str = option(
+        "linear", "rule consequents: linear f = p.x + q (first-order Sugeno, seed 000's) or "
+        "constant f = q (zero-order, R parameters instead of R (d + 1))",
+        choices=CONSEQUENTS)
 
     def check(self, inputs: Sequence[str]) -> None:
         mfs_for(self.mfs, len(inputs))
@@ -66,7 +72,8 @@ def fit_anfis(job: FitJob[AnfisOptions]) -> Fitted:
     X, y = job.train
     result = fit(X, y, TrainingOptions(n_mfs=mfs_for(o.mfs, len(job.inputs)),
                                        mf_type=o.mf_type, epochs=o.epochs,
-                                       initial_step=o.step, seed=job.seed),
+                                       initial_step=o.step, consequent=o.consequent,
+                                       seed=job.seed),
                  input_names=list(job.inputs), input_units=job.input_units,
                  output_name=s.output, output_unit=s.output_unit,
                  validation=job.validation, callback=job.callback,
@@ -86,7 +93,8 @@ def anfis_plots(prefix: str, model: Any, t_s: np.ndarray, y: np.ndarray, y_hat: 
     return write_plots(prefix, model, t_s, y, y_hat, clipped, title=title)
 
 
-KIND = Kind("anfis", "000", "first-order Sugeno ANFIS, hybrid learning",
+KIND = Kind("anfis", "000", "first-order Sugeno ANFIS (or zero order: --consequent "
+            "constant), hybrid learning",
             modelfile.from_dict, ("force_n", "length_mm"), fit_anfis, AnfisOptions,
             adaptable=True, progress=lambda o: (o.epochs, "epoch", "RMSE"),
             plots=anfis_plots, outputs=tuple(OUTPUT_UNITS))

@@ -31,14 +31,18 @@ def test_drift_figures_as_reported(tmp_path: Path) -> None:
     a = ad.track(model, load, 0.0, None, 10.0, 10)
     b = ad.track(model, load, drift, None, 10.0, 10)
     c = ad.track(model, load, drift, ad.ADAPT, 10.0, 10)
-    reported = {"a": 0.498, "b": 0.730, "c": 0.609}  # README, bench/adapt_drift.py
+    # README, bench/adapt_drift.py; re-measured when the ANFIS library's default became
+    # two initial widths (1, 3) (#28 item 5): before, with one start at width 1, (a)
+    # 0.498, (b) 0.730, (c) 0.609 mm and max |e| 2.01 / 2.60 / 1.70 mm
+    reported = {"a": 0.481, "b": 0.655, "c": 0.658}
     got = {"a": a["rmse"], "b": b["rmse"], "c": c["rmse"]}
     for k, want in reported.items():
         assert got[k] == pytest.approx(want, abs=0.01), (k, got)
-    # adaptation takes back about half of what the drift costs and the largest error
-    # falls below the undrifted one; the goal (c) <= 1.2 x (a) is just missed on the
-    # test run (1.22 x; 0.86 x and 1.04 x on the validation runs): the drifted muscle
-    # meets its 6 bar rating at the top of the stroke
-    assert a["rmse"] < c["rmse"] < b["rmse"]
-    assert c["max"] < a["max"]
+    largest = {"a": 1.96, "b": 2.31, "c": 2.34}
+    for k, run in (("a", a), ("b", b), ("c", c)):
+        assert run["max"] == pytest.approx(largest[k], abs=0.05), (k, run["max"])
+    # the drift costs less on this model (0.655 against 0.730 mm before) and adaptation
+    # takes none of it back on the test run: (c) within 0.01 mm of (b), where with the
+    # old default's model it took back about half (0.609)
+    assert a["rmse"] < b["rmse"] and abs(c["rmse"] - b["rmse"]) < 0.01
     assert c["status"]["refused"] == 0

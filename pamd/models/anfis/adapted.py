@@ -38,11 +38,14 @@ def adapted_model(source: AnfisModel, snapshot: dict[str, Any]) -> AnfisModel:
     """`source` (modified in place and returned) with the snapshot's consequents and
     the provenance of the adaptation."""
     theta = np.asarray(snapshot["consequents"], dtype=np.float64)
-    r, d = source.n_rules, source.n_inputs
-    if theta.shape != ((d + 1) * r,) or not np.isfinite(theta).all():
-        raise ModelError(f"adapted consequents: expected {(d + 1) * r} finite values for "
-                         f"{r} rules and {d} inputs, got {theta.size}")
-    source.consequents = theta.reshape(d + 1, r).T.copy()
+    r, d, cols = source.n_rules, source.n_inputs, source.n_consequent_columns
+    if theta.shape != (cols * r,) or not np.isfinite(theta).all():
+        raise ModelError(f"adapted consequents: expected {cols * r} finite values for "
+                         f"{r} rules and {d} inputs ({source.consequent} consequents), "
+                         f"got {theta.size}")
+    full = np.zeros((r, d + 1))
+    full[:, -cols:] = theta.reshape(cols, r).T  # p stay 0 if constant
+    source.consequents = full
     keys = ("muscle", "updates", "adapted_s", "drift_bar", "total_bar", "refused",
             "rate_limited", "state", "bounds")
     source.provenance = {**source.provenance, "adapted": {

@@ -30,7 +30,9 @@ in place between ticks. Each call also leaves its regressor behind without alloc
 (the firing-strength list it built anyway, their sum and the scaled inputs), and
 `regressor()` turns it into the vector phi with y = phi . theta, theta the
 consequents column by column (``theta_from``): phi = [wbar s_1, ..., wbar s_d, wbar]
-with wbar the normalised firing strengths (the batch model's `firing_strengths`).
+with wbar the normalised firing strengths (the batch model's `firing_strengths`). A
+model with constant consequents has theta = q alone and phi = wbar: its p stay 0, so
+adaptation keeps it zero order.
 
 How: per-input memberships first (Gaussian: exp(-(s - c)^2 k) with the constant
 k = 1/(2 sigma^2) precomputed), then the rule firing strengths as the grid's outer
@@ -68,8 +70,8 @@ class CompiledAnfis:
     """
 
     __slots__ = ("clipped", "clipped_mask", "input_names", "n_inputs", "n_rules", "evaluate",
-                 "consequent_columns", "last_w", "last_den", "last_s", "_wbar", "_phi",
-                 "_phi_rows")
+                 "consequent_columns", "theta_columns", "last_w", "last_den", "last_s",
+                 "_wbar", "_phi", "_phi_rows")
 
     def __init__(self, model: AnfisModel) -> None:
         self.clipped: bool = False
@@ -82,24 +84,28 @@ class CompiledAnfis:
         #: p_1 .. p_d, q: one list of R floats each, read by every call.
         self.consequent_columns: tuple[list[float], ...] = tuple(
             [float(v) for v in cons[:, i]] for i in range(d + 1))
+        #: the columns that are parameters (theta): all, or q alone (constant consequents)
+        self.theta_columns: tuple[list[float], ...] = (
+            self.consequent_columns[-model.n_consequent_columns:])
+        n_cols = len(self.theta_columns)
         # The last call's regressor parts (written by the closure, no allocation).
         self.last_w: list[float] = [math.nan] * r
         self.last_den: float = math.nan
         self.last_s: array[float] = array("d", [math.nan] * d)
         self._wbar = np.zeros(r)
-        self._phi = np.zeros((d + 1) * r)
-        self._phi_rows = tuple(self._phi[i * r:(i + 1) * r] for i in range(d + 1))
+        self._phi = np.zeros(n_cols * r)
+        self._phi_rows = tuple(self._phi[i * r:(i + 1) * r] for i in range(n_cols))
         self.evaluate: Callable[..., float] = _build(model, self)
 
     @property
     def n_consequents(self) -> int:
-        """Length of theta and phi: R (d + 1)."""
-        return (self.n_inputs + 1) * self.n_rules
+        """Length of theta and phi: R (d + 1), or R with constant consequents."""
+        return len(self.theta_columns) * self.n_rules
 
     def theta(self, out: np.ndarray) -> np.ndarray:
-        """The present consequents into `out` (length R (d + 1)), column by column."""
+        """The present consequents into `out` (length `n_consequents`), column by column."""
         r = self.n_rules
-        for i, col in enumerate(self.consequent_columns):
+        for i, col in enumerate(self.theta_columns):
             out[i * r:(i + 1) * r] = col
         return out
 
@@ -107,7 +113,7 @@ class CompiledAnfis:
         """Overwrite the consequents in place from theta (column by column, as
         `theta`); between ticks only (the lists are what the next call reads)."""
         r = self.n_rules
-        for i, col in enumerate(self.consequent_columns):
+        for i, col in enumerate(self.theta_columns):
             col[:] = theta[i * r:(i + 1) * r].tolist()
 
     def regressor(self) -> np.ndarray:
@@ -117,7 +123,7 @@ class CompiledAnfis:
         wbar[:] = self.last_w
         np.divide(wbar, self.last_den, out=wbar)
         rows, s = self._phi_rows, self.last_s
-        for i in range(self.n_inputs):
+        for i in range(len(rows) - 1):  # none with constant consequents
             np.multiply(wbar, s[i], out=rows[i])
         np.copyto(rows[-1], wbar)
         return self._phi

@@ -1,4 +1,4 @@
-"""The first-order Takagi-Sugeno ANFIS model and its batch (numpy) evaluation.
+"""The Takagi-Sugeno ANFIS model (first or zero order) and its batch (numpy) evaluation.
 
 Role: hold every parameter of a trained or initialised model (input/output
 description, input scaling, membership functions, rule consequents, provenance and
@@ -19,6 +19,9 @@ Structure (Jang 1993; seed 000 eqs. 1-6):
 * Consequents are linear in the scaled inputs: f_r = p_r1 s_1 + ... + p_rd s_d + q_r,
   stored as rows [p_r1, ..., p_rd, q_r] of `consequents` (R x (d + 1)), in the output's
   unit. Output y = sum_r wbar_r f_r.
+* ``consequent="constant"`` (zero-order Sugeno, seed 002's "constant" ANFIS): f_r = q_r,
+  the same array with every p held at 0 (so every evaluator computes it unchanged);
+  only the R constants are parameters (`n_consequent_params`, training, adaptation).
 """
 
 from __future__ import annotations
@@ -47,10 +50,14 @@ from pamd.models.contract import (
 )
 
 SCALINGS: tuple[str, ...] = ("minmax", "zscore")
+#: Rule consequents: "linear" f = p . s + q (first-order Sugeno, seed 000's; Jang's
+#: ANFIS) or "constant" f = q (zero-order Sugeno; seed 002 compares both).
+CONSEQUENTS: tuple[str, ...] = ("constant", "linear")
 
 
 class AnfisModel:
-    """A first-order Sugeno ANFIS with grid-partitioned inputs (see module docstring).
+    """A first-order (``consequent="constant"``: zero-order) Sugeno ANFIS with
+    grid-partitioned inputs (see module docstring).
 
     Arrays are float64 numpy arrays; per-input MF parameters are lists with one array
     per input (inputs may have different numbers of MFs). The constructor checks that
@@ -73,6 +80,7 @@ class AnfisModel:
         derived_inputs: dict[str, Any] | None = None,
         provenance: dict[str, Any] | None = None,
         metrics: dict[str, Any] | None = None,
+        consequent: str = "linear",
     ) -> None:
         self.inputs: list[Variable] = list(inputs)
         self.output: Variable = output
@@ -83,6 +91,10 @@ class AnfisModel:
         if scaling not in SCALINGS:
             raise ModelError(f"unknown input scaling {scaling!r}; expected one of {SCALINGS}")
         self.scaling: str = scaling
+        if consequent not in CONSEQUENTS:
+            raise ModelError(f"unknown rule consequent {consequent!r}; expected one of "
+                             f"{CONSEQUENTS}")
+        self.consequent: str = consequent
         self.scale_offset = np.array(scale_offset, dtype=np.float64)
         self.scale_span = np.array(scale_span, dtype=np.float64)
         self.centres: list[np.ndarray] = [np.array(c, dtype=np.float64) for c in centres]
@@ -149,6 +161,8 @@ class AnfisModel:
             )
         if not np.all(np.isfinite(self.consequents)):
             raise ModelError("consequents: non-finite value")
+        if self.consequent == "constant" and np.any(self.consequents[:, :-1] != 0.0):
+            raise ModelError("constant consequents: every rule's p must be 0 (f = q)")
 
     @property
     def n_inputs(self) -> int:
@@ -175,7 +189,12 @@ class AnfisModel:
 
     @property
     def n_consequent_params(self) -> int:
-        return self.n_rules * (self.n_inputs + 1)
+        return self.n_rules * self.n_consequent_columns
+
+    @property
+    def n_consequent_columns(self) -> int:
+        """Parameters per rule: d + 1 (p_1 .. p_d, q) if linear, 1 (q) if constant."""
+        return self.n_inputs + 1 if self.consequent == "linear" else 1
 
     @property
     def n_params(self) -> int:
@@ -232,6 +251,7 @@ class AnfisModel:
             derived_inputs=self.derived_inputs,
             provenance=self.provenance,
             metrics=self.metrics,
+            consequent=self.consequent,
         )
         twin.kind = self.kind
         return twin
@@ -314,7 +334,7 @@ class AnfisModel:
 
     def describe(self) -> dict[str, Any]:
         return {**describe_common(self), "rules": self.n_rules, "mf_type": self.mf_type,
-                "mfs": list(self.n_mfs)}
+                "mfs": list(self.n_mfs), "consequent": self.consequent}
 
     def problems(self, envelope: Envelope) -> list[str]:
         out = tick_problems(self, envelope)
@@ -335,7 +355,8 @@ class AnfisModel:
         ins = ", ".join(f"{v.name} [{v.unit}]" for v in self.inputs)
         return (
             f"AnfisModel({ins} -> {self.output.name} [{self.output.unit}], "
-            f"{self.mf_type} MFs {self.n_mfs}, {self.n_rules} rules)"
+            f"{self.mf_type} MFs {self.n_mfs}, {self.n_rules} rules"
+            + ("" if self.consequent == "linear" else ", constant consequents") + ")"
         )
 
 
@@ -383,6 +404,7 @@ def init_model(
     output_unit: str = "",
     derived_inputs: dict[str, Any] | None = None,
     provenance: dict[str, Any] | None = None,
+    consequent: str = "linear",
 ) -> AnfisModel:
     """An untrained model laid out over the ranges of X (n x d) and y (consequents 0).
 
@@ -430,4 +452,5 @@ def init_model(
         slopes=None if mf_type == "gaussian" else slopes,
         derived_inputs=derived_inputs,
         provenance=provenance,
+        consequent=consequent,
     )

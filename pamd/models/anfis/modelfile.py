@@ -18,6 +18,7 @@ Layout (version 1)::
                      "inputs": [{"input": "force_n", "centres": [...],
                                  "widths": [...], ("slopes": [...])}, ...]},
       "rules": [{"mfs": [0, 0], "p": [p_1, ..., p_d], "q": q}, ...],
+      ("consequent": "constant",  with rules [{"mfs": [0, 0], "q": q}, ...] and no "p")
       "provenance": {...free form: data files, runs, loads, training settings...},
       "metrics": {"train": {...}, "validation": {...}}
     }
@@ -26,7 +27,9 @@ Semantics: inputs are clipped to "range", scaled s = (x - offset) / span; MF
 parameters are in scaled units (Gaussian: centre, sigma; bell: centre, a, b); rules
 are the full grid in `itertools.product` order (last input fastest), "mfs" naming
 each rule's MF index per input; rule output f = sum_i p_i s_i + q in the output
-unit. Non-finite metric values (undefined metrics) are written as null.
+unit (f = q for ``"consequent": "constant"``, a zero-order model; a file without the
+field is first order, as every file before the field was). Non-finite metric values
+(undefined metrics) are written as null.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from pamd.errors import ModelError
-from pamd.models.anfis.model import AnfisModel
+from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.serialize import FORMAT as FORMAT  # re-exported: pamd.models.registry
 from pamd.models.anfis.serialize import VERSION, to_dict
 from pamd.models.document import field as _field
@@ -137,6 +140,9 @@ def from_dict(doc: object) -> AnfisModel:
     rules = _field(doc, "rules", list, "")
     if len(rules) != n_rules:
         raise ModelError(f"field rules: expected {n_rules} rules for the MF grid, got {len(rules)}")
+    consequent = _field(doc, "consequent", str, "") if "consequent" in doc else "linear"
+    if consequent not in CONSEQUENTS:
+        raise ModelError(f"field consequent: {consequent!r} is not one of {CONSEQUENTS}")
     consequents = []
     expected_mfs = _grid(tuple(len(c) for c in centres))
     for r, (rule, mfs) in enumerate(zip(rules, expected_mfs, strict=True)):
@@ -146,7 +152,13 @@ def from_dict(doc: object) -> AnfisModel:
         q = _field(rule, "q", (int, float), where)
         if not math.isfinite(q):
             raise ModelError(f"field {where}.q: non-finite number")
-        consequents.append([*_numbers(rule, "p", where, d), float(q)])
+        if consequent == "linear":
+            consequents.append([*_numbers(rule, "p", where, d), float(q)])
+        elif "p" in rule and any(v != 0.0 for v in _numbers(rule, "p", where, d)):
+            raise ModelError(f"field {where}.p: a model with constant consequents has p = 0 "
+                             "(f = q; written without p)")
+        else:
+            consequents.append([*([0.0] * d), float(q)])
     model = AnfisModel(
         inputs,
         output,
@@ -161,6 +173,7 @@ def from_dict(doc: object) -> AnfisModel:
         derived_inputs=_optional_dict(doc, "derived_inputs"),
         provenance=_optional_dict(doc, "provenance"),
         metrics=_optional_dict(doc, "metrics"),
+        consequent=consequent,
     )
     model.kind = kind
     return model

@@ -197,9 +197,10 @@ class OutputBound:
         S = model.scale(X)
         # training's least-squares design matrix (rule by rule) in the evaluator's
         # layout (input by input)
-        design = _design(model.firing_strengths(S), _with_ones(S))
+        cols = model.n_consequent_columns  # d + 1, or 1 (q alone) if constant
+        design = _design(model.firing_strengths(S), _with_ones(S)[:, -cols:])
         n_points, n_rules = X.shape[0], model.n_rules
-        return cls(design.reshape(n_points, n_rules, d + 1).transpose(0, 2, 1)
+        return cls(design.reshape(n_points, n_rules, cols).transpose(0, 2, 1)
                    .reshape(n_points, -1))
 
     def bar(self, delta: np.ndarray) -> float:

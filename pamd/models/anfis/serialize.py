@@ -28,13 +28,17 @@ def to_dict(model: AnfisModel) -> dict[str, Any]:
         if model.slopes is not None:
             entry["slopes"] = _floats(model.slopes[i])
         mf_inputs.append(entry)
+    linear = model.consequent == "linear"
     rules = [
-        {"mfs": list(mfs), "p": _floats(row[:-1]), "q": float(row[-1])}
+        {"mfs": list(mfs), "p": _floats(row[:-1]), "q": float(row[-1])} if linear
+        else {"mfs": list(mfs), "q": float(row[-1])}
         for mfs, row in zip(model.rule_mfs, model.consequents, strict=True)
     ]
     head: dict[str, Any] = {"format": FORMAT, "version": VERSION}
     if model.kind != "anfis":  # ANFIS files stay as they were (no kind field)
         head = {"format": FORMAT, "kind": model.kind, "version": VERSION}
+    if not linear:  # linear files stay as they were (no consequent field)
+        head["consequent"] = model.consequent
     return {
         **head,
         "inputs": [
