@@ -191,7 +191,8 @@ def test_options_are_checked_when_made_in_code() -> None:
 def test_every_declared_kind_is_complete() -> None:
     """What the rest of pamd reads from a declaration is there for every kind, and
     kinds that share an option parse it alike (they share its flag)."""
-    assert list(KINDS) == ["anfis", "ts-fuzzy", "polynomial", "sarosi", "mlp", "svr", "qupi"]
+    assert list(KINDS) == ["anfis", "ts-fuzzy", "polynomial", "sarosi", "mlp", "svr", "qupi",
+                           "mamdani"]
     assert {k.name for k in KINDS.values() if k.adaptable} == {"anfis", "ts-fuzzy"}
     shared: dict[str, Any] = {}
     for k in KINDS.values():
