@@ -12,7 +12,8 @@ Kinds (`KINDS`): each is declared once, in its own module, as a `pamd.models.kin
 forward model, figures); `pamd train`, `pamd evaluate`, the feedforward's adaptation
 check and the docs read the declarations. A new kind is its module and one `register`
 line below: anfis (seed 000), ts-fuzzy (001), polynomial (002), sarosi (004), mlp and
-svr (002; trained through scikit-learn, run on numpy-free arrays), qupi (003).
+svr (002; trained through scikit-learn, run on numpy-free arrays), qupi (003),
+mamdani (001).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from pamd.models.anfis import modelfile as anfis_file
 from pamd.models.contract import InverseModel
 from pamd.models.document import field, format_json, parse_json
 from pamd.models.kind import Kind
+from pamd.models.mamdani import KIND as MAMDANI
 
 #: Largest model file read (bytes): the largest kind (svr) stays far below it.
 MAX_FILE_BYTES = 8 * 1024 * 1024
@@ -65,6 +67,7 @@ register(learned.MLP)
 register(learned.SVR)
 register(qupi.KIND)
 register(fn_qupi.KIND)
+register(MAMDANI)
 
 
 def kind_of(doc: object) -> str:

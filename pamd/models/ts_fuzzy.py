@@ -1,38 +1,46 @@
 """Seed 001's Takagi-Sugeno fuzzy model (kind ``ts-fuzzy``): force, length and change
-of length -> pressure, 3 Gaussian MFs per input (27 rules), first-order consequents
-identified by SVD least squares, premise parameters tuned by one of three tuners.
+of length -> pressure, 3 Gaussian MFs per input (27 rules), consequents identified by
+SVD least squares, premise parameters tuned by one of three tuners.
 
-Role: `fit_ts_fuzzy`. The model is an `AnfisModel` (same structure, same file layout
-with ``"kind": "ts-fuzzy"``, same tick evaluator); what differs is how its premises
-are found (``--tuner``):
+Role: `fit_ts_fuzzy`. The model is an `AnfisModel` (same file layout with ``"kind":
+"ts-fuzzy"``, same tick evaluator). Its consequents (``--consequent``):
 
-* ``gd``: gradient descent on the premises with the consequents re-identified every
-  epoch (the hybrid learning of `pamd.models.anfis.training`, SVD solver), best epoch on the
+* ``constant`` (the default, seed 001 as written): one singleton r_i per rule,
+  P = sum w_i r_i / sum w_i (eqs. 4-6): 27 singletons + 18 premise parameters = 45.
+  Held as a `SingletonTsModel`: an `AnfisModel` whose rule slopes are zero, counted
+  as 27 parameters and written with ``"consequent": "constant"``;
+* ``linear``: first-order consequents (p . s + q per rule, 108 + 18 = 126 parameters),
+  pamd's earlier model.
+
+How its premises are found (``--tuner``):
+
+* ``gd``: gradient descent on the premises (eq. 8, normalised steps with Jang's step
+  rule) with the consequents re-identified by SVD every epoch, best epoch on the
   validation set kept;
-* ``ga``: the conventional GA of `pamd.models.genetic` (population 100, 12-bit genes,
-  roulette wheel, crossover 0.95, mutation 0.01);
+* ``ga``: the conventional GA of `pamd.models.genetic` (population 100 random strings,
+  12-bit genes, roulette wheel on F = 1 / (1 + MSE), crossover 0.95, mutation 0.01);
 * ``mga``: the modified GA (elitism, then gradient-based selection once stalled).
 
 For the GAs each string is one premise vector (centre and width of every MF, in the
 scaled input space: centres in [-0.25, 1.25], widths in [0.15, 1.0]); its cost is the
-training MSE with the consequents solved by least squares for that premise (normal
-equations while searching, SVD for the final model), on a fixed seeded subset of at
-most `TsFuzzyOptions.fitness_rows` training rows (each string costs one solve; the
-final consequents use every row). The grid layout of `init_model`
-is one string of the initial population. Seeded: the same data, options and seed give
-the same model.
+MSE on every training row with the consequents solved by least squares for that
+premise (seed 001: "fitness on the training data"; normal equations while searching
+where well conditioned, else SVD; SVD for the final model). Seeded: the same data,
+options and seed give the same model.
 
-One departure from the paper, for every tuner: the consequent least squares carry a
-small ridge (`TsFuzzyOptions.ridge`, default 0.01 on the scaled design). With 27
-rules over data of a few loads, some rules barely fire on the training samples; plain
-least squares then gives them huge consequents that a premise search happily
-exploits, and the model is wild between the training loads (on 3 sweeps: training
-RMSE 0.04 bar, validation 4.6 bar without it; 0.064 and 0.048 bar with it). The
-ridge is a tuning choice: pick it on a validation split (the benchmark does).
+Departures, each an option and off by default: a ridge on the consequents
+(``ridge``: with first-order consequents some of 108 parameters are barely excited by
+data of a few loads and least squares gives them huge values between the loads); a
+seeded subset of the training rows as the GA's fitness (``fitness_rows``, for speed);
+linear fitness scaling of the roulette wheel (``fitness_scaling``); the grid layout
+as one string of the initial population (``start``; the paper's population is
+random). bench/models_compare.py uses all four (pamd's earlier TS model);
+bench/seed001.py runs the paper's.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
@@ -47,17 +55,22 @@ from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
 from pamd.models.anfis.membership import log_membership
 from pamd.models.anfis.model import AnfisModel, init_model, rule_firing
 from pamd.models.anfis.training import (
+    StepSizeState,
     TrainingOptions,
     _design,
+    _Layout,
     _with_ones,
     solve_consequents,
     train,
+    update_step_size,
 )
 from pamd.models.anfis_kind import anfis_plots, parse_mfs
-from pamd.models.genetic import GaOptions, GaResult, minimise
+from pamd.models.genetic import SCALINGS, GaOptions, GaResult, minimise
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
 
 TUNERS: tuple[str, ...] = ("gd", "ga", "mga")
+CONSEQUENTS: tuple[str, ...] = ("constant", "linear")
+STARTS: tuple[str, ...] = ("random", "grid")
 CENTRE_BOUNDS = (-0.25, 1.25)
 WIDTH_BOUNDS = (0.15, 1.0)
 
@@ -65,16 +78,99 @@ WIDTH_BOUNDS = (0.15, 1.0)
 @dataclass(frozen=True)
 class TsFuzzyOptions:
     tuner: str = "mga"
+    consequent: str = "constant"  # seed 001's singletons, or "linear" (first order)
     n_mfs: int = 3
     epochs: int = 60  # gd: epochs; ga/mga: generations
     population: int = 100
     seed: int = 0
-    ridge: float = 0.01  # ridge on the consequents (0: plain SVD least squares)
-    fitness_rows: int = 3000  # ga/mga: rows the fitness is computed on (0: all)
+    ridge: float = 0.0  # ridge on the consequents (0: plain SVD least squares, seed 001)
+    fitness_rows: int = 0  # ga/mga: rows the fitness is computed on (0: all, seed 001)
+    fitness_scaling: str = "none"  # the roulette wheel on F (seed 001) or "linear"
+    grid_start: bool = False  # ga/mga: the grid layout as one initial string
+
+
+class SingletonTsModel(AnfisModel):
+    """A TS model with singleton consequents (seed 001): an `AnfisModel` whose rule
+    slopes are all zero, so its parameters are the premises and one constant per rule.
+    Online adaptation (recursive least squares on the tick's first-order regressor)
+    may give it slopes: it then counts and writes itself as first order."""
+
+    kind = "ts-fuzzy"
+
+    @property
+    def singleton(self) -> bool:
+        return not np.any(self.consequents[:, :-1])
+
+    @property
+    def n_consequent_params(self) -> int:
+        return self.n_rules if self.singleton else super().n_consequent_params
+
+    def describe(self) -> dict[str, Any]:
+        return {**super().describe(), "consequent": "constant" if self.singleton else "linear"}
+
+    def to_dict(self) -> dict[str, Any]:
+        doc = super().to_dict()
+        if not self.singleton:
+            return doc
+        out: dict[str, Any] = {}
+        for key, value in doc.items():
+            out[key] = value
+            if key == "kind":
+                out["consequent"] = "constant"
+        return out
+
+    def copy(self) -> SingletonTsModel:
+        return as_singleton(super().copy())
+
+    def __repr__(self) -> str:
+        return super().__repr__().replace("AnfisModel(", "SingletonTsModel(", 1)
+
+
+def as_singleton(model: AnfisModel) -> SingletonTsModel:
+    """`model` (its slopes zeroed) as a `SingletonTsModel` sharing no arrays with it."""
+    cons = np.array(model.consequents)
+    cons[:, :-1] = 0.0
+    twin = SingletonTsModel(
+        model.inputs, model.output, mf_type=model.mf_type, scaling=model.scaling,
+        scale_offset=model.scale_offset, scale_span=model.scale_span,
+        centres=model.centres, widths=model.widths, slopes=model.slopes, consequents=cons,
+        derived_inputs=model.derived_inputs, provenance=model.provenance,
+        metrics=model.metrics)
+    twin.kind = model.kind
+    return twin
+
+
+def from_dict(doc: object) -> AnfisModel:
+    """A ts-fuzzy model from its parsed file: singleton (``"consequent": "constant"``,
+    every slope zero) or first order (no ``consequent`` field, or ``"linear"``)."""
+    model = modelfile.from_dict(doc)
+    consequent = doc.get("consequent", "linear") if isinstance(doc, dict) else "linear"
+    if consequent not in CONSEQUENTS:
+        raise ModelError(f"field consequent: {consequent!r} is not one of "
+                         f"{', '.join(CONSEQUENTS)}")
+    if consequent == "linear":
+        return model
+    if np.any(model.consequents[:, :-1]):
+        raise ModelError("field rules: a constant-consequent model has p = 0 in every rule")
+    return as_singleton(model)
+
+
+def consequent_design(wbar: np.ndarray, Sa: np.ndarray, consequent: str) -> np.ndarray:
+    """The least-squares design: the firing strengths (singletons) or wbar_r * [s, 1]."""
+    return wbar if consequent == "constant" else _design(wbar, Sa)
+
+
+def full_consequents(theta: np.ndarray, n_rules: int, n_inputs: int,
+                     consequent: str) -> np.ndarray:
+    """Solved consequents as the model's (R x (d + 1)) rows [p, q] (p = 0: singletons)."""
+    if consequent == "constant":
+        return np.c_[np.zeros((n_rules, n_inputs)), theta]
+    return theta.reshape(n_rules, n_inputs + 1)
 
 
 def premise_cost(model: AnfisModel, X: np.ndarray, y: np.ndarray, solver: str = "auto",
-                 ridge: float = 0.0) -> Callable[[np.ndarray], float]:
+                 ridge: float = 0.0, consequent: str = "constant"
+                 ) -> Callable[[np.ndarray], float]:
     """vec -> training MSE with least-squares consequents for that premise vector."""
     Sa = _with_ones(model.scale(X))
     S_mf = Sa[:, model.mf_input]
@@ -83,7 +179,7 @@ def premise_cost(model: AnfisModel, X: np.ndarray, y: np.ndarray, solver: str = 
 
     def cost(vec: np.ndarray) -> float:
         log_mu = log_membership("gaussian", S_mf, vec[:k], vec[k:])
-        A = _design(rule_firing(log_mu, rule_index), Sa)
+        A = consequent_design(rule_firing(log_mu, rule_index), Sa, consequent)
         theta = solve_consequents(A, y, solver=solver, ridge=ridge)
         e = A @ theta - y
         mse = float(e @ e) / y.size
@@ -93,15 +189,79 @@ def premise_cost(model: AnfisModel, X: np.ndarray, y: np.ndarray, solver: str = 
 
 
 def _finish(model: AnfisModel, vec: np.ndarray, X: np.ndarray, y: np.ndarray,
-            ridge: float = 0.0) -> None:
+            ridge: float = 0.0, consequent: str = "constant") -> None:
     """Set the premises and identify the consequents by SVD least squares."""
     model.set_premise_vector(vec)
     Sa = _with_ones(model.scale(X))
     wbar = model.firing_strengths(Sa[:, :-1])
-    theta = solve_consequents(_design(wbar, Sa), y, solver="lstsq", ridge=ridge)
+    theta = solve_consequents(consequent_design(wbar, Sa, consequent), y, solver="lstsq",
+                              ridge=ridge)
     if not np.all(np.isfinite(theta)):
         raise ModelError("ts-fuzzy fit did not converge (non-finite consequents)")
-    model.consequents = theta.reshape(model.n_rules, model.n_inputs + 1)
+    model.consequents = full_consequents(theta, model.n_rules, model.n_inputs, consequent)
+
+
+def train_singleton_gd(model: AnfisModel, X: np.ndarray, y: np.ndarray, epochs: int, *,
+                       ridge: float = 0.0,
+                       validation: tuple[np.ndarray, np.ndarray] | None = None,
+                       callback: Callable[[int, float, float | None], None] | None = None,
+                       ) -> tuple[np.ndarray, int]:
+    """Gradient descent on the premises of a singleton model (eq. 8; normalised steps of
+    `TrainingOptions().initial_step`, Jang's step rule) with the singletons solved by SVD
+    every epoch; the best epoch (validation RMSE, else training) is left in `model`.
+    Returns (training MSE per epoch, best epoch)."""
+    topts = TrainingOptions()
+    layout = _Layout(model)
+    Sa = _with_ones(model.scale(np.clip(X, model.input_lo, model.input_hi)))
+    Sva = None
+    if validation is not None:
+        Sva = _with_ones(model.scale(np.clip(validation[0], model.input_lo, model.input_hi)))
+    vec = model.premise_vector()
+    state = StepSizeState(topts.initial_step)
+    hist: list[float] = []
+    best = (math.inf, 0, vec.copy(), np.zeros(model.n_rules))
+    for epoch in range(1, epochs + 1):
+        wbar, dlogs = layout.forward(vec, Sa)
+        theta = solve_consequents(wbar, y, solver="lstsq", ridge=ridge)
+        y_hat = wbar @ theta
+        err = y_hat - y
+        mse = float(err @ err) / err.size
+        hist.append(mse)
+        val = None
+        if Sva is not None and validation is not None:
+            full = full_consequents(theta, model.n_rules, model.n_inputs, "constant")
+            ev = layout.predict(vec, full, Sva) - validation[1]
+            val = math.sqrt(float(ev @ ev) / ev.size)
+        score = math.sqrt(mse) if val is None else val
+        if score < best[0]:
+            best = (score, epoch, vec.copy(), theta.copy())
+        if callback is not None:
+            callback(epoch, mse, None if val is None else val * val)
+        state = update_step_size([math.sqrt(e) for e in hist], state)
+        if epoch == epochs:
+            break
+        grad = layout.gradient(wbar, dlogs, np.broadcast_to(theta, wbar.shape), y_hat, err)
+        norm = float(np.linalg.norm(grad))
+        if not norm > 0 or not math.isfinite(norm):
+            break
+        vec = layout.project(vec - state.step * grad / norm, topts)
+    vec = best[2]
+    k = layout.k
+    vec[k: 2 * k] = np.abs(vec[k: 2 * k])
+    model.set_premise_vector(vec)
+    model.consequents = full_consequents(best[3], model.n_rules, model.n_inputs, "constant")
+    return np.array(hist), best[1]
+
+
+def _check(opts: TsFuzzyOptions) -> None:
+    if opts.tuner not in TUNERS:
+        raise ModelError(f"unknown tuner {opts.tuner!r}; expected one of {', '.join(TUNERS)}")
+    if opts.consequent not in CONSEQUENTS:
+        raise ModelError(f"unknown consequent {opts.consequent!r}; expected one of "
+                         f"{', '.join(CONSEQUENTS)}")
+    if opts.fitness_scaling not in SCALINGS:
+        raise ModelError(f"unknown fitness scaling {opts.fitness_scaling!r}; expected one "
+                         f"of {', '.join(SCALINGS)}")
 
 
 def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[str],
@@ -113,37 +273,40 @@ def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[
                  callback: Callable[[int, float, float | None], None] | None = None
                  ) -> tuple[AnfisModel, np.ndarray]:
     """Train a ts-fuzzy model; returns (model, best training MSE per epoch/generation)."""
-    if opts.tuner not in TUNERS:
-        raise ModelError(f"unknown tuner {opts.tuner!r}; expected one of {', '.join(TUNERS)}")
+    _check(opts)
     Xa, ya = as_inputs_outputs(X, y, input_names, output_name)
     check_trainable(Xa, 0, input_names)
     t0 = time.perf_counter()
-    if opts.tuner == "gd":
+    singleton = opts.consequent == "constant"
+    init = init_model(Xa, ya, n_mfs=opts.n_mfs, input_names=input_names,
+                      input_units=input_units, output_name=output_name,
+                      output_unit=output_unit, derived_inputs=derived_inputs,
+                      provenance=provenance)
+    model: AnfisModel = as_singleton(init) if singleton else init
+    if opts.tuner == "gd" and not singleton:
         topts = TrainingOptions(n_mfs=opts.n_mfs, epochs=opts.epochs, seed=opts.seed,
                                 solver="lstsq", ridge=opts.ridge)
-        init = init_model(Xa, ya, n_mfs=opts.n_mfs, input_names=input_names,
-                          input_units=input_units, output_name=output_name,
-                          output_unit=output_unit, derived_inputs=derived_inputs,
-                          provenance=provenance)
 
         def progress(epoch: int, rmse: float, val: float | None) -> None:
             if callback is not None:
-                callback(epoch, rmse * rmse, val)
+                callback(epoch, rmse * rmse, None if val is None else val * val)
 
-        res = train(init, Xa, ya, topts, validation=validation, callback=progress)
-        model, history = res.model, res.train_rmse ** 2
+        res = train(model, Xa, ya, topts, validation=validation, callback=progress)
+        history = res.train_rmse ** 2
         model.provenance["tuning"] = {"tuner": "gd", "epochs": opts.epochs,
                                       "best_epoch": res.best_epoch}
+    elif opts.tuner == "gd":
+        history, best_epoch = train_singleton_gd(model, Xa, ya, opts.epochs, ridge=opts.ridge,
+                                                 validation=validation, callback=callback)
+        model.provenance["tuning"] = {"tuner": "gd", "epochs": opts.epochs,
+                                      "best_epoch": best_epoch, "ridge": opts.ridge}
     else:
-        model = init_model(Xa, ya, n_mfs=opts.n_mfs, input_names=input_names,
-                           input_units=input_units, output_name=output_name,
-                           output_unit=output_unit, derived_inputs=derived_inputs,
-                           provenance=provenance)
         k = sum(model.n_mfs)
         lo = np.r_[np.full(k, CENTRE_BOUNDS[0]), np.full(k, WIDTH_BOUNDS[0])]
         hi = np.r_[np.full(k, CENTRE_BOUNDS[1]), np.full(k, WIDTH_BOUNDS[1])]
         gopts = GaOptions(population=opts.population, generations=opts.epochs,
-                          modified=opts.tuner == "mga", seed=opts.seed)
+                          modified=opts.tuner == "mga", seed=opts.seed,
+                          scaling=opts.fitness_scaling)
 
         def progress_ga(gen: int, mse: float) -> None:
             if callback is not None:
@@ -153,22 +316,27 @@ def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[
         if 0 < opts.fitness_rows < ya.size:  # a fixed seeded subset: the search's cost
             rows = np.sort(np.random.default_rng(opts.seed).choice(ya.size, opts.fitness_rows,
                                                                    replace=False))
-        ga: GaResult = minimise(premise_cost(model, Xa[rows], ya[rows], ridge=opts.ridge),
-                                lo, hi, gopts,
-                                start=model.premise_vector(), callback=progress_ga)
-        _finish(model, ga.best, Xa, ya, opts.ridge)
+        cost = premise_cost(model, Xa[rows], ya[rows], ridge=opts.ridge,
+                            consequent=opts.consequent)
+        ga: GaResult = minimise(cost, lo, hi, gopts,
+                                start=model.premise_vector() if opts.grid_start else None,
+                                callback=progress_ga)
+        _finish(model, ga.best, Xa, ya, opts.ridge, opts.consequent)
         history = ga.history
         model.provenance["tuning"] = {
             "tuner": opts.tuner, "options": asdict(gopts), "fitness_rows": int(rows.size),
-            "ridge": opts.ridge, "initial_mse": float(history[0]),
-            "best_mse": float(ga.best_cost), "history_mse": history.tolist(),
+            "ridge": opts.ridge, "grid_start": opts.grid_start,
+            "initial_mse": float(history[0]), "best_mse": float(ga.best_cost),
+            "history_mse": history.tolist(),
             "switched_to_gradient_selection_at": ga.switched_at}
+    if opts.tuner != "gd" or singleton:
         p = model.n_params
         model.metrics["train"] = regression_metrics(ya, model.predict(Xa), p)
         if validation is not None:
             model.metrics["validation"] = regression_metrics(validation[1],
                                                              model.predict(validation[0]), p)
     model.kind = "ts-fuzzy"
+    model.provenance["tuning"]["consequent"] = opts.consequent
     model.provenance["tuning"]["seconds"] = round(time.perf_counter() - t0, 3)
     model.provenance["tuning"]["seed"] = opts.seed
     return model, np.asarray(history)
@@ -184,9 +352,20 @@ class TsFuzzyKindOptions(KindOptions):
                         "algorithm, modified GA", choices=TUNERS)
     epochs: int | None = option(None, "epochs (gd) or generations (ga, mga)", parse=int,
                                 minimum=1, default_text="100 for gd, 60 for ga/mga")
+    consequent: str = option("constant", "rule consequents: one singleton per rule (seed "
+                             "001's 27, 45 parameters) or first order (126)",
+                             choices=CONSEQUENTS)
     population: int = option(100, "ga/mga: strings per generation", minimum=2)
-    ridge: float = option(0.01, "ridge on the consequents' least squares, scaled units (0 = "
-                          "plain SVD; choose it on the validation split)", minimum=0.0)
+    ridge: float = option(0.0, "ridge on the consequents' least squares, scaled units (0 = "
+                          "plain SVD, seed 001; choose it on the validation split)",
+                          minimum=0.0)
+    fitness_scaling: str = option("none", "ga/mga: roulette wheel on the fitness 1/(1+MSE) "
+                                  "itself (seed 001) or on its excess over the "
+                                  "generation's worst (linear)", choices=SCALINGS)
+    fitness_rows: int = option(0, "ga/mga: compute the fitness on this many training rows "
+                               "(a seeded subset, for speed; 0 = all, seed 001)", minimum=0)
+    start: str = option("random", "ga/mga: the initial population is random (seed 001) or "
+                        "holds the grid layout as one string (grid)", choices=STARTS)
     mfs: tuple[int, ...] | None = option(None, "membership functions per input, the same "
                                          "number on every input", parse=parse_mfs,
                                          metavar="N[,N...]",
@@ -208,7 +387,11 @@ def fit_kind(job: FitJob[TsFuzzyKindOptions]) -> Fitted:
     X, y = job.train
     model, _ = fit_ts_fuzzy(X, y, TsFuzzyOptions(tuner=o.tuner, n_mfs=o.mfs[0] if o.mfs else 3,
                                                  epochs=o.steps, population=o.population,
-                                                 seed=job.seed, ridge=o.ridge),
+                                                 seed=job.seed, ridge=o.ridge,
+                                                 consequent=o.consequent,
+                                                 fitness_scaling=o.fitness_scaling,
+                                                 fitness_rows=o.fitness_rows,
+                                                 grid_start=o.start == "grid"),
                             input_names=job.inputs, input_units=job.input_units,
                             validation=job.validation, derived_inputs=job.derived_inputs,
                             provenance=job.provenance, callback=job.callback)
@@ -216,7 +399,8 @@ def fit_kind(job: FitJob[TsFuzzyKindOptions]) -> Fitted:
 
 
 KIND = Kind("ts-fuzzy", "001", "Takagi-Sugeno fuzzy (force, length, velocity; 27 rules), "
-            "premises tuned by gradient descent, GA or modified GA", modelfile.from_dict,
+            "singleton or first-order consequents, premises tuned by gradient descent, GA or "
+            "modified GA", from_dict,
             ("force_n", "length_mm", "velocity_mm_s"), fit_kind, TsFuzzyKindOptions,
             adaptable=True,
             progress=lambda o: (o.steps, "epoch" if o.tuner == "gd" else "generation", "MSE"),

@@ -16,7 +16,9 @@ def test_train_writes_each_kind(trained: dict[str, Path], capsys: Any) -> None:
     # Validation RMSE (bar) on unseen 2 s blocks of the three sweeps (virtual clock:
     # deterministic). The polynomial's offset a4 cannot follow the force at zero
     # pressure, which changes by ~270 N over the contraction range: it is the weakest.
-    want = {"anfis": 0.390, "ts-fuzzy": 0.127, "polynomial": 1.781, "sarosi": 0.436}
+    # ts-fuzzy: seed 001's 27 singletons and GA as printed since #28 (0.127 with the
+    # earlier first-order model, ridge 0.01, scaled wheel and grid start).
+    want = {"anfis": 0.390, "ts-fuzzy": 0.163, "polynomial": 1.781, "sarosi": 0.436}
     for kind, path in trained.items():
         m = load_model(path)
         assert m.kind == kind and "validation" in m.metrics

@@ -192,7 +192,7 @@ def test_every_declared_kind_is_complete() -> None:
     """What the rest of pamd reads from a declaration is there for every kind, and
     kinds that share an option parse it alike (they share its flag)."""
     assert list(KINDS) == ["anfis", "ts-fuzzy", "polynomial", "sarosi", "mlp", "svr", "qupi",
-                           "fn-qupi"]
+                           "fn-qupi", "mamdani"]
     assert {k.name for k in KINDS.values() if k.adaptable} == {"anfis", "ts-fuzzy"}
     shared: dict[str, Any] = {}
     for k in KINDS.values():

@@ -4,8 +4,9 @@ back byte for byte, and evaluate to the very same floats.
 tests/models/fixtures/*-v1.json were written by `pamd train` of commit 2b003dd (one per
 kind, trained on virtual-clock sweeps); expected.json holds what that pamd's compiled
 evaluator and batch `predict` gave at inputs below, inside and above the identified
-ranges (so holding and clipping are covered). Equality is exact: a refactor of a kind
-must not move a single bit of what it computes."""
+ranges (so holding and clipping are covered). Two files of #28 (seed 001's Mamdani
+model and its 27-singleton TS model) were written by that issue's pamd the same way.
+Equality is exact: a refactor of a kind must not move a single bit of what it computes."""
 
 from __future__ import annotations
 
