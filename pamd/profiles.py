@@ -21,8 +21,6 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar, Literal
 
-import numpy as np
-
 from pamd.errors import CommandRefused
 
 
@@ -242,10 +240,10 @@ class Harmonic(Periodic):
 
     params = ("min_bar", "max_bar", "freq_hz", "cycles", "harmonics")
 
-    def wave_of(self, phase: np.ndarray) -> np.ndarray:
+    def wave_of(self, phase: float) -> float:
         raise NotImplementedError
 
-    def slope_of(self, phase: np.ndarray) -> np.ndarray:
+    def slope_of(self, phase: float) -> float:
         """d wave / d phase."""
         raise NotImplementedError
 
@@ -256,13 +254,16 @@ class Harmonic(Periodic):
         """Per harmonic (number, share, lowest value, highest value, steepest rate) of
         the sum up to and including it."""
         mid, half = 0.5 * (spec.min_bar + spec.max_bar), 0.5 * (spec.max_bar - spec.min_bar)
-        ph = np.arange(HARMONIC_GRID) / HARMONIC_GRID
-        val, rate = np.full(ph.size, mid), np.zeros(ph.size)
+        # pure Python (load time only): this leaf module is imported by the io process,
+        # which must not import numpy
+        ph = [i / HARMONIC_GRID for i in range(HARMONIC_GRID)]
+        val, rate = [mid] * HARMONIC_GRID, [0.0] * HARMONIC_GRID
         out = []
         for n, a in spec.harmonic_list():
-            val += half * a * self.wave_of(n * ph)
-            rate += half * a * n * spec.freq_hz * self.slope_of(n * ph)
-            out.append((n, a, float(val.min()), float(val.max()), float(np.abs(rate).max())))
+            for i, x in enumerate(ph):
+                val[i] += half * a * self.wave_of(n * x)
+                rate[i] += half * a * n * spec.freq_hz * self.slope_of(n * x)
+            out.append((n, a, min(val), max(val), max(abs(r) for r in rate)))
         return out
 
     def span(self, spec: ProfileSpec) -> tuple[float, float]:
@@ -321,11 +322,11 @@ class Multisine(Harmonic):
 
     name = "multisine"
 
-    def wave_of(self, phase: np.ndarray) -> np.ndarray:
-        return np.sin(2.0 * np.pi * phase)
+    def wave_of(self, phase: float) -> float:
+        return math.sin(2.0 * math.pi * phase)
 
-    def slope_of(self, phase: np.ndarray) -> np.ndarray:
-        return 2.0 * np.pi * np.cos(2.0 * np.pi * phase)
+    def slope_of(self, phase: float) -> float:
+        return 2.0 * math.pi * math.cos(2.0 * math.pi * phase)
 
     def harmonic_wave(self, run: Profile, tau: float, out: ProfilePoint) -> None:
         half = 0.5 * run.span
@@ -345,13 +346,13 @@ class Multitriangle(Harmonic):
 
     name = "multitriangle"
 
-    def wave_of(self, phase: np.ndarray) -> np.ndarray:
-        ph = phase - np.floor(phase)
-        return np.where(ph < 0.25, 4.0 * ph, np.where(ph < 0.75, 2.0 - 4.0 * ph, 4.0 * ph - 4.0))
+    def wave_of(self, phase: float) -> float:
+        ph = phase - math.floor(phase)
+        return 4.0 * ph if ph < 0.25 else (2.0 - 4.0 * ph if ph < 0.75 else 4.0 * ph - 4.0)
 
-    def slope_of(self, phase: np.ndarray) -> np.ndarray:
-        ph = phase - np.floor(phase)
-        return np.where((ph >= 0.25) & (ph < 0.75), -4.0, 4.0)
+    def slope_of(self, phase: float) -> float:
+        ph = phase - math.floor(phase)
+        return -4.0 if 0.25 <= ph < 0.75 else 4.0
 
     def harmonic_wave(self, run: Profile, tau: float, out: ProfilePoint) -> None:
         half = 0.5 * run.span

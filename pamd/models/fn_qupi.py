@@ -107,7 +107,8 @@ class FnQupiModel:
         f = (self.static_displacement(p_bar) - st.y_lo) / st.y_span
         m = np.broadcast_to(np.asarray(load_kg, dtype=np.float64), f.shape) / st.m_span
         y = simulate(st, self.theta[None, :], f, np.ascontiguousarray(m), f)[0]
-        return self.length_ref_mm - (st.y_lo + st.y_span * y)
+        length_mm: np.ndarray = self.length_ref_mm - (st.y_lo + st.y_span * y)
+        return length_mm
 
     def forward_metrics(self, length_mm: np.ndarray, p_bar: np.ndarray, run: np.ndarray,
                         loads_kg: Sequence[float | None]) -> dict[str, dict[str, float]]:

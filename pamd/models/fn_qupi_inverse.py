@@ -94,7 +94,8 @@ class PlayQupi:
     # -- the maps -------------------------------------------------------------------------
     def phi(self, p: np.ndarray) -> np.ndarray:
         x = np.clip(p, self.p0, self.pm) - self.p0
-        return x + self.beta * x * x
+        mapped: np.ndarray = x + self.beta * x * x
+        return mapped
 
     def phi_inv(self, w: np.ndarray) -> np.ndarray:
         b, w_hi = self.beta, float(self.phi(np.array([self.pm]))[0])

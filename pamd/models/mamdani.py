@@ -320,7 +320,9 @@ def rule_base(w: np.ndarray, y: np.ndarray, out_centres: np.ndarray,
     mass = w.sum(axis=0)
     mean = np.where(mass > 1e-12, (w.T @ y) / np.maximum(mass, 1e-300), float(y.mean()))
     d = mean[:, None] - out_centres[None, :]
-    return np.argmax(-(d * d) / (2.0 * out_widths[None, :] ** 2), axis=1).astype(np.intp)
+    best: np.ndarray = np.argmax(-(d * d) / (2.0 * out_widths[None, :] ** 2), axis=1)
+    best = best.astype(np.intp)
+    return best
 
 
 @dataclass(frozen=True)
@@ -396,7 +398,8 @@ def fit_mamdani(X: Any, y: Any, opts: MamdaniOptions, *, input_names: Sequence[s
         def cost(vec: np.ndarray) -> float:
             _set_vector(trial, vec)
             e = trial.infer(Xa) - ya
-            return float(e @ e) / e.size
+            mse: float = float(e @ e) / e.size
+            return mse
 
         gopts = GaOptions(population=opts.population, generations=opts.generations,
                           modified=opts.tune == "mga", seed=opts.seed)

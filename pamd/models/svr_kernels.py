@@ -75,7 +75,8 @@ def gram(family: str, gamma: float, S: np.ndarray, SV: np.ndarray) -> np.ndarray
         out: np.ndarray = np.exp(-gamma * d2)
         return out
     dot = gamma * (S @ SV.T)
-    return dot if degree == 1 else (1.0 + dot) ** degree
+    gram: np.ndarray = dot if degree == 1 else (1.0 + dot) ** degree
+    return gram
 
 
 def row_kernel(family: str, gamma: float) -> Callable[[Sequence[float], Sequence[float]],

@@ -164,7 +164,8 @@ def full_consequents(theta: np.ndarray, n_rules: int, n_inputs: int,
                      consequent: str) -> np.ndarray:
     """Solved consequents as the model's (R x (d + 1)) rows [p, q] (p = 0: singletons)."""
     if consequent == "constant":
-        return np.c_[np.zeros((n_rules, n_inputs)), theta]
+        rows: np.ndarray = np.c_[np.zeros((n_rules, n_inputs)), theta]
+        return rows
     return theta.reshape(n_rules, n_inputs + 1)
 
 

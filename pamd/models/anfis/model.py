@@ -133,27 +133,7 @@ class AnfisModel:
                 raise ModelError(f"{label}: non-finite value")
         if not np.all(self.scale_span > 0):
             raise ModelError("scale span must be positive for every input")
-        if self.mf_type == "bell" and self.slopes is None:
-            raise ModelError("bell membership functions need slopes")
-        if self.mf_type == "gaussian" and self.slopes is not None:
-            raise ModelError("gaussian membership functions take no slopes")
-        groups = [("centres", self.centres), ("widths", self.widths)]
-        if self.slopes is not None:
-            groups.append(("slopes", self.slopes))
-        for label, arrs in groups:
-            if len(arrs) != d:
-                raise ModelError(f"MF {label}: expected {d} lists (one per input), got {len(arrs)}")
-            for v, a, c in zip(self.inputs, arrs, self.centres, strict=True):
-                if a.ndim != 1 or a.size == 0 or a.shape != c.shape:
-                    raise ModelError(
-                        f"input {v.name!r}: MF {label} shape {a.shape} does not match "
-                        f"{c.size} membership functions"
-                    )
-                if not np.all(np.isfinite(a)):
-                    raise ModelError(f"input {v.name!r}: non-finite MF {label}")
-        for v, w in zip(self.inputs, self.widths, strict=True):
-            if not np.all(w > 0):
-                raise ModelError(f"input {v.name!r}: MF widths must be positive, got {w.tolist()}")
+        _check_memberships(self)
         if self.consequents.shape != (self.n_rules, d + 1):
             raise ModelError(
                 f"consequents: expected shape ({self.n_rules}, {d + 1}) for {self.n_rules} "
@@ -454,3 +434,30 @@ def init_model(
         provenance=provenance,
         consequent=consequent,
     )
+
+
+def _check_memberships(model: AnfisModel) -> None:
+    """The membership functions' parameters: one list per input, shapes that match,
+    finite values, positive widths, slopes exactly for bell MFs (ModelError otherwise)."""
+    d = len(model.inputs)
+    if model.mf_type == "bell" and model.slopes is None:
+        raise ModelError("bell membership functions need slopes")
+    if model.mf_type == "gaussian" and model.slopes is not None:
+        raise ModelError("gaussian membership functions take no slopes")
+    groups = [("centres", model.centres), ("widths", model.widths)]
+    if model.slopes is not None:
+        groups.append(("slopes", model.slopes))
+    for label, arrs in groups:
+        if len(arrs) != d:
+            raise ModelError(f"MF {label}: expected {d} lists (one per input), got {len(arrs)}")
+        for v, a, c in zip(model.inputs, arrs, model.centres, strict=True):
+            if a.ndim != 1 or a.size == 0 or a.shape != c.shape:
+                raise ModelError(
+                    f"input {v.name!r}: MF {label} shape {a.shape} does not match "
+                    f"{c.size} membership functions"
+                )
+            if not np.all(np.isfinite(a)):
+                raise ModelError(f"input {v.name!r}: non-finite MF {label}")
+    for v, w in zip(model.inputs, model.widths, strict=True):
+        if not np.all(w > 0):
+            raise ModelError(f"input {v.name!r}: MF widths must be positive, got {w.tolist()}")
