@@ -62,8 +62,8 @@ COMMANDS: tuple[SubCommandEntry, ...] = (
                ("recover", "turn an unfinished recording (crash, SIGKILL, power cut) into a "
                            "valid file holding every complete chunk")),
     *_commands("emulate", ("emulate", "serve an emulated rig through real protocols")),
-    *_commands("train", ("train", "train an inverse model (ANFIS or another kind) from "
-                                  "recorded runs")),
+    *_commands("train", ("train", "train an inverse model (ANFIS or another kind) or a "
+                                  "forward force model from recorded runs or tables")),
     *_commands("evaluate", ("evaluate", "metrics and plots of inverse models on recorded "
                                         "data")),
     *_commands("service",

@@ -5,7 +5,8 @@ tests/models/fixtures/*-v1.json were written by `pamd train` of commit 2b003dd (
 kind, trained on virtual-clock sweeps); expected.json holds what that pamd's compiled
 evaluator and batch `predict` gave at inputs below, inside and above the identified
 ranges (so holding and clipping are covered). Two files of #28 (seed 001's Mamdani
-model and its 27-singleton TS model) were written by that issue's pamd the same way.
+model and its 27-singleton TS model) were written by that issue's pamd the same way, and
+#29's FN-QUPI file by its pamd (PSO shortened to 10 particles x 3 iterations, 20/40/60 kg).
 Equality is exact: a refactor of a kind must not move a single bit of what it computes."""
 
 from __future__ import annotations
