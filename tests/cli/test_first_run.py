@@ -82,10 +82,10 @@ def test_in_a_terminal_the_first_run_records_and_says_what_next(tmp_path: Path) 
     assert f"recording: {rel}" in out
     assert f"next: pamd inspect {rel}" in out and f"pamd plot {rel}" in out
     assert "load: m1 30 kg" in out
-    whole = re.search(r"pressure tracking RMSE ([\d.]+) bar, MAE [\d.]+ bar, max error [\d.]+ bar \((\d+) ticks",
-                      out)
-    after = re.search(r"after the first cycle: RMSE ([\d.]+) bar, MAE [\d.]+ bar, max error [\d.]+ bar "
-                      r"\((\d+) ticks\)", out)
+    whole = re.search(r"pressure tracking RMSE ([\d.]+) bar, MAE [\d.]+ bar, "
+                      r"max error [\d.]+ bar \((\d+) ticks", out)
+    after = re.search(r"after the first cycle: RMSE ([\d.]+) bar, MAE [\d.]+ bar, "
+                      r"max error [\d.]+ bar \((\d+) ticks\)", out)
     assert whole and after, out
     # the whole run: lead-in (3 s) and 2 cycles of 2 s; after the first: the last 2 s
     assert int(whole.group(2)) == pytest.approx(250 * 7, abs=10)
