@@ -176,6 +176,11 @@ def _mode(ctrl: RigController, a: ModeArgs) -> JsonObject:
                              "off")
     need_reference(ms)
     for m in ms:
+        if m.in_safe_ramp:  # the safe ramp drops a length mode on its next tick
+            raise CommandRefused(
+                f"{m.name} is ramping to its safe pressure ({m.safe_pressure_bar:.2f} bar: a "
+                "stop, a deadman or a start-up outside the limits); send a setpoint or a "
+                f"pressure profile to take over from the ramp, then mode {a.mode}")
         if mode == Mode.POSITION and a.feedforward and m.onoff:
             raise CommandRefused(f"{m.name}: position mode with feedforward: "
                                  f"{POSITION_TAKES_NO_MODEL}")

@@ -68,6 +68,25 @@ def test_startup_with_80kg_on_a_vented_muscle_ramps_to_the_safe_pressure_and_say
     assert rig.h.state == "IDLE" and rig.h.ctrl.at_safe_state()
 
 
+def test_a_length_mode_is_refused_during_the_safe_ramp_and_taken_after_a_setpoint(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    # Before: `mode position` during the start-up's safe ramp (80 kg, vented) was
+    # answered ok and dropped on the next tick, since the safe ramp leaves length modes.
+    rig = safety_rig(80.0, 0.0)
+    rig.run(5.0)
+    assert rig.m.in_safe_ramp
+    v = rig.h.cmd("mode", muscle="m1", mode="position", feedforward=False)
+    assert not v["ok"] and "ramping to its safe pressure" in v["error"], v
+    assert "send a setpoint" in v["error"]
+    rig.cmd("setpoint", muscle="m1", bar=rig.m.safe_pressure_bar + 0.3)
+    rig.run(1.0)
+    assert not rig.m.in_safe_ramp
+    rig.cmd("mode", muscle="m1", mode="position", feedforward=False)
+    rig.run(0.5)
+    assert rig.m.in_length_mode  # taken, and kept
+    rig.check_invariants()
+
+
 def test_startup_inside_the_limits_holds_the_measured_pressure(
         safety_rig: Callable[..., SafetyRig]) -> None:
     rig = safety_rig(80.0, 3.0)
