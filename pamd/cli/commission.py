@@ -15,6 +15,7 @@ from pamd.commission.report import as_json, text
 from pamd.commission.run import commission
 from pamd.config import load_config
 from pamd.config.loader import builtin_config_path
+from pamd.tune.run import parse_levels
 from pamd.tune.save import save_values
 
 DESCRIPTION = f"""\
@@ -93,16 +94,6 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.set_defaults(func=run)
 
 
-def _levels(text_: str | None) -> tuple[float, ...] | None:
-    if not text_:
-        return None
-    try:
-        return tuple(float(v) for v in text_.split(","))
-    except ValueError:
-        raise CommissionRefused(f"--levels {text_!r}: give pressures in bar separated by "
-                                "commas, e.g. 2,3.5") from None
-
-
 def _progress(line: str) -> None:
     print(f"pamd commission: {line}", file=sys.stderr, flush=True)
 
@@ -115,8 +106,9 @@ def run(args: argparse.Namespace) -> int:
     path = args.config or builtin_config_path()
     cfg = load_config(path, {"loop": {"clock": args.clock}} if args.clock else None)
     names = args.muscle or [m.name for m in cfg.rig.muscles]
-    moves: list[Moves] = [choose(cfg, n, args.rest_s, args.hold_s, _levels(args.levels),
-                                 args.step_bar) for n in names]
+    levels = parse_levels(args.levels, CommissionRefused, "2,3.5")
+    moves: list[Moves] = [choose(cfg, n, args.rest_s, args.hold_s, levels, args.step_bar)
+                          for n in names]
     for mv in moves:
         _progress(f"{mv.muscle}: rest {mv.rest_s:g} s, then steps of {mv.step_bar:g} bar at "
                   f"{', '.join(f'{lv:g}' for lv in mv.levels_bar)} bar (safe pressure "

@@ -21,7 +21,14 @@ from pamd.tune.report import (
     print_fits,
     print_gains,
 )
-from pamd.tune.run import LOOPS, LoopPlan, TuneRefused, run_identification, with_levels
+from pamd.tune.run import (
+    LOOPS,
+    LoopPlan,
+    TuneRefused,
+    parse_levels,
+    run_identification,
+    with_levels,
+)
 from pamd.tune.save import save_values
 from pamd.tune.steps import Step, check_model, fit_all, mean_model
 
@@ -116,16 +123,6 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.set_defaults(func=run)
 
 
-def _levels(text: str | None) -> tuple[float, ...] | None:
-    if not text:
-        return None
-    try:
-        return tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise TuneRefused(f"--levels {text!r}: give numbers in bar separated by commas, "
-                          "e.g. 1.5,3,4.5") from None
-
-
 def run(args: argparse.Namespace) -> int:
     if args.save and not args.config:
         raise TuneRefused("--save writes into the config file: name it with --config (the "
@@ -133,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
                           "copy it first: pamd tune --config my-sim.yaml --save)")
     config_path = args.config or builtin_config_path()
     cfg = load_config(config_path)
-    lp = with_levels(LOOPS[args.loop], _levels(args.levels), args.step_bar)
+    levels = parse_levels(args.levels, TuneRefused, "1.5,3,4.5")
+    lp = with_levels(LOOPS[args.loop], levels, args.step_bar)
     muscles = args.muscle or [m.name for m in cfg.rig.muscles]
     out = args.out or os.path.join("runs", f"tune-{lp.loop}-{time.strftime('%Y%m%d-%H%M%S')}")
     if args.method == "relay" and lp.loop != "pressure":

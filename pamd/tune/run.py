@@ -73,6 +73,19 @@ POSITION = LoopPlan("position", (2.5, 3.5), 0.5, 1.0, 1.5, 2.0, "setpoint_bar",
 LOOPS = {"pressure": PRESSURE, "position": POSITION}
 
 
+def parse_levels(text: str | None, refuse: type[Exception],
+                 example: str) -> tuple[float, ...] | None:
+    """`--levels` of `pamd tune` and `pamd commission`: pressures in bar separated by
+    commas (None when not given); `refuse` names the command's error class."""
+    if not text:
+        return None
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise refuse(f"--levels {text!r}: give pressures in bar separated by commas, "
+                     f"e.g. {example}") from None
+
+
 def with_levels(lp: LoopPlan, levels_bar: tuple[float, ...] | None,
                 step_bar: float | None) -> LoopPlan:
     return LoopPlan(lp.loop, levels_bar or lp.levels_bar,
