@@ -34,19 +34,19 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
-from pamd.declare.jsonsafe import JsonObject
+from pamd.declare.jsonsafe import JsonObject, jsonsafe
 from pamd.net import zconf
 from pamd.net.board import Board
 from pamd.net.keys import Keys
-from pamd.net.node.answer import StatusAnswer
+from pamd.net.node.answer import StatusAnswer, TickStats
 from pamd.net.node.intake import CommandIntake, send_reply
-from pamd.net.node.stats import TickStats
-from pamd.net.seams import CommandPort, LoopStart, Query, RunClock
 from pamd.net.spec import NetSpec
-from pamd.net.status import jsonsafe
 from pamd.net.telemetry import StateBatcher
+
+if TYPE_CHECKING:  # the node's ports: types only, so the io process never loads them
+    from pamd.net.seams import CommandPort, LoopStart, Query, RunClock
 
 CLOSE_TIMEOUT_S = 3.0
 SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
