@@ -37,9 +37,13 @@ import json
 import os
 import socket
 import ssl
-from typing import Any, Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
+from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ConfigError, ConfigIssue, PamdError
+
+if TYPE_CHECKING:  # zenoh is imported where a session's config is built, never on import
+    import zenoh
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 #: client sessions a daemon's own endpoint takes at once (each costs the io process
@@ -57,8 +61,8 @@ SCOUTING_KEYS = ("scouting/multicast/enabled", "scouting/gossip/enabled")
 class ZenohConfig(Protocol):
     """What is read and set here of a `zenoh.Config`."""
 
-    def get_json(self, key: str) -> Any: ...
-    def insert_json5(self, key: str, value: str) -> Any: ...
+    def get_json(self, key: str) -> str: ...
+    def insert_json5(self, key: str, value: str) -> object: ...
 
 
 _Config = TypeVar("_Config", bound=ZenohConfig)
@@ -70,28 +74,24 @@ class NoDaemon(PamdError):
     exit_code = 7
 
 
-def _zenoh() -> Any:
-    import zenoh
-
-    return zenoh
-
-
 def _issue(file: str, expected: str, found: str) -> ConfigError:
     return ConfigError([ConfigIssue(file, None, "", expected, found)])
 
 
-def load_file(path: str) -> Any:
+def load_file(path: str) -> zenoh.Config:
     """A Zenoh config file (JSON5), checked by Zenoh itself."""
-    zenoh = _zenoh()
+    import zenoh
+
     if not os.path.isfile(path):
         raise _issue(path, "a readable Zenoh config file (JSON5)", "no such file")
     try:
-        return zenoh.Config.from_file(path)
+        cfg: zenoh.Config = zenoh.Config.from_file(path)
     except Exception as exc:  # zenoh.ZError: names the unknown or wrong field
         raise _issue(path, "a valid Zenoh config (JSON5)", str(exc).split(" at /")[0]) from None
+    return cfg
 
 
-def get(cfg: ZenohConfig, key: str) -> Any:
+def get(cfg: ZenohConfig, key: str) -> JsonValue:
     return json.loads(cfg.get_json(key))
 
 
@@ -110,11 +110,12 @@ def endpoints(cfg: ZenohConfig, which: str) -> list[str]:
     return [str(e) for e in eps or []]
 
 
-def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN) -> Any:
+def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN) -> zenoh.Config:
     """The daemon's session: the file as given, or a peer listening on `listen` that
     takes at most MAX_SESSIONS client sessions at once, messages of at most
     MAX_MESSAGE_BYTES, and no shared-memory transport."""
-    zenoh = _zenoh()
+    import zenoh
+
     if file is not None:
         cfg = load_file(file)
     else:
@@ -139,13 +140,14 @@ def _connect_for(listen: str) -> str:
     return f"{proto}/{host}:{port}"
 
 
-def client_config(file: str | None = None, connect: str | None = None) -> Any:
+def client_config(file: str | None = None, connect: str | None = None) -> zenoh.Config:
     """A CLI client's session: client mode, connecting to `connect`, to the file's
     connect endpoints, or (a daemon's file, with listen endpoints only) to where that
     daemon listens; with neither, to the default `tcp/127.0.0.1:7447`."""
-    zenoh = _zenoh()
+    import zenoh
+
     if file is None:
-        cfg = zenoh.Config.from_json5(json.dumps(
+        cfg: zenoh.Config = zenoh.Config.from_json5(json.dumps(
             {"mode": "client", "connect": {"endpoints": [connect or DEFAULT_LISTEN]}}))
         return secure(cfg)
     cfg = load_file(file)
@@ -162,7 +164,7 @@ def client_config(file: str | None = None, connect: str | None = None) -> Any:
     return secure(cfg)
 
 
-def router_config(file: str) -> Any:
+def router_config(file: str) -> zenoh.Config:
     """`pamd router`: the file, in router mode, with endpoints to listen on."""
     cfg = load_file(file)
     mode = get(cfg, "mode")

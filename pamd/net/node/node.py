@@ -34,7 +34,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from pamd.declare.jsonsafe import JsonObject, jsonsafe
 from pamd.net import zconf
@@ -45,7 +45,9 @@ from pamd.net.node.intake import CommandIntake, send_reply
 from pamd.net.spec import NetSpec
 from pamd.net.telemetry import StateBatcher
 
-if TYPE_CHECKING:  # the node's ports: types only, so the io process never loads them
+if TYPE_CHECKING:  # types only: the io process loads neither the ports nor (until `open`) zenoh
+    import zenoh
+
     from pamd.net.seams import CommandPort, LoopStart, Query, RunClock
 
 CLOSE_TIMEOUT_S = 3.0
@@ -74,9 +76,9 @@ class NetNode:
         self.batcher = StateBatcher(spec.rig_id, spec.muscles, spec.every_ticks)
         self.stats = TickStats()
         self.answer = StatusAnswer(spec, io_spec, self.stats)
-        self.session: Any = None
+        self.session: zenoh.Session | None = None
         self.board: Board | None = None
-        self.token: Any = None
+        self.token: zenoh.LivelinessToken | None = None
         self.lock = port.lock  # one lock for the mailbox, the board and the queries
         self.to_record: deque[tuple[float, str, JsonObject]] = deque()
         self.to_main: deque[bytes] = deque()  # notices for the daemon's main thread
@@ -291,7 +293,7 @@ class NetNode:
 # lock released) returns what is free; the io loop calls it every 2 s. Not
 # glibc: nothing to do.
 
-_libc: Any = None
+_libc: ctypes.CDLL | None = None
 _tried = False
 
 
