@@ -13,7 +13,6 @@ import threading
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from pamd.calibration import load_calibration, save_calibration
 from pamd.commands import Command, parse_command, prepare_command
@@ -21,8 +20,10 @@ from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.errors import CommandRefused
+from pamd.experiment.plan import Plan
 from pamd.io.session import IoParts, IoSession, RecordingRequest
 from pamd.loop import Loop
 from pamd.net.spec import TelemetryRequest
@@ -43,7 +44,7 @@ log = logging.getLogger("pamd")
 class _PlanArgs:
     plan_file: str
     start_step: int
-    plan: Any
+    plan: Plan
 
 
 class Daemon:
@@ -53,7 +54,7 @@ class Daemon:
     def __init__(self, cfg: LoadedConfig, note: str = "",
                  recording: RecordingRequest | None = None, *, state_dir: str | None = None,
                  notifier: Notifier | None = None,
-                 config_overrides: dict[str, Any] | None = None,
+                 config_overrides: JsonObject | None = None,
                  telemetry: TelemetryRequest | None = None,
                  models: Mapping[str, LoadedModel] | None = None) -> None:
         """`models`: each muscle's inverse model, loaded; by default the daemon loads
@@ -199,7 +200,7 @@ class Daemon:
         self.locks.release()  # after the drivers let go of the hardware
 
     # -- commands and status -------------------------------------------------------------
-    def submit(self, verb: str, payload: dict[str, Any] | None = None,
+    def submit(self, verb: str, payload: JsonObject | None = None,
                sender: str = "local") -> PendingCommand:
         """Queue a command for the loop without waiting. Commands queued before
         `start()` are applied on the first tick after the sensors are read."""
@@ -221,15 +222,15 @@ class Daemon:
             self.mailbox.put(cmd)
         return pending
 
-    def start_plan(self, plan: Any, plan_file: str, start_step: int = 0) -> PendingCommand:
+    def start_plan(self, plan: Plan, plan_file: str, start_step: int = 0) -> PendingCommand:
         """Queue an experiment plan (already read and checked against this rig)."""
         pending = PendingCommand()
         args = _PlanArgs(plan_file=plan_file, start_step=start_step, plan=plan)
         self.mailbox.put(Command("collect", args, pending.set))
         return pending
 
-    def command(self, verb: str, payload: dict[str, Any] | None = None,
-                timeout_s: float = 5.0, sender: str = "local") -> dict[str, Any]:
+    def command(self, verb: str, payload: JsonObject | None = None,
+                timeout_s: float = 5.0, sender: str = "local") -> JsonObject:
         """Send a command to the loop and wait for its verdict."""
         return self.submit(verb, payload, sender).result(timeout_s)
 
@@ -243,7 +244,7 @@ class Daemon:
             self.service()
         return self.ctrl.supervisor.state
 
-    def result(self) -> dict[str, Any]:
+    def result(self) -> JsonObject:
         """The run summary (documented in README: `pamd run --json`)."""
         t = self.loop.timing.summary()
         sup = self.ctrl.supervisor

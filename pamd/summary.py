@@ -8,8 +8,9 @@ import queue
 from array import array
 from collections import deque
 from collections.abc import Sequence
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.safety.limiter import held_back
 from pamd.tick import (
     I_STATE,
@@ -21,9 +22,13 @@ from pamd.tick import (
     M_TARGET_LENGTH,
     M_VALVE,
     Flag,
+    Sink,
     State,
     TickLayout,
 )
+
+if TYPE_CHECKING:  # what the mailbox holds (a type only: the sink needs no verbs to run)
+    from pamd.verbs.schema import Command
 
 
 class _Cycles(Protocol):
@@ -75,9 +80,9 @@ class SummarySink:
         self.ticks = 0
         # the latest events (the recording keeps them all): a daemon that runs for
         # weeks and takes commands must not grow by each one
-        self.events: deque[tuple[float, str, dict[str, Any]]] = deque(maxlen=EVENTS_KEPT)
+        self.events: deque[tuple[float, str, JsonObject]] = deque(maxlen=EVENTS_KEPT)
         self._bases = [b for b in layout.muscle_base]
-        self.downstream: list[Any] = []
+        self.downstream: list[Sink] = []  # the io process's ring sink, a probe
 
     def follow_cycles(self, muscles: Sequence[_Follows]) -> None:
         """Read each muscle's running profile (same order as the layout) to tell the
@@ -138,7 +143,7 @@ class SummarySink:
             if abs(e) > s[4]:
                 s[4] = abs(e)
 
-    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None:
+    def event(self, t_s: float, kind: str, data: JsonObject) -> None:
         self.events.append((t_s, kind, data))
         if kind == "soft_limit" and data.get("muscle") in self.layout.muscles:
             self.limit_events[self.layout.muscles.index(data["muscle"])] += 1
@@ -189,12 +194,12 @@ class LocalMailbox:
     """Commands from threads of the same process; `poll` never blocks."""
 
     def __init__(self) -> None:
-        self._q: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._q: queue.SimpleQueue[Command] = queue.SimpleQueue()
 
-    def put(self, cmd: Any) -> None:
+    def put(self, cmd: Command) -> None:
         self._q.put(cmd)
 
-    def poll(self) -> Any | None:
+    def poll(self) -> Command | None:
         if self._q.empty():  # the common case, without raising queue.Empty
             return None
         try:

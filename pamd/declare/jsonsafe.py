@@ -11,9 +11,10 @@ from typing import Any, TypeAlias
 # The types of JSON and YAML values at pamd's edges, named once (here, beside the one
 # JSON encoder, so the io process imports no extra module for them).
 #
-# pamd's one `Any` for data lives here (`mypy --strict` runs over pamd/ and drivers/;
-# other `Any`s say beside them why they are one). A JSON or YAML value is whatever its
-# text said until a checker narrows it, so its static type is the edge's `Any`:
+# Any: pamd's one untyped data, named here once (`mypy --strict` runs over pamd/ and
+# drivers/; every other use says beside it, after `# Any:`, why it is one). A JSON or
+# YAML value is whatever its text said until a checker narrows it, so its static type
+# is the edge's:
 #
 # * in: a command's payload (checked by pamd.verbs), a config file's nodes (pamd.schema,
 #   pamd.config, which name file, line and key), a model file (pamd.models.document),
@@ -27,9 +28,9 @@ from typing import Any, TypeAlias
 # edge instead, so a reader sees that the dict came from (or goes to) JSON.
 
 #: a JSON or YAML value: object, array, string, number, bool or null (see above)
-JsonValue: TypeAlias = Any
+JsonValue: TypeAlias = Any  # Any: the JSON/YAML edge, as explained above
 #: a JSON or YAML object: keys are strings, values `JsonValue`s
-JsonObject: TypeAlias = dict[str, Any]
+JsonObject: TypeAlias = dict[str, Any]  # Any: the JSON/YAML edge, as explained above
 
 
 def jsonsafe(x: object) -> JsonValue:

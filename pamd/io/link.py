@@ -390,7 +390,7 @@ class MultiMailbox:
 
     def poll(self) -> Command | None:
         for b in self.boxes:
-            cmd: Command | None = b.poll()  # tick.Mailbox says Any: it cannot name Command
+            cmd: Command | None = b.poll()  # Any: tick.Mailbox.poll's (it cannot name Command)
             if cmd is not None:
                 return cmd
         return None

@@ -15,11 +15,11 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.io.link import IoLink, MultiMailbox, RingMailbox, RingSink
 from pamd.io.spec import IoSpec
 from pamd.ipc.ring import BlockLayout, pow2_at_least
@@ -63,10 +63,10 @@ class RecordingRequest:
     enabled: bool = True  # False: no recording even if the config names a dir
     run_name: str | None = None
     model_path: str | None = None  # the ANFIS model in use, attached to the file
-    profile: dict[str, Any] | None = None  # the profile or experiment step, as metadata
-    script: tuple[tuple[int, str, dict[str, Any]], ...] = ()  # io-side (tick, verb, payload)
+    profile: JsonObject | None = None  # the profile or experiment step, as metadata
+    script: tuple[tuple[int, str, JsonObject], ...] = ()  # io-side (tick, verb, payload)
     fsize_limit_bytes: int | None = None  # tests: make writes fail for real
-    segments: tuple[dict[str, Any], ...] = ()  # experiment steps: one file each
+    segments: tuple[JsonObject, ...] = ()  # experiment steps: one file each
     max_mb: float | None = None  # the run's files stop taking ticks past this size
 
 
@@ -78,7 +78,7 @@ class IoSession:
         self.rc = cfg.rig.recording
         loop = parts.loop
         self.virtual = loop.virtual
-        self.failure: dict[str, Any] | None = None
+        self.failure: JsonObject | None = None
         self.recording = record_dir is not None  # False: telemetry alone
         self.max_mb = req.max_mb
         clock0 = 0.0 if self.virtual else time.monotonic()
@@ -196,7 +196,7 @@ class IoSession:
         if policy == "safe_state":
             ctrl.supervisor.fault(ctrl.now, f"recording: {reason}")
 
-    def close(self, summary: dict[str, Any]) -> None:
+    def close(self, summary: JsonObject) -> None:
         if self.link.closed:
             return
         self.sink.finish(summary)
@@ -210,7 +210,7 @@ class IoSession:
             self.board.close()
             self.board = None
 
-    def result(self) -> dict[str, Any]:
+    def result(self) -> JsonObject:
         st = self.link.status()
         st["lost_records"] = self.sink.lost_records
         st["lost_events"] = max(self.sink.lost_events, st.get("lost_events") or 0)
@@ -218,7 +218,7 @@ class IoSession:
         st["max_mb"] = self.max_mb
         return st
 
-    def telemetry(self) -> dict[str, Any] | None:
+    def telemetry(self) -> JsonObject | None:
         """What the run's summary says of telemetry (None when it was off)."""
         if self.net is None:
             return None

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from typing import Any, Protocol
+from typing import Protocol
 
 from pamd.declare.jsonsafe import JsonObject
 
@@ -24,7 +24,7 @@ class CommandPort(Protocol):
     """The io side of the loop's command mailbox (`pamd.io.process.RingCommandPort`)."""
 
     @property
-    def lock(self) -> AbstractContextManager[Any]:
+    def lock(self) -> AbstractContextManager[object]:
         """Held while a query callback uses the port, the board or the node's queues."""
 
     @property
@@ -90,5 +90,5 @@ class Query(Protocol):
     def attachment(self) -> QueryPayload | None:
         """The command credential travels here (`pamd.net.credential`)."""
 
-    def reply(self, key_expr: str, payload: bytes, *, encoding: str | None = None) -> Any: ...
-    def drop(self) -> Any: ...
+    def reply(self, key_expr: str, payload: bytes, *, encoding: str | None = None) -> object: ...
+    def drop(self) -> object: ...

@@ -114,7 +114,7 @@ class IoStatus(TypedDict, total=False):
     tick: int
     t_s: float
     snapshot_age_s: float
-    timing: JsonObject  # from the tick records (pamd.net.node.stats)
+    timing: JsonObject  # from the tick records (pamd.net.node.answer)
     io: dict[str, int]  # its own counters
     stale: bool
     stale_reasons: list[str]

@@ -21,7 +21,6 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from typing import Any
 
 from pamd.declare.jsonsafe import JsonObject
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
@@ -40,7 +39,7 @@ class MuscleBatch:
         self.base = base
         self.names = LOOP_COLUMNS + MUSCLE_FIELDS
         self.idx = _LOOP_IDX + tuple(base + j for j in range(len(MUSCLE_FIELDS)))
-        self.cols: list[list[Any]] = [[] for _ in self.names]
+        self.cols: list[list[float | None]] = [[] for _ in self.names]
         self.n = 0
         self.seq = 0
 

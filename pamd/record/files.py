@@ -17,19 +17,39 @@ import os
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import IO, Protocol
 
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile, McapError
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
-from mcap.records import Attachment, Channel, Chunk, Footer, Header, Message, Metadata, Schema
+from mcap.records import (
+    Attachment,
+    Channel,
+    Chunk,
+    Footer,
+    Header,
+    McapRecord,
+    Message,
+    Metadata,
+    Schema,
+)
 from mcap.stream_reader import StreamReader, breakup_chunk, get_chunk_data_stream
 
-from pamd.declare.jsonsafe import JsonObject
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import RecordingError
 from pamd.record import cdr
 from pamd.record.mcapw import MAGIC, McapWriter
+
+#: one decoded message's values in its columns' order: numbers (a state or loop message,
+#: CDR) or an event's t_s, tick, kind and data (JSON text), as the file holds them
+Row = list[JsonValue]
+
+
+class _RowWriter(Protocol):
+    """A CSV writer (`csv.writer`)."""
+
+    def writerow(self, row: list[JsonValue], /) -> object: ...
 
 
 def check_file(path: str) -> int:
@@ -64,7 +84,7 @@ class Scan:
     header: Header | None = None
     schemas: dict[int, Schema] = field(default_factory=dict)
     channels: dict[int, Channel] = field(default_factory=dict)
-    chunks: list[list[Any]] = field(default_factory=list)  # records of each good chunk
+    chunks: list[list[McapRecord]] = field(default_factory=list)  # records of each good chunk
     loose: list[Message] = field(default_factory=list)  # messages outside chunks
     metadata: list[Metadata] = field(default_factory=list)
     attachments: list[Attachment] = field(default_factory=list)
@@ -140,10 +160,10 @@ def iter_messages(path: str) -> Iterator[tuple[Channel, Schema | None, Message]]
         ch = sc.channels[m.channel_id]
         yield ch, sc.schemas.get(ch.schema_id), m
     for recs in sc.chunks:
-        for m in recs:
-            if isinstance(m, Message):
-                ch = sc.channels[m.channel_id]
-                yield ch, sc.schemas.get(ch.schema_id), m
+        for rec in recs:
+            if isinstance(rec, Message):
+                ch = sc.channels[rec.channel_id]
+                yield ch, sc.schemas.get(ch.schema_id), rec
 
 
 _RECORD_HEAD = struct.Struct("<BQ")  # opcode, length
@@ -198,7 +218,7 @@ class Decoder:
         self._cache[ch.id] = d
         return d
 
-    def decode(self, ch: Channel, schema: Schema | None, data: bytes) -> list[Any] | None:
+    def decode(self, ch: Channel, schema: Schema | None, data: bytes) -> Row | None:
         d = self._get(ch, schema)
         if d is None:
             return None
@@ -277,11 +297,11 @@ def _describe(path: str) -> tuple[JsonObject, dict[str, Channel], dict[int, Sche
                        for a in sc.attachments]
         chunks = len(sc.chunks)
         for recs in sc.chunks:
-            for m in recs:
-                if isinstance(m, Message):
-                    counts[sc.channels[m.channel_id].topic] += 1
-                    start = m.log_time if start is None else min(start, m.log_time)
-                    end = m.log_time if end is None else max(end, m.log_time)
+            for rec in recs:
+                if isinstance(rec, Message):
+                    counts[sc.channels[rec.channel_id].topic] += 1
+                    start = rec.log_time if start is None else min(start, rec.log_time)
+                    end = rec.log_time if end is None else max(end, rec.log_time)
     return {
         "file": path, "size_bytes": size, "status": status, "finalised": final,
         "chunks": chunks, "message_count": sum(counts.values()),
@@ -345,18 +365,18 @@ def export_csv(path: str, out_dir: str) -> dict[str, tuple[str, int]]:
                              f"run `pamd recover {path}` first")
     os.makedirs(out_dir, exist_ok=True)
     dec = Decoder()
-    writers: dict[int, Any] = {}
-    files: dict[int, Any] = {}
+    writers: dict[int, _RowWriter | None] = {}  # None: a topic not exported
+    files: dict[int, IO[str]] = {}
     out: dict[str, tuple[str, int]] = {}
     skipped: set[str] = set()
     try:
         for ch, schema, m in iter_messages(path):
             w = writers.get(ch.id)
-            if w is None:
+            if ch.id not in writers:
                 cols = dec.columns(ch, schema)
                 if cols is None:
                     skipped.add(ch.topic)
-                    writers[ch.id] = False
+                    writers[ch.id] = None
                     continue
                 name = ch.topic.strip("/").replace("/", "_") + ".csv"
                 fpath = os.path.join(out_dir, name)
@@ -364,7 +384,7 @@ def export_csv(path: str, out_dir: str) -> dict[str, tuple[str, int]]:
                 w = writers[ch.id] = csv.writer(files[ch.id])
                 w.writerow(["log_time_ns", *cols])
                 out[ch.topic] = (fpath, 0)
-            elif w is False:
+            elif w is None:
                 continue
             row = dec.decode(ch, schema, m.data)
             if row is None:
@@ -449,10 +469,10 @@ def recover(path: str, out: str | None = None, force: bool = False) -> JsonObjec
             n += 1
         w.close_chunk()
         for recs in sc.chunks:
-            for m in recs:
-                if isinstance(m, Message):
-                    w.add_message(channel(m.channel_id), m.log_time, m.data, m.sequence)
-                    last = max(last, m.log_time)
+            for rec in recs:
+                if isinstance(rec, Message):
+                    w.add_message(channel(rec.channel_id), rec.log_time, rec.data, rec.sequence)
+                    last = max(last, rec.log_time)
                     n += 1
             w.close_chunk()
         info = {"source": os.path.basename(path), "chunks": str(len(sc.chunks)),

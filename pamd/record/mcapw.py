@@ -21,8 +21,8 @@ import struct
 import tempfile
 import zlib
 from array import array
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import IO
 
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
@@ -34,6 +34,7 @@ from mcap.records import (
     DataEnd,
     Footer,
     Header,
+    McapRecord,
     Message,
     Metadata,
     MetadataIndex,
@@ -48,15 +49,17 @@ _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
 
 
-def _compressor(kind: str) -> Any:
+def _compressor(kind: str) -> Callable[[bytes], bytes] | None:
     if kind == "zstd":
         import zstandard
 
-        return zstandard.ZstdCompressor(level=3).compress
+        compress: Callable[[bytes], bytes] = zstandard.ZstdCompressor(level=3).compress
+        return compress
     if kind == "lz4":
         import lz4.frame
 
-        return lz4.frame.compress
+        lz4_compress: Callable[[bytes], bytes] = lz4.frame.compress  # lz4 has no types
+        return lz4_compress
     if kind in ("", "none"):
         return None
     raise ValueError(f"unknown compression {kind!r}; use zstd, lz4 or none")
@@ -86,7 +89,7 @@ class McapWriter:
         # file beside the recording as they are made: a long run (ten chunks a second)
         # would otherwise grow the io process by ~7 KB/s (one ChunkIndex each).
         self.chunk_count = 0
-        self._chunk_index_file: Any = None
+        self._chunk_index_file: IO[bytes] | None = None
         self.attachment_indexes: list[AttachmentIndex] = []
         self.metadata_indexes: list[MetadataIndex] = []
         self.counts: dict[int, int] = {}
@@ -105,7 +108,7 @@ class McapWriter:
             self.pos += n
             self.unsynced += n
 
-    def _record(self, rec: Any) -> tuple[int, int]:
+    def _record(self, rec: McapRecord) -> tuple[int, int]:
         b = RecordBuilder()
         rec.write(b)
         data = _built(b)
@@ -249,7 +252,7 @@ class McapWriter:
             crc = zlib.crc32(data, crc)
             self._write(data)
 
-        def group(opcode: int, records: list[Any]) -> None:
+        def group(opcode: int, records: Sequence[McapRecord]) -> None:
             if not records:
                 return
             b = RecordBuilder()

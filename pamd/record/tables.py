@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from typing import Any
 
 from pamd.declare.jsonsafe import JsonObject
 from pamd.record import files
@@ -28,8 +27,8 @@ class Tables:
     """Field names and rows of the loop topic and of each muscle's state topic."""
 
     loop_names: list[str] = field(default_factory=list)
-    loop_rows: list[list[Any]] = field(default_factory=list)
-    muscles: dict[str, tuple[list[str], list[list[Any]]]] = field(default_factory=dict)
+    loop_rows: list[files.Row] = field(default_factory=list)
+    muscles: dict[str, tuple[list[str], list[files.Row]]] = field(default_factory=dict)
     events: list[RawEvent] = field(default_factory=list)
 
 

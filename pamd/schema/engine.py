@@ -22,13 +22,30 @@ import typing
 from dataclasses import MISSING, dataclass, field
 from typing import Any, Literal, Union
 
+from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ConfigError, ConfigIssue
 from pamd.schema.domains import bounds, subnormal
-from pamd.schema.yamlload import LinedDict, LinedList
 
 #: A field's type as the schema writes it: a class (bool, int, float, str, a dataclass),
 #: `X | None`, `Literal[...]`, `tuple[X, ...]`, `dict[str, Any]` or `Any`.
 SchemaType = object
+
+#: What a key in a YAML mapping may be (a plain value; lists and mappings are refused).
+YamlKey = str | int | float | bool | None
+
+
+class LinedDict(dict[Any, Any]):  # a YAML mapping: its keys need not be strings
+    """A mapping from YAML with `line` (its own) and `key_lines` (per key), 1-based."""
+
+    line: int | None = None
+    key_lines: dict[YamlKey, int]
+
+
+class LinedList(list[JsonValue]):
+    """A sequence from YAML with `line` and `item_lines`, 1-based."""
+
+    line: int | None = None
+    item_lines: list[int]
 
 
 def spec(default: object = MISSING, doc: str = "", **meta: object) -> Any:

@@ -5,7 +5,9 @@ to be a setting, nesting deeper than any config needs, aliases that expand beyon
 any config's size (or into themselves), and keys that are not plain values.
 
 Mappings load as `LinedDict`: a dict that also knows its own line and the line of
-each key, so validation errors can name the line an operator has to edit.
+each key, so validation errors can name the line an operator has to edit. It is
+declared in `pamd.schema.engine`, beside what validates it, so that the io process
+parses commands without loading this module or PyYAML.
 """
 
 from __future__ import annotations
@@ -18,9 +20,7 @@ import yaml
 
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ConfigError, ConfigIssue
-
-#: What a key in a YAML mapping may be (a plain value; lists and mappings are refused).
-YamlKey = str | int | float | bool | None
+from pamd.schema.engine import LinedDict, LinedList
 
 #: Deepest nesting of mappings and lists a file may have (a rig config needs 6).
 MAX_DEPTH = 32
@@ -30,20 +30,6 @@ MAX_VALUES = 100_000
 MAX_DIGITS = 40
 #: Largest file read as a config, plan or calibration (the biggest shipped is ~5 KB).
 MAX_BYTES = 1 << 20
-
-
-class LinedDict(dict[Any, Any]):  # a YAML mapping: its keys need not be strings
-    """A mapping from YAML with `line` (its own) and `key_lines` (per key), 1-based."""
-
-    line: int | None = None
-    key_lines: dict[YamlKey, int]
-
-
-class LinedList(list[JsonValue]):
-    """A sequence from YAML with `line` and `item_lines`, 1-based."""
-
-    line: int | None = None
-    item_lines: list[int]
 
 
 class OversizedNumber:

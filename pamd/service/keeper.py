@@ -23,10 +23,11 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
 
 from pamd.commands import Command
+from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig
+from pamd.declare.jsonsafe import JsonObject
 from pamd.service.notify import Notifier
 from pamd.service.persistence import StateKeeper
 from pamd.service.ports import KeptLoop, KeptRig, SafeMuscleView, tick_gap_s
@@ -49,7 +50,7 @@ class ServiceKeeper:
     def __init__(self, rig: KeptRig, loop: KeptLoop, submit: Callable[[Command], None],
                  config: Callable[[], LoadedConfig], apply_config: Callable[[LoadedConfig], None],
                  paths: StatePaths | None, notifier: Notifier | None = None,
-                 config_overrides: dict[str, Any] | None = None) -> None:
+                 config_overrides: JsonObject | None = None) -> None:
         self.rig = rig
         self.supervisor = rig.supervisor
         self.loop = loop
@@ -77,7 +78,7 @@ class ServiceKeeper:
         self.reloader.requested = requested
 
     @property
-    def pending(self) -> tuple[ReloadPlan, Any] | None:
+    def pending(self) -> tuple[ReloadPlan, PendingCommand] | None:
         """The reload waiting for the loop's verdict."""
         return self.reloader.pending
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
 
 from pamd.config.loader import LoadedConfig
 from pamd.service.ports import KeptLoop, KeptRig, tick_gap_s
@@ -50,7 +49,7 @@ class StateKeeper:
         self.restored: FaultRecord | None = None
         self._stall_persisted = False
         self._seen_latched = False  # the supervisor latched since the file was written
-        self._safe_key: tuple[Any, ...] | None = None
+        self._safe_key: tuple[object, ...] | None = None
         self._io_errors: set[str] = set()
 
     def restore(self) -> FaultRecord | None:
@@ -82,7 +81,7 @@ class StateKeeper:
         self._persist_stall()
         self.save_safe_outputs()
 
-    def _io(self, what: str, fn: Any, *args: Any) -> bool:
+    def _io(self, what: str, fn: Callable[..., object], *args: object) -> bool:
         """Run one state-file operation; a failure is logged once, never fatal."""
         try:
             fn(*args)

@@ -7,9 +7,11 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Sequence
-from typing import Any, Protocol
+from typing import Protocol
 
 from pamd.config.loader import LoadedConfig
+from pamd.declare.jsonsafe import JsonObject
+from pamd.drivers.safe_outputs import OutputPoint
 from pamd.rt import RealtimeSession
 from pamd.safety.supervisor import Supervisor
 from pamd.timing import TickTiming
@@ -23,7 +25,7 @@ class KeptRig(Protocol):
     @property
     def supervisor(self) -> Supervisor: ...
     @property
-    def reload_note(self) -> dict[str, Any] | None: ...
+    def reload_note(self) -> JsonObject | None: ...
     @property
     def muscles(self) -> Sequence[SafeMuscleView]: ...
     def at_rest(self) -> bool: ...
@@ -33,9 +35,25 @@ class SafeMuscleView(Protocol):
     @property
     def name(self) -> str: ...
     @property
+    def actuation(self) -> SavedActuation: ...
+    @property
     def safe_pressure_bar(self) -> float: ...
     @property
     def load_kg(self) -> float: ...
+
+
+class SavedOutput(OutputPoint, Protocol):
+    """An output as the safe outputs file names it (`pamd.rig.OutputBinding`)."""
+
+    @property
+    def name(self) -> str: ...
+
+
+class SavedActuation(Protocol):
+    """What a muscle's actuation holds in the safe state, per output (`pamd.control.actuation`)."""
+
+    def safe_outputs(self, safe_pressure_bar: float
+                     ) -> Sequence[tuple[SavedOutput, float, str]]: ...
 
 
 class KeptLoop(Protocol):

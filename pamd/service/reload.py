@@ -29,7 +29,7 @@ from __future__ import annotations
 import dataclasses
 import re
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Literal
 
 from pamd.commands import MuscleSettings, ReloadArgs
 from pamd.config.loader import LoadedConfig, effective_timeout_s
@@ -62,10 +62,10 @@ def classify(path: str) -> Kind:
     return "restart"
 
 
-def flatten(value: object, prefix: str = "") -> dict[str, Any]:
+def flatten(value: object, prefix: str = "") -> dict[str, object]:
     """Key path -> leaf value of a config (dataclasses, mappings, lists); a list's
     length is kept under `path[]` so added or removed items show."""
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         for f in dataclasses.fields(value):
             out.update(flatten(getattr(value, f.name), f"{prefix}.{f.name}" if prefix

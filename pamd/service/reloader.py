@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
 
 from pamd.commands import Command
 from pamd.commands.model_file import check_models_isolated
 from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig, load_config
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import PamdError
 from pamd.service.notify import Notifier
 from pamd.service.ports import KeptLoop, KeptRig
@@ -33,7 +33,7 @@ class Reloader:
                  config: Callable[[], LoadedConfig],
                  apply_config: Callable[[LoadedConfig], None], notifier: Notifier,
                  finished: Callable[[], None],
-                 config_overrides: dict[str, Any] | None = None) -> None:
+                 config_overrides: JsonObject | None = None) -> None:
         """`submit`: a command into the loop's mailbox; `config`: the config in force;
         `apply_config`: once a reload is in force; `finished`: a reload is over
         (applied, deferred or refused: READY=1 again)."""
@@ -50,7 +50,7 @@ class Reloader:
         self.started_cfg: LoadedConfig = config()
         self.gains_cfg: LoadedConfig = self.started_cfg
         self.limits_cfg: LoadedConfig = self.started_cfg
-        self.pending: tuple[ReloadPlan, Any] | None = None
+        self.pending: tuple[ReloadPlan, PendingCommand] | None = None
         self.deferred: ReloadPlan | None = None
         # changes that reopen the devices: `pamd run` can restart in place (a
         # library daemon, a virtual run cannot, and such a reload is refused)
@@ -156,7 +156,7 @@ class Reloader:
         self.submit(Command("reload", plan.args, pending.set, sender="SIGHUP"))
         self.pending = (plan, pending)
 
-    def _verdict(self, plan: ReloadPlan, verdict: dict[str, Any]) -> None:
+    def _verdict(self, plan: ReloadPlan, verdict: JsonObject) -> None:
         if not verdict.get("ok"):
             log.error("reload refused: %s", verdict.get("error"))
             self.deferred = None

@@ -18,8 +18,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers import Driver, load_driver_class
 from pamd.errors import DriverError
 from pamd.schema.engine import Context, build_dataclass
@@ -36,7 +36,7 @@ class _Target:
     start_writes: int = 0
 
 
-def build_driver(entry: dict[str, Any]) -> Driver:
+def build_driver(entry: JsonObject) -> Driver:
     """A driver rebuilt from its saved type and options (validated by its schema)."""
     cls = load_driver_class(entry["type"])
     ctx = Context(f"saved options of driver {entry['name']!r}")
@@ -54,7 +54,7 @@ def _writes_done(drv: Driver) -> int:
     return int(counters.get("writes", 0)) if isinstance(counters, dict) else -1
 
 
-def replay(doc: dict[str, Any], timeout_s: float = 5.0, settle_s: float = 0.3,
+def replay(doc: JsonObject, timeout_s: float = 5.0, settle_s: float = 0.3,
            say: Callable[[str], None] = print) -> int:
     """Write the saved safe outputs; returns the exit code."""
     targets: list[_Target] = []

@@ -31,11 +31,15 @@ import os
 import tempfile
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 from pamd.config.loader import LoadedConfig, builtin_config_path
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.drivers.safe_outputs import safe_output_values
 from pamd.errors import PamdError
+
+if TYPE_CHECKING:  # a type only: reading the state files needs no controller
+    from pamd.service.ports import KeptRig
 
 FAULT_FORMAT = "pamd-fault"
 SAFE_OUTPUTS_FORMAT = "pamd-safe-outputs"
@@ -110,7 +114,7 @@ def now_iso() -> str:
 
 
 # -- atomic JSON ----------------------------------------------------------------------
-def write_json_atomic(path: str, doc: dict[str, Any]) -> None:
+def write_json_atomic(path: str, doc: JsonObject) -> None:
     """Write `doc` so that a crash or power cut leaves the old file or the new one,
     never half of one."""
     directory = os.path.dirname(os.path.abspath(path))
@@ -140,7 +144,7 @@ def remove_durably(path: str) -> bool:
     return True
 
 
-def read_json(path: str, fmt: str) -> dict[str, Any] | None:
+def read_json(path: str, fmt: str) -> JsonObject | None:
     """The document in `path` (None if there is no file); StateFileError if it is
     unreadable, not JSON, or not a `fmt` document of a known version."""
     try:
@@ -211,7 +215,7 @@ def write_fault(path: str, record: FaultRecord, cfg: LoadedConfig) -> None:
 
 
 # -- the safe outputs ---------------------------------------------------------------------
-def options_as_json(options: Any) -> Any:
+def options_as_json(options: object) -> JsonValue:
     """A driver's validated options as plain JSON values (the driver's schema
     builds them back)."""
     if dataclasses.is_dataclass(options) and not isinstance(options, type):
@@ -219,7 +223,7 @@ def options_as_json(options: Any) -> Any:
     return _plain(options)
 
 
-def _plain(value: Any) -> Any:
+def _plain(value: object) -> JsonValue:
     if isinstance(value, dict):
         return {str(k): _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -227,7 +231,7 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def safe_outputs_document(cfg: LoadedConfig, ctrl: Any) -> dict[str, Any]:
+def safe_outputs_document(cfg: LoadedConfig, ctrl: KeptRig) -> JsonObject:
     """What `pamd safe-outputs` needs to put the rig in its present safe state with
     no config: per driver its type and options, per output its channel and raw
     value (the same values `push_safe_outputs` gives the devices)."""
@@ -256,11 +260,11 @@ def safe_outputs_document(cfg: LoadedConfig, ctrl: Any) -> dict[str, Any]:
     }
 
 
-def write_safe_outputs(path: str, doc: dict[str, Any]) -> None:
+def write_safe_outputs(path: str, doc: JsonObject) -> None:
     write_json_atomic(path, dict(doc, saved_at=now_iso()))
 
 
-def read_safe_outputs(path: str) -> dict[str, Any] | None:
+def read_safe_outputs(path: str) -> JsonObject | None:
     doc = read_json(path, SAFE_OUTPUTS_FORMAT)
     if doc is None:
         return None

@@ -35,6 +35,7 @@ class StallOnce:
             time.sleep(self.seconds)
 
 
+# Any: the Daemon (a layer above this one), whose controller gets a stepper that is no driver
 def install(daemon: Any, environ: dict[str, str] | None = None) -> list[str]:
     """Install the hooks the environment asks for; returns their descriptions."""
     env = os.environ if environ is None else environ

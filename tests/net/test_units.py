@@ -159,7 +159,7 @@ def test_cmd_payloads_from_options() -> None:
 
 def test_status_snapshot_from_a_running_daemon(sim_daemon: Any) -> None:
     from pamd.net.host.status import StatusBuilder, recording_status
-    from pamd.net.node.stats import TickStats
+    from pamd.net.node.answer import TickStats
     from pamd.net.status import MUSCLE_STATUS_FIELDS, STATUS_FIELDS
 
     d = sim_daemon(duration_s=None)

@@ -20,7 +20,7 @@ import getpass
 import itertools
 import json
 import re
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pamd.config.names import CHUNK_RE
 from pamd.declare.jsonsafe import JsonObject
@@ -30,6 +30,10 @@ from pamd.net.credential import attachment, find_token
 from pamd.net.keys import ROOT, Keys
 from pamd.net.zconf import NoDaemon
 from pamd.verbs.table import VERBS
+
+if TYPE_CHECKING:  # zenoh is imported when a client opens its session, never on import
+    import zenoh
+    from zenoh.handlers import Handler
 
 DEFAULT_TIMEOUT_S = 3.0
 
@@ -106,9 +110,9 @@ class Client:
         """`urgent` (an estop or stop): never dropped on the way (a large one goes in
         fragments, which the drop policy may lose), at the highest priority."""
         z = self.zenoh
+        # Any: zenoh's own option objects of several types, for Session.get(**kw)
         kw: dict[str, Any] = {"timeout": timeout_s, "congestion_control": (
-            z.CongestionControl.BLOCK if urgent else z.CongestionControl.DROP)}  # Any: zenoh's
-        # own option objects, for Session.get(**kw)
+            z.CongestionControl.BLOCK if urgent else z.CongestionControl.DROP)}
         if urgent:
             kw["priority"] = z.Priority.REAL_TIME
         if payload is not None:
@@ -162,13 +166,15 @@ class Client:
             verdict["error"] = f"{verdict['error']} (no token found: looked in {where})"
         return verdict
 
-    def subscribe(self, key: str, capacity: int = 4096) -> Any:
+    def subscribe(self, key: str, capacity: int = 4096
+                  ) -> zenoh.Subscriber[Handler[zenoh.Sample]]:
         """A subscriber with a ring channel (`try_recv`, no callback thread) to `key` of
         one rig: its rig chunk must be a name (BadRigName if a pattern)."""
         rig_name(Keys.rig_of(key))
         return self.subscribe_pattern(key, capacity)
 
-    def subscribe_pattern(self, pattern: str, capacity: int = 4096) -> Any:
+    def subscribe_pattern(self, pattern: str, capacity: int = 4096
+                          ) -> zenoh.Subscriber[Handler[zenoh.Sample]]:
         """A read-only subscription that may span rigs (`pamd/*/events`): named as a
         pattern, for watching; commands never take one."""
         return self.session.declare_subscriber(pattern,

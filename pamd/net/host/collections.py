@@ -36,12 +36,12 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import CommandRefused, ConfigError, PamdError
 from pamd.experiment.manifest import Manifest, collection_name, step_records
 from pamd.experiment.plan import Plan
-from pamd.experiment.sequencer import running_plan
+from pamd.experiment.sequencer import Sequencer, running_plan
 from pamd.experiment.timeline import simulated_loads, timeline
 from pamd.net.host.ports import HostParts
 from pamd.record import control
@@ -65,14 +65,14 @@ class Collection:
     tick0: int
     faults0: int
     lost0: int
-    seq: Any = None  # the loop's sequencer, once the loop took the plan
+    seq: Sequencer | None = None  # the loop's sequencer, once the loop took the plan
     end_sent: bool = False
     closed: bool = False  # the io process has closed its files
     steps_saved: int = 0  # finished steps the manifest on disk knows of
     save_due: bool = False  # the loop took the plan: the manifest is to be written
     ticks: int | None = None  # tick records its files hold
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {"collection": self.dir, "manifest": self.manifest.path,
                 "resumed": not self.created, "start_step": self.start}
 
@@ -221,7 +221,7 @@ class Collections:
         return best[1]
 
     # -- the loop's verdict ----------------------------------------------------------------
-    def verdict(self, coll: Collection, verdict: dict[str, Any]) -> dict[str, Any]:
+    def verdict(self, coll: Collection, verdict: JsonObject) -> JsonObject:
         """The reply to the collect: the loop's verdict and where the collection goes."""
         if not verdict.get("ok"):  # nothing began: the recorder forgets it
             self._queue(control.end_message(coll.id))
@@ -246,7 +246,7 @@ class Collections:
         return {**verdict, **coll.describe()}
 
     # -- the io process's notices, the plan's end ------------------------------------------
-    def notice(self, msg: dict[str, Any]) -> None:
+    def notice(self, msg: JsonObject) -> None:
         c = self.active
         if c is not None and msg.get("id") == c.id and msg.get("what") in (control.CLOSED,
                                                                           control.DROPPED):
@@ -324,12 +324,12 @@ class Collections:
         while self.outbox and self.send(self.outbox[0]):
             self.outbox.pop(0)
 
-    def _event(self, what: str, c: Collection, **data: Any) -> None:
+    def _event(self, what: str, c: Collection, **data: JsonValue) -> None:
         """Into the recording (the run file) and onto the events key."""
         self.d.summary.event(self.d.ctrl.now, "collection",
                              {"what": what, "id": c.id, **c.describe(), **data})
 
-    def describe(self) -> dict[str, Any] | None:
+    def describe(self) -> JsonObject | None:
         """For the status snapshot: the collection running, if any."""
         c = self.active
         return c.describe() if c is not None and c.seq is not None else None

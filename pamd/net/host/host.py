@@ -19,13 +19,14 @@ import logging
 import time
 from concurrent.futures import Future
 from dataclasses import dataclass
-from typing import Any
 
 from pamd.commands import Command, named_files, parse_command
 from pamd.commands.model_file import ModelSource, prepare_model_from
 from pamd.commands.offload import Preparer, warm_up
 from pamd.commands.plan_file import read_plan
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
+from pamd.experiment.plan import Plan
 from pamd.net.board import Board
 from pamd.net.host.collections import Collection, Collections
 from pamd.net.host.ports import HostParts
@@ -46,15 +47,15 @@ class PlanArgs:
 
     plan_file: str
     start_step: int
-    plan: Any
+    plan: Plan
 
 
 class _Pending:
     def __init__(self) -> None:
-        self.verdict: dict[str, Any] | None = None
+        self.verdict: JsonObject | None = None
         self.collection: Collection | None = None  # a collect's, until its verdict
 
-    def set(self, verdict: dict[str, Any]) -> None:  # the loop's thread
+    def set(self, verdict: JsonObject) -> None:  # the loop's thread
         self.verdict = verdict
 
 
@@ -76,7 +77,7 @@ class NetHost:
         # collect/model: their files read in a child process (pamd.commands.offload),
         # waited for by a worker thread, taken up by service()
         self.preparer = Preparer()
-        self.preparing: list[tuple[_Request, Future[Any]]] = []
+        self.preparing: list[tuple[_Request, Future[Command]]] = []
         cfg = parts.cfg
         if any(named_files.configured_dir(cfg, k) for k in ("plans_dir", "models_dir")):
             # the file reader started now, not by the first such command (whose
@@ -126,7 +127,7 @@ class NetHost:
         self.write_status()
 
     # -- commands that need this thread ----------------------------------------------
-    def _reply(self, rid: int, verdict: dict[str, Any]) -> None:
+    def _reply(self, rid: int, verdict: JsonObject) -> None:
         blob = json.dumps({"id": rid, "verdict": jsonsafe(verdict)}, default=str).encode()
         cap = self.board.replies.slot_bytes - 4
         if len(blob) > cap:
@@ -232,7 +233,7 @@ class _Request:
 class _ReadPlan:
     plan_file: str
     start_step: int
-    plan: Any
+    plan: Plan
     collection: str | None
 
 

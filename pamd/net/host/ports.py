@@ -7,11 +7,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Protocol
 
 from pamd.commands import Command
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.loop import Loop
 
 
@@ -22,7 +23,7 @@ class RecordingState(Protocol):
     def recording(self) -> bool:
         """False: the io process serves telemetry alone."""
     @property
-    def failure(self) -> dict[str, Any] | None:
+    def failure(self) -> JsonObject | None:
         """Why the recording stopped ({"reason": ...}), or None while it goes on."""
     def files(self) -> list[str]:
         """The recording's files so far."""
@@ -31,7 +32,7 @@ class RecordingState(Protocol):
 class EventLog(Protocol):
     """Where an event is recorded (the daemon's summary sink, upstream of the ring)."""
 
-    def event(self, t_s: float, kind: str, data: dict[str, Any]) -> None: ...
+    def event(self, t_s: float, kind: str, data: JsonObject) -> None: ...
 
 
 class CommandInbox(Protocol):

@@ -8,11 +8,12 @@ import getpass
 import os
 import time
 from collections.abc import Callable
-from typing import Any, Protocol, cast
+from typing import Protocol, cast
 
 from pamd.config.loader import LoadedConfig
 from pamd.control.muscle import MuscleController
 from pamd.controller import RigController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.experiment.sequencer import running_plan
 from pamd.net.host.ports import RecordingState
 from pamd.net.status import (
@@ -59,7 +60,7 @@ class StatusBuilder:
     def __init__(self, ctrl: RigController, loop: StatusLoop,
                  config: Callable[[], LoadedConfig],
                  recording: Callable[[], RecordingStatus | None] = lambda: None,
-                 collection: Callable[[], dict[str, Any] | None] = lambda: None) -> None:
+                 collection: Callable[[], JsonObject | None] = lambda: None) -> None:
         self.ctrl = ctrl
         self.loop = loop
         self.config = config

@@ -43,17 +43,18 @@ import time
 import typing
 from collections.abc import Callable
 
-from pamd.declare.jsonsafe import JsonObject, JsonValue
+from pamd.declare.jsonsafe import JsonObject, JsonValue, jsonsafe
 from pamd.errors import CommandRefused
 from pamd.net.board import Board
 from pamd.net.credential import matches
 from pamd.net.keys import Keys
 from pamd.net.ratelimit import LineLimiter, RateLimiter, kind_of
-from pamd.net.seams import CommandPort, Query, Verdict
 from pamd.net.spec import NetSpec
-from pamd.net.status import jsonsafe
 from pamd.verbs.schema import MAX_TEXT_CHARS, MAX_WHO_CHARS, args_for_record, cap_payload, cap_text
 from pamd.verbs.table import VERBS, parse_command
+
+if typing.TYPE_CHECKING:  # the node's ports: types only, so the io process never loads them
+    from pamd.net.seams import CommandPort, Query, Verdict
 
 ESTOP = "estop"
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread

@@ -34,19 +34,21 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
-from pamd.declare.jsonsafe import JsonObject
+from pamd.declare.jsonsafe import JsonObject, jsonsafe
 from pamd.net import zconf
 from pamd.net.board import Board
 from pamd.net.keys import Keys
-from pamd.net.node.answer import StatusAnswer
+from pamd.net.node.answer import StatusAnswer, TickStats
 from pamd.net.node.intake import CommandIntake, send_reply
-from pamd.net.node.stats import TickStats
-from pamd.net.seams import CommandPort, LoopStart, Query, RunClock
 from pamd.net.spec import NetSpec
-from pamd.net.status import jsonsafe
 from pamd.net.telemetry import StateBatcher
+
+if TYPE_CHECKING:  # types only: the io process loads neither the ports nor (until `open`) zenoh
+    import zenoh
+
+    from pamd.net.seams import CommandPort, LoopStart, Query, RunClock
 
 CLOSE_TIMEOUT_S = 3.0
 SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
@@ -74,9 +76,9 @@ class NetNode:
         self.batcher = StateBatcher(spec.rig_id, spec.muscles, spec.every_ticks)
         self.stats = TickStats()
         self.answer = StatusAnswer(spec, io_spec, self.stats)
-        self.session: Any = None
+        self.session: zenoh.Session | None = None
         self.board: Board | None = None
-        self.token: Any = None
+        self.token: zenoh.LivelinessToken | None = None
         self.lock = port.lock  # one lock for the mailbox, the board and the queries
         self.to_record: deque[tuple[float, str, JsonObject]] = deque()
         self.to_main: deque[bytes] = deque()  # notices for the daemon's main thread
@@ -291,7 +293,7 @@ class NetNode:
 # lock released) returns what is free; the io loop calls it every 2 s. Not
 # glibc: nothing to do.
 
-_libc: Any = None
+_libc: ctypes.CDLL | None = None
 _tried = False
 
 
