@@ -258,6 +258,24 @@ def diagnose() -> None:
         print(f"  held out the {label}: " + ", ".join(f"{val[i - 1]:.5f}" for i in at)
               + f" (lowest {val.min():.5f} at epoch {int(val.argmin()) + 1}); training "
               + ", ".join(f"{trn[i - 1]:.5f}" for i in at))
+    # Each a variant fixed beforehand (from Jang's layout or the diagnosis above), its
+    # check RMSE printed once for the README; none chooses a default.
+    p = PROBLEMS["mackey-glass"]
+    (X, y), (Xc, yc) = p.data()
+    (Xf, yf), (Xv, yv) = tail_split(p.name)
+    o = TrainingOptions(n_mfs=p.n_mfs, epochs=p.epochs)
+    stopped = fit(Xf, yf, o, validation=(Xv, yv))
+    bell = fit(X, y, TrainingOptions(n_mfs=p.n_mfs, epochs=p.epochs, mf_type="bell")).model
+    m = fit(X, y, o).model
+    clamped = int(((Xc < m.input_lo) | (Xc > m.input_hi)).any(axis=1).sum())
+    print("Mackey-Glass check RMSE of variants (comparison only, none is a default):")
+    print(f"  epoch kept on the training data's last fifth in time (epoch "
+          f"{stopped.best_epoch}, fitted on the first four fifths): "
+          f"{rmse(stopped.model.predict, Xc, yc):.5f}")
+    print(f"  Jang's generalized bell MFs ({bell.n_params} parameters): "
+          f"{rmse(bell.predict, Xc, yc):.5f}")
+    print(f"  the defaults without the clamp to the training ranges ({clamped} check points "
+          f"leave them): {rmse(lambda A: m.predict_scaled(m.scale(A)), Xc, yc):.5f}")
 
 
 def checks(opts: TrainingOptions | None = None) -> dict[str, float]:
