@@ -54,3 +54,20 @@ def test_mackey_glass_with_the_library_defaults() -> None:
     assert b.checks()["mackey-glass"] == pytest.approx(0.00253, abs=5e-5)
     one = b.checks(TrainingOptions(width_factor=1.0))["mackey-glass"]
     assert one == pytest.approx(0.00253, abs=5e-5)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1800)  # two Mackey-Glass fits of 500 epochs
+def test_mackey_glass_gap_is_a_forecast_gap() -> None:
+    """Why no training setting reaches 0.0025 (README, bench/anfis_jang.py --diagnose):
+    on the training series' last fifth in time (a forecast, as the check is) the
+    held-out RMSE is lowest early (epoch 43, 0.00202) and rises to 0.00245 by epoch 500
+    while the training RMSE keeps falling; on a random fifth (points between the data
+    fitted) it falls to the end (0.00165). Measured on training data only."""
+    got = bench().held_out_by_epoch()
+    val, trn = got["last fifth in time"]
+    assert int(val.argmin()) + 1 < 100 and val.min() == pytest.approx(0.00202, abs=5e-5)
+    assert val[-1] == pytest.approx(0.00245, abs=5e-5) and val[-1] > 1.15 * val.min()
+    assert trn[-1] < trn[49]  # the fit to the data seen goes on improving
+    val, _ = got["random fifth"]
+    assert val[-1] == pytest.approx(0.00165, abs=5e-5) and val[-1] <= 1.01 * val.min()
