@@ -27,14 +27,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, overload
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
-from pamd.models.contract import Envelope, Variable, describe_common, tick_problems
+from pamd.models.contract import Envelope, Predictor, Variable, describe_common, tick_problems
 from pamd.models.document import field, footer, header, mapping, numbers, read_header
 from pamd.models.fn_qupi_inverse import CompiledInverse, PlayQupi, fit_play_qupi
 from pamd.models.fn_qupi_narmax import Structure, fit_pso, simulate, structure_dict
@@ -44,7 +44,7 @@ from pamd.models.qupi import DEFAULT_OPERATORS, Qupi, _identify
 VERSION = 1
 
 
-class FnQupiModel:
+class FnQupiModel(Predictor):
     """The analytic QUPI inverse (length -> pressure) with the FN-QUPI forward model."""
 
     kind = "fn-qupi"
@@ -79,21 +79,13 @@ class FnQupiModel:
     def forward_n_params(self) -> int:
         return int(self.qupi.weights.size + 2 + self.structure.n_params)
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pressures along a sequence of lengths (rows in time order) by the analytic
         inverse, from a reset at the first row."""
         u = self.length_ref_mm - np.asarray(X, dtype=np.float64).reshape(-1)
         p = self.inverse.inverse(np.clip(u, self.u_lo, self.u_hi))
         held = np.clip(p, self.output.min, self.output.max)
-        clipped = (u < self.u_lo) | (u > self.u_hi) | (held != p)
-        return (held, clipped) if return_clipped else held
+        return held, (u < self.u_lo) | (u > self.u_hi) | (held != p)
 
     def static_displacement(self, p_bar: ArrayLike) -> np.ndarray:
         """The QUPI part alone: displacement (mm) along a pressure sequence."""

@@ -12,7 +12,7 @@ metrics; `standardise` and `sklearn_module` serve the fits that need them.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any, Literal, overload
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -21,6 +21,7 @@ from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import (
     Envelope,
+    Predictor,
     Variable,
     clip_inputs,
     describe_common,
@@ -31,7 +32,7 @@ from pamd.models.document import field, footer, header, numbers, read_header
 VERSION = 1
 
 
-class LearnedModel:
+class LearnedModel(Predictor):
     """An exported scikit-learn regressor on standardised inputs and output (see the
     module doc). A subclass is one kind: its parameters (`PARAMS`, checked by
     `check_params`), its batch output in scaled units (`scaled_output`) and its tick
@@ -88,18 +89,10 @@ class LearnedModel:
     def n_params(self) -> int:
         raise NotImplementedError
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         Xc, clipped = clip_inputs(self.inputs, X)
         S = (Xc - self.x_mean) / self.x_std
-        y = self.y_mean + self.y_std * self.scaled_output(S)
-        return (y, clipped) if return_clipped else y
+        return self.y_mean + self.y_std * self.scaled_output(S), clipped
 
     def compile(self) -> CompiledLearned:
         return CompiledLearned(self)

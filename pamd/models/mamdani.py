@@ -37,7 +37,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any, Literal, overload
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -47,7 +47,14 @@ from pamd.metrics import regression_metrics
 from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
 from pamd.models.anfis.membership import initial_parameters
 from pamd.models.anfis_kind import parse_mfs
-from pamd.models.contract import Envelope, Variable, clip_inputs, describe_common, tick_problems
+from pamd.models.contract import (
+    Envelope,
+    Predictor,
+    Variable,
+    clip_inputs,
+    describe_common,
+    tick_problems,
+)
 from pamd.models.document import field, footer, header, numbers, read_header
 from pamd.models.genetic import GaOptions, minimise
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
@@ -62,7 +69,7 @@ WIDTH_BOUNDS = (0.15, 1.0)
 OUT_WIDTH_BOUNDS = (0.02, 0.5)
 
 
-class MamdaniModel:
+class MamdaniModel(Predictor):
     """A Mamdani fuzzy model (see the module doc). Input MFs in scaled units, output
     MFs in the output's unit; `rules[r]` is the output MF of rule r (grid order)."""
 
@@ -151,17 +158,9 @@ class MamdaniModel:
         return centroid(self.firing(X), self.rules, self.output_sets(), self.grid(),
                         self.out_centres)
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         Xc, clipped = clip_inputs(self.inputs, X)
-        y = self.infer(Xc)
-        return (y, clipped) if return_clipped else y
+        return self.infer(Xc), clipped
 
     def compile(self) -> CompiledMamdani:
         return CompiledMamdani(self)
@@ -242,18 +241,18 @@ class CompiledMamdani:
         mus = [[0.0] * len(f) for f in mfs]
         *outer, last = mus  # the rules: the outer inputs' product, then the last input
         prefix = [0.0] * (model.n_rules // len(last))
-        rules = model.rules.tolist()
+        rules = [int(j) for j in model.rules]
         strengths = [0.0] * len(rules)  # rule strengths, grid order (last input fastest)
         m = model.out_centres.size
         cut = [0.0] * m  # W_j: the strongest rule of each output set
         zeros = [0.0] * m
         sets = model.output_sets()
-        grid = model.grid().tolist()
+        grid = [float(g) for g in model.grid()]
         order = [tuple((int(j), float(sets[j, g])) for j in np.argsort(-sets[:, g],
                                                                       kind="stable")
                        if sets[j, g] > 0.0) for g in range(len(grid))]
         points = list(zip(grid, order, strict=True))
-        fallback = model.out_centres.tolist()
+        fallback = [float(c) for c in model.out_centres]
         inputs = list(zip(bounds, mfs, mus, strict=True))
 
         def evaluate(*x: float) -> float:

@@ -36,14 +36,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, overload
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
-from pamd.models.contract import Envelope, Variable, describe_common, tick_problems
+from pamd.models.contract import Envelope, Predictor, Variable, describe_common, tick_problems
 from pamd.models.document import field, footer, header, mapping, numbers, read_header
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions, option
 
@@ -116,7 +116,7 @@ class Qupi:
         return cls(x0, xm, y0, ym, r1, r2, w, q, c)
 
 
-class QupiModel:
+class QupiModel(Predictor):
     """The inverse QUPI (length -> pressure) with its forward twin (see module doc)."""
 
     kind = "qupi"
@@ -140,14 +140,7 @@ class QupiModel:
     def n_params(self) -> int:
         return int(self.inverse.weights.size + 2)
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pressures along a sequence of lengths (rows in time order), starting from a
         reset at the first row."""
         ln = np.asarray(X, dtype=np.float64).reshape(-1)
@@ -155,8 +148,7 @@ class QupiModel:
         inv = self.inverse
         p = inv.simulate(np.clip(u, inv.x0, inv.xm))
         held = np.clip(p, self.output.min, self.output.max)
-        clipped = (u < inv.x0) | (u > inv.xm) | (held != p)
-        return (held, clipped) if return_clipped else held
+        return held, (u < inv.x0) | (u > inv.xm) | (held != p)
 
     def displacement(self, p_bar: ArrayLike) -> np.ndarray:
         """The forward model: lengths (mm) along a pressure sequence."""

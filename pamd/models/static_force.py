@@ -37,7 +37,7 @@ import math
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal, overload
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -46,6 +46,7 @@ from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import (
     Envelope,
+    Predictor,
     Variable,
     clip_inputs,
     describe_common,
@@ -63,7 +64,7 @@ MIN_GAIN_N_PER_BAR = 1.0
 _SAROSI_C_GRID = np.concatenate([np.linspace(-1.5, -0.01, 50), np.linspace(0.01, 0.5, 15)])
 
 
-class StaticForceModel:
+class StaticForceModel(Predictor):
     """A forward force model F(p, k) = A(k) p + B(k) run as an inverse (see the module
     doc). A subclass is one kind: its coefficients (`COEFFS`), A and B over many
     contractions (`gain_offset`) and at one (`scalar_gain_offset`, for the tick), and
@@ -128,28 +129,19 @@ class StaticForceModel:
         out: np.ndarray = A * np.asarray(p_bar, dtype=np.float64) + B
         return out
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pressure (bar) for rows (force_n, contraction), inputs and output held to their
         identified ranges; `clipped` marks rows where either was held. The forward model:
         force (N) for rows (pressure_bar, contraction), inputs held."""
         Xc, clipped = clip_inputs(self.inputs, X)
         if self.is_forward:
-            F = self.forward_force(Xc[:, 0], Xc[:, 1])
-            return (F, clipped) if return_clipped else F
+            return self.forward_force(Xc[:, 0], Xc[:, 1]), clipped
         A, B = self.gain_offset(self.coefficients, 100.0 * Xc[:, 1])
         with np.errstate(divide="ignore", invalid="ignore"):
             p = (Xc[:, 0] - B) / A
         p = np.where(A > MIN_GAIN_N_PER_BAR, p, self.output.max)
         held = np.clip(p, self.output.min, self.output.max)
-        clipped = clipped | (held != p)
-        return (held, clipped) if return_clipped else held
+        return held, clipped | (held != p)
 
     def compile(self) -> CompiledStaticForce | CompiledForwardForce:
         return CompiledForwardForce(self) if self.is_forward else CompiledStaticForce(self)

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from typing import Any, Literal, overload
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -44,6 +44,7 @@ from pamd.models.anfis.membership import (
 from pamd.models.anfis.serialize import to_dict
 from pamd.models.contract import (
     Envelope,
+    Predictor,
     Variable,
     describe_common,
     tick_problems,
@@ -55,7 +56,7 @@ SCALINGS: tuple[str, ...] = ("minmax", "zscore")
 CONSEQUENTS: tuple[str, ...] = ("constant", "linear")
 
 
-class AnfisModel:
+class AnfisModel(Predictor):
     """A first-order (``consequent="constant"``: zero-order) Sugeno ANFIS with
     grid-partitioned inputs (see module docstring).
 
@@ -282,25 +283,12 @@ class AnfisModel:
         out: np.ndarray = np.einsum("nr,nr->n", wbar, f)
         return out
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(
-        self, X: ArrayLike, *, return_clipped: bool = False
-    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-        """Model output for raw inputs X (n x d, input units) in the output unit.
-
-        Inputs outside the training ranges are clipped to the range, never
-        extrapolated. With ``return_clipped=True`` returns (y, clipped) where `clipped`
-        is a bool array, True for samples that had at least one input clipped. NaN
-        inputs give NaN outputs.
-        """
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Model output for raw inputs X (n x d, input units) in the output unit, and a
+        bool per sample: had it an input clipped. Inputs outside the training ranges
+        are clipped to the range, never extrapolated; NaN inputs give NaN outputs."""
         Xc, clipped = self.clip(X)
-        y = self.predict_scaled(self.scale(Xc))
-        return (y, clipped) if return_clipped else y
+        return self.predict_scaled(self.scale(Xc)), clipped
 
     # -- the model contract (`pamd.models.contract.InverseModel`) ---------------------
 
