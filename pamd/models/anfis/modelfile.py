@@ -18,7 +18,8 @@ Layout (version 1)::
                      "inputs": [{"input": "force_n", "centres": [...],
                                  "widths": [...], ("slopes": [...])}, ...]},
       "rules": [{"mfs": [0, 0], "p": [p_1, ..., p_d], "q": q}, ...],
-      ("consequent": "constant",  with rules [{"mfs": [0, 0], "q": q}, ...] and no "p")
+      ("consequent": "constant",  with rules [{"mfs": [0, 0], "q": q}, ...] and no "p";
+       a ts-fuzzy file writes "p": [0, ...] in every rule, `serialize.ZERO_P_KINDS`)
       "provenance": {...free form: data files, runs, loads, training settings...},
       "metrics": {"train": {...}, "validation": {...}}
     }
