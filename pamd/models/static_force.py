@@ -17,7 +17,9 @@ invertibility (it is never inverted) and cannot drive a muscle (`problems` says 
 
 `PolynomialModel` and `SarosiModel` share their base, `StaticForceModel` (the
 inverse, its checks, the file); each gives its A(k), B(k) and fit. `POLYNOMIAL` and
-`SAROSI` declare the two kinds (`pamd.models.kind`).
+`SAROSI` declare the two kinds (`pamd.models.kind`). The tick's evaluators are in
+`pamd.models.static_force_tick`, the least squares and Sarosi's variable projection in
+`pamd.models.static_force_fit`.
 
 Fitting (`StaticForceModel.fit`): the polynomial is linear in its four coefficients (least
 squares by SVD). Sarosi's model is linear in (a, b, e, f, g, h) once c is fixed
@@ -34,7 +36,6 @@ range (more pressure must give more force there, or the inverse is meaningless).
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -54,14 +55,17 @@ from pamd.models.contract import (
 )
 from pamd.models.document import field, footer, header, numbers, read_header
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions
+from pamd.models.static_force_fit import fit_sarosi, lstsq
+from pamd.models.static_force_tick import (
+    MIN_GAIN_N_PER_BAR,
+    CompiledForwardForce,
+    CompiledStaticForce,
+)
 
 VERSION = 1
 #: The two orientations: inputs -> output (the inverse, and the forward model itself).
 ORIENTATIONS: dict[tuple[str, ...], str] = {("force_n", "contraction"): "pressure_bar",
                                             ("pressure_bar", "contraction"): "force_n"}
-#: The least pressure gain A(k) (N/bar) accepted over the identified range.
-MIN_GAIN_N_PER_BAR = 1.0
-_SAROSI_C_GRID = np.concatenate([np.linspace(-1.5, -0.01, 50), np.linspace(0.01, 0.5, 15)])
 
 
 class StaticForceModel(Predictor):
@@ -272,7 +276,7 @@ class PolynomialModel(StaticForceModel):
     def fit_coefficients(p_bar: np.ndarray, k_pct: np.ndarray,
                          force_n: np.ndarray) -> dict[str, float]:
         D = np.column_stack([p_bar * k_pct ** 2, p_bar * k_pct, p_bar, np.ones_like(p_bar)])
-        theta, _, rank = _lstsq(D, force_n)
+        theta, _, rank = lstsq(D, force_n)
         if rank < 4:
             raise ModelError("polynomial fit: the data do not determine the 4 coefficients "
                              "(need several pressures and contractions)")
@@ -310,7 +314,7 @@ class SarosiModel(StaticForceModel):
     @staticmethod
     def fit_coefficients(p_bar: np.ndarray, k_pct: np.ndarray,
                          force_n: np.ndarray) -> dict[str, float]:
-        return _fit_sarosi(p_bar, k_pct, force_n)
+        return fit_sarosi(p_bar, k_pct, force_n)
 
 
 #: The static force kinds by name.
@@ -330,85 +334,6 @@ def gain_offset(kind: str, co: dict[str, float], k_pct: np.ndarray
     return model_class(kind).gain_offset(co, k_pct)
 
 
-class CompiledStaticForce:
-    """Single-sample closed-form inverse p = (F - B(k)) / A(k) for the tick."""
-
-    __slots__ = ("clipped", "clipped_mask", "input_names", "evaluate")
-
-    def __init__(self, model: StaticForceModel) -> None:
-        self.clipped = False
-        self.clipped_mask = 0
-        self.input_names = tuple(v.name for v in model.inputs)
-        f_lo, f_hi = model.inputs[0].min, model.inputs[0].max
-        x_lo, x_hi = model.inputs[1].min, model.inputs[1].max
-        p_lo, p_hi = model.output.min, model.output.max
-        g_min = MIN_GAIN_N_PER_BAR
-        gain_offset_at = model.scalar_gain_offset()
-
-        def evaluate(force_n: float, contraction: float) -> float:
-            mask = 0
-            if force_n < f_lo:
-                force_n, mask = f_lo, 1
-            elif force_n > f_hi:
-                force_n, mask = f_hi, 1
-            if contraction < x_lo:
-                contraction, mask = x_lo, mask | 2
-            elif contraction > x_hi:
-                contraction, mask = x_hi, mask | 2
-            gain, offset = gain_offset_at(100.0 * contraction)
-            held = False
-            if gain > g_min:
-                p = (force_n - offset) / gain
-            else:
-                p, held = p_hi, True
-            if p > p_hi:
-                p, held = p_hi, True
-            elif p < p_lo:
-                p, held = p_lo, True
-            self.clipped_mask = mask
-            self.clipped = mask != 0 or held
-            return p
-
-        self.evaluate = evaluate
-
-    def reset(self, *x: float) -> None:
-        """Nothing to reset: the model has no state."""
-
-
-class CompiledForwardForce:
-    """Single-sample forward model F = A(k) p + B(k), inputs held to their ranges."""
-
-    __slots__ = ("clipped", "clipped_mask", "input_names", "evaluate")
-
-    def __init__(self, model: StaticForceModel) -> None:
-        self.clipped = False
-        self.clipped_mask = 0
-        self.input_names = tuple(v.name for v in model.inputs)
-        p_lo, p_hi = model.inputs[0].min, model.inputs[0].max
-        x_lo, x_hi = model.inputs[1].min, model.inputs[1].max
-        gain_offset_at = model.scalar_gain_offset()
-
-        def evaluate(pressure_bar: float, contraction: float) -> float:
-            mask = 0
-            if pressure_bar < p_lo:
-                pressure_bar, mask = p_lo, 1
-            elif pressure_bar > p_hi:
-                pressure_bar, mask = p_hi, 1
-            if contraction < x_lo:
-                contraction, mask = x_lo, mask | 2
-            elif contraction > x_hi:
-                contraction, mask = x_hi, mask | 2
-            gain, offset = gain_offset_at(100.0 * contraction)
-            self.clipped_mask = mask
-            self.clipped = mask != 0
-            return gain * pressure_bar + offset
-
-        self.evaluate = evaluate
-
-    def reset(self, *x: float) -> None:
-        """Nothing to reset: the model has no state."""
-
-
 def from_dict(doc: object) -> StaticForceModel:
     """A polynomial or sarosi model from its parsed file (the file's kind picks)."""
     return model_class(field(doc, "kind", str, "")).from_dict(doc)
@@ -416,54 +341,10 @@ def from_dict(doc: object) -> StaticForceModel:
 
 # -- fitting ----------------------------------------------------------------------------------
 
-def _lstsq(D: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, float, int]:
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    theta, _, rank, _ = np.linalg.lstsq(D, F, rcond=None)
-    r = F - D @ theta
-    return theta, float(r @ r), int(rank)
-
-
-def _sarosi_design(p: np.ndarray, k: np.ndarray, c: float) -> np.ndarray:
-    ex = np.exp(c * k)
-    return np.column_stack([p * ex, ex, p * k, k, p, np.ones_like(p)])
-
-
 def fit_coefficients(kind: str, p_bar: np.ndarray, k_pct: np.ndarray,
                      force_n: np.ndarray) -> dict[str, float]:
     """Least-squares coefficients of `kind` for forces at pressures and contractions (%)."""
     return model_class(kind).fit_coefficients(p_bar, k_pct, force_n)
-
-
-def _fit_sarosi(p_bar: np.ndarray, k_pct: np.ndarray, force_n: np.ndarray) -> dict[str, float]:
-    """Sarosi's coefficients by variable projection (see the module doc)."""
-    def sse(c: float) -> float:
-        return _lstsq(_sarosi_design(p_bar, k_pct, c), force_n)[1]
-
-    costs = [sse(float(c)) for c in _SAROSI_C_GRID]
-    i = int(np.argmin(costs))
-    lo = float(_SAROSI_C_GRID[max(i - 1, 0)])
-    hi = float(_SAROSI_C_GRID[min(i + 1, len(_SAROSI_C_GRID) - 1)])
-    golden = (math.sqrt(5.0) - 1.0) / 2.0
-    x1, x2 = hi - golden * (hi - lo), lo + golden * (hi - lo)
-    f1, f2 = sse(x1), sse(x2)
-    for _ in range(60):
-        if f1 < f2:
-            hi, x2, f2 = x2, x1, f1
-            x1 = hi - golden * (hi - lo)
-            f1 = sse(x1)
-        else:
-            lo, x1, f1 = x1, x2, f2
-            x2 = lo + golden * (hi - lo)
-            f2 = sse(x2)
-    c = x1 if f1 < f2 else x2
-    if costs[i] < min(f1, f2):
-        c = float(_SAROSI_C_GRID[i])
-    theta, _, rank = _lstsq(_sarosi_design(p_bar, k_pct, c), force_n)
-    if rank < 6:
-        raise ModelError("sarosi fit: the data do not determine the coefficients (need "
-                         "several pressures and contractions)")
-    a, b, e, f, g, h = theta.tolist()
-    return {"a": a, "b": b, "c": c, "d": 0.0, "e": e, "f": f, "g": g, "h": h}
 
 
 def invertible_range(model: type[StaticForceModel], co: dict[str, float], x: np.ndarray
