@@ -25,13 +25,13 @@ na = nb = 2, nc = 0, 4 hidden neurons by default: --na, --nb, --nc, --neurons).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import Envelope, Predictor, Variable, describe_common, tick_problems
@@ -52,9 +52,9 @@ class FnQupiModel(Predictor):
 
     def __init__(self, qupi: Qupi, structure: Structure, theta: ArrayLike, inverse: PlayQupi,
                  length_ref_mm: float, inputs: Sequence[Variable], output: Variable, *,
-                 derived_inputs: dict[str, Any] | None = None,
-                 provenance: dict[str, Any] | None = None,
-                 metrics: dict[str, Any] | None = None) -> None:
+                 derived_inputs: JsonObject | None = None,
+                 provenance: JsonObject | None = None,
+                 metrics: JsonObject | None = None) -> None:
         if [v.name for v in inputs] != ["length_mm"]:
             raise ModelError("an fn-qupi model takes the one input length_mm")
         self.qupi, self.structure, self.inverse = qupi, structure, inverse
@@ -120,7 +120,7 @@ class FnQupiModel(Predictor):
     def compile(self) -> CompiledFnQupi:
         return CompiledFnQupi(self)
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         st = self.structure
         return {**describe_common(self), "inverse_operators": int(self.inverse.r.size),
                 "qupi_operators": list(self.qupi.weights.shape),
@@ -130,7 +130,7 @@ class FnQupiModel(Predictor):
     def problems(self, envelope: Envelope) -> list[str]:
         return tick_problems(self, envelope, need_force=False)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         params = {"length_ref_mm": self.length_ref_mm, "qupi": self.qupi.as_dict(),
                   "narmax": {**structure_dict(self.structure), "theta": self.theta.tolist()},
                   "inverse": self.inverse.as_dict()}
@@ -230,9 +230,9 @@ class FnQupiOptions(KindOptions):
 def fit_fn_qupi(length_mm: np.ndarray, p_bar: np.ndarray, run: np.ndarray,
                 loads_kg: Sequence[float | None], options: FnQupiOptions | None = None, *,
                 train: np.ndarray | None = None, validation: np.ndarray | None = None,
-                seed: int = 0, derived_inputs: dict[str, Any] | None = None,
-                provenance: dict[str, Any] | None = None,
-                callback: Any = None) -> FnQupiModel:
+                seed: int = 0, derived_inputs: JsonObject | None = None,
+                provenance: JsonObject | None = None,
+                callback: Callable[[int, float], None] | None = None) -> FnQupiModel:
     """Identify FN-QUPI and the analytic inverse from rows in time order (`run` names
     each row's run, `loads_kg[run]` its load); the operators and the network run over
     whole runs, the `train` rows are fitted, scored on those and on `validation`."""

@@ -37,11 +37,11 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
@@ -79,9 +79,9 @@ class MamdaniModel(Predictor):
     def __init__(self, inputs: Sequence[Variable], output: Variable, *,
                  centres: Sequence[ArrayLike], widths: Sequence[ArrayLike],
                  out_centres: ArrayLike, out_widths: ArrayLike, rules: ArrayLike,
-                 derived_inputs: dict[str, Any] | None = None,
-                 provenance: dict[str, Any] | None = None,
-                 metrics: dict[str, Any] | None = None) -> None:
+                 derived_inputs: JsonObject | None = None,
+                 provenance: JsonObject | None = None,
+                 metrics: JsonObject | None = None) -> None:
         self.inputs = list(inputs)
         self.output = output
         self.centres = [np.array(c, dtype=np.float64) for c in centres]
@@ -165,14 +165,14 @@ class MamdaniModel(Predictor):
     def compile(self) -> CompiledMamdani:
         return CompiledMamdani(self)
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {**describe_common(self), "rules": self.n_rules, "mfs": list(self.n_mfs),
                 "output_mfs": int(self.out_centres.size)}
 
     def problems(self, envelope: Envelope) -> list[str]:
         return tick_problems(self, envelope)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         params = {
             "inputs": [{"input": v.name, "centres": c.tolist(), "widths": w.tolist()}
                        for v, c, w in zip(self.inputs, self.centres, self.widths, strict=True)],
@@ -363,8 +363,8 @@ class MamdaniOptions:
 
 def layout(X: np.ndarray, y: np.ndarray, opts: MamdaniOptions, *, input_names: Sequence[str],
            input_units: Sequence[str], output_name: str = "pressure_bar",
-           output_unit: str = "bar", derived_inputs: dict[str, Any] | None = None,
-           provenance: dict[str, Any] | None = None) -> MamdaniModel:
+           output_unit: str = "bar", derived_inputs: JsonObject | None = None,
+           provenance: JsonObject | None = None) -> MamdaniModel:
     """The grid layout over the data's ranges and the rule base read off the data."""
     d = X.shape[1]
     inputs = [Variable(input_names[i], input_units[i], float(X[:, i].min()),
@@ -394,12 +394,12 @@ def _set_vector(model: MamdaniModel, vec: np.ndarray) -> None:
     model.out_widths = np.array(vec[2 * k + m:])
 
 
-def fit_mamdani(X: Any, y: Any, opts: MamdaniOptions, *, input_names: Sequence[str],
+def fit_mamdani(X: ArrayLike, y: ArrayLike, opts: MamdaniOptions, *, input_names: Sequence[str],
                 input_units: Sequence[str], output_name: str = "pressure_bar",
                 output_unit: str = "bar",
                 validation: tuple[np.ndarray, np.ndarray] | None = None,
-                derived_inputs: dict[str, Any] | None = None,
-                provenance: dict[str, Any] | None = None,
+                derived_inputs: JsonObject | None = None,
+                provenance: JsonObject | None = None,
                 callback: Callable[[int, float, float | None], None] | None = None
                 ) -> MamdaniModel:
     """Lay out, read the rule base off the data, tune the MFs (GA/MGA on training MSE)."""
@@ -411,7 +411,7 @@ def fit_mamdani(X: Any, y: Any, opts: MamdaniOptions, *, input_names: Sequence[s
     model = layout(Xa, ya, opts, input_names=input_names, input_units=input_units,
                    output_name=output_name, output_unit=output_unit,
                    derived_inputs=derived_inputs, provenance=provenance)
-    tuning: dict[str, Any] = {"tune": opts.tune, "rule_base": "from the data (weighted mean)"}
+    tuning: JsonObject = {"tune": opts.tune, "rule_base": "from the data (weighted mean)"}
     if opts.tune != "none":
         k, m = sum(model.n_mfs), model.out_centres.size
         ylo, yspan = model.output.min, model.output.max - model.output.min

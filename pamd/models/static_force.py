@@ -38,11 +38,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import (
@@ -80,9 +81,9 @@ class StaticForceModel(Predictor):
     FIT_METHOD = ""
 
     def __init__(self, coefficients: dict[str, float], inputs: Sequence[Variable],
-                 output: Variable, *, derived_inputs: dict[str, Any] | None = None,
-                 provenance: dict[str, Any] | None = None,
-                 metrics: dict[str, Any] | None = None) -> None:
+                 output: Variable, *, derived_inputs: JsonObject | None = None,
+                 provenance: JsonObject | None = None,
+                 metrics: JsonObject | None = None) -> None:
         kind = self.kind
         names = [v.name for v in inputs]
         if tuple(names) not in ORIENTATIONS or ORIENTATIONS[tuple(names)] != output.name:
@@ -150,7 +151,7 @@ class StaticForceModel(Predictor):
     def compile(self) -> CompiledStaticForce | CompiledForwardForce:
         return CompiledForwardForce(self) if self.is_forward else CompiledStaticForce(self)
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {**describe_common(self), "coefficients": dict(self.coefficients)}
 
     def problems(self, envelope: Envelope) -> list[str]:
@@ -168,8 +169,8 @@ class StaticForceModel(Predictor):
         return (f"its force does not rise with pressure over contractions {x.min:.3f}-"
                 f"{x.max:.3f} (least gain {float(A.min()):.3g} N/bar)")
 
-    def to_dict(self) -> dict[str, Any]:
-        params: dict[str, Any] = {"coefficients": dict(self.coefficients),
+    def to_dict(self) -> JsonObject:
+        params: JsonObject = {"coefficients": dict(self.coefficients),
                                   "units": {"p": "bar", "k": "% contraction", "F": "N"}}
         return {**header(self, self.kind, VERSION), "parameters": params, **footer(self)}
 
@@ -192,8 +193,8 @@ class StaticForceModel(Predictor):
     @classmethod
     def fit(cls, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
             validation: tuple[np.ndarray, np.ndarray] | None = None,
-            derived_inputs: dict[str, Any] | None = None,
-            provenance: dict[str, Any] | None = None,
+            derived_inputs: JsonObject | None = None,
+            provenance: JsonObject | None = None,
             input_names: Sequence[str] = ("force_n", "contraction")) -> StaticForceModel:
         """Fit to samples X = (force_n, contraction), y = pressure_bar: the forward model
         F(p, k) by least squares, then checked as an inverse. The model's metrics hold
@@ -232,8 +233,8 @@ class StaticForceModel(Predictor):
     @classmethod
     def _fit_forward(cls, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
                      validation: tuple[np.ndarray, np.ndarray] | None,
-                     derived_inputs: dict[str, Any] | None,
-                     provenance: dict[str, Any] | None) -> StaticForceModel:
+                     derived_inputs: JsonObject | None,
+                     provenance: JsonObject | None) -> StaticForceModel:
         """The forward model F(p, k) from X = (pressure_bar, contraction), y = force_n."""
         p, x = X[:, 0], X[:, 1]
         co = cls.fit_coefficients(p, 100.0 * x, y)
@@ -377,8 +378,8 @@ def invertible_range(model: type[StaticForceModel], co: dict[str, float], x: np.
 
 def fit_static(kind: str, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
                validation: tuple[np.ndarray, np.ndarray] | None = None,
-               derived_inputs: dict[str, Any] | None = None,
-               provenance: dict[str, Any] | None = None) -> StaticForceModel:
+               derived_inputs: JsonObject | None = None,
+               provenance: JsonObject | None = None) -> StaticForceModel:
     """Fit `kind` (`StaticForceModel.fit`)."""
     return model_class(kind).fit(X, y, input_units=input_units, validation=validation,
                                  derived_inputs=derived_inputs, provenance=provenance)

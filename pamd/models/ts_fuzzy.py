@@ -44,10 +44,11 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis import modelfile
@@ -138,12 +139,12 @@ def _check(opts: TsFuzzyOptions) -> None:
                          f"of {', '.join(SCALINGS)}")
 
 
-def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[str],
+def fit_ts_fuzzy(X: ArrayLike, y: ArrayLike, opts: TsFuzzyOptions, *, input_names: Sequence[str],
                  input_units: Sequence[str], output_name: str = "pressure_bar",
                  output_unit: str = "bar",
                  validation: tuple[np.ndarray, np.ndarray] | None = None,
-                 derived_inputs: dict[str, Any] | None = None,
-                 provenance: dict[str, Any] | None = None,
+                 derived_inputs: JsonObject | None = None,
+                 provenance: JsonObject | None = None,
                  callback: Callable[[int, float, float | None], None] | None = None
                  ) -> tuple[AnfisModel, np.ndarray]:
     """Train a ts-fuzzy model; returns (model, best training MSE per epoch/generation)."""

@@ -28,11 +28,11 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.compiled import CompiledAnfis
 from pamd.models.anfis.membership import (
@@ -78,9 +78,9 @@ class AnfisModel(Predictor):
         widths: Sequence[ArrayLike],
         slopes: Sequence[ArrayLike] | None = None,
         consequents: ArrayLike | None = None,
-        derived_inputs: dict[str, Any] | None = None,
-        provenance: dict[str, Any] | None = None,
-        metrics: dict[str, Any] | None = None,
+        derived_inputs: JsonObject | None = None,
+        provenance: JsonObject | None = None,
+        metrics: JsonObject | None = None,
         consequent: str = "linear",
     ) -> None:
         self.inputs: list[Variable] = list(inputs)
@@ -107,9 +107,9 @@ class AnfisModel(Predictor):
         if consequents is None:
             consequents = np.zeros((n_rules, len(self.inputs) + 1))
         self.consequents = np.array(consequents, dtype=np.float64)
-        self.derived_inputs: dict[str, Any] = dict(derived_inputs or {})
-        self.provenance: dict[str, Any] = dict(provenance or {})
-        self.metrics: dict[str, Any] = dict(metrics or {})
+        self.derived_inputs: JsonObject = dict(derived_inputs or {})
+        self.provenance: JsonObject = dict(provenance or {})
+        self.metrics: JsonObject = dict(metrics or {})
         self._validate()
 
     # -- structure ---------------------------------------------------------------------
@@ -300,7 +300,7 @@ class AnfisModel(Predictor):
     kind: str = "anfis"
     stateful: bool = False
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {**describe_common(self), "rules": self.n_rules, "mf_type": self.mf_type,
                 "mfs": list(self.n_mfs), "consequent": self.consequent}
 
@@ -312,7 +312,7 @@ class AnfisModel(Predictor):
                        "velocity)")
         return out
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return to_dict(self)
 
     def compile(self) -> CompiledAnfis:
@@ -370,8 +370,8 @@ def init_model(
     input_units: Sequence[str] | None = None,
     output_name: str = "y",
     output_unit: str = "",
-    derived_inputs: dict[str, Any] | None = None,
-    provenance: dict[str, Any] | None = None,
+    derived_inputs: JsonObject | None = None,
+    provenance: JsonObject | None = None,
     consequent: str = "linear",
 ) -> AnfisModel:
     """An untrained model laid out over the ranges of X (n x d) and y (consequents 0).

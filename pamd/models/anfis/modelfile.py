@@ -39,8 +39,8 @@ import itertools
 import math
 import os
 from pathlib import Path
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.serialize import FORMAT as FORMAT  # re-exported: pamd.models.registry
@@ -180,7 +180,7 @@ def from_dict(doc: object) -> AnfisModel:
     return model
 
 
-def _optional_dict(doc: dict[str, Any], key: str) -> dict[str, Any]:
+def _optional_dict(doc: JsonObject, key: str) -> JsonObject:
     return _field(doc, key, dict, "") if key in doc else {}
 
 

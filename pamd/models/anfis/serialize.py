@@ -4,8 +4,9 @@ an import cycle."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.models.document import floats as _floats
 from pamd.models.document import plain as _plain
 
@@ -22,11 +23,11 @@ VERSION = 1
 ZERO_P_KINDS: frozenset[str] = frozenset({"ts-fuzzy"})
 
 
-def to_dict(model: AnfisModel) -> dict[str, Any]:
+def to_dict(model: AnfisModel) -> JsonObject:
     """The version-1 document for `model` (plain Python values only)."""
     mf_inputs = []
     for i, v in enumerate(model.inputs):
-        entry: dict[str, Any] = {
+        entry: JsonObject = {
             "input": v.name,
             "centres": _floats(model.centres[i]),
             "widths": _floats(model.widths[i]),
@@ -41,7 +42,7 @@ def to_dict(model: AnfisModel) -> dict[str, Any]:
         else {"mfs": list(mfs), "q": float(row[-1])}
         for mfs, row in zip(model.rule_mfs, model.consequents, strict=True)
     ]
-    head: dict[str, Any] = {"format": FORMAT}
+    head: JsonObject = {"format": FORMAT}
     if model.kind != "anfis":  # ANFIS files stay as they were (no kind field)
         head["kind"] = model.kind
     if not linear and model.kind in ZERO_P_KINDS:
