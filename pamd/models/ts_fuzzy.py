@@ -95,14 +95,15 @@ def design(wbar: np.ndarray, Sa: np.ndarray, columns: int) -> np.ndarray:
 
 
 def premise_cost(model: AnfisModel, X: np.ndarray, y: np.ndarray, solver: str = "auto",
-                 ridge: float = 0.0) -> Callable[[np.ndarray], float]:
-    """vec -> training MSE with least-squares consequents (of the model's kind,
-    constant or linear) for that premise vector."""
+                 ridge: float = 0.0, consequent: str = "constant"
+                 ) -> Callable[[np.ndarray], float]:
+    """vec -> training MSE with least-squares consequents (`consequent`: singletons,
+    seed 001's, or first order) for that premise vector of `model`'s layout."""
     Sa = _with_ones(model.scale(X))
     S_mf = Sa[:, model.mf_input]
     rule_index = model.rule_index
     k = sum(model.n_mfs)
-    columns = model.n_consequent_columns
+    columns = 1 if consequent == "constant" else model.n_inputs + 1
 
     def cost(vec: np.ndarray) -> float:
         log_mu = log_membership("gaussian", S_mf, vec[:k], vec[k:])
@@ -184,7 +185,8 @@ def fit_ts_fuzzy(X: ArrayLike, y: ArrayLike, opts: TsFuzzyOptions, *, input_name
         if 0 < opts.fitness_rows < ya.size:  # a fixed seeded subset: the search's cost
             rows = np.sort(np.random.default_rng(opts.seed).choice(ya.size, opts.fitness_rows,
                                                                    replace=False))
-        cost = premise_cost(model, Xa[rows], ya[rows], ridge=opts.ridge)
+        cost = premise_cost(model, Xa[rows], ya[rows], ridge=opts.ridge,
+                            consequent=model.consequent)
         ga: GaResult = minimise(cost, lo, hi, gopts,
                                 start=model.premise_vector() if opts.grid_start else None,
                                 callback=progress_ga)
