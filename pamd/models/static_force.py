@@ -199,26 +199,27 @@ class StaticForceModel(Predictor):
         """Fit to samples X = (force_n, contraction), y = pressure_bar: the forward model
         F(p, k) by least squares, then checked as an inverse. The model's metrics hold
         the inverse's (pressure) and the forward model's (force) fit. With `input_names`
-        (pressure_bar, contraction), y = force_n: the forward model itself."""
+        (pressure_bar, contraction), y = force_n: the forward model itself, on the
+        data's ranges, not checked as an inverse (it is never inverted)."""
         kind = cls.kind
         names = tuple(input_names)
         if X.shape[1] != 2 or names not in ORIENTATIONS:
             raise ModelError(f"a {kind} model takes the inputs force_n, contraction or "
                              "pressure_bar, contraction")
-        if names[0] == "pressure_bar":
-            return cls._fit_forward(X, y, input_units=input_units, validation=validation,
-                                    derived_inputs=derived_inputs, provenance=provenance)
-        F, x = X[:, 0], X[:, 1]
-        co = cls.fit_coefficients(y, 100.0 * x, F)
+        forward = names[0] == "pressure_bar"
+        a, x = X[:, 0], X[:, 1]
+        p, F = (a, y) if forward else (y, a)
+        co = cls.fit_coefficients(p, 100.0 * x, F)
         if not all(math.isfinite(v) for v in co.values()):
             raise ModelError(f"{kind} fit did not converge (non-finite coefficients)")
-        x_lo, x_hi = invertible_range(cls, co, x)
-        inputs = [Variable("force_n", input_units[0], float(F.min()), float(F.max())),
+        x_lo, x_hi = (float(x.min()), float(x.max())) if forward else invertible_range(cls, co, x)
+        inputs = [Variable(names[0], input_units[0], float(a.min()), float(a.max())),
                   Variable("contraction", input_units[1], x_lo, x_hi)]
-        output = Variable("pressure_bar", "bar", float(y.min()), float(y.max()))
+        output = Variable(ORIENTATIONS[names], "N" if forward else "bar", float(y.min()),
+                          float(y.max()))
         prov = {**(provenance or {}), "fit": {"method": cls.FIT_METHOD}}
         model = cls(co, inputs, output, derived_inputs=derived_inputs, provenance=prov)
-        gain = model.gain_problem()
+        gain = "" if forward else model.gain_problem()
         if gain:
             raise ModelError(f"{kind} fit is not invertible: {gain}")
         sets = {"train": (X, y)}
@@ -226,30 +227,9 @@ class StaticForceModel(Predictor):
             sets["validation"] = validation
         for name, (Xs, ys) in sets.items():
             model.metrics[name] = regression_metrics(ys, model.predict(Xs), model.n_params)
-            model.metrics[f"forward_{name}"] = regression_metrics(
-                Xs[:, 0], model.forward_force(ys, Xs[:, 1]), model.n_params)
-        return model
-
-    @classmethod
-    def _fit_forward(cls, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
-                     validation: tuple[np.ndarray, np.ndarray] | None,
-                     derived_inputs: JsonObject | None,
-                     provenance: JsonObject | None) -> StaticForceModel:
-        """The forward model F(p, k) from X = (pressure_bar, contraction), y = force_n."""
-        p, x = X[:, 0], X[:, 1]
-        co = cls.fit_coefficients(p, 100.0 * x, y)
-        if not all(math.isfinite(v) for v in co.values()):
-            raise ModelError(f"{cls.kind} fit did not converge (non-finite coefficients)")
-        inputs = [Variable("pressure_bar", input_units[0], float(p.min()), float(p.max())),
-                  Variable("contraction", input_units[1], float(x.min()), float(x.max()))]
-        output = Variable("force_n", "N", float(y.min()), float(y.max()))
-        prov = {**(provenance or {}), "fit": {"method": cls.FIT_METHOD}}
-        model = cls(co, inputs, output, derived_inputs=derived_inputs, provenance=prov)
-        sets = {"train": (X, y)}
-        if validation is not None:
-            sets["validation"] = validation
-        for name, (Xs, ys) in sets.items():
-            model.metrics[name] = regression_metrics(ys, model.predict(Xs), model.n_params)
+            if not forward:
+                model.metrics[f"forward_{name}"] = regression_metrics(
+                    Xs[:, 0], model.forward_force(ys, Xs[:, 1]), model.n_params)
         return model
 
 
