@@ -6,16 +6,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from pamd.errors import ModelError
 from pamd.models.anfis import modelfile
-from pamd.models.anfis.model import CONSEQUENTS
+from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.plots import write_plots
 from pamd.models.anfis.samples import OUTPUT_UNITS
 from pamd.models.anfis.training import TrainingOptions, fit
+from pamd.models.contract import InverseModel
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
 
 
@@ -87,9 +87,11 @@ def fit_anfis(job: FitJob[AnfisOptions]) -> Fitted:
                   f"{result.selected_on}), {result.seconds:.2f} s")
 
 
-def anfis_plots(prefix: str, model: Any, t_s: np.ndarray, y: np.ndarray, y_hat: np.ndarray,
+def anfis_plots(prefix: str, model: InverseModel, t_s: np.ndarray, y: np.ndarray, y_hat: np.ndarray,
                 clipped: np.ndarray, title: str) -> list[str]:
     """Prediction, error, membership functions, surface (and the training curve)."""
+    if not isinstance(model, AnfisModel):
+        return []  # only the ANFIS structure has membership functions to draw
     return write_plots(prefix, model, t_s, y, y_hat, clipped, title=title)
 
 

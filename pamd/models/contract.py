@@ -9,7 +9,8 @@ An `InverseModel` maps tick signals (`SOURCES`: force, length or contraction,
 velocity) to a pressure. It says what it takes (`inputs`, each with the range it was
 identified on) and gives (`output`, with its range), how many parameters it has,
 what it is (`describe()`), why it cannot drive a muscle (`problems(envelope)`), how it
-evaluates many samples (`predict`, for training reports and `pamd evaluate`) and how
+evaluates many samples (`predict`, for training reports and `pamd evaluate`; a kind
+inherits it from `Predictor` and gives `predict_held`) and how
 it evaluates one (`compile()`, the tick's evaluator). A stateful kind (hysteresis
 operators) says so (`stateful`) and its evaluator's `reset(*x)` sets its memory from
 the measured inputs when a mode starts; stateless kinds ignore `reset`.
@@ -113,6 +114,31 @@ class InverseModel(Protocol):
     def describe(self) -> JsonObject: ...
     def problems(self, envelope: Envelope) -> list[str]: ...
     def to_dict(self) -> JsonObject: ...
+
+
+class Predictor:
+    """The batch `predict` of the contract, once for every kind: a kind gives
+    `predict_held` (its outputs and which rows were held) and inherits `predict`, whose
+    two typed forms (the outputs alone, or with the held rows) live here only."""
+
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Outputs for input rows `X` (n x d, input units; a sequence in time order for
+        a stateful kind) with inputs held to their identified ranges (and the output,
+        where the kind holds it), and a bool per row: was anything held. NaN inputs
+        give NaN outputs and are not counted as held."""
+        raise NotImplementedError
+
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
+                ) -> np.ndarray: ...
+    @overload
+    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
+                ) -> tuple[np.ndarray, np.ndarray]: ...
+    def predict(self, X: ArrayLike, *, return_clipped: bool = False
+                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """`predict_held`'s outputs, with its held rows if `return_clipped`."""
+        y, held = self.predict_held(X)
+        return (y, held) if return_clipped else y
 
 
 def velocity_window(model: InverseModel) -> float | None:

@@ -25,16 +25,16 @@ na = nb = 2, nc = 0, 4 hidden neurons by default: --na, --nb, --nc, --neurons).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
-from pamd.models.contract import Envelope, Variable, describe_common, tick_problems
+from pamd.models.contract import Envelope, Predictor, Variable, describe_common, tick_problems
 from pamd.models.document import field, footer, header, mapping, numbers, read_header
 from pamd.models.fn_qupi_inverse import CompiledInverse, PlayQupi, fit_play_qupi
 from pamd.models.fn_qupi_narmax import Structure, fit_pso, simulate, structure_dict
@@ -44,7 +44,7 @@ from pamd.models.qupi import DEFAULT_OPERATORS, Qupi, _identify
 VERSION = 1
 
 
-class FnQupiModel:
+class FnQupiModel(Predictor):
     """The analytic QUPI inverse (length -> pressure) with the FN-QUPI forward model."""
 
     kind = "fn-qupi"
@@ -52,9 +52,9 @@ class FnQupiModel:
 
     def __init__(self, qupi: Qupi, structure: Structure, theta: ArrayLike, inverse: PlayQupi,
                  length_ref_mm: float, inputs: Sequence[Variable], output: Variable, *,
-                 derived_inputs: dict[str, Any] | None = None,
-                 provenance: dict[str, Any] | None = None,
-                 metrics: dict[str, Any] | None = None) -> None:
+                 derived_inputs: JsonObject | None = None,
+                 provenance: JsonObject | None = None,
+                 metrics: JsonObject | None = None) -> None:
         if [v.name for v in inputs] != ["length_mm"]:
             raise ModelError("an fn-qupi model takes the one input length_mm")
         self.qupi, self.structure, self.inverse = qupi, structure, inverse
@@ -79,21 +79,13 @@ class FnQupiModel:
     def forward_n_params(self) -> int:
         return int(self.qupi.weights.size + 2 + self.structure.n_params)
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pressures along a sequence of lengths (rows in time order) by the analytic
         inverse, from a reset at the first row."""
         u = self.length_ref_mm - np.asarray(X, dtype=np.float64).reshape(-1)
         p = self.inverse.inverse(np.clip(u, self.u_lo, self.u_hi))
         held = np.clip(p, self.output.min, self.output.max)
-        clipped = (u < self.u_lo) | (u > self.u_hi) | (held != p)
-        return (held, clipped) if return_clipped else held
+        return held, (u < self.u_lo) | (u > self.u_hi) | (held != p)
 
     def static_displacement(self, p_bar: ArrayLike) -> np.ndarray:
         """The QUPI part alone: displacement (mm) along a pressure sequence."""
@@ -128,7 +120,7 @@ class FnQupiModel:
     def compile(self) -> CompiledFnQupi:
         return CompiledFnQupi(self)
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         st = self.structure
         return {**describe_common(self), "inverse_operators": int(self.inverse.r.size),
                 "qupi_operators": list(self.qupi.weights.shape),
@@ -138,7 +130,7 @@ class FnQupiModel:
     def problems(self, envelope: Envelope) -> list[str]:
         return tick_problems(self, envelope, need_force=False)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         params = {"length_ref_mm": self.length_ref_mm, "qupi": self.qupi.as_dict(),
                   "narmax": {**structure_dict(self.structure), "theta": self.theta.tolist()},
                   "inverse": self.inverse.as_dict()}
@@ -238,9 +230,9 @@ class FnQupiOptions(KindOptions):
 def fit_fn_qupi(length_mm: np.ndarray, p_bar: np.ndarray, run: np.ndarray,
                 loads_kg: Sequence[float | None], options: FnQupiOptions | None = None, *,
                 train: np.ndarray | None = None, validation: np.ndarray | None = None,
-                seed: int = 0, derived_inputs: dict[str, Any] | None = None,
-                provenance: dict[str, Any] | None = None,
-                callback: Any = None) -> FnQupiModel:
+                seed: int = 0, derived_inputs: JsonObject | None = None,
+                provenance: JsonObject | None = None,
+                callback: Callable[[int, float], None] | None = None) -> FnQupiModel:
     """Identify FN-QUPI and the analytic inverse from rows in time order (`run` names
     each row's run, `loads_kg[run]` its load); the operators and the network run over
     whole runs, the `train` rows are fitted, scored on those and on `validation`."""

@@ -35,10 +35,11 @@ rest, as `pamd.models.qupi` does).
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.document import mapping, numbers
 
@@ -71,7 +72,7 @@ def pi_inverse(q: float, r: np.ndarray, d: np.ndarray) -> tuple[float, np.ndarra
 class PlayQupi:
     """The simplified QUPI y = q phi(p) + sum d_j F_rj[phi(p)] + c and its inverse."""
 
-    def __init__(self, p0: float, pm: float, beta: float, r: Any, d: Any, q: float,
+    def __init__(self, p0: float, pm: float, beta: float, r: ArrayLike, d: ArrayLike, q: float,
                  c: float) -> None:
         self.p0, self.pm, self.beta = float(p0), float(pm), float(beta)
         self.r = np.array(r, dtype=np.float64)
@@ -121,7 +122,7 @@ class PlayQupi:
     def n_params(self) -> int:
         return int(self.d.size + 3)  # d, q, c, beta
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> JsonObject:
         return {"p_range": [self.p0, self.pm], "beta": self.beta, "r": self.r.tolist(),
                 "d": self.d.tolist(), "q": self.q, "c": self.c}
 

@@ -25,9 +25,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+
+from pamd.declare.jsonsafe import JsonObject
 
 INERTIA, ACCEL = 0.7298, 1.49618
 HOLD_LO, HOLD_HI = -1.0, 2.0
@@ -150,6 +151,6 @@ def fit_pso(st: Structure, runs: list[tuple[np.ndarray, np.ndarray, np.ndarray, 
     return pbest[g].copy(), float(pfit[g])
 
 
-def structure_dict(st: Structure) -> dict[str, Any]:
+def structure_dict(st: Structure) -> JsonObject:
     return {"na": st.na, "nb": st.nb, "nc": st.nc, "hidden": st.hidden, "y_lo": st.y_lo,
             "y_span": st.y_span, "m_span": st.m_span}

@@ -31,6 +31,7 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.samples import Samples
 from pamd.models.anfis.splitting import Split
@@ -40,8 +41,10 @@ from pamd.models.contract import InverseModel
 Progress = Callable[[int, float, float | None], None]
 
 
+# Any: the default is the field's (any option type) and the result is a dataclass field
 def option(default: Any, help: str, *, parse: Callable[[str], Any] | None = None,
            minimum: float | None = None, choices: Sequence[str] | None = None,
+           # Any: standing for that value in the class body (dataclasses.field's typing)
            metavar: str | None = None, default_text: str | None = None) -> Any:
     """A training option of a kind (a dataclass field of its `KindOptions`): its default,
     its help line, how `pamd train` parses its flag (default: the default's type), the
@@ -62,8 +65,8 @@ class OptionSpec:
 
     name: str
     help: str
-    parse: Callable[[str], Any]
-    default: Any
+    parse: Callable[[str], object]
+    default: object
     default_text: str
     minimum: float | None
     choices: tuple[str, ...] | None
@@ -108,8 +111,8 @@ class FitJob(Generic[OptionsT]):
     parts: Split
     options: OptionsT
     seed: int = 0
-    derived_inputs: dict[str, Any] | None = None
-    provenance: dict[str, Any] | None = None
+    derived_inputs: JsonObject | None = None
+    provenance: JsonObject | None = None
     callback: Progress | None = None
 
     @property
@@ -156,7 +159,8 @@ class Forward:
 
 #: Extra figures of one model: (prefix, model, time axis, measured, predicted, clipped,
 #: title) -> the files written.
-Plots = Callable[[str, Any, np.ndarray, np.ndarray, np.ndarray, np.ndarray, str], list[str]]
+Plots = Callable[[str, InverseModel, np.ndarray, np.ndarray, np.ndarray, np.ndarray, str],
+                 list[str]]
 
 
 @dataclass(frozen=True)
@@ -166,7 +170,7 @@ class Kind(Generic[OptionsT]):
     name: str
     seed: str
     summary: str
-    from_dict: Callable[[Any], InverseModel]
+    from_dict: Callable[[object], InverseModel]
     default_inputs: tuple[str, ...]
     fit: Callable[[FitJob[OptionsT]], Fitted]
     options: type[OptionsT]
@@ -182,13 +186,15 @@ class Kind(Generic[OptionsT]):
     def option_specs(self) -> tuple[OptionSpec, ...]:
         return option_specs(self.options)
 
-    def make_options(self, given: Mapping[str, Any] | None = None, *,
+    def make_options(self,
+                     # Any: option values by name (parsed flags, a bench's), checked below
+                     given: Mapping[str, Any] | None = None, *,
                      ignore_unknown: bool = False) -> OptionsT:
         """The kind's options: its defaults, with `given` (by option name) checked
         against their bounds and choices. An option this kind does not have is a
         ModelError unless `ignore_unknown` (settings shared across kinds)."""
         specs = {s.name: s for s in self.option_specs}
-        values: dict[str, Any] = {}
+        values: dict[str, object] = {}
         for name, value in (given or {}).items():
             spec = specs.get(name)
             if spec is None:

@@ -27,13 +27,13 @@ Options that several kinds declare share one flag. Seeds: the five papers in
 """
 
 
-def _row(k: Kind[Any]) -> str:
+def _row(k: Kind[Any]) -> str:  # Any: any registered kind
     fwd = f"{k.forward.label} ({k.forward.unit})" if k.forward else "-"
     return (f"| `{k.name}` | {k.seed} | {k.summary} | {', '.join(k.default_inputs)} | "
             f"{', '.join(k.outputs)} | {'yes' if k.adaptable else 'no'} | {fwd} |\n")
 
 
-def _section(k: Kind[Any]) -> str:
+def _section(k: Kind[Any]) -> str:  # Any: any registered kind
     out = f"\n## `{k.name}` (seed {k.seed})\n\n{k.summary}.\n\n"
     out += f"Default inputs: {', '.join(k.default_inputs)}. "
     out += ("Online adaptation can update it. " if k.adaptable else

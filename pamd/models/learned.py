@@ -32,10 +32,11 @@ import math
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models import svr_kernels
@@ -82,7 +83,7 @@ class MlpModel(LearnedModel):
         z: np.ndarray = np.tanh(S @ p["w1"].T + p["b1"]) @ p["w2"] + p["b2"]
         return z
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {**describe_common(self), "hidden": int(self.params["w1"].shape[0])}
 
     def what(self) -> str:
@@ -116,8 +117,8 @@ class MlpModel(LearnedModel):
     def fit(cls, X: np.ndarray, y: np.ndarray, *, input_names: Sequence[str],
             input_units: Sequence[str], hidden: int = 8, max_iter: int = 500, seed: int = 0,
             validation: tuple[np.ndarray, np.ndarray] | None = None,
-            derived_inputs: dict[str, Any] | None = None,
-            provenance: dict[str, Any] | None = None, solver: str = "br",
+            derived_inputs: JsonObject | None = None,
+            provenance: JsonObject | None = None, solver: str = "br",
             output: tuple[str, str] = ("pressure_bar", "bar"),
             callback: Callable[[int, float, float | None], None] | None = None
             ) -> LearnedModel:
@@ -131,7 +132,7 @@ class MlpModel(LearnedModel):
             net = fit_network((X - x_mid) / x_half, (y - y_mid) / y_half, hidden=hidden,
                               solver=solver, epochs=max_iter, seed=seed, validation=val,
                               callback=callback)
-            params: dict[str, Any] = {"w1": net.w1, "b1": net.b1, "w2": net.w2, "b2": net.b2}
+            params: dict[str, ArrayLike] = {"w1": net.w1, "b1": net.b1, "w2": net.w2, "b2": net.b2}
             how = {"hidden": hidden, "activation": "tanh", "solver": solver,
                    "scaling": "minmax to [-1, 1]", "max_epochs": max_iter,
                    "epochs": net.epochs, "stop": net.stop}
@@ -180,7 +181,7 @@ class SvrModel(LearnedModel):
     def n_params(self) -> int:
         return int(self.params["alpha"].size + 2)  # dual coefficients, intercept, gamma
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         doc = super().to_dict()
         if self.kernel != "gaussian":  # a Gaussian file reads as version 1 wrote it
             doc["parameters"] = {"kernel": self.kernel, **doc["parameters"]}
@@ -206,7 +207,7 @@ class SvrModel(LearnedModel):
         z: np.ndarray = K @ p["alpha"] + p["b"]
         return z
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {**describe_common(self), "kernel": self.kernel,
                 "support_vectors": self.n_support_vectors}
 
@@ -248,8 +249,8 @@ class SvrModel(LearnedModel):
             input_units: Sequence[str], svr_c: float | None = None,
             svr_epsilon: float | None = None, kernel: str = "medium-gaussian",
             seed: int = 0, validation: tuple[np.ndarray, np.ndarray] | None = None,
-            derived_inputs: dict[str, Any] | None = None,
-            provenance: dict[str, Any] | None = None,
+            derived_inputs: JsonObject | None = None,
+            provenance: JsonObject | None = None,
             output: tuple[str, str] = ("pressure_bar", "bar")) -> LearnedModel:
         """Fit an `SVR` with the `kernel` preset on (X, y) (at most `SVR_MAX_SAMPLES`
         rows, seeded) and export it. `svr_c` (box constraint) and `svr_epsilon` are in
@@ -329,7 +330,7 @@ class SvrOptions(KindOptions):
                                        "MATLAB fitrsvm's")
 
 
-def _target(job: FitJob[Any]) -> tuple[str, str]:
+def _target(job: FitJob[MlpOptions] | FitJob[SvrOptions]) -> tuple[str, str]:
     return job.samples.output, job.samples.output_unit
 
 

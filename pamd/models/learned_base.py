@@ -11,16 +11,18 @@ metrics; `standardise` and `sklearn_module` serve the fits that need them.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any, Literal, overload
+from collections.abc import Callable, Mapping, Sequence
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import (
     Envelope,
+    Predictor,
     Variable,
     clip_inputs,
     describe_common,
@@ -31,7 +33,7 @@ from pamd.models.document import field, footer, header, numbers, read_header
 VERSION = 1
 
 
-class LearnedModel:
+class LearnedModel(Predictor):
     """An exported scikit-learn regressor on standardised inputs and output (see the
     module doc). A subclass is one kind: its parameters (`PARAMS`, checked by
     `check_params`), its batch output in scaled units (`scaled_output`) and its tick
@@ -41,11 +43,11 @@ class LearnedModel:
     kind: str = ""
     PARAMS: tuple[str, ...] = ()
 
-    def __init__(self, params: dict[str, Any], inputs: Sequence[Variable],
+    def __init__(self, params: Mapping[str, ArrayLike], inputs: Sequence[Variable],
                  output: Variable, *, x_mean: ArrayLike, x_std: ArrayLike, y_mean: float,
-                 y_std: float, derived_inputs: dict[str, Any] | None = None,
-                 provenance: dict[str, Any] | None = None,
-                 metrics: dict[str, Any] | None = None) -> None:
+                 y_std: float, derived_inputs: JsonObject | None = None,
+                 provenance: JsonObject | None = None,
+                 metrics: JsonObject | None = None) -> None:
         kind = self.kind
         self.inputs = list(inputs)
         self.output = output
@@ -88,29 +90,21 @@ class LearnedModel:
     def n_params(self) -> int:
         raise NotImplementedError
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         Xc, clipped = clip_inputs(self.inputs, X)
         S = (Xc - self.x_mean) / self.x_std
-        y = self.y_mean + self.y_std * self.scaled_output(S)
-        return (y, clipped) if return_clipped else y
+        return self.y_mean + self.y_std * self.scaled_output(S), clipped
 
     def compile(self) -> CompiledLearned:
         return CompiledLearned(self)
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return describe_common(self)
 
     def problems(self, envelope: Envelope) -> list[str]:
         return tick_problems(self, envelope)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         p = {k: (v.tolist() if v.ndim else float(v)) for k, v in self.params.items()}
         params = {"scaling": {"x_mean": self.x_mean.tolist(), "x_std": self.x_std.tolist(),
                               "y_mean": self.y_mean, "y_std": self.y_std}, **p}
@@ -125,7 +119,7 @@ class LearnedModel:
         inputs, output, derived, params, prov, metrics = read_header(doc, cls.kind, VERSION)
         d = len(inputs)
         sc = field(params, "scaling", dict, "parameters")
-        p: dict[str, Any] = {}
+        p: dict[str, ArrayLike] = {}
         for n in cls.PARAMS:
             v = params.get(n)
             where = f"parameters.{n}"
@@ -133,10 +127,10 @@ class LearnedModel:
                 p[n] = [numbers({"v": row}, "v", where, d) for row in v]
             elif isinstance(v, list):
                 p[n] = numbers({"v": v}, "v", where)
+            elif v is None:
+                raise ModelError(f"missing field {where}")
             else:
-                p[n] = numbers({"v": [v]}, "v", where, 1)[0] if v is not None else None
-                if p[n] is None:
-                    raise ModelError(f"missing field {where}")
+                p[n] = numbers({"v": [v]}, "v", where, 1)[0]
         return cls(p, inputs, output, x_mean=numbers(sc, "x_mean", "scaling", d),
                    x_std=numbers(sc, "x_std", "scaling", d),
                    y_mean=numbers({"v": [sc.get("y_mean")]}, "v", "scaling.y_mean")[0],
@@ -175,7 +169,7 @@ class CompiledLearned:
         """Nothing to reset: the model has no state."""
 
 
-def sklearn_module() -> Any:
+def sklearn_module() -> ModuleType:
     try:
         import sklearn.exceptions
         import sklearn.neural_network
@@ -183,7 +177,8 @@ def sklearn_module() -> Any:
     except ImportError:
         raise ModelError("the mlp and svr kinds are trained with scikit-learn: "
                          "pip install 'pamd[ml]' (or scikit-learn)") from None
-    return sklearn
+    module: ModuleType = sklearn
+    return module
 
 
 Scaling = tuple[np.ndarray, np.ndarray, float, float]
@@ -198,12 +193,12 @@ def standardise(X: np.ndarray, y: np.ndarray) -> tuple[Scaling, np.ndarray, np.n
     return (x_mean, x_std, y_mean, y_std), (X - x_mean) / x_std, (y - y_mean) / y_std
 
 
-def export(cls: type[LearnedModel], params: dict[str, Any], how: dict[str, Any],
+def export(cls: type[LearnedModel], params: Mapping[str, ArrayLike], how: JsonObject,
             scaling: Scaling, X: np.ndarray, y: np.ndarray, *, input_names: Sequence[str],
             input_units: Sequence[str], seed: int,
             validation: tuple[np.ndarray, np.ndarray] | None,
-            derived_inputs: dict[str, Any] | None,
-            provenance: dict[str, Any] | None, output: tuple[str, str] = ("pressure_bar", "bar"),
+            derived_inputs: JsonObject | None,
+            provenance: JsonObject | None, output: tuple[str, str] = ("pressure_bar", "bar"),
             kernel: str | None = None) -> LearnedModel:
     """The fitted parameters as a model of `cls` (output: the target's name and unit),
     with its metrics."""

@@ -36,14 +36,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
-from pamd.models.contract import Envelope, Variable, describe_common, tick_problems
+from pamd.models.contract import Envelope, Predictor, Variable, describe_common, tick_problems
 from pamd.models.document import field, footer, header, mapping, numbers, read_header
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions, option
 
@@ -96,7 +96,7 @@ class Qupi:
     def simulate(self, x: np.ndarray) -> np.ndarray:
         return self.operators(x) @ self.weights.ravel() + self.q * np.asarray(x) + self.c
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> JsonObject:
         return {"x_range": [self.x0, self.xm], "y_range": [self.y0, self.ym],
                 "r1": self.r1.tolist(), "r2": self.r2.tolist(),
                 "weights": self.weights.tolist(), "q": self.q, "c": self.c}
@@ -116,7 +116,7 @@ class Qupi:
         return cls(x0, xm, y0, ym, r1, r2, w, q, c)
 
 
-class QupiModel:
+class QupiModel(Predictor):
     """The inverse QUPI (length -> pressure) with its forward twin (see module doc)."""
 
     kind = "qupi"
@@ -124,9 +124,9 @@ class QupiModel:
 
     def __init__(self, inverse: Qupi, forward: Qupi, length_ref_mm: float,
                  inputs: Sequence[Variable], output: Variable, *,
-                 derived_inputs: dict[str, Any] | None = None,
-                 provenance: dict[str, Any] | None = None,
-                 metrics: dict[str, Any] | None = None) -> None:
+                 derived_inputs: JsonObject | None = None,
+                 provenance: JsonObject | None = None,
+                 metrics: JsonObject | None = None) -> None:
         if [v.name for v in inputs] != ["length_mm"]:
             raise ModelError("a qupi model takes the one input length_mm")
         self.inverse, self.forward = inverse, forward
@@ -140,14 +140,7 @@ class QupiModel:
     def n_params(self) -> int:
         return int(self.inverse.weights.size + 2)
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pressures along a sequence of lengths (rows in time order), starting from a
         reset at the first row."""
         ln = np.asarray(X, dtype=np.float64).reshape(-1)
@@ -155,8 +148,7 @@ class QupiModel:
         inv = self.inverse
         p = inv.simulate(np.clip(u, inv.x0, inv.xm))
         held = np.clip(p, self.output.min, self.output.max)
-        clipped = (u < inv.x0) | (u > inv.xm) | (held != p)
-        return (held, clipped) if return_clipped else held
+        return held, (u < inv.x0) | (u > inv.xm) | (held != p)
 
     def displacement(self, p_bar: ArrayLike) -> np.ndarray:
         """The forward model: lengths (mm) along a pressure sequence."""
@@ -166,14 +158,14 @@ class QupiModel:
     def compile(self) -> CompiledQupi:
         return CompiledQupi(self)
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {**describe_common(self), "operators": list(self.inverse.weights.shape),
                 "load_kg": (self.provenance.get("data") or {}).get("loads_kg")}
 
     def problems(self, envelope: Envelope) -> list[str]:
         return tick_problems(self, envelope, need_force=False)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         params = {"length_ref_mm": self.length_ref_mm, "inverse": self.inverse.as_dict(),
                   "forward": self.forward.as_dict()}
         return {**header(self, self.kind, VERSION), "parameters": params, **footer(self)}
@@ -293,8 +285,8 @@ def _identify(x_runs: list[np.ndarray], y_runs: list[np.ndarray],
 def fit_qupi(length_mm: np.ndarray, p_bar: np.ndarray, run: np.ndarray, *,
              n_operators: int = DEFAULT_OPERATORS, train: np.ndarray | None = None,
              validation: np.ndarray | None = None,
-             derived_inputs: dict[str, Any] | None = None,
-             provenance: dict[str, Any] | None = None) -> QupiModel:
+             derived_inputs: JsonObject | None = None,
+             provenance: JsonObject | None = None) -> QupiModel:
     """Identify the inverse and forward QUPI models from rows in time order, `run`
     naming each row's run. The operators run over every row of each run from its start
     (a hysteresis model needs the whole history); the weights are fitted on the rows

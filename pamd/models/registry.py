@@ -23,6 +23,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ModelError
 from pamd.models import anfis_kind, fn_qupi, learned, qupi, static_force, ts_fuzzy
 from pamd.models.anfis import modelfile as anfis_file
@@ -35,10 +36,11 @@ from pamd.models.mamdani import KIND as MAMDANI
 MAX_FILE_BYTES = 8 * 1024 * 1024
 
 #: The kinds by name, in the order help lists them (`register`).
+# Any: kinds of different option types in one table (a `Kind` is invariant in them)
 KINDS: dict[str, Kind[Any]] = {}
 
 
-def register(kind: Kind[Any]) -> Kind[Any]:
+def register(kind: Kind[Any]) -> Kind[Any]:  # Any: as KINDS
     """Make `kind` known to every user of model kinds (files, train, evaluate, help)."""
     if kind.name in KINDS and KINDS[kind.name] is not kind:
         raise ModelError(f"model kind {kind.name!r} is declared twice")
@@ -46,7 +48,7 @@ def register(kind: Kind[Any]) -> Kind[Any]:
     return kind
 
 
-def declared(name: str) -> Kind[Any]:
+def declared(name: str) -> Kind[Any]:  # Any: as KINDS
     """The declaration of kind `name`; ModelError lists the known kinds."""
     if name not in KINDS:
         raise ModelError(f"kind {name!r} is not known to this pamd (known: "
@@ -93,7 +95,7 @@ def model_from_dict(doc: object, source: str = "<document>") -> InverseModel:
         raise ModelError(f"model file {source}: {exc}") from exc
 
 
-def load_model(source: str | os.PathLike[str] | bytes | Mapping[str, Any], *,
+def load_model(source: str | os.PathLike[str] | bytes | Mapping[str, JsonValue], *,
                name: str | None = None) -> InverseModel:
     """THE way to get a model: from a file path, the file's bytes (read by the caller,
     e.g. a remote command's checked file), or its parsed JSON. `name` labels errors

@@ -17,7 +17,9 @@ invertibility (it is never inverted) and cannot drive a muscle (`problems` says 
 
 `PolynomialModel` and `SarosiModel` share their base, `StaticForceModel` (the
 inverse, its checks, the file); each gives its A(k), B(k) and fit. `POLYNOMIAL` and
-`SAROSI` declare the two kinds (`pamd.models.kind`).
+`SAROSI` declare the two kinds (`pamd.models.kind`). The tick's evaluators are in
+`pamd.models.static_force_tick`, the least squares and Sarosi's variable projection in
+`pamd.models.static_force_fit`.
 
 Fitting (`StaticForceModel.fit`): the polynomial is linear in its four coefficients (least
 squares by SVD). Sarosi's model is linear in (a, b, e, f, g, h) once c is fixed
@@ -34,18 +36,19 @@ range (more pressure must give more force there, or the inverse is meaningless).
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal, overload
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import (
     Envelope,
+    Predictor,
     Variable,
     clip_inputs,
     describe_common,
@@ -53,17 +56,20 @@ from pamd.models.contract import (
 )
 from pamd.models.document import field, footer, header, numbers, read_header
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions
+from pamd.models.static_force_fit import fit_sarosi, lstsq
+from pamd.models.static_force_tick import (
+    MIN_GAIN_N_PER_BAR,
+    CompiledForwardForce,
+    CompiledStaticForce,
+)
 
 VERSION = 1
 #: The two orientations: inputs -> output (the inverse, and the forward model itself).
 ORIENTATIONS: dict[tuple[str, ...], str] = {("force_n", "contraction"): "pressure_bar",
                                             ("pressure_bar", "contraction"): "force_n"}
-#: The least pressure gain A(k) (N/bar) accepted over the identified range.
-MIN_GAIN_N_PER_BAR = 1.0
-_SAROSI_C_GRID = np.concatenate([np.linspace(-1.5, -0.01, 50), np.linspace(0.01, 0.5, 15)])
 
 
-class StaticForceModel:
+class StaticForceModel(Predictor):
     """A forward force model F(p, k) = A(k) p + B(k) run as an inverse (see the module
     doc). A subclass is one kind: its coefficients (`COEFFS`), A and B over many
     contractions (`gain_offset`) and at one (`scalar_gain_offset`, for the tick), and
@@ -75,9 +81,9 @@ class StaticForceModel:
     FIT_METHOD = ""
 
     def __init__(self, coefficients: dict[str, float], inputs: Sequence[Variable],
-                 output: Variable, *, derived_inputs: dict[str, Any] | None = None,
-                 provenance: dict[str, Any] | None = None,
-                 metrics: dict[str, Any] | None = None) -> None:
+                 output: Variable, *, derived_inputs: JsonObject | None = None,
+                 provenance: JsonObject | None = None,
+                 metrics: JsonObject | None = None) -> None:
         kind = self.kind
         names = [v.name for v in inputs]
         if tuple(names) not in ORIENTATIONS or ORIENTATIONS[tuple(names)] != output.name:
@@ -128,33 +134,24 @@ class StaticForceModel:
         out: np.ndarray = A * np.asarray(p_bar, dtype=np.float64) + B
         return out
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(self, X: ArrayLike, *, return_clipped: bool = False
-                ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pressure (bar) for rows (force_n, contraction), inputs and output held to their
         identified ranges; `clipped` marks rows where either was held. The forward model:
         force (N) for rows (pressure_bar, contraction), inputs held."""
         Xc, clipped = clip_inputs(self.inputs, X)
         if self.is_forward:
-            F = self.forward_force(Xc[:, 0], Xc[:, 1])
-            return (F, clipped) if return_clipped else F
+            return self.forward_force(Xc[:, 0], Xc[:, 1]), clipped
         A, B = self.gain_offset(self.coefficients, 100.0 * Xc[:, 1])
         with np.errstate(divide="ignore", invalid="ignore"):
             p = (Xc[:, 0] - B) / A
         p = np.where(A > MIN_GAIN_N_PER_BAR, p, self.output.max)
         held = np.clip(p, self.output.min, self.output.max)
-        clipped = clipped | (held != p)
-        return (held, clipped) if return_clipped else held
+        return held, clipped | (held != p)
 
     def compile(self) -> CompiledStaticForce | CompiledForwardForce:
         return CompiledForwardForce(self) if self.is_forward else CompiledStaticForce(self)
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {**describe_common(self), "coefficients": dict(self.coefficients)}
 
     def problems(self, envelope: Envelope) -> list[str]:
@@ -172,8 +169,8 @@ class StaticForceModel:
         return (f"its force does not rise with pressure over contractions {x.min:.3f}-"
                 f"{x.max:.3f} (least gain {float(A.min()):.3g} N/bar)")
 
-    def to_dict(self) -> dict[str, Any]:
-        params: dict[str, Any] = {"coefficients": dict(self.coefficients),
+    def to_dict(self) -> JsonObject:
+        params: JsonObject = {"coefficients": dict(self.coefficients),
                                   "units": {"p": "bar", "k": "% contraction", "F": "N"}}
         return {**header(self, self.kind, VERSION), "parameters": params, **footer(self)}
 
@@ -196,32 +193,33 @@ class StaticForceModel:
     @classmethod
     def fit(cls, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
             validation: tuple[np.ndarray, np.ndarray] | None = None,
-            derived_inputs: dict[str, Any] | None = None,
-            provenance: dict[str, Any] | None = None,
+            derived_inputs: JsonObject | None = None,
+            provenance: JsonObject | None = None,
             input_names: Sequence[str] = ("force_n", "contraction")) -> StaticForceModel:
         """Fit to samples X = (force_n, contraction), y = pressure_bar: the forward model
         F(p, k) by least squares, then checked as an inverse. The model's metrics hold
         the inverse's (pressure) and the forward model's (force) fit. With `input_names`
-        (pressure_bar, contraction), y = force_n: the forward model itself."""
+        (pressure_bar, contraction), y = force_n: the forward model itself, on the
+        data's ranges, not checked as an inverse (it is never inverted)."""
         kind = cls.kind
         names = tuple(input_names)
         if X.shape[1] != 2 or names not in ORIENTATIONS:
             raise ModelError(f"a {kind} model takes the inputs force_n, contraction or "
                              "pressure_bar, contraction")
-        if names[0] == "pressure_bar":
-            return cls._fit_forward(X, y, input_units=input_units, validation=validation,
-                                    derived_inputs=derived_inputs, provenance=provenance)
-        F, x = X[:, 0], X[:, 1]
-        co = cls.fit_coefficients(y, 100.0 * x, F)
+        forward = names[0] == "pressure_bar"
+        a, x = X[:, 0], X[:, 1]
+        p, F = (a, y) if forward else (y, a)
+        co = cls.fit_coefficients(p, 100.0 * x, F)
         if not all(math.isfinite(v) for v in co.values()):
             raise ModelError(f"{kind} fit did not converge (non-finite coefficients)")
-        x_lo, x_hi = invertible_range(cls, co, x)
-        inputs = [Variable("force_n", input_units[0], float(F.min()), float(F.max())),
+        x_lo, x_hi = (float(x.min()), float(x.max())) if forward else invertible_range(cls, co, x)
+        inputs = [Variable(names[0], input_units[0], float(a.min()), float(a.max())),
                   Variable("contraction", input_units[1], x_lo, x_hi)]
-        output = Variable("pressure_bar", "bar", float(y.min()), float(y.max()))
+        output = Variable(ORIENTATIONS[names], "N" if forward else "bar", float(y.min()),
+                          float(y.max()))
         prov = {**(provenance or {}), "fit": {"method": cls.FIT_METHOD}}
         model = cls(co, inputs, output, derived_inputs=derived_inputs, provenance=prov)
-        gain = model.gain_problem()
+        gain = "" if forward else model.gain_problem()
         if gain:
             raise ModelError(f"{kind} fit is not invertible: {gain}")
         sets = {"train": (X, y)}
@@ -229,30 +227,9 @@ class StaticForceModel:
             sets["validation"] = validation
         for name, (Xs, ys) in sets.items():
             model.metrics[name] = regression_metrics(ys, model.predict(Xs), model.n_params)
-            model.metrics[f"forward_{name}"] = regression_metrics(
-                Xs[:, 0], model.forward_force(ys, Xs[:, 1]), model.n_params)
-        return model
-
-    @classmethod
-    def _fit_forward(cls, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
-                     validation: tuple[np.ndarray, np.ndarray] | None,
-                     derived_inputs: dict[str, Any] | None,
-                     provenance: dict[str, Any] | None) -> StaticForceModel:
-        """The forward model F(p, k) from X = (pressure_bar, contraction), y = force_n."""
-        p, x = X[:, 0], X[:, 1]
-        co = cls.fit_coefficients(p, 100.0 * x, y)
-        if not all(math.isfinite(v) for v in co.values()):
-            raise ModelError(f"{cls.kind} fit did not converge (non-finite coefficients)")
-        inputs = [Variable("pressure_bar", input_units[0], float(p.min()), float(p.max())),
-                  Variable("contraction", input_units[1], float(x.min()), float(x.max()))]
-        output = Variable("force_n", "N", float(y.min()), float(y.max()))
-        prov = {**(provenance or {}), "fit": {"method": cls.FIT_METHOD}}
-        model = cls(co, inputs, output, derived_inputs=derived_inputs, provenance=prov)
-        sets = {"train": (X, y)}
-        if validation is not None:
-            sets["validation"] = validation
-        for name, (Xs, ys) in sets.items():
-            model.metrics[name] = regression_metrics(ys, model.predict(Xs), model.n_params)
+            if not forward:
+                model.metrics[f"forward_{name}"] = regression_metrics(
+                    Xs[:, 0], model.forward_force(ys, Xs[:, 1]), model.n_params)
         return model
 
 
@@ -280,7 +257,7 @@ class PolynomialModel(StaticForceModel):
     def fit_coefficients(p_bar: np.ndarray, k_pct: np.ndarray,
                          force_n: np.ndarray) -> dict[str, float]:
         D = np.column_stack([p_bar * k_pct ** 2, p_bar * k_pct, p_bar, np.ones_like(p_bar)])
-        theta, _, rank = _lstsq(D, force_n)
+        theta, _, rank = lstsq(D, force_n)
         if rank < 4:
             raise ModelError("polynomial fit: the data do not determine the 4 coefficients "
                              "(need several pressures and contractions)")
@@ -318,7 +295,7 @@ class SarosiModel(StaticForceModel):
     @staticmethod
     def fit_coefficients(p_bar: np.ndarray, k_pct: np.ndarray,
                          force_n: np.ndarray) -> dict[str, float]:
-        return _fit_sarosi(p_bar, k_pct, force_n)
+        return fit_sarosi(p_bar, k_pct, force_n)
 
 
 #: The static force kinds by name.
@@ -338,85 +315,6 @@ def gain_offset(kind: str, co: dict[str, float], k_pct: np.ndarray
     return model_class(kind).gain_offset(co, k_pct)
 
 
-class CompiledStaticForce:
-    """Single-sample closed-form inverse p = (F - B(k)) / A(k) for the tick."""
-
-    __slots__ = ("clipped", "clipped_mask", "input_names", "evaluate")
-
-    def __init__(self, model: StaticForceModel) -> None:
-        self.clipped = False
-        self.clipped_mask = 0
-        self.input_names = tuple(v.name for v in model.inputs)
-        f_lo, f_hi = model.inputs[0].min, model.inputs[0].max
-        x_lo, x_hi = model.inputs[1].min, model.inputs[1].max
-        p_lo, p_hi = model.output.min, model.output.max
-        g_min = MIN_GAIN_N_PER_BAR
-        gain_offset_at = model.scalar_gain_offset()
-
-        def evaluate(force_n: float, contraction: float) -> float:
-            mask = 0
-            if force_n < f_lo:
-                force_n, mask = f_lo, 1
-            elif force_n > f_hi:
-                force_n, mask = f_hi, 1
-            if contraction < x_lo:
-                contraction, mask = x_lo, mask | 2
-            elif contraction > x_hi:
-                contraction, mask = x_hi, mask | 2
-            gain, offset = gain_offset_at(100.0 * contraction)
-            held = False
-            if gain > g_min:
-                p = (force_n - offset) / gain
-            else:
-                p, held = p_hi, True
-            if p > p_hi:
-                p, held = p_hi, True
-            elif p < p_lo:
-                p, held = p_lo, True
-            self.clipped_mask = mask
-            self.clipped = mask != 0 or held
-            return p
-
-        self.evaluate = evaluate
-
-    def reset(self, *x: float) -> None:
-        """Nothing to reset: the model has no state."""
-
-
-class CompiledForwardForce:
-    """Single-sample forward model F = A(k) p + B(k), inputs held to their ranges."""
-
-    __slots__ = ("clipped", "clipped_mask", "input_names", "evaluate")
-
-    def __init__(self, model: StaticForceModel) -> None:
-        self.clipped = False
-        self.clipped_mask = 0
-        self.input_names = tuple(v.name for v in model.inputs)
-        p_lo, p_hi = model.inputs[0].min, model.inputs[0].max
-        x_lo, x_hi = model.inputs[1].min, model.inputs[1].max
-        gain_offset_at = model.scalar_gain_offset()
-
-        def evaluate(pressure_bar: float, contraction: float) -> float:
-            mask = 0
-            if pressure_bar < p_lo:
-                pressure_bar, mask = p_lo, 1
-            elif pressure_bar > p_hi:
-                pressure_bar, mask = p_hi, 1
-            if contraction < x_lo:
-                contraction, mask = x_lo, mask | 2
-            elif contraction > x_hi:
-                contraction, mask = x_hi, mask | 2
-            gain, offset = gain_offset_at(100.0 * contraction)
-            self.clipped_mask = mask
-            self.clipped = mask != 0
-            return gain * pressure_bar + offset
-
-        self.evaluate = evaluate
-
-    def reset(self, *x: float) -> None:
-        """Nothing to reset: the model has no state."""
-
-
 def from_dict(doc: object) -> StaticForceModel:
     """A polynomial or sarosi model from its parsed file (the file's kind picks)."""
     return model_class(field(doc, "kind", str, "")).from_dict(doc)
@@ -424,54 +322,10 @@ def from_dict(doc: object) -> StaticForceModel:
 
 # -- fitting ----------------------------------------------------------------------------------
 
-def _lstsq(D: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, float, int]:
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    theta, _, rank, _ = np.linalg.lstsq(D, F, rcond=None)
-    r = F - D @ theta
-    return theta, float(r @ r), int(rank)
-
-
-def _sarosi_design(p: np.ndarray, k: np.ndarray, c: float) -> np.ndarray:
-    ex = np.exp(c * k)
-    return np.column_stack([p * ex, ex, p * k, k, p, np.ones_like(p)])
-
-
 def fit_coefficients(kind: str, p_bar: np.ndarray, k_pct: np.ndarray,
                      force_n: np.ndarray) -> dict[str, float]:
     """Least-squares coefficients of `kind` for forces at pressures and contractions (%)."""
     return model_class(kind).fit_coefficients(p_bar, k_pct, force_n)
-
-
-def _fit_sarosi(p_bar: np.ndarray, k_pct: np.ndarray, force_n: np.ndarray) -> dict[str, float]:
-    """Sarosi's coefficients by variable projection (see the module doc)."""
-    def sse(c: float) -> float:
-        return _lstsq(_sarosi_design(p_bar, k_pct, c), force_n)[1]
-
-    costs = [sse(float(c)) for c in _SAROSI_C_GRID]
-    i = int(np.argmin(costs))
-    lo = float(_SAROSI_C_GRID[max(i - 1, 0)])
-    hi = float(_SAROSI_C_GRID[min(i + 1, len(_SAROSI_C_GRID) - 1)])
-    golden = (math.sqrt(5.0) - 1.0) / 2.0
-    x1, x2 = hi - golden * (hi - lo), lo + golden * (hi - lo)
-    f1, f2 = sse(x1), sse(x2)
-    for _ in range(60):
-        if f1 < f2:
-            hi, x2, f2 = x2, x1, f1
-            x1 = hi - golden * (hi - lo)
-            f1 = sse(x1)
-        else:
-            lo, x1, f1 = x1, x2, f2
-            x2 = lo + golden * (hi - lo)
-            f2 = sse(x2)
-    c = x1 if f1 < f2 else x2
-    if costs[i] < min(f1, f2):
-        c = float(_SAROSI_C_GRID[i])
-    theta, _, rank = _lstsq(_sarosi_design(p_bar, k_pct, c), force_n)
-    if rank < 6:
-        raise ModelError("sarosi fit: the data do not determine the coefficients (need "
-                         "several pressures and contractions)")
-    a, b, e, f, g, h = theta.tolist()
-    return {"a": a, "b": b, "c": c, "d": 0.0, "e": e, "f": f, "g": g, "h": h}
 
 
 def invertible_range(model: type[StaticForceModel], co: dict[str, float], x: np.ndarray
@@ -504,8 +358,8 @@ def invertible_range(model: type[StaticForceModel], co: dict[str, float], x: np.
 
 def fit_static(kind: str, X: np.ndarray, y: np.ndarray, *, input_units: Sequence[str],
                validation: tuple[np.ndarray, np.ndarray] | None = None,
-               derived_inputs: dict[str, Any] | None = None,
-               provenance: dict[str, Any] | None = None) -> StaticForceModel:
+               derived_inputs: JsonObject | None = None,
+               provenance: JsonObject | None = None) -> StaticForceModel:
     """Fit `kind` (`StaticForceModel.fit`)."""
     return model_class(kind).fit(X, y, input_units=input_units, validation=validation,
                                  derived_inputs=derived_inputs, provenance=provenance)

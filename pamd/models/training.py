@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.models.anfis.samples import Samples
 from pamd.models.anfis.splitting import Split
 from pamd.models.contract import InverseModel
@@ -23,8 +24,8 @@ __all__ = ["fit_split", "fit_with", "rows_of"]
 
 
 def fit_with(kind: str, samples: Samples, parts: Split, options: KindOptions, *,
-             seed: int = 0, derived_inputs: dict[str, Any] | None = None,
-             provenance: dict[str, Any] | None = None,
+             seed: int = 0, derived_inputs: JsonObject | None = None,
+             provenance: JsonObject | None = None,
              callback: Progress | None = None) -> Fitted:
     """Train `kind` with its options already made (`Kind.make_options`) on a split of
     `samples`: a stateless kind fits the training rows (scored on the validation
@@ -36,9 +37,10 @@ def fit_with(kind: str, samples: Samples, parts: Split, options: KindOptions, *,
 
 
 def fit_split(kind: str, samples: Samples, parts: Split, *,
+              # Any: option values by name, each checked by `Kind.make_options`
               options: Mapping[str, Any] | None = None, seed: int = 0,
-              ignore_unknown: bool = False, derived_inputs: dict[str, Any] | None = None,
-              provenance: dict[str, Any] | None = None,
+              ignore_unknown: bool = False, derived_inputs: JsonObject | None = None,
+              provenance: JsonObject | None = None,
               callback: Progress | None = None) -> InverseModel:
     """`fit_with` with the options by name (the kind's defaults for the rest); settings
     shared across kinds (a benchmark's) pass `ignore_unknown`."""

@@ -7,8 +7,9 @@ Role: `fit_ts_fuzzy`. The model is an `AnfisModel` (same file layout with ``"kin
 
 * ``constant`` (the default, seed 001 as written): one singleton r_i per rule,
   P = sum w_i r_i / sum w_i (eqs. 4-6): 27 singletons + 18 premise parameters = 45.
-  Held as a `SingletonTsModel`: an `AnfisModel` whose rule slopes are zero, counted
-  as 27 parameters and written with ``"consequent": "constant"``;
+  The zero-order model of ANFIS's ``consequent="constant"`` (`AnfisModel`, one
+  implementation of constant consequents: its layout, count, file, training and
+  adaptation of the 27 constants alone);
 * ``linear``: first-order consequents (p . s + q per rule, 108 + 18 = 126 parameters),
   pamd's earlier model.
 
@@ -16,7 +17,7 @@ How its premises are found (``--tuner``):
 
 * ``gd``: gradient descent on the premises (eq. 8, normalised steps with Jang's step
   rule) with the consequents re-identified by SVD every epoch, best epoch on the
-  validation set kept;
+  validation set kept: ANFIS's hybrid learning (`pamd.models.anfis.training.train`);
 * ``ga``: the conventional GA of `pamd.models.genetic` (population 100 random strings,
   12-bit genes, roulette wheel on F = 1 / (1 + MSE), crossover 0.95, mutation 0.01);
 * ``mga``: the modified GA (elitism, then gradient-based selection once stalled).
@@ -40,14 +41,14 @@ bench/seed001.py runs the paper's.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis import modelfile
@@ -55,14 +56,12 @@ from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
 from pamd.models.anfis.membership import log_membership
 from pamd.models.anfis.model import AnfisModel, init_model, rule_firing
 from pamd.models.anfis.training import (
-    StepSizeState,
     TrainingOptions,
     _design,
     _Layout,
     _with_ones,
     solve_consequents,
     train,
-    update_step_size,
 )
 from pamd.models.anfis_kind import anfis_plots, parse_mfs
 from pamd.models.genetic import SCALINGS, GaOptions, GaResult, minimise
@@ -89,98 +88,26 @@ class TsFuzzyOptions:
     grid_start: bool = False  # ga/mga: the grid layout as one initial string
 
 
-class SingletonTsModel(AnfisModel):
-    """A TS model with singleton consequents (seed 001): an `AnfisModel` whose rule
-    slopes are all zero, so its parameters are the premises and one constant per rule.
-    Online adaptation (recursive least squares on the tick's first-order regressor)
-    may give it slopes: it then counts and writes itself as first order."""
-
-    kind = "ts-fuzzy"
-
-    @property
-    def singleton(self) -> bool:
-        return not np.any(self.consequents[:, :-1])
-
-    @property
-    def n_consequent_params(self) -> int:
-        return self.n_rules if self.singleton else super().n_consequent_params
-
-    def describe(self) -> dict[str, Any]:
-        return {**super().describe(), "consequent": "constant" if self.singleton else "linear"}
-
-    def to_dict(self) -> dict[str, Any]:
-        doc = super().to_dict()
-        if not self.singleton:
-            return doc
-        out: dict[str, Any] = {}
-        for key, value in doc.items():
-            out[key] = value
-            if key == "kind":
-                out["consequent"] = "constant"
-        return out
-
-    def copy(self) -> SingletonTsModel:
-        return as_singleton(super().copy())
-
-    def __repr__(self) -> str:
-        return super().__repr__().replace("AnfisModel(", "SingletonTsModel(", 1)
-
-
-def as_singleton(model: AnfisModel) -> SingletonTsModel:
-    """`model` (its slopes zeroed) as a `SingletonTsModel` sharing no arrays with it."""
-    cons = np.array(model.consequents)
-    cons[:, :-1] = 0.0
-    twin = SingletonTsModel(
-        model.inputs, model.output, mf_type=model.mf_type, scaling=model.scaling,
-        scale_offset=model.scale_offset, scale_span=model.scale_span,
-        centres=model.centres, widths=model.widths, slopes=model.slopes, consequents=cons,
-        derived_inputs=model.derived_inputs, provenance=model.provenance,
-        metrics=model.metrics)
-    twin.kind = model.kind
-    return twin
-
-
-def from_dict(doc: object) -> AnfisModel:
-    """A ts-fuzzy model from its parsed file: singleton (``"consequent": "constant"``,
-    every slope zero) or first order (no ``consequent`` field, or ``"linear"``)."""
-    model = modelfile.from_dict(doc)
-    consequent = doc.get("consequent", "linear") if isinstance(doc, dict) else "linear"
-    if consequent not in CONSEQUENTS:
-        raise ModelError(f"field consequent: {consequent!r} is not one of "
-                         f"{', '.join(CONSEQUENTS)}")
-    if consequent == "linear":
-        return model
-    if np.any(model.consequents[:, :-1]):
-        raise ModelError("field rules: a constant-consequent model has p = 0 in every rule")
-    return as_singleton(model)
-
-
-def consequent_design(wbar: np.ndarray, Sa: np.ndarray, consequent: str) -> np.ndarray:
-    """The least-squares design: the firing strengths (singletons) or wbar_r * [s, 1]."""
-    return wbar if consequent == "constant" else _design(wbar, Sa)
-
-
-def full_consequents(theta: np.ndarray, n_rules: int, n_inputs: int,
-                     consequent: str) -> np.ndarray:
-    """Solved consequents as the model's (R x (d + 1)) rows [p, q] (p = 0: singletons)."""
-    if consequent == "constant":
-        rows: np.ndarray = np.c_[np.zeros((n_rules, n_inputs)), theta]
-        return rows
-    return theta.reshape(n_rules, n_inputs + 1)
+def design(wbar: np.ndarray, Sa: np.ndarray, columns: int) -> np.ndarray:
+    """The least-squares design for a model's `n_consequent_columns`: wbar_r * [s, 1]
+    (first order) or wbar_r * 1 (singletons)."""
+    return _design(wbar, Sa[:, -columns:])
 
 
 def premise_cost(model: AnfisModel, X: np.ndarray, y: np.ndarray, solver: str = "auto",
                  ridge: float = 0.0, consequent: str = "constant"
                  ) -> Callable[[np.ndarray], float]:
-    """vec -> training MSE with least-squares consequents for that premise vector."""
+    """vec -> training MSE with least-squares consequents (`consequent`: singletons,
+    seed 001's, or first order) for that premise vector of `model`'s layout."""
     Sa = _with_ones(model.scale(X))
     S_mf = Sa[:, model.mf_input]
     rule_index = model.rule_index
     k = sum(model.n_mfs)
+    columns = 1 if consequent == "constant" else model.n_inputs + 1
 
     def cost(vec: np.ndarray) -> float:
         log_mu = log_membership("gaussian", S_mf, vec[:k], vec[k:])
-        A = consequent_design(rule_firing(log_mu, rule_index), Sa, consequent)
+        A = design(rule_firing(log_mu, rule_index), Sa, columns)
         theta = solve_consequents(A, y, solver=solver, ridge=ridge)
         e = A @ theta - y
         mse = float(e @ e) / y.size
@@ -190,68 +117,16 @@ def premise_cost(model: AnfisModel, X: np.ndarray, y: np.ndarray, solver: str = 
 
 
 def _finish(model: AnfisModel, vec: np.ndarray, X: np.ndarray, y: np.ndarray,
-            ridge: float = 0.0, consequent: str = "constant") -> None:
+            ridge: float = 0.0) -> None:
     """Set the premises and identify the consequents by SVD least squares."""
     model.set_premise_vector(vec)
     Sa = _with_ones(model.scale(X))
     wbar = model.firing_strengths(Sa[:, :-1])
-    theta = solve_consequents(consequent_design(wbar, Sa, consequent), y, solver="lstsq",
-                              ridge=ridge)
+    theta = solve_consequents(design(wbar, Sa, model.n_consequent_columns), y,
+                              solver="lstsq", ridge=ridge)
     if not np.all(np.isfinite(theta)):
         raise ModelError("ts-fuzzy fit did not converge (non-finite consequents)")
-    model.consequents = full_consequents(theta, model.n_rules, model.n_inputs, consequent)
-
-
-def train_singleton_gd(model: AnfisModel, X: np.ndarray, y: np.ndarray, epochs: int, *,
-                       ridge: float = 0.0,
-                       validation: tuple[np.ndarray, np.ndarray] | None = None,
-                       callback: Callable[[int, float, float | None], None] | None = None,
-                       ) -> tuple[np.ndarray, int]:
-    """Gradient descent on the premises of a singleton model (eq. 8; normalised steps of
-    `TrainingOptions().initial_step`, Jang's step rule) with the singletons solved by SVD
-    every epoch; the best epoch (validation RMSE, else training) is left in `model`.
-    Returns (training MSE per epoch, best epoch)."""
-    topts = TrainingOptions()
-    layout = _Layout(model)
-    Sa = _with_ones(model.scale(np.clip(X, model.input_lo, model.input_hi)))
-    Sva = None
-    if validation is not None:
-        Sva = _with_ones(model.scale(np.clip(validation[0], model.input_lo, model.input_hi)))
-    vec = model.premise_vector()
-    state = StepSizeState(topts.initial_step)
-    hist: list[float] = []
-    best = (math.inf, 0, vec.copy(), np.zeros(model.n_rules))
-    for epoch in range(1, epochs + 1):
-        wbar, dlogs = layout.forward(vec, Sa)
-        theta = solve_consequents(wbar, y, solver="lstsq", ridge=ridge)
-        y_hat = wbar @ theta
-        err = y_hat - y
-        mse = float(err @ err) / err.size
-        hist.append(mse)
-        val = None
-        if Sva is not None and validation is not None:
-            full = full_consequents(theta, model.n_rules, model.n_inputs, "constant")
-            ev = layout.predict(vec, full, Sva) - validation[1]
-            val = math.sqrt(float(ev @ ev) / ev.size)
-        score = math.sqrt(mse) if val is None else val
-        if score < best[0]:
-            best = (score, epoch, vec.copy(), theta.copy())
-        if callback is not None:
-            callback(epoch, mse, None if val is None else val * val)
-        state = update_step_size([math.sqrt(e) for e in hist], state)
-        if epoch == epochs:
-            break
-        grad = layout.gradient(wbar, dlogs, np.broadcast_to(theta, wbar.shape), y_hat, err)
-        norm = float(np.linalg.norm(grad))
-        if not norm > 0 or not math.isfinite(norm):
-            break
-        vec = layout.project(vec - state.step * grad / norm, topts)
-    vec = best[2]
-    k = layout.k
-    vec[k: 2 * k] = np.abs(vec[k: 2 * k])
-    model.set_premise_vector(vec)
-    model.consequents = full_consequents(best[3], model.n_rules, model.n_inputs, "constant")
-    return np.array(hist), best[1]
+    model.consequents = _Layout(model).consequents(theta)
 
 
 def _check(opts: TsFuzzyOptions) -> None:
@@ -265,12 +140,12 @@ def _check(opts: TsFuzzyOptions) -> None:
                          f"of {', '.join(SCALINGS)}")
 
 
-def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[str],
+def fit_ts_fuzzy(X: ArrayLike, y: ArrayLike, opts: TsFuzzyOptions, *, input_names: Sequence[str],
                  input_units: Sequence[str], output_name: str = "pressure_bar",
                  output_unit: str = "bar",
                  validation: tuple[np.ndarray, np.ndarray] | None = None,
-                 derived_inputs: dict[str, Any] | None = None,
-                 provenance: dict[str, Any] | None = None,
+                 derived_inputs: JsonObject | None = None,
+                 provenance: JsonObject | None = None,
                  callback: Callable[[int, float, float | None], None] | None = None
                  ) -> tuple[AnfisModel, np.ndarray]:
     """Train a ts-fuzzy model; returns (model, best training MSE per epoch/generation)."""
@@ -278,15 +153,13 @@ def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[
     Xa, ya = as_inputs_outputs(X, y, input_names, output_name)
     check_trainable(Xa, 0, input_names)
     t0 = time.perf_counter()
-    singleton = opts.consequent == "constant"
-    init = init_model(Xa, ya, n_mfs=opts.n_mfs, input_names=input_names,
-                      input_units=input_units, output_name=output_name,
-                      output_unit=output_unit, derived_inputs=derived_inputs,
-                      provenance=provenance)
-    model: AnfisModel = as_singleton(init) if singleton else init
-    if opts.tuner == "gd" and not singleton:
+    model = init_model(Xa, ya, n_mfs=opts.n_mfs, input_names=input_names,
+                       input_units=input_units, output_name=output_name,
+                       output_unit=output_unit, derived_inputs=derived_inputs,
+                       provenance=provenance, consequent=opts.consequent)
+    if opts.tuner == "gd":
         topts = TrainingOptions(n_mfs=opts.n_mfs, epochs=opts.epochs, seed=opts.seed,
-                                solver="lstsq", ridge=opts.ridge)
+                                solver="lstsq", ridge=opts.ridge, consequent=opts.consequent)
 
         def progress(epoch: int, rmse: float, val: float | None) -> None:
             if callback is not None:
@@ -295,12 +168,7 @@ def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[
         res = train(model, Xa, ya, topts, validation=validation, callback=progress)
         history = res.train_rmse ** 2
         model.provenance["tuning"] = {"tuner": "gd", "epochs": opts.epochs,
-                                      "best_epoch": res.best_epoch}
-    elif opts.tuner == "gd":
-        history, best_epoch = train_singleton_gd(model, Xa, ya, opts.epochs, ridge=opts.ridge,
-                                                 validation=validation, callback=callback)
-        model.provenance["tuning"] = {"tuner": "gd", "epochs": opts.epochs,
-                                      "best_epoch": best_epoch, "ridge": opts.ridge}
+                                      "best_epoch": res.best_epoch, "ridge": opts.ridge}
     else:
         k = sum(model.n_mfs)
         lo = np.r_[np.full(k, CENTRE_BOUNDS[0]), np.full(k, WIDTH_BOUNDS[0])]
@@ -318,11 +186,11 @@ def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[
             rows = np.sort(np.random.default_rng(opts.seed).choice(ya.size, opts.fitness_rows,
                                                                    replace=False))
         cost = premise_cost(model, Xa[rows], ya[rows], ridge=opts.ridge,
-                            consequent=opts.consequent)
+                            consequent=model.consequent)
         ga: GaResult = minimise(cost, lo, hi, gopts,
                                 start=model.premise_vector() if opts.grid_start else None,
                                 callback=progress_ga)
-        _finish(model, ga.best, Xa, ya, opts.ridge, opts.consequent)
+        _finish(model, ga.best, Xa, ya, opts.ridge)
         history = ga.history
         model.provenance["tuning"] = {
             "tuner": opts.tuner, "options": asdict(gopts), "fitness_rows": int(rows.size),
@@ -330,7 +198,7 @@ def fit_ts_fuzzy(X: Any, y: Any, opts: TsFuzzyOptions, *, input_names: Sequence[
             "initial_mse": float(history[0]), "best_mse": float(ga.best_cost),
             "history_mse": history.tolist(),
             "switched_to_gradient_selection_at": ga.switched_at}
-    if opts.tuner != "gd" or singleton:
+    if opts.tuner != "gd":
         p = model.n_params
         model.metrics["train"] = regression_metrics(ya, model.predict(Xa), p)
         if validation is not None:
@@ -401,7 +269,7 @@ def fit_kind(job: FitJob[TsFuzzyKindOptions]) -> Fitted:
 
 KIND = Kind("ts-fuzzy", "001", "Takagi-Sugeno fuzzy (force, length, velocity; 27 rules), "
             "singleton or first-order consequents, premises tuned by gradient descent, GA or "
-            "modified GA", from_dict,
+            "modified GA", modelfile.from_dict,
             ("force_n", "length_mm", "velocity_mm_s"), fit_kind, TsFuzzyKindOptions,
             adaptable=True,
             progress=lambda o: (o.steps, "epoch" if o.tuner == "gd" else "generation", "MSE"),

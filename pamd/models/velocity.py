@@ -20,8 +20,7 @@ signal uses `VELOCITY_WINDOW_S`, a model states its own in its file (default
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import Any
+from typing import Protocol, SupportsFloat
 
 from pamd.declare.jsonsafe import JsonObject
 
@@ -69,7 +68,14 @@ class VelocityFilter:
         return self.value
 
 
-def filtered_velocity(t_s: Sequence[float] | Any, length_mm: Sequence[float] | Any,
+class Series(Protocol):
+    """A run's samples in time order: a list or a 1-d numpy array."""
+
+    def __len__(self) -> int: ...
+    def __getitem__(self, i: int, /) -> SupportsFloat: ...
+
+
+def filtered_velocity(t_s: Series, length_mm: Series,
                       window_s: float = VELOCITY_WINDOW_S) -> list[float]:
     """The tick's velocity (mm/s) over a recorded run: `velocity_step` applied sample by
     sample with each sample's own dt. Run it at the recording's full rate, before

@@ -32,12 +32,13 @@ from typing import Any
 import numpy as np
 
 from pamd.metrics import regression_metrics
-from pamd.models.contract import Variable, clip_inputs, describe_common, tick_problems
+from pamd.models.contract import (Predictor, Variable, clip_inputs, describe_common,
+                                  tick_problems)
 from pamd.models.document import footer, header, numbers, read_header
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
 
 
-class ToyModel:
+class ToyModel(Predictor):
     kind = "toy"
     stateful = False
 
@@ -53,10 +54,9 @@ class ToyModel:
     def n_params(self):
         return len(self.coef)
 
-    def predict(self, X, *, return_clipped=False):
+    def predict_held(self, X):
         Xc, clipped = clip_inputs(self.inputs, X)
-        y = np.polyval(self.coef, Xc[:, 0])
-        return (y, clipped) if return_clipped else y
+        return np.polyval(self.coef, Xc[:, 0]), clipped
 
     def compile(self):
         model = self

@@ -79,6 +79,32 @@ def test_inputs_are_held_to_their_range_and_counted() -> None:
     assert c.clipped and c.clipped_mask == 1
 
 
+def test_the_tick_evaluator_is_the_batch_one_on_three_inputs() -> None:
+    """The tick's evaluator (built in place, each grid point's sets walked in order of
+    membership and left at the first that cannot raise the value) against the batch
+    centroid, which compares every set at every point: inside, outside and on the
+    edges of the ranges, with narrow sets that leave points with one set, and where
+    every rule underflows (the strongest rule's set centre, rule 0 on a tie)."""
+    rng = np.random.default_rng(7)
+    inputs = [Variable(n, u, 0.0, 1.0) for n, u in zip(NAMES, UNITS, strict=True)]
+    for out_width, in_width in ((0.3, 0.2), (0.05, 0.2), (1.5, 0.05)):
+        model = MamdaniModel(inputs, Variable("pressure_bar", "bar", 0.0, 6.0),
+                             centres=[[0.0, 0.5, 1.0], [0.1, 0.9], [0.0, 0.3, 0.6, 1.0]],
+                             widths=[[in_width] * 3, [in_width] * 2, [in_width] * 4],
+                             out_centres=[0.5, 2.0, 3.0, 4.5, 5.5],
+                             out_widths=[out_width] * 5, rules=rng.integers(0, 5, 24))
+        X = np.r_[rng.uniform(-0.2, 1.2, (300, 3)), [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]]
+        c = model.compile()
+        got = [c.evaluate(*x) for x in X.tolist()]
+        np.testing.assert_allclose(got, model.predict(X), rtol=1e-12, atol=1e-12)
+    narrow = MamdaniModel(inputs, Variable("pressure_bar", "bar", 0.0, 6.0),
+                          centres=[[0.0, 1.0]] * 3, widths=[[0.001] * 2] * 3,
+                          out_centres=[1.0, 5.0], out_widths=[0.3, 0.3],
+                          rules=[1, 0, 0, 0, 0, 0, 0, 0])
+    far = np.array([[0.5, 0.5, 0.5]])  # every membership underflows to 0
+    assert narrow.predict(far)[0] == 5.0 == narrow.compile().evaluate(0.5, 0.5, 0.5)
+
+
 def test_a_known_rule_base_is_read_back_off_its_data() -> None:
     rng = np.random.default_rng(0)
     truth_rules = rng.integers(0, 5, 27)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pamd.models.contract import Predictor
 from pamd.models.registry import KINDS, dumps_model, load_model
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
@@ -38,3 +39,16 @@ def test_an_old_file_loads_writes_back_and_evaluates_bit_identically(name: str) 
     compiled.reset(*want["x"][2])
     assert [compiled.evaluate(*x) for x in want["x"]] == want["compiled"]
     assert model.predict(np.array(want["x"])).tolist() == want["predict"]
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_every_kind_has_the_one_batch_predict(name: str) -> None:
+    """Each kind gives `predict_held` and inherits `predict` (no kind's own copy of its
+    two forms): the outputs alone, or with the held rows, are the same arrays."""
+    want = EXPECTED[name]
+    model = load_model(FIXTURES / name)
+    assert isinstance(model, Predictor) and type(model).predict is Predictor.predict
+    X = np.array(want["x"])
+    y, held = model.predict(X, return_clipped=True)
+    assert y.tolist() == want["predict"] == model.predict(X).tolist()
+    assert held.dtype == bool and held.shape == y.shape and held.any()  # x leaves the ranges

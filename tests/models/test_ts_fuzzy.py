@@ -12,14 +12,13 @@ import numpy as np
 import pytest
 
 from pamd.errors import ModelError
-from pamd.models.anfis.model import init_model
+from pamd.models.anfis.adapted import adapted_model
+from pamd.models.anfis.model import AnfisModel, init_model
 from pamd.models.genetic import GaOptions, _roulette, decode, encode, minimise
 from pamd.models.registry import dumps_model, load_model, save_model
 from pamd.models.ts_fuzzy import (
-    SingletonTsModel,
     TsFuzzyOptions,
     _finish,
-    as_singleton,
     fit_ts_fuzzy,
     premise_cost,
 )
@@ -38,11 +37,11 @@ def data(n: int = 300, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return np.c_[F, ln, v], p
 
 
-def known_singleton(n: int = 400) -> tuple[SingletonTsModel, np.ndarray, np.ndarray]:
+def known_singleton(n: int = 400) -> tuple[AnfisModel, np.ndarray, np.ndarray]:
     """A singleton TS model with moved premises and set singletons, and data it made."""
     X, y = data(n)
-    truth = as_singleton(init_model(X, y, n_mfs=3, input_names=NAMES, input_units=UNITS,
-                                    output_name="pressure_bar", output_unit="bar"))
+    truth = init_model(X, y, n_mfs=3, input_names=NAMES, input_units=UNITS,
+                       output_name="pressure_bar", output_unit="bar", consequent="constant")
     vec = truth.premise_vector()
     vec[:9] += np.linspace(-0.1, 0.1, 9)  # centres off the grid
     vec[9:] *= np.linspace(0.8, 1.3, 9)  # widths too
@@ -56,7 +55,7 @@ def test_singletons_are_recovered_exactly_and_counted_as_the_paper() -> None:
     truth, X, y = known_singleton()
     assert truth.n_params == 45 and truth.n_rules == 27  # seed 001: 18 + 27
     assert premise_cost(truth, X, y)(truth.premise_vector()) < 1e-20
-    fitted = as_singleton(truth)
+    fitted = truth.copy()
     fitted.consequents[:] = 0.0
     _finish(fitted, truth.premise_vector(), X, y)  # the SVD least squares of the paper
     np.testing.assert_allclose(fitted.consequents, truth.consequents, atol=1e-8)
@@ -70,7 +69,7 @@ def test_first_order_on_request_has_126_parameters() -> None:
     const, _ = fit_ts_fuzzy(X, y, TsFuzzyOptions(tuner="gd", epochs=3), input_names=NAMES,
                             input_units=UNITS)
     assert lin.n_params == 126 and np.any(lin.consequents[:, :-1])
-    assert const.n_params == 45 and isinstance(const, SingletonTsModel)
+    assert const.n_params == 45 and const.consequent == "constant"
     assert "consequent" not in lin.to_dict() and const.to_dict()["consequent"] == "constant"
     assert const.describe()["consequent"] == "constant" and const.describe()["n_params"] == 45
 
@@ -163,3 +162,23 @@ def test_unknown_tuner_and_consequent_are_refused() -> None:
     with pytest.raises(ModelError, match="unknown consequent 'cubic'"):
         fit_ts_fuzzy(X, y, TsFuzzyOptions(consequent="cubic"), input_names=NAMES,
                      input_units=UNITS)
+
+
+def test_a_singleton_model_adapts_its_27_constants_and_stays_singleton(tmp_path: Path) -> None:
+    """One implementation of constant consequents: the singleton TS model is ANFIS's
+    zero-order model, so online adaptation moves its 27 singletons alone (not 108
+    first-order parameters), and the adapted file is still seed 001's 45-parameter
+    model, written in the ts-fuzzy layout (p = 0 in every rule)."""
+    truth, X, _ = known_singleton()
+    ff = truth.compile()
+    assert ff.n_consequents == 27
+    theta = ff.theta(np.empty(27)) + np.linspace(0.0, 0.3, 27)
+    adapted = adapted_model(truth.copy(), {"consequents": theta.tolist()})
+    assert adapted.consequent == "constant" and adapted.n_params == 45
+    np.testing.assert_array_equal(adapted.consequents[:, -1], theta)
+    doc = json.loads(dumps_model(adapted))
+    assert doc["kind"] == "ts-fuzzy" and doc["consequent"] == "constant"
+    assert all(rule["p"] == [0.0, 0.0, 0.0] for rule in doc["rules"])
+    back = load_model(save_model(adapted, tmp_path / "adapted.json"))
+    assert back.n_params == 45 and back.describe()["consequent"] == "constant"
+    np.testing.assert_array_equal(back.predict(X[:20]), adapted.predict(X[:20]))

@@ -19,10 +19,10 @@ import datetime as dt
 import hashlib
 import os
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.registry import load_model, save_model
@@ -34,7 +34,7 @@ def _iso(unix: float | None) -> str | None:
     return dt.datetime.fromtimestamp(unix, dt.timezone.utc).isoformat(timespec="seconds")
 
 
-def adapted_model(source: AnfisModel, snapshot: dict[str, Any]) -> AnfisModel:
+def adapted_model(source: AnfisModel, snapshot: JsonObject) -> AnfisModel:
     """`source` (modified in place and returned) with the snapshot's consequents and
     the provenance of the adaptation."""
     theta = np.asarray(snapshot["consequents"], dtype=np.float64)
@@ -58,7 +58,7 @@ def adapted_model(source: AnfisModel, snapshot: dict[str, Any]) -> AnfisModel:
     return source
 
 
-def save_adapted(snapshot: dict[str, Any], out: str | os.PathLike[str],
+def save_adapted(snapshot: JsonObject, out: str | os.PathLike[str],
                  source_file: str | None = None) -> Path:
     """Write the adapted model to `out` from the `adapt parameters` verdict; the source
     model file is the one it names (or `source_file`) and must have its sha256.

@@ -32,10 +32,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.recordings import read_runs
 from pamd.models.anfis.samples import ExtractOptions, Run, Samples
@@ -196,7 +196,7 @@ def _lead_ins(run: Run, settle_s: float) -> list[tuple[float, float]]:
     return out
 
 
-def _profile_start(args: dict[str, Any]) -> float | None:
+def _profile_start(args: JsonObject) -> float | None:
     """Where a recorded profile command's shape starts (its lead-in's end), by the shape's
     own rule (`pamd.profiles`); None where the record does not say (a ramp
     starts where it is)."""
@@ -221,6 +221,6 @@ def load_samples(paths: Sequence[str], options: ExtractOptions | None = None) ->
 
 
 def derived_inputs(inputs: Sequence[str],
-                   window_s: float = MODEL_VELOCITY_WINDOW_S) -> dict[str, Any]:
+                   window_s: float = MODEL_VELOCITY_WINDOW_S) -> JsonObject:
     """The model file's `derived_inputs` entry for these inputs."""
     return {"velocity_mm_s": derivation(window_s)} if "velocity_mm_s" in inputs else {}

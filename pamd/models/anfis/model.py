@@ -28,11 +28,11 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.compiled import CompiledAnfis
 from pamd.models.anfis.membership import (
@@ -44,6 +44,7 @@ from pamd.models.anfis.membership import (
 from pamd.models.anfis.serialize import to_dict
 from pamd.models.contract import (
     Envelope,
+    Predictor,
     Variable,
     describe_common,
     tick_problems,
@@ -55,7 +56,7 @@ SCALINGS: tuple[str, ...] = ("minmax", "zscore")
 CONSEQUENTS: tuple[str, ...] = ("constant", "linear")
 
 
-class AnfisModel:
+class AnfisModel(Predictor):
     """A first-order (``consequent="constant"``: zero-order) Sugeno ANFIS with
     grid-partitioned inputs (see module docstring).
 
@@ -77,9 +78,9 @@ class AnfisModel:
         widths: Sequence[ArrayLike],
         slopes: Sequence[ArrayLike] | None = None,
         consequents: ArrayLike | None = None,
-        derived_inputs: dict[str, Any] | None = None,
-        provenance: dict[str, Any] | None = None,
-        metrics: dict[str, Any] | None = None,
+        derived_inputs: JsonObject | None = None,
+        provenance: JsonObject | None = None,
+        metrics: JsonObject | None = None,
         consequent: str = "linear",
     ) -> None:
         self.inputs: list[Variable] = list(inputs)
@@ -106,9 +107,9 @@ class AnfisModel:
         if consequents is None:
             consequents = np.zeros((n_rules, len(self.inputs) + 1))
         self.consequents = np.array(consequents, dtype=np.float64)
-        self.derived_inputs: dict[str, Any] = dict(derived_inputs or {})
-        self.provenance: dict[str, Any] = dict(provenance or {})
-        self.metrics: dict[str, Any] = dict(metrics or {})
+        self.derived_inputs: JsonObject = dict(derived_inputs or {})
+        self.provenance: JsonObject = dict(provenance or {})
+        self.metrics: JsonObject = dict(metrics or {})
         self._validate()
 
     # -- structure ---------------------------------------------------------------------
@@ -282,25 +283,12 @@ class AnfisModel:
         out: np.ndarray = np.einsum("nr,nr->n", wbar, f)
         return out
 
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[False] = False
-                ) -> np.ndarray: ...
-    @overload
-    def predict(self, X: ArrayLike, *, return_clipped: Literal[True]
-                ) -> tuple[np.ndarray, np.ndarray]: ...
-    def predict(
-        self, X: ArrayLike, *, return_clipped: bool = False
-    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-        """Model output for raw inputs X (n x d, input units) in the output unit.
-
-        Inputs outside the training ranges are clipped to the range, never
-        extrapolated. With ``return_clipped=True`` returns (y, clipped) where `clipped`
-        is a bool array, True for samples that had at least one input clipped. NaN
-        inputs give NaN outputs.
-        """
+    def predict_held(self, X: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Model output for raw inputs X (n x d, input units) in the output unit, and a
+        bool per sample: had it an input clipped. Inputs outside the training ranges
+        are clipped to the range, never extrapolated; NaN inputs give NaN outputs."""
         Xc, clipped = self.clip(X)
-        y = self.predict_scaled(self.scale(Xc))
-        return (y, clipped) if return_clipped else y
+        return self.predict_scaled(self.scale(Xc)), clipped
 
     # -- the model contract (`pamd.models.contract.InverseModel`) ---------------------
 
@@ -312,7 +300,7 @@ class AnfisModel:
     kind: str = "anfis"
     stateful: bool = False
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> JsonObject:
         return {**describe_common(self), "rules": self.n_rules, "mf_type": self.mf_type,
                 "mfs": list(self.n_mfs), "consequent": self.consequent}
 
@@ -324,7 +312,7 @@ class AnfisModel:
                        "velocity)")
         return out
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return to_dict(self)
 
     def compile(self) -> CompiledAnfis:
@@ -382,8 +370,8 @@ def init_model(
     input_units: Sequence[str] | None = None,
     output_name: str = "y",
     output_unit: str = "",
-    derived_inputs: dict[str, Any] | None = None,
-    provenance: dict[str, Any] | None = None,
+    derived_inputs: JsonObject | None = None,
+    provenance: JsonObject | None = None,
     consequent: str = "linear",
 ) -> AnfisModel:
     """An untrained model laid out over the ranges of X (n x d) and y (consequents 0).

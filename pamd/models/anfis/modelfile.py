@@ -18,7 +18,8 @@ Layout (version 1)::
                      "inputs": [{"input": "force_n", "centres": [...],
                                  "widths": [...], ("slopes": [...])}, ...]},
       "rules": [{"mfs": [0, 0], "p": [p_1, ..., p_d], "q": q}, ...],
-      ("consequent": "constant",  with rules [{"mfs": [0, 0], "q": q}, ...] and no "p")
+      ("consequent": "constant",  with rules [{"mfs": [0, 0], "q": q}, ...] and no "p";
+       a ts-fuzzy file writes "p": [0, ...] in every rule, `serialize.ZERO_P_KINDS`)
       "provenance": {...free form: data files, runs, loads, training settings...},
       "metrics": {"train": {...}, "validation": {...}}
     }
@@ -38,8 +39,8 @@ import itertools
 import math
 import os
 from pathlib import Path
-from typing import Any
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.serialize import FORMAT as FORMAT  # re-exported: pamd.models.registry
@@ -179,7 +180,7 @@ def from_dict(doc: object) -> AnfisModel:
     return model
 
 
-def _optional_dict(doc: dict[str, Any], key: str) -> dict[str, Any]:
+def _optional_dict(doc: JsonObject, key: str) -> JsonObject:
     return _field(doc, key, dict, "") if key in doc else {}
 
 

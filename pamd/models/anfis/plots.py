@@ -19,7 +19,7 @@ from pamd.models.anfis.membership import log_membership
 from pamd.models.anfis.model import AnfisModel
 
 
-def _pyplot() -> Any:
+def _pyplot() -> Any:  # Any: matplotlib.pyplot, imported lazily (heavy third party)
     try:
         import matplotlib
     except ImportError:
@@ -163,6 +163,7 @@ def training_plot(path: str, curve: dict[str, Sequence[float] | None]) -> str:
     return _save(fig, plt, path)
 
 
+# Any: a matplotlib figure and pyplot, imported lazily (heavy third party)
 def _save(fig: Any, plt: Any, path: str) -> str:
     fig.tight_layout()
     fig.savefig(path, dpi=110)

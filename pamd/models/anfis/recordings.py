@@ -12,7 +12,6 @@ import csv
 import math
 import os
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
@@ -106,7 +105,7 @@ def read_csv(path: str) -> Run:
             sample = fh.read(4096)
             fh.seek(0)
             try:
-                dialect: Any = csv.Sniffer().sniff(sample, delimiters=",;\t")
+                dialect: type[csv.Dialect] = csv.Sniffer().sniff(sample, delimiters=",;\t")
             except csv.Error:
                 dialect = csv.excel
             reader = csv.reader(fh, dialect)
@@ -185,8 +184,10 @@ def _cell(row: list[str], j: int) -> float:
     return float(s)
 
 
-def _float_or_none(v: Any) -> float | None:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return None
+def _float_or_none(v: object) -> float | None:
+    if isinstance(v, (str, int, float)):
+        try:
+            return float(v)
+        except ValueError:
+            return None
+    return None

@@ -9,10 +9,10 @@ and the model inputs and outputs they can produce, with units.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.tick import Flag
@@ -46,8 +46,8 @@ class Run:
     t_s: np.ndarray
     columns: dict[str, np.ndarray]
     load_kg: float | None = None
-    events: list[tuple[float, str, dict[str, Any]]] = field(default_factory=list)
-    meta: dict[str, Any] = field(default_factory=dict)
+    events: list[tuple[float, str, JsonObject]] = field(default_factory=list)
+    meta: JsonObject = field(default_factory=dict)
 
     @property
     def label(self) -> str:
@@ -95,7 +95,7 @@ class Samples:
     run: np.ndarray  # index into `runs`
     inputs: tuple[str, ...]
     output: str
-    runs: list[dict[str, Any]]  # provenance of each run (source, muscle, load, counts)
+    runs: list[JsonObject]  # provenance of each run (source, muscle, load, counts)
     options: ExtractOptions
 
     def __len__(self) -> int:
@@ -124,11 +124,11 @@ class Samples:
             offset = out[sel][-1] + 1.0
         return out
 
-    def provenance(self) -> dict[str, Any]:
+    def provenance(self) -> JsonObject:
         """What the model file says about its data."""
         o = self.options
         loads = sorted({r["load_kg"] for r in self.runs if r.get("load_kg") is not None})
-        out: dict[str, Any] = {
+        out: JsonObject = {
             "files": sorted({r["source"] for r in self.runs}),
             "runs": self.runs,
             "loads_kg": loads,

@@ -5,10 +5,10 @@ whole runs) together, so no test data leaks into training.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.samples import Samples
 
@@ -18,7 +18,7 @@ class Split:
     train: Samples
     validation: Samples | None
     test: Samples | None
-    how: dict[str, Any]
+    how: JsonObject
 
 
 def split(samples: Samples, val_fraction: float = 0.2, test_fraction: float = 0.0, *,
@@ -72,7 +72,7 @@ def split(samples: Samples, val_fraction: float = 0.2, test_fraction: float = 0.
     in_test = np.isin(units, test_ids)
     in_val = np.isin(units, val_ids)
     train = samples.subset(~in_test & ~in_val)
-    how: dict[str, Any] = {
+    how: JsonObject = {
         "by": by, "block_s": block_s if by == "block" else None, "seed": seed,
         "units": int(n), "validation_units": int(n_val), "test_units": int(n_test),
         "train_samples": len(train), "validation_samples": int(in_val.sum()),

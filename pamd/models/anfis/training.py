@@ -27,11 +27,11 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, replace
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
 from pamd.models.anfis.membership import log_membership, log_membership_grads
@@ -444,8 +444,8 @@ def fit(
     output_unit: str = "",
     validation: tuple[ArrayLike, ArrayLike] | None = None,
     callback: ProgressCallback | None = None,
-    derived_inputs: dict[str, Any] | None = None,
-    provenance: dict[str, Any] | None = None,
+    derived_inputs: JsonObject | None = None,
+    provenance: JsonObject | None = None,
 ) -> TrainingResult:
     """Check the data, lay out a model over its ranges (`init_model`) and `train` it."""
     opts = options or TrainingOptions()
