@@ -78,7 +78,6 @@ MAX_CLASS_LINES = 300
 #: the classes still longer, each to be split by job (the list only shrinks)
 LONG_CLASSES = {
     "pamd/control/muscle.py:MuscleController",
-    "drivers/canopen_encoder.py:CanEncoderDriver",
 }
 
 
