@@ -35,8 +35,8 @@ LAYERS: list[tuple[str, list[str]]] = [
     ("hardware, models, recordings",
      ["rig", "emulate", "models", "drivers", "record", "sim", "rt", "stalls", "calibration"]),
     ("verbs and config", ["verbs", "config", "schema", "plugins"]),
-    ("leaves", ["ipc", "metrics", "timing", "muscle_type", "tick", "profiles", "errors", "version",
-                "declare", "data"]),
+    ("leaves", ["ipc", "metrics", "timing", "muscle_type", "tick", "profiles", "profile_kinds",
+                "errors", "version", "declare", "data"]),
 ]
 MAX_LAYERS = 10
 
