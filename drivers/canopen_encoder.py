@@ -211,7 +211,7 @@ class CanEncoderDriver(ThreadedDriver):
         import can
 
         o: CanEncoderOptions = self.options
-        kwargs: dict[str, Any] = {}
+        kwargs: dict[str, Any] = {}  # Any: can.Bus keyword arguments, per interface
         if o.interface == "serial":
             kwargs["timeout"] = o.recv_timeout_s
         elif o.interface == "socketcand":
