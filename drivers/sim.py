@@ -338,27 +338,8 @@ class SimDriver(Driver):
         values[c + 1] = self.supply_bar
         values[c + 2] = 1.0 if chain.reset_pressed else 0.0
         stamps[c] = stamps[c + 1] = stamps[c + 2] = now_s
-        zero = self._len_zero_mm
-        for k, plant in enumerate(self._plants):  # 0 unless a sensor's link is bursty
-            i = 3 * k
-            jitters[i] = plant.pressure_jitter_s
-            jitters[i + 1] = plant.force_jitter_s
-            jitters[i + 2] = plant.length_jitter_s
-        if not self.sensor_faults.any:
-            i = 0
-            for k, plant in enumerate(self._plants):
-                values[i] = plant.pressure_read_bar
-                values[i + 1] = plant.force_read_n
-                values[i + 2] = plant.length_read_mm - zero[k]
-                # Stamped with when the device took the sample (its age is 0 for a
-                # sensor sampled at every step without latency), or on a bursty link
-                # with its arrival (and the jitter above).
-                stamps[i] = now_s - plant.pressure_age_s
-                stamps[i + 1] = now_s - plant.force_age_s
-                stamps[i + 2] = now_s - plant.length_age_s
-                i += 3
-            return
-        self.sensor_faults.publish(self._plants, zero, now_s, values, stamps)
+        self.sensor_faults.publish(self._plants, self._len_zero_mm, now_s, values, stamps,
+                                   jitters)
 
 
 def sim_channels(opts: SimOptions) -> list[Channel]:

@@ -1,5 +1,6 @@
-"""The simulated rig's injected sensor faults and the scheduled stall of the loop's
-process (`drivers/sim.py`; the fault kinds and their schedule are `pamd.sim.faults`).
+"""The simulated rig's sensor readings as the driver publishes them, each through its
+injected fault, and the scheduled stall of the loop's process (`drivers/sim.py`; the
+fault kinds and their schedule are `pamd.sim.faults`).
 
 A failed sensor's value changes with a new sample only, as a device's: a slow or held
 one keeps its last value until the next sample. `stuck` keeps the value while the
@@ -82,9 +83,29 @@ class SensorFaults:
         self.any = False
 
     def publish(self, plants: Sequence[MusclePlant], zero_mm: Sequence[float], now_s: float,
-                values: list[float], stamps: list[float]) -> None:
-        """The plants' readings through their faults into `values` / `stamps` (each
-        stamped with when its device took the sample)."""
+                values: list[float], stamps: list[float], jitters: list[float]) -> None:
+        """The plants' readings, each through its fault, into the driver's `values`,
+        `stamps` and `jitters` (input 3k + j: muscle k's pressure, force, length; the
+        length less `zero_mm[k]`, an incremental encoder's power-up reading). Each is
+        stamped with when its device took the sample (its age is 0 for a sensor
+        sampled at every step without latency), or on a bursty link with its arrival
+        and a jitter (0 otherwise)."""
+        for k, plant in enumerate(plants):
+            i = 3 * k
+            jitters[i] = plant.pressure_jitter_s
+            jitters[i + 1] = plant.force_jitter_s
+            jitters[i + 2] = plant.length_jitter_s
+        if not self.any:
+            i = 0
+            for k, plant in enumerate(plants):
+                values[i] = plant.pressure_read_bar
+                values[i + 1] = plant.force_read_n
+                values[i + 2] = plant.length_read_mm - zero_mm[k]
+                stamps[i] = now_s - plant.pressure_age_s
+                stamps[i + 1] = now_s - plant.force_age_s
+                stamps[i + 2] = now_s - plant.length_age_s
+                i += 3
+            return
         modes, sizes = self._modes, self._sizes
         gauss = self._rng.gauss
         i = 0
