@@ -64,6 +64,8 @@ class Driver(ABC):
     steps_with_loop: ClassVar[bool] = False
     """True for simulated devices that the loop advances by one period per tick."""
 
+    # The options are the driver's own dataclass (`options_type`, validated by pamd.config).
+    # Any: each driver reads them as its own type (`o: ModbusOptions = self.options`)
     def __init__(self, name: str, options: Any) -> None:
         self.name = name
         self.options = options

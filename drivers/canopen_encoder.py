@@ -21,6 +21,10 @@ CANopen. Interfaces: anything python-can opens (`socketcan`, `pcan`, ...;
 `serial` over a pty pair, the emulated rig's older link; `virtual` in one process for
 tests). A socketcand server that closes the connection is a lost link: the bus is
 re-opened and the nodes configured again.
+
+This module owns the bus (open, receive, send, dispatch, the driver's health); the
+nodes' configuration, heartbeats, emergencies and presets are `drivers/canopen_nodes.py`,
+the frames' layouts `drivers/can_frames.py`.
 """
 
 from __future__ import annotations
@@ -30,7 +34,6 @@ import logging
 import math
 import socket
 import time
-from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -39,20 +42,12 @@ from pamd.drivers import Channel, serial_port_claim
 from pamd.drivers.can_frames import (
     EMCY_BASE,
     HEARTBEAT_BASE,
-    NMT_ID,
-    NMT_START,
-    NMT_STATES,
-    OBJ_PRESET,
-    SDO_RX_BASE,
-    SDO_TX_BASE,
     TPDO1_BASE,
     EncoderNode,
     RawFrame,
     raw_frame_value,
-    sdo_download,
-    sdo_reply,
-    tpdo1_setup,
 )
+from pamd.drivers.canopen_nodes import EncoderNodes, NodeState
 from pamd.drivers.device import ArrivalWindow, Backoff, ThreadedDriver
 
 from pamd.errors import DriverError
@@ -120,30 +115,6 @@ def server_closed(bus: object) -> bool:
         return True
 
 
-class _Node:
-    """Run-time state of one encoder node."""
-
-    def __init__(self, spec_: EncoderNode, index: int) -> None:
-        self.spec = spec_
-        self.index = index
-        self.id = spec_.node_id
-        self.needs_config = True
-        self.retry_at = 0.0
-        self.backoff = Backoff(0.05, 2.0)
-        self.started_at = math.inf
-        self.last_hb = -math.inf
-        self.last_pdo = -math.inf
-        self.last_start_cmd = -math.inf
-        self.nmt_state = -1
-        self.emcy: tuple[int, int] | None = None
-        hb = spec_.heartbeat_ms / 1000.0
-        self.hb_timeout = spec_.heartbeat_timeout_s or (3.0 * hb + 0.05)
-
-    @property
-    def label(self) -> str:
-        return f"node {self.id} ({self.spec.name})"
-
-
 class CanEncoderDriver(ThreadedDriver):
     """CiA 406 encoders and raw CAN values on one bus."""
 
@@ -170,8 +141,11 @@ class CanEncoderDriver(ThreadedDriver):
         super().__init__(name, o)
         self.fault_after_s = o.fault_after_s
         self._window = ArrivalWindow()
-        self.nodes = [_Node(e, i) for i, e in enumerate(o.encoders)]
-        self._by_cob: dict[int, tuple[str, Any]] = {}
+        self.preset_generation = self.preset_counts  # the protocol's name for it
+        self.encoder_nodes = EncoderNodes(o.encoders, o.sdo_timeout_s, o.recv_timeout_s,
+                                          o.lost_after, self.preset_generation)
+        self.nodes = self.encoder_nodes.nodes
+        self._by_cob: dict[int, tuple[str, NodeState]] = {}
         for n in self.nodes:
             self._by_cob[TPDO1_BASE + n.id] = ("pdo", n)
             self._by_cob[HEARTBEAT_BASE + n.id] = ("hb", n)
@@ -179,13 +153,9 @@ class CanEncoderDriver(ThreadedDriver):
         self._raw: dict[tuple[int, bool], list[tuple[int, RawFrame]]] = {}
         for k, f in enumerate(o.frames):
             self._raw.setdefault((f.can_id, f.extended), []).append((len(self.nodes) + k, f))
-        self._bus: Any = None
-        self._presets: deque[tuple[int, int]] = deque()
-        self.preset_generation = self.preset_counts  # the protocol's name for it
+        self._bus: Any = None  # Any: a python-can bus (imported on the driver's thread)
         self._bad_t = -math.inf
         self._bad_msg = ""
-        self._sdo_wait: int | None = None
-        self._sdo_answer: bytes | None = None
         self._failed_reads = 0  # receive errors in a row (lost_after: the link is lost)
 
     # -- Driver protocol ----------------------------------------------------------------
@@ -234,14 +204,14 @@ class CanEncoderDriver(ThreadedDriver):
             raise DriverError(f"{self.describe()}: channel {index} is not a CANopen encoder")
         e = self.nodes[index].spec
         counts = round((position_mm - e.offset_mm) / e.mm_per_count)
-        self._presets.append((index, counts))
+        self.encoder_nodes.queue_preset(index, counts)
 
     # -- the I/O thread -------------------------------------------------------------------
     def _open_bus(self) -> bool:
         import can
 
         o: CanEncoderOptions = self.options
-        kwargs: dict[str, Any] = {}
+        kwargs: dict[str, Any] = {}  # Any: can.Bus keyword arguments, per interface
         if o.interface == "serial":
             kwargs["timeout"] = o.recv_timeout_s
         elif o.interface == "socketcand":
@@ -268,6 +238,10 @@ class CanEncoderDriver(ThreadedDriver):
         self.count("bus_opens")
         return True
 
+    @property
+    def bus_open(self) -> bool:
+        return self._bus is not None
+
     def release(self) -> None:
         bus, self._bus = self._bus, None
         self.connected = False
@@ -287,13 +261,8 @@ class CanEncoderDriver(ThreadedDriver):
                     self.stopping.wait(backoff.next())
                     continue
                 backoff.reset()
-            now = mono()
-            for n in self.nodes:
-                if n.needs_config and now >= n.retry_at and self._bus is not None:
-                    self._configure(n)
-            while self._presets and self._bus is not None:
-                self._preset(*self._presets.popleft())
-            self._receive(o.recv_timeout_s)
+            self.encoder_nodes.service(self, mono())
+            self.receive(o.recv_timeout_s)
             now = mono()
             if now - last_check >= 0.01:
                 last_check = now
@@ -304,7 +273,8 @@ class CanEncoderDriver(ThreadedDriver):
                     self.failing(problem)
         self.release()
 
-    def _receive(self, timeout_s: float) -> Any:
+    def receive(self, timeout_s: float) -> Any:  # Any: python-can's Message, or None
+        """Read one frame (waiting at most `timeout_s`) and dispatch it."""
         bus = self._bus
         if bus is None:
             return None
@@ -325,7 +295,7 @@ class CanEncoderDriver(ThreadedDriver):
             # a frame cut short or garbled (python-can's serial interface reads a frame
             # byte by byte with the read timeout): that frame is lost, the link is not
             self.count("failed_reads")
-            self._bad(f"a frame could not be read ({text}); skipped", ())
+            self.bad(f"a frame could not be read ({text}); skipped", ())
             return None
         self._failed_reads = 0
         if msg is not None:
@@ -336,11 +306,10 @@ class CanEncoderDriver(ThreadedDriver):
             # server, a gateway or the emulator, may have restarted with them)
             self.error("bus_errors", "the socketcand server closed the connection")
             self.release()
-            for n in self.nodes:
-                n.needs_config, n.retry_at = True, 0.0
+            self.encoder_nodes.reconfigure_all()
         return msg
 
-    def _send(self, can_id: int, data: bytes) -> bool:
+    def send(self, can_id: int, data: bytes) -> bool:
         import can
 
         bus = self._bus
@@ -353,13 +322,12 @@ class CanEncoderDriver(ThreadedDriver):
             return False
         return True
 
-    def _dispatch(self, msg: Any) -> None:
+    def _dispatch(self, msg: Any) -> None:  # Any: python-can's Message (untyped)
         if msg.is_error_frame:
             self.count("error_frames")
             return
         cid, data = msg.arbitration_id, bytes(msg.data)
-        if not msg.is_extended_id and cid == self._sdo_wait:
-            self._sdo_answer = data
+        if not msg.is_extended_id and self.encoder_nodes.take_sdo_answer(cid, data):
             return
         raw = self._raw.get((cid, bool(msg.is_extended_id)))
         if raw is not None:
@@ -368,7 +336,7 @@ class CanEncoderDriver(ThreadedDriver):
             for idx, f in raw:
                 v = raw_frame_value(f, data)
                 if v is None:
-                    self._bad(f"frame 0x{cid:X} for {f.name} has {len(data)} bytes, needs "
+                    self.bad(f"frame 0x{cid:X} for {f.name} has {len(data)} bytes, needs "
                               f"{f.byte_offset + f.length}", (f.name,))
                 else:
                     self.stamp(idx, v, now, jitter)
@@ -381,7 +349,7 @@ class CanEncoderDriver(ThreadedDriver):
         kind, n = hit
         if kind == "pdo":
             if len(data) < 4:
-                self._bad(f"{n.label}: position frame of {len(data)} bytes, needs 4",
+                self.bad(f"{n.label}: position frame of {len(data)} bytes, needs 4",
                           (n.spec.name,))
                 return
             counts = int.from_bytes(data[:4], "little", signed=n.spec.signed)
@@ -391,125 +359,23 @@ class CanEncoderDriver(ThreadedDriver):
                        self._window.jitter_s(now))
             self.count("positions")
         elif kind == "hb":
-            self._heartbeat(n, data)
+            self.encoder_nodes.heartbeat(self, n, data)
         else:
-            self._emergency(n, data)
+            self.encoder_nodes.emergency(self, n, data)
 
-    def _bad(self, message: str, names: tuple[str, ...]) -> None:
+    def bad(self, message: str, names: tuple[str, ...]) -> None:
         self._bad_t = time.monotonic()
         self._bad_msg = self.error("bad_frames", message, names)
-
-    def _heartbeat(self, n: _Node, data: bytes) -> None:
-        if len(data) < 1:
-            self._bad(f"{n.label}: empty heartbeat", (n.spec.name,))
-            return
-        now = time.monotonic()
-        state = data[0] & 0x7F
-        n.last_hb = now
-        n.nmt_state = state
-        self.count("heartbeats")
-        if state == 0x00:  # boot-up: the node restarted and lost its configuration
-            self.error("node_boots", f"{n.label} restarted (boot-up message)", (n.spec.name,))
-            n.needs_config = True
-            n.retry_at = now
-        elif state in (0x04, 0x7F) and not n.needs_config and now - n.last_start_cmd > 0.5:
-            self.error("nmt_restarts", f"{n.label} is {NMT_STATES[state]}; sending NMT start",
-                       (n.spec.name,))
-            n.last_start_cmd = now
-            self._send(NMT_ID, bytes([NMT_START, n.id]))
-
-    def _emergency(self, n: _Node, data: bytes) -> None:
-        if len(data) < 3:
-            self._bad(f"{n.label}: EMCY frame of {len(data)} bytes", (n.spec.name,))
-            return
-        code, register = int.from_bytes(data[:2], "little"), data[2]
-        if code == 0:
-            n.emcy = None
-            self.count("emcy_resets")
-        else:
-            n.emcy = (code, register)
-            self.error("emergencies", f"{n.label} emergency 0x{code:04X} (error register "
-                       f"0x{register:02X})", (n.spec.name,))
-
-    def _sdo_write(self, n: _Node, index: int, sub: int, value: int, size: int) -> str | None:
-        """One expedited download; returns a problem or None. Other frames are handled
-        while waiting."""
-        o: CanEncoderOptions = self.options
-        self._sdo_wait, self._sdo_answer = SDO_TX_BASE + n.id, None
-        answer = None
-        try:
-            for attempt in range(o.lost_after):  # a lost reply costs a retry (downloads
-                if attempt:  # of a value are idempotent: sending one twice is harmless)
-                    self.count("sdo_retries")
-                if not self._send(SDO_RX_BASE + n.id, sdo_download(index, sub, value, size)):
-                    return f"{n.label}: could not send the SDO request"
-                deadline = time.monotonic() + o.sdo_timeout_s
-                while self._sdo_answer is None and time.monotonic() < deadline:
-                    if self._bus is None:
-                        return f"{n.label}: bus lost during SDO"
-                    self._receive(min(o.recv_timeout_s,
-                                      max(0.0, deadline - time.monotonic())))
-                answer = self._sdo_answer
-                if answer is not None:
-                    break
-                self.count("sdo_timeouts")
-        finally:
-            self._sdo_wait = None
-        if answer is None:
-            return (f"{n.label}: no SDO answer to 0x{index:04X}:{sub} within "
-                    f"{o.sdo_timeout_s:g} s, {o.lost_after} times in a row")
-        ok, why = sdo_reply(answer, index, sub)
-        return None if ok else f"{n.label}: {why}"
-
-    def _configure(self, n: _Node) -> None:
-        now = time.monotonic()
-        problem = None
-        if n.spec.configure:
-            for index, sub, value, size in tpdo1_setup(n.spec):
-                problem = self._sdo_write(n, index, sub, value, size)
-                if problem is not None:
-                    break
-        if problem is None and self._send(NMT_ID, bytes([NMT_START, n.id])):
-            n.needs_config = False
-            n.backoff.reset()
-            n.started_at = n.last_start_cmd = time.monotonic()
-            self.count("nodes_started")
-            return
-        self.error("config_failures", problem or f"{n.label}: NMT start not sent",
-                   (n.spec.name,))
-        n.retry_at = now + n.backoff.next()
-
-    def _preset(self, index: int, counts: int) -> None:
-        n = self.nodes[index]
-        problem = self._sdo_write(n, OBJ_PRESET, 0, counts, 4)
-        if problem is None:
-            self.preset_generation[index] += 1
-            self.count("presets")
-        else:
-            self.error("preset_failures", f"preset of {n.label} failed: {problem}",
-                       (n.spec.name,))
 
     def _check(self, now: float) -> str | None:
         """The first problem of any node, or a recent bad frame, or None."""
         if self._bus is None:
             return "CAN bus closed after an error (reopening)"
-        for n in self.nodes:
-            if n.needs_config:
-                if n.retry_at > now or self.counters.get("config_failures", 0):
-                    last = self.recent_errors[-1] if self.recent_errors else ""
-                    return f"{n.label} not configured ({last})"
-                continue
-            since = now - n.started_at
-            if n.spec.heartbeat_ms > 0 and now - max(n.last_hb, n.started_at) > n.hb_timeout:
-                return (f"{n.label} silent: no heartbeat for "
-                        f"{1000 * (now - max(n.last_hb, n.started_at)):.0f} ms")
-            if since > n.spec.position_timeout_s and \
-                    now - max(n.last_pdo, n.started_at) > n.spec.position_timeout_s:
-                state = NMT_STATES.get(n.nmt_state, "unknown state")
-                return (f"{n.label} sends no position (TPDO1) for "
-                        f"{1000 * (now - max(n.last_pdo, n.started_at)):.0f} ms ({state})")
-            if n.emcy is not None:
-                return f"{n.label} reports emergency 0x{n.emcy[0]:04X}"
+        last = self.recent_errors[-1] if self.recent_errors else ""
+        problem = self.encoder_nodes.problem(now, self.counters.get("config_failures", 0),
+                                             last)
+        if problem is not None:
+            return problem
         if now - self._bad_t < BAD_FRAME_HOLD_S:
             return self._bad_msg
         return None

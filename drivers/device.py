@@ -59,7 +59,7 @@ class ThreadedDriver(Driver):
 
     fault_after_s: float = 0.5
 
-    def __init__(self, name: str, options: Any) -> None:
+    def __init__(self, name: str, options: Any) -> None:  # Any: as Driver's (its options_type)
         super().__init__(name, options)
         self.counters: dict[str, int] = {}
         self.recent_errors: deque[str] = deque(maxlen=RECENT_ERRORS)

@@ -31,14 +31,15 @@ An I/O error of the port or socket (not a missing reply) drops the link at once.
 
 A module with a communication watchdog
 gets the outputs' safe values (`set_safe_outputs`) written to its safe-value
-registers, so it reaches the safe state by itself if this PC goes silent.
+registers, so it reaches the safe state by itself if this PC goes silent. The output
+side (what to send when) is `drivers/modbus_writes.py`; the sample clock's times are
+`modbus_map.SampleTimes`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -52,14 +53,14 @@ from pamd.drivers.modbus_map import (
     CommSafety,
     ModbusPoint,
     SampleClock,
+    SampleTimes,
     check_points,
     decode,
-    encode,
     plan_blocks,
-    to_raw,
     to_value,
 )
 from pamd.drivers.modbus_presets import PRESETS
+from pamd.drivers.modbus_writes import OutputWriter, Payload
 
 from pamd.errors import DriverError
 from pamd.schema.engine import spec
@@ -155,18 +156,12 @@ class ModbusDriver(ThreadedDriver):
             plan_blocks(read_points, o.max_gap),
             key=lambda b: not any(i == self._clock_index for i, _ in b.members))
         self.write_blocks: list[Block] = plan_blocks(outs, 0, MAX_WRITE_REGISTERS)
-        n = len(outs)
-        self._out: list[float] = [math.nan] * n  # latest value from the loop (volts)
-        self._sent: list[float | None] = [None] * n  # raw value the device has
-        self._sent_t: list[float] = [-math.inf] * n
-        self._safe_want: dict[int, float] = {}
-        self._safe_sent: dict[int, float] = {}
+        self.outputs = OutputWriter(outs, self.write_blocks, o.write_refresh_s)
+        # Any: a pymodbus client (untyped third party; its calls are named in `request`)
         self._client: Any = None
         self.cycles = 0
-        self._counter: int | None = None  # the sample counter as last read
-        self._counter_read_s = -math.inf  # when it was last read
-        self._sample_s = -math.inf  # stamp of the present sample (sample_clock)
-        self._sample_jitter_s = 0.0
+        self._sample_times = (SampleTimes(o.sample_clock) if o.sample_clock is not None
+                              else None)
         self._unanswered = 0  # requests unanswered in a row (lost_after: the link is lost)
 
     # -- Driver protocol ----------------------------------------------------------------
@@ -177,21 +172,15 @@ class ModbusDriver(ThreadedDriver):
 
     def write(self, index: int, value: float) -> None:
         """Store the value; the thread sends it if its register value changed."""
-        if value == value:  # NaN never reaches a device
-            self._out[index] = value
-        else:
+        if not self.outputs.store(index, value):  # NaN never reaches a device
             self.count("dropped_writes")
 
     def set_safe_outputs(self, values: dict[int, float]) -> None:
         """Values (channel unit) for the module's comm-safety registers; outputs without
         a `safe_address` are counted as unsupported."""
-        want = {}
-        for i, v in values.items():
-            if self.out_points[i].safe_address is None:
-                self.count("safe_unsupported")
-            elif v == v:
-                want[i] = v
-        self._safe_want = want
+        unsupported = self.outputs.set_safe(values)
+        if unsupported:
+            self.count("safe_unsupported", unsupported)
 
     def claims(self) -> tuple[str, ...]:
         """RTU: the serial port (one master on the line); rtu-tcp: the device server's
@@ -253,12 +242,11 @@ class ModbusDriver(ThreadedDriver):
         self._client = client
         self.connected = True
         self.count("connects")
-        self._sent = [None] * len(self.out_points)  # the device may have restarted
-        self._safe_sent = {}
+        self.outputs.forget()  # the device may have restarted
         cs: CommSafety | None = self.options.comm_safety
         if cs is not None and cs.timeout_address is not None:
             ticks = max(1, round(cs.timeout_s / cs.timeout_unit_s))
-            self._request("write_registers", cs.timeout_address, [ticks], (),
+            self.request("write_registers", cs.timeout_address, [ticks], (),
                           "comm-safety watchdog time")
         return self._client is not None
 
@@ -300,10 +288,10 @@ class ModbusDriver(ThreadedDriver):
 
     def _cycle(self) -> str | None:
         """Writes, then reads. Returns the first problem, or None."""
-        problem = self._write_outputs()
+        problem = self.outputs.write_outputs(self)
         if self._client is None:
             return problem
-        p2 = self._write_safe_values()
+        p2 = self.outputs.write_safe_values(self)
         problem = problem or p2
         clock = self.clock
         for blk in self.read_blocks:
@@ -312,7 +300,7 @@ class ModbusDriver(ThreadedDriver):
             fn = {"holding": "read_holding_registers", "input": "read_input_registers",
                   "coil": "read_coils", "discrete": "read_discrete_inputs"}[blk.function]
             sent = clock()
-            rr = self._request(fn, blk.start, blk.count, blk.names, blk.label)
+            rr = self.request(fn, blk.start, blk.count, blk.names, blk.label)
             if isinstance(rr, str):
                 problem = problem or rr
                 continue
@@ -326,11 +314,12 @@ class ModbusDriver(ThreadedDriver):
                 if self._clock_index >= 0:
                     return problem  # without the sample's time no value can be stamped
                 continue
-            if self._clock_index >= 0:
+            times = self._sample_times
+            if times is not None:
                 for i, off in blk.members:
                     if i == self._clock_index:
-                        self._sample_clock(data[off] & 0xFFFF, now, jitter)
-                now, jitter = self._sample_s, self._sample_jitter_s
+                        times.read(data[off] & 0xFFFF, now, jitter)
+                now, jitter = times.sample_s, times.jitter_s
             for i, off in blk.members:
                 if i == self._clock_index:
                     continue
@@ -343,95 +332,8 @@ class ModbusDriver(ThreadedDriver):
             self.count("reads")
         return problem
 
-    def _sample_clock(self, word: int, now: float, round_trip_s: float) -> None:
-        """Set `_sample_s`, the stamp of the values read with (or after) the sample clock
-        register, and `_sample_jitter_s`. Counter: a step since its last read means a
-        sample taken after that read (its time: the conservative stamp; it may be as
-        late as this read); no step, the same sample as before. Age: the age in its
-        unit, read within the round trip."""
-        sc = self.options.sample_clock
-        assert sc is not None
-        if sc.kind == "age":
-            self._sample_s = now - word * sc.unit_s
-            self._sample_jitter_s = sc.unit_s + round_trip_s
-        elif self._counter is None:
-            self._sample_s = now  # the first read: stamped as read (no earlier bound)
-            self._sample_jitter_s = round_trip_s
-        elif word != self._counter:
-            self._sample_s = self._counter_read_s
-            self._sample_jitter_s = now - self._counter_read_s
-        self._counter, self._counter_read_s = word, now
-
-    def _write_outputs(self) -> str | None:
-        now = time.monotonic()
-        refresh = self.options.write_refresh_s
-        problem = None
-        for blk in self.write_blocks:
-            raws: list[float] = []
-            due = False
-            for i, _off in blk.members:
-                v = self._out[i]
-                if v != v:
-                    raws = []
-                    break
-                r = to_raw(self.out_points[i], v)
-                raws.append(r)
-                due = due or r != self._sent[i] or now - self._sent_t[i] >= refresh
-            if not raws:  # not every member written yet: send those that are, one by one
-                for i, _off in blk.members:
-                    v = self._out[i]
-                    if v == v:
-                        problem = self._send([i], [to_raw(self.out_points[i], v)], now) \
-                            or problem
-                continue
-            if due:
-                problem = self._send([i for i, _ in blk.members], raws, now) or problem
-        return problem
-
-    def _send(self, idx: list[int], raws: list[float], now: float) -> str | None:
-        pts = [self.out_points[i] for i in idx]
-        names = tuple(p.name for p in pts)
-        if len(idx) == 1 and (pts[0].is_bit or pts[0].words == 1):
-            fn = "write_coil" if pts[0].is_bit else "write_register"
-            payload: Any = bool(raws[0] >= 0.5) if pts[0].is_bit else encode(pts[0], raws[0])[0]
-        elif pts[0].is_bit:
-            fn, payload = "write_coils", [r >= 0.5 for r in raws]
-        else:
-            fn = "write_registers"
-            payload = [w for p, r in zip(pts, raws, strict=True) for w in encode(p, r)]
-        rr = self._request(fn, pts[0].address, payload, names,
-                           f"writing {', '.join(names)} at {pts[0].function} {pts[0].address}")
-        if isinstance(rr, str):
-            return rr
-        for i, r in zip(idx, raws, strict=True):
-            self._sent[i] = r
-            self._sent_t[i] = now
-        self.count("writes")
-        return None
-
-    def _write_safe_values(self) -> str | None:
-        want = self._safe_want
-        problem = None
-        for i, v in want.items():
-            pt = self.out_points[i]
-            raw = to_raw(pt, v)
-            if self._safe_sent.get(i) == raw or pt.safe_address is None:
-                continue
-            if pt.is_bit:
-                rr = self._request("write_coil", pt.safe_address, raw >= 0.5, (pt.name,),
-                                   f"safe value of {pt.name}")
-            else:
-                rr = self._request("write_registers", pt.safe_address, encode(pt, raw),
-                                   (pt.name,), f"safe value of {pt.name}")
-            if isinstance(rr, str):
-                problem = problem or rr
-                continue
-            self._safe_sent[i] = raw
-            self.count("safe_writes")
-        return problem
-
-    def _request(self, fn: str, address: int, arg: Any, names: tuple[str, ...],
-                 label: str) -> Any:
+    def request(self, fn: str, address: int, arg: Payload, names: tuple[str, ...],
+                label: str) -> Any:  # Any: a pymodbus response (untyped), or a message
         """One transaction; returns the response, or a message (str) naming the device,
         the request and its channels. An unanswered request is re-sent at once until
         `lost_after` in a row went unanswered; then, or on an I/O error, the link is

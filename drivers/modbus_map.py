@@ -102,6 +102,35 @@ class SampleClock:
     unit_s: float = spec(0.001, "age: seconds per count.", unit="s", gt=0.0)
 
 
+class SampleTimes:
+    """The sample time a `SampleClock` register gives the values read with (or after)
+    it: `sample_s` and its `jitter_s`. Counter: a step since its last read means a
+    sample taken after that read (its time: the conservative stamp; it may be as late
+    as this read); no step, the same sample as before. Age: the age in its unit, read
+    within the round trip."""
+
+    def __init__(self, clock: SampleClock) -> None:
+        self._clock = clock
+        self._counter: int | None = None  # the sample counter as last read
+        self._counter_read_s = -math.inf  # when it was last read
+        self.sample_s = -math.inf  # stamp of the present sample
+        self.jitter_s = 0.0
+
+    def read(self, word: int, now: float, round_trip_s: float) -> None:
+        """The register read `word` at `now`, within `round_trip_s`."""
+        sc = self._clock
+        if sc.kind == "age":
+            self.sample_s = now - word * sc.unit_s
+            self.jitter_s = sc.unit_s + round_trip_s
+        elif self._counter is None:
+            self.sample_s = now  # the first read: stamped as read (no earlier bound)
+            self.jitter_s = round_trip_s
+        elif word != self._counter:
+            self.sample_s = self._counter_read_s
+            self.jitter_s = now - self._counter_read_s
+        self._counter, self._counter_read_s = word, now
+
+
 def type_range(point: ModbusPoint) -> tuple[float, float]:
     """Lowest and highest raw value the point can carry, tightened by raw_min/raw_max."""
     if point.is_bit:

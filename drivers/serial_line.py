@@ -134,7 +134,7 @@ class SerialLineDriver(ThreadedDriver):
         self.fault_after_s = o.fault_after_s
         self.term = _unescape(o.terminator).encode(o.encoding)
         self.request_bytes = _unescape(o.request).encode(o.encoding)
-        self._port: Any = None
+        self._port: Any = None  # Any: a pyserial Serial (untyped third party), opened in run
         self._buf = bytearray()
         self._last_line = time.monotonic()
         self._window = ArrivalWindow()

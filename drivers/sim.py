@@ -32,18 +32,23 @@ scheduled `stall` (signal `loop`) stops the loop's whole process for its
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import math
 import random
-import time
 from collections.abc import Sequence
 
 from pamd.drivers import Channel, Clock, Driver, DriverHealth
+from pamd.drivers.sim_chain import SimChain
+from pamd.drivers.sim_faults import (
+    SIGNALS,
+    FaultSchedule,
+    SensorFaults,
+    check_fault,
+    stall_process,
+)
 
 from pamd.errors import DriverError
 from pamd.muscle_type import ForceModel, force_model
-from pamd.sim.faults import FAULT_KINDS, JUMP_DEFAULT, NOISE_DEFAULT, SimFault
+from pamd.sim.faults import FAULT_KINDS, SimFault
 from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
@@ -52,22 +57,9 @@ from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
 INPUTS_PER_MUSCLE = 3  # pressure, force, length
 OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
 
-SIGNALS: tuple[str, ...] = ("pressure", "force", "length")
 #: The rig's safety-chain inputs after the muscles' (their offsets from 3 x muscles).
 CHAIN_INPUTS: tuple[str, ...] = ("safety_chain", "supply", "reset")
 SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
-
-_OK, _STUCK, _DEAD, _SILENT, _NOISY, _JUMP = 0, 1, 2, 3, 4, 5
-_FAULT_CODES = {"stuck": _STUCK, "dead": _DEAD, "silent": _SILENT, "noisy": _NOISY,
-                "jump": _JUMP}
-
-
-class _Timespec(ctypes.Structure):
-    _fields_ = [("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long)]
-
-
-# libc through PyDLL: its calls keep the interpreter lock (a stall of the whole process)
-_GIL_HOLDING_LIBC = ctypes.PyDLL(ctypes.util.find_library("c") or "libc.so.6")
 
 
 def muscle_rng(seed: int, muscle: str) -> random.Random:
@@ -100,14 +92,10 @@ class SimDriver(Driver):
         # incremental encoders read 0 at power-up: the true length then is their zero
         self._len_zero_mm = [0.0 if m.length_absolute else p.length_read_mm
                              for m, p in zip(options.muscles, self._plants, strict=True)]
-        self._modes = [_OK] * len(self.input_channels)
-        self._sizes = [0.0] * len(self.input_channels)
-        self._fault_rng = random.Random(f"pamd.sim.faults:{options.seed}")
-        self._schedule: list[SimFault] = sorted(options.faults, key=lambda f: f.at_s)
-        self._next_fault = 0
+        self.sensor_faults = SensorFaults(len(self.input_channels), options.seed)
+        self._schedule = FaultSchedule(options.faults)
         self._t_s = 0.0
         self._t_open = 0.0
-        self._any_sensor_fault = False
         self._driver_error = False
         self._clock: Clock | None = None
         self._steps = 0
@@ -121,32 +109,11 @@ class SimDriver(Driver):
         # the hardware safety chain (the rig's, beside the muscles)
         self._n_muscle_in = INPUTS_PER_MUSCLE * len(options.muscles)
         self._n_muscle_out = OUTPUTS_PER_MUSCLE * len(options.muscles)
-        self.chain_open = False
-        self.chain_opened_by = ""  # why it opened last ("e-stop", "heartbeat watchdog")
-        self.supply_lost = False  # the rig's supply (a `supply` fault of muscle '*')
-        self.reset_pressed = False
-        self.heartbeat = 0.0  # the heartbeat output's level as last written
-        self.heartbeat_toggles = 0
-        self._heartbeat_at: float | None = None  # when it last changed (None: never)
+        self.chain = SimChain(self._plants, options.heartbeat_watchdog_s)
 
     # --- Driver protocol --------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
-        opts: SimOptions = self.options
-        ins: list[Channel] = []
-        outs: list[Channel] = []
-        for m in opts.muscles:
-            ins += [
-                Channel(f"{m.name}.pressure", "in", "bar"),
-                Channel(f"{m.name}.force", "in", "N"),
-                Channel(f"{m.name}.length", "in", "mm"),
-            ]
-            first = (Channel(f"{m.name}.inflate", "out", "", digital=True)
-                     if m.actuation == "onoff" else Channel(f"{m.name}.valve", "out", "bar"))
-            outs += [first, Channel(f"{m.name}.exhaust", "out", "", digital=True)]
-        ins += [Channel("safety_chain", "in", "", digital=True), Channel("supply", "in", "bar"),
-                Channel("reset", "in", "", digital=True)]
-        outs.append(Channel("heartbeat", "out", "", digital=True))
-        return ins + outs
+        return sim_channels(self.options)
 
     def open(self, clock: Clock) -> None:
         """Store the clock and publish the readings of the rig at rest."""
@@ -167,11 +134,7 @@ class SimDriver(Driver):
                 self._dropped_writes += 1
                 return
             self._writes += 1
-            level = 1.0 if value >= 0.5 else 0.0
-            if level != self.heartbeat:
-                self.heartbeat = level
-                self.heartbeat_toggles += 1
-                self._heartbeat_at = self._clock() if self._clock is not None else self._t_s
+            self.chain.beat(value, self._clock() if self._clock is not None else self._t_s)
             return
         k, j = divmod(index, OUTPUTS_PER_MUSCLE)
         plant = self._plants[k]
@@ -207,18 +170,11 @@ class SimDriver(Driver):
         self._t_s += dt_s
         clock = self._clock
         now_s = clock() if clock is not None else math.nan
-        wd = self.options.heartbeat_watchdog_s
-        if wd > 0.0 and self._heartbeat_at is not None and not self.chain_open:
-            t = now_s if clock is not None else self._t_s
-            if t - self._heartbeat_at > wd:  # the relay drops out: the chain opens
-                self._open_chain("heartbeat watchdog")
-        if self._next_fault < len(self._schedule):
+        self.chain.watch(now_s if clock is not None else self._t_s)
+        if self._schedule.pending:
             # the schedule runs on the loop's clock (this tick's time), else on the steps
             elapsed = now_s - self._t_open + 1e-9 if clock is not None else self._t_s
-            sched = self._schedule
-            while self._next_fault < len(sched) and sched[self._next_fault].at_s <= elapsed:
-                f = sched[self._next_fault]
-                self._next_fault += 1
+            while (f := self._schedule.due(elapsed)) is not None:
                 if f.kind == "stall":  # the readings keep this step's time: the
                     self.stall_process(f.duration_s or 0.0)  # plant catches up next step
                 else:
@@ -295,106 +251,72 @@ class SimDriver(Driver):
         `inject_fault("*", "driver", "error")`: the whole device fails: `fault` is
         set, readings stop, writes are dropped.
         """
+        check_fault(signal, kind)
         if signal == "driver":
-            if kind != "error":
-                raise ValueError(f"driver fault kind must be 'error', got {kind!r}")
             self._driver_error = True
             self.fault = f"simulated rig {self.name!r} stopped answering (injected driver error)"
             return
         if signal == "safety_chain":
             if kind == "open":
-                self._open_chain("e-stop")
-            elif kind == "closed":
-                self.chain_open = False
-                self._supply_air()
+                self.chain.open_by("e-stop")
             else:
-                raise ValueError(f"safety_chain fault kind must be 'open' or 'closed', "
-                                 f"got {kind!r}")
+                self.chain.close()
             return
         if signal == "supply" and muscle == "*":
-            if kind != "lost":
-                raise ValueError(f"supply fault kind must be 'lost', got {kind!r}")
-            self.supply_lost = True
-            self._supply_air()
+            self.chain.lose_supply()
             return
         k = self._muscle_index(muscle)
         if signal == "supply":
-            if kind != "lost":
-                raise ValueError(f"supply fault kind must be 'lost', got {kind!r}")
             self._plants[k].set_supply(False)
             return
         if signal == "valve":
-            if kind != "stuck":
-                raise ValueError(f"valve fault kind must be 'stuck', got {kind!r}")
             self._plants[k].regulator.stuck = True
             return
-        if signal not in SIGNALS:
-            raise ValueError(
-                f"unknown signal {signal!r}; use one of {', '.join(SIGNALS)}, supply, driver"
-            )
-        if kind not in _FAULT_CODES:
-            raise ValueError(
-                f"unknown sensor fault {kind!r}; use one of {', '.join(SENSOR_FAULTS)}"
-            )
-        i = k * INPUTS_PER_MUSCLE + SIGNALS.index(signal)
-        self._modes[i] = _FAULT_CODES[kind]
-        if kind == "noisy":
-            self._sizes[i] = NOISE_DEFAULT[signal] if size is None else size
-        elif kind == "jump":
-            self._sizes[i] = JUMP_DEFAULT[signal] if size is None else size
-        self._any_sensor_fault = True
+        self.sensor_faults.inject(k * INPUTS_PER_MUSCLE + SIGNALS.index(signal), signal, kind,
+                                  size)
 
     def stall_process(self, duration_s: float) -> None:
-        """Stop the loop's whole process for `duration_s` (a scheduled `stall`): the
-        calling thread (the loop's, in a tick) sleeps in a C call that keeps Python's
-        interpreter lock, so no other thread of the process runs either, as when the
-        process gets no CPU. Interrupted sleeps go on to the end."""
+        """Stop the loop's whole process for `duration_s` (a scheduled `stall`:
+        `pamd.drivers.sim_faults.stall_process`)."""
         self.stalls += 1
-        end = time.monotonic() + duration_s
-        while True:
-            left = end - time.monotonic()
-            if left <= 0.0:
-                return
-            ts = _Timespec(int(left), int((left % 1.0) * 1e9))
-            _GIL_HOLDING_LIBC.nanosleep(ctypes.byref(ts), None)
+        stall_process(duration_s)
 
     def clear_faults(self) -> None:
         """Remove every injected fault."""
-        self._modes = [_OK] * len(self.input_channels)
-        self._any_sensor_fault = False
+        self.sensor_faults.clear()
         for plant in self._plants:
             plant.set_supply(True)
             plant.regulator.stuck = False
         self._driver_error = False
         self.fault = None
-        self.chain_open = False
-        self.supply_lost = False
+        self.chain.clear()
 
     def press_reset(self, pressed: bool = True) -> None:
         """The reset button at the rig (the `reset` input): held while `pressed`."""
-        self.reset_pressed = pressed
+        self.chain.reset_pressed = pressed
+
+    @property
+    def chain_open(self) -> bool:
+        return self.chain.open
+
+    @property
+    def chain_opened_by(self) -> str:
+        return self.chain.opened_by
+
+    @property
+    def heartbeat_toggles(self) -> int:
+        return self.chain.heartbeat_toggles
 
     @property
     def supply_bar(self) -> float:
         """What the supply's pressure sensor reads: the line's pressure (the highest
         muscle supply without a shared line), 0 with the air cut."""
-        if self.chain_open or self.supply_lost:
+        if self.chain.air_cut:
             return 0.0
         if self.supply_line is not None:
             return self.supply_line.pressure_bar
         supply_bar: float = max(m.supply_bar for m in self.options.muscles)
         return supply_bar
-
-    def _open_chain(self, by: str) -> None:
-        """The safety chain opens: its input reads 0 and it cuts every muscle's supply."""
-        self.chain_open = True
-        self.chain_opened_by = by
-        self._supply_air()
-
-    def _supply_air(self) -> None:
-        ok = not (self.chain_open or self.supply_lost)
-        for plant in self._plants:
-            plant.set_supply(ok)
 
     # --- internals ---------------------------------------------------------------
     def _muscle_index(self, muscle: str) -> int:
@@ -411,54 +333,32 @@ class SimDriver(Driver):
         stamps = self.in_stamps_s
         jitters = self.in_jitter_s
         c = self._n_muscle_in  # the safety chain's inputs, sampled at every step
-        values[c] = 0.0 if self.chain_open else 1.0
+        chain = self.chain
+        values[c] = 0.0 if chain.open else 1.0
         values[c + 1] = self.supply_bar
-        values[c + 2] = 1.0 if self.reset_pressed else 0.0
+        values[c + 2] = 1.0 if chain.reset_pressed else 0.0
         stamps[c] = stamps[c + 1] = stamps[c + 2] = now_s
-        zero = self._len_zero_mm
-        for k, plant in enumerate(self._plants):  # 0 unless a sensor's link is bursty
-            i = 3 * k
-            jitters[i] = plant.pressure_jitter_s
-            jitters[i + 1] = plant.force_jitter_s
-            jitters[i + 2] = plant.length_jitter_s
-        if not self._any_sensor_fault:
-            i = 0
-            for k, plant in enumerate(self._plants):
-                values[i] = plant.pressure_read_bar
-                values[i + 1] = plant.force_read_n
-                values[i + 2] = plant.length_read_mm - zero[k]
-                # Stamped with when the device took the sample (its age is 0 for a
-                # sensor sampled at every step without latency), or on a bursty link
-                # with its arrival (and the jitter above).
-                stamps[i] = now_s - plant.pressure_age_s
-                stamps[i + 1] = now_s - plant.force_age_s
-                stamps[i + 2] = now_s - plant.length_age_s
-                i += 3
-            return
-        modes, sizes = self._modes, self._sizes
-        gauss = self._fault_rng.gauss
-        i = 0
-        for k, plant in enumerate(self._plants):
-            readings = (plant.pressure_read_bar, plant.force_read_n,
-                        plant.length_read_mm - zero[k])
-            ages = (plant.pressure_age_s, plant.force_age_s, plant.length_age_s)
-            for j in range(INPUTS_PER_MUSCLE):
-                mode = modes[i]
-                stamp = now_s - ages[j]
-                # a failed sensor's value changes with a new sample only, as a device's
-                # (a slow or held one keeps its last until the next)
-                if mode == _OK or (mode != _SILENT and stamp > stamps[i] + 1e-9):
-                    if mode == _OK:
-                        values[i] = readings[j]
-                    elif mode == _DEAD:
-                        values[i] = 0.0
-                    elif mode == _NOISY:
-                        values[i] = readings[j] + gauss(0.0, sizes[i])
-                    elif mode == _JUMP:
-                        values[i] = readings[j] + sizes[i]
-                if mode != _SILENT:
-                    stamps[i] = stamp
-                i += 1
+        self.sensor_faults.publish(self._plants, self._len_zero_mm, now_s, values, stamps,
+                                   jitters)
+
+
+def sim_channels(opts: SimOptions) -> list[Channel]:
+    """Each muscle's inputs and outputs, then the safety chain's (the module docstring)."""
+    ins: list[Channel] = []
+    outs: list[Channel] = []
+    for m in opts.muscles:
+        ins += [
+            Channel(f"{m.name}.pressure", "in", "bar"),
+            Channel(f"{m.name}.force", "in", "N"),
+            Channel(f"{m.name}.length", "in", "mm"),
+        ]
+        first = (Channel(f"{m.name}.inflate", "out", "", digital=True)
+                 if m.actuation == "onoff" else Channel(f"{m.name}.valve", "out", "bar"))
+        outs += [first, Channel(f"{m.name}.exhaust", "out", "", digital=True)]
+    ins += [Channel("safety_chain", "in", "", digital=True), Channel("supply", "in", "bar"),
+            Channel("reset", "in", "", digital=True)]
+    outs.append(Channel("heartbeat", "out", "", digital=True))
+    return ins + outs
 
 
 def _shared_supply_line(options: SimOptions) -> SupplyLine | None:

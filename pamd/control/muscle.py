@@ -17,7 +17,10 @@ What is fixed about the muscle (limits, nominal length, force model, rate limits
 is its `MuscleEnvelope`. What changes is its state, which only this class writes:
 commands and the rig controller call its methods (`home`, `enter_mode`,
 `start_profile`, `go_safe`, `apply_settings`, ...) and read its properties
-(`pamd.control.muscle_view.MuscleView`, which also writes the tick record).
+(`pamd.control.muscle_view.MuscleView`, which also writes the tick record). Its
+start-up, safe state, air hold and reset are `pamd.control.muscle_safe.MuscleSafeState`;
+the references, modes, profiles and model of its motion
+`pamd.control.muscle_motion.MuscleMotion`.
 
 The tick path is plain float arithmetic on cached attributes, no I/O, no
 allocation on the normal path (only a fault builds its message string).
@@ -36,11 +39,11 @@ from pamd.control.actuation import Actuation, OnOffActuation, actuation_for
 from pamd.control.adapt import Adaptation
 from pamd.control.inputs import Inputs
 from pamd.control.length_control import LengthControl
-from pamd.control.muscle_view import MuscleView
+from pamd.control.muscle_motion import MuscleMotion
+from pamd.control.muscle_safe import MuscleSafeState
 from pamd.control.pressure_loop import PressureLoop
 from pamd.control.setpoint import ProfileFollower, SafeRamp
 from pamd.control.settings import MuscleSettings
-from pamd.declare.jsonsafe import JsonObject
 from pamd.profiles import Profile
 from pamd.rig import MuscleSignals
 from pamd.safety.envelope import MuscleEnvelope
@@ -50,7 +53,7 @@ from pamd.safety.plausibility import Plausibility
 from pamd.tick import Mode, State
 
 if TYPE_CHECKING:
-    from pamd.control.feedforward import Feedforward, LoadedModel
+    from pamd.control.feedforward import LoadedModel
 
 S_LOAD, S_RUNNING = int(State.LOAD_CHANGE), int(State.RUNNING)
 S_FAULT, S_ESTOP = int(State.FAULT), int(State.ESTOP)
@@ -58,7 +61,7 @@ S_FAULT, S_ESTOP = int(State.FAULT), int(State.ESTOP)
 VENT_BELOW_BAR = 0.005
 
 
-class MuscleController(MuscleView):
+class MuscleController(MuscleMotion, MuscleSafeState):
     """State and tick of one muscle (see the module docstring)."""
 
     def __init__(self, index: int, envelope: MuscleEnvelope, cfg: LoadedConfig,
@@ -150,184 +153,6 @@ class MuscleController(MuscleView):
         self._set_envelope(self._envelope.with_settings(
             s.limits, s.safety, s.slew_limit_bar_per_s, s.nominal_length_mm))
         self.set_load(self._load_kg if s.load_kg is None else s.load_kg)
-
-    # -- start-up and the safe state (loop thread) -----------------------------------------
-    def missing_input(self, now: float) -> str | None:
-        """None when every input has a fresh reading; else which one is missing."""
-        return self.inputs.missing(now)
-
-    def hold_measured(self, safe_ramp: bool = False) -> None:
-        """Start-up / reset: take the measured pressure as the setpoint, bumpless; with
-        `safe_ramp`, ramp from there to the safe pressure at the slew limit."""
-        p = max(self.inputs.measured_pressure_bar(), 0.0)
-        self._setpoint_bar = p
-        self._valve_cmd_bar = p
-        self.pressure_loop.reset(p)
-        self._profile = None
-        self._safe_ramp = safe_ramp
-        self.safe_ramp.unpace()
-        self._started = True
-
-    def outside_limits(self) -> str | None:
-        """Start-up: why the measured state is outside the limits (None: inside). Only
-        trusted readings count; an untrusted length is itself a reason."""
-        env = self._envelope
-        p = self.inputs.measured_pressure_bar()
-        if p > env.max_pressure_bar:
-            return f"pressure {p:.2f} bar above the limit {env.max_pressure_bar:g} bar"
-        if not self.referenced:
-            return None
-        if not self.plausibility.length_ok:
-            return f"length untrusted ({self.signals.length.name})"
-        x = env.contraction(self.inputs.measured_length_mm())
-        if x < -env.max_pretension:
-            return (f"stretched {-100 * x:.1f} % (pretension limit "
-                    f"{100 * env.max_pretension:.1f} %)")
-        if x > env.soft_max_contraction:
-            return f"contracted {100 * x:.1f} % (limit {100 * env.max_contraction:.1f} %)"
-        return None
-
-    def go_safe(self) -> None:
-        """End what runs and ramp to the safe pressure (at its own slew limit until the
-        rig paces it: `pace_safe_entry`)."""
-        self._profile = None
-        self._safe_ramp = True
-        self.safe_ramp.unpace()
-
-    def safe_entry_s(self, estop: bool) -> float:
-        """How long this muscle's ramp to its safe state takes from here at its own
-        slew limit (0 if never started)."""
-        if not self._started:
-            return 0.0
-        return self.safe_ramp.time_to_target_s(self._setpoint_bar, self._safe_pressure_bar,
-                                               estop)
-
-    def pace_safe_entry(self, duration_s: float, estop: bool) -> None:
-        """Ramp to the safe state in `duration_s`, the rig's common duration (never
-        faster than its own slew limit)."""
-        if self._started:
-            self.safe_ramp.pace(self._setpoint_bar, self._safe_pressure_bar, estop,
-                                duration_s)
-
-    def hold_air(self) -> None:
-        """The safety chain opened or the supply is lost (the rig controller, once the
-        ESTOP or FAULT latched): the air there is is all there will be, so the valves
-        close and hold it; nothing vents, not even to the safe pressure. The command
-        stands at the higher of the last command and the measured pressure (a regulator
-        commanded below its pressure would vent), and stays there until the reset."""
-        if not self._started or self._air_hold_bar == self._air_hold_bar:
-            return
-        u = self._valve_cmd_bar
-        p = self.inputs.pressure_bar
-        hold = u if not (self.inputs.pressure_ok and p > u) else p
-        self._air_hold_bar = hold if hold < self._max_pressure_bar else self._max_pressure_bar
-
-    def set_air_out(self, out: bool) -> None:
-        """The supply is out (`out`) or back. While out the pressure loop's integral
-        holds. When the air returns to a muscle still holding its air, the hold comes
-        down to the measured pressure, so that the returning air moves nothing before
-        the operator's reset (a leak while the air was cut is not refilled)."""
-        if out == self._air_out:
-            return
-        self._air_out = out
-        self.pressure_loop.hold_integral = out
-        hold = self._air_hold_bar
-        p = self.inputs.pressure_bar
-        if not out and hold == hold and self.inputs.pressure_ok and p < hold:
-            self._air_hold_bar = p if p > 0.0 else 0.0
-
-    @property
-    def holding_air(self) -> bool:
-        """The valves hold the air after the chain opened or the supply was lost."""
-        return self._air_hold_bar == self._air_hold_bar
-
-    def clear_findings(self) -> None:
-        """Trust every signal again; the checks start afresh."""
-        self.plausibility.clear()
-        self.limit_monitor.stop_tracking()
-        self.limit_monitor.reset_guards()
-
-    def reset(self) -> None:
-        """The operator's reset of a latched fault: every signal trusted again; a
-        started muscle closes its loop again from where it is, one never started holds
-        its measured pressure."""
-        self.clear_findings()
-        self._air_hold_bar = math.nan
-        if self._started:
-            self.pressure_loop.reset(self.inputs.pressure_bar)
-            self._safe_ramp = False
-        else:
-            self.hold_measured()
-
-    # -- references (loop thread) --------------------------------------------------------
-    def home(self, length_mm: float, raw_length_mm: float, at: str) -> float:
-        """Reference the length (`Inputs.home`; the caller has run
-        `pamd.safety.datums.check_home`). Returns the offset."""
-        return self.inputs.home(length_mm, raw_length_mm, at)
-
-    def tare(self, force_offset_n: float, at: str) -> None:
-        """The force reference (checked by `pamd.safety.datums.tare_offset`)."""
-        self.inputs.tare(force_offset_n, at)
-
-    # -- motion (loop thread) ------------------------------------------------------------
-    def start_profile(self, profile: Profile) -> None:
-        """A pressure profile (or a setpoint's ramp) from the present setpoint."""
-        self._profile = profile
-        self._safe_ramp = False
-        self.pressure_loop.reset(self.inputs.pressure_bar, self.pressure_loop.pid.i)
-
-    def stop_profile(self) -> None:
-        self._profile = None
-
-    def resume(self, paused_s: float) -> bool:
-        """After a HOLD of `paused_s`: the profile goes on where it was. Whether one runs."""
-        if self._profile is None:
-            return False
-        self._profile.t0_s += paused_s
-        return True
-
-    def enter_mode(self, mode: Mode, use_ff: bool, ilc: bool) -> None:
-        """A length mode, bumpless (`LengthControl.enter`); any profile ends."""
-        self._profile = None
-        inp = self.inputs
-        self.length_control.enter(mode, use_ff, ilc, from_pressure=self._mode == Mode.PRESSURE,
-                                  length_mm=inp.length_mm, force_n=inp.force_n,
-                                  setpoint_bar=self._setpoint_bar)
-        self._mode = mode
-
-    def leave_length_mode(self) -> None:
-        """Back to pressure mode; the setpoint stays where it is (bumpless)."""
-        self._mode = Mode.PRESSURE
-        self._profile = None
-        self.length_control.leave()
-
-    def set_length_targets(self, profile: Profile | None, force_n: float | None) -> None:
-        """A length setpoint: its ramp (a length profile) and/or a force target."""
-        if profile is not None:
-            self._profile = profile
-        if force_n is not None:
-            self.length_control.set_force_target(force_n)
-
-    def start_length_profile(self, profile: Profile) -> None:
-        self._profile = profile
-        lc = self.length_control
-        if lc.ilc_on and profile.period_s > 0:
-            lc.start_ilc(profile.period_s)
-
-    def swap_model(self, feedforward: Feedforward) -> float:
-        """A new inverse model; returns the pressure the outer loop takes up (bar)."""
-        inp = self.inputs
-        taken_up = self.length_control.swap(feedforward, inp.length_mm, inp.force_n)
-        self.adaptation.bind(feedforward)
-        return taken_up
-
-    def adapt(self, action: str) -> JsonObject:
-        """The `adapt` command: on, off, reset, restore or status (`Adaptation.command`)."""
-        return self.adaptation.command(action)
-
-    def adapted_parameters(self) -> JsonObject:
-        """A copy of the adapted consequents and their provenance (`Adaptation.snapshot`)."""
-        return self.adaptation.snapshot()
 
     # -- the tick -------------------------------------------------------------------------
     def tick(self, now: float, dt: float, state: int, rec: array[float]) -> str | None:

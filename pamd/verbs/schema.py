@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.profiles import kinds_reading, kinds_text
+from pamd.profile_kinds import kinds_reading, kinds_text
 from pamd.schema.engine import spec
 
 

@@ -13,6 +13,7 @@ import pytest
 from pamd.cli.main import build_parser
 from pamd.errors import CommandRefused
 from pamd.experiment.plan import PlanProfile
+from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import (
     SHAPE_NAMES,
     SHAPES,
@@ -75,6 +76,16 @@ def test_an_unknown_kind_is_refused_naming_the_registered_ones() -> None:
             make()
         assert str(exc.value) == ("unknown profile kind 'zigzag'; use constant, step, ramp, "
                                   "sine, triangle, multisine or multitriangle")
+
+
+def test_the_light_declaration_names_the_registered_shapes() -> None:
+    """`pamd.profile_kinds` (what the io process reads) and the registry of the shapes'
+    code name the same shapes in the same order, and each shape reads its declared
+    fields: a shape added to one and not the other fails here."""
+    assert tuple(SHAPES) == tuple(SHAPE_PARAMS) == SHAPE_NAMES
+    assert all(shape.params == SHAPE_PARAMS[name] for name, shape in SHAPES.items())
+    assert all(set(params) <= {f.name for f in dataclasses.fields(ProfileSpec)}
+               for params in SHAPE_PARAMS.values())
 
 
 def test_every_place_that_names_the_kinds_reads_the_registry() -> None:

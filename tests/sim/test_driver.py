@@ -209,6 +209,16 @@ def test_unknown_faults_are_refused(make_rig) -> None:
         drv.inject_fault("m1", "temperature", "stuck")
     with pytest.raises(ValueError, match="fault"):
         drv.inject_fault("m1", "force", "melted")
+    # each signal takes only its own kinds (pamd.sim.faults.FAULT_KINDS), named
+    with pytest.raises(ValueError, match="valve fault kind must be 'stuck', got 'lost'"):
+        drv.inject_fault("m1", "valve", "lost")
+    with pytest.raises(ValueError, match="'open' or 'closed', got 'stuck'"):
+        drv.inject_fault("*", "safety_chain", "stuck")
+    with pytest.raises(ValueError, match="unknown sensor fault 'lost'; use one of dead, stuck"):
+        drv.inject_fault("m1", "pressure", "lost")
+    with pytest.raises(ValueError, match="unknown signal 'loop'"):  # a stall: scheduled only
+        drv.inject_fault("*", "loop", "stall")
+    assert drv.fault is None and not drv.chain_open and drv.health().ok  # nothing took
 
 
 # --- numerics -----------------------------------------------------------------------

@@ -1,0 +1,141 @@
+"""One muscle's start-up and safe state: the methods of `MuscleController` that take
+it into and out of the safe state (the rig controller calls them, in the loop's
+thread, between ticks).
+
+Start-up reads before it writes: the measured pressure becomes the setpoint
+(bumpless), and a measured state outside the limits is refused with the reason. The
+safe state ramps to the safe pressure at the slew limit (paced by the rig so that
+every muscle arrives together), or, with the air cut (the safety chain opened, the
+supply lost), closes the valves and holds the air there is. The operator's reset
+trusts every signal again and closes the loop from where the muscle is.
+
+`MuscleSafeState` is the base of `pamd.control.muscle.MuscleController`, which owns
+the state these write (set up in its `__init__`; declared here and in `MuscleView`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from pamd.control.muscle_view import MuscleView
+from pamd.control.setpoint import SafeRamp
+from pamd.safety.limits import LimitMonitor
+from pamd.safety.plausibility import Plausibility
+
+
+class MuscleSafeState(MuscleView):
+    """Start-up, the safe state, the air hold and the reset of one muscle."""
+
+    plausibility: Plausibility
+    limit_monitor: LimitMonitor
+    safe_ramp: SafeRamp
+    _max_pressure_bar: float
+    _air_hold_bar: float  # NaN: not holding the air
+    _air_out: bool
+
+    def missing_input(self, now: float) -> str | None:
+        """None when every input has a fresh reading; else which one is missing."""
+        return self.inputs.missing(now)
+
+    def hold_measured(self, safe_ramp: bool = False) -> None:
+        """Start-up / reset: take the measured pressure as the setpoint, bumpless; with
+        `safe_ramp`, ramp from there to the safe pressure at the slew limit."""
+        p = max(self.inputs.measured_pressure_bar(), 0.0)
+        self._setpoint_bar = p
+        self._valve_cmd_bar = p
+        self.pressure_loop.reset(p)
+        self._profile = None
+        self._safe_ramp = safe_ramp
+        self.safe_ramp.unpace()
+        self._started = True
+
+    def outside_limits(self) -> str | None:
+        """Start-up: why the measured state is outside the limits (None: inside). Only
+        trusted readings count; an untrusted length is itself a reason."""
+        env = self._envelope
+        p = self.inputs.measured_pressure_bar()
+        if p > env.max_pressure_bar:
+            return f"pressure {p:.2f} bar above the limit {env.max_pressure_bar:g} bar"
+        if not self.referenced:
+            return None
+        if not self.plausibility.length_ok:
+            return f"length untrusted ({self.signals.length.name})"
+        x = env.contraction(self.inputs.measured_length_mm())
+        if x < -env.max_pretension:
+            return (f"stretched {-100 * x:.1f} % (pretension limit "
+                    f"{100 * env.max_pretension:.1f} %)")
+        if x > env.soft_max_contraction:
+            return f"contracted {100 * x:.1f} % (limit {100 * env.max_contraction:.1f} %)"
+        return None
+
+    def go_safe(self) -> None:
+        """End what runs and ramp to the safe pressure (at its own slew limit until the
+        rig paces it: `pace_safe_entry`)."""
+        self._profile = None
+        self._safe_ramp = True
+        self.safe_ramp.unpace()
+
+    def safe_entry_s(self, estop: bool) -> float:
+        """How long this muscle's ramp to its safe state takes from here at its own
+        slew limit (0 if never started)."""
+        if not self._started:
+            return 0.0
+        return self.safe_ramp.time_to_target_s(self._setpoint_bar, self._safe_pressure_bar,
+                                               estop)
+
+    def pace_safe_entry(self, duration_s: float, estop: bool) -> None:
+        """Ramp to the safe state in `duration_s`, the rig's common duration (never
+        faster than its own slew limit)."""
+        if self._started:
+            self.safe_ramp.pace(self._setpoint_bar, self._safe_pressure_bar, estop,
+                                duration_s)
+
+    def hold_air(self) -> None:
+        """The safety chain opened or the supply is lost (the rig controller, once the
+        ESTOP or FAULT latched): the air there is is all there will be, so the valves
+        close and hold it; nothing vents, not even to the safe pressure. The command
+        stands at the higher of the last command and the measured pressure (a regulator
+        commanded below its pressure would vent), and stays there until the reset."""
+        if not self._started or self._air_hold_bar == self._air_hold_bar:
+            return
+        u = self._valve_cmd_bar
+        p = self.inputs.pressure_bar
+        hold = u if not (self.inputs.pressure_ok and p > u) else p
+        self._air_hold_bar = hold if hold < self._max_pressure_bar else self._max_pressure_bar
+
+    def set_air_out(self, out: bool) -> None:
+        """The supply is out (`out`) or back. While out the pressure loop's integral
+        holds. When the air returns to a muscle still holding its air, the hold comes
+        down to the measured pressure, so that the returning air moves nothing before
+        the operator's reset (a leak while the air was cut is not refilled)."""
+        if out == self._air_out:
+            return
+        self._air_out = out
+        self.pressure_loop.hold_integral = out
+        hold = self._air_hold_bar
+        p = self.inputs.pressure_bar
+        if not out and hold == hold and self.inputs.pressure_ok and p < hold:
+            self._air_hold_bar = p if p > 0.0 else 0.0
+
+    @property
+    def holding_air(self) -> bool:
+        """The valves hold the air after the chain opened or the supply was lost."""
+        return self._air_hold_bar == self._air_hold_bar
+
+    def clear_findings(self) -> None:
+        """Trust every signal again; the checks start afresh."""
+        self.plausibility.clear()
+        self.limit_monitor.stop_tracking()
+        self.limit_monitor.reset_guards()
+
+    def reset(self) -> None:
+        """The operator's reset of a latched fault: every signal trusted again; a
+        started muscle closes its loop again from where it is, one never started holds
+        its measured pressure."""
+        self.clear_findings()
+        self._air_hold_bar = math.nan
+        if self._started:
+            self.pressure_loop.reset(self.inputs.pressure_bar)
+            self._safe_ramp = False
+        else:
+            self.hold_measured()
