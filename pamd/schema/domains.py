@@ -42,6 +42,7 @@ INT_DOMAIN = 2**31 - 1
 SMALLEST_NORMAL = sys.float_info.min
 
 
+# Any: a field's metadata (doc and unit texts, bounds as numbers), as declared
 def domain(tp: type, meta: Mapping[str, Any]) -> float:
     """The largest magnitude a field of type `tp` (int or float) may take."""
     if tp is int:
@@ -49,7 +50,8 @@ def domain(tp: type, meta: Mapping[str, Any]) -> float:
     return UNIT_DOMAIN.get(str(meta.get("unit") or ""), OTHER_DOMAIN)
 
 
-def bounds(tp: type, meta: Mapping[str, Any]) -> dict[str, Any]:
+# Any: a field's metadata (doc and unit texts, bounds as numbers), as declared
+def bounds(tp: type, meta: Mapping[str, Any]) -> dict[str, Any]:  # Any: as meta
     """The field's bounds: its declared ones, within its unit's domain."""
     dom = domain(tp, meta)
     out = dict(meta)

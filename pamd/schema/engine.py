@@ -31,6 +31,7 @@ from pamd.schema.yamlload import LinedDict, LinedList
 SchemaType = object
 
 
+# Any: as `dataclasses.field`, so that `rate_hz: float = spec(...)` type-checks
 def spec(default: object = MISSING, doc: str = "", **meta: object) -> Any:
     """A schema field: `spec(1000.0, "Loop rate.", unit="Hz", gt=0)`."""
     meta["doc"] = doc
@@ -74,7 +75,7 @@ def describe(value: object) -> str:
 
 
 def _type_name(tp: SchemaType) -> str:
-    if tp is Any:
+    if tp is Any:  # Any: the schema type of a mapping kept raw (a driver's options)
         return "a mapping (checked by its owner)"
     origin = typing.get_origin(tp)
     if origin is Literal:
@@ -93,6 +94,7 @@ def _type_name(tp: SchemaType) -> str:
     return names.get(tp, str(tp))
 
 
+# Any: a field's metadata (doc and unit texts, bounds as numbers), as declared
 def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
     unit = f" {meta['unit']}" if meta.get("unit") else ""
     parts = []
@@ -108,8 +110,10 @@ def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
     return " and ".join(parts)
 
 
+# Any: the built value is of the type `tp` names at run time (a YAML value checked
+# here), which the caller's field declares; meta as `_bounds_text`'s
 def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | None,
-          meta: typing.Mapping[str, Any] | None = None) -> Any:
+          meta: typing.Mapping[str, Any] | None = None) -> Any:  # Any: see above
     """Validate `value` against type `tp`; record issues in ctx; return the built
     value (or None where it was invalid)."""
     meta = meta or {}
@@ -134,7 +138,7 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
         return tuple(
             build(item_tp, v, ctx, f"{path}[{i}]", lines[i]) for i, v in enumerate(value)
         )
-    if tp is Any:
+    if tp is Any:  # Any: a mapping kept raw, checked later by its owner
         return value
     if origin is dict or tp is dict:
         if not isinstance(value, dict):
@@ -187,10 +191,13 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
     raise TypeError(f"schema type {tp!r} at {path} is not supported")
 
 
+# Any: a field's metadata (doc and unit texts, bounds as numbers), as declared
 def _unit_suffix(meta: typing.Mapping[str, Any]) -> str:
     return f" in {meta['unit']}" if meta.get("unit") else ""
 
 
+# Any: an instance of `cls` (the caller names it), or None where the YAML was invalid
+# (reported in ctx, which the caller raises before using it)
 def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int | None) -> Any:
     """Validate a mapping against dataclass `cls`: unknown keys, missing keys, each
     field's type and bounds. Returns an instance (invalid fields left at default)."""
@@ -214,7 +221,7 @@ def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int
                 f"one of the known keys {', '.join(fields)}{hint}",
                 "an unknown key",
             )
-    kwargs: dict[str, Any] = {}
+    kwargs: dict[str, Any] = {}  # Any: the fields' built values (see `build`)
     for name, f in fields.items():
         key_line = key_lines.get(name, getattr(value, "line", line))
         if name not in value:

@@ -32,7 +32,7 @@ MAX_DIGITS = 40
 MAX_BYTES = 1 << 20
 
 
-class LinedDict(dict[Any, Any]):  # a YAML mapping: its keys need not be strings
+class LinedDict(dict[Any, Any]):  # Any: a YAML mapping's keys (not only text) and values
     """A mapping from YAML with `line` (its own) and `key_lines` (per key), 1-based."""
 
     line: int | None = None
@@ -86,7 +86,7 @@ class _Loader(yaml.SafeLoader):
         self._path.append(part)
         try:
             if len(self._path) > MAX_DEPTH + 1:
-                peek: Callable[[], Any] = self.peek_event  # untyped in PyYAML's stubs
+                peek: Callable[[], Any] = self.peek_event  # Any: untyped in PyYAML's stubs
                 mark = peek().start_mark
                 raise _issue(self.name, mark.line + 1, _path_text(self._path[:-1]),
                              f"nesting at most {MAX_DEPTH} levels deep",
