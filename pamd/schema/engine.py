@@ -196,8 +196,8 @@ def _unit_suffix(meta: typing.Mapping[str, Any]) -> str:
     return f" in {meta['unit']}" if meta.get("unit") else ""
 
 
-# Any: an instance of `cls` (the caller names it), or None where the YAML was invalid
-# (reported in ctx, which the caller raises before using it)
+# (None where the YAML was invalid: reported in ctx, which the caller raises first)
+# Any: an instance of `cls`, the dataclass the caller names
 def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int | None) -> Any:
     """Validate a mapping against dataclass `cls`: unknown keys, missing keys, each
     field's type and bounds. Returns an instance (invalid fields left at default)."""
