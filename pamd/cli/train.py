@@ -198,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
             bar.set_postfix_str(post, refresh=False)
 
     prov: JsonObject = {"data": samples.provenance(), "split": parts.how,
-                 "coverage": coverage(tr.X, inputs)}  # where the data lay
+                        "coverage": coverage(tr.X, inputs)}  # where the data lay
     try:
         fitted = fit_with(kind.name, samples, parts, options, seed=args.seed,
                           derived_inputs=derived_inputs(inputs, args.velocity_window_s),

@@ -23,7 +23,7 @@ from dataclasses import MISSING, dataclass, field
 from typing import Any, Literal, Union
 
 from pamd.errors import ConfigError, ConfigIssue
-from pamd.schema.domains import bounds, subnormal
+from pamd.schema.domains import FieldMeta, bounds, subnormal
 from pamd.schema.yamlload import LinedDict, LinedList
 
 #: A field's type as the schema writes it: a class (bool, int, float, str, a dataclass),
@@ -94,8 +94,7 @@ def _type_name(tp: SchemaType) -> str:
     return names.get(tp, str(tp))
 
 
-# Any: a field's metadata (doc and unit texts, bounds as numbers), as declared
-def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
+def _bounds_text(meta: FieldMeta) -> str:
     unit = f" {meta['unit']}" if meta.get("unit") else ""
     parts = []
     if "gt" in meta:
@@ -111,9 +110,9 @@ def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
 
 
 # Any: the built value is of the type `tp` names at run time (a YAML value checked
-# here), which the caller's field declares; meta as `_bounds_text`'s
+# here), which the caller's field declares
 def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | None,
-          meta: typing.Mapping[str, Any] | None = None) -> Any:  # Any: see above
+          meta: FieldMeta | None = None) -> Any:  # Any: see above
     """Validate `value` against type `tp`; record issues in ctx; return the built
     value (or None where it was invalid)."""
     meta = meta or {}
@@ -191,8 +190,7 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
     raise TypeError(f"schema type {tp!r} at {path} is not supported")
 
 
-# Any: a field's metadata (doc and unit texts, bounds as numbers), as declared
-def _unit_suffix(meta: typing.Mapping[str, Any]) -> str:
+def _unit_suffix(meta: FieldMeta) -> str:
     return f" in {meta['unit']}" if meta.get("unit") else ""
 
 
@@ -229,13 +227,20 @@ def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int
                 ctx.add(getattr(value, "line", line), f"{prefix}{name}",
                         f"key {name!r}: {f.metadata.get('doc', '')}".rstrip(": "), "it missing")
             continue
-        built = build(hints[name], value[name], ctx, f"{prefix}{name}", key_line, f.metadata)
+        built = build(hints[name], value[name], ctx, f"{prefix}{name}", key_line,
+                      field_meta(f))
         if built is not None or value[name] is None:
             kwargs[name] = built
     try:
         return cls(**kwargs)
     except TypeError:
         return None  # a required field was invalid; already reported
+
+
+
+def field_meta(f: dataclasses.Field[object]) -> FieldMeta:
+    """The metadata `spec` gave field `f` (a read-only mapping of those keys)."""
+    return typing.cast(FieldMeta, f.metadata)
 
 
 def _closest(word: str, choices: list[str]) -> str | None:
