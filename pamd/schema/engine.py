@@ -29,6 +29,8 @@ from pamd.schema.yamlload import LinedDict, LinedList
 #: A field's type as the schema writes it: a class (bool, int, float, str, a dataclass),
 #: `X | None`, `Literal[...]`, `tuple[X, ...]`, `dict[str, Any]` or `Any`.
 SchemaType = object
+#: a schema's dataclass
+_D = typing.TypeVar("_D")
 
 
 # Any: as `dataclasses.field`, so that `rate_hz: float = spec(...)` type-checks
@@ -194,11 +196,12 @@ def _unit_suffix(meta: FieldMeta) -> str:
     return f" in {meta['unit']}" if meta.get("unit") else ""
 
 
-# (None where the YAML was invalid: reported in ctx, which the caller raises first)
-# Any: an instance of `cls`, the dataclass the caller names
-def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int | None) -> Any:
+def build_dataclass(cls: type[_D], value: object, ctx: Context, path: str, line: int | None
+                    ) -> _D | None:
     """Validate a mapping against dataclass `cls`: unknown keys, missing keys, each
-    field's type and bounds. Returns an instance (invalid fields left at default)."""
+    field's type and bounds. Returns an instance (invalid fields left at default), or
+    None where the value is no mapping or a required field is invalid (both reported
+    in ctx: after `ctx.raise_if_any()` the instance is there)."""
     if value is None:
         value = LinedDict()
         value.line, value.key_lines = line, {}
@@ -206,6 +209,8 @@ def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int
         ctx.add(line, path, f"a mapping of {cls.__name__} keys", describe(value))
         return None
     key_lines = getattr(value, "key_lines", {})
+    if not dataclasses.is_dataclass(cls):
+        raise TypeError(f"schema type {cls!r} at {path or 'the root'} is not a dataclass")
     fields = {f.name: f for f in dataclasses.fields(cls)}
     hints = typing.get_type_hints(cls)
     prefix = f"{path}." if path else ""
