@@ -143,5 +143,8 @@ def test_the_check_finds_an_unjustified_any_and_accepts_a_justified_one() -> Non
         "# Any is mentioned in a comment\n"
         "def f(a: int,\n"
         "      b: Any) -> None: ...\n"  # 11: unjustified
-        "v: Any  # Any:\n")  # 12: a marker that says nothing
+        "v: Any  # Any:\n"  # 12: a marker that says nothing
+        "from typing import (\n"
+        "    Any,\n"  # 14: an import over lines: not a use
+        ")\n")
     assert unjustified_any(src) == [3, 7, 11, 12]

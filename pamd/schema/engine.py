@@ -224,7 +224,7 @@ def build_dataclass(cls: type[_D], value: object, ctx: Context, path: str, line:
                 f"one of the known keys {', '.join(fields)}{hint}",
                 "an unknown key",
             )
-    kwargs: dict[str, Any] = {}  # Any: the fields' built values (see `build`)
+    kwargs: dict[str, object] = {}  # the fields' built values
     for name, f in fields.items():
         key_line = key_lines.get(name, getattr(value, "line", line))
         if name not in value:
