@@ -93,7 +93,7 @@ _WHERE = {
 }
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> Any:  # Any: a public name imported on first use (typed above)
     module = _WHERE.get(name)
     if module is None:
         raise AttributeError(f"module 'pamd' has no attribute {name!r}")

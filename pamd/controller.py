@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from array import array
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol
+from typing import Protocol
 
 from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
@@ -34,6 +34,7 @@ from pamd.control.rig_safe_state import (
     rest_text,
 )
 from pamd.control.rig_startup import start_up
+from pamd.declare.jsonsafe import JsonObject
 from pamd.profiles import Profile
 from pamd.rig import Rig
 from pamd.safety import Supervisor, Transition
@@ -105,7 +106,7 @@ class RigController:
         self._deadman = Deadman(sink, self.go_safe)  # streamed setpoints' deadman
         # What became of the last config reload (`pamd.commands.rig`): deferred until the
         # next rest, refused (and why) or applied; status shows it.
-        self.reload_note: dict[str, Any] | None = None
+        self.reload_note: JsonObject | None = None
 
     def _on_transition(self, tr: Transition) -> None:
         if tr.new in (State.FAULT, State.ESTOP) and tr.old != State.STARTING:
@@ -331,5 +332,5 @@ class RigController:
         """Why the rig is not at rest (for a deferred reload's note)."""
         return rest_text(self.muscles, self.supervisor.state)
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> JsonObject:
         return rig_status(self.supervisor, self.chain, self.muscles, self.reload_note)

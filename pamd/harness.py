@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping
-from typing import Any, cast
+from typing import cast
 
 from pamd.calibration import load_calibration
 from pamd.commands import Command, parse_command
@@ -16,7 +16,7 @@ from pamd.config import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.muscle import MuscleController
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.drivers.sim import SimDriver
 from pamd.loop import CommandIntake, VirtualClock, tick_once
 from pamd.rig import Rig
@@ -77,7 +77,7 @@ class Harness:
             self.records.append(self.layout.as_dict(rec))
         self.t += self.period_s
 
-    def cmd(self, verb: str, **payload: Any) -> JsonObject:
+    def cmd(self, verb: str, **payload: JsonValue) -> JsonObject:
         """Apply a command at this tick boundary and return its verdict, as the loop
         would at the start of the next tick. While the rig is starting, the command
         waits (the clock steps on) until the sensors are read, as in the daemon."""

@@ -32,7 +32,6 @@ longest signal timeout has passed after it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 from pamd.config.schema import MuscleConfig, RigConfig
 from pamd.declare.jsonsafe import JsonObject
@@ -53,7 +52,7 @@ def _watchdog_s(rig: RigConfig, driver: str) -> float | None:
     its options), or None."""
     for d in rig.drivers:
         if d.name == driver:
-            cs: Any = getattr(d.options, "comm_safety", None)
+            cs: object = getattr(d.options, "comm_safety", None)
             t = getattr(cs, "timeout_s", None)
             return float(t) if isinstance(t, (int, float)) else None
     return None

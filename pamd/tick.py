@@ -121,4 +121,5 @@ class Sink(Protocol):
 class Mailbox(Protocol):
     """Commands into the loop; polled once per tick, never blocks."""
 
+    # Any: a pamd.verbs Command (this leaf is below the verbs layer and cannot name it)
     def poll(self) -> Any | None: ...

@@ -11,10 +11,11 @@ import math
 import os
 import sys
 from collections.abc import Mapping, Sequence
-from typing import Any, TextIO
+from typing import TextIO
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import ModelError
 from pamd.models.anfis.plots import require_matplotlib
 from pamd.models.anfis.samples import Samples
@@ -137,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
                   f"({100.0 * j.clipped.sum() / len(samples):.1f} %) clipped" for j in judged]
     forward = {j.file: _forward(j.model, samples) for j in judged}
     if args.json:
-        doc: dict[str, Any] = {}
+        doc: JsonObject = {}
         if len(judged) == 1:
             doc.update({k: _json_float(v) for k, v in judged[0].metrics.items()})
         doc["models"] = [{**j.as_json(), "tick": r.as_json(),
@@ -229,5 +230,5 @@ def _forward(model: object, samples: Samples) -> dict[str, dict[str, float]]:
     return out
 
 
-def _json_float(v: object) -> Any:
+def _json_float(v: object) -> JsonValue:
     return None if isinstance(v, float) and not math.isfinite(v) else v

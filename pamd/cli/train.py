@@ -9,16 +9,17 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from typing import Any
+from typing import Protocol
 
 from pamd.cli.evaluate import format_table
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
 from pamd.models.anfis.splitting import split
 from pamd.models.compare import predict_samples
-from pamd.models.kind import Kind, OptionSpec
+from pamd.models.kind import Kind, KindOptions, OptionSpec
 from pamd.models.registry import KINDS, declared, save_model
 from pamd.models.training import fit_with, rows_of
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
@@ -30,10 +31,10 @@ from pamd.view.tables import load_samples
 _ARGPARSE_TYPES = (int, float, str)
 
 
-def kind_flags() -> dict[str, list[tuple[Kind[Any], OptionSpec]]]:
+def kind_flags() -> dict[str, list[tuple[Kind[KindOptions], OptionSpec]]]:
     """Each kind option's flag with the kinds that declare it (registry order); kinds
     that share an option name share the flag."""
-    flags: dict[str, list[tuple[Kind[Any], OptionSpec]]] = {}
+    flags: dict[str, list[tuple[Kind[KindOptions], OptionSpec]]] = {}
     for k in KINDS.values():
         for spec in k.option_specs:
             flags.setdefault(spec.name, []).append((k, spec))
@@ -55,9 +56,9 @@ def _add_kind_options(p: argparse.ArgumentParser) -> None:
                            for k, s in users))
 
 
-def kind_options_given(args: argparse.Namespace, kind: Kind[Any]) -> dict[str, Any]:
+def kind_options_given(args: argparse.Namespace, kind: Kind[KindOptions]) -> dict[str, object]:
     """The kind options on the command line, parsed; one this kind lacks is refused."""
-    given: dict[str, Any] = {}
+    given: dict[str, object] = {}
     mine = {s.name: s for s in kind.option_specs}
     for name, users in kind_flags().items():
         value = getattr(args, name, None)
@@ -71,6 +72,16 @@ def kind_options_given(args: argparse.Namespace, kind: Kind[Any]) -> dict[str, A
                              f"{', '.join(s.flag for s in mine.values()) or 'none'})")
         given[name] = value if spec.parse in _ARGPARSE_TYPES else spec.parse(value)
     return given
+
+
+class _Bar(Protocol):
+    """What training uses of a tqdm progress bar."""
+
+    def update(self, n: float = 1) -> bool | None: ...
+
+    def set_postfix_str(self, s: str = "", refresh: bool = True) -> None: ...
+
+    def close(self) -> None: ...
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -186,8 +197,8 @@ def run(args: argparse.Namespace) -> int:
                                                  if val is not None else "")
             bar.set_postfix_str(post, refresh=False)
 
-    prov: dict[str, Any] = {"data": samples.provenance(), "split": parts.how,
-                            "coverage": coverage(tr.X, inputs)}  # where the data lay
+    prov: JsonObject = {"data": samples.provenance(), "split": parts.how,
+                        "coverage": coverage(tr.X, inputs)}  # where the data lay
     try:
         fitted = fit_with(kind.name, samples, parts, options, seed=args.seed,
                           derived_inputs=derived_inputs(inputs, args.velocity_window_s),
@@ -218,7 +229,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def model_inputs(text: str | None, kind: Kind[Any], target: str) -> tuple[str, ...]:
+def model_inputs(text: str | None, kind: Kind[KindOptions], target: str) -> tuple[str, ...]:
     """The inputs `--inputs` names, or the kind's defaults with the target (when it is
     one of them) replaced by pressure_bar: a forward model of the same signals."""
     if text is not None:
@@ -226,7 +237,7 @@ def model_inputs(text: str | None, kind: Kind[Any], target: str) -> tuple[str, .
     return tuple("pressure_bar" if n == target else n for n in kind.default_inputs)
 
 
-def _refuse_poor_fit(metrics: dict[str, Any], args: argparse.Namespace) -> None:
+def _refuse_poor_fit(metrics: JsonObject, args: argparse.Namespace) -> None:
     why = poor_fit(metrics)
     if why is not None and not args.allow_poor_fit:
         raise ModelError(f"{args.out} not written: {why}; check the inputs, the data and the "
@@ -236,10 +247,11 @@ def _refuse_poor_fit(metrics: dict[str, Any], args: argparse.Namespace) -> None:
               file=sys.stderr)
 
 
-def _progress(total: int, quiet: bool, unit: str = "epoch") -> Any:
+def _progress(total: int, quiet: bool, unit: str = "epoch") -> _Bar | None:
     if quiet:
         return None
     from tqdm import tqdm
 
-    return tqdm(total=total, desc="training", unit=unit, file=sys.stderr,
-                dynamic_ncols=True, leave=True)
+    bar: _Bar = tqdm(total=total, desc="training", unit=unit, file=sys.stderr,
+                     dynamic_ncols=True, leave=True)  # tqdm has no type information
+    return bar

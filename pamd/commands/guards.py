@@ -12,7 +12,8 @@ from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.tick import State
 
-Handler = Callable[[Any, Any], JsonObject | None]
+# Any: each verb's own args dataclass (pamd.verbs pairs a verb's args with its handler)
+Handler = Callable[[RigController, Any], JsonObject | None]
 """A verb's handler: (controller, args) -> verdict fields; raises CommandRefused."""
 
 

@@ -29,7 +29,8 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from multiprocessing import forkserver
-from typing import Any, TypeVar
+from multiprocessing.connection import Connection
+from typing import TypeVar
 
 from pamd.errors import CommandRefused, PamdError
 
@@ -67,12 +68,12 @@ def stop() -> None:
         stop_server()
 
 
-def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
+def _child(conn: Connection, fn: Callable[..., object], args: tuple[object, ...]) -> None:
     if CHILD_NICE:
         with contextlib.suppress(OSError):
             os.nice(CHILD_NICE)
     # (True, result) | (False, an exception that says it all) | (False, what went wrong)
-    out: tuple[bool, Any]
+    out: tuple[bool, object]
     try:
         out = (True, fn(*args))
     except (CommandRefused, PamdError) as exc:
@@ -90,7 +91,7 @@ def _child(conn: Any, fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
     conn.close()
 
 
-def run_isolated(fn: Callable[..., T], *args: Any, time_limit_s: float, what: str) -> T:
+def run_isolated(fn: Callable[..., T], *args: object, time_limit_s: float, what: str) -> T:
     """`fn(*args)` in a child process (see the module doc); `what` names the job in a
     refusal ("model file 'x.json'")."""
     deadline = time.monotonic() + time_limit_s  # the child's start included
@@ -136,7 +137,7 @@ class Preparer:
     def __init__(self) -> None:
         self._pool: ThreadPoolExecutor | None = None
 
-    def submit(self, fn: Callable[..., T], *args: Any) -> Future[T]:
+    def submit(self, fn: Callable[..., T], *args: object) -> Future[T]:
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="pamd-prepare")
         return self._pool.submit(fn, *args)

@@ -14,12 +14,9 @@ A refusal names file, line and key, and says which channels would do.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, cast
-
+from pamd.config.drivertype import driver_type
 from pamd.config.schema import RigConfig, SignalConfig
 from pamd.declare.jsonsafe import JsonValue
-from pamd.plugins import load_driver_entry
 from pamd.schema.engine import Context, line_of
 
 #: signal -> (direction, digital required, what it is for)
@@ -38,7 +35,7 @@ def _channels(rig: RigConfig, driver: str) -> list[tuple[str, str, bool]] | None
         if d.name != driver:
             continue
         try:
-            cls = cast(Callable[[str, Any], Any], load_driver_entry(d.type))
+            cls = driver_type(d.type)
             return [(c.name, c.direction, bool(c.digital))
                     for c in cls(d.name, d.options).channels()]
         except Exception:  # an invalid driver is refused by the driver checks

@@ -7,7 +7,6 @@ from __future__ import annotations
 import dataclasses
 import typing
 from dataclasses import MISSING
-from typing import Any
 
 from pamd.config.schema import RigConfig
 from pamd.plugins import DRIVERS_GROUP, installed
@@ -30,7 +29,7 @@ keep the checks they bound meaningful (a 10 s signal timeout is no stale check).
 """
 
 
-def _default(f: dataclasses.Field[Any]) -> str:
+def _default(f: dataclasses.Field[object]) -> str:
     if f.default is not MISSING:
         d = f.default
         if d is None:

@@ -8,14 +8,14 @@ import dataclasses
 import hashlib
 import logging
 import os
-from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import resources
-from typing import Any, ClassVar, Protocol, cast, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 from pamd.config.actuation import check_actuation, check_sim_sample_periods, check_sim_stalls
 from pamd.config.chain import check_safety_chain
 from pamd.config.control_schema import ControlConfig
+from pamd.config.drivertype import driver_type
 from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.plausibility import check_plausibility_thresholds
 from pamd.config.request_timeouts import check_request_timeouts
@@ -24,7 +24,6 @@ from pamd.config.schema import MuscleConfig, RigConfig, SignalConfig
 from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import DriverError
 from pamd.muscle_type import MUSCLE_TYPES
-from pamd.plugins import load_driver_entry
 from pamd.schema.engine import Context, build_dataclass, describe, line_of
 from pamd.schema.yamlload import load_yaml_text, read_text
 
@@ -120,6 +119,7 @@ def load_config_text(text: str, path: str, overrides: JsonObject | None = None) 
                 node.update(values)
     rig = build_dataclass(RigConfig, raw, ctx, "", 1)
     ctx.raise_if_any()
+    assert rig is not None  # a problem building it is in ctx (raised above)
     warnings = _check_safety_bounds(rig, raw, ctx)
     drivers_node = raw.get("drivers", [])
     rig, channels, digital, lost_reply = _check_drivers(rig, drivers_node, ctx)
@@ -195,45 +195,12 @@ def _check_name(ctx: Context, name: str, seen: set[str], line: int | None, path:
     seen.add(name)
 
 
-class DriverType(Protocol):
-    """What the config needs of an installed driver class (`pamd.drivers.Driver`):
-    its options type, and its channels as those options define them."""
-
-    options_type: ClassVar[type]
-
-    def __call__(self, name: str, options: Any) -> _HasChannels: ...
-
-
-class _HasChannels(Protocol):
-    def channels(self) -> Sequence[_ChannelLike]: ...
-
-
 @runtime_checkable
 class _RetriesLostReplies(Protocol):
     """A driver that re-sends an unanswered request (pamd.drivers.modbus): how much
     later a fresh input can arrive when one reply is lost."""
 
     def lost_reply_s(self) -> float: ...
-
-
-class _ChannelLike(Protocol):
-    @property
-    def name(self) -> str: ...
-
-    @property
-    def direction(self) -> str: ...
-
-    @property
-    def digital(self) -> bool: ...
-
-
-def _driver_type(type_name: str) -> DriverType:
-    """The driver class installed under `type_name` (the `pamd.drivers` entry points)."""
-    found = load_driver_entry(type_name)
-    if not (isinstance(found, type) and hasattr(found, "options_type")
-            and hasattr(found, "channels")):
-        raise DriverError(f"entry point {type_name!r} does not name a pamd Driver class")
-    return cast(DriverType, found)
 
 
 def _check_drivers(rig: RigConfig, node: JsonValue, ctx: Context
@@ -252,7 +219,7 @@ def _check_drivers(rig: RigConfig, node: JsonValue, ctx: Context
         item = node[i]
         _check_name(ctx, drv.name, seen, line_of(item, "name"), f"drivers[{i}].name")
         try:
-            cls = _driver_type(drv.type)
+            cls = driver_type(drv.type)
         except DriverError as exc:
             ctx.add(line_of(item, "type"), f"drivers[{i}].type", "an installed driver type",
                     f"{drv.type!r} ({exc})")

@@ -73,6 +73,7 @@ class DriverConfig:
     name: str = spec(doc="Name the signals refer to.")
     type: str = spec(doc="Driver type, as registered in the pamd.drivers entry points "
                      "(sim, modbus, serial-line, canopen-encoder, ...).")
+    # Any: a YAML mapping, then the driver's own options dataclass (which validates it)
     options: Any = field(default_factory=dict, metadata={
         "doc": "Options of this driver type (validated by the driver's own schema)."})
 

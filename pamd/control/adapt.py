@@ -45,7 +45,7 @@ from __future__ import annotations
 import math
 import time
 from enum import IntEnum
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -59,6 +59,7 @@ if TYPE_CHECKING:
     from pamd.config.schema import AdaptConfig
     from pamd.control.feedforward import Feedforward
     from pamd.control.inputs import Inputs
+    from pamd.models.anfis.model import AnfisModel
 
 S_RUNNING, S_LOAD = int(State.RUNNING), int(State.LOAD_CHANGE)
 #: Flags that say a tick's measurement is not the muscle's own (module docstring).
@@ -126,7 +127,8 @@ class Adaptation:
                             f"TS-fuzzy model; a {ff.model.kind} model has none")
         else:
             c = ff.compiled
-            m: Any = ff.model  # an ANFIS or TS-fuzzy model (checked above): their rule grid
+            # an ANFIS or TS-fuzzy model (its compiled form checked above): the rule grid
+            m = cast("AnfisModel", ff.model)
             self.compiled = c
             self.theta0 = c.theta(np.empty(c.n_consequents))
             self.bound = OutputBound.for_model(m)

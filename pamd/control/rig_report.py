@@ -5,14 +5,14 @@ limit). Built from the muscles' read-only properties; nothing here changes the r
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
 from pamd.control.muscle import MuscleController
+from pamd.declare.jsonsafe import JsonObject
 from pamd.safety import Supervisor
 from pamd.safety.chain import SafetyChain
 
 
-def finding_event(m: MuscleController) -> dict[str, Any]:
+def finding_event(m: MuscleController) -> JsonObject:
     """The `implausible` event of a reading that is no longer trusted (whatever the
     state: a fault already latched keeps its first reason; this one is still said).
     Takes the muscle's finding."""
@@ -22,7 +22,7 @@ def finding_event(m: MuscleController) -> dict[str, Any]:
     return {"muscle": m.name, "reason": m.take_finding(), "trusted": trusted}
 
 
-def soft_limit_event(m: MuscleController) -> dict[str, Any]:
+def soft_limit_event(m: MuscleController) -> JsonObject:
     """The `soft_limit` event of a profile held at a soft limit for more than 1 s.
     Takes the muscle's limit report."""
     limit = m.take_limit_report()
@@ -33,7 +33,7 @@ def soft_limit_event(m: MuscleController) -> dict[str, Any]:
                       f"{sp:.2f} bar, command {cmd:.2f} bar) for more than 1 s"}
 
 
-def muscle_status(m: MuscleController) -> dict[str, Any]:
+def muscle_status(m: MuscleController) -> JsonObject:
     """One muscle's part of the rig's status."""
     return {
         "pressure_bar": m.pressure_bar, "setpoint_bar": m.setpoint_bar,
@@ -52,7 +52,7 @@ def muscle_status(m: MuscleController) -> dict[str, Any]:
     }
 
 
-def chain_status(chain: SafetyChain) -> dict[str, Any] | None:
+def chain_status(chain: SafetyChain) -> JsonObject | None:
     """The safety chain's part of the rig's status (None: no chain configured; a
     signal not read yet, NaN, as None)."""
     if not chain.configured:
@@ -67,7 +67,7 @@ def chain_status(chain: SafetyChain) -> dict[str, Any] | None:
 
 def rig_status(supervisor: Supervisor, chain: SafetyChain,
                muscles: Sequence[MuscleController],
-               reload_note: dict[str, Any] | None) -> dict[str, Any]:
+               reload_note: JsonObject | None) -> JsonObject:
     """The rig controller's status: state, reasons, the last reload's note, the
     safety chain and every muscle."""
     return {

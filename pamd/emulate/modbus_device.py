@@ -18,7 +18,7 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Protocol
 
 from pymodbus.constants import ExcCodes
 from pymodbus.simulator import DataType, SimData, SimDevice
@@ -234,7 +234,13 @@ class EmulatedModbusDevice:
             self.sink(p.name, self._value_of(p, p.address))
 
 
-async def serve_tcp(device: EmulatedModbusDevice, host: str, port: int) -> Any:
+class ModbusServer(Protocol):
+    """What the emulated rig does with a started pymodbus server: shut it down."""
+
+    async def shutdown(self) -> None: ...
+
+
+async def serve_tcp(device: EmulatedModbusDevice, host: str, port: int) -> ModbusServer:
     """Start a Modbus TCP server for `device`; returns the server (await .shutdown())."""
     from pymodbus.server import ModbusTcpServer
 
@@ -245,7 +251,7 @@ async def serve_tcp(device: EmulatedModbusDevice, host: str, port: int) -> Any:
 
 
 async def serve_rtu(device: EmulatedModbusDevice, port: str, baud: int, parity: str = "N",
-                    stopbits: int = 1, bytesize: int = 8) -> Any:
+                    stopbits: int = 1, bytesize: int = 8) -> ModbusServer:
     """Start a Modbus RTU server on serial `port` (one end of a pty pair)."""
     from pymodbus.framer import FramerType
     from pymodbus.server import ModbusSerialServer
@@ -258,7 +264,8 @@ async def serve_rtu(device: EmulatedModbusDevice, port: str, baud: int, parity: 
     return server
 
 
-async def serve_rtu_tcp(device: EmulatedModbusDevice, host: str, port: int) -> Any:
+async def serve_rtu_tcp(device: EmulatedModbusDevice, host: str, port: int
+                        ) -> ModbusServer:
     """Start a server of Modbus RTU frames over TCP for `device` (an RS-485 device server
     in transparent mode: the driver's `rtu-tcp` transport, or its `rtu` transport on a
     pyserial `socket://host:port` URL): RTU framing and CRC without a pty between."""

@@ -30,7 +30,7 @@ import select
 import threading
 import time
 from collections.abc import Coroutine
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from pamd.config.loader import LoadedConfig
 from pamd.drivers.can_frames import EncoderNode
@@ -39,6 +39,7 @@ from pamd.drivers.modbus import ModbusOptions
 from pamd.emulate.lateness import Lateness
 from pamd.emulate.modbus_device import (
     EmulatedModbusDevice,
+    ModbusServer,
     serve_rtu,
     serve_rtu_tcp,
     serve_tcp,
@@ -46,6 +47,11 @@ from pamd.emulate.modbus_device import (
 from pamd.emulate.physics import EmulatedPlant
 from pamd.emulate.ptys import PtyPair
 from pamd.emulate.socketcand import SocketcandServer
+
+if TYPE_CHECKING:  # canopen (and the node built on it) is imported when a rig has one
+    import canopen
+
+    from pamd.emulate.canopen_node import EmulatedEncoder
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 _T = TypeVar("_T")
@@ -144,12 +150,12 @@ class EmulatedRig:
         self.cfg = cfg
         self.plant = EmulatedPlant(cfg, seed, loads_kg, heartbeat_watchdog_s)
         self.modbus: dict[str, EmulatedModbusDevice] = {}
-        self.encoders: dict[str, Any] = {}  # "driver.channel" -> EmulatedEncoder
+        self.encoders: dict[str, EmulatedEncoder] = {}  # by "driver.channel"
         self.endpoints: dict[str, str] = {}
         self.notices: list[str] = []
         self._ptys: list[PtyPair] = []
-        self._servers: list[Any] = []
-        self._networks: list[Any] = []
+        self._servers: list[ModbusServer] = []
+        self._networks: list[canopen.Network] = []
         self._socketcand: list[SocketcandServer] = []
         self._loop = asyncio.new_event_loop()
         self._loop_thread = threading.Thread(target=self._loop.run_forever,
@@ -217,7 +223,7 @@ class EmulatedRig:
             out[name] = enc.lateness.summary()
         return out
 
-    def _run(self, coro: Coroutine[Any, Any, _T]) -> _T:
+    def _run(self, coro: Coroutine[object, object, _T]) -> _T:
         return asyncio.run_coroutine_threadsafe(coro, self._loop).result(10.0)
 
     # -- devices ----------------------------------------------------------------------------

@@ -17,9 +17,11 @@ import threading
 import time
 from collections.abc import Callable, Coroutine
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import yaml
+
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_EMULATED = REPO / "config" / "rig-emulated.yaml"
@@ -50,7 +52,7 @@ class AioThread:
         self.thread = threading.Thread(target=self.loop.run_forever, daemon=True)
         self.thread.start()
 
-    def run(self, coro: Coroutine[Any, Any, _T], timeout_s: float = 10.0) -> _T:
+    def run(self, coro: Coroutine[object, object, _T], timeout_s: float = 10.0) -> _T:
         return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout_s)
 
     def stop(self) -> None:
@@ -67,7 +69,7 @@ class AioThread:
 
 
 def emulated_dict(tmp: Path, port: int, can: str | None = None, links: str = "socket",
-                  **changes: Any) -> dict[str, Any]:
+                  **changes: JsonValue) -> JsonObject:
     """config/rig-emulated.yaml on `port` (its Modbus TCP module; its other links on
     other free ports), real-time settings off. `links`: "socket" (the shipped loopback
     sockets: RTU frames over TCP, CAN through socketcand) or "pty" (socat pty pairs
@@ -84,7 +86,7 @@ def emulated_dict(tmp: Path, port: int, can: str | None = None, links: str = "so
         taken.add(p)
         return p
 
-    d: dict[str, Any] = yaml.safe_load(RIG_EMULATED.read_text())  # the YAML file's mapping
+    d: JsonObject = yaml.safe_load(RIG_EMULATED.read_text())  # the YAML file's mapping
     d["loop"]["realtime"] = {"enabled": False}
     d["telemetry"] = {"enabled": False}  # tests and benches keep off the default port
     for drv in d["drivers"]:
@@ -110,14 +112,14 @@ def emulated_dict(tmp: Path, port: int, can: str | None = None, links: str = "so
     return d
 
 
-def write_config(tmp: Path, data: dict[str, Any], name: str = "rig.yaml") -> Path:
+def write_config(tmp: Path, data: JsonObject, name: str = "rig.yaml") -> Path:
     path = tmp / name
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
 
 
 def start_emulator(config_path: str, *extra: str
-                   ) -> tuple[subprocess.Popen[str], dict[str, Any]]:
+                   ) -> tuple[subprocess.Popen[str], JsonObject]:
     """`pamd emulate --config FILE` in its own process; returns (process, ready line)."""
 
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -132,7 +134,7 @@ def start_emulator(config_path: str, *extra: str
     return proc, json.loads(line)
 
 
-def stop_emulator(proc: subprocess.Popen[str]) -> dict[str, Any]:
+def stop_emulator(proc: subprocess.Popen[str]) -> JsonObject:
     """SIGTERM, wait, and return its closing statistics line."""
 
     proc.send_signal(signal.SIGTERM)

@@ -119,8 +119,9 @@ def load_plan(path: str, rig: LoadedConfig) -> Plan:
 def parse_plan(text: str, path: str, rig: LoadedConfig) -> Plan:
     raw = load_yaml_text(text, path)
     ctx = Context(path)
-    plan: Plan = build_dataclass(Plan, raw, ctx, "", 1)
+    plan = build_dataclass(Plan, raw, ctx, "", 1)
     ctx.raise_if_any()
+    assert plan is not None  # a problem building it is in ctx (raised above)
     steps_node = raw.get("steps", [])
     check_plan(plan, rig, ctx, steps_node)
     ctx.raise_if_any()

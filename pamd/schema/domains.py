@@ -20,8 +20,19 @@ Why each domain (the largest value of the quantity on a rig, then a margin):
 from __future__ import annotations
 
 import sys
-from collections.abc import Mapping
-from typing import Any
+from typing import TypedDict
+
+
+class FieldMeta(TypedDict, total=False):
+    """A schema field's metadata, as `pamd.schema.engine.spec` declares it."""
+
+    doc: str  # one sentence
+    unit: str
+    min: float  # inclusive bounds
+    max: float
+    gt: float  # an exclusive lower bound
+    ceiling: float  # the safe upper value below `max` (module doc of pamd.schema.engine)
+
 
 #: Largest magnitude of a quantity by its unit (see the module doc).
 UNIT_DOMAIN: dict[str, float] = {
@@ -42,17 +53,17 @@ INT_DOMAIN = 2**31 - 1
 SMALLEST_NORMAL = sys.float_info.min
 
 
-def domain(tp: type, meta: Mapping[str, Any]) -> float:
+def domain(tp: type, meta: FieldMeta) -> float:
     """The largest magnitude a field of type `tp` (int or float) may take."""
     if tp is int:
         return float(INT_DOMAIN)
     return UNIT_DOMAIN.get(str(meta.get("unit") or ""), OTHER_DOMAIN)
 
 
-def bounds(tp: type, meta: Mapping[str, Any]) -> dict[str, Any]:
+def bounds(tp: type, meta: FieldMeta) -> FieldMeta:
     """The field's bounds: its declared ones, within its unit's domain."""
     dom = domain(tp, meta)
-    out = dict(meta)
+    out: FieldMeta = {**meta}
     top: float = int(dom) if tp is int else dom
     out["max"] = min(meta["max"], top) if "max" in meta else top
     if "min" not in meta and "gt" not in meta:

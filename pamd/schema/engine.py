@@ -24,17 +24,19 @@ from typing import Any, Literal, Union
 
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ConfigError, ConfigIssue
-from pamd.schema.domains import bounds, subnormal
+from pamd.schema.domains import FieldMeta, bounds, subnormal
 
 #: A field's type as the schema writes it: a class (bool, int, float, str, a dataclass),
 #: `X | None`, `Literal[...]`, `tuple[X, ...]`, `dict[str, Any]` or `Any`.
 SchemaType = object
+#: a schema's dataclass
+_D = typing.TypeVar("_D")
 
 #: What a key in a YAML mapping may be (a plain value; lists and mappings are refused).
 YamlKey = str | int | float | bool | None
 
 
-class LinedDict(dict[Any, Any]):  # a YAML mapping: its keys need not be strings
+class LinedDict(dict[YamlKey, JsonValue]):  # a YAML mapping: its keys need not be strings
     """A mapping from YAML with `line` (its own) and `key_lines` (per key), 1-based."""
 
     line: int | None = None
@@ -48,6 +50,7 @@ class LinedList(list[JsonValue]):
     item_lines: list[int]
 
 
+# Any: as `dataclasses.field`, so that `rate_hz: float = spec(...)` type-checks
 def spec(default: object = MISSING, doc: str = "", **meta: object) -> Any:
     """A schema field: `spec(1000.0, "Loop rate.", unit="Hz", gt=0)`."""
     meta["doc"] = doc
@@ -91,7 +94,7 @@ def describe(value: object) -> str:
 
 
 def _type_name(tp: SchemaType) -> str:
-    if tp is Any:
+    if tp is Any:  # Any: the schema type of a mapping kept raw (a driver's options)
         return "a mapping (checked by its owner)"
     origin = typing.get_origin(tp)
     if origin is Literal:
@@ -110,7 +113,7 @@ def _type_name(tp: SchemaType) -> str:
     return names.get(tp, str(tp))
 
 
-def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
+def _bounds_text(meta: FieldMeta) -> str:
     unit = f" {meta['unit']}" if meta.get("unit") else ""
     parts = []
     if "gt" in meta:
@@ -125,8 +128,10 @@ def _bounds_text(meta: typing.Mapping[str, Any]) -> str:
     return " and ".join(parts)
 
 
+# Any: the built value is of the type `tp` names at run time (a YAML value checked
+# here), which the caller's field declares
 def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | None,
-          meta: typing.Mapping[str, Any] | None = None) -> Any:
+          meta: FieldMeta | None = None) -> Any:  # Any: see above
     """Validate `value` against type `tp`; record issues in ctx; return the built
     value (or None where it was invalid)."""
     meta = meta or {}
@@ -151,7 +156,7 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
         return tuple(
             build(item_tp, v, ctx, f"{path}[{i}]", lines[i]) for i, v in enumerate(value)
         )
-    if tp is Any:
+    if tp is Any:  # Any: a mapping kept raw, checked later by its owner
         return value
     if origin is dict or tp is dict:
         if not isinstance(value, dict):
@@ -204,13 +209,16 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
     raise TypeError(f"schema type {tp!r} at {path} is not supported")
 
 
-def _unit_suffix(meta: typing.Mapping[str, Any]) -> str:
+def _unit_suffix(meta: FieldMeta) -> str:
     return f" in {meta['unit']}" if meta.get("unit") else ""
 
 
-def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int | None) -> Any:
+def build_dataclass(cls: type[_D], value: object, ctx: Context, path: str, line: int | None
+                    ) -> _D | None:
     """Validate a mapping against dataclass `cls`: unknown keys, missing keys, each
-    field's type and bounds. Returns an instance (invalid fields left at default)."""
+    field's type and bounds. Returns an instance (invalid fields left at default), or
+    None where the value is no mapping or a required field is invalid (both reported
+    in ctx: after `ctx.raise_if_any()` the instance is there)."""
     if value is None:
         value = LinedDict()
         value.line, value.key_lines = line, {}
@@ -218,6 +226,8 @@ def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int
         ctx.add(line, path, f"a mapping of {cls.__name__} keys", describe(value))
         return None
     key_lines = getattr(value, "key_lines", {})
+    if not dataclasses.is_dataclass(cls):
+        raise TypeError(f"schema type {cls!r} at {path or 'the root'} is not a dataclass")
     fields = {f.name: f for f in dataclasses.fields(cls)}
     hints = typing.get_type_hints(cls)
     prefix = f"{path}." if path else ""
@@ -231,7 +241,7 @@ def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int
                 f"one of the known keys {', '.join(fields)}{hint}",
                 "an unknown key",
             )
-    kwargs: dict[str, Any] = {}
+    kwargs: dict[str, object] = {}  # the fields' built values
     for name, f in fields.items():
         key_line = key_lines.get(name, getattr(value, "line", line))
         if name not in value:
@@ -239,13 +249,20 @@ def build_dataclass(cls: type, value: object, ctx: Context, path: str, line: int
                 ctx.add(getattr(value, "line", line), f"{prefix}{name}",
                         f"key {name!r}: {f.metadata.get('doc', '')}".rstrip(": "), "it missing")
             continue
-        built = build(hints[name], value[name], ctx, f"{prefix}{name}", key_line, f.metadata)
+        built = build(hints[name], value[name], ctx, f"{prefix}{name}", key_line,
+                      field_meta(f))
         if built is not None or value[name] is None:
             kwargs[name] = built
     try:
         return cls(**kwargs)
     except TypeError:
         return None  # a required field was invalid; already reported
+
+
+
+def field_meta(f: dataclasses.Field[object]) -> FieldMeta:
+    """The metadata `spec` gave field `f` (a read-only mapping of those keys)."""
+    return typing.cast(FieldMeta, f.metadata)
 
 
 def _closest(word: str, choices: list[str]) -> str | None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from typing import Any
 
 import yaml
 
@@ -72,9 +71,10 @@ class _Loader(yaml.SafeLoader):
         self._path.append(part)
         try:
             if len(self._path) > MAX_DEPTH + 1:
-                peek: Callable[[], Any] = self.peek_event  # untyped in PyYAML's stubs
-                mark = peek().start_mark
-                raise _issue(self.name, mark.line + 1, _path_text(self._path[:-1]),
+                peek: Callable[[], yaml.Event] = self.peek_event  # untyped in the stubs
+                mark = peek().start_mark  # a parsed event has one
+                raise _issue(self.name, mark.line + 1 if mark else None,
+                             _path_text(self._path[:-1]),
                              f"nesting at most {MAX_DEPTH} levels deep",
                              "deeper nesting")
             # the stub types index as int only; the composer passes key nodes and None

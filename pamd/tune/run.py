@@ -21,17 +21,17 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from pamd.config import LoadedConfig, load_config
 from pamd.daemon import Daemon
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import PamdError
 from pamd.experiment.manifest import step_records
 from pamd.experiment.plan import Plan, load_plan
 from pamd.experiment.sequencer import started_plan
-from pamd.experiment.timeline import timeline
+from pamd.experiment.timeline import StepLine, timeline
 from pamd.io.session import RecordingRequest
 from pamd.muscle_type import force_model
 from pamd.safety import safe_pressure_bar
@@ -93,7 +93,7 @@ def with_levels(lp: LoopPlan, levels_bar: tuple[float, ...] | None,
                     lp.record_s, lp.hold_s, lp.input_column, lp.output_column, lp.unit)
 
 
-def ident_overrides(cfg: LoadedConfig, loop: str) -> dict[str, Any]:
+def ident_overrides(cfg: LoadedConfig, loop: str) -> JsonObject:
     """The control section of the identification run (the config's, changed)."""
     c = cfg.rig.control
     if loop == "pressure":
@@ -109,7 +109,7 @@ def tuning_config(config_path: str | None, clock: str | None, loop: str,
     """The identification run's config: the rig's, with `ident_overrides` (a fast slew
     limit for the steps) and `safety_overrides` (the safe state at the rig's own slew);
     `check` refuses what the rig's own config does not allow, before anything opens."""
-    overrides: dict[str, Any] = {}
+    overrides: JsonObject = {}  # a config's YAML, as load_config merges it
     if clock:
         overrides["loop"] = {"clock": clock}
     base = load_config(config_path, overrides)
@@ -119,7 +119,7 @@ def tuning_config(config_path: str | None, clock: str | None, loop: str,
     return load_config(config_path, overrides)
 
 
-def safety_overrides(cfg: LoadedConfig) -> dict[str, Any]:
+def safety_overrides(cfg: LoadedConfig) -> JsonObject:
     """The safety section of the identification run: its fast slew limit moves the
     steps only; a fault, a stop or a deadman ramps to the safe state at the rig's own
     safe slew, as in `pamd run` (the slowest of its muscles', if they differ)."""
@@ -187,7 +187,7 @@ def run_identification(config_path: str | None, clock: str | None, muscle: str,
     return recorded_steps(out_dir, muscle, lp)
 
 
-def _run_plan(cfg: LoadedConfig, plan: Plan, plan_file: str, lines: list[Any],
+def _run_plan(cfg: LoadedConfig, plan: Plan, plan_file: str, lines: list[StepLine],
               out_dir: str, progress: Callable[[str], None] | None) -> None:
     daemon = Daemon(cfg, note=plan.metadata.notes, recording=RecordingRequest(
         dir=out_dir, run_name=plan.name, segments=step_records(plan, lines),

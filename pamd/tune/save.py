@@ -9,11 +9,11 @@ from __future__ import annotations
 import difflib
 import os
 import sys
-from typing import Any
 
 import yaml
 
 from pamd.config.loader import load_config_text
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ConfigError
 from pamd.tune.yamledit import KeyPath, YamlEditError, format_value, set_values
 
@@ -50,8 +50,8 @@ def write_overrides(config_path: str, values: dict[KeyPath, float], why: str,
                     what: str = "gains", tool: str = "pamd tune") -> int:
     root, _ = os.path.splitext(config_path)
     path = root + ".tuned.yaml"
-    nested: dict[str, Any] = {}
-    items: dict[str, dict[str, Any]] = {}  # muscles[] items by name
+    nested: JsonObject = {}  # the YAML written
+    items: dict[str, JsonObject] = {}  # muscles[] items by name
     for key_path, value in values.items():
         node = nested
         keys = key_path

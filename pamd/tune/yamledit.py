@@ -12,10 +12,9 @@ exactly the new values and everything else unchanged; where that cannot be done,
 
 from __future__ import annotations
 
-from typing import Any
-
 import yaml
 
+from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import PamdError
 
 KeyPath = tuple[str, ...]
@@ -99,7 +98,7 @@ def _set_one(text: str, path: KeyPath, value: str) -> str:
     raise YamlEditError(f"{'.'.join(path)}: an empty key path")
 
 
-def _nested(keys: KeyPath, value: str) -> Any:
+def _nested(keys: KeyPath, value: str) -> JsonValue:
     return value if not keys else {keys[0]: _nested(keys[1:], value)}
 
 

@@ -143,7 +143,7 @@ class Command:
     """A parsed command on its way to the loop; `reply` receives the verdict."""
 
     verb: str
-    args: Any
+    args: Any  # Any: the verb's own args dataclass (`Verb.args`), which its handler names
     reply: Callable[[JsonObject], None] | None = None
     sender: str = "local"
     user: str = ""

@@ -22,10 +22,11 @@ import os
 import re
 import warnings
 from collections.abc import Callable, Iterable, Sequence
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import RecordingError
 from pamd.view import fields
 from pamd.view.recording import Recording, open_recording
@@ -72,7 +73,7 @@ def _columns_doc(names: list[str]) -> dict[str, dict[str, str]]:
             for n in names}
 
 
-def _meta(rec: Recording) -> dict[str, Any]:
+def _meta(rec: Recording) -> JsonObject:
     return {"source": rec.source, "rig_id": rec.rig_id, "rate_hz": rec.rate_hz,
             "files": [os.path.basename(f.path) for f in rec.files],
             "steps": [f.step or "" for f in rec.files],
@@ -80,22 +81,30 @@ def _meta(rec: Recording) -> dict[str, Any]:
             "metadata": rec.metadata}
 
 
+class MatWritten(TypedDict):
+    """What `export_mat` wrote: the file, ticks per muscle, events, source files."""
+    out: str
+    muscles: dict[str, int]
+    events: int
+    files: int
+
+
 # -- MATLAB ------------------------------------------------------------------------------
-def cell(xs: Iterable[Any]) -> np.ndarray:
+def cell(xs: Iterable[object]) -> np.ndarray:
     """A MATLAB cell array of `xs`."""
     return np.array(list(xs), dtype=object)
 
 
-def export_mat(source: RecordingSource, out: str) -> dict[str, Any]:
+def export_mat(source: RecordingSource, out: str) -> MatWritten:
     """Write `out` (.mat); what was written (muscles, ticks, events)."""
     try:
         from scipy.io import savemat
     except ImportError:
         raise RecordingError("MATLAB export needs scipy: pip install 'pamd[mat]'") from None
     rec = _complete(source)
-    tables: dict[str, Any] = {}
+    tables: dict[str, dict[str, object]] = {}
     for m, data in rec.muscles.items():
-        st: dict[str, Any] = {k: v.astype(np.float64) for k, v in data.columns.items()}
+        st: dict[str, object] = {k: v.astype(np.float64) for k, v in data.columns.items()}
         doc = _columns_doc(list(data.columns))
         st["units"] = {k: d["unit"] for k, d in doc.items()}
         st["description"] = {k: d["description"] for k, d in doc.items()}
@@ -104,7 +113,7 @@ def export_mat(source: RecordingSource, out: str) -> dict[str, Any]:
         st["flag_bits"] = {k: float(v) for k, v in fields.FLAG_BITS.items()}
         st["muscle"] = m
         tables[matlab_name(m)] = st
-    loop: dict[str, Any] = {k: v.astype(np.float64) for k, v in rec.loop.items()}
+    loop: dict[str, object] = {k: v.astype(np.float64) for k, v in rec.loop.items()}
     loop["units"] = {k: fields.unit_of(k) for k in rec.loop}
     loop["state_names"] = cell(fields.STATE_NAMES.values())
     ev = rec.events
@@ -135,7 +144,7 @@ def export_mat(source: RecordingSource, out: str) -> dict[str, Any]:
 
 
 # -- CSV ---------------------------------------------------------------------------------------
-def export_named_csv(source: RecordingSource, out_dir: str) -> dict[str, Any]:
+def export_named_csv(source: RecordingSource, out_dir: str) -> dict[str, tuple[str, int]]:
     """Named CSV tables and their sidecar in `out_dir`; the paths written."""
     rec = _complete(source)
     os.makedirs(out_dir, exist_ok=True)
@@ -143,7 +152,7 @@ def export_named_csv(source: RecordingSource, out_dir: str) -> dict[str, Any]:
             and os.path.isdir(source) else os.path.splitext(os.path.basename(
                 rec.files[0].path))[0])
     d = decimals_of(rec.rate_hz)
-    written: dict[str, Any] = {}
+    written: dict[str, tuple[str, int]] = {}
     for m, data in rec.muscles.items():
         path = os.path.join(out_dir, f"{stem}_{m}.csv")
         named = {"state": _names(data.columns["state"], fields.state_name),
@@ -164,7 +173,7 @@ def export_named_csv(source: RecordingSource, out_dir: str) -> dict[str, Any]:
     written["events"] = (path, len(rec.events))
     names = list(next(iter(rec.muscles.values())).columns) + [
         c for c in rec.loop if c not in ("tick", "t_s", "state", "segment")]
-    columns: dict[str, dict[str, Any]] = {
+    columns: dict[str, dict[str, str | int | None]] = {
         n: {**doc, "decimals": d if n == "t_s" else column_decimals(n)}
         for n, doc in _columns_doc(names).items()}
     side = {"format": "pamd-csv", "version": 1, "time_decimals": d, "columns": columns,
@@ -197,20 +206,20 @@ def column_decimals(name: str) -> int | None:
     return DECIMALS_BY_UNIT.get(fields.unit_of(name))
 
 
-def _column(values: np.ndarray, decimals: int | None) -> list[Any]:
+def _column(values: np.ndarray, decimals: int | None) -> list[int] | list[str]:
     """A column as the CSV's cells: integers as integers; floats rounded to `decimals`,
     then as `repr`, the shortest text of the rounded value (so at most as long as the
     stored value's); NaN as "NaN". Each distinct value is written out once: a sensor's
     readings take few distinct values (a quantised pressure, an encoder's counts)."""
     if values.dtype.kind in "iub":
-        ints: list[Any] = values.astype(np.int64).tolist()
+        ints: list[int] = values.astype(np.int64).tolist()
         return ints
     a = values.astype(np.float64)
     if decimals is not None:
         a = np.round(a, decimals) + 0.0  # + 0.0: no "-0.0" for a value rounded to zero
     distinct, at = np.unique(a, return_inverse=True)
     text = np.array(["NaN" if v != v else repr(v) for v in distinct.tolist()], dtype=object)
-    cells: list[Any] = text[at.ravel()].tolist()
+    cells: list[str] = text[at.ravel()].tolist()
     return cells
 
 
@@ -225,7 +234,7 @@ def _write_table(path: str, cols: dict[str, np.ndarray], named: dict[str, np.nda
     """One table: a header row, then one row per tick, every row formatted by one format
     string in C (a 6-minute sweep's 360 000 rows in seconds, not a cell at a time)."""
     names = list(cols)
-    lists: list[list[Any]] = []
+    lists: list[Sequence[object]] = []
     cells: list[str] = []
     for k in names:
         if k in named:

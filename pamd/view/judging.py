@@ -32,11 +32,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from pamd.control.feedforward import Feedforward
+from pamd.declare.jsonsafe import JsonObject
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.samples import Samples
 from pamd.models.compare import Judged, columns_for, predict_samples, tick_cost_us
@@ -52,7 +52,7 @@ OFF_DATA_RULE = (f"a point is off the training data when its cell of a grid of "
                  "training sample")
 
 
-def coverage(X: np.ndarray, inputs: Sequence[str]) -> dict[str, Any]:
+def coverage(X: np.ndarray, inputs: Sequence[str]) -> JsonObject:
     """The occupied grid cells of the training inputs X (n x d), for the model file."""
     Xa = np.asarray(X, dtype=np.float64)
     lo, hi = Xa.min(axis=0), Xa.max(axis=0)
@@ -83,7 +83,7 @@ def off_data(model: InverseModel, X: np.ndarray) -> np.ndarray | None:
     return np.asarray(~np.isin(cells, np.array(cov["cells"], dtype=np.int64)))
 
 
-def poor_fit(metrics: dict[str, Any]) -> str | None:
+def poor_fit(metrics: JsonObject) -> str | None:
     """Why a trained model is worse than a constant (None if it is not)."""
     for key in ("validation", "train"):
         m = metrics.get(key)
@@ -168,7 +168,7 @@ class TickReport:
                        f"not {self.tick_rmse:.4g}")
         return out
 
-    def as_json(self) -> dict[str, Any]:
+    def as_json(self) -> JsonObject:
         return {"samples": self.n, "offline": self.offline, "inputs_held": self.inputs_held,
                 "output_held": self.output_held, "off_data": self.off_data,
                 "off_data_rule": OFF_DATA_RULE,

@@ -18,11 +18,10 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
-from typing import Any
 
 from pamd.config import load_config
 from pamd.declare import fields
-from pamd.declare.jsonsafe import JsonObject
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.tick import Mode, State
 
 #: the plot panels of a muscle's tab: title, y unit, series colours in order; the
@@ -58,7 +57,7 @@ def _discrete(names: dict[int, str]) -> JsonObject:
         {"value": str(v), "label": n, "color": _COLORS.get(n)} for v, n in names.items()]}
 
 
-def _stack(ids: Sequence[Any], direction: str = "column") -> Any:
+def _stack(ids: Sequence[JsonValue], direction: str = "column") -> JsonValue:
     """A mosaic tree giving each panel an equal share."""
     if len(ids) == 1:
         return ids[0]
@@ -93,7 +92,7 @@ def build_layout(rig_id: str, muscles: Sequence[str]) -> JsonObject:
                          "showFullMessageForDiff": False, "expansion": "all", "fontSize": 12,
                          "foxglovePanelTitle": "latest event"}
     if len(tabs) == 1:
-        left: Any = tabs[0]["layout"]
+        left: JsonValue = tabs[0]["layout"]
     else:
         left = "Tab!pamd-muscles"
         config[left] = {"activeTabIdx": 0, "tabs": tabs}

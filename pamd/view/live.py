@@ -31,7 +31,7 @@ import contextlib
 import sys
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 from pamd.declare.jsonsafe import JsonObject, dumps
 from pamd.net.ratelimit import RateLimitedHandler, limit_logger
@@ -40,6 +40,10 @@ from pamd.record import cdr
 from pamd.record.recorder import record_schemas
 from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 from pamd.view.spec import ViewerSpec
+
+if TYPE_CHECKING:  # foxglove-sdk: an optional extra, imported on `open`; its types only
+    from foxglove import Channel, Context
+    from foxglove.websocket import WebSocketServer
 
 BACKLOG = 1024  # messages queued per viewer before its oldest are dropped
 LOG_FLUSH_S = 1.0
@@ -63,11 +67,11 @@ class LiveView:
         self.mus_int = [i for i, (_n, t) in enumerate(mf) if t != "float64"]
         self.loop_int = [i for i, (_n, t) in enumerate(lf) if t != "float64"]
         self.n_loop, self.n_mf = len(LOOP_FIELDS), len(MUSCLE_FIELDS)
-        self.server: Any = None
-        self.ctx: Any = None
-        self.state_ch: list[Any] = []
-        self.loop_ch: Any = None
-        self.events_ch: Any = None
+        self.server: WebSocketServer | None = None
+        self.ctx: Context | None = None
+        self.state_ch: list[Channel] = []
+        self.loop_ch: Channel | None = None  # the channels are set with the server
+        self.events_ch: Channel | None = None
         self.sent = 0
         self.log: RateLimitedHandler | None = None  # what the server says, rate limited
         self.log_t = 0.0
@@ -131,6 +135,8 @@ class LiveView:
     def _ticks(self, rows: Sequence[Sequence[float]]) -> None:
         every, nl, nm = self.every, self.n_loop, self.n_mf
         hdr = cdr.CDR_LE
+        loop_ch = self.loop_ch
+        assert loop_ch is not None  # opened with the server (`ticks` checked it)
         for row in rows:
             tick = int(row[0])
             if tick % every:
@@ -139,7 +145,7 @@ class LiveView:
             vals = list(row[:nl])
             for i in self.loop_int:
                 vals[i] = int(vals[i])
-            self.loop_ch.log(self.loop_payload.pack(hdr, *vals), log_time=log_ns)
+            loop_ch.log(self.loop_payload.pack(hdr, *vals), log_time=log_ns)
             for k, ch in enumerate(self.state_ch):
                 b = nl + k * nm
                 mv = [tick, row[1], *row[b:b + nm]]
@@ -159,6 +165,7 @@ class LiveView:
         try:
             body = dumps({"t_s": t_abs_s - t0, "tick": round((t_abs_s - t0) * io.rate_hz),
                           "kind": kind, "data": data})
+            assert self.events_ch is not None  # opened with the server (checked above)
             self.events_ch.log(body.encode(), log_time=log_ns)
         except Exception as exc:
             self._give_up(exc)
@@ -175,5 +182,6 @@ class LiveView:
             return
         server, self.server = self.server, None
         for ch in (*self.state_ch, self.loop_ch, self.events_ch):
-            ch.close()
+            if ch is not None:
+                ch.close()
         server.stop()

@@ -9,18 +9,24 @@ matplotlib is the optional `plot` extra, imported here only (Agg backend).
 from __future__ import annotations
 
 import os
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pamd.errors import RecordingError
 from pamd.view.recording import MuscleData, Recording
 
+if TYPE_CHECKING:  # matplotlib is the optional extra: its types only
+    from matplotlib.figure import Figure
+
 FIGSIZE = (8.0, 4.5)
 DPI = 150
 
 
-def _pyplot() -> Any:
+def _pyplot() -> ModuleType:
+    """matplotlib.pyplot on the Agg backend (the module: its functions are typed by
+    matplotlib, reached through the module's attributes)."""
     try:
         import matplotlib
     except ImportError:
@@ -72,7 +78,7 @@ def write_plots(rec: Recording, prefix: str, muscles: list[str] | None = None) -
     return out
 
 
-def _series(plt: Any, path: str, t: np.ndarray, xlabel: str, ylabel: str,
+def _series(plt: ModuleType, path: str, t: np.ndarray, xlabel: str, ylabel: str,
             lines: list[tuple[np.ndarray, str, str, str]], title: str) -> str:
     fig, ax = plt.subplots(figsize=FIGSIZE)
     for y, label, color, style in lines:
@@ -99,7 +105,7 @@ def hysteresis_loops(m: MuscleData) -> list[tuple[str, np.ndarray, np.ndarray]]:
     return out
 
 
-def _hysteresis(plt: Any, path: str, m: MuscleData, title: str) -> str:
+def _hysteresis(plt: ModuleType, path: str, m: MuscleData, title: str) -> str:
     """Contraction against measured pressure while running, one loop per load."""
     loops = hysteresis_loops(m)
     fig, ax = plt.subplots(figsize=(6.5, 5.0))
@@ -118,7 +124,7 @@ def _hysteresis(plt: Any, path: str, m: MuscleData, title: str) -> str:
     return _save(fig, plt, path)
 
 
-def _save(fig: Any, plt: Any, path: str) -> str:
+def _save(fig: Figure, plt: ModuleType, path: str) -> str:
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
     plt.close(fig)

@@ -92,11 +92,11 @@ class MuscleData:
         """The control mode of each tick as a name (pressure, length_force, position)."""
         return np.array([fields.mode_name(x) for x in self.columns["mode"]], dtype=object)
 
-    def frame(self) -> Any:
+    def frame(self) -> Any:  # Any: a pandas DataFrame (pandas: an optional extra, untyped)
         """A pandas DataFrame: one row per tick, states and modes as names (categories),
         units in `df.attrs["units"]`."""
         pd = _pandas()
-        data: dict[str, Any] = dict(self.columns)  # Any: arrays, then pandas columns
+        data: dict[str, object] = dict(self.columns)  # arrays, then pandas columns
         data["state"] = pd.Categorical(self.states(), categories=list(
             fields.STATE_NAMES.values()))
         data["mode"] = pd.Categorical(self.modes(), categories=list(fields.MODE_NAMES.values()))
@@ -148,6 +148,7 @@ class Recording:
         t = self.loop.get("t_s")
         return float(t[-1] - t[0]) if t is not None and len(t) else 0.0
 
+    # Any: a pandas DataFrame (pandas: an optional extra, untyped)
     def frame(self, muscle: str | None = None) -> Any:
         """The muscle's DataFrame (with one muscle, `muscle` may be left out)."""
         if muscle is None:
@@ -156,7 +157,7 @@ class Recording:
             muscle = next(iter(self.muscles))
         return self[muscle].frame()
 
-    def events_frame(self) -> Any:
+    def events_frame(self) -> Any:  # Any: a pandas DataFrame, as `frame`
         pd = _pandas()
         return pd.DataFrame([{"t_s": e.t_s, "tick": e.tick, "kind": e.kind, "data": e.data,
                               "log_ns": e.log_ns, "file": os.path.basename(e.file)}
@@ -164,7 +165,7 @@ class Recording:
                             columns=["t_s", "tick", "kind", "data", "log_ns", "file"])
 
 
-def _pandas() -> Any:
+def _pandas() -> Any:  # Any: the pandas module (an optional extra, untyped)
     try:
         import pandas
     except ImportError:
@@ -270,7 +271,7 @@ def _read_file(path: str, only: str | None
     return loop, by_muscle, events
 
 
-def _columns(names: list[str], rows: list[list[Any]]) -> dict[str, np.ndarray]:
+def _columns(names: list[str], rows: list[list[float]]) -> dict[str, np.ndarray]:
     if not names:
         return {}
     arr = np.array(rows, dtype=np.float64).reshape(len(rows), len(names))
@@ -309,8 +310,10 @@ def _concat(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
     return {k: np.concatenate([p[k] for p in parts if k in p]) for k in keys}
 
 
-def _float(v: Any) -> float | None:
+def _float(v: object) -> float | None:
+    if not isinstance(v, (int, float, str)):
+        return None
     try:
-        return None if v is None else float(v)
-    except (TypeError, ValueError):
+        return float(v)
+    except ValueError:
         return None

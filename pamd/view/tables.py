@@ -147,7 +147,7 @@ def read_table_csv(path: str) -> Run:
     if skip == len(lines):
         raise ModelError(f"{path}: empty file (no header row)")
     try:
-        dialect: Any = csv.Sniffer().sniff("\n".join(lines[skip:skip + 20]),
+        dialect: type[csv.Dialect] = csv.Sniffer().sniff("\n".join(lines[skip:skip + 20]),
                                            delimiters=",;\t")
     except csv.Error:
         dialect = csv.excel
@@ -323,7 +323,8 @@ def _mat_events(path: str, ev: dict[str, Any], muscle: str  # Any: a .mat struct
         raise ModelError(f"{path}: cannot read the exported events ({exc})") from None
 
 
-def _mat_run(path: str, muscle: str, st: dict[str, Any], var: str) -> Run:  # a .mat struct
+def _mat_run(path: str, muscle: str, st: dict[str, Any], var: str  # Any: a .mat struct's fields
+             ) -> Run:
     units = st.get("units") if isinstance(st.get("units"), dict) else {}
     columns: dict[str, np.ndarray] = {}
     notes = []
