@@ -27,7 +27,7 @@ ANFIS 1-8 are the paper's layouts (grid partition, 4/6/8/10 Gaussian MFs per inp
 constant or linear consequents, hybrid learning, 10 epochs), trained as `pamd train
 --kind anfis --mfs N --consequent constant|linear --epochs 10` trains. Seven of the
 eight have more parameters (60-340) than a leave-one-curve-out training set of pamd's
-map has points (47-52), and pamd refuses such a fit; so the ANFIS rows read each
+map has points (48-53), and pamd refuses such a fit; so the ANFIS rows read each
 curve at the paper's 0.5 % contraction steps (linear between pamd's digitised points,
 within each curve's own range: 413 and 427 points) and are judged the same way, whole
 held-out curves. Beside that figure, the paper's protocol on the same resampled map:
