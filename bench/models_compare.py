@@ -42,7 +42,6 @@ import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from importlib import resources  # noqa: E402
-from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 from _common import record_profile, sim_config  # noqa: E402
@@ -90,9 +89,9 @@ TS_EARLIER = {"consequent": "linear", "fitness_scaling": "linear", "fitness_rows
 
 #: name -> (kind, inputs, options changes)
 #: Kind options by name shared across the candidates (each kind takes those it has).
-Settings = dict[str, Any]
+Settings = dict[str, object]
 
-CANDIDATES: dict[str, tuple[str, tuple[str, ...], dict[str, Any]]] = {
+CANDIDATES: dict[str, tuple[str, tuple[str, ...], Settings]] = {
     "anfis 5x5": ("anfis", I2, {"mfs": (5,), "epochs": 50}),
     "anfis 3x3x3": ("anfis", I3, {"mfs": (3,), "epochs": 50}),
     "ts-fuzzy gd": ("ts-fuzzy", I3, {"tuner": "gd", "epochs": 100, "consequent": "linear"}),

@@ -47,9 +47,9 @@ import argparse  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
 from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
-from typing import Any  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # bench/ (run or imported)
 
@@ -68,6 +68,8 @@ DATA = Path(pamd.__file__).parent / "data"
 MAPS = {"DMSP-20": "dmsp20_force_map.csv", "DMSP-40": "dmsp40_force_map.csv"}
 OPTS = ExtractOptions(inputs=("pressure_bar", "contraction"), output="force_n")
 HELD_OUT_BAR = (1.0, 2.0, 3.0, 4.0, 5.0)
+#: A kind's options by name, as `pamd train`'s flags give them (the kind checks them).
+Options = dict[str, object]
 SVR_KERNELS = ("linear", "quadratic", "cubic", "fine-gaussian", "medium-gaussian",
                "coarse-gaussian")
 MLP_SIZES = (1, 2, 5, 10, 20)
@@ -116,10 +118,10 @@ LIKE = ("datasheet map digitised at {n} points on 7 curves (paper: {paper} at 0.
 PAPER_SAMPLES = {"DMSP-20": 455, "DMSP-40": 497}
 
 
-def models(quick: bool) -> dict[str, tuple[str, dict[str, Any]]]:
+def models(quick: bool) -> dict[str, tuple[str, Options]]:
     """Label -> (kind, options): every model of the paper pamd builds (quick: the MLP
     sizes 1, 5, 10 and every kernel)."""
-    out: dict[str, tuple[str, dict[str, Any]]] = {"polynomial": ("polynomial", {})}
+    out: dict[str, tuple[str, Options]] = {"polynomial": ("polynomial", {})}
     for h in (1, 5, 10) if quick else MLP_SIZES:
         out[f"mlp {h}"] = ("mlp", {"hidden": h, "solver": "br", "epochs": 1000})
     for k in SVR_KERNELS:
@@ -128,11 +130,11 @@ def models(quick: bool) -> dict[str, tuple[str, dict[str, Any]]]:
     return out
 
 
-def anfis_models() -> dict[str, tuple[str, dict[str, Any]]]:
+def anfis_models() -> dict[str, tuple[str, Options]]:
     """The paper's ANFIS 1-8 as `pamd train --kind anfis --mfs N --consequent C
     --epochs 10` builds them (the library's other defaults: two starts at MF widths 1
     and 3, the best kept on the training error, no validation set)."""
-    out: dict[str, tuple[str, dict[str, Any]]] = {}
+    out: dict[str, tuple[str, Options]] = {}
     n = 0
     for consequent in ANFIS_CONSEQUENTS:
         for mfs in ANFIS_MFS:
@@ -145,7 +147,9 @@ def anfis_models() -> dict[str, tuple[str, dict[str, Any]]]:
 def anfis_layout(label: str) -> str:
     """'anfis 7' -> '8 x 8 MFs, linear' (the paper's names for its layouts)."""
     _kind, opts = anfis_models()[label]
-    m = opts["mfs"][0]
+    mfs = opts["mfs"]
+    assert isinstance(mfs, tuple)
+    m = mfs[0]
     return f"{m} x {m} MFs, {opts['consequent']}"
 
 
@@ -174,7 +178,7 @@ def pressures(s: Samples) -> np.ndarray:
     return np.round(s.X[:, 0], 6)
 
 
-def judge_held_out_curves(samples: Samples, kind: str, options: dict[str, Any]
+def judge_held_out_curves(samples: Samples, kind: str, options: Options
                           ) -> dict[str, float]:
     """Seed 002's figures of the pooled predictions of each held-out curve by the model
     trained on the others (see the module doc)."""
@@ -194,7 +198,7 @@ def judge_held_out_curves(samples: Samples, kind: str, options: dict[str, Any]
     return m
 
 
-def judge_random_split(samples: Samples, kind: str, options: dict[str, Any]
+def judge_random_split(samples: Samples, kind: str, options: Options
                        ) -> dict[str, float]:
     """The paper's own protocol beside the held-out curves: a random 70/15/15 % split
     (seed 0), trained on the 70 %, judged on the last 15 % (the middle 15 % unused: the
@@ -223,7 +227,8 @@ def paper_polynomial(muscle: str, samples: Samples) -> dict[str, float]:
     return regression_metrics(samples.y, p * (a1 * h ** 2 + a2 * h + a3) + a4, 4)
 
 
-def measure(quick: bool, say: Any = None) -> dict[str, dict[str, dict[str, float]]]:
+def measure(quick: bool, say: Callable[[str], None] | None = None
+            ) -> dict[str, dict[str, dict[str, float]]]:
     """muscle -> model label -> figures."""
     out: dict[str, dict[str, dict[str, float]]] = {}
     for muscle, file in MAPS.items():
