@@ -9,11 +9,12 @@ the validation blocks only: the ts-fuzzy consequents' ridge (from 0.001, 0.01, 0
 with the gd tuner, then used by all three tuners). Test, once: the 50 kg sweep, never
 trained on. Every kind: anfis (seed 000, 2 inputs 5 x 5 and 3 inputs 3 x 3 x 3),
 ts-fuzzy gd / ga / mga (001; population 100, --generations), polynomial and sarosi
-(002, 004), mlp and svr (002, through scikit-learn), qupi (003; it has no force
-input, so it is identified on the neighbouring loads, 40 and 60 kg). Printed: seed
-002's comparison table on the 50 kg test (parameters, SSE, NRMSE fit, AIC, SBC, MSE,
-RMSE, max deviation % of the measured range, tick cost), the forward force fit of
-the two force models, and the goals.
+(002, 004), mlp and svr (002; the kinds' defaults: Bayesian regularisation in numpy,
+scikit-learn's SVR with MATLAB's medium Gaussian and fitrsvm's C and epsilon), qupi
+(003; it has no force input, so it is identified on the neighbouring loads, 40 and 60
+kg). Printed: seed 002's comparison table on the 50 kg test (parameters, SSE, NRMSE
+fit, AIC, SBC, MSE, RMSE, max deviation % of the measured range, tick cost), the
+forward force fit of the two force models, and the goals.
 
 Part 2, feedforward. Position tracking of a 0.05 Hz sine over 5-20 % contraction at
 30 kg (3 cycles, RMSE over the cycles after the first), with each kind as the
@@ -41,7 +42,6 @@ import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from importlib import resources  # noqa: E402
-from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 from _common import record_profile, sim_config  # noqa: E402
@@ -89,9 +89,9 @@ TS_EARLIER = {"consequent": "linear", "fitness_scaling": "linear", "fitness_rows
 
 #: name -> (kind, inputs, options changes)
 #: Kind options by name shared across the candidates (each kind takes those it has).
-Settings = dict[str, Any]
+Settings = dict[str, object]
 
-CANDIDATES: dict[str, tuple[str, tuple[str, ...], dict[str, Any]]] = {
+CANDIDATES: dict[str, tuple[str, tuple[str, ...], Settings]] = {
     "anfis 5x5": ("anfis", I2, {"mfs": (5,), "epochs": 50}),
     "anfis 3x3x3": ("anfis", I3, {"mfs": (3,), "epochs": 50}),
     "ts-fuzzy gd": ("ts-fuzzy", I3, {"tuner": "gd", "epochs": 100, "consequent": "linear"}),
@@ -99,8 +99,8 @@ CANDIDATES: dict[str, tuple[str, tuple[str, ...], dict[str, Any]]] = {
     "ts-fuzzy mga": ("ts-fuzzy", I3, {"tuner": "mga", **TS_EARLIER}),
     "polynomial": ("polynomial", IC, {}),
     "sarosi": ("sarosi", IC, {}),
-    "mlp 8 tanh": ("mlp", I3, {"epochs": 1000}),
-    "svr rbf": ("svr", I3, {}),
+    "mlp 8 tanh (br)": ("mlp", I3, {"epochs": 1000}),
+    "svr medium-gaussian": ("svr", I3, {}),
     "qupi 10x10": ("qupi", ("length_mm",), {}),
 }
 

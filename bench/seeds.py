@@ -4,8 +4,9 @@ Each seed's comparison lives in its own module, bench/seed000.py .. bench/seed00
 with `rows(quick: bool) -> list[SeedRow]` (bench/seed_table.py): the paper's figure
 beside pamd's, measured on the paper's protocol as closely as the simulated rig allows,
 and what is not like-for-like. This script runs them in turn (progress on stderr, with
-each seed's time) and prints one table; a seed whose module is not there prints "not
-measured", and one whose run fails prints the error (the other seeds still run).
+each seed's time; what a seed prints goes there too, so that stdout is the table) and
+prints one table; a seed whose module is not there prints "not measured", and one
+whose run fails prints the error (the other seeds still run).
 
     python bench/seeds.py                 # the papers' protocols (long: tens of minutes)
     python bench/seeds.py --quick         # a few minutes per seed at most
@@ -20,6 +21,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import importlib  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -44,7 +46,8 @@ def seed_rows(seed: str, quick: bool) -> list[SeedRow]:
             return [SeedRow(seed, "(all)", "-", f"failed: {e}", "-")]
         return [SeedRow(seed, "(all)", "-", NOT_MEASURED, f"bench/{name}.py not written yet")]
     try:
-        rows: list[SeedRow] = module.rows(quick)
+        with contextlib.redirect_stdout(sys.stderr):  # a seed's own output is progress
+            rows: list[SeedRow] = module.rows(quick)
     except Exception as e:  # noqa: BLE001  (one seed's failure must not hide the others)
         traceback.print_exc(file=sys.stderr)
         return [SeedRow(seed, "(all)", "-", f"failed: {type(e).__name__}: {e}", "-")]

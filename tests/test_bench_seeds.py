@@ -21,6 +21,11 @@ def seeds(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> ModuleType:
     (tmp_path / "seed998.py").write_text(
         "def rows(quick):\n    raise RuntimeError('the sim broke')\n")
     (tmp_path / "seed996.py").write_text("import no_such_dependency_xyz\n")
+    (tmp_path / "seed995.py").write_text(
+        "from seed_table import SeedRow\n"
+        "def rows(quick):\n"
+        "    print('training summary of seed 995')\n"
+        "    return [SeedRow('995', 'b figure', '1 %', '1 %', 'yes')]\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.syspath_prepend(str(REPO / "bench"))
     sys.modules.pop("seeds", None)
@@ -64,3 +69,13 @@ def test_quick_reaches_the_seed_and_the_table_prints_as_markdown(
     seeds.main(["--seed", "004"])
     text = capsys.readouterr().out
     assert "a figure" in text and "3 %" in text and "|" not in text
+
+
+def test_what_a_seed_prints_goes_to_stderr_not_into_the_table(
+        seeds: ModuleType, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr(seeds, "SEEDS", (*seeds.SEEDS, "995"))
+    assert seeds.main(["--markdown", "--seed", "995"]) == 0
+    out, err = capsys.readouterr()
+    assert out.splitlines()[2] == "| 995 | b figure | 1 % | 1 % | yes |"
+    assert "training summary" not in out and "training summary of seed 995" in err
