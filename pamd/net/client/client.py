@@ -129,8 +129,13 @@ class Client:
                     return {"ok": False, "error": "the reply is not JSON: "
                             + r.ok.payload.to_bytes()[:200].decode("utf-8", "replace")}
             if r.err is not None:
-                return {"ok": False, "error": r.err.payload.to_bytes().decode("utf-8",
-                                                                              "replace")}
+                error = r.err.payload.to_bytes().decode("utf-8", "replace")
+                if error == "Timeout":  # zenoh's own reply when the query's time ran out
+                    error = (f"no answer within {timeout_s:g} s: the command may have been "
+                             "dropped on a congested link (only estop and stop are never "
+                             "dropped) or answered too late; check the rig's status before "
+                             "sending it again")
+                return {"ok": False, "error": error}
         key = selector.split("?", 1)[0]
         raise NoDaemon(f"no answer on {key} within {timeout_s:g} s via {self.where} (no "
                        "daemon for that rig, telemetry off, or not allowed: a viewer "
