@@ -48,18 +48,26 @@ _CTX.set_forkserver_preload(["pamd.commands.model_file", "pamd.experiment.plan"]
 _lock = threading.Lock()
 
 
-def warm_up(time_limit_s: float = 120.0) -> None:
+#: How long the forkserver may take to start and import pamd (a second of a core when
+#: the machine is idle, many on one busy with other work); not a file's time.
+WARM_UP_LIMIT_S = 120.0
+_warm = threading.Event()
+
+
+def warm_up(time_limit_s: float = WARM_UP_LIMIT_S) -> None:
     """Start the forkserver now and wait until it has imported pamd (about a second of
     a core) and forked a first child, so that the first command that names a file
     does not wait for it (the daemon does this in a worker thread as it starts)."""
     with _lock:
         forkserver.ensure_running()
-    run_isolated(int, time_limit_s=time_limit_s, what="the file reader's start")
+    _run(int, (), time_limit_s, "the file reader's start")
+    _warm.set()
 
 
 def stop() -> None:
     """Stop the forkserver and reap it, if it runs (before a restart in place: at the
     exec it would see its pipe close, exit, and stay a zombie of the new daemon)."""
+    _warm.clear()  # the next job starts (and warms) a new one
     server = getattr(forkserver, "_forkserver", None)  # private, 3.4+
     stop_server = getattr(server, "_stop", None)
     if stop_server is None:
@@ -93,7 +101,16 @@ def _child(conn: Connection, fn: Callable[..., object], args: tuple[object, ...]
 
 def run_isolated(fn: Callable[..., T], *args: object, time_limit_s: float, what: str) -> T:
     """`fn(*args)` in a child process (see the module doc); `what` names the job in a
-    refusal ("model file 'x.json'")."""
+    refusal ("model file 'x.json'"). `time_limit_s` is the job's, its child's start
+    included; a forkserver not yet warm is warmed first, outside that limit (its start
+    is not the file's cost: on a busy machine it alone can take longer than a file's
+    whole limit, which would refuse a good file)."""
+    if not _warm.is_set():
+        warm_up()
+    return _run(fn, args, time_limit_s, what)
+
+
+def _run(fn: Callable[..., T], args: tuple[object, ...], time_limit_s: float, what: str) -> T:
     deadline = time.monotonic() + time_limit_s  # the child's start included
     reader, writer = _CTX.Pipe(duplex=False)
     with _lock:  # one start at a time: the forkserver's socket is shared
