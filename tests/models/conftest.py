@@ -16,6 +16,7 @@ from pamd.cli.main import main  # noqa: E402
 from pamd.config import load_config  # noqa: E402
 from pamd.daemon import Daemon  # noqa: E402
 from pamd.io.session import RecordingRequest  # noqa: E402
+from tests.once import once_per_run  # noqa: E402
 
 SIM_YAML = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
 SWEEP_LOADS_KG = (20.0, 40.0, 60.0)
@@ -49,16 +50,26 @@ def record_sweep(tmp: Path, load_kg: float, lo: float = 0.5, hi: float = 5.5,
 
 @pytest.fixture(scope="session")
 def sweeps(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
-    """0.1 Hz 0.5-5.5 bar sweeps, 2 cycles each, at 20, 40 and 60 kg."""
-    tmp = tmp_path_factory.mktemp("sweeps")
-    return [record_sweep(tmp, load) for load in SWEEP_LOADS_KG]
+    """0.1 Hz 0.5-5.5 bar sweeps, 2 cycles each, at 20, 40 and 60 kg (recorded once
+    per run: tests/once.py)."""
+    def build(tmp: Path) -> list[str]:
+        return [str(record_sweep(tmp, load)) for load in SWEEP_LOADS_KG]
+
+    return [Path(p) for p in once_per_run(tmp_path_factory, "sweeps", build)]
 
 
 @pytest.fixture(scope="session")
 def trained(sweeps: list[Path], tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """One model file per kind, trained by `pamd train --kind` on the sweeps (small
-    settings: seconds)."""
-    out = tmp_path_factory.mktemp("models")
+    settings: seconds; trained once per run: tests/once.py)."""
+    def build(out: Path) -> dict[str, str]:
+        return {kind: str(path) for kind, path in train_each_kind(sweeps, out).items()}
+
+    return {kind: Path(p) for kind, p in
+            once_per_run(tmp_path_factory, "trained", build).items()}
+
+
+def train_each_kind(sweeps: list[Path], out: Path) -> dict[str, Path]:
     runs = [str(p) for p in sweeps]
     args = {
         "anfis": ["--epochs", "20", "--mfs", "3"],

@@ -15,6 +15,8 @@ from typing import Any
 
 import pytest
 
+from tests.once import once_per_run
+
 JS = Path(__file__).resolve().parents[1] / "js"
 
 
@@ -83,12 +85,15 @@ class Recorded:
 @pytest.fixture(scope="session")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Recorded:
     """`pamd run` on the virtual clock: a 0.5 Hz sine of 1-3 bar, 4 s, recorded."""
-    d = tmp_path_factory.mktemp("recorded")
-    r = pamd_cli("run", "--clock", "virtual", "--duration", "4", "--record", d / "rec",
-                 "--profile", "sine", "--freq-hz", "0.5", "--min-bar", "1", "--max-bar", "3",
-                 "--json", cwd=d)
-    assert r.returncode == 0, r.stderr
-    summary = json.loads(r.stdout)
+    def build(d: Path) -> dict[str, Any]:
+        r = pamd_cli("run", "--clock", "virtual", "--duration", "4", "--record", d / "rec",
+                     "--profile", "sine", "--freq-hz", "0.5", "--min-bar", "1", "--max-bar",
+                     "3", "--json", cwd=d)
+        assert r.returncode == 0, r.stderr
+        summary: dict[str, Any] = json.loads(r.stdout)
+        return summary
+
+    summary = once_per_run(tmp_path_factory, "view-recorded", build)  # tests/once.py
     (file,) = summary["recording"]["files"]
     return Recorded(Path(file), summary)
 
@@ -96,9 +101,11 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> Recorded:
 @pytest.fixture(scope="session")
 def collection(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """`pamd collect` of a two-step plan (15 kg, 40 kg) on the virtual clock."""
-    d = tmp_path_factory.mktemp("collection")
-    (d / "plan.yaml").write_text(PLAN)
-    r = pamd_cli("collect", d / "plan.yaml", "--clock", "virtual", "--out", d / "coll",
-                 "--no-progress", cwd=d)
-    assert r.returncode == 0, r.stderr
-    return d / "coll"
+    def build(d: Path) -> str:
+        (d / "plan.yaml").write_text(PLAN)
+        r = pamd_cli("collect", d / "plan.yaml", "--clock", "virtual", "--out", d / "coll",
+                     "--no-progress", cwd=d)
+        assert r.returncode == 0, r.stderr
+        return str(d / "coll")
+
+    return Path(once_per_run(tmp_path_factory, "view-collection", build))  # tests/once.py

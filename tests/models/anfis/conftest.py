@@ -13,6 +13,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: threaded BLA
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from tests.once import once_per_run  # noqa: E402
+
 # DMSP-20 static force fit from shared/reference/rig-physics.md:
 # F = (a p + b) e^(c k) + (e p + f) k + g p + h, p in bar, k = contraction in %.
 _A, _B, _C = -10.1206, 236.3164, -0.3378
@@ -76,14 +78,18 @@ def dmsp20_force():
 @pytest.fixture(scope="session")
 def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """`pamd run --record` of two 0.2 Hz 0.5-5 bar sine cycles (virtual clock, ~1 s):
-    exactly one MCAP file, recorded once for the modules that read it (none writes it)."""
-    d = tmp_path_factory.mktemp("rec")
-    r = subprocess.run([sys.executable, "-m", "pamd", "run", "--clock", "virtual", "--profile",
-                        "sine", "--freq-hz", "0.2", "--min-bar", "0.5", "--max-bar", "5",
-                        "--cycles", "2", "--record", str(d), "--name", "sweep"],
-                       capture_output=True, text=True, timeout=120,
-                       cwd=Path(__file__).resolve().parents[2])
-    assert r.returncode == 0, r.stderr
-    files = sorted(d.glob("*.mcap"))
-    assert len(files) == 1
-    return files[0]
+    exactly one MCAP file, recorded once per run for the modules that read it (none
+    writes it; tests/once.py)."""
+    def build(d: Path) -> str:
+        r = subprocess.run([sys.executable, "-m", "pamd", "run", "--clock", "virtual",
+                            "--profile", "sine", "--freq-hz", "0.2", "--min-bar", "0.5",
+                            "--max-bar", "5", "--cycles", "2", "--record", str(d), "--name",
+                            "sweep"],
+                           capture_output=True, text=True, timeout=120,
+                           cwd=Path(__file__).resolve().parents[2])
+        assert r.returncode == 0, r.stderr
+        files = sorted(d.glob("*.mcap"))
+        assert len(files) == 1
+        return str(files[0])
+
+    return Path(once_per_run(tmp_path_factory, "anfis-recording", build))
