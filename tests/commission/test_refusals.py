@@ -46,8 +46,11 @@ def test_an_inverted_pressure_sensor_is_refused_naming_it(tmp_path: Path) -> Non
     path = copy_config("sim.yaml", tmp_path, (
         (PRESSURE, "pressure: {driver: sim, channel: m1.pressure, gain: -1.0}"),))
     report, why = refused(path)
-    assert "the pressure fell when the valve opened" in why
-    assert "signals.pressure.gain" in why
+    # Either the first step shows it (the pressure fell as the valve opened), or, where
+    # the rig held its safe pressure long enough before that step (the virtual loop runs
+    # on while this thread starts the plan), the tracking fault does (a reading below
+    # 0 bar is no muscle's pressure); both name the inverted sign and the gain to check.
+    assert "sign is inverted" in why and "signals.pressure.gain" in why, why
     assert {s["name"] for s in report["steps"]} <= {"level-a", "up-a", "down-a"}
 
 
