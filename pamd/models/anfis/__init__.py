@@ -16,15 +16,14 @@ from pamd.models.anfis.compiled import CompiledAnfis
 from pamd.models.anfis.model import AnfisModel, init_model
 from pamd.models.anfis.modelfile import dumps, load, loads, save
 from pamd.models.anfis.serialize import FORMAT, VERSION
+from pamd.models.anfis.step_size import StepSizeState, update_step_size
 from pamd.models.anfis.training import (
-    StepSizeState,
     TrainingOptions,
     TrainingResult,
     error_and_gradient,
     fit,
     solve_consequents,
     train,
-    update_step_size,
 )
 from pamd.models.contract import Variable
 

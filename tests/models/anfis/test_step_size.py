@@ -8,7 +8,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import pytest  # noqa: E402
 
-from pamd.models.anfis.training import StepSizeState, update_step_size  # noqa: E402
+from pamd.models.anfis.step_size import StepSizeState, update_step_size  # noqa: E402
 
 
 def run(errors: list[float], step: float = 1.0) -> list[float]:
