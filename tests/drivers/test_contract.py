@@ -353,16 +353,16 @@ class CanEncoderBench(Bench):
         self.net.disconnect()
 
 
-class ModbusRtuTcpBench(Bench):
+class ModbusRtuTcpBench(ModbusTcpBench):
     """The load-cell transmitter of config/rig-emulated.yaml: RTU frames over TCP (an
     RS-485 device server), pymodbus's TCP client with its RTU framer against the
-    emulator's server; the device server switched off and on again."""
+    emulator's server; the device server switched off and on again (the options, the
+    switching and the closing as the TCP bench's)."""
 
-    type_name = "modbus"
     fault_words = ("rtu-tcp 127.0.0.1",)
 
     def __init__(self, tmp: Path) -> None:
-        super().__init__(tmp)
+        Bench.__init__(self, tmp)
         cfg = load_config(str(write_config(tmp, emulated_dict(tmp, free_port(),
                                                               can="virtual"))))
         lc2 = next(d.options for d in cfg.rig.drivers if d.name == "lc2")
@@ -373,29 +373,11 @@ class ModbusRtuTcpBench(Bench):
         self.server: Any = None
         self.restore()
 
-    def options(self) -> ModbusOptions:
-        return self.opts
-
-    def bad_options(self) -> tuple[Any, str]:
-        return dataclasses.replace(self.opts, transport="rtu", serial_port=""), "serial_port"
-
-    def absent_options(self) -> ModbusOptions:
-        return dataclasses.replace(self.opts, port=free_port())
-
-    def silence(self) -> None:
-        self.aio.run(self.server.shutdown())
-        self.server = None
-
     def check_recovered(self, d: Driver) -> None:
         assert d.health().counters["connects"] >= 2  # it reconnected
 
     def restore(self) -> None:
         self.server = self.aio.run(serve_rtu_tcp(self.device, "127.0.0.1", self.opts.port))
-
-    def close(self) -> None:
-        if self.server is not None:
-            self.silence()
-        self.aio.stop()
 
 
 class CanSocketcandBench(Bench):
