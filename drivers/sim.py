@@ -134,7 +134,9 @@ class SimDriver(Driver):
                 self._dropped_writes += 1
                 return
             self._writes += 1
-            self.chain.beat(value, self._clock() if self._clock is not None else self._t_s)
+            chain = self.chain
+            if (value >= 0.5) != (chain.heartbeat >= 0.5):  # a toggle: the clock read then
+                chain.beat(value, self._clock() if self._clock is not None else self._t_s)
             return
         k, j = divmod(index, OUTPUTS_PER_MUSCLE)
         plant = self._plants[k]
@@ -170,7 +172,9 @@ class SimDriver(Driver):
         self._t_s += dt_s
         clock = self._clock
         now_s = clock() if clock is not None else math.nan
-        self.chain.watch(now_s if clock is not None else self._t_s)
+        chain = self.chain
+        if chain.watching and not chain.open:
+            chain.watch(now_s if clock is not None else self._t_s)
         if self._schedule.pending:
             # the schedule runs on the loop's clock (this tick's time), else on the steps
             elapsed = now_s - self._t_open + 1e-9 if clock is not None else self._t_s
@@ -311,7 +315,8 @@ class SimDriver(Driver):
     def supply_bar(self) -> float:
         """What the supply's pressure sensor reads: the line's pressure (the highest
         muscle supply without a shared line), 0 with the air cut."""
-        if self.chain.air_cut:
+        chain = self.chain
+        if chain.open or chain.supply_lost:  # the air cut (read each tick: no property)
             return 0.0
         if self.supply_line is not None:
             return self.supply_line.pressure_bar

@@ -27,6 +27,9 @@ class SimChain:
         self.heartbeat = 0.0  # the heartbeat output's level as last written
         self.heartbeat_toggles = 0
         self._heartbeat_at: float | None = None  # when it last changed (None: never)
+        #: the relay watches (a watchdog time, and the heartbeat has toggled): the tick
+        #: calls `watch` only then
+        self.watching = False
 
     @property
     def air_cut(self) -> bool:
@@ -40,6 +43,7 @@ class SimChain:
             self.heartbeat = level
             self.heartbeat_toggles += 1
             self._heartbeat_at = now_s
+            self.watching = self._watchdog_s > 0.0
 
     def watch(self, now_s: float) -> None:
         """The relay: once the heartbeat has toggled, one that stood still longer than

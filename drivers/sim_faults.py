@@ -45,15 +45,13 @@ class FaultSchedule:
     def __init__(self, faults: Sequence[SimFault]) -> None:
         self._faults = sorted(faults, key=lambda f: f.at_s)
         self._next = 0
-
-    @property
-    def pending(self) -> bool:
-        return self._next < len(self._faults)
+        self.pending = bool(self._faults)  # read each tick: a plain attribute
 
     def due(self, elapsed_s: float) -> SimFault | None:
         """The next fault due `elapsed_s` after the driver opened (None: none yet)."""
-        if self._next < len(self._faults) and self._faults[self._next].at_s <= elapsed_s:
+        if self.pending and self._faults[self._next].at_s <= elapsed_s:
             self._next += 1
+            self.pending = self._next < len(self._faults)
             return self._faults[self._next - 1]
         return None
 
