@@ -242,7 +242,6 @@ class CompiledMamdani:
         *outer, last = mus  # the rules: the outer inputs' product, then the last input
         prefix = [0.0] * (model.n_rules // len(last))
         rules = [int(j) for j in model.rules]
-        strengths = [0.0] * len(rules)  # rule strengths, grid order (last input fastest)
         m = model.out_centres.size
         cut = [0.0] * m  # W_j: the strongest rule of each output set
         zeros = [0.0] * m
@@ -279,7 +278,6 @@ class CompiledMamdani:
             for base in prefix:
                 for c in last:
                     w = base * c
-                    strengths[r] = w
                     j = rules[r]
                     if w > cut[j]:
                         cut[j] = w
@@ -299,7 +297,10 @@ class CompiledMamdani:
             self.clipped = mask != 0
             if den > 0:
                 return num / den
-            best = max(range(len(rules)), key=strengths.__getitem__)  # every set at 0
+            # every set at 0: the strongest rule's (rule r's strength, grid order with the
+            # last input fastest, is prefix[r // nl] * last[r % nl], still held from above)
+            nl = len(last)
+            best = max(range(len(rules)), key=lambda r: prefix[r // nl] * last[r % nl])
             return fallback[rules[best]]
 
         self.evaluate = evaluate

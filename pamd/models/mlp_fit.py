@@ -26,7 +26,6 @@ when the gradient norm falls below 1e-7.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -113,7 +112,6 @@ def fit_network(S: np.ndarray, z: np.ndarray, *, hidden: int, solver: str = "br"
     `validation` (scaled too) stops ``lm`` early and is reported to `callback`."""
     if solver not in SOLVERS:
         raise ModelError(f"--solver {solver!r}: one of {', '.join(SOLVERS)}")
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     n, d = S.shape
     h = hidden
     w = _nguyen_widrow(d, h, np.random.default_rng(seed))

@@ -10,7 +10,6 @@ only rescales a and b), so the fit holds d = 0.
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
@@ -23,7 +22,6 @@ SAROSI_C_GRID = np.concatenate([np.linspace(-1.5, -0.01, 50), np.linspace(0.01, 
 def lstsq(D: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, float, int]:
     """Least-squares solution of D theta = F by SVD, its squared residual and the
     rank of D."""
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     theta, _, rank, _ = np.linalg.lstsq(D, F, rcond=None)
     r = F - D @ theta
     return theta, float(r @ r), int(rank)
