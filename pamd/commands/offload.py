@@ -52,16 +52,20 @@ _lock = threading.Lock()
 #: the machine is idle, many on one busy with other work); not a file's time.
 WARM_UP_LIMIT_S = 120.0
 _warm = threading.Event()
+_warming = threading.Lock()
 
 
 def warm_up(time_limit_s: float = WARM_UP_LIMIT_S) -> None:
     """Start the forkserver now and wait until it has imported pamd (about a second of
     a core) and forked a first child, so that the first command that names a file
     does not wait for it (the daemon does this in a worker thread as it starts)."""
-    with _lock:
-        forkserver.ensure_running()
-    _run(int, (), time_limit_s, "the file reader's start")
-    _warm.set()
+    with _warming:  # a second caller waits for the first one's warm-up
+        if _warm.is_set():
+            return
+        with _lock:
+            forkserver.ensure_running()
+        _run(int, (), time_limit_s, "the file reader's start")
+        _warm.set()
 
 
 def stop() -> None:

@@ -91,10 +91,10 @@ LOWPASS_TAU_S = 0.02
 #: Within this contraction of a stop (the contraction limit, the pretension limit)
 #: the length rightly stands still: the frozen-length check holds its judgement.
 STOP_BAND = 0.01
-#: where `pressure_diagnosis` looks for the pressure the force needs, bar
 #: a gauge pressure reading below minus this is not a pressure a muscle holds (its
 #: bladder collapses long before a vacuum forms; noise and an offset allowed), bar
 PRESSURE_BELOW_ZERO_BAR = 0.2
+#: where `pressure_diagnosis` looks for the pressure the force needs, bar
 _PRESSURE_SEARCH_BAR = (0.0, 10.0)
 
 
@@ -199,14 +199,13 @@ class Plausibility:
         if abs(p_f - p) <= abs(p_f - command):
             return (f"; the force ({f:.0f} N at {length:.1f} mm) needs about {p_f:.2f} bar, as "
                     "measured: the air does not get there (supply lost, valve stuck or a leak)")
+        head = (f"; the force ({f:.0f} N at {length:.1f} mm) needs about {p_f:.2f} bar, near "
+                f"the command, not the {p:.2f} bar read")
         if p < -PRESSURE_BELOW_ZERO_BAR:  # no muscle holds that: not a pressure at all
-            return (f"; the force ({f:.0f} N at {length:.1f} mm) needs about {p_f:.2f} bar, "
-                    f"near the command, not the {p:.2f} bar read, which no muscle holds (its "
-                    "gauge pressure is never below 0): the sensor's sign is inverted or its "
-                    f"offset wrong; check the sign of muscles[{self.muscle}].signals."
-                    "pressure.gain and its offset")
-        return (f"; the force ({f:.0f} N at {length:.1f} mm) needs about {p_f:.2f} bar, near "
-                f"the command, not the {p:.2f} bar read: stuck or dead pressure sensor")
+            return (f"{head}, which no muscle holds (its gauge pressure is never below 0): the "
+                    "sensor's sign is inverted or its offset wrong; check the sign of "
+                    f"muscles[{self.muscle}].signals.pressure.gain and its offset")
+        return f"{head}: stuck or dead pressure sensor"
 
     # -- the tick -----------------------------------------------------------------
     def check(self, now: float, p: float, p_t: float, f: float, f_t: float, length: float,
