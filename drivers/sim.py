@@ -285,6 +285,12 @@ class SimDriver(Driver):
         self.stalls += 1
         stall_process(duration_s)
 
+    def schedule_faults(self, faults: Sequence[SimFault]) -> None:
+        """Replace the faults still to come with `faults` (each at its `at_s` after the
+        driver opened, as the options' `faults`): a copy of a rig run fault-free to a
+        moment then fails exactly as one built with that schedule would."""
+        self._schedule = FaultSchedule(faults)
+
     def clear_faults(self) -> None:
         """Remove every injected fault."""
         self.sensor_faults.clear()

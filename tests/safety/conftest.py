@@ -8,7 +8,7 @@ from __future__ import annotations
 import copy
 import functools
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,6 +18,7 @@ import yaml
 
 from pamd.config import LoadedConfig
 from pamd.harness import Harness
+from pamd.sim.faults import SimFault
 from pamd.tick import State
 
 from ..conftest import sim_dict
@@ -70,6 +71,15 @@ class SafetyRig:
                                    or m.in_safe_ramp,
                                    m.setpoint_bar, m.valve_cmd_bar, m.safe_pressure_bar,
                                    plant.pressure_bar, plant.contraction))
+
+    def run_until(self, t_s: float) -> None:
+        """Step up to the tick that starts at `t_s` (not yet run): the one a fault
+        scheduled at `t_s` strikes in. By the clock, not a tick count, as a command given
+        while the rig starts waits for its sensors (more ticks)."""
+        h = self.h
+        if h.t > t_s + 0.5 * h.period_s:
+            raise AssertionError(f"the rig is past {t_s} s already (at {h.t:.3f} s)")
+        self.run((t_s - h.t) if h.t < t_s else 0.0)
 
     def cmd(self, verb: str, **payload: Any) -> dict[str, Any]:
         v = self.h.cmd(verb, **payload)
@@ -192,13 +202,18 @@ def onoff_muscles(load_kg: float) -> list[dict[str, Any]]:
                          "exhaust": {"driver": "sim", "channel": "m1.exhaust"}}}]
 
 
-@pytest.fixture
-def safety_rig(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[..., SafetyRig]]:
-    made: list[Harness] = []
+class RigMaker:
+    """Makes safety rigs (`__call__`) and closes each, and each it adopts, at the end
+    of the test."""
 
-    def make(load_kg: float, initial_bar: float = 0.0,
-             faults: list[dict[str, Any]] | None = None, actuation: str = "proportional",
-             sensors: str = "sim", **changes: Any) -> SafetyRig:
+    def __init__(self, sim_config: Callable[..., LoadedConfig]) -> None:
+        self._sim_config = sim_config
+        self._made: list[Harness] = []
+
+    def __call__(self, load_kg: float, initial_bar: float = 0.0,
+                 faults: list[dict[str, Any]] | None = None,
+                 actuation: str = "proportional", sensors: str = "sim",
+                 **changes: Any) -> SafetyRig:
         changes.setdefault("drivers", sim_driver(load_kg, initial_bar, faults, actuation,
                                                  sensors))
         if actuation == "onoff":
@@ -207,14 +222,45 @@ def safety_rig(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[...
             muscle = copy.deepcopy(sim_dict(load_kg)["muscles"][0])
             muscle["signals"] = sensor_signals(sensors)
             changes.setdefault("muscles", [muscle])
-        cfg = sim_config(load_kg, **changes)
-        h = Harness(cfg)
-        made.append(h)
-        return SafetyRig(h)
+        return self.adopt(SafetyRig(Harness(self._sim_config(load_kg, **changes))))
 
-    yield make
-    for h in made:
-        h.rig.close()
+    def adopt(self, rig: SafetyRig) -> SafetyRig:
+        """`rig` (e.g. a copy of another) is closed with the ones made here."""
+        self._made.append(rig.h)
+        return rig
+
+    def close(self) -> None:
+        for h in self._made:
+            h.rig.close()
+
+
+#: scenario key -> a rig run fault-free to its fault time (see `from_a_copy`)
+_AT_THE_FAULT: dict[Hashable, SafetyRig] = {}
+
+
+def from_a_copy(maker: RigMaker, scenario: Hashable, build: Callable[[], SafetyRig],
+                to_the_fault: Callable[[SafetyRig], None],
+                fault: dict[str, Any]) -> SafetyRig:
+    """A rig of `scenario` at its fault time, about to fail as `fault` says: a copy of
+    the scenario's rig made by `build` (with no fault scheduled) and run by
+    `to_the_fault` up to the tick the fault strikes at. The run up to a fault does not
+    depend on which fault is to come, so each worker runs it once per scenario; the copy
+    then runs exactly as a rig built with the fault in its schedule would
+    (test_contract.py's test_a_copy_at_the_fault_time_runs_exactly_as_a_fresh_rig)."""
+    if scenario not in _AT_THE_FAULT:
+        first = build()
+        to_the_fault(first)
+        _AT_THE_FAULT[scenario] = copy.deepcopy(first)  # before the fixture closes `first`
+    rig = maker.adopt(copy.deepcopy(_AT_THE_FAULT[scenario]))
+    rig.h.sim.schedule_faults([SimFault(**fault)])
+    return rig
+
+
+@pytest.fixture
+def safety_rig(sim_config: Callable[..., LoadedConfig]) -> Iterator[RigMaker]:
+    maker = RigMaker(sim_config)
+    yield maker
+    maker.close()
 
 
 from tests.control.conftest import static_model  # noqa: E402, F401  (the one model fixture)

@@ -14,12 +14,11 @@ seconds (a few thousand ticks)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import pytest
 
-from .conftest import SafetyRig
+from .conftest import RigMaker, SafetyRig, from_a_copy
 
 SENSOR_FAULTS = [(s, k) for s in ("length", "force", "pressure")
                  for k in ("dead", "stuck", "noisy", "jump", "silent")]
@@ -37,29 +36,59 @@ def _pressures(load_kg: float) -> tuple[float, float, float]:
     return (3.0, 2.0, 5.0) if load_kg >= 50.0 else (0.0, 1.0, 4.0)
 
 
-def _scenario(rig: SafetyRig, state: str, load_kg: float) -> None:
-    """Bring the rig to `state` by the fault time, then run on."""
+def _to_the_fault(rig: SafetyRig, state: str, load_kg: float) -> None:
+    """Bring the rig to `state`, up to the tick at which the fault strikes
+    (FAULT_AT_S[state]); the run then goes on for AFTER_S."""
     _, low, high = _pressures(load_kg)
     if state == "startup":
-        rig.run(AFTER_S)
         return
     rig.run(0.01)
     if state == "idle":
-        rig.run(FAULT_AT_S["idle"] - 0.01 + AFTER_S)
+        rig.run_until(FAULT_AT_S["idle"])
     elif state in ("running", "hold", "estop"):
         rig.cmd("profile", kind="sine", min_bar=low, max_bar=high, freq_hz=0.25)
-        rig.run(1.0 - 0.01)
+        rig.run_until(1.0)
         if state == "hold":
             rig.cmd("hold")
         elif state == "estop":  # the emergency ramp (20 bar/s) is under way
             rig.cmd("estop", reason="contract suite")
-        rig.run(FAULT_AT_S[state] - 1.0 + AFTER_S)
+        rig.run_until(FAULT_AT_S[state])
     else:  # a safe ramp down from a high pressure: a stop
         rig.cmd("setpoint", muscle="m1", bar=4.5)
-        rig.run(2.0 - 0.01)
+        rig.run_until(2.0)
         rig.cmd("stop")
         assert rig.m.in_safe_ramp
-        rig.run(FAULT_AT_S["safe_ramp"] - 2.0 + AFTER_S)
+        rig.run_until(FAULT_AT_S["safe_ramp"])
+
+
+def _fault(signal: str, kind: str, state: str) -> dict[str, Any]:
+    return {"at_s": FAULT_AT_S[state], "signal": signal, "kind": kind,
+            "muscle": "*" if signal == "driver" else "m1"}
+
+
+def _initial_bar(state: str, load_kg: float) -> float:
+    return 0.0 if state == "startup" else _pressures(load_kg)[0]
+
+
+def _fresh(safety_rig: RigMaker, signal: str, kind: str, actuation: str,
+           load_kg: float, state: str) -> SafetyRig:
+    """A rig built with the fault in its schedule, run to the fault and AFTER_S on."""
+    rig = safety_rig(load_kg, _initial_bar(state, load_kg), [_fault(signal, kind, state)],
+                     actuation)
+    _to_the_fault(rig, state, load_kg)
+    rig.run(AFTER_S)
+    return rig
+
+
+def _from_a_copy(safety_rig: RigMaker, signal: str, kind: str, actuation: str,
+                 load_kg: float, state: str) -> SafetyRig:
+    """As `_fresh`, from a copy of the scenario's rig at the fault time."""
+    rig = from_a_copy(
+        safety_rig, ("contract", actuation, load_kg, state),
+        lambda: safety_rig(load_kg, _initial_bar(state, load_kg), [], actuation),
+        lambda r: _to_the_fault(r, state, load_kg), _fault(signal, kind, state))
+    rig.run(AFTER_S)
+    return rig
 
 
 #: (actuation, load): the regulator at every load, on/off valves at 30 kg.
@@ -69,13 +98,51 @@ RIGS = [("proportional", load) for load in LOADS] + [("onoff", 30.0)]
 @pytest.mark.parametrize("state", STATES)
 @pytest.mark.parametrize("actuation, load_kg", RIGS, ids=[f"{a}-{w:g}kg" for a, w in RIGS])
 @pytest.mark.parametrize("signal, kind", FAULTS, ids=[f"{s}-{k}" for s, k in FAULTS])
-def test_the_invariants_hold_whatever_fails(safety_rig: Callable[..., SafetyRig], signal: str,
+def test_the_invariants_hold_whatever_fails(safety_rig: RigMaker, signal: str,
                                              kind: str, actuation: str, load_kg: float,
                                              state: str) -> None:
-    fault: dict[str, Any] = {"at_s": FAULT_AT_S[state], "signal": signal, "kind": kind,
-                             "muscle": "*" if signal == "driver" else "m1"}
-    initial = 0.0 if state == "startup" else _pressures(load_kg)[0]
-    rig = safety_rig(load_kg, initial, [fault], actuation)
-    _scenario(rig, state, load_kg)
+    if state == "startup":  # the fault is there from the start: nothing to share
+        rig = _fresh(safety_rig, signal, kind, actuation, load_kg, state)
+    else:
+        rig = _from_a_copy(safety_rig, signal, kind, actuation, load_kg, state)
     actuator_works = signal not in ("supply", "valve", "driver")
     rig.check_invariants(actuator_works)
+
+
+@pytest.mark.parametrize("state", [s for s in STATES if s != "startup"])
+def test_a_copy_at_the_fault_time_runs_exactly_as_a_fresh_rig(
+        safety_rig: RigMaker, state: str) -> None:
+    """The copies above are the fresh runs, tick for tick: a sensor fault (noise, drawn
+    from the fault's own random numbers) on the regulator and one of the device on the
+    on/off valves, each struck in every state."""
+    for signal, kind, actuation in (("force", "noisy", "proportional"),
+                                    ("driver", "error", "onoff")):
+        fresh = _fresh(safety_rig, signal, kind, actuation, 30.0, state)
+        copied = _from_a_copy(safety_rig, signal, kind, actuation, 30.0, state)
+        assert len(copied.ticks) == len(fresh.ticks) > 2000
+        assert copied.ticks == fresh.ticks
+        for rig in (fresh, copied):  # the fault did strike
+            assert rig.h.sim.sensor_faults.any or rig.h.sim.fault is not None
+
+
+def test_a_copy_runs_exactly_as_a_fresh_rig_on_harsh_sensors(safety_rig: RigMaker) -> None:
+    """The same on config/sim-harsh.yaml's sensors (sampled, filtered, bursty: the
+    sensors' own state and random numbers are copied too), as test_contract_harsh.py
+    shares its runs."""
+    fault: dict[str, Any] = {"at_s": 1.3, "signal": "length", "kind": "jump", "muscle": "m1"}
+
+    def to_the_fault(rig: SafetyRig) -> None:
+        rig.run(0.01)
+        rig.cmd("profile", kind="sine", min_bar=2.0, max_bar=5.0, freq_hz=0.25)
+        rig.run_until(1.3)
+
+    fresh = safety_rig(80.0, 3.0, [fault], sensors="harsh")
+    to_the_fault(fresh)
+    fresh.run(AFTER_S)
+    copied = from_a_copy(safety_rig, ("equivalence", "harsh"),
+                         lambda: safety_rig(80.0, 3.0, [], sensors="harsh"), to_the_fault,
+                         fault)
+    copied.run(AFTER_S)
+    assert len(copied.ticks) == len(fresh.ticks) > 3000
+    assert copied.ticks == fresh.ticks
+    assert copied.h.sim.sensor_faults.any

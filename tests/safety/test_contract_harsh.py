@@ -8,12 +8,11 @@ load off the stops) on the regulator, in the states where the sensors matter mos
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import pytest
 
-from .conftest import SafetyRig
+from .conftest import RigMaker, SafetyRig, from_a_copy
 
 FAULTS = ([(s, k) for s in ("length", "force", "pressure")
            for k in ("dead", "stuck", "noisy", "jump", "silent")]
@@ -23,30 +22,34 @@ FAULT_AT_S = {"idle": 0.5, "running": 1.3, "safe_ramp": 2.1}
 AFTER_S = 2.5
 
 
-def _scenario(rig: SafetyRig, state: str) -> None:
+def _to_the_fault(rig: SafetyRig, state: str) -> None:
+    """Bring the rig to `state`, up to the tick at which the fault strikes."""
     rig.run(0.01)
     if state == "idle":
-        rig.run(FAULT_AT_S["idle"] - 0.01 + AFTER_S)
+        rig.run_until(FAULT_AT_S["idle"])
     elif state == "running":
         rig.cmd("profile", kind="sine", min_bar=2.0, max_bar=5.0, freq_hz=0.25)
-        rig.run(FAULT_AT_S["running"] - 0.01 + AFTER_S)
+        rig.run_until(FAULT_AT_S["running"])
     else:  # a safe ramp down from a high pressure: a stop
         rig.cmd("setpoint", muscle="m1", bar=4.5)
-        rig.run(2.0 - 0.01)
+        rig.run_until(2.0)
         rig.cmd("stop")
         assert rig.m.in_safe_ramp
-        rig.run(FAULT_AT_S["safe_ramp"] - 2.0 + AFTER_S)
+        rig.run_until(FAULT_AT_S["safe_ramp"])
 
 
 @pytest.mark.parametrize("state", STATES)
 @pytest.mark.parametrize("signal, kind", FAULTS, ids=[f"{s}-{k}" for s, k in FAULTS])
 def test_the_invariants_hold_on_harsh_sensors_whatever_fails(
-        safety_rig: Callable[..., SafetyRig], signal: str, kind: str, state: str) -> None:
+        safety_rig: RigMaker, signal: str, kind: str, state: str) -> None:
     at_s = FAULT_AT_S[state]
     fault: dict[str, Any] = {"at_s": at_s, "signal": signal, "kind": kind,
                              "muscle": "*" if signal == "driver" else "m1"}
-    rig = safety_rig(80.0, 3.0, [fault], sensors="harsh")
-    _scenario(rig, state)
+    # the run up to the fault is shared by every fault (conftest.from_a_copy)
+    rig = from_a_copy(safety_rig, ("harsh", state),
+                      lambda: safety_rig(80.0, 3.0, [], sensors="harsh"),
+                      lambda r: _to_the_fault(r, state), fault)
+    rig.run(AFTER_S)
     rig.check_invariants(signal not in ("supply", "valve", "driver"))
     sup = rig.h.ctrl.supervisor
     first = next((t.t_s for t in sup.history if t.new.name == "FAULT"), None)
