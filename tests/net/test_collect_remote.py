@@ -58,7 +58,10 @@ class Rig(RigProc):
         return name
 
     def collect(self, plan_file: str, start_step: int = 0) -> dict[str, Any]:
-        return self.cmd("collect", {"plan_file": plan_file, "start_step": start_step})
+        # the verdict follows the plan's reading in the file reader's process (a cold
+        # one starts first): on a loaded machine that takes more than a setpoint's 10 s
+        return self.cmd("collect", {"plan_file": plan_file, "start_step": start_step},
+                        timeout=60.0)
 
 
 @pytest.fixture(scope="module")
