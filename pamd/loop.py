@@ -180,9 +180,12 @@ class Loop:
         switch_interval = sys.getswitchinterval()
         if not self.virtual:
             self.rt.apply(self.cfg.rig.loop.realtime, self.notices.append)
-            # Driver threads share the interpreter lock; when the loop wakes, whoever
-            # holds it must let go within a fraction of a period, not the default 5 ms.
-            sys.setswitchinterval(min(switch_interval, GIL_SWITCH_FRACTION * self.period_s))
+        # Driver threads share the interpreter lock; when the loop wakes, whoever holds
+        # it must let go within a fraction of a period, not the default 5 ms. On the
+        # virtual clock the loop never sleeps: the daemon's main thread (status, the
+        # commands' files and collections) takes the lock back after each of its file
+        # operations, and at 5 ms a wait a collect's few hundred of them took seconds.
+        sys.setswitchinterval(min(switch_interval, GIL_SWITCH_FRACTION * self.period_s))
         gc.collect()
         gc.freeze()
         gc.disable()

@@ -69,3 +69,28 @@ def test_commands_through_the_daemon_get_the_loops_verdict(sim_daemon: Any) -> N
     assert ok["ok"] and ok["ramp_s"] == pytest.approx(2.0 / 2.0, rel=0.05)
     kinds = [e[2]["verb"] for e in d.summary.events if e[1] == "command"]
     assert kinds == ["setpoint", "setpoint"]  # parse refusals never reached the loop
+
+
+def test_the_virtual_clock_loop_lets_its_process_threads_do_file_work(
+        sim_daemon: Any, tmp_path: Any) -> None:
+    """On the virtual clock the loop never sleeps, so another thread of its process
+    (the daemon's main thread: a collect's directory and manifest, status) gets the
+    interpreter lock back after each file operation only when the loop lets go. At the
+    default switch interval (5 ms) 300 small file writes waited 1.5 s or more; the loop
+    lets go within a tenth of a period (0.1 ms at 1 kHz), so they take a small fraction
+    of that, and the interval is restored when the run ends."""
+    import sys
+
+    before = sys.getswitchinterval()
+    d = sim_daemon(duration_s=3600.0)  # an hour of rig time: still running when timed
+    assert d.wait_for_state((State.IDLE,), timeout_s=30) == State.IDLE
+    assert sys.getswitchinterval() == pytest.approx(0.1 * 1e-3)
+    t0 = time.perf_counter()
+    for k in range(300):
+        (tmp_path / f"f{k % 10}").write_text("x")
+    took_s = time.perf_counter() - t0
+    assert d.loop.running, "the run ended before the writes were timed"
+    assert took_s < 0.75, f"300 file writes took {took_s:.2f} s beside the loop"
+    d.stop("test finished")
+    assert d.wait(timeout_s=30)
+    assert sys.getswitchinterval() == before
