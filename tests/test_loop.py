@@ -84,7 +84,7 @@ def test_the_virtual_clock_loop_lets_its_process_threads_do_file_work(
     before = sys.getswitchinterval()
     d = sim_daemon(duration_s=3600.0)  # an hour of rig time: still running when timed
     assert d.wait_for_state((State.IDLE,), timeout_s=30) == State.IDLE
-    assert sys.getswitchinterval() == pytest.approx(0.1 * 1e-3)
+    assert sys.getswitchinterval() <= 0.1 * 1e-3 + 1e-9  # kept in whole microseconds
     t0 = time.perf_counter()
     for k in range(300):
         (tmp_path / f"f{k % 10}").write_text("x")
