@@ -43,6 +43,22 @@ def _bytecode_for_the_processes_tests_start() -> None:
 
 _bytecode_for_the_processes_tests_start()
 
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Before any worker starts (in the run's first process only): pamd's and the
+    drivers' bytecode written once, whole. Left to the processes the tests start, the
+    first to import a module writes its `.pyc`, and one signalled in that write (a test
+    stopping a daemon as it starts) left it cut short: CPython's writer does not check
+    for a short write, and every later import of that module failed with "marshal data
+    too short" until the file was deleted."""
+    if hasattr(config, "workerinput") or sys.dont_write_bytecode:
+        return
+    import compileall
+
+    root = Path(__file__).resolve().parents[1]
+    for package in ("pamd", "drivers"):
+        compileall.compile_dir(root / package, quiet=1, workers=1)
+
 import copy  # noqa: E402
 import dataclasses  # noqa: E402
 import functools  # noqa: E402
