@@ -56,6 +56,10 @@ def figure(pattern: str, out: str) -> str:
     return m.group(1)
 
 
+#: a run summary's length max error (after its RMSE and MAE)
+MAX_ERROR = r"length tracking RMSE \S+ mm, MAE \S+ mm, max error (\S+ mm)"
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(1800)
 def test_the_readme_walkthrough_gives_the_readme_figures(tmp_path: Path) -> None:
@@ -73,17 +77,17 @@ def test_the_readme_walkthrough_gives_the_readme_figures(tmp_path: Path) -> None
         "train validation RMSE": figure(r"\n  RMSE\s+\S+\s+(\S+)", train),
         "train validation fit": figure(r"NRMSE fit %\s+\S+\s+(\S+)", train),
         "track RMSE": figure(r"length tracking RMSE (\S+ mm)", track),
-        "track max": figure(r"length tracking RMSE \S+ mm, MAE \S+ mm, max error (\S+ mm)", track),
+        "track max": figure(MAX_ERROR, track),
         "PID RMSE": figure(r"length tracking RMSE (\S+ mm)", pid),
-        "PID max": figure(r"length tracking RMSE \S+ mm, MAE \S+ mm, max error (\S+ mm)", pid),
+        "PID max": figure(MAX_ERROR, pid),
         "evaluate RMSE": figure(r"\n  RMSE\s+(\S+)", evaluate),
         "evaluate fit": figure(r"NRMSE fit %\s+(\S+)", evaluate),
         "evaluate max dev": figure(r"max deviation %\s+(\S+)", evaluate),
         "evaluate clipped": figure(r"(\d+ \(\S+ %\)) had inputs", evaluate),
         "other RMSE": figure(r"length tracking RMSE (\S+ mm)", other),
-        "other max": figure(r"length tracking RMSE \S+ mm, MAE \S+ mm, max error (\S+ mm)", other),
+        "other max": figure(MAX_ERROR, other),
         "other PID RMSE": figure(r"length tracking RMSE (\S+ mm)", other_pid),
-        "other PID max": figure(r"length tracking RMSE \S+ mm, MAE \S+ mm, max error (\S+ mm)", other_pid),
+        "other PID max": figure(MAX_ERROR, other_pid),
         "other evaluate RMSE": figure(r"\n  RMSE\s+(\S+)", evaluate2),
         "other evaluate fit": figure(r"NRMSE fit %\s+(\S+)", evaluate2),
     }
