@@ -4,7 +4,7 @@ A session fixture is per process: with `-n 3` each worker that runs one of its t
 builds it again (tests/models' recorded sweeps and trained models: ~10 s of CPU each
 time). `once_per_run(factory, name, build)` builds into a directory of the run's own
 temp root, shared by its workers (pytest's basetemp is `<run>/popen-gwN` per worker),
-under an exclusive lock: the first worker builds, the others wait and reads what it
+under an exclusive lock: the first worker builds, the others wait and read what it
 wrote. `build(dir)` writes its files into `dir` and returns a JSON value (paths as
 strings) that the fixture turns back into what it yields. A build that raises leaves
 nothing behind, so the next worker tries (and fails, saying why) itself. Without xdist

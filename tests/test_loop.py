@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -72,15 +74,13 @@ def test_commands_through_the_daemon_get_the_loops_verdict(sim_daemon: Any) -> N
 
 
 def test_the_virtual_clock_loop_lets_its_process_threads_do_file_work(
-        sim_daemon: Any, tmp_path: Any) -> None:
+        sim_daemon: Any, tmp_path: Path) -> None:
     """On the virtual clock the loop never sleeps, so another thread of its process
     (the daemon's main thread: a collect's directory and manifest, status) gets the
     interpreter lock back after each file operation only when the loop lets go. At the
     default switch interval (5 ms) 300 small file writes waited 1.5 s or more; the loop
     lets go within a tenth of a period (0.1 ms at 1 kHz), so they take a small fraction
     of that, and the interval is restored when the run ends."""
-    import sys
-
     before = sys.getswitchinterval()
     d = sim_daemon(duration_s=3600.0)  # an hour of rig time: still running when timed
     assert d.wait_for_state((State.IDLE,), timeout_s=30) == State.IDLE

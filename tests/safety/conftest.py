@@ -79,7 +79,7 @@ class SafetyRig:
         h = self.h
         if h.t > t_s + 0.5 * h.period_s:
             raise AssertionError(f"the rig is past {t_s} s already (at {h.t:.3f} s)")
-        self.run((t_s - h.t) if h.t < t_s else 0.0)
+        self.run(max(t_s - h.t, 0.0))
 
     def cmd(self, verb: str, **payload: Any) -> dict[str, Any]:
         v = self.h.cmd(verb, **payload)
@@ -246,7 +246,7 @@ def from_a_copy(maker: RigMaker, scenario: Hashable, build: Callable[[], SafetyR
     `to_the_fault` up to the tick the fault strikes at. The run up to a fault does not
     depend on which fault is to come, so each worker runs it once per scenario; the copy
     then runs exactly as a rig built with the fault in its schedule would
-    (test_contract.py's test_a_copy_at_the_fault_time_runs_exactly_as_a_fresh_rig)."""
+    (test_contract.py's and test_contract_harsh.py's equivalence tests)."""
     if scenario not in _AT_THE_FAULT:
         first = build()
         to_the_fault(first)

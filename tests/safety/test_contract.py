@@ -124,25 +124,3 @@ def test_a_copy_at_the_fault_time_runs_exactly_as_a_fresh_rig(
         for rig in (fresh, copied):  # the fault did strike
             assert rig.h.sim.sensor_faults.any or rig.h.sim.fault is not None
 
-
-def test_a_copy_runs_exactly_as_a_fresh_rig_on_harsh_sensors(safety_rig: RigMaker) -> None:
-    """The same on config/sim-harsh.yaml's sensors (sampled, filtered, bursty: the
-    sensors' own state and random numbers are copied too), as test_contract_harsh.py
-    shares its runs."""
-    fault: dict[str, Any] = {"at_s": 1.3, "signal": "length", "kind": "jump", "muscle": "m1"}
-
-    def to_the_fault(rig: SafetyRig) -> None:
-        rig.run(0.01)
-        rig.cmd("profile", kind="sine", min_bar=2.0, max_bar=5.0, freq_hz=0.25)
-        rig.run_until(1.3)
-
-    fresh = safety_rig(80.0, 3.0, [fault], sensors="harsh")
-    to_the_fault(fresh)
-    fresh.run(AFTER_S)
-    copied = from_a_copy(safety_rig, ("equivalence", "harsh"),
-                         lambda: safety_rig(80.0, 3.0, [], sensors="harsh"), to_the_fault,
-                         fault)
-    copied.run(AFTER_S)
-    assert len(copied.ticks) == len(fresh.ticks) > 3000
-    assert copied.ticks == fresh.ticks
-    assert copied.h.sim.sensor_faults.any
