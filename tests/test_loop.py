@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -11,6 +12,8 @@ import pytest
 
 from pamd.tick import State
 from pamd.timing import Histogram
+
+DEFAULT_SWITCH_INTERVAL_S = 0.005  # CPython's, while nothing lowers it
 
 
 def test_histogram_percentiles() -> None:
@@ -78,19 +81,25 @@ def test_the_virtual_clock_loop_lets_its_process_threads_do_file_work(
     """On the virtual clock the loop never sleeps, so another thread of its process
     (the daemon's main thread: a collect's directory and manifest, status) gets the
     interpreter lock back after each file operation only when the loop lets go. At the
-    default switch interval (5 ms) 300 small file writes waited 1.5 s or more; the loop
-    lets go within a tenth of a period (0.1 ms at 1 kHz), so they take a small fraction
-    of that, and the interval is restored when the run ends."""
+    default switch interval (5 ms) every small file write waits at least one interval
+    (measured: about 16 ms a write, three waits); the loop lets go within a tenth of a
+    period (0.1 ms at 1 kHz), so the typical write takes well under one default interval.
+    The median write is judged, not the total: on a busy host the OS may deschedule
+    this thread for tens of ms at any write, which says nothing about the loop. The
+    interval is restored when the run ends."""
     before = sys.getswitchinterval()
     d = sim_daemon(duration_s=3600.0)  # an hour of rig time: still running when timed
     assert d.wait_for_state((State.IDLE,), timeout_s=30) == State.IDLE
     assert sys.getswitchinterval() <= 0.1 * 1e-3 + 1e-9  # kept in whole microseconds
-    t0 = time.perf_counter()
+    took_s = []
     for k in range(300):
+        t0 = time.perf_counter()
         (tmp_path / f"f{k % 10}").write_text("x")
-    took_s = time.perf_counter() - t0
+        took_s.append(time.perf_counter() - t0)
     assert d.loop.running, "the run ended before the writes were timed"
-    assert took_s < 0.75, f"300 file writes took {took_s:.2f} s beside the loop"
+    median_s = statistics.median(took_s)
+    assert median_s < 0.5 * DEFAULT_SWITCH_INTERVAL_S, \
+        f"the median file write took {median_s * 1e3:.2f} ms beside the loop"
     d.stop("test finished")
     assert d.wait(timeout_s=30)
     assert sys.getswitchinterval() == before
