@@ -19,15 +19,17 @@ cuts the supply of every muscle, as a hardwired emergency stop does; `closed` (o
 
 The loop calls `advance(dt_s)` once per tick and then reads `in_values` /
 `in_stamps_s` / `in_jitter_s`: each reading stamped, on the loop's clock, with when
-its simulated device took the sample (jitter 0), or for a sensor on a bursty link
-(`..._burst_s`) with its arrival and the jitter a real driver could vouch for
-(`pamd.sim.sensors`). A failed sensor's value changes with a new sample only. The
-physics lives in `pamd.sim.plant`. Tests and the CLI can change a load while
-running (`set_load_kg`) and inject faults (`inject_fault`, `clear_faults`); the
-options' `faults` schedule injects them at set times after `open`, so a rig's
+its simulated device took the sample (jitter 0): the clock read in `advance`, to which
+the plant is stepped (a sample shows the rig as it was at its stamp, as a real
+device's does, even when the loop's process is descheduled inside a tick), or for a
+sensor on a bursty link (`..._burst_s`) with its arrival and the jitter a real driver
+could vouch for (`pamd.sim.sensors`). A failed sensor's value changes with a new
+sample only. The physics lives in `pamd.sim.plant`. Tests and the CLI can change a
+load while running (`set_load_kg`) and inject faults (`inject_fault`, `clear_faults`);
+the options' `faults` schedule injects them at set times after `open`, so a rig's
 reaction to each fault can be shown from the CLI (`pamd run --config ...`); a
-scheduled `stall` (signal `loop`) stops the loop's whole process for its
-`duration_s` instead (`stall_process`).
+scheduled `stall` (signal `loop`) stops the loop's whole process for its `duration_s`
+instead (`stall_process`).
 """
 
 from __future__ import annotations
@@ -55,6 +57,9 @@ from pamd.sim.plant import MusclePlant
 from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
 
 INPUTS_PER_MUSCLE = 3  # pressure, force, length
+#: The clock's time between two reads agrees with the loop's `dt_s` within this (the
+#: virtual clock's, up to rounding): the plant is stepped by `dt_s` exactly then.
+CLOCK_AGREES_S = 1e-9
 OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
 
 #: The rig's safety-chain inputs after the muscles' (their offsets from 3 x muscles).
@@ -96,6 +101,7 @@ class SimDriver(Driver):
         self._schedule = FaultSchedule(options.faults)
         self._t_s = 0.0
         self._t_open = 0.0
+        self._read_s: float | None = None  # the clock at the last advance
         self._driver_error = False
         self._clock: Clock | None = None
         self._steps = 0
@@ -119,6 +125,7 @@ class SimDriver(Driver):
         """Store the clock and publish the readings of the rig at rest."""
         self._clock = clock
         self._t_open = clock()
+        self._read_s = None
         self._publish(self._t_open)
 
     def write(self, index: int, value: float) -> None:
@@ -156,9 +163,21 @@ class SimDriver(Driver):
         self._clock = None
 
     def advance(self, dt_s: float) -> None:
-        """Advance every muscle by `dt_s`, then publish readings stamped `clock()`. A
-        step longer than the comm watchdog time (`comm_safety`: the loop stalled) runs
-        that long on the outputs as they were, then on the safe outputs."""
+        """Advance every muscle to the clock's time, then publish readings stamped with
+        it. The plant steps by `dt_s` (the loop's step) while the clock agrees with it,
+        and by the clock's own time since the last advance where it does not (the
+        process descheduled between the loop's wake-up and this read: the motion and
+        the stamps then still agree; the first advance steps `dt_s`). A step longer
+        than the comm watchdog time (`comm_safety`: the loop stalled) runs that long on
+        the outputs as they were, then on the safe outputs."""
+        clock = self._clock
+        if clock is not None:
+            now_s = clock()
+            last_s, self._read_s = self._read_s, now_s
+            if last_s is not None and abs(now_s - last_s - dt_s) > CLOCK_AGREES_S:
+                dt_s = now_s - last_s if now_s > last_s else 0.0
+        else:
+            now_s = math.nan
         wd = self._watchdog_s
         if wd is not None and dt_s > wd and self._safe_outputs:
             self._step_plants(wd)
@@ -170,8 +189,6 @@ class SimDriver(Driver):
             self._step_plants(dt_s)
         self._steps += 1
         self._t_s += dt_s
-        clock = self._clock
-        now_s = clock() if clock is not None else math.nan
         chain = self.chain
         if chain.watching and not chain.open:
             chain.watch(now_s if clock is not None else self._t_s)
@@ -189,7 +206,7 @@ class SimDriver(Driver):
     def _step_plants(self, dt_s: float) -> None:
         for plant in self._plants:
             plant.advance(dt_s)
-        if self.supply_line is not None:
+        if self.supply_line is not None and dt_s > 0.0:  # the clock stood still: no step
             self.supply_line.step(dt_s)
 
     def set_safe_outputs(self, values: dict[int, float]) -> None:

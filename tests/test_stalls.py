@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,7 @@ from pamd.rt import RESET_ON_FORK, RealtimeSession
 from pamd.sim.options import SimCommSafety, SimMuscleOptions, SimOptions
 from pamd.stalls import HOLD_S, stall_limit
 from pamd.tick import State
+from tests.sim.stepped import stepped
 
 from .conftest import sim_dict
 
@@ -284,28 +286,28 @@ def test_the_loop_process_other_threads_run_below_the_loop_and_go_back_after() -
     assert os.sched_getscheduler(0) == os.SCHED_OTHER
 
 
-def _onoff_sim(comm_safety: SimCommSafety | None) -> SimDriver:
+def _onoff_sim(comm_safety: SimCommSafety | None) -> tuple[SimDriver, Callable[[float], None]]:
     opts = SimOptions(muscles=(SimMuscleOptions(actuation="onoff"),), comm_safety=comm_safety)
     sim = SimDriver("sim", opts)
-    sim.open(lambda: 0.0)
+    step = stepped(sim)
     sim.set_safe_outputs({0: 0.0, 1: 0.0})  # m1.inflate, m1.exhaust closed: hold the air
     sim.write(0, 1.0)  # the inflate valve open when the loop stalls
-    return sim
+    return sim, step
 
 
 def test_the_sim_comm_watchdog_bounds_how_long_an_open_valve_fills_during_a_stall() -> None:
-    unbounded = _onoff_sim(None)
-    unbounded.advance(0.5)  # the first step after a 0.5 s stall
-    bounded = _onoff_sim(SimCommSafety(timeout_s=0.1))
-    bounded.advance(0.5)
-    reference = _onoff_sim(None)  # open for 0.1 s, then closed for 0.4 s
-    reference.advance(0.1)
+    unbounded, step_unbounded = _onoff_sim(None)
+    step_unbounded(0.5)  # the first step after a 0.5 s stall
+    bounded, step_bounded = _onoff_sim(SimCommSafety(timeout_s=0.1))
+    step_bounded(0.5)
+    reference, step_reference = _onoff_sim(None)  # open for 0.1 s, then closed for 0.4 s
+    step_reference(0.1)
     reference.write(0, 0.0)
-    reference.advance(0.4)
-    p0 = _onoff_sim(None).plant("m1").pressure_bar
+    step_reference(0.4)
+    p0 = _onoff_sim(None)[0].plant("m1").pressure_bar
     p_bounded = bounded.plant("m1").pressure_bar
     assert p_bounded == pytest.approx(reference.plant("m1").pressure_bar, abs=1e-6)
     assert unbounded.plant("m1").pressure_bar - p0 > 3.0 * (p_bounded - p0) > 0.0
     assert bounded.watchdog_trips == 1 and unbounded.watchdog_trips == 0
-    bounded.advance(0.001)  # a normal step never trips it
+    step_bounded(0.001)  # a normal step never trips it
     assert bounded.watchdog_trips == 1

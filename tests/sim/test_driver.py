@@ -4,6 +4,7 @@ numerical stability and cost per step."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import typing
 
@@ -313,3 +314,39 @@ def test_write_to_a_missing_channel_is_an_index_error(make_rig) -> None:
         drv.write(3, 1.0)  # 0, 1: the muscle's valve and exhaust; 2: the heartbeat
     with pytest.raises(IndexError):
         drv.write(-1, 1.0)
+
+
+def test_a_late_clock_read_inside_a_tick_keeps_the_motion_and_the_stamps_together() -> None:
+    """A reading shows the rig as it was at its stamp, and a muscle moves no faster
+    than its own dynamics between two stamps. On a busy PC the loop's process can be
+    descheduled between its wake-up and the driver's clock read: that tick's stamp is
+    then late (here 240 ms). The loop's next tick wakes late too and, skipping the
+    missed periods, asks for a step over the whole gap, though its stamp follows the
+    late one by a single period. Stepped by the loop's step, the plant moved a quarter
+    second between stamps 5 ms apart ("length jumped +13 mm in 5 ms", a false fault seen
+    under load); stepped to its clock, it moves with its stamps."""
+    period = 0.005
+    drv = SimDriver("sim", SimOptions(muscles=(SimMuscleOptions(load_kg=20.0),)))
+    deadline_s, late_s = [0.0], [0.0]
+    drv.open(lambda: deadline_s[0] + 50e-6 + late_s[0])  # read 50 us after the wake-up
+    plant = drv.plant("m1")
+    length = drv.input_index("m1.length")
+    drv.write(drv.output_index("m1.valve"), 5.0)  # filling: the muscle contracts
+    seen: list[tuple[float, float, float]] = []  # (stamp, length, plant's time - stamp)
+    top_speed_mm_s = 0.0
+    dt_s = period
+    for k in range(120):
+        deadline_s[0] += dt_s
+        late_s[0] = 0.240 if k == 20 else 0.0  # descheduled inside tick 20
+        drv.advance(dt_s)
+        stamp = drv.in_stamps_s[length]
+        seen.append((stamp, drv.in_values[length], plant.t_s - stamp))
+        top_speed_mm_s = max(top_speed_mm_s, abs(plant.velocity_mm_s))
+        missed = int((late_s[0] + 50e-6) / period)  # the loop skips what it missed
+        dt_s = period * (missed + 1)
+    assert seen[21][0] - seen[20][0] == pytest.approx(period, abs=1e-6)  # the case itself
+    offsets = [s[2] for s in seen]
+    assert max(offsets) - min(offsets) < 1e-9, "a reading not at its plant's time"
+    for (t0, len0, _), (t1, len1, _) in itertools.pairwise(seen):
+        assert abs(len1 - len0) <= 1.5 * top_speed_mm_s * (t1 - t0) + 0.02, (t0, len1 - len0)
+    assert top_speed_mm_s > 20.0  # it did move, fast, through the late tick

@@ -9,6 +9,7 @@ import pytest
 from pamd.drivers.sim import SimDriver
 
 from pamd.sim.options import SimMuscleOptions, SimOptions
+from tests.sim.stepped import stepped
 
 
 def _t63_ms(make_rig, **kw) -> float:
@@ -52,16 +53,16 @@ def _lowest_supply_bar(n_muscles: int) -> tuple[float, float]:
     line pressure 3 s later)."""
     muscles = tuple(SimMuscleOptions(name=f"m{k}", pneumatics="flow") for k in range(n_muscles))
     drv = SimDriver("sim", SimOptions(muscles=muscles, supply_line_volume_l=0.5))
-    drv.open(lambda: 0.0)
+    step = stepped(drv)
     assert drv.supply_line is not None
     for k in range(n_muscles):
         drv.write(2 * k, 6.0)
     low = drv.supply_line.pressure_bar
     for _ in range(300):
-        drv.advance(0.001)
+        step(0.001)
         low = min(low, drv.supply_line.pressure_bar)
     for _ in range(3000):
-        drv.advance(0.001)
+        step(0.001)
     return low, drv.supply_line.pressure_bar
 
 

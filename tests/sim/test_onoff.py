@@ -11,6 +11,7 @@ from pamd.drivers.sim import SimDriver
 from pamd.sim.onoff import OnOffValves, SolenoidValve
 from pamd.sim.options import SimMuscleOptions, SimOptions
 from pamd.sim.pneumatics import SupplyLine
+from tests.sim.stepped import stepped
 
 DT = 0.001
 
@@ -86,16 +87,16 @@ def test_the_sim_driver_gives_an_onoff_muscle_digital_valve_outputs() -> None:
     drv = SimDriver("sim", SimOptions(muscles=(SimMuscleOptions(actuation="onoff"),)))
     names = [c.name for c in drv.output_channels]
     assert names == ["m1.inflate", "m1.exhaust", "heartbeat"]  # + the safety chain's
-    drv.open(lambda: 0.0)
+    step = stepped(drv)
     plant = drv.plant("m1")
     drv.write(drv.output_index("m1.inflate"), 1.0)
     for _ in range(300):
-        drv.advance(DT)
+        step(DT)
     assert plant.pressure_bar > 1.0
     drv.write(drv.output_index("m1.inflate"), 0.0)
     drv.write(drv.output_index("m1.exhaust"), 1.0)
     for _ in range(3000):
-        drv.advance(DT)
+        step(DT)
     assert plant.pressure_bar < 0.1
     assert drv.health().counters["valve_switchings"] == 3
     with pytest.raises(TypeError, match="on/off valves"):
