@@ -32,7 +32,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-import socket
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -49,6 +48,7 @@ from pamd.drivers.can_frames import (
 )
 from pamd.drivers.canopen_nodes import EncoderNodes, NodeState
 from pamd.drivers.device import ArrivalWindow, Backoff, ThreadedDriver
+from pamd.drivers.socketcand_link import one_connect_attempt, server_closed
 
 from pamd.errors import DriverError
 from pamd.schema.engine import spec
@@ -98,21 +98,6 @@ def link_gone(exc: BaseException) -> bool:
         seen.add(id(e))
         e = e.__cause__ or e.__context__
     return False
-
-
-def server_closed(bus: object) -> bool:
-    """True if python-can's socketcand client's connection was closed by the server (a
-    read would return nothing). python-can does not say so (its client takes an empty
-    read for no frame), so its socket is asked directly; False where it has none."""
-    sock = getattr(bus, "_SocketCanDaemonBus__socket", None)
-    if not isinstance(sock, socket.socket):
-        return False
-    try:
-        return sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
-    except BlockingIOError:
-        return False
-    except OSError:
-        return True
 
 
 class CanEncoderDriver(ThreadedDriver):
@@ -218,21 +203,19 @@ class CanEncoderDriver(ThreadedDriver):
             # its client logs a warning for every frame split across two reads (normal
             # on TCP); the driver counts what matters
             logging.getLogger("can.interfaces.socketcand").setLevel(logging.ERROR)
-            # python-can's client retries a refused connect for 10 s without a pause,
-            # on this (real-time) thread: ask once here, and back off if nobody answers
-            try:
-                socket.create_connection((o.host, o.port), timeout=o.sdo_timeout_s).close()
-            except OSError as exc:
-                self.error("bus_open_failures", f"cannot open the bus: socketcand server "
-                           f"{o.host}:{o.port}: {exc}")
-                return False
             kwargs.update(host=o.host, port=o.port, tcp_tune=True)  # TCP_NODELAY
         elif o.interface != "virtual":
             kwargs["bitrate"] = o.bitrate
         try:
-            self._bus = can.Bus(interface=o.interface, channel=o.channel, **kwargs)
+            if o.interface == "socketcand":  # one connect, limited: drivers/socketcand_link
+                with one_connect_attempt(o.sdo_timeout_s):
+                    self._bus = can.Bus(interface=o.interface, channel=o.channel, **kwargs)
+            else:
+                self._bus = can.Bus(interface=o.interface, channel=o.channel, **kwargs)
         except Exception as exc:  # noqa: BLE001 - missing adapter, bad channel: retry
-            self.error("bus_open_failures", f"cannot open the bus: {exc}")
+            where = f"socketcand server {o.host}:{o.port}: " if o.interface == "socketcand" \
+                else ""
+            self.error("bus_open_failures", f"cannot open the bus: {where}{exc}")
             return False
         self.connected = True
         self.count("bus_opens")
