@@ -68,6 +68,11 @@ class CanEncoderOptions:
                      "the emulated rig's, or a socketcand daemon on a CAN gateway).")
     port: int = spec(29536, "socketcand: the server's TCP port (socketcand's default 29536).",
                      min=1, max=65535)
+    connect_timeout_s: float = spec(
+        1.0, "socketcand: longest wait for the server to accept and greet (one attempt, "
+        "then the driver backs off and retries); it stays on the link's socket, so a read "
+        "or send the server does not take fails after it instead of hanging.",
+        unit="s", gt=0.0, max=30.0)
     bitrate: int = spec(500000, "Bus bit rate (ignored by serial and virtual).", unit="bit/s",
                         min=10000, max=1000000)
     sdo_timeout_s: float = spec(0.2, "Wait this long for an SDO answer.", unit="s", gt=0.0)
@@ -208,7 +213,7 @@ class CanEncoderDriver(ThreadedDriver):
             kwargs["bitrate"] = o.bitrate
         try:
             if o.interface == "socketcand":  # one connect, limited: drivers/socketcand_link
-                with one_connect_attempt(o.sdo_timeout_s):
+                with one_connect_attempt(o.connect_timeout_s):
                     self._bus = can.Bus(interface=o.interface, channel=o.channel, **kwargs)
             else:
                 self._bus = can.Bus(interface=o.interface, channel=o.channel, **kwargs)

@@ -41,7 +41,8 @@ def listener() -> Iterator[socket.socket]:
 def _driver(port: int) -> CanEncoderDriver:
     d = CanEncoderDriver("dut", CanEncoderOptions(
         interface="socketcand", host="127.0.0.1", port=port, channel="can0",
-        fault_after_s=0.1, encoders=(EncoderNode(name="pos", node_id=5, heartbeat_ms=20),)))
+        fault_after_s=0.1, connect_timeout_s=0.2,
+        encoders=(EncoderNode(name="pos", node_id=5, heartbeat_ms=20),)))
     d.open(time.monotonic)
     return d
 
