@@ -27,7 +27,7 @@ from pamd.rt import RESET_ON_FORK, RealtimeSession
 from pamd.sim.options import SimCommSafety, SimMuscleOptions, SimOptions
 from pamd.stalls import HOLD_S, stall_limit
 from pamd.tick import State
-from tests.sim.stepped import stepped
+from tests.sim.rig import Rig
 
 from .conftest import sim_dict
 
@@ -289,7 +289,7 @@ def test_the_loop_process_other_threads_run_below_the_loop_and_go_back_after() -
 def _onoff_sim(comm_safety: SimCommSafety | None) -> tuple[SimDriver, Callable[[float], None]]:
     opts = SimOptions(muscles=(SimMuscleOptions(actuation="onoff"),), comm_safety=comm_safety)
     sim = SimDriver("sim", opts)
-    step = stepped(sim)
+    step = Rig(driver=sim).step
     sim.set_safe_outputs({0: 0.0, 1: 0.0})  # m1.inflate, m1.exhaust closed: hold the air
     sim.write(0, 1.0)  # the inflate valve open when the loop stalls
     return sim, step

@@ -9,7 +9,7 @@ import pytest
 from pamd.drivers.sim import SimDriver
 
 from pamd.sim.options import SimMuscleOptions, SimOptions
-from tests.sim.stepped import stepped
+from tests.sim.rig import Rig
 
 
 def _t63_ms(make_rig, **kw) -> float:
@@ -53,7 +53,7 @@ def _lowest_supply_bar(n_muscles: int) -> tuple[float, float]:
     line pressure 3 s later)."""
     muscles = tuple(SimMuscleOptions(name=f"m{k}", pneumatics="flow") for k in range(n_muscles))
     drv = SimDriver("sim", SimOptions(muscles=muscles, supply_line_volume_l=0.5))
-    step = stepped(drv)
+    step = Rig(driver=drv).step
     assert drv.supply_line is not None
     for k in range(n_muscles):
         drv.write(2 * k, 6.0)

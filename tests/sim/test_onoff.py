@@ -11,7 +11,7 @@ from pamd.drivers.sim import SimDriver
 from pamd.sim.onoff import OnOffValves, SolenoidValve
 from pamd.sim.options import SimMuscleOptions, SimOptions
 from pamd.sim.pneumatics import SupplyLine
-from tests.sim.stepped import stepped
+from tests.sim.rig import Rig
 
 DT = 0.001
 
@@ -87,7 +87,7 @@ def test_the_sim_driver_gives_an_onoff_muscle_digital_valve_outputs() -> None:
     drv = SimDriver("sim", SimOptions(muscles=(SimMuscleOptions(actuation="onoff"),)))
     names = [c.name for c in drv.output_channels]
     assert names == ["m1.inflate", "m1.exhaust", "heartbeat"]  # + the safety chain's
-    step = stepped(drv)
+    step = Rig(driver=drv).step
     plant = drv.plant("m1")
     drv.write(drv.output_index("m1.inflate"), 1.0)
     for _ in range(300):
