@@ -202,6 +202,8 @@ class CanEncoderDriver(ThreadedDriver):
 
         o: CanEncoderOptions = self.options
         kwargs: dict[str, Any] = {}  # Any: can.Bus keyword arguments, per interface
+        link: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
+        where = ""  # the link, in an error
         if o.interface == "serial":
             kwargs["timeout"] = o.recv_timeout_s
         elif o.interface == "socketcand":
@@ -209,17 +211,14 @@ class CanEncoderDriver(ThreadedDriver):
             # on TCP); the driver counts what matters
             logging.getLogger("can.interfaces.socketcand").setLevel(logging.ERROR)
             kwargs.update(host=o.host, port=o.port, tcp_tune=True)  # TCP_NODELAY
+            link = one_connect_attempt(o.connect_timeout_s)  # drivers/socketcand_link.py
+            where = f"socketcand server {o.host}:{o.port}: "
         elif o.interface != "virtual":
             kwargs["bitrate"] = o.bitrate
         try:
-            if o.interface == "socketcand":  # one connect, limited: drivers/socketcand_link
-                with one_connect_attempt(o.connect_timeout_s):
-                    self._bus = can.Bus(interface=o.interface, channel=o.channel, **kwargs)
-            else:
+            with link:
                 self._bus = can.Bus(interface=o.interface, channel=o.channel, **kwargs)
         except Exception as exc:  # noqa: BLE001 - missing adapter, bad channel: retry
-            where = f"socketcand server {o.host}:{o.port}: " if o.interface == "socketcand" \
-                else ""
             self.error("bus_open_failures", f"cannot open the bus: {where}{exc}")
             return False
         self.connected = True

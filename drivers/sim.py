@@ -57,10 +57,10 @@ from pamd.sim.plant import MusclePlant
 from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
 
 INPUTS_PER_MUSCLE = 3  # pressure, force, length
+OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
 #: The clock's time between two reads agrees with the loop's `dt_s` within this (the
 #: virtual clock's, up to rounding): the plant is stepped by `dt_s` exactly then.
 CLOCK_AGREES_S = 1e-9
-OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
 
 #: The rig's safety-chain inputs after the muscles' (their offsets from 3 x muscles).
 CHAIN_INPUTS: tuple[str, ...] = ("safety_chain", "supply", "reset")
