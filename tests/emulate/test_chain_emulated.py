@@ -40,6 +40,12 @@ def chain_config(tmp: Path) -> Path:
         o = drv["options"]
         if drv["type"] == "modbus":
             o["port"] = free_port()
+            # Both ends of every Modbus transaction run in this process: polled at 1 kHz
+            # (the config's), they and the rest took over a core, and on a busy machine
+            # (three workers and a cold type check on two cores) the readings went stale
+            # (500 ms). At 200 Hz the process needs about two thirds of that; the wiring
+            # is read the same way.
+            o["poll_period_s"] = 0.005
         else:
             o["interface"] = "virtual"
             o["channel"] = f"pamd-chain-{o.get('channel', '').replace('/', '-')}-{free_port()}"
