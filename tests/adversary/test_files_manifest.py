@@ -31,7 +31,11 @@ steps:
 # Step 2 is 80 s of rig time (3-4 s of wall time on the virtual clock), so the SIGKILL,
 # sent as soon as its file appears, lands inside it even when this test's process waits
 # for a core: with 8 cycles (16 s, under a second) a busy machine once let step 2 end
-# first, and its file then rightly counted it done.
+# first, and its file then rightly counted it done. The resume needs no such window:
+# it runs the same plan with step 2 at 2 cycles (a resume checks the plan's name, not
+# its steps' lengths: the operator may edit a plan between runs, as in
+# tests/cli/test_collect_cli.py), not 80 s of rig time again.
+RESUMED = PLAN.replace("cycles: 40", "cycles: 2")
 
 
 def wait_for(check, timeout_s: float, what: str):  # type: ignore[no-untyped-def]
@@ -106,6 +110,7 @@ def test_sigkill_mid_collection_then_inspect_and_resume_agree_with_the_files(
         assert Manifest.load(str(out), reconcile=True).first_unfinished() == 1
 
         (out / "manifest.json").write_text(json.dumps(stale))
+        plan.write_text(RESUMED)
         r = subprocess.run([sys.executable, "-m", "pamd", "collect", str(plan), "--clock",
                             "virtual", "--resume", str(out), "--no-progress"], cwd=REPO,
                            capture_output=True, text=True, timeout=300)

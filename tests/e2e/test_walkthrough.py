@@ -1,9 +1,10 @@
 """The README's walk-through, shortened to run in well under a minute, on the simulated
 rig with the virtual clock: collect the full-range sweep and the half-range sweeps
-(the two shipped plans' steps, at three loads, one faster cycle each) -> train the
-3-input inverse model on the collection's directory -> track a length profile with
-the model as feedforward (recorded), and with the position PID alone -> evaluate the
-model on the tracked run's directory. Every step through the real command line.
+(the two shipped plans' steps, at three loads, one faster cycle each, 1 s settle) ->
+train the 3-input inverse model on the collection's directory -> track one cycle of a
+length profile with the model as feedforward (recorded), and with the position PID
+alone -> evaluate the model on the tracked run's directory. Every step through the
+real command line.
 
 The virtual clock makes every figure deterministic: this copy pins its own, printed
 as the commands print them, so a change that moves them shows here. The README's
@@ -27,20 +28,20 @@ from pamd.experiment.timeline import timeline
 REPO = Path(__file__).resolve().parents[2]
 LOADS_KG = (20, 30, 40)
 RANGES_BAR = (("full", 0.0, 6.0), ("low", 0.0, 3.0), ("mid", 1.5, 4.5), ("high", 3.0, 6.0))
-PLAN = "name: walk\nmuscle: m1\nsettle: {seconds: 2}\nsteps:\n" + "".join(
+PLAN = "name: walk\nmuscle: m1\nsettle: {seconds: 1}\nsteps:\n" + "".join(
     f"  - {{name: {r}-{kg}kg, load_kg: {kg}, profile: {{kind: sine, min_bar: {lo:g}, "
     f"max_bar: {hi:g}, freq_hz: 0.1, cycles: 1}}}}\n"
     for kg in LOADS_KG for r, lo, hi in RANGES_BAR)
 TRACK = ("--profile", "sine", "--freq-hz", "0.1", "--min-contraction", "0.05",
-         "--max-contraction", "0.15", "--cycles", "2", "--no-telemetry")
+         "--max-contraction", "0.15", "--cycles", "1", "--no-telemetry")
 
 #: The figures this shortened copy gives, as its commands print them (virtual clock:
 #: the same on every machine).
 FIGURES = {
-    "train validation RMSE": "0.2031",
-    "track RMSE": "0.190 mm",
-    "PID RMSE": "0.332 mm",
-    "evaluate RMSE": "0.276",
+    "train validation RMSE": "0.2288",
+    "track RMSE": "0.184 mm",
+    "PID RMSE": "0.384 mm",
+    "evaluate RMSE": "0.5304",
     "evaluate clipped": "0 (0.0 %)",
 }
 
@@ -59,7 +60,7 @@ def figure(pattern: str, out: str) -> str:
     return m.group(1)
 
 
-# About 30 s of CPU time; the limit is for a shared machine's wall clock (two cores,
+# About 28 s of CPU time; the limit is for a shared machine's wall clock (two cores,
 # many users), not a speed check.
 @pytest.mark.timeout(1200)
 def test_collect_train_track_evaluate(tmp_path: Path) -> None:
