@@ -72,6 +72,7 @@ class FlowRegulator(FedChamber):
         self.c_dump = conductance_from_nominal_flow(dump_flow_l_min, critical_ratio)
         self._inv_band_pa = 1.0 / (full_open_error_bar * BAR_PA)
         self.reference_bar = p0
+        self._reference_pa = p0 * BAR_PA + P_ATM_PA  # the reference, absolute (each step's)
         self.supply_ok = True
         self.stuck = False  # an injected fault: new setpoints are ignored
         self.powered = True
@@ -120,7 +121,7 @@ class FlowRegulator(FedChamber):
         q_supply = 0.0
         q = 0.0
         if self.powered:
-            u = (self.reference_bar * BAR_PA + P_ATM_PA - p_pa) * self._inv_band_pa
+            u = (self._reference_pa - p_pa) * self._inv_band_pa
             if u > 1.0:
                 u = 1.0
             elif u < -1.0:
@@ -149,6 +150,7 @@ class FlowRegulator(FedChamber):
             self._alpha_pilot = 1.0 - math.exp(-dt_s / lag) if lag > 0.0 else 1.0
         delayed = self.pilot.step(self.t_s)
         self.reference_bar += (delayed - self.reference_bar) * self._alpha_pilot
+        self._reference_pa = self.reference_bar * BAR_PA + P_ATM_PA  # for the 3 flows below
         self.t_s += dt_s
         # `settle_chamber_pa`, then `FedChamber._admit`, inlined (this runs in the tick):
         # the chamber's implicit pressure by two chord-Newton steps from the no-flow
