@@ -75,6 +75,7 @@ Tick path: float arithmetic only; a message string is built only on a finding.
 
 from __future__ import annotations
 
+import functools
 import math
 
 from pamd.config.safety_schema import PlausibilityConfig
@@ -247,7 +248,8 @@ class Plausibility:
         self._l_t, self._l_last, self._l_j = t, length, jitter
         if length != length:
             return None  # not a number: the stale check speaks for it
-        x = self._contraction(length)
+        l0 = self.nominal_length_mm
+        x = (l0 - length) / l0  # `_contraction`, inlined (the tick)
         if referenced and (x > self.max_x or x < self.min_x):
             self.length_ok = False
             return (f"{self.muscle}: {self.l_name} reads {length:.2f} mm, outside what the "
@@ -354,7 +356,8 @@ class Plausibility:
                 f"while {why}: stuck sensor")
 
     def _force_map(self, p: float, length: float) -> float:
-        return self.model.force_n(p, self._contraction(length))
+        l0 = self.nominal_length_mm
+        return self.model.force_n(p, (l0 - length) / l0)  # `_contraction`, inlined
 
     def _carries_load(self, p: float, length: float, w: float) -> bool:
         """Does the muscle, by its force model, pull at least half the load's weight at
@@ -397,8 +400,11 @@ class Plausibility:
         return None
 
 
+@functools.lru_cache(maxsize=16)
 def _alpha(dt_s: float) -> float:
-    """The low-pass's weight of a new sample `dt_s` after the previous one."""
+    """The low-pass's weight of a new sample `dt_s` after the previous one. Cached: the
+    samples' spacing takes a few values (three a tick, each the same as the last), and
+    a cached weight is the one computed (the tick skips the exp)."""
     if not dt_s > 0.0:
         return 1.0
     return 1.0 - math.exp(-dt_s / LOWPASS_TAU_S)
