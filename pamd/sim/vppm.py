@@ -82,6 +82,8 @@ class FlowRegulator(FedChamber):
         self._dt_s = -1.0
         self._alpha_pilot = 0.0
         self._flow_fn = self._flow_in  # bound once: the tick allocates nothing
+        # n R T of the chamber: its `pressure_per_kg(v)` is this / v (the same division)
+        self._n_rt = self.chamber.pressure_per_kg(1.0)
 
     @classmethod
     def from_options(cls, o: SimMuscleOptions, supply: Supply, contraction: float,
@@ -159,7 +161,7 @@ class FlowRegulator(FedChamber):
         v1 = self.volume.volume_m3(contraction)
         v0 = ch.volume_m3
         p_nf = ch.pressure_pa if v0 == v1 else ch.pressure_pa * (v0 / v1) ** ch.polytropic
-        k = ch.pressure_per_kg(v1) * dt_s
+        k = self._n_rt / v1 * dt_s  # ch.pressure_per_kg(v1) * dt_s
         flow = self._flow_fn
         q0 = flow(p_nf)
         h = 1.0 + 1e-6 * p_nf
