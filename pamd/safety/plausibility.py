@@ -327,7 +327,10 @@ class Plausibility:
         if f != self._f_last:
             self._f_last = f
             self._f_since = t
-            self._f_map0 = self._force_map(p, length) if judged else math.nan
+            # `_force_map`, inlined (a noisy load cell changes at every sample)
+            self._f_map0 = (self.model.force_n(p, (self.nominal_length_mm - length)
+                                               / self.nominal_length_mm)
+                            if judged else math.nan)
             self._f_v0 = self._v_lp
             return None
         span = t - self._f_since
