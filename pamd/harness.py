@@ -70,11 +70,11 @@ class Harness:
             self._tick()
 
     def _tick(self) -> None:
-        self.clock.t = self.t
+        t = self.clock.t = self.t
         if self.queue.waiting:
-            rec = tick_once(self.ctrl, self.intake, self.t, self.period_s, math.inf)
+            rec = tick_once(self.ctrl, self.intake, t, self.period_s, math.inf)
         else:  # no command waiting (most ticks): what tick_once does then
-            rec = self.ctrl.tick(self.t, self.period_s)
+            rec = self.ctrl.tick(t, self.period_s)
         self.sink.put(rec)
         if self.keep:
             self.records.append(self.layout.as_dict(rec))
