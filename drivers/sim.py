@@ -146,14 +146,13 @@ class SimDriver(Driver):
             if (value >= 0.5) != (chain.heartbeat >= 0.5):  # a toggle: the clock read then
                 chain.beat(value, self._clock() if self._clock is not None else self._t_s)
             return
-        k, j = divmod(index, OUTPUTS_PER_MUSCLE)
-        plant = self._plants[k]
+        plant = self._plants[index // OUTPUTS_PER_MUSCLE]  # no divmod tuple per write
         if self._driver_error or not math.isfinite(value):
             self._dropped_writes += 1
             return
         self._writes += 1
         reg = plant.regulator
-        if j == 1:
+        if index % OUTPUTS_PER_MUSCLE == 1:
             reg.exhaust_open = value >= 0.5
         elif isinstance(reg, OnOffValves):
             reg.set_inflate(value >= 0.5)
