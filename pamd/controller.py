@@ -207,7 +207,7 @@ class RigController:
             self._running_done(now)
         rec[I_TICK] = self.tick_no
         rec[I_T] = now - self.t_start
-        rec[I_STATE] = int(sup.state)
+        rec[I_STATE] = sup.state  # stored as a double: the same as int(), without the call
         rec[I_SEGMENT] = self._segment
         if chain.configured:
             chain.beat(not sup.latched)  # stands still from the tick a fault latches
