@@ -248,8 +248,7 @@ class Plausibility:
         self._l_t, self._l_last, self._l_j = t, length, jitter
         if length != length:
             return None  # not a number: the stale check speaks for it
-        l0 = self.nominal_length_mm
-        x = (l0 - length) / l0  # `_contraction`, inlined (the tick)
+        x = (self.nominal_length_mm - length) / self.nominal_length_mm  # _contraction, inlined
         if referenced and (x > self.max_x or x < self.min_x):
             self.length_ok = False
             return (f"{self.muscle}: {self.l_name} reads {length:.2f} mm, outside what the "
@@ -327,10 +326,7 @@ class Plausibility:
         if f != self._f_last:
             self._f_last = f
             self._f_since = t
-            # `_force_map`, inlined (a noisy load cell changes at every sample)
-            self._f_map0 = (self.model.force_n(p, (self.nominal_length_mm - length)
-                                               / self.nominal_length_mm)
-                            if judged else math.nan)
+            self._f_map0 = self._force_map(p, length) if judged else math.nan
             self._f_v0 = self._v_lp
             return None
         span = t - self._f_since
@@ -359,8 +355,7 @@ class Plausibility:
                 f"while {why}: stuck sensor")
 
     def _force_map(self, p: float, length: float) -> float:
-        l0 = self.nominal_length_mm
-        return self.model.force_n(p, (l0 - length) / l0)  # `_contraction`, inlined
+        return self.model.force_n(p, (self.nominal_length_mm - length) / self.nominal_length_mm)
 
     def _carries_load(self, p: float, length: float, w: float) -> bool:
         """Does the muscle, by its force model, pull at least half the load's weight at
