@@ -87,7 +87,8 @@ class SimDriver(Driver):
         super().__init__(name, options)
         models: dict[str, ForceModel] = {}
         self.supply_line = _shared_supply_line(options)
-        self._muscle_supply_bar: float = max(m.supply_bar for m in options.muscles)  # fixed
+        # the highest muscle supply, read each tick (the options are frozen)
+        self._muscle_supply_bar: float = max(m.supply_bar for m in options.muscles)
         self._plants: list[MusclePlant] = []
         for m in options.muscles:
             if m.force_model not in models:

@@ -1,7 +1,9 @@
 """A rig controller stepped tick by tick in the caller's thread on the virtual clock:
 deterministic, no loop thread. For tests, benchmarks and offline tools; the daemon
-uses `pamd.loop.Loop`. Both run each tick through `pamd.loop.tick_once`, so a
-command waits for the sensors to be read here as it does in the daemon."""
+uses `pamd.loop.Loop`. Both run a tick with a command waiting through
+`pamd.loop.tick_once`, so a command waits for the sensors to be read here as it does in
+the daemon; a tick with none runs the controller's tick directly (all tick_once does
+then)."""
 
 from __future__ import annotations
 

@@ -75,7 +75,6 @@ Tick path: float arithmetic only; a message string is built only on a finding.
 
 from __future__ import annotations
 
-import functools
 import math
 
 from pamd.config.safety_schema import PlausibilityConfig
@@ -398,11 +397,10 @@ class Plausibility:
         return None
 
 
-@functools.lru_cache(maxsize=16)
 def _alpha(dt_s: float) -> float:
-    """The low-pass's weight of a new sample `dt_s` after the previous one. Cached: the
-    samples' spacing takes a few values (three a tick, each the same as the last), and
-    a cached weight is the one computed (the tick skips the exp)."""
+    """The low-pass's weight of a new sample `dt_s` after the previous one. Not cached:
+    on a real clock the samples' spacing differs at every sample (a cache would miss
+    each time and cost more than the exp)."""
     if not dt_s > 0.0:
         return 1.0
     return 1.0 - math.exp(-dt_s / LOWPASS_TAU_S)
