@@ -87,6 +87,8 @@ class SimDriver(Driver):
         super().__init__(name, options)
         models: dict[str, ForceModel] = {}
         self.supply_line = _shared_supply_line(options)
+        # the highest muscle supply, read each tick (the options are frozen)
+        self._muscle_supply_bar: float = max(m.supply_bar for m in options.muscles)
         self._plants: list[MusclePlant] = []
         for m in options.muscles:
             if m.force_model not in models:
@@ -145,14 +147,13 @@ class SimDriver(Driver):
             if (value >= 0.5) != (chain.heartbeat >= 0.5):  # a toggle: the clock read then
                 chain.beat(value, self._clock() if self._clock is not None else self._t_s)
             return
-        k, j = divmod(index, OUTPUTS_PER_MUSCLE)
-        plant = self._plants[k]
+        plant = self._plants[index // OUTPUTS_PER_MUSCLE]  # no divmod tuple per write
         if self._driver_error or not math.isfinite(value):
             self._dropped_writes += 1
             return
         self._writes += 1
         reg = plant.regulator
-        if j == 1:
+        if index % OUTPUTS_PER_MUSCLE == 1:
             reg.exhaust_open = value >= 0.5
         elif isinstance(reg, OnOffValves):
             reg.set_inflate(value >= 0.5)
@@ -185,8 +186,11 @@ class SimDriver(Driver):
             for index, value in self._safe_outputs.items():
                 self.write(index, value)
             self._step_plants(dt_s - wd)
-        else:
-            self._step_plants(dt_s)
+        else:  # `_step_plants(dt_s)`, inlined (every tick)
+            for plant in self._plants:
+                plant.advance(dt_s)
+            if self.supply_line is not None and dt_s > 0.0:
+                self.supply_line.step(dt_s)
         self._steps += 1
         self._t_s += dt_s
         chain = self.chain
@@ -343,8 +347,7 @@ class SimDriver(Driver):
             return 0.0
         if self.supply_line is not None:
             return self.supply_line.pressure_bar
-        supply_bar: float = max(m.supply_bar for m in self.options.muscles)
-        return supply_bar
+        return self._muscle_supply_bar
 
     # --- internals ---------------------------------------------------------------
     def _muscle_index(self, muscle: str) -> int:

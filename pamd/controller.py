@@ -193,7 +193,7 @@ class RigController:
                 self.sink.event(now, "implausible", finding_event(m))
             if m.limit_report is not None:  # rare path: a profile held at a soft limit
                 self.sink.event(now, "soft_limit", soft_limit_event(m))
-            if m.adapt_report is not None:  # rare path: the model's adaptation froze
+            if m.adaptation.report is not None:  # rare path: the model's adaptation froze
                 self.sink.event(now, "adapt", m.take_adapt_report() or {})
             if reason is not None and fault is None:
                 fault = reason
@@ -207,7 +207,7 @@ class RigController:
             self._running_done(now)
         rec[I_TICK] = self.tick_no
         rec[I_T] = now - self.t_start
-        rec[I_STATE] = int(sup.state)
+        rec[I_STATE] = sup.state  # stored as a double: the same as int(), without the call
         rec[I_SEGMENT] = self._segment
         if chain.configured:
             chain.beat(not sup.latched)  # stands still from the tick a fault latches

@@ -1,7 +1,9 @@
 """A rig controller stepped tick by tick in the caller's thread on the virtual clock:
 deterministic, no loop thread. For tests, benchmarks and offline tools; the daemon
-uses `pamd.loop.Loop`. Both run each tick through `pamd.loop.tick_once`, so a
-command waits for the sensors to be read here as it does in the daemon."""
+uses `pamd.loop.Loop`. Both run a tick with a command waiting through
+`pamd.loop.tick_once`, so a command waits for the sensors to be read here as it does in
+the daemon; a tick with none runs the controller's tick directly (all tick_once does
+then)."""
 
 from __future__ import annotations
 
@@ -70,8 +72,11 @@ class Harness:
             self._tick()
 
     def _tick(self) -> None:
-        self.clock.t = self.t
-        rec = tick_once(self.ctrl, self.intake, self.t, self.period_s, math.inf)
+        t = self.clock.t = self.t
+        if self.queue.waiting:
+            rec = tick_once(self.ctrl, self.intake, t, self.period_s, math.inf)
+        else:  # no command waiting (most ticks): what tick_once does then
+            rec = self.ctrl.tick(t, self.period_s)
         self.sink.put(rec)
         if self.keep:
             self.records.append(self.layout.as_dict(rec))

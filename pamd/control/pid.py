@@ -45,21 +45,23 @@ class Pid:
     def step(self, error: float, measured: float, dt_s: float) -> float:
         if self._filtered != self._filtered:  # NaN: first step
             self.reset(measured)
-        # Derivative on the measurement through a first-order low-pass.
+        # Derivative on the measurement through a first-order low-pass. (Each term is
+        # kept in a local as it is stored: the same arithmetic, fewer attribute reads.)
         alpha = dt_s / (self.filter_tau_s + dt_s)
         prev = self._filtered
-        self._filtered = prev + alpha * (measured - prev)
-        self._deriv = (self._filtered - prev) / dt_s
-        self.p = self.kp * error
-        self.d = -self.kd * self._deriv
+        filtered = self._filtered = prev + alpha * (measured - prev)
+        deriv = self._deriv = (filtered - prev) / dt_s
+        p = self.p = self.kp * error
+        d = self.d = -self.kd * deriv
         lim = self.output_limit
-        unsat = self.p + self.i + self.d
+        i = self.i
+        unsat = p + i + d
         pushing_out = (unsat >= lim and error > 0.0) or (unsat <= -lim and error < 0.0)
         if not pushing_out:
-            i = self.i + self.ki * error * dt_s
+            i = i + self.ki * error * dt_s
             il = self.integral_limit
-            self.i = il if i > il else (-il if i < -il else i)
-        u = self.p + self.i + self.d
+            i = self.i = il if i > il else (-il if i < -il else i)
+        u = p + i + d
         if u >= lim:
             self.saturated = True
             return lim

@@ -247,7 +247,7 @@ class Plausibility:
         self._l_t, self._l_last, self._l_j = t, length, jitter
         if length != length:
             return None  # not a number: the stale check speaks for it
-        x = self._contraction(length)
+        x = (self.nominal_length_mm - length) / self.nominal_length_mm  # _contraction, inlined
         if referenced and (x > self.max_x or x < self.min_x):
             self.length_ok = False
             return (f"{self.muscle}: {self.l_name} reads {length:.2f} mm, outside what the "
@@ -354,7 +354,7 @@ class Plausibility:
                 f"while {why}: stuck sensor")
 
     def _force_map(self, p: float, length: float) -> float:
-        return self.model.force_n(p, self._contraction(length))
+        return self.model.force_n(p, (self.nominal_length_mm - length) / self.nominal_length_mm)
 
     def _carries_load(self, p: float, length: float, w: float) -> bool:
         """Does the muscle, by its force model, pull at least half the load's weight at
@@ -398,7 +398,9 @@ class Plausibility:
 
 
 def _alpha(dt_s: float) -> float:
-    """The low-pass's weight of a new sample `dt_s` after the previous one."""
+    """The low-pass's weight of a new sample `dt_s` after the previous one. Not cached:
+    on a real clock the samples' spacing differs at every sample (a cache would miss
+    each time and cost more than the exp)."""
     if not dt_s > 0.0:
         return 1.0
     return 1.0 - math.exp(-dt_s / LOWPASS_TAU_S)

@@ -161,6 +161,9 @@ class MusclePlant:
         self._sensors = _sampled_sensors(o, rng.gauss)
         self._sensor_dt_s = 0.0
         self._sensors_every_step = False
+        # The regulator's pressure as its last step returned it (what its `pressure_bar`
+        # reads until the next step): the sensors read this, with no property call.
+        self._pressure_bar = self.regulator.pressure_bar
         self._read_sensors()
 
     # --- inputs ---------------------------------------------------------------
@@ -235,7 +238,7 @@ class MusclePlant:
     def _step(self, dt: float) -> None:
         length = self._length_m
         x = 1.0 - length * self._inv_l0
-        p = self.regulator.step(dt, x)
+        p = self._pressure_bar = self.regulator.step(dt, x)
         force_fn = self._force_fn
         if self._drift_per_s != 0.0:
             drift = 1.0 + self._drift_per_s * self.t_s
@@ -320,7 +323,7 @@ class MusclePlant:
         # read directly.
         self.pressure_age_s = self.force_age_s = self.length_age_s = 0.0
         gauss = self._gauss
-        self.pressure_read_bar = self.regulator.pressure_bar + gauss(0.0, self._p_noise)
+        self.pressure_read_bar = self._pressure_bar + gauss(0.0, self._p_noise)
         self.force_read_n = self._tension_n + gauss(0.0, self._f_noise)
         res = self._enc_res_mm
         self.length_read_mm = math.floor(self._length_m * 1e3 * self._inv_enc_res + 0.5) * res
@@ -330,7 +333,7 @@ class MusclePlant:
         """Sensors with their own sample periods, latencies and filters."""
         t = self.t_s
         p_sensor, f_sensor, l_sensor = sensors
-        p_sensor.update(t, self.regulator.pressure_bar)
+        p_sensor.update(t, self._pressure_bar)
         f_sensor.update(t, self._tension_n)
         l_sensor.update(t, self._length_m * 1e3)
         self.pressure_read_bar = p_sensor.value

@@ -72,6 +72,7 @@ class FlowRegulator(FedChamber):
         self.c_dump = conductance_from_nominal_flow(dump_flow_l_min, critical_ratio)
         self._inv_band_pa = 1.0 / (full_open_error_bar * BAR_PA)
         self.reference_bar = p0
+        self._reference_pa = p0 * BAR_PA + P_ATM_PA  # the reference, absolute (each step's)
         self.supply_ok = True
         self.stuck = False  # an injected fault: new setpoints are ignored
         self.powered = True
@@ -81,6 +82,8 @@ class FlowRegulator(FedChamber):
         self._dt_s = -1.0
         self._alpha_pilot = 0.0
         self._flow_fn = self._flow_in  # bound once: the tick allocates nothing
+        # n R T of the chamber: its `pressure_per_kg(v)` is this / v (the same division)
+        self._n_rt = self.chamber.pressure_per_kg(1.0)
 
     @classmethod
     def from_options(cls, o: SimMuscleOptions, supply: Supply, contraction: float,
@@ -120,7 +123,7 @@ class FlowRegulator(FedChamber):
         q_supply = 0.0
         q = 0.0
         if self.powered:
-            u = (self.reference_bar * BAR_PA + P_ATM_PA - p_pa) * self._inv_band_pa
+            u = (self._reference_pa - p_pa) * self._inv_band_pa
             if u > 1.0:
                 u = 1.0
             elif u < -1.0:
@@ -149,6 +152,7 @@ class FlowRegulator(FedChamber):
             self._alpha_pilot = 1.0 - math.exp(-dt_s / lag) if lag > 0.0 else 1.0
         delayed = self.pilot.step(self.t_s)
         self.reference_bar += (delayed - self.reference_bar) * self._alpha_pilot
+        self._reference_pa = self.reference_bar * BAR_PA + P_ATM_PA  # for the 3 flows below
         self.t_s += dt_s
         # `settle_chamber_pa`, then `FedChamber._admit`, inlined (this runs in the tick):
         # the chamber's implicit pressure by two chord-Newton steps from the no-flow
@@ -157,7 +161,7 @@ class FlowRegulator(FedChamber):
         v1 = self.volume.volume_m3(contraction)
         v0 = ch.volume_m3
         p_nf = ch.pressure_pa if v0 == v1 else ch.pressure_pa * (v0 / v1) ** ch.polytropic
-        k = ch.pressure_per_kg(v1) * dt_s
+        k = self._n_rt / v1 * dt_s  # ch.pressure_per_kg(v1) * dt_s
         flow = self._flow_fn
         q0 = flow(p_nf)
         h = 1.0 + 1e-6 * p_nf
