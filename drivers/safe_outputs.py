@@ -18,8 +18,10 @@ from pamd.drivers import Driver
 
 
 class OutputPoint(Protocol):
-    """An output signal's place and calibration (`pamd.rig.OutputBinding`)."""
+    """An output signal's name, place and calibration (`pamd.rig.OutputBinding`)."""
 
+    @property
+    def name(self) -> str: ...
     @property
     def driver(self) -> Driver: ...
     @property

@@ -11,7 +11,7 @@ from typing import Protocol
 
 from pamd.config.loader import LoadedConfig
 from pamd.declare.jsonsafe import JsonObject
-from pamd.drivers.safe_outputs import OutputPoint
+from pamd.drivers.safe_outputs import SafeMuscle
 from pamd.rt import RealtimeSession
 from pamd.safety.supervisor import Supervisor
 from pamd.timing import TickTiming
@@ -31,29 +31,14 @@ class KeptRig(Protocol):
     def at_rest(self) -> bool: ...
 
 
-class SafeMuscleView(Protocol):
+class SafeMuscleView(SafeMuscle, Protocol):
+    """A muscle as the safe outputs file names it: its actuation's safe outputs (each
+    output with its name) and safe pressure (`SafeMuscle`), its name and load."""
+
     @property
     def name(self) -> str: ...
-    @property
-    def actuation(self) -> SavedActuation: ...
-    @property
-    def safe_pressure_bar(self) -> float: ...
     @property
     def load_kg(self) -> float: ...
-
-
-class SavedOutput(OutputPoint, Protocol):
-    """An output as the safe outputs file names it (`pamd.rig.OutputBinding`)."""
-
-    @property
-    def name(self) -> str: ...
-
-
-class SavedActuation(Protocol):
-    """What a muscle's actuation holds in the safe state, per output (`pamd.control.actuation`)."""
-
-    def safe_outputs(self, safe_pressure_bar: float
-                     ) -> Sequence[tuple[SavedOutput, float, str]]: ...
 
 
 class KeptLoop(Protocol):
