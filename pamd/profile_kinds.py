@@ -3,8 +3,8 @@ schema, a plan's `kind` and `pamd run --help` need of the shapes, without their 
 (`pamd.profiles`). The io process validates commands with this module alone.
 
 A new shape is one line here and one `pamd.profiles.Shape` subclass registered in
-`pamd.profiles.spec.SHAPES` (a test checks that the two name the same shapes, in the
-same order).
+`pamd.profiles.spec` (whose `SHAPES` takes its order from here; a test checks that
+the two name the same shapes).
 """
 
 from __future__ import annotations

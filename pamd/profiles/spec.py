@@ -10,14 +10,19 @@ import math
 from dataclasses import dataclass
 
 from pamd.errors import CommandRefused
-from pamd.profile_kinds import ProfileKind, kinds_text
+from pamd.profile_kinds import SHAPE_NAMES, ProfileKind, kinds_text
 from pamd.profiles.harmonic import DEFAULT_HARMONICS, Harmonic, Multisine, Multitriangle
 from pamd.profiles.shapes import Constant, Ramp, Shape, Sine, Step, Triangle
 
-SHAPES: dict[str, Shape] = {s.name: s for s in (Constant(), Step(), Ramp(), Sine(), Triangle(),
-                                                 Multisine(), Multitriangle())}
-"""Every profile shape by name: a new shape is one `Shape` subclass added here (and its
-name and fields in `pamd.profile_kinds.SHAPE_PARAMS`)."""
+_IMPLEMENTED: dict[str, Shape] = {s.name: s for s in (
+    Constant(), Step(), Ramp(), Sine(), Triangle(), Multisine(), Multitriangle())}
+if set(_IMPLEMENTED) != set(SHAPE_NAMES):  # a shape declared or implemented, not both
+    raise ImportError(f"profile shapes implemented {sorted(_IMPLEMENTED)} but declared in "
+                      f"pamd.profile_kinds {sorted(SHAPE_NAMES)}")
+SHAPES: dict[str, Shape] = {name: _IMPLEMENTED[name] for name in SHAPE_NAMES}
+"""Every profile shape by name, in `pamd.profile_kinds`' order: a new shape is its name
+and fields in `pamd.profile_kinds.SHAPE_PARAMS` and one `Shape` subclass added above (a
+shape declared there and not here, or here and not there, fails at import)."""
 
 
 def shape_of(kind: str) -> Shape:
