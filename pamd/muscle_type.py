@@ -38,21 +38,20 @@ class ForceMap:
         self.pressures_bar = sorted(levels)
         if len(self.pressures_bar) < 2:
             raise ValueError("a force map needs at least two pressure curves")
-        self._xs: list[list[float]] = []
-        self._fs: list[list[float]] = []
+        curves_x: list[list[float]] = []
+        curves_f: list[list[float]] = []
         for p in self.pressures_bar:
             pts = sorted(levels[p])
             if len(pts) < 2:
                 raise ValueError(f"the force map curve at {p} bar needs at least two points")
-            self._xs.append([x for x, _ in pts])
-            self._fs.append([f for _, f in pts])
-        # For the tick's `force_n`: each curve with its segments' rises and widths
-        # (the differences `curve_force_n` takes, taken once: the same floats) and its
-        # last segment's start; the pressures' gaps and the last one's start.
-        self._curves = [
+            curves_x.append([x for x, _ in pts])
+            curves_f.append([f for _, f in pts])
+        # Each curve with its segments' rises and widths (taken once, not per call) and
+        # its last segment's start; the pressures' gaps and the last one's start.
+        self._curves: list[_Curve] = [
             (xs, fs, [b - a for a, b in zip(fs, fs[1:], strict=False)],
              [b - a for a, b in zip(xs, xs[1:], strict=False)], len(xs) - 2)
-            for xs, fs in zip(self._xs, self._fs, strict=True)]
+            for xs, fs in zip(curves_x, curves_f, strict=True)]
         ps = self.pressures_bar
         self._p_gaps = [b - a for a, b in zip(ps, ps[1:], strict=False)]
         self._p_last = len(ps) - 2
@@ -73,14 +72,8 @@ class ForceMap:
         )
 
     def curve_force_n(self, level: int, contraction: float) -> float:
-        xs, fs = self._xs[level], self._fs[level]
-        j = bisect_right(xs, contraction) - 1
-        if j < 0:
-            j = 0
-        elif j > len(xs) - 2:
-            j = len(xs) - 2
-        x0, x1 = xs[j], xs[j + 1]
-        return fs[j] + (fs[j + 1] - fs[j]) * (contraction - x0) / (x1 - x0)
+        """The force on pressure curve `level` at `contraction`."""
+        return _on_curve(self._curves[level], contraction)
 
     def force_n(self, pressure_bar: float, contraction: float) -> float:
         ps = self.pressures_bar
@@ -89,24 +82,27 @@ class ForceMap:
             i = 0
         elif i > self._p_last:
             i = self._p_last
-        # The two curves' `curve_force_n`, inlined (this runs three times a tick: the
-        # plant twice, the plausibility once), with the differences it takes read from
-        # `_curves`: the same arithmetic on the same floats, in the same order.
-        xs, fs, rises, widths, last = self._curves[i]
-        j = bisect_right(xs, contraction) - 1
-        if j < 0:
-            j = 0
-        elif j > last:
-            j = last
-        f0 = fs[j] + rises[j] * (contraction - xs[j]) / widths[j]
-        xs, fs, rises, widths, last = self._curves[i + 1]
-        j = bisect_right(xs, contraction) - 1
-        if j < 0:
-            j = 0
-        elif j > last:
-            j = last
-        f1 = fs[j] + rises[j] * (contraction - xs[j]) / widths[j]
+        curves = self._curves
+        f0 = _on_curve(curves[i], contraction)
+        f1 = _on_curve(curves[i + 1], contraction)
         return f0 + (f1 - f0) * (pressure_bar - ps[i]) / self._p_gaps[i]
+
+
+#: A pressure curve as `ForceMap` keeps it: contractions, forces, each segment's rise
+#: and width, and the last segment's start.
+_Curve = tuple[list[float], list[float], list[float], list[float], int]
+
+
+def _on_curve(curve: _Curve, contraction: float) -> float:
+    """Linear in contraction along one curve, its end segments extended (runs three
+    times a tick: the plant twice, the plausibility once)."""
+    xs, fs, rises, widths, last = curve
+    j = bisect_right(xs, contraction) - 1
+    if j < 0:
+        j = 0
+    elif j > last:
+        j = last
+    return fs[j] + rises[j] * (contraction - xs[j]) / widths[j]
 
 
 @dataclass(frozen=True)
