@@ -13,6 +13,7 @@ from __future__ import annotations
 import gc
 import math
 import sys
+import threading
 import time
 from array import array
 from collections import deque
@@ -116,6 +117,8 @@ class Loop:
         self.handed_over = False  # ended at an IDLE tick, outputs held (restart in place)
         self.running = False
         self.last_tick_done = math.nan  # monotonic time of the last completed tick
+        self._idle: Callable[[], bool] | None = None  # see `stand_still_while`
+        self._woken = threading.Condition()
 
     @property
     def mailbox(self) -> Mailbox:
@@ -147,6 +150,27 @@ class Loop:
         self.stalls.limit = stall_limit(cfg.rig)
         self.stalls.timeout_s = cfg.rig.loop.stall_timeout_s
         self.stall_s = self.stalls.check_s
+
+    def stand_still_while(self, idle: Callable[[], bool]) -> None:
+        """On the virtual clock, time stands still at the start of any tick at which
+        `idle()` (asked in the loop's thread) is true, until it is not (asked again at
+        `wake()`, and every 50 ms) or a stop is requested: for a thread that drives the
+        rig step by step (commissioning), so that how many ticks pass between its steps
+        does not depend on how fast that thread is (a virtual run stays deterministic).
+        Before `run`. Ignored on the real clock, where time does not stand still."""
+        if self.virtual:
+            self._idle = idle
+
+    def wake(self) -> None:
+        """Ask a loop that stands still (`stand_still_while`) whether it may go on
+        (any thread but a signal handler's)."""
+        with self._woken:
+            self._woken.notify_all()
+
+    def _stand_still(self, idle: Callable[[], bool]) -> None:
+        with self._woken:
+            while self._stop_reason is None and idle():
+                self._woken.wait(0.05)
 
     def request_stop(self, reason: str) -> None:
         """Ask the loop to reach the safe state and return (any thread)."""
@@ -222,9 +246,12 @@ class Loop:
         excuse = excused_until = 0.0
         # virtual clock: deterministic, so no budget by the machine's speed
         command_budget_s = math.inf if virtual else COMMAND_BUDGET_FRACTION * period
+        idle = self._idle
         while True:
             # -- wait for the deadline ---------------------------------------------
             if virtual:
+                if idle is not None and self._stop_reason is None and idle():
+                    self._stand_still(idle)
                 vclock.t = next_t  # type: ignore[union-attr]
                 wake = 0.0
                 t_wake = perf()

@@ -28,11 +28,43 @@ from pamd.config import LoadedConfig
 from pamd.daemon import Daemon
 from pamd.declare.jsonsafe import JsonObject
 from pamd.experiment.plan import Plan
-from pamd.experiment.sequencer import started_plan
+from pamd.experiment.sequencer import Sequencer, running_plan, started_plan
+from pamd.tick import State
 
 Progress = Callable[[str], None]
-#: the probe's room beyond the plans' own time (the virtual clock runs on between them)
+#: the probe's room beyond the plans' own time (the real clock runs on between them)
 SPARE_S = 60.0
+
+
+class _Between:
+    """When the rig is between two of commissioning's plans: past start-up, no plan
+    queued and not yet started, the last one ended. On the virtual clock the loop's time
+    stands still then (`Loop.stand_still_while`), so the run is the same however fast
+    the commissioning thread checks a phase and queues the next (deterministic)."""
+
+    def __init__(self, daemon: Daemon) -> None:
+        self._daemon = daemon
+        self._queued = False
+        self._last: Sequencer | None = None
+
+    def idle(self) -> bool:
+        """The loop's thread, at the start of a tick."""
+        ctrl = self._daemon.ctrl
+        if ctrl.supervisor.state == State.STARTING:
+            return False
+        run = running_plan(ctrl)
+        if self._queued:
+            if run is None or run is self._last:
+                return False  # the plan queued is taken at this tick
+            self._queued, self._last = False, run
+        return run is None or bool(run.outcome)
+
+    def start(self, plan: Plan) -> JsonObject:
+        """Queue `plan`, let the loop go on and wait for its verdict."""
+        pending = self._daemon.start_plan(plan, f"<{plan.name}>", 0)
+        self._queued = True  # after the plan is in the mailbox: taken at the next tick
+        self._daemon.loop.wake()
+        return pending.result(self._daemon.cfg.rig.safety.startup_timeout_s + 5.0)
 
 
 @dataclass
@@ -58,11 +90,13 @@ def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
                   [(s.pressure, s.force, s.length) for s in daemon.rig.muscles],
                   int((seconds + SPARE_S) * cfg.rig.loop.rate_hz))
     daemon.summary.downstream.append(probe)
+    between = _Between(daemon)
+    daemon.loop.stand_still_while(between.idle)
     out = Outcome(Measurements())
     daemon.start()  # RigBusy (exit 8) while another daemon drives this rig
     try:
         first = moves[0]
-        _phase(daemon, probe, PHASE_REST, all_plans[first.muscle][0][1], progress)
+        _phase(daemon, between, probe, PHASE_REST, all_plans[first.muscle][0][1], progress)
         _measure(cfg, probe, out.measurements)
         out.checks += check_rest(cfg, out.measurements)
         for mv in moves:
@@ -70,7 +104,7 @@ def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
                                         (PHASE_MOVES, all_plans[mv.muscle][2])):
                 failed: CommissionRefused | None = None
                 try:
-                    _phase(daemon, probe, phase, plan, progress)
+                    _phase(daemon, between, probe, phase, plan, progress)
                 except CommissionRefused as exc:
                     failed = exc  # a wrong sign, where the data show one, says more
                 steps = steps_of(probe, mv.muscle, phase, [s.name for s in plan.steps])
@@ -118,14 +152,13 @@ def _measure(cfg: LoadedConfig, probe: Probe, into: Measurements) -> None:
             into.signals[st.name] = st
 
 
-def _phase(daemon: Daemon, probe: Probe, phase: int, plan: Plan, progress: Progress) -> None:
+def _phase(daemon: Daemon, between: _Between, probe: Probe, phase: int, plan: Plan,
+           progress: Progress) -> None:
     """Run one plan with the probe taking rows; CommissionRefused when it does not
     finish (a fault, a refusal)."""
     probe.phase = phase
     try:
-        pending = daemon.start_plan(plan, f"<{plan.name}>", 0)
-        verdict: JsonObject = pending.result(
-            daemon.cfg.rig.safety.startup_timeout_s + 5.0)
+        verdict = between.start(plan)
         if not verdict["ok"]:
             raise CommissionRefused(f"{plan.name}: the rig refused the plan: "
                                     f"{verdict['error']}")
