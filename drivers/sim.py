@@ -186,11 +186,8 @@ class SimDriver(Driver):
             for index, value in self._safe_outputs.items():
                 self.write(index, value)
             self._step_plants(dt_s - wd)
-        else:  # `_step_plants(dt_s)`, inlined (every tick)
-            for plant in self._plants:
-                plant.advance(dt_s)
-            if self.supply_line is not None and dt_s > 0.0:
-                self.supply_line.step(dt_s)
+        else:
+            self._step_plants(dt_s)
         self._steps += 1
         self._t_s += dt_s
         chain = self.chain

@@ -88,12 +88,14 @@ class SensorFaults:
         stamped with when its device took the sample (its age is 0 for a sensor
         sampled at every step without latency), or on a bursty link with its arrival
         and a jitter (0 otherwise)."""
+        for k, plant in enumerate(plants):
+            i = 3 * k
+            jitters[i] = plant.pressure_jitter_s
+            jitters[i + 1] = plant.force_jitter_s
+            jitters[i + 2] = plant.length_jitter_s
         if not self.any:
             i = 0
             for k, plant in enumerate(plants):
-                jitters[i] = plant.pressure_jitter_s
-                jitters[i + 1] = plant.force_jitter_s
-                jitters[i + 2] = plant.length_jitter_s
                 values[i] = plant.pressure_read_bar
                 values[i + 1] = plant.force_read_n
                 values[i + 2] = plant.length_read_mm - zero_mm[k]
@@ -106,9 +108,6 @@ class SensorFaults:
         gauss = self._rng.gauss
         i = 0
         for k, plant in enumerate(plants):
-            jitters[i] = plant.pressure_jitter_s
-            jitters[i + 1] = plant.force_jitter_s
-            jitters[i + 2] = plant.length_jitter_s
             readings = (plant.pressure_read_bar, plant.force_read_n,
                         plant.length_read_mm - zero_mm[k])
             ages = (plant.pressure_age_s, plant.force_age_s, plant.length_age_s)

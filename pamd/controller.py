@@ -193,7 +193,7 @@ class RigController:
                 self.sink.event(now, "implausible", finding_event(m))
             if m.limit_report is not None:  # rare path: a profile held at a soft limit
                 self.sink.event(now, "soft_limit", soft_limit_event(m))
-            if m.adaptation.report is not None:  # rare path: the model's adaptation froze
+            if m.adapt_report is not None:  # rare path: the model's adaptation froze
                 self.sink.event(now, "adapt", m.take_adapt_report() or {})
             if reason is not None and fault is None:
                 fault = reason

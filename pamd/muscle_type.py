@@ -71,10 +71,6 @@ class ForceMap:
              for r in reader]
         )
 
-    def curve_force_n(self, level: int, contraction: float) -> float:
-        """The force on pressure curve `level` at `contraction`."""
-        return _on_curve(self._curves[level], contraction)
-
     def force_n(self, pressure_bar: float, contraction: float) -> float:
         ps = self.pressures_bar
         i = bisect_right(ps, pressure_bar) - 1
