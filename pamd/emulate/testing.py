@@ -9,6 +9,7 @@ import asyncio
 import contextlib
 import json
 import os
+import random
 import signal
 import socket
 import subprocess
@@ -28,10 +29,44 @@ RIG_EMULATED = REPO / "config" / "rig-emulated.yaml"
 _T = TypeVar("_T")
 
 
+#: Where Linux takes the local port of every outgoing connection (and of bind(0)).
+EPHEMERAL_RANGE_FILE = Path("/proc/sys/net/ipv4/ip_local_port_range")
+#: Ports pamd itself defaults to (socketcand's), never handed out.
+DEFAULT_PORTS = frozenset({29536})
+_handed_out: set[int] = set()
+_pick = random.Random()  # seeded from the OS: the suite's workers pick apart
+
+
+def _ports_below_ephemeral() -> range:
+    try:
+        low = int(EPHEMERAL_RANGE_FILE.read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return range(0)  # not Linux: bind(0) below
+    return range(max(1024, low - 12000), low)
+
+
 def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    """A loopback TCP port that nothing holds now, for a server started next, and not
+    handed out before in this process. Chosen below the kernel's ephemeral range: a port
+    from bind(0) comes from that range, where every outgoing connection on the machine
+    (a test's Zenoh clients, its daemons' links) takes its own local port, and one such
+    connect between this check and the server's bind made a Modbus emulator fail to
+    listen on a busy machine."""
+    ports = _ports_below_ephemeral()
+    for _ in range(1000):
+        port = _pick.choice(ports) if ports else 0
+        if port in _handed_out or port in DEFAULT_PORTS:
+            continue
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue  # held: another
+            port = int(s.getsockname()[1])
+        if port not in _handed_out:
+            _handed_out.add(port)
+            return port
+    raise RuntimeError("no free loopback TCP port found in 1000 tries")
 
 
 def wait_until(pred: Callable[[], object], timeout_s: float = 10.0, step_s: float = 0.01) -> bool:
@@ -78,14 +113,7 @@ def emulated_dict(tmp: Path, port: int, can: str | None = None, links: str = "so
     if links not in ("socket", "pty"):
         raise ValueError(f"links is 'socket' or 'pty', not {links!r}")
     can = can or ("socketcand" if links == "socket" else "serial")
-    taken = {port}
-
-    def another_port() -> int:  # free, and not one handed out already
-        while (p := free_port()) in taken:
-            pass
-        taken.add(p)
-        return p
-
+    _handed_out.add(port)  # the Modbus module's: the other links get others
     d: JsonObject = yaml.safe_load(RIG_EMULATED.read_text())  # the YAML file's mapping
     d["loop"]["realtime"] = {"enabled": False}
     d["telemetry"] = {"enabled": False}  # tests and benches keep off the default port
@@ -98,13 +126,13 @@ def emulated_dict(tmp: Path, port: int, can: str | None = None, links: str = "so
             o.pop("port", None)
             o.update(transport="rtu", serial_port=str(tmp / "rtu"))
         elif drv["type"] == "modbus":
-            o["port"] = another_port()
+            o["port"] = free_port()
         elif drv["type"] == "canopen-encoder":
             o.pop("host", None)
             o.pop("port", None)
             o["interface"] = can
             if can == "socketcand":
-                o.update(host="127.0.0.1", port=another_port(), channel="can0")
+                o.update(host="127.0.0.1", port=free_port(), channel="can0")
             else:
                 o["channel"] = str(tmp / "can") if can == "serial" else f"pamd-test-{port}"
     for k, v in changes.items():

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 import yaml
 
+from pamd.emulate.testing import free_port
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.anfis.serialize import to_dict
 from pamd.models.contract import Variable
@@ -38,12 +39,6 @@ def anfis(n_mfs: tuple[int, int]) -> AnfisModel:
                       scaling="minmax", scale_offset=[0.0, 140.0], scale_span=[600.0, 65.0],
                       centres=[np.linspace(0.0, 1.0, n) for n in n_mfs],
                       widths=[np.full(n, 0.5 / n) for n in n_mfs], consequents=cons)
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class Daemon:

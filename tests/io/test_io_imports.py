@@ -14,11 +14,11 @@ from __future__ import annotations
 import json
 import os
 import re
-import socket
 import subprocess
 import sys
 from pathlib import Path
 
+from pamd.emulate.testing import free_port
 from pamd.io.process import MODULES_ENV
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -50,12 +50,6 @@ def console_script(tmp: Path) -> Path:
                     "    sys.argv[0] = re.sub(r'(-script\\.pyw|\\.exe)?$', '', sys.argv[0])\n"
                     f"    sys.exit({attr}())\n")
     return path
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def io_modules(tmp: Path, *extra: str) -> list[str]:

@@ -21,6 +21,8 @@ from typing import Any
 import pytest
 import yaml
 
+from pamd.emulate.testing import free_port
+
 REPO = Path(__file__).resolve().parents[2]
 SIM_YAML = REPO / "config" / "sim.yaml"
 AGENT = Path(__file__).with_name("agent.py")
@@ -30,12 +32,6 @@ ROBUST: dict[str, Any] = {  # real clock, nothing a busy test machine can trip
              "realtime": {"enabled": False}},
     "safety": {"signal_timeout_s": 0.5, "startup_timeout_s": 3.0, "tracking_time_s": 5.0},
 }
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:

@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import textwrap
@@ -18,15 +17,10 @@ from pathlib import Path
 from mcap.reader import make_reader
 
 from pamd.cli.main import build_parser
+from pamd.emulate.testing import free_port
 from pamd.service.restart import run_argv
 
 from .conftest import NotifySocket, sim_dict, wait_until, write_yaml
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def _zombie_children(pid: int) -> list[int]:
@@ -48,7 +42,7 @@ def _pamd(*args: str) -> subprocess.CompletedProcess[str]:
 
 def test_new_driver_config_waits_for_idle_then_restarts_in_place(
         tmp_path: Path, notify: NotifySocket, pamd_run) -> None:
-    port = _free_port()
+    port = free_port()
     where = f"tcp/127.0.0.1:{port}"
     telemetry = {"enabled": True, "listen": where}
     first = sim_dict(telemetry=telemetry)
