@@ -4,6 +4,8 @@ Inputs x(t-18), x(t-12), x(t-6), x(t); output x(t+6); t = 118..1117 (1000 pairs)
 first 500 train, last 500 check; 2 Gaussian MFs per input (16 rules); 500 epochs.
 Goal: check RMSE <= 0.0025 with <= 2 s of training (Jang 1993 reports 0.0016 on his
 series, with generalized bell MFs: 104 parameters; pamd's Gaussian MFs have 96).
+The check is one stretch of one chaotic trajectory: bench/anfis_mackey_glass_family.py
+measures the same defaults over 20 other trajectories of the reference's integrator.
 
 The reported figure is the first: the library's defaults (`TrainingOptions()`, chosen
 by bench/anfis_jang.py --select on held-out TRAINING data), start and epoch kept on

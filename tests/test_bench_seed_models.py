@@ -4,9 +4,7 @@ seed 002's ANFIS figures are the README's (deterministic: no clock, no load)."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
@@ -16,21 +14,13 @@ from pamd.errors import ModelError
 from pamd.models.anfis.samples import ExtractOptions, Samples
 from pamd.models.anfis.splitting import split
 from pamd.view.tables import load_samples
+from tests.benchmod import bench_module
 
-BENCH = Path(__file__).resolve().parents[1] / "bench"
 DATA = Path(pamd.__file__).parent / "data"
 
 
-def bench(name: str) -> ModuleType:
-    sys.path.insert(0, str(BENCH))
-    try:
-        return __import__(name)
-    finally:
-        sys.path.remove(str(BENCH))
-
-
 def test_seed_002_anfis_layouts_are_the_papers_eight() -> None:
-    s = bench("seed002")
+    s = bench_module("seed002")
     layouts = s.anfis_models()
     assert list(layouts) == [f"anfis {n}" for n in range(1, 9)]
     assert [s.anfis_layout(k) for k in ("anfis 1", "anfis 4", "anfis 5", "anfis 8")] == [
@@ -41,7 +31,7 @@ def test_seed_002_anfis_layouts_are_the_papers_eight() -> None:
 
 
 def test_the_map_is_read_at_half_percent_steps_within_each_curve() -> None:
-    s = bench("seed002")
+    s = bench_module("seed002")
     raw = load_samples([str(DATA / s.MAPS["DMSP-20"])], s.OPTS, report=lambda _l: None)
     dense = s.resampled(raw)
     assert len(dense) == 413
@@ -60,7 +50,7 @@ def test_the_map_is_read_at_half_percent_steps_within_each_curve() -> None:
 def test_seed_002_anfis_figures_as_the_readme_reports() -> None:
     """Constant consequents interpolate a held-out curve; linear ones do not (the
     README says why), and the paper's random split hides it."""
-    s = bench("seed002")
+    s = bench_module("seed002")
     raw = load_samples([str(DATA / s.MAPS["DMSP-20"])], s.OPTS, report=lambda _l: None)
     dense = s.resampled(raw)
     layouts = s.anfis_models()
@@ -80,7 +70,7 @@ def test_seed_002_anfis_figures_as_the_readme_reports() -> None:
 
 
 def test_seed_001_ann_baseline_is_pamds_levenberg_marquardt_mlp() -> None:
-    s = bench("seed001")
+    s = bench_module("seed001")
     rng = np.random.default_rng(1)
     n = 1500
     X = np.column_stack([rng.uniform(100, 900, n), rng.uniform(200, 260, n),

@@ -6,26 +6,17 @@ defaults or of the training shows here."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 from types import ModuleType
 
 import pytest
 
 from pamd.models.anfis import TrainingOptions, fit
 from pamd.models.anfis.training import WIDTH_STARTS
-
-BENCH = Path(__file__).resolve().parents[2] / "bench"
+from tests.benchmod import bench_module
 
 
 def bench() -> ModuleType:
-    sys.path.insert(0, str(BENCH))
-    try:
-        import anfis_jang  # type: ignore[import-not-found]
-    finally:
-        sys.path.remove(str(BENCH))
-    mod: ModuleType = anfis_jang
-    return mod
+    return bench_module("anfis_jang")
 
 
 def test_sinc_with_the_library_defaults() -> None:

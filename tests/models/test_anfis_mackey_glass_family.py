@@ -1,0 +1,63 @@
+"""bench/anfis_mackey_glass_family.py: the library's defaults on Mackey-Glass trajectories
+other than the reference, and the integrator that made the reference. The figures are
+deterministic (no random choice in `fit` without a validation fraction); these tests
+guard the ones the README reports."""
+
+from __future__ import annotations
+
+import math
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from tests.benchmod import bench_module
+
+
+def bench() -> ModuleType:
+    return bench_module("anfis_mackey_glass_family")
+
+
+def test_the_generator_is_the_reference_files_integrator() -> None:
+    """RK4, dt 0.1, the delayed term at half steps the mean of its neighbours: the
+    reference file to its printed digits. Holding the delayed term instead handles the
+    jump at t = 17 otherwise, and by the check's stretch the trajectory is another."""
+    b = bench()
+    ref = b.load_series(b.REFERENCE_CSV)
+    assert ref.size == 1201
+    assert np.abs(b.series()[: ref.size] - ref).max() < 1e-9
+    hold = b.series(1.2, 0.1, "hold")
+    assert np.abs(hold[:118] - ref[:118]).max() < 0.02  # the same start ...
+    assert np.abs(hold - ref)[618:1124].max() > 0.3  # ... not the same check stretch
+    assert 1.2 not in b.FAMILY_X0 and len(b.FAMILY_X0) == 20
+    with pytest.raises(ValueError, match="delayed must be one of"):
+        b.series(1.2, 0.1, "linear")
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1800)  # 21 Mackey-Glass fits of 500 epochs
+def test_the_family_with_the_library_defaults() -> None:
+    """Over 20 other trajectories the defaults' check RMSE has median 0.00224 and 13
+    of 20 at or below the goal of 0.0025; the reference's 0.00253 is above 13 of them,
+    and 39 % of its squared error lies in 10 points of two episodes."""
+    b = bench()
+    got = np.array([c for _, c in b.family(jobs=2).values()])
+    assert np.median(got) == pytest.approx(0.00224, abs=5e-5)
+    assert int((got <= b.GOAL).sum()) == 13
+    _, e = b.check_errors(b.load_series(b.REFERENCE_CSV))
+    ref = math.sqrt(float(e @ e) / e.size)
+    assert ref == pytest.approx(0.00253, abs=5e-5) and int((got < ref).sum()) == 13
+    worst = np.sort(e**2)[-10:]
+    assert worst.sum() / (e @ e) == pytest.approx(0.39, abs=0.02)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_another_integration_of_the_same_start() -> None:
+    """The reference's x(0) = 1.2 with the delayed term held over the step: check RMSE
+    0.00142 with the same defaults (training 0.00136): a check error as low as the
+    training error, as in Jang's report, where the reference's is twice it."""
+    b = bench()
+    train, check = b.check_rmse(b.series(1.2, 0.1, "hold"))
+    assert check == pytest.approx(0.00142, abs=5e-5)
+    assert train == pytest.approx(0.00136, abs=5e-5)
