@@ -25,6 +25,7 @@ from pamd.tune.run import (
     LOOPS,
     LoopPlan,
     TuneRefused,
+    check_actuation,
     parse_levels,
     run_identification,
     with_levels,
@@ -55,6 +56,10 @@ switches the regulator setpoint between level +/- --relay-bar (default 0.2, at m
 bar hysteresis), 8 cycles. The ultimate gain and period give the FOPDT model; the
 gains follow as below. An oscillation that does not establish (no crossing within
 2 s) stops the run. About 1.5 s of rig time per level.
+
+A muscle on on/off valves (actuation: onoff) has no regulator to identify: the
+pressure and position loops are refused on it before anything moves (name the
+regulator muscles of a mixed rig with --muscle).
 
 The rig must be free: while another daemon (pamd run, the service, a collection,
 another tune) drives it, tune is refused naming that process (exit 8).
@@ -133,6 +138,7 @@ def run(args: argparse.Namespace) -> int:
     levels = parse_levels(args.levels, TuneRefused, "1.5,3,4.5")
     lp = with_levels(LOOPS[args.loop], levels, args.step_bar)
     muscles = args.muscle or [m.name for m in cfg.rig.muscles]
+    check_actuation(cfg, muscles, lp.loop)  # before anything moves
     out = args.out or os.path.join("runs", f"tune-{lp.loop}-{time.strftime('%Y%m%d-%H%M%S')}")
     if args.method == "relay" and lp.loop != "pressure":
         raise TuneRefused("--method relay identifies the pressure loop; the position "

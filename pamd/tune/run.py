@@ -128,6 +128,26 @@ def safety_overrides(cfg: LoadedConfig) -> JsonObject:
     return {"safe_slew_bar_per_s": min(slews)}
 
 
+def check_actuation(cfg: LoadedConfig, muscles: list[str], loop: str) -> None:
+    """Refuse (TuneRefused, with the reason and what to do) before anything moves: the
+    pressure and position loops are identified through a proportional regulator; a
+    muscle on on/off valves has its own settings (`muscles[].onoff`)."""
+    onoff = [m.name for m in cfg.rig.muscles if m.name in muscles and m.actuation == "onoff"]
+    if not onoff:
+        return
+    regulators = [m.name for m in cfg.rig.muscles if m.actuation != "onoff"]
+    which = ", ".join(onoff)
+    also = (f" To tune the {loop} loop of the regulator muscles only, name them: "
+            + " ".join(f"--muscle {m}" for m in regulators) + "." if regulators else "")
+    raise TuneRefused(
+        f"{which} {'is' if len(onoff) == 1 else 'are'} on on/off valves (actuation: onoff): "
+        f"the {loop} loop pamd tune identifies is a proportional regulator's, and on/off "
+        "valves have their own settings (muscles[].onoff: the valves' fill and vent "
+        "rates, the dead band, the sliding mode's). pamd tune does not drive on/off "
+        f"valves yet: derive those with python bench/tune_onoff.py --config RIG.{also} "
+        "Nothing was moved.")
+
+
 def check_limits(cfg: LoadedConfig, muscle: str, lp: LoopPlan) -> None:
     """Refuse (TuneRefused, with the reason) steps outside the muscle's safe range:
     above its pressure limit, below its safe pressure, or larger than allowed."""
