@@ -143,9 +143,8 @@ def check_actuation(cfg: LoadedConfig, muscles: list[str], loop: str) -> None:
         f"{which} {'is' if len(onoff) == 1 else 'are'} on on/off valves (actuation: onoff): "
         f"the {loop} loop pamd tune identifies is a proportional regulator's, and on/off "
         "valves have their own settings (muscles[].onoff: the valves' fill and vent "
-        "rates, the dead band, the sliding mode's). pamd tune does not drive on/off "
-        f"valves yet: derive those with python bench/tune_onoff.py --config RIG.{also} "
-        "Nothing was moved.")
+        "rates, the dead band, the sliding mode's): tune them with pamd tune --loop onoff "
+        f"(the same --config).{also} Nothing was moved.")
 
 
 def check_limits(cfg: LoadedConfig, muscle: str, lp: LoopPlan) -> None:

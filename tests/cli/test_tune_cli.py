@@ -176,7 +176,8 @@ def test_on_off_valves_are_refused_before_anything_moves(tmp_path: Path, pamd_he
                   str(tmp_path / "run"), "--save", *args, cwd=tmp_path)
     assert r.returncode == 2, r.stderr
     assert "m1 is on on/off valves (actuation: onoff)" in r.stderr
-    assert "bench/tune_onoff.py" in r.stderr and "Nothing was moved" in r.stderr
+    assert "tune them with pamd tune --loop onoff" in r.stderr
+    assert "Nothing was moved" in r.stderr
     assert ("--muscle m2" in r.stderr) == (config == "mixed")  # the way on, if any
     assert rig.read_text() == before
     assert not (tmp_path / "run").exists()  # nothing ran, nothing recorded
