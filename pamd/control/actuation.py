@@ -19,7 +19,7 @@ The law, each tick: the rate of pressure wanted is
     want = (e + integral) / response_s + command rate        (bar/s, e = command - p)
 
 and the duty is `want / fill_rate` (inflate) or `want / vent_rate` (exhaust): the
-rates a step test on the rig measures (bench/tune_onoff.py), never the simulator's
+rates a step test on the rig measures (pamd tune --loop onoff), never the simulator's
 parameters. `Pulser` turns the duty into a pulse at the start of each PWM period; a
 pulse the valves cannot pass (shorter than twice the opening delay) is not sent.
 

@@ -112,14 +112,6 @@ class StepTest:
     speed: tuple[PulseResponse, PulseResponse]
     count_mm: float  # the smallest length change seen
 
-    def describe(self) -> str:
-        r, s, v = self.rate, self.shortest, self.speed
-        return (f"40 ms pulses {r[0].pressure_step_bar:+.3f} / {r[1].pressure_step_bar:+.3f} "
-                f"bar; shortest pulse ({1e3 * s[0].pulse_s:.0f} ms) "
-                f"{s[0].pressure_step_bar:+.4f} / {s[1].pressure_step_bar:+.4f} bar; valve "
-                f"speeds {v[0].speed_mm_s:.1f} / {v[1].speed_mm_s:.1f} mm/s (inflate / "
-                f"exhaust); encoder count {self.count_mm:g} mm")
-
 
 def settings(fill_step_bar: float, vent_step_bar: float, fill_min_bar: float,
              vent_min_bar: float, fill_speed_mm_s: float, vent_speed_mm_s: float,
