@@ -22,8 +22,8 @@ Tick path: float arithmetic only, the outcomes are constant strings.
 from __future__ import annotations
 
 from pamd.control.onoff import EXHAUST, HOLD, INFLATE
+from pamd.control.relay import DONE, TickTest
 
-DONE = "done"
 MOVED = "the command moved (a setpoint, a stop or a safe state's ramp)"
 TAKEN = "a safe state, a vent or mode position took the valves"
 UNTRUSTED = "the pressure is not trusted (or the air is cut)"
@@ -31,12 +31,12 @@ AT_LIMIT = "the pressure reached the pressure limit: the inflate valve shut"
 AT_SAFE = "the pressure reached the safe pressure: the exhaust valve shut"
 
 
-class ValvePulse:
-    """One timed valve pulse; inactive until `start`."""
+class ValvePulse(TickTest):
+    """One timed valve pulse; inactive until `start`. `stop` shuts both valves this
+    tick (the PWM takes them again)."""
 
     def __init__(self) -> None:
-        self.active = False
-        self.outcome = ""  # "" while it runs, DONE, or why it stopped
+        super().__init__()
         self.valve = HOLD
         self.pulse_s = self.rest_s = self.after_s = 0.0
         self.low_bar = self.high_bar = 0.0
@@ -51,14 +51,7 @@ class ValvePulse:
         self.low_bar, self.high_bar = low_bar, high_bar
         self.elapsed_s = 0.0
         self.command_bar = float("nan")
-        self.outcome = ""
-        self.active = True
-
-    def stop(self, why: str) -> None:
-        """End the pulse (`why` becomes its outcome): both valves shut this tick."""
-        if self.active:
-            self.active = False
-            self.outcome = why
+        self.begin()
 
     def step(self, command_bar: float, pressure_bar: float, dt_s: float) -> int:
         """The valves' state this tick (INFLATE, EXHAUST or HOLD) while active."""

@@ -24,6 +24,7 @@ from pamd.commands.pending import PendingCommand
 from pamd.commands.tune import PulseArgs
 from pamd.config import LoadedConfig, load_config
 from pamd.control.actuation import OnOffActuation, min_pulse_s
+from pamd.control.relay import DONE
 from pamd.daemon import Daemon
 from pamd.declare.jsonsafe import JsonObject
 from pamd.io.session import RecordingRequest
@@ -42,7 +43,7 @@ from pamd.tune.onoff import (
     response,
     smallest_change_mm,
 )
-from pamd.tune.run import TuneRefused
+from pamd.tune.run import TuneRefused, start
 from pamd.verbs.schema import Command, SetpointArgs
 from pamd.view.recording import open_recording
 
@@ -171,11 +172,7 @@ def run_onoff(config_path: str | None, clock: str | None, muscle: str, out_dir: 
     session.expect(first)
     daemon.mailbox.put(Command("setpoint", SetpointArgs(muscle=muscle, bar=level_bar),
                                first.set))
-    try:
-        daemon.start()  # RigBusy while another daemon drives this rig
-    except BaseException:
-        daemon.close()
-        raise
+    start(daemon)  # RigBusy while another daemon drives this rig
     sent: list[tuple[Pulse, float]] = []
     patience = cfg.rig.safety.startup_timeout_s + 5.0
     try:
@@ -190,7 +187,7 @@ def run_onoff(config_path: str | None, clock: str | None, muscle: str, out_dir: 
             sent.append((pulse, _pulse(session, muscle, pulse, shortest, progress)))
             session.wait(lambda: not session.act.pulse.active, patience)
             outcome = session.act.pulse.outcome
-            if outcome != "done":
+            if outcome != DONE:
                 raise TuneRefused(f"the {pulse.valve} pulse stopped: {outcome}")
     except TuneRefused as exc:
         raise TuneRefused(f"{muscle}: {exc}; the present settings are kept; the recording "

@@ -212,11 +212,7 @@ def _run_plan(cfg: LoadedConfig, plan: Plan, plan_file: str, lines: list[StepLin
         dir=out_dir, run_name=plan.name, segments=step_records(plan, lines),
         profile={"plan": plan.name, "plan_file": os.path.abspath(plan_file)}))
     pending = daemon.start_plan(plan, plan_file, 0)
-    try:
-        daemon.start()  # RigBusy while another daemon drives this rig
-    except BaseException:
-        daemon.close()
-        raise
+    start(daemon)
     outcome = "not started"
     try:
         verdict = pending.result(cfg.rig.safety.startup_timeout_s + 5.0)
@@ -232,6 +228,16 @@ def _run_plan(cfg: LoadedConfig, plan: Plan, plan_file: str, lines: list[StepLin
         why = outcome if not fault or fault in outcome else f"{outcome}: {fault}"
         raise TuneRefused(f"the tuning run stopped ({why}); "
                           f"the present gains are kept; its recording is in {out_dir}")
+
+
+def start(daemon: Daemon) -> None:
+    """Start a tuning run's daemon (RigBusy while another daemon drives this rig),
+    closed again if it does not start."""
+    try:
+        daemon.start()
+    except BaseException:
+        daemon.close()
+        raise
 
 
 def _follow(daemon: Daemon, plan: Plan, progress: Callable[[str], None] | None) -> str:

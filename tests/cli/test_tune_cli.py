@@ -140,6 +140,15 @@ def test_help_teaches(pamd_here: Any) -> None:
         assert words in r.stdout
 
 
+def rig_copy(tmp_path: Path, name: str) -> Path:
+    """config/<name>.yaml copied into `tmp_path`, or for "mixed" `mixed_rig`."""
+    if name == "mixed":
+        return mixed_rig(tmp_path)
+    path = tmp_path / f"{name}.yaml"
+    path.write_text((REPO / "config" / f"{name}.yaml").read_text())
+    return path
+
+
 def mixed_rig(tmp_path: Path) -> Path:
     """config/sim-onoff.yaml's on/off muscle m1 beside config/sim.yaml's regulator
     muscle as m2 (with sim.yaml's control section)."""
@@ -166,11 +175,7 @@ def test_on_off_valves_are_refused_before_anything_moves(tmp_path: Path, pamd_he
     """The pressure and position loops are a regulator's: on an on/off muscle the run
     is refused at once, saying what tunes on/off valves, not after the whole plan with
     a fit that failed."""
-    if config == "mixed":
-        rig = mixed_rig(tmp_path)
-    else:
-        rig = tmp_path / "sim-onoff.yaml"
-        rig.write_text((REPO / "config" / "sim-onoff.yaml").read_text())
+    rig = rig_copy(tmp_path, config)
     before = rig.read_text()
     r = pamd_here("tune", "--clock", "virtual", "--config", str(rig), "--out",
                   str(tmp_path / "run"), "--save", *args, cwd=tmp_path)

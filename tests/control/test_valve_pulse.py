@@ -11,7 +11,8 @@ import pytest
 
 from pamd.commands.tune import PulseArgs
 from pamd.control.actuation import OnOffActuation
-from pamd.control.valve_pulse import AT_LIMIT, DONE, MOVED
+from pamd.control.relay import DONE
+from pamd.control.valve_pulse import AT_LIMIT, MOVED
 from pamd.declare.jsonsafe import JsonObject
 from pamd.harness import Harness
 from pamd.tick import Flag

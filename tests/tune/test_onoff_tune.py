@@ -20,7 +20,7 @@ from pamd.tune.onoff import derived_settings
 from pamd.tune.onoff_run import run_onoff
 from pamd.tune.run import TuneRefused
 from tests.benchmod import bench_module
-from tests.cli.test_tune_cli import mixed_rig
+from tests.cli.test_tune_cli import rig_copy
 
 REPO = Path(__file__).resolve().parents[2]
 ONOFF = REPO / "config" / "sim-onoff.yaml"
@@ -108,11 +108,7 @@ def test_a_pulse_that_moves_nothing_is_refused(tmp_path: Path) -> None:
 ])
 def test_runs_not_for_on_off_valves_are_refused(tmp_path: Path, pamd_here: Any, config: str,
                                                 args: tuple[str, ...], said: str) -> None:
-    if config == "mixed":
-        rig = mixed_rig(tmp_path)
-    else:
-        rig = tmp_path / "sim.yaml"
-        rig.write_text((REPO / "config" / "sim.yaml").read_text())
+    rig = rig_copy(tmp_path, config)
     before = rig.read_text()
     r = pamd_here("tune", "--clock", "virtual", "--loop", "onoff", "--config", str(rig),
                   "--out", str(tmp_path / "run"), "--save", *args, cwd=tmp_path)
