@@ -8,9 +8,11 @@ import os
 import sys
 import time
 
-from pamd.config import load_config
+from pamd.config import LoadedConfig, load_config
 from pamd.config.loader import builtin_config_path
 from pamd.control.tuning import Fopdt, IdentificationError
+from pamd.tune.onoff import LEVEL_BAR, derived_settings, print_settings, print_test
+from pamd.tune.onoff_run import check_onoff, run_onoff
 from pamd.tune.placement import place
 from pamd.tune.relay import MAX_RELAY_BAR, mean_relay_model, print_relay, run_relay
 from pamd.tune.report import (
@@ -25,12 +27,14 @@ from pamd.tune.run import (
     LOOPS,
     LoopPlan,
     TuneRefused,
+    check_actuation,
     parse_levels,
     run_identification,
     with_levels,
 )
 from pamd.tune.save import save_values
 from pamd.tune.steps import Step, check_model, fit_all, mean_model
+from pamd.tune.yamledit import KeyPath
 
 DESCRIPTION = """\
 Identify a control loop on the rig and derive its gains, like Klipper's PID_CALIBRATE.
@@ -55,6 +59,20 @@ switches the regulator setpoint between level +/- --relay-bar (default 0.2, at m
 bar hysteresis), 8 cycles. The ultimate gain and period give the FOPDT model; the
 gains follow as below. An oscillation that does not establish (no crossing within
 2 s) stops the run. About 1.5 s of rig time per level.
+
+--loop onoff (muscles on on/off valves, actuation: onoff; default: every such
+muscle): the step test bench/tune_onoff.py describes, through the daemon and
+recorded. The setpoint goes to 3 bar (--levels: another one) with the PWM's dead band
+opened to 1 bar, held 2 s; then one timed pulse of each valve at a time, inflate then
+exhaust: 40 ms (the fill and vent rates), the PWM's shortest (the dead band, the
+encoder's count), 300 ms (the valve speeds: the sliding mode's boundary layer and
+lambda). About 5 s of rig time per muscle. It prints each pulse's pressure and length
+step and fastest length change, and the settings beside the present ones; --save
+writes them into muscles[].onoff. A pulse that moves no pressure (or the wrong way),
+300 ms pulses that move no length, a fault or a moved setpoint stop it (exit 2).
+The pressure and position loops are a regulator's: on a muscle on on/off valves they
+are refused before anything moves (name the regulator muscles of a mixed rig with
+--muscle).
 
 The rig must be free: while another daemon (pamd run, the service, a collection,
 another tune) drives it, tune is refused naming that process (exit 8).
@@ -89,10 +107,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "  pamd tune --clock virtual                   # the built-in simulated rig\n"
         "  pamd tune --config rig.yaml --muscle m1 --plot tune.png\n"
         "  pamd tune --config rig.yaml --save          # then: --loop position --save\n"
-        "  pamd tune --config rig.yaml --method relay  # relay feedback instead of steps")
+        "  pamd tune --config rig.yaml --method relay  # relay feedback instead of steps\n"
+        "  pamd tune --config onoff.yaml --loop onoff --save  # on/off valves' settings")
     p.add_argument("--config", metavar="RIG", help="rig config (default: built-in sim)")
-    p.add_argument("--loop", choices=tuple(LOOPS), default="pressure",
-                   help="which loop to identify (default: pressure)")
+    p.add_argument("--loop", choices=(*LOOPS, "onoff"), default="pressure",
+                   help="which loop to identify (default: pressure); onoff: the step test "
+                   "of on/off valves and their settings (muscles[].onoff)")
     p.add_argument("--muscle", action="append", metavar="NAME",
                    help="a muscle to identify (repeatable; default: all)")
     p.add_argument("--levels", metavar="BAR,BAR,...",
@@ -130,9 +150,12 @@ def run(args: argparse.Namespace) -> int:
                           "copy it first: pamd tune --config my-sim.yaml --save)")
     config_path = args.config or builtin_config_path()
     cfg = load_config(config_path)
+    if args.loop == "onoff":
+        return _onoff(args, cfg, config_path)
     levels = parse_levels(args.levels, TuneRefused, "1.5,3,4.5")
     lp = with_levels(LOOPS[args.loop], levels, args.step_bar)
     muscles = args.muscle or [m.name for m in cfg.rig.muscles]
+    check_actuation(cfg, muscles, lp.loop)  # before anything moves
     out = args.out or os.path.join("runs", f"tune-{lp.loop}-{time.strftime('%Y%m%d-%H%M%S')}")
     if args.method == "relay" and lp.loop != "pressure":
         raise TuneRefused("--method relay identifies the pressure loop; the position "
@@ -197,6 +220,46 @@ def _relay(args: argparse.Namespace, config_path: str, lp: LoopPlan, muscles: li
         print_relay(f"{muscle}: pressure loop by relay feedback (+/- {args.relay_bar:g} bar)",
                     runs, models[muscle])
     return models
+
+
+def _onoff(args: argparse.Namespace, cfg: LoadedConfig, config_path: str) -> int:
+    """The on/off step test of each muscle (--muscle, default every on/off muscle), its
+    measurements and settings printed; --save writes them into muscles[].onoff."""
+    for flag, given in (("--method relay", args.method == "relay"),
+                        ("--step-bar", args.step_bar is not None), ("--plot", bool(args.plot)),
+                        ("--per-muscle", args.per_muscle)):
+        if given:
+            raise TuneRefused(f"{flag} goes with the pressure and position loops; --loop onoff "
+                              "runs the on/off valves' step test (its settings are each "
+                              "muscle's own, muscles[].onoff)")
+    levels = parse_levels(args.levels, TuneRefused, "3")
+    if levels is not None and len(levels) != 1:
+        raise TuneRefused("--loop onoff runs its step test at one level: give one, e.g. "
+                          "--levels 3")
+    level = levels[0] if levels else LEVEL_BAR
+    muscles = args.muscle or [m.name for m in cfg.rig.muscles if m.actuation == "onoff"]
+    if not muscles:
+        raise TuneRefused("no muscle of this rig is on on/off valves (actuation: onoff): "
+                          "--loop onoff tunes those; tune a regulator with --loop pressure, "
+                          "then --loop position")
+    for muscle in muscles:  # all of them before anything opens
+        check_onoff(cfg, muscle, level)
+    out = args.out or os.path.join("runs", f"tune-onoff-{time.strftime('%Y%m%d-%H%M%S')}")
+    values: dict[KeyPath, float] = {}
+    for muscle in muscles:
+        test = run_onoff(config_path, args.clock, muscle, os.path.join(out, muscle), level,
+                         _progress)
+        present = cfg.muscle(muscle).onoff
+        new = derived_settings(test, present.pwm_period_s)
+        print_test(f"{muscle}: on/off step test at {level:g} bar, "
+                   f"{cfg.muscle(muscle).load_kg:g} kg", test)
+        print_settings(muscle, {k: float(getattr(present, k)) for k in new}, new)
+        values.update({("muscles", f"[{muscle}]", "onoff", k): v for k, v in new.items()})
+    print(f"recording: {out}")
+    if not args.save:
+        print("nothing written (--save writes the new settings into the config file)")
+        return 0
+    return save_values(config_path, values, what="on/off settings")
 
 
 def _progress(line: str) -> None:

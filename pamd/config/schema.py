@@ -143,7 +143,7 @@ class OnOffConfig:
                                     "closed (about 2-5 ms).", unit="s", min=0.0, max=0.5)
     fill_rate_bar_per_s: float = spec(
         4.64, "How fast the inflate valve, held open, fills the muscle at mid pressure (3 "
-        "bar): the PWM's gain, measured by a step test on the rig (bench/tune_onoff.py).",
+        "bar): the PWM's gain, measured by a step test on the rig (pamd tune --loop onoff).",
         unit="bar/s", gt=0.0)
     vent_rate_bar_per_s: float = spec(
         3.76, "How fast the exhaust valve, held open, vents the muscle at 3 bar (the same "
@@ -158,7 +158,7 @@ class OnOffConfig:
     position_lambda_per_s: float = spec(
         14.5, "Mode position (seed 004's sliding mode): the sliding surface s = lambda e + "
         "de/dt on the length error e; the error decays at this rate on the surface. From "
-        "the step test (bench/tune_onoff.py): the boundary / 3 mm.", unit="1/s", gt=0.0)
+        "the step test (pamd tune --loop onoff): the boundary / 3 mm.", unit="1/s", gt=0.0)
     position_boundary_mm_s: float = spec(
         43.4, "Mode position: the boundary layer |s| <= this, inside which the valves pulse "
         "with a duty s / boundary (against chattering); outside it one valve is open. The "

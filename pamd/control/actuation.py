@@ -19,7 +19,7 @@ The law, each tick: the rate of pressure wanted is
     want = (e + integral) / response_s + command rate        (bar/s, e = command - p)
 
 and the duty is `want / fill_rate` (inflate) or `want / vent_rate` (exhaust): the
-rates a step test on the rig measures (bench/tune_onoff.py), never the simulator's
+rates a step test on the rig measures (pamd tune --loop onoff), never the simulator's
 parameters. `Pulser` turns the duty into a pulse at the start of each PWM period; a
 pulse the valves cannot pass (shorter than twice the opening delay) is not sent.
 
@@ -40,6 +40,9 @@ pressure below it: on/off valves do not hold a pressure by themselves, so withou
 this floor the PI's wound-up integral vented a loaded muscle 0.35 bar under its
 safe pressure for a second after a fault (issue 23).
 
+`pamd tune --loop onoff` times single valve pulses through it (`pulse`, a
+`ValvePulse`): while one is active it holds the valves instead of the PWM.
+
 Each valve's switchings are counted (`inflate_switches`, `exhaust_switches`):
 valve wear is what on/off users watch. Tick path: float arithmetic and the drivers'
 non-blocking `write`, only on a change.
@@ -57,10 +60,12 @@ from typing import NamedTuple, Protocol
 
 from pamd.config.schema import MuscleConfig, OnOffConfig
 from pamd.control.onoff import EXHAUST, HOLD, INFLATE, Pulser, SlidingModePosition
+from pamd.control.valve_pulse import TAKEN, ValvePulse
 from pamd.rig import MuscleSignals, OutputBinding
 from pamd.tick import Flag
 
 F_EXHAUST = int(Flag.EXHAUST_OPEN)
+F_INFLATE = int(Flag.INFLATE_OPEN)
 
 
 class SafeOutput(NamedTuple):
@@ -87,7 +92,7 @@ class Actuation(Protocol):
         """Drive the outputs for this tick: `command_bar` is the limited command,
         `pressure_bar` the measured pressure, `vent` whether the tick asks to vent (the
         safe pressure is 0 and the command reached it). Returns the tick record's flag
-        bits it sets (EXHAUST_OPEN). Tick path: never blocks, allocates nothing."""
+        bits it sets (EXHAUST_OPEN, INFLATE_OPEN). Tick path: never blocks, allocates nothing."""
         ...
 
     def safe_outputs(self, safe_pressure_bar: float) -> list[SafeOutput]:
@@ -206,6 +211,7 @@ class OnOffActuation:
         self._p_ref = float("nan")
         self._fault: str | None = None
         self._floor_bar = -math.inf  # the safe state's floor, this tick (hold_floor)
+        self.pulse = ValvePulse()  # pamd tune --loop onoff's step test
 
     def set_config(self, cfg: OnOffConfig) -> None:
         """Gains from the config (also a reload's; the state stays)."""
@@ -220,6 +226,12 @@ class OnOffActuation:
     @property
     def switch_count(self) -> int:
         return self.inflate_switches + self.exhaust_switches
+
+    @property
+    def holding(self) -> bool:
+        """The PWM holds both valves at rest: the pressure within the dead band of a
+        steady command."""
+        return self._holding
 
     def switches(self) -> dict[str, int]:
         """Switchings per valve (the summary and the recording)."""
@@ -310,6 +322,15 @@ class OnOffActuation:
         self._positioning = False
         floor = self._floor_bar
         self._floor_bar = -math.inf
+        pulse = self.pulse
+        if pulse.active:
+            if floor > 0.0 or vent or positioning:
+                pulse.stop(TAKEN)
+            else:  # the step test holds the valves; then the PWM goes on from its own
+                self.pulser.reset()  # hold (within twice its dead band) or a new period
+                self._p_filtered = pressure_bar
+                self.duty = 0.0
+                return pulse.step(command_bar, pressure_bar, dt_s)
         if floor > 0.0:
             state = self._pwm(command_bar, pressure_bar, now_s, dt_s, prev)
             if pressure_bar <= floor + self.floor_margin_bar:
@@ -386,7 +407,7 @@ class OnOffActuation:
             self.exhaust.write_si(1.0 if exhaust else 0.0)
             self.exhaust_open = exhaust
             self.exhaust_switches += 1
-        return F_EXHAUST if exhaust else 0
+        return F_EXHAUST if exhaust else (F_INFLATE if inflate else 0)
 
     def safe_outputs(self, safe_pressure_bar: float) -> list[SafeOutput]:
         """Both closed holds the air in; at a safe pressure of 0 the exhaust vents."""

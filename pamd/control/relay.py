@@ -20,12 +20,32 @@ from __future__ import annotations
 DONE = "done"
 
 
-class Relay:
-    """The relay test of one muscle's pressure loop; inactive until `start`."""
+class TickTest:
+    """A test element of the tick (this relay, `pamd.control.valve_pulse`'s pulse):
+    inactive until started; `outcome` is "" while it runs, DONE, or why it stopped."""
 
     def __init__(self) -> None:
         self.active = False
-        self.outcome = ""  # "" while it runs, DONE, or why it stopped
+        self.outcome = ""
+
+    def begin(self) -> None:
+        """Armed: the next tick runs it."""
+        self.outcome = ""
+        self.active = True
+
+    def stop(self, why: str) -> None:
+        """End the test (`why` becomes its outcome): what it stood in for takes over
+        again this tick."""
+        if self.active:
+            self.active = False
+            self.outcome = why
+
+
+class Relay(TickTest):
+    """The relay test of one muscle's pressure loop; inactive until `start`."""
+
+    def __init__(self) -> None:
+        super().__init__()
         self.center_bar = self.amplitude_bar = self.hysteresis_bar = 0.0
         self.switch_bar = 0.0  # the level it switches on (measured, see settle_s)
         self.settle_s = 0.2
@@ -52,14 +72,7 @@ class Relay:
         self.relay_start_s = 0.0
         self._n = 0
         self.switch_bar = center_bar
-        self.outcome = ""
-        self.active = True
-
-    def stop(self, why: str) -> None:
-        """End the test (`why` becomes its outcome); the PID takes over again."""
-        if self.active:
-            self.active = False
-            self.outcome = why
+        self.begin()
 
     def step(self, pressure_bar: float, dt: float) -> float:
         """The regulator setpoint this tick."""

@@ -75,6 +75,7 @@ class Flag(IntFlag):
     NOT_REFERENCED = 1 << 7
     EXHAUST_OPEN = 1 << 8
     TRACKING = 1 << 9
+    INFLATE_OPEN = 1 << 10
 
 
 FLAG_MEANINGS: dict[Flag, str] = {
@@ -88,6 +89,7 @@ FLAG_MEANINGS: dict[Flag, str] = {
     Flag.NOT_REFERENCED: "length not referenced (home)",
     Flag.EXHAUST_OPEN: "exhaust valve open",
     Flag.TRACKING: "pressure outside the tracking band (timer running)",
+    Flag.INFLATE_OPEN: "inflate valve open (on/off valves)",
 }
 
 #: `adapt_state`'s codes (pamd.control.adapt.AdaptState holds the same values)

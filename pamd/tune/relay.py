@@ -35,7 +35,7 @@ from pamd.control.tuning import (
 )
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
-from pamd.tune.run import PRESSURE, TuneRefused, check_limits, tuning_config
+from pamd.tune.run import PRESSURE, TuneRefused, check_limits, start, tuning_config
 from pamd.verbs.schema import Command
 from pamd.view.recording import open_recording
 
@@ -112,11 +112,7 @@ def _one_level(cfg: LoadedConfig, muscle: str, level: float, amplitude_bar: floa
         muscle=muscle, center_bar=level, amplitude_bar=amplitude_bar,
         hysteresis_bar=HYSTERESIS_BAR, max_amplitude_bar=max_amplitude_bar, cycles=CYCLES,
         timeout_s=TIMEOUT_S, hold_s=REST_S), pending.set))
-    try:
-        daemon.start()  # RigBusy while another daemon drives this rig
-    except BaseException:
-        daemon.close()
-        raise
+    start(daemon)  # RigBusy while another daemon drives this rig
     relay = daemon.ctrl.by_name[muscle].pressure_loop.relay
     patience = cfg.rig.safety.startup_timeout_s + 5.0
     try:

@@ -128,6 +128,25 @@ def safety_overrides(cfg: LoadedConfig) -> JsonObject:
     return {"safe_slew_bar_per_s": min(slews)}
 
 
+def check_actuation(cfg: LoadedConfig, muscles: list[str], loop: str) -> None:
+    """Refuse (TuneRefused, with the reason and what to do) before anything moves: the
+    pressure and position loops are identified through a proportional regulator; a
+    muscle on on/off valves has its own settings (`muscles[].onoff`)."""
+    onoff = [m.name for m in cfg.rig.muscles if m.name in muscles and m.actuation == "onoff"]
+    if not onoff:
+        return
+    regulators = [m.name for m in cfg.rig.muscles if m.actuation != "onoff"]
+    which = ", ".join(onoff)
+    also = (f" To tune the {loop} loop of the regulator muscles only, name them: "
+            + " ".join(f"--muscle {m}" for m in regulators) + "." if regulators else "")
+    raise TuneRefused(
+        f"{which} {'is' if len(onoff) == 1 else 'are'} on on/off valves (actuation: onoff): "
+        f"the {loop} loop pamd tune identifies is a proportional regulator's, and on/off "
+        "valves have their own settings (muscles[].onoff: the valves' fill and vent "
+        "rates, the dead band, the sliding mode's): tune them with pamd tune --loop onoff "
+        f"(the same --config).{also} Nothing was moved.")
+
+
 def check_limits(cfg: LoadedConfig, muscle: str, lp: LoopPlan) -> None:
     """Refuse (TuneRefused, with the reason) steps outside the muscle's safe range:
     above its pressure limit, below its safe pressure, or larger than allowed."""
@@ -193,11 +212,7 @@ def _run_plan(cfg: LoadedConfig, plan: Plan, plan_file: str, lines: list[StepLin
         dir=out_dir, run_name=plan.name, segments=step_records(plan, lines),
         profile={"plan": plan.name, "plan_file": os.path.abspath(plan_file)}))
     pending = daemon.start_plan(plan, plan_file, 0)
-    try:
-        daemon.start()  # RigBusy while another daemon drives this rig
-    except BaseException:
-        daemon.close()
-        raise
+    start(daemon)
     outcome = "not started"
     try:
         verdict = pending.result(cfg.rig.safety.startup_timeout_s + 5.0)
@@ -213,6 +228,16 @@ def _run_plan(cfg: LoadedConfig, plan: Plan, plan_file: str, lines: list[StepLin
         why = outcome if not fault or fault in outcome else f"{outcome}: {fault}"
         raise TuneRefused(f"the tuning run stopped ({why}); "
                           f"the present gains are kept; its recording is in {out_dir}")
+
+
+def start(daemon: Daemon) -> None:
+    """Start a tuning run's daemon (RigBusy while another daemon drives this rig),
+    closed again if it does not start."""
+    try:
+        daemon.start()
+    except BaseException:
+        daemon.close()
+        raise
 
 
 def _follow(daemon: Daemon, plan: Plan, progress: Callable[[str], None] | None) -> str:

@@ -124,7 +124,7 @@ VERBS = VerbTable((
     VerbSpec("collect", CollectArgs, "run an experiment plan (by name, from "
              "telemetry.plans_dir)", main_thread=True),
 ))
-"""The verbs a client may send (internal ones, `reload` and `relay`, are declared with
+"""The verbs a client may send (internal ones, `reload`, `relay` and `pulse`, are declared with
 their handlers in `pamd.commands`)."""
 
 

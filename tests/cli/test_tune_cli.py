@@ -138,3 +138,61 @@ def test_help_teaches(pamd_here: Any) -> None:
     assert r.returncode == 0
     for words in ("What it does to the rig", "How long", "What it writes", "--save"):
         assert words in r.stdout
+
+
+def rig_copy(tmp_path: Path, name: str) -> Path:
+    """config/<name>.yaml copied into `tmp_path`, or for "mixed" `mixed_rig`."""
+    if name == "mixed":
+        return mixed_rig(tmp_path)
+    path = tmp_path / f"{name}.yaml"
+    path.write_text((REPO / "config" / f"{name}.yaml").read_text())
+    return path
+
+
+def mixed_rig(tmp_path: Path) -> Path:
+    """config/sim-onoff.yaml's on/off muscle m1 beside config/sim.yaml's regulator
+    muscle as m2 (with sim.yaml's control section)."""
+    d = yaml.safe_load((REPO / "config" / "sim-onoff.yaml").read_text())
+    s = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())
+    d["drivers"][0]["options"]["muscles"].append(
+        {**s["drivers"][0]["options"]["muscles"][0], "name": "m2"})
+    m2 = {**s["muscles"][0], "name": "m2"}
+    m2["signals"] = {k: {**v, "channel": v["channel"].replace("m1", "m2")}
+                     for k, v in m2["signals"].items()}
+    d["muscles"].append(m2)
+    d["control"] = s["control"]
+    path = tmp_path / "mixed.yaml"
+    path.write_text(yaml.safe_dump(d, sort_keys=False))
+    return path
+
+
+@pytest.mark.parametrize(("config", "args"), [
+    ("sim-onoff", ()), ("sim-onoff", ("--loop", "position")), ("mixed", ()),
+    ("mixed", ("--method", "relay")), ("mixed", ("--muscle", "m1"))])
+def test_on_off_valves_are_refused_before_anything_moves(tmp_path: Path, pamd_here: Any,
+                                                          config: str,
+                                                          args: tuple[str, ...]) -> None:
+    """The pressure and position loops are a regulator's: on an on/off muscle the run
+    is refused at once, saying what tunes on/off valves, not after the whole plan with
+    a fit that failed."""
+    rig = rig_copy(tmp_path, config)
+    before = rig.read_text()
+    r = pamd_here("tune", "--clock", "virtual", "--config", str(rig), "--out",
+                  str(tmp_path / "run"), "--save", *args, cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert "m1 is on on/off valves (actuation: onoff)" in r.stderr
+    assert "tune them with pamd tune --loop onoff" in r.stderr
+    assert "Nothing was moved" in r.stderr
+    assert ("--muscle m2" in r.stderr) == (config == "mixed")  # the way on, if any
+    assert rig.read_text() == before
+    assert not (tmp_path / "run").exists()  # nothing ran, nothing recorded
+
+
+def test_regulator_muscles_of_a_mixed_rig_go_on(tmp_path: Path, pamd_here: Any) -> None:
+    """--muscle naming only the regulator muscle passes the on/off check: the next
+    check (the level's limit) is what refuses it, still before anything moves."""
+    rig = mixed_rig(tmp_path)
+    r = pamd_here("tune", "--clock", "virtual", "--config", str(rig), "--out",
+                  str(tmp_path / "run"), "--muscle", "m2", "--levels", "5.9", cwd=tmp_path)
+    assert r.returncode == 2
+    assert "on/off" not in r.stderr and "m2: level 5.9 bar + step 0.2 bar leaves" in r.stderr
