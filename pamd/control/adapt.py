@@ -18,12 +18,14 @@ behaviour this corrects):
 * **Gated.** A window is dropped (state PAUSED) if any of its ticks was outside
   RUNNING or LOAD_CHANGE, in a safe state, had a flag that says the *measurement* is
   not the muscle's (`BAD_FLAGS`: stale, not referenced, exhaust open, pressure not
-  following its command), had an untrusted signal, or if the sample's own inputs fall
-  outside the model's training ranges. Flags that say the *command* was limited
-  (pressure or contraction limit, slew limit, PID saturated, feedforward clipped) do
-  not: the muscle's measured state and pressure are still a true sample of its
-  inverse, and they come exactly where a weakening muscle needs the model most (at
-  the top of the stroke, near the pressure limit).
+  following its command; on on/off valves the exhaust's PWM pulses are the control
+  itself, as the inflate valve's are, and do not: `ONOFF_BAD_FLAGS`), had an
+  untrusted signal, or if the sample's own inputs fall outside the model's training
+  ranges. Flags that say the *command* was limited (pressure or contraction limit,
+  slew limit, PID saturated, feedforward clipped) do not: the muscle's measured state
+  and pressure are still a true sample of its inverse, and they come exactly where a
+  weakening muscle needs the model most (at the top of the stroke, near the pressure
+  limit).
 * **Bounded**, in bar of output over the training ranges (`OutputBound`, on a grid):
   a step longer than `max_rate_bar_per_s` x the update period is shortened to it
   (the rate bound holds for every second); an update that would take the model
@@ -49,6 +51,7 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
+from pamd.declare.fields import PWM_VALVE_FLAGS
 from pamd.declare.jsonsafe import JsonObject
 from pamd.models.anfis.compiled import CompiledAnfis
 from pamd.models.anfis.rls import OutputBound, Rls
@@ -64,6 +67,8 @@ if TYPE_CHECKING:
 S_RUNNING, S_LOAD = int(State.RUNNING), int(State.LOAD_CHANGE)
 #: Flags that say a tick's measurement is not the muscle's own (module docstring).
 BAD_FLAGS = int(Flag.STALE | Flag.NOT_REFERENCED | Flag.EXHAUST_OPEN | Flag.TRACKING)
+#: On on/off valves the exhaust's PWM pulses are the control itself (`PWM_VALVE_FLAGS`).
+ONOFF_BAD_FLAGS = BAD_FLAGS & ~int(PWM_VALVE_FLAGS)
 #: What the `adapt` command can do.
 ACTIONS = ("on", "off", "reset", "restore", "status")
 #: Shortest time between two reports of the rate bound (the rest are counted).
@@ -83,9 +88,11 @@ class AdaptState(IntEnum):
 class Adaptation:
     """One muscle's online adaptation (see the module docstring)."""
 
-    def __init__(self, muscle: str, cfg: AdaptConfig, ff: Feedforward | None) -> None:
+    def __init__(self, muscle: str, cfg: AdaptConfig, ff: Feedforward | None, *,
+                 onoff: bool = False) -> None:
         self.muscle = muscle
         self.cfg = cfg
+        self.bad_flags = ONOFF_BAD_FLAGS if onoff else BAD_FLAGS  # on/off: PWM_VALVE_FLAGS
         self.enabled = False
         self.state = int(AdaptState.OFF)
         self.drift_bar = 0.0
@@ -255,7 +262,7 @@ class Adaptation:
         if self._warm_s > 0.0:
             self._warm_s -= dt
             self._bad = True
-        if flags & BAD_FLAGS or not (inp.pressure_ok and inp.length_ok
+        if flags & self.bad_flags or not (inp.pressure_ok and inp.length_ok
                                      and inp.plausibility.force_ok):
             self._bad = True
         self._sf += inp.force_n

@@ -85,9 +85,10 @@ class MuscleController(MuscleMotion, MuscleSafeState):
                                             None if model is None else model.feedforward(),
                                             ctl.rate_feedforward_s,
                                             1.0 / cfg.rig.loop.rate_hz)
-        self.adaptation = Adaptation(self.name, cfg.muscle(self.name).adapt,  # the model's
-                                     self.length_control.ff)  # online adaptation (adapt.py)
         self.onoff = cfg.muscle(self.name).actuation == "onoff"
+        self.adaptation = Adaptation(self.name, cfg.muscle(self.name).adapt,  # the model's
+                                     self.length_control.ff,  # online adaptation (adapt.py)
+                                     onoff=self.onoff)
         self.pressure_loop = PressureLoop(*self._pressure_gains(ctl.pid, ctl.rate_feedforward_s))
         self.limiter = Limiter()
         self.actuation: Actuation = actuation_for(signals, cfg.muscle(self.name))

@@ -92,6 +92,13 @@ FLAG_MEANINGS: dict[Flag, str] = {
     Flag.INFLATE_OPEN: "inflate valve open (on/off valves)",
 }
 
+#: The valve flags that, on on/off valves (`actuation: onoff`), mark the PWM's own
+#: pulses: the control itself, a few ms in each period, inflate and exhaust alike (the
+#: pressure sensor reads the muscle at every sample either way). With a regulator the
+#: exhaust is the dump valve, which vents past the regulator: there EXHAUST_OPEN says
+#: the pressure is the vent's, and training and adaptation drop those samples.
+PWM_VALVE_FLAGS = Flag.EXHAUST_OPEN | Flag.INFLATE_OPEN
+
 #: `adapt_state`'s codes (pamd.control.adapt.AdaptState holds the same values)
 ADAPT_STATES: dict[int, str] = {0: "off", 1: "adapting", 2: "paused", 3: "frozen",
                                 4: "rate-limited"}

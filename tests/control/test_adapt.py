@@ -40,9 +40,9 @@ def model() -> AnfisModel:
         consequents=np.c_[rng.uniform(2, 3, 9), rng.uniform(-3, -2, 9), rng.uniform(3, 4, 9)])
 
 
-def stage(**cfg) -> tuple[Adaptation, Feedforward]:
+def stage(onoff: bool = False, **cfg) -> tuple[Adaptation, Feedforward]:
     ff = Feedforward(model())
-    ad = Adaptation("m1", AdaptConfig(**{"enabled": True, **cfg}), ff)
+    ad = Adaptation("m1", AdaptConfig(**{"enabled": True, **cfg}), ff, onoff=onoff)
     return ad, ff
 
 
@@ -183,6 +183,22 @@ def test_every_flag_that_says_the_measurement_is_bad_drops_the_sample(flag) -> N
     ad, ff = stage(max_rate_bar_per_s=1.0)
     trained = theta(ff)
     run(ad, truth_of(drifted(ff, 0.3)), 2.0, flags=int(flag))
+    np.testing.assert_array_equal(theta(ff), trained)
+    assert ad.state == AdaptState.PAUSED
+
+
+def test_on_onoff_valves_the_pwm_pulses_are_the_muscles_own_samples() -> None:
+    """On on/off valves the exhaust opens within PWM periods as the control itself, as
+    the inflate valve does: a window with either open is learned. A regulator's open
+    exhaust (the dump valve venting past it) is not (the test above), and on on/off
+    valves a stale signal still is not."""
+    ad, ff = stage(onoff=True, max_rate_bar_per_s=1.0)
+    trained = theta(ff)
+    run(ad, truth_of(drifted(ff, 0.3)), 2.0, flags=int(Flag.EXHAUST_OPEN))
+    assert not np.array_equal(theta(ff), trained)
+    assert ad.state in (AdaptState.ADAPTING, AdaptState.LIMITED)
+    ad, ff = stage(onoff=True, max_rate_bar_per_s=1.0)
+    run(ad, truth_of(drifted(ff, 0.3)), 2.0, flags=int(Flag.EXHAUST_OPEN | Flag.STALE))
     np.testing.assert_array_equal(theta(ff), trained)
     assert ad.state == AdaptState.PAUSED
 

@@ -13,7 +13,9 @@ What is dropped, per run (counted per reason in the provenance):
   the sweep);
 * flagged samples: stale signals, soft limits (pressure, contraction, pretension),
   PID saturation, open exhaust, tracking alarms, unreferenced length
-  (`pamd.models.anfis.samples.DROP_FLAGS`);
+  (`pamd.models.anfis.samples.DROP_FLAGS`); on on/off valves (the recording's config
+  says `actuation: onoff`) the exhaust's PWM pulses are the control itself, as the
+  inflate valve's are, and are kept (`pamd.declare.fields.PWM_VALVE_FLAGS`);
 * settling transients: the first `settle_s` of each run and of each stretch of
   accepted state, and, in MCAP files, each profile's lead-in ramp (computed from the
   profile command recorded on the events topic) plus `settle_s`.
@@ -35,6 +37,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from pamd.declare.fields import PWM_VALVE_FLAGS
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.recordings import read_runs
@@ -115,8 +118,11 @@ def _extract_run(run: Run, o: ExtractOptions) -> tuple[np.ndarray, np.ndarray, n
         drop(~accepted, "not running (idle, hold, load change, fault, estop)")
     if "flags" in c:
         flags = np.nan_to_num(c["flags"], nan=0.0).astype(np.int64)
+        dropped = o.drop_flags
+        if run.meta.get("actuation") == "onoff":
+            dropped &= ~int(PWM_VALVE_FLAGS)
         for f in Flag:
-            if f & o.drop_flags:
+            if f & dropped:
                 drop((flags & int(f)) != 0, f"flag {f.name}")
     # Settling: the run's start and the start of each accepted stretch.
     starts = [float(t[0])]

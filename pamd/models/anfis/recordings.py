@@ -9,6 +9,7 @@ cannot be used is refused with `ModelError` naming the file and the problem.
 from __future__ import annotations
 
 import csv
+import json
 import math
 import os
 from collections.abc import Sequence
@@ -57,6 +58,7 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
         raise ModelError(f"{path}: unfinished recording; run `pamd recover {path}` first")
     meta = info["metadata"]
     loads = {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
+    actuations = _actuations(meta.get("pamd.config", {}).get("resolved"))
     topics = [c["topic"] for c in info["channels"]]
     state_topics = {t.rsplit("/", 1)[1]: t for t in topics if "/state/" in t}
     if muscle is not None:
@@ -91,7 +93,8 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
         runs.append(Run(source=path, muscle=m, t_s=columns["t_s"], columns=columns,
                         load_kg=loads.get(m), events=muscle_events,
                         meta={"rig_id": meta.get("pamd", {}).get("rig_id"),
-                              "rate_hz": _float_or_none(meta.get("pamd", {}).get("rate_hz"))}))
+                              "rate_hz": _float_or_none(meta.get("pamd", {}).get("rate_hz")),
+                              "actuation": actuations.get(m)}))
     return runs
 
 
@@ -182,6 +185,22 @@ def _cell(row: list[str], j: int) -> float:
     if s == "" or s.lower() in ("nan", "null", "none"):
         return math.nan
     return float(s)
+
+
+def _actuations(resolved: object) -> dict[str, str]:
+    """Each muscle's `actuation` from the recording's resolved config (JSON text);
+    none where the file holds no readable config (the extraction then treats a muscle
+    as on a regulator)."""
+    try:
+        cfg = json.loads(resolved) if isinstance(resolved, str) else None
+    except ValueError:
+        return {}
+    muscles = cfg.get("muscles") if isinstance(cfg, dict) else None
+    if not isinstance(muscles, list):
+        return {}
+    return {m["name"]: m["actuation"] for m in muscles
+            if isinstance(m, dict) and isinstance(m.get("name"), str)
+            and isinstance(m.get("actuation"), str)}
 
 
 def _float_or_none(v: object) -> float | None:

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import csv
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +20,8 @@ from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.anfis.splitting import split
 from pamd.models.velocity import VELOCITY_WINDOW_S, filtered_velocity, velocity_step
 from pamd.tick import Flag, State
+
+REPO = Path(__file__).resolve().parents[3]
 
 
 def write_csv(path: Path, n: int = 3000, rate_hz: float = 100.0, **cols: np.ndarray) -> Path:
@@ -48,6 +52,45 @@ def test_csv_pairs_drop_settling_and_flags_and_decimate(tmp_path: Path) -> None:
     assert np.all(np.diff(s.t_s) >= 0.1 - 1e-9)  # decimated to 10 Hz
     dropped = s.runs[0]["dropped"]
     assert dropped["settling"] == 200 and dropped["flag SOFT_LIMIT_CONTRACTION"] == 100
+
+
+def test_exhaust_open_drops_the_sample_except_on_onoff_valves(tmp_path: Path) -> None:
+    """A regulator's open exhaust is the dump valve venting past it: dropped. On on/off
+    valves (the recording's config says so) both valves open within PWM periods as the
+    control itself: kept, as the inflate valve's pulses always were."""
+    flags = np.zeros(3000)
+    flags[1000:1100] = int(Flag.EXHAUST_OPEN)
+    flags[1500:1600] = int(Flag.INFLATE_OPEN)
+    run = read_csv(str(write_csv(tmp_path / "valves.csv", flags=flags)))
+    opts = ExtractOptions(settle_s=2.0, rate_hz=100.0)
+    regulator = extract([run], opts)
+    assert regulator.runs[0]["dropped"]["flag EXHAUST_OPEN"] == 100
+    assert not np.any((regulator.t_s >= 10.0) & (regulator.t_s < 11.0))
+    assert np.any((regulator.t_s >= 15.0) & (regulator.t_s < 16.0))
+    run.meta["actuation"] = "onoff"
+    onoff = extract([run], opts)
+    assert "flag EXHAUST_OPEN" not in onoff.runs[0]["dropped"]
+    assert np.count_nonzero((onoff.t_s >= 10.0) & (onoff.t_s < 11.0)) >= 90
+    assert len(onoff) > len(regulator)
+
+
+def test_an_onoff_recording_says_its_actuation(tmp_path: Path, recording: Path) -> None:
+    """The actuation comes from the recording's own config: a PWM sweep on on/off
+    valves keeps its exhaust pulses; the regulator's recording is read as one."""
+    r = subprocess.run([sys.executable, "-m", "pamd", "run", "--config", "config/sim-onoff.yaml",
+                        "--clock", "virtual", "--profile", "sine", "--freq-hz", "0.2",
+                        "--min-bar", "1", "--max-bar", "4", "--cycles", "1", "--record",
+                        str(tmp_path), "--no-telemetry"],
+                       capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert r.returncode == 0, r.stderr
+    (path,) = tmp_path.glob("*.mcap")
+    (run,) = read_runs([str(path)])
+    assert run.meta["actuation"] == "onoff"
+    flags = run.columns["flags"].astype(np.int64)
+    assert np.count_nonzero(flags & int(Flag.EXHAUST_OPEN)) > 100  # the PWM's pulses
+    s = extract([run], ExtractOptions(settle_s=1.0))
+    assert "flag EXHAUST_OPEN" not in s.runs[0]["dropped"]
+    assert [r.meta["actuation"] for r in read_runs([str(recording)])] == ["proportional"]
 
 
 def test_csv_semicolons_and_case_and_log_time(tmp_path: Path) -> None:
