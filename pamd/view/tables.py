@@ -48,9 +48,10 @@ import numpy as np
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.extraction import extract
-from pamd.models.anfis.recordings import read_mcap
+from pamd.models.anfis.recordings import actuations_of, read_mcap
 from pamd.models.anfis.samples import ExtractOptions, Run, Samples
 from pamd.view import fields
+from pamd.view.export import matlab_name
 from pamd.view.recording import recording_files
 
 #: quantity -> (pamd's column, pamd's unit, {unit as written: factor to pamd's unit})
@@ -190,6 +191,7 @@ def read_table_csv(path: str) -> Run:
     if side is not None:
         muscle = side["muscle"]
         meta["rate_hz"] = side.get("rate_hz")
+        meta["actuation"] = actuations_of(side.get("metadata")).get(str(muscle))
         loads = [x for x in side.get("loads_kg") or [] if x is not None]
         load = loads[0] if len(set(loads)) == 1 else None
         events = (side.get("tables") or {}).get("events")
@@ -301,6 +303,12 @@ def read_table_mat(path: str) -> list[Run]:
             runs.append(_mat_run(path, name, v, key))
             if export and isinstance(vars_.get("events"), dict):
                 runs[-1].events = _mat_events(path, vars_["events"], name)
+    if export:  # the exported config says each muscle's actuation (extraction's flags)
+        side = vars_["pamd"].get("metadata")
+        config = side.get(matlab_name("pamd.config")) if isinstance(side, dict) else None
+        actuations = actuations_of({"pamd.config": config})
+        for run in runs:
+            run.meta["actuation"] = actuations.get(run.muscle)
     vectors = {k: v for k, v in vars_.items() if isinstance(v, np.ndarray) and v.ndim == 1
                and v.dtype.kind in "fiub"}
     if vectors and not export:

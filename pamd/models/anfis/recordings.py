@@ -58,7 +58,7 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
         raise ModelError(f"{path}: unfinished recording; run `pamd recover {path}` first")
     meta = info["metadata"]
     loads = {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
-    actuations = _actuations(meta.get("pamd.config", {}).get("resolved"))
+    actuations = actuations_of(meta)
     topics = [c["topic"] for c in info["channels"]]
     state_topics = {t.rsplit("/", 1)[1]: t for t in topics if "/state/" in t}
     if muscle is not None:
@@ -187,10 +187,12 @@ def _cell(row: list[str], j: int) -> float:
     return float(s)
 
 
-def _actuations(resolved: object) -> dict[str, str]:
-    """Each muscle's `actuation` from the recording's resolved config (JSON text);
-    none where the file holds no readable config (the extraction then treats a muscle
-    as on a regulator)."""
+def actuations_of(metadata: object) -> dict[str, str]:
+    """Each muscle's `actuation` from a recording's metadata (its resolved config, JSON
+    text; an MCAP file's or the `pamd export` sidecar's copy of it); none where it holds
+    no readable config (the extraction then treats a muscle as on a regulator)."""
+    config = metadata.get("pamd.config") if isinstance(metadata, dict) else None
+    resolved = config.get("resolved") if isinstance(config, dict) else None
     try:
         cfg = json.loads(resolved) if isinstance(resolved, str) else None
     except ValueError:

@@ -91,6 +91,22 @@ def test_an_onoff_recording_says_its_actuation(tmp_path: Path, recording: Path) 
     s = extract([run], ExtractOptions(settle_s=1.0))
     assert "flag EXHAUST_OPEN" not in s.runs[0]["dropped"]
     assert [r.meta["actuation"] for r in read_runs([str(recording)])] == ["proportional"]
+    # `pamd export --csv`'s tables say it through their sidecar's copy of the config
+    from pamd.view.export import export_named_csv
+    from pamd.view.tables import load_samples as load_tables
+
+    out = export_named_csv(str(path), str(tmp_path / "csv"))
+    table = out["m1"][0]
+    from_csv = load_tables([table], ExtractOptions(settle_s=1.0), report=lambda _l: None)
+    assert "flag EXHAUST_OPEN" not in from_csv.runs[0]["dropped"]
+    assert abs(len(from_csv) - len(s)) <= 0.02 * len(s)
+    pytest.importorskip("scipy.io")  # `pamd export --mat`'s file says it too
+    from pamd.view.export import export_mat
+
+    mat = str(tmp_path / "sweep.mat")
+    export_mat(str(path), mat)
+    from_mat = load_tables([mat], ExtractOptions(settle_s=1.0), report=lambda _l: None)
+    assert "flag EXHAUST_OPEN" not in from_mat.runs[0]["dropped"]
 
 
 def test_csv_semicolons_and_case_and_log_time(tmp_path: Path) -> None:
