@@ -8,7 +8,7 @@ below, against the time from the valve's opening (ms):
   segments over the samples they average, the step between them written in the
   panel's corner;
 - on the 300 ms pulses' lengths, the fastest length change (over `SPEED_WINDOW_S`) as
-  a red segment, its speed written beside.
+  a red segment, its speed written in a lower corner.
 
 So a glance tells a sound measurement (the trace flat through both windows, a clear
 step between) from one that is not: a pulse that moved nothing (its step written in
@@ -57,9 +57,12 @@ def onoff_figure(plt: ModuleType, tests: dict[str, StepTest], level_bar: float) 
     one column per pulse. The artists carry gids: `open` (the shaded interval),
     `before` and `after` (the means), `fastest` (the 300 ms pulses' lengths)."""
     n = len(tests[next(iter(tests))].responses()) if tests else 0
+    height_in = PANEL_IN[1] * 2 * len(tests) + 0.9
     fig: Figure
-    fig, axes = plt.subplots(2 * len(tests), n, squeeze=False, figsize=(
-        PANEL_IN[0] * n, PANEL_IN[1] * 2 * len(tests) + 0.9))
+    fig, axes = plt.subplots(  # fixed margins: tight_layout would measure every text
+        2 * len(tests), n, squeeze=False, figsize=(PANEL_IN[0] * n, height_in),
+        gridspec_kw={"left": 0.045, "right": 0.99, "top": 1.0 - 0.6 / height_in,
+                     "bottom": 0.45 / height_in, "wspace": 0.32, "hspace": 0.42})
     for row, (muscle, test) in enumerate(tests.items()):
         for col, r in enumerate(test.responses()):
             p_ax, l_ax = axes[2 * row][col], axes[2 * row + 1][col]
@@ -79,7 +82,6 @@ def onoff_figure(plt: ModuleType, tests: dict[str, StepTest], level_bar: float) 
     fig.suptitle(f"pamd tune --loop onoff: the step test at {level_bar:g} bar. Shaded: the "
                  "valve open; black: the means before and after (both valves shut); red: "
                  f"the fastest length change over {1e3 * SPEED_WINDOW_S:g} ms", fontsize=9)
-    fig.tight_layout()
     return fig
 
 
@@ -111,8 +113,9 @@ def _fastest(ax: Axes, r: PulseResponse) -> None:
     t = np.array([tr.fastest_from_s, tr.fastest_from_s + SPEED_WINDOW_S])
     ax.plot(1e3 * t, np.interp(t, tr.t_s, tr.length_mm), color="red", lw=2.5,
             gid="fastest")
-    ax.text(1e3 * t[1], float(np.interp(t[1], tr.t_s, tr.length_mm)),
-            f"  fastest {r.speed_mm_s:.1f} mm/s", color="red", fontsize=7, va="center")
+    x, ha = (0.97, "right") if r.length_step_mm >= 0.0 else (0.03, "left")  # the corner free
+    ax.text(x, 0.05, f"fastest {r.speed_mm_s:.1f} mm/s", transform=ax.transAxes, ha=ha,
+            color="red", fontsize=7)
 
 
 def _note(ax: Axes, step: float, text: str, colour: str) -> None:
