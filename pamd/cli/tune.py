@@ -115,7 +115,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "  pamd tune --config rig.yaml --muscle m1 --plot tune.png\n"
         "  pamd tune --config rig.yaml --save          # then: --loop position --save\n"
         "  pamd tune --config rig.yaml --method relay  # relay feedback instead of steps\n"
-        "  pamd tune --config onoff.yaml --loop onoff --save  # on/off valves' settings")
+        "  pamd tune --config onoff.yaml --loop onoff --save  # on/off valves' settings\n"
+        "  pamd tune --config onoff.yaml --loop onoff --plot onoff.png  # each pulse drawn")
     p.add_argument("--config", metavar="RIG", help="rig config (default: built-in sim)")
     p.add_argument("--loop", choices=(*LOOPS, "onoff"), default="pressure",
                    help="which loop to identify (default: pressure); onoff: the step test "
