@@ -8,7 +8,6 @@ The step test is the session's one run (tests/tune/conftest.py)."""
 from __future__ import annotations
 
 import struct
-import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, NoReturn
@@ -118,12 +117,9 @@ def test_the_png_is_written(onoff_run: tuple[StepTest, Path], tmp_path: Path) ->
     assert len(data) > 50_000  # drawn traces, not an empty canvas
 
 
+@pytest.mark.usefixtures("without_matplotlib")
 def test_plot_without_matplotlib_is_refused_before_anything_runs(
         monkeypatch: pytest.MonkeyPatch, pamd_here: Any, tmp_path: Path) -> None:
-    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib: ImportError
-
     def ran(*_a: Any, **_k: Any) -> NoReturn:
         raise AssertionError("the step test ran before --plot was checked")
 
