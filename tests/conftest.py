@@ -244,6 +244,14 @@ def sim_daemon(sim_config: Callable[..., LoadedConfig]) -> Iterator[Callable[...
         d.close()
 
 
+@pytest.fixture
+def without_matplotlib(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`import matplotlib` raises ImportError, as without the optional `plot` extra."""
+    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+
+
 # -- tools the tests drive: missing is a failure saying what to install, never a skip --
 _TOOLS = {  # tool -> (Debian package, what the tests use it for)
     "socat": ("socat", "pty pairs for Modbus RTU and CAN-over-serial"),

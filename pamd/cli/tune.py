@@ -7,11 +7,13 @@ import argparse
 import os
 import sys
 import time
+from functools import partial
 
 from pamd.config import LoadedConfig, load_config
 from pamd.config.loader import builtin_config_path
 from pamd.control.tuning import Fopdt, IdentificationError
-from pamd.tune.onoff import LEVEL_BAR, derived_settings, print_settings, print_test
+from pamd.tune.onoff import LEVEL_BAR, StepTest, derived_settings, print_settings, print_test
+from pamd.tune.onoff_plot import plot_onoff
 from pamd.tune.onoff_run import check_onoff, run_onoff
 from pamd.tune.placement import place
 from pamd.tune.relay import MAX_RELAY_BAR, mean_relay_model, print_relay, run_relay
@@ -22,6 +24,7 @@ from pamd.tune.report import (
     print_comparison,
     print_fits,
     print_gains,
+    pyplot,
 )
 from pamd.tune.run import (
     LOOPS,
@@ -68,8 +71,12 @@ exhaust: 40 ms (the fill and vent rates), the PWM's shortest (the dead band, the
 encoder's count), 300 ms (the valve speeds: the sliding mode's boundary layer and
 lambda). About 5 s of rig time per muscle. It prints each pulse's pressure and length
 step and fastest length change, and the settings beside the present ones; --save
-writes them into muscles[].onoff. A pulse that moves no pressure (or the wrong way),
-300 ms pulses that move no length, a fault or a moved setpoint stop it (exit 2).
+writes them into muscles[].onoff. --plot FILE: one PNG of every muscle's pulses, the
+measured pressure and length around each (the valve's open interval shaded, the means
+before and after, the 300 ms pulses' fastest length change), to see at a glance a
+pulse that moved nothing or a noisy or drifting baseline; drawn for a refused test
+too. A pulse that moves no pressure (or the wrong way), 300 ms pulses that move no
+length, a fault or a moved setpoint stop it (exit 2).
 The pressure and position loops are a regulator's: on a muscle on on/off valves they
 are refused before anything moves (name the regulator muscles of a mixed rig with
 --muscle).
@@ -108,7 +115,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "  pamd tune --config rig.yaml --muscle m1 --plot tune.png\n"
         "  pamd tune --config rig.yaml --save          # then: --loop position --save\n"
         "  pamd tune --config rig.yaml --method relay  # relay feedback instead of steps\n"
-        "  pamd tune --config onoff.yaml --loop onoff --save  # on/off valves' settings")
+        "  pamd tune --config onoff.yaml --loop onoff --save  # on/off valves' settings\n"
+        "  pamd tune --config onoff.yaml --loop onoff --plot onoff.png  # each pulse drawn")
     p.add_argument("--config", metavar="RIG", help="rig config (default: built-in sim)")
     p.add_argument("--loop", choices=(*LOOPS, "onoff"), default="pressure",
                    help="which loop to identify (default: pressure); onoff: the step test "
@@ -133,7 +141,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("--out", metavar="DIR", help="where the recording goes (default: "
                    "runs/tune-<loop>-<time>)")
     p.add_argument("--plot", metavar="FILE", help="a PNG of the measured and predicted "
-                   "step responses (needs pamd[plot])")
+                   "step responses; --loop onoff: of each pulse's pressure and length "
+                   "(needs pamd[plot]; not with --method relay)")
     p.add_argument("--save", action="store_true",
                    help="write the new gains into the config file (after showing the diff)")
     p.add_argument("--per-muscle", action="store_true",
@@ -226,7 +235,7 @@ def _onoff(args: argparse.Namespace, cfg: LoadedConfig, config_path: str) -> int
     """The on/off step test of each muscle (--muscle, default every on/off muscle), its
     measurements and settings printed; --save writes them into muscles[].onoff."""
     for flag, given in (("--method relay", args.method == "relay"),
-                        ("--step-bar", args.step_bar is not None), ("--plot", bool(args.plot)),
+                        ("--step-bar", args.step_bar is not None),
                         ("--per-muscle", args.per_muscle)):
         if given:
             raise TuneRefused(f"{flag} goes with the pressure and position loops; --loop onoff "
@@ -244,17 +253,29 @@ def _onoff(args: argparse.Namespace, cfg: LoadedConfig, config_path: str) -> int
                           "then --loop position")
     for muscle in muscles:  # all of them before anything opens
         check_onoff(cfg, muscle, level)
+    if args.plot:
+        pyplot()  # matplotlib missing: refused now, not after the runs
     out = args.out or os.path.join("runs", f"tune-onoff-{time.strftime('%Y%m%d-%H%M%S')}")
     values: dict[KeyPath, float] = {}
+    tests: dict[str, StepTest] = {}
     for muscle in muscles:
-        test = run_onoff(config_path, args.clock, muscle, os.path.join(out, muscle), level,
-                         _progress)
+        try:
+            test = run_onoff(config_path, args.clock, muscle, os.path.join(out, muscle), level,
+                             _progress, partial(tests.__setitem__, muscle))
+        except TuneRefused:
+            if args.plot and tests:  # what was measured, the refused test's pulses too
+                plot_onoff(args.plot, tests, level)
+                print(f"plot: {args.plot}")
+            raise
         present = cfg.muscle(muscle).onoff
         new = derived_settings(test, present.pwm_period_s)
         print_test(f"{muscle}: on/off step test at {level:g} bar, "
                    f"{cfg.muscle(muscle).load_kg:g} kg", test)
         print_settings(muscle, {k: float(getattr(present, k)) for k in new}, new)
         values.update({("muscles", f"[{muscle}]", "onoff", k): v for k, v in new.items()})
+    if args.plot:
+        plot_onoff(args.plot, tests, level)
+        print(f"plot: {args.plot}")
     print(f"recording: {out}")
     if not args.save:
         print("nothing written (--save writes the new settings into the config file)")

@@ -39,7 +39,7 @@ bar above the command long enough for the tracking check, 1 s, on the real clock
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -92,6 +92,22 @@ PULSES = (Pulse("inflate", RATE_PULSE_S, SETTLE_AFTER_S),
 """The step test, in order."""
 
 
+@dataclass(frozen=True, eq=False)
+class PulseTrace:
+    """The recording around one pulse, as measured (`pamd.tune.onoff_plot` draws it):
+    from `WINDOW_S` before the mean before to `WINDOW_S` after the mean after, times
+    from the valve's opening; where the means were taken and what they were; where the
+    fastest length change began."""
+
+    t_s: np.ndarray  # from the valve's opening
+    pressure_bar: np.ndarray
+    length_mm: np.ndarray
+    after_from_s: float  # the mean after: WINDOW_S from here (before: the WINDOW_S before 0)
+    pressure_before_bar: float
+    length_before_mm: float
+    fastest_from_s: float  # the fastest length change: SPEED_WINDOW_S from here
+
+
 @dataclass(frozen=True)
 class PulseResponse:
     """What one pulse did: the pressure and length steps, the fastest length change."""
@@ -101,6 +117,7 @@ class PulseResponse:
     pressure_step_bar: float
     length_step_mm: float
     speed_mm_s: float
+    trace: PulseTrace = field(compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -111,6 +128,10 @@ class StepTest:
     shortest: tuple[PulseResponse, PulseResponse]
     speed: tuple[PulseResponse, PulseResponse]
     count_mm: float  # the smallest length change seen
+
+    def responses(self) -> tuple[PulseResponse, ...]:
+        """The six pulses, in the order they ran (`PULSES`)."""
+        return (*self.rate, *self.shortest, *self.speed)
 
 
 def settings(fill_step_bar: float, vent_step_bar: float, fill_min_bar: float,
@@ -138,12 +159,20 @@ def derived_settings(test: StepTest, pwm_period_s: float) -> dict[str, float]:
                     pwm_period_s)
 
 
-def fastest_mm_s(length_mm: np.ndarray, dt_s: float) -> float:
-    """The fastest length change over SPEED_WINDOW_S in a trace sampled every `dt_s`."""
+def fastest(length_mm: np.ndarray, dt_s: float) -> tuple[float, int]:
+    """The fastest length change over SPEED_WINDOW_S in a trace sampled every `dt_s`
+    (mm/s), and the sample its window begins at."""
     w = round(SPEED_WINDOW_S / dt_s)
     if len(length_mm) <= w:
-        return 0.0
-    return float(np.max(np.abs(length_mm[w:] - length_mm[:-w]))) / SPEED_WINDOW_S
+        return 0.0, 0
+    change = np.abs(length_mm[w:] - length_mm[:-w])
+    k = int(np.argmax(change))
+    return float(change[k]) / SPEED_WINDOW_S, k
+
+
+def fastest_mm_s(length_mm: np.ndarray, dt_s: float) -> float:
+    """The fastest length change over SPEED_WINDOW_S in a trace sampled every `dt_s`."""
+    return fastest(length_mm, dt_s)[0]
 
 
 def smallest_change_mm(length_mm: np.ndarray) -> float:
@@ -178,34 +207,47 @@ def response(t_s: np.ndarray, p_bar: np.ndarray, l_mm: np.ndarray, flags: np.nda
         raise TuneRefused(f"the {pulse.valve} pulse at {sent_s:.3f} s lacks the recording "
                           "around it: the recording is incomplete")
     before, after = slice(i0 - n_w, i0), slice(settled, settled + n_w)
-    return PulseResponse(
-        pulse, shown,
-        float(np.mean(p_bar[after]) - np.mean(p_bar[before])),
-        float(np.mean(l_mm[after]) - np.mean(l_mm[before])),
-        fastest_mm_s(l_mm[i0:settled], dt)), slice(i0 - n_w, settled + n_w)
+    p0, l0 = float(np.mean(p_bar[before])), float(np.mean(l_mm[before]))
+    speed, k = fastest(l_mm[i0:settled], dt)
+    shows = slice(max(0, i0 - 2 * n_w), min(len(t_s), settled + 2 * n_w))
+    trace = PulseTrace(t_s[shows] - t_s[i0], p_bar[shows], l_mm[shows],
+                       float(t_s[settled] - t_s[i0]), p0, l0, float(t_s[i0 + k] - t_s[i0]))
+    return PulseResponse(pulse, shown, float(np.mean(p_bar[after])) - p0,
+                         float(np.mean(l_mm[after])) - l0, speed,
+                         trace), slice(i0 - n_w, settled + n_w)
+
+
+def unsound(r: PulseResponse) -> str | None:
+    """What the rules cannot use in one pulse's response (None: it is sound): a rate or
+    shortest pulse that moved the pressure no way or the wrong way, a speed pulse that
+    moved no length."""
+    if r.pulse.pulse_s != SPEED_PULSE_S:
+        sign = 1.0 if r.pulse.valve == "inflate" else -1.0
+        if not sign * r.pressure_step_bar >= MIN_STEP_BAR:
+            return (f"moved the pressure by {r.pressure_step_bar:+.4f} bar: it must "
+                    f"{'raise' if sign > 0 else 'lower'} it by {MIN_STEP_BAR:g} bar or more")
+        return None
+    sign = -1.0 if r.pulse.valve == "inflate" else 1.0  # inflating contracts
+    if not sign * r.length_step_mm >= MIN_LENGTH_MM:
+        return (f"moved the length by {r.length_step_mm:+.3f} mm: it must "
+                f"{'shorten' if sign < 0 else 'lengthen'} the muscle by {MIN_LENGTH_MM:g} mm "
+                "or more")
+    return None
 
 
 def check(test: StepTest) -> None:
     """Refuse (TuneRefused, the reason and what to check) a test that did not measure
-    what the rules need: a pulse that moved the pressure no way or the wrong way, speed
-    pulses that moved no length."""
-    for r in (*test.rate, *test.shortest):
-        sign = 1.0 if r.pulse.valve == "inflate" else -1.0
-        if not sign * r.pressure_step_bar >= MIN_STEP_BAR:
-            way = "raise" if sign > 0 else "lower"
-            raise TuneRefused(
-                f"the {r.pulse.valve} valve's {1e3 * r.pulse_s:.0f} ms pulse moved the pressure "
-                f"by {r.pressure_step_bar:+.4f} bar: it must {way} it by {MIN_STEP_BAR:g} bar "
-                "or more (no supply, a valve that does not open, swapped inflate and exhaust "
+    what the rules need: a pulse that is `unsound`, no length change at all."""
+    for r in test.responses():
+        why = unsound(r)
+        if why is None:
+            continue
+        what = ("(a length sensor that does not follow, a muscle held by an end stop, or "
+                "too little load to stretch it?)" if r.pulse.pulse_s == SPEED_PULSE_S else
+                "(no supply, a valve that does not open, swapped inflate and exhaust "
                 "channels, or the valve's on-delay longer than valve_on_delay_s says?)")
-    for r in test.speed:
-        sign = -1.0 if r.pulse.valve == "inflate" else 1.0  # inflating contracts
-        if not sign * r.length_step_mm >= MIN_LENGTH_MM:
-            raise TuneRefused(
-                f"the {r.pulse.valve} valve's {1e3 * r.pulse_s:.0f} ms pulse moved the length "
-                f"by {r.length_step_mm:+.3f} mm: it must {'shorten' if sign < 0 else 'lengthen'}"
-                f" the muscle by {MIN_LENGTH_MM:g} mm or more (a length sensor that does not "
-                "follow, a muscle held by an end stop, or too little load to stretch it?)")
+        raise TuneRefused(f"the {r.pulse.valve} valve's {1e3 * r.pulse_s:.0f} ms pulse "
+                          f"{why} {what}")
     if not test.count_mm > 0.0:
         raise TuneRefused("the length never changed during the step test: is the length "
                           "sensor connected?")
@@ -215,7 +257,7 @@ def print_test(title: str, test: StepTest) -> None:
     print(title)
     print(f"  {'pulse':18s} {'open ms':>8s} {'pressure bar':>13s} {'length mm':>10s} "
           f"{'fastest mm/s':>13s}")
-    for r in (*test.rate, *test.shortest, *test.speed):
+    for r in test.responses():
         print(f"  {r.pulse.valve:18s} {1e3 * r.pulse_s:8.0f} {r.pressure_step_bar:+13.4f} "
               f"{r.length_step_mm:+10.3f} {r.speed_mm_s:13.1f}")
     print(f"  encoder count (the smallest length change): {test.count_mm:g} mm")

@@ -48,6 +48,9 @@ from pamd.verbs.schema import Command, SetpointArgs
 from pamd.view.recording import open_recording
 
 Progress = Callable[[str], None]
+#: told the step test as measured, before it is checked (`pamd tune --plot` draws a
+#: refused one too)
+Measured = Callable[[StepTest], None]
 #: the setpoint reaches the level and the PWM holds it within this (s of loop time)
 LEVEL_TIMEOUT_S = 30.0
 
@@ -154,9 +157,11 @@ class _Session:
 
 
 def run_onoff(config_path: str | None, clock: str | None, muscle: str, out_dir: str,
-              level_bar: float = LEVEL_BAR, progress: Progress | None = None) -> StepTest:
-    """Run the step test on the rig, recorded into `out_dir`; what the recording shows.
-    TuneRefused (the present settings kept) when it stops or measures nothing."""
+              level_bar: float = LEVEL_BAR, progress: Progress | None = None,
+              measured: Measured | None = None) -> StepTest:
+    """Run the step test on the rig, recorded into `out_dir`; what the recording shows
+    (`measured` is told it before it is checked). TuneRefused (the present settings
+    kept) when it stops or measures nothing."""
     cfg = load_config(config_path, {"loop": {"clock": clock}} if clock else None)
     check_onoff(cfg, muscle, level_bar)
     cfg = ident_config(cfg, muscle)
@@ -196,7 +201,7 @@ def run_onoff(config_path: str | None, clock: str | None, muscle: str, out_dir: 
         daemon.stop("tuning run ended")
         daemon.wait()
         daemon.close()
-    return analyse(out_dir, muscle, sent, shortest)
+    return analyse(out_dir, muscle, sent, shortest, measured)
 
 
 def _settled(session: _Session, daemon: Daemon, level_bar: float) -> bool:
@@ -229,9 +234,10 @@ def _pulse(session: _Session, muscle: str, pulse: Pulse, shortest_s: float,
 
 
 def analyse(out_dir: str, muscle: str, sent: list[tuple[Pulse, float]],
-            shortest_s: float) -> StepTest:
+            shortest_s: float, measured: Measured | None = None) -> StepTest:
     """The step test in the recording: each pulse where its verdict says (see
-    `pamd.tune.onoff.response`); the encoder's count over every tick measured."""
+    `pamd.tune.onoff.response`); the encoder's count over every tick measured. The
+    recording is read once: each pulse's response keeps its stretch of it (its trace)."""
     rec = open_recording(out_dir, muscle=muscle)[muscle]
     t = np.asarray(rec["t_s"], dtype=float)
     p = np.asarray(rec["pressure_bar"], dtype=float)
@@ -240,9 +246,11 @@ def analyse(out_dir: str, muscle: str, sent: list[tuple[Pulse, float]],
     try:
         found = [response(t, p, length, flags, pulse, t_s, shortest_s) for pulse, t_s in sent]
         spans = [span for _, span in found]
-        measured = length[spans[0].start:spans[-1].stop]
         r: list[PulseResponse] = [resp for resp, _ in found]
-        test = StepTest((r[0], r[1]), (r[2], r[3]), (r[4], r[5]), smallest_change_mm(measured))
+        test = StepTest((r[0], r[1]), (r[2], r[3]), (r[4], r[5]),
+                        smallest_change_mm(length[spans[0].start:spans[-1].stop]))
+        if measured is not None:
+            measured(test)
         check(test)
     except TuneRefused as exc:
         raise TuneRefused(f"{muscle}: {exc}; the present settings are kept; the recording "

@@ -4,6 +4,7 @@ the present ones, the predicted and measured step responses, and (`--plot`) a PN
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 
@@ -115,16 +116,23 @@ def print_gains(loop: str, present: Present, new: Present) -> None:
         print(f"  {'.'.join(key):36s} {old:10.4g} {value:10.4g} {change:>8s}")
 
 
-def plot_fits(path: str, lp: LoopPlan, model: Fopdt,
-              fits_by_muscle: dict[str, list[tuple[Step, Fopdt]]]) -> None:
-    """Each step's measured response (normalised by its amplitude) and the model's."""
+def pyplot() -> ModuleType:
+    """matplotlib.pyplot on the Agg backend, for `pamd tune --plot` (PamdError with the
+    install hint when matplotlib is missing: the optional `plot` extra)."""
     try:
         import matplotlib
 
-        matplotlib.use("Agg")
+        matplotlib.use("Agg", force=True)
         import matplotlib.pyplot as plt
     except ImportError:
         raise PamdError("--plot needs matplotlib: pip install 'pamd[plot]'") from None
+    return plt
+
+
+def plot_fits(path: str, lp: LoopPlan, model: Fopdt,
+              fits_by_muscle: dict[str, list[tuple[Step, Fopdt]]]) -> None:
+    """Each step's measured response (normalised by its amplitude) and the model's."""
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for muscle, fits in fits_by_muscle.items():
         for s, _ in fits:

@@ -5,7 +5,6 @@ inspect`, `plot` and `export` read it (a collection: the step files of its manif
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -16,13 +15,10 @@ from pamd.cli.evaluate import data_files
 from pamd.cli.main import main
 
 
+@pytest.mark.usefixtures("without_matplotlib")
 def test_plot_without_matplotlib_is_refused_before_anything_is_computed(
         monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
         tmp_path: Path) -> None:
-    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib: ImportError
-
     def computed(*_a: Any, **_k: Any) -> NoReturn:
         raise AssertionError("read and judged before the plots were checked")
 

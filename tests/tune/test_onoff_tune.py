@@ -15,15 +15,12 @@ from typing import Any
 import pytest
 import yaml
 
+from pamd.cli import tune as tune_cli
 from pamd.config import load_config
-from pamd.tune.onoff import derived_settings
-from pamd.tune.onoff_run import run_onoff
-from pamd.tune.run import TuneRefused
+from pamd.tune.onoff import StepTest, derived_settings, unsound
 from tests.benchmod import bench_module
 from tests.cli.test_tune_cli import rig_copy
-
-REPO = Path(__file__).resolve().parents[2]
-ONOFF = REPO / "config" / "sim-onoff.yaml"
+from tests.tune.conftest import ONOFF, REPO
 
 #: How far the daemon's step test may stand from the bench's (relative). Both run the
 #: same pulses on the same simulated rig; the daemon's run takes its samples at other
@@ -36,8 +33,8 @@ TOLERANCE = {"fill_rate_bar_per_s": 0.02, "vent_rate_bar_per_s": 0.02, "response
              "position_boundary_mm_s": 0.02, "position_hold_band_mm": 1e-9}
 
 
-def test_the_step_test_agrees_with_the_bench(tmp_path: Path) -> None:
-    test = run_onoff(str(ONOFF), "virtual", "m1", str(tmp_path / "run"))
+def test_the_step_test_agrees_with_the_bench(onoff_run: tuple[StepTest, Path]) -> None:
+    test, run_dir = onoff_run
     new = derived_settings(test, load_config(str(ONOFF)).muscle("m1").onoff.pwm_period_s)
     bench = bench_module("tune_onoff").tune(ONOFF, 30.0)
     shipped = yaml.safe_load(ONOFF.read_text())["muscles"][0]["onoff"]
@@ -49,7 +46,7 @@ def test_the_step_test_agrees_with_the_bench(tmp_path: Path) -> None:
     assert [round(1e3 * r.pulse_s) for r in (*test.rate, *test.shortest, *test.speed)] == [
         40, 40, 6, 6, 300, 300]
     assert test.speed[0].length_step_mm < -5.0 and test.speed[1].length_step_mm > 1.0
-    assert list((tmp_path / "run").glob("*.mcap"))  # recorded like any run
+    assert list(run_dir.glob("*.mcap"))  # recorded like any run
 
 
 def tune(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -64,8 +61,11 @@ def test_save_writes_muscles_onoff_keeping_the_comments(tmp_path: Path) -> None:
     rig.write_text(ONOFF.read_text().replace("dead_band_bar: 0.0143", "dead_band_bar: 0.05")
                    .replace("position_boundary_mm_s: 43.4", "position_boundary_mm_s: 14.2"))
     before = rig.read_text()
-    r = tune("--config", str(rig), "--out", str(tmp_path / "run"), "--save", cwd=tmp_path)
+    png = tmp_path / "onoff.png"
+    r = tune("--config", str(rig), "--out", str(tmp_path / "run"), "--save", "--plot", str(png),
+             cwd=tmp_path)
     assert r.returncode == 0, r.stderr
+    assert f"plot: {png}" in r.stdout and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "m1: on/off step test at 3 bar, 30 kg" in r.stdout
     assert "encoder count (the smallest length change): 0.01 mm" in r.stdout
     rows = {ln.split()[0]: ln.split() for ln in r.stdout.splitlines()
@@ -84,19 +84,29 @@ def test_save_writes_muscles_onoff_keeping_the_comments(tmp_path: Path) -> None:
     assert onoff.position_boundary_mm_s == 43.4 and onoff.dead_band_bar == 0.0137
 
 
-def test_a_pulse_that_moves_nothing_is_refused(tmp_path: Path) -> None:
+def test_a_pulse_that_moves_nothing_is_refused_and_plotted(
+        tmp_path: Path, pamd_here: Any, monkeypatch: pytest.MonkeyPatch) -> None:
     """The muscle's air supply is lost while the level settles: the inflate pulse moves
-    no pressure, so there is no fill rate to derive; the reason says what to check."""
+    no pressure, so there is no fill rate to derive; the reason says what to check, and
+    --plot draws what was measured, that pulse marked unsound."""
     d = yaml.safe_load(ONOFF.read_text())
     d["drivers"][0]["options"]["faults"] = [
         {"at_s": 3.0, "muscle": "m1", "signal": "supply", "kind": "lost"}]
     rig = tmp_path / "rig.yaml"
     rig.write_text(yaml.safe_dump(d, sort_keys=False))
-    with pytest.raises(TuneRefused) as exc:
-        run_onoff(str(rig), "virtual", "m1", str(tmp_path / "run"))
-    said = str(exc.value)
+    drawn: list[dict[str, StepTest]] = []
+    monkeypatch.setattr(tune_cli, "plot_onoff", lambda path, tests, level: drawn.append(tests))
+    r = pamd_here("tune", "--clock", "virtual", "--loop", "onoff", "--config", str(rig),
+                  "--out", str(tmp_path / "run"), "--plot", str(tmp_path / "p.png"),
+                  cwd=tmp_path)
+    said = r.stderr
+    assert r.returncode == 2, said
     assert "the inflate valve's 40 ms pulse moved the pressure by" in said
     assert "no supply" in said and "the present settings are kept" in said
+    assert f"plot: {tmp_path / 'p.png'}" in r.stdout
+    [tests] = drawn
+    why = unsound(tests["m1"].rate[0])
+    assert why is not None and "moved the pressure by" in why
 
 
 @pytest.mark.parametrize(("config", "args", "said"), [
