@@ -38,9 +38,10 @@ from pamd.tune.onoff import (
     IDENT_DEAD_BAND_BAR,
     LEVEL_BAR,
     PULSES,
+    SETTLE_AFTER_S,
     SETTLE_S,
     WINDOW_S,
-    fastest_mm_s,
+    fastest,
     settings,
     smallest_change_mm,
 )
@@ -101,7 +102,7 @@ class StepTest:
             trace.append(self.m.length_mm)
         self.lengths += trace
         p1, l1 = self._avg()
-        return p1 - p0, l1 - l0, fastest_mm_s(np.asarray(trace), DT)
+        return p1 - p0, l1 - l0, fastest(np.asarray(trace), DT)[0]
 
 
 def tune(config: Path, load_kg: float) -> dict[str, float]:
@@ -115,7 +116,7 @@ def tune(config: Path, load_kg: float) -> dict[str, float]:
         (dp_fill, _, _), (dp_vent, _, _), (dp_fill_min, _, _), (dp_vent_min, _, _), \
             (_, _, v_fill), (_, _, v_vent) = [
                 t.pulse(t.act.inflate if p.valve == "inflate" else t.act.exhaust,
-                        p.length_s(shortest), p.settle_s) for p in PULSES]
+                        p.length_s(shortest), SETTLE_AFTER_S) for p in PULSES]
         count_mm = smallest_change_mm(np.asarray(t.lengths))
     finally:
         h.rig.close()

@@ -264,8 +264,7 @@ def _onoff(args: argparse.Namespace, cfg: LoadedConfig, config_path: str) -> int
                              _progress, partial(tests.__setitem__, muscle))
         except TuneRefused:
             if args.plot and tests:  # what was measured, the refused test's pulses too
-                plot_onoff(args.plot, tests, level)
-                print(f"plot: {args.plot}")
+                _plot_onoff(args.plot, tests, level)
             raise
         present = cfg.muscle(muscle).onoff
         new = derived_settings(test, present.pwm_period_s)
@@ -274,13 +273,17 @@ def _onoff(args: argparse.Namespace, cfg: LoadedConfig, config_path: str) -> int
         print_settings(muscle, {k: float(getattr(present, k)) for k in new}, new)
         values.update({("muscles", f"[{muscle}]", "onoff", k): v for k, v in new.items()})
     if args.plot:
-        plot_onoff(args.plot, tests, level)
-        print(f"plot: {args.plot}")
+        _plot_onoff(args.plot, tests, level)
     print(f"recording: {out}")
     if not args.save:
         print("nothing written (--save writes the new settings into the config file)")
         return 0
     return save_values(config_path, values, what="on/off settings")
+
+
+def _plot_onoff(path: str, tests: dict[str, StepTest], level_bar: float) -> None:
+    plot_onoff(path, tests, level_bar)
+    print(f"plot: {path}")
 
 
 def _progress(line: str) -> None:

@@ -67,28 +67,25 @@ MIN_LENGTH_MM = 0.1
 INFLATE_OPEN, EXHAUST_OPEN = int(Flag.INFLATE_OPEN), int(Flag.EXHAUST_OPEN)
 
 
+SETTLE_AFTER_S = 0.2  # after a pulse, before the mean after it
+#: both valves shut after a pulse (the `pulse` command's `after_s`): settle, then the mean
+AFTER_S = SETTLE_AFTER_S + WINDOW_S
+
+
 @dataclass(frozen=True)
 class Pulse:
     """One pulse of the step test (`pulse_s` None: the PWM's shortest)."""
 
     valve: Valve
     pulse_s: float | None
-    settle_s: float  # after the pulse, before the mean after it
 
     def length_s(self, shortest_s: float) -> float:
         return shortest_s if self.pulse_s is None else self.pulse_s
 
-    def after_s(self) -> float:
-        """Both valves shut after the pulse (the `pulse` command's `after_s`)."""
-        return self.settle_s + WINDOW_S
 
-
-SETTLE_AFTER_S = 0.2  # after a pulse, before the mean after it
-PULSES = (Pulse("inflate", RATE_PULSE_S, SETTLE_AFTER_S),
-          Pulse("exhaust", RATE_PULSE_S, SETTLE_AFTER_S),
-          Pulse("inflate", None, SETTLE_AFTER_S), Pulse("exhaust", None, SETTLE_AFTER_S),
-          Pulse("inflate", SPEED_PULSE_S, SETTLE_AFTER_S),
-          Pulse("exhaust", SPEED_PULSE_S, SETTLE_AFTER_S))
+PULSES = (Pulse("inflate", RATE_PULSE_S), Pulse("exhaust", RATE_PULSE_S),
+          Pulse("inflate", None), Pulse("exhaust", None),
+          Pulse("inflate", SPEED_PULSE_S), Pulse("exhaust", SPEED_PULSE_S))
 """The step test, in order."""
 
 
@@ -170,11 +167,6 @@ def fastest(length_mm: np.ndarray, dt_s: float) -> tuple[float, int]:
     return float(change[k]) / SPEED_WINDOW_S, k
 
 
-def fastest_mm_s(length_mm: np.ndarray, dt_s: float) -> float:
-    """The fastest length change over SPEED_WINDOW_S in a trace sampled every `dt_s`."""
-    return fastest(length_mm, dt_s)[0]
-
-
 def smallest_change_mm(length_mm: np.ndarray) -> float:
     """The smallest nonzero change between two samples (the encoder's count); 0: none."""
     steps = np.unique(np.round(np.abs(np.diff(length_mm)), 6))
@@ -192,7 +184,7 @@ def response(t_s: np.ndarray, p_bar: np.ndarray, l_mm: np.ndarray, flags: np.nda
     bit = INFLATE_OPEN if pulse.valve == "inflate" else EXHAUST_OPEN
     want = pulse.length_s(shortest_s)
     start = int(np.searchsorted(t_s, sent_s - 0.5 * dt))
-    end = int(np.searchsorted(t_s, sent_s + WINDOW_S + want + pulse.after_s() + 2 * dt))
+    end = int(np.searchsorted(t_s, sent_s + WINDOW_S + want + AFTER_S + 2 * dt))
     open_i = start + np.nonzero(flags[start:end].astype(np.int64) & bit)[0]
     if open_i.size == 0:
         raise TuneRefused(f"the {pulse.valve} pulse sent at {sent_s:.3f} s is not in the "
@@ -202,7 +194,7 @@ def response(t_s: np.ndarray, p_bar: np.ndarray, l_mm: np.ndarray, flags: np.nda
     if i1 - i0 != open_i.size or abs(shown - want) > 1.5 * dt:
         raise TuneRefused(f"the {pulse.valve} pulse sent at {sent_s:.3f} s was open "
                           f"{1e3 * shown:.0f} ms in the recording, not {1e3 * want:g} ms")
-    settled = i1 + round(pulse.settle_s / dt)
+    settled = i1 + round(SETTLE_AFTER_S / dt)
     if i0 < n_w or settled + n_w > len(t_s):
         raise TuneRefused(f"the {pulse.valve} pulse at {sent_s:.3f} s lacks the recording "
                           "around it: the recording is incomplete")

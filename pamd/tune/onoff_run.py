@@ -31,6 +31,7 @@ from pamd.io.session import RecordingRequest
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.tick import State
 from pamd.tune.onoff import (
+    AFTER_S,
     IDENT_DEAD_BAND_BAR,
     LEVEL_BAR,
     PULSES,
@@ -222,7 +223,7 @@ def _pulse(session: _Session, muscle: str, pulse: Pulse, shortest_s: float,
     pending = PendingCommand()
     verdict = session.send(Command("pulse", PulseArgs(
         muscle=muscle, valve=pulse.valve, pulse_s=length, rest_s=WINDOW_S,
-        after_s=pulse.after_s()), pending.set), pending)
+        after_s=AFTER_S), pending.set), pending)
     if not verdict["ok"]:
         raise TuneRefused(f"the {1e3 * length:g} ms {pulse.valve} pulse was refused: "
                           f"{verdict['error']}")
