@@ -82,24 +82,43 @@ def test_the_virtual_clock_loop_lets_its_process_threads_do_file_work(
     (the daemon's main thread: a collect's directory and manifest, status) gets the
     interpreter lock back after each file operation only when the loop lets go. At the
     default switch interval (5 ms) every small file write waits at least one interval
-    (measured: about 16 ms a write, three waits); the loop lets go within a tenth of a
-    period (0.1 ms at 1 kHz), so the typical write takes well under one default interval.
-    The median write is judged, not the total: on a busy host the OS may deschedule
-    this thread for tens of ms at any write, which says nothing about the loop. The
-    interval is restored when the run ends."""
+    per lock request (measured: about 16 ms a write, three waits); the loop lets go
+    within a tenth of a period (0.1 ms at 1 kHz). Judged against a baseline in the same
+    run, the same writes with the default interval put back for a moment, because on a
+    busy host the OS's own wake-up latency adds to both alike (in CI a median write once
+    took 4.35 ms at the loop's interval). With the loop's interval the median write must
+    take under half the baseline's (measured: 0.25-0.7 ms against 5.2-26 ms, quiet and
+    beside two CPU hogs). Medians, not totals: the OS may deschedule this thread for
+    tens of ms at any write, which says nothing about the loop. The interval is restored
+    when the run ends."""
     before = sys.getswitchinterval()
     d = sim_daemon(duration_s=3600.0)  # an hour of rig time: still running when timed
     assert d.wait_for_state((State.IDLE,), timeout_s=30) == State.IDLE
-    assert sys.getswitchinterval() <= 0.1 * 1e-3 + 1e-9  # kept in whole microseconds
-    took_s = []
-    for k in range(300):
-        t0 = time.perf_counter()
-        (tmp_path / f"f{k % 10}").write_text("x")
-        took_s.append(time.perf_counter() - t0)
+    loops_s = sys.getswitchinterval()
+    assert loops_s <= 0.1 * 1e-3 + 1e-9  # kept in whole microseconds
+
+    def write_s(n: int) -> list[float]:
+        took_s = []
+        for k in range(n):
+            t0 = time.perf_counter()
+            (tmp_path / f"f{k % 10}").write_text("x")
+            took_s.append(time.perf_counter() - t0)
+        return took_s
+
+    with_loop_s: list[float] = []
+    baseline_s: list[float] = []
+    for _ in range(5):  # interleaved, so a burst of host load falls on both
+        with_loop_s += write_s(40)
+        sys.setswitchinterval(DEFAULT_SWITCH_INTERVAL_S)
+        try:
+            baseline_s += write_s(12)
+        finally:
+            sys.setswitchinterval(loops_s)
     assert d.loop.running, "the run ended before the writes were timed"
-    median_s = statistics.median(took_s)
-    assert median_s < 0.5 * DEFAULT_SWITCH_INTERVAL_S, \
-        f"the median file write took {median_s * 1e3:.2f} ms beside the loop"
+    median_s, baseline_median_s = statistics.median(with_loop_s), statistics.median(baseline_s)
+    assert median_s < 0.5 * baseline_median_s, (
+        f"the median file write took {median_s * 1e3:.2f} ms beside the loop, "
+        f"{baseline_median_s * 1e3:.2f} ms at the default switch interval")
     d.stop("test finished")
     assert d.wait(timeout_s=30)
     assert sys.getswitchinterval() == before
