@@ -15,6 +15,7 @@ from typing import TextIO
 
 import numpy as np
 
+from pamd.config.schema import ACTUATIONS
 from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import ModelError
 from pamd.models.anfis.plots import require_matplotlib
@@ -72,12 +73,33 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "(default: as in training)")
     p.add_argument("--rate-hz", type=float, help="decimate to this rate (default: as in "
                    "training)")
+    add_actuation_option(p, "default: as the first model was trained with, else "
+                         "proportional")
     p.add_argument("--held-out", choices=("validation", "test"), default=None,
                    help="judge only the pressure curves the models' training held out "
                    "(pamd train --split-by curve lists them in the model file); the models "
                    "must have held out the same curves. Seed 002 judges on held-out data")
     p.add_argument("--no-timing", action="store_true", help="skip the tick-cost measurement")
     p.set_defaults(func=run)
+
+
+def add_actuation_option(p: argparse.ArgumentParser, default: str) -> None:
+    """`--actuation`, for data tables that do not say their rig's valves."""
+    p.add_argument("--actuation", choices=ACTUATIONS, help="the muscle's valves where a "
+                   "data file does not say (a lab's own CSV or MAT table; pamd's recordings "
+                   "and exports carry their config, which wins): onoff keeps the samples "
+                   "the exhaust valve's PWM pulses flag, as the control's own work, where a "
+                   f"proportional regulator's open dump valve drops them ({default})")
+
+
+def say_own_actuations(samples: Samples, command: str) -> None:
+    """One line per run whose file's config overrode the `actuation` option."""
+    given = samples.options.actuation
+    for r in samples.runs:
+        if given is not None and r.get("actuation") != given:
+            print(f"{command}: {r['source']} [{r['muscle']}]: its config says actuation: "
+                  f"{r.get('actuation')}, kept (the option applies to tables that do not "
+                  "say)", file=sys.stderr)
 
 
 def split_files(files: Sequence[str]) -> tuple[list[str], list[str]]:
@@ -127,8 +149,9 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         require_matplotlib()  # before the models are read and judged, not after
     models = [load_model(f) for f in files]
-    opts = common_options(models, args.muscle, args.settle_s, args.rate_hz)
+    opts = common_options(models, args.muscle, args.settle_s, args.rate_hz, args.actuation)
     samples = load_samples(data, opts)  # recordings and tables (CSV, MAT)
+    say_own_actuations(samples, "pamd evaluate")
     if args.held_out:
         samples = held_out_curves(samples, files, models, args.held_out)
     pairs = judge_as_tick(files, models, samples, timing=not args.no_timing)  # as the tick

@@ -11,7 +11,7 @@ import os
 import sys
 from typing import Protocol
 
-from pamd.cli.evaluate import format_table
+from pamd.cli.evaluate import add_actuation_option, format_table, say_own_actuations
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
@@ -150,6 +150,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("--seed", type=int, default=0, help="seed of the split and of the "
                    "kind's random choices (GA, MLP initialisation; default 0)")
     p.add_argument("--muscle", help="MCAP: only this muscle (default: every muscle)")
+    add_actuation_option(p, "default: proportional")
     p.add_argument("--settle-s", type=float, default=2.0, help="drop this long after each "
                    "run start, state change and lead-in (default 2 s)")
     p.add_argument("--rate-hz", type=float, default=50.0, help="decimate to this rate "
@@ -174,12 +175,13 @@ def run(args: argparse.Namespace) -> int:
                          f"{' or '.join(kind.outputs)}")
     opts = ExtractOptions(inputs=inputs, output=args.target, muscle=args.muscle,
                           settle_s=args.settle_s, rate_hz=args.rate_hz,
-                          velocity_window_s=args.velocity_window_s)
+                          velocity_window_s=args.velocity_window_s, actuation=args.actuation)
     options.check(inputs)
     d = os.path.dirname(os.path.abspath(args.out))
     if not os.path.isdir(d):
         raise ModelError(f"--out {args.out}: directory {d} does not exist")
     samples = load_samples(args.data, opts)  # recordings and tables (CSV, MAT)
+    say_own_actuations(samples, "pamd train")
     parts = split(samples, args.val_split, args.test_split, by=args.split_by,
                   block_s=args.block_s, seed=args.seed)
     tr, va, te = parts.train, parts.validation, parts.test

@@ -7,7 +7,7 @@ generated from them by `python -m pamd.config.docs`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from pamd.config.control_schema import (
     PID_KD_MAX_S,
@@ -20,6 +20,11 @@ from pamd.config.control_schema import (
 )
 from pamd.config.safety_schema import SafetyConfig
 from pamd.schema.engine import spec
+
+#: How air reaches a muscle (`muscles[].actuation`): a proportional pressure regulator,
+#: or an inflate and an exhaust on/off valve.
+Actuation = Literal["proportional", "onoff"]
+ACTUATIONS: tuple[str, ...] = get_args(Actuation)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -253,7 +258,7 @@ class MuscleConfig:
     force_model: Literal["map", "fit"] = spec(
         "map", "Static force model used for the safe pressure: the datasheet map or the "
         "smooth fit.")
-    actuation: Literal["proportional", "onoff"] = spec(
+    actuation: Actuation = spec(
         "proportional", "How air reaches the muscle: `proportional`, a pressure regulator "
         "(signals.valve, optionally a dump valve signals.exhaust); `onoff`, an inflate and "
         "an exhaust solenoid valve on digital outputs (signals.inflate, signals.exhaust), "

@@ -53,11 +53,12 @@ class Judged:
 
 
 def common_options(models: Sequence[InverseModel], muscle: str | None = None,
-                   settle_s: float | None = None,
-                   rate_hz: float | None = None) -> ExtractOptions:
+                   settle_s: float | None = None, rate_hz: float | None = None,
+                   actuation: str | None = None) -> ExtractOptions:
     """Extraction settings giving every model its inputs from the same samples (the
-    union of their inputs; settle time and rate as the first model was trained with
-    unless given; one velocity filter, or an error if the models disagree)."""
+    union of their inputs; settle time, rate and the actuation of tables that do not
+    say theirs as the first model was trained with unless given; one velocity filter,
+    or an error if the models disagree)."""
     names: list[str] = []
     outputs = {m.output.name for m in models}
     if len(outputs) != 1:
@@ -90,7 +91,12 @@ def common_options(models: Sequence[InverseModel], muscle: str | None = None,
         inputs=tuple(order), output=output, muscle=muscle,
         settle_s=settle_s if settle_s is not None else float(ext.get("settle_s", 2.0)),
         rate_hz=rate_hz if rate_hz is not None else float(ext.get("rate_hz", 50.0)),
-        velocity_window_s=windows.pop() if windows else MODEL_VELOCITY_WINDOW_S)
+        velocity_window_s=windows.pop() if windows else MODEL_VELOCITY_WINDOW_S,
+        actuation=actuation if actuation is not None else _str_or_none(ext.get("actuation")))
+
+
+def _str_or_none(v: object) -> str | None:
+    return v if isinstance(v, str) else None
 
 
 def columns_for(model: InverseModel, samples: Samples) -> np.ndarray:

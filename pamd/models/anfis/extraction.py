@@ -14,8 +14,9 @@ What is dropped, per run (counted per reason in the provenance):
 * flagged samples: stale signals, soft limits (pressure, contraction, pretension),
   PID saturation, open exhaust, tracking alarms, unreferenced length
   (`pamd.models.anfis.samples.DROP_FLAGS`); on on/off valves (the recording's config
-  says `actuation: onoff`) the exhaust's PWM pulses are the control itself, as the
-  inflate valve's are, and are kept (`pamd.declare.fields.PWM_VALVE_FLAGS`);
+  says `actuation: onoff`, or for a table that carries no config, the options'
+  `actuation`) the exhaust's PWM pulses are the control itself, as the inflate
+  valve's are, and are kept (`pamd.declare.fields.PWM_VALVE_FLAGS`);
 * settling transients: the first `settle_s` of each run and of each stretch of
   accepted state, and, in MCAP files, each profile's lead-in ramp (computed from the
   profile command recorded on the events topic) plus `settle_s`.
@@ -60,12 +61,14 @@ def extract(runs: Sequence[Run], options: ExtractOptions | None = None) -> Sampl
         raise ModelError("no runs to extract from")
     Xs, ys, ts, idx, info = [], [], [], [], []
     for k, run in enumerate(runs):
-        X, y, t, counts = _extract_run(run, o)
+        actuation = _actuation(run, o)
+        X, y, t, counts = _extract_run(run, o, actuation)
         Xs.append(X)
         ys.append(y)
         ts.append(t)
         idx.append(np.full(y.size, k, dtype=np.intp))
         info.append({"source": run.source, "muscle": run.muscle, "load_kg": run.load_kg,
+                     "actuation": actuation,
                      "duration_s": round(float(run.t_s[-1] - run.t_s[0]), 3),
                      "samples_kept": int(y.size), "dropped": counts})
     X = np.concatenate(Xs)
@@ -89,8 +92,16 @@ def extract(runs: Sequence[Run], options: ExtractOptions | None = None) -> Sampl
                    inputs=tuple(o.inputs), output=o.output, runs=info, options=o)
 
 
-def _extract_run(run: Run, o: ExtractOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                         dict[str, int]]:
+def _actuation(run: Run, o: ExtractOptions) -> str | None:
+    """The run's muscle's `actuation`: as its file's config says (pamd's recordings and
+    exports: the file knows its rig), else as the options say (a lab's table), else None
+    (a regulator's). Each run's provenance says which it was."""
+    said = run.meta.get("actuation")
+    return said if isinstance(said, str) else o.actuation
+
+
+def _extract_run(run: Run, o: ExtractOptions, actuation: str | None,
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int]]:
     c = run.columns
     t = np.asarray(run.t_s, dtype=np.float64)
     n = t.size
@@ -119,7 +130,7 @@ def _extract_run(run: Run, o: ExtractOptions) -> tuple[np.ndarray, np.ndarray, n
     if "flags" in c:
         flags = np.nan_to_num(c["flags"], nan=0.0).astype(np.int64)
         dropped = o.drop_flags
-        if run.meta.get("actuation") == "onoff":
+        if actuation == "onoff":
             dropped &= ~int(PWM_VALVE_FLAGS)
         for f in Flag:
             if f & dropped:

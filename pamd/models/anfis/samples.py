@@ -12,6 +12,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from pamd.config.schema import ACTUATIONS
+from pamd.declare.fields import PWM_VALVE_FLAGS
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
@@ -66,6 +68,9 @@ class ExtractOptions:
     drop_flags: int = DROP_FLAGS
     velocity_window_s: float = MODEL_VELOCITY_WINDOW_S  # the model's velocity filter
     min_samples: int = 50  # fewer kept samples than this is refused
+    #: the muscles' `actuation` where a file does not say (a lab's own CSV or MAT table;
+    #: pamd's recordings and exports carry their config): None, a regulator's
+    actuation: str | None = None
 
     def check(self) -> None:
         unknown = [n for n in self.inputs if n not in INPUT_UNITS]
@@ -83,6 +88,9 @@ class ExtractOptions:
             raise ModelError("rate_hz must be > 0 and settle_s >= 0")
         if not self.velocity_window_s > 0:
             raise ModelError("the velocity window must be > 0 s")
+        if self.actuation is not None and self.actuation not in ACTUATIONS:
+            raise ModelError(f"unknown actuation {self.actuation!r}; use one of "
+                             f"{', '.join(ACTUATIONS)}")
 
 
 @dataclass
@@ -136,6 +144,8 @@ class Samples:
             "extraction": {
                 "settle_s": o.settle_s, "rate_hz": o.rate_hz,
                 "drop_flags": [f.name for f in Flag if f & o.drop_flags],
+                "kept_on_onoff_valves": [f.name for f in Flag if f & PWM_VALVE_FLAGS],
+                "actuation": o.actuation,  # for the files that do not say their own
                 "states_kept": ["RUNNING"],
                 "lead_in_ramps": "dropped (MCAP profile commands)",
                 "velocity_window_s": o.velocity_window_s,

@@ -74,6 +74,29 @@ def test_exhaust_open_drops_the_sample_except_on_onoff_valves(tmp_path: Path) ->
     assert len(onoff) > len(regulator)
 
 
+def test_a_table_without_config_takes_the_actuation_option(tmp_path: Path) -> None:
+    """A lab's own table carries no config: read as a regulator's unless the option says
+    on/off; a file whose config says its actuation keeps it (the file knows its rig).
+    Each run's provenance says which was used, the model's extraction the option."""
+    flags = np.zeros(3000)
+    flags[1000:1100] = int(Flag.EXHAUST_OPEN)
+    run = read_csv(str(write_csv(tmp_path / "lab.csv", flags=flags)))
+    plain = extract([run], ExtractOptions(settle_s=2.0, rate_hz=100.0))
+    assert plain.runs[0]["actuation"] is None
+    assert plain.runs[0]["dropped"]["flag EXHAUST_OPEN"] == 100
+    onoff = extract([run], ExtractOptions(settle_s=2.0, rate_hz=100.0, actuation="onoff"))
+    assert onoff.runs[0]["actuation"] == "onoff"
+    assert "flag EXHAUST_OPEN" not in onoff.runs[0]["dropped"]
+    assert len(onoff) >= len(plain) + 95  # (a few fall to the decimation's bins)
+    assert onoff.provenance()["extraction"]["actuation"] == "onoff"
+    run.meta["actuation"] = "proportional"  # as pamd's own recordings of a regulator say
+    said = extract([run], ExtractOptions(settle_s=2.0, rate_hz=100.0, actuation="onoff"))
+    assert said.runs[0]["actuation"] == "proportional"
+    assert said.runs[0]["dropped"]["flag EXHAUST_OPEN"] == 100
+    with pytest.raises(ModelError, match="unknown actuation 'pwm'; use one of proportional"):
+        extract([run], ExtractOptions(actuation="pwm"))
+
+
 def test_an_onoff_recording_says_its_actuation(tmp_path: Path, recording: Path) -> None:
     """The actuation comes from the recording's own config: a PWM sweep on on/off
     valves keeps its exhaust pulses; the regulator's recording is read as one."""

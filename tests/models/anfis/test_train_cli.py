@@ -6,11 +6,14 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from pamd.cli.main import main
 from pamd.metrics import METRIC_NAMES
 from pamd.models.anfis import load
+from pamd.tick import Flag
+from tests.models.anfis.test_dataset import write_csv
 
 
 def test_train_then_evaluate_with_json_and_plots(recording: Path, tmp_path: Path,
@@ -62,6 +65,41 @@ def test_train_on_all_data_and_table_without_json(recording: Path, tmp_path: Pat
     assert main(["evaluate", str(model_path), str(recording)]) == 0
     out = capsys.readouterr().out
     assert "max deviation %" in out and "evaluation" in out
+
+
+def test_a_lab_table_on_onoff_valves_trains_and_evaluates_as_one(
+        tmp_path: Path, capsys: Any) -> None:
+    """`--actuation onoff` keeps a lab table's exhaust-flagged samples (the PWM's own
+    pulses); the model file says so, and `pamd evaluate` reads the table the same way
+    without being told again. A pamd recording's own config wins, and is said."""
+    flags = np.zeros(3000)
+    flags[500:1500] = int(Flag.EXHAUST_OPEN)  # 10 s of the PWM's venting pulses
+    lab = write_csv(tmp_path / "lab.csv", flags=flags)
+    model_path = tmp_path / "m.json"
+    args = ["train", str(lab), "--out", str(model_path), "--mfs", "2", "--epochs", "2",
+            "--quiet", "--val-split", "0"]
+    assert main([*args, "--out", str(tmp_path / "plain.json")]) == 0
+    assert main([*args, "--actuation", "onoff"]) == 0
+    data = load(model_path).provenance["data"]
+    plain = load(tmp_path / "plain.json").provenance["data"]
+    assert data["extraction"]["actuation"] == "onoff" and data["runs"][0]["actuation"] == "onoff"
+    assert data["samples"] >= plain["samples"] + 450  # 10 s at 50 Hz no longer dropped
+    capsys.readouterr()
+    assert main(["evaluate", str(model_path), str(lab), "--json", "--no-timing"]) == 0
+    assert f"{data['samples']} samples" in capsys.readouterr().err
+    assert main(["evaluate", str(model_path), str(lab), "--json", "--no-timing",
+                 "--actuation", "proportional"]) == 0
+    assert f"{plain['samples']} samples" in capsys.readouterr().err
+
+
+def test_the_actuation_option_does_not_override_a_recordings_config(
+        recording: Path, tmp_path: Path, capsys: Any) -> None:
+    assert main(["train", str(recording), "--out", str(tmp_path / "m.json"), "--mfs", "2",
+                 "--epochs", "1", "--quiet", "--val-split", "0", "--actuation", "onoff"]) == 0
+    err = capsys.readouterr().err
+    assert "its config says actuation: proportional, kept" in err
+    runs = load(tmp_path / "m.json").provenance["data"]["runs"]
+    assert [r["actuation"] for r in runs] == ["proportional"]
 
 
 @pytest.mark.parametrize("args, message", [
