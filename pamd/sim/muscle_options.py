@@ -12,6 +12,7 @@ holds real types for the config engine.
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from pamd.config.schema import Actuation
 from pamd.schema.engine import spec
 
 
@@ -181,7 +182,7 @@ class SimPneumatics:
         0.0001,
         5.0,
     )
-    actuation: Literal["proportional", "onoff"] = option(
+    actuation: Actuation = option(
         "proportional",
         "How air reaches the muscle: 'proportional', a pressure regulator (outputs "
         "NAME.valve in bar and NAME.exhaust, the dump valve); 'onoff', an inflate valve "
