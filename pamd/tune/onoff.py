@@ -12,9 +12,18 @@ before and 0.2 s + `WINDOW_S` after), the pressure wandering from pulse to pulse
 
 1. a 40 ms pulse: the pressure step over the pulse's length is the valve's rate
    (`fill_rate_bar_per_s`, `vent_rate_bar_per_s`; the duty's gain);
-2. the shortest pulse the PWM sends (`pamd.control.actuation.min_pulse_s`): half the
-   smaller of its two pressure steps is `dead_band_bar` (no pulse can place the
-   pressure closer); the smallest length change seen is the encoder's count;
+2. the shortest pulse the PWM sends (`pamd.control.actuation.min_pulse_s`),
+   `SHORTEST_REPEATS` (3) times per valve, inflate and exhaust alternating (the
+   pressure stays within a few steps of the level): half the smaller of the two
+   valves' *median* pressure steps is `dead_band_bar` (no pulse can place the pressure
+   closer); the smallest length change seen is the encoder's count. One such pulse's
+   step is not the valve's: its spool's switching delays, not the tick, decide how
+   long it is really open, and they vary from pulse to pulse by a good part of the
+   6 ms (on the real clock the simulated valve's spool opened 7, 8 or 9 ms for the
+   same 6-tick pulse, its recorded length 6.0 ms every time, and the single pulse's
+   dead band ranged 0.0126-0.0164 bar over 9 runs; the means' noise is ~0.5 mbar of
+   a 30-50 mbar step). The median of three is the typical pulse: one long or short
+   pulse (a late spool, a late tick) cannot move it;
 3. a 300 ms pulse: the fastest length change seen (over 50 ms) is the valve's speed
    on the muscle, held open (the muscle reaches it within about 0.2 s; a 150 ms pulse
    measured the exhaust at half its speed, issue 29). The *faster* of the two valves
@@ -39,6 +48,7 @@ bar above the command long enough for the tracking check, 1 s, on the real clock
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -58,6 +68,9 @@ SPEED_WINDOW_S = 0.05  # a speed over 50 ms: 0.2 mm/s per encoder count
 WINDOW_S = 0.05  # the mean before and after a pulse
 LAYER_MM = 3.0  # the boundary layer's edge from a target at rest
 RESPONSE_PERIODS = 5.0
+#: the PWM's shortest pulse, per valve (the median step sets the dead band): each costs
+#: ~0.3 s of rig time
+SHORTEST_REPEATS = 3
 #: a pulse's pressure step smaller than this moved nothing (bar): the mean of 50
 #: samples resolves a few mbar
 MIN_STEP_BAR = 0.002
@@ -84,9 +97,12 @@ class Pulse:
 
 
 PULSES = (Pulse("inflate", RATE_PULSE_S), Pulse("exhaust", RATE_PULSE_S),
-          Pulse("inflate", None), Pulse("exhaust", None),
+          *(Pulse(valve, None) for _ in range(SHORTEST_REPEATS)
+            for valve in ("inflate", "exhaust")),
           Pulse("inflate", SPEED_PULSE_S), Pulse("exhaust", SPEED_PULSE_S))
-"""The step test, in order."""
+"""The step test, in order: the shortest pulses alternate inflate and exhaust, so the
+pressure wanders by one step around the level, not three steps away from it."""
+N_RATE, N_SHORTEST = 2, 2 * SHORTEST_REPEATS
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,16 +135,57 @@ class PulseResponse:
 
 @dataclass(frozen=True)
 class StepTest:
-    """The step test's measurements (inflate first in each pair)."""
+    """The step test's measurements (inflate first in each pair; the shortest pulses
+    alternating, inflate first, `SHORTEST_REPEATS` of each valve)."""
 
     rate: tuple[PulseResponse, PulseResponse]
-    shortest: tuple[PulseResponse, PulseResponse]
+    shortest: tuple[PulseResponse, ...]
     speed: tuple[PulseResponse, PulseResponse]
     count_mm: float  # the smallest length change seen
 
+    @classmethod
+    def of(cls, r: list[PulseResponse], count_mm: float) -> StepTest:
+        """The step test from its responses in the order they ran (`PULSES`)."""
+        k = N_RATE + N_SHORTEST
+        return cls((r[0], r[1]), tuple(r[N_RATE:k]), (r[k], r[k + 1]), count_mm)
+
     def responses(self) -> tuple[PulseResponse, ...]:
-        """The six pulses, in the order they ran (`PULSES`)."""
+        """The pulses, in the order they ran (`PULSES`)."""
         return (*self.rate, *self.shortest, *self.speed)
+
+
+#: one pulse as the rules take it: (the pulse, its pressure step bar, its fastest
+#: length change mm/s)
+Measurement = tuple[Pulse, float, float]
+
+
+def shortest_steps_bar(measured: Sequence[Measurement], valve: Valve) -> list[float]:
+    """The pressure steps of one valve's shortest pulses (bar, signed), in order."""
+    return [dp for p, dp, _ in measured if p.valve == valve and p.pulse_s is None]
+
+
+def median_step_bar(steps_bar: Sequence[float]) -> float:
+    """The typical shortest pulse's step: the median of the repeats (bar, signed). The
+    spool's switching delays make one pulse open longer or shorter than the next (a
+    whole plant step of 8 on the real clock's simulated valve); of three, the middle
+    one is neither the long nor the short one, whichever of the three it was."""
+    return float(np.median(np.asarray(steps_bar, dtype=float)))
+
+
+def derive(measured: Sequence[Measurement], count_mm: float,
+           pwm_period_s: float) -> dict[str, float]:
+    """The rules applied to the pulses as measured (the daemon's step test and
+    bench/tune_onoff.py's alike): the rate and speed pulses' steps and speeds, the
+    median of each valve's shortest pulses."""
+    def one(valve: Valve, pulse_s: float) -> Measurement:
+        [m] = [m for m in measured if m[0] == Pulse(valve, pulse_s)]
+        return m
+
+    return settings(one("inflate", RATE_PULSE_S)[1], one("exhaust", RATE_PULSE_S)[1],
+                    median_step_bar(shortest_steps_bar(measured, "inflate")),
+                    median_step_bar(shortest_steps_bar(measured, "exhaust")),
+                    one("inflate", SPEED_PULSE_S)[2], one("exhaust", SPEED_PULSE_S)[2],
+                    count_mm, pwm_period_s)
 
 
 def settings(fill_step_bar: float, vent_step_bar: float, fill_min_bar: float,
@@ -150,10 +207,12 @@ def settings(fill_step_bar: float, vent_step_bar: float, fill_min_bar: float,
 
 def derived_settings(test: StepTest, pwm_period_s: float) -> dict[str, float]:
     """The rules applied to the step test."""
-    r, s, v = test.rate, test.shortest, test.speed
-    return settings(r[0].pressure_step_bar, r[1].pressure_step_bar, s[0].pressure_step_bar,
-                    s[1].pressure_step_bar, v[0].speed_mm_s, v[1].speed_mm_s, test.count_mm,
-                    pwm_period_s)
+    return derive(measurements(test), test.count_mm, pwm_period_s)
+
+
+def measurements(test: StepTest) -> list[Measurement]:
+    """The step test's pulses as the rules take them."""
+    return [(r.pulse, r.pressure_step_bar, r.speed_mm_s) for r in test.responses()]
 
 
 def fastest(length_mm: np.ndarray, dt_s: float) -> tuple[float, int]:
@@ -252,6 +311,11 @@ def print_test(title: str, test: StepTest) -> None:
     for r in test.responses():
         print(f"  {r.pulse.valve:18s} {1e3 * r.pulse_s:8.0f} {r.pressure_step_bar:+13.4f} "
               f"{r.length_step_mm:+10.3f} {r.speed_mm_s:13.1f}")
+    m = measurements(test)
+    print(f"  shortest pulses' median step: inflate "
+          f"{median_step_bar(shortest_steps_bar(m, 'inflate')):+.4f}, exhaust "
+          f"{median_step_bar(shortest_steps_bar(m, 'exhaust')):+.4f} bar (of "
+          f"{SHORTEST_REPEATS} each)")
     print(f"  encoder count (the smallest length change): {test.count_mm:g} mm")
 
 
