@@ -6,8 +6,9 @@ The procedure and its rules, each with its reason, are `pamd.tune.onoff`'s (its
 docstring): an identification run (the PWM's dead band opened to 1 bar, so it leaves
 the valves to this script once the muscle holds 3 bar at 30 kg), then each valve in
 turn, inflate then exhaust, a 40 ms pulse (the fill / vent rate), the PWM's shortest
-pulse three times, alternating (half the smaller median step is the dead band; the
-encoder's count) and a 300 ms pulse (the valve speeds: the boundary layer and lambda);
+pulse three times, alternating (half the smaller typical step, the mean of the three,
+is the dead band; the encoder's count) and a 300 ms pulse (the valve speeds: the
+boundary layer and lambda);
 `response_s` is 5 PWM periods.
 
 `pamd tune --loop onoff` runs the same pulses through the daemon (the `pulse` command,
@@ -45,9 +46,9 @@ from pamd.tune.onoff import (
     Measurement,
     derive,
     fastest,
-    median_step_bar,
     shortest_steps_bar,
     smallest_change_mm,
+    typical_step_bar,
 )
 
 REPO = Path(__file__).resolve().parents[1]
@@ -131,8 +132,8 @@ def tune(config: Path, load_kg: float) -> dict[str, float]:
     print(f"step test at {LEVEL_BAR:g} bar, {load_kg:g} kg: 40 ms pulses {dp_fill:+.3f} / "
           f"{dp_vent:+.3f} bar; shortest pulses ({1e3 * shortest:g} ms) "
           f"{' '.join(f'{dp:+.4f}' for dp in fill_min)} / "
-          f"{' '.join(f'{dp:+.4f}' for dp in vent_min)} bar (medians "
-          f"{median_step_bar(fill_min):+.4f} / {median_step_bar(vent_min):+.4f}); valve "
+          f"{' '.join(f'{dp:+.4f}' for dp in vent_min)} bar (typical "
+          f"{typical_step_bar(fill_min):+.4f} / {typical_step_bar(vent_min):+.4f}); valve "
           f"speeds {v_fill:.1f} / {v_vent:.1f} mm/s (inflate / exhaust); encoder count "
           f"{count_mm:g} mm")
     return derive(measured, count_mm, cfg.pwm_period_s)

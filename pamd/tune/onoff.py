@@ -15,15 +15,16 @@ before and 0.2 s + `WINDOW_S` after), the pressure wandering from pulse to pulse
 2. the shortest pulse the PWM sends (`pamd.control.actuation.min_pulse_s`),
    `SHORTEST_REPEATS` (3) times per valve, inflate and exhaust alternating (the
    pressure stays within a few steps of the level): half the smaller of the two
-   valves' *median* pressure steps is `dead_band_bar` (no pulse can place the pressure
-   closer); the smallest length change seen is the encoder's count. One such pulse's
-   step is not the valve's: its spool's switching delays, not the tick, decide how
-   long it is really open, and they vary from pulse to pulse by a good part of the
-   6 ms (on the real clock the simulated valve's spool opened 7, 8 or 9 ms for the
-   same 6-tick pulse, its recorded length 6.0 ms every time, and the single pulse's
-   dead band ranged 0.0126-0.0164 bar over 9 runs; the means' noise is ~0.5 mbar of
-   a 30-50 mbar step). The median of three is the typical pulse: one long or short
-   pulse (a late spool, a late tick) cannot move it;
+   valves' typical steps (`typical_step_bar`: the mean of the repeats, less any
+   beyond `OUTLIER_FRACTION` of their median) is `dead_band_bar` (no pulse can place
+   the pressure closer); the smallest length change seen is the encoder's count. One
+   such pulse's step is not the valve's: its spool's switching delays, not the tick,
+   decide how long it is really open, and they vary from pulse to pulse. Measured on
+   the real clock (13 runs, 6 beside two CPU hogs): every shortest pulse recorded 6
+   ticks, 6.0 ms between the ticks that opened and shut it, the means' noise ~0.5
+   mbar; but the simulated spool was open 7, 8 or 9 ms for it, and one pulse's step
+   scatters 8 % (sd) from the next: one pulse's dead band spread 0.0124-0.0165 bar,
+   the mean of three's 0.0135-0.0157 (the median of three's 0.0132-0.0163);
 3. a 300 ms pulse: the fastest length change seen (over 50 ms) is the valve's speed
    on the muscle, held open (the muscle reaches it within about 0.2 s; a 150 ms pulse
    measured the exhaust at half its speed, issue 29). The *faster* of the two valves
@@ -68,9 +69,13 @@ SPEED_WINDOW_S = 0.05  # a speed over 50 ms: 0.2 mm/s per encoder count
 WINDOW_S = 0.05  # the mean before and after a pulse
 LAYER_MM = 3.0  # the boundary layer's edge from a target at rest
 RESPONSE_PERIODS = 5.0
-#: the PWM's shortest pulse, per valve (the median step sets the dead band): each costs
-#: ~0.3 s of rig time
+#: the PWM's shortest pulse, per valve (their typical step sets the dead band): each
+#: costs ~0.3 s of rig time
 SHORTEST_REPEATS = 3
+#: a shortest pulse's step this far from its repeats' median (relative) is left out of
+#: the typical step: the spool's own scatter reaches 9 against 7 ms of flow (+29 %); a
+#: pulse beyond half again (or half) the others' was held open by a stall or cut short
+OUTLIER_FRACTION = 0.5
 #: a pulse's pressure step smaller than this moved nothing (bar): the mean of 50
 #: samples resolves a few mbar
 MIN_STEP_BAR = 0.002
@@ -164,26 +169,38 @@ def shortest_steps_bar(measured: Sequence[Measurement], valve: Valve) -> list[fl
     return [dp for p, dp, _ in measured if p.valve == valve and p.pulse_s is None]
 
 
-def median_step_bar(steps_bar: Sequence[float]) -> float:
-    """The typical shortest pulse's step: the median of the repeats (bar, signed). The
-    spool's switching delays make one pulse open longer or shorter than the next (a
-    whole plant step of 8 on the real clock's simulated valve); of three, the middle
-    one is neither the long nor the short one, whichever of the three it was."""
-    return float(np.median(np.asarray(steps_bar, dtype=float)))
+def counted(steps_bar: Sequence[float]) -> list[bool]:
+    """Which of one valve's shortest pulses the typical step counts: those within
+    `OUTLIER_FRACTION` of the repeats' median (the median itself always). The
+    spool's switching delays scatter the steps by a plant step of 8 (+-12 %) and the
+    level's drift by a few %; a pulse beyond that was not the PWM's shortest (held open
+    by a stall of the PC, or cut)."""
+    median = float(np.median(np.asarray(steps_bar, dtype=float)))
+    return [abs(dp - median) <= OUTLIER_FRACTION * abs(median) for dp in steps_bar]
+
+
+def typical_step_bar(steps_bar: Sequence[float]) -> float:
+    """One valve's typical shortest-pulse step (bar, signed): the mean of its repeats
+    that `counted` keeps. The mean, not the median: the steps scatter about evenly
+    (the spool open a plant step shorter or longer), and the mean of three spreads
+    4.7 % over the real clock's runs, the median of three 6 % (resampled from 39
+    measured steps)."""
+    kept = [dp for dp, ok in zip(steps_bar, counted(steps_bar), strict=True) if ok]
+    return float(np.mean(np.asarray(kept, dtype=float)))
 
 
 def derive(measured: Sequence[Measurement], count_mm: float,
            pwm_period_s: float) -> dict[str, float]:
     """The rules applied to the pulses as measured (the daemon's step test and
-    bench/tune_onoff.py's alike): the rate and speed pulses' steps and speeds, the
-    median of each valve's shortest pulses."""
+    bench/tune_onoff.py's alike): the rate and speed pulses' steps and speeds, each
+    valve's typical shortest-pulse step."""
     def one(valve: Valve, pulse_s: float) -> Measurement:
         [m] = [m for m in measured if m[0] == Pulse(valve, pulse_s)]
         return m
 
     return settings(one("inflate", RATE_PULSE_S)[1], one("exhaust", RATE_PULSE_S)[1],
-                    median_step_bar(shortest_steps_bar(measured, "inflate")),
-                    median_step_bar(shortest_steps_bar(measured, "exhaust")),
+                    typical_step_bar(shortest_steps_bar(measured, "inflate")),
+                    typical_step_bar(shortest_steps_bar(measured, "exhaust")),
                     one("inflate", SPEED_PULSE_S)[2], one("exhaust", SPEED_PULSE_S)[2],
                     count_mm, pwm_period_s)
 
@@ -312,9 +329,9 @@ def print_test(title: str, test: StepTest) -> None:
         print(f"  {r.pulse.valve:18s} {1e3 * r.pulse_s:8.0f} {r.pressure_step_bar:+13.4f} "
               f"{r.length_step_mm:+10.3f} {r.speed_mm_s:13.1f}")
     m = measurements(test)
-    print(f"  shortest pulses' median step: inflate "
-          f"{median_step_bar(shortest_steps_bar(m, 'inflate')):+.4f}, exhaust "
-          f"{median_step_bar(shortest_steps_bar(m, 'exhaust')):+.4f} bar (of "
+    print(f"  shortest pulses' typical step: inflate "
+          f"{typical_step_bar(shortest_steps_bar(m, 'inflate')):+.4f}, exhaust "
+          f"{typical_step_bar(shortest_steps_bar(m, 'exhaust')):+.4f} bar (of "
           f"{SHORTEST_REPEATS} each)")
     print(f"  encoder count (the smallest length change): {test.count_mm:g} mm")
 

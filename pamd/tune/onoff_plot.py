@@ -1,7 +1,8 @@
 """`pamd tune --loop onoff --plot FILE`: one PNG of the step test of every muscle
 tuned. Each pulse has a column of its own (inflate, exhaust x 40 ms, the PWM's
 shortest three times each, 300 ms, in the order they ran; a shortest pulse's title
-says which repeat it is and marks the median one, whose step the dead band takes), the
+says which repeat it is, and "left out" on one whose step the typical step does not
+count: `pamd.tune.onoff.counted`), the
 measured pressure above and the length below, against the time from the valve's
 opening (ms):
 
@@ -34,7 +35,7 @@ from pamd.tune.onoff import (
     WINDOW_S,
     PulseResponse,
     StepTest,
-    median_step_bar,
+    counted,
     unsound,
 )
 from pamd.tune.report import pyplot
@@ -91,15 +92,14 @@ def onoff_figure(plt: ModuleType, tests: dict[str, StepTest], level_bar: float) 
 
 def title(test: StepTest, r: PulseResponse) -> str:
     """A pulse's column title: its valve and length; a shortest pulse's repeat (k/3),
-    and "median" on the one whose step the dead band takes."""
+    and "left out" on one the dead band's typical step does not count."""
     text = f"{r.pulse.valve} {1e3 * r.pulse_s:.0f} ms"
     if r.pulse.pulse_s is not None:
         return text
     repeats = [s for s in test.shortest if s.pulse.valve == r.pulse.valve]
-    median = median_step_bar([s.pressure_step_bar for s in repeats])
     k = next(k for k, s in enumerate(repeats) if s is r)
-    text += f" {k + 1}/{SHORTEST_REPEATS}"
-    return text + (" median" if r.pressure_step_bar == median else "")
+    kept = counted([s.pressure_step_bar for s in repeats])[k]
+    return f"{text} {k + 1}/{SHORTEST_REPEATS}" + ("" if kept else ", left out")
 
 
 def _panel(ax: Axes, r: PulseResponse, y: np.ndarray, before: float, step: float,
