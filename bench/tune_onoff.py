@@ -46,7 +46,7 @@ from pamd.tune.onoff import (
     Measurement,
     derive,
     fastest,
-    shortest_steps_bar,
+    shortest_of,
     smallest_change_mm,
     typical_step_bar,
 )
@@ -122,17 +122,17 @@ def tune(config: Path, load_kg: float) -> dict[str, float]:
         for p in PULSES:
             dp, _, speed = t.pulse(t.act.inflate if p.valve == "inflate" else t.act.exhaust,
                                    p.length_s(shortest), SETTLE_AFTER_S)
-            measured.append((p, dp, speed))
+            measured.append(Measurement(p, dp, speed))  # its own ticks: as commanded
         count_mm = smallest_change_mm(np.asarray(t.lengths))
     finally:
         h.rig.close()
-    (_, dp_fill, _), (_, dp_vent, _) = measured[:2]
-    (_, _, v_fill), (_, _, v_vent) = measured[-2:]
-    fill_min, vent_min = (shortest_steps_bar(measured, v) for v in ("inflate", "exhaust"))
+    dp_fill, dp_vent = (m.pressure_step_bar for m in measured[:2])
+    v_fill, v_vent = (m.speed_mm_s for m in measured[-2:])
+    fill_min, vent_min = (shortest_of(measured, v) for v in ("inflate", "exhaust"))
     print(f"step test at {LEVEL_BAR:g} bar, {load_kg:g} kg: 40 ms pulses {dp_fill:+.3f} / "
           f"{dp_vent:+.3f} bar; shortest pulses ({1e3 * shortest:g} ms) "
-          f"{' '.join(f'{dp:+.4f}' for dp in fill_min)} / "
-          f"{' '.join(f'{dp:+.4f}' for dp in vent_min)} bar (typical "
+          f"{' '.join(f'{m.pressure_step_bar:+.4f}' for m in fill_min)} / "
+          f"{' '.join(f'{m.pressure_step_bar:+.4f}' for m in vent_min)} bar (typical "
           f"{typical_step_bar(fill_min):+.4f} / {typical_step_bar(vent_min):+.4f}); valve "
           f"speeds {v_fill:.1f} / {v_vent:.1f} mm/s (inflate / exhaust); encoder count "
           f"{count_mm:g} mm")

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -131,7 +132,8 @@ class PulseResponse:
     """What one pulse did: the pressure and length steps, the fastest length change."""
 
     pulse: Pulse
-    pulse_s: float  # as recorded (whole ticks)
+    pulse_s: float  # as recorded: from the tick that opened the valve to the one that shut it
+    off_by_s: float  # pulse_s less the commanded length (whole ticks)
     pressure_step_bar: float
     length_step_mm: float
     speed_mm_s: float
@@ -159,34 +161,46 @@ class StepTest:
         return (*self.rate, *self.shortest, *self.speed)
 
 
-#: one pulse as the rules take it: (the pulse, its pressure step bar, its fastest
-#: length change mm/s)
-Measurement = tuple[Pulse, float, float]
+class Measurement(NamedTuple):
+    """One pulse as the rules take it."""
+
+    pulse: Pulse
+    pressure_step_bar: float  # signed
+    speed_mm_s: float  # the fastest length change
+    off_by_s: float = 0.0  # the recorded length less the commanded one (whole ticks)
 
 
-def shortest_steps_bar(measured: Sequence[Measurement], valve: Valve) -> list[float]:
-    """The pressure steps of one valve's shortest pulses (bar, signed), in order."""
-    return [dp for p, dp, _ in measured if p.valve == valve and p.pulse_s is None]
+def shortest_of(measured: Sequence[Measurement], valve: Valve) -> list[Measurement]:
+    """One valve's shortest pulses, in the order they ran."""
+    return [m for m in measured if m.pulse.valve == valve and m.pulse.pulse_s is None]
 
 
-def counted(steps_bar: Sequence[float]) -> list[bool]:
-    """Which of one valve's shortest pulses the typical step counts: those within
-    `OUTLIER_FRACTION` of the repeats' median (the median itself always). The
-    spool's switching delays scatter the steps by a plant step of 8 (+-12 %) and the
-    level's drift by a few %; a pulse beyond that was not the PWM's shortest (held open
-    by a stall of the PC, or cut)."""
-    median = float(np.median(np.asarray(steps_bar, dtype=float)))
-    return [abs(dp - median) <= OUTLIER_FRACTION * abs(median) for dp in steps_bar]
+def counted(repeats: Sequence[Measurement]) -> list[bool]:
+    """Which of one valve's shortest pulses the typical step counts. Not one the
+    recording shows longer (or shorter) than the PWM's shortest: a tick skipped by a
+    busy PC near its end kept the valve open a whole tick more (7 against 6 ms), which
+    is not the pulse the dead band is about. Of the rest, those within
+    `OUTLIER_FRACTION` of their median (the median itself always): the spool's switching
+    delays scatter the steps by a plant step of 8 (+-12 %) and the level's drift by a
+    few %; a step beyond that was not the PWM's shortest pulse either."""
+    timed = [abs(m.off_by_s) < 1e-9 for m in repeats]
+    steps = [m.pressure_step_bar for m, ok in zip(repeats, timed, strict=True) if ok]
+    if not steps:
+        return timed
+    median = float(np.median(np.asarray(steps, dtype=float)))
+    return [ok and abs(m.pressure_step_bar - median) <= OUTLIER_FRACTION * abs(median)
+            for m, ok in zip(repeats, timed, strict=True)]
 
 
-def typical_step_bar(steps_bar: Sequence[float]) -> float:
+def typical_step_bar(repeats: Sequence[Measurement]) -> float:
     """One valve's typical shortest-pulse step (bar, signed): the mean of its repeats
-    that `counted` keeps. The mean, not the median: the steps scatter about evenly
-    (the spool open a plant step shorter or longer), and the mean of three spreads
-    4.7 % over the real clock's runs, the median of three 6 % (resampled from 39
-    measured steps)."""
-    kept = [dp for dp, ok in zip(steps_bar, counted(steps_bar), strict=True) if ok]
-    return float(np.mean(np.asarray(kept, dtype=float)))
+    that `counted` keeps (NaN: none; `check` refuses that). The mean, not the median:
+    the steps scatter about evenly (the spool open a plant step shorter or longer), and
+    the mean of three spreads 4.7 % over the real clock's runs, the median of three 6 %
+    (resampled from 39 measured steps)."""
+    kept = [m.pressure_step_bar for m, ok in zip(repeats, counted(repeats), strict=True)
+            if ok]
+    return float(np.mean(np.asarray(kept, dtype=float))) if kept else float("nan")
 
 
 def derive(measured: Sequence[Measurement], count_mm: float,
@@ -195,14 +209,15 @@ def derive(measured: Sequence[Measurement], count_mm: float,
     bench/tune_onoff.py's alike): the rate and speed pulses' steps and speeds, each
     valve's typical shortest-pulse step."""
     def one(valve: Valve, pulse_s: float) -> Measurement:
-        [m] = [m for m in measured if m[0] == Pulse(valve, pulse_s)]
+        [m] = [m for m in measured if m.pulse == Pulse(valve, pulse_s)]
         return m
 
-    return settings(one("inflate", RATE_PULSE_S)[1], one("exhaust", RATE_PULSE_S)[1],
-                    typical_step_bar(shortest_steps_bar(measured, "inflate")),
-                    typical_step_bar(shortest_steps_bar(measured, "exhaust")),
-                    one("inflate", SPEED_PULSE_S)[2], one("exhaust", SPEED_PULSE_S)[2],
-                    count_mm, pwm_period_s)
+    return settings(one("inflate", RATE_PULSE_S).pressure_step_bar,
+                    one("exhaust", RATE_PULSE_S).pressure_step_bar,
+                    typical_step_bar(shortest_of(measured, "inflate")),
+                    typical_step_bar(shortest_of(measured, "exhaust")),
+                    one("inflate", SPEED_PULSE_S).speed_mm_s,
+                    one("exhaust", SPEED_PULSE_S).speed_mm_s, count_mm, pwm_period_s)
 
 
 def settings(fill_step_bar: float, vent_step_bar: float, fill_min_bar: float,
@@ -229,7 +244,8 @@ def derived_settings(test: StepTest, pwm_period_s: float) -> dict[str, float]:
 
 def measurements(test: StepTest) -> list[Measurement]:
     """The step test's pulses as the rules take them."""
-    return [(r.pulse, r.pressure_step_bar, r.speed_mm_s) for r in test.responses()]
+    return [Measurement(r.pulse, r.pressure_step_bar, r.speed_mm_s, r.off_by_s)
+            for r in test.responses()]
 
 
 def fastest(length_mm: np.ndarray, dt_s: float) -> tuple[float, int]:
@@ -266,7 +282,13 @@ def response(t_s: np.ndarray, p_bar: np.ndarray, l_mm: np.ndarray, flags: np.nda
         raise TuneRefused(f"the {pulse.valve} pulse sent at {sent_s:.3f} s is not in the "
                           "recording (its valve never open): the recording is incomplete")
     i0, i1 = int(open_i[0]), int(open_i[-1]) + 1
-    shown = (i1 - i0) * dt
+    if i1 >= len(t_s):
+        raise TuneRefused(f"the {pulse.valve} pulse at {sent_s:.3f} s is open to the end of "
+                          "the recording: the recording is incomplete")
+    # the loop time from the tick that opened the valve to the one that shut it, not
+    # the samples between: a tick a busy PC skipped (overrun_policy skip) leaves no
+    # sample, but its time passed with the valve open (a 300 ms pulse showed 267 samples)
+    shown = float(t_s[i1] - t_s[i0])
     if i1 - i0 != open_i.size or abs(shown - want) > 1.5 * dt:
         raise TuneRefused(f"the {pulse.valve} pulse sent at {sent_s:.3f} s was open "
                           f"{1e3 * shown:.0f} ms in the recording, not {1e3 * want:g} ms")
@@ -280,7 +302,8 @@ def response(t_s: np.ndarray, p_bar: np.ndarray, l_mm: np.ndarray, flags: np.nda
     shows = slice(max(0, i0 - 2 * n_w), min(len(t_s), settled + 2 * n_w))
     trace = PulseTrace(t_s[shows] - t_s[i0], p_bar[shows], l_mm[shows],
                        float(t_s[settled] - t_s[i0]), p0, l0, float(t_s[i0 + k] - t_s[i0]))
-    return PulseResponse(pulse, shown, float(np.mean(p_bar[after])) - p0,
+    return PulseResponse(pulse, shown, round((shown - want) / dt) * dt,
+                         float(np.mean(p_bar[after])) - p0,
                          float(np.mean(l_mm[after])) - l0, speed,
                          trace), slice(i0 - n_w, settled + n_w)
 
@@ -305,7 +328,9 @@ def unsound(r: PulseResponse) -> str | None:
 
 def check(test: StepTest) -> None:
     """Refuse (TuneRefused, the reason and what to check) a test that did not measure
-    what the rules need: a pulse that is `unsound`, no length change at all."""
+    what the rules need: a pulse that is `unsound`, a valve none of whose shortest
+    pulses is `counted` (each ran longer than the PWM's shortest: the PC skipped a
+    tick near the end of each), no length change at all."""
     for r in test.responses():
         why = unsound(r)
         if why is None:
@@ -316,6 +341,16 @@ def check(test: StepTest) -> None:
                 "channels, or the valve's on-delay longer than valve_on_delay_s says?)")
         raise TuneRefused(f"the {r.pulse.valve} valve's {1e3 * r.pulse_s:.0f} ms pulse "
                           f"{why} {what}")
+    measured = measurements(test)
+    for valve in ("inflate", "exhaust"):
+        repeats = shortest_of(measured, valve)
+        if not any(counted(repeats)):
+            lengths = ", ".join(f"{1e3 * r.pulse_s:.0f}" for r in test.shortest
+                                if r.pulse.valve == valve)
+            raise TuneRefused(f"none of the {valve} valve's shortest pulses ran the PWM's "
+                              f"shortest pulse (open {lengths} ms in the recording): the PC "
+                              "skipped ticks (overruns); run it again on a quieter machine "
+                              "or with loop.realtime")
     if not test.count_mm > 0.0:
         raise TuneRefused("the length never changed during the step test: is the length "
                           "sensor connected?")
@@ -329,10 +364,10 @@ def print_test(title: str, test: StepTest) -> None:
         print(f"  {r.pulse.valve:18s} {1e3 * r.pulse_s:8.0f} {r.pressure_step_bar:+13.4f} "
               f"{r.length_step_mm:+10.3f} {r.speed_mm_s:13.1f}")
     m = measurements(test)
-    print(f"  shortest pulses' typical step: inflate "
-          f"{typical_step_bar(shortest_steps_bar(m, 'inflate')):+.4f}, exhaust "
-          f"{typical_step_bar(shortest_steps_bar(m, 'exhaust')):+.4f} bar (of "
-          f"{SHORTEST_REPEATS} each)")
+    fill, vent = shortest_of(m, "inflate"), shortest_of(m, "exhaust")
+    print(f"  shortest pulses' typical step: inflate {typical_step_bar(fill):+.4f}, exhaust "
+          f"{typical_step_bar(vent):+.4f} bar (of {sum(counted(fill))} and "
+          f"{sum(counted(vent))} of {SHORTEST_REPEATS})")
     print(f"  encoder count (the smallest length change): {test.count_mm:g} mm")
 
 

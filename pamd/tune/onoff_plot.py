@@ -36,6 +36,8 @@ from pamd.tune.onoff import (
     PulseResponse,
     StepTest,
     counted,
+    measurements,
+    shortest_of,
     unsound,
 )
 from pamd.tune.report import pyplot
@@ -98,7 +100,7 @@ def title(test: StepTest, r: PulseResponse) -> str:
         return text
     repeats = [s for s in test.shortest if s.pulse.valve == r.pulse.valve]
     k = next(k for k, s in enumerate(repeats) if s is r)
-    kept = counted([s.pressure_step_bar for s in repeats])[k]
+    kept = counted(shortest_of(measurements(test), r.pulse.valve))[k]
     return f"{text} {k + 1}/{SHORTEST_REPEATS}" + ("" if kept else ", left out")
 
 

@@ -3,27 +3,36 @@ valve, alternating, their typical step taken (pamd/tune/onoff.py): one pulse's s
 not the valve's (its spool's switching delays, not the tick, decide how long it is
 really open: 7, 8 or 9 ms of spool for the same 6-tick pulse on the real clock), so
 the typical step is the mean of the three; one held open by a stall or cut short is
-left out, the spool's own scatter never is. The step test is the session's one run
-(tests/tune/conftest.py)."""
+left out, the spool's own scatter never is. A pulse's recorded length is the loop time
+from the tick that opened its valve to the one that shut it: a skipped tick (a busy
+PC) neither shortens it nor hides one a tick long, which is left out too. The step
+test is the session's one run (tests/tune/conftest.py)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pamd.tune.onoff import (
+    INFLATE_OPEN,
     LEVEL_BAR,
     PULSES,
     SHORTEST_REPEATS,
     Measurement,
+    Pulse,
     StepTest,
+    check,
     counted,
     derive,
     measurements,
-    shortest_steps_bar,
+    response,
+    shortest_of,
     typical_step_bar,
 )
+from pamd.tune.run import TuneRefused
 
 PWM_PERIOD_S = 0.02
 #: where the exhaust valve's shortest pulses are in PULSES (the smaller valve's: the
@@ -55,11 +64,17 @@ def _dead_band(measured: list[Measurement], count_mm: float) -> float:
 
 def _scaled(measured: list[Measurement], k: int, factor: float) -> list[Measurement]:
     """`measured` with the k-th pulse's pressure step times `factor`."""
-    return [(p, dp * factor if i == k else dp, v) for i, (p, dp, v) in enumerate(measured)]
+    return [m._replace(pressure_step_bar=m.pressure_step_bar * factor) if i == k else m
+            for i, m in enumerate(measured)]
 
 
 def _exhaust(measured: list[Measurement]) -> list[float]:
-    return [abs(measured[k][1]) for k in EXHAUST_SHORTEST]
+    return [abs(measured[k].pressure_step_bar) for k in EXHAUST_SHORTEST]
+
+
+def _repeats(steps_bar: list[float], valve: str = "exhaust") -> list[Measurement]:
+    return [Measurement(Pulse("inflate" if valve == "inflate" else "exhaust", None), dp, 0.0)
+            for dp in steps_bar]
 
 
 def test_the_shortest_pulses_alternate_near_the_level(onoff_run: tuple[StepTest, Path]) -> None:
@@ -82,9 +97,10 @@ def test_a_normal_run_counts_all_three_repeats(onoff_run: tuple[StepTest, Path])
     moves with each of them."""
     test, _ = onoff_run
     measured = measurements(test)
-    assert [measured[k][0].valve for k in EXHAUST_SHORTEST] == ["exhaust"] * 3
-    assert counted(shortest_steps_bar(measured, "exhaust")) == [True] * SHORTEST_REPEATS
-    assert counted(shortest_steps_bar(measured, "inflate")) == [True] * SHORTEST_REPEATS
+    assert [measured[k].pulse.valve for k in EXHAUST_SHORTEST] == ["exhaust"] * 3
+    assert [r.off_by_s for r in test.responses()] == [0.0] * len(PULSES)  # all as commanded
+    assert counted(shortest_of(measured, "exhaust")) == [True] * SHORTEST_REPEATS
+    assert counted(shortest_of(measured, "inflate")) == [True] * SHORTEST_REPEATS
     steps = _exhaust(measured)
     assert _dead_band(measured, test.count_mm) == pytest.approx(0.5 * sum(steps) / 3)
     for k in EXHAUST_SHORTEST:
@@ -102,7 +118,7 @@ def test_a_pulse_held_open_or_cut_short_is_left_out(onoff_run: tuple[StepTest, P
     test, _ = onoff_run
     measured = measurements(test)
     spoilt = _scaled(measured, EXHAUST_SHORTEST[1], factor)
-    assert counted(shortest_steps_bar(spoilt, "exhaust")) == [True, False, True]
+    assert counted(shortest_of(spoilt, "exhaust")) == [True, False, True]
     others = [_exhaust(measured)[k] for k in (0, 2)]
     assert _dead_band(spoilt, test.count_mm) == pytest.approx(0.5 * sum(others) / 2)
 
@@ -115,13 +131,75 @@ def test_the_spools_own_scatter_is_never_left_out(onoff_run: tuple[StepTest, Pat
     test, _ = onoff_run
     measured = measurements(test)
     wide = _scaled(measured, EXHAUST_SHORTEST[1], 9.0 / 7.0)
-    assert counted(shortest_steps_bar(wide, "exhaust")) == [True] * 3
+    assert counted(shortest_of(wide, "exhaust")) == [True] * 3
     assert _dead_band(wide, test.count_mm) == pytest.approx(0.5 * sum(_exhaust(wide)) / 3)
     bands, single = [], []
     for steps in REAL_CLOCK_STEPS_BAR:
-        fill, vent = list(steps[0::2]), list(steps[1::2])
+        fill, vent = _repeats(list(steps[0::2]), "inflate"), _repeats(list(steps[1::2]))
         assert counted(fill) == counted(vent) == [True] * 3, steps
         bands.append(0.5 * min(typical_step_bar(fill), -typical_step_bar(vent)))
-        single.append(0.5 * min(fill[0], -vent[0]))
+        single.append(0.5 * min(steps[0], -steps[1]))
     assert min(bands) >= 0.0134 and max(bands) <= 0.0157
     assert max(bands) - min(bands) < 0.6 * (max(single) - min(single))
+
+
+def _recording(open_ms: list[int], shut_ms: int, skipped_ms: list[int]
+               ) -> tuple[np.ndarray, ...]:
+    """A recording at 1 kHz around one inflate pulse, its valve open at the ticks
+    `open_ms` (deadlines, ms) and shut from `shut_ms`; the ticks `skipped_ms` missing (a
+    busy PC: overrun_policy skip runs the next tick at the later deadline, no sample for
+    the one skipped); the pressure 0.05 bar higher from the valve's shutting."""
+    ticks = np.array([k for k in range(1000) if k not in skipped_ms])
+    t_s = ticks * 1e-3
+    flags = np.where(np.isin(ticks, open_ms), float(INFLATE_OPEN), 0.0)
+    pressure = np.where(ticks >= shut_ms, 3.05, 3.0)
+    return t_s, pressure, np.full(len(ticks), 190.0), flags
+
+
+def test_a_skipped_tick_does_not_shorten_the_recorded_pulse() -> None:
+    """A 300 ms pulse through 33 skipped ticks (as on the loaded PC, where 267 samples
+    were refused as 'open 267 ms'): recorded 300 ms, as commanded. A 6 ms one
+    with a tick skipped inside it: 6 ms, counted."""
+    skipped = list(range(150, 399, 15))[:16] + list(range(151, 399, 15))[:17]
+    t, p, length, flags = _recording([k for k in range(100, 400) if k not in skipped], 400,
+                                     skipped)
+    r, _ = response(t, p, length, flags, Pulse("inflate", 0.3), 0.05, 0.006)
+    assert int(np.sum(flags > 0)) == 267
+    assert r.pulse_s == pytest.approx(0.3) and r.off_by_s == 0.0
+    t, p, length, flags = _recording([100, 101, 102, 104, 105], 106, [103])
+    r, _ = response(t, p, length, flags, Pulse("inflate", None), 0.05, 0.006)
+    assert r.pulse_s == pytest.approx(0.006) and r.off_by_s == 0.0
+    assert r.pressure_step_bar == pytest.approx(0.05)
+    assert counted([Measurement(r.pulse, r.pressure_step_bar, 0.0, r.off_by_s)] * 3) == [True] * 3
+
+
+def test_a_shortest_pulse_a_tick_long_is_left_out(onoff_run: tuple[StepTest, Path]) -> None:
+    """The tick before a 6 ms pulse's last skipped: the next one, at the later deadline,
+    is still within the pulse (its middle at 6 ms), so the valve shuts a tick late: 6
+    samples over 7 ms of loop time. Recorded 7 ms, 1 ms off: left out of the typical
+    step (the dead band is about the PWM's shortest pulse), though its step is within
+    the scatter; the dead band is then the other two's."""
+    t, p, length, flags = _recording([100, 101, 102, 103, 104, 106], 107, [105])
+    r, _ = response(t, p, length, flags, Pulse("inflate", None), 0.05, 0.006)
+    assert r.pulse_s == pytest.approx(0.007) and r.off_by_s == pytest.approx(0.001)
+    test, _ = onoff_run
+    measured = measurements(test)
+    k = EXHAUST_SHORTEST[1]
+    late = [m._replace(off_by_s=0.001) if i == k else m for i, m in enumerate(measured)]
+    assert counted(shortest_of(late, "exhaust")) == [True, False, True]
+    others = [_exhaust(measured)[j] for j in (0, 2)]
+    assert _dead_band(late, test.count_mm) == pytest.approx(0.5 * sum(others) / 2)
+
+
+def test_a_valve_whose_every_shortest_pulse_ran_long_is_refused(
+        onoff_run: tuple[StepTest, Path]) -> None:
+    """All three exhaust pulses a tick long: no typical step to take; the test is
+    refused with the reason and what to do. The session's own run passes the check."""
+    test, _ = onoff_run
+    check(test)
+    late = tuple(replace(r, pulse_s=r.pulse_s + 0.001, off_by_s=0.001)
+                 if r.pulse.valve == "exhaust" else r for r in test.shortest)
+    with pytest.raises(TuneRefused, match=r"none of the exhaust valve's shortest pulses ran "
+                       r"the PWM's shortest pulse \(open 7, 7, 7 ms in the recording\): the "
+                       r"PC skipped ticks"):
+        check(replace(test, shortest=late))
