@@ -15,16 +15,19 @@ before and 0.2 s + `WINDOW_S` after), the pressure wandering from pulse to pulse
 2. the shortest pulse the PWM sends (`pamd.control.actuation.min_pulse_s`),
    `SHORTEST_REPEATS` (3) times per valve, inflate and exhaust alternating (the
    pressure stays within a few steps of the level): half the smaller of the two
-   valves' typical steps (`typical_step_bar`: the mean of the repeats, less any
-   beyond `OUTLIER_FRACTION` of their median) is `dead_band_bar` (no pulse can place
-   the pressure closer); the smallest length change seen is the encoder's count. One
-   such pulse's step is not the valve's: its spool's switching delays, not the tick,
-   decide how long it is really open, and they vary from pulse to pulse. Measured on
-   the real clock (13 runs, 6 beside two CPU hogs): every shortest pulse recorded 6
-   ticks, 6.0 ms between the ticks that opened and shut it, the means' noise ~0.5
-   mbar; but the simulated spool was open 7, 8 or 9 ms for it, and one pulse's step
-   scatters 8 % (sd) from the next: one pulse's dead band spread 0.0124-0.0165 bar,
-   the mean of three's 0.0135-0.0157 (the median of three's 0.0132-0.0163);
+   valves' typical steps (`typical_step_bar`: the mean of the repeats `counted`) is
+   `dead_band_bar` (no pulse can place the pressure closer); the smallest length
+   change seen is the encoder's count. One such pulse's step is not the valve's: its
+   spool's switching delays, not the tick, decide how long it is really open, and they
+   vary from pulse to pulse. Measured on the real clock (a loaded 2-core PC, 42 runs,
+   20 beside two CPU hogs): every shortest pulse recorded 6 ticks, 6.0 ms between the
+   ticks that opened and shut it, the means' noise ~0.5 mbar of a 30-50 mbar step; but
+   the simulated spool was open 7, 8 or 9 ms for it, and one pulse's step scatters 8 %
+   (sd) from the next: the first pair's dead band spread 0.0124-0.0165 bar (sd 7.2 %),
+   the mean of three's 0.0131-0.0157 (sd 4.9 %). A repeat is left out when the
+   recording shows it longer than the PWM's shortest (a tick skipped near its end kept
+   the valve open a tick more) or its step beyond `OUTLIER_FRACTION` of the others'
+   median (held open by a stall, or cut); a valve with none left is refused;
 3. a 300 ms pulse: the fastest length change seen (over 50 ms) is the valve's speed
    on the muscle, held open (the muscle reaches it within about 0.2 s; a 150 ms pulse
    measured the exhaust at half its speed, issue 29). The *faster* of the two valves
@@ -39,7 +42,9 @@ before and 0.2 s + `WINDOW_S` after), the pressure wandering from pulse to pulse
    creep pulses too small for the stuck muscle; 1 mm relays most of a 5 mm step);
    `position_hold_band_mm` is one encoder count.
 
-`response_s` is 5 PWM periods (the PWM averages over a few). Each pressure and length
+`response_s` is 5 PWM periods (the PWM averages over a few). A pulse's recorded length
+is the loop time from the tick that opened its valve to the one that shut it (a tick
+a busy PC skipped leaves no sample, but its time passed). Each pressure and length
 before and after a pulse is the mean over `WINDOW_S` (50 samples at 1 kHz), with both
 valves shut, so sensor noise averages out: before, right before the valve opens;
 after, from 0.2 s after it shut. The speeds are read from the valve's opening to then
