@@ -6,13 +6,15 @@ The procedure and its rules, each with its reason, are `pamd.tune.onoff`'s (its
 docstring): an identification run (the PWM's dead band opened to 1 bar, so it leaves
 the valves to this script once the muscle holds 3 bar at 30 kg), then each valve in
 turn, inflate then exhaust, a 40 ms pulse (the fill / vent rate), the PWM's shortest
-pulse (the dead band, the encoder's count) and a 300 ms pulse (the valve speeds: the
-boundary layer and lambda); `response_s` is 5 PWM periods.
+pulse three times, alternating (half the smaller typical step, the mean of the three,
+is the dead band; the encoder's count) and a 300 ms pulse (the valve speeds: the
+boundary layer and lambda);
+`response_s` is 5 PWM periods.
 
 `pamd tune --loop onoff` runs the same pulses through the daemon (the `pulse` command,
 timed in the tick) and reads them from the recording; this script runs them tick by
 tick on the in-process harness, writing the valves' outputs itself, and applies the
-same rules (`pamd.tune.onoff.settings`). The shipped settings of
+same rules (`pamd.tune.onoff.derive`). The shipped settings of
 config/sim-onoff.yaml are its figures.
 
     python bench/tune_onoff.py [--config config/sim-onoff.yaml]
@@ -41,9 +43,12 @@ from pamd.tune.onoff import (
     SETTLE_AFTER_S,
     SETTLE_S,
     WINDOW_S,
+    Measurement,
+    derive,
     fastest,
-    settings,
+    shortest_of,
     smallest_change_mm,
+    typical_step_bar,
 )
 
 REPO = Path(__file__).resolve().parents[1]
@@ -113,19 +118,25 @@ def tune(config: Path, load_kg: float) -> dict[str, float]:
         t = StepTest(h)
         cfg = h.cfg.muscle(t.m.name).onoff
         shortest = min_pulse_s(cfg)
-        (dp_fill, _, _), (dp_vent, _, _), (dp_fill_min, _, _), (dp_vent_min, _, _), \
-            (_, _, v_fill), (_, _, v_vent) = [
-                t.pulse(t.act.inflate if p.valve == "inflate" else t.act.exhaust,
-                        p.length_s(shortest), SETTLE_AFTER_S) for p in PULSES]
+        measured: list[Measurement] = []
+        for p in PULSES:
+            dp, _, speed = t.pulse(t.act.inflate if p.valve == "inflate" else t.act.exhaust,
+                                   p.length_s(shortest), SETTLE_AFTER_S)
+            measured.append(Measurement(p, dp, speed))  # its own ticks: as commanded
         count_mm = smallest_change_mm(np.asarray(t.lengths))
     finally:
         h.rig.close()
+    dp_fill, dp_vent = (m.pressure_step_bar for m in measured[:2])
+    v_fill, v_vent = (m.speed_mm_s for m in measured[-2:])
+    fill_min, vent_min = (shortest_of(measured, v) for v in ("inflate", "exhaust"))
     print(f"step test at {LEVEL_BAR:g} bar, {load_kg:g} kg: 40 ms pulses {dp_fill:+.3f} / "
-          f"{dp_vent:+.3f} bar; shortest pulse ({1e3 * shortest:g} ms) {dp_fill_min:+.4f} / "
-          f"{dp_vent_min:+.4f} bar; valve speeds {v_fill:.1f} / {v_vent:.1f} mm/s "
-          f"(inflate / exhaust); encoder count {count_mm:g} mm")
-    return settings(dp_fill, dp_vent, dp_fill_min, dp_vent_min, v_fill, v_vent, count_mm,
-                    cfg.pwm_period_s)
+          f"{dp_vent:+.3f} bar; shortest pulses ({1e3 * shortest:g} ms) "
+          f"{' '.join(f'{m.pressure_step_bar:+.4f}' for m in fill_min)} / "
+          f"{' '.join(f'{m.pressure_step_bar:+.4f}' for m in vent_min)} bar (typical "
+          f"{typical_step_bar(fill_min):+.4f} / {typical_step_bar(vent_min):+.4f}); valve "
+          f"speeds {v_fill:.1f} / {v_vent:.1f} mm/s (inflate / exhaust); encoder count "
+          f"{count_mm:g} mm")
+    return derive(measured, count_mm, cfg.pwm_period_s)
 
 
 def main() -> None:

@@ -159,7 +159,9 @@ class OnOffConfig:
         max=10.0)
     dead_band_bar: float = spec(
         0.0143, "Within this of a steady command both valves hold (no chatter at rest); "
-        "about half the pressure step of the shortest pulse.", unit="bar", min=0.0, max=1.0)
+        "about half the pressure step of the shortest pulse (the step test, pamd tune "
+        "--loop onoff: the mean of three per valve, the smaller valve's).", unit="bar",
+        min=0.0, max=1.0)
     position_lambda_per_s: float = spec(
         14.5, "Mode position (seed 004's sliding mode): the sliding surface s = lambda e + "
         "de/dt on the length error e; the error decays at this rate on the surface. From "

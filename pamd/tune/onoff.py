@@ -12,9 +12,22 @@ before and 0.2 s + `WINDOW_S` after), the pressure wandering from pulse to pulse
 
 1. a 40 ms pulse: the pressure step over the pulse's length is the valve's rate
    (`fill_rate_bar_per_s`, `vent_rate_bar_per_s`; the duty's gain);
-2. the shortest pulse the PWM sends (`pamd.control.actuation.min_pulse_s`): half the
-   smaller of its two pressure steps is `dead_band_bar` (no pulse can place the
-   pressure closer); the smallest length change seen is the encoder's count;
+2. the shortest pulse the PWM sends (`pamd.control.actuation.min_pulse_s`),
+   `SHORTEST_REPEATS` (3) times per valve, inflate and exhaust alternating (the
+   pressure stays within a few steps of the level): half the smaller of the two
+   valves' typical steps (`typical_step_bar`: the mean of the repeats `counted`) is
+   `dead_band_bar` (no pulse can place the pressure closer); the smallest length
+   change seen is the encoder's count. One such pulse's step is not the valve's: its
+   spool's switching delays, not the tick, decide how long it is really open, and they
+   vary from pulse to pulse. Measured on the real clock (a loaded 2-core PC, 42 runs,
+   20 beside two CPU hogs): every shortest pulse recorded 6 ticks, 6.0 ms between the
+   ticks that opened and shut it, the means' noise ~0.5 mbar of a 30-50 mbar step; but
+   the simulated spool was open 7, 8 or 9 ms for it, and one pulse's step scatters 8 %
+   (sd) from the next: the first pair's dead band spread 0.0124-0.0165 bar (sd 7.2 %),
+   the mean of three's 0.0131-0.0157 (sd 4.9 %). A repeat is left out when the
+   recording shows it longer than the PWM's shortest (a tick skipped near its end kept
+   the valve open a tick more) or its step beyond `OUTLIER_FRACTION` of the others'
+   median (held open by a stall, or cut); a valve with none left is refused;
 3. a 300 ms pulse: the fastest length change seen (over 50 ms) is the valve's speed
    on the muscle, held open (the muscle reaches it within about 0.2 s; a 150 ms pulse
    measured the exhaust at half its speed, issue 29). The *faster* of the two valves
@@ -29,7 +42,9 @@ before and 0.2 s + `WINDOW_S` after), the pressure wandering from pulse to pulse
    creep pulses too small for the stuck muscle; 1 mm relays most of a 5 mm step);
    `position_hold_band_mm` is one encoder count.
 
-`response_s` is 5 PWM periods (the PWM averages over a few). Each pressure and length
+`response_s` is 5 PWM periods (the PWM averages over a few). A pulse's recorded length
+is the loop time from the tick that opened its valve to the one that shut it (a tick
+a busy PC skipped leaves no sample, but its time passed). Each pressure and length
 before and after a pulse is the mean over `WINDOW_S` (50 samples at 1 kHz), with both
 valves shut, so sensor noise averages out: before, right before the valve opens;
 after, from 0.2 s after it shut. The speeds are read from the valve's opening to then
@@ -39,7 +54,9 @@ bar above the command long enough for the tracking check, 1 s, on the real clock
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -58,6 +75,13 @@ SPEED_WINDOW_S = 0.05  # a speed over 50 ms: 0.2 mm/s per encoder count
 WINDOW_S = 0.05  # the mean before and after a pulse
 LAYER_MM = 3.0  # the boundary layer's edge from a target at rest
 RESPONSE_PERIODS = 5.0
+#: the PWM's shortest pulse, per valve (their typical step sets the dead band): each
+#: costs ~0.3 s of rig time
+SHORTEST_REPEATS = 3
+#: a shortest pulse's step this far from its repeats' median (relative) is left out of
+#: the typical step: the spool's own scatter reaches 9 against 7 ms of flow (+29 %); a
+#: pulse beyond half again (or half) the others' was held open by a stall or cut short
+OUTLIER_FRACTION = 0.5
 #: a pulse's pressure step smaller than this moved nothing (bar): the mean of 50
 #: samples resolves a few mbar
 MIN_STEP_BAR = 0.002
@@ -84,9 +108,12 @@ class Pulse:
 
 
 PULSES = (Pulse("inflate", RATE_PULSE_S), Pulse("exhaust", RATE_PULSE_S),
-          Pulse("inflate", None), Pulse("exhaust", None),
+          *(Pulse(valve, None) for _ in range(SHORTEST_REPEATS)
+            for valve in ("inflate", "exhaust")),
           Pulse("inflate", SPEED_PULSE_S), Pulse("exhaust", SPEED_PULSE_S))
-"""The step test, in order."""
+"""The step test, in order: the shortest pulses alternate inflate and exhaust, so the
+pressure wanders by one step around the level, not three steps away from it."""
+N_RATE, N_SHORTEST = 2, 2 * SHORTEST_REPEATS
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,7 +137,8 @@ class PulseResponse:
     """What one pulse did: the pressure and length steps, the fastest length change."""
 
     pulse: Pulse
-    pulse_s: float  # as recorded (whole ticks)
+    pulse_s: float  # as recorded: from the tick that opened the valve to the one that shut it
+    off_by_s: float  # pulse_s less the commanded length (whole ticks)
     pressure_step_bar: float
     length_step_mm: float
     speed_mm_s: float
@@ -119,16 +147,83 @@ class PulseResponse:
 
 @dataclass(frozen=True)
 class StepTest:
-    """The step test's measurements (inflate first in each pair)."""
+    """The step test's measurements (inflate first in each pair; the shortest pulses
+    alternating, inflate first, `SHORTEST_REPEATS` of each valve)."""
 
     rate: tuple[PulseResponse, PulseResponse]
-    shortest: tuple[PulseResponse, PulseResponse]
+    shortest: tuple[PulseResponse, ...]
     speed: tuple[PulseResponse, PulseResponse]
     count_mm: float  # the smallest length change seen
 
+    @classmethod
+    def of(cls, r: list[PulseResponse], count_mm: float) -> StepTest:
+        """The step test from its responses in the order they ran (`PULSES`)."""
+        k = N_RATE + N_SHORTEST
+        return cls((r[0], r[1]), tuple(r[N_RATE:k]), (r[k], r[k + 1]), count_mm)
+
     def responses(self) -> tuple[PulseResponse, ...]:
-        """The six pulses, in the order they ran (`PULSES`)."""
+        """The pulses, in the order they ran (`PULSES`)."""
         return (*self.rate, *self.shortest, *self.speed)
+
+
+class Measurement(NamedTuple):
+    """One pulse as the rules take it."""
+
+    pulse: Pulse
+    pressure_step_bar: float  # signed
+    speed_mm_s: float  # the fastest length change
+    off_by_s: float = 0.0  # the recorded length less the commanded one (whole ticks)
+
+
+def shortest_of(measured: Sequence[Measurement], valve: Valve) -> list[Measurement]:
+    """One valve's shortest pulses, in the order they ran."""
+    return [m for m in measured if m.pulse.valve == valve and m.pulse.pulse_s is None]
+
+
+def counted(repeats: Sequence[Measurement]) -> list[bool]:
+    """Which of one valve's shortest pulses the typical step counts. Not one the
+    recording shows longer (or shorter) than the PWM's shortest: a tick skipped by a
+    busy PC near its end kept the valve open a whole tick more (7 against 6 ms), which
+    is not the pulse the dead band is about. Of the rest, those within
+    `OUTLIER_FRACTION` of their median (the median itself always): the spool's switching
+    delays scatter the steps (on the simulated rig by 1 ms of its 8 ms of flow, +-12 %;
+    7 against 9 ms is +29 %) and the level's drift by a few %; a step beyond that was
+    not the PWM's shortest pulse either."""
+    timed = [abs(m.off_by_s) < 1e-9 for m in repeats]
+    steps = [m.pressure_step_bar for m, ok in zip(repeats, timed, strict=True) if ok]
+    if not steps:
+        return timed
+    median = float(np.median(np.asarray(steps, dtype=float)))
+    return [ok and abs(m.pressure_step_bar - median) <= OUTLIER_FRACTION * abs(median)
+            for m, ok in zip(repeats, timed, strict=True)]
+
+
+def typical_step_bar(repeats: Sequence[Measurement]) -> float:
+    """One valve's typical shortest-pulse step (bar, signed): the mean of its repeats
+    that `counted` keeps (NaN: none; `check` refuses that). The mean, not the median:
+    the steps scatter about evenly (the spool open a plant step shorter or longer), and
+    the mean of three spreads 4.7 % over the real clock's runs, the median of three 6 %
+    (resampled from 39 measured steps)."""
+    kept = [m.pressure_step_bar for m, ok in zip(repeats, counted(repeats), strict=True)
+            if ok]
+    return float(np.mean(np.asarray(kept, dtype=float))) if kept else float("nan")
+
+
+def derive(measured: Sequence[Measurement], count_mm: float,
+           pwm_period_s: float) -> dict[str, float]:
+    """The rules applied to the pulses as measured (the daemon's step test and
+    bench/tune_onoff.py's alike): the rate and speed pulses' steps and speeds, each
+    valve's typical shortest-pulse step."""
+    def one(valve: Valve, pulse_s: float) -> Measurement:
+        [m] = [m for m in measured if m.pulse == Pulse(valve, pulse_s)]
+        return m
+
+    return settings(one("inflate", RATE_PULSE_S).pressure_step_bar,
+                    one("exhaust", RATE_PULSE_S).pressure_step_bar,
+                    typical_step_bar(shortest_of(measured, "inflate")),
+                    typical_step_bar(shortest_of(measured, "exhaust")),
+                    one("inflate", SPEED_PULSE_S).speed_mm_s,
+                    one("exhaust", SPEED_PULSE_S).speed_mm_s, count_mm, pwm_period_s)
 
 
 def settings(fill_step_bar: float, vent_step_bar: float, fill_min_bar: float,
@@ -150,10 +245,13 @@ def settings(fill_step_bar: float, vent_step_bar: float, fill_min_bar: float,
 
 def derived_settings(test: StepTest, pwm_period_s: float) -> dict[str, float]:
     """The rules applied to the step test."""
-    r, s, v = test.rate, test.shortest, test.speed
-    return settings(r[0].pressure_step_bar, r[1].pressure_step_bar, s[0].pressure_step_bar,
-                    s[1].pressure_step_bar, v[0].speed_mm_s, v[1].speed_mm_s, test.count_mm,
-                    pwm_period_s)
+    return derive(measurements(test), test.count_mm, pwm_period_s)
+
+
+def measurements(test: StepTest) -> list[Measurement]:
+    """The step test's pulses as the rules take them."""
+    return [Measurement(r.pulse, r.pressure_step_bar, r.speed_mm_s, r.off_by_s)
+            for r in test.responses()]
 
 
 def fastest(length_mm: np.ndarray, dt_s: float) -> tuple[float, int]:
@@ -190,7 +288,13 @@ def response(t_s: np.ndarray, p_bar: np.ndarray, l_mm: np.ndarray, flags: np.nda
         raise TuneRefused(f"the {pulse.valve} pulse sent at {sent_s:.3f} s is not in the "
                           "recording (its valve never open): the recording is incomplete")
     i0, i1 = int(open_i[0]), int(open_i[-1]) + 1
-    shown = (i1 - i0) * dt
+    if i1 >= len(t_s):
+        raise TuneRefused(f"the {pulse.valve} pulse at {sent_s:.3f} s is open to the end of "
+                          "the recording: the recording is incomplete")
+    # the loop time from the tick that opened the valve to the one that shut it, not
+    # the samples between: a tick a busy PC skipped (overrun_policy skip) leaves no
+    # sample, but its time passed with the valve open (a 300 ms pulse showed 267 samples)
+    shown = float(t_s[i1] - t_s[i0])
     if i1 - i0 != open_i.size or abs(shown - want) > 1.5 * dt:
         raise TuneRefused(f"the {pulse.valve} pulse sent at {sent_s:.3f} s was open "
                           f"{1e3 * shown:.0f} ms in the recording, not {1e3 * want:g} ms")
@@ -204,7 +308,8 @@ def response(t_s: np.ndarray, p_bar: np.ndarray, l_mm: np.ndarray, flags: np.nda
     shows = slice(max(0, i0 - 2 * n_w), min(len(t_s), settled + 2 * n_w))
     trace = PulseTrace(t_s[shows] - t_s[i0], p_bar[shows], l_mm[shows],
                        float(t_s[settled] - t_s[i0]), p0, l0, float(t_s[i0 + k] - t_s[i0]))
-    return PulseResponse(pulse, shown, float(np.mean(p_bar[after])) - p0,
+    return PulseResponse(pulse, shown, round((shown - want) / dt) * dt,
+                         float(np.mean(p_bar[after])) - p0,
                          float(np.mean(l_mm[after])) - l0, speed,
                          trace), slice(i0 - n_w, settled + n_w)
 
@@ -229,7 +334,9 @@ def unsound(r: PulseResponse) -> str | None:
 
 def check(test: StepTest) -> None:
     """Refuse (TuneRefused, the reason and what to check) a test that did not measure
-    what the rules need: a pulse that is `unsound`, no length change at all."""
+    what the rules need: a pulse that is `unsound`, a valve none of whose shortest
+    pulses is `counted` (each ran longer than the PWM's shortest: the PC skipped a
+    tick near the end of each), no length change at all."""
     for r in test.responses():
         why = unsound(r)
         if why is None:
@@ -240,6 +347,16 @@ def check(test: StepTest) -> None:
                 "channels, or the valve's on-delay longer than valve_on_delay_s says?)")
         raise TuneRefused(f"the {r.pulse.valve} valve's {1e3 * r.pulse_s:.0f} ms pulse "
                           f"{why} {what}")
+    measured = measurements(test)
+    for valve in ("inflate", "exhaust"):
+        repeats = shortest_of(measured, valve)
+        if not any(counted(repeats)):
+            lengths = ", ".join(f"{1e3 * r.pulse_s:.0f}" for r in test.shortest
+                                if r.pulse.valve == valve)
+            raise TuneRefused(f"none of the {valve} valve's shortest pulses ran the PWM's "
+                              f"shortest pulse (open {lengths} ms in the recording): the PC "
+                              "skipped ticks (overruns); run it again on a quieter machine "
+                              "or with loop.realtime")
     if not test.count_mm > 0.0:
         raise TuneRefused("the length never changed during the step test: is the length "
                           "sensor connected?")
@@ -252,6 +369,11 @@ def print_test(title: str, test: StepTest) -> None:
     for r in test.responses():
         print(f"  {r.pulse.valve:18s} {1e3 * r.pulse_s:8.0f} {r.pressure_step_bar:+13.4f} "
               f"{r.length_step_mm:+10.3f} {r.speed_mm_s:13.1f}")
+    m = measurements(test)
+    fill, vent = shortest_of(m, "inflate"), shortest_of(m, "exhaust")
+    print(f"  shortest pulses' typical step: inflate {typical_step_bar(fill):+.4f}, exhaust "
+          f"{typical_step_bar(vent):+.4f} bar (of {sum(counted(fill))} and "
+          f"{sum(counted(vent))} of {SHORTEST_REPEATS})")
     print(f"  encoder count (the smallest length change): {test.count_mm:g} mm")
 
 

@@ -1,7 +1,10 @@
 """`pamd tune --loop onoff --plot FILE`: one PNG of the step test of every muscle
 tuned. Each pulse has a column of its own (inflate, exhaust x 40 ms, the PWM's
-shortest, 300 ms, in the order they ran), the measured pressure above and the length
-below, against the time from the valve's opening (ms):
+shortest three times each, 300 ms, in the order they ran; a shortest pulse's title
+says which repeat it is, and "left out" on one whose step the typical step does not
+count: `pamd.tune.onoff.counted`), the
+measured pressure above and the length below, against the time from the valve's
+opening (ms):
 
 - the valve-open interval shaded (blue: inflate, orange: exhaust);
 - the means before and after (`WINDOW_S` each, both valves shut) as thick black
@@ -26,11 +29,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pamd.tune.onoff import (
+    SHORTEST_REPEATS,
     SPEED_PULSE_S,
     SPEED_WINDOW_S,
     WINDOW_S,
     PulseResponse,
     StepTest,
+    counted,
+    measurements,
+    shortest_of,
     unsound,
 )
 from pamd.tune.report import pyplot
@@ -75,7 +82,7 @@ def onoff_figure(plt: ModuleType, tests: dict[str, StepTest], level_bar: float) 
                    ".3f", why if speed else None)
             if speed:
                 _fastest(l_ax, r)
-            p_ax.set_title(f"{muscle}: {r.pulse.valve} {1e3 * r.pulse_s:.0f} ms", fontsize=9)
+            p_ax.set_title(f"{muscle}: {title(test, r)}", fontsize=9)
             l_ax.set_xlabel("time from the valve opening (ms)", fontsize=8)
         axes[2 * row][0].set_ylabel(f"{muscle}: pressure (bar)", fontsize=8)
         axes[2 * row + 1][0].set_ylabel(f"{muscle}: length (mm)", fontsize=8)
@@ -83,6 +90,18 @@ def onoff_figure(plt: ModuleType, tests: dict[str, StepTest], level_bar: float) 
                  "valve open; black: the means before and after (both valves shut); red: "
                  f"the fastest length change over {1e3 * SPEED_WINDOW_S:g} ms", fontsize=9)
     return fig
+
+
+def title(test: StepTest, r: PulseResponse) -> str:
+    """A pulse's column title: its valve and length; a shortest pulse's repeat (k/3),
+    and "left out" on one the dead band's typical step does not count."""
+    text = f"{r.pulse.valve} {1e3 * r.pulse_s:.0f} ms"
+    if r.pulse.pulse_s is not None:
+        return text
+    repeats = [s for s in test.shortest if s.pulse.valve == r.pulse.valve]
+    k = next(k for k, s in enumerate(repeats) if s is r)
+    kept = counted(shortest_of(measurements(test), r.pulse.valve))[k]
+    return f"{text} {k + 1}/{SHORTEST_REPEATS}" + ("" if kept else ", left out")
 
 
 def _panel(ax: Axes, r: PulseResponse, y: np.ndarray, before: float, step: float,

@@ -248,8 +248,7 @@ def analyse(out_dir: str, muscle: str, sent: list[tuple[Pulse, float]],
         found = [response(t, p, length, flags, pulse, t_s, shortest_s) for pulse, t_s in sent]
         spans = [span for _, span in found]
         r: list[PulseResponse] = [resp for resp, _ in found]
-        test = StepTest((r[0], r[1]), (r[2], r[3]), (r[4], r[5]),
-                        smallest_change_mm(length[spans[0].start:spans[-1].stop]))
+        test = StepTest.of(r, smallest_change_mm(length[spans[0].start:spans[-1].stop]))
         if measured is not None:
             measured(test)
         check(test)

@@ -1,5 +1,5 @@
 """`pamd tune --loop onoff --plot FILE` (pamd/tune/onoff_plot.py): the figure draws
-each of the six pulses per muscle around its own window from the data the analysis
+each of the ten pulses per muscle around its own window from the data the analysis
 measured (the valve's open interval, the means where they were taken, the 300 ms
 pulses' fastest length change), marks an unsound pulse, and is written as a PNG;
 without matplotlib `--plot` is refused with the install hint before anything runs.
@@ -47,18 +47,23 @@ def test_the_trace_is_what_was_measured(onoff_run: tuple[StepTest, Path]) -> Non
         assert 0.0 <= tr.fastest_from_s < tr.after_from_s
 
 
-def test_the_figure_draws_six_pulses_per_muscle_each_around_its_window(
+def test_the_figure_draws_every_pulse_per_muscle_each_around_its_window(
         onoff_run: tuple[StepTest, Path]) -> None:
+    """One column per pulse, the shortest pulses' repeats each in its own, titled with
+    its repeat."""
     test, _ = onoff_run
+    titles = ["inflate 40 ms", "exhaust 40 ms", "inflate 6 ms 1/3", "exhaust 6 ms 1/3",
+              "inflate 6 ms 2/3", "exhaust 6 ms 2/3", "inflate 6 ms 3/3", "exhaust 6 ms 3/3",
+              "inflate 300 ms", "exhaust 300 ms"]
     plt = pyplot()
     fig = onoff_figure(plt, {"m1": test, "m2": test}, 3.0)
     try:
-        axes = np.array(fig.axes).reshape(4, 6)  # per muscle: pressure over length
+        axes = np.array(fig.axes).reshape(4, len(PULSES))  # per muscle: pressure over length
         for row, muscle in enumerate(("m1", "m1", "m2", "m2")):
-            for ax, r in zip(axes[row], test.responses(), strict=True):
+            for ax, r, title in zip(axes[row], test.responses(), titles, strict=True):
                 pressure = row % 2 == 0
                 if pressure:
-                    assert ax.get_title() == f"{muscle}: {r.pulse.valve} {1e3 * r.pulse_s:.0f} ms"
+                    assert ax.get_title() == f"{muscle}: {title}"
                 [shade] = _by_gid(ax, "open")  # the valve open, in data x (ms)
                 x = shade.get_patch_transform().transform(shade.get_path().vertices)[:, 0]
                 assert (x.min(), x.max()) == pytest.approx((0.0, 1e3 * r.pulse_s))
@@ -106,6 +111,23 @@ def test_an_unsound_pulse_is_marked(onoff_run: tuple[StepTest, Path]) -> None:
         plt.close(fig)
 
 
+def test_a_repeat_left_out_says_so(onoff_run: tuple[StepTest, Path]) -> None:
+    """The second exhaust repeat held open (twice the others' step): its title says
+    it is left out of the typical step; the other repeats' do not."""
+    test, _ = onoff_run
+    shortest = list(test.shortest)
+    shortest[3] = replace(shortest[3], pressure_step_bar=2.0 * shortest[3].pressure_step_bar)
+    plt = pyplot()
+    fig = onoff_figure(plt, {"m1": replace(test, shortest=tuple(shortest))}, 3.0)
+    try:
+        titles = [ax.get_title() for ax in fig.axes[2:8]]
+        assert titles == ["m1: inflate 6 ms 1/3", "m1: exhaust 6 ms 1/3", "m1: inflate 6 ms 2/3",
+                          "m1: exhaust 6 ms 2/3, left out", "m1: inflate 6 ms 3/3",
+                          "m1: exhaust 6 ms 3/3"]
+    finally:
+        plt.close(fig)
+
+
 def test_the_png_is_written(onoff_run: tuple[StepTest, Path], tmp_path: Path) -> None:
     test, _ = onoff_run
     png = tmp_path / "onoff.png"
@@ -113,7 +135,7 @@ def test_the_png_is_written(onoff_run: tuple[StepTest, Path], tmp_path: Path) ->
     data = png.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR"
     width, height = struct.unpack(">II", data[16:24])
-    assert width > 1500 and 400 < height < width  # six panels wide, two high
+    assert width > 2500 and 400 < height < width  # ten panels wide, two high
     assert len(data) > 50_000  # drawn traces, not an empty canvas
 
 

@@ -25,11 +25,12 @@ from tests.tune.conftest import ONOFF, REPO
 #: How far the daemon's step test may stand from the bench's (relative). Both run the
 #: same pulses on the same simulated rig; the daemon's run takes its samples at other
 #: ticks, so it meets other samples of the sensors' noise: 0.4 % on the rates and
-#: speeds, 4 % on the dead band (half a 6 ms pulse's 0.03-0.05 bar step, which 50
-#: samples resolve to about a mbar; over the sensors' seeds 2-4 the two agree within
-#: 1.5 %, and the bench alone spreads 0.0143-0.0148 over seeds 1-4).
+#: speeds, 1 % on the dead band (half the mean of three 6 ms pulses' 0.03-0.05 bar
+#: steps, which 50 samples resolve to about a mbar, and which move with the hanging
+#: load's motion between pulses: 0.0144 against the bench's 0.0142; one pulse per valve
+#: gave 0.0137 against 0.0143, which needed 6 %).
 TOLERANCE = {"fill_rate_bar_per_s": 0.02, "vent_rate_bar_per_s": 0.02, "response_s": 1e-9,
-             "dead_band_bar": 0.06, "position_lambda_per_s": 0.02,
+             "dead_band_bar": 0.03, "position_lambda_per_s": 0.02,
              "position_boundary_mm_s": 0.02, "position_hold_band_mm": 1e-9}
 
 
@@ -44,7 +45,7 @@ def test_the_step_test_agrees_with_the_bench(onoff_run: tuple[StepTest, Path]) -
         assert new[key] == pytest.approx(shipped[key], rel=rel + 0.005), key  # 3 digits
     # what the recording showed (the pulses found there, whole ticks)
     assert [round(1e3 * r.pulse_s) for r in (*test.rate, *test.shortest, *test.speed)] == [
-        40, 40, 6, 6, 300, 300]
+        40, 40, 6, 6, 6, 6, 6, 6, 300, 300]
     assert test.speed[0].length_step_mm < -5.0 and test.speed[1].length_step_mm > 1.0
     assert list(run_dir.glob("*.mcap"))  # recorded like any run
 
@@ -70,18 +71,21 @@ def test_save_writes_muscles_onoff_keeping_the_comments(tmp_path: Path) -> None:
     assert "encoder count (the smallest length change): 0.01 mm" in r.stdout
     rows = {ln.split()[0]: ln.split() for ln in r.stdout.splitlines()
             if ln.strip().startswith("position_boundary_mm_s")}
-    assert rows["position_boundary_mm_s"][1:3] == ["14.2", "43.4"]  # present, new
+    assert rows["position_boundary_mm_s"][1:3] == ["14.2", "43.2"]  # present, new
     assert "-      dead_band_bar: 0.05" in r.stdout  # the diff was shown
     after = rig.read_text()
     comments = [ln for ln in before.splitlines() if ln.lstrip().startswith("#")]
     assert comments == [ln for ln in after.splitlines() if ln.lstrip().startswith("#")]
     changed = {a.split(":")[0].strip() for a, b in zip(before.splitlines(), after.splitlines(),
                                                         strict=True) if a != b}
-    # the two spoilt keys, and the fill rate 4.62 (4.64 by the bench); the others the
-    # same to 3 digits
-    assert changed == {"dead_band_bar", "position_boundary_mm_s", "fill_rate_bar_per_s"}
+    # the two spoilt keys, the fill rate 4.62 (4.64 by the bench) and lambda 14.4 (the
+    # shipped 14.5 is the single-pulse test's 43.4 mm/s / 3 mm; the three shortest
+    # pairs start the 300 ms pulses 0.04 bar higher: 43.2, one encoder count over 50
+    # ms less, the bench's too); the others the same to 3 digits
+    assert changed == {"dead_band_bar", "position_boundary_mm_s", "fill_rate_bar_per_s",
+                       "position_lambda_per_s"}
     onoff = load_config(str(rig)).muscle("m1").onoff
-    assert onoff.position_boundary_mm_s == 43.4 and onoff.dead_band_bar == 0.0137
+    assert onoff.position_boundary_mm_s == 43.2 and onoff.dead_band_bar == 0.0144
 
 
 def test_a_pulse_that_moves_nothing_is_refused_and_plotted(
