@@ -20,6 +20,7 @@ from pamd.tune.onoff import (
     INFLATE_OPEN,
     LEVEL_BAR,
     PULSES,
+    RATE_PULSE_S,
     SHORTEST_REPEATS,
     Measurement,
     Pulse,
@@ -203,3 +204,19 @@ def test_a_valve_whose_every_shortest_pulse_ran_long_is_refused(
                        r"the PWM's shortest pulse \(open 7, 7, 7 ms in the recording\): the "
                        r"PC skipped ticks"):
         check(replace(test, shortest=late))
+
+
+def test_a_rate_pulse_a_tick_long_gives_the_same_rate(onoff_run: tuple[StepTest, Path]) -> None:
+    """A 40 ms pulse the recording shows 41 ms long (a skipped tick near its end) moved
+    the pressure for 41 ms: its step is scaled back by the recorded length, so the rate
+    is the valve's, not 2.5 % high; an on-time pulse is taken as it is."""
+    test, _ = onoff_run
+    measured = measurements(test)
+    nominal = derive(measured, test.count_mm, PWM_PERIOD_S)
+    longer = [m._replace(pressure_step_bar=m.pressure_step_bar * 41 / 40, off_by_s=0.001)
+              if m.pulse.pulse_s == RATE_PULSE_S else m for m in measured]
+    again = derive(longer, test.count_mm, PWM_PERIOD_S)
+    for key in ("fill_rate_bar_per_s", "vent_rate_bar_per_s"):
+        assert again[key] == pytest.approx(nominal[key], rel=1e-12), key
+    assert nominal["fill_rate_bar_per_s"] == pytest.approx(
+        measured[0].pressure_step_bar / RATE_PULSE_S, rel=1e-12)
