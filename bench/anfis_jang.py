@@ -51,12 +51,12 @@ from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from anfis_mackey_glass import load_series  # noqa: E402  (this directory, run or imported)
+from anfis_mackey_glass import DEFAULT_CSV, reference_series  # noqa: E402  (this directory)
 
 from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
 from pamd.models.anfis.training import WIDTH_STARTS  # noqa: E402
 
-MACKEY_GLASS_CSV = Path(__file__).resolve().parents[2] / "shared/reference/mackey_glass.csv"
+MACKEY_GLASS_CSV = DEFAULT_CSV
 WIDTHS = (0.6, 0.8, 1.0, 1.5, 2.0, 3.0)
 RIDGES = (0.0, 1e-8, 1e-6)
 STEPS = (0.01, 0.03, 0.1, 0.3)
@@ -66,8 +66,9 @@ Data = tuple[np.ndarray, np.ndarray]
 
 
 def mackey_glass_series(path: Path = MACKEY_GLASS_CSV) -> np.ndarray:
-    """x indexed by integer t (the reader of bench/anfis_mackey_glass.py)."""
-    return load_series(path)
+    """x indexed by integer t (bench/anfis_mackey_glass.py's reference: the file, or its
+    integrator's where the file is not beside the checkout)."""
+    return reference_series(path)
 
 
 def mackey_glass(path: Path = MACKEY_GLASS_CSV) -> tuple[Data, Data]:
