@@ -86,6 +86,26 @@ def test_hold_freezes_and_resume_continues_the_profile(harness: Any) -> None:
     assert h.state == "IDLE"  # finished its one cycle
 
 
+def test_a_profile_parameter_its_shape_ignores_is_refused_and_nothing_moves(
+        harness: Any) -> None:
+    """A constant with cycles would hold forever where the operator asked for one cycle;
+    a sine with to_bar never goes there. Each is answered with the reason and never
+    starts; the same profile without the parameter runs."""
+    h = harness()
+    h.step(0.01)
+    before = h.m1.setpoint_bar
+    for args in ({"kind": "constant", "to_bar": 2.0, "cycles": 1},
+                 {"kind": "sine", "min_bar": 1.0, "max_bar": 3.0, "to_bar": 2.0},
+                 {"kind": "ramp", "to_bar": 2.0, "duration_s": 3.0}):
+        v = h.cmd("profile", **args)
+        assert not v["ok"] and f"a {args['kind']} profile does not read" in v["error"], v
+        h.step(0.5)
+        assert h.state == "IDLE" and h.m1.setpoint_bar == before
+    assert h.cmd("profile", kind="constant", to_bar=2.0, duration_s=1.0)["ok"]
+    h.step(0.5)
+    assert h.state == "RUNNING"
+
+
 def test_estop_latches_and_reset_needs_the_cause_gone(harness: Any) -> None:
     h = harness(safety={"estop_action": "vent"})
     h.step(0.01)

@@ -7,7 +7,9 @@ import math
 import pytest
 
 from pamd.errors import CommandRefused
+from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import Profile, ProfileSpec
+from pamd.profiles.spec import OPTIONAL_PARAMS
 
 
 def sample(p: Profile, t: float) -> tuple[float, float]:
@@ -61,3 +63,31 @@ def test_profile_outside_limits_is_refused() -> None:
         ProfileSpec(kind="sine", min_bar=0.0, max_bar=7.0).check(0.0, 6.0, 5.0)
     with pytest.raises(CommandRefused, match="must exceed"):
         ProfileSpec(kind="triangle", min_bar=3.0, max_bar=2.0).check(0.0, 6.0, 5.0)
+
+
+#: a value each optional parameter can take (checked for the shapes that read it)
+GIVEN = {"cycles": 1, "to_bar": 2.0, "rate_bar_per_s": 1.0, "rise_s": 0.5,
+         "duration_s": 5.0, "harmonics": ((1, 0.6), (3, 0.3))}
+
+
+@pytest.mark.parametrize("kind", list(SHAPE_PARAMS))
+def test_a_parameter_the_shape_does_not_read_is_refused_not_ignored(kind: str) -> None:
+    """Each shape takes every optional parameter it reads and refuses each it does not,
+    naming it and what the shape reads: ignored, it would make another run than the one
+    asked for (a constant with cycles holds until stopped)."""
+    base = {"to_bar": 2.0} if kind in ("ramp",) else {}
+    for name in OPTIONAL_PARAMS:
+        spec = ProfileSpec(kind=kind, min_bar=1.0, max_bar=3.0, freq_hz=0.05,
+                           **{**base, name: GIVEN[name]})
+        if name in SHAPE_PARAMS[kind]:
+            spec.check(0.0, 6.0, 5.0)
+        else:
+            with pytest.raises(CommandRefused, match=f"a {kind} profile does not read {name} "
+                               rf"\(it reads {', '.join(SHAPE_PARAMS[kind])}\); leave it out"):
+                spec.check(0.0, 6.0, 5.0)
+
+
+def test_a_constant_with_cycles_says_how_a_constant_ends() -> None:
+    with pytest.raises(CommandRefused, match="a constant holds until stopped, or for its "
+                       "duration_s"):
+        ProfileSpec(kind="constant", to_bar=2.0, cycles=1).check(0.0, 6.0, 5.0)

@@ -115,7 +115,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    help=f"{kinds_reading('freq_hz', '/')} (0.05)")
     g.add_argument("--min-bar", type=float, default=0.0, help="lowest pressure (0)")
     g.add_argument("--max-bar", type=float, default=6.0, help="highest pressure (6)")
-    g.add_argument("--cycles", type=int, help="number of cycles (default: until stopped)")
+    g.add_argument("--cycles", type=int, help=f"number of cycles ({kinds_reading('cycles', '/')}; "
+                   "default: until stopped)")
     g.add_argument("--to-bar", type=float, help=f"{kinds_reading('to_bar', '/')} target")
     g.add_argument("--rate-bar-per-s", type=float, help="ramp rate")
     lm = p.add_argument_group(

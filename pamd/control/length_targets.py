@@ -101,6 +101,7 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
                        freq_hz=freq_hz, cycles=cycles, to_bar=to_contraction,
                        rate_bar_per_s=rate_per_s, rise_s=rise_s, duration_s=duration_s,
                        lead_in_bar_per_s=lead, harmonics=harmonics)
+    spec.check_reads()  # a parameter the shape would ignore (as for pressure profiles)
     # ProfileSpec is unit-free arithmetic; here its "bar" fields hold contraction.
     if isinstance(spec.shape, Harmonic):  # the sum of harmonics within limits and reach
         c_lo, c_hi = env.contraction_bounds()

@@ -16,9 +16,13 @@ from pamd.config.names import NAME_RE
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import CommandRefused
 from pamd.muscle_type import MUSCLE_TYPES, equilibrium_contraction, force_model
+from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
 from pamd.schema.engine import Context, build_dataclass, spec
 from pamd.schema.yamlload import load_yaml_text, read_text
+
+#: a plan step's cycles where it gives none, for the shapes that repeat
+PLAN_CYCLES = 3
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -34,7 +38,8 @@ class PlanProfile:
     max_bar: float = spec(6.0, "Highest pressure.", unit="bar", min=0.0)
     freq_hz: float = spec(0.05, f"Frequency ({kinds_reading('freq_hz')}).", unit="Hz",
                           gt=0.0)
-    cycles: int = spec(3, "Cycles to run.", min=1)
+    cycles: int | None = spec(None, "Cycles to run (default: 3 for the shapes that read it: "
+                              f"{kinds_reading('cycles')}).", min=1)
     to_bar: float | None = spec(None, f"Target ({kinds_reading('to_bar')}).", unit="bar",
                                 min=0.0)
     duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
@@ -43,11 +48,19 @@ class PlanProfile:
         None, f"Harmonics ({kinds_reading('harmonics')}; default: seed 003's signal as "
         "pamd builds it, harmonics 1, 2, 3 with shares 0.6, 0.25, 0.15).")
 
+    @property
+    def cycles_to_run(self) -> int | None:
+        """`cycles`, or the plans' default for a shape that repeats (None for the others:
+        a constant or a ramp ends by its own parameters)."""
+        if self.cycles is not None:
+            return self.cycles
+        return PLAN_CYCLES if "cycles" in SHAPE_PARAMS[self.kind] else None
+
     def as_spec(self) -> ProfileSpec:
         harm = None if self.harmonics is None else tuple(
             (h.number, h.share) for h in self.harmonics)
         return ProfileSpec(kind=self.kind, min_bar=self.min_bar, max_bar=self.max_bar,
-                           freq_hz=self.freq_hz, cycles=self.cycles, to_bar=self.to_bar,
+                           freq_hz=self.freq_hz, cycles=self.cycles_to_run, to_bar=self.to_bar,
                            duration_s=self.duration_s, harmonics=harm)
 
 

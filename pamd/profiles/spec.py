@@ -38,6 +38,11 @@ def shape_of(kind: str) -> Shape:
 MAX_PROFILE_S = 30 * 86400.0
 
 
+#: The parameters that default to None ("not given"): one given to a shape that does not
+#: read it (`pamd.profile_kinds.SHAPE_PARAMS`) is refused, not ignored.
+OPTIONAL_PARAMS = ("cycles", "to_bar", "rate_bar_per_s", "rise_s", "duration_s", "harmonics")
+
+
 @dataclass(frozen=True)
 class ProfileSpec:
     """What an operator asks for; validated by `check` before anything moves. An
@@ -86,11 +91,25 @@ class ProfileSpec:
             return self.rise_s
         return (self.max_bar - self.min_bar) / slew_limit
 
+    def check_reads(self) -> None:
+        """Refuse (CommandRefused) a parameter given that the shape does not read: it
+        would be ignored, and the run would not be the one asked for (a constant with
+        cycles holds until stopped; a sine with to_bar never goes there)."""
+        unread = [n for n in OPTIONAL_PARAMS
+                  if getattr(self, n) is not None and n not in self.shape.params]
+        if unread:
+            raise CommandRefused(
+                f"a {self.kind} profile does not read {' or '.join(unread)} (it reads "
+                f"{', '.join(self.shape.params)}); leave {'them' if len(unread) > 1 else 'it'}"
+                " out" + ("; a constant holds until stopped, or for its duration_s (pamd run: "
+                          "the run's --duration)" if self.kind == "constant" else ""))
+
     def check(self, low_bar: float, high_bar: float, slew_limit: float) -> None:
         """Refuse (CommandRefused) a profile outside [low, high] or faster than the slew
         limit, saying which parameter to change."""
         k = self.kind
         shape = self.shape
+        self.check_reads()
         shape.check_params(self)
         if isinstance(shape, Harmonic):
             shape.check_harmonics(self, low_bar, high_bar, slew_limit)

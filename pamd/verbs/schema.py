@@ -42,7 +42,8 @@ class ProfileArgs:
     min_bar: float = spec(0.0, "Lowest pressure.", unit="bar")
     max_bar: float = spec(6.0, "Highest pressure.", unit="bar")
     freq_hz: float = spec(0.05, f"Frequency ({kinds_reading('freq_hz')}).", unit="Hz")
-    cycles: int | None = spec(None, "Number of cycles (default: until stopped).", min=1)
+    cycles: int | None = spec(None, f"Number of cycles ({kinds_reading('cycles')}; default: "
+                              "until stopped).", min=1)
     to_bar: float | None = spec(None, f"Target ({kinds_reading('to_bar')}).", unit="bar")
     rate_bar_per_s: float | None = spec(None, "Ramp rate.", unit="bar/s", gt=0.0)
     rise_s: float | None = spec(None, "Step edge duration.", unit="s", gt=0.0)

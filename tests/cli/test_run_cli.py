@@ -52,6 +52,16 @@ def test_profile_faster_than_slew_limit_is_refused_before_anything_moves() -> No
     assert "sensors read" not in r.stderr  # the rig never started
 
 
+def test_a_constant_with_cycles_is_refused_before_anything_moves() -> None:
+    """It would hold until stopped (on the virtual clock: spin without end) where one
+    cycle was asked for; the refusal says how a constant ends."""
+    r = pamd("run", "--clock", "virtual", "--profile", "constant", "--to-bar", "2",
+             "--cycles", "1", "--no-record", timeout=30)
+    assert r.returncode == 4
+    assert "a constant profile does not read cycles" in r.stderr and "--duration" in r.stderr
+    assert "sensors read" not in r.stderr  # the rig never started
+
+
 def test_bad_config_is_refused_with_file_and_line(tmp_path: Path) -> None:
     data = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())
     data["safety"]["tracking_band_bar"] = -1

@@ -35,3 +35,15 @@ def test_a_too_fast_ramp_names_no_frequency(harness: Callable[..., Harness]) -> 
     refused = h.cmd("profile", muscle="m1", kind="ramp", to_contraction=0.15, rate_per_s=1.0)
     assert not refused["ok"]
     assert "Hz passes" not in refused["error"]
+
+
+def test_a_length_profile_parameter_its_shape_ignores_is_refused(
+        harness: Callable[..., Harness]) -> None:
+    """As for pressure profiles: a constant length target with cycles would hold until
+    stopped; refused with the reason, and the same target without them runs."""
+    h = harness()
+    h.step(0.05)
+    assert h.cmd("mode", muscle="m1", mode="position", feedforward=False)["ok"]
+    refused = h.cmd("profile", muscle="m1", kind="constant", to_contraction=0.1, cycles=2)
+    assert not refused["ok"] and "a constant profile does not read cycles" in refused["error"]
+    assert h.cmd("profile", muscle="m1", kind="constant", to_contraction=0.1)["ok"]

@@ -58,6 +58,20 @@ def test_profile_faster_than_slew_names_the_step() -> None:
     assert i.path == "steps[2] (c).profile" and "slew limit" in i.found
 
 
+def test_cycles_go_to_the_shapes_that_repeat() -> None:
+    """A step's cycles default to 3 where the shape repeats and are absent where it does
+    not; given to a constant they are refused with the step's line, not ignored."""
+    text = PLAN + ("  - name: hold\n    profile: {kind: constant, to_bar: 2.0, duration_s: 5}\n"
+                   "  - name: wave\n    profile: {kind: sine, max_bar: 3.0}\n")
+    plan = parse_plan(text, "plan.yaml", load_config())
+    hold, wave = (plan.step_profile(s) for s in plan.steps[2:])
+    assert hold is not None and hold.as_spec().cycles is None
+    assert wave is not None and wave.as_spec().cycles == 3
+    (i,) = issues(text.replace("duration_s: 5}", "duration_s: 5, cycles: 2}"))
+    assert i.path == "steps[2] (hold).profile" and i.line == 8
+    assert "a constant profile does not read cycles" in i.found
+
+
 def test_contraction_and_stretch_limits_checked_per_load() -> None:
     text = PLAN + ("  - {name: empty, load_kg: 0, profile: {kind: sine, max_bar: 6.0, "
                    "freq_hz: 0.05}}\n  - {name: heavy, load_kg: 80, profile: {kind: sine, "
