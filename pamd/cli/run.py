@@ -306,6 +306,9 @@ def run(args: argparse.Namespace) -> int:
     if record_dir is not None and not args.json:
         cap = f", at most {max_mb:g} MB" if max_mb else ""
         log.info("recording into %s%s (--no-record: none)", record_dir, cap)
+    if cfg.rig.loop.clock == "virtual" and args.duration is None and args.cycles is None:
+        log.info("virtual clock with no end (no --duration, no --cycles): the simulation "
+                 "runs as fast as it can until Ctrl-C or SIGTERM")
     try:
         if mode is not None:
             _verdict(daemon, mode, cfg, "mode")

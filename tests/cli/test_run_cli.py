@@ -62,6 +62,27 @@ def test_a_constant_with_cycles_is_refused_before_anything_moves() -> None:
     assert "sensors read" not in r.stderr  # the rig never started
 
 
+def test_a_virtual_run_without_an_end_says_so_and_one_with_an_end_does_not() -> None:
+    """The virtual clock runs as fast as it can: with no --duration or --cycles it goes
+    on until stopped, which a script would not expect; the run says so as it starts."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pamd", "run", "--clock", "virtual", "--no-record",
+         "--no-telemetry"], stderr=subprocess.PIPE, text=True, cwd=REPO,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    assert proc.stderr is not None
+    seen = ""
+    deadline = time.monotonic() + 60
+    while "sensors read" not in seen and time.monotonic() < deadline:
+        seen += proc.stderr.readline()
+    proc.send_signal(signal.SIGTERM)
+    proc.communicate(timeout=60)
+    assert "virtual clock with no end (no --duration, no --cycles)" in seen
+    ended = pamd("run", "--clock", "virtual", "--no-record", "--no-telemetry", "--duration",
+                 "0.5", timeout=60)
+    assert ended.returncode == 0 and "sensors read" in ended.stderr
+    assert "with no end" not in ended.stderr
+
+
 def test_bad_config_is_refused_with_file_and_line(tmp_path: Path) -> None:
     data = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())
     data["safety"]["tracking_band_bar"] = -1
