@@ -56,7 +56,6 @@ from anfis_mackey_glass import DEFAULT_CSV, reference_series  # noqa: E402  (thi
 from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
 from pamd.models.anfis.training import WIDTH_STARTS  # noqa: E402
 
-MACKEY_GLASS_CSV = DEFAULT_CSV
 WIDTHS = (0.6, 0.8, 1.0, 1.5, 2.0, 3.0)
 RIDGES = (0.0, 1e-8, 1e-6)
 STEPS = (0.01, 0.03, 0.1, 0.3)
@@ -65,15 +64,10 @@ STEP_INCREASES = (1.1, 1.2)
 Data = tuple[np.ndarray, np.ndarray]
 
 
-def mackey_glass_series(path: Path = MACKEY_GLASS_CSV) -> np.ndarray:
-    """x indexed by integer t (bench/anfis_mackey_glass.py's reference: the file, or its
-    integrator's where the file is not beside the checkout)."""
-    return reference_series(path)
-
-
-def mackey_glass(path: Path = MACKEY_GLASS_CSV) -> tuple[Data, Data]:
-    """(training pairs, check pairs): Jang's 500 / 500."""
-    x = mackey_glass_series(path)
+def mackey_glass(path: Path = DEFAULT_CSV) -> tuple[Data, Data]:
+    """(training pairs, check pairs): Jang's 500 / 500 of the reference series (the file,
+    or its integrator's where the file is not beside the checkout)."""
+    x = reference_series(path)
     t = np.arange(118, 1118)
     X, y = np.c_[x[t - 18], x[t - 12], x[t - 6], x[t]], x[t + 6]
     return (X[:500], y[:500]), (X[500:], y[500:])

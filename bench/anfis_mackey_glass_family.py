@@ -50,7 +50,6 @@ from anfis_mackey_glass import (  # noqa: E402  (this directory)
 
 from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
 
-REFERENCE_CSV = DEFAULT_CSV
 GOAL = 0.0025
 #: the family's initial values: 0.50 to 1.50 in steps of 0.05, the reference's 1.2 left out
 FAMILY_X0 = tuple(x0 for x0 in (round(0.5 + 0.05 * k, 2) for k in range(21)) if x0 != 1.2)
@@ -113,13 +112,13 @@ def main() -> None:
                     help="also score other training settings on the family (minutes)")
     args = ap.parse_args()
     mine = series()
-    if REFERENCE_CSV.exists():
-        ref = load_series(REFERENCE_CSV)
-        print(f"1. generator against {REFERENCE_CSV.name}: max |difference| "
+    if DEFAULT_CSV.exists():
+        ref = load_series(DEFAULT_CSV)
+        print(f"1. generator against {DEFAULT_CSV.name}: max |difference| "
               f"{np.abs(mine[: ref.size] - ref).max():.1e} over t = 0..{ref.size - 1}")
     else:
         ref = mine
-        print(f"1. generator: {REFERENCE_CSV} not found; the reference generated (its "
+        print(f"1. generator: {DEFAULT_CSV} not found; the reference generated (its "
               "printed values checked by tests/models/test_anfis_mackey_glass_family.py)")
     _, e = check_errors(ref)
     ref_check = math.sqrt(float(e @ e) / e.size)

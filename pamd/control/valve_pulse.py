@@ -79,6 +79,5 @@ class ValvePulse(TickTest):
                 return HOLD
             return valve
         if t > self.rest_s + self.pulse_s + self.after_s:
-            self.active = False
-            self.outcome = DONE
+            self.stop(DONE)
         return HOLD

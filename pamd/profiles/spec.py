@@ -6,6 +6,7 @@ without allocating).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -36,11 +37,6 @@ def shape_of(kind: str) -> Shape:
 #: Longest profile (s): one cycle or all of them (30 days, as a time in the config,
 #: `pamd.schema.domains`).
 MAX_PROFILE_S = 30 * 86400.0
-
-
-#: The parameters that default to None ("not given"): one given to a shape that does not
-#: read it (`pamd.profile_kinds.SHAPE_PARAMS`) is refused, not ignored.
-OPTIONAL_PARAMS = ("cycles", "to_bar", "rate_bar_per_s", "rise_s", "duration_s", "harmonics")
 
 
 @dataclass(frozen=True)
@@ -220,3 +216,9 @@ class Profile(ProfilePoint):
         if out is not self:
             out.done = False
         self.shape.sample(self, tau - self.lead_in_s, out)
+
+
+#: ProfileSpec's parameters that default to None ("not given"): one given to a shape that
+#: does not read it (`pamd.profile_kinds.SHAPE_PARAMS`) is refused, not ignored.
+OPTIONAL_PARAMS: tuple[str, ...] = tuple(
+    f.name for f in dataclasses.fields(ProfileSpec) if f.default is None)
