@@ -55,7 +55,9 @@ def test_the_chain_opening_at_80kg_is_an_estop_that_holds_the_load(
     # the default ESTOP action (`safe_pressure`) would have taken the command down to
     # the safe pressure at 20 bar/s
     assert m.safe_pressure_bar < cmd0 - 2.0
-    assert min(k.cmd for k in after) >= cmd0 - 1e-9
+    # the command stands at the pressure the muscle holds (its reading, within the
+    # sensor's noise and inside the regulator's hysteresis), not on the way down
+    assert min(k.cmd for k in after) >= cmd0 - 0.01
     assert not any(int(r["m1"]["flags"]) & EXHAUST for r in h.records)
     assert min(k.pressure_true for k in after) >= p0 - 0.02
     travel_mm = max(abs(k.contraction_true - x0) for k in after) * 200.0
@@ -179,7 +181,7 @@ def test_a_stalled_loop_stops_the_heartbeat_and_the_relay_opens_the_chain(
     assert h.state == "ESTOP" and "safety chain open" in h.ctrl.supervisor.reason
     assert h.sim.heartbeat_toggles == toggles  # it stood still from the stall on
     rig.run(0.5)
-    assert rig.m.valve_cmd_bar >= cmd0 - 1e-9
+    assert rig.m.valve_cmd_bar >= cmd0 - 0.01  # at the pressure held (within its noise)
     assert h.sim.heartbeat_toggles == toggles
 
 
