@@ -210,7 +210,7 @@ class RigController:
         rec[I_STATE] = sup.state  # stored as a double: the same as int(), without the call
         rec[I_SEGMENT] = self._segment
         if chain.configured:
-            chain.beat(not sup.latched)  # stands still from the tick a fault latches
+            chain.beat()  # stands still while a valve's device is lost (never for a latch)
             rec[I_CHAIN] = chain.closed
             rec[I_SUPPLY] = chain.supply_bar
             rec[I_HEARTBEAT] = chain.level if chain.heartbeat is not None else math.nan

@@ -13,9 +13,13 @@ cannot make that chain safer, but it can see it and be seen by it
   pressure loops hold their integrators (no PID wind-up while the air cannot
   follow); out for `supply_lost_s`, a FAULT "supply lost", the air held likewise.
 * `heartbeat`, a digital output toggled once per tick (or every
-  `heartbeat_toggle_s`) while the rig runs and no fault is latched: a safety relay
-  or watchdog timer sees it stop within one tick of a stall (no tick toggles it), a
-  FAULT or an ESTOP.
+  `heartbeat_toggle_s`) while the loop runs and commands the valves: a safety relay
+  or watchdog timer sees it stop within one tick of a stall (no tick toggles it), the
+  process's end, or a fault of a device pamd writes a valve through (it can no longer
+  command the air; it toggles again once the device answers). Never for a latched
+  FAULT or ESTOP: pamd holds those itself (a FAULT's safe ramp needs the air), and a
+  relay that opened the chain on them would hold it open while the reset waits for
+  the chain to close: a deadlock only a restart broke (`beat`).
 * `reset`, a push button: its press acknowledges a latched FAULT or ESTOP as the
   `reset` command does. The restart interlock: after the chain opened, nothing
   moves until an operator acknowledges, and not while the chain is open or the
@@ -65,6 +69,11 @@ class SafetyChain:
                                                       self.reset_input, self.heartbeat))
         self.supply_digital = (self.supply is not None and self.supply.driver.input_channels[
             self.supply.index].digital)
+        # the devices pamd writes valves through: the heartbeat stands still while one
+        # of them reports a fault (pamd cannot command the air)
+        self.valve_drivers = tuple({b.driver.name: b.driver for m in rig.muscles
+                                    for b in (m.valve, m.exhaust, m.inflate)
+                                    if b is not None}.values())
         # ticks between two changes of the heartbeat's level
         self.beat_ticks = max(1, round(c.heartbeat_toggle_s / cfg.period_s))
         self._ticks_since_beat = 0
@@ -146,17 +155,25 @@ class SafetyChain:
         """The muscles get no air: the chain is open or the supply out."""
         return self.open_reason is not None or self.supply_out
 
-    def beat(self, alive: bool) -> None:
-        """End of a tick: toggle the heartbeat while `alive` (no fault latched); else it
-        stands still, and the relay watching it sees it stop."""
+    def beat(self) -> None:
+        """End of a tick: toggle the heartbeat, which says that the loop runs and
+        commands the valves; it stands still while a device pamd writes a valve
+        through reports a fault (and while no tick runs), and the relay watching it
+        sees it stop. A latched FAULT or ESTOP does not stop it (the module's
+        docstring): the operator's reset never waits for a heartbeat that waits for
+        the reset."""
         hb = self.heartbeat
-        if hb is not None and alive:
-            n = self._ticks_since_beat + 1
-            if n >= self.beat_ticks:
-                n = 0
-                self.level = 1.0 - self.level
-                hb.write_si(self.level)
-            self._ticks_since_beat = n
+        if hb is None:
+            return
+        for d in self.valve_drivers:
+            if d.fault is not None:
+                return
+        n = self._ticks_since_beat + 1
+        if n >= self.beat_ticks:
+            n = 0
+            self.level = 1.0 - self.level
+            hb.write_si(self.level)
+        self._ticks_since_beat = n
 
     def reset_block(self, by: str) -> str | None:
         """Why a reset `by` ("command" or "input") may not acknowledge now (the restart
