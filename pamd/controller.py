@@ -148,7 +148,8 @@ class RigController:
         sample's age (`pamd.stalls`). Returns how long to keep the excuse: the longest
         signal timeout, after which every sample from before the stall is judged stale
         anyway."""
-        hold = 0.0
+        hold = max(self.chain.timeouts_s, default=0.0)
+        self.chain.stall_excuse_s = excuse_s  # the chain's inputs are judged alike
         for m in self.muscles:
             m.inputs.stall_excuse_s = excuse_s
             hold = max(hold, *m.inputs.timeouts_s)

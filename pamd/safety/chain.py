@@ -90,6 +90,16 @@ class SafetyChain:
         self.reset_pressed = False  # the button went 0 -> 1 this tick
         self._supply_out_since = math.inf
         self._button = 0.0
+        # How much of a reading's age a stalled loop excuses (`pamd.stalls`; the rig
+        # controller sets it as it does the muscles' inputs'): not an open chain.
+        self.stall_excuse_s = 0.0
+
+    @property
+    def timeouts_s(self) -> tuple[float, ...]:
+        """The chain inputs' stale ages (`effective_timeout_s`: the sample period and
+        `safety.latency_margin_s` as for every input), s."""
+        return tuple(b.timeout_s for b in (self.estop, self.supply, self.reset_input)
+                     if b is not None)
 
     def missing(self, now: float) -> str | None:
         """Start-up: which chain input has no fresh reading yet (None: all have)."""
@@ -99,11 +109,14 @@ class SafetyChain:
         return None
 
     def read(self, now: float) -> None:
-        """Read the chain's inputs (once per tick, after the drivers advanced)."""
+        """Read the chain's inputs (once per tick, after the drivers advanced). Their
+        ages are judged as the muscles' are: against `effective_timeout_s`, with a
+        stalled loop's time excused (`stall_excuse_s`)."""
+        aged = now - self.stall_excuse_s
         b = self.estop
         if b is not None:
             raw = b.driver.in_values[b.index]
-            fresh = now - b.driver.in_stamps_s[b.index] <= b.timeout_s
+            fresh = aged - b.driver.in_stamps_s[b.index] <= b.timeout_s
             closed = fresh and b.gain * raw + b.offset >= 0.5
             self.closed = 1.0 if closed else (math.nan if not fresh else 0.0)
             if closed or (not fresh and b.driver.fault is not None):
@@ -117,7 +130,7 @@ class SafetyChain:
                     f"reading within {b.timeout_s:g} s")
         s = self.supply
         if s is not None:
-            fresh = now - s.driver.in_stamps_s[s.index] <= s.timeout_s
+            fresh = aged - s.driver.in_stamps_s[s.index] <= s.timeout_s
             p = s.gain * s.driver.in_values[s.index] + s.offset if fresh else math.nan
             self.supply_bar = p
             out = not (p >= 0.5 if self.supply_digital else p >= self.supply_min_bar)
@@ -134,7 +147,7 @@ class SafetyChain:
                     self.supply_reason = self._supply_text(p)
         r = self.reset_input
         if r is not None:
-            fresh = now - r.driver.in_stamps_s[r.index] <= r.timeout_s
+            fresh = aged - r.driver.in_stamps_s[r.index] <= r.timeout_s
             level = r.gain * r.driver.in_values[r.index] + r.offset if fresh else 0.0
             self.reset_pressed = level >= 0.5 and self._button < 0.5
             self._button = level

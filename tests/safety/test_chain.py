@@ -295,3 +295,25 @@ def test_the_shipped_chain_rig_runs_to_an_estop_holding_its_air_from_the_cli(
     # held at the 5 bar it had (within the pressure sensor's 3 mbar noise), never vented
     assert s["outputs"]["m1"]["valve_cmd_bar"] == pytest.approx(5.0, abs=0.01)
     assert "IDLE -> ESTOP: safety chain open" in r.stderr
+
+
+def test_a_stalled_loop_excuses_the_chain_inputs_age_as_the_muscles(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    """A reading that aged while the loop stalled is not an open chain (issue 37 item 5):
+    the chain's inputs take the stall's excuse the muscles' inputs take, and the excuse
+    lasts the chain's timeouts too. Without it, the e-stop input is open by its age."""
+    rig = safety_rig(30.0, 3.0, safety_chain=CHAIN)
+    rig.run(0.1)
+    ctrl = rig.h.ctrl
+    chain = ctrl.chain
+    b = chain.estop
+    assert b is not None
+    late = b.driver.in_stamps_s[b.index] + b.timeout_s + 0.03  # 30 ms too old
+    chain.read(late)
+    assert chain.open_reason is not None and "no reading within" in chain.open_reason
+    chain.open_reason = None
+    assert ctrl.excuse_stall(0.04) >= b.timeout_s
+    assert chain.stall_excuse_s == 0.04
+    chain.read(late)
+    assert chain.open_reason is None
+    ctrl.excuse_stall(0.0)

@@ -12,7 +12,6 @@ closing chain refilled the muscle to 4.52 bar, still in ESTOP."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 from tests.safety.conftest import SafetyRig
 from tests.safety.test_chain import CHAIN
