@@ -182,27 +182,11 @@ class Plausibility:
         return reason
 
     def pressure_for_force(self, f: float, length: float) -> float:
-        """The pressure the force map needs for force `f` at `length` (bisection over
-        `_PRESSURE_SEARCH_BAR`; rare paths only), NaN unless the force and the length
-        are trusted and numbers. The map is the muscle type's, so it is as good as the
-        muscle's force model (a DMSP-20's friction and hysteresis: a few tenths of a
-        bar): evidence to tell a lying sensor from air that does not follow, or the
-        pressure where no reading says it."""
-        if not (self.force_ok and self.length_ok and f == f and length == length):
+        """The pressure the force map needs for force `f` at `length` (rare paths only:
+        `force_map_pressure`), NaN unless the force and the length are trusted."""
+        if not (self.force_ok and self.length_ok):
             return math.nan
-        x = (self.nominal_length_mm - length) / self.nominal_length_mm
-        lo, hi = _PRESSURE_SEARCH_BAR
-        if self.model.force_n(lo, x) >= f:
-            return lo
-        if self.model.force_n(hi, x) <= f:
-            return hi
-        for _ in range(40):
-            mid = 0.5 * (lo + hi)
-            if self.model.force_n(mid, x) < f:
-                lo = mid
-            else:
-                hi = mid
-        return 0.5 * (lo + hi)
+        return force_map_pressure(self.model, self.nominal_length_mm, f, length)
 
     def pressure_diagnosis(self, p: float, command: float, f: float, length: float) -> str:
         """Which pressure the force and length support (fault path only): the measured
@@ -410,6 +394,30 @@ class Plausibility:
                     f"{length - self._p_l0:+.1f} mm under its load (at a fixed pressure it "
                     "stands): stuck sensor")
         return None
+
+
+def force_map_pressure(model: ForceModel, nominal_length_mm: float, f: float,
+                       length: float) -> float:
+    """The pressure `model` needs for force `f` at `length` (bisection over
+    `_PRESSURE_SEARCH_BAR`; NaN for a reading that is no number). As good as the
+    muscle's force model (a DMSP-20's friction and hysteresis: a few tenths of a bar):
+    evidence to tell a lying sensor from air that does not follow, not a pressure to
+    command."""
+    if not (f == f and length == length):
+        return math.nan
+    x = (nominal_length_mm - length) / nominal_length_mm
+    lo, hi = _PRESSURE_SEARCH_BAR
+    if model.force_n(lo, x) >= f:
+        return lo
+    if model.force_n(hi, x) <= f:
+        return hi
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if model.force_n(mid, x) < f:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 def _alpha(dt_s: float) -> float:
