@@ -76,3 +76,11 @@ class RecordingError(PamdError):
     """A recording cannot be written or read."""
 
     exit_code = 6
+
+
+class FileWriteError(PamdError, OSError):
+    """A file pamd keeps (a config on --save, the references, a model file, ...) could
+    not be written; the old one is as it was (`pamd.atomic`). An OSError too, so that
+    whoever handled a failed write before (the service's state files) still does."""
+
+    exit_code = 9
