@@ -148,7 +148,8 @@ class RigController:
         sample's age (`pamd.stalls`). Returns how long to keep the excuse: the longest
         signal timeout, after which every sample from before the stall is judged stale
         anyway."""
-        hold = 0.0
+        hold = max(self.chain.timeouts_s, default=0.0)
+        self.chain.stall_excuse_s = excuse_s  # the chain's inputs are judged alike
         for m in self.muscles:
             m.inputs.stall_excuse_s = excuse_s
             hold = max(hold, *m.inputs.timeouts_s)
@@ -210,7 +211,7 @@ class RigController:
         rec[I_STATE] = sup.state  # stored as a double: the same as int(), without the call
         rec[I_SEGMENT] = self._segment
         if chain.configured:
-            chain.beat(not sup.latched)  # stands still from the tick a fault latches
+            chain.beat()  # stands still while a valve's device is lost (never for a latch)
             rec[I_CHAIN] = chain.closed
             rec[I_SUPPLY] = chain.supply_bar
             rec[I_HEARTBEAT] = chain.level if chain.heartbeat is not None else math.nan

@@ -21,10 +21,16 @@ class ConfigError(PamdError):
 
     exit_code = 2
 
+    #: issues the message lists (all of them stay in `issues`): a file with thousands
+    #: of bad entries says the first ones and how many more
+    SHOWN = 20
+
     def __init__(self, issues: list[ConfigIssue]) -> None:
         self.issues = issues
-        lines = [str(i) for i in issues]
+        lines = [str(i) for i in issues[:self.SHOWN]]
         n = len(issues)
+        if n > self.SHOWN:
+            lines.append(f"... and {n - self.SHOWN} more")
         head = "invalid configuration" if n == 1 else f"{n} configuration errors"
         super().__init__(head + ":\n  " + "\n  ".join(lines))
 
@@ -70,3 +76,11 @@ class RecordingError(PamdError):
     """A recording cannot be written or read."""
 
     exit_code = 6
+
+
+class FileWriteError(PamdError, OSError):
+    """A file pamd keeps (a config on --save, the references, a model file, ...) could
+    not be written; the old one is as it was (`pamd.atomic`). An OSError too, so that
+    whoever handled a failed write before (the service's state files) still does."""
+
+    exit_code = 9

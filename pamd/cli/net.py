@@ -21,6 +21,7 @@ import typing
 from collections.abc import Callable
 from enum import IntEnum
 
+from pamd.cli.numbers import number
 from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import CommandRefused
 from pamd.net.client.client import Client
@@ -28,7 +29,7 @@ from pamd.net.keys import Keys
 from pamd.net.telemetry import decode
 from pamd.net.zconf import NoDaemon
 from pamd.tick import Mode, State
-from pamd.verbs.table import VERBS
+from pamd.verbs.table import VERBS, parse_command
 
 CMD_EPILOG = """examples:
   pamd cmd setpoint --muscle m1 --bar 3.0
@@ -53,7 +54,7 @@ def add_client_args(p: argparse.ArgumentParser, suppress: bool = False) -> None:
                    help="Zenoh client config (JSON5), e.g. config/zenoh/lab-client.json5")
     p.add_argument("--connect", metavar="ENDPOINT", default=d,
                    help="connect here (default: tcp/127.0.0.1:7447)")
-    p.add_argument("--timeout", type=float, metavar="S", default=d,
+    p.add_argument("--timeout", type=number("s", gt=0.0), metavar="S", default=d,
                    help="how long to wait for an answer (status 3 s; cmd, model save 10 s)")
     p.add_argument("--token-file", metavar="FILE", default=d,
                    help="the daemon's command credential (default: $PAMD_TOKEN_FILE, "
@@ -88,7 +89,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                        description="Each muscle's latest state and the message rate, "
                        "refreshed twice a second, plus the latest events.")
     add_client_args(w)
-    w.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    w.add_argument("--duration", type=number("s", gt=0.0), metavar="S",
+                   help="stop after S seconds")
     w.add_argument("--plain", action="store_true", help="append tables instead of redrawing")
     w.set_defaults(func=watch)
 
@@ -235,6 +237,8 @@ def build_payload(verb: str, rest: list[str], args: argparse.Namespace) -> str |
 
 def cmd(args: argparse.Namespace) -> int:
     payload = build_payload(args.verb, list(args.rest), args)
+    if isinstance(payload, dict):  # refused here as the daemon would, before any session
+        parse_command(args.verb, payload, label=lambda field: f"--{field.replace('_', '-')}")
     with _client(args) as cl:
         rig = cl.rig(args.rig)
         verdict = cl.command(rig, args.verb, payload, user=args.user,

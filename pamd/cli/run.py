@@ -14,6 +14,7 @@ import sys
 import threading
 from types import FrameType
 
+from pamd.cli.numbers import number
 from pamd.commands.pending import PendingCommand
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
@@ -25,10 +26,12 @@ from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
 from pamd.io.session import RecordingRequest
 from pamd.net.spec import TelemetryRequest
+from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
 from pamd.service import testhooks
 from pamd.service.notify import Notifier
 from pamd.service.restart import restart_in_place, run_argv, unblock_signals
+from pamd.verbs.table import parse_command
 from pamd.view.spec import parse_listen
 
 log = logging.getLogger("pamd")
@@ -70,8 +73,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("--config", metavar="FILE", help="rig config (default: built-in sim)")
     p.add_argument("--clock", choices=("real", "virtual"),
                    help="override loop.clock (virtual: as fast as possible, deterministic)")
-    p.add_argument("--rate-hz", type=float, help="override loop.rate_hz")
-    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--rate-hz", type=number("Hz", gt=0.0), help="override loop.rate_hz")
+    p.add_argument("--duration", type=number("s", gt=0.0), metavar="S",
+                   help="stop after S seconds (at most 30 days)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.add_argument("--note", default="", help="operator note kept with the run")
     f = p.add_mutually_exclusive_group()
@@ -111,14 +115,15 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     g = p.add_argument_group("profile (on every muscle unless --muscle)")
     g.add_argument("--profile", choices=SHAPE_NAMES, help="start this reference profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")
-    g.add_argument("--freq-hz", type=float, default=0.05,
-                   help=f"{kinds_reading('freq_hz', '/')} (0.05)")
-    g.add_argument("--min-bar", type=float, default=0.0, help="lowest pressure (0)")
-    g.add_argument("--max-bar", type=float, default=6.0, help="highest pressure (6)")
+    g.add_argument("--freq-hz", type=float,
+                   help=f"{kinds_reading('freq_hz', '/')} (0.05); in a length mode too")
+    g.add_argument("--min-bar", type=float, help="lowest pressure (0)")
+    g.add_argument("--max-bar", type=float, help="highest pressure (6)")
     g.add_argument("--cycles", type=int, help=f"number of cycles ({kinds_reading('cycles', '/')}; "
                    "default: until stopped)")
     g.add_argument("--to-bar", type=float, help=f"{kinds_reading('to_bar', '/')} target")
-    g.add_argument("--rate-bar-per-s", type=float, help="ramp rate")
+    g.add_argument("--rate-bar-per-s", type=float, help="ramp rate (pressure mode; a "
+                   "length ramp runs at half control.position.max_rate_per_s)")
     lm = p.add_argument_group(
         "length modes (the ANFIS inverse model as feedforward; every muscle unless --muscle)")
     lm.add_argument("--mode", choices=("pressure", "length_force", "position"),
@@ -164,12 +169,81 @@ def _listen(text: str) -> str:
     return text
 
 
-def _profile_spec(args: argparse.Namespace) -> ProfileSpec | None:
+#: The profile options of each mode: ProfileSpec's parameter -> the option that gives
+#: it (a length profile's "bar" fields hold contraction: `length_profile`).
+PRESSURE_OPTIONS = {"min_bar": "--min-bar", "max_bar": "--max-bar", "freq_hz": "--freq-hz",
+                    "cycles": "--cycles", "to_bar": "--to-bar",
+                    "rate_bar_per_s": "--rate-bar-per-s"}
+LENGTH_OPTIONS = {"min_bar": "--min-contraction", "max_bar": "--max-contraction",
+                  "freq_hz": "--freq-hz", "cycles": "--cycles", "to_bar": "--to-contraction"}
+#: each option's field of the `profile` command in a length mode
+LENGTH_FIELDS = {"--min-contraction": "min_contraction", "--max-contraction": "max_contraction",
+                 "--to-contraction": "to_contraction", "--freq-hz": "freq_hz",
+                 "--cycles": "cycles"}
+
+
+def _dest(option: str) -> str:
+    return option[2:].replace("-", "_")
+
+
+def _profile_options(args: argparse.Namespace, length_mode: bool) -> dict[str, str]:
+    """The profile options given (ProfileSpec parameter -> option), each one the mode
+    and the shape read; a given option either does not read is refused, not ignored
+    (a length profile never reads --rate-bar-per-s; a constant never reads
+    --freq-hz), as a profile parameter its shape does not read is
+    (`ProfileSpec.check_reads`)."""
+    mine, other = ((LENGTH_OPTIONS, PRESSURE_OPTIONS) if length_mode else
+                   (PRESSURE_OPTIONS, LENGTH_OPTIONS))
+    given = {o for o in {*mine.values(), *other.values()} if getattr(args, _dest(o)) is not None}
+    wrong_mode = sorted(given - set(mine.values()))
+    if wrong_mode:
+        which = "a length profile (--mode position or length_force)" if not length_mode \
+            else "a pressure profile"
+        reads = ", ".join(dict.fromkeys(mine.values()))
+        raise CommandRefused(
+            f"{' and '.join(wrong_mode)}: {'these are' if len(wrong_mode) > 1 else 'this is'} "
+            f"{which}'s; {'--mode ' + args.mode if length_mode else 'the pressure mode'} "
+            f"reads {reads}")
     if args.profile is None:
-        return None
-    return ProfileSpec(kind=args.profile, min_bar=args.min_bar, max_bar=args.max_bar,
-                       freq_hz=args.freq_hz, cycles=args.cycles, to_bar=args.to_bar,
-                       rate_bar_per_s=args.rate_bar_per_s)
+        if given:
+            raise CommandRefused(f"{' and '.join(sorted(given))} without --profile: name the "
+                                 "profile they shape (--profile sine, ...)")
+        return {}
+    shape_reads = set(SHAPE_PARAMS[args.profile])
+    unread = sorted(o for p, o in mine.items() if o in given and p not in shape_reads)
+    if unread:
+        wanted = [mine[p] for p in SHAPE_PARAMS[args.profile] if p in mine]
+        raise CommandRefused(
+            f"--profile {args.profile} does not read {' or '.join(unread)} (it reads "
+            f"{', '.join(wanted) or 'none of them'}); leave "
+            f"{'them' if len(unread) > 1 else 'it'} out" + (
+                "; a constant holds until stopped, or for the run's --duration"
+                if args.profile == "constant" else ""))
+    return {p: o for p, o in mine.items() if o in given}
+
+
+def _checked(verb: str, payload: JsonObject, option_of: dict[str, str]) -> None:
+    """`payload` as the daemon would parse the command (`pamd.verbs`: types, each
+    number finite, of a physical size and inside its unit's domain), before anything
+    opens: a refusal names the option (`option_of`: field -> option)."""
+    parse_command(verb, payload, label=lambda field: option_of.get(field, field))
+
+
+def _pressure_profile(args: argparse.Namespace, cfg: LoadedConfig,
+                      given: dict[str, str]) -> JsonObject:
+    """The --profile of the pressure mode as a profile command, checked against each
+    selected muscle's limits and the slew limit before anything opens."""
+    payload: JsonObject = {"kind": args.profile,
+                           **{p: getattr(args, _dest(o)) for p, o in given.items()}}
+    _checked("profile", payload, {p: o for p, o in PRESSURE_OPTIONS.items()})
+    spec = ProfileSpec(**payload)
+    for m in cfg.rig.muscles:
+        if args.muscle in (None, m.name):
+            spec.check(0.0, cfg.limits[m.name].max_pressure_bar,
+                       cfg.rig.control.slew_limit_bar_per_s, cfg.period_s)
+    if args.muscle:
+        payload["muscle"] = args.muscle
+    return payload
 
 
 def _models(cfg: LoadedConfig, args: argparse.Namespace
@@ -186,14 +260,14 @@ def _models(cfg: LoadedConfig, args: argparse.Namespace
     return {**models, **loaded}, args.model
 
 
-def _length_profile(args: argparse.Namespace, cfg: LoadedConfig) -> JsonObject:
+def _length_profile(args: argparse.Namespace, cfg: LoadedConfig,
+                    given: dict[str, str]) -> JsonObject:
     """The --profile of a length mode as a profile command (contraction), checked
     against each muscle's limits, load and rate limit before anything opens."""
 
-    payload: JsonObject = {"kind": args.profile, "freq_hz": args.freq_hz}
-    for key in ("min_contraction", "max_contraction", "to_contraction", "cycles"):
-        if getattr(args, key) is not None:
-            payload[key] = getattr(args, key)
+    payload: JsonObject = {"kind": args.profile,
+                           **{LENGTH_FIELDS[o]: getattr(args, _dest(o)) for o in given.values()}}
+    _checked("profile", payload, {f: o for o, f in LENGTH_FIELDS.items()})
     for m in cfg.rig.muscles:
         if args.muscle in (None, m.name):
             check_length_profile_config(cfg, m.name, payload)
@@ -242,15 +316,12 @@ def run(args: argparse.Namespace) -> int:
     overrides: JsonObject = {}
     if args.clock:
         overrides.setdefault("loop", {})["clock"] = args.clock
-    if args.rate_hz:
+    if args.rate_hz is not None:
         overrides.setdefault("loop", {})["rate_hz"] = args.rate_hz
     cfg = load_config(args.config, overrides)
     models, model_path = _models(cfg, args)
     length_mode = args.mode in ("length_force", "position")
-    if not length_mode and any(v is not None for v in (
-            args.min_contraction, args.max_contraction, args.to_contraction)):
-        raise CommandRefused("--min/--max/--to-contraction are length profiles: add --mode "
-                             "position or --mode length_force")
+    given = _profile_options(args, length_mode)  # before any file is read
     needs_model = args.mode == "length_force" or (args.mode == "position"
                                                   and not args.no_feedforward)
     for m in cfg.rig.muscles:
@@ -262,19 +333,10 @@ def run(args: argparse.Namespace) -> int:
             raise CommandRefused(f"{m.name}: --mode {args.mode} needs a model: --model FILE "
                                  "or model_file in the config (position mode runs without "
                                  "one with --no-feedforward)")
-    spec = None if length_mode else _profile_spec(args)
-    if spec is not None:  # refused before anything opens or moves
-        for m in cfg.rig.muscles:
-            if args.muscle in (None, m.name):
-                spec.check(0.0, cfg.limits[m.name].max_pressure_bar,
-                           cfg.rig.control.slew_limit_bar_per_s)
-    profile = None
-    if spec is not None:
-        profile = {k: v for k, v in spec.__dict__.items() if v is not None}
-        if args.muscle:
-            profile["muscle"] = args.muscle
-    if length_mode and args.profile is not None:
-        profile = _length_profile(args, cfg)
+    profile = None  # refused before anything opens or moves
+    if args.profile is not None:
+        profile = (_length_profile(args, cfg, given) if length_mode else
+                   _pressure_profile(args, cfg, given))
     if args.listen and args.no_telemetry:
         raise CommandRefused("--listen is where telemetry listens: it goes without "
                              "--no-telemetry")

@@ -25,7 +25,8 @@ from pamd.verbs.table import VERBS as SPECS
 
 def _start(ctrl: RigController, ms: list[MuscleController], spec_: ProfileSpec) -> float | None:
     for m in ms:
-        spec_.check(0.0, m.envelope.max_pressure_bar, m.envelope.slew_limit_bar_per_s)
+        spec_.check(0.0, m.envelope.max_pressure_bar, m.envelope.slew_limit_bar_per_s,
+                    ctrl.cfg.period_s)
     total = None
     for m in ms:
         prof = Profile(spec_, ctrl.now, m.setpoint_bar, m.envelope.slew_limit_bar_per_s)
@@ -143,7 +144,8 @@ def _length_profile(ctrl: RigController, ms: list[MuscleController],
                                max_contraction=a.max_contraction,
                                to_contraction=a.to_contraction, freq_hz=a.freq_hz,
                                cycles=a.cycles, rate_per_s=a.rate_per_s, rise_s=a.rise_s,
-                               duration_s=a.duration_s, lead_in_per_s=a.lead_in_per_s)
+                               duration_s=a.duration_s, lead_in_per_s=a.lead_in_per_s,
+                               period_s=ctrl.cfg.period_s)
                 for m in ms]  # every muscle checked before any moves
     total = None
     for m, prof in zip(ms, profiles, strict=True):

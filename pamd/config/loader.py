@@ -20,7 +20,7 @@ from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.plausibility import check_plausibility_thresholds
 from pamd.config.request_timeouts import check_request_timeouts
 from pamd.config.safety_schema import SafetyConfig
-from pamd.config.schema import MuscleConfig, RigConfig, SignalConfig
+from pamd.config.schema import InputSignal, MuscleConfig, RigConfig, SignalConfig
 from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import DriverError
 from pamd.muscle_type import MUSCLE_TYPES
@@ -126,7 +126,8 @@ def load_config_text(text: str, path: str, overrides: JsonObject | None = None) 
     limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
     check_actuation(rig, raw.get("muscles", []), digital, ctx)
     check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
-    check_request_timeouts(rig, drivers_node, lost_reply, ctx, effective_timeout_s)
+    check_request_timeouts(rig, drivers_node, lost_reply, ctx, effective_timeout_s,
+                           input_signals(rig, raw))
     check_plausibility_thresholds(rig, raw, limits, ctx)
     check_sim_stalls(rig, drivers_node, ctx)
     check_safety_chain(rig, raw.get("safety_chain"), ctx)
@@ -139,16 +140,42 @@ def load_config_text(text: str, path: str, overrides: JsonObject | None = None) 
 
 
 def effective_timeout_s(sig: SignalConfig, safety: SafetyConfig) -> float:
-    """The age at which an input signal is stale. The physics: a healthy device delivers
-    a fresh sample at least once per update period (`sample_period_s`), late by at most
-    the delivery latency the rig declares (`safety.latency_margin_s`: a lost reply's
-    retry, a driver thread held up, a frame waiting in a socket); a value older than
-    their sum comes from a device that stopped. Never less than the signal's
-    `timeout_s` (or the safety default)."""
+    """The age at which an input signal (a muscle's, the safety chain's) is stale. The
+    physics: a healthy device delivers a fresh sample at least once per update period
+    (`sample_period_s`; none stated: every poll is a new sample, 0), late by at most the
+    delivery latency the rig declares (`safety.latency_margin_s`: a lost reply's retry,
+    a driver thread held up, a frame waiting in a socket, a busy host); a value older
+    than their sum comes from a device that stopped. Never less than the signal's
+    `timeout_s` (or the safety default). The margin applies whether or not a period is
+    stated: an e-stop input with none got 50 ms where its rig's muscle inputs got
+    101 ms, and a loaded PC opened the chain falsely."""
     timeout = sig.timeout_s or safety.signal_timeout_s
-    if sig.sample_period_s is None:
-        return timeout
-    return max(timeout, sig.sample_period_s + safety.latency_margin_s)
+    return max(timeout, (sig.sample_period_s or 0.0) + safety.latency_margin_s)
+
+
+def input_signals(rig: RigConfig, raw: JsonValue) -> list[InputSignal]:
+    """Every input signal of the rig, with its config path, its name and its raw node:
+    each muscle's pressure, force and length, and the safety chain's estop, supply and
+    reset (whose staleness derives the same way: `effective_timeout_s`)."""
+    root = raw if isinstance(raw, dict) else {}
+    muscles_node = root.get("muscles")
+    muscles_node = muscles_node if isinstance(muscles_node, list) else []
+    found: list[InputSignal] = []
+    for i, m in enumerate(rig.muscles):
+        mnode = muscles_node[i] if i < len(muscles_node) else {}
+        snode = (mnode.get("signals") if isinstance(mnode, dict) else None) or {}
+        for name in ("pressure", "force", "length"):
+            node = snode.get(name) if isinstance(snode, dict) else None
+            found.append(InputSignal(f"muscles[{i}].signals.{name}", f"{m.name}.{name}",
+                                     getattr(m.signals, name), node or {}))
+    cnode = root.get("safety_chain")
+    cnode = cnode if isinstance(cnode, dict) else {}
+    for name in ("estop", "supply", "reset"):
+        sig = getattr(rig.safety_chain, name)
+        if sig is not None:
+            found.append(InputSignal(f"safety_chain.{name}", f"safety_chain.{name}", sig,
+                                     cnode.get(name) or {}))
+    return found
 
 
 def _check_safety_bounds(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[str, ...]:
@@ -167,18 +194,13 @@ def _check_safety_bounds(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[
                 f"at least {2.0 / rig.loop.stall_timeout_s:g} Hz (two periods within "
                 f"loop.stall_timeout_s = {rig.loop.stall_timeout_s:g} s, or the stall check "
                 "cannot see a stalled loop)", f"{rig.loop.rate_hz:g} Hz")
-    muscles_node = raw.get("muscles") or []
-    for i, m in enumerate(rig.muscles):
-        sig_node = (muscles_node[i].get("signals") or {}) if i < len(muscles_node) else {}
-        for name in ("pressure", "force", "length"):
-            sig = getattr(m.signals, name)
-            timeout = sig.timeout_s or rig.safety.signal_timeout_s
-            if sig.sample_period_s is not None and sig.sample_period_s > timeout:
-                ctx.add(line_of(sig_node.get(name) or {}, "sample_period_s"),
-                        f"muscles[{i}].signals.{name}.sample_period_s",
-                        f"at most the signal's timeout ({timeout:g} s): a value cannot be "
-                        "fresher than its device samples it; raise timeout_s",
-                        f"{sig.sample_period_s:g} s")
+    for path, _, sig, node in input_signals(rig, raw):
+        timeout = sig.timeout_s or rig.safety.signal_timeout_s
+        if sig.sample_period_s is not None and sig.sample_period_s > timeout:
+            ctx.add(line_of(node, "sample_period_s"), f"{path}.sample_period_s",
+                    f"at most the signal's timeout ({timeout:g} s): a value cannot be "
+                    "fresher than its device samples it; raise timeout_s",
+                    f"{sig.sample_period_s:g} s")
     if not rig.safety.relax_ceilings:
         ctx.issues.extend(ctx.over_ceiling)
         return ()

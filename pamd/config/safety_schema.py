@@ -74,9 +74,11 @@ class SafetyConfig:
                                    unit="s", gt=0.0, ceiling=1.0, max=60.0)
     latency_margin_s: float = spec(0.05, "What a value may age between its device's sample "
                                    "and the tick that reads it (bus transaction, poll "
-                                   "thread, a busy host), added to a signal's "
-                                   "`sample_period_s`.", unit="s", min=0.0, ceiling=0.5,
-                                   max=5.0)
+                                   "thread, a busy host), added to every input's "
+                                   "`sample_period_s` (0 where none is stated), the "
+                                   "safety chain's too: an input is stale after "
+                                   "max(its timeout, sample period + this).", unit="s",
+                                   min=0.0, ceiling=0.5, max=5.0)
     tracking_band_bar: float = spec(0.5, "Measured pressure must follow the command within "
                                     "this band ...", unit="bar", gt=0.0, ceiling=1.0,
                                     max=3.0)

@@ -7,7 +7,7 @@ generated from them by `python -m pamd.config.docs`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal, get_args
+from typing import Any, Literal, NamedTuple, get_args
 
 from pamd.config.control_schema import (
     PID_KD_MAX_S,
@@ -19,6 +19,7 @@ from pamd.config.control_schema import (
     ControlConfig,
 )
 from pamd.config.safety_schema import SafetyConfig
+from pamd.declare.jsonsafe import JsonValue
 from pamd.schema.engine import spec
 
 #: How air reaches a muscle (`muscles[].actuation`): a proportional pressure regulator,
@@ -95,9 +96,10 @@ class SignalConfig:
     sample_period_s: float | None = spec(
         None, "How often the device takes a new sample (inputs; null: every poll is a new "
         "sample). A value is as old as its sample, so a slow device (a 10 samples/s I/O "
-        "module: 0.1) needs a timeout above this: the signal is stale after "
-        "max(timeout, sample_period_s + safety.latency_margin_s). A period longer than "
-        "the timeout is refused.", unit="s", gt=0.0, max=60.0)
+        "module: 0.1) needs a timeout above this: the signal (a muscle's or the safety "
+        "chain's) is stale after max(timeout, sample_period_s + "
+        "safety.latency_margin_s), the period 0 where none is stated. A period longer "
+        "than the timeout is refused.", unit="s", gt=0.0, max=60.0)
     raw_min: float | None = spec(None, "Lowest raw value ever written (outputs).")
     raw_max: float | None = spec(None, "Highest raw value ever written (outputs). For a valve, "
                                  "gain * raw_max + offset is its full scale and must not "
@@ -105,6 +107,17 @@ class SignalConfig:
     absolute: bool = spec(False, "A length input that is referenced by itself (a potentiometer "
                           "or laser sensor on an analog input, an absolute encoder): the "
                           "muscle starts referenced and `home` is refused.")
+
+
+class InputSignal(NamedTuple):
+    """An input signal found in a config (`pamd.config.loader.input_signals`): its
+    path, its name in messages (`m1.pressure`, `safety_chain.estop`), its config and
+    its raw node (for lines)."""
+
+    path: str
+    label: str
+    sig: SignalConfig
+    node: JsonValue  # the raw YAML mapping it came from (for line numbers)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -303,14 +316,16 @@ class SafetyChainConfig:
         "digital input, 1 = pressure present). Below `supply_min_bar` the pressure loops "
         "hold their integrators; for `supply_lost_s` it is a FAULT \"supply lost\".")
     heartbeat: SignalConfig | None = spec(
-        None, "A digital output the loop toggles every tick while it runs and no fault is "
-        "latched, for an external safety relay or watchdog timer: it stops within one "
-        "tick of a stall, a FAULT or an ESTOP.")
+        None, "A digital output the loop toggles every tick while it runs and commands the "
+        "valves, for an external safety relay or watchdog timer: it stops within one tick "
+        "of a stall, and while a device that carries a valve reports a fault; a latched "
+        "FAULT or ESTOP does not stop it (a relay on it would keep the chain open against "
+        "the reset; docs/safety.md says how to wire one).")
     heartbeat_toggle_s: float = spec(
         0.0, "Time between two changes of the heartbeat's level (0: every tick). A "
         "field-bus output whose driver sends the latest value once per poll (Modbus) "
         "needs several poll periods here, or the toggles alias away; the heartbeat still "
-        "stops within one tick of a stall or a fault.", unit="s", min=0.0, max=1.0)
+        "stops within one tick of a stall.", unit="s", min=0.0, max=1.0)
     reset: SignalConfig | None = spec(
         None, "A physical reset button: a digital input, 1 = pressed. Its press (0 -> 1) "
         "acknowledges a latched FAULT or ESTOP as `pamd cmd reset` does, once the chain is "

@@ -51,6 +51,7 @@ class Inputs:
         self._prev_length_mm = math.nan
         self._prev_length_t = math.nan  # the stamp of that length sample
         self.pressure_ok = self.length_ok = False
+        self.pressure_fresh = False  # younger than its timeout (trusted or not)
         self.flags = 0
         self.finding: str | None = None  # a new plausibility finding, this tick
         # How much of a sample's age a stalled loop excuses (`pamd.stalls`; the rig
@@ -173,6 +174,7 @@ class Inputs:
             self.finding = finding
             if fault is None:
                 fault = finding
+        self.pressure_fresh = p_fresh
         self.pressure_ok = p_fresh and plaus.pressure_ok
         self.length_ok = l_fresh and plaus.length_ok and referenced
         self.flags = flags

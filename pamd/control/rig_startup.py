@@ -53,8 +53,7 @@ def start_up(now: float, since_start_s: float, timeout_s: float,
             parts.append("; ".join(ramped))
         pace_safe_entry([m for m in muscles if m.in_safe_ramp], False)
         supervisor.go(now, State.IDLE, "sensors read; " + "; ".join(parts))
-        if supervisor.fault_reason:  # restored latched fault (service restart)
-            supervisor.fault(now, supervisor.fault_reason)
+        supervisor.relatch(now)  # a latched fault or ESTOP restored (service restart)
         for m in muscles:  # a reading found implausible while starting
             if m.plausibility.reason is not None:
                 supervisor.fault(now, m.plausibility.reason)

@@ -23,6 +23,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from pamd.atomic import write_atomic
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ModelError
 from pamd.models import anfis_kind, fn_qupi, learned, qupi, static_force, ts_fuzzy
@@ -131,10 +132,7 @@ def dumps_model(model: InverseModel) -> str:
 
 
 def save_model(model: InverseModel, path: str | os.PathLike[str]) -> Path:
-    """Write any kind's model file atomically (temporary file + rename)."""
+    """Write any kind's model file whole or not at all (`pamd.atomic`)."""
     target = Path(path)
-    text = dumps_model(model)
-    tmp = target.with_name(target.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, target)
+    write_atomic(target, dumps_model(model))
     return target

@@ -120,29 +120,21 @@ def _read(path: str, own: bool) -> str | None:
     return text if TOKEN_RE.match(text) else None
 
 
-def _write_new(directory: str, path: str) -> str | None:
+def _write_new(path: str) -> str | None:
     """A new token written whole under `path` (never over another's); the token that is
     there afterwards (ours, or a concurrent daemon's), or None."""
+    # Imported here: the io process imports this module to check tokens (its budget of
+    # pamd modules), only the daemon's main process writes one.
+    from pamd.atomic import write_atomic
+
     token = secrets.token_urlsafe(32)
-    fd, tmp = tempfile.mkstemp(prefix=".pamd-token-", dir=directory)
-    try:
-        os.fchmod(fd, FILE_MODE)
-        os.write(fd, (token + "\n").encode("ascii"))
-        os.fsync(fd)
-        os.close(fd)
-        fd = -1
-        try:
-            os.link(tmp, path)  # fails if a token appeared meanwhile: that one wins
-        except FileExistsError:
-            return _read(path, own=True)
-        return token
+    try:  # whole, never over another's (`pamd.atomic`)
+        write_atomic(path, token + "\n", file_mode=FILE_MODE, exclusive=True)
+    except FileExistsError:  # a token appeared meanwhile: that one wins
+        return _read(path, own=True)
     except OSError:
         return None
-    finally:
-        if fd >= 0:
-            os.close(fd)
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+    return token
 
 
 def ensure_token(rig_id: str) -> tuple[str, str]:
@@ -159,7 +151,7 @@ def ensure_token(rig_id: str) -> tuple[str, str]:
             with contextlib.suppress(OSError):  # not a token of ours: replace it
                 os.unlink(path)
         if token is None:
-            token = _write_new(d, path)
+            token = _write_new(path)
         if token is not None:
             return path, digest(token)
         tried.append(f"{path} (cannot write)")

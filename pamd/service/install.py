@@ -20,6 +20,7 @@ from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
+from pamd.atomic import write_atomic
 from pamd.config import LoadedConfig, load_config
 from pamd.errors import ConfigError
 
@@ -108,11 +109,7 @@ def install(prefix: str = "/", dry_run: bool = False, pamd_path: str | None = No
         text = render(src, pamd)
         if not dry_run:
             os.makedirs(os.path.dirname(target), exist_ok=True)
-            tmp = target + ".new"
-            with open(tmp, "w", encoding="utf-8") as fh:
-                fh.write(text)
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, target)
+            write_atomic(target, text, file_mode=0o644)
         say(f"{verb} {target}")
     say(f"  ExecStart= {pamd} run --config /etc/pamd/pamd.yaml --state-dir {STATE_DIR}")
     _check_executable(pamd, say)

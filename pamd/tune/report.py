@@ -8,6 +8,7 @@ from types import ModuleType
 
 import numpy as np
 
+from pamd.atomic import save_figure
 from pamd.config import LoadedConfig
 from pamd.control.tuning import Fopdt
 from pamd.errors import PamdError
@@ -149,5 +150,5 @@ def plot_fits(path: str, lp: LoopPlan, model: Fopdt,
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, 120)  # whole or not at all (pamd.atomic)
     plt.close(fig)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pamd.atomic import write_atomic
 from pamd.config import LoadedConfig, load_config
 from pamd.daemon import Daemon
 from pamd.declare.jsonsafe import JsonObject
@@ -198,8 +199,7 @@ def run_identification(config_path: str | None, clock: str | None, muscle: str,
                         lambda base: check_limits(base, muscle, lp))
     os.makedirs(out_dir, exist_ok=True)
     plan_file = os.path.join(out_dir, f"tune-{lp.loop}-{muscle}.plan.yaml")
-    with open(plan_file, "w", encoding="utf-8") as fh:
-        fh.write(plan_text(muscle, lp))
+    write_atomic(plan_file, plan_text(muscle, lp))
     plan = load_plan(plan_file, cfg)
     lines = timeline(plan, cfg, simulated=True)
     _run_plan(cfg, plan, plan_file, lines, out_dir, progress)

@@ -12,6 +12,7 @@ import sys
 
 import yaml
 
+from pamd.atomic import write_atomic
 from pamd.config.loader import load_config_text
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ConfigError
@@ -32,8 +33,7 @@ def save_values(config_path: str, values: dict[KeyPath, float], what: str = "gai
     sys.stdout.writelines(difflib.unified_diff(
         text.splitlines(keepends=True), edited.splitlines(keepends=True),
         fromfile=config_path, tofile=f"{config_path} ({label})"))
-    with open(config_path, "w", encoding="utf-8") as fh:
-        fh.write(edited)
+    write_atomic(config_path, edited)  # whole or not at all: FileWriteError names it
     print(f"saved the new {what} into {config_path}")
     return 0
 
@@ -64,10 +64,9 @@ def write_overrides(config_path: str, values: dict[KeyPath, float], why: str,
         for key in keys[:-1]:
             node = node.setdefault(key, {})
         node[keys[-1]] = float(format_value(value))
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write(f"# {tool}: {what} for {os.path.basename(config_path)}, which could not "
-                 f"be edited in place\n# ({why}). Merge these keys into it.\n")
-        fh.write(yaml.safe_dump(nested, sort_keys=False))
+    write_atomic(path, f"# {tool}: {what} for {os.path.basename(config_path)}, which could "
+                 f"not be edited in place\n# ({why}). Merge these keys into it.\n"
+                 + yaml.safe_dump(nested, sort_keys=False))
     print(f"{config_path} could not be edited in place ({why}); the new {what} are in "
           f"{path}: merge them into the config")
     return 0

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pamd.atomic import save_figure
 from pamd.errors import RecordingError
 from pamd.view.recording import MuscleData, Recording
 
@@ -126,6 +127,6 @@ def _hysteresis(plt: ModuleType, path: str, m: MuscleData, title: str) -> str:
 
 def _save(fig: Figure, plt: ModuleType, path: str) -> str:
     fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
+    save_figure(fig, path, DPI)  # whole or not at all (pamd.atomic)
     plt.close(fig)
     return path

@@ -58,7 +58,7 @@ def test_a_constant_with_cycles_is_refused_before_anything_moves() -> None:
     r = pamd("run", "--clock", "virtual", "--profile", "constant", "--to-bar", "2",
              "--cycles", "1", "--no-record", timeout=30)
     assert r.returncode == 4
-    assert "a constant profile does not read cycles" in r.stderr and "--duration" in r.stderr
+    assert "--profile constant does not read --cycles" in r.stderr and "--duration" in r.stderr
     assert "sensors read" not in r.stderr  # the rig never started
 
 

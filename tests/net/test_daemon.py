@@ -61,7 +61,7 @@ BAD: list[tuple[str, dict[str, Any], str]] = [
     ("setpoint", {"raw": '{"muscle": "m1", "bar": Infinity}'}, "finite"),
     ("setpoint", {"raw": '{"muscle": "m1", "bar": 1e999}'}, "finite"),
     ("setpoint", {"payload": {"muscle": "m1", "bar": 9.0}}, "outside 0-6 bar"),
-    ("setpoint", {"payload": {"muscle": "m1", "bar": -1.0}}, "outside 0-6 bar"),
+    ("setpoint", {"payload": {"muscle": "m1", "bar": -1.0}}, "bar: expected a value at least 0"),
     ("setpoint", {"payload": {"muscle": "m9", "bar": 1.0}}, "no muscle named 'm9'"),
     ("setpoint", {"payload": {"muscle": "m1", "bar": 2.0, "ramp_s": 0.01}}, "slew limit"),
     ("setpoint", {"payload": {"muscle": "m1", "bar": 2.0, "deadman_s": 0}}, "deadman_s"),

@@ -62,7 +62,8 @@ class SafetyRig:
             before = supervisor.state
             step(period_s)
             after = supervisor.state
-            ran_in = after if before == starting else before
+            # the chain's ESTOP and the estop command latch before the muscles tick
+            ran_in = after if before == starting or after == State.ESTOP else before
             if not m.started:
                 continue
             # the tick that found a fault (latched at its end) is the safe state's entry:
