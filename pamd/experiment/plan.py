@@ -15,7 +15,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.config.names import NAME_RE
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import CommandRefused
-from pamd.muscle_type import MUSCLE_TYPES, equilibrium_contraction, force_model
+from pamd.muscle_type import equilibrium_contraction
 from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
 from pamd.schema.engine import Context, build_dataclass, spec
@@ -152,8 +152,8 @@ def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[Jso
         return
     mcfg = rig.muscle(plan.muscle)
     lim = rig.limits[plan.muscle]
-    rating = MUSCLE_TYPES[mcfg.type]
-    model = force_model(mcfg.force_model)
+    rating = rig.muscle_type(plan.muscle)
+    model = rating.force_model(mcfg.force_model)
     slew = rig.rig.control.slew_limit_bar_per_s
     if not plan.steps:
         ctx.add(None, "steps", "at least one step", "none")
