@@ -44,6 +44,9 @@ class PlanProfile:
                                 min=0.0)
     duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
                                     unit="s", gt=0.0)
+    rate_bar_per_s: float | None = spec(None, f"Rate ({kinds_reading('rate_bar_per_s')}; "
+                                        "default: half the slew limit).", unit="bar/s",
+                                        gt=0.0)
     harmonics: tuple[PlanHarmonic, ...] | None = spec(
         None, f"Harmonics ({kinds_reading('harmonics')}; default: seed 003's signal as "
         "pamd builds it, harmonics 1, 2, 3 with shares 0.6, 0.25, 0.15).")
@@ -61,7 +64,8 @@ class PlanProfile:
             (h.number, h.share) for h in self.harmonics)
         return ProfileSpec(kind=self.kind, min_bar=self.min_bar, max_bar=self.max_bar,
                            freq_hz=self.freq_hz, cycles=self.cycles_to_run, to_bar=self.to_bar,
-                           duration_s=self.duration_s, harmonics=harm)
+                           duration_s=self.duration_s, rate_bar_per_s=self.rate_bar_per_s,
+                           harmonics=harm)
 
 
 @dataclass(frozen=True, kw_only=True)
