@@ -1,4 +1,6 @@
-"""The `sim` driver: a simulated rig of DMSP-20 muscles stepped by the loop.
+"""The `sim` driver: a simulated rig of muscles stepped by the loop (DMSP-20s unless a
+muscle's `type`, or the type of the rig muscle reading its channels, says otherwise:
+`pamd.sim.specimen`).
 
 Per muscle X it has inputs `X.pressure` (bar), `X.force` (N, in-line load cell),
 `X.length` (mm; absolute, so the simulated rig starts referenced, unless the
