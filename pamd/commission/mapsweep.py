@@ -123,10 +123,11 @@ def choose_sweep(cfg: LoadedConfig, muscle: str, loads_kg: tuple[float, ...] | N
             skipped.append(f"{w:g} kg: no level of {', '.join(f'{p:g}' for p in axis)} bar "
                            "holds it inside the limits")
     if len(sweeps) < 2:
+        why = f" ({'; '.join(skipped)})" if skipped else ""
         raise CommissionRefused(
-            f"{muscle}: {len(sweeps)} load(s) can be measured ({'; '.join(skipped) or 'none'}"
-            "): one hanging load gives one force, one point per pressure curve; a map needs "
-            "at least two loads (--map-loads KG,KG,...)")
+            f"{muscle}: {len(sweeps)} load(s) can be measured{why}: one hanging load gives "
+            "one force, one point per pressure curve; a map needs at least two loads "
+            "(--map-loads KG,KG,...)")
     return MapSweep(muscle, tuple(sweeps), hold_s, rate_bar_per_s, tuple(skipped))
 
 
