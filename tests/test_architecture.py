@@ -70,6 +70,9 @@ LAZY_OWN = {
 LAZY_BY_NAME = {
     "pamd/__init__.py": "pamd.",
     "pamd/cli/main.py": "pamd.cli.",
+    # a custom muscle's map is read by the reader `pamd train` uses (pamd.view.tables, a
+    # layer above the config), only when a config names one
+    "pamd/config/muscle_types.py": "pamd.view.tables",
 }
 
 

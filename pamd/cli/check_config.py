@@ -33,6 +33,10 @@ def run(args: argparse.Namespace) -> int:
               f" limits {lim.max_pressure_bar:g} bar, {100 * lim.max_contraction:g} % "
               f"contraction, {100 * lim.max_pretension:g} % stretch"
               + (f"; model {models[m.name].path}" if m.name in models else ""))
+        t = cfg.muscle_type(m.name)
+        print(f"    type {t.name}: rated {t.max_pressure_bar:g} bar, "
+              f"{100 * t.max_contraction:g} % contraction, {100 * t.max_pretension:g} % "
+              f"stretch, {t.max_load_kg:g} kg, {t.theoretical_force_n:g} N; {t.source}")
         if rig.control.position.max_rate_per_s is None:
             print(f"    length rate limit (control.position.max_rate_per_s: null): "
                   f"{MuscleEnvelope.derived_length_rate(cfg, m.name).explain()}")

@@ -25,7 +25,7 @@ from __future__ import annotations
 from pamd.commission.measure import Measurements, Step
 from pamd.commission.moves import CommissionRefused, Moves
 from pamd.config import LoadedConfig
-from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction, force_model
+from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction
 
 FORCE_TOLERANCE = 0.1
 PRESSURE_GAIN = (0.5, 2.0)
@@ -119,7 +119,7 @@ def check_step(cfg: LoadedConfig, mv: Moves, steps: list[Step], phase: str,
             f"{m}: the pressure changed {gain:.2f} bar per bar of valve command ({shown}), "
             f"not {lo:g} to {hi:g}: check the supply, the valve's scaling (signals.valve "
             f"gain, raw_min/raw_max) and the pressure sensor's (signals.pressure.gain/offset)")
-    model = force_model(mcfg.force_model)
+    model = cfg.muscle_type(m).force_model(mcfg.force_model)
     dp = sum(s.pressure_change_bar ** 2 for s in steps)
     per_bar = sum(s.length_change_mm * s.pressure_change_bar for s in steps) / dp
     level = mv.levels_bar[0]

@@ -32,11 +32,13 @@ from pamd.experiment.sequencer import Sequencer, running_plan, started_plan
 from pamd.tick import State
 
 Progress = Callable[[str], None]
+#: an operator's action a plan waits for (a load to hang): True once it is done
+Ask = Callable[[str], bool]
 #: the probe's room beyond the plans' own time (the real clock runs on between them)
 SPARE_S = 60.0
 
 
-class _Between:
+class Between:
     """When the rig is between two of commissioning's plans: past start-up, no plan
     queued and not yet started, the last one ended. On the virtual clock the loop's time
     stands still then (`Loop.stand_still_while`), so the run is the same however fast
@@ -90,13 +92,13 @@ def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
                   [(s.pressure, s.force, s.length) for s in daemon.rig.muscles],
                   int((seconds + SPARE_S) * cfg.rig.loop.rate_hz))
     daemon.summary.downstream.append(probe)
-    between = _Between(daemon)
+    between = Between(daemon)
     daemon.loop.stand_still_while(between.idle)
     out = Outcome(Measurements())
     daemon.start()  # RigBusy (exit 8) while another daemon drives this rig
     try:
         first = moves[0]
-        _phase(daemon, between, probe, PHASE_REST, all_plans[first.muscle][0][1], progress)
+        run_phase(daemon, between, probe, PHASE_REST, all_plans[first.muscle][0][1], progress)
         _measure(cfg, probe, out.measurements)
         out.checks += check_rest(cfg, out.measurements)
         for mv in moves:
@@ -104,7 +106,7 @@ def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
                                         (PHASE_MOVES, all_plans[mv.muscle][2])):
                 failed: CommissionRefused | None = None
                 try:
-                    _phase(daemon, between, probe, phase, plan, progress)
+                    run_phase(daemon, between, probe, phase, plan, progress)
                 except CommissionRefused as exc:
                     failed = exc  # a wrong sign, where the data show one, says more
                 steps = steps_of(probe, mv.muscle, phase, [s.name for s in plan.steps])
@@ -142,6 +144,15 @@ def _plan_s(plan: Plan, cfg: LoadedConfig) -> float:
     return total
 
 
+def _operator(daemon: Daemon, prompt: str, ask: Ask | None) -> None:
+    """The operator's action a plan waits for: confirmed when done, else a stop."""
+    if ask is not None and ask(prompt):
+        verdict = daemon.command("confirm")
+        if verdict["ok"]:
+            return
+    daemon.submit("stop")
+
+
 def _measure(cfg: LoadedConfig, probe: Probe, into: Measurements) -> None:
     pl = cfg.rig.safety.plausibility
     rates = {"pressure": pl.pressure_max_rate_bar_per_s, "force": 0.0,
@@ -152,10 +163,12 @@ def _measure(cfg: LoadedConfig, probe: Probe, into: Measurements) -> None:
             into.signals[st.name] = st
 
 
-def _phase(daemon: Daemon, between: _Between, probe: Probe, phase: int, plan: Plan,
-           progress: Progress) -> None:
+def run_phase(daemon: Daemon, between: Between, probe: Probe, phase: int, plan: Plan,
+              progress: Progress, ask: Ask | None = None) -> None:
     """Run one plan with the probe taking rows; CommissionRefused when it does not
-    finish (a fault, a refusal)."""
+    finish (a fault, a refusal). `ask(prompt)`: an operator's action the plan waits for
+    (a load to hang), True once done (it is confirmed), False to stop; None: nobody to
+    ask (the run stops there)."""
     probe.phase = phase
     try:
         verdict = between.start(plan)
@@ -163,9 +176,12 @@ def _phase(daemon: Daemon, between: _Between, probe: Probe, phase: int, plan: Pl
             raise CommissionRefused(f"{plan.name}: the rig refused the plan: "
                                     f"{verdict['error']}")
         seq = started_plan(daemon.ctrl)
-        shown = ""
+        shown = asked = ""
         while daemon.alive and not seq.outcome:
             daemon.service()
+            if seq.awaiting_operator and seq.awaiting_operator != asked:
+                asked = seq.awaiting_operator
+                _operator(daemon, asked, ask)
             pr = seq.progress()
             line = f"{plan.name}: step {pr['index'] + 1}/{pr['steps']} {pr['step']} {pr['phase']}"
             if line != shown and pr["step"]:

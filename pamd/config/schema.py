@@ -20,6 +20,7 @@ from pamd.config.control_schema import (
 )
 from pamd.config.safety_schema import SafetyConfig
 from pamd.declare.jsonsafe import JsonValue
+from pamd.muscle_type import DEFAULT_TYPE, TYPE_NAMES
 from pamd.schema.engine import spec
 
 #: How air reaches a muscle (`muscles[].actuation`): a proportional pressure regulator,
@@ -149,6 +150,36 @@ class MuscleLimits:
 
 
 @dataclass(frozen=True, kw_only=True)
+class CustomMuscleConfig:
+    map_file: str = spec(
+        doc="The muscle's static force map as the lab measured it (or `pamd commission "
+        "--measure-map --save` wrote it), relative to the config file: a CSV or MAT table "
+        "read as `pamd train` reads tables, with columns pressure, force and contraction "
+        "(or length, with nominal_length_mm), each with its unit (`pressure [kPa]`, "
+        "`force_n`, `contraction [%]`, ...; converted to bar, N and a fraction). Rows of "
+        "equal pressure form a curve. Refused, naming the file and row, unless every "
+        "number is finite, there are at least two curves of at least two points, the "
+        "force falls with contraction along each curve and rises with pressure between "
+        "curves over the whole contraction range, and the map reaches the limits (0 bar "
+        "to the pressure limit, the pretension limit to the contraction limit).")
+    max_pressure_bar: float = spec(doc="Rated pressure: the most the muscle may see.",
+                                   unit="bar", gt=0.0, max=16.0)
+    max_contraction: float = spec(doc="Rated contraction, a fraction of the nominal length.",
+                                  gt=0.0, max=0.6)
+    max_pretension: float = spec(doc="Rated pretension (stretch beyond the nominal length), "
+                                 "a fraction.", min=0.0, max=0.3)
+    max_load_kg: float = spec(doc="Rated hanging load.", unit="kg", gt=0.0, max=10000.0)
+    theoretical_force_n: float = spec(
+        doc="Rated pull (Festo's theoretical force: at the rated pressure and 0 % "
+        "contraction); bounds force targets and the frozen-force check.", unit="N", gt=0.0,
+        max=1e6)
+    inner_diameter_mm: float = spec(
+        doc="Inner diameter (its volume for the simulated rig's air: the DMSP-20-200's "
+        "volume table scaled by the diameter squared and the length).", unit="mm", gt=0.0,
+        max=1000.0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class OnOffConfig:
     pwm_period_s: float = spec(0.02, "PWM period of the inflate and exhaust valves; must "
                                "leave room for a valve to open and close within it "
@@ -266,13 +297,20 @@ class AdaptConfig:
 @dataclass(frozen=True, kw_only=True)
 class MuscleConfig:
     name: str = spec(doc="Muscle name (used in signal, topic and key names).")
-    type: Literal["dmsp20"] = spec("dmsp20", "Muscle type; fixes the ratings and force map.")
+    type: str = spec(DEFAULT_TYPE, "Muscle type; fixes the ratings, the geometry and the "
+                     f"static force map: one of {', '.join(TYPE_NAMES)}. dmsp20 and dmsp40 "
+                     "are Festo's datasheet figures and maps (seed 002 Table 3); custom is a "
+                     "lab's own muscle, its map and ratings in `custom`.")
+    custom: CustomMuscleConfig | None = spec(
+        None, "`type: custom` only (and then required): the measured map and the ratings "
+        "of the muscle. Nothing about a custom muscle is assumed.")
     nominal_length_mm: float = spec(200.0, "Unloaded, unpressurised length.", unit="mm",
                                     gt=0.0)
     load_kg: float = spec(0.0, "Hanging load; sets the safe pressure.", unit="kg", min=0.0)
     force_model: Literal["map", "fit"] = spec(
-        "map", "Static force model used for the safe pressure: the datasheet map or the "
-        "smooth fit.")
+        "map", "Static force model of the safe pressure, the plausibility checks and the "
+        "plans' checks: the type's map, or its smooth fit where the type has one (dmsp20 "
+        "only).")
     actuation: Actuation = spec(
         "proportional", "How air reaches the muscle: `proportional`, a pressure regulator "
         "(signals.valve, optionally a dump valve signals.exhaust); `onoff`, an inflate and "

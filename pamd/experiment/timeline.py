@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
 from pamd.experiment.plan import Plan, profile_range
-from pamd.muscle_type import equilibrium_contraction, force_model
+from pamd.muscle_type import equilibrium_contraction
 from pamd.profiles import Profile
 from pamd.safety import safe_pressure_bar
 
@@ -40,7 +40,7 @@ def timeline(plan: Plan, rig: LoadedConfig, simulated: bool) -> list[StepLine]:
     lim = rig.limits[plan.muscle]
     saf = rig.rig.safety
     slew = rig.rig.control.slew_limit_bar_per_s
-    model = force_model(mcfg.force_model)
+    model = rig.muscle_type(plan.muscle).force_model(mcfg.force_model)
 
     def safe(load: float) -> float:
         return safe_pressure_bar(model, load, lim.max_pretension, saf.stretch_margin,

@@ -57,3 +57,18 @@ def test_what_cannot_be_edited_safely_is_refused() -> None:
 def test_values_never_take_exponent_form() -> None:
     assert yaml.safe_load(f"v: {format_value(12345.0)}")["v"] == 12300.0
     assert format_value(0.0255) == "0.0255"
+
+
+def test_words_are_written_as_yaml_reads_them() -> None:
+    """A muscle's type and a map's file name (pamd commission --measure-map --save):
+    plain where YAML reads them back as the word, quoted where it would not."""
+    text = ("muscles:\n  - name: m1\n    type: dmsp40  # the datasheet's\n"
+            "    load_kg: 100\n")
+    out = set_values(text, {("muscles", "[m1]", "type"): "custom",
+                            ("muscles", "[m1]", "custom", "map_file"): "rig-m1-map.csv",
+                            ("muscles", "[m1]", "custom", "max_load_kg"): 250.0})
+    assert "type: custom  # the datasheet's\n" in out
+    m = yaml.safe_load(out)["muscles"][0]
+    assert m["custom"] == {"map_file": "rig-m1-map.csv", "max_load_kg": 250.0}
+    for word in ("yes", "1.5", "a b", "null", "x: y"):
+        assert yaml.safe_load(f"v: {format_value(word)}")["v"] == word
