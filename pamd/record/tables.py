@@ -2,15 +2,16 @@
 events, decoded once (`read_columns`). The recording API (`pamd.view.recording`) and
 training's reader (`pamd.models.anfis.recordings`) take their columns from these.
 
-Reading is columnar: a state or loop message is a flat CDR struct of fixed size, so
-each chunk's records are walked once for their offsets (a few Python operations a
-record) and every channel's payloads are then cut out and decoded at once by numpy
-through a structured dtype laid out as the CDR (`payload_dtype`). Decoding message by
-message (a `struct` call, a list and its Python floats for each of the ~750 000
-messages of the walk-through's sweep) took seconds and hundreds of MB; this takes a
-fraction of a second and the arrays' own size (bench/record_read.py prints both). A
-file without a chunk index (unfinished: read by `files.scan`) is read message by
-message into the same columns.
+Reading is columnar: a state or loop message is a flat CDR struct of fixed size, so a
+file's chunks are joined, every message is found by the message indexes written after
+each chunk (`indexed_starts`; trusted only if the records they list fill the chunks
+back to back, else each record is walked: `record_starts`), and every channel's
+payloads are then cut out and decoded at once by numpy through a structured dtype laid
+out as the CDR (`payload_dtype`). Decoding message by message (a `struct` call, a list
+and its Python floats for each of the ~750 000 messages of the walk-through's sweep)
+took seconds of CPU and hundreds of MB; this takes a fraction of that
+(bench/waits.py prints both). A file without a chunk index (unfinished: read by
+`files.scan`) is read message by message into the same columns.
 """
 
 from __future__ import annotations
