@@ -80,10 +80,15 @@ COMMANDS: tuple[SubCommandEntry, ...] = (
                ("watch", "live table of a running daemon's muscles (over Zenoh)")),
     *_commands("router", ("router", "run a Zenoh router (for a lab with TLS and access "
                                     "control)")),
-    *_commands("model", ("model", "the adapted model of a running daemon (over Zenoh)")),
+    *_commands("model", ("model", "model files: MATLAB .fis export and import; a running "
+                                  "daemon's adapted model")),
     *_commands("view", ("plot", "figures of a recording: pressure, length, force, "
                                 "hysteresis (PNG)")),
 )
+
+
+#: The first command `pamd --help` suggests: the README's first (tests/cli checks).
+FIRST_COMMAND = "pamd run --duration 10 --profile sine"
 
 
 def _top_parser() -> argparse.ArgumentParser:
@@ -91,8 +96,9 @@ def _top_parser() -> argparse.ArgumentParser:
         prog="pamd",
         description="Controller daemon for pneumatic artificial muscle test beds. "
         "Runs the rig at a fixed rate under PID pressure control, safely.",
-        epilog="Start with `pamd run --clock virtual --duration 30 --profile sine` (the "
-        "built-in simulated rig), then `pamd check-config YOUR.yaml` for a real rig.",
+        epilog=f"Start with `{FIRST_COMMAND}` (the built-in simulated rig, 10 s on the real "
+        "clock: the README's first command), then `pamd check-config YOUR.yaml` for a real "
+        "rig.",
     )
     parser.add_argument("--version", action="version", version=f"pamd {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="more log output")

@@ -299,6 +299,15 @@ def record_where(args: argparse.Namespace, cfg: LoadedConfig
     return None, None
 
 
+def not_recording_why(args: argparse.Namespace) -> str:
+    """Why a run records nothing (`record_where` gave no directory), and how it would."""
+    if args.no_record:
+        return "--no-record"
+    return ("its output is not a terminal (a script, a service, a pipe such as `| tee`), "
+            "where a run records only when told: --record [DIR], or the config's "
+            "recording.dir")
+
+
 def _verdict(daemon: Daemon, pending: PendingCommand, cfg: LoadedConfig, what: str) -> None:
     """Wait for a command queued before start-up; a refusal stops the run (nothing moved)."""
     waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
@@ -368,6 +377,8 @@ def run(args: argparse.Namespace) -> int:
     if record_dir is not None and not args.json:
         cap = f", at most {max_mb:g} MB" if max_mb else ""
         log.info("recording into %s%s (--no-record: none)", record_dir, cap)
+    if record_dir is None:  # always said: a run nobody can open afterwards is a surprise
+        log.info("not recording: %s", not_recording_why(args))
     if cfg.rig.loop.clock == "virtual" and args.duration is None and args.cycles is None:
         log.info("virtual clock with no end (no --duration, no --cycles): the simulation "
                  "runs as fast as it can until Ctrl-C or SIGTERM")

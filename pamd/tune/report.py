@@ -14,7 +14,7 @@ from pamd.control.tuning import Fopdt
 from pamd.errors import PamdError
 from pamd.tune.run import LoopPlan
 from pamd.tune.steps import Step, position_gains, pressure_gains
-from pamd.tune.yamledit import KeyPath
+from pamd.tune.yamledit import KeyPath, change_row
 
 
 @dataclass(frozen=True)
@@ -111,10 +111,8 @@ def print_gains(loop: str, present: Present, new: Present) -> None:
     print("Gains (SIMC PI, tau_c = dead time"
           + ("; rate feedforward = dead time + lag):" if loop == "pressure" else "):"))
     print(f"  {'key':36s} {'present':>10s} {'new':>10s} {'change':>8s}")
-    for key, value in new.gains.items():
-        old = present.gains.get(key, 0.0)
-        change = f"{100 * (value - old) / old:+.0f} %" if old else "new"
-        print(f"  {'.'.join(key):36s} {old:10.4g} {value:10.4g} {change:>8s}")
+    for key, value in new.gains.items():  # as --save writes them
+        print(change_row(".".join(key), 36, present.gains.get(key, 0.0), value))
 
 
 def pyplot() -> ModuleType:

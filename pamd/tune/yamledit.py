@@ -50,6 +50,14 @@ def parsed_value(value: Value) -> JsonValue:
     return loaded if isinstance(value, str) else float(loaded)
 
 
+def change_row(key: str, width: int, old: float, value: float) -> str:
+    """One row of a "present / new / change" table: the new value as it is saved
+    (`format_value`), its change from the present one counted on that."""
+    saved = format_value(value)
+    change = f"{100 * (float(saved) - old) / old:+.0f} %" if old else "new"
+    return f"  {key:{width}s} {old:10.4g} {saved:>10s} {change:>8s}"
+
+
 def set_values(text: str, values: Mapping[KeyPath, Value]) -> str:
     """`text` with each key path set to its value (see the module's doc)."""
     out = text

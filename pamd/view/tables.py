@@ -386,21 +386,31 @@ def _run(source: str, muscle: str, columns: dict[str, np.ndarray], meta: JsonObj
                events=events, meta=meta)
 
 
-def read_data(paths: Sequence[str], muscle: str | None = None) -> list[Run]:
-    """Every run in `paths`: MCAP recordings (by their magic bytes), .mat files, CSV
-    tables; a directory as a collection or `--record` directory, or a `pamd export
-    --csv` directory (its sidecar's muscle tables)."""
+def data_files(paths: Sequence[str]) -> list[str]:
+    """The files `read_data` reads for `paths`, in its order: a directory as a
+    collection or `--record` directory (its recordings), or a `pamd export --csv`
+    directory (its sidecar's muscle tables); a file as it is."""
     if not paths:
         raise ModelError("no data files given")
-    runs: list[Run] = []
+    out: list[str] = []
     for p in paths:
         if os.path.isdir(p):
             sides = glob.glob(os.path.join(glob.escape(p), "*.meta.json"))
             if sides and not glob.glob(os.path.join(glob.escape(p), "*.mcap")):
-                runs += read_data(_export_tables(sides), muscle)
+                out += data_files(_export_tables(sides))
             else:
-                runs += read_data([f for f, _, _ in recording_files(p)], muscle)
+                out += data_files([f for f, _, _ in recording_files(p)])
             continue
+        out.append(p)
+    return out
+
+
+def read_data(paths: Sequence[str], muscle: str | None = None,
+              on_file: Callable[[str], None] | None = None) -> list[Run]:
+    """Every run in `paths` (`data_files`): MCAP recordings (by their magic bytes),
+    .mat files, CSV tables. `on_file` is told each file once it is read (progress)."""
+    runs: list[Run] = []
+    for p in data_files(paths):
         if not os.path.exists(p):
             raise ModelError(f"{p}: no such file")
         with open(p, "rb") as fh:
@@ -411,6 +421,8 @@ def read_data(paths: Sequence[str], muscle: str | None = None) -> list[Run]:
             runs += read_table_mat(p)
         else:
             runs.append(read_table_csv(p))
+        if on_file is not None:
+            on_file(p)
     return runs
 
 
@@ -425,11 +437,12 @@ def _export_tables(sides: list[str]) -> list[str]:
 
 
 def load_samples(paths: Sequence[str], options: ExtractOptions,
-                 report: Callable[[str], None] | None = None) -> Samples:
+                 report: Callable[[str], None] | None = None,
+                 on_file: Callable[[str], None] | None = None) -> Samples:
     """`read_data` then `extract`, after checking each table has the columns the options
     need (file:1:column); each unit conversion is reported (default: to stderr) and kept
-    in the samples' provenance."""
-    runs = read_data(paths, options.muscle)
+    in the samples' provenance. `on_file`: as `read_data`'s."""
+    runs = read_data(paths, options.muscle, on_file)
     say = report or (lambda line: print(line, file=sys.stderr))
     need = [*options.inputs, options.output]
     for r in runs:

@@ -60,6 +60,21 @@ def figure(pattern: str, out: str) -> str:
 MAX_ERROR = r"length tracking RMSE \S+ mm, MAE \S+ mm, max error (\S+ mm)"
 
 
+def test_the_walkthrough_writes_under_runs_and_installs_what_it_plots() -> None:
+    """Every file the walk-through names for output is under runs/ (git ignores it; issue
+    40: model.json and figs/ landed in the clone's root), and the block installs the
+    plot extra its --plot needs before any command."""
+    text = section()
+    cmds = commands(text)
+    outputs = [c[i + 1] for c in cmds for i, w in enumerate(c[:-1])
+               if w in ("--out", "--record", "--plot")]
+    assert len(outputs) == 6, outputs
+    assert all(o.startswith("runs/") for o in outputs), outputs
+    block = text.split("```sh\n", 1)[1]
+    assert block.startswith("pip install '.[plot]'"), block[:80]
+    assert any("--plot" in c for c in cmds)
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(1800)
 def test_the_readme_walkthrough_gives_the_readme_figures(tmp_path: Path) -> None:
@@ -95,4 +110,6 @@ def test_the_readme_walkthrough_gives_the_readme_figures(tmp_path: Path) -> None
     missing = {k: v for k, v in got.items() if v not in text}
     assert not missing, f"figures the README does not state: {missing}"
     for part in ("prediction", "error", "membership", "surface"):
-        assert (tmp_path / "figs" / f"track_{part}.png").stat().st_size > 5000
+        assert (tmp_path / "runs" / "figs" / f"track_{part}.png").stat().st_size > 5000
+    # everything the walk-through writes is under runs/ (the clone's .gitignore has it)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["config", "runs"]

@@ -72,3 +72,24 @@ def test_words_are_written_as_yaml_reads_them() -> None:
     assert m["custom"] == {"map_file": "rig-m1-map.csv", "max_load_kg": 250.0}
     for word in ("yes", "1.5", "a b", "null", "x: y"):
         assert yaml.safe_load(f"v: {format_value(word)}")["v"] == word
+
+
+def test_the_gains_shown_are_the_gains_saved(capsys: pytest.CaptureFixture[str]) -> None:
+    """`pamd tune` showed kp 0.07353, ki 2.285 and --save wrote 0.0735, 2.28 (issue 40):
+    the table shows each new value as it is written, its change counted on that."""
+    from pamd.tune.onoff import print_settings
+    from pamd.tune.report import Present, print_gains
+
+    kp, ki = ("control", "pid", "kp"), ("control", "pid", "ki_per_s")
+    new = {kp: 0.0735312, ki: 2.28514}
+    print_gains("pressure", Present("pressure", {kp: 0.05, ki: 2.0}), Present("pressure", new))
+    print_settings("m1", {"dead_band_bar": 0.01}, {"dead_band_bar": 0.0143271})
+    shown = capsys.readouterr().out
+    text = set_values("control:\n  pid: {kp: 0.05, ki_per_s: 2.0}\n", new)
+    saved = yaml.safe_load(text)["control"]["pid"]
+    assert f"{saved['kp']:g}" == "0.0735" and f"{saved['ki_per_s']:g}" == "2.29"
+    for value in ("0.0735", "2.29", "0.0143"):
+        assert f" {value} " in shown, shown
+    for unsaved in ("0.07353", "2.285", "0.01433"):
+        assert unsaved not in shown, shown
+    assert "+47 %" in shown and "+15 %" in shown  # 0.0735 / 0.05, 2.29 / 2.0
