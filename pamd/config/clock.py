@@ -49,6 +49,6 @@ def check_loop_clock(rig: RigConfig, raw: JsonValue, ctx: Context) -> None:
     name, rate_hz = clocks[0]
     if abs(rate_hz - rig.loop.rate_hz) > RATE_TOLERANCE * rate_hz:
         ctx.add(line_of(loop_node, "rate_hz"), "loop.rate_hz",
-                f"{rate_hz:g} Hz, the rate of driver {name!r}'s sample clock (its "
+                f"{rate_hz:g} Hz, the rate of the sample clock of driver {name!r} (its "
                 "sample_rate_hz): with clock daq the loop ticks once per sample",
                 f"{rig.loop.rate_hz:g} Hz")

@@ -319,7 +319,12 @@ class EmulatedRig:
         the plant by the driver's channel names."""
         from pamd.drivers.nidaq import NidaqDriver
         from pamd.emulate.nidaq_device import PRODUCTS, USB_6211, EmulatedDaq
-        from pamd.emulate.nidaq_server import DaqServer
+
+        try:
+            from pamd.emulate.nidaq_server import DaqServer
+        except ImportError as exc:
+            raise RuntimeError(f"driver {name!r}: NI's nidaqmx[grpc] is not installed ({exc}): "
+                               "pip install 'pamd[nidaq]'") from None
 
         if not o.server:
             raise RuntimeError(f"driver {name!r}: the emulator serves an nidaqmx device through "
