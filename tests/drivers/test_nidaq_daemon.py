@@ -21,7 +21,6 @@ from pamd.emulate.rig import EmulatedRig
 from pamd.emulate.testing import free_port, nidaq_emulated_dict, wait_until, write_config
 from pamd.tick import State
 
-
 #: the emulator in the daemon's process on a busy 2-core machine: 100 Hz, and a stall
 #: check that the shared interpreter lock does not trip (what is tested is the pacing)
 RATE_HZ = 100.0
