@@ -39,7 +39,7 @@ def test_a_rate_that_is_not_the_sample_clocks_is_refused_at_rate_hz() -> None:
     text = yaml.safe_dump(shipped(rate_hz=500))
     found = issues(text)
     assert len(found) == 1 and "loop.rate_hz" in found[0], found
-    assert "250 Hz, the rate of the sample clock of driver 'daq'" in found[0], found
+    assert "200 Hz, the rate of the sample clock of driver 'daq'" in found[0], found
     line = text.splitlines().index("  rate_hz: 500") + 1
     assert found[0].startswith(f"{line}:"), found  # the line of rate_hz
 
