@@ -19,8 +19,6 @@ load average is printed with them; compare the timings within one run.
 
 from __future__ import annotations
 
-import _lockdir  # noqa: F401  (the run's own rig-lock and state directories)
-
 import argparse
 import dataclasses
 import json
@@ -32,8 +30,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from pamd.config import load_config
+import _lockdir  # noqa: F401  (the run's own rig-lock and state directories)
 from pamd.drivers.nidaq import NidaqDriver
+
+from pamd.config import load_config
 from pamd.emulate.testing import (
     free_port,
     nidaq_emulated_dict,
@@ -120,7 +120,8 @@ def main() -> None:
     print(f"   on demand, back to back:        {reads['on_demand']:7.1f} cycles/s")
     print(f"   hardware-timed at {SHIPPED_HZ:g} Hz:        {reads['hardware_timed']:7.1f} "
           f"cycles/s ({reads['hardware_timed_late']:.0f} clocks missed)")
-    print(f"   ratio on demand / hardware-timed: {reads['on_demand'] / reads['hardware_timed']:.2f}")
+    ratio = reads["on_demand"] / reads["hardware_timed"]
+    print(f"   ratio on demand / hardware-timed: {ratio:.2f}")
     print("2. the loop on the card's sample clock (pamd run, loop.clock daq)")
     print("   rate    ticked  overruns  ticks/s  wake after the edge p50/p99/max (ms)  faults")
     for r, s in loops.items():

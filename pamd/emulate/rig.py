@@ -36,6 +36,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.drivers.can_frames import EncoderNode
 from pamd.drivers.canopen_encoder import CanEncoderOptions
 from pamd.drivers.modbus import ModbusOptions
+from pamd.drivers.nidaq import NidaqDriver
 from pamd.emulate.lateness import Lateness
 from pamd.emulate.modbus_device import (
     EmulatedModbusDevice,
@@ -44,6 +45,7 @@ from pamd.emulate.modbus_device import (
     serve_rtu_tcp,
     serve_tcp,
 )
+from pamd.emulate.nidaq_device import PRODUCTS, USB_6211, EmulatedDaq
 from pamd.emulate.physics import EmulatedPlant
 from pamd.emulate.ptys import PtyPair
 from pamd.emulate.socketcand import SocketcandServer
@@ -53,7 +55,6 @@ if TYPE_CHECKING:  # canopen, nidaqmx's stubs (and what is built on them) when a
 
     from pamd.drivers.nidaq_options import NidaqOptions
     from pamd.emulate.canopen_node import EmulatedEncoder
-    from pamd.emulate.nidaq_device import EmulatedDaq
     from pamd.emulate.nidaq_server import DaqServer
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
@@ -317,9 +318,6 @@ class EmulatedRig:
         """An NI gRPC Device Server on the driver's (loopback) `server`, with one emulated
         device: the product the options name (a USB-6211 if none), its channels wired to
         the plant by the driver's channel names."""
-        from pamd.drivers.nidaq import NidaqDriver
-        from pamd.emulate.nidaq_device import PRODUCTS, USB_6211, EmulatedDaq
-
         try:
             from pamd.emulate.nidaq_server import DaqServer
         except ImportError as exc:
