@@ -9,8 +9,9 @@ the one driver whose `sample_clock()` gives one): each tick waits for the next s
 instead of the OS timer and runs at its edge; the sample clocks that went by unticked
 (late samples the card reported, samples the loop was too late for) count as overruns,
 are said and skipped like the OS clock's missed periods. If no sample comes within
-`SAMPLE_GRACE_PERIODS` periods of its due time (the device removed, its server gone),
-the OS clock stands in until samples return, so the rig still reaches its safe state.
+`sample_grace_s` of its due time (two periods, at least half `loop.stall_timeout_s`:
+the device removed, its server gone), the OS clock stands in until samples return, so
+the rig still reaches its safe state.
 
 The loop's thread does no I/O: notices for the operator go into `notices`, which
 another thread prints.
@@ -41,9 +42,11 @@ COMMAND_BUDGET_FRACTION = 0.3  # of the period: commands after the first wait pa
 SAFE_STATE_DEADLINE_S = 30.0
 GC_EVERY_TICKS = 200
 GIL_SWITCH_FRACTION = 0.1
-#: loop.clock daq: a sample this many periods past its due time is missing (the OS clock
-#: stands in); two: a sample's reads may take most of a period on a busy host
+#: loop.clock daq: a sample this many periods past its due time, and half the stall
+#: timeout, is missing (the OS clock stands in): a sample's reads may take most of a
+#: period on a busy host, and a gap the stall check calls normal is no device gone
 SAMPLE_GRACE_PERIODS = 2.0
+#: ... and the first, which may wait for the device's tasks to start
 FIRST_SAMPLE_S = 0.2
 
 
@@ -123,7 +126,10 @@ class Loop:
         self.pacer: SampleClock | None = (
             paced_by(controller, cfg) if lc.clock == "daq" else None)
         self.clock_gaps = 0  # loop.clock daq: ticks the OS clock paced (no sample came)
-        self._said_s = -math.inf  # loop.clock daq: when a notice was last said
+        self.sample_grace_s = max(SAMPLE_GRACE_PERIODS * self.period_s,
+                                  0.5 * lc.stall_timeout_s)
+        # loop.clock daq: when each kind of notice was last said (at most once a second)
+        self._said_gap_s = self._said_missed_s = -math.inf
         self.timing = TickTiming()
         self.notices: deque[str] = deque(maxlen=256)
         self.lost_records = 0
@@ -168,6 +174,8 @@ class Loop:
         self.stalls.limit = stall_limit(cfg.rig)
         self.stalls.timeout_s = cfg.rig.loop.stall_timeout_s
         self.stall_s = self.stalls.check_s
+        self.sample_grace_s = max(SAMPLE_GRACE_PERIODS * self.period_s,
+                                  0.5 * cfg.rig.loop.stall_timeout_s)
 
     def stand_still_while(self, idle: Callable[[], bool]) -> None:
         """On the virtual clock, time stands still at the start of any tick at which
@@ -371,16 +379,17 @@ class Loop:
         """loop.clock daq: wait for the next sample; returns the tick's time (its edge, or
         the OS clock's when none came: module docstring) and its dt. Missed sample
         clocks are overruns, skipped (a sample once gone cannot be ticked late)."""
-        period = self.period_s
         last_t = due_t - dt  # the previous tick's time
-        # the first sample may wait for the tasks' start: a fifth of a second
-        grace_s = SAMPLE_GRACE_PERIODS * period if self.timing.ticks else FIRST_SAMPLE_S
+        grace_s = self.sample_grace_s if self.timing.ticks else FIRST_SAMPLE_S
         edge = pacer.wait(due_t + grace_s)
+        while edge <= last_t:  # taken before the tick the OS clock ran: gone by unticked
+            self.timing.overruns += 1
+            edge = pacer.wait(due_t + grace_s)
         if edge != edge:
             self.clock_gaps += 1
             now = time.monotonic()
-            if now - self._said_s >= 1.0:
-                self._said_s = now
+            if now - self._said_gap_s >= 1.0:
+                self._said_gap_s = now
                 self.notices.append(
                     f"no sample from {pacer.describe()} for {1000 * (now - last_t):.0f} ms: "
                     f"the OS clock paces the loop until it returns ({self.clock_gaps} ticks "
@@ -389,13 +398,11 @@ class Loop:
         missed = pacer.take_missed()
         if missed:
             self.timing.overruns += missed
-            if edge - self._said_s >= 1.0:
-                self._said_s = edge
+            if edge - self._said_missed_s >= 1.0:
+                self._said_missed_s = edge
                 self.notices.append(f"overrun: {missed} sample clock(s) of "
                                     f"{pacer.describe()} went by unticked "
                                     f"({self.timing.overruns} so far)")
-        if edge <= last_t:  # a sample that came just after the OS clock stood in
-            return last_t + 1e-6, 1e-6
         return edge, edge - last_t
 
 

@@ -62,9 +62,9 @@ def test_the_cards_sample_clock_paces_the_loop_and_a_removed_device_faults(
     elapsed, done = time.monotonic() - t0, loop.timing.ticks - ticks
     clocks = done + loop.timing.overruns - over
     assert clocks == pytest.approx(RATE_HZ * elapsed, rel=0.15, abs=5)
-    # most ticks waited for their sample (the OS clock stands in for one more than two
-    # periods late: on a busy host, with the emulator in this process, now and then)
-    assert loop.clock_gaps - gaps <= done // 3
+    # the ticks waited for their samples (the OS clock stands in for one later than half
+    # the stall timeout: the device gone)
+    assert loop.clock_gaps - gaps <= done // 10
     # a late sample: the card reports the clocks missed, the loop counts them, says so
     overruns = loop.timing.overruns
     card.hold(0.04)  # four clocks, well inside the signals' stale age (0.11 s)
@@ -90,4 +90,4 @@ def test_the_cards_sample_clock_paces_the_loop_and_a_removed_device_faults(
     assert daemon.wait_for_state((State.IDLE,), 10) == State.IDLE
     gaps, ticks = loop.clock_gaps, loop.timing.ticks
     assert wait_until(lambda: loop.timing.ticks >= ticks + 100, 15)
-    assert loop.clock_gaps - gaps <= 100 // 3  # the card paces the loop again
+    assert loop.clock_gaps - gaps <= 10  # the card paces the loop again
