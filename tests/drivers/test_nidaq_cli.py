@@ -2,7 +2,7 @@
 as the README says: the emulator's NI gRPC Device Server is ready with its endpoint and
 its closing line counts the card's calls; a port another program holds is said in one
 line; (slow) the README's 15 s run, paced by the card's sample clock, tracks the sine
-and ends without a fault. The in-process daemon on the card's clock, in the default
+and ends without a fault, and `pamd commission` passes through the DAQ path. The in-process daemon on the card's clock, in the default
 run: test_nidaq_daemon.py; the figures: bench/nidaq_rates.py."""
 
 from __future__ import annotations
@@ -74,3 +74,20 @@ def test_a_port_held_by_another_program_is_said_in_one_line(tmp_path: Path) -> N
                             "--duration", "1"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 3, r.stderr
     assert "cannot start" in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+@pytest.mark.slow
+def test_pamd_commission_on_the_emulated_card(tmp_path: Path) -> None:
+    """Commissioning through the DAQ path: every signal updates on the card's clock, the
+    signs and scaling pass, no fault, nothing refused."""
+    cfg = write_config(tmp_path, nidaq_emulated_dict(free_port()))
+    emu, _ = start_emulator(str(cfg))
+    try:
+        r = subprocess.run([sys.executable, "-m", "pamd", "commission", str(cfg), "--json",
+                            "--state-dir", str(tmp_path / "state")],
+                           capture_output=True, text=True, timeout=300)
+    finally:
+        stop_emulator(emu)
+    assert r.returncode == 0, r.stderr[-3000:]
+    report = json.loads(r.stdout)
+    assert report["clock"] == "daq" and not report["refusals"] and not report["faults"], report
