@@ -317,20 +317,24 @@ class NidaqDriver(ThreadedDriver):
                 self.count("index_homes")
 
     def _write(self, tasks: DaqTasks, now: float, timeout_s: float) -> None:
-        """The analog outputs once the loop has written each of them (never an output
+        """The analog outputs once the loop has written each of them (never a setpoint
         the loop did not set): every hardware-timed cycle, else when they change and
-        every `write_refresh_s`; the digital outputs when they change and every
-        `write_refresh_s`. A write DAQmx calls late is counted, not a failure."""
+        every `write_refresh_s`. The digital outputs, once the loop has written one of
+        them, when they change and every `write_refresh_s`: a task writes all its lines
+        at once, and a line the loop has not set goes out inactive (pamd's valves start
+        closed: an actuation opens its exhaust by writing 1, never by assuming a line a
+        run before left open). A write DAQmx calls late is counted, not a failure."""
         o: NidaqOptions = self.options
-        ao, do = self._ao, self._do
+        ao = self._ao
+        do = [0.0 if v != v else v for v in self._do] if any(
+            v == v for v in self._do) else []
         if ao and not any(v != v for v in ao) and (
                 self._pacer is not None or ao != self._ao_sent
                 or now - self._ao_sent_at >= o.write_refresh_s):
             self._ao_sent, self._ao_sent_at = list(ao), now
             if self._late_write(tasks.write_analog, self._ao_sent, timeout_s):
                 self.count("ao_writes")
-        if do and not any(v != v for v in do) and (
-                do != self._do_sent or now - self._do_sent_at >= o.write_refresh_s):
+        if do and (do != self._do_sent or now - self._do_sent_at >= o.write_refresh_s):
             self._do_sent, self._do_sent_at = list(do), now
             if self._late_write(tasks.write_digital, self._do_sent, timeout_s):
                 self.count("do_writes")
