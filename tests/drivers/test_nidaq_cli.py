@@ -2,8 +2,9 @@
 as the README says: the emulator's NI gRPC Device Server is ready with its endpoint and
 its closing line counts the card's calls; a port another program holds is said in one
 line; (slow) the README's 15 s run, paced by the card's sample clock, tracks the sine
-and ends without a fault, and `pamd commission` passes through the DAQ path. The in-process daemon on the card's clock, in the default
-run: test_nidaq_daemon.py; the figures: bench/nidaq_rates.py."""
+and ends without a fault, and `pamd commission` passes through the DAQ path. The
+in-process daemon on the card's clock, in the default run: test_nidaq_daemon.py; the
+figures: bench/nidaq_rates.py."""
 
 from __future__ import annotations
 
