@@ -193,7 +193,7 @@ class NidaqDriver(ThreadedDriver):
                 f"{self.describe()}: NI-DAQmx, NI's C driver, is not installed on this "
                 f"machine ({exc}); install it as {HOWTO} says, or set `server` to an NI gRPC "
                 "Device Server that drives the device") from None
-        self.failing(self._text(exc))
+        self.failing(said(exc))
 
     def _started(self, tasks: DaqTasks) -> None:
         self._tasks = tasks
@@ -245,7 +245,7 @@ class NidaqDriver(ThreadedDriver):
             tasks.open()
         except Exception as exc:  # noqa: BLE001 - refused or missing: said, retried
             tasks.close()
-            text = self._text(exc)
+            text = said(exc)
             self.error("connect_failures", text)
             self.failing(text)
             return False
@@ -254,26 +254,10 @@ class NidaqDriver(ThreadedDriver):
 
     def _lost(self, exc: Exception) -> None:
         """A DAQmx or link error in a cycle: the tasks are cleared and made again."""
-        text = self._text(exc)
+        text = said(exc)
         self.error("daq_errors", text)
         self.failing(text)
         self.release()
-
-    def _text(self, exc: Exception) -> str:
-        from nidaqmx.errors import DaqError, RpcError
-        from pamd.drivers.nidaq_tasks import Refused, Unreachable, refusal_text
-
-        if isinstance(exc, DaqError):
-            if exc.error_code == -201003:
-                return f"the device cannot be accessed (removed?): {refusal_text(exc)}"
-            return refusal_text(exc)
-        if isinstance(exc, Refused):
-            return f"the device refuses the configuration: {exc}"
-        if isinstance(exc, Unreachable):
-            return f"the NI gRPC Device Server does not answer: {exc}"
-        if isinstance(exc, RpcError):
-            return f"the NI gRPC Device Server does not answer ({exc})"
-        return f"{type(exc).__name__}: {exc}"
 
     def _demand_cycle(self) -> None:
         """Read every input (one call per task), stamped on arrival, then write."""
@@ -360,3 +344,20 @@ class NidaqDriver(ThreadedDriver):
         h.counters["cycles"] = self.cycles
         return h
 
+
+def said(exc: Exception) -> str:
+    """What a failure of the device, its server or its configuration says."""
+    from nidaqmx.errors import DaqError, RpcError
+    from pamd.drivers.nidaq_tasks import Refused, Unreachable, refusal_text
+
+    if isinstance(exc, DaqError):
+        if exc.error_code == -201003:
+            return f"the device cannot be accessed (removed?): {refusal_text(exc)}"
+        return refusal_text(exc)
+    if isinstance(exc, Refused):
+        return f"the device refuses the configuration: {exc}"
+    if isinstance(exc, Unreachable):
+        return f"the NI gRPC Device Server does not answer: {exc}"
+    if isinstance(exc, RpcError):
+        return f"the NI gRPC Device Server does not answer ({exc})"
+    return f"{type(exc).__name__}: {exc}"
