@@ -234,12 +234,12 @@ def test_hardware_timed_stamps_at_the_clock_and_counts_missed_clocks(
     d = opened(made, card.options(timing="hardware_timed", sample_rate_hz=100.0))
     clock = d.sample_clock()
     assert clock is not None and clock.period_s == pytest.approx(0.01)
-    assert wait_until(lambda: d.cycles > 10 and d.health().ok)
+    assert wait_until(lambda: d.cycles > 50 and d.health().ok)  # the edge's phase learnt
     (ai,) = [t for t in card.device.tasks.values() if t.master]  # the card's clock
     stamp = d.in_stamps_s[0]
     phase = (stamp - ai.t0) / 0.01  # the emulated card's edges: t0 + k / rate
     # at an edge (the earliest return of its wait), not on arrival after the reads
-    assert abs(phase - round(phase)) < 0.08, phase
+    assert abs(phase - round(phase)) < 0.15, phase
     late = d.health().counters.get("late_samples", 0)
     card.device.hold(0.1)  # the next call answers 100 ms late: ten clocks go by
     assert wait_until(lambda: d.health().counters.get("late_samples", 0) >= late + 8)

@@ -61,10 +61,10 @@ def test_the_cards_sample_clock_paces_the_loop_and_a_removed_device_faults(
     assert wait_until(lambda: loop.timing.ticks >= ticks + 100, 15)
     elapsed, done = time.monotonic() - t0, loop.timing.ticks - ticks
     clocks = done + loop.timing.overruns - over
-    assert clocks == pytest.approx(RATE_HZ * elapsed, rel=0.15, abs=5)
+    assert clocks == pytest.approx(RATE_HZ * elapsed, rel=0.25, abs=5)
     # the ticks waited for their samples (the OS clock stands in for one later than half
     # the stall timeout: the device gone)
-    assert loop.clock_gaps - gaps <= done // 10
+    assert loop.clock_gaps - gaps <= done // 5
     # a late sample: the card reports the clocks missed, the loop counts them, says so
     overruns = loop.timing.overruns
     card.hold(0.04)  # four clocks, well inside the signals' stale age (0.11 s)
