@@ -250,7 +250,7 @@ class Daemon:
         sup = self.ctrl.supervisor
         return {
             "rig_id": self.cfg.rig.rig_id,
-            "clock": "virtual" if self.loop.virtual else "real",
+            "clock": self.loop.clock_name,
             "rate_hz": self.cfg.rig.loop.rate_hz,
             "ticks": t.ticks,
             "duration_s": t.ticks * self.cfg.period_s,

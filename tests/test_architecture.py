@@ -47,7 +47,7 @@ SUBPACKAGES = {"net.node", "net.host", "net.client"}
 #: extras, or only one command uses them): keeps `import pamd` and the daemon light
 LAZY_THIRD_PARTY = {
     "matplotlib", "scipy", "pandas", "sklearn", "zenoh", "foxglove", "canopen", "can",
-    "serial", "pymodbus", "tqdm", "zstandard", "lz4",
+    "serial", "pymodbus", "tqdm", "zstandard", "lz4", "nidaqmx", "grpc", "session_pb2",
 }
 
 #: pamd's own lazy imports beyond the heavy modules: the public API

@@ -14,6 +14,7 @@ from typing import Protocol, runtime_checkable
 
 from pamd.config.actuation import check_actuation, check_sim_sample_periods, check_sim_stalls
 from pamd.config.chain import check_safety_chain
+from pamd.config.clock import check_loop_clock
 from pamd.config.control_schema import ControlConfig
 from pamd.config.drivertype import BindsMuscleTypes, driver_type
 from pamd.config.muscle_types import Ratings, ratings_of, resolve
@@ -140,6 +141,7 @@ def load_config_text(text: str, path: str, overrides: JsonObject | None = None) 
     check_plausibility_thresholds(rig, raw, limits, types, ctx)
     check_sim_stalls(rig, drivers_node, ctx)
     check_safety_chain(rig, raw.get("safety_chain"), ctx)
+    check_loop_clock(rig, raw, ctx)
     ctx.raise_if_any()
     cal_path = None if not rig.calibration_file else os.path.join(
         os.path.dirname(os.path.abspath(path)), os.path.expanduser(rig.calibration_file))

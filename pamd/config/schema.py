@@ -53,12 +53,17 @@ class LoopConfig:
     rate_hz: float = spec(1000.0, "Tick rate; 500 is the fallback for slow machines. A "
                           "period must fit twice into `stall_timeout_s` (the stall check "
                           "needs ticks to watch).", unit="Hz", min=10.0, max=10000.0)
-    clock: Literal["real", "virtual"] = spec(
+    clock: Literal["real", "virtual", "daq"] = spec(
         "real", "real: monotonic wall clock. virtual: as fast as possible, simulated "
-        "drivers advanced exactly one period per tick (deterministic for a seed).")
+        "drivers advanced exactly one period per tick (deterministic for a seed). daq: a "
+        "DAQ card's sample clock paces the loop (the one nidaqmx driver with timing "
+        "hardware_timed, its sample_rate_hz equal to rate_hz): each tick waits for the next "
+        "sample instead of the OS timer; sample clocks that go by unticked count as "
+        "overruns.")
     overrun_policy: Literal["skip", "catch_up"] = spec(
         "skip", "After a late tick: skip the missed periods (keep the phase) or run them "
-        "back to back.")
+        "back to back. With clock daq missed sample clocks are always skipped (a sample "
+        "gone cannot be ticked late).")
     stall_timeout_s: float = spec(
         0.05, "A gap this long with no tick completed is a stall: a `stall` event, a count "
         "in the summary and a warning; it latches FAULT only past `stall_fault_s`.",

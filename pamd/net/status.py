@@ -94,7 +94,7 @@ class Status(TypedDict):
     experiment: ExperimentStatus | None
     config_sha256: str
     config_path: str
-    clock: str  # real, virtual
+    clock: str  # real, virtual, daq
     rate_hz: float
     verbs: list[str]
     recording: RecordingStatus | None
