@@ -380,6 +380,18 @@ class TelemetryConfig:
     listen: str = spec("tcp/127.0.0.1:7447", "Endpoint the daemon listens on when "
                        "zenoh_config is null. If it is taken, `pamd run` says so and exits "
                        "before anything moves.")
+    max_sessions: int = spec(
+        100, "Zenoh sessions the daemon's own endpoint takes at once (each costs its io "
+        "process some 170 kB while connected) when zenoh_config is null. A flood of "
+        "sessions that fills it keeps others' Zenoh sessions out, never the rig PC's "
+        "`pamd status` and `pamd cmd` (the local channel) nor the loop.", min=1,
+        max=10000)
+    allow_cleartext: bool = spec(
+        False, "Listen beyond loopback without TLS (`tcp/0.0.0.0:...`, a LAN address: "
+        "state, status and signed commands readable on the network). false: such an "
+        "endpoint (here or in zenoh_config) is refused before anything starts; true (or "
+        "`pamd run --allow-cleartext`): allowed, and warned at start and in every status. "
+        "On a lab network use TLS (config/zenoh/lab-daemon.json5 to a router).")
     rate_hz: float = spec(100.0, "State samples per second per muscle (one every "
                           "loop.rate_hz / rate_hz ticks; loop.rate_hz or more: every tick).",
                           unit="Hz", gt=0.0)

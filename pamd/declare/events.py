@@ -59,6 +59,10 @@ VERDICT: tuple[Key, ...] = (
     Key("ok", "boolean", "true: done (or begun) as asked; false: refused, nothing changed"),
     opt("error", "string", "why it was refused and what to do next (ok false)"),
     opt("rig", "string", "the rig whose io process refused it before the loop saw it"),
+    opt("credential", "string", "why a command's signature was not taken (none, clear, "
+        "stale, bad, replay: pamd.net.credential)"),
+    opt("command_nonce", "string", "this run's nonce, with a refusal of a command signed "
+        "for another run (the client signs again with it: pamd.net.credential)"),
 )
 VERDICT_EXTRA = "an accepted command's handler adds what it did (verb-specific keys)"
 

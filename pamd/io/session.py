@@ -146,8 +146,10 @@ class IoSession:
                 self.board = None
             raise
         if self.net is not None:
-            logging.getLogger("pamd").info("telemetry: pamd/%s/** (%s)", self.net.rig_id,
-                                           self.net.where)
+            log = logging.getLogger("pamd")
+            log.info("telemetry: pamd/%s/** (%s)", self.net.rig_id, self.net.where)
+            for w in self.net.warnings:
+                log.warning("%s", w)
         if self.viewer is not None:
             logging.getLogger("pamd").info("foxglove: live view on %s (Foxglove: Open "
                                            "connection, Foxglove WebSocket)", self.viewer.url)

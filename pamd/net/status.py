@@ -118,6 +118,9 @@ class IoStatus(TypedDict, total=False):
     io: dict[str, int]  # its own counters
     stale: bool
     stale_reasons: list[str]
+    command_nonce: str  # this run's, signed into every command (pamd.net.credential)
+    local_channel: str | None  # the local channel's socket (pamd.net.local), if it listens
+    warnings: list[str]  # what the operator must know: cleartext beyond loopback, ...
 
 
 STATUS_FIELDS: tuple[str, ...] = tuple(Status.__annotations__)

@@ -119,6 +119,8 @@ class StatusAnswer:
         self.i_mode, self.i_flags = MUSCLE_FIELDS.index("mode"), MUSCLE_FIELDS.index("flags")
         self._served: bytes | None = None  # the latest answer, and when it was built
         self._served_t = -1e9
+        self.local: str | None = None  # the local channel's path, when it listens
+        self.notes: list[str] = []  # what the operator should know of this node
 
     def serve(self, read: Callable[[], tuple[bytes, float] | None], now: float,
               rows_mono: float, stopping: str | None, io_counts: dict[str, int]) -> bytes:
@@ -146,7 +148,9 @@ class StatusAnswer:
             self._live(st)  # the loop's latest values over the snapshot, when they are new
         st.update(ok="error" not in st, snapshot_age_s=round(age, 4),
                   stopping=stopping or st.get("stopping"), timing=self.stats.summary,
-                  io=dict(io_counts), stale=bool(stale), stale_reasons=stale)
+                  io=dict(io_counts), stale=bool(stale), stale_reasons=stale,
+                  command_nonce=self.spec.run_nonce, local_channel=self.local,
+                  warnings=[*self.spec.warnings, *self.notes])
         return json.dumps(st, default=str).encode()
 
     def staleness(self, snapshot_age_s: float, live_age_s: float) -> list[str]:
