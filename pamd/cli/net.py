@@ -17,6 +17,7 @@ daemon answers (or not allowed), 2 bad arguments, config or rig name.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import sys
@@ -163,6 +164,13 @@ def print_status(st: JsonObject, via: str = "") -> None:
         print(f"  WARNING: {warning}")
     for why in st.get("stale_reasons") or []:
         print(f"  STALE: {why}")
+    lost = st.get("lost_records")
+    if isinstance(lost, int) and lost > 0:
+        print(f"  LOST TICK RECORDS: {lost} so far (the io process fell behind and its ring "
+              "was full: recording and telemetry miss them; see the lost_records events)")
+    lag = st.get("live_lag_s")
+    if isinstance(lag, (int, float)) and lag >= 1.0:
+        print(f"  live values {lag:.1f} s behind the loop (the io process is busy)")
     if st.get("fault"):
         print(f"  latched fault: {st['fault']}")
     failure = (st.get("recording") or {}).get("failure")
@@ -338,9 +346,16 @@ def watch(args: argparse.Namespace) -> int:
         n_draw = {"puts": dict(puts), "samples": dict(samples)}
         redraw = sys.stdout.isatty() and not args.plain
         total = 0
+        retry_t = 0.0
         try:
             while True:
                 now = time.monotonic()
+                if cl.lost and now >= retry_t:  # the daemon went: its next one, when up
+                    retry_t = now + 2.0
+                    gone = "(the daemon went away: waiting for it)"
+                    events = events if events[-1:] == [gone] else (events + [gone])[-5:]
+                    with contextlib.suppress(NoDaemon):
+                        sub, evs = cl.subscribe(keys.state_all), cl.subscribe(keys.events, 256)
                 while (s := sub.try_recv()) is not None:
                     msg = decode(s.payload.to_bytes())
                     m = msg.get("muscle", "?")

@@ -40,6 +40,15 @@ class RealtimeConfig:
         "50-200 ms stalls beside CPU hogs, bench/shared_machine.py). 1 is enough to run "
         "before every normal process and after every other real-time thread. null: leave "
         "them at normal priority.", min=1, max=98)
+    io_nice: int | None = spec(
+        -10, "Nice value of the io process (recording, telemetry, the live view), taken as "
+        "it starts when `enabled`: above every normal-priority process, below every "
+        "real-time thread (the loop and its process's other threads always run first). "
+        "At normal priority, on a PC at load 14-19 (CPU hogs, 50 Zenoh subscribers, a "
+        "command storm, Foxglove viewers) it got 8-10 % of a core and lost 20 % of the "
+        "tick records (bench/net_combined.py). Needs LimitNICE= (systemd) or CAP_SYS_NICE; "
+        "refused, it is warned about and the io process runs at normal priority. null: "
+        "leave it.", min=-20, max=19)
     cpu: int | None = spec(None, "CPU the loop's thread is pinned to (null: no pinning).", min=0)
     lock_memory: bool = spec(True, "mlockall() so the loop never page-faults.")
     timer_slack_ns: int = spec(1, "Timer slack of the loop's thread.", unit="ns", min=1)

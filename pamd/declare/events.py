@@ -183,7 +183,9 @@ KINDS: tuple[EventKind, ...] = (
         Key("count", "integer", "records lost this time"),
         Key("first_tick", "integer", "the first lost tick"),
         Key("last_tick", "integer", "the last lost tick"),
-        Key("total", "integer", "records lost since start"))),
+        Key("total", "integer", "records lost since start"),
+        opt("ongoing", "boolean", "the ring is still full: said after each second of a loss "
+            "that goes on, not only when it ends"))),
     EventKind("recording", "the recording stopped or failed; control goes on or stops as "
               "recording.on_failure says", "recorder, io session", (
                   Key("message", "string", "what happened, for the operator"),

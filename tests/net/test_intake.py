@@ -71,7 +71,8 @@ def make(**kw: Any) -> tuple[NetNode, Port, list[tuple[str, dict[str, Any]]]]:
     port = Port()
     recorded: list[tuple[str, dict[str, Any]]] = []
     n = NetNode(spec, SimpleNamespace(virtual=True, wall0_ns=0, clock0_s=0.0),
-                SimpleNamespace(t_start=lambda: 0.0), port,  # type: ignore[arg-type]
+                SimpleNamespace(t_start=lambda: 0.0, newest_f64=lambda i: None,
+                                loop_lost=lambda: 0), port,  # type: ignore[arg-type]
                 lambda t, kind, data: recorded.append((kind, data)))
     n.events_pub = SimpleNamespace(put=lambda *a, **k: None)
     return n, port, recorded

@@ -14,6 +14,7 @@ from pamd.net import zconf
 from pamd.net.credential import ensure_token
 from pamd.net.local import socket_path as local_socket_path
 from pamd.net.spec import NetSpec, TelemetryRequest
+from pamd.stalls import stall_limit
 
 
 def resolve(cfg: LoadedConfig, req: TelemetryRequest | None) -> NetSpec | None:
@@ -51,6 +52,7 @@ def resolve(cfg: LoadedConfig, req: TelemetryRequest | None) -> NetSpec | None:
         token_file=token_file, token_sha256=token_sha256, rig_id=cfg.rig.rig_id,
         run_nonce=secrets.token_hex(8), listen=tuple(listen), warnings=warnings,
         local_socket=local_socket_path(token_file, cfg.rig.rig_id, os.getpid()),
+        stall_fault_s=stall_limit(cfg.rig).fault_s,
         muscles=tuple(m.name for m in cfg.rig.muscles),
         zenoh_json=str(zcfg), where=where or "no endpoints",
         every_ticks=max(1, round(rate / tc.rate_hz)),

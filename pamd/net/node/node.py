@@ -77,7 +77,7 @@ class NetNode:
         self.keys = Keys(spec.rig_id)
         self.batcher = StateBatcher(spec.rig_id, spec.muscles, spec.every_ticks)
         self.stats = TickStats()
-        self.answer = StatusAnswer(spec, io_spec, self.stats)
+        self.answer = StatusAnswer(spec, io_spec, self.stats, block)
         self.session: zenoh.Session | None = None
         self.board: Board | None = None
         self.token: zenoh.LivelinessToken | None = None
