@@ -67,6 +67,9 @@ def test_an_io_process_behind_a_healthy_loop_is_no_staleness() -> None:
     assert not st["stale"] and st["stale_reasons"] == [], st["stale_reasons"]
     assert st["live_lag_s"] == 2.0
     assert st["state"] == "IDLE"  # the snapshot's (0.05 s old), not the drained record's
+    assert st["tick"] == 0 and st["t_s"] == 10.0  # which record was drained last
+    st = body(a, now=T0 + 10.1, rows_mono=T0 + 10.0)  # drained just before the snapshot
+    assert st["state"] == "STARTING"  # the record's: as new as the snapshot, in a period
 
 
 def test_a_loop_that_wrote_nothing_past_its_stall_limit_is_stale() -> None:

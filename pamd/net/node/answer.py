@@ -160,8 +160,10 @@ class StatusAnswer:
             st = {"error": "the status snapshot is not JSON"}
         loop_age, lag = self.loop_age(now, rows_mono)
         stale = self.staleness(age, loop_age)
+        if self.stats.last is not None:  # which record the io process drained last
+            st["tick"], st["t_s"] = int(self.stats.last[I_TICK]), self.stats.last[I_T]
         if self._fresher(now - age, bool(stale)):
-            self._live(st)  # the loop's latest values over the snapshot, when they are newer
+            self._live(st)  # the loop's latest values over the snapshot, when not older
         lost = self.block.loop_lost()
         rec = st.get("recording")
         if isinstance(rec, dict):
@@ -192,13 +194,14 @@ class StatusAnswer:
         return age, round(max(0.0, newest - self.stats.last[I_T]), 4)
 
     def _fresher(self, snapshot_t: float, stale: bool) -> bool:
-        """Whether the latest tick record drained is newer than the snapshot (built at
-        `snapshot_t`, monotonic): an io process far behind has older values than the
-        main thread's snapshot, which then stands. The virtual clock: unless stale."""
+        """Whether the latest tick record drained is as new as the snapshot (built at
+        `snapshot_t`, monotonic), within one snapshot period: an io process further
+        behind has older values than the main thread's snapshot, which then stands.
+        The virtual clock: unless stale."""
         last, t0 = self.stats.last, self.block.t_start()
         if self.io_spec.virtual or t0 is None or last is None:
             return not stale
-        return t0 + last[I_T] >= snapshot_t
+        return t0 + last[I_T] >= snapshot_t - self.spec.status_period_s
 
     def staleness(self, snapshot_age_s: float, loop_age_s: float | None) -> list[str]:
         """Why the answer may not be the rig's present state (empty: it is)."""
@@ -227,7 +230,6 @@ class StatusAnswer:
             return
         with contextlib.suppress(ValueError):
             st["state"] = State(int(row[I_STATE])).name
-        st["tick"], st["t_s"] = int(row[I_TICK]), row[I_T]
         ms = st.get("muscles") or {}
         for name, base in self.live:
             d = ms.get(name)
