@@ -77,6 +77,7 @@ COMMANDS: tuple[SubCommandEntry, ...] = (
     *_commands("net",
                ("status", "ask a running daemon how it is (over Zenoh)"),
                ("cmd", "command a running daemon (over Zenoh)"),
+               ("token", "where a rig's command credential is; a new one with --rotate"),
                ("watch", "live table of a running daemon's muscles (over Zenoh)")),
     *_commands("router", ("router", "run a Zenoh router (for a lab with TLS and access "
                                     "control)")),

@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import argparse
 import signal
+import sys
 import threading
 from types import FrameType
 
+from pamd.errors import ConfigError, ConfigIssue
 from pamd.net import zconf
 from pamd.net.zconf import NoDaemon
 
@@ -22,6 +24,10 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    help="the router's Zenoh config (JSON5), e.g. "
                    "config/zenoh/lab-router.json5")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--allow-cleartext", action="store_true", help="listen beyond loopback "
+                   "without TLS (plain tcp/0.0.0.0:...): refused otherwise, since "
+                   "everything the lab's daemons and clients say crosses the network in "
+                   "clear; warned at start")
     p.set_defaults(func=run)
 
 
@@ -30,6 +36,13 @@ def run(args: argparse.Namespace) -> int:
 
 
     cfg = zconf.router_config(args.zenoh_config)
+    clear = zconf.cleartext_beyond_loopback(cfg)
+    if clear and not args.allow_cleartext:
+        raise ConfigError([ConfigIssue(
+            args.zenoh_config, None, "listen/endpoints", "tls/... endpoints (as "
+            "config/zenoh/lab-router.json5) or loopback",
+            f"{', '.join(clear)}: beyond loopback without TLS; to run so anyway, say it: "
+            "pamd router --allow-cleartext")])
     try:
         session = zenoh.open(cfg)
     except Exception as exc:
@@ -44,6 +57,10 @@ def run(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, stop)
     eps = ", ".join(zconf.endpoints(cfg, "listen"))
     print(f"pamd router: zid {session.zid()}, listening on {eps}", flush=True)
+    if clear:
+        print(f"pamd router: WARNING: {', '.join(clear)} is beyond loopback WITHOUT TLS "
+              "(--allow-cleartext): what crosses it can be read on the network",
+              file=sys.stderr, flush=True)
     try:
         done.wait(args.duration)
     finally:

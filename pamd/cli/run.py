@@ -104,6 +104,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "daemon's Zenoh session listens, e.g. tcp/127.0.0.1:7448 (overrides "
                    "telemetry.listen and a Zenoh config's listen endpoints; turns telemetry "
                    "on, with the virtual clock too); clients reach it with --connect")
+    t.add_argument("--allow-cleartext", action="store_true", help="let the Zenoh session "
+                   "listen beyond loopback without TLS (e.g. --listen tcp/0.0.0.0:7447): "
+                   "refused otherwise, since state, status and commands then cross the "
+                   "network in clear; warned at start and in every status (as "
+                   "telemetry.allow_cleartext: true)")
     t.add_argument("--zenoh-config", metavar="FILE", help="Zenoh config (JSON5) of the "
                    "daemon's session (overrides telemetry.zenoh_config; default: listen on "
                    "telemetry.listen, tcp/127.0.0.1:7447)")
@@ -354,7 +359,8 @@ def run(args: argparse.Namespace) -> int:
                                  run_name=args.name, profile=profile, model_path=model_path,
                                  max_mb=max_mb)
     telemetry = TelemetryRequest(enabled=not args.no_telemetry, zenoh_config=args.zenoh_config,
-                                 foxglove=args.foxglove, listen=args.listen)
+                                 foxglove=args.foxglove, listen=args.listen,
+                                 allow_cleartext=args.allow_cleartext)
     daemon = Daemon(cfg, note=args.note, recording=recording, state_dir=args.state_dir,
                     models=models,
                     notifier=Notifier.from_environ(), config_overrides=overrides,

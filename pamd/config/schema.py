@@ -42,6 +42,15 @@ class RealtimeConfig:
         "50-200 ms stalls beside CPU hogs, bench/shared_machine.py). 1 is enough to run "
         "before every normal process and after every other real-time thread. null: leave "
         "them at normal priority.", min=1, max=98)
+    io_nice: int | None = spec(
+        -10, "Nice value of the io process (recording, telemetry, the live view), taken as "
+        "it starts when `enabled`: above every normal-priority process, below every "
+        "real-time thread (the loop and its process's other threads always run first). "
+        "At normal priority, on a PC at load 14-19 (CPU hogs, 50 Zenoh subscribers, a "
+        "command storm, Foxglove viewers) it got 8-10 % of a core and lost 20 % of the "
+        "tick records (bench/net_combined.py). Needs LimitNICE= (systemd) or CAP_SYS_NICE; "
+        "refused, it is warned about and the io process runs at normal priority. null: "
+        "leave it.", min=-20, max=19)
     cpu: int | None = spec(None, "CPU the loop's thread is pinned to (null: no pinning).", min=0)
     lock_memory: bool = spec(True, "mlockall() so the loop never page-faults.")
     timer_slack_ns: int = spec(1, "Timer slack of the loop's thread.", unit="ns", min=1)
@@ -438,6 +447,18 @@ class TelemetryConfig:
     listen: str = spec("tcp/127.0.0.1:7447", "Endpoint the daemon listens on when "
                        "zenoh_config is null. If it is taken, `pamd run` says so and exits "
                        "before anything moves.")
+    max_sessions: int = spec(
+        100, "Zenoh sessions the daemon's own endpoint takes at once (each costs its io "
+        "process some 170 kB while connected) when zenoh_config is null. A flood of "
+        "sessions that fills it keeps others' Zenoh sessions out, never the rig PC's "
+        "`pamd status` and `pamd cmd` (the local channel) nor the loop.", min=1,
+        max=10000)
+    allow_cleartext: bool = spec(
+        False, "Listen beyond loopback without TLS (`tcp/0.0.0.0:...`, a LAN address: "
+        "state, status and signed commands readable on the network). false: such an "
+        "endpoint (here or in zenoh_config) is refused before anything starts; true (or "
+        "`pamd run --allow-cleartext`): allowed, and warned at start and in every status. "
+        "On a lab network use TLS (config/zenoh/lab-daemon.json5 to a router).")
     rate_hz: float = spec(100.0, "State samples per second per muscle (one every "
                           "loop.rate_hz / rate_hz ticks; loop.rate_hz or more: every tick).",
                           unit="Hz", gt=0.0)

@@ -55,6 +55,13 @@ class IoParts:
     mailbox: LocalMailbox
 
 
+def io_nice(cfg: LoadedConfig) -> int | None:
+    """The io process's nice value: `loop.realtime.io_nice` when real-time settings are
+    on and the clock is real (a virtual-clock run waits for its io process anyway)."""
+    rt = cfg.rig.loop.realtime
+    return rt.io_nice if rt.enabled and cfg.rig.loop.clock == "real" else None
+
+
 @dataclass(frozen=True)
 class RecordingRequest:
     """What the caller (CLI, tests) asks of the io process for one run."""
@@ -108,7 +115,7 @@ class IoSession:
                           muscles=tuple(parts.layout.muscles), rate_hz=rate,
                           virtual=self.virtual, wall0_ns=wall0, clock0_s=clock0,
                           parent_pid=os.getpid(), record=rspec, script=tuple(req.script),
-                          net=net, viewer=viewer)
+                          net=net, viewer=viewer, nice=io_nice(cfg))
 
         self.link = IoLink.create(make_spec, layout)
         ctrl = parts.ctrl
@@ -121,6 +128,11 @@ class IoSession:
     def files(self) -> list[str]:
         """The recording's files so far (the status says them)."""
         return self.link.files()
+
+    @property
+    def lost_records(self) -> int:
+        """Tick records lost to a full io ring so far (the loop's count)."""
+        return self.sink.lost_records
 
     @classmethod
     def attach(cls, parts: IoParts, req: RecordingRequest | None,
@@ -146,8 +158,10 @@ class IoSession:
                 self.board = None
             raise
         if self.net is not None:
-            logging.getLogger("pamd").info("telemetry: pamd/%s/** (%s)", self.net.rig_id,
-                                           self.net.where)
+            log = logging.getLogger("pamd")
+            log.info("telemetry: pamd/%s/** (%s)", self.net.rig_id, self.net.where)
+            for w in self.net.warnings:
+                log.warning("%s", w)
         if self.viewer is not None:
             logging.getLogger("pamd").info("foxglove: live view on %s (Foxglove: Open "
                                            "connection, Foxglove WebSocket)", self.viewer.url)

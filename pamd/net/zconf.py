@@ -110,9 +110,10 @@ def endpoints(cfg: ZenohConfig, which: str) -> list[str]:
     return [str(e) for e in eps or []]
 
 
-def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN) -> zenoh.Config:
+def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN,
+                  max_sessions: int = MAX_SESSIONS) -> zenoh.Config:
     """The daemon's session: the file as given, or a peer listening on `listen` that
-    takes at most MAX_SESSIONS client sessions at once, messages of at most
+    takes at most `max_sessions` client sessions at once, messages of at most
     MAX_MESSAGE_BYTES, and no shared-memory transport."""
     import zenoh
 
@@ -122,10 +123,50 @@ def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN) -> zenoh.Confi
         cfg = zenoh.Config.from_json5(json.dumps(
             {"mode": "peer", "listen": {"endpoints": [listen]},
              "connect": {"endpoints": []},
-             "transport": {"unicast": {"max_sessions": MAX_SESSIONS},
+             "transport": {"unicast": {"max_sessions": max_sessions},
                            "link": {"rx": {"max_message_size": MAX_MESSAGE_BYTES}},
                            "shared_memory": {"enabled": False}}}))
     return secure(cfg)
+
+
+#: link protocols that encrypt (Zenoh's TLS and QUIC); the others carry commands,
+#: state and status in clear
+ENCRYPTED = ("tls", "quic")
+#: link protocols that never leave the machine
+LOCAL_ONLY = ("unixsock-stream", "unixpipe", "vsock")
+
+
+def host_of(endpoint: str) -> tuple[str, str, str]:
+    """(protocol, host, port) of `proto/host:port[#...]`."""
+    proto, _, addr = endpoint.partition("/")
+    addr = addr.split("#", 1)[0].split("?", 1)[0]
+    host, _, port = addr.rpartition(":")
+    return proto, host.strip("[]"), port
+
+
+def is_loopback(endpoint: str) -> bool:
+    """Whether an endpoint's host is this machine's loopback (127.0.0.0/8, ::1,
+    localhost); 0.0.0.0 and [::] are every interface, not loopback."""
+    proto, host, _ = host_of(endpoint)
+    if proto in LOCAL_ONLY:
+        return True
+    return host == "localhost" or host == "::1" or host.startswith("127.")
+
+
+def same_endpoint(listen: str, connect: str) -> bool:
+    """Whether a client connecting to `connect` reaches a session listening on `listen`
+    (same protocol and port; the listen host this machine's, any or loopback)."""
+    lp, lh, lport = host_of(listen)
+    cp, _ch, cport = host_of(connect)
+    return lp == cp and lport == cport and (lh in ("0.0.0.0", "::", "") or is_loopback(listen))
+
+
+def cleartext_beyond_loopback(cfg: ZenohConfig) -> list[str]:
+    """The listen endpoints reachable from other machines without TLS (plain tcp, udp,
+    ws on 0.0.0.0 or a LAN address): what travels there, commands included, can be read
+    on the way (their signatures cannot be replayed, but state and status can be read)."""
+    return [e for e in endpoints(cfg, "listen")
+            if not is_loopback(e) and host_of(e)[0] not in ENCRYPTED]
 
 
 def _connect_for(listen: str) -> str:

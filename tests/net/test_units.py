@@ -87,6 +87,49 @@ def test_telemetry_request_resolves_from_the_config(sim_config: Any, tmp_path: P
         resolve(cfg, TelemetryRequest(zenoh_config=str(tmp_path / "none.json5")))
 
 
+def test_listening_beyond_loopback_without_tls_must_be_said_and_is_warned(
+        sim_config: Any, tmp_path: Path) -> None:
+    """Issue 43: `pamd run --listen tcp/0.0.0.0:...` started without TLS and without a
+    warning. Refused unless --allow-cleartext (or telemetry.allow_cleartext) says so,
+    naming where the endpoint came from; allowed, warned (at start, in every status)."""
+    on = {"enabled": True, "listen": "tcp/0.0.0.0:7123"}
+    with pytest.raises(ConfigError, match="allow-cleartext") as err:
+        resolve(sim_config(30.0, telemetry=on), TelemetryRequest())
+    assert "telemetry.listen" in str(err.value) and "tcp/0.0.0.0:7123" in str(err.value)
+    spec = resolve(sim_config(30.0, telemetry=on), TelemetryRequest(allow_cleartext=True))
+    assert spec is not None and "WITHOUT TLS" in spec.warnings[0]
+    spec = resolve(sim_config(30.0, telemetry=dict(on, allow_cleartext=True)),
+                   TelemetryRequest())
+    assert spec is not None and spec.warnings
+    loopback = {"enabled": True, "listen": "tcp/127.0.0.1:7123"}
+    with pytest.raises(ConfigError, match="--listen"):
+        resolve(sim_config(30.0, telemetry=loopback),
+                TelemetryRequest(listen="tcp/192.168.7.2:7124"))
+    spec = resolve(sim_config(30.0, telemetry=loopback), TelemetryRequest())
+    assert spec is not None and spec.warnings == ()  # loopback: nothing to say
+    import zenoh
+
+    cfg = zenoh.Config.from_json5(json.dumps({"listen": {"endpoints": [
+        "tls/0.0.0.0:7447", "quic/0.0.0.0:7448", "tcp/127.0.0.1:1", "tcp/[::1]:2",
+        "tcp/localhost:3", "unixsock-stream//tmp/z.sock", "tcp/192.168.1.4:5",
+        "udp/0.0.0.0:6", "tcp/[::]:7"]}}))
+    assert zconf.cleartext_beyond_loopback(cfg) == [
+        "tcp/192.168.1.4:5", "udp/0.0.0.0:6", "tcp/[::]:7"]
+    router = zconf.load_file(str(REPO / "config" / "zenoh" / "lab-router.json5"))
+    assert zconf.cleartext_beyond_loopback(router) == []  # the shipped router: TLS
+
+
+def test_pamd_run_refuses_to_listen_in_clear_beyond_loopback(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "pamd", "run", "--clock", "virtual",
+                        "--duration", "1", "--no-record", "--listen", "tcp/0.0.0.0:7999"],
+                       capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert "--allow-cleartext" in r.stderr and "without TLS" in r.stderr, r.stderr
+
+
 def test_state_batches_decimate_and_stay_strict_json() -> None:
     layout = TickLayout(["m1", "m2"])
     b = StateBatcher("sim", layout.muscles, every_ticks=10)

@@ -38,7 +38,7 @@ def recording_status(io: RecordingState | None) -> RecordingStatus | None:
     """What the status says of the recording (None: nothing records)."""
     if io is None or not io.recording:
         return None
-    return {"files": io.files(), "failure": io.failure}
+    return {"files": io.files(), "failure": io.failure, "lost_records": io.lost_records}
 
 
 class StatusLoop(Protocol):
