@@ -1,5 +1,6 @@
-"""One muscle's limits: hard limits and the tracking check (faults), and the soft-limit
-guards (bounds on the valve command). The limits stage of its tick.
+"""One muscle's limits, two stages of its tick: `LimitMonitor` in its read, the hard
+limits and the tracking check (faults); `Guards` in its write, the soft-limit guards
+(bounds on the valve command) before the limiter.
 
 The guards never write the setpoint: they only bound the command, each in its
 restoring direction (near the contraction limit the command may not rise, beyond
@@ -20,10 +21,11 @@ from typing import TYPE_CHECKING
 
 from pamd.config.safety_schema import SafetyConfig
 from pamd.safety.limiter import held_back
-from pamd.tick import Flag
+from pamd.tick import Flag, MuscleTick
 
 if TYPE_CHECKING:
     from pamd.safety.envelope import MuscleEnvelope
+    from pamd.safety.plausibility import Plausibility
 
 F_SOFT_C, F_PRETENSION = int(Flag.SOFT_LIMIT_CONTRACTION), int(Flag.PRETENSION_LIMIT)
 F_SOFT_P = int(Flag.SOFT_LIMIT_PRESSURE)
@@ -34,41 +36,51 @@ SOFT_LIMIT_REPORT_S = 1.0
 
 
 class LimitMonitor:
-    """Hard limits, tracking and soft-limit guards of one muscle."""
+    """Hard limits and tracking of one muscle: what its readings say is a fault."""
 
     def __init__(self, envelope: MuscleEnvelope, pressure_name: str,
-                 safety: SafetyConfig) -> None:
+                 safety: SafetyConfig, plausibility: Plausibility) -> None:
         self.muscle = envelope.name
         self.p_name = pressure_name
+        self.plausibility = plausibility  # a pressure that does not follow: distrusted
         self.set_envelope(envelope)
         self.set_times(safety)
-        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
         self._over_p_since = self._over_c_since = self._over_s_since = math.inf
         self._track_since = math.inf
-        self._held_since = math.inf
-        self._held_reported = False
-        self.holding_back = False  # a reference is held back at a limit (held_at_limit)
-        self.lo = -math.inf  # guard bounds on the command of this tick (none: +-inf;
-        # the limiter keeps the command >= 0 without naming a guard)
-        self.hi = math.inf
         self.flags = 0
 
     def set_envelope(self, env: MuscleEnvelope) -> None:
-        """Limits and bands (set-up and IDLE reloads)."""
+        """Limits (set-up and IDLE reloads)."""
         self.hard_p = env.hard_max_pressure_bar
-        self.max_c, self.hard_c = env.max_contraction, env.hard_max_contraction
-        self.soft_c = env.soft_max_contraction
-        self.c_release = self.soft_c - 0.5 * env.soft_band_contraction
-        self.max_stretch, self.hard_stretch = env.max_pretension, env.hard_max_pretension
-        self.s_release = -self.max_stretch + 0.5 * env.soft_band_contraction
+        self.hard_c = env.hard_max_contraction
+        self.hard_stretch = env.hard_max_pretension
 
     def set_times(self, saf: SafetyConfig) -> None:
         """The hard-limit hold and the tracking band and time (set-up and any reload)."""
         self.hold_s = saf.hard_limit_hold_s
         self.track_band, self.track_s = saf.tracking_band_bar, saf.tracking_time_s
 
-    def reset_guards(self) -> None:
-        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+    def update(self, t: MuscleTick, now: float, dt: float) -> None:
+        """The read's checks on this tick's readings: the hard limits (on trusted
+        readings), then whether the measured pressure follows the command written last
+        (judged before this tick's command, so that a fault it finds shapes that
+        command; not while the air is out or held, `t.air_cut`: no air follows a
+        command then, and a leak is the hold's, not a sensor's). A pressure that does
+        not follow is distrusted, with what the force and length point to; the first
+        fault of the tick stays `t.fault`."""
+        p = t.pressure_bar
+        fault = self.check_hard(now, p, t.contraction, t.pressure_ok, t.length_ok)
+        if fault is not None and t.fault is None:
+            t.fault = fault
+        command = t.last_command_bar
+        reason = self.track(now, p, command, t.pressure_ok and not t.air_cut)
+        t.flags |= self.flags
+        if reason is not None:
+            reason = self.plausibility.distrust_pressure(reason, p, command, t.force_n,
+                                                         t.length_mm)
+            t.finding = reason
+            if t.fault is None:
+                t.fault = reason
 
     # -- faults -------------------------------------------------------------------
     def check_hard(self, now: float, p: float, x: float, pressure_ok: bool,
@@ -126,6 +138,40 @@ class LimitMonitor:
 
     def stop_tracking(self) -> None:
         self._track_since = math.inf
+
+
+class Guards:
+    """The soft-limit guards of one muscle: bounds on its command (module docstring),
+    and a profile held back at a soft limit reported."""
+
+    def __init__(self, envelope: MuscleEnvelope) -> None:
+        self.set_envelope(envelope)
+        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+        self._held_since = math.inf
+        self._held_reported = False
+        self.holding_back = False  # a reference is held back at a limit (held_at_limit)
+        self.lo = -math.inf  # guard bounds on the command of this tick (none: +-inf;
+        # the limiter keeps the command >= 0 without naming a guard)
+        self.hi = math.inf
+
+    def set_envelope(self, env: MuscleEnvelope) -> None:
+        """Limits and bands (set-up and IDLE reloads)."""
+        self.max_c = env.max_contraction
+        self.soft_c = env.soft_max_contraction
+        self.c_release = self.soft_c - 0.5 * env.soft_band_contraction
+        self.max_stretch = env.max_pretension
+        self.s_release = -self.max_stretch + 0.5 * env.soft_band_contraction
+
+    def reset(self) -> None:
+        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+
+    def update(self, t: MuscleTick, now: float, dt: float) -> None:
+        """The write's bounds on the command (`t.lo_bar`, `t.hi_bar`) from a trusted
+        contraction, around the command written last and `t.step_bar` (the slew limit
+        times the period); the flag of a guard that holds what control wants back."""
+        t.flags |= self.bound(t.length_ok, t.contraction, t.last_command_bar, t.command_bar,
+                              t.step_bar)
+        t.lo_bar, t.hi_bar = self.lo, self.hi
 
     # -- guards -------------------------------------------------------------------
     def bound(self, length_ok: bool, x: float, prev_cmd: float, wanted: float,
