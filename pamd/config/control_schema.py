@@ -54,7 +54,8 @@ class PositionPlantConfig:
 
     gain_mm_per_bar: float = spec(doc="Static gain: the settled change of the length per "
                                   "bar of pressure setpoint (negative: more pressure, "
-                                  "shorter).", unit="mm/bar", min=-1000.0, max=0.0)
+                                  "shorter; less than 1 um per bar is no response).",
+                                  unit="mm/bar", min=-1000.0, max=-0.001)
     lag_s: float = spec(doc="Time constant of the first-order lag.", unit="s", gt=0.0,
                         max=10.0)
     dead_time_s: float = spec(doc="Dead time between the setpoint and the measured "

@@ -39,7 +39,7 @@ from pamd.config.stability import (
 )
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ConfigIssue
-from pamd.schema.engine import Context, line_of
+from pamd.schema.engine import Context, line_at
 
 
 @dataclass(frozen=True)
@@ -76,13 +76,10 @@ def check_gains(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[str, ...]
     period_s = 1.0 / rig.loop.rate_hz
     seen: set[tuple[str, str, Plant]] = set()
     warnings: list[str] = []
-    muscles_node = raw.get("muscles") if isinstance(raw, dict) else None
     for i, m in enumerate(rig.muscles):
         if m.actuation != "proportional":
             continue
-        item = muscles_node[i] if isinstance(muscles_node, list) and \
-            i < len(muscles_node) else {}
-        for judged in _loops(rig, m, i, raw, item, period_s):
+        for judged in _loops(rig, m, i, raw, period_s):
             once = (judged.path, judged.gains, judged.plant)
             if once in seen:  # rig-wide gains on a rig-wide plant: judged once
                 continue
@@ -99,8 +96,9 @@ def check_gains(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[str, ...]
     return tuple(warnings)
 
 
-def _loops(rig: RigConfig, m: MuscleConfig, i: int, raw: JsonValue, item: JsonValue,
-           period_s: float) -> list[Judged]:
+def _loops(rig: RigConfig, m: MuscleConfig, i: int, raw: JsonValue, period_s: float
+           ) -> list[Judged]:
+    """The loops muscle `i` runs, each with its gains, plant and key."""
     ctl = muscle_control(rig.control, m.control)
     own = m.control
     pressure_key = f"muscles[{i}].control.pid" if any(
@@ -109,7 +107,7 @@ def _loops(rig: RigConfig, m: MuscleConfig, i: int, raw: JsonValue, item: JsonVa
     p = ctl.pid
     plant = pressure_plant(ctl)
     kc, ki = simc(plant, plant.dead_time_s)
-    out = [Judged(pressure_key, _line(raw, item, pressure_key), "pressure",
+    out = [Judged(pressure_key, line_at(raw, pressure_key), "pressure",
                   f"kp {p.kp:g}, ki_per_s {p.ki_per_s:g}, kd_s {p.kd_s:g}",
                   pid(p.kp, p.ki_per_s, p.kd_s, p.derivative_filter_hz, period_s),
                   plant, _plant_text(ctl.plant, own.plant is not None, i, plant, "bar/bar"),
@@ -126,7 +124,7 @@ def _loops(rig: RigConfig, m: MuscleConfig, i: int, raw: JsonValue, item: JsonVa
             v is not None for v in (own_pos.kp_bar_per_mm, own_pos.ki_bar_per_mm_s,
                                     own_pos.kd_bar_s_per_mm)) else "control.position.pid"
         pp = pos.pid
-        out.append(Judged(key, _line(raw, item, key), "position",
+        out.append(Judged(key, line_at(raw, key), "position",
                           f"kp_bar_per_mm {pp.kp_bar_per_mm:g}, ki_bar_per_mm_s "
                           f"{pp.ki_bar_per_mm_s:g}, kd_bar_s_per_mm {pp.kd_bar_s_per_mm:g}",
                           pid(pp.kp_bar_per_mm, pp.ki_bar_per_mm_s, pp.kd_bar_s_per_mm,
@@ -138,27 +136,13 @@ def _loops(rig: RigConfig, m: MuscleConfig, i: int, raw: JsonValue, item: JsonVa
     t = inc.period_s(period_s)
     kp, ki_s, kd = inc.gains(pos.pid, period_s)
     key = "control.position.incremental"  # rig-wide (a muscle's own plant may differ)
-    out.append(Judged(key, _line(raw, item, key), "position",
+    out.append(Judged(key, line_at(raw, key), "position",
                       f"method {inc.method}, Kp {kp:g}, Ki {ki_s:g}, Kd {kd:g} bar/mm per "
                       f"sample of {1e3 * t:g} ms",
                       incremental(inc.method, kp, ki_s, kd), plant, plant_text, t,
                       f"method 2 with Kp {kc:.3g}, Ki {ki * t:.3g} (the position PID's SIMC "
                       f"gains per sample)"))
     return out
-
-
-def _line(raw: JsonValue, item: JsonValue, key: str) -> int | None:
-    """The line of `key` (a dotted path; under `muscles[i]` when it starts so), or of
-    its deepest mapping that is present."""
-    node, parts = (item, key.split(".")[1:]) if key.startswith("muscles[") else \
-        (raw, key.split("."))
-    line = line_of(node)
-    for part in parts:
-        if not isinstance(node, dict) or part not in node:
-            break
-        line = line_of(node, part) or line
-        node = node[part]
-    return line
 
 
 def _plant_text(stated: PressurePlantConfig | PositionPlantConfig | None, own: bool,

@@ -33,7 +33,7 @@ from __future__ import annotations
 from pamd.config.gains import pressure_plant
 from pamd.config.schema import RigConfig, SignalConfig, muscle_control
 from pamd.declare.jsonsafe import JsonValue
-from pamd.schema.engine import Context, line_of
+from pamd.schema.engine import Context, line_at
 
 #: The most learning bins a tick may hold (`control.position.ilc.resolution_s`).
 ILC_BINS_PER_TICK = 10
@@ -46,7 +46,7 @@ def check_timing(rig: RigConfig, raw: JsonValue, ctx: Context) -> None:
 
     def need(path: str, value: float | None, least: float, why: str) -> None:
         if value is not None and value < least * (1.0 - 1e-9):
-            ctx.add(_line(raw, path), path, f"at least {_s(least)} ({why})", _s(value))
+            ctx.add(line_at(raw, path), path, f"at least {_s(least)} ({why})", _s(value))
 
     s = rig.safety
     settle, who = _slowest_pressure_response(rig)
@@ -106,23 +106,3 @@ def _slowest_input(rig: RigConfig) -> tuple[float, str]:
 
 def _s(value: float) -> str:
     return f"{value:.4g} s" if value >= 1.0 else f"{1e3 * value:.4g} ms"
-
-
-def _line(raw: JsonValue, path: str) -> int | None:
-    """The line of a dotted key (`muscles[i]` items included), or of its deepest
-    mapping present."""
-    node: JsonValue = raw
-    line = line_of(raw)
-    for part in path.split("."):
-        name, _, index = part.partition("[")
-        if not isinstance(node, dict) or name not in node:
-            break
-        line = line_of(node, name) or line
-        node = node[name]
-        if index:
-            k = int(index.rstrip("]"))
-            if not isinstance(node, list) or k >= len(node):
-                break
-            node = node[k]
-            line = line_of(node) or line
-    return line

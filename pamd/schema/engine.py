@@ -273,6 +273,25 @@ def _closest(word: str, choices: list[str]) -> str | None:
     return found[0] if found else None
 
 
+def line_at(root: object, path: str) -> int | None:
+    """The line of a dotted key path (`muscles[0].control.pid`) in a loaded file, or of
+    the deepest mapping or item on it that is present."""
+    node, line = root, line_of(root)
+    for part in path.split("."):
+        name, _, index = part.partition("[")
+        if not isinstance(node, dict) or name not in node:
+            break
+        line = line_of(node, name) or line
+        node = node[name]
+        if index:
+            k = int(index.rstrip("]"))
+            if not isinstance(node, list) or k >= len(node):
+                break
+            node = node[k]
+            line = line_of(node) or line
+    return line
+
+
 def line_of(node: object, key: str | None = None) -> int | None:
     """The line of `key` in a loaded mapping, or of the node itself."""
     if key is not None and isinstance(node, LinedDict):

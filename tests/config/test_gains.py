@@ -28,6 +28,7 @@ from pamd.config.stability import (
 from pamd.errors import ConfigError
 from pamd.harness import Harness
 from pamd.models.registry import MAX_FILE_BYTES
+from pamd.service.reload import classify
 
 from ..conftest import sim_dict
 
@@ -140,8 +141,15 @@ def test_a_measured_plant_is_what_the_gains_are_judged_on() -> None:
     assert "(muscles[0].control.plant)" in issue.expected
     # ... and its own gains, judged on it, are refused under its own key
     (issue,) = issues(muscles=[{**muscle, "control": {"pid": {"kp": 3.0}}}])
-    assert issue.path == "muscles[0].control.pid"
+    assert issue.path == "muscles[0].control.pid" and issue.line is not None
     loads(control={"plant": slow, "pid": {"kp": 0.25, "ki_per_s": 10.0}})
+
+
+def test_a_plant_changes_at_once_on_a_reload() -> None:
+    """No tick reads a plant: a reload that states one (after `pamd tune --save`) needs
+    no restart, and its gains are judged against it as the new config loads."""
+    for path in ("control.plant.lag_s", "muscles[1].control.position.plant.lag_s"):
+        assert classify(path) == "now"
 
 
 def test_a_refused_loop_loads_with_the_named_override_and_says_so() -> None:

@@ -116,6 +116,17 @@ def test_a_mat_whose_data_lies_about_its_size_is_refused(tmp_path: Path, hostile
             "declares 2097152 bytes where 968 are left")
 
 
+def test_cells_nested_past_the_limit_are_refused(tmp_path: Path) -> None:
+    inner: Any = np.arange(3.0)
+    for _ in range(40):
+        cell = np.empty((1,), dtype=object)
+        cell[0] = inner
+        inner = cell
+    path = tmp_path / "deep.mat"
+    savemat(str(path), {"deep": inner, "force_n": np.arange(3.0)})
+    refused(path, "structs or cells nested deeper than 32")
+
+
 def test_complex_sparse_and_matrix_variables_are_said_for_what_they_are(
         tmp_path: Path) -> None:
     rows = np.loadtxt(MAP, delimiter=",", skiprows=1)
