@@ -119,7 +119,7 @@ def load_config_text(text: str, path: str, overrides: JsonObject | None = None) 
     check_safety_chain(rig, raw.get("safety_chain"), ctx)
     check_timing(rig, raw, ctx)
     ctx.raise_if_any()
-    warnings += check_gains(rig, raw, ctx)  # the loops on their plants (numpy: last)
+    warnings += check_gains(rig, raw, ctx)  # the loops on their plants, once all is valid
     ctx.raise_if_any()
     cal_path = None if not rig.calibration_file else os.path.join(
         os.path.dirname(os.path.abspath(path)), os.path.expanduser(rig.calibration_file))

@@ -25,8 +25,12 @@ The controllers are those of the tick, term for term:
   / (1 - z^-1)) or not (Method 1).
 
 The judgement, on the loop L(z) = C(z) G(z):
-- **stable**: every root of the closed loop's characteristic polynomial lies inside
-  the unit circle (exact for the linear loop, whatever the margins say);
+- **stable**: every root of the closed loop's characteristic polynomial (P(q) = den(C)
+  den(G) + num(C) num(G), q = z^-1) lies inside the unit circle; by the argument
+  principle, exactly when P(e^-jw) does not wind around 0 as w goes over [0, pi] (its
+  coefficients are real: the other half mirrors it), sampled finely enough that no
+  term turns by more than `_MAX_PHASE_STEP_RAD` between two points (exact for the
+  linear loop, whatever the margins say);
 - **gain margin**: by how much the loop gain may grow before the loop oscillates
   (1 / |L| where the phase is -180 degrees, the smallest over every such frequency);
 - **phase margin**: how much more lag (dead time) the loop stands where |L| = 1
@@ -40,16 +44,19 @@ oscillation is not one the rig should run. Warned below `WARN_GAIN_MARGIN` or
 margin 2-5, phase margin 30-60 degrees). SIMC, what `pamd tune` derives, has about 3
 and 45-60 degrees.
 
-Offline (numpy), at config time only: never on the tick path.
+Pure Python (complex arithmetic on a few thousand frequencies; the polynomials are
+sparse: the controller's few terms and the plant's two after its dead time), so that
+what imports the config loader does not import numpy; at config time only, never on
+the tick path.
 """
 
 from __future__ import annotations
 
+import cmath
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-
-import numpy as np
 
 #: Below these the gains are refused (see the module doc).
 REFUSE_GAIN_MARGIN = 1.5
@@ -59,12 +66,15 @@ WARN_GAIN_MARGIN = 2.0
 WARN_PHASE_MARGIN_DEG = 30.0
 #: The frequencies the margins are looked for at: this many per decade over
 #: `_DECADES` decades below the Nyquist frequency, and a linear grid fine enough that
-#: the dead time's phase moves less than `_MAX_PHASE_STEP_RAD` between two points.
-_POINTS_PER_DECADE = 200
+#: the highest power's phase moves less than `_MAX_PHASE_STEP_RAD` between two points;
+#: each crossing found between two of them is then bisected `_BISECTIONS` times.
+_POINTS_PER_DECADE = 40
+_BISECTIONS = 30
 _DECADES = 5
 _MAX_PHASE_STEP_RAD = 0.25
 
-Poly = np.ndarray  # coefficients in ascending powers of z^-1
+#: A polynomial in q = z^-1: {power: coefficient}, zero terms left out.
+Poly = dict[int, float]
 
 
 @dataclass(frozen=True)
@@ -106,15 +116,42 @@ class Margins:
             self.phase_margin_deg < WARN_PHASE_MARGIN_DEG
 
 
+def poly(*coefficients: float) -> Poly:
+    """A polynomial from its coefficients in ascending powers of q."""
+    return {k: c for k, c in enumerate(coefficients) if c != 0.0}
+
+
+def _mul(a: Poly, b: Poly) -> Poly:
+    out: Poly = {}
+    for i, x in a.items():
+        for j, y in b.items():
+            out[i + j] = out.get(i + j, 0.0) + x * y
+    return {k: c for k, c in out.items() if c != 0.0}
+
+
+def _add(a: Poly, b: Poly) -> Poly:
+    out = dict(a)
+    for k, c in b.items():
+        out[k] = out.get(k, 0.0) + c
+    return {k: c for k, c in out.items() if c != 0.0}
+
+
+def _scale(a: Poly, f: float) -> Poly:
+    return {k: f * c for k, c in a.items() if f * c != 0.0}
+
+
+def _at(p: Poly, q: complex) -> complex:
+    return sum((c * q ** k for k, c in p.items()), 0j)
+
+
 def sampled_plant(plant: Plant, period_s: float) -> tuple[Poly, Poly]:
     """(numerator, denominator) of the plant behind a zero-order hold (module doc)."""
     d = int(math.floor(plant.dead_time_s / period_s + 1e-9))
     e = max(plant.dead_time_s - d * period_s, 0.0)
     a = math.exp(-period_s / plant.lag_s)
     a1 = math.exp(-(period_s - e) / plant.lag_s)
-    num = np.zeros(d + 3)
-    num[d + 1], num[d + 2] = plant.gain * (1.0 - a1), plant.gain * (a1 - a)
-    return num, np.array([1.0, -a])
+    num = {d + 1: plant.gain * (1.0 - a1), d + 2: plant.gain * (a1 - a)}
+    return {k: c for k, c in num.items() if c != 0.0}, poly(1.0, -a)
 
 
 def pid(kp: float, ki_per_s: float, kd_s: float, filter_hz: float, period_s: float
@@ -123,29 +160,27 @@ def pid(kp: float, ki_per_s: float, kd_s: float, filter_hz: float, period_s: flo
     (without an integral, no integrator pole: ki 0 holds the integral where it is;
     without a derivative, no filter pole)."""
     t = period_s
+    one = poly(1.0, -1.0)
     if kd_s == 0.0:
         if ki_per_s == 0.0:
-            return np.array([kp]), np.array([1.0])
-        return np.array([kp + ki_per_s * t, -kp]), np.array([1.0, -1.0])
+            return poly(kp), poly(1.0)
+        return poly(kp + ki_per_s * t, -kp), one
     alpha = t / (t + 1.0 / (2.0 * math.pi * filter_hz))
-    one = np.array([1.0, -1.0])
-    filt = np.array([1.0, alpha - 1.0])
-    d = kd_s * alpha / t
+    filt = poly(1.0, alpha - 1.0)
+    d = _scale(one, kd_s * alpha / t)
     if ki_per_s == 0.0:
-        return kp * filt + d * one, filt
-    num = kp * np.convolve(one, filt) + ki_per_s * t * np.append(filt, 0.0) + \
-        d * np.convolve(one, one)
-    return num, np.convolve(one, filt)
+        return _add(_scale(filt, kp), d), filt
+    num = _add(_add(_scale(_mul(one, filt), kp), _scale(filt, ki_per_s * t)), _mul(one, d))
+    return num, _mul(one, filt)
 
 
 def incremental(method: int, kp: float, ki: float, kd: float) -> tuple[Poly, Poly]:
     """Seed 003's incremental PID, per sample (`pamd.control.incremental_pid`)."""
-    one = np.array([1.0, -1.0])
+    one = poly(1.0, -1.0)
     if method == 2 and ki == 0.0:  # the accumulated Kp and Kd increments: Kp e + Kd de
-        return np.array([kp + kd, -kd]), np.array([1.0])
-    num = kp * np.append(one, 0.0) + ki * np.array([1.0, 0.0, 0.0]) + \
-        kd * np.convolve(one, one)
-    return num, (one if method == 2 else np.array([1.0]))
+        return poly(kp + kd, -kd), poly(1.0)
+    num = _add(_add(_scale(one, kp), poly(ki)), _scale(_mul(one, one), kd))
+    return num, (one if method == 2 else poly(1.0))
 
 
 def simc(plant: Plant, closed_loop_tau_s: float) -> tuple[float, float]:
@@ -158,70 +193,107 @@ def simc(plant: Plant, closed_loop_tau_s: float) -> tuple[float, float]:
 
 def margins(controller: tuple[Poly, Poly], plant: Plant, period_s: float) -> Margins:
     """The closed loop of `controller` on `plant` at `period_s` (module doc)."""
-    key = (tuple(controller[0]), tuple(controller[1]), plant, period_s)
+    key = (tuple(sorted(controller[0].items())), tuple(sorted(controller[1].items())),
+           plant, period_s)
     return _margins(*key)
 
 
 @functools.lru_cache(maxsize=256)
-def _margins(c_num: tuple[float, ...], c_den: tuple[float, ...], plant: Plant,
-             period_s: float) -> Margins:
-    cn, cd = np.array(c_num), np.array(c_den)
+def _margins(c_num: tuple[tuple[int, float], ...], c_den: tuple[tuple[int, float], ...],
+             plant: Plant, period_s: float) -> Margins:
+    cn, cd = dict(c_num), dict(c_den)
     gn, gd = sampled_plant(plant, period_s)
-    char = np.trim_zeros(_add(np.convolve(cd, gd), np.convolve(cn, gn)), "b")
-    roots = np.roots(char) if char.size > 1 else np.array([])
-    stable = bool(np.all(np.abs(roots) < 1.0 - 1e-9))
+    num, den = _mul(cn, gn), _mul(cd, gd)
+    stable = _stable(_add(den, num))
     nyquist = math.pi / period_s
-    steps = max(int((gn.size + 1) * math.pi / _MAX_PHASE_STEP_RAD), 100)
-    w = np.union1d(np.logspace(math.log10(nyquist) - _DECADES, math.log10(nyquist),
-                               _POINTS_PER_DECADE * _DECADES),
-                   np.linspace(nyquist / steps, nyquist, steps))
-    q = np.exp(-1j * w * period_s)
-    loop = _at(cn, q) * _at(gn, q) / (_at(cd, q) * _at(gd, q))
-    gm, pm, at_hz = _gain_margin_and_phase(w, loop)
-    return Margins(stable, float(gm), float(pm), float(at_hz))
+    steps = max(int((max(gn, default=0) + 2) * math.pi / _MAX_PHASE_STEP_RAD), 100)
+    top = math.log10(nyquist)
+    n_log = _POINTS_PER_DECADE * _DECADES
+    w = sorted({10.0 ** (top - _DECADES + _DECADES * i / (n_log - 1)) for i in range(n_log)}
+               | {nyquist * (i + 1) / steps for i in range(steps)})
+    def at(wi: float) -> complex:
+        q = cmath.exp(-1j * wi * period_s)
+        return _at(num, q) / _at(den, q)
+
+    gm, pm, at_hz = _gain_margin_and_phase(w, [at(wi) for wi in w], at)
+    return Margins(stable, gm, pm, at_hz)
 
 
-def _add(a: Poly, b: Poly) -> Poly:
-    out = np.zeros(max(a.size, b.size))
-    out[:a.size] += a
-    out[:b.size] += b
-    return out
+def _stable(char: Poly) -> bool:
+    """Every root of the closed loop inside the unit circle: P(e^-jw) does not wind
+    around 0 over w in [0, pi] (module doc)."""
+    n = max(char, default=0)
+    if n == 0:
+        return True
+    steps = max(int(n * math.pi / _MAX_PHASE_STEP_RAD), 64)
+    scale = sum(abs(c) for c in char.values())
+    turned = 0.0
+    prev = _at(char, 1.0 + 0j)
+    for i in range(1, steps + 1):
+        value = _at(char, cmath.exp(-1j * math.pi * i / steps))
+        if abs(value) <= 1e-12 * scale:  # a root on the unit circle: never settles
+            return False
+        turned += cmath.phase(value / prev)
+        prev = value
+    return abs(turned) < math.pi / 2.0
 
 
-def _at(p: Poly, q: np.ndarray) -> np.ndarray:
-    """p(q) for coefficients in ascending powers of q; the plant's leading zeros (its
-    dead time) as a power of q."""
-    nz = np.flatnonzero(p)
-    if nz.size == 0:
-        return np.zeros_like(q)
-    lead = int(nz[0])
-    out = np.zeros_like(q)
-    for c in p[lead:][::-1]:
-        out = out * q + c
-    return out * q ** lead if lead else out
-
-
-def _gain_margin_and_phase(w: np.ndarray, loop: np.ndarray) -> tuple[float, float, float]:
-    mag = np.abs(loop)
-    phase = np.degrees(np.unwrap(np.angle(loop)))
+def _gain_margin_and_phase(w: list[float], loop: list[complex],
+                           at: Callable[[float], complex]) -> tuple[float, float, float]:
+    """(gain margin, phase margin in degrees, the gain crossover in Hz) from the loop
+    on the grid `w`; each crossing the grid brackets bisected on `at`, the loop."""
+    mag = [abs(v) for v in loop]
+    phase = _unwrapped(loop)
     gm = math.inf
-    # phase crossovers: the unwrapped phase passes -180 - 360 k
-    turns = np.floor((phase + 180.0) / 360.0)
-    for k in np.flatnonzero(np.diff(turns) != 0):
-        level = 360.0 * max(turns[k], turns[k + 1]) - 180.0
-        f = (level - phase[k]) / (phase[k + 1] - phase[k])
-        m = mag[k] + f * (mag[k + 1] - mag[k])
-        if m > 0.0:
-            gm = min(gm, 1.0 / m)
+    # phase crossovers: the unwrapped phase passes -pi - 2 pi k
+    turns = [math.floor((ph + math.pi) / (2.0 * math.pi)) for ph in phase]
+    for k in range(len(w) - 1):
+        if turns[k] != turns[k + 1]:
+            level = 2.0 * math.pi * max(turns[k], turns[k + 1]) - math.pi
+            ref = phase[k]
+
+            def below(wi: float, ref: float = ref, level: float = level) -> bool:
+                return ref + math.remainder(cmath.phase(at(wi)) - ref, 2.0 * math.pi) \
+                    > level
+
+            m = abs(at(_bisect(w[k], w[k + 1], below)))
+            if m > 0.0:
+                gm = min(gm, 1.0 / m)
     end = loop[-1]  # at the Nyquist frequency the loop is real: on -180 degrees or 0
     if end.real < 0.0 and abs(end.imag) <= 1e-9 * abs(end):
         gm = min(gm, 1.0 / abs(end))
     pm, at_hz = math.inf, math.nan
-    for k in np.flatnonzero(np.diff(np.sign(mag - 1.0)) != 0):
-        f = (1.0 - mag[k]) / (mag[k + 1] - mag[k])
-        ph = phase[k] + f * (phase[k + 1] - phase[k])
-        margin = (ph + 180.0) % 360.0
-        margin = margin - 360.0 if margin > 180.0 else margin
-        if margin < pm:
-            pm, at_hz = margin, (w[k] + f * (w[k + 1] - w[k])) / (2.0 * math.pi)
+    for k in range(len(w) - 1):
+        if (mag[k] - 1.0) * (mag[k + 1] - 1.0) <= 0.0 and mag[k] != mag[k + 1]:
+            rising = mag[k + 1] > mag[k]
+
+            def before(wi: float, rising: bool = rising) -> bool:
+                return (abs(at(wi)) < 1.0) is rising
+
+            wc = _bisect(w[k], w[k + 1], before)
+            ph = phase[k] + math.remainder(cmath.phase(at(wc)) - phase[k], 2.0 * math.pi)
+            margin = math.degrees(ph) + 180.0
+            margin = (margin + 180.0) % 360.0 - 180.0
+            if margin < pm:
+                pm, at_hz = margin, wc / (2.0 * math.pi)
     return gm, pm, at_hz
+
+
+def _bisect(lo: float, hi: float, before: Callable[[float], bool]) -> float:
+    """Where `before` (true at `lo`, false at `hi`) turns, within the bracket."""
+    for _ in range(_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if before(mid):
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def _unwrapped(values: list[complex]) -> list[float]:
+    """The phases (rad), each within pi of the one before."""
+    out: list[float] = []
+    for v in values:
+        ph = cmath.phase(v)
+        out.append(out[-1] + math.remainder(ph - out[-1], 2.0 * math.pi) if out else ph)
+    return out

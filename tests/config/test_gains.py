@@ -65,8 +65,8 @@ def test_the_sampled_plant_is_the_fopdt_step_response_at_the_ticks() -> None:
         u = np.ones(200)
         y = np.zeros(200)
         for k in range(200):
-            acc = sum(num[i] * u[k - i] for i in range(num.size) if k - i >= 0)
-            y[k] = acc - (den[1] * y[k - 1] if k else 0.0)
+            acc = sum(c * u[k - i] for i, c in num.items() if k - i >= 0)
+            y[k] = acc - (den.get(1, 0.0) * y[k - 1] if k else 0.0)
         t = np.arange(200) * 1e-3 - plant.dead_time_s
         want = np.where(t > 0, plant.gain * (1.0 - np.exp(-t / np.maximum(plant.lag_s,
                                                                            1e-12))), 0.0)
@@ -80,6 +80,32 @@ def test_a_pure_gain_and_one_tick_of_delay_has_its_textbook_margin() -> None:
     for k, stable in ((0.5, True), (0.9, True), (1.2, False)):
         m = margins(pid(k, 0.0, 0.0, 30.0, 1e-3), plant, 1e-3)
         assert m.stable is stable and m.gain_margin == pytest.approx(1.0 / k, rel=1e-3)
+
+
+def test_the_winding_test_agrees_with_the_closed_loops_roots() -> None:
+    """The argument principle (pure Python, no numpy where the loader is imported) says
+    stable exactly where every root of the characteristic polynomial is inside the unit
+    circle, over gains across the boundary, plants and rates."""
+    rng = np.random.default_rng(47)
+    for _ in range(60):
+        plant = Plant(float(rng.uniform(0.2, 8.0)), float(rng.uniform(0.002, 0.05)),
+                      float(rng.uniform(0.0, 0.04)))
+        period = float(rng.choice([1e-3, 2e-3, 1e-2]))
+        kp, ki = float(rng.uniform(0.0, 2.0)), float(rng.uniform(0.0, 300.0))
+        kd = float(rng.choice([0.0, 1e-3]))
+        num, den = pid(kp, ki, kd, 30.0, period)
+        gn, gd = sampled_plant(plant, period)
+        char: dict[int, float] = {}
+        for a, b in ((num, gn), (den, gd)):
+            for i, x in a.items():
+                for j, y in b.items():
+                    char[i + j] = char.get(i + j, 0.0) + x * y
+        coefficients = [char.get(k, 0.0) for k in range(max(char) + 1)]
+        roots = np.roots(coefficients)  # z^N P(1/z): the same coefficients, descending
+        if abs(np.abs(roots).max() - 1.0) < 1e-6:
+            continue  # on the circle: either answer is a refusal by the margins
+        want = bool(np.abs(roots).max() < 1.0)
+        assert margins((num, den), plant, period).stable is want, (plant, period, kp, ki)
 
 
 @pytest.mark.parametrize("kp, ki, oscillates", [
