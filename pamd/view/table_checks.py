@@ -110,8 +110,8 @@ def unit_warning(name: str, header: str, values: np.ndarray, factor: float,
     (unit -> factor to pamd's) that would bring it in."""
     if name not in TYPICAL or values.size < 2:
         return None
-    with np.errstate(invalid="ignore"):
-        top = float(np.nanmax(np.abs(values))) if np.any(np.isfinite(values)) else 0.0
+    finite = np.abs(values[np.isfinite(values)])  # NaN and inf are judged elsewhere
+    top = float(finite.max()) if finite.size else 0.0
     lo, hi = TYPICAL[name]
     if top == 0.0 or lo <= top <= hi:
         return None
