@@ -96,6 +96,16 @@ def check_gains(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[str, ...]
     return tuple(warnings)
 
 
+def loop_margins(rig: RigConfig, i: int) -> list[tuple[str, Margins, str]]:
+    """Muscle `i`'s loops as judged: (loop, its margins, its plant), for check-config
+    to say (none for on/off valves)."""
+    m = rig.muscles[i]
+    if m.actuation != "proportional":
+        return []
+    return [(j.loop, margins(j.controller, j.plant, j.period_s), j.plant_text)
+            for j in _loops(rig, m, i, {}, 1.0 / rig.loop.rate_hz)]
+
+
 def _loops(rig: RigConfig, m: MuscleConfig, i: int, raw: JsonValue, period_s: float
            ) -> list[Judged]:
     """The loops muscle `i` runs, each with its gains, plant and key."""

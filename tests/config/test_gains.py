@@ -186,6 +186,9 @@ def test_a_refused_loop_loads_with_the_named_override_and_says_so() -> None:
 
 def test_check_config_and_the_daemon_refuse_unstable_gains(tmp_path: Path,
                                                             pamd_here: Any) -> None:
+    r = pamd_here("check-config", REPO / "config" / "sim.yaml")
+    assert r.returncode == 0 and "pressure loop: gain margin 2.97" in r.stdout
+    assert "position loop: gain margin 3.1" in r.stdout
     path = tmp_path / "rig.yaml"
     path.write_text(text(control={"pid": {"kp": 19.9, "ki_per_s": 1999.0}}))
     for args in (("check-config", path), ("run", "--config", path, "--duration", "1")):
