@@ -6,8 +6,9 @@ generated from them by `python -m pamd.config.docs`).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Literal, NamedTuple, get_args
+from typing import Any, Literal, NamedTuple, TypeVar, get_args
 
 from pamd.config.control_schema import (
     PID_KD_MAX_S,
@@ -17,11 +18,19 @@ from pamd.config.control_schema import (
     POSITION_KI_MAX_BAR_PER_MM_S,
     POSITION_KP_MAX_BAR_PER_MM,
     ControlConfig,
+    PositionPlantConfig,
+    PressurePlantConfig,
 )
 from pamd.config.safety_schema import SafetyConfig
 from pamd.declare.jsonsafe import JsonValue
 from pamd.muscle_type import DEFAULT_TYPE, TYPE_NAMES
 from pamd.schema.engine import spec
+
+#: The largest model file any reader reads (`pamd.models.registry`, the `model` command's
+#: named files): the largest kind, an offline svr, stays far below it.
+MODEL_FILE_MAX_BYTES = 8 << 20
+#: The largest plan file a remote `collect` may name (`pamd.commands.named_files`).
+PLAN_FILE_MAX_BYTES = 1 << 20
 
 #: How air reaches a muscle (`muscles[].actuation`): a proportional pressure regulator,
 #: or an inflate and an exhaust on/off valve.
@@ -269,16 +278,47 @@ class MusclePositionPidConfig:
 class MusclePositionConfig:
     pid: MusclePositionPidConfig = spec(MusclePositionPidConfig(), "This muscle's position "
                                         "loop gains.")
+    plant: PositionPlantConfig | None = spec(None, "This muscle's "
+                                             "`control.position.plant` (null: the rig's).")
 
 
 @dataclass(frozen=True, kw_only=True)
 class MuscleControlConfig:
     pid: MusclePidConfig = spec(MusclePidConfig(), "This muscle's pressure loop gains.")
+    plant: PressurePlantConfig | None = spec(None, "This muscle's `control.plant` (null: "
+                                             "the rig's).")
     rate_feedforward_s: float | None = spec(None, "This muscle's "
                                             "`control.rate_feedforward_s` (null: the rig's).",
                                             unit="s", min=0.0, max=1.0)
     position: MusclePositionConfig = spec(MusclePositionConfig(), "This muscle's position "
                                           "loop.")
+
+
+def muscle_control(rig: ControlConfig, own: MuscleControlConfig) -> ControlConfig:
+    """A muscle's control section: the rig's, with each key its own `muscles[].control`
+    names (not null) in place of the rig-wide one."""
+    pid = _overridden(rig.pid, own.pid)
+    ppid = _overridden(rig.position.pid, own.position.pid)
+    rff = rig.rate_feedforward_s if own.rate_feedforward_s is None else \
+        own.rate_feedforward_s
+    plant = rig.plant if own.plant is None else own.plant
+    pplant = rig.position.plant if own.position.plant is None else own.position.plant
+    if pid is rig.pid and ppid is rig.position.pid and rff == rig.rate_feedforward_s and \
+            plant is rig.plant and pplant is rig.position.plant:
+        return rig
+    return dataclasses.replace(rig, pid=pid, rate_feedforward_s=rff, plant=plant,
+                               position=dataclasses.replace(rig.position, pid=ppid,
+                                                            plant=pplant))
+
+
+_G = TypeVar("_G")
+
+
+def _overridden(base: _G, over: object) -> _G:
+    """`base` (a gains dataclass) with the fields `over` sets (not None) in place."""
+    changes = {f.name: getattr(over, f.name) for f in dataclasses.fields(over)  # type: ignore[arg-type]
+               if getattr(over, f.name) is not None}
+    return dataclasses.replace(base, **changes) if changes else base  # type: ignore[type-var]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -318,8 +358,11 @@ class MuscleConfig:
     custom: CustomMuscleConfig | None = spec(
         None, "`type: custom` only (and then required): the measured map and the ratings "
         "of the muscle. Nothing about a custom muscle is assumed.")
-    nominal_length_mm: float = spec(200.0, "Unloaded, unpressurised length.", unit="mm",
-                                    gt=0.0)
+    nominal_length_mm: float = spec(
+        200.0, "Unloaded, unpressurised length (10 mm to 10 m).", unit="mm", min=10.0,
+        why="a braided muscle is several of its diameters long, Festo's shortest DMSP tens "
+        "of mm: below 10 mm it is a slip of units (metres written for mm), and the limits "
+        "and tolerances given as fractions of it would mean nothing")
     load_kg: float = spec(0.0, "Hanging load; sets the safe pressure.", unit="kg", min=0.0)
     force_model: Literal["map", "fit"] = spec(
         "map", "Static force model of the safe pressure, the plausibility checks and the "
@@ -483,11 +526,13 @@ class TelemetryConfig:
     plans_dir: str | None = spec(
         None, "Directory (relative to the config file) whose plan files a remote `collect` "
         "may name, by file name only (`pamd cmd collect --plan-file sweep.yaml`); at most "
-        "1 MiB and 64 levels of nesting each. null: remote collects are refused.")
+        f"{PLAN_FILE_MAX_BYTES >> 20} MiB and 64 levels of nesting each. null: remote "
+        "collects are refused.")
     models_dir: str | None = spec(
         None, "Directory (relative to the config file) whose model files a remote `model` "
-        "command may name, by file name only; at most 16 MiB and 64 levels of nesting "
-        "each. null: remote model swaps are refused.")
+        f"command may name, by file name only; at most {MODEL_FILE_MAX_BYTES >> 20} MiB "
+        "(every reader of model files applies it) and 64 levels of nesting each. null: "
+        "remote model swaps are refused.")
 
 
 @dataclass(frozen=True, kw_only=True)

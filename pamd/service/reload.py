@@ -5,7 +5,9 @@ A new config that does not validate is refused and the daemon keeps running on
 the one it has, saying why. The changes of a valid one fall in three classes:
 
 * at once: control gains (`control.pid.*`, `control.rate_feedforward_s`, and a muscle's
-  own `muscles[].control.pid.*` and `rate_feedforward_s`) and
+  own `muscles[].control.pid.*` and `rate_feedforward_s`), the plants they are judged
+  against (`control.plant`, `control.position.plant`, a muscle's own: nothing in the
+  tick reads them) and
   timeouts (`safety.signal_timeout_s`, the signals' `timeout_s`,
   `safety.tracking_*`, `safety.hard_limit_hold_s`, `safety.startup_timeout_s`,
   `loop.stall_timeout_s`, `loop.stall_fault_s`);
@@ -40,6 +42,8 @@ _RULE_TEXT: tuple[tuple[str, Kind], ...] = (
     (r"^control\.pid\.", "now"),
     (r"^control\.rate_feedforward_s$", "now"),
     (r"^muscles\[\d+\]\.control\.(pid\.|rate_feedforward_s$)", "now"),
+    # a plant is what the gains are judged against as the config loads: no tick reads it
+    (r"^(muscles\[\d+\]\.)?control\.(position\.)?plant(\.|$)", "now"),
     (r"^control\.slew_limit_bar_per_s$", "idle"),
     (r"^safety\.(signal_timeout_s|latency_margin_s|tracking_band_bar|tracking_time_s"
      r"|hard_limit_hold_s|startup_timeout_s)$", "now"),

@@ -45,10 +45,16 @@ def test_pressure_loop_identified_and_saved_keeping_comments(rig: Path, tmp_path
     after = rig.read_text()
     comments = [ln for ln in before.splitlines() if ln.lstrip().startswith("#")]
     assert comments == [ln for ln in after.splitlines() if ln.lstrip().startswith("#")]
-    changed = [(a, b) for a, b in zip(before.splitlines(), after.splitlines(), strict=True)
-               if a != b]
-    assert [a.split(":")[0] for a, _ in changed] == ["  pid", "  rate_feedforward_s"]
+    old, new = before.splitlines(), after.splitlines()
+    assert [a.split(":")[0] for a in old if a not in new] == ["  pid", "  rate_feedforward_s"]
+    assert [b.split(":")[0] for b in new if b not in old] == [
+        "  pid", "  rate_feedforward_s", "  plant", "    gain_bar_per_bar", "    lag_s",
+        "    dead_time_s"]
+    # the plant the gains came from, added to the section: what later gains are judged on
     pid = load_config(str(rig)).rig.control
+    assert pid.plant is not None and (pid.plant.gain_bar_per_bar, pid.plant.lag_s,
+                                      pid.plant.dead_time_s) == pytest.approx(
+        (0.949, 0.0123, 0.0129), rel=0.01)
     # within 3 % of the bench procedure's figures (the step times are read from the
     # recording here, from the command there: 0.1 ms of dead time apart)
     assert pid.pid.kp == pytest.approx(shipped["pid"]["kp"], rel=0.03)
