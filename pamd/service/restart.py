@@ -35,7 +35,8 @@ from multiprocessing import resource_tracker
 from typing import NoReturn
 
 from pamd.commands import offload
-from pamd.service.notify import Notifier
+from pamd.service.notify import RESTARTED_ENV, Notifier
+from pamd.service.watchdog import STARTUP_WATCHDOG_S
 
 log = logging.getLogger("pamd")
 
@@ -47,6 +48,7 @@ STANDING_OPTIONS: tuple[tuple[str, str, bool], ...] = (
     ("rate_hz", "--rate-hz", True),
     ("json", "--json", False),
     ("note", "--note", True),
+    ("load_kg", "--load-kg", True),
     ("state_dir", "--state-dir", True),
     ("record", "--record", True),
     ("no_record", "--no-record", False),
@@ -60,17 +62,16 @@ STANDING_OPTIONS: tuple[tuple[str, str, bool], ...] = (
     ("end_on_fault", "--end-on-fault", False),
 )
 
-# How long systemd may wait for the first ping of the restarted daemon: start-up
-# (imports, drivers, the io process) with room for a busy machine.
-STARTUP_WATCHDOG_S = 60.0
-
 
 def run_argv(args: argparse.Namespace, remaining_s: float | None) -> list[str]:
     """The `pamd run` command line of the restarted daemon."""
     argv = [sys.executable, "-m", "pamd", "run"]
     for dest, flag, takes_value in STANDING_OPTIONS:
         value = getattr(args, dest, None)
-        if takes_value and value not in (None, ""):
+        if dest == "load_kg" and value:  # --load-kg, parsed: [[(muscle | None, kg), ...]]
+            argv += [flag, ",".join(f"{kg!r}" if name is None else f"{name}={kg!r}"
+                                    for group in value for name, kg in group)]
+        elif takes_value and value not in (None, ""):
             argv += [flag, str(value)]
         elif (not takes_value and value) or (dest == "record" and value == ""):
             argv.append(flag)  # a switch; or --record without a directory
@@ -104,6 +105,7 @@ def restart_in_place(argv: list[str], reason: str, stop_received: bool) -> NoRet
     if notifier.watchdog_s is not None:  # widened; the new daemon's READY=1 sets it back
         notifier.send("WATCHDOG=1", f"WATCHDOG_USEC={int(STARTUP_WATCHDOG_S * 1e6)}")
     notifier.close()
+    os.environ[RESTARTED_ENV] = str(os.getpid())  # the new daemon pings through its start
     for handler in logging.getLogger().handlers + log.handlers:
         handler.flush()
     sys.stdout.flush()
