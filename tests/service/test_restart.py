@@ -80,6 +80,8 @@ def test_new_driver_config_waits_for_idle_then_restarts_in_place(
     ready_again = max(i for i, m in enumerate(texts) if "READY=1" in m.split("\n"))
     assert ready_before < widened < ready_again
     assert "WATCHDOG_USEC=400000" in texts[ready_again]  # set back
+    # the restarted daemon pings through its own start, before its READY=1 (issue 38)
+    assert "WATCHDOG=1" in texts[widened + 1:ready_again], texts[widened:ready_again + 1]
     assert "STOPPING=1" not in "\n".join(texts)  # a reload, not a stop
     assert _zombie_children(p.proc.pid) == []  # the old image's helpers were reaped
     st = None
