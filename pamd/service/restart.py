@@ -2,7 +2,8 @@
 
 A new config that changes the drivers, which muscles there are and how their
 signals are wired, the loop's rate or clock, the recording or the rig id cannot be
-applied to a running loop. Once the rig is IDLE the loop ends at a tick boundary
+applied to a running loop. Once the rig is at rest (IDLE, no profile, a stop's ramp
+to the safe state completed) the loop ends at a tick boundary
 without ramping to the safe state (`Loop.request_handover`): the regulators keep
 the pressure they were given; the recording is finalised and the io process
 leaves Zenoh; the drivers are closed (closing writes nothing). Then the process
@@ -11,7 +12,9 @@ executes `pamd run` again with its standing options: the same PID, so systemd
 like every start: it reads every sensor before it writes, holds the measured
 pressure, in pressure mode, and runs no profile. systemd hears `RELOADING=1`
 before and `READY=1` from the new daemon once it ticks; the watchdog is widened
-for the few seconds of start-up and set back with that `READY=1`.
+for the few seconds of start-up and set back with that `READY=1`, and the old
+daemon's hand-over and the new daemon's start are pinged too (`pamd.service.watchdog`,
+bounded by `STARTUP_WATCHDOG_S`).
 
 Signals: SIGTERM, SIGINT and SIGHUP are blocked from the exec until the new daemon
 has its handlers (`unblock_signals`): one that arrives meanwhile waits for it and is
