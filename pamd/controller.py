@@ -248,10 +248,7 @@ class RigController:
         for d in wrong:
             m = self.by_name[d.muscle]
             m.set_load(d.larger_kg)
-            texts.append(f"{where}: {d.text()}: the safe state holds the larger, "
-                         f"{d.larger_kg:.1f} kg (safe pressure {m.safe_pressure_bar:.2f} "
-                         "bar); hang the declared load or declare the one that hangs (pamd "
-                         "cmd load), then reset")
+            texts.append(f"{where}: {d.larger_text(m.safe_pressure_bar)}")
         push_safe_outputs(self)
         reason = "; ".join(texts)
         if not self.supervisor.latched:

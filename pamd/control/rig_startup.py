@@ -76,17 +76,11 @@ def start_up(now: float, since_start_s: float, timeout_s: float,
             if m.plausibility.reason is not None:
                 supervisor.fault(now, m.plausibility.reason)
         if wrong:
-            supervisor.fault(now, "; ".join(_larger_load_text(d, muscles) for d in wrong))
+            safe = {m.name: m.safe_pressure_bar for m in muscles}
+            supervisor.fault(now, "; ".join(d.larger_text(safe[d.muscle]) for d in wrong))
         return wrong
     if since_start_s > timeout_s:
         supervisor.fault(now, f"start-up: no reading from {missing} within "
                          f"{timeout_s:g} s; nothing was written")
     return ()
 
-
-def _larger_load_text(d: LoadDisagreement, muscles: Sequence[MuscleController]) -> str:
-    """A disagreement the daemon lives with: the safe state for the larger load."""
-    safe = next(m.safe_pressure_bar for m in muscles if m.name == d.muscle)
-    return (f"{d.text()}: the safe state holds the larger, {d.larger_kg:.1f} kg (safe "
-            f"pressure {safe:.2f} bar); hang the declared load or declare the one that "
-            "hangs (pamd cmd load), then reset")

@@ -189,8 +189,7 @@ class Sequencer:
         push_safe_outputs(self.ctrl)
         self.ctrl.supervisor.fault(
             now, f"{m.name}: the force does not agree with {load_kg:g} kg after the load "
-            f"change: {wrong.text()}; check the load: the safe state holds the larger, "
-            f"{wrong.larger_kg:g} kg (safe pressure {m.safe_pressure_bar:.2f} bar)")
+            f"change: {wrong.larger_text(m.safe_pressure_bar)}")
 
     def _start_settle(self, now: float) -> None:
         self._still_since = math.inf

@@ -75,6 +75,14 @@ class LoadDisagreement:
                 f"{self.tolerance_n:.0f} N): a {self.measured_kg:.1f} kg load")
 
 
+    def larger_text(self, safe_pressure_bar: float) -> str:
+        """The disagreement a daemon lives with: its safe state for the larger load (set
+        by the caller, whose safe pressure it now is), and what the operator does."""
+        return (f"{self.text()}: the safe state holds the larger, {self.larger_kg:.1f} kg "
+                f"(safe pressure {safe_pressure_bar:.2f} bar); hang the declared load or "
+                "declare the one that hangs (pamd cmd load), then reset")
+
+
 def load_tolerance_n(load_cell_accuracy_n: float, friction_n: float) -> float:
     """How far the force at rest may stand from m g: the load cell's accuracy plus
     what friction can hold (see the module's doc)."""
