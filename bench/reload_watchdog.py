@@ -15,12 +15,13 @@ kills the service past WatchdogSec; the target is 0.75 x WatchdogSec), the lost 
 records (the loop's, the recording's), and the verdict against the target.
 
 Measured (issue 38; the 2-core machine shared with other engineers' test runs, load
-average 13-15, five reloads, four hogs, real-time on; the same script before the change
-through PYTHONPATH on the previous tree):
-  before: reloads 0.7-2.8 s; the longest gap between pings 2.75 s (a reload's read in
-          the main thread, which sent the pings); lost records 0 (loop and recording)
-  after:  reloads 0.8-2.9 s; the longest gap through a reload 0.77 s, over the run
-          0.83 s (pings every 0.75 s from their own thread); lost records 0 and 0
+average 11-15; two runs of five reloads each, four hogs, real-time on; before: the same
+script with PYTHONPATH on the previous tree):
+  before: the longest gap between pings 2.75 s and 4.46 s (over WatchdogSec: systemd
+          would have killed pamd), the first reload's read in the main thread, which
+          sent the pings; lost records 0 (loop and recording)
+  after:  the longest gap through a reload 0.77 s and 0.76 s, over the run 0.83 s and
+          0.81 s (pings every 0.75 s from their own thread); lost records 0 and 0
 The issue's host (23.6 s without a ping, 4,948 records lost) was busier still; its
 lost records were not reproduced here (likely, not proven: the main thread at SCHED_FIFO
 1 parsing for many seconds took a CPU from the io process, which runs at normal
