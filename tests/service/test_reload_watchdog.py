@@ -8,9 +8,7 @@ bench/reload_watchdog.py)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import os
 import signal
 import time
 from pathlib import Path
@@ -24,8 +22,9 @@ from pamd.declare.jsonsafe import JsonObject
 from pamd.harness import Harness
 from pamd.service.keeper import ServiceKeeper
 from pamd.service.testhooks import SLOW_RELOAD_ENV
+from tests.benchmod import bench_module
 
-from .conftest import REPO, NotifySocket, sim_dict, wait_until, write_yaml
+from .conftest import NotifySocket, sim_dict, wait_until, write_yaml
 
 WATCHDOG_S = 1.0
 #: the read of each reload is made this much slower: longer than WatchdogSec
@@ -138,25 +137,13 @@ def test_the_main_thread_never_waits_for_a_reloads_read_and_a_second_sighup_queu
         h.rig.close()
 
 
-def _bench() -> object:
-    spec = importlib.util.spec_from_file_location("reload_watchdog",
-                                                  REPO / "bench" / "reload_watchdog.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 @pytest.mark.slow
 @pytest.mark.timeout(600)
 def test_reloads_beside_four_cpu_hogs_keep_the_pings_and_every_record() -> None:
     """bench/reload_watchdog.py: five reloads of kp beside four CPU hogs, real-time
     scheduling on: no gap between pings over 0.75 x WatchdogSec (3 s), no record lost."""
-    if not os.access("/proc/self", os.R_OK):
-        pytest.skip("no /proc")
-    bench = _bench()
     args = SimpleNamespace(reloads=5, hogs=4, watchdog_s=3.0, settle_s=3.0, no_realtime=False)
-    r = bench.run(args)  # type: ignore[attr-defined]
+    r = bench_module("reload_watchdog").run(args)
     assert r["run_gap_s"] <= 0.75 * 3.0, r
     assert r["lost_records"] == 0 and r["recording_lost_records"] == 0, r
     assert r["faults"] == [], r
