@@ -34,6 +34,11 @@ class ConfigError(PamdError):
         head = "invalid configuration" if n == 1 else f"{n} configuration errors"
         super().__init__(head + ":\n  " + "\n  ".join(lines))
 
+    def __reduce__(self) -> tuple[type[ConfigError], tuple[list[ConfigIssue]]]:
+        """Pickled with its issues (a config read in a child process comes back as it
+        was raised), not with the message `Exception` would pass to `__init__`."""
+        return (type(self), (self.issues,))
+
 
 class ConfigIssue:
     """One problem in a config file: where, which key, what was expected, what was found."""

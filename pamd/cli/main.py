@@ -15,7 +15,9 @@ import argparse
 import importlib
 import logging
 import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, cast
@@ -159,8 +161,19 @@ def _quiet_libraries(record: logging.LogRecord) -> bool:
     return record.name.startswith("pamd") or record.levelno >= logging.WARNING
 
 
+#: Sub-commands that reload their config on SIGHUP (a daemon): the signal is held
+#: from the first line of `main` until their handler is installed, so that one sent
+#: during the start (imports, config, drivers) is kept and said, not the default
+#: action's silent death (`pamd.cli.run._install_signals` takes it up).
+HOLD_SIGHUP = frozenset({"run"})
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     words = sys.argv[1:] if argv is None else list(argv)
+    command = chosen_command(words)
+    if (argv is None and command is not None and command.name in HOLD_SIGHUP
+            and threading.current_thread() is threading.main_thread()):
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
     parser = build_parser_for(words)
     args = parser.parse_args(words)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,

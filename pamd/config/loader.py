@@ -109,10 +109,7 @@ def load_config_text(text: str, path: str, overrides: JsonObject | None = None) 
         ctx.add(line_of(raw) or 1, "", "a mapping with drivers and muscles", found)
         ctx.raise_if_any()
     if overrides:
-        for section, values in overrides.items():
-            node = raw.setdefault(section, {})
-            if isinstance(node, dict):
-                node.update(values)
+        _override(raw, overrides, ctx)
     rig = build_dataclass(RigConfig, raw, ctx, "", 1)
     ctx.raise_if_any()
     assert rig is not None  # a problem building it is in ctx (raised above)
@@ -177,6 +174,25 @@ def input_signals(rig: RigConfig, raw: JsonValue) -> list[InputSignal]:
             found.append(InputSignal(f"safety_chain.{name}", f"safety_chain.{name}", sig,
                                      cnode.get(name) or {}))
     return found
+
+
+def _override(raw: dict[str, JsonValue], overrides: JsonObject, ctx: Context) -> None:
+    """A section's keys replaced (`{"loop": {"clock": "virtual"}}`); a list of named
+    items (`muscles`) by name (`{"muscles": {"m1": {"load_kg": 45.0}}}`: `pamd run
+    --load-kg m1=45`), an unknown name refused."""
+    for section, values in overrides.items():
+        node = raw.setdefault(section, {})
+        if isinstance(node, dict):
+            node.update(values)
+        elif isinstance(node, list) and isinstance(values, dict):
+            items = {item.get("name"): item for item in node if isinstance(item, dict)}
+            for name, changes in values.items():
+                if name in items:
+                    items[name].update(changes)
+                else:
+                    known = ", ".join(str(n) for n in items)
+                    ctx.add(line_of(node), f"{section}[name={name}]",
+                            f"one of the config's {section} ({known})", repr(name))
 
 
 def _check_safety_bounds(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[str, ...]:

@@ -363,7 +363,25 @@ class MuscleConfig:
         why="a braided muscle is several of its diameters long, Festo's shortest DMSP tens "
         "of mm: below 10 mm it is a slip of units (metres written for mm), and the limits "
         "and tolerances given as fractions of it would mean nothing")
-    load_kg: float = spec(0.0, "Hanging load; sets the safe pressure.", unit="kg", min=0.0)
+    load_kg: float = spec(0.0, "Hanging load; sets the safe pressure. Checked before "
+                          "anything moves: at rest a dead weight pulls m g on the load "
+                          "cell, so at start-up, after a plan's load change and after a "
+                          "reload that changes it the force must read it within "
+                          "load_cell_accuracy_n plus what friction can hold "
+                          "(safety.plausibility.frozen_force_change_n); otherwise `pamd "
+                          "run` with an end refuses the run (exit 2, naming both loads) "
+                          "and an open-ended one (the service) takes its safe state for "
+                          "the larger of the two loads and faults, saying so. `pamd run "
+                          "--load-kg` sets it for one run.", unit="kg", min=0.0)
+    dead_weight: bool = spec(
+        True, "The load hangs freely from the muscle, so its load cell reads m g of "
+        "load_kg at rest (the load check above). false: the muscle pulls against "
+        "something else (a spring, an antagonist, a load resting on a stop), its force "
+        "at rest says nothing of load_kg, and the check does not apply.")
+    load_cell_accuracy_n: float = spec(
+        10.0, "The load cell's stated accuracy (its datasheet's combined error over its "
+        "range, plus its amplifier's): part of the load check's tolerance.", unit="N",
+        min=0.0, max=1000.0)
     force_model: Literal["map", "fit"] = spec(
         "map", "Static force model of the safe pressure, the plausibility checks and the "
         "plans' checks: the type's map, or its smooth fit where the type has one (dmsp20 "

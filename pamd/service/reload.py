@@ -11,13 +11,13 @@ the one it has, saying why. The changes of a valid one fall in three classes:
   timeouts (`safety.signal_timeout_s`, the signals' `timeout_s`,
   `safety.tracking_*`, `safety.hard_limit_hold_s`, `safety.startup_timeout_s`,
   `loop.stall_timeout_s`, `loop.stall_fault_s`);
-* only while IDLE (deferred until the rig is IDLE): limits and muscle data
+* only at rest (deferred until the rig is IDLE with nothing moving): limits and muscle data
   (`muscles[].limits.*`, `muscles[].load_kg`, `muscles[].nominal_length_mm`,
   the other `safety.*` keys, `control.slew_limit_bar_per_s`);
 * only by a restart: drivers, which muscles there are and how their signals are
   wired, the loop's rate, clock and real-time settings, recording, `rig_id`,
   `calibration_file`, `state_dir`, and any key not named above. Changing them
-  means reopening the devices: once the rig is IDLE, `pamd run` restarts in place
+  means reopening the devices: once the rig is at rest, `pamd run` restarts in place
   (`pamd.service.restart`) through the start-up that reads before it writes;
   where it cannot (a virtual-clock run, a daemon used as a library) the whole
   reload is refused.

@@ -112,6 +112,12 @@ def test_refused_reloads_change_nothing(tmp_path: Path,
     path.write_text(yaml.safe_dump(merge(original, {"control": {"pid": {"kp": -1}}})))
     reload_and_wait(d)
     assert m.pressure_loop.pid.kp == kp
+    note = d.ctrl.status()["reload"]  # status says why (it showed nothing of a broken file)
+    assert note["outcome"] == "refused" and "control.pid.kp" in note["reason"], note
+    path.write_text("muscles: [unclosed\n")  # not even YAML
+    reload_and_wait(d)
+    note = d.ctrl.status()["reload"]
+    assert note["outcome"] == "refused" and f"{path}:" in note["reason"], note
     # a new driver option with a new gain: needs a restart, so nothing applies
     drv = original["drivers"][0]
     changed = merge(original, {"control": {"pid": {"kp": 0.9}}})
@@ -119,6 +125,9 @@ def test_refused_reloads_change_nothing(tmp_path: Path,
     path.write_text(yaml.safe_dump(changed))
     reload_and_wait(d)
     assert m.pressure_loop.pid.kp == kp
+    note = d.ctrl.reload_note
+    assert note is not None and note["outcome"] == "refused", note
+    assert "drivers[0].options.seed" in note["reason"] and "restart" in note["reason"], note
     # a pressure limit below the pressure the muscle holds
     v = d.command("profile", {"kind": "constant", "to_bar": 3.0, "duration_s": 0.2})
     assert v["ok"], v  # ends IDLE, holding 3 bar
