@@ -111,5 +111,5 @@ EXIT_MEANINGS: dict[int, str] = {
     9: "a file pamd keeps could not be written (it names the file; the old one is as it "
        "was): a full disk, a file-size limit, no permission",
     130: "interrupted by Ctrl-C outside a run",
-    141: "its reader went away (`pamd status | head`)",
+    141: "its reader went away (`pamd status` piped into `head`, which exits first)",
 }
