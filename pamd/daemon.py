@@ -248,7 +248,8 @@ class Daemon:
         return self.ctrl.supervisor.state
 
     def result(self) -> JsonObject:
-        """The run summary (documented in README: `pamd run --json`)."""
+        """The run summary (`pamd run --json`), its keys declared in pamd.declare.summary
+        (docs/run-summary.md)."""
         t = self.loop.timing.summary()
         sup = self.ctrl.supervisor
         return {

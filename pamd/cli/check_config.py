@@ -16,8 +16,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         description="Validate a rig config: syntax, unknown keys, types, units and bounds, "
         "drivers and channels, limits against the muscle's ratings, each model_file against its "
         "muscle, each loop's gains against the muscle's plant (the closed loop's gain and "
-        "phase margins, printed; README, 'Gains judged against stability'), timing keys "
-        "against what they count. Exits 0 if valid, 2 "
+        "phase margins, printed; docs/how-to/tune.md, 'Gains judged against stability'), "
+        "timing keys against what they count. Exits 0 if valid, 2 "
         "with every problem (file:line: key: expected ..., found ...) if not.")
     p.add_argument("file", help="the YAML config file")
     p.set_defaults(func=run)

@@ -150,6 +150,12 @@ def build_parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     return _build({command.module} if command else set())
 
 
+#: Exit status of a command that did its job (pamd.errors.EXIT_MEANINGS says what each
+#: status means; docs/exit-codes.md lists them).
+EXIT_OK = 0
+#: Exit status of a command interrupted by Ctrl-C outside a run (a run's own Ctrl-C
+#: stops it in its safe state: EXIT_OK), as a shell reports SIGINT: 128 + 2.
+EXIT_INTERRUPTED = 130
 #: Exit status of a verb whose reader went away (`pamd status | head`): 128 + SIGPIPE,
 #: what a Unix tool killed by the signal reports.
 EXIT_BROKEN_PIPE = 141
@@ -183,9 +189,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             handler.addFilter(_quiet_libraries)
     if not getattr(args, "func", None):
         parser.print_help()
-        return 2
+        return 2  # as argparse exits for bad arguments (ConfigError's code)
     try:
-        code = int(args.func(args) or 0)
+        code = int(args.func(args) or EXIT_OK)
         sys.stdout.flush()  # a closed pipe shows here, not as a warning at exit
         return code
     except BrokenPipeError:
@@ -198,4 +204,4 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"pamd: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
-        return 130
+        return EXIT_INTERRUPTED

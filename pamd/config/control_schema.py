@@ -199,7 +199,7 @@ class PositionConfig:
         "fits it (`--save` writes it here). The position gains (`pid`, or `incremental` "
         "at its sample period) are judged against it: a closed loop that is unstable or "
         "has too little margin is refused, naming its gain and phase margins "
-        "(README, 'Gains judged against stability'). "
+        "(docs/how-to/tune.md, 'Gains judged against stability'). "
         + _DEFAULT_PLANT_DOC + ": gain -6.6 mm/bar, lag 31.6 ms, dead time 36.2 ms.")
     max_rate_per_s: float | None = spec(
         None, "Fastest change of a length target, contraction (fraction) per second; "
@@ -268,7 +268,7 @@ class ControlConfig:
         "order plus dead time as `pamd tune` fits it (`--save` writes it here). The "
         "pressure gains are judged against it: a closed loop that is unstable or has too "
         "little margin is refused, naming its gain and phase margins "
-        "(README, 'Gains judged against stability'); "
+        "(docs/how-to/tune.md, 'Gains judged against stability'); "
         "`safety.tracking_time_s` must outlast its response. " + _DEFAULT_PLANT_DOC
         + ": gain 0.95 bar/bar, lag 12.5 ms, dead time 12.8 ms.")
     position: PositionConfig = spec(PositionConfig(), "The length modes (length_force, "

@@ -119,7 +119,7 @@ class SafetyConfig:
     relax_stability: bool = spec(
         False, "Lets gains the stability judgement refuses load anyway (a closed pressure "
         "or position loop that is unstable on the stated plant, or with less than its "
-        "minimum gain or phase margin: README, 'Gains judged against "
+        "minimum gain or phase margin: docs/how-to/tune.md, 'Gains judged against "
         "stability'), each logged as a warning at every start and by check-config: for a "
         "rig whose plant cannot be identified with `pamd tune`. State the plant "
         "(`control.plant`) instead wherever it can be measured.")

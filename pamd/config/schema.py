@@ -88,10 +88,10 @@ class LoopConfig:
         unit="s", gt=0.0, ceiling=1.0, max=10.0)
     stall_fault_s: float | None = spec(
         None, "A stall longer than this latches FAULT. null: derived from the actuation "
-        "(README, Safety): a proportional regulator holds its pressure, so the I/O "
-        "module's comm watchdog time (`comm_safety.timeout_s` of the valve's driver), or "
-        "0.5 s without one; on/off valves do not hold, so the time an open valve takes to "
-        "move the pressure by `safety.tracking_band_bar` (at the larger of "
+        "(docs/explanation/safety-checks.md): a proportional regulator holds its pressure, "
+        "so the I/O module's comm watchdog time (`comm_safety.timeout_s` of the valve's "
+        "driver), or 0.5 s without one; on/off valves do not hold, so the time an open "
+        "valve takes to move the pressure by `safety.tracking_band_bar` (at the larger of "
         "`onoff.fill_rate_bar_per_s` and `vent_rate_bar_per_s`; 108 ms by default), or "
         "their module's watchdog time if shorter. The shortest muscle's wins.",
         unit="s", gt=0.0, ceiling=1.0, max=10.0)

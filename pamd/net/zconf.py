@@ -251,7 +251,8 @@ def _tls_why(cfg: ZenohConfig) -> str | None:
 #: rustls' certificate errors (as Zenoh's messages name them) in an operator's words
 RUSTLS_REASONS = {
     "UnsupportedCertVersion": "it is an X.509 v1 certificate; Zenoh accepts only v3 (make "
-                              "it with `-extfile`, as the README's openssl recipe does)",
+                              "it with `-extfile`, as docs/how-to/lab-network.md's openssl "
+                              "recipe does)",
     "NotValidForName": "its subjectAltName does not name the host the client connects to",
     "UnknownIssuer": "it is not signed by the CA in root_ca_certificate",
     "Expired": "it has expired",

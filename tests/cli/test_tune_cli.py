@@ -60,7 +60,7 @@ def test_pressure_loop_identified_and_saved_keeping_comments(rig: Path, tmp_path
     assert pid.pid.kp == pytest.approx(shipped["pid"]["kp"], rel=0.03)
     assert pid.pid.ki_per_s == pytest.approx(shipped["pid"]["ki_per_s"], rel=0.03)
     assert pid.rate_feedforward_s == pytest.approx(shipped["rate_feedforward_s"], rel=0.03)
-    # the figures README "Tuning the loops" reports
+    # the figures docs/how-to/tune.md reports
     assert (pid.pid.kp, pid.pid.ki_per_s, pid.rate_feedforward_s) == pytest.approx(
         (0.501, 40.8, 0.0252), rel=0.01)
 
@@ -81,7 +81,7 @@ def test_position_loop_agrees_with_the_bench_and_writes_nothing(rig: Path,
     ki = float(rows["control.position.pid.ki_bar_per_mm_s"][2])
     assert kp == pytest.approx(shipped["kp_bar_per_mm"], rel=0.02)  # 0.0661 vs 0.0656
     assert ki == pytest.approx(shipped["ki_bar_per_mm_s"], rel=0.02)  # 2.10 vs 2.08
-    assert "Model: gain -6.596" in r.stdout  # README's figure (-6.60 mm/bar)
+    assert "Model: gain -6.596" in r.stdout  # docs/how-to/tune.md's figure (-6.60 mm/bar)
 
 
 @pytest.mark.parametrize(("args", "reason"), [

@@ -87,7 +87,8 @@ def test_mackey_glass_with_the_library_defaults() -> None:
 @pytest.mark.slow
 @pytest.mark.timeout(1800)  # two Mackey-Glass fits of 500 epochs
 def test_mackey_glass_gap_is_a_forecast_gap() -> None:
-    """Why no training setting reaches 0.0025 (README, bench/anfis_jang.py --diagnose):
+    """Why no training setting reaches 0.0025 (docs/explanation/inverse-model.md,
+    bench/anfis_jang.py --diagnose):
     on the training series' last fifth in time (a forecast, as the check is) the
     held-out RMSE is lowest early (epoch 43, 0.00202) and rises to 0.00245 by epoch 500
     while the training RMSE keeps falling; on a random fifth (points between the data
