@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"    length rate limit: {rig.control.position.max_rate_per_s:g}/s "
                   "(control.position.max_rate_per_s)")
         for loop, judged, plant in loop_margins(rig, i):
-            print(f"    {loop} loop: {judged.text()}; plant {plant}")
+            print(f"    {loop} loop: {judged.margins.text()}{judged.note()}; plant {plant}")
         if m.actuation == "onoff":
             o = m.onoff
             print(f"    on/off valves: PWM {1e3 * o.pwm_period_s:g} ms, fill "

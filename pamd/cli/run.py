@@ -113,18 +113,21 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "telemetry.listen and a Zenoh config's listen endpoints; turns telemetry "
                    "on, with the virtual clock too); clients reach it with --connect")
     t.add_argument("--allow-cleartext", action="store_true", help="let the Zenoh session "
-                   "listen beyond loopback without TLS (e.g. --listen tcp/0.0.0.0:7447): "
-                   "refused otherwise, since state, status and commands then cross the "
-                   "network in clear; warned at start and in every status (as "
-                   "telemetry.allow_cleartext: true)")
+                   "listen on or connect to an endpoint beyond loopback without TLS (e.g. "
+                   "--listen tcp/0.0.0.0:7447, a Zenoh config connecting to "
+                   "tcp/<router>:7447) and the Foxglove view serve there without TLS "
+                   "(--foxglove 0.0.0.0:8765): refused otherwise, since state, status and "
+                   "commands then cross the network in clear; warned at start and in every "
+                   "status (as telemetry.allow_cleartext: true)")
     t.add_argument("--zenoh-config", metavar="FILE", help="Zenoh config (JSON5) of the "
                    "daemon's session (overrides telemetry.zenoh_config; default: listen on "
                    "telemetry.listen, tcp/127.0.0.1:7447)")
     t.add_argument("--foxglove", nargs="?", const="default", metavar="HOST:PORT",
                    type=_listen, help="serve a live view to Foxglove (WebSocket, in the io "
                    "process; a viewer, commands stay on Zenoh) on HOST:PORT (default: "
-                   "telemetry.foxglove.listen, 127.0.0.1:8765); layout: "
-                   "config/foxglove/pamd-layout.json")
+                   "telemetry.foxglove.listen, 127.0.0.1:8765); beyond loopback it needs "
+                   "telemetry.foxglove.tls_cert/tls_key (wss://) or --allow-cleartext; "
+                   "layout: config/foxglove/pamd-layout.json")
     g = p.add_argument_group("profile (on every muscle unless --muscle)")
     g.add_argument("--profile", choices=SHAPE_NAMES, help="start this reference profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")

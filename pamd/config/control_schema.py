@@ -198,8 +198,10 @@ class PositionConfig:
         "pressure loop closed, first order plus dead time as `pamd tune --loop position` "
         "fits it (`--save` writes it here). The position gains (`pid`, or `incremental` "
         "at its sample period) are judged against it: a closed loop that is unstable or "
-        "has too little margin is refused, naming its gain and phase margins "
-        "(docs/how-to/tune.md, 'Gains judged against stability'). "
+        "has too little margin is refused, naming its gain and phase margins, unless "
+        "only its integral makes it so (friction holds a muscle near its target, where "
+        "the integral acts, to a fraction of the fitted gain): then it loads with a "
+        "warning (docs/how-to/tune.md, 'Gains judged against stability'). "
         + _DEFAULT_PLANT_DOC + ": gain -6.6 mm/bar, lag 31.6 ms, dead time 36.2 ms.")
     max_rate_per_s: float | None = spec(
         None, "Fastest change of a length target, contraction (fraction) per second; "

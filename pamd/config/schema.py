@@ -489,7 +489,16 @@ class FoxgloveConfig:
                          "stay on Zenoh). `pamd run --foxglove [HOST:PORT]` turns it on for "
                          "one run.")
     listen: str = spec("127.0.0.1:8765", "HOST:PORT the Foxglove server listens on. If it "
-                       "is taken, `pamd run` says so and exits before anything moves.")
+                       "is taken, `pamd run` says so and exits before anything moves. Beyond "
+                       "loopback (0.0.0.0, a LAN address) it needs TLS (tls_cert, tls_key) "
+                       "or telemetry.allow_cleartext, as the Zenoh session does.")
+    tls_cert: str | None = spec(
+        None, "PEM certificate (chain) of the Foxglove server, relative to the config file: "
+        "with tls_key the server takes wss:// connections only (Foxglove must trust its "
+        "CA: the operating system's store). null: plain ws://.")
+    tls_key: str | None = spec(
+        None, "PEM PKCS#8 private key (BEGIN PRIVATE KEY) of tls_cert, relative to the "
+        "config file; an RSA or EC key converts with `openssl pkcs8 -topk8 -nocrypt`.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -515,11 +524,13 @@ class TelemetryConfig:
         "`pamd status` and `pamd cmd` (the local channel) nor the loop.", min=1,
         max=10000)
     allow_cleartext: bool = spec(
-        False, "Listen beyond loopback without TLS (`tcp/0.0.0.0:...`, a LAN address: "
-        "state, status and signed commands readable on the network). false: such an "
-        "endpoint (here or in zenoh_config) is refused before anything starts; true (or "
-        "`pamd run --allow-cleartext`): allowed, and warned at start and in every status. "
-        "On a lab network use TLS (config/zenoh/lab-daemon.json5 to a router).")
+        False, "Listen on or connect to an endpoint beyond loopback without TLS "
+        "(`tcp/0.0.0.0:...`, a LAN address or host name: state, status and signed commands "
+        "readable on the network), and serve the Foxglove view there without TLS. false: "
+        "such an endpoint (listen, zenoh_config's listen or connect, foxglove.listen) is "
+        "refused before anything starts; true (or `pamd run --allow-cleartext`): allowed, "
+        "and warned at start and in every status. On a lab network use TLS "
+        "(config/zenoh/lab-daemon.json5 to a router; foxglove.tls_cert).")
     rate_hz: float = spec(100.0, "State samples per second per muscle (one every "
                           "loop.rate_hz / rate_hz ticks; loop.rate_hz or more: every tick).",
                           unit="Hz", gt=0.0)

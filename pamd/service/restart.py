@@ -59,6 +59,7 @@ STANDING_OPTIONS: tuple[tuple[str, str, bool], ...] = (
     ("no_telemetry", "--no-telemetry", False),
     ("zenoh_config", "--zenoh-config", True),
     ("listen", "--listen", True),
+    ("allow_cleartext", "--allow-cleartext", False),
     ("foxglove", "--foxglove", True),
     ("model", "--model", True),
     ("stay_on_fault", "--stay-on-fault", False),

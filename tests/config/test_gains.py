@@ -130,6 +130,71 @@ def test_the_judgement_foretells_the_rigs_oscillation(
     assert (swing > 0.1 if oscillates else swing < 0.01), swing
 
 
+POSITION_PID = "control.position.pid"
+
+
+def _position_swing(h: Harness) -> float:
+    """The position loop (PID alone) at 10 % contraction, then a 4 mm step of the
+    target: the length's rms swing over the last second after it."""
+    h.keep = True
+    h.step(0.5)
+    assert h.cmd("mode", muscle="m1", mode="position", feedforward=False)["ok"]
+    assert h.cmd("profile", muscle="m1", kind="constant", to_contraction=0.1,
+                 duration_s=3)["ok"]
+    h.step(3.0)
+    assert h.cmd("profile", muscle="m1", kind="constant", to_contraction=0.12,
+                 duration_s=10)["ok"]
+    h.step(3.0)
+    return float(np.array([r["m1"]["length_mm"] for r in h.records[-1000:]]).std())
+
+
+@pytest.mark.parametrize("kp, ki, oscillates", [
+    (0.0656, 12.0, False),  # judged unstable on the fit by its integral: warned
+    (0.5, 2.08, True),  # its proportional part alone unstable: refused
+])
+def test_the_position_loops_integral_is_warned_where_friction_holds_the_muscle(
+        harness: Callable[..., Harness], kp: float, ki: float, oscillates: bool) -> None:
+    """The position plant is a fit of sliding 0.5 bar steps; near its target a muscle
+    held by friction moves a fraction of that per bar, where the integral acts
+    (pamd.config.gains). An integral judged unstable on the fit holds the length and
+    tracks a 4 mm step: it loads, warned, naming both verdicts; a proportional gain
+    unstable on its own limit-cycles on the rig and stays refused."""
+    gains = {"kp_bar_per_mm": kp, "ki_bar_per_mm_s": ki}
+    if oscillates:
+        (issue,) = issues(control={"position": {"pid": gains}})
+        assert issue.path == POSITION_PID and "UNSTABLE" in issue.found
+    else:
+        (warning,) = loads(control={"position": {"pid": gains}}).warnings
+        assert f"{POSITION_PID}: kp_bar_per_mm 0.0656, ki_bar_per_mm_s 12" in warning
+        assert "UNSTABLE: gain margin 0.458" in warning, warning
+        assert "by its integral: without it gain margin 4.74" in warning, warning
+        assert "friction" in warning and "limit cycle" in warning
+    h = harness(control={"position": {"pid": gains}}, safety={"relax_stability": True})
+    swing = _position_swing(h)
+    assert (swing > 0.1 if oscillates else swing < 0.02), swing
+
+
+def test_only_the_position_loop_and_only_its_integral_is_judged_so() -> None:
+    """The pressure loop's verdicts stand (no friction in the regulator's air); seed
+    003's Method 2 splits its Ki off like the PID; a position integral with a thin
+    proportional part is refused on that part."""
+    (issue,) = issues(control={"pid": {"ki_per_s": 150.0}})
+    assert issue.path == "control.pid" and "UNSTABLE" in issue.found
+    (issue,) = issues(control={"position": {"pid": {"kp_bar_per_mm": 0.25,
+                                                    "ki_bar_per_mm_s": 8.0}}})
+    assert issue.path == POSITION_PID  # kp 0.25 alone: gain margin under 1.5
+    m2 = {"feedback": "incremental", "incremental": {
+        "method": 2, "kp_bar_per_mm": 0.0656, "ki_bar_per_mm": 0.012, "kd_bar_per_mm": 0.0}}
+    (warning,) = loads(control={"position": m2}).warnings
+    assert "control.position.incremental" in warning and "by its integral" in warning
+    cfg = loads(control={"position": {"pid": {"ki_bar_per_mm_s": 12.0}}})
+    from pamd.config.gains import loop_margins
+
+    (_, pressure, _), (_, position, _) = loop_margins(cfg.rig, 0)
+    assert pressure.kind == "ok" and position.kind == "integral"
+    assert "warned, not refused: friction" in position.note()
+
+
 # -- refused, warned, accepted ------------------------------------------------------------
 
 
