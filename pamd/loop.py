@@ -204,10 +204,11 @@ class Loop:
             self._stop_reason = reason
 
     def request_handover(self, reason: str) -> None:
-        """Ask the loop to end at the next tick that finds the rig IDLE, without
-        ramping to the safe state: the outputs hold what they hold, for a daemon
-        that restarts in place (a reload that reopens the drivers). A stop
-        requested before or meanwhile wins (any thread)."""
+        """Ask the loop to end at the next tick that finds the rig at rest (IDLE, no
+        profile, a ramp to the safe state completed), without ramping to the safe
+        state: the outputs hold what they hold, for a daemon that restarts in place (a
+        reload that reopens the drivers). A stop requested before or meanwhile wins
+        (any thread)."""
         if self._handover_reason is None:
             self._handover_reason = reason
 
@@ -345,7 +346,7 @@ class Loop:
                 elif stop_when_done and saw_running and state == State.IDLE:
                     self.request_stop("profile finished")
             if (self._handover_reason is not None and self._stop_reason is None
-                    and state == State.IDLE):
+                    and state == State.IDLE and ctrl.at_rest()):  # not during a ramp
                 self.handed_over = True  # first: the main thread reads them in this order
                 self.stopped_reason = self._handover_reason
                 break

@@ -15,7 +15,9 @@ import argparse
 import importlib
 import logging
 import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, cast
@@ -148,6 +150,12 @@ def build_parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     return _build({command.module} if command else set())
 
 
+#: Exit status of a command that did its job (pamd.errors.EXIT_MEANINGS says what each
+#: status means; docs/exit-codes.md lists them).
+EXIT_OK = 0
+#: Exit status of a command interrupted by Ctrl-C outside a run (a run's own Ctrl-C
+#: stops it in its safe state: EXIT_OK), as a shell reports SIGINT: 128 + 2.
+EXIT_INTERRUPTED = 130
 #: Exit status of a verb whose reader went away (`pamd status | head`): 128 + SIGPIPE,
 #: what a Unix tool killed by the signal reports.
 EXIT_BROKEN_PIPE = 141
@@ -159,8 +167,19 @@ def _quiet_libraries(record: logging.LogRecord) -> bool:
     return record.name.startswith("pamd") or record.levelno >= logging.WARNING
 
 
+#: Sub-commands that reload their config on SIGHUP (a daemon): the signal is held
+#: from the first line of `main` until their handler is installed, so that one sent
+#: during the start (imports, config, drivers) is kept and said, not the default
+#: action's silent death (`pamd.cli.run._install_signals` takes it up).
+HOLD_SIGHUP = frozenset({"run"})
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     words = sys.argv[1:] if argv is None else list(argv)
+    command = chosen_command(words)
+    if (argv is None and command is not None and command.name in HOLD_SIGHUP
+            and threading.current_thread() is threading.main_thread()):
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
     parser = build_parser_for(words)
     args = parser.parse_args(words)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
@@ -170,9 +189,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             handler.addFilter(_quiet_libraries)
     if not getattr(args, "func", None):
         parser.print_help()
-        return 2
+        return 2  # as argparse exits for bad arguments (ConfigError's code)
     try:
-        code = int(args.func(args) or 0)
+        code = int(args.func(args) or EXIT_OK)
         sys.stdout.flush()  # a closed pipe shows here, not as a warning at exit
         return code
     except BrokenPipeError:
@@ -185,4 +204,4 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"pamd: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
-        return 130
+        return EXIT_INTERRUPTED

@@ -87,7 +87,7 @@ def measure_map(cfg: LoadedConfig, sweep: MapSweep, progress: Progress, ask: Ask
     except CommissionRefused as exc:
         out.refusals.append(str(exc))
     finally:
-        probe.phase = 0
+        probe.disarm()
         daemon.stop("map measured")
         daemon.wait()
         daemon.close()

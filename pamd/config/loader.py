@@ -17,12 +17,14 @@ from pamd.config.chain import check_safety_chain
 from pamd.config.clock import check_loop_clock
 from pamd.config.control_schema import ControlConfig
 from pamd.config.drivertype import BindsMuscleTypes, driver_type
+from pamd.config.gains import check_gains
 from pamd.config.muscle_types import Ratings, ratings_of, resolve
 from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.plausibility import check_plausibility_thresholds
 from pamd.config.request_timeouts import check_request_timeouts
 from pamd.config.safety_schema import SafetyConfig
-from pamd.config.schema import InputSignal, MuscleConfig, RigConfig, SignalConfig
+from pamd.config.schema import InputSignal, MuscleConfig, RigConfig, SignalConfig, muscle_control
+from pamd.config.timing import check_timing
 from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import DriverError
 from pamd.muscle_type import MuscleType
@@ -82,22 +84,7 @@ class LoadedConfig:
     def control_of(self, name: str) -> ControlConfig:
         """Muscle `name`'s control section: the rig's, with each gain its own
         `muscles[].control` names in place of the rig-wide one."""
-        rig, own = self.rig.control, self.muscle(name).control
-        pid = _overridden(rig.pid, own.pid)
-        ppid = _overridden(rig.position.pid, own.position.pid)
-        rff = rig.rate_feedforward_s if own.rate_feedforward_s is None else \
-            own.rate_feedforward_s
-        if pid is rig.pid and ppid is rig.position.pid and rff == rig.rate_feedforward_s:
-            return rig
-        return dataclasses.replace(rig, pid=pid, rate_feedforward_s=rff,
-                                   position=dataclasses.replace(rig.position, pid=ppid))
-
-
-def _overridden(base: JsonValue, over: JsonValue) -> JsonValue:
-    """`base` (a gains dataclass) with the fields `over` sets (not None) in place."""
-    changes = {f.name: getattr(over, f.name) for f in dataclasses.fields(over)
-               if getattr(over, f.name) is not None}
-    return dataclasses.replace(base, **changes) if changes else base
+        return muscle_control(self.rig.control, self.muscle(name).control)
 
 
 def builtin_config_path(name: str = "sim.yaml") -> str:
@@ -122,10 +109,7 @@ def load_config_text(text: str, path: str, overrides: JsonObject | None = None) 
         ctx.add(line_of(raw) or 1, "", "a mapping with drivers and muscles", found)
         ctx.raise_if_any()
     if overrides:
-        for section, values in overrides.items():
-            node = raw.setdefault(section, {})
-            if isinstance(node, dict):
-                node.update(values)
+        _override(raw, overrides, ctx)
     rig = build_dataclass(RigConfig, raw, ctx, "", 1)
     ctx.raise_if_any()
     assert rig is not None  # a problem building it is in ctx (raised above)
@@ -142,6 +126,9 @@ def load_config_text(text: str, path: str, overrides: JsonObject | None = None) 
     check_sim_stalls(rig, drivers_node, ctx)
     check_safety_chain(rig, raw.get("safety_chain"), ctx)
     check_loop_clock(rig, raw, ctx)
+    check_timing(rig, raw, ctx)
+    ctx.raise_if_any()
+    warnings += check_gains(rig, raw, ctx)  # the loops on their plants, once all is valid
     ctx.raise_if_any()
     cal_path = None if not rig.calibration_file else os.path.join(
         os.path.dirname(os.path.abspath(path)), os.path.expanduser(rig.calibration_file))
@@ -187,6 +174,25 @@ def input_signals(rig: RigConfig, raw: JsonValue) -> list[InputSignal]:
             found.append(InputSignal(f"safety_chain.{name}", f"safety_chain.{name}", sig,
                                      cnode.get(name) or {}))
     return found
+
+
+def _override(raw: dict[str, JsonValue], overrides: JsonObject, ctx: Context) -> None:
+    """A section's keys replaced (`{"loop": {"clock": "virtual"}}`); a list of named
+    items (`muscles`) by name (`{"muscles": {"m1": {"load_kg": 45.0}}}`: `pamd run
+    --load-kg m1=45`), an unknown name refused."""
+    for section, values in overrides.items():
+        node = raw.setdefault(section, {})
+        if isinstance(node, dict):
+            node.update(values)
+        elif isinstance(node, list) and isinstance(values, dict):
+            items = {item.get("name"): item for item in node if isinstance(item, dict)}
+            for name, changes in values.items():
+                if name in items:
+                    items[name].update(changes)
+                else:
+                    known = ", ".join(str(n) for n in items)
+                    ctx.add(line_of(node), f"{section}[name={name}]",
+                            f"one of the config's {section} ({known})", repr(name))
 
 
 def _check_safety_bounds(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[str, ...]:

@@ -6,8 +6,9 @@ generated from them by `python -m pamd.config.docs`).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Literal, NamedTuple, get_args
+from typing import Any, Literal, NamedTuple, TypeVar, get_args
 
 from pamd.config.control_schema import (
     PID_KD_MAX_S,
@@ -17,11 +18,19 @@ from pamd.config.control_schema import (
     POSITION_KI_MAX_BAR_PER_MM_S,
     POSITION_KP_MAX_BAR_PER_MM,
     ControlConfig,
+    PositionPlantConfig,
+    PressurePlantConfig,
 )
 from pamd.config.safety_schema import SafetyConfig
 from pamd.declare.jsonsafe import JsonValue
 from pamd.muscle_type import DEFAULT_TYPE, TYPE_NAMES
 from pamd.schema.engine import spec
+
+#: The largest model file any reader reads (`pamd.models.registry`, the `model` command's
+#: named files): the largest kind, an offline svr, stays far below it.
+MODEL_FILE_MAX_BYTES = 8 << 20
+#: The largest plan file a remote `collect` may name (`pamd.commands.named_files`).
+PLAN_FILE_MAX_BYTES = 1 << 20
 
 #: How air reaches a muscle (`muscles[].actuation`): a proportional pressure regulator,
 #: or an inflate and an exhaust on/off valve.
@@ -79,10 +88,10 @@ class LoopConfig:
         unit="s", gt=0.0, ceiling=1.0, max=10.0)
     stall_fault_s: float | None = spec(
         None, "A stall longer than this latches FAULT. null: derived from the actuation "
-        "(README, Safety): a proportional regulator holds its pressure, so the I/O "
-        "module's comm watchdog time (`comm_safety.timeout_s` of the valve's driver), or "
-        "0.5 s without one; on/off valves do not hold, so the time an open valve takes to "
-        "move the pressure by `safety.tracking_band_bar` (at the larger of "
+        "(docs/explanation/safety-checks.md): a proportional regulator holds its pressure, "
+        "so the I/O module's comm watchdog time (`comm_safety.timeout_s` of the valve's "
+        "driver), or 0.5 s without one; on/off valves do not hold, so the time an open "
+        "valve takes to move the pressure by `safety.tracking_band_bar` (at the larger of "
         "`onoff.fill_rate_bar_per_s` and `vent_rate_bar_per_s`; 108 ms by default), or "
         "their module's watchdog time if shorter. The shortest muscle's wins.",
         unit="s", gt=0.0, ceiling=1.0, max=10.0)
@@ -269,16 +278,47 @@ class MusclePositionPidConfig:
 class MusclePositionConfig:
     pid: MusclePositionPidConfig = spec(MusclePositionPidConfig(), "This muscle's position "
                                         "loop gains.")
+    plant: PositionPlantConfig | None = spec(None, "This muscle's "
+                                             "`control.position.plant` (null: the rig's).")
 
 
 @dataclass(frozen=True, kw_only=True)
 class MuscleControlConfig:
     pid: MusclePidConfig = spec(MusclePidConfig(), "This muscle's pressure loop gains.")
+    plant: PressurePlantConfig | None = spec(None, "This muscle's `control.plant` (null: "
+                                             "the rig's).")
     rate_feedforward_s: float | None = spec(None, "This muscle's "
                                             "`control.rate_feedforward_s` (null: the rig's).",
                                             unit="s", min=0.0, max=1.0)
     position: MusclePositionConfig = spec(MusclePositionConfig(), "This muscle's position "
                                           "loop.")
+
+
+def muscle_control(rig: ControlConfig, own: MuscleControlConfig) -> ControlConfig:
+    """A muscle's control section: the rig's, with each key its own `muscles[].control`
+    names (not null) in place of the rig-wide one."""
+    pid = _overridden(rig.pid, own.pid)
+    ppid = _overridden(rig.position.pid, own.position.pid)
+    rff = rig.rate_feedforward_s if own.rate_feedforward_s is None else \
+        own.rate_feedforward_s
+    plant = rig.plant if own.plant is None else own.plant
+    pplant = rig.position.plant if own.position.plant is None else own.position.plant
+    if pid is rig.pid and ppid is rig.position.pid and rff == rig.rate_feedforward_s and \
+            plant is rig.plant and pplant is rig.position.plant:
+        return rig
+    return dataclasses.replace(rig, pid=pid, rate_feedforward_s=rff, plant=plant,
+                               position=dataclasses.replace(rig.position, pid=ppid,
+                                                            plant=pplant))
+
+
+_G = TypeVar("_G")
+
+
+def _overridden(base: _G, over: object) -> _G:
+    """`base` (a gains dataclass) with the fields `over` sets (not None) in place."""
+    changes = {f.name: getattr(over, f.name) for f in dataclasses.fields(over)  # type: ignore[arg-type]
+               if getattr(over, f.name) is not None}
+    return dataclasses.replace(base, **changes) if changes else base  # type: ignore[type-var]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -318,9 +358,30 @@ class MuscleConfig:
     custom: CustomMuscleConfig | None = spec(
         None, "`type: custom` only (and then required): the measured map and the ratings "
         "of the muscle. Nothing about a custom muscle is assumed.")
-    nominal_length_mm: float = spec(200.0, "Unloaded, unpressurised length.", unit="mm",
-                                    gt=0.0)
-    load_kg: float = spec(0.0, "Hanging load; sets the safe pressure.", unit="kg", min=0.0)
+    nominal_length_mm: float = spec(
+        200.0, "Unloaded, unpressurised length (10 mm to 10 m).", unit="mm", min=10.0,
+        why="a braided muscle is several of its diameters long, Festo's shortest DMSP tens "
+        "of mm: below 10 mm it is a slip of units (metres written for mm), and the limits "
+        "and tolerances given as fractions of it would mean nothing")
+    load_kg: float = spec(0.0, "Hanging load; sets the safe pressure. Checked before "
+                          "anything moves: at rest a dead weight pulls m g on the load "
+                          "cell, so at start-up, after a plan's load change and after a "
+                          "reload that changes it the force must read it within "
+                          "load_cell_accuracy_n plus what friction can hold "
+                          "(safety.plausibility.frozen_force_change_n); otherwise `pamd "
+                          "run` with an end refuses the run (exit 2, naming both loads) "
+                          "and an open-ended one (the service) takes its safe state for "
+                          "the larger of the two loads and faults, saying so. `pamd run "
+                          "--load-kg` sets it for one run.", unit="kg", min=0.0)
+    dead_weight: bool = spec(
+        True, "The load hangs freely from the muscle, so its load cell reads m g of "
+        "load_kg at rest (the load check above). false: the muscle pulls against "
+        "something else (a spring, an antagonist, a load resting on a stop), its force "
+        "at rest says nothing of load_kg, and the check does not apply.")
+    load_cell_accuracy_n: float = spec(
+        10.0, "The load cell's stated accuracy (its datasheet's combined error over its "
+        "range, plus its amplifier's): part of the load check's tolerance.", unit="N",
+        min=0.0, max=1000.0)
     force_model: Literal["map", "fit"] = spec(
         "map", "Static force model of the safe pressure, the plausibility checks and the "
         "plans' checks: the type's map, or its smooth fit where the type has one (dmsp20 "
@@ -428,7 +489,16 @@ class FoxgloveConfig:
                          "stay on Zenoh). `pamd run --foxglove [HOST:PORT]` turns it on for "
                          "one run.")
     listen: str = spec("127.0.0.1:8765", "HOST:PORT the Foxglove server listens on. If it "
-                       "is taken, `pamd run` says so and exits before anything moves.")
+                       "is taken, `pamd run` says so and exits before anything moves. Beyond "
+                       "loopback (0.0.0.0, a LAN address) it needs TLS (tls_cert, tls_key) "
+                       "or telemetry.allow_cleartext, as the Zenoh session does.")
+    tls_cert: str | None = spec(
+        None, "PEM certificate (chain) of the Foxglove server, relative to the config file: "
+        "with tls_key the server takes wss:// connections only (Foxglove must trust its "
+        "CA: the operating system's store). null: plain ws://.")
+    tls_key: str | None = spec(
+        None, "PEM PKCS#8 private key (BEGIN PRIVATE KEY) of tls_cert, relative to the "
+        "config file; an RSA or EC key converts with `openssl pkcs8 -topk8 -nocrypt`.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -454,11 +524,13 @@ class TelemetryConfig:
         "`pamd status` and `pamd cmd` (the local channel) nor the loop.", min=1,
         max=10000)
     allow_cleartext: bool = spec(
-        False, "Listen beyond loopback without TLS (`tcp/0.0.0.0:...`, a LAN address: "
-        "state, status and signed commands readable on the network). false: such an "
-        "endpoint (here or in zenoh_config) is refused before anything starts; true (or "
-        "`pamd run --allow-cleartext`): allowed, and warned at start and in every status. "
-        "On a lab network use TLS (config/zenoh/lab-daemon.json5 to a router).")
+        False, "Listen on or connect to an endpoint beyond loopback without TLS "
+        "(`tcp/0.0.0.0:...`, a LAN address or host name: state, status and signed commands "
+        "readable on the network), and serve the Foxglove view there without TLS. false: "
+        "such an endpoint (listen, zenoh_config's listen or connect, foxglove.listen) is "
+        "refused before anything starts; true (or `pamd run --allow-cleartext`): allowed, "
+        "and warned at start and in every status. On a lab network use TLS "
+        "(config/zenoh/lab-daemon.json5 to a router; foxglove.tls_cert).")
     rate_hz: float = spec(100.0, "State samples per second per muscle (one every "
                           "loop.rate_hz / rate_hz ticks; loop.rate_hz or more: every tick).",
                           unit="Hz", gt=0.0)
@@ -483,11 +555,13 @@ class TelemetryConfig:
     plans_dir: str | None = spec(
         None, "Directory (relative to the config file) whose plan files a remote `collect` "
         "may name, by file name only (`pamd cmd collect --plan-file sweep.yaml`); at most "
-        "1 MiB and 64 levels of nesting each. null: remote collects are refused.")
+        f"{PLAN_FILE_MAX_BYTES >> 20} MiB and 64 levels of nesting each. null: remote "
+        "collects are refused.")
     models_dir: str | None = spec(
         None, "Directory (relative to the config file) whose model files a remote `model` "
-        "command may name, by file name only; at most 16 MiB and 64 levels of nesting "
-        "each. null: remote model swaps are refused.")
+        f"command may name, by file name only; at most {MODEL_FILE_MAX_BYTES >> 20} MiB "
+        "(every reader of model files applies it) and 64 levels of nesting each. null: "
+        "remote model swaps are refused.")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -74,6 +74,7 @@ from pamd.rig import MuscleSignals
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.safety.limiter import Limiter
 from pamd.safety.limits import F_AT_LIMIT, Guards, LimitMonitor
+from pamd.safety.load_check import LoadDisagreement, check_load
 from pamd.safety.plausibility import Plausibility
 from pamd.tick import (
     M_ADAPT_DRIFT,
@@ -364,8 +365,10 @@ class MuscleController:
         return True
 
     def enter_mode(self, mode: Mode, use_ff: bool, ilc: bool) -> None:
-        """A length mode, bumpless (`LengthControl.enter`); any profile ends."""
+        """A length mode, bumpless (`LengthControl.enter`); any profile ends, and a
+        completed ramp to the safe pressure hands over to it, as a setpoint would."""
         self._profile = None
+        self._safe_ramp = False
         inp = self.inputs
         self.length_control.enter(mode, use_ff, ilc, from_pressure=self._mode == Mode.PRESSURE,
                                   length_mm=inp.length_mm, force_n=inp.force_n,
@@ -415,6 +418,16 @@ class MuscleController:
     def missing_input(self, now: float) -> str | None:
         """None when every input has a fresh reading; else which one is missing."""
         return self.inputs.missing(now)
+
+    def load_disagreement(self) -> LoadDisagreement | None:
+        """The force at rest against the declared load's weight
+        (`pamd.safety.load_check`): None where they agree or the muscle declares no
+        dead weight; rare path (start-up, a load change, a reload)."""
+        env = self._envelope
+        if not env.dead_weight:
+            return None
+        return check_load(self.name, self.inputs.measured_force_n(), self._load_kg,
+                          env.load_tolerance_n)
 
     def hold_measured(self, safe_ramp: bool = False) -> None:
         """Start-up / reset: take the measured pressure as the setpoint, bumpless; with

@@ -8,6 +8,8 @@ muscle's limits, and handed here as rows.
 
 from __future__ import annotations
 
+import hashlib
+import struct
 from collections.abc import Sequence
 
 from pamd.muscle_type.definition import MuscleType
@@ -26,4 +28,14 @@ def custom_type(points: Sequence[MapPoint], map_file: str, *, max_pressure_bar: 
         max_pretension=max_pretension, max_load_kg=max_load_kg,
         theoretical_force_n=theoretical_force_n, inner_diameter_mm=inner_diameter_mm,
         force_map=ForceMap([(q.pressure_bar, q.contraction, q.force_n) for q in points]),
-        source=f"the lab's map {map_file} and the config's ratings", map_file=map_file)
+        source=f"the lab's map {map_file} and the config's ratings", map_file=map_file,
+        map_sha256=map_digest(points))
+
+
+def map_digest(points: Sequence[MapPoint]) -> str:
+    """The SHA-256 of a map's rows as read (each pressure, contraction and force as a
+    float64): the same table gives the same digest, any changed value another."""
+    h = hashlib.sha256()
+    for q in points:
+        h.update(struct.pack("<3d", q.pressure_bar, q.contraction, q.force_n))
+    return h.hexdigest()

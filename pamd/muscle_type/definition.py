@@ -42,6 +42,9 @@ class MuscleType:
     source: str = ""
     #: a custom type's measured table (absolute path), None for a datasheet type
     map_file: str | None = None
+    #: a custom type's map as read (its rows, units converted), hashed: what a reload
+    #: compares, since the table may change on disk while the config's text does not
+    map_sha256: str | None = None
 
     def force_model(self, kind: str = "map") -> ForceModel:
         """The force model `kind` ('map' or 'fit') of this type; ValueError when the

@@ -144,13 +144,20 @@ def host_of(endpoint: str) -> tuple[str, str, str]:
     return proto, host.strip("[]"), port
 
 
+def is_loopback_host(host: str) -> bool:
+    """Whether `host` (an address or name, IPv6 with or without brackets) is this
+    machine's loopback (127.0.0.0/8, ::1, localhost); "" (no host), 0.0.0.0 and :: are
+    every interface, a LAN address or another name another machine (pamd.net.cleartext
+    judges every link by it)."""
+    host = host.strip("[]").lower()
+    return host == "localhost" or host == "::1" or host.startswith("127.")
+
+
 def is_loopback(endpoint: str) -> bool:
     """Whether an endpoint's host is this machine's loopback (127.0.0.0/8, ::1,
     localhost); 0.0.0.0 and [::] are every interface, not loopback."""
     proto, host, _ = host_of(endpoint)
-    if proto in LOCAL_ONLY:
-        return True
-    return host == "localhost" or host == "::1" or host.startswith("127.")
+    return proto in LOCAL_ONLY or is_loopback_host(host)
 
 
 def same_endpoint(listen: str, connect: str) -> bool:
@@ -161,12 +168,21 @@ def same_endpoint(listen: str, connect: str) -> bool:
     return lp == cp and lport == cport and (lh in ("0.0.0.0", "::", "") or is_loopback(listen))
 
 
-def cleartext_beyond_loopback(cfg: ZenohConfig) -> list[str]:
-    """The listen endpoints reachable from other machines without TLS (plain tcp, udp,
-    ws on 0.0.0.0 or a LAN address): what travels there, commands included, can be read
-    on the way (their signatures cannot be replayed, but state and status can be read)."""
-    return [e for e in endpoints(cfg, "listen")
+def cleartext_beyond_loopback(cfg: ZenohConfig, which: str = "listen") -> list[str]:
+    """The `which` ("listen" or "connect") endpoints whose far end can be another
+    machine, without TLS (plain tcp, udp, ws on 0.0.0.0, a LAN address or a host name):
+    what travels there, commands included, can be read on the way (pamd.net.cleartext)."""
+    return [e for e in endpoints(cfg, which)
             if not is_loopback(e) and host_of(e)[0] not in ENCRYPTED]
+
+
+def endpoint_line(path: str, endpoint: str) -> int | None:
+    """The line of a Zenoh config file that names `endpoint` (None if none does)."""
+    with contextlib.suppress(OSError, UnicodeDecodeError), open(path, encoding="utf-8") as fh:
+        for i, line in enumerate(fh, 1):
+            if endpoint in line:
+                return i
+    return None
 
 
 def _connect_for(listen: str) -> str:
@@ -251,7 +267,8 @@ def _tls_why(cfg: ZenohConfig) -> str | None:
 #: rustls' certificate errors (as Zenoh's messages name them) in an operator's words
 RUSTLS_REASONS = {
     "UnsupportedCertVersion": "it is an X.509 v1 certificate; Zenoh accepts only v3 (make "
-                              "it with `-extfile`, as the README's openssl recipe does)",
+                              "it with `-extfile`, as docs/how-to/lab-network.md's openssl "
+                              "recipe does)",
     "NotValidForName": "its subjectAltName does not name the host the client connects to",
     "UnknownIssuer": "it is not signed by the CA in root_ca_certificate",
     "Expired": "it has expired",

@@ -23,6 +23,7 @@ from pamd.declare.jsonsafe import JsonObject
 from pamd.muscle_type import ForceModel, MuscleType
 from pamd.safety import safe_pressure_bar
 from pamd.safety.length_rate import LengthRate, derive_length_rate
+from pamd.safety.load_check import load_tolerance_n
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,6 +59,10 @@ class MuscleEnvelope:
     # reference checks (`pamd.safety.datums`)
     home_tolerance: float
     tare_tolerance_n: float
+    # the declared load's check (`pamd.safety.load_check`)
+    dead_weight: bool  # `muscles[].dead_weight`: the load hangs freely, checked at rest
+    load_cell_accuracy_n: float
+    load_friction_n: float  # safety.plausibility.frozen_force_change_n
 
     @classmethod
     def build(cls, muscle: MuscleConfig, mtype: MuscleType, limits: MuscleLimitsResolved,
@@ -75,7 +80,8 @@ class MuscleEnvelope:
             origin = f"control.position.max_rate_per_s: null, {derived.explain()}"
         return cls(name=muscle.name, muscle_type=muscle.type, rating=mtype,
                    nominal_length_mm=muscle.nominal_length_mm,
-                   force_model=model,
+                   force_model=model, dead_weight=muscle.dead_weight,
+                   load_cell_accuracy_n=muscle.load_cell_accuracy_n,
                    max_length_rate_per_s=max_length_rate_per_s, length_rate_origin=origin,
                    **_settings(limits, safety, slew_limit_bar_per_s))
 
@@ -102,6 +108,12 @@ class MuscleEnvelope:
         ctl, m = cfg.control_of(name), cfg.muscle(name)
         return _derive(m, cfg.muscle_type(name), cfg.limits[name], cfg.rig.safety,
                        ctl.slew_limit_bar_per_s, ctl.rate_feedforward_s)
+
+    @property
+    def load_tolerance_n(self) -> float:
+        """How far the force at rest may stand from the declared load's weight
+        (`pamd.safety.load_check.load_tolerance_n`)."""
+        return load_tolerance_n(self.load_cell_accuracy_n, self.load_friction_n)
 
     def contraction(self, length_mm: float) -> float:
         """(nominal - length) / nominal."""
@@ -162,4 +174,5 @@ def _settings(limits: MuscleLimitsResolved, safety: SafetyConfig,
         estop_slew_bar_per_s=safety.estop_slew_bar_per_s, estop_action=safety.estop_action,
         stretch_margin=safety.stretch_margin,
         safe_pressure_margin_bar=safety.safe_pressure_margin_bar,
-        home_tolerance=safety.home_tolerance, tare_tolerance_n=safety.tare_tolerance_n)
+        home_tolerance=safety.home_tolerance, tare_tolerance_n=safety.tare_tolerance_n,
+        load_friction_n=safety.plausibility.frozen_force_change_n)

@@ -1,7 +1,7 @@
 """`pamd emulate` and `pamd run` on config/rig-nidaq-emulated.yaml in their own processes,
-as the README says: the emulator's NI gRPC Device Server is ready with its endpoint and
-its closing line counts the card's calls; a port another program holds is said in one
-line; (slow) the README's 15 s run, paced by the card's sample clock, tracks the sine
+as docs/explanation/loop.md says: the emulator's NI gRPC Device Server is ready with its
+endpoint and its closing line counts the card's calls; a port another program holds is said in one
+line; (slow) the docs' 15 s run, paced by the card's sample clock, tracks the sine
 and ends without a fault, and `pamd commission` passes through the DAQ path. The
 in-process daemon on the card's clock, in the default run: test_nidaq_daemon.py; the
 figures: bench/nidaq_rates.py."""
@@ -24,7 +24,7 @@ from pamd.emulate.testing import (
     write_config,
 )
 
-RUN_S = 15.0  # the README's
+RUN_S = 15.0  # docs/explanation/loop.md's
 #: a run that tracks: ~0.006 bar RMSE on a quiet machine over 15 s (docs/nidaq.md); a
 #: steady 1 s lag alone on the 0.05 Hz sine is 0.67 bar
 TRACKED_RMSE_BAR = 0.5

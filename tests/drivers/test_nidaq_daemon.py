@@ -4,7 +4,7 @@ the next sample and runs at its edge; sample clocks that go by unticked (the car
 late report, or a loop too late to take them) are overruns, said in a notice; a device
 removed mid-run is a named fault, the OS clock stands in so the rig reaches its safe
 state, and once the device is back and reset, the card paces the loop again. Across
-processes (`pamd emulate` and `pamd run` as the README says): tests/cli; the tracking
+processes (`pamd emulate` and `pamd run` as docs/explanation/loop.md says): tests/cli; the tracking
 figure: bench/nidaq_rates.py."""
 
 from __future__ import annotations

@@ -13,9 +13,9 @@ kind per second, the next with the count of those between (a flood cannot grow t
 recording).
 
 Salvage. An `estop` or `stop` always acts: whatever its size, JSON or extra fields, the
-verb is honoured first and the rest is cut and said so (`salvage`). The README has
-promised it since the first round; a 100,000-character reason through `pamd.connect`
-was refused as too large and the rig did not stop.
+verb is honoured first and the rest is cut and said so (`salvage`). The docs have
+promised it since the first round (docs/how-to/remote.md, "Limits"); a 100,000-character
+reason through `pamd.connect` was refused as too large and the rig did not stop.
 
 What is kept: the verb's declared fields of the right type (text cut to
 MAX_TEXT_CHARS, saying how much); what is dropped (extra fields, mistyped ones, an

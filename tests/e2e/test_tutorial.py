@@ -1,11 +1,14 @@
-"""The README's walk-through, exactly as written, and the figures it states (`-m slow`:
-about three minutes of wall clock on a busy 2-core machine).
+"""The tutorial (docs/tutorial.md), exactly as written, and the figures it states
+(`-m slow`: about three minutes of wall clock on a busy 2-core machine); and, in every
+run, that its commands are what a reader needs: they parse, they write under runs/,
+and the page installs the plot extra its --plot needs before any of them.
 
-The commands are read from the README's walk-through block, not copied here, and run
-in a fresh directory (the repository's `config/` linked in) on the virtual clock, where
-every figure is deterministic. Each figure the walk-through's table states must be
-what its command printed, to the digits the table shows. `pamd run` gets
-`--no-telemetry` (no Zenoh session on the machine's default port; it changes no figure).
+The commands are read from the page's sh blocks (tests/tutorial.py), not copied here,
+and run in a fresh directory (the repository's `config/` linked in) on the virtual
+clock, where every figure is deterministic. Each figure the page states must be what
+its command printed, to the digits the page shows. `pamd run` gets `--no-telemetry`
+(no Zenoh session on the machine's default port; it changes no figure). The default
+run's shortened copy: tests/e2e/test_walkthrough.py.
 """
 
 from __future__ import annotations
@@ -19,24 +22,11 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-README = REPO / "README.md"
-SECTION = "### Walk-through: from a collection to a model in the loop"
+from pamd.cli.main import build_parser
+from tests.tutorial import REPO, commands, page, sh_blocks
 
-
-def section() -> str:
-    text = README.read_text(encoding="utf-8")
-    start = text.index(SECTION)
-    end = text.index("\n## ", start)
-    return text[start:end]
-
-
-def commands(text: str) -> list[list[str]]:
-    """The `pamd ...` lines of the section's first sh block, continuations joined."""
-    block = text.split("```sh\n", 1)[1].split("```", 1)[0]
-    joined = block.replace("\\\n", " ")
-    return [shlex.split(line.split(" #", 1)[0]) for line in joined.splitlines()
-            if line.startswith("pamd ")]
+#: the verbs of the tutorial's steps, in order
+VERBS = ["collect", "collect", "train", "run", "run", "evaluate", "run", "run", "evaluate"]
 
 
 def run(cmd: list[str], cwd: Path) -> str:
@@ -60,35 +50,39 @@ def figure(pattern: str, out: str) -> str:
 MAX_ERROR = r"length tracking RMSE \S+ mm, MAE \S+ mm, max error (\S+ mm)"
 
 
-def test_the_walkthrough_writes_under_runs_and_installs_what_it_plots() -> None:
-    """Every file the walk-through names for output is under runs/ (git ignores it; issue
-    40: model.json and figs/ landed in the clone's root), and the block installs the
-    plot extra its --plot needs before any command."""
-    text = section()
-    cmds = commands(text)
+def test_the_tutorials_commands_parse_and_write_under_runs() -> None:
+    """Every command of the page parses as `pamd` parses it; every file it names for
+    output is under runs/ (git ignores it; issue 40: model.json and figs/ landed in the
+    clone's root); the page installs the plot extra its --plot needs before any
+    command; the plans it collects are shipped."""
+    cmds = commands()
+    assert [c[1] for c in cmds] == VERBS
+    parser = build_parser()
+    for c in cmds:
+        assert callable(parser.parse_args(c[1:]).func), c
     outputs = [c[i + 1] for c in cmds for i, w in enumerate(c[:-1])
                if w in ("--out", "--record", "--plot")]
     assert len(outputs) == 6, outputs
     assert all(o.startswith("runs/") for o in outputs), outputs
-    block = text.split("```sh\n", 1)[1]
-    assert block.startswith("pip install '.[plot]'"), block[:80]
+    assert sh_blocks()[0].startswith("pip install '.[plot]'"), sh_blocks()[0][:80]
     assert any("--plot" in c for c in cmds)
+    for c in cmds:
+        if c[1] == "collect":
+            assert (REPO / c[2]).is_file(), c
 
 
 @pytest.mark.slow
 @pytest.mark.timeout(1800)
-def test_the_readme_walkthrough_gives_the_readme_figures(tmp_path: Path) -> None:
-    text = section()
-    cmds = commands(text)
-    verbs = [c[1] for c in cmds]
-    assert verbs == ["collect", "collect", "train", "run", "run", "evaluate", "run", "run",
-                     "evaluate"], verbs
+def test_the_tutorial_gives_the_figures_it_states(tmp_path: Path) -> None:
+    text = page()
+    cmds = commands()
+    assert [c[1] for c in cmds] == VERBS
     (tmp_path / "config").symlink_to(REPO / "config")
     outs = [run(c, tmp_path) for c in cmds]
     collect1, collect2, train, track, pid, evaluate, other, other_pid, evaluate2 = outs
     got = {
-        "collect steps": figure(r"done; (\d+) step\(s\) finished", collect1) + " + "
-        + figure(r"done; (\d+) step\(s\) finished", collect2),
+        "collect steps": figure(r"(done; \d+ step\(s\) finished)", collect1) + "` and `"
+        + figure(r"(done; \d+ step\(s\) finished)", collect2),
         "train validation RMSE": figure(r"\n  RMSE\s+\S+\s+(\S+)", train),
         "train validation fit": figure(r"NRMSE fit %\s+\S+\s+(\S+)", train),
         "track RMSE": figure(r"length tracking RMSE (\S+ mm)", track),
@@ -108,8 +102,8 @@ def test_the_readme_walkthrough_gives_the_readme_figures(tmp_path: Path) -> None
     }
     print(got)
     missing = {k: v for k, v in got.items() if v not in text}
-    assert not missing, f"figures the README does not state: {missing}"
+    assert not missing, f"figures the tutorial does not state: {missing}"
     for part in ("prediction", "error", "membership", "surface"):
         assert (tmp_path / "runs" / "figs" / f"track_{part}.png").stat().st_size > 5000
-    # everything the walk-through writes is under runs/ (the clone's .gitignore has it)
+    # everything the tutorial writes is under runs/ (the clone's .gitignore has it)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["config", "runs"]
