@@ -198,9 +198,7 @@ class SimDriver(Driver):
         clock = self._clock
         if clock is not None:
             now_s = clock()
-            last_s, self._read_s = self._read_s, now_s
-            if last_s is not None and abs(now_s - last_s - dt_s) > CLOCK_AGREES_S:
-                dt_s = now_s - last_s if now_s > last_s else 0.0
+            dt_s = self._clock_step(now_s, dt_s)
         else:
             now_s = math.nan
         wd = self._watchdog_s
@@ -219,14 +217,25 @@ class SimDriver(Driver):
             chain.watch(now_s if clock is not None else self._t_s)
         if self._schedule.pending:
             # the schedule runs on the loop's clock (this tick's time), else on the steps
-            elapsed = now_s - self._t_open + 1e-9 if clock is not None else self._t_s
-            while (f := self._schedule.due(elapsed)) is not None:
-                if f.kind == "stall":  # the readings keep this step's time: the
-                    self.stall_process(f.duration_s or 0.0)  # plant catches up next step
-                else:
-                    self.inject_fault(f.muscle, f.signal, f.kind, f.size)
+            self._scheduled(now_s - self._t_open + 1e-9 if clock is not None else self._t_s)
         if clock is not None:
             self._publish(now_s)
+
+    def _clock_step(self, now_s: float, dt_s: float) -> float:
+        """The step to take at the clock's `now_s`: `dt_s` while the clock agrees with
+        it, else the clock's own time since the last advance (`advance`)."""
+        last_s, self._read_s = self._read_s, now_s
+        if last_s is not None and abs(now_s - last_s - dt_s) > CLOCK_AGREES_S:
+            return now_s - last_s if now_s > last_s else 0.0
+        return dt_s
+
+    def _scheduled(self, elapsed: float) -> None:
+        """The scheduled faults due by `elapsed`, injected."""
+        while (f := self._schedule.due(elapsed)) is not None:
+            if f.kind == "stall":  # the readings keep this step's time: the
+                self.stall_process(f.duration_s or 0.0)  # plant catches up next step
+            else:
+                self.inject_fault(f.muscle, f.signal, f.kind, f.size)
 
     def _step_plants(self, dt_s: float) -> None:
         for plant in self._plants:

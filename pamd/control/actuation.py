@@ -324,13 +324,18 @@ class OnOffActuation:
                 self._p_ref = p
         self._open_s += dt_s
         if self._open_s >= VALVE_OPEN_S and self._fault is None:
-            valve = "inflate" if state == INFLATE else "exhaust"
-            way = "rising" if state == INFLATE else "falling"
-            self._fault = (f"{self.name}: the pressure does not follow the {valve} valve: "
-                           f"open {self._open_s:.1f} s without {way} ({p:.2f} bar; stuck "
-                           "valve, no supply or a blocked line?)")
-            self._open_s = 0.0
-            self._p_ref = p
+            self._not_acting(state, p)
+
+    def _not_acting(self, state: int, p: float) -> None:
+        """The valve open in `state` has not moved the pressure (fault path): said, and
+        the watch starts again."""
+        valve = "inflate" if state == INFLATE else "exhaust"
+        way = "rising" if state == INFLATE else "falling"
+        self._fault = (f"{self.name}: the pressure does not follow the {valve} valve: "
+                       f"open {self._open_s:.1f} s without {way} ({p:.2f} bar; stuck "
+                       "valve, no supply or a blocked line?)")
+        self._open_s = 0.0
+        self._p_ref = p
 
     def _choose(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
                 vent: bool) -> int:

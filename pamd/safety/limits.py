@@ -184,20 +184,7 @@ class Guards:
             self.lo, self.hi = -math.inf, math.inf
             self.c_recover = self.s_recover = False
             return 0
-        if self.c_guard:
-            if x < self.c_release:
-                self.c_guard = False
-                self.c_recover = True
-        elif x >= self.soft_c:
-            self.c_guard = True
-            self.c_recover = False
-        if self.s_guard:
-            if x > self.s_release:
-                self.s_guard = False
-                self.s_recover = True
-        elif x <= -self.max_stretch:
-            self.s_guard = True
-            self.s_recover = False
+        self._engage(x)
         lo, hi = -math.inf, math.inf  # no guard: 0 bar is the limiter's, not a guard
         if self.c_guard:
             # restoring: never up; beyond the limit, down at the slew limit
@@ -218,6 +205,23 @@ class Guards:
             return F_PRETENSION
         self.c_recover = self.s_recover = False  # inside the bounds: recovery is over
         return 0
+
+    def _engage(self, x: float) -> None:
+        """Each guard engaged at its soft limit, released (to recover) past its band."""
+        if self.c_guard:
+            if x < self.c_release:
+                self.c_guard = False
+                self.c_recover = True
+        elif x >= self.soft_c:
+            self.c_guard = True
+            self.c_recover = False
+        if self.s_guard:
+            if x > self.s_release:
+                self.s_guard = False
+                self.s_recover = True
+        elif x <= -self.max_stretch:
+            self.s_guard = True
+            self.s_recover = False
 
     # -- a reference held back --------------------------------------------------------
     def held_at_limit(self, now: float, flags: int, moving: bool, setpoint_bar: float,
