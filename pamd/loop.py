@@ -42,6 +42,10 @@ COMMAND_BUDGET_FRACTION = 0.3  # of the period: commands after the first wait pa
 SAFE_STATE_DEADLINE_S = 30.0
 GC_EVERY_TICKS = 200
 GIL_SWITCH_FRACTION = 0.1
+#: Another thread's housekeeping starts this far into a period (`Loop.until_slack`):
+#: after the tick (woken ~30 us late, ~100 us of compute here, its p99 ~250 us), in
+#: the slack before the next wake-up.
+SLACK_AT_FRACTION = 0.3
 #: loop.clock daq: a sample this many periods past its due time, and half the stall
 #: timeout, is missing (the OS clock stands in): a sample's reads may take most of a
 #: period on a busy host, and a gap the stall check calls normal is no device gone
@@ -141,6 +145,7 @@ class Loop:
         self.handed_over = False  # ended at an IDLE tick, outputs held (restart in place)
         self.running = False
         self.last_tick_done = math.nan  # monotonic time of the last completed tick
+        self.next_deadline = math.nan  # the clock's time of the next tick (`until_slack`)
         self._idle: Callable[[], bool] | None = None  # see `stand_still_while`
         self._woken = threading.Condition()
         # one run's state (`_run`): when it ends, when its stop began, the last overrun
@@ -203,6 +208,25 @@ class Loop:
         with self._woken:
             while self._stop_reason is None and idle():
                 self._woken.wait(0.05)
+
+    def until_slack(self) -> None:
+        """Sleep (another thread: the daemon's main thread, before each share of its
+        housekeeping) until SLACK_AT_FRACTION of a period past the loop's next deadline,
+        where that tick is done: what the caller does next then holds the interpreter
+        lock in the loop's slack, not at its wake-up. The loop's thread, woken, must
+        take the lock back from whichever thread holds it, which lets go only at its
+        next switch interval (a tenth of a period), or after a C call that holds it
+        (a status snapshot's JSON encoding): the main thread's 0.3-0.4 ms of status,
+        persistence and watchdog every 50 ms, at random phase, met 0.6-0.8 % of the
+        wake-ups, the 99th percentile's tail (bench/loop_latency_vs_cyclictest.py).
+        Returns at once on the virtual clock (no wake-ups) or while the loop is not
+        running; never sleeps longer than two periods."""
+        if self.virtual or not self.running:
+            return
+        period = self.period_s
+        wait = self.next_deadline + SLACK_AT_FRACTION * period - time.monotonic()
+        if wait > 0.0:
+            time.sleep(wait if wait < 2.0 * period else 2.0 * period)
 
     def request_stop(self, reason: str) -> None:
         """Ask the loop to reach the safe state and return (any thread)."""
@@ -281,6 +305,7 @@ class Loop:
         if self.pacer is not None:
             self.pacer.attach()
         next_t, dt = start, period
+        self.next_deadline = start
         while True:
             next_t, dt, wake, t_wake = wait(next_t, dt)
             # commands (held until the sensors are read), then the tick
@@ -292,6 +317,7 @@ class Loop:
             dt = period
             if not relaxed:
                 next_t, dt = self._late(next_t)
+            self.next_deadline = next_t
             if timing.ticks % GC_EVERY_TICKS == 0 and (
                     self.virtual or next_t - mono() > 0.5 * period):
                 gc.collect(0)
