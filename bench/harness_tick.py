@@ -9,8 +9,8 @@ process), and the harness tick as a ratio to the plant alone measured in the sam
 to compare two trees on one machine, or with `--against TREE` (a checkout or `git
 archive` of the baseline: `git archive main | tar -x -C /tmp/base`), which alternates
 `--pairs` runs of that tree and this one, each in its own process, and prints the
-median of each and their ratio (this tree / the baseline): on a shared machine the
-load then falls on both alike."""
+median of each and the median of each pair's ratio (this tree / the baseline): on a
+shared machine the load then falls on both runs of a pair alike."""
 
 from __future__ import annotations
 
@@ -115,8 +115,10 @@ def against(base: str, pairs: int, rounds: int, ticks: int) -> None:
                        ("plant", "plant")):
         b = statistics.median(r[key] for r in runs["base"])
         t = statistics.median(r[key] for r in runs["this"])
-        print(f"{label}: baseline {b:.1f} us, this tree {t:.1f} us, ratio {t / b:.3f} "
-              f"(median of {pairs} alternating runs)")
+        ratio = statistics.median(x[key] / y[key]
+                                  for x, y in zip(runs["this"], runs["base"], strict=True))
+        print(f"{label}: baseline {b:.1f} us, this tree {t:.1f} us; ratio {ratio:.3f} "
+              f"(this / baseline, the median of {pairs} pairs' ratios)")
 
 
 def main() -> None:

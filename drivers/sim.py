@@ -198,7 +198,9 @@ class SimDriver(Driver):
         clock = self._clock
         if clock is not None:
             now_s = clock()
-            dt_s = self._clock_step(now_s, dt_s)
+            last_s, self._read_s = self._read_s, now_s
+            if last_s is not None and abs(now_s - last_s - dt_s) > CLOCK_AGREES_S:
+                dt_s = now_s - last_s if now_s > last_s else 0.0
         else:
             now_s = math.nan
         wd = self._watchdog_s
@@ -220,14 +222,6 @@ class SimDriver(Driver):
             self._scheduled(now_s - self._t_open + 1e-9 if clock is not None else self._t_s)
         if clock is not None:
             self._publish(now_s)
-
-    def _clock_step(self, now_s: float, dt_s: float) -> float:
-        """The step to take at the clock's `now_s`: `dt_s` while the clock agrees with
-        it, else the clock's own time since the last advance (`advance`)."""
-        last_s, self._read_s = self._read_s, now_s
-        if last_s is not None and abs(now_s - last_s - dt_s) > CLOCK_AGREES_S:
-            return now_s - last_s if now_s > last_s else 0.0
-        return dt_s
 
     def _scheduled(self, elapsed: float) -> None:
         """The scheduled faults due by `elapsed`, injected."""

@@ -173,11 +173,13 @@ class RigController:
         self.now = now
         state = self._read_rig(now, dt)
         muscles = self.muscles
+        found = False
         for m in muscles:
-            m.read(now, dt, state)
+            if m.read(now, dt, state):
+                found = True
         for m in muscles:
             m.update(now, dt)
-        entering = self._decide(now, state)
+        entering = found and self._decide(now, state)
         rec = self.record
         fault = None
         for m in muscles:
@@ -217,9 +219,10 @@ class RigController:
         return int(sup.state)
 
     def _decide(self, now: float, state: int) -> bool:
-        """The rig's safe state, decided once on what every muscle's read found: each
-        finding said, the first fault latched. Returns whether any muscle found a
-        fault this tick: then every muscle's write is the safe state's entry."""
+        """The rig's safe state, decided once on what every muscle's read found (called
+        when one found something): each finding said, the first fault latched. Returns
+        whether any muscle found a fault this tick: then every muscle's write is the
+        safe state's entry."""
         fault = None
         for m in self.muscles:
             t = m.tick_values

@@ -160,7 +160,10 @@ class Inputs:
             flags = F_STALE
             fault = self.stale_reason(aged)
         if lt != self._prev_length_t:  # a new sample: its rate over the samples' stamps
-            self._new_length(length, lt)
+            self.velocity_mm_s = velocity_step(self.velocity_mm_s, self._prev_length_mm,
+                                               length, lt - self._prev_length_t,
+                                               VELOCITY_WINDOW_S)
+            self._prev_length_mm, self._prev_length_t = length, lt
         l0 = self.nominal_length_mm
         self.pressure_bar = t.pressure_bar = p
         self.force_n = t.force_n = f
@@ -182,13 +185,6 @@ class Inputs:
         self.length_ok = t.length_ok = l_fresh and plaus.length_ok and referenced
         t.flags = flags
         t.fault = fault
-
-    def _new_length(self, length_mm: float, stamp_s: float) -> None:
-        """A new length sample: the velocity over the samples' own stamps."""
-        self.velocity_mm_s = velocity_step(self.velocity_mm_s, self._prev_length_mm,
-                                           length_mm, stamp_s - self._prev_length_t,
-                                           VELOCITY_WINDOW_S)
-        self._prev_length_mm, self._prev_length_t = length_mm, stamp_s
 
     def stale_reason(self, now: float) -> str:
         for sig, t, i, to in ((self.pressure_signal, self._pt, self._pi, self._pto),

@@ -621,9 +621,10 @@ class MuscleController:
         self._chosen_for = state
 
     # -- the tick: read, update, write (`pamd.controller.RigController.tick`) -----------
-    def read(self, now: float, dt: float, state: int) -> None:
+    def read(self, now: float, dt: float, state: int) -> bool:
         """Read this tick's inputs and judge them (the hard limits, whether the pressure
-        follows the command written last): what they find is `tick_values.fault`."""
+        follows the command written last): what they find is `tick_values.fault` and
+        `tick_values.finding`. Returns whether they found either."""
         t = self.tick_values
         t.state = state
         t.last_command_bar = self._valve_cmd_bar
@@ -632,6 +633,7 @@ class MuscleController:
         hold = air.hold_bar
         t.air_cut = air.out or (hold == hold and (state == S_FAULT or state == S_ESTOP))
         self.limit_monitor.update(t, now, dt)
+        return t.fault is not None or t.finding is not None
 
     def update(self, now: float, dt: float) -> None:
         """This tick's setpoint (its source, chosen again when the state changed) and

@@ -166,25 +166,18 @@ class Guards:
         self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
 
     def update(self, t: MuscleTick, now: float, dt: float) -> None:
-        """The write's bounds on the command (`t.lo_bar`, `t.hi_bar`) from a trusted
-        contraction, around the command written last and `t.step_bar` (the slew limit
-        times the period); the flag of a guard that holds what control wants back."""
-        t.flags |= self.bound(t.length_ok, t.contraction, t.last_command_bar, t.command_bar,
-                              t.step_bar)
-        t.lo_bar, t.hi_bar = self.lo, self.hi
-
-    # -- guards -------------------------------------------------------------------
-    def bound(self, length_ok: bool, x: float, prev_cmd: float, wanted: float,
-              step: float) -> int:
-        """This tick's bounds on the command (`lo`, `hi`) from a trusted contraction `x`
-        (an untrusted length bounds nothing); `prev_cmd` is the last command, `wanted`
-        what control wants now, `step` the slew limit times the period. Returns the flag
-        of a guard that holds `wanted` back, or 0."""
-        if not length_ok:
-            self.lo, self.hi = -math.inf, math.inf
+        """The write's bounds on the command (`t.lo_bar`, `t.hi_bar`, also `lo`, `hi`)
+        from a trusted contraction (an untrusted length bounds nothing), around the
+        command written last (`t.last_command_bar`) and `t.step_bar` (the slew limit
+        times the period); the flag of a guard that holds what control wants
+        (`t.command_bar`) back."""
+        if not t.length_ok:
+            self.lo, self.hi = t.lo_bar, t.hi_bar = -math.inf, math.inf
             self.c_recover = self.s_recover = False
-            return 0
+            return
+        x = t.contraction
         self._engage(x)
+        prev_cmd, step = t.last_command_bar, t.step_bar
         lo, hi = -math.inf, math.inf  # no guard: 0 bar is the limiter's, not a guard
         if self.c_guard:
             # restoring: never up; beyond the limit, down at the slew limit
@@ -198,13 +191,14 @@ class Guards:
                 lo = prev_cmd + step if x <= -self.max_stretch else prev_cmd
         elif self.s_recover and not self.c_guard:
             lo = prev_cmd - step
-        self.lo, self.hi = lo, hi
+        self.lo, self.hi = t.lo_bar, t.hi_bar = lo, hi
+        wanted = t.command_bar
         if wanted > hi:
-            return F_SOFT_C
-        if wanted < lo:
-            return F_PRETENSION
-        self.c_recover = self.s_recover = False  # inside the bounds: recovery is over
-        return 0
+            t.flags |= F_SOFT_C
+        elif wanted < lo:
+            t.flags |= F_PRETENSION
+        else:
+            self.c_recover = self.s_recover = False  # inside the bounds: recovery is over
 
     def _engage(self, x: float) -> None:
         """Each guard engaged at its soft limit, released (to recover) past its band."""

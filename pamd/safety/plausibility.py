@@ -267,11 +267,6 @@ class Plausibility:
                         f"({self.max_rate:g} mm/s)")
             v = self._v_lp
             self._v_lp = v + _alpha(dt) * ((length - prev) / dt - v)
-        return self._frozen_length(t, length, x, p, f, referenced)
-
-    def _frozen_length(self, t: float, length: float, x: float, p: float, f: float,
-                       referenced: bool) -> str | None:
-        """`_check_length`'s last: the length frozen while the pressure moves."""
         # Frozen: the length does not move while the pressure moves, and the force does
         # not change as it would if the muscle really stood still (an isometric clamp
         # keeps the length, but then the force follows the pressure). At a stop the
@@ -283,6 +278,12 @@ class Plausibility:
             self._anchor_l, self._anchor_t = length, t
             self._anchor_p = self._anchor_f = math.nan
             return None
+        return self._frozen_length(t, length, x, p, f)
+
+    def _frozen_length(self, t: float, length: float, x: float, p: float, f: float
+                       ) -> str | None:
+        """`_check_length`'s last, while the length stands: frozen if the pressure moved
+        and the force did not follow as it would at a fixed length."""
         if not self._anchored(p, f):
             return None
         if not (self.pressure_ok and self.force_ok):
@@ -338,6 +339,15 @@ class Plausibility:
                 return self._force_zero(t, f, w)
         else:
             self._zero_since = math.inf
+        judged = self.pressure_ok and self.length_ok and p == p and length == length
+        if f != self._f_last:
+            self._f_last = f
+            self._f_since = t
+            self._f_map0 = self._force_map(p, length) if judged else math.nan
+            self._f_v0 = self._v_lp
+            return None
+        if not judged:
+            return None
         return self._frozen_force(t, f, p, length, load_known)
 
     def _force_zero(self, t: float, f: float, w: float) -> str:
@@ -351,17 +361,11 @@ class Plausibility:
 
     def _frozen_force(self, t: float, f: float, p: float, length: float,
                       load_known: bool) -> str | None:
-        """`_check_force`'s last: the force frozen while the force map or the load's
-        acceleration says it moved."""
-        judged = self.pressure_ok and self.length_ok and p == p and length == length
-        if f != self._f_last:
-            self._f_last = f
-            self._f_since = t
-            self._f_map0 = self._force_map(p, length) if judged else math.nan
-            self._f_v0 = self._v_lp
-            return None
+        """`_check_force`'s last, while the force reads the same (`judged`: the pressure
+        and length trusted): frozen if the force map or the load's acceleration says it
+        moved."""
         span = t - self._f_since
-        if span < self.frozen_s - 1e-9 or not judged:
+        if span < self.frozen_s - 1e-9:
             return None
         m0 = self._f_map0
         if m0 != m0:  # the span began untrusted: start it now
