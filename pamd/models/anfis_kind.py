@@ -14,7 +14,7 @@ from pamd.models.anfis import modelfile
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.plots import write_plots
 from pamd.models.anfis.samples import OUTPUT_UNITS
-from pamd.models.anfis.training import TrainingOptions, fit
+from pamd.models.anfis.training import RULE_RIDGE, TrainingOptions, fit
 from pamd.models.contract import InverseModel
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
 
@@ -61,6 +61,12 @@ class AnfisOptions(KindOptions):
         "linear", "rule consequents: linear f = p.x + q (first-order Sugeno, seed 000's) or "
         "constant f = q (zero-order, R parameters instead of R (d + 1))",
         choices=CONSEQUENTS)
+    rule_ridge: float = option(
+        RULE_RIDGE, "ridge on each rule's consequents, relative to the rule's firing mass, "
+        "toward the one linear model of all the data: a slope is fitted along an input "
+        "only where it spreads in the rule's data by more than about the square root of "
+        "this (scaled units), so the narrow force band of a hanging load cannot blow the "
+        "consequents up; 0: plain least squares (seed 000's, MATLAB's)", minimum=0.0)
 
     def check(self, inputs: Sequence[str]) -> None:
         mfs_for(self.mfs, len(inputs))
@@ -73,6 +79,7 @@ def fit_anfis(job: FitJob[AnfisOptions]) -> Fitted:
     result = fit(X, y, TrainingOptions(n_mfs=mfs_for(o.mfs, len(job.inputs)),
                                        mf_type=o.mf_type, epochs=o.epochs,
                                        initial_step=o.step, consequent=o.consequent,
+                                       rule_ridge=o.rule_ridge,
                                        seed=job.seed),
                  input_names=list(job.inputs), input_units=job.input_units,
                  output_name=s.output, output_unit=s.output_unit,
