@@ -19,11 +19,12 @@ from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
 from pamd.models.anfis.splitting import split
 from pamd.models.compare import predict_samples
+from pamd.models.domain import derive
 from pamd.models.kind import Kind, KindOptions, OptionSpec
 from pamd.models.registry import KINDS, declared, save_model
 from pamd.models.training import fit_with, rows_of
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
-from pamd.view.judging import coverage, poor_fit
+from pamd.view.judging import poor_fit
 from pamd.view.tables import load_samples
 
 #: Option parsers argparse applies itself; any other runs after parsing (its ModelError
@@ -199,8 +200,9 @@ def run(args: argparse.Namespace) -> int:
                                                  if val is not None else "")
             bar.set_postfix_str(post, refresh=False)
 
+    # where the data lay: the training domain the tick judges the model by
     prov: JsonObject = {"data": samples.provenance(), "split": parts.how,
-                        "coverage": coverage(tr.X, inputs)}  # where the data lay
+                        "domain": derive(tr.X, tr.y, inputs, args.target).to_json()}
     try:
         fitted = fit_with(kind.name, samples, parts, options, seed=args.seed,
                           derived_inputs=derived_inputs(inputs, args.velocity_window_s),
@@ -209,6 +211,9 @@ def run(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.close()
     model = fitted.model
+    training = model.provenance.get("training")
+    for warning in (training.get("warnings") or []) if isinstance(training, dict) else []:
+        print(f"pamd train: WARNING: {warning}", file=sys.stderr)
     rows: dict[str, dict[str, float]] = {
         k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
     if te is not None:
