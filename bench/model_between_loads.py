@@ -42,7 +42,7 @@ import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from _common import REPO, sim_config  # noqa: E402
+from _common import REPO, controller_compute_us, percentile, sim_config  # noqa: E402
 
 from pamd.cli.main import main as pamd_main  # noqa: E402
 from pamd.control.feedforward import LoadedModel  # noqa: E402
@@ -56,8 +56,9 @@ VALIDATION_LOADS_KG = (30.0, 50.0, 65.0)  # --select: each held out in turn
 TEST_LOADS_KG = (22.0, 40.0, 57.0, 72.0)  # the report: between the training loads
 FREQ_HZ = 0.05
 CYCLES = 3
-#: the old default `pamd train` (before issue 39)
-OLD = ("--mfs", "5", "--rule-ridge", "0", "--velocity-window-s", "3")
+#: the old default `pamd train` (before issue 39): 2 inputs, 5 x 5, plain least squares
+OLD = ("--inputs", "force_n,length_mm", "--mfs", "5", "--rule-ridge", "0",
+       "--velocity-window-s", "3")
 I2 = ("--inputs", "force_n,length_mm")
 I3 = ("--inputs", "force_n,length_mm,velocity_mm_s")
 #: --select's candidates: label -> pamd train flags
@@ -76,6 +77,11 @@ CANDIDATES: dict[str, tuple[str, ...]] = {
                                  "--velocity-window-s", "1"),
     "3 in 1x3x3 ridge 1e-4 w6": (*I3, "--mfs", "1,3,3", "--rule-ridge", "1e-4",
                                  "--velocity-window-s", "6"),
+    "3 in 3x3x3 ridge 1e-4 w1": (*I3, "--mfs", "3", "--rule-ridge", "1e-4",
+                                 "--velocity-window-s", "1"),
+    "3 in 3x3x3 ridge 1e-4 w2": (*I3, "--mfs", "3", "--rule-ridge", "1e-4",
+                                 "--velocity-window-s", "2"),
+    "3 in 3x3x3 ridge 1e-3 w3": (*I3, "--mfs", "3", "--rule-ridge", "1e-3"),
 }
 
 
@@ -143,6 +149,28 @@ def track(model: Path | None, load_kg: float) -> dict[str, float]:
             "off": ff.get("off_data_pct") or 0.0, "faded": ff.get("faded_pct") or 0.0}
 
 
+def tick_cost(model: Path, passes: int = 3, seconds: float = 8.0) -> None:
+    """The controller's compute per tick in position mode with `model`, the off-data
+    watch judging (fade) and not (off), alternated in the same run: best p50 and p99."""
+    best: dict[str, list[float]] = {"off": [math.inf, math.inf], "fade": [math.inf, math.inf]}
+    for _ in range(passes):
+        for policy in ("off", "fade"):
+            cfg = sim_config("virtual", load_kg=40.0,
+                             control={"feedforward": {"off_data": policy}})
+            models = {"m1": LoadedModel.read(str(model), cfg.muscle("m1"), cfg.limits["m1"])}
+            lo, hi = stroke(40.0)
+            us = controller_compute_us(cfg, [
+                ("mode", {"muscle": "m1", "mode": "position"}),
+                ("profile", {"muscle": "m1", "kind": "sine", "min_contraction": lo,
+                             "max_contraction": hi, "freq_hz": FREQ_HZ})], seconds, models)
+            b = best[policy]
+            b[0], b[1] = min(b[0], percentile(us, 50)), min(b[1], percentile(us, 99))
+    print(f"\ncompute per tick, position mode with the default model (best of {passes}, "
+          f"shared machine): off_data off p50 {best['off'][0]:.1f} us p99 "
+          f"{best['off'][1]:.1f} us; fade p50 {best['fade'][0]:.1f} us p99 "
+          f"{best['fade'][1]:.1f} us; ratio p50 {best['fade'][0] / best['off'][0]:.2f}")
+
+
 def line(label: str, r: dict[str, float], pid: float) -> str:
     return (f"  {label:<34} {r['rmse']:.3f} mm ({100 * (1 - r['rmse'] / pid):+.0f} % vs PID"
             f"), off data {r['off']:.1f} %, faded {r['faded']:.1f} %")
@@ -169,10 +197,12 @@ def report(dirs: dict[str, Path], work: Path, loads: tuple[float, ...]) -> None:
             ratios.append(r_new["rmse"] / pid)
         print(f" default against the PID alone, mean over {len(loads)} loads: "
               f"{100 * (1 - sum(ratios) / len(ratios)):+.0f} %")
+    tick_cost(work / "new_sweep+half.json")
 
 
-def select(dirs: dict[str, Path], work: Path, only: list[str]) -> None:
-    for data in (("sweep",), ("sweep", "half")):
+def select(dirs: dict[str, Path], work: Path, only: list[str],
+           datas: tuple[tuple[str, ...], ...]) -> None:
+    for data in datas:
         tag = "+".join(data)
         pid = {h: track(None, h)["rmse"] for h in VALIDATION_LOADS_KG}
         print(f"\n{tag}: PID alone " + ", ".join(f"{h:g} kg {v:.3f} mm"
@@ -184,7 +214,7 @@ def select(dirs: dict[str, Path], work: Path, only: list[str]) -> None:
             rs = []
             for h in VALIDATION_LOADS_KG:
                 files = [f for d in data for f in step_files(dirs[d], drop_kg=h)]
-                model = train(files, flags, work / f"sel_{tag}_{h:g}.json")
+                model = train(files, flags, work / f"sel_{tag}_{h:g}_{os.getpid()}.json")
                 rs.append(track(model, h))
             ratio = sum(r["rmse"] / pid[h] for r, h in zip(rs, VALIDATION_LOADS_KG,
                                                           strict=True)) / len(rs)
@@ -199,14 +229,18 @@ def main() -> None:
                     help="score the candidates on held-out training loads (all, or these)")
     ap.add_argument("--keep", metavar="DIR", help="keep (and reuse) collections and models")
     ap.add_argument("--loads", help="report at these loads (kg, comma-separated)")
+    ap.add_argument("--data", choices=("sweep", "both", "all"), default="all",
+                    help="the seeds' sweep alone, with the half ranges, or each (default)")
     args = ap.parse_args()
     work = Path(args.keep or tempfile.mkdtemp(prefix="pamd-between-"))
     work.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     dirs = collect(work)
     print(f"collections in {work} ({time.perf_counter() - t0:.0f} s)")
+    datas = {"sweep": (("sweep",),), "both": (("sweep", "half"),),
+             "all": (("sweep",), ("sweep", "half"))}[args.data]
     if args.select is not None:
-        select(dirs, work, args.select)
+        select(dirs, work, args.select, datas)
         return
     loads = TEST_LOADS_KG if not args.loads else tuple(float(v) for v in
                                                        args.loads.split(","))

@@ -130,8 +130,8 @@ class Domain:
             "version": VERSION, "rule": RULE, "derived": self.derived, "axis": self.axis,
             "columns": list(self.columns), "margins": list(self.margins),
             "axis_margin": self.axis_margin,
-            "bands": [{"axis": [b.axis_lo, b.axis_hi], "lo": list(b.lo), "hi": list(b.hi)}
-                      for b in self.bands]}
+            "bands": [{"axis": [b.axis_lo, b.axis_hi] if self.axis is not None else None,
+                       "lo": list(b.lo), "hi": list(b.hi)} for b in self.bands]}
 
     def describe(self) -> str:
         """One line for the operator: the bands (as forces and loads) and the bounds."""
@@ -281,7 +281,8 @@ def from_json(doc: object, inputs: Sequence[str], output: str) -> Domain:
     bands: list[Band] = []
     for i, b in enumerate(raw):
         try:
-            a_lo, a_hi = (float(v) for v in b["axis"])
+            a_lo, a_hi = ((-math.inf, math.inf) if axis is None and b["axis"] is None
+                          else (float(v) for v in b["axis"]))
             lo = tuple(float(v) for v in b["lo"])
             hi = tuple(float(v) for v in b["hi"])
         except (KeyError, TypeError, ValueError):

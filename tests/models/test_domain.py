@@ -146,3 +146,18 @@ def test_an_older_file_has_one_derived_from_what_it_holds(tmp_path: Path) -> Non
     d = domain_of(load_model(path))
     assert d.derived.startswith("input ranges") and len(d.bands) == 1
     assert DomainTable(d).outside(70 * 9.81, 190.0, math.nan, 3.0) == 1
+
+
+def test_without_a_force_input_one_band_round_trips() -> None:
+    """A forward force model (pressure, contraction -> force): no force axis, one band,
+    written and read back as the file holds it (JSON: no infinities)."""
+    rng = np.random.default_rng(5)
+    X = np.c_[rng.uniform(0, 6, 200), rng.uniform(0.0, 0.2, 200)]
+    names = ["pressure_bar", "contraction"]
+    d = derive(X, 100.0 * X[:, 0], names, "force_n")
+    doc = json.loads(json.dumps(d.to_json(), allow_nan=False))
+    back = from_json(doc, names, "force_n")
+    assert back == d and back.axis is None and len(back.bands) == 1
+    t = DomainTable(back)
+    assert t.outside(math.nan, 3.0, 0.1, 300.0) == 0
+    assert t.outside(math.nan, 7.0, 0.1, 300.0) == 2  # a pressure beyond the data's
