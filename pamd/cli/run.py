@@ -187,15 +187,14 @@ def _models(cfg: LoadedConfig, args: argparse.Namespace
     attach to a recording."""
     models = load_models(cfg)
     names = [m.name for m in cfg.rig.muscles if args.muscle in (None, m.name)]
-    if args.model is None:
-        chosen = [models[n] for n in names if n in models]
-        for note in sorted({n for m in chosen for n in m.notes()}):
-            log.warning("pamd run: %s", note)
-        return models, chosen[0].path if chosen else None
-    loaded = {n: LoadedModel.read(args.model, cfg.muscle(n), cfg.limits[n]) for n in names}
-    for note in sorted({n for m in (*models.values(), *loaded.values()) for n in m.notes()}):
+    if args.model is not None:
+        models |= {n: LoadedModel.read(args.model, cfg.muscle(n), cfg.limits[n])
+                   for n in names}
+    chosen = [models[n] for n in names if n in models]
+    for note in sorted({n for m in chosen for n in m.notes()}):  # an older file's lack
         log.warning("pamd run: %s", note)
-    return {**models, **loaded}, args.model
+    return models, args.model if args.model is not None else (
+        chosen[0].path if chosen else None)
 
 
 def _length_profile(args: argparse.Namespace, cfg: LoadedConfig) -> JsonObject:

@@ -67,8 +67,8 @@ def test_train_with_fewer_samples_than_parameters_warns_and_writes(
     table = tmp_path / "few.csv"
     table.write_text("\n".join(rows) + "\n")
     out = tmp_path / "m.json"
-    r = pamd_here("train", table, "--out", out, "--mfs", "5", "--val-split", "0",
-                  "--epochs", "2", "--quiet")
+    r = pamd_here("train", table, "--out", out, "--inputs", "force_n,length_mm", "--mfs", "5",
+                  "--val-split", "0", "--epochs", "2", "--quiet")
     assert r.returncode == 0, r.stderr
     assert "WARNING: 60 samples for a model with 95 parameters" in r.stderr
     assert json.loads(out.read_text())["provenance"]["training"]["warnings"]
