@@ -3,9 +3,11 @@ read and checked for one muscle (`LoadedModel`), then compiled and wired to the 
 signals (`Feedforward`).
 
 Inputs outside the model's training ranges are clipped to them, never extrapolated,
-and so is its output; the tick then sets `Flag.FF_CLIPPED`. The checks a model file
-must pass are `pamd.control.model_check`; the length modes that use the model are
-`pamd.control.length_control`.
+and so is its output; the tick then sets `Flag.FF_CLIPPED`. Each call also judges the
+inputs and the output against the model's training domain (`off_mask`, a table
+lookup: `pamd.models.domain`), which `pamd.control.off_data` counts and fades by. The
+checks a model file must pass are `pamd.control.model_check`; the length modes that use
+the model are `pamd.control.length_control`.
 
 `Feedforward.pressure` is on the tick path: plain float arithmetic on attributes
 prepared outside the loop. Model files are read and compiled outside the loop's

@@ -300,7 +300,7 @@ class LengthControl:
                 v_h = v_t + (rate_m * vs - v_t) * h / (tv.window_s + h)
                 ff_rate = (ff_obj.pressure(f_in, ln_h, (l0 - ln_h) / l0, v_h) - ff) / h
             wd = self.watch  # off its data, faded, oscillating (pamd.control.off_data)
-            flags |= wd.tick(now, dt, off, state == S_RUNNING, ff, (f_in, ln_m, x_m, v_t),
+            flags |= wd.tick(now, dt, off, state == S_RUNNING, ff, f_in, ln_m, x_m, v_t,
                              ln_t, self.pid if self.position else None, self.inc)
             w = wd.weight
             if w != 1.0:

@@ -6,9 +6,9 @@ Off the data (`control.feedforward.off_data`, `pamd.models.domain`): every tick 
 feedforward's inputs and output are judged against the model's training domain
 (`Feedforward.off_mask`, a table lookup). With ``fade`` the feedforward's weight moves
 toward 0 while they are outside and back toward 1 once inside, at 1 / `fade_s` per
-second; `pamd.control.length_control` moves what the weight takes from the
-feedforward into the position PID's integral (and back), so the setpoint never jumps
-(bumpless both ways). ``warn`` counts and says, ``off`` does not judge.
+second, and what the weight takes from the feedforward goes into the position PID's
+integral (and back), so the setpoint never jumps (bumpless both ways). ``warn`` counts
+and says, ``off`` does not judge.
 
 Oscillation (`OscillationWatch`): a quasi-static inverse model follows the target's
 motion and the load, so its feedforward turns round where the target does (twice a
@@ -22,11 +22,12 @@ whose consequents blew up between its training loads has a slope tens of times
 steeper, and the loop rings. The criterion: within `WINDOW_S` the feedforward turns
 round by at least `REVERSAL_BAR` at least `EXTRA_REVERSALS` more times than the
 target length turns round by `TARGET_REVERSAL_MM` (three periods of an oscillation the
-motion does not ask for). Said once per mode entry as a `feedforward` event; the
-record's flag FF_OSCILLATING marks its ticks.
+motion does not ask for). Said once an episode as a `feedforward` event; the record's
+flag FF_OSCILLATING marks its ticks.
 
-All on the tick path: float arithmetic on preallocated slots, nothing allocated; the
-event's payload is built off the tick (`report`), from the floats kept here.
+All on the tick path (`OffData.tick`, called by `pamd.control.length_control`): float
+arithmetic on preallocated slots; the event's payload is built off the tick
+(`pamd.control.rig_report.feedforward_events`), from the floats kept here.
 """
 
 from __future__ import annotations
@@ -190,17 +191,17 @@ class OffData:
         self.oscillation.reset()
 
     def tick(self, now: float, dt: float, mask: int, counted: bool, ff: float,
-             inputs: tuple[float, float, float, float], target_mm: float,
+             f: float, ln: float, x: float, v: float, target_mm: float,
              pid: Pid | None, inc: IncrementalPid | None) -> int:
-        """This tick's judgement of the feedforward `ff` (the model's output for
-        `inputs`, force, length, contraction and velocity, `mask` its domain test):
+        """This tick's judgement of the feedforward `ff` (the model's output for force
+        `f`, length `ln`, contraction `x` and velocity `v`; `mask` its domain test):
         counted, faded and watched. With a position PID (position mode: `pid` given),
         what the weight takes from the feedforward goes into the PID's integral (or
         Method 2's sum), and back as it returns, so the setpoint does not jump. Returns
         the record's flags; `weight` is the feedforward's weight from now."""
         before = self.weight
         if mask and not self.said:
-            self.keep(*inputs, ff)
+            self.keep(f, ln, x, v, ff)
         w = self.step(mask, dt, counted, pid is not None)
         if w != before and pid is not None:
             moved = (before - w) * ff  # the feedforward's part that changes hands

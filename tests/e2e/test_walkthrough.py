@@ -81,6 +81,10 @@ def test_collect_train_track_evaluate(tmp_path: Path) -> None:
     # the directory gave the steps' files, not the collection's load-change recording
     runs = m["provenance"]["data"]["files"]
     assert len(runs) == len(LOADS_KG) * len(RANGES_BAR), runs
+    # each step's own load (not the config's), and the training domain: one force band
+    # per load
+    assert m["provenance"]["data"]["loads_kg"] == list(LOADS_KG)
+    assert len(m["provenance"]["domain"]["bands"]) == len(LOADS_KG)
 
     track = tmp_path / "track"
     tracked = pamd("run", "--clock", "virtual", "--mode", "position", "--model", str(model),
