@@ -22,7 +22,7 @@ neurons, Levenberg-Marquardt, 50 epochs as the paper's: pamd's own `mlp --solver
 stopped on the validation blocks as MATLAB's trainlm) and the Mamdani model (rule base
 read off the data, untuned and MGA-tuned).
 
-Measured (3 seeds, 60 generations): README "Seed 001 as written".
+Measured (3 seeds, 60 generations): docs/explanation/seeds.md, "Seed 001 as written".
 Usage: python bench/seed001.py [--quick] [--data DIR] [--seeds N] [--generations G]
 `rows(quick)` returns the `SeedRow`s of bench/seeds.py.
 """

@@ -1,7 +1,7 @@
 """The row every seed's comparison prints: the paper's figure beside pamd's (issue 29
 item 4). `bench/seeds.py` collects the rows of `bench/seedNNN.py` (one module per seed,
 000-004, each with `rows(quick: bool) -> list[SeedRow]`) and prints one table; the
-README carries it.
+docs carry it (docs/explanation/seeds.md).
 
 A row compares one figure measured on the paper's protocol as closely as the simulated
 rig allows. `like_for_like` says "yes" only where protocol, signal and metric are the
@@ -26,7 +26,7 @@ class SeedRow:
 
 
 def markdown(rows: list[SeedRow]) -> str:
-    """The rows as one Markdown table (the README's form)."""
+    """The rows as one Markdown table (docs/explanation/seeds.md's form)."""
     lines = ["| seed | figure | paper | pamd | like for like |",
              "|---|---|---|---|---|"]
     lines += [f"| {r.seed} | {r.figure} | {r.paper} | {r.pamd} | {r.like_for_like} |"

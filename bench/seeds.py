@@ -10,7 +10,7 @@ whose run fails prints the error (the other seeds still run).
 
     python bench/seeds.py                 # the papers' protocols (long: tens of minutes)
     python bench/seeds.py --quick         # a few minutes per seed at most
-    python bench/seeds.py --markdown      # the README's table
+    python bench/seeds.py --markdown      # docs/explanation/seeds.md's table
     python bench/seeds.py --seed 004      # one seed (repeatable)
 """
 
@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true",
                     help="each seed's quick protocol (a few minutes at most each)")
     ap.add_argument("--markdown", action="store_true",
-                    help="print a Markdown table (the README's form)")
+                    help="print a Markdown table (docs/explanation/seeds.md's form)")
     ap.add_argument("--seed", action="append", choices=SEEDS, metavar="NNN",
                     help=f"only this seed ({', '.join(SEEDS)}); repeatable")
     a = ap.parse_args(argv)

@@ -9,11 +9,11 @@ that needs absolute length. Simulated drivers start referenced.
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import asdict, dataclass, field
 
 import yaml
 
+from pamd.atomic import write_atomic
 from pamd.schema.engine import Context, build_dataclass, spec
 from pamd.schema.yamlload import load_yaml_file
 
@@ -55,14 +55,10 @@ def load_calibration(path: str | None) -> Calibration:
 
 
 def save_calibration(cal: Calibration, path: str) -> None:
-    """Write atomically (temp file + rename) so a power cut never leaves half a file."""
+    """Write whole or not at all (`pamd.atomic`): a power cut never leaves half a file,
+    a failed write the old one (FileWriteError naming it)."""
     data = {"muscles": {k: asdict(v) for k, v in cal.muscles.items()}}
     directory = os.path.dirname(os.path.abspath(path))
     os.makedirs(directory, exist_ok=True)  # a state directory's first reference
-    fd, tmp = tempfile.mkstemp(prefix=".cal-", dir=directory)
-    with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        fh.write("# pamd signal references (home/tare); written by pamd\n")
-        yaml.safe_dump(data, fh, sort_keys=False)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    write_atomic(path, "# pamd signal references (home/tare); written by pamd\n"
+                 + yaml.safe_dump(data, sort_keys=False))

@@ -36,7 +36,7 @@ LAYERS: list[tuple[str, list[str]]] = [
      ["rig", "emulate", "models", "drivers", "record", "sim", "rt", "stalls", "calibration"]),
     ("verbs and config", ["verbs", "config", "schema", "plugins"]),
     ("leaves", ["ipc", "metrics", "timing", "muscle_type", "tick", "profiles", "profile_kinds",
-                "errors", "version", "declare", "data"]),
+                "atomic", "errors", "version", "declare", "data"]),
 ]
 MAX_LAYERS = 10
 
@@ -47,7 +47,7 @@ SUBPACKAGES = {"net.node", "net.host", "net.client"}
 #: extras, or only one command uses them): keeps `import pamd` and the daemon light
 LAZY_THIRD_PARTY = {
     "matplotlib", "scipy", "pandas", "sklearn", "zenoh", "foxglove", "canopen", "can",
-    "serial", "pymodbus", "tqdm", "zstandard", "lz4",
+    "serial", "pymodbus", "tqdm", "zstandard", "lz4", "nidaqmx", "grpc", "session_pb2",
 }
 
 #: pamd's own lazy imports beyond the heavy modules: the public API
@@ -59,6 +59,8 @@ LAZY_OWN = {
     "pamd/__main__.py": "pamd.cli.main",
     # the io process imports the Foxglove live view only for a run that asks for it
     "pamd/io/process.py": "pamd.view.live",
+    # the io process checks tokens with this module; only the daemon writes one
+    "pamd/net/credential.py": "pamd.atomic",
 }
 
 #: the modules that import by name (`importlib.import_module`), which the checks
@@ -68,6 +70,9 @@ LAZY_OWN = {
 LAZY_BY_NAME = {
     "pamd/__init__.py": "pamd.",
     "pamd/cli/main.py": "pamd.cli.",
+    # a custom muscle's map is read by the reader `pamd train` uses (pamd.view.tables, a
+    # layer above the config), only when a config names one
+    "pamd/config/muscle_types.py": "pamd.view.tables",
 }
 
 

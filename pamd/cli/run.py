@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import re
 import shlex
 import signal
@@ -14,7 +15,8 @@ import sys
 import threading
 from types import FrameType
 
-from pamd.commands.pending import PendingCommand
+from pamd.cli.numbers import number
+from pamd.cli.run_start import StartRequests
 from pamd.config import load_config
 from pamd.config.control_schema import OFF_DATA_POLICIES
 from pamd.config.loader import LoadedConfig
@@ -23,13 +25,15 @@ from pamd.control.length_targets import check_length_profile_config
 from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.daemon import Daemon
 from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
+from pamd.errors import CommandRefused, ConfigError, ConfigIssue
 from pamd.io.session import RecordingRequest
 from pamd.net.spec import TelemetryRequest
+from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
 from pamd.service import testhooks
 from pamd.service.notify import Notifier
 from pamd.service.restart import restart_in_place, run_argv, unblock_signals
+from pamd.verbs.table import parse_command
 from pamd.view.spec import parse_listen
 
 log = logging.getLogger("pamd")
@@ -71,10 +75,18 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("--config", metavar="FILE", help="rig config (default: built-in sim)")
     p.add_argument("--clock", choices=("real", "virtual"),
                    help="override loop.clock (virtual: as fast as possible, deterministic)")
-    p.add_argument("--rate-hz", type=float, help="override loop.rate_hz")
-    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--rate-hz", type=number("Hz", gt=0.0), help="override loop.rate_hz")
+    p.add_argument("--duration", type=number("s", gt=0.0), metavar="S",
+                   help="stop after S seconds (at most 30 days)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.add_argument("--note", default="", help="operator note kept with the run")
+    p.add_argument("--load-kg", metavar="[MUSCLE=]KG", action="append", type=_load_kg,
+                   help="the load hanging on the muscle for this run, in place of its "
+                   "load_kg (which sets the safe pressure); MUSCLE=KG for each muscle of "
+                   "a rig with several (repeat it, or m1=30,m2=20). Checked like the "
+                   "config's: within the muscle's rating, and before anything moves the "
+                   "force at rest must read its weight (a disagreement refuses a run "
+                   "with an end, exit 2, naming both loads)")
     f = p.add_mutually_exclusive_group()
     f.add_argument("--stay-on-fault", action="store_true", help="a run with an end of its "
                    "own (--duration, --cycles) that faults holds its safe state until a "
@@ -101,25 +113,34 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "daemon's Zenoh session listens, e.g. tcp/127.0.0.1:7448 (overrides "
                    "telemetry.listen and a Zenoh config's listen endpoints; turns telemetry "
                    "on, with the virtual clock too); clients reach it with --connect")
+    t.add_argument("--allow-cleartext", action="store_true", help="let the Zenoh session "
+                   "listen on or connect to an endpoint beyond loopback without TLS (e.g. "
+                   "--listen tcp/0.0.0.0:7447, a Zenoh config connecting to "
+                   "tcp/<router>:7447) and the Foxglove view serve there without TLS "
+                   "(--foxglove 0.0.0.0:8765): refused otherwise, since state, status and "
+                   "commands then cross the network in clear; warned at start and in every "
+                   "status (as telemetry.allow_cleartext: true)")
     t.add_argument("--zenoh-config", metavar="FILE", help="Zenoh config (JSON5) of the "
                    "daemon's session (overrides telemetry.zenoh_config; default: listen on "
                    "telemetry.listen, tcp/127.0.0.1:7447)")
     t.add_argument("--foxglove", nargs="?", const="default", metavar="HOST:PORT",
                    type=_listen, help="serve a live view to Foxglove (WebSocket, in the io "
                    "process; a viewer, commands stay on Zenoh) on HOST:PORT (default: "
-                   "telemetry.foxglove.listen, 127.0.0.1:8765); layout: "
-                   "config/foxglove/pamd-layout.json")
+                   "telemetry.foxglove.listen, 127.0.0.1:8765); beyond loopback it needs "
+                   "telemetry.foxglove.tls_cert/tls_key (wss://) or --allow-cleartext; "
+                   "layout: config/foxglove/pamd-layout.json")
     g = p.add_argument_group("profile (on every muscle unless --muscle)")
     g.add_argument("--profile", choices=SHAPE_NAMES, help="start this reference profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")
-    g.add_argument("--freq-hz", type=float, default=0.05,
-                   help=f"{kinds_reading('freq_hz', '/')} (0.05)")
-    g.add_argument("--min-bar", type=float, default=0.0, help="lowest pressure (0)")
-    g.add_argument("--max-bar", type=float, default=6.0, help="highest pressure (6)")
+    g.add_argument("--freq-hz", type=float,
+                   help=f"{kinds_reading('freq_hz', '/')} (0.05); in a length mode too")
+    g.add_argument("--min-bar", type=float, help="lowest pressure (0)")
+    g.add_argument("--max-bar", type=float, help="highest pressure (6)")
     g.add_argument("--cycles", type=int, help=f"number of cycles ({kinds_reading('cycles', '/')}; "
                    "default: until stopped)")
     g.add_argument("--to-bar", type=float, help=f"{kinds_reading('to_bar', '/')} target")
-    g.add_argument("--rate-bar-per-s", type=float, help="ramp rate")
+    g.add_argument("--rate-bar-per-s", type=float, help="ramp rate (pressure mode; a "
+                   "length ramp runs at half control.position.max_rate_per_s)")
     lm = p.add_argument_group(
         "length modes (the ANFIS inverse model as feedforward; every muscle unless --muscle)")
     lm.add_argument("--mode", choices=("pressure", "length_force", "position"),
@@ -149,6 +170,54 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.set_defaults(func=run)
 
 
+def _load_kg(text: str) -> list[tuple[str | None, float]]:
+    """--load-kg's KG or MUSCLE=KG[,MUSCLE=KG...], each a finite mass of 0 kg or more;
+    which muscles there are and their ratings are checked once the config is read."""
+    out: list[tuple[str | None, float]] = []
+    for part in text.split(","):
+        name, sep, value = part.strip().rpartition("=")
+        try:
+            kg = float(value)
+        except ValueError:
+            kg = math.nan
+        if not (math.isfinite(kg) and kg >= 0.0) or (sep and not name):
+            raise argparse.ArgumentTypeError(
+                f"{part.strip()!r}: expected KG or MUSCLE=KG, a mass of 0 kg or more "
+                "(e.g. 30, or m1=30)")
+        out.append((name or None, kg))
+    return out
+
+
+def load_overrides(given: list[list[tuple[str | None, float]]] | None,
+                   cfg: LoadedConfig) -> JsonObject:
+    """--load-kg as config overrides (`{"m1": {"load_kg": 30.0}}`), checked like the
+    config's load_kg: a muscle the config has, within its rating; a bare KG only for a
+    rig of one muscle. Refused (ConfigError, exit 2) naming --load-kg."""
+    out: JsonObject = {}
+    names = [m.name for m in cfg.rig.muscles]
+    issues = []
+    for name, kg in (pair for group in given or [] for pair in group):
+        if name is None and len(names) > 1:
+            issues.append(ConfigIssue("--load-kg", None, "", f"MUSCLE=KG for one of "
+                                      f"{', '.join(names)} (this rig has several muscles)",
+                                      f"{kg:g}"))
+            continue
+        name = name or names[0]
+        if name not in names:
+            issues.append(ConfigIssue("--load-kg", None, name, f"one of the config's "
+                                      f"muscles ({', '.join(names)})", repr(name)))
+            continue
+        m = cfg.muscle(name)
+        rated = cfg.muscle_type(name).max_load_kg
+        if kg > rated:
+            issues.append(ConfigIssue("--load-kg", None, name, f"at most {rated} kg "
+                                      f"({m.type} rating)", f"{kg:g} kg"))
+        out[name] = {"load_kg": kg}
+    if issues:
+        raise ConfigError(issues)
+    return out
+
+
 def _endpoint(text: str) -> str:
     """--listen's Zenoh endpoint, checked before anything starts."""
     if not re.fullmatch(r"[a-z0-9]+/(\[[0-9A-Fa-f:.]+\]|[^/:\s]+):\d{1,5}(#\S*)?", text):
@@ -172,12 +241,81 @@ def _listen(text: str) -> str:
     return text
 
 
-def _profile_spec(args: argparse.Namespace) -> ProfileSpec | None:
+#: The profile options of each mode: ProfileSpec's parameter -> the option that gives
+#: it (a length profile's "bar" fields hold contraction: `length_profile`).
+PRESSURE_OPTIONS = {"min_bar": "--min-bar", "max_bar": "--max-bar", "freq_hz": "--freq-hz",
+                    "cycles": "--cycles", "to_bar": "--to-bar",
+                    "rate_bar_per_s": "--rate-bar-per-s"}
+LENGTH_OPTIONS = {"min_bar": "--min-contraction", "max_bar": "--max-contraction",
+                  "freq_hz": "--freq-hz", "cycles": "--cycles", "to_bar": "--to-contraction"}
+#: each option's field of the `profile` command in a length mode
+LENGTH_FIELDS = {"--min-contraction": "min_contraction", "--max-contraction": "max_contraction",
+                 "--to-contraction": "to_contraction", "--freq-hz": "freq_hz",
+                 "--cycles": "cycles"}
+
+
+def _dest(option: str) -> str:
+    return option[2:].replace("-", "_")
+
+
+def _profile_options(args: argparse.Namespace, length_mode: bool) -> dict[str, str]:
+    """The profile options given (ProfileSpec parameter -> option), each one the mode
+    and the shape read; a given option either does not read is refused, not ignored
+    (a length profile never reads --rate-bar-per-s; a constant never reads
+    --freq-hz), as a profile parameter its shape does not read is
+    (`ProfileSpec.check_reads`)."""
+    mine, other = ((LENGTH_OPTIONS, PRESSURE_OPTIONS) if length_mode else
+                   (PRESSURE_OPTIONS, LENGTH_OPTIONS))
+    given = {o for o in {*mine.values(), *other.values()} if getattr(args, _dest(o)) is not None}
+    wrong_mode = sorted(given - set(mine.values()))
+    if wrong_mode:
+        which = "a length profile (--mode position or length_force)" if not length_mode \
+            else "a pressure profile"
+        reads = ", ".join(dict.fromkeys(mine.values()))
+        raise CommandRefused(
+            f"{' and '.join(wrong_mode)}: {'these are' if len(wrong_mode) > 1 else 'this is'} "
+            f"{which}'s; {'--mode ' + args.mode if length_mode else 'the pressure mode'} "
+            f"reads {reads}")
     if args.profile is None:
-        return None
-    return ProfileSpec(kind=args.profile, min_bar=args.min_bar, max_bar=args.max_bar,
-                       freq_hz=args.freq_hz, cycles=args.cycles, to_bar=args.to_bar,
-                       rate_bar_per_s=args.rate_bar_per_s)
+        if given:
+            raise CommandRefused(f"{' and '.join(sorted(given))} without --profile: name the "
+                                 "profile they shape (--profile sine, ...)")
+        return {}
+    shape_reads = set(SHAPE_PARAMS[args.profile])
+    unread = sorted(o for p, o in mine.items() if o in given and p not in shape_reads)
+    if unread:
+        wanted = [mine[p] for p in SHAPE_PARAMS[args.profile] if p in mine]
+        raise CommandRefused(
+            f"--profile {args.profile} does not read {' or '.join(unread)} (it reads "
+            f"{', '.join(wanted) or 'none of them'}); leave "
+            f"{'them' if len(unread) > 1 else 'it'} out" + (
+                "; a constant holds until stopped, or for the run's --duration"
+                if args.profile == "constant" else ""))
+    return {p: o for p, o in mine.items() if o in given}
+
+
+def _checked(verb: str, payload: JsonObject, option_of: dict[str, str]) -> None:
+    """`payload` as the daemon would parse the command (`pamd.verbs`: types, each
+    number finite, of a physical size and inside its unit's domain), before anything
+    opens: a refusal names the option (`option_of`: field -> option)."""
+    parse_command(verb, payload, label=lambda field: option_of.get(field, field))
+
+
+def _pressure_profile(args: argparse.Namespace, cfg: LoadedConfig,
+                      given: dict[str, str]) -> JsonObject:
+    """The --profile of the pressure mode as a profile command, checked against each
+    selected muscle's limits and the slew limit before anything opens."""
+    payload: JsonObject = {"kind": args.profile,
+                           **{p: getattr(args, _dest(o)) for p, o in given.items()}}
+    _checked("profile", payload, {p: o for p, o in PRESSURE_OPTIONS.items()})
+    spec = ProfileSpec(**payload)
+    for m in cfg.rig.muscles:
+        if args.muscle in (None, m.name):
+            spec.check(0.0, cfg.limits[m.name].max_pressure_bar,
+                       cfg.rig.control.slew_limit_bar_per_s, cfg.period_s)
+    if args.muscle:
+        payload["muscle"] = args.muscle
+    return payload
 
 
 def _models(cfg: LoadedConfig, args: argparse.Namespace
@@ -197,14 +335,14 @@ def _models(cfg: LoadedConfig, args: argparse.Namespace
         chosen[0].path if chosen else None)
 
 
-def _length_profile(args: argparse.Namespace, cfg: LoadedConfig) -> JsonObject:
+def _length_profile(args: argparse.Namespace, cfg: LoadedConfig,
+                    given: dict[str, str]) -> JsonObject:
     """The --profile of a length mode as a profile command (contraction), checked
     against each muscle's limits, load and rate limit before anything opens."""
 
-    payload: JsonObject = {"kind": args.profile, "freq_hz": args.freq_hz}
-    for key in ("min_contraction", "max_contraction", "to_contraction", "cycles"):
-        if getattr(args, key) is not None:
-            payload[key] = getattr(args, key)
+    payload: JsonObject = {"kind": args.profile,
+                           **{LENGTH_FIELDS[o]: getattr(args, _dest(o)) for o in given.values()}}
+    _checked("profile", payload, {f: o for o, f in LENGTH_FIELDS.items()})
     for m in cfg.rig.muscles:
         if args.muscle in (None, m.name):
             check_length_profile_config(cfg, m.name, payload)
@@ -236,34 +374,30 @@ def record_where(args: argparse.Namespace, cfg: LoadedConfig
     return None, None
 
 
-def _verdict(daemon: Daemon, pending: PendingCommand, cfg: LoadedConfig, what: str) -> None:
-    """Wait for a command queued before start-up; a refusal stops the run (nothing moved)."""
-    waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
-    while not pending.done and waited < patience and daemon.alive:
-        daemon.wait(timeout_s=0.05)
-        waited += 0.05
-    verdict = pending.result(0.0)
-    if not verdict["ok"]:
-        daemon.stop(f"{what} refused")
-        daemon.wait()
-        raise CommandRefused(verdict["error"])
+def not_recording_why(args: argparse.Namespace) -> str:
+    """Why a run records nothing (`record_where` gave no directory), and how it would."""
+    if args.no_record:
+        return "--no-record"
+    return ("its output is not a terminal (a script, a service, a pipe such as `| tee`), "
+            "where a run records only when told: --record [DIR], or the config's "
+            "recording.dir")
 
 
 def run(args: argparse.Namespace) -> int:
     overrides: JsonObject = {}
     if args.clock:
         overrides.setdefault("loop", {})["clock"] = args.clock
-    if args.rate_hz:
+    if args.rate_hz is not None:
         overrides.setdefault("loop", {})["rate_hz"] = args.rate_hz
     if args.off_data:
         overrides.setdefault("control", {})["feedforward"] = {"off_data": args.off_data}
     cfg = load_config(args.config, overrides)
+    if args.load_kg:  # for this run (and its reloads), checked against the ratings first
+        overrides["muscles"] = load_overrides(args.load_kg, cfg)
+        cfg = load_config(args.config, overrides)
     models, model_path = _models(cfg, args)
     length_mode = args.mode in ("length_force", "position")
-    if not length_mode and any(v is not None for v in (
-            args.min_contraction, args.max_contraction, args.to_contraction)):
-        raise CommandRefused("--min/--max/--to-contraction are length profiles: add --mode "
-                             "position or --mode length_force")
+    given = _profile_options(args, length_mode)  # before any file is read
     needs_model = args.mode == "length_force" or (args.mode == "position"
                                                   and not args.no_feedforward)
     for m in cfg.rig.muscles:
@@ -275,19 +409,10 @@ def run(args: argparse.Namespace) -> int:
             raise CommandRefused(f"{m.name}: --mode {args.mode} needs a model: --model FILE "
                                  "or model_file in the config (position mode runs without "
                                  "one with --no-feedforward)")
-    spec = None if length_mode else _profile_spec(args)
-    if spec is not None:  # refused before anything opens or moves
-        for m in cfg.rig.muscles:
-            if args.muscle in (None, m.name):
-                spec.check(0.0, cfg.limits[m.name].max_pressure_bar,
-                           cfg.rig.control.slew_limit_bar_per_s)
-    profile = None
-    if spec is not None:
-        profile = {k: v for k, v in spec.__dict__.items() if v is not None}
-        if args.muscle:
-            profile["muscle"] = args.muscle
-    if length_mode and args.profile is not None:
-        profile = _length_profile(args, cfg)
+    profile = None  # refused before anything opens or moves
+    if args.profile is not None:
+        profile = (_length_profile(args, cfg, given) if length_mode else
+                   _pressure_profile(args, cfg, given))
     if args.listen and args.no_telemetry:
         raise CommandRefused("--listen is where telemetry listens: it goes without "
                              "--no-telemetry")
@@ -296,7 +421,8 @@ def run(args: argparse.Namespace) -> int:
                                  run_name=args.name, profile=profile, model_path=model_path,
                                  max_mb=max_mb)
     telemetry = TelemetryRequest(enabled=not args.no_telemetry, zenoh_config=args.zenoh_config,
-                                 foxglove=args.foxglove, listen=args.listen)
+                                 foxglove=args.foxglove, listen=args.listen,
+                                 allow_cleartext=args.allow_cleartext)
     daemon = Daemon(cfg, note=args.note, recording=recording, state_dir=args.state_dir,
                     models=models,
                     notifier=Notifier.from_environ(), config_overrides=overrides,
@@ -304,38 +430,33 @@ def run(args: argparse.Namespace) -> int:
     testhooks.install(daemon)
     daemon.keeper.allow_restart_in_place()  # a reload that reopens the devices execs again
     signalled = _install_signals(daemon)
-    # Queued before the loop starts: applied on the first tick after start-up, so a
-    # virtual run is the same every time.
-    mode = None
-    if args.mode is not None:  # before the profile, so both land on the first tick
+    # Sent once the start-up is over and its ramp (a muscle that started outside its
+    # limits) has ended; on the virtual clock at a standstill, so a virtual run is the
+    # same every time (pamd.cli.run_start).
+    requests: list[tuple[str, JsonObject]] = []
+    if args.mode is not None:  # before the profile: both land on the same tick
         mode_args: JsonObject = {"mode": args.mode, "feedforward": not args.no_feedforward,
-                                     "ilc": args.ilc}
+                                 "ilc": args.ilc}
         if args.muscle:
             mode_args["muscle"] = args.muscle
-        mode = daemon.submit("mode", mode_args)
-    pending = daemon.submit("profile", profile) if profile is not None else None
+        requests.append(("mode", mode_args))
+    if profile is not None:
+        requests.append(("profile", profile))
+    start = StartRequests(daemon, requests, loads_given=overrides.get("muscles") or {})
     daemon.start(args.duration, stop_when_profile_done=profile is not None and
                  args.cycles is not None, end_on_fault=_end_on_fault(args))
     if record_dir is not None and not args.json:
         cap = f", at most {max_mb:g} MB" if max_mb else ""
         log.info("recording into %s%s (--no-record: none)", record_dir, cap)
+    if record_dir is None:  # always said: a run nobody can open afterwards is a surprise
+        log.info("not recording: %s", not_recording_why(args))
     if cfg.rig.loop.clock == "virtual" and args.duration is None and args.cycles is None:
         log.info("virtual clock with no end (no --duration, no --cycles): the simulation "
                  "runs as fast as it can until Ctrl-C or SIGTERM")
     try:
-        if mode is not None:
-            _verdict(daemon, mode, cfg, "mode")
-        if pending is not None:
-            waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
-            while not pending.done and waited < patience and daemon.alive:
-                daemon.wait(timeout_s=0.05)  # keeps service() (notify, state) running
-                waited += 0.05
-            verdict = pending.result(0.0)
-            if not verdict["ok"]:
-                daemon.stop("profile refused")
-                daemon.wait()
-                raise CommandRefused(verdict["error"])
+        start.send(cfg.rig.safety.startup_timeout_s + 5.0)
         daemon.wait()
+        start.refuse_wrong_load()  # a run that ended in start-up (no request waited)
     finally:
         daemon.stop("shutting down")
         daemon.wait()
@@ -393,7 +514,10 @@ def _install_signals(daemon: Daemon) -> list[str]:
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     signal.signal(signal.SIGHUP, reload)
-    unblock_signals()  # what a restart in place held back for this daemon
+    if signal.SIGHUP in signal.sigpending():  # held since `pamd.cli.main.main`
+        log.warning("SIGHUP during start-up: queued; the config is read again once the "
+                    "rig has started")
+    unblock_signals()  # what the start (or a restart in place) held back for this daemon
     return received
 
 

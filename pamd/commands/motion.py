@@ -14,6 +14,7 @@ from pamd.control.length_control import MODE_NAMES
 from pamd.control.length_targets import length_profile
 from pamd.control.muscle import MuscleController
 from pamd.control.onoff import POSITION_TAKES_NO_MODEL
+from pamd.control.rig_safe_state import SAFE_SETPOINT_BAND_BAR
 from pamd.controller import RigController
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
@@ -25,7 +26,8 @@ from pamd.verbs.table import VERBS as SPECS
 
 def _start(ctrl: RigController, ms: list[MuscleController], spec_: ProfileSpec) -> float | None:
     for m in ms:
-        spec_.check(0.0, m.envelope.max_pressure_bar, m.envelope.slew_limit_bar_per_s)
+        spec_.check(0.0, m.envelope.max_pressure_bar, m.envelope.slew_limit_bar_per_s,
+                    ctrl.cfg.period_s)
     total = None
     for m in ms:
         prof = Profile(spec_, ctrl.now, m.setpoint_bar, m.envelope.slew_limit_bar_per_s)
@@ -143,7 +145,8 @@ def _length_profile(ctrl: RigController, ms: list[MuscleController],
                                max_contraction=a.max_contraction,
                                to_contraction=a.to_contraction, freq_hz=a.freq_hz,
                                cycles=a.cycles, rate_per_s=a.rate_per_s, rise_s=a.rise_s,
-                               duration_s=a.duration_s, lead_in_per_s=a.lead_in_per_s)
+                               duration_s=a.duration_s, lead_in_per_s=a.lead_in_per_s,
+                               period_s=ctrl.cfg.period_s)
                 for m in ms]  # every muscle checked before any moves
     total = None
     for m, prof in zip(ms, profiles, strict=True):
@@ -176,7 +179,8 @@ def _mode(ctrl: RigController, a: ModeArgs) -> JsonObject:
                              "off")
     need_reference(ms)
     for m in ms:
-        if m.in_safe_ramp:  # the safe ramp drops a length mode on its next tick
+        if m.in_safe_ramp and abs(m.setpoint_bar - m.safe_pressure_bar) > \
+                SAFE_SETPOINT_BAND_BAR:  # still ramping: it would drop a length mode
             raise CommandRefused(
                 f"{m.name} is ramping to its safe pressure ({m.safe_pressure_bar:.2f} bar: a "
                 "stop, a deadman or a start-up outside the limits); send a setpoint or a "

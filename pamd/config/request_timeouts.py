@@ -11,32 +11,32 @@ driver's `timeout_s` with the largest value that fits.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from pamd.config.safety_schema import SafetyConfig
-from pamd.config.schema import RigConfig, SignalConfig
+from pamd.config.schema import InputSignal, RigConfig, SignalConfig
 from pamd.declare.jsonsafe import JsonValue
 from pamd.schema.engine import Context, line_of
 
 
 def check_request_timeouts(rig: RigConfig, node: JsonValue, lost_reply: dict[str, float],
                            ctx: Context,
-                           timeout_of: Callable[[SignalConfig, SafetyConfig], float]) -> None:
+                           timeout_of: Callable[[SignalConfig, SafetyConfig], float],
+                           inputs: Sequence[InputSignal]) -> None:
     """Refuse a driver whose `lost_reply` (seconds, by driver name) plus an input
     signal's sample period reaches that signal's stale age (`timeout_of`); `node` is
-    the raw `drivers` list."""
+    the raw `drivers` list, `inputs` every input signal (`loader.input_signals`: the
+    muscles' and the safety chain's, whose e-stop input going stale opens the chain)."""
     drivers_node = node if isinstance(node, list) else []
     index = {d.name: k for k, d in enumerate(rig.drivers)}
     worst: dict[str, tuple[float, str, float]] = {}  # driver: (slack, signal, timeout)
-    for m in rig.muscles:
-        for name in ("pressure", "force", "length"):
-            sig = getattr(m.signals, name)
-            if sig.driver not in lost_reply:
-                continue
-            timeout = timeout_of(sig, rig.safety)
-            slack = timeout - (sig.sample_period_s or 0.0) - lost_reply[sig.driver]
-            if slack <= 0.0 and (sig.driver not in worst or slack < worst[sig.driver][0]):
-                worst[sig.driver] = (slack, f"{m.name}.{name}", timeout)
+    for _, label, sig, _ in inputs:
+        if sig.driver not in lost_reply:
+            continue
+        timeout = timeout_of(sig, rig.safety)
+        slack = timeout - (sig.sample_period_s or 0.0) - lost_reply[sig.driver]
+        if slack <= 0.0 and (sig.driver not in worst or slack < worst[sig.driver][0]):
+            worst[sig.driver] = (slack, label, timeout)
     for drv_name, (slack, signal, timeout) in worst.items():
         k = index[drv_name]
         item = drivers_node[k] if k < len(drivers_node) and isinstance(drivers_node[k], dict) \

@@ -74,9 +74,11 @@ class SafetyConfig:
                                    unit="s", gt=0.0, ceiling=1.0, max=60.0)
     latency_margin_s: float = spec(0.05, "What a value may age between its device's sample "
                                    "and the tick that reads it (bus transaction, poll "
-                                   "thread, a busy host), added to a signal's "
-                                   "`sample_period_s`.", unit="s", min=0.0, ceiling=0.5,
-                                   max=5.0)
+                                   "thread, a busy host), added to every input's "
+                                   "`sample_period_s` (0 where none is stated), the "
+                                   "safety chain's too: an input is stale after "
+                                   "max(its timeout, sample period + this).", unit="s",
+                                   min=0.0, ceiling=0.5, max=5.0)
     tracking_band_bar: float = spec(0.5, "Measured pressure must follow the command within "
                                     "this band ...", unit="bar", gt=0.0, ceiling=1.0,
                                     max=3.0)
@@ -114,3 +116,10 @@ class SafetyConfig:
         "above their safe ceiling, up to their hard maximum: for rigs whose devices are "
         "slower. Each value over its ceiling is still logged as a warning at every start "
         "and by check-config.")
+    relax_stability: bool = spec(
+        False, "Lets gains the stability judgement refuses load anyway (a closed pressure "
+        "or position loop that is unstable on the stated plant, or with less than its "
+        "minimum gain or phase margin: docs/how-to/tune.md, 'Gains judged against "
+        "stability'), each logged as a warning at every start and by check-config: for a "
+        "rig whose plant cannot be identified with `pamd tune`. State the plant "
+        "(`control.plant`) instead wherever it can be measured.")

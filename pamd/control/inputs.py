@@ -51,6 +51,7 @@ class Inputs:
         self._prev_length_mm = math.nan
         self._prev_length_t = math.nan  # the stamp of that length sample
         self.pressure_ok = self.length_ok = False
+        self.pressure_fresh = False  # younger than its timeout (trusted or not)
         self.flags = 0
         self.finding: str | None = None  # a new plausibility finding, this tick
         # How much of a sample's age a stalled loop excuses (`pamd.stalls`; the rig
@@ -79,6 +80,10 @@ class Inputs:
     def measured_pressure_bar(self) -> float:
         """The newest pressure reading (whatever its age)."""
         return self._pg * self._pv[self._pi] + self._po
+
+    def measured_force_n(self) -> float:
+        """The newest force reading with the tare offset (whatever its age)."""
+        return self._fg * self._fv[self._fi] + self._fo - self.reference.force_offset_n
 
     def measured_length_mm(self) -> float:
         """The newest length reading with the reference offset (whatever its age)."""
@@ -173,6 +178,7 @@ class Inputs:
             self.finding = finding
             if fault is None:
                 fault = finding
+        self.pressure_fresh = p_fresh
         self.pressure_ok = p_fresh and plaus.pressure_ok
         self.length_ok = l_fresh and plaus.length_ok and referenced
         self.flags = flags

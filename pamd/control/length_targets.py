@@ -70,12 +70,23 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
                    freq_hz: float, cycles: int | None, rate_per_s: float | None,
                    rise_s: float | None, duration_s: float | None,
                    lead_in_per_s: float | None,
-                   harmonics: tuple[tuple[int, float], ...] | None = None) -> Profile:
+                   harmonics: tuple[tuple[int, float], ...] | None = None,
+                   period_s: float = 1e-3) -> Profile:
     """A length profile for the muscle of `env` with `load_kg` hanging, starting from
     its present `target_length_mm`, in contraction (fraction) units, checked against
-    the contraction limits and the length rate limit before anything moves."""
+    the contraction limits, the length rate limit and what a tick of the loop's
+    `period_s` affords (the harmonics) before anything moves."""
     max_rate = env.max_length_rate_per_s
     shape = shape_of(kind)  # unknown kinds refused, naming the known ones
+    # every number physical, one cycle and the whole run within MAX_PROFILE_S, as for a
+    # pressure profile (a length profile at freq_hz 1e-300 was accepted)
+    numbers = ProfileSpec(kind=kind, min_bar=min_contraction or 0.0,
+                          max_bar=max_contraction or 0.0, freq_hz=freq_hz, cycles=cycles,
+                          to_bar=to_contraction, rate_bar_per_s=rate_per_s, rise_s=rise_s,
+                          duration_s=duration_s, lead_in_bar_per_s=lead_in_per_s or 1.0,
+                          harmonics=harmonics)
+    numbers.check_values()
+    numbers.check_duration()
     if shape.periodic:
         if min_contraction is None or max_contraction is None:
             raise CommandRefused(f"{kind} length profile: give min_contraction and "
@@ -109,6 +120,7 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
         r_lo = equilibrium_contraction(fm, 0.0, load_kg) + REACH_MARGIN
         r_hi = equilibrium_contraction(fm, p_hi, load_kg) - REACH_MARGIN
         spec.shape.check_params(spec)
+        spec.shape.check_cost(spec, period_s)
         spec.shape.check_harmonics(
             spec, max(c_lo, r_lo), min(c_hi, r_hi), max_rate, "% contraction", 100.0,
             f" (soft limits, reach with {load_kg:g} kg, {env.length_rate_origin})")
@@ -138,4 +150,4 @@ def check_length_profile_config(cfg: LoadedConfig, muscle: str,
                    rate_per_s=payload.get("rate_per_s"), rise_s=payload.get("rise_s"),
                    duration_s=payload.get("duration_s"),
                    lead_in_per_s=payload.get("lead_in_per_s"),
-                   harmonics=payload.get("harmonics"))
+                   harmonics=payload.get("harmonics"), period_s=cfg.period_s)

@@ -22,7 +22,7 @@ from pamd.models.contract import (
 )
 from pamd.models.domain import Domain, domain_of
 from pamd.models.registry import load_model
-from pamd.muscle_type import MUSCLE_TYPES
+from pamd.muscle_type.registry import DATASHEET_TYPES, datasheet_type
 
 if TYPE_CHECKING:
     from pamd.config.loader import MuscleLimitsResolved
@@ -44,6 +44,16 @@ def model_problems(model: InverseModel, nominal_length_mm: float, max_contractio
     return model.problems(ModelEnvelope(nominal_length_mm, max_contraction, max_pretension))
 
 
+def _rated_pull_n(muscle: MuscleConfig) -> float | None:
+    """The muscle's rated pull (its datasheet type's, or its `custom` section's); None
+    where the config does not say (the loader refuses such a config anyway)."""
+    if muscle.custom is not None:
+        return muscle.custom.theoretical_force_n
+    if muscle.type in DATASHEET_TYPES:
+        return datasheet_type(muscle.type).theoretical_force_n
+    return None
+
+
 def domain_problems(domain: Domain, muscle: MuscleConfig,
                     limits: MuscleLimitsResolved) -> list[str]:
     """Why a model's training domain cannot meet this muscle at all: an input (or the
@@ -56,9 +66,9 @@ def domain_problems(domain: Domain, muscle: MuscleConfig,
              "length_mm": (l0 * (1.0 - limits.max_contraction),
                            l0 * (1.0 + limits.max_pretension)),
              "contraction": (-limits.max_pretension, limits.max_contraction)}
-    rated = MUSCLE_TYPES.get(muscle.type)
-    if rated is not None:
-        reach["force_n"] = (0.0, rated.theoretical_force_n)
+    rated_n = _rated_pull_n(muscle)
+    if rated_n is not None:
+        reach["force_n"] = (0.0, rated_n)
     spans = {c: domain.overall(c) for c in domain.columns}
     if domain.axis is not None:
         spans[domain.axis] = domain.axis_range

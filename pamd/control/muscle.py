@@ -184,6 +184,9 @@ class MuscleController(MuscleMotion, MuscleSafeState):
         if air_hold:  # the air is cut: the valves close and hold (hold_air)
             if lc.active:
                 self.leave_length_mode()
+            if self._air_out and p_ok:  # the air out: down with the pressure held
+                lp = self.plausibility.pressure_lowpass_bar
+                self.follow_air(lp if lp > p else p)
             sp = self._air_hold_bar
             rate = 0.0
             slew = (self._envelope.estop_slew_bar_per_s if state == S_ESTOP
@@ -226,8 +229,10 @@ class MuscleController(MuscleMotion, MuscleSafeState):
             u += lc.flow_bar  # the air the planned motion draws (position mode)
         flags |= loop.flags
         # -- limits: the measured pressure must follow the last command (judged before
-        # this tick's command, so that a fault it finds shapes that command) -------------
-        reason = lim.track(now, p, prev_u, p_ok)
+        # this tick's command, so that a fault it finds shapes that command); not while
+        # the air is cut or held: no air follows a command then, and a leak is the
+        # hold's, not a sensor's -------------------------------------------------------
+        reason = lim.track(now, p, prev_u, p_ok and not (air_hold or self._air_out))
         flags |= lim.flags
         if reason is not None:
             inp = self.inputs  # what the force and length point to (the fault path)

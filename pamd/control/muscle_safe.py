@@ -20,6 +20,7 @@ import math
 from pamd.control.muscle_view import MuscleView
 from pamd.control.setpoint import SafeRamp
 from pamd.safety.limits import LimitMonitor
+from pamd.safety.load_check import LoadDisagreement, check_load
 from pamd.safety.plausibility import Plausibility
 
 
@@ -36,6 +37,16 @@ class MuscleSafeState(MuscleView):
     def missing_input(self, now: float) -> str | None:
         """None when every input has a fresh reading; else which one is missing."""
         return self.inputs.missing(now)
+
+    def load_disagreement(self) -> LoadDisagreement | None:
+        """The force at rest against the declared load's weight
+        (`pamd.safety.load_check`): None where they agree or the muscle declares no
+        dead weight; rare path (start-up, a load change, a reload)."""
+        env = self._envelope
+        if not env.dead_weight:
+            return None
+        return check_load(self.name, self.inputs.measured_force_n(), self._load_kg,
+                          env.load_tolerance_n)
 
     def hold_measured(self, safe_ramp: bool = False) -> None:
         """Start-up / reset: take the measured pressure as the setpoint, bumpless; with
@@ -94,27 +105,74 @@ class MuscleSafeState(MuscleView):
         """The safety chain opened or the supply is lost (the rig controller, once the
         ESTOP or FAULT latched): the air there is is all there will be, so the valves
         close and hold it; nothing vents, not even to the safe pressure. The command
-        stands at the higher of the last command and the measured pressure (a regulator
-        commanded below its pressure would vent), and stays there until the reset."""
+        goes (at the slew limit) to the pressure the muscle holds (`known_pressure_bar`;
+        where no reading tells it, the last command, which the regulator followed,
+        stays): never below it, as a regulator commanded below its pressure would vent,
+        and never above it, as one commanded above would refill the muscle the moment
+        the air returns (its dead time is longer than any tick that sees the air
+        back). While the air is out it follows the pressure down (`follow_air`); it
+        never rises until the reset."""
         if not self._started or self._air_hold_bar == self._air_hold_bar:
             return
         u = self._valve_cmd_bar
-        p = self.inputs.pressure_bar
-        hold = u if not (self.inputs.pressure_ok and p > u) else p
+        known = self.known_pressure_bar(u)
+        hold = u if known != known else known if known > 0.0 else 0.0
         self._air_hold_bar = hold if hold < self._max_pressure_bar else self._max_pressure_bar
+
+    def follow_air(self, pressure_bar: float) -> None:
+        """The tick, while the air is out and the muscle holds it, with a trusted
+        `pressure_bar`: the held command comes down with the pressure the muscle holds
+        (it falls as the muscle settles with the air it has, and as it leaks), never
+        up. The tick passes the higher of the reading and its low-pass
+        (`Plausibility.pressure_lowpass_bar`): above the pressure whether it rises or
+        falls, and the running minimum of that stays within a fraction of the sensor's
+        noise of the pressure, well inside a regulator's hysteresis (tens of mbar), so
+        the command's descent vents nothing and ratchets nothing."""
+        if pressure_bar < self._air_hold_bar:
+            self._air_hold_bar = pressure_bar if pressure_bar > 0.0 else 0.0
+
+    def known_pressure_bar(self, command_bar: float) -> float:
+        """The muscle's pressure where its reading can be believed, whatever the pressure
+        sensor's trust state (the air hold's; not the tick path), else NaN. A trusted
+        reading: the higher of it and its low-pass (as `follow_air` takes it). An
+        untrusted one (the tracking check distrusts a true reading when the air does
+        not follow) is believed where the force map at the trusted force and length
+        (`Plausibility.pressure_for_force`) puts the pressure nearer the reading than
+        `command_bar`, or the reading follows the command within the tracking band. The
+        map only tells which: its own pressure is off by the muscle's friction (a few
+        tenths of a bar), too far to command a regulator at."""
+        inp = self.inputs
+        p = inp.pressure_bar
+        if inp.pressure_ok:
+            lp = self.plausibility.pressure_lowpass_bar
+            return lp if lp > p else p  # above it whether it rises or falls (follow_air)
+        if not (inp.pressure_fresh and p == p):
+            return math.nan
+        if abs(p - command_bar) <= self.limit_monitor.track_band:
+            return p
+        p_f = (self.plausibility.pressure_for_force(inp.force_n, inp.length_mm)
+               if inp.length_ok else math.nan)
+        return p if abs(p_f - p) <= abs(p_f - command_bar) else math.nan
 
     def set_air_out(self, out: bool) -> None:
         """The supply is out (`out`) or back. While out the pressure loop's integral
-        holds. When the air returns to a muscle still holding its air, the hold comes
-        down to the measured pressure, so that the returning air moves nothing before
-        the operator's reset (a leak while the air was cut is not refilled)."""
+        holds (and the tracking check with it: air that is not there cannot follow a
+        command). When the air returns to a muscle still holding its air, the hold comes
+        down to the pressure the muscle holds (`known_pressure_bar`: also a reading the
+        tracking check distrusted, where the force and length believe it), so that the
+        returning air moves nothing before the operator's reset (a leak while the air
+        was cut is not refilled). A reading that cannot be believed leaves the hold at
+        the last pressure trusted while the air was out: the returning air then refills
+        only what leaked since."""
         if out == self._air_out:
             return
         self._air_out = out
         self.pressure_loop.hold_integral = out
         hold = self._air_hold_bar
-        p = self.inputs.pressure_bar
-        if not out and hold == hold and self.inputs.pressure_ok and p < hold:
+        if out or hold != hold:
+            return
+        p = self.known_pressure_bar(hold)
+        if p < hold:
             self._air_hold_bar = p if p > 0.0 else 0.0
 
     @property

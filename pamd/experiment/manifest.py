@@ -15,8 +15,8 @@ from __future__ import annotations
 import json
 import os
 import time
-import uuid
 
+from pamd.atomic import atomic_text
 from pamd.config.loader import LoadedConfig
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ConfigError, ConfigIssue
@@ -178,16 +178,10 @@ class Manifest:
             "files": files, **(extra or {})})
 
     def save(self, durable: bool = True) -> None:
-        """Write it atomically (a temporary file renamed over it). `durable` fsyncs it
-        first, so a power cut finds it too; without, only a process crash does (what a
-        verdict with a deadline can afford: the daemon saves it durably after)."""
-        # Made like the recordings beside it (mode 0644 less the umask), not mkstemp's
-        # 0600: whoever may read the step files may read what they are.
-        tmp = os.path.join(self.directory, f".manifest-{os.getpid()}-{uuid.uuid4().hex}.tmp")
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        """Write it whole or not at all (`pamd.atomic`). `durable` fsyncs it first, so a
+        power cut finds it too; without, only a process crash does (what a verdict with
+        a deadline can afford: the daemon saves it durably after)."""
+        # Made like the recordings beside it (as `open()` makes a file: 0644 less the
+        # umask), not 0600: whoever may read the step files may read what they are.
+        with atomic_text(self.path, durable=durable) as fh:
             json.dump(self.data, fh, indent=2)
-            fh.flush()
-            if durable:
-                os.fsync(fh.fileno())
-        os.replace(tmp, self.path)

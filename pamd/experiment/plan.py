@@ -15,10 +15,12 @@ from pamd.config.loader import LoadedConfig
 from pamd.config.names import NAME_RE
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import CommandRefused
-from pamd.muscle_type import MUSCLE_TYPES, equilibrium_contraction, force_model
+from pamd.muscle_type import equilibrium_contraction
 from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
-from pamd.schema.engine import Context, build_dataclass, spec
+from pamd.profiles.harmonic import MAX_HARMONIC_NUMBER
+from pamd.safety.envelope import MuscleEnvelope
+from pamd.schema.engine import Context, build_dataclass, line_of, spec
 from pamd.schema.yamlload import load_yaml_text, read_text
 
 #: a plan step's cycles where it gives none, for the shapes that repeat
@@ -27,8 +29,11 @@ PLAN_CYCLES = 3
 
 @dataclass(frozen=True, kw_only=True)
 class PlanHarmonic:
-    number: int = spec(doc="Harmonic number (1: the fundamental at freq_hz).", min=1)
-    share: float = spec(doc="Amplitude as a share of the half span (max_bar - min_bar) / 2.")
+    number: int = spec(doc="Harmonic number (1: the fundamental at freq_hz; at most "
+                       f"{MAX_HARMONIC_NUMBER}, what the span check resolves).", min=1,
+                       max=MAX_HARMONIC_NUMBER)
+    share: float = spec(doc="Amplitude as a share of the half span (max_bar - min_bar) / 2.",
+                        min=-1.0, max=1.0)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -44,9 +49,14 @@ class PlanProfile:
                                 min=0.0)
     duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
                                     unit="s", gt=0.0)
+    rate_bar_per_s: float | None = spec(None, f"Rate ({kinds_reading('rate_bar_per_s')}; "
+                                        "default: half the slew limit).", unit="bar/s",
+                                        gt=0.0)
     harmonics: tuple[PlanHarmonic, ...] | None = spec(
         None, f"Harmonics ({kinds_reading('harmonics')}; default: seed 003's signal as "
-        "pamd builds it, harmonics 1, 2, 3 with shares 0.6, 0.25, 0.15).")
+        "pamd builds it, harmonics 1, 2, 3 with shares 0.6, 0.25, 0.15): at least one, "
+        "and no more than a tick of the loop affords (8 at 10 kHz; "
+        "pamd.profiles.harmonic.max_harmonics).")
 
     @property
     def cycles_to_run(self) -> int | None:
@@ -61,7 +71,8 @@ class PlanProfile:
             (h.number, h.share) for h in self.harmonics)
         return ProfileSpec(kind=self.kind, min_bar=self.min_bar, max_bar=self.max_bar,
                            freq_hz=self.freq_hz, cycles=self.cycles_to_run, to_bar=self.to_bar,
-                           duration_s=self.duration_s, harmonics=harm)
+                           duration_s=self.duration_s, rate_bar_per_s=self.rate_bar_per_s,
+                           harmonics=harm)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -136,13 +147,15 @@ def parse_plan(text: str, path: str, rig: LoadedConfig) -> Plan:
     ctx.raise_if_any()
     assert plan is not None  # a problem building it is in ctx (raised above)
     steps_node = raw.get("steps", [])
-    check_plan(plan, rig, ctx, steps_node)
+    check_plan(plan, rig, ctx, steps_node, line_of(raw, "working_pressure_bar"))
     ctx.raise_if_any()
     return plan
 
 
-def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[JsonValue]) -> None:
-    """Limits, loads, slew and contraction of every step, against the rig."""
+def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[JsonValue],
+               work_line: int | None = None) -> None:
+    """Limits, loads, slew, contraction and what a tick affords of every step, and the
+    working pressure of every load change, against the rig."""
     if not NAME_RE.match(plan.name):  # it names the collection's files and directory
         ctx.add(None, "name", "a name of letters, digits, '_', '-'", repr(plan.name))
     names = [m.name for m in rig.rig.muscles]
@@ -152,8 +165,9 @@ def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[Jso
         return
     mcfg = rig.muscle(plan.muscle)
     lim = rig.limits[plan.muscle]
-    rating = MUSCLE_TYPES[mcfg.type]
-    model = force_model(mcfg.force_model)
+    env = MuscleEnvelope.from_config(rig, plan.muscle)
+    rating = rig.muscle_type(plan.muscle)
+    model = rating.force_model(mcfg.force_model)
     slew = rig.rig.control.slew_limit_bar_per_s
     if not plan.steps:
         ctx.add(None, "steps", "at least one step", "none")
@@ -178,13 +192,14 @@ def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[Jso
                         f"at most {rating.max_load_kg:g} kg ({mcfg.type} rating)",
                         f"{step.load_kg:g} kg")
                 continue
+            _check_working_pressure(plan, env, load, step.load_kg, ctx, work_line, where)
             load = step.load_kg
         prof = plan.step_profile(step)
         if prof is None:
             continue
         pspec = prof.as_spec()
         try:
-            pspec.check(0.0, lim.max_pressure_bar, slew)
+            pspec.check(0.0, lim.max_pressure_bar, slew, rig.period_s)
         except CommandRefused as exc:
             ctx.add(line, f"{where}.profile", "a profile within the limits", str(exc))
             continue
@@ -199,6 +214,23 @@ def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[Jso
             ctx.add(line, f"{where}.profile.min_bar",
                     f"a pressure that keeps {load:g} kg within {100 * lim.max_pretension:g} "
                     "% stretch", f"{lo_bar:g} bar -> {100 * -x_lo:.1f} % stretch")
+
+
+def _check_working_pressure(plan: Plan, env: MuscleEnvelope, old_kg: float, new_kg: float,
+                            ctx: Context, line: int | None, where: str) -> None:
+    """The pressure held while a load is changed must hold both loads inside the
+    pretension limit (at least both safe pressures: below, the heavier one stretches the
+    muscle past it) and stay within the pressure limit (the limiter would cut it there,
+    and the load change would run at another pressure than the plan says)."""
+    work = plan.working_pressure_bar
+    if work is None:
+        return
+    need = max(env.safe_pressure_bar(old_kg), env.safe_pressure_bar(new_kg))
+    if not need - 1e-9 <= work <= env.max_pressure_bar:
+        ctx.add(line, "working_pressure_bar",
+                f"a pressure from {need:.2f} bar (the safe pressure of {max(old_kg, new_kg):g} "
+                f"kg, changed at {where}) to the pressure limit {env.max_pressure_bar:g} bar",
+                f"{work:g} bar")
 
 
 def profile_range(p: ProfileSpec) -> tuple[float, float]:

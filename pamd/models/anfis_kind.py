@@ -14,7 +14,7 @@ from pamd.models.anfis import modelfile
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.plots import write_plots
 from pamd.models.anfis.samples import OUTPUT_UNITS
-from pamd.models.anfis.training import RULE_RIDGE, TrainingOptions, fit
+from pamd.models.anfis.training import RULE_RIDGE, WIDTH_STARTS, TrainingOptions, fit
 from pamd.models.contract import InverseModel
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
 
@@ -99,7 +99,7 @@ def fit_anfis(job: FitJob[AnfisOptions]) -> Fitted:
         "val_rmse": None if result.val_rmse is None else result.val_rmse.tolist()}
     return Fitted(model, f"{model!r}, {model.n_params} parameters; best epoch "
                   f"{result.best_epoch} of {result.train_rmse.size} (on "
-                  f"{result.selected_on}), {result.seconds:.2f} s")
+                  f"{result.selected_on})")
 
 
 def anfis_plots(prefix: str, model: InverseModel, t_s: np.ndarray, y: np.ndarray, y_hat: np.ndarray,
@@ -114,4 +114,5 @@ KIND = Kind("anfis", "000", "first-order Sugeno ANFIS (or zero order: --conseque
             "constant), hybrid learning",
             modelfile.from_dict, DEFAULT_INPUTS, fit_anfis, AnfisOptions,
             adaptable=True, progress=lambda o: (o.epochs, "epoch", "RMSE"),
+            starts=lambda o: len(WIDTH_STARTS),
             plots=anfis_plots, outputs=tuple(OUTPUT_UNITS))

@@ -23,6 +23,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from pamd.atomic import write_atomic
+from pamd.config.schema import MODEL_FILE_MAX_BYTES
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ModelError
 from pamd.models import anfis_kind, fn_qupi, learned, qupi, static_force, ts_fuzzy
@@ -33,8 +35,8 @@ from pamd.models.domain import domain_of
 from pamd.models.kind import Kind
 from pamd.models.mamdani import KIND as MAMDANI
 
-#: Largest model file read (bytes): the largest kind (svr) stays far below it.
-MAX_FILE_BYTES = 8 * 1024 * 1024
+#: Largest model file read (bytes), declared with the config's `telemetry.models_dir`.
+MAX_FILE_BYTES = MODEL_FILE_MAX_BYTES
 
 #: The kinds by name, in the order help lists them (`register`).
 # Any: kinds of different option types in one table (a `Kind` is invariant in them)
@@ -135,10 +137,7 @@ def dumps_model(model: InverseModel) -> str:
 
 
 def save_model(model: InverseModel, path: str | os.PathLike[str]) -> Path:
-    """Write any kind's model file atomically (temporary file + rename)."""
+    """Write any kind's model file whole or not at all (`pamd.atomic`)."""
     target = Path(path)
-    text = dumps_model(model)
-    tmp = target.with_name(target.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, target)
+    write_atomic(target, dumps_model(model))
     return target

@@ -1,12 +1,21 @@
 """Seed 003's two test signals of several harmonics: multisine (its "complex harmonic
 signal") and multitriangle (its "complex triangular wave"). What a sum spans and how
 fast it moves are found on a grid over a period, in pure Python (the io process
-checks profiles without numpy).
+checks profiles without numpy), once per profile (`_grid_sums`, cached).
+
+What a tick can afford bounds them (issue 47): every harmonic costs each evaluation of
+the profile a sine and a cosine (or a triangle) in the tick, so a profile may have at
+most `max_harmonics(period_s)` of them (a tenth of the loop's period for the
+evaluations a tick makes: 83 at 1 kHz, 8 at 10 kHz), and numbers up to
+MAX_HARMONIC_NUMBER (64, what the grid resolves). A 3000-harmonic plan cost 1.0-1.8 ms
+a tick against a 1 ms period, after 140 s of checking; now it is refused at once.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import sys
 from typing import TYPE_CHECKING
 
 from pamd.errors import CommandRefused
@@ -23,6 +32,28 @@ if TYPE_CHECKING:
 DEFAULT_HARMONICS: tuple[tuple[int, float], ...] = ((1, 0.6), (2, 0.25), (3, 0.15))
 #: Points per fundamental period at which a harmonic signal's extremes are found.
 HARMONIC_GRID = 4096
+#: The highest harmonic number: the grid samples each harmonic's period at 64 points
+#: at least (a sine's peak between two is missed by at most 1 - cos(pi/64), 0.12 % of
+#: its share).
+MAX_HARMONIC_NUMBER = HARMONIC_GRID // 64
+#: What one harmonic costs one evaluation of the profile in the tick (s): a sine and a
+#: cosine (a triangle for multitriangle) and the sums in CPython. bench/profile_harmonics.py
+#: measures 0.2 us of CPU on the 2-core test machine; a real-clock run of 3000 harmonics
+#: cost 1.0-1.8 ms a tick (0.3-0.6 us each, issue 47): the higher taken, for a slower PC.
+HARMONIC_TICK_COST_S = 0.6e-6
+#: Evaluations of a running profile per tick: the setpoint's, and in position mode the
+#: feedforward's preview of the planned motion.
+EVALUATIONS_PER_TICK = 2
+#: The share of the loop's period one muscle's profile may take.
+PROFILE_TICK_SHARE = 0.1
+
+
+def max_harmonics(period_s: float) -> int:
+    """How many harmonics a profile may have on a loop of period `period_s` (at least
+    one): what PROFILE_TICK_SHARE of the period affords at EVALUATIONS_PER_TICK
+    evaluations of HARMONIC_TICK_COST_S each."""
+    return max(1, int(PROFILE_TICK_SHARE * period_s
+                      / (EVALUATIONS_PER_TICK * HARMONIC_TICK_COST_S)))
 
 
 def unit_triangle(phase: float) -> float:
@@ -56,17 +87,8 @@ class Harmonic(Periodic):
         """Per harmonic (number, share, lowest value, highest value, steepest rate) of
         the sum up to and including it."""
         mid, half = 0.5 * (spec.min_bar + spec.max_bar), 0.5 * (spec.max_bar - spec.min_bar)
-        # pure Python (load time only): this leaf module is imported by the io process,
-        # which must not import numpy
-        ph = [i / HARMONIC_GRID for i in range(HARMONIC_GRID)]
-        val, rate = [mid] * HARMONIC_GRID, [0.0] * HARMONIC_GRID
-        out = []
-        for n, a in spec.harmonic_list():
-            for i, x in enumerate(ph):
-                val[i] += half * a * self.wave_of(n * x)
-                rate[i] += half * a * n * spec.freq_hz * self.slope_of(n * x)
-            out.append((n, a, min(val), max(val), max(abs(r) for r in rate)))
-        return out
+        return [(n, a, mid + half * lo, mid + half * hi, abs(half) * spec.freq_hz * rate)
+                for n, a, lo, hi, rate in _grid_sums(self, spec.harmonic_list())]
 
     def span(self, spec: ProfileSpec) -> tuple[float, float]:
         last = self.partial(spec)[-1]
@@ -78,14 +100,30 @@ class Harmonic(Periodic):
     def check_params(self, spec: ProfileSpec) -> None:
         super().check_params(spec)
         seen: set[int] = set()
+        if not spec.harmonic_list():
+            raise CommandRefused(f"{spec.kind} profile: harmonics is empty; give at least "
+                                 "one {number, share}, or leave harmonics out for the "
+                                 "default (1, 2, 3 with shares 0.6, 0.25, 0.15)")
         for n, a in spec.harmonic_list():
-            if not (isinstance(n, int) and n >= 1) or n in seen:
+            if not (isinstance(n, int) and 1 <= n <= MAX_HARMONIC_NUMBER) or n in seen:
                 raise CommandRefused(f"{spec.kind} profile: harmonic numbers must be distinct "
-                                     f"whole numbers >= 1 (got {n!r})")
-            if not (math.isfinite(a) and a != 0.0):
+                                     f"whole numbers from 1 to {MAX_HARMONIC_NUMBER} (got "
+                                     f"{n!r})")
+            if not (math.isfinite(a) and abs(a) >= sys.float_info.min):
                 raise CommandRefused(f"{spec.kind} profile: harmonic {n}'s share must be a "
-                                     f"finite non-zero number (got {a!r})")
+                                     f"finite non-zero number of a physical size (got {a!r})")
             seen.add(n)
+
+    def check_cost(self, spec: ProfileSpec, period_s: float) -> None:
+        """Refuse a sum of more harmonics than a tick of `period_s` affords
+        (`max_harmonics`): before its span is computed, so that it costs nothing."""
+        count, most = len(spec.harmonic_list()), max_harmonics(period_s)
+        if count > most:
+            raise CommandRefused(
+                f"{spec.kind} profile: {count} harmonics cost a tick about "
+                f"{1e6 * EVALUATIONS_PER_TICK * HARMONIC_TICK_COST_S * count:.0f} us, more "
+                f"than a tenth of the loop's {1e3 * period_s:g} ms period affords: at most "
+                f"{most} harmonics")
 
     def check_harmonics(self, spec: ProfileSpec, low: float, high: float, rate_limit: float,
                         unit: str = "bar", scale: float = 1.0, origin: str = "") -> None:
@@ -117,6 +155,30 @@ class Harmonic(Periodic):
 
     def harmonic_wave(self, run: Profile, tau: float, out: ProfilePoint) -> None:
         raise NotImplementedError
+
+
+@functools.lru_cache(maxsize=64)
+def _grid_sums(shape: Harmonic, harmonics: tuple[tuple[int, float], ...]
+               ) -> tuple[tuple[int, float, float, float, float], ...]:
+    """Per harmonic (number, share, lowest, highest, steepest) of the unit sum up to and
+    including it (mid 0, half span 1, rate per unit frequency) on HARMONIC_GRID points
+    of a period: what a profile's span and rate scale, computed once per set of
+    harmonics (a plan's check asks three times per step). A harmonic n at grid point i
+    is the shape's wave at grid point n i mod HARMONIC_GRID: looked up, not evaluated
+    (pure Python, load time only: the io process imports this leaf module and must not
+    import numpy)."""
+    g = HARMONIC_GRID
+    wave = [shape.wave_of(i / g) for i in range(g)]
+    slope = [shape.slope_of(i / g) for i in range(g)]
+    val, rate = [0.0] * g, [0.0] * g
+    out = []
+    for n, a in harmonics:
+        an = a * n
+        idx = [j % g for j in range(0, n * g, n)]
+        val = [v + a * wave[j] for v, j in zip(val, idx, strict=True)]
+        rate = [r + an * slope[j] for r, j in zip(rate, idx, strict=True)]
+        out.append((n, a, min(val), max(val), max(max(rate), -min(rate))))
+    return tuple(out)
 
 
 class Multisine(Harmonic):

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
+from collections.abc import Collection
 from dataclasses import dataclass
 
 from pamd.errors import CommandRefused
@@ -87,12 +89,15 @@ class ProfileSpec:
             return self.rise_s
         return (self.max_bar - self.min_bar) / slew_limit
 
-    def check_reads(self) -> None:
+    def check_reads(self, given: Collection[str] = ()) -> None:
         """Refuse (CommandRefused) a parameter given that the shape does not read: it
         would be ignored, and the run would not be the one asked for (a constant with
-        cycles holds until stopped; a sine with to_bar never goes there)."""
-        unread = [n for n in OPTIONAL_PARAMS
-                  if getattr(self, n) is not None and n not in self.shape.params]
+        cycles holds until stopped; a sine with to_bar never goes there). `given`: the
+        parameters with a default that the caller knows were given (`pamd run
+        --profile constant --freq-hz 2`)."""
+        unread = [n for n in (*OPTIONAL_PARAMS, *(g for g in given if g not in OPTIONAL_PARAMS))
+                  if (getattr(self, n) is not None or n in given)
+                  and n not in self.shape.params and n != "lead_in_bar_per_s"]
         if unread:
             raise CommandRefused(
                 f"a {self.kind} profile does not read {' or '.join(unread)} (it reads "
@@ -100,14 +105,30 @@ class ProfileSpec:
                 " out" + ("; a constant holds until stopped, or for its duration_s (pamd run: "
                           "the run's --duration)" if self.kind == "constant" else ""))
 
-    def check(self, low_bar: float, high_bar: float, slew_limit: float) -> None:
+    def check_values(self) -> None:
+        """Refuse (CommandRefused) a parameter that is no physical number: not finite, or
+        subnormal (nonzero below 2.2e-308, such as 1e-320: no quantity is that small,
+        and arithmetic on it loses its precision silently), as the command and config
+        schemas refuse them (`pamd.schema.domains`), for whatever built this spec (the
+        harmonics' shares: `Harmonic.check_params`)."""
+        for name in _FLOAT_PARAMS:
+            v = getattr(self, name)
+            if v is not None and not _physical(v):
+                raise CommandRefused(f"{self.kind} profile: {name} {v!r} is not a physical "
+                                     "number (finite, 0 or at least 2.2e-308 in magnitude)")
+
+    def check(self, low_bar: float, high_bar: float, slew_limit: float,
+              period_s: float = 1e-3) -> None:
         """Refuse (CommandRefused) a profile outside [low, high] or faster than the slew
-        limit, saying which parameter to change."""
+        limit, or costing a tick of the loop's `period_s` more than it affords (the
+        harmonics), saying which parameter to change."""
         k = self.kind
         shape = self.shape
+        self.check_values()
         self.check_reads()
         shape.check_params(self)
         if isinstance(shape, Harmonic):
+            shape.check_cost(self, period_s)
             shape.check_harmonics(self, low_bar, high_bar, slew_limit)
         lo, hi = self.span()
         if self.cycles is not None and self.cycles < 1:
@@ -222,3 +243,11 @@ class Profile(ProfilePoint):
 #: does not read it (`pamd.profile_kinds.SHAPE_PARAMS`) is refused, not ignored.
 OPTIONAL_PARAMS: tuple[str, ...] = tuple(
     f.name for f in dataclasses.fields(ProfileSpec) if f.default is None)
+#: ProfileSpec's number parameters (`check_values`)
+_FLOAT_PARAMS: tuple[str, ...] = tuple(
+    f.name for f in dataclasses.fields(ProfileSpec) if f.type in ("float", "float | None"))
+
+
+def _physical(v: float) -> bool:
+    """Finite, and 0 or of a normal float's size."""
+    return math.isfinite(v) and (v == 0.0 or abs(v) >= sys.float_info.min)

@@ -13,9 +13,13 @@ cannot make that chain safer, but it can see it and be seen by it
   pressure loops hold their integrators (no PID wind-up while the air cannot
   follow); out for `supply_lost_s`, a FAULT "supply lost", the air held likewise.
 * `heartbeat`, a digital output toggled once per tick (or every
-  `heartbeat_toggle_s`) while the rig runs and no fault is latched: a safety relay
-  or watchdog timer sees it stop within one tick of a stall (no tick toggles it), a
-  FAULT or an ESTOP.
+  `heartbeat_toggle_s`) while the loop runs and commands the valves: a safety relay
+  or watchdog timer sees it stop within one tick of a stall (no tick toggles it), the
+  process's end, or a fault of a device pamd writes a valve through (it can no longer
+  command the air; it toggles again once the device answers). Never for a latched
+  FAULT or ESTOP: pamd holds those itself (a FAULT's safe ramp needs the air), and a
+  relay that opened the chain on them would hold it open while the reset waits for
+  the chain to close: a deadlock only a restart broke (`beat`).
 * `reset`, a push button: its press acknowledges a latched FAULT or ESTOP as the
   `reset` command does. The restart interlock: after the chain opened, nothing
   moves until an operator acknowledges, and not while the chain is open or the
@@ -65,6 +69,11 @@ class SafetyChain:
                                                       self.reset_input, self.heartbeat))
         self.supply_digital = (self.supply is not None and self.supply.driver.input_channels[
             self.supply.index].digital)
+        # the devices pamd writes valves through: the heartbeat stands still while one
+        # of them reports a fault (pamd cannot command the air)
+        self.valve_drivers = tuple({b.driver.name: b.driver for m in rig.muscles
+                                    for b in (m.valve, m.exhaust, m.inflate)
+                                    if b is not None}.values())
         # ticks between two changes of the heartbeat's level
         self.beat_ticks = max(1, round(c.heartbeat_toggle_s / cfg.period_s))
         self._ticks_since_beat = 0
@@ -81,6 +90,16 @@ class SafetyChain:
         self.reset_pressed = False  # the button went 0 -> 1 this tick
         self._supply_out_since = math.inf
         self._button = 0.0
+        # How much of a reading's age a stalled loop excuses (`pamd.stalls`; the rig
+        # controller sets it as it does the muscles' inputs'): not an open chain.
+        self.stall_excuse_s = 0.0
+
+    @property
+    def timeouts_s(self) -> tuple[float, ...]:
+        """The chain inputs' stale ages (`effective_timeout_s`: the sample period and
+        `safety.latency_margin_s` as for every input), s."""
+        return tuple(b.timeout_s for b in (self.estop, self.supply, self.reset_input)
+                     if b is not None)
 
     def missing(self, now: float) -> str | None:
         """Start-up: which chain input has no fresh reading yet (None: all have)."""
@@ -90,11 +109,14 @@ class SafetyChain:
         return None
 
     def read(self, now: float) -> None:
-        """Read the chain's inputs (once per tick, after the drivers advanced)."""
+        """Read the chain's inputs (once per tick, after the drivers advanced). Their
+        ages are judged as the muscles' are: against `effective_timeout_s`, with a
+        stalled loop's time excused (`stall_excuse_s`)."""
+        aged = now - self.stall_excuse_s
         b = self.estop
         if b is not None:
             raw = b.driver.in_values[b.index]
-            fresh = now - b.driver.in_stamps_s[b.index] <= b.timeout_s
+            fresh = aged - b.driver.in_stamps_s[b.index] <= b.timeout_s
             closed = fresh and b.gain * raw + b.offset >= 0.5
             self.closed = 1.0 if closed else (math.nan if not fresh else 0.0)
             if closed or (not fresh and b.driver.fault is not None):
@@ -108,7 +130,7 @@ class SafetyChain:
                     f"reading within {b.timeout_s:g} s")
         s = self.supply
         if s is not None:
-            fresh = now - s.driver.in_stamps_s[s.index] <= s.timeout_s
+            fresh = aged - s.driver.in_stamps_s[s.index] <= s.timeout_s
             p = s.gain * s.driver.in_values[s.index] + s.offset if fresh else math.nan
             self.supply_bar = p
             out = not (p >= 0.5 if self.supply_digital else p >= self.supply_min_bar)
@@ -125,7 +147,7 @@ class SafetyChain:
                     self.supply_reason = self._supply_text(p)
         r = self.reset_input
         if r is not None:
-            fresh = now - r.driver.in_stamps_s[r.index] <= r.timeout_s
+            fresh = aged - r.driver.in_stamps_s[r.index] <= r.timeout_s
             level = r.gain * r.driver.in_values[r.index] + r.offset if fresh else 0.0
             self.reset_pressed = level >= 0.5 and self._button < 0.5
             self._button = level
@@ -146,17 +168,25 @@ class SafetyChain:
         """The muscles get no air: the chain is open or the supply out."""
         return self.open_reason is not None or self.supply_out
 
-    def beat(self, alive: bool) -> None:
-        """End of a tick: toggle the heartbeat while `alive` (no fault latched); else it
-        stands still, and the relay watching it sees it stop."""
+    def beat(self) -> None:
+        """End of a tick: toggle the heartbeat, which says that the loop runs and
+        commands the valves; it stands still while a device pamd writes a valve
+        through reports a fault (and while no tick runs), and the relay watching it
+        sees it stop. A latched FAULT or ESTOP does not stop it (the module's
+        docstring): the operator's reset never waits for a heartbeat that waits for
+        the reset."""
         hb = self.heartbeat
-        if hb is not None and alive:
-            n = self._ticks_since_beat + 1
-            if n >= self.beat_ticks:
-                n = 0
-                self.level = 1.0 - self.level
-                hb.write_si(self.level)
-            self._ticks_since_beat = n
+        if hb is None:
+            return
+        for d in self.valve_drivers:
+            if d.fault is not None:
+                return
+        n = self._ticks_since_beat + 1
+        if n >= self.beat_ticks:
+            n = 0
+            self.level = 1.0 - self.level
+            hb.write_si(self.level)
+        self._ticks_since_beat = n
 
     def reset_block(self, by: str) -> str | None:
         """Why a reset `by` ("command" or "input") may not acknowledge now (the restart

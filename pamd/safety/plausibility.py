@@ -158,6 +158,12 @@ class Plausibility:
         self._p_lp = self._f_lp = math.nan
         self._p_lp_t = self._f_lp_t = math.nan
 
+    @property
+    def pressure_lowpass_bar(self) -> float:
+        """The pressure low-passed over LOWPASS_TAU_S by its samples' stamps (NaN before
+        any): the sensor's noise a sixth of a sample's at 1 kHz."""
+        return self._p_lp
+
     def reference_changed(self) -> None:
         """A new length reference (home, a device preset): the reading steps by the new
         offset, which is not a jump; the length checks start afresh."""
@@ -175,27 +181,20 @@ class Plausibility:
             self.reason = reason
         return reason
 
+    def pressure_for_force(self, f: float, length: float) -> float:
+        """The pressure the force map needs for force `f` at `length` (rare paths only:
+        `force_map_pressure`), NaN unless the force and the length are trusted."""
+        if not (self.force_ok and self.length_ok):
+            return math.nan
+        return force_map_pressure(self.model, self.nominal_length_mm, f, length)
+
     def pressure_diagnosis(self, p: float, command: float, f: float, length: float) -> str:
         """Which pressure the force and length support (fault path only): the measured
         one (the air does not get there) or the command (the sensor lies)."""
-        if not (self.force_ok and self.length_ok and p == p and command == command
-                and f == f and length == length):
+        p_f = self.pressure_for_force(f, length)
+        if not (p_f == p_f and p == p and command == command):
             return ("; the force and length cannot tell (untrusted): a lost supply, a stuck "
                     "valve, a leak or a stuck or dead pressure sensor")
-        x = (self.nominal_length_mm - length) / self.nominal_length_mm
-        lo, hi = _PRESSURE_SEARCH_BAR
-        if self.model.force_n(lo, x) >= f:
-            p_f = lo
-        elif self.model.force_n(hi, x) <= f:
-            p_f = hi
-        else:
-            for _ in range(40):
-                mid = 0.5 * (lo + hi)
-                if self.model.force_n(mid, x) < f:
-                    lo = mid
-                else:
-                    hi = mid
-            p_f = 0.5 * (lo + hi)
         if abs(p_f - p) <= abs(p_f - command):
             return (f"; the force ({f:.0f} N at {length:.1f} mm) needs about {p_f:.2f} bar, as "
                     "measured: the air does not get there (supply lost, valve stuck or a leak)")
@@ -395,6 +394,30 @@ class Plausibility:
                     f"{length - self._p_l0:+.1f} mm under its load (at a fixed pressure it "
                     "stands): stuck sensor")
         return None
+
+
+def force_map_pressure(model: ForceModel, nominal_length_mm: float, f: float,
+                       length: float) -> float:
+    """The pressure `model` needs for force `f` at `length` (bisection over
+    `_PRESSURE_SEARCH_BAR`; NaN for a reading that is no number). As good as the
+    muscle's force model (a DMSP-20's friction and hysteresis: a few tenths of a bar):
+    evidence to tell a lying sensor from air that does not follow, not a pressure to
+    command."""
+    if not (f == f and length == length):
+        return math.nan
+    x = (nominal_length_mm - length) / nominal_length_mm
+    lo, hi = _PRESSURE_SEARCH_BAR
+    if model.force_n(lo, x) >= f:
+        return lo
+    if model.force_n(hi, x) <= f:
+        return hi
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if model.force_n(mid, x) < f:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 def _alpha(dt_s: float) -> float:

@@ -55,13 +55,17 @@ class Supervisor:
         self.history: deque[Transition] = deque(maxlen=HISTORY_KEPT)  # the latest
         self.faults: list[str] = []  # the latest reasons (FAULTS_KEPT at most)
         self.fault_count = 0  # faults and emergency stops latched since the start
+        self._restored_estop = False  # the restored latch was an emergency stop
 
     @property
     def latched(self) -> bool:
         return self.state in (State.FAULT, State.ESTOP)
 
     def go(self, t_s: float, new: State, reason: str) -> None:
-        if new == self.state and reason == self.reason:
+        """Enter `new` for `reason`. Staying in the same state (a stop while IDLE, a
+        setpoint while RUNNING) is no transition: only the state's reason changes."""
+        if new == self.state:
+            self.reason = reason
             return
         tr = Transition(t_s, self.state, new, reason)
         self.state, self.reason = new, reason
@@ -69,10 +73,24 @@ class Supervisor:
         if self.on_transition is not None:
             self.on_transition(tr)
 
-    def restore_fault_reason(self, reason: str) -> None:
-        """A fault latched before a restart (the service keeper's state file): its reason
-        until the operator resets it."""
+    def restore_fault_reason(self, reason: str, estop: bool = False) -> None:
+        """A fault (`estop`: an emergency stop) latched before a restart (the service
+        keeper's state file): its reason until the operator resets it; `relatch` latches
+        it again once the sensors are read."""
         self.fault_reason = reason
+        self._restored_estop = estop
+
+    def relatch(self, t_s: float) -> None:
+        """Start-up, the sensors read: a latched fault restored from before a restart
+        latches again as what it was (an emergency stop comes back as ESTOP, not as a
+        FAULT). Nothing restored: nothing."""
+        reason = self.fault_reason
+        if reason is None:
+            return
+        if self._restored_estop:
+            self.estop(t_s, reason)
+        else:
+            self.fault(t_s, reason)
 
     def fault(self, t_s: float, reason: str) -> None:
         """Latch a fault (the first reason wins while latched; ESTOP stays ESTOP)."""

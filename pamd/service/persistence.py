@@ -66,9 +66,9 @@ class StateKeeper:
         if rec is None:
             return None
         text = rec.restored_reason()
-        self.supervisor.restore_fault_reason(text)
+        self.supervisor.restore_fault_reason(text, estop=rec.state == "ESTOP")
         self.restored = rec
-        self.persisted = ("FAULT", text)
+        self.persisted = (rec.state, text)
         self.earlier, self._plain = list(rec.earlier), rec.reason
         log.error("latched %s restored from %s: %s; the rig holds its measured pressure "
                   "until reset", "emergency stop" if rec.state == "ESTOP" else "fault",

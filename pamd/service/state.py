@@ -24,15 +24,14 @@ loop's.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import os
-import tempfile
 import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from pamd.atomic import fsync_dir, write_atomic
 from pamd.config.loader import LoadedConfig, builtin_config_path
 from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.drivers.safe_outputs import safe_output_values
@@ -114,24 +113,16 @@ def now_iso() -> str:
 
 
 # -- atomic JSON ----------------------------------------------------------------------
+#: the state files are the daemon's own (as mkstemp made them before)
+STATE_FILE_MODE = 0o600
+
+
 def write_json_atomic(path: str, doc: JsonObject) -> None:
     """Write `doc` so that a crash or power cut leaves the old file or the new one,
-    never half of one."""
-    directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".pamd-", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(doc, fh, indent=2, allow_nan=False)
-            fh.write("\n")
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    _fsync_dir(directory)
+    never half of one (`pamd.atomic`: FileWriteError, an OSError, if it cannot)."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    write_atomic(path, json.dumps(doc, indent=2, allow_nan=False) + "\n",
+                 file_mode=STATE_FILE_MODE)
 
 
 def remove_durably(path: str) -> bool:
@@ -140,7 +131,7 @@ def remove_durably(path: str) -> bool:
         os.unlink(path)
     except FileNotFoundError:
         return False
-    _fsync_dir(os.path.dirname(os.path.abspath(path)))
+    fsync_dir(os.path.dirname(os.path.abspath(path)))
     return True
 
 
@@ -164,15 +155,6 @@ def read_json(path: str, fmt: str) -> JsonObject | None:
         raise StateFileError(f"{path}: {fmt} version {doc.get('version')!r}; this pamd "
                              f"reads version {FORMAT_VERSION}")
     return doc
-
-
-def _fsync_dir(directory: str) -> None:
-    with contextlib.suppress(OSError):
-        fd = os.open(directory, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
 
 
 # -- the latched fault -------------------------------------------------------------------

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pamd.atomic import save_figure
 from pamd.tune.onoff import (
     SHORTEST_REPEATS,
     SPEED_PULSE_S,
@@ -55,7 +56,7 @@ def plot_onoff(path: str, tests: dict[str, StepTest], level_bar: float) -> None:
     """Write the PNG of the step tests (by muscle) at `level_bar` to `path`."""
     plt = pyplot()
     fig = onoff_figure(plt, tests, level_bar)
-    fig.savefig(path, dpi=DPI)
+    save_figure(fig, path, DPI)  # whole or not at all (pamd.atomic)
     plt.close(fig)
 
 

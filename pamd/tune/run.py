@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pamd.atomic import write_atomic
 from pamd.config import LoadedConfig, load_config
 from pamd.daemon import Daemon
 from pamd.declare.jsonsafe import JsonObject
@@ -33,7 +34,6 @@ from pamd.experiment.plan import Plan, load_plan
 from pamd.experiment.sequencer import started_plan
 from pamd.experiment.timeline import StepLine, timeline
 from pamd.io.session import RecordingRequest
-from pamd.muscle_type import force_model
 from pamd.safety import safe_pressure_bar
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.tune.steps import Step, steps_in
@@ -160,9 +160,9 @@ def check_limits(cfg: LoadedConfig, muscle: str, lp: LoopPlan) -> None:
     lim = cfg.limits[muscle]
     mcfg = cfg.muscle(muscle)
     saf = cfg.rig.safety
-    safe = safe_pressure_bar(force_model(mcfg.force_model), mcfg.load_kg, lim.max_pretension,
-                             saf.stretch_margin, saf.safe_pressure_margin_bar,
-                             lim.max_pressure_bar)
+    model = cfg.muscle_type(muscle).force_model(mcfg.force_model)
+    safe = safe_pressure_bar(model, mcfg.load_kg, lim.max_pretension, saf.stretch_margin,
+                             saf.safe_pressure_margin_bar, lim.max_pressure_bar)
     for level in lp.levels_bar:
         if level < safe:
             raise TuneRefused(f"{muscle}: level {level:g} bar is below the safe pressure "
@@ -198,8 +198,7 @@ def run_identification(config_path: str | None, clock: str | None, muscle: str,
                         lambda base: check_limits(base, muscle, lp))
     os.makedirs(out_dir, exist_ok=True)
     plan_file = os.path.join(out_dir, f"tune-{lp.loop}-{muscle}.plan.yaml")
-    with open(plan_file, "w", encoding="utf-8") as fh:
-        fh.write(plan_text(muscle, lp))
+    write_atomic(plan_file, plan_text(muscle, lp))
     plan = load_plan(plan_file, cfg)
     lines = timeline(plan, cfg, simulated=True)
     _run_plan(cfg, plan, plan_file, lines, out_dir, progress)

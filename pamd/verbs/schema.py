@@ -21,7 +21,7 @@ from pamd.schema.engine import spec
 @dataclass(frozen=True, kw_only=True)
 class SetpointArgs:
     muscle: str = spec(doc="Muscle name.")
-    bar: float | None = spec(None, "Pressure setpoint (pressure mode).", unit="bar")
+    bar: float | None = spec(None, "Pressure setpoint (pressure mode).", unit="bar", min=0.0)
     length_mm: float | None = spec(None, "Length target (length_force and position modes).",
                                    unit="mm", gt=0.0)
     force_n: float | None = spec(None, "Force target (length_force mode; default: the force "
@@ -39,12 +39,14 @@ class SetpointArgs:
 class ProfileArgs:
     muscle: str | None = spec(None, "Muscle name (default: every muscle).")
     kind: str = spec("sine", f"{kinds_text()}.")
-    min_bar: float = spec(0.0, "Lowest pressure.", unit="bar")
-    max_bar: float = spec(6.0, "Highest pressure.", unit="bar")
-    freq_hz: float = spec(0.05, f"Frequency ({kinds_reading('freq_hz')}).", unit="Hz")
+    min_bar: float = spec(0.0, "Lowest pressure.", unit="bar", min=0.0)
+    max_bar: float = spec(6.0, "Highest pressure.", unit="bar", min=0.0)
+    freq_hz: float = spec(0.05, f"Frequency ({kinds_reading('freq_hz')}).", unit="Hz",
+                          gt=0.0)
     cycles: int | None = spec(None, f"Number of cycles ({kinds_reading('cycles')}; default: "
                               "until stopped).", min=1)
-    to_bar: float | None = spec(None, f"Target ({kinds_reading('to_bar')}).", unit="bar")
+    to_bar: float | None = spec(None, f"Target ({kinds_reading('to_bar')}).", unit="bar",
+                                min=0.0)
     rate_bar_per_s: float | None = spec(None, "Ramp rate.", unit="bar/s", gt=0.0)
     rise_s: float | None = spec(None, "Step edge duration.", unit="s", gt=0.0)
     duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
@@ -53,11 +55,15 @@ class ProfileArgs:
                                     unit="bar/s", gt=0.0)
     # Length profiles (length_force and position modes), in contraction (fraction of the
     # nominal length); the *_bar fields above do not apply to them.
+    # (a fraction of the nominal length: no muscle gets anywhere near -1 or 1; the
+    # handler holds each to the muscle's own limits and load)
     min_contraction: float | None = spec(None, "Length profile: least contraction ("
-                                         f"{kinds_reading('min_bar')}), e.g. 0.05.")
-    max_contraction: float | None = spec(None, "Length profile: most contraction, e.g. 0.20.")
+                                         f"{kinds_reading('min_bar')}), e.g. 0.05.",
+                                         gt=-1.0, max=1.0)
+    max_contraction: float | None = spec(None, "Length profile: most contraction, e.g. 0.20.",
+                                         gt=-1.0, max=1.0)
     to_contraction: float | None = spec(None, "Length profile: target ("
-                                        f"{kinds_reading('to_bar')}).")
+                                        f"{kinds_reading('to_bar')}).", gt=-1.0, max=1.0)
     rate_per_s: float | None = spec(None, "Length profile: ramp rate, contraction per second.",
                                     unit="1/s", gt=0.0)
     lead_in_per_s: float | None = spec(None, "Length profile: lead-in rate from the present "

@@ -129,9 +129,11 @@ their handlers in `pamd.commands`)."""
 
 
 def parse_command(verb: str, payload: JsonValue, sender: str = "local", user: str = "",
-                  reply: Callable[[JsonObject], None] | None = None) -> Command:
-    """Shape checks only; raises CommandRefused saying what was wrong. Text fields
-    are capped here (MAX_TEXT_CHARS; sender and user MAX_WHO_CHARS)."""
+                  reply: Callable[[JsonObject], None] | None = None,
+                  label: Callable[[str], str] = str) -> Command:
+    """Shape checks only; raises CommandRefused saying what was wrong (each field as
+    `label` names it: `pamd run` names its options). Text fields are capped here
+    (MAX_TEXT_CHARS; sender and user MAX_WHO_CHARS)."""
     declared = VERBS.public(verb)
     if declared is None:
         raise CommandRefused(f"unknown command {cap_text(repr(verb), 80)}; known: "
@@ -144,7 +146,7 @@ def parse_command(verb: str, payload: JsonValue, sender: str = "local", user: st
     args = build_dataclass(declared.args, cap_payload(payload), ctx, "", None)
     if ctx.issues:
         raise CommandRefused(cap_text("; ".join(
-            f"{i.path}: expected {i.expected}" + (f", found {i.found}" if i.found else "")
+            f"{label(i.path)}: expected {i.expected}" + (f", found {i.found}" if i.found else "")
             for i in ctx.issues), MAX_ERROR_CHARS))
     return Command(verb, args, reply, cap_text(str(sender), MAX_WHO_CHARS),
                    cap_text(str(user), MAX_WHO_CHARS))

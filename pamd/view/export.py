@@ -26,6 +26,7 @@ from typing import TypedDict
 
 import numpy as np
 
+from pamd.atomic import atomic_text
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import RecordingError
 from pamd.view import fields
@@ -164,7 +165,7 @@ def export_named_csv(source: RecordingSource, out_dir: str) -> dict[str, tuple[s
     _write_table(path, rec.loop, loop_named, d)
     written["loop"] = (path, len(rec.loop["tick"]))
     path = os.path.join(out_dir, f"{stem}_events.csv")
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with atomic_text(path, newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["t_s", "tick", "kind", "data"])
         for e in rec.events:
@@ -185,7 +186,7 @@ def export_named_csv(source: RecordingSource, out_dir: str) -> dict[str, tuple[s
             **_meta(rec)}
     side["loads_kg"] = [None if math.isnan(x) else x for x in side["loads_kg"]]
     path = os.path.join(out_dir, f"{stem}.meta.json")
-    with open(path, "w", encoding="utf-8") as fh:
+    with atomic_text(path) as fh:
         json.dump(side, fh, indent=2)
     written["sidecar"] = (path, -1)
     return written
@@ -252,6 +253,6 @@ def _write_table(path: str, cols: dict[str, np.ndarray], named: dict[str, np.nda
             lists.append(_column(cols[k], column_decimals(k)))
             cells.append("%s")
     row = ",".join(cells) + "\r\n"
-    with open(path, "w", newline="", encoding="utf-8") as fh:
+    with atomic_text(path, newline="") as fh:
         csv.writer(fh).writerow(names)
         fh.writelines(row % r for r in zip(*lists, strict=True))

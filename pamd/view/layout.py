@@ -19,6 +19,7 @@ import json
 import sys
 from collections.abc import Sequence
 
+from pamd.atomic import write_atomic
 from pamd.config import load_config
 from pamd.declare import fields
 from pamd.declare.jsonsafe import JsonObject, JsonValue
@@ -116,8 +117,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     cfg = load_config(args.config)
     text = layout_json(cfg.rig.rig_id, [m.name for m in cfg.rig.muscles])
     if args.out:
-        with open(args.out, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        write_atomic(args.out, text)
     else:
         sys.stdout.write(text)
     return 0

@@ -2,9 +2,10 @@
 emergency-stop contact and the reset button are discrete inputs of an emulated Modbus
 TCP digital I/O module, the heartbeat one of its coils, the supply an analog input; the
 daemon on the real clock reads them through the real pymodbus stack on loopback. The
-heartbeat reaches the module's coil and toggles; pressing the e-stop (the simulated
-chain opening) is an ESTOP "safety chain open" naming the input; releasing it moves
-nothing; the reset button at the module brings the rig back to IDLE."""
+heartbeat reaches the module's coil and toggles, also in ESTOP; pressing the e-stop
+(the simulated chain opening) is an ESTOP "safety chain open" naming the input;
+releasing it moves nothing; the reset button at the module brings the rig back to
+IDLE."""
 
 from __future__ import annotations
 
@@ -91,8 +92,9 @@ def test_the_chain_on_modbus_discrete_inputs_and_a_heartbeat_coil(
     rig.plant.close_chain()  # released: the air returns, nothing moves
     assert wait_until(lambda: daemon.ctrl.chain.closed == 1.0, 10.0)
     assert daemon.wait_for_state((State.IDLE,), 1.0) == State.ESTOP
-    assert sim.heartbeat_toggles - toggles <= 2  # it stood still from the ESTOP on
+    # the heartbeat beats on through the ESTOP (a relay watching it must not hold the
+    # chain open against the reset: issue 37 item 4)
+    assert wait_until(lambda: sim.heartbeat_toggles > toggles + 20, 10.0)
     rig.plant.press_reset(True)  # the reset button at the module
     assert daemon.wait_for_state((State.IDLE,), 10.0) == State.IDLE
     rig.plant.press_reset(False)
-    assert wait_until(lambda: sim.heartbeat_toggles > toggles + 20, 10.0)  # beating again

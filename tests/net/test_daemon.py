@@ -61,7 +61,7 @@ BAD: list[tuple[str, dict[str, Any], str]] = [
     ("setpoint", {"raw": '{"muscle": "m1", "bar": Infinity}'}, "finite"),
     ("setpoint", {"raw": '{"muscle": "m1", "bar": 1e999}'}, "finite"),
     ("setpoint", {"payload": {"muscle": "m1", "bar": 9.0}}, "outside 0-6 bar"),
-    ("setpoint", {"payload": {"muscle": "m1", "bar": -1.0}}, "outside 0-6 bar"),
+    ("setpoint", {"payload": {"muscle": "m1", "bar": -1.0}}, "bar: expected a value at least 0"),
     ("setpoint", {"payload": {"muscle": "m9", "bar": 1.0}}, "no muscle named 'm9'"),
     ("setpoint", {"payload": {"muscle": "m1", "bar": 2.0, "ramp_s": 0.01}}, "slew limit"),
     ("setpoint", {"payload": {"muscle": "m1", "bar": 2.0, "deadman_s": 0}}, "deadman_s"),
@@ -147,9 +147,10 @@ def test_cli_clients(rig: RigProc) -> None:
 def test_stop_withdraws_and_the_recording_says_it_all(rig: RigProc) -> None:
     rc = rig.daemon.stop()
     assert rc == 0, rig.daemon.log()[-3000:]
-    gone = rig.agent.call("rigs")
-    assert gone == {"rigs": []}
-    assert "no answer" in rig.agent.call("status", rig=RIG, timeout=1.0)["no_daemon"]
+    gone = rig.agent.call("rigs")  # none alive; or, its session closed with the daemon
+    assert gone == {"rigs": []} or "cannot connect" in gone.get("no_daemon", ""), gone
+    gone = rig.agent.call("status", rig=RIG, timeout=1.0)["no_daemon"]
+    assert "no answer" in gone or "cannot connect" in gone
     summary = rig.daemon.summary()
     assert summary["telemetry"]["rig_id"] == RIG and summary["final_state"] == "IDLE"
     [path] = summary["recording"]["files"]

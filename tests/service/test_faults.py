@@ -78,8 +78,11 @@ def test_a_latched_fault_comes_back_after_a_restart_until_reset(
         finish(d3)
 
 
-def test_an_emergency_stop_is_kept_and_a_new_fault_keeps_the_old_reason(
+def test_an_emergency_stop_comes_back_as_one_and_a_new_latch_keeps_the_old_reason(
         tmp_path: Path, sim_config: Callable[..., LoadedConfig]) -> None:
+    """A latched ESTOP comes back after a restart as ESTOP (issue 37 item 5: it came
+    back as FAULT), its reason kept; an ESTOP over a restored FAULT keeps the old
+    reason as `earlier`."""
     cfg = sim_config()
     state = tmp_path / "state"
     d1 = run_daemon(cfg, state_dir=str(state))
@@ -94,13 +97,26 @@ def test_an_emergency_stop_is_kept_and_a_new_fault_keeps_the_old_reason(
 
     d2 = run_daemon(cfg, state_dir=str(state))
     try:
-        assert d2.wait_for_state((State.FAULT,), 10) == State.FAULT
+        assert d2.wait_for_state((State.ESTOP, State.FAULT), 10) == State.ESTOP
         reason = d2.ctrl.supervisor.reason
         assert "hand on the red button" in reason and "emergency stop latched" in reason
-        assert d2.command("estop", {"reason": "again"})["ok"]  # ESTOP over the old one
+        d2.service()
+        kept = json.loads((state / "fault.json").read_text())
+        assert kept["state"] == "ESTOP" and kept["reason"] == saved["reason"]  # unchanged
+        d2.rig.drivers["sim"].inject_fault("*", "driver", "error")  # ESTOP stays ESTOP
         d2.service()
     finally:
         finish(d2)
+    assert json.loads((state / "fault.json").read_text())["reason"] == saved["reason"]
+
+    (state / "fault.json").write_text(json.dumps({**saved, "state": "FAULT"}))
+    d3 = run_daemon(cfg, state_dir=str(state))
+    try:
+        assert d3.wait_for_state((State.FAULT, State.ESTOP), 10) == State.FAULT
+        assert d3.command("estop", {"reason": "again"})["ok"]  # ESTOP over the FAULT
+        d3.service()
+    finally:
+        finish(d3)
     again = json.loads((state / "fault.json").read_text())
     assert again["state"] == "ESTOP" and again["reason"] == "emergency stop: again"
     assert again["earlier"] == ["emergency stop: hand on the red button"]

@@ -40,6 +40,7 @@ import math
 import os
 from pathlib import Path
 
+from pamd.atomic import write_atomic
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
@@ -66,12 +67,9 @@ def dumps(model: AnfisModel) -> str:
 
 
 def save(model: AnfisModel, path: str | os.PathLike[str]) -> Path:
-    """Write the model file atomically (temporary file + rename); returns the path."""
+    """Write the model file whole or not at all (`pamd.atomic`); returns the path."""
     target = Path(path)
-    text = dumps(model)
-    tmp = target.with_name(target.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, target)
+    write_atomic(target, dumps(model))
     return target
 
 

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from pamd.atomic import save_figure
 from pamd.errors import ModelError
 from pamd.models.anfis.membership import log_membership
 from pamd.models.anfis.model import AnfisModel
@@ -166,6 +167,6 @@ def training_plot(path: str, curve: dict[str, Sequence[float] | None]) -> str:
 # Any: a matplotlib figure and pyplot, imported lazily (heavy third party)
 def _save(fig: Any, plt: Any, path: str) -> str:
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, 110)  # whole or not at all (pamd.atomic)
     plt.close(fig)
     return path
