@@ -8,7 +8,7 @@ and with the walk-through's half-range sweeps (half-range-sweeps.yaml, same load
 
 Tracking: in position mode a 0.05 Hz sine over the stroke the load reaches between 1.5
 and 5 bar (the static force model; 0.5 % steps), 3 cycles; the figure is the length
-RMSE after the first cycle (the README's tracking span), and the shares of the running
+RMSE after the first cycle (the docs' tracking span), and the shares of the running
 ticks with the model's inputs off its training domain and with its feedforward faded
 (`control.feedforward.off_data: fade`).
 

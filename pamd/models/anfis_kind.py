@@ -47,7 +47,7 @@ def mfs_for(mfs: Sequence[int] | None, n_inputs: int) -> int | list[int]:
 #: `pamd train`'s default inputs: force, length and velocity (seed 001's; seed 000's model
 #: is `--inputs force_n,length_mm`). The velocity tells the inflating branch of the
 #: hysteresis from the deflating one; chosen on held-out loads of the shipped training
-#: data (bench/model_between_loads.py --select; README, "The default inverse model"):
+#: data (bench/model_between_loads.py --select; docs/explanation/inverse-model.md):
 #: at a load held out of the seeds' sweep, 3 x 3 x 3 with the rule ridge tracked with
 #: 0.43 of the position PID's error alone, 2 inputs 5 x 5 with it 0.51.
 DEFAULT_INPUTS = ("force_n", "length_mm", "velocity_mm_s")

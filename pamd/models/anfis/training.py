@@ -54,7 +54,8 @@ NORMAL_EQUATIONS_MAX_COND = 1e12
 
 #: pamd train's `--rule-ridge` (`TrainingOptions.rule_ridge`, 0 there: Jang's algorithm as
 #: written): chosen on held-out loads of the shipped training data
-#: (bench/model_between_loads.py --select; README, "The default inverse model").
+#: (bench/model_between_loads.py --select; docs/explanation/inverse-model.md, "The
+#: default inverse model").
 RULE_RIDGE = 1e-4
 
 
