@@ -25,7 +25,12 @@ from pamd.control.feedforward import LoadedModel
 from pamd.control.muscle import MuscleController
 from pamd.control.rig_chain import ChainResponse
 from pamd.control.rig_deadman import Deadman
-from pamd.control.rig_report import finding_event, rig_status, soft_limit_event
+from pamd.control.rig_report import (
+    feedforward_events,
+    finding_event,
+    rig_status,
+    soft_limit_event,
+)
 from pamd.control.rig_safe_state import (
     SAFE_CMD_BAND_BAR,
     at_rest,
@@ -186,8 +191,9 @@ class RigController:
             reason = m.write(now, dt, entering, rec)
             if reason is not None and fault is None:
                 fault = reason
+            wd = m.ff_watch
             if (m.tick_values.finding is not None or m.limit_report is not None
-                    or m.adaptation.report is not None):
+                    or m.adaptation.report is not None or wd.pending_off or wd.pending_osc):
                 self._report(now, m)
         if fault is not None:  # the actuation's own: it shapes the next tick
             self._latch(now, fault)
@@ -244,13 +250,17 @@ class RigController:
 
     def _report(self, now: float, m: MuscleController) -> None:
         """What a muscle's write found or reports (rare paths): a valve that does not
-        act, a profile held at a soft limit, the model's adaptation frozen."""
+        act, a profile held at a soft limit, the model's adaptation frozen, the model
+        off its data or its feedforward oscillating (`pamd.control.off_data`)."""
         if m.finding is not None:
             self.sink.event(now, "implausible", finding_event(m))
         if m.limit_report is not None:
             self.sink.event(now, "soft_limit", soft_limit_event(m))
         if m.adapt_report is not None:
             self.sink.event(now, "adapt", m.take_adapt_report() or {})
+        if m.feedforward_pending:
+            for ev in feedforward_events(m):
+                self.sink.event(now, "feedforward", ev)
 
     def _finish(self, now: float, rec: array[float]) -> None:
         """The plan's step, a finished profile, the rig's fields of the record and the

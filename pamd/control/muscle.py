@@ -136,8 +136,10 @@ class MuscleController:
         self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
                                             None if model is None else model.feedforward(),
                                             ctl.rate_feedforward_s,
-                                            1.0 / cfg.rig.loop.rate_hz)
+                                            1.0 / cfg.rig.loop.rate_hz, ctl.feedforward)
         self.valves_position = ValvesPosition(self.length_control)
+        # the watch on the model's training domain and oscillation (its reports)
+        self.ff_watch = self.length_control.watch
         self.actuation: Actuation = actuation_for(signals, mcfg)
         self.onoff = mcfg.actuation == "onoff"  # on/off valves (status, tools)
         self.pressure_loop = PressureLoop(*self._pressure_gains(ctl.pid, ctl.rate_feedforward_s))
@@ -325,6 +327,19 @@ class MuscleController:
 
     def take_adapt_report(self) -> JsonObject | None:
         return self.adaptation.take_report()
+
+    @property
+    def feedforward_pending(self) -> bool:
+        """The model's inputs left its training domain, or its feedforward began to
+        oscillate, and that is not yet said (`pamd.control.off_data`)."""
+        wd = self.ff_watch
+        return wd.pending_off or wd.pending_osc
+
+    def feedforward_report(self) -> JsonObject:
+        """The feedforward's watch for the run summary and the status: the policy and
+        the shares of the running ticks off the training domain, faded, oscillating."""
+        out: JsonObject = dict(self.ff_watch.summary())
+        return out
 
     def take_limit_report(self) -> str | None:
         report, self.limit_report = self.limit_report, None
