@@ -5,7 +5,7 @@ makes it zero order (one constant per rule: seed 002 compares both)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -14,7 +14,7 @@ from pamd.models.anfis import modelfile
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.plots import write_plots
 from pamd.models.anfis.samples import OUTPUT_UNITS
-from pamd.models.anfis.training import TrainingOptions, fit
+from pamd.models.anfis.training import WIDTH_STARTS, TrainingOptions, fit
 from pamd.models.contract import InverseModel
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
 
@@ -47,9 +47,23 @@ def mfs_for(mfs: Sequence[int] | None, n_inputs: int) -> int | list[int]:
 MFS_HELP = ("membership functions per input: one number or one per input (e.g. 5,5,3)")
 
 
+#: `--preset`: pamd's training defaults, or seed 000's MATLAB ones (`PRESETS`).
+PRESETS: tuple[str, ...] = ("pamd", "matlab")
+#: MATLAB's anfis trains 10 epochs unless told (seed 000 trained in MATLAB's toolbox).
+MATLAB_EPOCHS = 10
+PRESET_HELP = (
+    "training defaults: pamd's (two starts at MF widths 1 and 3, 100 epochs, the step a "
+    "length in the scaled inputs) or matlab, seed 000's MATLAB Fuzzy Logic Toolbox as it "
+    "trains without options (genfis1's grid: one start, neighbouring MFs crossing at 0.5; "
+    "anfis's 10 epochs; its step 0.01 a length in the inputs' own units, so the premises "
+    "of a force input in newtons hardly move: least squares on genfis1's grid). --epochs "
+    "and --step still apply")
+
+
 @dataclass(frozen=True)
 class AnfisOptions(KindOptions):
-    epochs: int = option(100, "training epochs", minimum=1)
+    epochs: int | None = option(None, "training epochs", parse=int, minimum=1,
+                                default_text=f"100; --preset matlab: {MATLAB_EPOCHS}")
     mfs: tuple[int, ...] | None = option(
         None, MFS_HELP, parse=parse_mfs, metavar="N[,N...]",
         default_text="5 for two inputs, 3 for three: the seeds' 25 and 27 rules")
@@ -62,18 +76,31 @@ class AnfisOptions(KindOptions):
         "constant f = q (zero-order, R parameters instead of R (d + 1))",
         choices=CONSEQUENTS)
 
+    preset: str = option("pamd", PRESET_HELP, choices=PRESETS)
+
     def check(self, inputs: Sequence[str]) -> None:
         mfs_for(self.mfs, len(inputs))
+
+    @property
+    def steps(self) -> int:
+        """Epochs: as given, else the preset's."""
+        return self.epochs or (MATLAB_EPOCHS if self.preset == "matlab" else 100)
+
+    def training(self, n_inputs: int, seed: int) -> TrainingOptions:
+        """The library's training options these give (`TrainingOptions`)."""
+        out = TrainingOptions(n_mfs=mfs_for(self.mfs, n_inputs), mf_type=self.mf_type,
+                              epochs=self.steps, initial_step=self.step,
+                              consequent=self.consequent, seed=seed)
+        if self.preset == "matlab":  # genfis1's one start, anfis's step in input units
+            out = replace(out, width_factor=1.0, step_units="raw")
+        return out
 
 
 def fit_anfis(job: FitJob[AnfisOptions]) -> Fitted:
     o = job.options
     s = job.samples
     X, y = job.train
-    result = fit(X, y, TrainingOptions(n_mfs=mfs_for(o.mfs, len(job.inputs)),
-                                       mf_type=o.mf_type, epochs=o.epochs,
-                                       initial_step=o.step, consequent=o.consequent,
-                                       seed=job.seed),
+    result = fit(X, y, o.training(len(job.inputs), job.seed),
                  input_names=list(job.inputs), input_units=job.input_units,
                  output_name=s.output, output_unit=s.output_unit,
                  validation=job.validation, callback=job.callback,
@@ -98,5 +125,7 @@ def anfis_plots(prefix: str, model: InverseModel, t_s: np.ndarray, y: np.ndarray
 KIND = Kind("anfis", "000", "first-order Sugeno ANFIS (or zero order: --consequent "
             "constant), hybrid learning",
             modelfile.from_dict, ("force_n", "length_mm"), fit_anfis, AnfisOptions,
-            adaptable=True, progress=lambda o: (o.epochs, "epoch", "RMSE"),
+            adaptable=True,
+            progress=lambda o: (o.steps * (1 if o.preset == "matlab" else len(WIDTH_STARTS)),
+                                "epoch", "RMSE"),
             plots=anfis_plots, outputs=tuple(OUTPUT_UNITS))
