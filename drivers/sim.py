@@ -48,9 +48,11 @@ from pamd.drivers.sim_faults import (
     stall_process,
 )
 
-from pamd.errors import DriverError
+from pamd.errors import DriverError, ModelError
+from pamd.models.fn_qupi_plant import plant_model
 from pamd.muscle_type import ForceModel, force_model
 from pamd.sim.faults import FAULT_KINDS, SimFault
+from pamd.sim.model_plant import ModelPlant
 from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
@@ -65,6 +67,18 @@ CLOCK_AGREES_S = 1e-9
 #: The rig's safety-chain inputs after the muscles' (their offsets from 3 x muscles).
 CHAIN_INPUTS: tuple[str, ...] = ("safety_chain", "supply", "reset")
 SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
+
+
+def _model_plant(driver: str, m: SimMuscleOptions, rng: random.Random, model: ForceModel,
+                 supply: SupplyLine | None) -> ModelPlant:
+    """A muscle whose mechanics are its `plant_model` file's (`pamd.sim.model_plant`)."""
+    assert m.plant_model is not None
+    try:
+        stepper = plant_model(m.plant_model)
+    except ModelError as exc:
+        raise DriverError(f"sim driver {driver!r}: muscle {m.name!r}: plant_model: "
+                          f"{exc}") from None
+    return ModelPlant(m, rng, stepper, model, supply)
 
 
 def muscle_rng(seed: int, muscle: str) -> random.Random:
@@ -94,7 +108,10 @@ class SimDriver(Driver):
             if m.force_model not in models:
                 models[m.force_model] = force_model(m.force_model)
             rng = muscle_rng(options.seed, m.name)
-            self._plants.append(MusclePlant(m, rng, models[m.force_model], self.supply_line))
+            self._plants.append(MusclePlant(m, rng, models[m.force_model], self.supply_line)
+                                if m.plant_model is None else
+                                _model_plant(name, m, rng, models[m.force_model],
+                                             self.supply_line))
         self._by_name = {p.name: k for k, p in enumerate(self._plants)}
         # incremental encoders read 0 at power-up: the true length then is their zero
         self._len_zero_mm = [0.0 if m.length_absolute else p.length_read_mm
