@@ -194,3 +194,22 @@ def test_matlab_preset_trains_one_start_on_the_inputs_units(tmp_path: Path,
     assert training["width_starts"]["widths"] == [1.0]
     assert training["options"]["step_units"] == "raw" and training["epochs_run"] == 10
     assert premise_units(model).tolist()[:3] == [model.scale_span[0]] * 3
+
+
+def test_a_collection_steps_load_is_the_steps_not_the_configs() -> None:
+    """A collection's step file starts with the config's load in its metadata and its
+    step's load change in its events: the run's load (FN-QUPI's load input, the seed
+    benches' per-load protocols) is the step's; two loads in one recording are none."""
+    from pamd.models.anfis.recordings import _load_during
+
+    step = [(73.5, "segment", {"plan": "p", "step": "load-50kg", "muscle": "m1",
+                               "load_kg": 50.0}),
+            (73.5, "transition", {"from": "RUNNING", "to": "LOAD_CHANGE"})]
+    assert _load_during(step, "m1", 30.0) == 50.0
+    assert _load_during(step[1:], "m1", 30.0) == 30.0  # no load change: the config's
+    loaded = [(5.0, "command", {"verb": "load", "ok": True, "args": {"muscle": "m1",
+                                                                   "load_kg": 40.0}})]
+    assert _load_during(loaded, "m1", 30.0) == 40.0
+    refused = [(5.0, "command", {"verb": "load", "ok": False, "args": {"load_kg": 40.0}})]
+    assert _load_during(refused, "m1", 30.0) == 30.0
+    assert _load_during(step + loaded, "m1", 30.0) is None  # 50 then 40 kg: not one load
