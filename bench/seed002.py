@@ -120,15 +120,13 @@ PAPER_ANFIS_SSE_AIC_SBC = {
 PAPER_POLYNOMIAL = {"DMSP-40": (0.2629, -39.51, 924.9, 94.56),
                     "DMSP-20": (-0.1398, -4.77, 182.7, 77.43)}
 PAPER_DMSP5_BEST = "98.74 % (MLP 20)"
-LIKE = ("datasheet map digitised at {n} points on 7 curves (paper: {paper} at 0.5 % steps);"
-        " judged on whole held-out pressure curves, leave-one-curve-out over 1-5 bar "
-        "(paper: random 70/15/15 % samples, figures on all of them)")
+LIKE = ("pamd's map as digitised ({n} points on 7 curves; paper: {paper} at 0.5 % steps); "
+        "leave-one-curve-out over 1-5 bar")
 PAPER_SAMPLES = {"DMSP-20": 455, "DMSP-40": 497}
 #: n = exp((SBC - AIC) / p + 2) of the paper's own AIC and SBC: its metric basis.
 PAPER_N = {"DMSP-20": "455 (MLP 10)", "DMSP-40": "496", "DMSP-5": "231"}
-PAPER_LIKE = ("datasheet map read at 0.5 % steps as the paper read its datasheet ({n} "
-              "samples, linear between pamd's {raw} digitised points; paper: {paper}); "
-              "random 70/15/15 (seed 0), trained on the 70 %, figures on all {n}")
+PAPER_LIKE = ("pamd's map read at 0.5 % steps ({n} samples from {raw} digitised points; "
+              "paper: {paper}); random 70/15/15 (seed 0), figures on all {n}")
 REFUSED = "refused: more parameters than training samples"
 
 
@@ -372,8 +370,8 @@ def rows(quick: bool, data: str | None = None) -> list[SeedRow]:
                 f"{m['sbc']:.1f}, p {m['n_params']:.0f})")
             out.append(SeedRow("002", f"{muscle} {_label(label)}: NRMSE fit (SSE, AIC, SBC, "
                                "parameters)", _paper_figure(muscle, label), got_text,
-                               like + ("; ANFIS as MATLAB trains it (--preset matlab)"
-                                       if label.startswith("anfis") else ""), PAPER))
+                               like + ("; --preset matlab" if label.startswith("anfis")
+                                       else ""), PAPER))
     for muscle, per_model in got["pamd"].items():
         n_map = int(per_model.get("polynomial", {}).get("samples", 0))
         like = (LIKE.format(n=n_map, paper=PAPER_SAMPLES[muscle])
@@ -392,10 +390,8 @@ def rows(quick: bool, data: str | None = None) -> list[SeedRow]:
                         f"{m['sbc']:.1f}, p {m['n_params']:.0f})")
             row_like = like
             if label.startswith("anfis") and muscle in PAPER_SAMPLES:
-                row_like = (f"map resampled at 0.5 % contraction ({m['samples']:.0f} points, "
-                            f"linear between pamd's {n_map}); judged on whole held-out "
-                            "pressure curves, leave-one-curve-out over 1-5 bar; SSE, AIC "
-                            "and SBC over the five held-out curves' points")
+                row_like = (f"pamd's map read at 0.5 % steps ({m['samples']:.0f} samples); "
+                            "leave-one-curve-out over 1-5 bar")
             out.append(SeedRow("002", f"{muscle} {_label(label)}: NRMSE fit (SSE, AIC, SBC, "
                                "parameters)", _paper_figure(muscle, label), got_text,
                                row_like, PAMD))

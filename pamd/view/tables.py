@@ -41,6 +41,7 @@ import os
 import re
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -389,7 +390,9 @@ def _run(source: str, muscle: str, columns: dict[str, np.ndarray], meta: JsonObj
 def read_data(paths: Sequence[str], muscle: str | None = None) -> list[Run]:
     """Every run in `paths`: MCAP recordings (by their magic bytes), .mat files, CSV
     tables; a directory as a collection or `--record` directory, or a `pamd export
-    --csv` directory (its sidecar's muscle tables)."""
+    --csv` directory (its sidecar's muscle tables). A collection's runs carry the load
+    of their step, as its manifest says (a step file's own metadata holds the config's
+    load the collection started with)."""
     if not paths:
         raise ModelError("no data files given")
     runs: list[Run] = []
@@ -398,8 +401,10 @@ def read_data(paths: Sequence[str], muscle: str | None = None) -> list[Run]:
             sides = glob.glob(os.path.join(glob.escape(p), "*.meta.json"))
             if sides and not glob.glob(os.path.join(glob.escape(p), "*.mcap")):
                 runs += read_data(_export_tables(sides), muscle)
-            else:
-                runs += read_data([f for f, _, _ in recording_files(p)], muscle)
+            else:  # a collection's step files hang its steps' loads (its manifest says)
+                for f, _, load in recording_files(p):
+                    runs += [r if load is None else replace(r, load_kg=float(load))
+                             for r in read_data([f], muscle)]
             continue
         if not os.path.exists(p):
             raise ModelError(f"{p}: no such file")

@@ -196,20 +196,18 @@ def test_matlab_preset_trains_one_start_on_the_inputs_units(tmp_path: Path,
     assert premise_units(model).tolist()[:3] == [model.scale_span[0]] * 3
 
 
-def test_a_collection_steps_load_is_the_steps_not_the_configs() -> None:
-    """A collection's step file starts with the config's load in its metadata and its
-    step's load change in its events: the run's load (FN-QUPI's load input, the seed
-    benches' per-load protocols) is the step's; two loads in one recording are none."""
-    from pamd.models.anfis.recordings import _load_during
+def test_a_collections_runs_hang_their_steps_loads(tmp_path: Path) -> None:
+    """A collection's step file starts with the config's load in its own metadata; its
+    manifest says the step's: a collection read as a directory gives each run the
+    step's load (FN-QUPI's load input, the seed benches' per-load protocols), a file
+    read alone its own."""
+    from pamd.view.tables import read_data
 
-    step = [(73.5, "segment", {"plan": "p", "step": "load-50kg", "muscle": "m1",
-                               "load_kg": 50.0}),
-            (73.5, "transition", {"from": "RUNNING", "to": "LOAD_CHANGE"})]
-    assert _load_during(step, "m1", 30.0) == 50.0
-    assert _load_during(step[1:], "m1", 30.0) == 30.0  # no load change: the config's
-    loaded = [(5.0, "command", {"verb": "load", "ok": True, "args": {"muscle": "m1",
-                                                                   "load_kg": 40.0}})]
-    assert _load_during(loaded, "m1", 30.0) == 40.0
-    refused = [(5.0, "command", {"verb": "load", "ok": False, "args": {"load_kg": 40.0}})]
-    assert _load_during(refused, "m1", 30.0) == 30.0
-    assert _load_during(step + loaded, "m1", 30.0) is None  # 50 then 40 kg: not one load
+    for name, load in (("a.csv", 20.0), ("b.csv", 40.0)):
+        (tmp_path / name).write_text("t_s,length_mm,pressure_bar,load_kg\n"
+                                     + "\n".join(f"{k * 0.1:.1f},150,2,30" for k in range(5)))
+    (tmp_path / "manifest.json").write_text(json.dumps({"steps": [
+        {"name": "load-20kg", "load_kg": 20.0, "files": ["a.csv"]},
+        {"name": "load-40kg", "load_kg": 40.0, "files": ["b.csv"]}]}))
+    assert [r.load_kg for r in read_data([str(tmp_path)])] == [20.0, 40.0]
+    assert [r.load_kg for r in read_data([str(tmp_path / "b.csv")])] == [30.0]

@@ -16,7 +16,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError, RecordingError
 from pamd.models.anfis.samples import Run
 from pamd.record import files
@@ -92,8 +91,7 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
         muscle_events = [(e.t_s, e.kind, e.data) for e in t.events
                          if e.data.get("args", {}).get("muscle") in (None, m)]
         runs.append(Run(source=path, muscle=m, t_s=columns["t_s"], columns=columns,
-                        load_kg=_load_during(muscle_events, m, loads.get(m)),
-                        events=muscle_events,
+                        load_kg=loads.get(m), events=muscle_events,
                         meta={"rig_id": meta.get("pamd", {}).get("rig_id"),
                               "rate_hz": _float_or_none(meta.get("pamd", {}).get("rate_hz")),
                               "actuation": actuations.get(m)}))
@@ -205,29 +203,6 @@ def actuations_of(metadata: object) -> dict[str, str]:
     return {m["name"]: m["actuation"] for m in muscles
             if isinstance(m, dict) and isinstance(m.get("name"), str)
             and isinstance(m.get("actuation"), str)}
-
-
-def _load_during(events: list[tuple[float, str, JsonObject]], muscle: str,
-                 at_start: float | None) -> float | None:
-    """The load the muscle hung during the recording: the one it started with (the
-    config's, in the file's metadata), or the one a collection's step (its `segment`
-    event) or an accepted `load` command set; None where the recording saw two loads
-    (a run's load is one number: the FN-QUPI load input, seed 003's m(t)). A
-    collection's step file starts with the config's load and its step's load change."""
-    said: set[float] = set()
-    for _, kind, data in events:
-        if kind == "segment" and data.get("muscle") in (None, muscle):
-            value = data.get("load_kg")
-        elif kind == "command" and data.get("verb") == "load" and data.get("ok"):
-            args = data.get("args") or {}
-            value = args.get("load_kg") if isinstance(args, dict) else None
-        else:
-            continue
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            said.add(float(value))
-    if not said:
-        return at_start
-    return said.pop() if len(said) == 1 else None
 
 
 def _float_or_none(v: object) -> float | None:
