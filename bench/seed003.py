@@ -270,7 +270,7 @@ def track(model_path: str, method: int, profile: dict[str, Any], plant: str | No
                 total, n = total + abs(m.length_mm - m.target_length_mm), n + 1
         sup = h.ctrl.supervisor
         if sup.state in (State.FAULT, State.ESTOP):  # the safe state, not the profile's end
-            why = sup.faults[0].split(":")[0] if sup.faults else sup.state.name
+            why = (sup.fault_reason or sup.state.name)[:70]
             return f"{sup.state.name} at {n * h.period_s:.1f} s ({why})"
         return f"{total / n:.3f} mm"
     finally:

@@ -203,7 +203,7 @@ def test_a_collections_runs_hang_their_steps_loads(tmp_path: Path) -> None:
     read alone its own."""
     from pamd.view.tables import read_data
 
-    for name, load in (("a.csv", 20.0), ("b.csv", 40.0)):
+    for name in ("a.csv", "b.csv"):  # each file says 30 kg itself
         (tmp_path / name).write_text("t_s,length_mm,pressure_bar,load_kg\n"
                                      + "\n".join(f"{k * 0.1:.1f},150,2,30" for k in range(5)))
     (tmp_path / "manifest.json").write_text(json.dumps({"steps": [
