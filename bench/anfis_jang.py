@@ -19,8 +19,9 @@ Prints (no pass/fail):
    Over ridges and widths alone it chose widths (1, 3) and no ridge, the default. Over
    the step rules too it picks initial step 0.03 (score -0.138 against the default's
    -0.095), almost all of it from example 2; that is NOT the library's default (the
-   step is also seed 001's gradient descent and `pamd train --step`'s; README, "ANFIS
-   defaults"), which the last lines print beside the choice.
+   step is also seed 001's gradient descent and `pamd train --step`'s;
+   docs/explanation/inverse-model.md, "ANFIS defaults"), which the last lines print
+   beside the choice.
 2. The reported figures, measured once with the library's defaults: Mackey-Glass check
    RMSE (inputs x(t-18), x(t-12), x(t-6), x(t) -> x(t+6), t = 118..1117, first 500
    train, last 500 check, 2 Gaussian MFs per input, 500 epochs; goal <= 0.0025, Jang
@@ -227,7 +228,8 @@ def select(max_starts: int = 3) -> tuple[Setting, tuple[float, ...]]:
           f" (score {scores[best]:+.3f})")
     d = TrainingOptions()
     print(f"  the library's default: {(d.ridge, d.initial_step, d.step_increase)}, "
-          f"width_factor {d.width_factor} (README, 'ANFIS defaults', says why)")
+          f"width_factor {d.width_factor} (docs/explanation/inverse-model.md, 'ANFIS "
+          "defaults', says why)")
     return best
 
 
@@ -254,7 +256,7 @@ def diagnose() -> None:
               + f" (lowest {val.min():.5f} at epoch {int(val.argmin()) + 1}); training "
               + ", ".join(f"{trn[i - 1]:.5f}" for i in at))
     # Each a variant fixed beforehand (from Jang's layout or the diagnosis above), its
-    # check RMSE printed once for the README; none chooses a default.
+    # check RMSE printed once for the docs; none chooses a default.
     p = PROBLEMS["mackey-glass"]
     (X, y), (Xc, yc) = p.data()
     (Xf, yf), (Xv, yv) = tail_split(p.name)

@@ -80,10 +80,11 @@ RIDGES = (0.001, 0.01, 0.1)
 I2, I3 = ("force_n", "length_mm"), ("force_n", "length_mm", "velocity_mm_s")
 IC = ("force_n", "contraction")
 
-#: pamd's earlier TS model and GA, which this bench's figures (and the README's) were
-#: measured with: first-order consequents (with the ridge chosen below), the GA's
-#: fitness on 3000 rows, linear fitness scaling, the grid layout in the initial
-#: population. Seed 001 as written (the kind's defaults) is bench/seed001.py's.
+#: pamd's earlier TS model and GA, which this bench's figures (and those of
+#: docs/explanation/comparing-models.md) were measured with: first-order consequents
+#: (with the ridge chosen below), the GA's fitness on 3000 rows, linear fitness scaling,
+#: the grid layout in the initial population. Seed 001 as written (the kind's defaults)
+#: is bench/seed001.py's.
 TS_EARLIER = {"consequent": "linear", "fitness_scaling": "linear", "fitness_rows": 3000,
               "start": "grid"}
 

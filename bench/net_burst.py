@@ -29,7 +29,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from net_common import free_port, pct, wait_listening, wait_status, write_config  # noqa: E402
 
 from pamd.net.client.client import Client  # noqa: E402
-from pamd.net.credential import attachment, find_token  # noqa: E402
 
 
 def overruns(client: Client) -> int:
@@ -43,9 +42,7 @@ def overruns(client: Client) -> int:
     raise SystemExit("no timing in status")
 
 
-def burst(sessions: list, n: int, seconds: float) -> tuple[int, int, int, list[float]]:
-    import zenoh
-
+def burst(clients: list[Client], n: int, seconds: float) -> tuple[int, int, int, list[float]]:
     ok = refused = 0
     rtts: list[float] = []
     lock = threading.Lock()
@@ -70,9 +67,6 @@ def burst(sessions: list, n: int, seconds: float) -> tuple[int, int, int, list[f
                     done.set()
         return on_reply
 
-    token, where = find_token("sim")  # the daemon's command credential
-    if token is None:
-        raise SystemExit(f"no command token for rig sim (looked in {where})")
     t_start = time.perf_counter()
     for i in range(n):
         target = t_start + i * seconds / n
@@ -80,9 +74,8 @@ def burst(sessions: list, n: int, seconds: float) -> tuple[int, int, int, list[f
             time.sleep(min(left, 0.001))
         bar = 1.0 + 0.5 * ((i // 50) % 2)  # steps of 0.5 bar every 50 setpoints
         body = json.dumps({"muscle": "m1", "bar": bar}).encode()
-        s = sessions[i % len(sessions)]
-        s.get("pamd/sim/cmd/setpoint", handler(time.perf_counter()), payload=body,
-              timeout=30.0, target=zenoh.QueryTarget.ALL, attachment=attachment(token))
+        c = clients[i % len(clients)]  # signed with the daemon's credential
+        c.send("sim", "setpoint", body, handler(time.perf_counter()), timeout_s=30.0)
     done.wait(60)
     return ok, refused, n - answered[0], rtts
 
@@ -120,8 +113,7 @@ def main() -> None:
                 o0 = overruns(clients[0])
                 time.sleep(args.seconds + 2.0)
                 o1 = overruns(clients[0])
-                ok, refused, lost, rtts = burst([c.session for c in clients], args.n,
-                                                args.seconds)
+                ok, refused, lost, rtts = burst(clients, args.n, args.seconds)
                 time.sleep(1.0)
                 o2 = overruns(clients[0])
                 ms = [x * 1e3 for x in rtts]

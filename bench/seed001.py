@@ -32,7 +32,7 @@ epochs: `mlp --solver lm`, stopped on the validation blocks as MATLAB's trainlm;
 0-2) and the Mamdani model (rule base read off the data, untuned, as the paper's).
 Max deviation is the largest error in % of the measured pressure range (pamd evaluate's).
 `python bench/seed001.py --evidence` adds the roulette wheel's spread and the GAs with
-linear fitness scaling (README, "Seed 001 as written").
+linear fitness scaling (docs/explanation/seeds.md, "Seed 001 as written").
 
 Usage: python bench/seed001.py [--quick] [--data FILE|DIR] [--evidence] [--seeds N]
 """

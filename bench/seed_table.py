@@ -1,7 +1,8 @@
 """The row every seed's comparison prints: the paper's figure beside pamd's (issue 29
 item 4), under a named protocol (issue 46 item 1). `bench/seeds.py` collects the rows
 of `bench/seedNNN.py` (one module per seed, 000-004, each with `rows(quick: bool, data:
-str | None = None) -> list[SeedRow]`) and prints two tables; the README carries them.
+str | None = None) -> list[SeedRow]`) and prints two tables; the docs carry them
+(docs/explanation/seeds.md).
 
 A row compares one figure. `protocol` says under whose protocol it was measured:
 `PAPER`, the paper's own (its split, its metric basis, its per-condition fits, its

@@ -11,9 +11,9 @@ table per protocol; a seed whose module is not there prints "not measured", one 
 run fails prints the error, and a seed the data cannot serve says why (the other seeds
 still run).
 
-    python bench/seeds.py                 # the simulated rig, full protocols
+    python bench/seeds.py                 # the simulated rig, full protocols (~15 min)
     python bench/seeds.py --quick         # a minute or two per seed at most
-    python bench/seeds.py --markdown      # the README's tables
+    python bench/seeds.py --markdown      # docs/explanation/seeds.md's tables
     python bench/seeds.py --seed 004      # one seed (repeatable)
     python bench/seeds.py --data runs/sweep   # a lab's recordings or tables instead
 """
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true",
                     help="each seed's quick protocol (a few minutes at most each)")
     ap.add_argument("--markdown", action="store_true",
-                    help="print a Markdown table (the README's form)")
+                    help="print Markdown tables (docs/explanation/seeds.md's form)")
     ap.add_argument("--seed", action="append", choices=SEEDS, metavar="NNN",
                     help=f"only this seed ({', '.join(SEEDS)}); repeatable")
     ap.add_argument("--data", metavar="FILE|DIR",

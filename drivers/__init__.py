@@ -21,7 +21,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, Protocol
 
 from pamd.errors import DriverError
 from pamd.plugins import DRIVERS_GROUP, installed, load_driver_entry
@@ -40,6 +40,34 @@ class Channel:
     direction: Literal["in", "out"]
     unit: str = ""
     digital: bool = False
+
+
+class SampleClock(Protocol):
+    """A device's sample clock that paces the loop (`loop.clock: daq`): the loop waits
+    for each sample instead of the OS timer. The device's thread publishes a sample's
+    inputs, then waits for the loop's tick to store its outputs before it writes them.
+
+    The loop's thread calls, in this order: `attach()` once before its first tick; per
+    tick `wait(deadline_s)`, which returns the time of the sample clock's edge (on the
+    loop's clock) that the newest sample was taken at, or NaN if none came by
+    `deadline_s` (the OS clock stands in); `take_missed()`, the sample clocks that went
+    by unticked since the last call (late samples the device reported and samples the
+    loop was too late to take); `tick_done()` once the tick wrote its outputs; and
+    `detach()` when it stops."""
+
+    period_s: float
+
+    def attach(self) -> None: ...
+
+    def wait(self, deadline_s: float) -> float: ...
+
+    def take_missed(self) -> int: ...
+
+    def tick_done(self) -> None: ...
+
+    def detach(self) -> None: ...
+
+    def describe(self) -> str: ...
 
 
 @dataclass
@@ -130,6 +158,11 @@ class Driver(ABC):
         INTERFACE:CHANNEL"): the daemon locks each before it opens anything
         (pamd.service.riglock). Simulated devices open nothing: () by default."""
         return ()
+
+    def sample_clock(self) -> SampleClock | None:
+        """The device's sample clock if it can pace the loop (`loop.clock: daq`), else
+        None (the default: the loop runs on the OS timer)."""
+        return None
 
     def health(self) -> DriverHealth:
         return DriverHealth(ok=self.fault is None, fault=self.fault)

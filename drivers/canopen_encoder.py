@@ -7,7 +7,10 @@ the node (NMT start), then publishes every position frame, scaled counts -> mm a
 stamped with the loop's clock on arrival (CiA 406 carries no sample time) and a
 jitter: how long the frame may have waited in the socket (`ArrivalWindow`: since the
 thread last found the bus idle; a backlog read after the process was held up gets
-the whole hold). It watches the heartbeat: a silent node,
+the whole hold). A frame on the position address of a node that is not configured
+(its configuration failed, or it rebooted and is being configured again) is counted
+(`unconfigured_frames`) and ignored: the driver did not ask that node for positions,
+so what the frame carries is no position. It watches the heartbeat: a silent node,
 one that stops sending positions, one that reports an emergency (EMCY) or sends
 frames of the wrong length is counted and named in `health()`, and when that lasts
 `fault_after_s` it sets `fault` (safe state). A node that reboots (boot-up message)
@@ -335,6 +338,9 @@ class CanEncoderDriver(ThreadedDriver):
             return
         kind, n = hit
         if kind == "pdo":
+            if n.needs_config:  # not configured (failed, or rebooted since): whatever
+                self.count("unconfigured_frames")  # sends on its position address is
+                return  # not a position this driver asked for (CiA 301: TPDO1 unset)
             if len(data) < 4:
                 self.bad(f"{n.label}: position frame of {len(data)} bytes, needs 4",
                           (n.spec.name,))

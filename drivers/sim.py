@@ -1,4 +1,6 @@
-"""The `sim` driver: a simulated rig of DMSP-20 muscles stepped by the loop.
+"""The `sim` driver: a simulated rig of muscles stepped by the loop (DMSP-20s unless a
+muscle's `type`, or the type of the rig muscle reading its channels, says otherwise:
+`pamd.sim.specimen`).
 
 Per muscle X it has inputs `X.pressure` (bar), `X.force` (N, in-line load cell),
 `X.length` (mm; absolute, so the simulated rig starts referenced, unless the
@@ -36,7 +38,7 @@ from __future__ import annotations
 
 import math
 import random
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from pamd.drivers import Channel, Clock, Driver, DriverHealth
 from pamd.drivers.sim_chain import SimChain
@@ -48,17 +50,20 @@ from pamd.drivers.sim_faults import (
     stall_process,
 )
 
+from pamd.config.muscle_types import read_map
 from pamd.errors import DriverError, ModelError
 from pamd.models.fn_qupi_plant import plant_model
-from pamd.muscle_type import ForceModel, force_model
+from pamd.muscle_type import ForceMap, MuscleType, check_map
+from pamd.muscle_type.custom import NAME as CUSTOM
 from pamd.sim.faults import FAULT_KINDS, SimFault
 from pamd.sim.model_plant import ModelPlant
 from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
 from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
+from pamd.sim.specimen import MUSCLE_INPUTS, Specimen, bind_types, specimen
 
-INPUTS_PER_MUSCLE = 3  # pressure, force, length
+INPUTS_PER_MUSCLE = len(MUSCLE_INPUTS)  # pressure, force, length
 OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
 #: The clock's time between two reads agrees with the loop's `dt_s` within this (the
 #: virtual clock's, up to rounding): the plant is stepped by `dt_s` exactly then.
@@ -69,7 +74,7 @@ CHAIN_INPUTS: tuple[str, ...] = ("safety_chain", "supply", "reset")
 SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
 
 
-def _model_plant(driver: str, m: SimMuscleOptions, rng: random.Random, model: ForceModel,
+def _model_plant(driver: str, m: SimMuscleOptions, rng: random.Random, muscle: Specimen,
                  supply: SupplyLine | None) -> ModelPlant:
     """A muscle whose mechanics are its `plant_model` file's (`pamd.sim.model_plant`)."""
     assert m.plant_model is not None
@@ -78,7 +83,22 @@ def _model_plant(driver: str, m: SimMuscleOptions, rng: random.Random, model: Fo
     except ModelError as exc:
         raise DriverError(f"sim driver {driver!r}: muscle {m.name!r}: plant_model: "
                           f"{exc}") from None
-    return ModelPlant(m, rng, stepper, model, supply)
+    return ModelPlant(m, rng, stepper, muscle, supply)
+
+
+def _custom_map(driver: str, m: SimMuscleOptions) -> ForceMap | None:
+    """A custom simulated muscle's map, read from its table and checked (finite, enough
+    points, monotone as the physics says); None for a datasheet type."""
+    if m.type != CUSTOM or m.map_file is None:
+        return None
+    try:
+        points, _ = read_map(m.map_file, m.nominal_length_mm)
+    except ModelError as exc:
+        raise DriverError(f"sim driver {driver!r}: muscle {m.name!r}: {exc}") from None
+    problems = check_map(points, m.map_file)
+    if problems:
+        raise DriverError(f"sim driver {driver!r}: muscle {m.name!r}: " + "; ".join(problems))
+    return ForceMap([(q.pressure_bar, q.contraction, q.force_n) for q in points])
 
 
 def muscle_rng(seed: int, muscle: str) -> random.Random:
@@ -99,19 +119,16 @@ class SimDriver(Driver):
         if problems:
             raise DriverError(f"sim driver {name!r}: " + "; ".join(problems))
         super().__init__(name, options)
-        models: dict[str, ForceModel] = {}
         self.supply_line = _shared_supply_line(options)
         # the highest muscle supply, read each tick (the options are frozen)
         self._muscle_supply_bar: float = max(m.supply_bar for m in options.muscles)
         self._plants: list[MusclePlant] = []
         for m in options.muscles:
-            if m.force_model not in models:
-                models[m.force_model] = force_model(m.force_model)
             rng = muscle_rng(options.seed, m.name)
-            self._plants.append(MusclePlant(m, rng, models[m.force_model], self.supply_line)
+            muscle = specimen(m, _custom_map(name, m))
+            self._plants.append(MusclePlant(m, rng, muscle, self.supply_line)
                                 if m.plant_model is None else
-                                _model_plant(name, m, rng, models[m.force_model],
-                                             self.supply_line))
+                                _model_plant(name, m, rng, muscle, self.supply_line))
         self._by_name = {p.name: k for k, p in enumerate(self._plants)}
         # incremental encoders read 0 at power-up: the true length then is their zero
         self._len_zero_mm = [0.0 if m.length_absolute else p.length_read_mm
@@ -135,6 +152,12 @@ class SimDriver(Driver):
         self._n_muscle_in = INPUTS_PER_MUSCLE * len(options.muscles)
         self._n_muscle_out = OUTPUTS_PER_MUSCLE * len(options.muscles)
         self.chain = SimChain(self._plants, options.heartbeat_watchdog_s)
+
+    @classmethod
+    def bind_muscle_types(cls, options: SimOptions, types: Mapping[str, MuscleType],
+                          base_dir: str) -> SimOptions:
+        """`pamd.sim.specimen.bind_types`: each simulated muscle of its type."""
+        return bind_types(options, types, base_dir)
 
     # --- Driver protocol --------------------------------------------------------
     def channels(self) -> Sequence[Channel]:

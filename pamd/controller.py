@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from array import array
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Protocol
 
 from pamd.calibration import Calibration
@@ -35,11 +35,13 @@ from pamd.control.rig_safe_state import (
 )
 from pamd.control.rig_startup import start_up
 from pamd.declare.jsonsafe import JsonObject
+from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.profiles import Profile
 from pamd.rig import Rig
 from pamd.safety import Supervisor, Transition
 from pamd.safety.chain import SafetyChain
 from pamd.safety.envelope import MuscleEnvelope
+from pamd.safety.load_check import LoadDisagreement
 from pamd.tick import (
     I_CHAIN,
     I_HEARTBEAT,
@@ -107,6 +109,11 @@ class RigController:
         # What became of the last config reload (`pamd.commands.rig`): deferred until the
         # next rest, refused (and why) or applied; status shows it.
         self.reload_note: JsonObject | None = None
+        # A declared load the force at rest disagrees with: refuse the run (a run with an
+        # end: nothing is written) or take the larger load's safe state (the service);
+        # the start-up's disagreements (`pamd.control.rig_startup`)
+        self.refuse_wrong_load = False
+        self.load_disagreements: tuple[LoadDisagreement, ...] = ()
 
     def _on_transition(self, tr: Transition) -> None:
         if tr.new in (State.FAULT, State.ESTOP) and tr.old != State.STARTING:
@@ -221,9 +228,33 @@ class RigController:
         return rec
 
     def _starting(self, now: float) -> None:
-        """Read before writing (`pamd.control.rig_startup`)."""
-        start_up(now, now - self.t_start, self.startup_timeout_s, self.muscles, self.chain,
-                 self.supervisor, self.sink)
+        """Read before writing (`pamd.control.rig_startup`), the declared loads checked."""
+        wrong = start_up(now, now - self.t_start, self.startup_timeout_s, self.muscles,
+                         self.chain, self.supervisor, self.sink, self.refuse_wrong_load)
+        if wrong:
+            self.load_disagreements = wrong
+            if not self.refuse_wrong_load:
+                push_safe_outputs(self)  # modules with a comm watchdog: the larger load
+
+    def confirm_loads(self, names: Sequence[str], where: str) -> str | None:
+        """After a load changed (a reload's `load_kg`): each named muscle's force at rest
+        against its new load (`pamd.safety.load_check`). A disagreement takes the larger
+        load for the safe pressure and latches a FAULT saying so; returns its reason
+        (None: every load agrees). Loop thread, between ticks."""
+        wrong = [d for m in self.muscles if m.name in names
+                 and (d := m.load_disagreement()) is not None]
+        if not wrong:
+            return None
+        texts = []
+        for d in wrong:
+            m = self.by_name[d.muscle]
+            m.set_load(d.larger_kg)
+            texts.append(f"{where}: {d.larger_text(m.safe_pressure_bar)}")
+        push_safe_outputs(self)
+        reason = "; ".join(texts)
+        if not self.supervisor.latched:
+            self.supervisor.fault(self.now, reason)
+        return reason
 
     def reset_latched(self, by: str) -> str | None:
         """Acknowledge a latched FAULT or ESTOP (`by` "command" or "input": the reset

@@ -117,6 +117,9 @@ class Daemon:
         the loop returns once the safe state holds, every valve command at its safe
         pressure); without it the rig holds its safe state until a reset or a stop."""
         self.end_on_fault = end_on_fault
+        # a declared load the force at rest disagrees with: a run that ends on a fault
+        # refuses to start (nothing written); one that stays up takes the larger load
+        self.ctrl.refuse_wrong_load = end_on_fault
         try:
             self.locks.acquire()  # RigBusy (what is held, by whom) before anything opens
             if self.io is not None:
@@ -245,12 +248,13 @@ class Daemon:
         return self.ctrl.supervisor.state
 
     def result(self) -> JsonObject:
-        """The run summary (documented in README: `pamd run --json`)."""
+        """The run summary (`pamd run --json`), its keys declared in pamd.declare.summary
+        (docs/run-summary.md)."""
         t = self.loop.timing.summary()
         sup = self.ctrl.supervisor
         return {
             "rig_id": self.cfg.rig.rig_id,
-            "clock": "virtual" if self.loop.virtual else "real",
+            "clock": self.loop.clock_name,
             "rate_hz": self.cfg.rig.loop.rate_hz,
             "ticks": t.ticks,
             "duration_s": t.ticks * self.cfg.period_s,

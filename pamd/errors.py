@@ -34,6 +34,11 @@ class ConfigError(PamdError):
         head = "invalid configuration" if n == 1 else f"{n} configuration errors"
         super().__init__(head + ":\n  " + "\n  ".join(lines))
 
+    def __reduce__(self) -> tuple[type[ConfigError], tuple[list[ConfigIssue]]]:
+        """Pickled with its issues (a config read in a child process comes back as it
+        was raised), not with the message `Exception` would pass to `__init__`."""
+        return (type(self), (self.issues,))
+
 
 class ConfigIssue:
     """One problem in a config file: where, which key, what was expected, what was found."""
@@ -84,3 +89,32 @@ class FileWriteError(PamdError, OSError):
     whoever handled a failed write before (the service's state files) still does."""
 
     exit_code = 9
+
+
+#: What each exit status of a `pamd` command means, declared once: the error classes
+#: above (and the few elsewhere: `NoDaemon`, `RigBusy`, ...) carry their `exit_code`,
+#: the command line (`pamd.cli.main`) its own statuses; docs/exit-codes.md is generated
+#: from this table and those classes (`python -m pamd.cli.exit_codes`), and a test
+#: fails when a status is given that has no meaning here, or the reverse.
+EXIT_MEANINGS: dict[int, str] = {
+    0: "done; a run stopped by SIGTERM or Ctrl-C that reached its safe state too, even "
+       "with a fault latched (the fault is in the summary and in the state directory, and "
+       "the next start comes back latched)",
+    1: "a run ended in FAULT/ESTOP (a run with `--duration` or `--cycles` whose rig faults "
+       "ends by itself, once its safe state holds); `pamd tune --plot` without matplotlib",
+    2: "bad config, arguments or rig name",
+    3: "driver error",
+    4: "command, profile or plan refused before anything moved",
+    5: "a model file or training data unusable; `pamd train`/`evaluate` without an extra "
+       "they need (`--plot`: matplotlib, `pip install 'pamd[plot]'`; `--kind mlp`/`svr`: "
+       "`pamd[ml]`; a `.mat` table: `pamd[mat]`)",
+    6: "a recording cannot be read or written; `pamd plot` without matplotlib, "
+       "`pamd export --mat` without scipy",
+    7: "no daemon answers (`pamd status`, `cmd`, `watch`, `model save`)",
+    8: "a port, device, channel or state directory of the run is in use by another daemon "
+       "(it names which and who; nothing was opened)",
+    9: "a file pamd keeps could not be written (it names the file; the old one is as it "
+       "was): a full disk, a file-size limit, no permission",
+    130: "interrupted by Ctrl-C outside a run",
+    141: "its reader went away (`pamd status` piped into `head`, which exits first)",
+}

@@ -1,8 +1,17 @@
 """The fixed-rate loop: absolute deadlines on the monotonic clock (or a virtual
-clock that runs as fast as possible), per-tick timing, overrun handling, stall
-detection (`pamd.stalls`: an event and a warning, FAULT only past what the outputs
-hold by themselves; samples that aged during a stall are excused), garbage
-collection only in slack time, commands once per tick.
+clock that runs as fast as possible, or a DAQ card's sample clock), per-tick timing,
+overrun handling, stall detection (`pamd.stalls`: an event and a warning, FAULT only
+past what the outputs hold by themselves; samples that aged during a stall are
+excused), garbage collection only in slack time, commands once per tick.
+
+`loop.clock: daq`: the card's sample clock paces the loop (`pamd.drivers.SampleClock`,
+the one driver whose `sample_clock()` gives one): each tick waits for the next sample
+instead of the OS timer and runs at its edge; the sample clocks that went by unticked
+(late samples the card reported, samples the loop was too late for) count as overruns,
+are said and skipped like the OS clock's missed periods. If no sample comes within
+`sample_grace_s` of its due time (two periods, at least half `loop.stall_timeout_s`:
+the device removed, its server gone), the OS clock stands in until samples return, so
+the rig still reaches its safe state.
 
 The loop's thread does no I/O: notices for the operator go into `notices`, which
 another thread prints.
@@ -22,6 +31,7 @@ from collections.abc import Callable
 from pamd.commands import apply_command
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
+from pamd.drivers import SampleClock
 from pamd.rt import RealtimeSession
 from pamd.stalls import StallWatch, stall_limit
 from pamd.tick import I_COMPUTE, I_LOST, I_OVERRUNS, I_WAKE, Mailbox, State
@@ -32,6 +42,12 @@ COMMAND_BUDGET_FRACTION = 0.3  # of the period: commands after the first wait pa
 SAFE_STATE_DEADLINE_S = 30.0
 GC_EVERY_TICKS = 200
 GIL_SWITCH_FRACTION = 0.1
+#: loop.clock daq: a sample this many periods past its due time, and half the stall
+#: timeout, is missing (the OS clock stands in): a sample's reads may take most of a
+#: period on a busy host, and a gap the stall check calls normal is no device gone
+SAMPLE_GRACE_PERIODS = 2.0
+#: ... and the first, which may wait for the device's tasks to start
+FIRST_SAMPLE_S = 0.2
 
 
 class VirtualClock:
@@ -102,10 +118,18 @@ class Loop:
         self.period_s = cfg.period_s
         lc = cfg.rig.loop
         self.virtual = lc.clock == "virtual"
+        self.clock_name: str = lc.clock  # real, virtual or daq (status, summary)
         self.skip_overruns = lc.overrun_policy == "skip"
         self.stalls = StallWatch(lc.stall_timeout_s, stall_limit(cfg.rig))
         self.stall_s = self.stalls.check_s  # a longer gap with no tick completed: a stall
         self.clock: Callable[[], float] = VirtualClock() if self.virtual else time.monotonic
+        self.pacer: SampleClock | None = (
+            paced_by(controller, cfg) if lc.clock == "daq" else None)
+        self.clock_gaps = 0  # loop.clock daq: ticks the OS clock paced (no sample came)
+        self.sample_grace_s = max(SAMPLE_GRACE_PERIODS * self.period_s,
+                                  0.5 * lc.stall_timeout_s)
+        # loop.clock daq: when each kind of notice was last said (at most once a second)
+        self._said_gap_s = self._said_missed_s = -math.inf
         self.timing = TickTiming()
         self.notices: deque[str] = deque(maxlen=256)
         self.lost_records = 0
@@ -150,6 +174,8 @@ class Loop:
         self.stalls.limit = stall_limit(cfg.rig)
         self.stalls.timeout_s = cfg.rig.loop.stall_timeout_s
         self.stall_s = self.stalls.check_s
+        self.sample_grace_s = max(SAMPLE_GRACE_PERIODS * self.period_s,
+                                  0.5 * cfg.rig.loop.stall_timeout_s)
 
     def stand_still_while(self, idle: Callable[[], bool]) -> None:
         """On the virtual clock, time stands still at the start of any tick at which
@@ -178,10 +204,11 @@ class Loop:
             self._stop_reason = reason
 
     def request_handover(self, reason: str) -> None:
-        """Ask the loop to end at the next tick that finds the rig IDLE, without
-        ramping to the safe state: the outputs hold what they hold, for a daemon
-        that restarts in place (a reload that reopens the drivers). A stop
-        requested before or meanwhile wins (any thread)."""
+        """Ask the loop to end at the next tick that finds the rig at rest (IDLE, no
+        profile, a ramp to the safe state completed), without ramping to the safe
+        state: the outputs hold what they hold, for a daemon that restarts in place (a
+        reload that reopens the drivers). A stop requested before or meanwhile wins
+        (any thread)."""
         if self._handover_reason is None:
             self._handover_reason = reason
 
@@ -216,6 +243,8 @@ class Loop:
         try:
             self._run(ctrl, duration_s, stop_when_profile_done)
         finally:
+            if self.pacer is not None:
+                self.pacer.detach()  # its driver writes on without waiting for ticks
             sys.setswitchinterval(switch_interval)
             gc.enable()
             gc.unfreeze()
@@ -247,6 +276,9 @@ class Loop:
         # virtual clock: deterministic, so no budget by the machine's speed
         command_budget_s = math.inf if virtual else COMMAND_BUDGET_FRACTION * period
         idle = self._idle
+        pacer = self.pacer
+        if pacer is not None:
+            pacer.attach()
         while True:
             # -- wait for the deadline ---------------------------------------------
             if virtual:
@@ -256,12 +288,16 @@ class Loop:
                 wake = 0.0
                 t_wake = perf()
             else:
-                now = mono()
-                if now < next_t:
-                    sleep(next_t - now)
+                if pacer is not None:  # loop.clock daq: the tick at the sample's edge
+                    next_t, dt = self._sample_due(pacer, next_t, dt)
                     now = mono()
+                else:
+                    now = mono()
+                    if now < next_t:
+                        sleep(next_t - now)
+                        now = mono()
                 wake = now - next_t
-                if wake >= period and self.skip_overruns:
+                if wake >= period and self.skip_overruns and pacer is None:
                     # woken periods late (the process got no CPU): this tick runs at
                     # the present deadline with dt over the whole gap, so a stepped
                     # plant and its samples' stamps agree (no jump "in 1 ms")
@@ -291,6 +327,8 @@ class Loop:
             rec[I_LOST] = self.lost_records
             if not sink.put(rec):
                 self.lost_records += 1
+            if pacer is not None:
+                pacer.tick_done()  # the driver writes this tick's outputs
             wake_h.add(wake)
             comp_h.add(compute)
             timing.ticks += 1
@@ -308,7 +346,7 @@ class Loop:
                 elif stop_when_done and saw_running and state == State.IDLE:
                     self.request_stop("profile finished")
             if (self._handover_reason is not None and self._stop_reason is None
-                    and state == State.IDLE):
+                    and state == State.IDLE and ctrl.at_rest()):  # not during a ramp
                 self.handed_over = True  # first: the main thread reads them in this order
                 self.stopped_reason = self._handover_reason
                 break
@@ -322,7 +360,7 @@ class Loop:
             # -- next deadline -------------------------------------------------------
             next_t += period
             dt = period
-            if not virtual:
+            if not virtual and pacer is None:
                 late = mono() - next_t
                 if late > 0.0:
                     missed = int(late / period) + 1
@@ -337,3 +375,43 @@ class Loop:
             if timing.ticks % GC_EVERY_TICKS == 0 and (
                     virtual or next_t - mono() > 0.5 * period):
                 gc.collect(0)
+
+    def _sample_due(self, pacer: SampleClock, due_t: float, dt: float) -> tuple[float, float]:
+        """loop.clock daq: wait for the next sample; returns the tick's time (its edge, or
+        the OS clock's when none came: module docstring) and its dt. Missed sample
+        clocks are overruns, skipped (a sample once gone cannot be ticked late)."""
+        last_t = due_t - dt  # the previous tick's time
+        grace_s = self.sample_grace_s if self.timing.ticks else FIRST_SAMPLE_S
+        edge = pacer.wait(due_t + grace_s)
+        while edge <= last_t:  # taken before the tick the OS clock ran: gone by unticked
+            self.timing.overruns += 1
+            edge = pacer.wait(due_t + grace_s)
+        if edge != edge:
+            self.clock_gaps += 1
+            now = time.monotonic()
+            if now - self._said_gap_s >= 1.0:
+                self._said_gap_s = now
+                self.notices.append(
+                    f"no sample from {pacer.describe()} for {1000 * (now - last_t):.0f} ms: "
+                    f"the OS clock paces the loop until it returns ({self.clock_gaps} ticks "
+                    "so far)")
+            return now, now - last_t
+        missed = pacer.take_missed()
+        if missed:
+            self.timing.overruns += missed
+            if edge - self._said_missed_s >= 1.0:
+                self._said_missed_s = edge
+                self.notices.append(f"overrun: {missed} sample clock(s) of "
+                                    f"{pacer.describe()} went by unticked "
+                                    f"({self.timing.overruns} so far)")
+        return edge, edge - last_t
+
+
+def paced_by(ctrl: RigController, cfg: LoadedConfig) -> SampleClock:
+    """The sample clock that paces a `loop.clock: daq` loop: the one driver's that gives
+    one (the config loader refuses another number)."""
+    clocks = [c for d in ctrl.rig.drivers.values() if (c := d.sample_clock()) is not None]
+    if len(clocks) != 1:
+        raise ValueError(f"{cfg.path}: loop.clock daq needs one driver with a sample clock "
+                         f"(a nidaqmx driver with timing hardware_timed), found {len(clocks)}")
+    return clocks[0]

@@ -55,7 +55,7 @@ class SummarySink:
     target length), the time a soft limit held the valve command back while RUNNING,
     and the run's events (`soft_limit` events: a profile held at a limit > 1 s).
     With the muscles to follow (`follow_cycles`), the tracking errors also after the
-    profile's first cycle (its lead-in and first cycle left out: the span the README's
+    profile's first cycle (its lead-in and first cycle left out: the span the docs'
     and the benchmarks' tracking figures are computed over).
     Constant work per tick; no allocation."""
 

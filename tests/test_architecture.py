@@ -47,7 +47,7 @@ SUBPACKAGES = {"net.node", "net.host", "net.client"}
 #: extras, or only one command uses them): keeps `import pamd` and the daemon light
 LAZY_THIRD_PARTY = {
     "matplotlib", "scipy", "pandas", "sklearn", "zenoh", "foxglove", "canopen", "can",
-    "serial", "pymodbus", "tqdm", "zstandard", "lz4",
+    "serial", "pymodbus", "tqdm", "zstandard", "lz4", "nidaqmx", "grpc", "session_pb2",
 }
 
 #: pamd's own lazy imports beyond the heavy modules: the public API
@@ -70,6 +70,9 @@ LAZY_OWN = {
 LAZY_BY_NAME = {
     "pamd/__init__.py": "pamd.",
     "pamd/cli/main.py": "pamd.cli.",
+    # a custom muscle's map is read by the reader `pamd train` uses (pamd.view.tables, a
+    # layer above the config), only when a config names one
+    "pamd/config/muscle_types.py": "pamd.view.tables",
 }
 
 

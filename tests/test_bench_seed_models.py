@@ -1,6 +1,6 @@
 """bench/seed002.py's ANFIS rows and bench/seed001.py's ANN baseline go through pamd's
 own kinds (`pamd train --kind anfis --consequent ...`, `--kind mlp --solver lm`), and
-seed 002's ANFIS figures are the README's (deterministic: no clock, no load)."""
+seed 002's ANFIS figures are docs/explanation/seeds.md's (deterministic: no clock, no load)."""
 
 from __future__ import annotations
 
@@ -49,7 +49,7 @@ def test_the_map_is_read_at_half_percent_steps_within_each_curve() -> None:
 
 def test_seed_002_anfis_figures_as_the_readme_reports() -> None:
     """Constant consequents interpolate a held-out curve; linear ones do not (the
-    README says why), and the paper's random split hides it."""
+    docs/explanation/seeds.md says why), and the paper's random split hides it."""
     s = bench_module("seed002")
     raw = load_samples([str(DATA / s.MAPS["DMSP-20"])], s.OPTS, report=lambda _l: None)
     dense = s.resampled(raw)
@@ -59,7 +59,7 @@ def test_seed_002_anfis_figures_as_the_readme_reports() -> None:
     assert m1["n_params"] == 32  # the paper's count for 4 x 4 MFs, constant
     # linear consequents: 4 x 2 functions of pressure over six training pressures, so
     # the least squares is near-singular (consequents ~1e7) and its last digits move
-    # with the floating-point summation order: the README's 42.82 % and 98.70 % as bounds
+    # with the floating-point summation order: the docs' 42.82 % and 98.70 % as bounds
     m5 = s.judge_held_out_curves(dense, *layouts["anfis 5"])
     assert m5["nrmse_fit_pct"] < 50.0 and m5["n_params"] == 64
     # the paper's protocol: a random split, judged on every sample (its metric basis)

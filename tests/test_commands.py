@@ -146,10 +146,10 @@ def test_load_change_moves_the_safe_pressure_and_is_refused_above_rating(harness
 def test_500_hz_fallback_and_two_muscles(harness: Any) -> None:
     sig = {"driver": "sim"}
     muscles = []
-    for name in ("m1", "m2"):
+    for name, load_kg in (("m1", 30.0), ("m2", 50.0)):  # declared as they hang
         s = {k: {**sig, "channel": f"{name}.{k}"} for k in ("pressure", "force", "length")}
         s["valve"] = {**sig, "channel": f"{name}.valve", "raw_max": 6.0}
-        muscles.append({"name": name, "load_kg": 30.0, "signals": s})
+        muscles.append({"name": name, "load_kg": load_kg, "signals": s})
     h = harness(loop={"rate_hz": 500.0}, muscles=muscles, drivers=[{
         "name": "sim", "type": "sim",
         "options": {"muscles": [{"name": "m1"}, {"name": "m2", "load_kg": 50.0}]}}])

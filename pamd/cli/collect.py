@@ -132,6 +132,7 @@ class ProgressBar(Protocol):
     """What is used of a `tqdm` bar (an optional dependency)."""
 
     n: float
+    total: float
 
     def set_postfix_str(self, s: str = "", refresh: bool = True) -> None: ...
     def clear(self) -> None: ...
@@ -171,10 +172,10 @@ def _follow(daemon: Daemon, lines: list[StepLine], start: int, interrupts: dict[
     total = sum(s.duration_s for s in lines[start:])
     bar = _bar(total, show)
     with _logs_above(bar):
-        outcome = _follow_loop(daemon, seq, bar, total, interrupts, step_ended)
+        outcome = _follow_loop(daemon, seq, bar, interrupts, step_ended)
     if bar is not None:
         if outcome == "done":
-            bar.n = total
+            bar.n = bar.total
         bar.close()
     return outcome
 
@@ -189,7 +190,7 @@ def _logs_above(bar: ProgressBar | None) -> AbstractContextManager[object]:
     return redirect
 
 
-def _follow_loop(daemon: Daemon, seq: Sequencer, bar: ProgressBar | None, total: float,
+def _follow_loop(daemon: Daemon, seq: Sequencer, bar: ProgressBar | None,
                  interrupts: dict[str, int],
                  step_ended: Callable[[list[str]], object] | None = None) -> str:
     ctrl = daemon.ctrl
@@ -206,7 +207,7 @@ def _follow_loop(daemon: Daemon, seq: Sequencer, bar: ProgressBar | None, total:
         if bar is not None and t0 is not None:
             pr = seq.progress()
             m = seq.muscle
-            bar.n = min(total, ctrl.now - t0)
+            show_rig_time(bar, ctrl.now - t0)
             cyc = f" cycle {pr['cycle'] + 1}/{pr['cycles']}" if pr["cycles"] else ""
             bar.set_postfix_str(f"step {pr['index'] + 1}/{pr['steps']} {pr['step']} "
                                 f"{pr['phase']}{cyc} | {m.pressure_bar:4.2f} bar "
@@ -220,6 +221,13 @@ def _follow_loop(daemon: Daemon, seq: Sequencer, bar: ProgressBar | None, total:
             _pause_menu(daemon, bar)
         time.sleep(0.1)
     return seq.outcome or "aborted"
+
+
+def show_rig_time(bar: ProgressBar, elapsed_s: float) -> None:
+    """The rig time run so far, held to the bar's own total (rounded to 0.1 s): a count
+    past it makes tqdm warn "clamping frac to range [0, 1]" and show a negative ETA (a
+    plan runs a little longer than its timeline says: the last tick, the settling)."""
+    bar.n = max(0.0, min(bar.total, elapsed_s))
 
 
 def _ask(daemon: Daemon, prompt: str, bar: ProgressBar | None) -> None:

@@ -9,6 +9,8 @@ import contextlib
 import json
 import sys
 
+from pamd.cli.commission_map import run_map
+from pamd.commission.mapsweep import RATE_BAR_PER_S
 from pamd.commission.moves import MAX_STEP_BAR, CommissionRefused, Moves, choose
 from pamd.commission.propose import thresholds
 from pamd.commission.report import as_json, text
@@ -54,9 +56,30 @@ config file in place, after the diff is shown, comments kept (as `pamd tune --sa
 a file that cannot be edited safely gets an overrides file beside it
 (CONFIG.tuned.yaml). A refused or faulted run saves nothing.
 
+--measure-map: instead, measure the muscle's own static force map F(pressure,
+contraction) on the rig (one muscle: --muscle, default the rig's only one; commission
+its signals first). Under each hanging load (--map-loads, default 1/4, 1/2, 3/4 and
+all of the declared load; the simulated rig hangs them itself, an operator is asked to
+and presses Enter) the pressure is stepped slowly up through the levels of the
+muscle's present map (--map-levels: others) and back down, each level held until the
+load hangs still (--map-hold-s, default 3 s), so each level is reached on the rising
+and on the falling branch of the friction loop. One load pulls with one force: it
+gives one point of each pressure curve, the contraction where the muscle's force is
+its weight; the map's point is midway between the two branches (friction holds the
+muscle back by about as much either way), and each curve is its loads' points. The
+pressure moves slowly between levels (--map-rate, default 0.1 bar/s: a few minutes of
+rig time per load). Only
+levels inside the limits and above each load's safe pressure are used. It prints every
+hold, the curves, and how far the measured map agrees with the muscle's present map
+(its datasheet's) over the measured range. --save writes the map (completed to the
+limits, each row saying whether it was measured), both branches beside it, and makes
+the muscle `type: custom` with that map and its present type's ratings (review them:
+a custom muscle's ratings are the config's).
+
 Exit status: 0 done, 1 the rig faulted during the run (the fault is printed), 2 bad
 config, 4 refused (a wrong sign or scale, a silent or constant signal, moves outside
-the limits, a threshold that cannot be proposed), 8 the rig is in use."""
+the limits, a threshold that cannot be proposed, a map that cannot be measured), 8 the
+rig is in use."""
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -68,7 +91,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "  pamd commission rig.yaml                         # measure and propose\n"
         "  pamd commission rig.yaml --save                  # ... and write them\n"
         "  pamd commission rig.yaml --json > commission.json  # for scripts\n"
-        "  pamd commission rig.yaml --muscle m1 --levels 2,3 --step-bar 0.2")
+        "  pamd commission rig.yaml --muscle m1 --levels 2,3 --step-bar 0.2\n"
+        "  pamd commission rig.yaml --measure-map --map-loads 25,50,100 --save")
     p.add_argument("config", nargs="?", metavar="CONFIG",
                    help="rig config (default: the built-in simulated rig)")
     p.add_argument("--clock", choices=("real", "virtual"), help="override loop.clock")
@@ -91,6 +115,24 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    help="write the proposed thresholds into CONFIG (after showing the diff)")
     p.add_argument("--json", action="store_true",
                    help="print the report as one JSON object (progress stays on stderr)")
+    m = p.add_argument_group("the muscle's static map (--measure-map)")
+    m.add_argument("--measure-map", action="store_true",
+                   help="measure the muscle's own force map under hanging loads instead "
+                   "(see above); --save makes it the muscle's, as type custom")
+    m.add_argument("--map-loads", metavar="KG,KG,...",
+                   help="the loads to hang, at least two (default: 1/4, 1/2, 3/4 and all "
+                   "of the declared load); each gives one point per pressure curve")
+    m.add_argument("--map-levels", metavar="BAR,BAR,...",
+                   help="the pressure levels (default: the present map's curves, 0-6 bar "
+                   "on a Festo DMSP)")
+    m.add_argument("--map-hold-s", type=float, default=3.0, metavar="S",
+                   help="how long each level is held before the still load is measured "
+                   "over the last 0.5 s (default 3; at least 1)")
+    m.add_argument("--map-rate", type=float, default=RATE_BAR_PER_S, metavar="BAR/S",
+                   help="how fast the pressure moves between levels (default "
+                   f"{RATE_BAR_PER_S:g}: slow enough that the load's momentum does not "
+                   "carry it past where friction holds it, so each branch is the "
+                   "friction loop's)")
     p.set_defaults(func=run)
 
 
@@ -105,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
                                 "copy it first: pamd commission my-sim.yaml --save)")
     path = args.config or builtin_config_path()
     cfg = load_config(path, {"loop": {"clock": args.clock}} if args.clock else None)
+    if args.measure_map:
+        return run_map(args, path, cfg)
     names = args.muscle or [m.name for m in cfg.rig.muscles]
     levels = parse_levels(args.levels, CommissionRefused, "2,3.5")
     moves: list[Moves] = [choose(cfg, n, args.rest_s, args.hold_s, levels, args.step_bar)

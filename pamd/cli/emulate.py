@@ -27,13 +27,17 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         description="Play the devices a rig config expects, with the simulated DMSP-20 "
         "muscles behind them, on loopback: a Modbus TCP module, a Modbus RTU device "
         "behind an RS-485 device server (transport rtu-tcp, or rtu on a socket:// URL), "
-        "and CiA 406 encoders on a CAN bus served by a socketcand server (interface "
-        "socketcand). Over ptys instead (socat needed): Modbus RTU on a serial_port path "
-        "(the daemon's end; <port>.dev the emulator's) and CAN by python-can's serial "
-        "interface. Prints one JSON line when ready.",
-        epilog="example:\n"
+        "CiA 406 encoders on a CAN bus served by a socketcand server (interface "
+        "socketcand), and NI-DAQmx devices (nidaqmx drivers: an NI gRPC Device Server on "
+        "the driver's `server`, a USB-6211's channels on its sample clock, which NI's own "
+        "nidaqmx library drives). Over ptys instead (socat needed): Modbus RTU on a "
+        "serial_port path (the daemon's end; <port>.dev the emulator's) and CAN by "
+        "python-can's serial interface. Prints one JSON line when ready.",
+        epilog="examples:\n"
         "  pamd emulate --config config/rig-emulated.yaml &\n"
-        "  pamd run --config config/rig-emulated.yaml --duration 30")
+        "  pamd run --config config/rig-emulated.yaml --duration 30\n\n"
+        "  pamd emulate --config config/rig-nidaq-emulated.yaml --realtime-priority 1 &\n"
+        "  pamd run --config config/rig-nidaq-emulated.yaml --duration 15 --profile sine")
     p.add_argument("--config", metavar="FILE", required=True, help="the rig config to emulate")
     p.add_argument("--seed", type=int, default=1, help="sensor noise seed (1)")
     p.add_argument("--load", action="append", default=[], metavar="MUSCLE=KG",
@@ -116,7 +120,10 @@ def _serve(args: argparse.Namespace, cfg: LoadedConfig, make: type) -> int:
     stats = {"stopped": True, "physics_steps": rig.plant.steps,
              "modbus_requests": {k: d.requests for k, d in rig.modbus.items()},
              "watchdog_trips": {k: d.trips for k, d in rig.modbus.items()},
-             "tpdo_frames": {k: e.sent for k, e in rig.encoders.items()}}
+             "tpdo_frames": {k: e.sent for k, e in rig.encoders.items()},
+             "nidaq": {k: {"calls": d.calls, "sample_clocks_waited": d.waits,
+                           "sample_clocks_missed": d.late_clocks, "late_writes": d.late_writes}
+                       for k, d in rig.nidaq.items()}}
     if hasattr(rig, "lateness"):
         stats["lateness"] = rig.lateness()
     print(json.dumps(stats), flush=True)

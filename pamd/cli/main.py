@@ -15,7 +15,9 @@ import argparse
 import importlib
 import logging
 import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, cast
@@ -77,13 +79,19 @@ COMMANDS: tuple[SubCommandEntry, ...] = (
     *_commands("net",
                ("status", "ask a running daemon how it is (over Zenoh)"),
                ("cmd", "command a running daemon (over Zenoh)"),
+               ("token", "where a rig's command credential is; a new one with --rotate"),
                ("watch", "live table of a running daemon's muscles (over Zenoh)")),
     *_commands("router", ("router", "run a Zenoh router (for a lab with TLS and access "
                                     "control)")),
-    *_commands("model", ("model", "the adapted model of a running daemon (over Zenoh)")),
+    *_commands("model", ("model", "model files: MATLAB .fis export and import; a running "
+                                  "daemon's adapted model")),
     *_commands("view", ("plot", "figures of a recording: pressure, length, force, "
                                 "hysteresis (PNG)")),
 )
+
+
+#: The first command `pamd --help` suggests: the README's first (tests/cli checks).
+FIRST_COMMAND = "pamd run --duration 10 --profile sine"
 
 
 def _top_parser() -> argparse.ArgumentParser:
@@ -91,8 +99,9 @@ def _top_parser() -> argparse.ArgumentParser:
         prog="pamd",
         description="Controller daemon for pneumatic artificial muscle test beds. "
         "Runs the rig at a fixed rate under PID pressure control, safely.",
-        epilog="Start with `pamd run --clock virtual --duration 30 --profile sine` (the "
-        "built-in simulated rig), then `pamd check-config YOUR.yaml` for a real rig.",
+        epilog=f"Start with `{FIRST_COMMAND}` (the built-in simulated rig, 10 s on the real "
+        "clock: the README's first command), then `pamd check-config YOUR.yaml` for a real "
+        "rig.",
     )
     parser.add_argument("--version", action="version", version=f"pamd {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="more log output")
@@ -141,6 +150,12 @@ def build_parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     return _build({command.module} if command else set())
 
 
+#: Exit status of a command that did its job (pamd.errors.EXIT_MEANINGS says what each
+#: status means; docs/exit-codes.md lists them).
+EXIT_OK = 0
+#: Exit status of a command interrupted by Ctrl-C outside a run (a run's own Ctrl-C
+#: stops it in its safe state: EXIT_OK), as a shell reports SIGINT: 128 + 2.
+EXIT_INTERRUPTED = 130
 #: Exit status of a verb whose reader went away (`pamd status | head`): 128 + SIGPIPE,
 #: what a Unix tool killed by the signal reports.
 EXIT_BROKEN_PIPE = 141
@@ -152,8 +167,19 @@ def _quiet_libraries(record: logging.LogRecord) -> bool:
     return record.name.startswith("pamd") or record.levelno >= logging.WARNING
 
 
+#: Sub-commands that reload their config on SIGHUP (a daemon): the signal is held
+#: from the first line of `main` until their handler is installed, so that one sent
+#: during the start (imports, config, drivers) is kept and said, not the default
+#: action's silent death (`pamd.cli.run._install_signals` takes it up).
+HOLD_SIGHUP = frozenset({"run"})
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     words = sys.argv[1:] if argv is None else list(argv)
+    command = chosen_command(words)
+    if (argv is None and command is not None and command.name in HOLD_SIGHUP
+            and threading.current_thread() is threading.main_thread()):
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGHUP})
     parser = build_parser_for(words)
     args = parser.parse_args(words)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
@@ -163,9 +189,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             handler.addFilter(_quiet_libraries)
     if not getattr(args, "func", None):
         parser.print_help()
-        return 2
+        return 2  # as argparse exits for bad arguments (ConfigError's code)
     try:
-        code = int(args.func(args) or 0)
+        code = int(args.func(args) or EXIT_OK)
         sys.stdout.flush()  # a closed pipe shows here, not as a warning at exit
         return code
     except BrokenPipeError:
@@ -178,4 +204,4 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"pamd: error: {exc}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
-        return 130
+        return EXIT_INTERRUPTED

@@ -1,17 +1,23 @@
-"""`pamd status`, `pamd cmd`, `pamd watch`: clients of a running daemon over Zenoh.
+"""`pamd status`, `pamd cmd`, `pamd watch`: clients of a running daemon over Zenoh (or,
+on the rig PC, its local channel: `pamd.net.local`); `pamd token`: the command
+credential's file, rotated on demand.
 
-Each opens its own Zenoh session in client mode: to `tcp/127.0.0.1:7447` by default,
-to `--connect ENDPOINT`, or as `--zenoh-config FILE` says (a client config such as
-config/zenoh/lab-client.json5; given a daemon's config, it connects where that daemon
-listens). With no `--rig`, the one rig alive is used (several: refused, listing them);
-a rig id is a name, never a pattern. Commands carry the daemon's token
-(`pamd.net.credential`; `--token-file`). Exit codes: 0 ok, 4 command refused, 7 no
+`pamd status` and `pamd cmd` use the daemon's local channel when it is on this machine
+(no `--zenoh-config`, and `--connect`, if given, a loopback endpoint it listens on), so
+no number of Zenoh sessions can keep them out. Otherwise each opens its own Zenoh
+session in client mode: to `tcp/127.0.0.1:7447` by default, to `--connect ENDPOINT`,
+or as `--zenoh-config FILE` says (a client config such as config/zenoh/lab-client.json5;
+given a daemon's config, it connects where that daemon listens). With no `--rig`, the
+one rig alive is used (several: refused, listing them); a rig id is a name, never a
+pattern. Commands are signed with the daemon's token (`pamd.net.credential`;
+`--token-file`). Exit codes: 0 ok, 4 command refused, 7 no
 daemon answers (or not allowed), 2 bad arguments, config or rig name.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import sys
@@ -24,7 +30,8 @@ from enum import IntEnum
 from pamd.cli.numbers import number
 from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import CommandRefused
-from pamd.net.client.client import Client
+from pamd.net.client.client import Client, LocalRig, local_rig, rig_name
+from pamd.net.credential import CredentialError, find_token, rotate_token
 from pamd.net.keys import Keys
 from pamd.net.telemetry import decode
 from pamd.net.zconf import NoDaemon
@@ -53,9 +60,14 @@ def add_client_args(p: argparse.ArgumentParser, suppress: bool = False) -> None:
     p.add_argument("--zenoh-config", metavar="FILE", default=d,
                    help="Zenoh client config (JSON5), e.g. config/zenoh/lab-client.json5")
     p.add_argument("--connect", metavar="ENDPOINT", default=d,
-                   help="connect here (default: tcp/127.0.0.1:7447)")
+                   help="connect here (default: tcp/127.0.0.1:7447); a loopback endpoint of "
+                   "a daemon on this machine: status and cmd use its local channel")
     p.add_argument("--timeout", type=number("s", gt=0.0), metavar="S", default=d,
                    help="how long to wait for an answer (status 3 s; cmd, model save 10 s)")
+    p.add_argument("--no-local", action="store_true", default=d,
+                   help="over Zenoh even on the rig PC (by default status and cmd use the "
+                   "daemon's local channel there, which no number of Zenoh sessions can "
+                   "block: see --connect)")
     p.add_argument("--token-file", metavar="FILE", default=d,
                    help="the daemon's command credential (default: $PAMD_TOKEN_FILE, "
                    "$PAMD_TOKEN, else pamd-<rig>.token where the daemon writes it: "
@@ -85,6 +97,20 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     c.add_argument("rest", nargs=argparse.REMAINDER, help="the verb's options")
     c.set_defaults(func=cmd)
 
+    k = sub.add_parser("token", help="where a rig's command credential is; a new one "
+                       "with --rotate", description="The command credential (pamd.net."
+                       "credential): the token file a daemon keeps for its rig, with which "
+                       "pamd cmd and pamd.connect sign each command (the token itself never "
+                       "travels). --rotate writes a new token over the old one atomically: "
+                       "a running daemon takes it within a second, and commands signed "
+                       "with the old one are refused from then on (nothing to delete, no "
+                       "restart).", epilog="example: pamd token --rig sim --rotate")
+    k.add_argument("--rig", required=True, help="the rig id")
+    k.add_argument("--token-file", metavar="FILE", help="the token file (default: where "
+                   "the daemon writes it, as pamd cmd finds it)")
+    k.add_argument("--rotate", action="store_true", help="replace the token with a new one")
+    k.set_defaults(func=token)
+
     w = sub.add_parser("watch", help="live table of a running daemon's muscles (over Zenoh)",
                        description="Each muscle's latest state and the message rate, "
                        "refreshed twice a second, plus the latest events.")
@@ -100,15 +126,28 @@ def _client(args: argparse.Namespace) -> Client:
     return Client(args.zenoh_config, args.connect, getattr(args, "token_file", None))
 
 
+def _channel(args: argparse.Namespace) -> Client | LocalRig:
+    """On the rig PC, the daemon's local channel (pamd.net.local: no Zenoh session, so
+    no number of them keeps a status or an estop out): when no Zenoh config is named
+    and --connect, if given, is a loopback endpoint the daemon listens on. Else (or
+    with no local channel found) a Zenoh session."""
+    if not args.zenoh_config and not getattr(args, "no_local", False):
+        local = local_rig(args.rig, args.connect)
+        if local is not None:
+            return local
+    return _client(args)
+
+
 # -- status ------------------------------------------------------------------------------
 def status(args: argparse.Namespace) -> int:
-    with _client(args) as cl:
+    with _channel(args) as cl:
         rig = cl.rig(args.rig)
         st = cl.status(rig, args.timeout or 3.0)
+        via = cl.where
     if args.json:
         print(json.dumps(st, indent=2))
     else:
-        print_status(st)
+        print_status(st, via)
     return 0 if st.get("ok", True) else 1
 
 
@@ -116,14 +155,24 @@ def _f(v: JsonValue, fmt: str = ".3f") -> str:
     return "-" if v is None else format(v, fmt) if isinstance(v, (int, float)) else str(v)
 
 
-def print_status(st: JsonObject) -> None:
+def print_status(st: JsonObject, via: str = "") -> None:
     if not st.get("ok", True):
         print(f"status: {st.get('error')}")
         return
     print(f"rig {st.get('rig_id')} (daemon of {st.get('user') or '?'}, pid "
-          f"{st.get('pid') or '?'}): {st.get('state')} ({st.get('reason')})")
+          f"{st.get('pid') or '?'}): {st.get('state')} ({st.get('reason')})"
+          + (f" [via {via}]" if via else ""))
+    for warning in st.get("warnings") or []:
+        print(f"  WARNING: {warning}")
     for why in st.get("stale_reasons") or []:
         print(f"  STALE: {why}")
+    lost = st.get("lost_records")
+    if isinstance(lost, int) and lost > 0:
+        print(f"  LOST TICK RECORDS: {lost} so far (the io process fell behind and its ring "
+              "was full: recording and telemetry miss them; see the lost_records events)")
+    lag = st.get("live_lag_s")
+    if isinstance(lag, (int, float)) and lag >= 1.0:
+        print(f"  live values {lag:.1f} s behind the loop (the io process is busy)")
     if st.get("fault"):
         print(f"  latched fault: {st['fault']}")
     failure = (st.get("recording") or {}).get("failure")
@@ -239,7 +288,7 @@ def cmd(args: argparse.Namespace) -> int:
     payload = build_payload(args.verb, list(args.rest), args)
     if isinstance(payload, dict):  # refused here as the daemon would, before any session
         parse_command(args.verb, payload, label=lambda field: f"--{field.replace('_', '-')}")
-    with _client(args) as cl:
+    with _channel(args) as cl:
         rig = cl.rig(args.rig)
         verdict = cl.command(rig, args.verb, payload, user=args.user,
                              timeout_s=args.timeout or 10.0)
@@ -255,6 +304,21 @@ def refusal(verb: str, error: str) -> str:
     if error.startswith((f"{verb} ", f"{verb}:")):
         return error
     return f"{verb} refused: {error}"
+
+
+# -- token -------------------------------------------------------------------------------
+def token(args: argparse.Namespace) -> int:
+    rig = rig_name(args.rig)
+    if args.rotate:
+        path = rotate_token(rig, args.token_file)
+        print(f"{path}: a new token (a running daemon takes it within a second)")
+        return 0
+    tok, where = find_token(rig, args.token_file)
+    if tok is None:
+        raise CredentialError(f"no command token of rig {rig!r} found (looked in {where}); "
+                              "a daemon makes one as it starts")
+    print(where)
+    return 0
 
 
 # -- watch -------------------------------------------------------------------------------
@@ -286,9 +350,16 @@ def watch(args: argparse.Namespace) -> int:
         n_draw = {"puts": dict(puts), "samples": dict(samples)}
         redraw = sys.stdout.isatty() and not args.plain
         total = 0
+        retry_t = 0.0
         try:
             while True:
                 now = time.monotonic()
+                if cl.lost and now >= retry_t:  # the daemon went: its next one, when up
+                    retry_t = now + 2.0
+                    gone = "(the daemon went away: waiting for it)"
+                    events = events if events[-1:] == [gone] else (events + [gone])[-5:]
+                    with contextlib.suppress(NoDaemon):
+                        sub, evs = cl.subscribe(keys.state_all), cl.subscribe(keys.events, 256)
                 while (s := sub.try_recv()) is not None:
                     msg = decode(s.payload.to_bytes())
                     m = msg.get("muscle", "?")

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import argparse
 import signal
+import sys
 import threading
 from types import FrameType
 
-from pamd.net import zconf
+from pamd.net import cleartext, zconf
 from pamd.net.zconf import NoDaemon
 
 
@@ -22,6 +23,10 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    help="the router's Zenoh config (JSON5), e.g. "
                    "config/zenoh/lab-router.json5")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("--allow-cleartext", action="store_true", help="listen on or connect "
+                   "to an endpoint beyond loopback without TLS (plain tcp/0.0.0.0:..., "
+                   "tcp/<LAN address>:...): refused otherwise, since everything the lab's "
+                   "daemons and clients say crosses the network in clear; warned at start")
     p.set_defaults(func=run)
 
 
@@ -30,6 +35,13 @@ def run(args: argparse.Namespace) -> int:
 
 
     cfg = zconf.router_config(args.zenoh_config)
+    warnings = cleartext.judge([cleartext.Exposure(
+        f"the router {'listens on' if which == 'listen' else 'connects to'}", e,
+        "everything the lab's daemons and clients say", "tls/... endpoints, as "
+        "config/zenoh/lab-router.json5", args.zenoh_config,
+        zconf.endpoint_line(args.zenoh_config, e), f"{which}/endpoints")
+        for which in ("listen", "connect") for e in zconf.cleartext_beyond_loopback(cfg, which)],
+        args.allow_cleartext, cleartext.ROUTER_FLAG)
     try:
         session = zenoh.open(cfg)
     except Exception as exc:
@@ -44,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, stop)
     eps = ", ".join(zconf.endpoints(cfg, "listen"))
     print(f"pamd router: zid {session.zid()}, listening on {eps}", flush=True)
+    for w in warnings:
+        print(f"pamd router: WARNING: {w}", file=sys.stderr, flush=True)
     try:
         done.wait(args.duration)
     finally:

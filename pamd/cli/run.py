@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import re
 import shlex
 import signal
@@ -15,7 +16,7 @@ import threading
 from types import FrameType
 
 from pamd.cli.numbers import number
-from pamd.commands.pending import PendingCommand
+from pamd.cli.run_start import StartRequests
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
@@ -23,7 +24,7 @@ from pamd.control.length_targets import check_length_profile_config
 from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.daemon import Daemon
 from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
+from pamd.errors import CommandRefused, ConfigError, ConfigIssue
 from pamd.io.session import RecordingRequest
 from pamd.net.spec import TelemetryRequest
 from pamd.profile_kinds import SHAPE_PARAMS
@@ -78,6 +79,13 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    help="stop after S seconds (at most 30 days)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.add_argument("--note", default="", help="operator note kept with the run")
+    p.add_argument("--load-kg", metavar="[MUSCLE=]KG", action="append", type=_load_kg,
+                   help="the load hanging on the muscle for this run, in place of its "
+                   "load_kg (which sets the safe pressure); MUSCLE=KG for each muscle of "
+                   "a rig with several (repeat it, or m1=30,m2=20). Checked like the "
+                   "config's: within the muscle's rating, and before anything moves the "
+                   "force at rest must read its weight (a disagreement refuses a run "
+                   "with an end, exit 2, naming both loads)")
     f = p.add_mutually_exclusive_group()
     f.add_argument("--stay-on-fault", action="store_true", help="a run with an end of its "
                    "own (--duration, --cycles) that faults holds its safe state until a "
@@ -104,14 +112,22 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "daemon's Zenoh session listens, e.g. tcp/127.0.0.1:7448 (overrides "
                    "telemetry.listen and a Zenoh config's listen endpoints; turns telemetry "
                    "on, with the virtual clock too); clients reach it with --connect")
+    t.add_argument("--allow-cleartext", action="store_true", help="let the Zenoh session "
+                   "listen on or connect to an endpoint beyond loopback without TLS (e.g. "
+                   "--listen tcp/0.0.0.0:7447, a Zenoh config connecting to "
+                   "tcp/<router>:7447) and the Foxglove view serve there without TLS "
+                   "(--foxglove 0.0.0.0:8765): refused otherwise, since state, status and "
+                   "commands then cross the network in clear; warned at start and in every "
+                   "status (as telemetry.allow_cleartext: true)")
     t.add_argument("--zenoh-config", metavar="FILE", help="Zenoh config (JSON5) of the "
                    "daemon's session (overrides telemetry.zenoh_config; default: listen on "
                    "telemetry.listen, tcp/127.0.0.1:7447)")
     t.add_argument("--foxglove", nargs="?", const="default", metavar="HOST:PORT",
                    type=_listen, help="serve a live view to Foxglove (WebSocket, in the io "
                    "process; a viewer, commands stay on Zenoh) on HOST:PORT (default: "
-                   "telemetry.foxglove.listen, 127.0.0.1:8765); layout: "
-                   "config/foxglove/pamd-layout.json")
+                   "telemetry.foxglove.listen, 127.0.0.1:8765); beyond loopback it needs "
+                   "telemetry.foxglove.tls_cert/tls_key (wss://) or --allow-cleartext; "
+                   "layout: config/foxglove/pamd-layout.json")
     g = p.add_argument_group("profile (on every muscle unless --muscle)")
     g.add_argument("--profile", choices=SHAPE_NAMES, help="start this reference profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")
@@ -144,6 +160,54 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     lm.add_argument("--to-contraction", type=float, help="length profile: "
                     f"{kinds_reading('to_bar', '/')} target (fraction)")
     p.set_defaults(func=run)
+
+
+def _load_kg(text: str) -> list[tuple[str | None, float]]:
+    """--load-kg's KG or MUSCLE=KG[,MUSCLE=KG...], each a finite mass of 0 kg or more;
+    which muscles there are and their ratings are checked once the config is read."""
+    out: list[tuple[str | None, float]] = []
+    for part in text.split(","):
+        name, sep, value = part.strip().rpartition("=")
+        try:
+            kg = float(value)
+        except ValueError:
+            kg = math.nan
+        if not (math.isfinite(kg) and kg >= 0.0) or (sep and not name):
+            raise argparse.ArgumentTypeError(
+                f"{part.strip()!r}: expected KG or MUSCLE=KG, a mass of 0 kg or more "
+                "(e.g. 30, or m1=30)")
+        out.append((name or None, kg))
+    return out
+
+
+def load_overrides(given: list[list[tuple[str | None, float]]] | None,
+                   cfg: LoadedConfig) -> JsonObject:
+    """--load-kg as config overrides (`{"m1": {"load_kg": 30.0}}`), checked like the
+    config's load_kg: a muscle the config has, within its rating; a bare KG only for a
+    rig of one muscle. Refused (ConfigError, exit 2) naming --load-kg."""
+    out: JsonObject = {}
+    names = [m.name for m in cfg.rig.muscles]
+    issues = []
+    for name, kg in (pair for group in given or [] for pair in group):
+        if name is None and len(names) > 1:
+            issues.append(ConfigIssue("--load-kg", None, "", f"MUSCLE=KG for one of "
+                                      f"{', '.join(names)} (this rig has several muscles)",
+                                      f"{kg:g}"))
+            continue
+        name = name or names[0]
+        if name not in names:
+            issues.append(ConfigIssue("--load-kg", None, name, f"one of the config's "
+                                      f"muscles ({', '.join(names)})", repr(name)))
+            continue
+        m = cfg.muscle(name)
+        rated = cfg.muscle_type(name).max_load_kg
+        if kg > rated:
+            issues.append(ConfigIssue("--load-kg", None, name, f"at most {rated} kg "
+                                      f"({m.type} rating)", f"{kg:g} kg"))
+        out[name] = {"load_kg": kg}
+    if issues:
+        raise ConfigError(issues)
+    return out
 
 
 def _endpoint(text: str) -> str:
@@ -299,17 +363,13 @@ def record_where(args: argparse.Namespace, cfg: LoadedConfig
     return None, None
 
 
-def _verdict(daemon: Daemon, pending: PendingCommand, cfg: LoadedConfig, what: str) -> None:
-    """Wait for a command queued before start-up; a refusal stops the run (nothing moved)."""
-    waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
-    while not pending.done and waited < patience and daemon.alive:
-        daemon.wait(timeout_s=0.05)
-        waited += 0.05
-    verdict = pending.result(0.0)
-    if not verdict["ok"]:
-        daemon.stop(f"{what} refused")
-        daemon.wait()
-        raise CommandRefused(verdict["error"])
+def not_recording_why(args: argparse.Namespace) -> str:
+    """Why a run records nothing (`record_where` gave no directory), and how it would."""
+    if args.no_record:
+        return "--no-record"
+    return ("its output is not a terminal (a script, a service, a pipe such as `| tee`), "
+            "where a run records only when told: --record [DIR], or the config's "
+            "recording.dir")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -319,6 +379,9 @@ def run(args: argparse.Namespace) -> int:
     if args.rate_hz is not None:
         overrides.setdefault("loop", {})["rate_hz"] = args.rate_hz
     cfg = load_config(args.config, overrides)
+    if args.load_kg:  # for this run (and its reloads), checked against the ratings first
+        overrides["muscles"] = load_overrides(args.load_kg, cfg)
+        cfg = load_config(args.config, overrides)
     models, model_path = _models(cfg, args)
     length_mode = args.mode in ("length_force", "position")
     given = _profile_options(args, length_mode)  # before any file is read
@@ -345,7 +408,8 @@ def run(args: argparse.Namespace) -> int:
                                  run_name=args.name, profile=profile, model_path=model_path,
                                  max_mb=max_mb)
     telemetry = TelemetryRequest(enabled=not args.no_telemetry, zenoh_config=args.zenoh_config,
-                                 foxglove=args.foxglove, listen=args.listen)
+                                 foxglove=args.foxglove, listen=args.listen,
+                                 allow_cleartext=args.allow_cleartext)
     daemon = Daemon(cfg, note=args.note, recording=recording, state_dir=args.state_dir,
                     models=models,
                     notifier=Notifier.from_environ(), config_overrides=overrides,
@@ -353,38 +417,33 @@ def run(args: argparse.Namespace) -> int:
     testhooks.install(daemon)
     daemon.keeper.allow_restart_in_place()  # a reload that reopens the devices execs again
     signalled = _install_signals(daemon)
-    # Queued before the loop starts: applied on the first tick after start-up, so a
-    # virtual run is the same every time.
-    mode = None
-    if args.mode is not None:  # before the profile, so both land on the first tick
+    # Sent once the start-up is over and its ramp (a muscle that started outside its
+    # limits) has ended; on the virtual clock at a standstill, so a virtual run is the
+    # same every time (pamd.cli.run_start).
+    requests: list[tuple[str, JsonObject]] = []
+    if args.mode is not None:  # before the profile: both land on the same tick
         mode_args: JsonObject = {"mode": args.mode, "feedforward": not args.no_feedforward,
-                                     "ilc": args.ilc}
+                                 "ilc": args.ilc}
         if args.muscle:
             mode_args["muscle"] = args.muscle
-        mode = daemon.submit("mode", mode_args)
-    pending = daemon.submit("profile", profile) if profile is not None else None
+        requests.append(("mode", mode_args))
+    if profile is not None:
+        requests.append(("profile", profile))
+    start = StartRequests(daemon, requests, loads_given=overrides.get("muscles") or {})
     daemon.start(args.duration, stop_when_profile_done=profile is not None and
                  args.cycles is not None, end_on_fault=_end_on_fault(args))
     if record_dir is not None and not args.json:
         cap = f", at most {max_mb:g} MB" if max_mb else ""
         log.info("recording into %s%s (--no-record: none)", record_dir, cap)
+    if record_dir is None:  # always said: a run nobody can open afterwards is a surprise
+        log.info("not recording: %s", not_recording_why(args))
     if cfg.rig.loop.clock == "virtual" and args.duration is None and args.cycles is None:
         log.info("virtual clock with no end (no --duration, no --cycles): the simulation "
                  "runs as fast as it can until Ctrl-C or SIGTERM")
     try:
-        if mode is not None:
-            _verdict(daemon, mode, cfg, "mode")
-        if pending is not None:
-            waited, patience = 0.0, cfg.rig.safety.startup_timeout_s + 5.0
-            while not pending.done and waited < patience and daemon.alive:
-                daemon.wait(timeout_s=0.05)  # keeps service() (notify, state) running
-                waited += 0.05
-            verdict = pending.result(0.0)
-            if not verdict["ok"]:
-                daemon.stop("profile refused")
-                daemon.wait()
-                raise CommandRefused(verdict["error"])
+        start.send(cfg.rig.safety.startup_timeout_s + 5.0)
         daemon.wait()
+        start.refuse_wrong_load()  # a run that ended in start-up (no request waited)
     finally:
         daemon.stop("shutting down")
         daemon.wait()
@@ -442,7 +501,10 @@ def _install_signals(daemon: Daemon) -> list[str]:
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     signal.signal(signal.SIGHUP, reload)
-    unblock_signals()  # what a restart in place held back for this daemon
+    if signal.SIGHUP in signal.sigpending():  # held since `pamd.cli.main.main`
+        log.warning("SIGHUP during start-up: queued; the config is read again once the "
+                    "rig has started")
+    unblock_signals()  # what the start (or a restart in place) held back for this daemon
     return received
 
 

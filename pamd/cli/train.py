@@ -1,16 +1,18 @@
 """`pamd train DATA... --out MODEL.json [--kind KIND] [--target SIGNAL]`: train an inverse
 model (force, length[, velocity] -> pressure; ANFIS by default, or any kind of
 `pamd.models`) or, with `--target force_n --inputs pressure_bar,contraction`, a forward
-force model (seed 002's F(p, k)), from recorded runs or tables, with a progress bar and a
-final metrics table."""
+force model (seed 002's F(p, k)), from recorded runs or tables: a progress bar for each
+phase (reading, each training start; `pamd.cli.progress`), then the model's line with the
+wall time it took and a final metrics table."""
 
 from __future__ import annotations
 
 import argparse
 import os
 import sys
-from typing import Protocol
+import time
 
+from pamd.cli import progress
 from pamd.cli.evaluate import add_actuation_option, format_table, say_own_actuations
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
@@ -24,7 +26,7 @@ from pamd.models.registry import KINDS, declared, save_model
 from pamd.models.training import fit_with, rows_of
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.view.judging import coverage, poor_fit
-from pamd.view.tables import load_samples
+from pamd.view.tables import data_files, load_samples
 
 #: Names `--inputs` takes for a signal besides its own (seed 001 calls its third input
 #: the change of length, delta L).
@@ -75,16 +77,6 @@ def kind_options_given(args: argparse.Namespace, kind: Kind[KindOptions]) -> dic
                              f"{', '.join(s.flag for s in mine.values()) or 'none'})")
         given[name] = value if spec.parse in _ARGPARSE_TYPES else spec.parse(value)
     return given
-
-
-class _Bar(Protocol):
-    """What training uses of a tqdm progress bar."""
-
-    def update(self, n: float = 1) -> bool | None: ...
-
-    def set_postfix_str(self, s: str = "", refresh: bool = True) -> None: ...
-
-    def close(self) -> None: ...
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -173,7 +165,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     p.add_argument("--allow-poor-fit", action="store_true", help="write the model even if "
                    "it fits worse than a constant (NRMSE fit <= 0 %% on the validation set; "
                    "refused by default)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress bars (reading, "
+                   "each training start)")
     _add_kind_options(p)
     p.set_defaults(func=run)
 
@@ -192,7 +185,13 @@ def run(args: argparse.Namespace) -> int:
     d = os.path.dirname(os.path.abspath(args.out))
     if not os.path.isdir(d):
         raise ModelError(f"--out {args.out}: directory {d} does not exist")
-    samples = load_samples(args.data, opts)  # recordings and tables (CSV, MAT)
+    t0 = time.monotonic()
+    reading = progress.Reading(data_files(args.data), args.quiet)
+    try:  # recordings and tables (CSV, MAT)
+        samples = load_samples(args.data, opts, on_file=reading.file_read)
+    finally:
+        reading.close()
+    read_s = time.monotonic() - t0
     say_own_actuations(samples, "pamd train")
     val_split, test_split = default_fractions(args.split_by, args.val_split,
                                               args.test_split)
@@ -200,29 +199,21 @@ def run(args: argparse.Namespace) -> int:
                   block_s=args.block_s, seed=args.seed)
     tr, va, te = parts.train, parts.validation, parts.test
     print(f"pamd train: {len(samples)} samples from {len(samples.runs)} run(s) "
-          f"({', '.join(inputs)} -> {args.target}); training {len(tr)}, validation "
-          f"{len(va) if va else 0}, test {len(te) if te else 0} (split by {args.split_by})",
-          file=sys.stderr)
+          f"({', '.join(inputs)} -> {args.target}), read in {progress.wall_text(read_s)}; "
+          f"training {len(tr)}, validation {len(va) if va else 0}, test "
+          f"{len(te) if te else 0} (split by {args.split_by})", file=sys.stderr)
     steps, unit, error = kind.progress(options) if kind.progress else (0, "", "")
-    bar = _progress(steps, args.quiet, unit) if kind.progress else None
-
-    def progress(step: int, err: float, val: float | None) -> None:
-        if bar is not None:
-            bar.update(1)
-            post = f"train {error} {err:.4g}" + (f", val {error} {val:.4g}"
-                                                 if val is not None else "")
-            bar.set_postfix_str(post, refresh=False)
-
+    starts = kind.starts(options) if kind.starts else 1
+    training = progress.Training(steps, starts, unit, error, args.quiet or not kind.progress)
     prov: JsonObject = {"data": samples.provenance(), "split": parts.how,
                         "coverage": coverage(tr.X, inputs)}  # where the data lay
     try:
         fitted = fit_with(kind.name, samples, parts, options, seed=args.seed,
                           derived_inputs=derived_inputs(inputs, args.velocity_window_s,
                                                         args.rate_hz),
-                          provenance=prov, callback=progress)
+                          provenance=prov, callback=training)
     finally:
-        if bar is not None:
-            bar.close()
+        training.close()
     model = fitted.model
     rows: dict[str, dict[str, float]] = {
         k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
@@ -237,7 +228,8 @@ def run(args: argparse.Namespace) -> int:
     _refuse_poor_fit(model.metrics, args)
     save_model(model, args.out)
     print(f"{args.out}: " + (fitted.summary or f"{model.kind} model {model!r}, "
-                             f"{model.n_params} parameters"))
+                             f"{model.n_params} parameters")
+          + f"; {progress.wall_text(time.monotonic() - t0)} (wall time, reading included)")
     format_table(rows, model.output.unit)
     fwd = {k[len("forward_"):]: v for k, v in model.metrics.items() if k.startswith("forward_")}
     if fwd and kind.forward is not None:
@@ -263,13 +255,3 @@ def _refuse_poor_fit(metrics: JsonObject, args: argparse.Namespace) -> None:
     if why is not None:
         print(f"pamd train: WARNING: {why}; written anyway (--allow-poor-fit)",
               file=sys.stderr)
-
-
-def _progress(total: int, quiet: bool, unit: str = "epoch") -> _Bar | None:
-    if quiet:
-        return None
-    from tqdm import tqdm
-
-    bar: _Bar = tqdm(total=total, desc="training", unit=unit, file=sys.stderr,
-                     dynamic_ncols=True, leave=True)  # tqdm has no type information
-    return bar

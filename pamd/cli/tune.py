@@ -93,8 +93,10 @@ FILE: a PNG).
 
 What it writes: nothing but the recording, unless --save: then the new gains go into
 the config file (control.pid.kp/ki_per_s and control.rate_feedforward_s, or
-control.position.pid.kp_bar_per_mm/ki_bar_per_mm_s), in place, keeping its comments
-and layout, after the diff is shown. If the file cannot be edited safely, the gains go
+control.position.pid.kp_bar_per_mm/ki_bar_per_mm_s), with the model they came from
+(control.plant, or control.position.plant: gain, lag_s, dead_time_s; the plant every
+later gain is judged against, by check-config and the daemon), in place, keeping its
+comments and layout, after the diff is shown. If the file cannot be edited safely, the gains go
 to an overrides file beside it (CONFIG.tuned.yaml) and it says so.
 Rig-wide (the control section, from the mean model) when the muscles agree; each
 muscle's own gains into its muscles[].control section (the same key names) with

@@ -23,10 +23,11 @@ import time
 from pamd.commands.named_files import MODEL_MAX_BYTES, parse_time_limit_s, read_limited
 from pamd.commands.offload import run_isolated
 from pamd.commands.schema import PreparedModelArgs
-from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
+from pamd.config.loader import LoadedConfig, MuscleLimitsResolved, load_config
 from pamd.config.schema import MuscleConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.model_check import SOURCES
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused, ModelError
 from pamd.verbs.schema import MAX_ERROR_CHARS, Command, cap_text
 
@@ -138,3 +139,20 @@ def check_models_isolated(cfg: LoadedConfig) -> None:
 
 def _check_models(cfg: LoadedConfig) -> None:
     load_models(cfg)
+
+
+def read_config(path: str, overrides: JsonObject | None) -> LoadedConfig:
+    """A reloaded config read, validated and its `model_file`s loaded and checked: the
+    ConfigError (file, line, key) of either, or the config."""
+    cfg = load_config(path, overrides)
+    load_models(cfg)
+    return cfg
+
+
+def read_config_isolated(path: str, overrides: JsonObject | None) -> LoadedConfig:
+    """`read_config` in a child process (`offload.run_isolated`), for a reload while
+    the loop runs: the YAML's parse, the drivers' option checks and the models' reads
+    hold the interpreter lock for a long while on a busy PC; only the checked config
+    comes back."""
+    return run_isolated(read_config, path, overrides, time_limit_s=RELOAD_TIME_LIMIT_S,
+                        what=f"{path}: reading it again")

@@ -14,6 +14,7 @@ from pamd.control.length_control import MODE_NAMES
 from pamd.control.length_targets import length_profile
 from pamd.control.muscle import MuscleController
 from pamd.control.onoff import POSITION_TAKES_NO_MODEL
+from pamd.control.rig_safe_state import SAFE_SETPOINT_BAND_BAR
 from pamd.controller import RigController
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import CommandRefused
@@ -178,7 +179,8 @@ def _mode(ctrl: RigController, a: ModeArgs) -> JsonObject:
                              "off")
     need_reference(ms)
     for m in ms:
-        if m.in_safe_ramp:  # the safe ramp drops a length mode on its next tick
+        if m.in_safe_ramp and abs(m.setpoint_bar - m.safe_pressure_bar) > \
+                SAFE_SETPOINT_BAND_BAR:  # still ramping: it would drop a length mode
             raise CommandRefused(
                 f"{m.name} is ramping to its safe pressure ({m.safe_pressure_bar:.2f} bar: a "
                 "stop, a deadman or a start-up outside the limits); send a setpoint or a "

@@ -1,8 +1,8 @@
 """Files a remote command names (a `collect`'s plan, a `model`'s model file): only by
 name, only from the directory the config allows (`telemetry.plans_dir`,
 `telemetry.models_dir`), with a size, a nesting and a time limit: a plan at most 1 MiB,
-a model 8 MiB (`pamd.models.registry.MAX_FILE_BYTES`, the one cap every reader of model
-files applies; the largest kind, an offline svr, stays far below it), nested at most 64
+a model 8 MiB (`pamd.config.schema.MODEL_FILE_MAX_BYTES`, declared with the config keys
+that name these directories: the one cap every reader of model files applies), nested at most 64
 deep, read and parsed within `PARSE_TIME_LIMIT_S` in a child process
 (`pamd.commands.offload`), so within a client's default 5 s command timeout.
 
@@ -23,11 +23,12 @@ import stat
 from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
+from pamd.config.schema import PLAN_FILE_MAX_BYTES
 from pamd.errors import CommandRefused
 from pamd.models.registry import MAX_FILE_BYTES
 
 MAX_DEPTH = 64
-PLAN_MAX_BYTES = 1 << 20
+PLAN_MAX_BYTES = PLAN_FILE_MAX_BYTES
 MODEL_MAX_BYTES = MAX_FILE_BYTES
 #: A file a command names is read, parsed and checked within this (seconds), or refused.
 PARSE_TIME_LIMIT_S = 3.0

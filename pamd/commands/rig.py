@@ -105,8 +105,8 @@ def _reload(ctrl: RigController, a: ReloadArgs) -> JsonObject:
     lengths only at rest (`RigController.at_rest`: IDLE, nothing moving, a ramp to the
     safe state completed; otherwise reported as deferred: the daemon sends the command
     again at the next rest). Refused as a whole, changing nothing, if a held pressure
-    is above a new pressure limit. What became of it (deferred, refused and why,
-    applied) is the controller's `reload_note`, which status shows."""
+    is above a new pressure limit. What became of it (pending until the next rest,
+    refused and why, applied) is the controller's `reload_note`, which status shows."""
     settings = a.plan
     if [s.muscle for s in settings] != [m.name for m in ctrl.muscles]:
         raise _refused(ctrl, a, "reload: the muscles differ from the running rig's; that "
@@ -124,10 +124,12 @@ def _reload(ctrl: RigController, a: ReloadArgs) -> JsonObject:
     ctrl.set_startup_timeout(a.startup_timeout_s)
     if with_limits:
         push_safe_outputs(ctrl)  # loads or limits may have moved the safe pressures
+        # a new load_kg, checked against the force at rest (the rig is at rest)
+        ctrl.confirm_loads([s.muscle for s in settings if s.load_kg is not None], "reload")
     deferred = [] if with_limits or not a.idle_only else list(a.idle_only)
     state = ctrl.supervisor.state.name
     if deferred:
-        ctrl.reload_note = {"outcome": "deferred", "keys": deferred, "t_s": ctrl.now,
+        ctrl.reload_note = {"outcome": "pending", "keys": deferred, "t_s": ctrl.now,
                             "reason": f"the rig is not at rest ({ctrl.rest_text()}): "
                             "applied at the next rest"}
     else:

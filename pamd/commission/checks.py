@@ -7,7 +7,7 @@ check, before anything else moves.
 - **The force reads the declared load** at rest: a dead weight hanging still pulls
   m g on an in-line load cell (no acceleration), within `FORCE_TOLERANCE` of it or
   `safety.tare_tolerance_n`, whichever is larger; the opposite sign is an inverted
-  load cell.
+  load cell (`pamd.safety.load_check`, the rule every declared load is checked by).
 - **The pressure rises when the valve opens**: over the steps, the measured pressure's
   change per change of the valve command (least squares through 0) lies between
   `PRESSURE_GAIN` bounds (a regulator follows its setpoint; the opposite sign is an
@@ -25,7 +25,8 @@ from __future__ import annotations
 from pamd.commission.measure import Measurements, Step
 from pamd.commission.moves import CommissionRefused, Moves
 from pamd.config import LoadedConfig
-from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction, force_model
+from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction
+from pamd.safety.load_check import check_load, inverted
 
 FORCE_TOLERANCE = 0.1
 PRESSURE_GAIN = (0.5, 2.0)
@@ -47,19 +48,15 @@ def check_rest(cfg: LoadedConfig, meas: Measurements) -> list[str]:
     for m in cfg.rig.muscles:
         st = meas.signals[f"{m.name}.force"]
         weight = m.load_kg * GRAVITY_M_S2
+        # a gain check: tighter than the start-up's (pamd.safety.load_check), whose
+        # tolerance allows for friction a commissioning rest does not need
         tol = max(FORCE_TOLERANCE * weight, cfg.rig.safety.tare_tolerance_n)
         f = st.rest_mean
-        if weight > tol and f < -tol:
-            raise CommissionRefused(
-                f"{m.name}.force reads {f:.0f} N at rest where the declared {m.load_kg:g} kg "
-                f"pulls +{weight:.0f} N: its sign is inverted; check the sign of "
-                f"muscles[{m.name}].signals.force.gain and the load cell's wiring")
-        if abs(f - weight) > tol:
-            raise CommissionRefused(
-                f"{m.name}.force reads {f:.0f} N at rest where the declared {m.load_kg:g} kg "
-                f"pulls {weight:.0f} N (tolerance {tol:.0f} N): check "
-                f"muscles[{m.name}].signals.force.gain/offset (N per raw unit), the load cell "
-                f"(`pamd tare` with no load) and load_kg")
+        wrong = check_load(m.name, f, m.load_kg, tol)
+        if wrong is not None:
+            raise CommissionRefused(wrong.text() + ("" if inverted(wrong) else (
+                f": check muscles[{m.name}].signals.force.gain/offset (N per raw unit), the "
+                "load cell (`pamd tare` with no load) and load_kg")))
         held.append(f"{m.name}.force reads {f:.1f} N at rest; the declared {m.load_kg:g} kg "
                     f"pulls {weight:.1f} N (tolerance {tol:.0f} N)")
     return held
@@ -119,7 +116,7 @@ def check_step(cfg: LoadedConfig, mv: Moves, steps: list[Step], phase: str,
             f"{m}: the pressure changed {gain:.2f} bar per bar of valve command ({shown}), "
             f"not {lo:g} to {hi:g}: check the supply, the valve's scaling (signals.valve "
             f"gain, raw_min/raw_max) and the pressure sensor's (signals.pressure.gain/offset)")
-    model = force_model(mcfg.force_model)
+    model = cfg.muscle_type(m).force_model(mcfg.force_model)
     dp = sum(s.pressure_change_bar ** 2 for s in steps)
     per_bar = sum(s.length_change_mm * s.pressure_change_bar for s in steps) / dp
     level = mv.levels_bar[0]

@@ -4,6 +4,12 @@ armed phase, the clock time, how late the loop woke, the supervisor state, and p
 muscle each input's value (SI, as the loop uses it), its sample stamp and declared
 jitter (the driver's `in_stamps_s` / `in_jitter_s`), the valve command and the setpoint.
 
+Which ticks a phase takes is decided in the loop's thread alone: `arm(phase)` takes the
+rows of the next plan the loop starts, from the tick that starts it through the tick
+that ends it (its outcome set), and then says so (`ended`). The commissioning thread
+only arms and waits, so however late it runs (a loaded PC), the same rows are taken:
+on the virtual clock a commissioning run is the same run.
+
 Tick path: a few float copies into a preallocated array (no allocation, no I/O); a
 full array stops taking rows and counts them (`dropped`), it never blocks.
 """
@@ -17,6 +23,7 @@ from typing import Protocol
 
 import numpy as np
 
+from pamd.controller import PlanRun
 from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers import Driver
 
@@ -40,15 +47,20 @@ class _Input(Protocol):
     def index(self) -> int: ...
 
 
-class _Now(Protocol):
+class _Rig(Protocol):
+    """The rig's controller (`pamd.controller.RigController`): its clock and plan."""
+
     @property
     def now(self) -> float: ...
+
+    @property
+    def plan_run(self) -> PlanRun | None: ...
 
 
 class Probe:
     """The commissioning run's per-tick copy (see the module's doc)."""
 
-    def __init__(self, clock: _Now, record_names: Sequence[str], muscles: Sequence[str],
+    def __init__(self, clock: _Rig, record_names: Sequence[str], muscles: Sequence[str],
                  inputs: Sequence[Sequence[_Input]], capacity: int) -> None:
         """`inputs[k]`: muscle k's pressure, force and length bindings."""
         self.clock = clock
@@ -62,7 +74,10 @@ class Probe:
         self.rows = np.frombuffer(self._flat, dtype=np.float64).reshape(capacity, self._width)
         self.n = 0
         self.dropped = 0
-        self.phase = 0  # 0: not armed (nothing taken); set by the commissioning thread
+        # (phase, the plan before): what `arm` set, one object so the loop's thread reads
+        # both at once; phase 0: not armed (nothing taken)
+        self._armed: tuple[int, PlanRun | None] = (0, None)
+        self.ended = False  # the armed plan's last row is taken (set in the loop's thread)
         names = list(record_names)
         self._wake = names.index("wake_latency_s")
         self._state = names.index("state")
@@ -80,18 +95,38 @@ class Probe:
                 drv = binding.driver
                 self._stamps.append((drv.in_stamps_s, drv.in_jitter_s, binding.index, at))
 
+    @property
+    def phase(self) -> int:
+        """The phase armed (0: none)."""
+        return self._armed[0]
+
+    def arm(self, phase: int) -> None:
+        """Take the rows of the next plan the loop starts (not the one it has now, ended
+        or none), tagged `phase`, through the tick its outcome is set (then `ended`).
+        Before queueing the plan (the commissioning thread)."""
+        self.ended = False
+        self._armed = (phase, self.clock.plan_run)
+
+    def disarm(self) -> None:
+        """Take no more rows (a run that stops early)."""
+        self._armed = (0, None)
+
     def column(self, name: str) -> np.ndarray:
         """The taken rows of one column (a view)."""
         return self.rows[:self.n, self.columns.index(name)]
 
     # -- the sink (tick path) -----------------------------------------------------------
     def put(self, record: array[float]) -> bool:
-        phase = self.phase
-        if not phase:
+        phase, before = self._armed
+        if not phase or self.ended:
             return True
+        run = self.clock.plan_run
+        if run is None or run is before:
+            return True  # the armed plan is not started yet
         n = self.n
         if n >= len(self.rows):
             self.dropped += 1
+            self.ended = bool(run.outcome)
             return True
         flat, b = self._flat, n * self._width
         flat[b] = self.clock.now
@@ -106,6 +141,8 @@ class Probe:
             flat[b + col] = stamps[index]
             flat[b + col + 1] = jitters[index]
         self.n = n + 1
+        if run.outcome:  # ended at this tick: its last row, then none
+            self.ended = True
         return True
 
     def event(self, t_s: float, kind: str, data: JsonObject) -> None:

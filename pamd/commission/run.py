@@ -32,19 +32,26 @@ from pamd.experiment.sequencer import Sequencer, running_plan, started_plan
 from pamd.tick import State
 
 Progress = Callable[[str], None]
+#: an operator's action a plan waits for (a load to hang): True once it is done
+Ask = Callable[[str], bool]
 #: the probe's room beyond the plans' own time (the real clock runs on between them)
 SPARE_S = 60.0
 
 
-class _Between:
-    """When the rig is between two of commissioning's plans: past start-up, no plan
-    queued and not yet started, the last one ended. On the virtual clock the loop's time
-    stands still then (`Loop.stand_still_while`), so the run is the same however fast
-    the commissioning thread checks a phase and queues the next (deterministic)."""
+class Between:
+    """When the loop's time stands still on the virtual clock (`Loop.stand_still_while`):
+    between two of commissioning's plans (past start-up, no plan queued and not yet
+    started, the last one ended) and while a plan waits for an operator's action not yet
+    answered. Each is decided in the loop's thread at the start of a tick from what the
+    loop itself holds (the mailbox's commands are taken at that tick), and the probe takes
+    a plan's rows by what the loop knows too (`Probe.arm`): so how many ticks pass, and
+    which are measured, does not depend on how fast the commissioning thread checks a
+    phase, queues the next or answers (the run is the same on a loaded PC)."""
 
     def __init__(self, daemon: Daemon) -> None:
         self._daemon = daemon
         self._queued = False
+        self._answered = False
         self._last: Sequencer | None = None
 
     def idle(self) -> bool:
@@ -56,8 +63,13 @@ class _Between:
         if self._queued:
             if run is None or run is self._last:
                 return False  # the plan queued is taken at this tick
-            self._queued, self._last = False, run
-        return run is None or bool(run.outcome)
+            self._queued, self._last, self._answered = False, run, False
+        if run is None or run.outcome:
+            return True
+        if run.awaiting_operator:
+            return not self._answered  # the answer, once sent, is taken at this tick
+        self._answered = False
+        return False
 
     def start(self, plan: Plan) -> JsonObject:
         """Queue `plan`, let the loop go on and wait for its verdict."""
@@ -65,6 +77,14 @@ class _Between:
         self._queued = True  # after the plan is in the mailbox: taken at the next tick
         self._daemon.loop.wake()
         return pending.result(self._daemon.cfg.rig.safety.startup_timeout_s + 5.0)
+
+    def answer(self, verb: str) -> JsonObject:
+        """The operator's answer to a plan that waits (`confirm`, `stop`): sent, the loop
+        let go on to take it, its verdict."""
+        pending = self._daemon.submit(verb)
+        self._answered = True  # after the command is in the mailbox
+        self._daemon.loop.wake()
+        return pending.result(5.0)
 
 
 @dataclass
@@ -90,13 +110,13 @@ def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
                   [(s.pressure, s.force, s.length) for s in daemon.rig.muscles],
                   int((seconds + SPARE_S) * cfg.rig.loop.rate_hz))
     daemon.summary.downstream.append(probe)
-    between = _Between(daemon)
+    between = Between(daemon)
     daemon.loop.stand_still_while(between.idle)
     out = Outcome(Measurements())
     daemon.start()  # RigBusy (exit 8) while another daemon drives this rig
     try:
         first = moves[0]
-        _phase(daemon, between, probe, PHASE_REST, all_plans[first.muscle][0][1], progress)
+        run_phase(daemon, between, probe, PHASE_REST, all_plans[first.muscle][0][1], progress)
         _measure(cfg, probe, out.measurements)
         out.checks += check_rest(cfg, out.measurements)
         for mv in moves:
@@ -104,7 +124,7 @@ def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
                                         (PHASE_MOVES, all_plans[mv.muscle][2])):
                 failed: CommissionRefused | None = None
                 try:
-                    _phase(daemon, between, probe, phase, plan, progress)
+                    run_phase(daemon, between, probe, phase, plan, progress)
                 except CommissionRefused as exc:
                     failed = exc  # a wrong sign, where the data show one, says more
                 steps = steps_of(probe, mv.muscle, phase, [s.name for s in plan.steps])
@@ -121,7 +141,7 @@ def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
         _measure(cfg, probe, out.measurements)
         out.measurements.loop = loop_stats(probe, cfg.rig.loop.clock == "virtual")
     finally:
-        probe.phase = 0
+        probe.disarm()
         daemon.stop("commissioning ended")
         daemon.wait()
         daemon.close()
@@ -142,6 +162,13 @@ def _plan_s(plan: Plan, cfg: LoadedConfig) -> float:
     return total
 
 
+def _operator(between: Between, prompt: str, ask: Ask | None) -> None:
+    """The operator's action a plan waits for: confirmed when done, else a stop."""
+    if ask is not None and ask(prompt) and between.answer("confirm")["ok"]:
+        return
+    between.answer("stop")
+
+
 def _measure(cfg: LoadedConfig, probe: Probe, into: Measurements) -> None:
     pl = cfg.rig.safety.plausibility
     rates = {"pressure": pl.pressure_max_rate_bar_per_s, "force": 0.0,
@@ -152,20 +179,27 @@ def _measure(cfg: LoadedConfig, probe: Probe, into: Measurements) -> None:
             into.signals[st.name] = st
 
 
-def _phase(daemon: Daemon, between: _Between, probe: Probe, phase: int, plan: Plan,
-           progress: Progress) -> None:
+def run_phase(daemon: Daemon, between: Between, probe: Probe, phase: int, plan: Plan,
+              progress: Progress, ask: Ask | None = None) -> None:
     """Run one plan with the probe taking rows; CommissionRefused when it does not
-    finish (a fault, a refusal)."""
-    probe.phase = phase
+    finish (a fault, a refusal). `ask(prompt)`: an operator's action the plan waits for
+    (a load to hang), True once done (it is confirmed), False to stop; None: nobody to
+    ask (the run stops there)."""
+    probe.arm(phase)
     try:
         verdict = between.start(plan)
         if not verdict["ok"]:
             raise CommissionRefused(f"{plan.name}: the rig refused the plan: "
                                     f"{verdict['error']}")
         seq = started_plan(daemon.ctrl)
-        shown = ""
-        while daemon.alive and not seq.outcome:
+        shown = asked = ""
+        # until the loop has measured the plan's last tick (not only ended it: its row
+        # may not be taken yet when this thread sees the outcome)
+        while daemon.alive and not probe.ended:
             daemon.service()
+            if seq.awaiting_operator and seq.awaiting_operator != asked:
+                asked = seq.awaiting_operator
+                _operator(between, asked, ask)
             pr = seq.progress()
             line = f"{plan.name}: step {pr['index'] + 1}/{pr['steps']} {pr['step']} {pr['phase']}"
             if line != shown and pr["step"]:
@@ -174,7 +208,7 @@ def _phase(daemon: Daemon, between: _Between, probe: Probe, phase: int, plan: Pl
             time.sleep(0.02)
         outcome = seq.outcome or "aborted"
     finally:
-        probe.phase = 0
+        probe.disarm()
     if outcome != "done":
         fault = daemon.ctrl.supervisor.fault_reason or ""
         why = outcome if not fault or fault in outcome else f"{outcome}: {fault}"

@@ -10,12 +10,15 @@ from typing import Literal
 from pamd.schema.engine import spec
 
 # Gain caps (what `pamd tune` always satisfies: `pamd.control.tuning.simc_pi` slows its
-# closed loop until they hold). Pressure loop: kp 20 makes a 5 mbar sensor quantum a
-# 0.1 bar valve step, and SIMC's Kc = tau / (K 2 theta) stays below it for any
-# regulator whose lag is under 40 dead times (K ~ 1 bar/bar); ki 2000/s integrates a
-# whole error in half a millisecond, faster than the 1 kHz loop can act on it; kd 0.1 s
-# turns a 1 bar/s measured rate into 0.1 bar. Position loop: 5 bar/mm asks the whole
-# pressure range for a 1 mm error; 100 bar/(mm s) and 1 bar s/mm likewise.
+# closed loop until they hold), bounds of what a gain can mean: within them, whether a
+# gain set is stable on the muscle's plant is judged against that plant
+# (`pamd.config.gains`, the closed loop at the loop's rate). Pressure loop: kp 20 makes
+# a 5 mbar sensor quantum a 0.1 bar valve step; ki 2000/s integrates a whole error in
+# half a millisecond, faster than the 1 kHz loop can act on it; kd 0.1 s turns a 1 bar/s
+# measured rate into 0.1 bar. Position loop: 5 bar/mm asks the whole pressure range
+# for a 1 mm error; 100 bar/(mm s) and 1 bar s/mm likewise. Seed 003's incremental PID
+# has no cap of its own: its gains are per sample (their meaning moves with its sample
+# period), and its Table 3 (Kp 9.5) is judged on the plant like any other.
 PID_KP_MAX = 20.0
 PID_KI_MAX_PER_S = 2000.0
 PID_KD_MAX_S = 0.1
@@ -27,6 +30,48 @@ POSITION_KD_MAX_BAR_S_PER_MM = 1.0
 #: run sets, "a step is a step") the regulator, not the limit, sets the pace; above
 #: it the limit limits nothing (the config does not state the regulator's own rate).
 SLEW_LIMIT_MAX_BAR_PER_S = 500.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class PressurePlantConfig:
+    """The pressure loop's plant, K e^(-theta s) / (tau s + 1): regulator setpoint ->
+    measured pressure (what `pamd tune` fits)."""
+
+    gain_bar_per_bar: float = spec(doc="Static gain: the settled change of the measured "
+                                   "pressure per bar of regulator setpoint.",
+                                   unit="bar/bar", gt=0.0, max=10.0)
+    lag_s: float = spec(doc="Time constant of the first-order lag.", unit="s", gt=0.0,
+                        max=10.0)
+    dead_time_s: float = spec(doc="Dead time between the command and the measured "
+                              "response (the devices' and the tick's own delays "
+                              "included, as recorded).", unit="s", min=0.0, max=10.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class PositionPlantConfig:
+    """The position loop's plant: pressure setpoint -> measured length, the pressure
+    loop closed (what `pamd tune --loop position` fits)."""
+
+    gain_mm_per_bar: float = spec(doc="Static gain: the settled change of the length per "
+                                  "bar of pressure setpoint (negative: more pressure, "
+                                  "shorter; less than 1 um per bar is no response).",
+                                  unit="mm/bar", min=-1000.0, max=-0.001)
+    lag_s: float = spec(doc="Time constant of the first-order lag.", unit="s", gt=0.0,
+                        max=10.0)
+    dead_time_s: float = spec(doc="Dead time between the setpoint and the measured "
+                              "length.", unit="s", min=0.0, max=10.0)
+
+
+#: The plants the gains are judged against where the config states none: measured, on
+#: the simulated rig (a DMSP-20-200 behind a VPPM-class regulator, 30 kg), by the same
+#: identification runs as `pamd tune` (bench/tune_pressure_loop.py; config/sim.yaml's
+#: gains were derived from them), never from the simulator's parameters.
+DEFAULT_PRESSURE_PLANT = PressurePlantConfig(gain_bar_per_bar=0.95, lag_s=0.0125,
+                                             dead_time_s=0.0128)
+DEFAULT_POSITION_PLANT = PositionPlantConfig(gain_mm_per_bar=-6.6, lag_s=0.0316,
+                                             dead_time_s=0.0362)
+_DEFAULT_PLANT_DOC = ("null: the default plant, the simulated DMSP-20-200's measured "
+                      "response (at 30 kg)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -107,18 +152,18 @@ class IncrementalPidConfig:
         "period).", unit="s", gt=0.0, max=1.0)
     kp_bar_per_mm: float | None = spec(
         None, "Kp, on the error's change per sample. Null: derived from `position.pid` "
-        "(method 2: kp; method 1: kd / sample_period_s).", unit="bar/mm", min=0.0,
-        max=POSITION_KP_MAX_BAR_PER_MM)
+        "(method 2: kp; method 1: kd / sample_period_s). No cap: the gains are judged "
+        "against the position plant at this sample period (`control.position.plant`).",
+        unit="bar/mm", min=0.0)
     ki_bar_per_mm: float | None = spec(
         None, "Ki, on the error. Null: derived from `position.pid` (method 2: ki_bar_per_mm_s "
         "x sample_period_s, the same integral action; method 1: kp, since its Ki e(k) is "
         "a proportional term). Seed 003's Table 3 (its own muscle and units): method 1 "
-        "9.5/1.3/0.5, method 2 5.0/0.5/0.1.", unit="bar/mm", min=0.0,
-        max=POSITION_KP_MAX_BAR_PER_MM)
+        "9.5/1.3/0.5, method 2 5.0/0.5/0.1.", unit="bar/mm", min=0.0)
     kd_bar_per_mm: float | None = spec(
         None, "Kd, on the error's second difference per sample. Null: derived from "
         "`position.pid` (kd_bar_s_per_mm / sample_period_s for method 2, 0 for method 1).",
-        unit="bar/mm", min=0.0, max=POSITION_KP_MAX_BAR_PER_MM)
+        unit="bar/mm", min=0.0)
     output_limit_bar: float = spec(6.0, "Largest compensation it adds to the model's "
                                    "pressure.", unit="bar", min=0.0)
 
@@ -148,6 +193,16 @@ class PositionConfig:
         "`position.incremental`).")
     incremental: IncrementalPidConfig = spec(IncrementalPidConfig(), "Seed 003's "
                                              "incremental PID (`feedback: incremental`).")
+    plant: PositionPlantConfig | None = spec(
+        None, "The position loop's plant, pressure setpoint -> measured length with the "
+        "pressure loop closed, first order plus dead time as `pamd tune --loop position` "
+        "fits it (`--save` writes it here). The position gains (`pid`, or `incremental` "
+        "at its sample period) are judged against it: a closed loop that is unstable or "
+        "has too little margin is refused, naming its gain and phase margins, unless "
+        "only its integral makes it so (friction holds a muscle near its target, where "
+        "the integral acts, to a fraction of the fitted gain): then it loads with a "
+        "warning (docs/how-to/tune.md, 'Gains judged against stability'). "
+        + _DEFAULT_PLANT_DOC + ": gain -6.6 mm/bar, lag 31.6 ms, dead time 36.2 ms.")
     max_rate_per_s: float | None = spec(
         None, "Fastest change of a length target, contraction (fraction) per second; "
         "faster length profiles and setpoint ramps are refused, naming the frequency that "
@@ -210,6 +265,14 @@ class PositionConfig:
 @dataclass(frozen=True, kw_only=True)
 class ControlConfig:
     pid: PidConfig = spec(PidConfig(), "PID pressure loop gains.")
+    plant: PressurePlantConfig | None = spec(
+        None, "The pressure loop's plant, regulator setpoint -> measured pressure, first "
+        "order plus dead time as `pamd tune` fits it (`--save` writes it here). The "
+        "pressure gains are judged against it: a closed loop that is unstable or has too "
+        "little margin is refused, naming its gain and phase margins "
+        "(docs/how-to/tune.md, 'Gains judged against stability'); "
+        "`safety.tracking_time_s` must outlast its response. " + _DEFAULT_PLANT_DOC
+        + ": gain 0.95 bar/bar, lag 12.5 ms, dead time 12.8 ms.")
     position: PositionConfig = spec(PositionConfig(), "The length modes (length_force, "
                                     "position): outer position loop and iterative learning.")
     rate_feedforward_s: float = spec(

@@ -4,10 +4,11 @@ driver is opened (pamd.config.loader, pamd.config.chain)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import ClassVar, Protocol, cast
+from collections.abc import Mapping, Sequence
+from typing import ClassVar, Protocol, cast, runtime_checkable
 
 from pamd.errors import DriverError
+from pamd.muscle_type import MuscleType
 from pamd.plugins import load_driver_entry
 
 
@@ -18,6 +19,17 @@ class DriverType(Protocol):
     options_type: ClassVar[type]
 
     def __call__(self, name: str, options: object) -> _HasChannels: ...  # its options type
+
+
+@runtime_checkable
+class BindsMuscleTypes(Protocol):
+    """A driver class that simulates muscles (`pamd.drivers.sim`): its options with
+    each simulated muscle's type settled from the rig's muscles (`types`: the channel
+    a rig muscle reads -> that muscle's type; `base_dir`: the config file's directory,
+    for files the options name)."""
+
+    def bind_muscle_types(self, options: object, types: Mapping[str, MuscleType],
+                          base_dir: str) -> object: ...
 
 
 class _HasChannels(Protocol):

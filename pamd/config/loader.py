@@ -14,16 +14,20 @@ from typing import Protocol, runtime_checkable
 
 from pamd.config.actuation import check_actuation, check_sim_sample_periods, check_sim_stalls
 from pamd.config.chain import check_safety_chain
+from pamd.config.clock import check_loop_clock
 from pamd.config.control_schema import ControlConfig
-from pamd.config.drivertype import driver_type
+from pamd.config.drivertype import BindsMuscleTypes, driver_type
+from pamd.config.gains import check_gains
+from pamd.config.muscle_types import Ratings, ratings_of, resolve
 from pamd.config.names import NAME_RE, check_chunk
 from pamd.config.plausibility import check_plausibility_thresholds
 from pamd.config.request_timeouts import check_request_timeouts
 from pamd.config.safety_schema import SafetyConfig
-from pamd.config.schema import InputSignal, MuscleConfig, RigConfig, SignalConfig
+from pamd.config.schema import InputSignal, MuscleConfig, RigConfig, SignalConfig, muscle_control
+from pamd.config.timing import check_timing
 from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import DriverError
-from pamd.muscle_type import MUSCLE_TYPES
+from pamd.muscle_type import MuscleType
 from pamd.schema.engine import Context, build_dataclass, describe, line_of
 from pamd.schema.yamlload import load_yaml_text, read_text
 
@@ -55,6 +59,8 @@ class LoadedConfig:
     calibration_path: str | None
     #: values above their safe ceiling that `safety.relax_ceilings` let pass (said at start)
     warnings: tuple[str, ...] = ()
+    #: each muscle's type by muscle name: its ratings, geometry and force map
+    types: dict[str, MuscleType] = dataclasses.field(default_factory=dict)
 
     @property
     def sha256(self) -> str:
@@ -70,25 +76,15 @@ class LoadedConfig:
                 return m
         raise KeyError(name)
 
+    def muscle_type(self, name: str) -> MuscleType:
+        """Muscle `name`'s type (`muscles[].type`), resolved: its ratings, geometry and
+        force map (a custom type's read from its table and checked)."""
+        return self.types[name]
+
     def control_of(self, name: str) -> ControlConfig:
         """Muscle `name`'s control section: the rig's, with each gain its own
         `muscles[].control` names in place of the rig-wide one."""
-        rig, own = self.rig.control, self.muscle(name).control
-        pid = _overridden(rig.pid, own.pid)
-        ppid = _overridden(rig.position.pid, own.position.pid)
-        rff = rig.rate_feedforward_s if own.rate_feedforward_s is None else \
-            own.rate_feedforward_s
-        if pid is rig.pid and ppid is rig.position.pid and rff == rig.rate_feedforward_s:
-            return rig
-        return dataclasses.replace(rig, pid=pid, rate_feedforward_s=rff,
-                                   position=dataclasses.replace(rig.position, pid=ppid))
-
-
-def _overridden(base: JsonValue, over: JsonValue) -> JsonValue:
-    """`base` (a gains dataclass) with the fields `over` sets (not None) in place."""
-    changes = {f.name: getattr(over, f.name) for f in dataclasses.fields(over)
-               if getattr(over, f.name) is not None}
-    return dataclasses.replace(base, **changes) if changes else base
+        return muscle_control(self.rig.control, self.muscle(name).control)
 
 
 def builtin_config_path(name: str = "sim.yaml") -> str:
@@ -113,30 +109,32 @@ def load_config_text(text: str, path: str, overrides: JsonObject | None = None) 
         ctx.add(line_of(raw) or 1, "", "a mapping with drivers and muscles", found)
         ctx.raise_if_any()
     if overrides:
-        for section, values in overrides.items():
-            node = raw.setdefault(section, {})
-            if isinstance(node, dict):
-                node.update(values)
+        _override(raw, overrides, ctx)
     rig = build_dataclass(RigConfig, raw, ctx, "", 1)
     ctx.raise_if_any()
     assert rig is not None  # a problem building it is in ctx (raised above)
     warnings = _check_safety_bounds(rig, raw, ctx)
     drivers_node = raw.get("drivers", [])
-    rig, channels, digital, lost_reply = _check_drivers(rig, drivers_node, ctx)
-    limits = _check_muscles(rig, raw.get("muscles", []), channels, ctx)
+    limits, types = _check_muscles(rig, raw.get("muscles", []), path, ctx)
+    rig, channels, digital, lost_reply = _check_drivers(rig, drivers_node, types, path, ctx)
+    _check_signals(rig, raw.get("muscles", []), channels, ctx)
     check_actuation(rig, raw.get("muscles", []), digital, ctx)
     check_sim_sample_periods(rig, drivers_node, ctx, effective_timeout_s)
     check_request_timeouts(rig, drivers_node, lost_reply, ctx, effective_timeout_s,
                            input_signals(rig, raw))
-    check_plausibility_thresholds(rig, raw, limits, ctx)
+    check_plausibility_thresholds(rig, raw, limits, types, ctx)
     check_sim_stalls(rig, drivers_node, ctx)
     check_safety_chain(rig, raw.get("safety_chain"), ctx)
+    check_loop_clock(rig, raw, ctx)
+    check_timing(rig, raw, ctx)
+    ctx.raise_if_any()
+    warnings += check_gains(rig, raw, ctx)  # the loops on their plants, once all is valid
     ctx.raise_if_any()
     cal_path = None if not rig.calibration_file else os.path.join(
         os.path.dirname(os.path.abspath(path)), os.path.expanduser(rig.calibration_file))
     for warning in warnings:
         log.warning("%s", warning)
-    return LoadedConfig(rig, path, text, limits, cal_path, warnings)
+    return LoadedConfig(rig, path, text, limits, cal_path, warnings, types)
 
 
 def effective_timeout_s(sig: SignalConfig, safety: SafetyConfig) -> float:
@@ -176,6 +174,25 @@ def input_signals(rig: RigConfig, raw: JsonValue) -> list[InputSignal]:
             found.append(InputSignal(f"safety_chain.{name}", f"safety_chain.{name}", sig,
                                      cnode.get(name) or {}))
     return found
+
+
+def _override(raw: dict[str, JsonValue], overrides: JsonObject, ctx: Context) -> None:
+    """A section's keys replaced (`{"loop": {"clock": "virtual"}}`); a list of named
+    items (`muscles`) by name (`{"muscles": {"m1": {"load_kg": 45.0}}}`: `pamd run
+    --load-kg m1=45`), an unknown name refused."""
+    for section, values in overrides.items():
+        node = raw.setdefault(section, {})
+        if isinstance(node, dict):
+            node.update(values)
+        elif isinstance(node, list) and isinstance(values, dict):
+            items = {item.get("name"): item for item in node if isinstance(item, dict)}
+            for name, changes in values.items():
+                if name in items:
+                    items[name].update(changes)
+                else:
+                    known = ", ".join(str(n) for n in items)
+                    ctx.add(line_of(node), f"{section}[name={name}]",
+                            f"one of the config's {section} ({known})", repr(name))
 
 
 def _check_safety_bounds(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[str, ...]:
@@ -225,10 +242,12 @@ class _RetriesLostReplies(Protocol):
     def lost_reply_s(self) -> float: ...
 
 
-def _check_drivers(rig: RigConfig, node: JsonValue, ctx: Context
+def _check_drivers(rig: RigConfig, node: JsonValue, types: dict[str, MuscleType], path: str,
+                   ctx: Context
                    ) -> tuple[RigConfig, dict[str, dict[str, str]], dict[str, set[str]],
                               dict[str, float]]:
     """Validate each driver's type and options; returns the config with typed options
+    (a simulated rig's muscles of the types of the rig muscles they stand for: `types`)
     and, per driver whose options are valid, {channel name: 'in' | 'out'}, the
     names of its digital outputs and, for a driver that retries lost replies, its
     `lost_reply_s()`."""
@@ -250,6 +269,9 @@ def _check_drivers(rig: RigConfig, node: JsonValue, ctx: Context
         n_before = len(ctx.issues)
         options = build_dataclass(cls.options_type, item.get("options"), ctx,
                                   f"drivers[{i}].options", line_of(item, "options"))
+        if len(ctx.issues) == n_before and isinstance(cls, BindsMuscleTypes):
+            options = cls.bind_muscle_types(options, _bound_types(rig, drv.name, types),
+                                            os.path.dirname(os.path.abspath(path)))
         if len(ctx.issues) == n_before:
             try:  # the driver's own cross-field checks (it must not do I/O here)
                 built_driver = cls(drv.name, options)
@@ -267,63 +289,102 @@ def _check_drivers(rig: RigConfig, node: JsonValue, ctx: Context
     return dataclasses.replace(rig, drivers=tuple(built)), channel_map, digital, lost_reply
 
 
-def _check_muscles(rig: RigConfig, node: JsonValue, channels: dict[str, dict[str, str]],
-                   ctx: Context) -> dict[str, MuscleLimitsResolved]:
-    known_drivers = {d.name for d in rig.drivers}
+def _bound_types(rig: RigConfig, driver: str, types: dict[str, MuscleType]
+                 ) -> dict[str, MuscleType]:
+    """The channels of `driver` the rig's muscles read, each with its muscle's type."""
+    out = {}
+    for m in rig.muscles:
+        if m.name in types:
+            for sig in (m.signals.pressure, m.signals.force, m.signals.length):
+                if sig.driver == driver:
+                    out[sig.channel] = types[m.name]
+    return out
+
+
+def _check_muscles(rig: RigConfig, node: JsonValue, path: str, ctx: Context
+                   ) -> tuple[dict[str, MuscleLimitsResolved], dict[str, MuscleType]]:
+    """Each muscle's name, resolved limits and type (the muscles whose type resolves)
+    and its regulator's clamp."""
     seen: set[str] = set()
     limits: dict[str, MuscleLimitsResolved] = {}
+    types: dict[str, MuscleType] = {}
     if not rig.muscles:
         ctx.add(line_of(node), "muscles", "at least one muscle", "none")
     for i, m in enumerate(rig.muscles):
         item = node[i]
         base = f"muscles[{i}]"
         _check_name(ctx, m.name, seen, line_of(item, "name"), f"{base}.name")
-        rating = MUSCLE_TYPES[m.type]
-        if m.load_kg > rating.max_load_kg:
-            ctx.add(line_of(item, "load_kg"), f"{base}.load_kg",
-                    f"at most {rating.max_load_kg} kg ({m.type} rating)", f"{m.load_kg} kg")
-        lim_node = item.get("limits") or {}
-        resolved = {}
-        for key, rated in (("max_pressure_bar", rating.max_pressure_bar),
-                           ("max_contraction", rating.max_contraction),
-                           ("max_pretension", rating.max_pretension)):
-            value = getattr(m.limits, key)
-            if value is not None and value > rated:
-                ctx.add(line_of(lim_node, key), f"{base}.limits.{key}",
-                        f"at most {rated} (the {m.type} rating)", str(value))
-            resolved[key] = rated if value is None else min(value, rated)
-        s = rig.safety
-        limits[m.name] = MuscleLimitsResolved(
-            hard_max_pressure_bar=resolved["max_pressure_bar"] + s.pressure_margin_bar,
-            hard_max_contraction=resolved["max_contraction"] + s.contraction_margin,
-            hard_max_pretension=resolved["max_pretension"] + s.contraction_margin,
-            **resolved,
-        )
-        sig_node = item.get("signals") or {}
-        for sig_name in ("pressure", "force", "length", "valve", "inflate", "exhaust"):
-            sig = getattr(m.signals, sig_name)
-            if sig is None:
-                continue
-            snode = sig_node.get(sig_name) or {}
-            spath = f"{base}.signals.{sig_name}"
-            direction = "out" if sig_name in ("valve", "inflate", "exhaust") else "in"
-            if sig.driver not in known_drivers:
-                ctx.add(line_of(snode, "driver"), f"{spath}.driver",
-                        f"one of the drivers {', '.join(sorted(known_drivers))}",
-                        repr(sig.driver))
-            elif sig.driver in channels:
-                chans = channels[sig.driver]
-                if chans.get(sig.channel) != direction:
-                    names = [c for c, d in chans.items() if d == direction]
-                    ctx.add(line_of(snode, "channel"), f"{spath}.channel",
-                            f"an {'output' if direction == 'out' else 'input'} channel of "
-                            f"driver {sig.driver!r} ({', '.join(names)})", repr(sig.channel))
-            if sig.gain == 0.0:
-                ctx.add(line_of(snode, "gain"), f"{spath}.gain", "a non-zero gain", "0")
-        if m.signals.valve is not None:  # required or refused: pamd.config.actuation
-            _check_valve(m, resolved["max_pressure_bar"], rating.max_pressure_bar,
-                         sig_node.get("valve") or {}, base, ctx)
-    return limits
+        rating = ratings_of(m, item, base, ctx)
+        if rating is not None:
+            lim = limits[m.name] = _limits_of(m, rating, item, base, rig.safety, ctx)
+            mtype = resolve(m, rating, lim, item, base, path, ctx)
+            if mtype is not None:
+                types[m.name] = mtype
+        if m.signals.valve is not None and rating is not None:
+            # required or refused: pamd.config.actuation
+            _check_valve(m, limits[m.name].max_pressure_bar, rating.max_pressure_bar,
+                         (item.get("signals") or {}).get("valve") or {}, base, ctx)
+    return limits, types
+
+
+def _check_signals(rig: RigConfig, node: JsonValue, channels: dict[str, dict[str, str]],
+                   ctx: Context) -> None:
+    """Each muscle's signals name a driver of the rig and a channel of it."""
+    known_drivers = {d.name for d in rig.drivers}
+    for i, m in enumerate(rig.muscles):
+        _check_muscle_signals(m, node[i].get("signals") or {}, f"muscles[{i}]",
+                              known_drivers, channels, ctx)
+
+
+def _limits_of(m: MuscleConfig, rating: Ratings, item: JsonValue, base: str,
+               s: SafetyConfig, ctx: Context) -> MuscleLimitsResolved:
+    """The muscle's limits: its own where it sets them (never above its type's ratings),
+    else the ratings; the hard limits the safety margins beyond."""
+    if m.load_kg > rating.max_load_kg:
+        ctx.add(line_of(item, "load_kg"), f"{base}.load_kg",
+                f"at most {rating.max_load_kg} kg ({m.type} rating)", f"{m.load_kg} kg")
+    lim_node = item.get("limits") or {}
+    resolved = {}
+    for key, rated in (("max_pressure_bar", rating.max_pressure_bar),
+                       ("max_contraction", rating.max_contraction),
+                       ("max_pretension", rating.max_pretension)):
+        value = getattr(m.limits, key)
+        if value is not None and value > rated:
+            ctx.add(line_of(lim_node, key), f"{base}.limits.{key}",
+                    f"at most {rated} (the {m.type} rating)", str(value))
+        resolved[key] = rated if value is None else min(value, rated)
+    return MuscleLimitsResolved(
+        hard_max_pressure_bar=resolved["max_pressure_bar"] + s.pressure_margin_bar,
+        hard_max_contraction=resolved["max_contraction"] + s.contraction_margin,
+        hard_max_pretension=resolved["max_pretension"] + s.contraction_margin,
+        **resolved,
+    )
+
+
+def _check_muscle_signals(m: MuscleConfig, sig_node: JsonValue, base: str,
+                          known_drivers: set[str], channels: dict[str, dict[str, str]],
+                          ctx: Context) -> None:
+    """Each signal names a driver of the rig and a channel of it in the right direction."""
+    for sig_name in ("pressure", "force", "length", "valve", "inflate", "exhaust"):
+        sig = getattr(m.signals, sig_name)
+        if sig is None:
+            continue
+        snode = sig_node.get(sig_name) or {}
+        spath = f"{base}.signals.{sig_name}"
+        direction = "out" if sig_name in ("valve", "inflate", "exhaust") else "in"
+        if sig.driver not in known_drivers:
+            ctx.add(line_of(snode, "driver"), f"{spath}.driver",
+                    f"one of the drivers {', '.join(sorted(known_drivers))}",
+                    repr(sig.driver))
+        elif sig.driver in channels:
+            chans = channels[sig.driver]
+            if chans.get(sig.channel) != direction:
+                names = [c for c, d in chans.items() if d == direction]
+                ctx.add(line_of(snode, "channel"), f"{spath}.channel",
+                        f"an {'output' if direction == 'out' else 'input'} channel of "
+                        f"driver {sig.driver!r} ({', '.join(names)})", repr(sig.channel))
+        if sig.gain == 0.0:
+            ctx.add(line_of(snode, "gain"), f"{spath}.gain", "a non-zero gain", "0")
 
 
 def _check_valve(m: MuscleConfig, limit_bar: float, rated_bar: float, vnode: JsonValue, base: str,

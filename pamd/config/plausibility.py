@@ -22,7 +22,7 @@ from typing import Protocol
 
 from pamd.config.schema import RigConfig
 from pamd.declare.jsonsafe import JsonValue
-from pamd.muscle_type import MUSCLE_TYPES
+from pamd.muscle_type import MuscleType
 from pamd.schema.engine import Context, line_of
 
 #: A healthy load cell under a hanging load reads the weight give or take friction and
@@ -49,9 +49,10 @@ class _Limits(Protocol):
 
 def check_plausibility_thresholds(rig: RigConfig, raw: JsonValue,
                                   limits: Mapping[str, _Limits],
-                                  ctx: Context) -> None:
+                                  types: Mapping[str, MuscleType], ctx: Context) -> None:
     """Add an issue for each threshold of `safety.plausibility` that can never fire or
-    always fires (`raw` is the parsed file, for lines)."""
+    always fires (`raw` is the parsed file, for lines; `types` each muscle's type, for
+    its ratings)."""
     cfg = rig.safety.plausibility
     if not cfg.enabled:
         return
@@ -70,14 +71,14 @@ def check_plausibility_thresholds(rig: RigConfig, raw: JsonValue,
         refuse("force_zero_fraction", f"at most {MAX_ZERO_FRACTION:g} (a healthy load cell "
                "reads the weight give or take friction and the load's acceleration: a share "
                "this close to 1 faults it)", f"{cfg.force_zero_fraction:g}")
-    rated = [MUSCLE_TYPES[m.type] for m in rig.muscles if m.type in MUSCLE_TYPES]
+    rated = [types[m.name] for m in rig.muscles if m.name in types]
     if rated and cfg.force_check_min_load_kg > max(r.max_load_kg for r in rated):
         refuse("force_check_min_load_kg", f"at most {max(r.max_load_kg for r in rated):g} kg "
                "(the largest rated load: above it the zero-force check never runs)",
                f"{cfg.force_check_min_load_kg:g} kg")
     for m in rig.muscles:
         lim = limits.get(m.name)
-        rating = MUSCLE_TYPES.get(m.type)
+        rating = types.get(m.name)
         if lim is None or rating is None:
             continue
         who = f"muscle {m.name!r}"

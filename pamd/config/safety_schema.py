@@ -116,3 +116,10 @@ class SafetyConfig:
         "above their safe ceiling, up to their hard maximum: for rigs whose devices are "
         "slower. Each value over its ceiling is still logged as a warning at every start "
         "and by check-config.")
+    relax_stability: bool = spec(
+        False, "Lets gains the stability judgement refuses load anyway (a closed pressure "
+        "or position loop that is unstable on the stated plant, or with less than its "
+        "minimum gain or phase margin: docs/how-to/tune.md, 'Gains judged against "
+        "stability'), each logged as a warning at every start and by check-config: for a "
+        "rig whose plant cannot be identified with `pamd tune`. State the plant "
+        "(`control.plant`) instead wherever it can be measured.")

@@ -81,6 +81,10 @@ class Inputs:
         """The newest pressure reading (whatever its age)."""
         return self._pg * self._pv[self._pi] + self._po
 
+    def measured_force_n(self) -> float:
+        """The newest force reading with the tare offset (whatever its age)."""
+        return self._fg * self._fv[self._fi] + self._fo - self.reference.force_offset_n
+
     def measured_length_mm(self) -> float:
         """The newest length reading with the reference offset (whatever its age)."""
         return self._lg * self._lv[self._li] + self._lo + self.reference.length_offset_mm

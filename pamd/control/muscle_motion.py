@@ -50,8 +50,10 @@ class MuscleMotion(MuscleView):
         return True
 
     def enter_mode(self, mode: Mode, use_ff: bool, ilc: bool) -> None:
-        """A length mode, bumpless (`LengthControl.enter`); any profile ends."""
+        """A length mode, bumpless (`LengthControl.enter`); any profile ends, and a
+        completed ramp to the safe pressure hands over to it, as a setpoint would."""
         self._profile = None
+        self._safe_ramp = False
         inp = self.inputs
         self.length_control.enter(mode, use_ff, ilc, from_pressure=self._mode == Mode.PRESSURE,
                                   length_mm=inp.length_mm, force_n=inp.force_n,

@@ -20,6 +20,7 @@ import math
 from pamd.control.muscle_view import MuscleView
 from pamd.control.setpoint import SafeRamp
 from pamd.safety.limits import LimitMonitor
+from pamd.safety.load_check import LoadDisagreement, check_load
 from pamd.safety.plausibility import Plausibility
 
 
@@ -36,6 +37,16 @@ class MuscleSafeState(MuscleView):
     def missing_input(self, now: float) -> str | None:
         """None when every input has a fresh reading; else which one is missing."""
         return self.inputs.missing(now)
+
+    def load_disagreement(self) -> LoadDisagreement | None:
+        """The force at rest against the declared load's weight
+        (`pamd.safety.load_check`): None where they agree or the muscle declares no
+        dead weight; rare path (start-up, a load change, a reload)."""
+        env = self._envelope
+        if not env.dead_weight:
+            return None
+        return check_load(self.name, self.inputs.measured_force_n(), self._load_kg,
+                          env.load_tolerance_n)
 
     def hold_measured(self, safe_ramp: bool = False) -> None:
         """Start-up / reset: take the measured pressure as the setpoint, bumpless; with

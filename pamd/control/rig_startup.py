@@ -4,7 +4,14 @@ limits holds its measured pressure, and one outside them (stretched past its
 pretension limit under its load, over-contracted, above the pressure limit, or with an
 untrusted length) ramps from its measured pressure to its safe pressure at the slew
 limit. What must hold for the start-up to fault: no fresh reading of some input within
-`safety.startup_timeout_s` of the loop's start (and then nothing was written)."""
+`safety.startup_timeout_s` of the loop's start (and then nothing was written).
+
+Before anything is written the declared loads are checked against the force at rest
+(`pamd.safety.load_check`): a muscle whose force does not read its load's weight
+either refuses the run (`refuse_wrong_load`: a run with an end of its own; a FAULT
+while STARTING, and nothing was written), or (an open-ended daemon, the service) takes
+the larger of the two loads for its safe pressure, starts as usual and faults, saying
+so: the safe state then holds whichever load really hangs."""
 
 from __future__ import annotations
 
@@ -14,14 +21,17 @@ from pamd.control.muscle import MuscleController
 from pamd.control.rig_safe_state import pace_safe_entry
 from pamd.safety import Supervisor
 from pamd.safety.chain import SafetyChain
+from pamd.safety.load_check import LoadDisagreement
 from pamd.tick import Sink, State
 
 
 def start_up(now: float, since_start_s: float, timeout_s: float,
              muscles: Sequence[MuscleController], chain: SafetyChain,
-             supervisor: Supervisor, sink: Sink) -> None:
+             supervisor: Supervisor, sink: Sink, refuse_wrong_load: bool = False
+             ) -> tuple[LoadDisagreement, ...]:
     """One tick in STARTING (`since_start_s`: the loop's time since its start). Once
-    every input is fresh: the transition to IDLE and one `startup` event per muscle
+    every input is fresh: the declared loads checked (see the module's doc; returns
+    the disagreements), the transition to IDLE and one `startup` event per muscle
     say what each does, and why; a latched fault restored by a service restart or a
     reading found implausible while starting latches again at once."""
     missing = chain.missing(now)
@@ -30,6 +40,13 @@ def start_up(now: float, since_start_s: float, timeout_s: float,
             break
         missing = m.missing_input(now)
     if missing is None:
+        wrong = tuple(d for m in muscles if (d := m.load_disagreement()) is not None)
+        if wrong and refuse_wrong_load:
+            supervisor.fault(now, "start-up: " + "; ".join(d.text() for d in wrong)
+                             + ": the run is refused, nothing was written")
+            return wrong
+        for m, d in ((m, d) for d in wrong for m in muscles if m.name == d.muscle):
+            m.set_load(d.larger_kg)  # the safe state holds whichever load hangs
         held, ramped = [], []
         for m in muscles:
             why = m.outside_limits()
@@ -57,6 +74,12 @@ def start_up(now: float, since_start_s: float, timeout_s: float,
         for m in muscles:  # a reading found implausible while starting
             if m.plausibility.reason is not None:
                 supervisor.fault(now, m.plausibility.reason)
-    elif since_start_s > timeout_s:
+        if wrong:
+            safe = {m.name: m.safe_pressure_bar for m in muscles}
+            supervisor.fault(now, "; ".join(d.larger_text(safe[d.muscle]) for d in wrong))
+        return wrong
+    if since_start_s > timeout_s:
         supervisor.fault(now, f"start-up: no reading from {missing} within "
                          f"{timeout_s:g} s; nothing was written")
+    return ()
+

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from pamd.config.stability import Plant, simc
 from pamd.errors import PamdError
 
 
@@ -204,9 +205,7 @@ def simc_pi(model: Fopdt, closed_loop_tau_s: float | None = None,
 
 
 def _simc(model: Fopdt, tau_c: float) -> tuple[float, float]:
-    kc = model.tau_s / (model.gain * (tau_c + model.dead_time_s))
-    ti = min(model.tau_s, 4.0 * (tau_c + model.dead_time_s))
-    return kc, kc / ti
+    return simc(Plant(model.gain, model.tau_s, model.dead_time_s), tau_c)
 
 
 def rate_feedforward_s(model: Fopdt) -> float:

@@ -59,6 +59,10 @@ VERDICT: tuple[Key, ...] = (
     Key("ok", "boolean", "true: done (or begun) as asked; false: refused, nothing changed"),
     opt("error", "string", "why it was refused and what to do next (ok false)"),
     opt("rig", "string", "the rig whose io process refused it before the loop saw it"),
+    opt("credential", "string", "why a command's signature was not taken (none, clear, "
+        "stale, bad, replay: pamd.net.credential)"),
+    opt("command_nonce", "string", "this run's nonce, with a refusal of a command signed "
+        "for another run (the client signs again with it: pamd.net.credential)"),
 )
 VERDICT_EXTRA = "an accepted command's handler adds what it did (verb-specific keys)"
 
@@ -179,7 +183,9 @@ KINDS: tuple[EventKind, ...] = (
         Key("count", "integer", "records lost this time"),
         Key("first_tick", "integer", "the first lost tick"),
         Key("last_tick", "integer", "the last lost tick"),
-        Key("total", "integer", "records lost since start"))),
+        Key("total", "integer", "records lost since start"),
+        opt("ongoing", "boolean", "the ring is still full: said after each second of a loss "
+            "that goes on, not only when it ends"))),
     EventKind("recording", "the recording stopped or failed; control goes on or stops as "
               "recording.on_failure says", "recorder, io session", (
                   Key("message", "string", "what happened, for the operator"),

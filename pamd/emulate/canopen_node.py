@@ -6,8 +6,9 @@ The position (0x6004) is the physical count plus the reference set through the
 preset object 0x6003. Configuration written by SDO (TPDO1 communication and
 mapping, heartbeat time) is honoured: TPDO1 goes out only when it is enabled,
 mapped to 0x6004 and the node is OPERATIONAL. Tests can make the node silent,
-reboot it (boot-up message, configuration lost), or send frames of the wrong
-length or an emergency.
+reboot it (boot-up message, configuration lost), refuse its configuration (every
+SDO write to TPDO1 or the heartbeat time aborted: `refuse_config`), or send frames of
+the wrong length or an emergency.
 """
 
 from __future__ import annotations
@@ -20,10 +21,13 @@ from collections.abc import Callable
 import canopen
 from canopen import objectdictionary as od
 from canopen.sdo.base import SdoArray, SdoRecord, SdoVariable
+from canopen.sdo.exceptions import SdoAbortedError
 
 from pamd.emulate.lateness import Lateness
 
 U8, U16, U32, I32 = (od.UNSIGNED8, od.UNSIGNED16, od.UNSIGNED32, od.INTEGER32)
+CONFIG_OBJECTS = (0x1017, 0x1800, 0x1A00)  # heartbeat time, TPDO1 communication, mapping
+ABORT_CANNOT_STORE = 0x08000020  # CiA 301: data cannot be transferred or stored
 
 
 def _var(name: str, index: int, sub: int, dtype: int, default: int,
@@ -75,6 +79,7 @@ class EmulatedEncoder:
         self.counts = counts or (lambda: self.physical)
         self.reference = 0
         self.silent = False
+        self.refuse_config = False  # tests: a node whose configuration fails
         self.pdo_length = 4  # tests: a wrong length
         self.sent = 0
         self.lateness = Lateness()  # of the TPDO1 frames against the event timer
@@ -86,6 +91,8 @@ class EmulatedEncoder:
         return (self.counts() + self.reference) & 0xFFFFFFFF
 
     def _on_write(self, index: int, subindex: int, od: object, data: bytes) -> None:
+        if self.refuse_config and index in CONFIG_OBJECTS:
+            raise SdoAbortedError(ABORT_CANNOT_STORE)
         if index == 0x6003:
             want = struct.unpack("<I", data[:4])[0]
             self.reference = want - self.counts()

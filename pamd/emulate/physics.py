@@ -10,6 +10,7 @@ For an input signal `si = gain * raw + offset` the device shows
 from __future__ import annotations
 
 import math
+import os
 import threading
 import time
 from dataclasses import dataclass
@@ -45,8 +46,12 @@ class EmulatedPlant:
                              valve_on_delay_s=m.onoff.valve_on_delay_s,
                              valve_off_delay_s=m.onoff.valve_off_delay_s)
             for m in cfg.rig.muscles)
-        self.sim = SimDriver("emulated", SimOptions(seed=seed, muscles=muscles,
-                                                    heartbeat_watchdog_s=heartbeat_watchdog_s))
+        # each simulated muscle of its rig muscle's type (a custom one with its map)
+        options = SimDriver.bind_muscle_types(
+            SimOptions(seed=seed, muscles=muscles, heartbeat_watchdog_s=heartbeat_watchdog_s),
+            {f"{m.name}.pressure": cfg.muscle_type(m.name) for m in cfg.rig.muscles},
+            os.path.dirname(os.path.abspath(cfg.path)))
+        self.sim = SimDriver("emulated", options)
         self.sim.open(time.monotonic)
         self.inputs: dict[tuple[str, str], Binding] = {}
         self.outputs: dict[tuple[str, str], Binding] = {}

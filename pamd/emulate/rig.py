@@ -36,6 +36,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.drivers.can_frames import EncoderNode
 from pamd.drivers.canopen_encoder import CanEncoderOptions
 from pamd.drivers.modbus import ModbusOptions
+from pamd.drivers.nidaq import NidaqDriver
 from pamd.emulate.lateness import Lateness
 from pamd.emulate.modbus_device import (
     EmulatedModbusDevice,
@@ -44,14 +45,17 @@ from pamd.emulate.modbus_device import (
     serve_rtu_tcp,
     serve_tcp,
 )
+from pamd.emulate.nidaq_device import PRODUCTS, USB_6211, EmulatedDaq
 from pamd.emulate.physics import EmulatedPlant
 from pamd.emulate.ptys import PtyPair
 from pamd.emulate.socketcand import SocketcandServer
 
-if TYPE_CHECKING:  # canopen (and the node built on it) is imported when a rig has one
+if TYPE_CHECKING:  # canopen, nidaqmx's stubs (and what is built on them) when a rig has one
     import canopen
 
+    from pamd.drivers.nidaq_options import NidaqOptions
     from pamd.emulate.canopen_node import EmulatedEncoder
+    from pamd.emulate.nidaq_server import DaqServer
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 _T = TypeVar("_T")
@@ -151,6 +155,8 @@ class EmulatedRig:
         self.plant = EmulatedPlant(cfg, seed, loads_kg, heartbeat_watchdog_s)
         self.modbus: dict[str, EmulatedModbusDevice] = {}
         self.encoders: dict[str, EmulatedEncoder] = {}  # by "driver.channel"
+        self.nidaq: dict[str, EmulatedDaq] = {}  # by driver
+        self._daq_servers: list[DaqServer] = []
         self.endpoints: dict[str, str] = {}
         self.notices: list[str] = []
         self._ptys: list[PtyPair] = []
@@ -173,6 +179,8 @@ class EmulatedRig:
                     self._start_modbus(drv.name, drv.options)
                 elif drv.type == "canopen-encoder":
                     self._start_can(drv.name, drv.options)
+                elif drv.type == "nidaqmx":
+                    self._start_nidaq(drv.name, drv.options)
                 elif drv.type != "sim":
                     self.notices.append(f"driver {drv.name!r} of type {drv.type!r} is not "
                                         "emulated")
@@ -183,6 +191,8 @@ class EmulatedRig:
             lateness.reset()
 
     def stop(self) -> None:
+        for daq in self._daq_servers:
+            daq.stop()
         for enc in self.encoders.values():
             enc.stop()
         for net in self._networks:
@@ -211,12 +221,15 @@ class EmulatedRig:
 
     def _latenesses(self) -> list[Lateness]:
         return [self.plant.lateness, self.server_lateness,
-                *(e.lateness for e in self.encoders.values())]
+                *(e.lateness for e in self.encoders.values()),
+                *(d.lateness for d in self.nidaq.values())]
 
     def lateness(self) -> dict[str, dict[str, float]]:
         """How late each timed part of the emulator woke, worst and count (`Lateness`):
         a device late by more than its signal's timeout makes a stale fault by itself."""
         out = {"physics": self.plant.lateness.summary()}
+        for name, daq in self.nidaq.items():
+            out[name] = daq.lateness.summary()
         if self.modbus:
             out["modbus_servers"] = self.server_lateness.summary()
         for name, enc in self.encoders.items():
@@ -300,3 +313,45 @@ class EmulatedRig:
             self.notices.append(f"driver {name!r}: raw CAN frames are not emulated")
         self.endpoints[name] = (f"canopen {where}, nodes "
                                 f"{', '.join(str(e.node_id) for e in o.encoders)}")
+
+    def _start_nidaq(self, name: str, o: NidaqOptions) -> None:
+        """An NI gRPC Device Server on the driver's (loopback) `server`, with one emulated
+        device: the product the options name (a USB-6211 if none), its channels wired to
+        the plant by the driver's channel names."""
+        try:
+            from pamd.emulate.nidaq_server import DaqServer
+        except ImportError as exc:
+            raise RuntimeError(f"driver {name!r}: NI's nidaqmx[grpc] is not installed ({exc}): "
+                               "pip install 'pamd[nidaq]'") from None
+
+        if not o.server:
+            raise RuntimeError(f"driver {name!r}: the emulator serves an nidaqmx device through "
+                               "an NI gRPC Device Server: set its `server` (127.0.0.1:PORT)")
+        host, _, port = o.server.rpartition(":")
+        product = PRODUCTS.get(o.product or USB_6211.name)
+        if product is None:
+            raise RuntimeError(f"driver {name!r}: the emulator plays {', '.join(PRODUCTS)}, "
+                               f"not {o.product!r}")
+        by_physical = {a.physical_channel.lower(): a.name for a in o.analog_inputs}
+        by_physical.update({e.counter.lower(): e.name for e in o.encoders})
+        by_physical.update({a.physical_channel.lower(): a.name for a in o.analog_outputs})
+        by_physical.update({d.line.lower(): d.name for d in (*o.digital_inputs,
+                                                             *o.digital_outputs)})
+        plant = self.plant
+
+        def source(physical: str) -> float | None:
+            channel = by_physical.get(physical)
+            return None if channel is None else plant.raw_input(name, channel)
+
+        def sink(physical: str, value: float) -> None:
+            channel = by_physical.get(physical)
+            if channel is not None:
+                plant.set_output(name, channel, value)
+
+        device = NidaqDriver(name, o).device
+        daq = EmulatedDaq(device, product, source, sink)
+        server = DaqServer({device: daq}, loopback(name, host), int(port))
+        server.start()
+        self.nidaq[name] = daq
+        self._daq_servers.append(server)
+        self.endpoints[name] = f"NI gRPC Device Server {server.address}, {device} ({product.name})"

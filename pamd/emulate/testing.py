@@ -26,6 +26,7 @@ from pamd.declare.jsonsafe import JsonObject, JsonValue
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_EMULATED = REPO / "config" / "rig-emulated.yaml"
+RIG_NIDAQ_EMULATED = REPO / "config" / "rig-nidaq-emulated.yaml"
 _T = TypeVar("_T")
 
 
@@ -135,6 +136,23 @@ def emulated_dict(tmp: Path, port: int, can: str | None = None, links: str = "so
                 o.update(host="127.0.0.1", port=free_port(), channel="can0")
             else:
                 o["channel"] = str(tmp / "can") if can == "serial" else f"pamd-test-{port}"
+    for k, v in changes.items():
+        d[k] = v
+    return d
+
+
+def nidaq_emulated_dict(port: int, **changes: JsonValue) -> JsonObject:
+    """config/rig-nidaq-emulated.yaml with its NI gRPC Device Server on `port`,
+    real-time settings and telemetry off, and the patience of a test beside others on
+    a busy machine (a sample up to 0.3 s late is not stale: staleness is not tested)."""
+    _handed_out.add(port)
+    d: JsonObject = yaml.safe_load(RIG_NIDAQ_EMULATED.read_text())  # the YAML file's mapping
+    d["loop"]["realtime"] = {"enabled": False}
+    d["safety"]["latency_margin_s"] = 0.3
+    d["telemetry"] = {"enabled": False}
+    for drv in d["drivers"]:
+        if drv["type"] == "nidaqmx":
+            drv["options"]["server"] = f"127.0.0.1:{port}"
     for k, v in changes.items():
         d[k] = v
     return d

@@ -15,7 +15,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.config.names import NAME_RE
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import CommandRefused
-from pamd.muscle_type import MUSCLE_TYPES, equilibrium_contraction, force_model
+from pamd.muscle_type import equilibrium_contraction
 from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
 from pamd.profiles.harmonic import MAX_HARMONIC_NUMBER
@@ -49,6 +49,9 @@ class PlanProfile:
                                 min=0.0)
     duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
                                     unit="s", gt=0.0)
+    rate_bar_per_s: float | None = spec(None, f"Rate ({kinds_reading('rate_bar_per_s')}; "
+                                        "default: half the slew limit).", unit="bar/s",
+                                        gt=0.0)
     harmonics: tuple[PlanHarmonic, ...] | None = spec(
         None, f"Harmonics ({kinds_reading('harmonics')}; default: seed 003's signal as "
         "pamd builds it, harmonics 1, 2, 3 with shares 0.6, 0.25, 0.15): at least one, "
@@ -68,7 +71,8 @@ class PlanProfile:
             (h.number, h.share) for h in self.harmonics)
         return ProfileSpec(kind=self.kind, min_bar=self.min_bar, max_bar=self.max_bar,
                            freq_hz=self.freq_hz, cycles=self.cycles_to_run, to_bar=self.to_bar,
-                           duration_s=self.duration_s, harmonics=harm)
+                           duration_s=self.duration_s, rate_bar_per_s=self.rate_bar_per_s,
+                           harmonics=harm)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -162,8 +166,8 @@ def check_plan(plan: Plan, rig: LoadedConfig, ctx: Context, steps_node: list[Jso
     mcfg = rig.muscle(plan.muscle)
     lim = rig.limits[plan.muscle]
     env = MuscleEnvelope.from_config(rig, plan.muscle)
-    rating = MUSCLE_TYPES[mcfg.type]
-    model = force_model(mcfg.force_model)
+    rating = rig.muscle_type(plan.muscle)
+    model = rating.force_model(mcfg.force_model)
     slew = rig.rig.control.slew_limit_bar_per_s
     if not plan.steps:
         ctx.add(None, "steps", "at least one step", "none")

@@ -25,6 +25,7 @@ from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.experiment.plan import Plan, PlanStep
 from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfileSpec
+from pamd.safety.load_check import check_load
 from pamd.tick import State
 
 LOAD, SETTLE, PROFILE, HOLD, PAUSE, DONE = "load", "settle", "profile", "hold", "pause", "done"
@@ -175,10 +176,20 @@ class Sequencer:
         else:
             self._agree_since = math.inf
             if now - self.phase_t0 > FORCE_AGREE_TIMEOUT_S:
-                self.ctrl.supervisor.fault(
-                    now, f"{m.name}: measured force {m.force_n:.0f} N does not agree with "
-                    f"{step.load_kg:g} kg ({weight:.0f} N) within "
-                    f"{self.plan.load_tolerance_n:g} N; check the load")
+                self._wrong_load(now, step.load_kg)
+
+    def _wrong_load(self, now: float, load_kg: float) -> None:
+        """The force never agreed with the new load (`pamd.safety.load_check`): the safe
+        state holds the larger of the two loads, and the fault says so (rare path)."""
+        m = self.muscle
+        wrong = check_load(m.name, m.force_n, load_kg, self.plan.load_tolerance_n)
+        if wrong is None:  # agreed at the last moment: the next tick confirms it
+            return
+        m.set_load(wrong.larger_kg)
+        push_safe_outputs(self.ctrl)
+        self.ctrl.supervisor.fault(
+            now, f"{m.name}: the force does not agree with {load_kg:g} kg after the load "
+            f"change: {wrong.larger_text(m.safe_pressure_bar)}")
 
     def _start_settle(self, now: float) -> None:
         self._still_since = math.inf

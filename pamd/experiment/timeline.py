@@ -4,11 +4,12 @@ force model. Nothing moves."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
 from pamd.experiment.plan import Plan, profile_range
-from pamd.muscle_type import equilibrium_contraction, force_model
+from pamd.muscle_type import equilibrium_contraction
 from pamd.profiles import Profile
 from pamd.safety import safe_pressure_bar
 
@@ -40,7 +41,7 @@ def timeline(plan: Plan, rig: LoadedConfig, simulated: bool) -> list[StepLine]:
     lim = rig.limits[plan.muscle]
     saf = rig.rig.safety
     slew = rig.rig.control.slew_limit_bar_per_s
-    model = force_model(mcfg.force_model)
+    model = rig.muscle_type(plan.muscle).force_model(mcfg.force_model)
 
     def safe(load: float) -> float:
         return safe_pressure_bar(model, load, lim.max_pretension, saf.stretch_margin,
@@ -54,7 +55,10 @@ def timeline(plan: Plan, rig: LoadedConfig, simulated: bool) -> list[StepLine]:
         dur = 0.0
         what: list[str] = []
         operator = False
-        peak = pressure
+        # the step's peak is what the step itself asks for (its load change's working
+        # pressure, its profile's top; the pressure it holds if neither), not the
+        # pressure the step before left, which its lead-in leaves at once
+        peak = -math.inf
         if step.pause is not None:
             out.append(StepLine(i, step.name, load, t, 0.0, pressure, math_nan(), math_nan(),
                                 f"pause: {step.pause}", True))
@@ -87,11 +91,12 @@ def timeline(plan: Plan, rig: LoadedConfig, simulated: bool) -> list[StepLine]:
             pressure = run.value
         else:
             lo = hi = pressure
+            peak = max(peak, pressure)
         if step.hold_s:
             dur += step.hold_s
             what.append(f"hold {step.hold_s:g} s")
         x_lo = equilibrium_contraction(model, min(lo, pressure), load)
-        x_hi = equilibrium_contraction(model, max(hi, peak), load)
+        x_hi = equilibrium_contraction(model, peak, load)
         out.append(StepLine(i, step.name, load, t, dur, peak, x_lo, x_hi, "; ".join(what),
                             operator))
         t += dur

@@ -9,9 +9,11 @@ moved for `QUIET_TICKS` ticks does the sink poll the process's sentinel (one
 `select` with zero timeout), so a dead io process is seen within a tick or two at
 the cost of a couple of integer reads per tick.
 
-A full ring in real time drops the record (put returns False, the loop counts it)
-and, once space is back, records a `lost_records` event. With the virtual clock the
-sink waits for space instead, so a virtual run loses nothing.
+A full ring in real time drops the record (put returns False, the loop counts it,
+and the count goes into the shared header at once, `C_LOOP_LOST`, so the status says
+it while the io process is still behind) and records a `lost_records` event once space
+is back, or after each second of a loss that goes on (`ongoing`). With the virtual
+clock the sink waits for space instead, so a virtual run loses nothing.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from pamd.io.spec import IoSpec
 from pamd.ipc.ring import (
     C_HEARTBEAT,
     C_IO_STATE,
+    C_LOOP_LOST,
     C_LOST_EVENTS,
     C_RECORDED,
     C_STOP,
@@ -43,11 +46,12 @@ from pamd.ipc.ring import (
     SharedBlock,
 )
 from pamd.summary import LocalMailbox
-from pamd.tick import I_TICK, Mailbox
+from pamd.tick import I_T, I_TICK, Mailbox
 from pamd.verbs.schema import Command
 from pamd.verbs.table import parse_command
 
 QUIET_TICKS = 1
+DROP_REPORT_S = 1.0  # a loss that goes on is said this often (loop time), not only at its end
 HELD_EVENTS_MAX = 4096  # events (a burst's verdicts) waiting for room in the ring, and
 # events of other threads waiting for the loop's thread to send them
 START_TIMEOUT_S = 30.0
@@ -171,6 +175,7 @@ class RingSink:
         self._dropped = 0
         self._drop_first = -1
         self._drop_last = -1
+        self._drop_t = 0.0  # loop time of the first record lost since the last report
         self.lost_records = 0
         self.lost_events = 0
         self._producer: int | None = None  # the loop's thread, bound at the first put
@@ -231,9 +236,13 @@ class RingSink:
             if not self.virtual:
                 if self._dropped == 0:
                     self._drop_first = int(record[I_TICK])
+                    self._drop_t = record[I_T]
                 self._dropped += 1
                 self._drop_last = int(record[I_TICK])
                 self.lost_records += 1
+                u[C_LOOP_LOST] = self.lost_records  # the status says it now
+                if record[I_T] - self._drop_t >= DROP_REPORT_S:
+                    self._report_drops(ongoing=True)
                 return False
             while not self.ring.put(mv):
                 if self._dead():
@@ -252,15 +261,21 @@ class RingSink:
         """Tick records lost to a full ring and not yet reported as an event."""
         return self._dropped
 
-    def _report_drops(self) -> None:
+    def _report_drops(self, ongoing: bool = False) -> None:
+        """Say the records lost since the last report: when the ring has room again, or
+        (`ongoing`) after each DROP_REPORT_S of a loss that goes on."""
         n, first, last = self._dropped, self._drop_first, self._drop_last
         self._dropped = 0
+        still = "; the io process is still behind" if ongoing else ""
         msg = (f"recording: the io ring was full, {n} tick record(s) lost (ticks {first}-"
-               f"{last}; {self.lost_records} so far)")
+               f"{last}; {self.lost_records} so far{still})")
         self.notify(msg)
+        data: JsonObject = {"count": n, "first_tick": first, "last_tick": last,
+                            "total": self.lost_records}
+        if ongoing:
+            data["ongoing"] = True
         self.event(self._rec[1] + self.t_start() if self._rec is not None else 0.0,
-                   "lost_records", {"count": n, "first_tick": first, "last_tick": last,
-                                    "total": self.lost_records})
+                   "lost_records", data)
 
     # -- events -----------------------------------------------------------------------
     def event(self, t_s: float, kind: str, data: JsonObject) -> None:

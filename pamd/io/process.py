@@ -115,12 +115,34 @@ def io_main(spec: IoSpec) -> None:
     """Entry point of the spawned io process."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    take_nice(spec.nice)
     block = SharedBlock(spec.layout, spec.shm_name)
     try:
         IoProcess(spec, block).run()
     finally:
         block.close()
         report_modules(os.environ.get(MODULES_ENV))
+
+
+def take_nice(nice: int | None) -> bool:
+    """The io process's priority (`loop.realtime.io_nice`), before it starts a thread:
+    every thread it starts (Zenoh's, the Foxglove server's, the local channel's)
+    inherits it. Above every normal process, so a loaded PC does not starve the
+    recording; below every real-time thread, so the loop and its drivers' threads
+    always run first. Refused (no LimitNICE= or CAP_SYS_NICE): said on stderr, and the
+    io process runs at normal priority. False then."""
+    if nice is None:
+        return True
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, nice)
+    except OSError as exc:
+        why = exc.strerror or exc
+        print(f"pamd: real-time: the io process could not take nice {nice} ({why}): at "
+              "normal priority, a loaded PC can starve its recording (lost tick records, "
+              "said as they happen); allow it with LimitNICE= (systemd) or CAP_SYS_NICE",
+              file=sys.stderr, flush=True)
+        return False
+    return True
 
 
 MODULES_ENV = "PAMD_TEST_IO_MODULES"

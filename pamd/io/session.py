@@ -27,13 +27,12 @@ from pamd.loop import Loop
 from pamd.net.board import Board
 from pamd.net.host.host import NetHost
 from pamd.net.host.ports import HostParts
-from pamd.net.host.resolve import resolve as resolve_net
+from pamd.net.host.resolve import resolve_all
 from pamd.net.spec import NetSpec, TelemetryRequest
 from pamd.record.meta import build_record_spec
 from pamd.summary import LocalMailbox, SummarySink
 from pamd.tick import TickLayout
 from pamd.view.spec import ViewerSpec
-from pamd.view.spec import resolve as resolve_viewer
 
 
 @dataclass(frozen=True)
@@ -55,6 +54,13 @@ class IoParts:
     mailbox: LocalMailbox
 
 
+def io_nice(cfg: LoadedConfig) -> int | None:
+    """The io process's nice value: `loop.realtime.io_nice` when real-time settings are
+    on and the clock is real (a virtual-clock run waits for its io process anyway)."""
+    rt = cfg.rig.loop.realtime
+    return rt.io_nice if rt.enabled and cfg.rig.loop.clock == "real" else None
+
+
 @dataclass(frozen=True)
 class RecordingRequest:
     """What the caller (CLI, tests) asks of the io process for one run."""
@@ -72,8 +78,10 @@ class RecordingRequest:
 
 class IoSession:
     def __init__(self, parts: IoParts, req: RecordingRequest, record_dir: str | None,
-                 net: NetSpec | None = None, viewer: ViewerSpec | None = None) -> None:
+                 net: NetSpec | None = None, viewer: ViewerSpec | None = None,
+                 warnings: tuple[str, ...] = ()) -> None:
         self.parts = parts
+        self.warnings = warnings  # links in clear allowed on purpose: said at start
         cfg = parts.config()
         self.rc = cfg.rig.recording
         loop = parts.loop
@@ -108,7 +116,7 @@ class IoSession:
                           muscles=tuple(parts.layout.muscles), rate_hz=rate,
                           virtual=self.virtual, wall0_ns=wall0, clock0_s=clock0,
                           parent_pid=os.getpid(), record=rspec, script=tuple(req.script),
-                          net=net, viewer=viewer)
+                          net=net, viewer=viewer, nice=io_nice(cfg))
 
         self.link = IoLink.create(make_spec, layout)
         ctrl = parts.ctrl
@@ -122,6 +130,11 @@ class IoSession:
         """The recording's files so far (the status says them)."""
         return self.link.files()
 
+    @property
+    def lost_records(self) -> int:
+        """Tick records lost to a full io ring so far (the loop's count)."""
+        return self.sink.lost_records
+
     @classmethod
     def attach(cls, parts: IoParts, req: RecordingRequest | None,
                telemetry: TelemetryRequest | None = None) -> IoSession | None:
@@ -131,11 +144,10 @@ class IoSession:
         record_dir = req.dir or cfg.rig.recording.dir
         if not req.enabled or not record_dir:
             record_dir = None
-        net = resolve_net(cfg, telemetry)  # ConfigError before anything starts
-        viewer = resolve_viewer(cfg, telemetry.foxglove if telemetry else None)
-        if record_dir is None and net is None and viewer is None:
+        got = resolve_all(cfg, telemetry)  # ConfigError before anything starts
+        if record_dir is None and got.net is None and got.viewer is None:
             return None
-        return cls(parts, req, record_dir, net, viewer)
+        return cls(parts, req, record_dir, got.net, got.viewer, got.warnings)
 
     def start(self) -> None:
         try:
@@ -145,12 +157,14 @@ class IoSession:
                 self.board.close()
                 self.board = None
             raise
+        log = logging.getLogger("pamd")
         if self.net is not None:
-            logging.getLogger("pamd").info("telemetry: pamd/%s/** (%s)", self.net.rig_id,
-                                           self.net.where)
+            log.info("telemetry: pamd/%s/** (%s)", self.net.rig_id, self.net.where)
         if self.viewer is not None:
-            logging.getLogger("pamd").info("foxglove: live view on %s (Foxglove: Open "
-                                           "connection, Foxglove WebSocket)", self.viewer.url)
+            log.info("foxglove: live view on %s (Foxglove: Open connection, Foxglove "
+                     "WebSocket)", self.viewer.url)
+        for w in self.warnings:
+            log.warning("%s", w)
 
     def discard(self) -> None:
         """The run was refused before it started (a lock held, a device missing): stop

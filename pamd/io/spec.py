@@ -34,3 +34,5 @@ class IoSpec:
     net: NetSpec | None = None
     # The live Foxglove view; None: no Foxglove server.
     viewer: ViewerSpec | None = None
+    # The io process's nice value (loop.realtime.io_nice), taken as it starts; None: as is
+    nice: int | None = None

@@ -30,6 +30,7 @@ RING_HDR_BYTES = 128  # head on one cache line, tail on the next
 # control header, u64 indices
 C_MAGIC, C_HEARTBEAT, C_IO_STATE, C_STOP, C_T_START_SET, C_T_START, C_RECORDED = range(7)
 C_LOST_EVENTS = 7
+C_LOOP_LOST = 8  # tick records the loop lost to a full ring so far (written as it loses one)
 ERR_OFF, ERR_MAX = 1024, 1020
 FILES_OFF, FILES_MAX = 2048, 2044
 
@@ -195,6 +196,20 @@ class SharedBlock:
             return None
         t_s: float = _F64.unpack_from(self.buf, C_T_START * 8)[0]
         return t_s
+
+    def newest_f64(self, i: int) -> float | None:
+        """The `i`-th float of the newest tick record the loop put into its ring, read
+        or not (None before the first): the io process sees how far the loop is without
+        draining. The loop writes the next slot, never this one."""
+        head = self.u64[self.ticks.i_head]
+        if head == 0:
+            return None
+        value: float = _F64.unpack_from(self.buf, self.ticks.slot_offset(head - 1) + 8 * i)[0]
+        return value
+
+    def loop_lost(self) -> int:
+        """Tick records the loop lost to a full ring so far (C_LOOP_LOST)."""
+        return self.u64[C_LOOP_LOST]
 
     def _set_text(self, off: int, cap: int, text: str) -> None:
         data = text.encode("utf-8", "replace")[:cap]

@@ -111,7 +111,7 @@ def fit_anfis(job: FitJob[AnfisOptions]) -> Fitted:
         "val_rmse": None if result.val_rmse is None else result.val_rmse.tolist()}
     return Fitted(model, f"{model!r}, {model.n_params} parameters; best epoch "
                   f"{result.best_epoch} of {result.train_rmse.size} (on "
-                  f"{result.selected_on}), {result.seconds:.2f} s")
+                  f"{result.selected_on})")
 
 
 def anfis_plots(prefix: str, model: InverseModel, t_s: np.ndarray, y: np.ndarray, y_hat: np.ndarray,
@@ -125,7 +125,6 @@ def anfis_plots(prefix: str, model: InverseModel, t_s: np.ndarray, y: np.ndarray
 KIND = Kind("anfis", "000", "first-order Sugeno ANFIS (or zero order: --consequent "
             "constant), hybrid learning",
             modelfile.from_dict, ("force_n", "length_mm"), fit_anfis, AnfisOptions,
-            adaptable=True,
-            progress=lambda o: (o.steps * (1 if o.preset == "matlab" else len(WIDTH_STARTS)),
-                                "epoch", "RMSE"),
+            adaptable=True, progress=lambda o: (o.steps, "epoch", "RMSE"),
+            starts=lambda o: 1 if o.preset == "matlab" else len(WIDTH_STARTS),
             plots=anfis_plots, outputs=tuple(OUTPUT_UNITS))

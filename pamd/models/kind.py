@@ -177,6 +177,9 @@ class Kind(Generic[OptionsT]):
     adaptable: bool = False
     #: (steps, unit, error name) of the progress bar, from the options; None: no bar
     progress: Callable[[OptionsT], tuple[int, str, str]] | None = None
+    #: how many trainings the fit runs one after another (each `progress` steps long,
+    #: its steps counted on from the one before's), from the options; None: one
+    starts: Callable[[OptionsT], int] | None = None
     forward: Forward | None = None
     plots: Plots | None = None
     #: the outputs it can be trained to predict (`pamd train --output`)

@@ -451,7 +451,7 @@ def fit_mamdani(X: ArrayLike, y: ArrayLike, opts: MamdaniOptions, *, input_names
 class MamdaniKindOptions(KindOptions):
     """`pamd train --kind mamdani`'s options."""
 
-    tune: str = option("mga", "mamdani: how the MFs are tuned after the rule base is read "
+    tune: str = option("mga", "how the MFs are tuned after the rule base is read "
                        "off the data (none: the grid layout)", choices=TUNES)
     epochs: int | None = option(None, "generations (ga, mga)", parse=int, minimum=1,
                                 default_text="60")

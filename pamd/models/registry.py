@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from pamd.atomic import write_atomic
+from pamd.config.schema import MODEL_FILE_MAX_BYTES
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import ModelError
 from pamd.models import anfis_kind, fn_qupi, learned, qupi, static_force, ts_fuzzy
@@ -33,8 +34,8 @@ from pamd.models.document import field, format_json, parse_json
 from pamd.models.kind import Kind
 from pamd.models.mamdani import KIND as MAMDANI
 
-#: Largest model file read (bytes): the largest kind (svr) stays far below it.
-MAX_FILE_BYTES = 8 * 1024 * 1024
+#: Largest model file read (bytes), declared with the config's `telemetry.models_dir`.
+MAX_FILE_BYTES = MODEL_FILE_MAX_BYTES
 
 #: The kinds by name, in the order help lists them (`register`).
 # Any: kinds of different option types in one table (a `Kind` is invariant in them)

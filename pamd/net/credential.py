@@ -1,9 +1,24 @@
 """The command credential: a random token the daemon writes into a file readable by
-its user and group only (mode 0640, as Jupyter's token or Docker's socket group), which
-every command must carry (a Zenoh query's attachment), on loopback too. Status and
-telemetry stay open, read-only; an `estop` is honoured without it (anyone who can reach
-the daemon may stop the rig) and recorded as such. On a lab network the router's mutual
-TLS and access-control roles still decide who reaches the daemon at all.
+its user and group only (mode 0640, as Jupyter's token or Docker's socket group), with
+which every command is signed, on loopback too. Status and telemetry stay open,
+read-only; an `estop` is honoured without it (anyone who can reach the daemon may stop
+the rig) and recorded as such. On a lab network the router's mutual TLS and
+access-control roles still decide who reaches the daemon at all.
+
+The token never travels. Each command carries in its attachment a MAC (HMAC-SHA256,
+keyed by the token's SHA-256) over the rig, the verb, the payload, the client's id, a
+counter and the daemon's run nonce (`Signer`; `pamd-mac1 <client> <counter> <nonce>
+<mac>`). The io process checks it (`Verifier`, constant time) and takes each client's
+counters strictly increasing, so a captured command cannot be sent again: not in this
+run (its counter is spent), nor to a later daemon (its nonce, the `command_nonce` the
+status says, is new each run). The counter is the client's clock in ns (or one more
+than its last), so a client the daemon has forgotten (it keeps the newest
+`MAX_CLIENTS`) starts above every counter it forgot. The token's old clear form
+(`pamd-token:`) is refused, saying so.
+
+Rotating the token needs no deletion: `pamd token --rotate` writes a new one over the
+old atomically (`rotate_token`), and a running daemon's io process takes it within a
+second (`TokenWatch`); commands signed with the old one are refused from then on.
 
 Where the token file is, `pamd-<rig_id>.token` in the first of:
 
@@ -18,8 +33,7 @@ makes one otherwise, atomically (a file appears whole or not at all), so daemons
 the same rig started one after another by one user share it. The client (`pamd cmd`,
 `pamd.connect`) uses, in order: `--token-file` / `token_file=`, `PAMD_TOKEN_FILE`,
 `PAMD_TOKEN` (the token itself), then `pamd-<rig_id>.token` in the directories above
-and /run/pamd. Only the token's SHA-256 goes to the io process, which compares hashes
-in constant time (`hmac.compare_digest`).
+and /run/pamd. Only the token's SHA-256 goes to the io process (the MAC's key).
 """
 
 from __future__ import annotations
@@ -27,11 +41,14 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import hmac
+import math
 import os
 import re
 import secrets
 import stat
 import tempfile
+import time
+from collections import OrderedDict
 
 from pamd.errors import PamdError
 
@@ -75,17 +92,119 @@ def digest(token: str | bytes) -> str:
     return hashlib.sha256(raw).hexdigest()
 
 
-def matches(presented: bytes | None, expected_sha256: str) -> bool:
-    """Whether a query's attachment carries the token whose hash is expected (constant
-    time in the token's content)."""
-    if not presented or not presented.startswith(ATTACHMENT_PREFIX):
-        return False
-    token = presented[len(ATTACHMENT_PREFIX):len(ATTACHMENT_PREFIX) + MAX_TOKEN_BYTES]
-    return hmac.compare_digest(digest(token), expected_sha256)
+# -- a MAC per command ---------------------------------------------------------------
+MAC_PREFIX = "pamd-mac1"
+#: the payload's bytes the MAC covers (with its length): an estop or stop acts whatever
+#: its size, and checking it costs at most this much hashing
+MAC_PAYLOAD_BYTES = 64 * 1024
+#: clients whose last counter the io process keeps (the newest; a counter at or below
+#: the highest of those it forgot is refused)
+MAX_CLIENTS = 4096
+MAX_ATTACHMENT_BYTES = 256
+_ID_RE = re.compile(r"^[0-9a-f]{8,32}$")
 
 
-def attachment(token: str) -> bytes:
-    return ATTACHMENT_PREFIX + token.encode("ascii", "replace")
+def mac_key(token_sha256: str) -> bytes:
+    """The MAC's key: the token's SHA-256 (what the io process holds)."""
+    return bytes.fromhex(token_sha256)
+
+
+def _mac(key: bytes, rig: str, verb: str, client: str, counter: int, nonce: str,
+         payload: bytes) -> str:
+    head = f"{rig}\n{verb}\n{client}\n{counter}\n{nonce}\n{len(payload)}\n".encode()
+    return hmac.new(key, head + payload[:MAC_PAYLOAD_BYTES], hashlib.sha256).hexdigest()
+
+
+class Signer:
+    """A client's side: signs each command (`attachment`) with a counter of its own."""
+
+    def __init__(self, token: str) -> None:
+        self.key = mac_key(digest(token))
+        self.client = secrets.token_hex(8)
+        self.last = 0
+
+    def attachment(self, rig: str, verb: str, payload: bytes, nonce: str) -> bytes:
+        counter = max(self.last + 1, time.time_ns())
+        self.last = counter
+        mac = _mac(self.key, rig, verb, self.client, counter, nonce, payload)
+        return f"{MAC_PREFIX} {self.client} {counter} {nonce} {mac}".encode()
+
+
+#: why a command's credential was not taken (Verifier.check), for its refusal
+NONE, CLEAR, STALE, BAD, REPLAY = "none", "clear", "stale", "bad", "replay"
+
+
+class Verifier:
+    """The io process's side: a command's MAC checked against the token's hash
+    (`set_key` on a rotation), its counter against the client's last."""
+
+    def __init__(self, token_sha256: str, nonce: str) -> None:
+        self.key = mac_key(token_sha256) if token_sha256 else b""
+        self.nonce = nonce
+        self.last: OrderedDict[str, int] = OrderedDict()
+        self.floor = 0  # the highest counter of the clients forgotten
+
+    def set_key(self, token_sha256: str) -> None:
+        self.key = mac_key(token_sha256)
+
+    def check(self, presented: bytes | None, rig: str, verb: str, payload: bytes) -> str | None:
+        """None if the attachment signs this command, new; else why not (NONE, CLEAR:
+        the old clear token, STALE: another run's nonce, BAD, REPLAY)."""
+        if not presented:
+            return NONE
+        if presented.startswith(ATTACHMENT_PREFIX):
+            return CLEAR
+        parts = presented[:MAX_ATTACHMENT_BYTES].decode("ascii", "replace").split(" ")
+        if len(parts) != 5 or parts[0] != MAC_PREFIX or not _ID_RE.match(parts[1]) \
+                or not parts[2].isdigit() or len(parts[2]) > 20:
+            return BAD
+        _, client, count, nonce, mac = parts
+        if nonce != self.nonce:
+            return STALE
+        counter = int(count)
+        want = _mac(self.key, rig, verb, client, counter, nonce, payload)
+        if not hmac.compare_digest(want, mac):
+            return BAD
+        last = self.last.get(client, self.floor)
+        if counter <= last:
+            return REPLAY
+        self.last[client] = counter
+        self.last.move_to_end(client)
+        while len(self.last) > MAX_CLIENTS:
+            self.floor = max(self.floor, self.last.popitem(last=False)[1])
+        return None
+
+
+class TokenWatch:
+    """The io process follows its token file: a rotated token (a new file in its
+    place) is read at most every `period_s` (`changed` gives its hash once)."""
+
+    def __init__(self, path: str, period_s: float = 1.0) -> None:
+        self.path = path
+        self.period_s = period_s
+        self.t = -math.inf
+        self.seen = self._id()
+
+    def _id(self) -> tuple[int, int, int] | None:
+        try:
+            st = os.stat(self.path)
+        except OSError:
+            return None
+        return st.st_ino, st.st_mtime_ns, st.st_size
+
+    def changed(self, now: float) -> str | None:
+        """The new token's SHA-256 if the file changed since it was last read."""
+        if not self.path or now - self.t < self.period_s:
+            return None
+        self.t = now
+        seen = self._id()
+        if seen is None or seen == self.seen:
+            return None
+        token = _read(self.path, own=True)
+        if token is None:
+            return None  # half-written or not ours: the old one stays, looked at again
+        self.seen = seen
+        return digest(token)
 
 
 def _private_dir(path: str) -> bool:
@@ -120,16 +239,18 @@ def _read(path: str, own: bool) -> str | None:
     return text if TOKEN_RE.match(text) else None
 
 
-def _write_new(path: str) -> str | None:
-    """A new token written whole under `path` (never over another's); the token that is
-    there afterwards (ours, or a concurrent daemon's), or None."""
+def _write_new(path: str, replace: bool = False) -> str | None:
+    """A new token written whole under `path`: never over another's (a concurrent
+    daemon's wins), or, `replace`, in place of the old one atomically (a rotation:
+    readers see the old file or the new, never half). The token that is there
+    afterwards, or None."""
     # Imported here: the io process imports this module to check tokens (its budget of
-    # pamd modules), only the daemon's main process writes one.
+    # pamd modules), only the daemon's main process and `pamd token` write one.
     from pamd.atomic import write_atomic
 
     token = secrets.token_urlsafe(32)
-    try:  # whole, never over another's (`pamd.atomic`)
-        write_atomic(path, token + "\n", file_mode=FILE_MODE, exclusive=True)
+    try:  # whole (`pamd.atomic`); a first token never over another's
+        write_atomic(path, token + "\n", file_mode=FILE_MODE, exclusive=not replace)
     except FileExistsError:  # a token appeared meanwhile: that one wins
         return _read(path, own=True)
     except OSError:
@@ -182,3 +303,22 @@ def find_token(rig_id: str, token_file: str | None = None) -> tuple[str | None, 
         if tok is not None:
             return tok, path
     return None, ", ".join(looked)
+
+
+def rotate_token(rig_id: str, token_file: str | None = None) -> str:
+    """A new token in place of the rig's (its file as `find_token` finds it, or
+    `token_file`), written atomically over the old one: nothing to delete, and a running
+    daemon takes it within a second. The file's path; CredentialError if there is none
+    of this user's to replace."""
+    tok, where = find_token(rig_id, token_file)
+    path = token_file or (where if tok is not None and os.path.isfile(where) else None)
+    if path is None:
+        raise CredentialError(f"no command token of rig {rig_id!r} to rotate (looked in "
+                              f"{where}); a daemon makes one as it starts")
+    path = os.path.expanduser(path)
+    if _read(path, own=True) is None:
+        raise CredentialError(f"{path} is not a token file of this user's (mode 0640, "
+                              "owned by the daemon's user): rotate it as that user")
+    if _write_new(path, replace=True) is None:
+        raise CredentialError(f"cannot write a new token into {os.path.dirname(path)}")
+    return path

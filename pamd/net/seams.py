@@ -51,9 +51,16 @@ class RunClock(Protocol):
 
 
 class LoopStart(Protocol):
-    """When the loop's clock started (`pamd.ipc.ring.SharedBlock` tells it)."""
+    """When the loop's clock started, and how far the loop is (`pamd.ipc.ring.
+    SharedBlock` tells it)."""
 
     def t_start(self) -> float | None: ...
+
+    def newest_f64(self, i: int) -> float | None:
+        """The `i`-th float of the newest tick record the loop wrote (drained or not)."""
+
+    def loop_lost(self) -> int:
+        """Tick records the loop lost to a full ring so far."""
 
 
 # -- what the node uses of a Zenoh query (`zenoh.Query`) ----------------------------------

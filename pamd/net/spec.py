@@ -21,6 +21,9 @@ class TelemetryRequest:
     # telemetry.listen, and the listen endpoints of a Zenoh config file); asking for it
     # turns telemetry on, a virtual-clock run's too
     listen: str | None = None
+    # `pamd run --allow-cleartext`: listening beyond loopback without TLS (plain tcp on
+    # 0.0.0.0) is refused unless this or telemetry.allow_cleartext says so; warned then
+    allow_cleartext: bool = False
 
 
 @dataclass(frozen=True)
@@ -38,3 +41,11 @@ class NetSpec:
     board_name: str = ""  # the shared status board (pamd.net.board), set at creation
     token_sha256: str = ""  # the command credential's hash ("": commands need none)
     token_file: str = ""  # where the token is, for a refusal to say
+    run_nonce: str = ""  # this run's, in every command's MAC (pamd.net.credential)
+    local_socket: str = ""  # the local channel's path (pamd.net.local; "": none)
+    listen: tuple[str, ...] = ()  # the session's listen endpoints (the local channel says them)
+    warnings: tuple[str, ...] = ()  # said at start and in every status (cleartext beyond
+    # loopback, allowed by --allow-cleartext)
+    # the loop's stall fault limit (pamd.stalls): a loop that writes no tick record this
+    # long is not running (it would latch FAULT), so its status is stale
+    stall_fault_s: float = 0.5

@@ -78,6 +78,7 @@ class ExperimentStatus(TypedDict):
 class RecordingStatus(TypedDict):
     files: list[str]
     failure: JsonObject | None  # why the recording stopped, or None
+    lost_records: int  # tick records lost to a full io ring so far (none is normal)
 
 
 class Status(TypedDict):
@@ -94,7 +95,7 @@ class Status(TypedDict):
     experiment: ExperimentStatus | None
     config_sha256: str
     config_path: str
-    clock: str  # real, virtual
+    clock: str  # real, virtual, daq
     rate_hz: float
     verbs: list[str]
     recording: RecordingStatus | None
@@ -118,6 +119,11 @@ class IoStatus(TypedDict, total=False):
     io: dict[str, int]  # its own counters
     stale: bool
     stale_reasons: list[str]
+    live_lag_s: float | None  # how far the live values are behind the loop's newest tick
+    lost_records: int  # tick records the loop lost to a full io ring so far, as it says now
+    command_nonce: str  # this run's, signed into every command (pamd.net.credential)
+    local_channel: str | None  # the local channel's socket (pamd.net.local), if it listens
+    warnings: list[str]  # what the operator must know: cleartext beyond loopback, ...
 
 
 STATUS_FIELDS: tuple[str, ...] = tuple(Status.__annotations__)

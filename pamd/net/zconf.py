@@ -110,9 +110,10 @@ def endpoints(cfg: ZenohConfig, which: str) -> list[str]:
     return [str(e) for e in eps or []]
 
 
-def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN) -> zenoh.Config:
+def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN,
+                  max_sessions: int = MAX_SESSIONS) -> zenoh.Config:
     """The daemon's session: the file as given, or a peer listening on `listen` that
-    takes at most MAX_SESSIONS client sessions at once, messages of at most
+    takes at most `max_sessions` client sessions at once, messages of at most
     MAX_MESSAGE_BYTES, and no shared-memory transport."""
     import zenoh
 
@@ -122,10 +123,66 @@ def daemon_config(file: str | None, listen: str = DEFAULT_LISTEN) -> zenoh.Confi
         cfg = zenoh.Config.from_json5(json.dumps(
             {"mode": "peer", "listen": {"endpoints": [listen]},
              "connect": {"endpoints": []},
-             "transport": {"unicast": {"max_sessions": MAX_SESSIONS},
+             "transport": {"unicast": {"max_sessions": max_sessions},
                            "link": {"rx": {"max_message_size": MAX_MESSAGE_BYTES}},
                            "shared_memory": {"enabled": False}}}))
     return secure(cfg)
+
+
+#: link protocols that encrypt (Zenoh's TLS and QUIC); the others carry commands,
+#: state and status in clear
+ENCRYPTED = ("tls", "quic")
+#: link protocols that never leave the machine
+LOCAL_ONLY = ("unixsock-stream", "unixpipe", "vsock")
+
+
+def host_of(endpoint: str) -> tuple[str, str, str]:
+    """(protocol, host, port) of `proto/host:port[#...]`."""
+    proto, _, addr = endpoint.partition("/")
+    addr = addr.split("#", 1)[0].split("?", 1)[0]
+    host, _, port = addr.rpartition(":")
+    return proto, host.strip("[]"), port
+
+
+def is_loopback_host(host: str) -> bool:
+    """Whether `host` (an address or name, IPv6 with or without brackets) is this
+    machine's loopback (127.0.0.0/8, ::1, localhost); "" (no host), 0.0.0.0 and :: are
+    every interface, a LAN address or another name another machine (pamd.net.cleartext
+    judges every link by it)."""
+    host = host.strip("[]").lower()
+    return host == "localhost" or host == "::1" or host.startswith("127.")
+
+
+def is_loopback(endpoint: str) -> bool:
+    """Whether an endpoint's host is this machine's loopback (127.0.0.0/8, ::1,
+    localhost); 0.0.0.0 and [::] are every interface, not loopback."""
+    proto, host, _ = host_of(endpoint)
+    return proto in LOCAL_ONLY or is_loopback_host(host)
+
+
+def same_endpoint(listen: str, connect: str) -> bool:
+    """Whether a client connecting to `connect` reaches a session listening on `listen`
+    (same protocol and port; the listen host this machine's, any or loopback)."""
+    lp, lh, lport = host_of(listen)
+    cp, _ch, cport = host_of(connect)
+    return lp == cp and lport == cport and (lh in ("0.0.0.0", "::", "") or is_loopback(listen))
+
+
+def cleartext_beyond_loopback(cfg: ZenohConfig, which: str = "listen") -> list[str]:
+    """The `which` ("listen" or "connect") endpoints whose far end can be another
+    machine, without TLS (plain tcp, udp, ws on 0.0.0.0, a LAN address or a host name):
+    what travels there, commands included, can be read on the way (pamd.net.cleartext)."""
+    return [e for e in endpoints(cfg, which)
+            if not is_loopback(e) and host_of(e)[0] not in ENCRYPTED]
+
+
+def endpoint_line(path: str, endpoint: str) -> int | None:
+    """The line of a Zenoh config file that names `endpoint` (None if none does)."""
+    with contextlib.suppress(OSError, UnicodeDecodeError), open(path, encoding="utf-8") as fh:
+        for i, line in enumerate(fh, 1):
+            if endpoint in line:
+                return i
+    return None
 
 
 def _connect_for(listen: str) -> str:
@@ -210,7 +267,8 @@ def _tls_why(cfg: ZenohConfig) -> str | None:
 #: rustls' certificate errors (as Zenoh's messages name them) in an operator's words
 RUSTLS_REASONS = {
     "UnsupportedCertVersion": "it is an X.509 v1 certificate; Zenoh accepts only v3 (make "
-                              "it with `-extfile`, as the README's openssl recipe does)",
+                              "it with `-extfile`, as docs/how-to/lab-network.md's openssl "
+                              "recipe does)",
     "NotValidForName": "its subjectAltName does not name the host the client connects to",
     "UnknownIssuer": "it is not signed by the CA in root_ca_certificate",
     "Expired": "it has expired",

@@ -27,6 +27,7 @@ from mcap.records import (
     Attachment,
     Channel,
     Chunk,
+    ChunkIndex,
     Footer,
     Header,
     McapRecord,
@@ -133,6 +134,53 @@ def scan(path: str) -> Scan:
     if out.header is None:
         raise RecordingError(f"{path}: not a readable MCAP file (no header record)")
     return out
+
+
+@dataclass(frozen=True)
+class ChunkData:
+    """One chunk of a finalised file, decompressed: its records back to back (opcode,
+    length, body), the message index records written after it (empty if none), and
+    the file's channels and schemas to read them by."""
+
+    data: bytes
+    message_index: bytes
+    channels: dict[int, Channel]
+    schemas: dict[int, Schema]
+
+
+def iter_chunk_data(path: str) -> Iterator[ChunkData] | None:
+    """The decompressed chunks of a finalised, chunk-indexed file in the summary's order
+    (what `iter_messages` reads, before it cuts them into messages), or None for a file
+    without that summary (unfinished, or written without chunk indexes): read it with
+    `iter_messages`. A columnar reader finds each chunk's messages itself."""
+    if not is_finalised(path):
+        return None
+    try:
+        with open(path, "rb") as fh:
+            summary = make_reader(fh).get_summary()
+    except (McapError, struct.error, ValueError) as exc:
+        raise RecordingError(f"{path}: unreadable MCAP file ({exc})") from None
+    if summary is None or not summary.chunk_indexes:
+        return None
+    return _chunk_data(path, summary.chunk_indexes, dict(summary.channels),
+                       dict(summary.schemas))
+
+
+def _chunk_data(path: str, indexes: list[ChunkIndex], channels: dict[int, Channel],
+                schemas: dict[int, Schema]) -> Iterator[ChunkData]:
+    try:
+        with open(path, "rb") as fh:
+            for index in indexes:
+                fh.seek(index.chunk_start_offset + 1 + 8)
+                stream, size = get_chunk_data_stream(Chunk.read(ReadDataStream(fh)))
+                data = stream.read(size)
+                message_index = b""
+                if index.message_index_offsets and index.message_index_length:
+                    fh.seek(index.chunk_start_offset + index.chunk_length)
+                    message_index = fh.read(index.message_index_length)
+                yield ChunkData(data, message_index, channels, schemas)
+    except (McapError, struct.error, ValueError, EOFError) as exc:
+        raise RecordingError(f"{path}: unreadable MCAP file ({exc})") from None
 
 
 def iter_messages(path: str) -> Iterator[tuple[Channel, Schema | None, Message]]:

@@ -37,8 +37,10 @@ def build_record_spec(cfg: LoadedConfig, calibration: Calibration, *, record_dir
             "python": sys.version.split()[0], "platform": platform.platform(),
             "rig_id": rig.rig_id, "run_name": run_name or rc.run_name,
             "started_at": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(wall0_ns / 1e9)),
-            "clock": "virtual" if virtual else "real", "rate_hz": _s(rig.loop.rate_hz),
+            "clock": "virtual" if virtual else rig.loop.clock, "rate_hz": _s(rig.loop.rate_hz),
             "time_base": ("virtual: run start (wall clock) + tick x period" if virtual
+                          else "wall clock of each tick's sample clock edge (on the monotonic "
+                          "clock)" if rig.loop.clock == "daq"
                           else "wall clock of each tick's scheduled time"),
             "muscles": ",".join(m.name for m in rig.muscles), "note": note,
             "config_path": os.path.abspath(cfg.path), "config_sha256": cfg.sha256,

@@ -20,9 +20,10 @@ from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import MuscleConfig
 from pamd.declare.jsonsafe import JsonObject
-from pamd.muscle_type import MUSCLE_TYPES, ForceModel, MuscleType, force_model
+from pamd.muscle_type import ForceModel, MuscleType
 from pamd.safety import safe_pressure_bar
 from pamd.safety.length_rate import LengthRate, derive_length_rate
+from pamd.safety.load_check import load_tolerance_n
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,9 +32,10 @@ class MuscleEnvelope:
     names and units)."""
 
     name: str
-    muscle_type: str  # `muscles[].type`: the ratings (`pamd.muscle_type.MUSCLE_TYPES`)
+    muscle_type: str  # `muscles[].type`
+    rating: MuscleType  # the type resolved: ratings, geometry, force map
     nominal_length_mm: float
-    force_model: ForceModel
+    force_model: ForceModel  # the type's, as `muscles[].force_model` names it
     # limits (`pamd.config.loader.MuscleLimitsResolved`)
     max_pressure_bar: float
     hard_max_pressure_bar: float
@@ -57,22 +59,29 @@ class MuscleEnvelope:
     # reference checks (`pamd.safety.datums`)
     home_tolerance: float
     tare_tolerance_n: float
+    # the declared load's check (`pamd.safety.load_check`)
+    dead_weight: bool  # `muscles[].dead_weight`: the load hangs freely, checked at rest
+    load_cell_accuracy_n: float
+    load_friction_n: float  # safety.plausibility.frozen_force_change_n
 
     @classmethod
-    def build(cls, muscle: MuscleConfig, limits: MuscleLimitsResolved, safety: SafetyConfig,
-              slew_limit_bar_per_s: float, max_length_rate_per_s: float | None,
+    def build(cls, muscle: MuscleConfig, mtype: MuscleType, limits: MuscleLimitsResolved,
+              safety: SafetyConfig, slew_limit_bar_per_s: float,
+              max_length_rate_per_s: float | None,
               rate_feedforward_s: float = 0.0) -> MuscleEnvelope:
-        """`max_length_rate_per_s` None: derived (`pamd.safety.length_rate`)."""
-        model = force_model(muscle.force_model)
+        """`mtype`: the muscle's type, resolved with its config; `max_length_rate_per_s`
+        None: derived (`pamd.safety.length_rate`)."""
+        model = mtype.force_model(muscle.force_model)
         origin = "control.position.max_rate_per_s"
         if max_length_rate_per_s is None:
-            derived = _derive(muscle, limits, safety, slew_limit_bar_per_s,
+            derived = _derive(muscle, mtype, limits, safety, slew_limit_bar_per_s,
                               rate_feedforward_s)
             max_length_rate_per_s = derived.max_rate_per_s
             origin = f"control.position.max_rate_per_s: null, {derived.explain()}"
-        return cls(name=muscle.name, muscle_type=muscle.type,
+        return cls(name=muscle.name, muscle_type=muscle.type, rating=mtype,
                    nominal_length_mm=muscle.nominal_length_mm,
-                   force_model=model,
+                   force_model=model, dead_weight=muscle.dead_weight,
+                   load_cell_accuracy_n=muscle.load_cell_accuracy_n,
                    max_length_rate_per_s=max_length_rate_per_s, length_rate_origin=origin,
                    **_settings(limits, safety, slew_limit_bar_per_s))
 
@@ -80,7 +89,8 @@ class MuscleEnvelope:
     def from_config(cls, cfg: LoadedConfig, name: str) -> MuscleEnvelope:
         """The envelope of muscle `name` of a validated config."""
         ctl = cfg.control_of(name)
-        return cls.build(cfg.muscle(name), cfg.limits[name], cfg.rig.safety,
+        return cls.build(cfg.muscle(name), cfg.muscle_type(name), cfg.limits[name],
+                         cfg.rig.safety,
                          ctl.slew_limit_bar_per_s, ctl.position.max_rate_per_s,
                          ctl.rate_feedforward_s)
 
@@ -96,12 +106,14 @@ class MuscleEnvelope:
         """What `control.position.max_rate_per_s: null` derives for muscle `name`
         (`pamd check-config` prints it)."""
         ctl, m = cfg.control_of(name), cfg.muscle(name)
-        return _derive(m, cfg.limits[name], cfg.rig.safety, ctl.slew_limit_bar_per_s,
-                       ctl.rate_feedforward_s)
+        return _derive(m, cfg.muscle_type(name), cfg.limits[name], cfg.rig.safety,
+                       ctl.slew_limit_bar_per_s, ctl.rate_feedforward_s)
 
     @property
-    def rating(self) -> MuscleType:
-        return MUSCLE_TYPES[self.muscle_type]
+    def load_tolerance_n(self) -> float:
+        """How far the force at rest may stand from the declared load's weight
+        (`pamd.safety.load_check.load_tolerance_n`)."""
+        return load_tolerance_n(self.load_cell_accuracy_n, self.load_friction_n)
 
     def contraction(self, length_mm: float) -> float:
         """(nominal - length) / nominal."""
@@ -122,25 +134,27 @@ class MuscleEnvelope:
         return -self.max_pretension + self.soft_band_contraction, self.soft_max_contraction
 
 
-def _derive(muscle: MuscleConfig, limits: MuscleLimitsResolved, safety: SafetyConfig,
-            slew_limit_bar_per_s: float, rate_feedforward_s: float) -> LengthRate:
+def _derive(muscle: MuscleConfig, mtype: MuscleType, limits: MuscleLimitsResolved,
+            safety: SafetyConfig, slew_limit_bar_per_s: float,
+            rate_feedforward_s: float) -> LengthRate:
     """The length rate limit derived for the muscle at its configured load, over its
     contraction range (`contraction_bounds`, from 0 up)."""
     return _derived(
-        muscle.force_model, muscle.load_kg, limits.max_pressure_bar,
+        mtype, muscle.force_model, muscle.load_kg, limits.max_pressure_bar,
         (-limits.max_pretension + safety.soft_band_contraction,
          limits.max_contraction - safety.soft_band_contraction),
         slew_limit_bar_per_s, rate_feedforward_s)
 
 
 @functools.lru_cache(maxsize=256)
-def _derived(model_name: str, load_kg: float, max_pressure_bar: float,
+def _derived(mtype: MuscleType, model_name: str, load_kg: float, max_pressure_bar: float,
              contraction_bounds: tuple[float, float], slew_limit_bar_per_s: float,
              rate_feedforward_s: float) -> LengthRate:
-    """`derive_length_rate` on the named force model, once per set of inputs: it is a
-    pure function of them (the model is the package's data) and costs ~10 ms of
-    bisections, paid at every config load, controller build and reload otherwise."""
-    return derive_length_rate(force_model(model_name), load_kg, max_pressure_bar,
+    """`derive_length_rate` on the type's named force model, once per set of inputs: it
+    is a pure function of them (a datasheet type is one object per process, its map the
+    package's data; a custom type is its config load's) and costs ~10 ms of bisections,
+    paid at every config load, controller build and reload otherwise."""
+    return derive_length_rate(mtype.force_model(model_name), load_kg, max_pressure_bar,
                               contraction_bounds, slew_limit_bar_per_s, rate_feedforward_s)
 
 
@@ -160,4 +174,5 @@ def _settings(limits: MuscleLimitsResolved, safety: SafetyConfig,
         estop_slew_bar_per_s=safety.estop_slew_bar_per_s, estop_action=safety.estop_action,
         stretch_margin=safety.stretch_margin,
         safe_pressure_margin_bar=safety.safe_pressure_margin_bar,
-        home_tolerance=safety.home_tolerance, tare_tolerance_n=safety.tare_tolerance_n)
+        home_tolerance=safety.home_tolerance, tare_tolerance_n=safety.tare_tolerance_n,
+        load_friction_n=safety.plausibility.frozen_force_change_n)

@@ -62,7 +62,10 @@ class Supervisor:
         return self.state in (State.FAULT, State.ESTOP)
 
     def go(self, t_s: float, new: State, reason: str) -> None:
-        if new == self.state and reason == self.reason:
+        """Enter `new` for `reason`. Staying in the same state (a stop while IDLE, a
+        setpoint while RUNNING) is no transition: only the state's reason changes."""
+        if new == self.state:
+            self.reason = reason
             return
         tr = Transition(t_s, self.state, new, reason)
         self.state, self.reason = new, reason

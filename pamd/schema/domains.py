@@ -32,6 +32,7 @@ class FieldMeta(TypedDict, total=False):
     max: float
     gt: float  # an exclusive lower bound
     ceiling: float  # the safe upper value below `max` (module doc of pamd.schema.engine)
+    why: str  # the physics of the bounds, said with a value outside them
 
 
 #: Largest magnitude of a quantity by its unit (see the module doc).

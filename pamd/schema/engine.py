@@ -2,7 +2,8 @@
 reported by file, line and key path.
 
 A schema is a frozen dataclass whose fields carry metadata: `doc` (one sentence),
-optional `unit`, `min`, `max` (inclusive) and `gt` (exclusive lower bound), always
+optional `unit`, `min`, `max` (inclusive) and `gt` (exclusive lower bound), `why` (the
+physics of the bounds, said with a value outside them), always
 within the domain of the field's unit (`pamd.schema.domains`: every number has one), and
 `ceiling`: a safe upper value below `max` that only `safety.relax_ceilings: true` lets a
 value pass (values above it are collected in `Context.over_ceiling`, never silently).
@@ -197,7 +198,8 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
         )
         if bad:
             unit = f" {meta['unit']}" if meta.get("unit") else ""
-            ctx.add(line, path, f"a value {_bounds_text(meta)}", f"{value}{unit}")
+            why = f" ({meta['why']})" if meta.get("why") else ""
+            ctx.add(line, path, f"a value {_bounds_text(meta)}{why}", f"{value}{unit}")
             return None
         if "ceiling" in meta and value > meta["ceiling"]:
             unit = f" {meta['unit']}" if meta.get("unit") else ""
@@ -269,6 +271,25 @@ def _closest(word: str, choices: list[str]) -> str | None:
 
     found = difflib.get_close_matches(word, choices, n=1, cutoff=0.6)
     return found[0] if found else None
+
+
+def line_at(root: object, path: str) -> int | None:
+    """The line of a dotted key path (`muscles[0].control.pid`) in a loaded file, or of
+    the deepest mapping or item on it that is present."""
+    node, line = root, line_of(root)
+    for part in path.split("."):
+        name, _, index = part.partition("[")
+        if not isinstance(node, dict) or name not in node:
+            break
+        line = line_of(node, name) or line
+        node = node[name]
+        if index:
+            k = int(index.rstrip("]"))
+            if not isinstance(node, list) or k >= len(node):
+                break
+            node = node[k]
+            line = line_of(node) or line
+    return line
 
 
 def line_of(node: object, key: str | None = None) -> int | None:

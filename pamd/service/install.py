@@ -33,23 +33,36 @@ FILES = (  # (source in systemd/, target below the prefix)
 CONFIG = "etc/pamd/pamd.yaml"
 STATE_DIR = "/var/lib/pamd"
 RECORDINGS = f"{STATE_DIR}/recordings"  # made by pamd.tmpfiles.conf
-#: what the unit's sandbox hides from the service, and which setting does it
+#: what the unit's sandbox hides from the service, which setting does it, and the
+#: drop-in setting that lets the service see it again (read-only where that is enough:
+#: ProtectHome=read-only shows /home; a private /tmp is only undone by PrivateTmp=no)
 HIDDEN = (
     (("/home", "/root", "/run/user"), "ProtectHome=yes hides /home, /root and /run/user "
-     "from the service"),
+     "from the service", "ProtectHome=read-only"),
     (("/tmp", "/var/tmp"), "PrivateTmp=yes gives the service a /tmp and /var/tmp of its "
-     "own (empty)"),
+     "own (empty)", "PrivateTmp=no"),
 )
+
+
+def _hidden(path: str) -> tuple[str, str] | None:
+    path = os.path.abspath(path)
+    for roots, why, relief in HIDDEN:
+        if any(path == r or path.startswith(r + "/") for r in roots):
+            return why, relief
+    return None
 
 
 def hidden_by_sandbox(path: str) -> str | None:
     """Why the service cannot see `path` (None: it can): the unit's ProtectHome= and
     PrivateTmp=."""
-    path = os.path.abspath(path)
-    for roots, why in HIDDEN:
-        if any(path == r or path.startswith(r + "/") for r in roots):
-            return why
-    return None
+    found = _hidden(path)
+    return found[0] if found else None
+
+
+def sandbox_relief(path: str) -> str | None:
+    """The drop-in setting that lets the service see `path` (None: it sees it)."""
+    found = _hidden(path)
+    return found[1] if found else None
 
 
 def executable_paths(pamd: str) -> list[str]:
@@ -147,8 +160,8 @@ def _check_executable(pamd: str, say: Callable[[str], None]) -> None:
             say(f"WARNING: the service cannot start {pamd}: {path} is hidden from it ({why}). "
                 "Install pamd where the service sees it, e.g. python3 -m venv /opt/pamd && "
                 "/opt/pamd/bin/pip install . && sudo /opt/pamd/bin/pamd install-service; "
-                "or relax it in a drop-in (systemctl edit pamd: [Service] "
-                "ProtectHome=read-only)")
+                f"or relax it in a drop-in (systemctl edit pamd: [Service] "
+                f"{sandbox_relief(path)})")
             return
 
 

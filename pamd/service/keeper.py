@@ -4,14 +4,16 @@ under systemd for months. `Daemon.service()` calls `ServiceKeeper.service()` eve
 its own, and the keeper ties them to one daemon:
 
 * notify (`pamd.service.watchdog`): `READY=1` once the loop ticks, `WATCHDOG=1`
-  while it ticks on time, `STATUS=` with the supervisor's state and reason,
-  `STOPPING=1` on shutdown, `RELOADING=1` ... `READY=1` around a reload;
+  while it ticks on time (from a thread of its own: what the main thread does never
+  delays a ping), `STATUS=` with the supervisor's state and reason, `STOPPING=1` on
+  shutdown, `RELOADING=1` ... `READY=1` around a reload;
 * persistence (`pamd.service.persistence`): the latched fault in the state directory
   (a daemon started again comes back latched, `restore()` before start), a stall the
   main thread sees saved as a fault at once, the safe outputs for `pamd safe-outputs`;
-* SIGHUP (`pamd.service.reloader`): the config read again, validated and applied
-  through the loop's mailbox; changes that reopen the devices restart the daemon in
-  place once IDLE (`pamd.service.restart`), where `pamd run` allows it;
+* SIGHUP (`pamd.service.reloader`): the config read again and validated in a child
+  process, then applied through the loop's mailbox; changes that reopen the devices
+  restart the daemon in place once the rig is at rest (`pamd.service.restart`), where
+  `pamd run` allows it;
 * the real-time scan: threads started meanwhile are raised below the loop.
 
 The keeper gets the parts it looks after through narrow ports
@@ -59,7 +61,8 @@ class ServiceKeeper:
         self.watchdog = Watchdog(loop, self.notifier, self.status_text)
         self.persistence = StateKeeper(rig, loop, config, paths, self.notifier.enabled)
         self.reloader = Reloader(rig, loop, submit, config, apply_config, self.notifier,
-                                 self.watchdog.ready_again, config_overrides)
+                                 self.watchdog.ready_again, config_overrides,
+                                 self.watchdog.handing_over)
         self._next_rt_scan = 0.0
 
     def allow_restart_in_place(self) -> None:
@@ -89,7 +92,7 @@ class ServiceKeeper:
 
     @property
     def handover(self) -> str | None:
-        """The changes a restart in place waiting for IDLE applies."""
+        """The changes a restart in place waiting for rest applies."""
         return self.reloader.handover
 
     # -- life cycle (called by the Daemon) -------------------------------------------------
@@ -108,6 +111,8 @@ class ServiceKeeper:
     def close(self) -> None:
         self.watchdog.send_stopping()
         self.persistence.service()
+        self.reloader.close()
+        self.watchdog.close()  # no more pings: the end, or a restart in place's exec
         self.notifier.close()
 
     # -- every 50 ms -----------------------------------------------------------------------
@@ -138,7 +143,7 @@ class ServiceKeeper:
         elif note is not None and note["outcome"] == "refused":
             text += f" (config reload refused: {note['reason']})"
         if self.reloader.handover is not None:
-            text += " (restart in place for a config reload waiting for IDLE)"
+            text += " (restart in place for a config reload waiting for the rig to rest)"
         return text
 
     def tick_gap_s(self) -> float:

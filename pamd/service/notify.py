@@ -21,6 +21,9 @@ from collections.abc import Mapping
 
 log = logging.getLogger("pamd")
 
+#: Set by a restart in place to the PID it executes itself as (the same PID).
+RESTARTED_ENV = "PAMD_RESTARTED_IN_PLACE"
+
 
 def socket_address(value: str) -> str | bytes:
     """The address to send to: abstract names ('@name') become b'\\0name'."""
@@ -35,9 +38,13 @@ class Notifier:
     `watchdog_s` is the watchdog timeout systemd enforces (None: no watchdog);
     pings are due every half of it (`ping_interval_s`)."""
 
-    def __init__(self, address: str | None, watchdog_s: float | None = None) -> None:
+    def __init__(self, address: str | None, watchdog_s: float | None = None,
+                 restarted: bool = False) -> None:
+        """`restarted`: this process is a daemon restarted in place (`pamd.service.
+        restart`), whose watchdog systemd keeps running through its start."""
         self.address = address
         self.watchdog_s = watchdog_s
+        self.restarted = restarted
         self._sock: socket.socket | None = None
         self._failed = False
         if address:
@@ -47,8 +54,14 @@ class Notifier:
     def from_environ(cls, environ: Mapping[str, str] | None = None) -> Notifier:
         """The notifier systemd asked for through the environment (or a disabled one).
 
-        `WATCHDOG_USEC` counts only if `WATCHDOG_PID` is unset or this process."""
+        `WATCHDOG_USEC` counts only if `WATCHDOG_PID` is unset or this process.
+        `RESTARTED_ENV` (set by a restart in place for the process it executes) says
+        this is that process; it is taken out of `os.environ`, so that nothing this
+        process starts inherits it."""
         env = os.environ if environ is None else environ
+        restarted = env.get(RESTARTED_ENV) == str(os.getpid())
+        if environ is None:
+            os.environ.pop(RESTARTED_ENV, None)
         address = env.get("NOTIFY_SOCKET") or None
         if address is not None and not (address.startswith("/") or address.startswith("@")):
             log.warning("NOTIFY_SOCKET=%r is neither a path nor an abstract name; "
@@ -59,7 +72,7 @@ class Notifier:
         pid = env.get("WATCHDOG_PID", "")
         if usec.isdigit() and int(usec) > 0 and (not pid or pid == str(os.getpid())):
             watchdog_s = int(usec) / 1e6
-        return cls(address, watchdog_s)
+        return cls(address, watchdog_s, restarted)
 
     @property
     def enabled(self) -> bool:

@@ -19,16 +19,20 @@ from pamd.timing import TickTiming
 
 class KeptRig(Protocol):
     """What the keeper uses of the rig's controller (`pamd.controller.RigController`):
-    its supervisor (the latched fault, the state), the reload's fate, the muscles' safe
-    pressures (the safe outputs kept)."""
+    its supervisor (the latched fault, the state), the reload's fate (status shows it;
+    the reloader and the loop's `reload` handler write it), the loop's time, the
+    muscles' safe pressures (the safe outputs kept), whether it is at rest and why not."""
+
+    reload_note: JsonObject | None
 
     @property
     def supervisor(self) -> Supervisor: ...
     @property
-    def reload_note(self) -> JsonObject | None: ...
+    def now(self) -> float: ...
     @property
     def muscles(self) -> Sequence[SafeMuscleView]: ...
     def at_rest(self) -> bool: ...
+    def rest_text(self) -> str: ...
 
 
 class SafeMuscleView(SafeMuscle, Protocol):

@@ -5,17 +5,22 @@ A new config that does not validate is refused and the daemon keeps running on
 the one it has, saying why. The changes of a valid one fall in three classes:
 
 * at once: control gains (`control.pid.*`, `control.rate_feedforward_s`, and a muscle's
-  own `muscles[].control.pid.*` and `rate_feedforward_s`) and
+  own `muscles[].control.pid.*` and `rate_feedforward_s`), the plants they are judged
+  against (`control.plant`, `control.position.plant`, a muscle's own: nothing in the
+  tick reads them) and
   timeouts (`safety.signal_timeout_s`, the signals' `timeout_s`,
   `safety.tracking_*`, `safety.hard_limit_hold_s`, `safety.startup_timeout_s`,
   `loop.stall_timeout_s`, `loop.stall_fault_s`);
-* only while IDLE (deferred until the rig is IDLE): limits and muscle data
+* only at rest (deferred until the rig is IDLE with nothing moving): limits and muscle data
   (`muscles[].limits.*`, `muscles[].load_kg`, `muscles[].nominal_length_mm`,
   the other `safety.*` keys, `control.slew_limit_bar_per_s`);
 * only by a restart: drivers, which muscles there are and how their signals are
   wired, the loop's rate, clock and real-time settings, recording, `rig_id`,
-  `calibration_file`, `state_dir`, and any key not named above. Changing them
-  means reopening the devices: once the rig is IDLE, `pamd run` restarts in place
+  `calibration_file`, `state_dir`, a muscle's `type` and `custom` section, and any key
+  not named above. A custom muscle's map counts by its content, not its file name
+  (`muscles[i].custom.map_sha256`): a table edited on disk under an unchanged config
+  is a changed map, as a changed `type` is. Changing them
+  means reopening the devices: once the rig is at rest, `pamd run` restarts in place
   (`pamd.service.restart`) through the start-up that reads before it writes;
   where it cannot (a virtual-clock run, a daemon used as a library) the whole
   reload is refused.
@@ -40,6 +45,8 @@ _RULE_TEXT: tuple[tuple[str, Kind], ...] = (
     (r"^control\.pid\.", "now"),
     (r"^control\.rate_feedforward_s$", "now"),
     (r"^muscles\[\d+\]\.control\.(pid\.|rate_feedforward_s$)", "now"),
+    # a plant is what the gains are judged against as the config loads: no tick reads it
+    (r"^(muscles\[\d+\]\.)?control\.(position\.)?plant(\.|$)", "now"),
     (r"^control\.slew_limit_bar_per_s$", "idle"),
     (r"^safety\.(signal_timeout_s|latency_margin_s|tracking_band_bar|tracking_time_s"
      r"|hard_limit_hold_s|startup_timeout_s)$", "now"),
@@ -82,9 +89,22 @@ def flatten(value: object, prefix: str = "") -> dict[str, object]:
     return out
 
 
+def resolved(cfg: LoadedConfig) -> dict[str, object]:
+    """Key path -> value of a config: its keys, and what it resolves to beyond its
+    text, which may change on disk while the text does not: a custom muscle's map, by
+    the digest of its rows (`muscles[i].custom.map_sha256`; a restart, as a changed
+    `type` is)."""
+    out = flatten(cfg.rig)
+    for i, m in enumerate(cfg.rig.muscles):
+        t = cfg.types.get(m.name)
+        if t is not None and t.map_sha256 is not None:
+            out[f"muscles[{i}].custom.map_sha256"] = t.map_sha256
+    return out
+
+
 def changed_paths(old: LoadedConfig, new: LoadedConfig) -> list[str]:
-    """Every key path whose value differs between the two configs."""
-    a, b = flatten(old.rig), flatten(new.rig)
+    """Every key path whose value differs between the two configs (`resolved`)."""
+    a, b = resolved(old), resolved(new)
     return sorted(k for k in a.keys() | b.keys() if a.get(k, _MISSING) != b.get(k, _MISSING))
 
 
@@ -139,6 +159,15 @@ def _muscle_settings(new: LoadedConfig, limits_cfg: LoadedConfig, i: int) -> Mus
 
 
 def describe(paths: list[str], old: LoadedConfig, new: LoadedConfig) -> str:
-    """`key old -> new, ...` for the log."""
-    a, b = flatten(old.rig), flatten(new.rig)
-    return ", ".join(f"{p} {a.get(p, '(none)')!r} -> {b.get(p, '(none)')!r}" for p in paths)
+    """`key old -> new, ...` for the log (a map's digest: its first 12 digits, and the
+    file it was read from)."""
+    a, b = resolved(old), resolved(new)
+
+    def said(cfg: LoadedConfig, values: dict[str, object], p: str) -> str:
+        v = values.get(p, "(none)")
+        if not p.endswith(".map_sha256") or not isinstance(v, str):
+            return repr(v)
+        i = int(p.split("[", 1)[1].split("]", 1)[0])
+        return f"{v[:12]} ({cfg.types[cfg.rig.muscles[i].name].map_file})"
+
+    return ", ".join(f"{p} {said(old, a, p)} -> {said(new, b, p)}" for p in paths)

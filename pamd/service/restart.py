@@ -2,7 +2,8 @@
 
 A new config that changes the drivers, which muscles there are and how their
 signals are wired, the loop's rate or clock, the recording or the rig id cannot be
-applied to a running loop. Once the rig is IDLE the loop ends at a tick boundary
+applied to a running loop. Once the rig is at rest (IDLE, no profile, a stop's ramp
+to the safe state completed) the loop ends at a tick boundary
 without ramping to the safe state (`Loop.request_handover`): the regulators keep
 the pressure they were given; the recording is finalised and the io process
 leaves Zenoh; the drivers are closed (closing writes nothing). Then the process
@@ -11,7 +12,9 @@ executes `pamd run` again with its standing options: the same PID, so systemd
 like every start: it reads every sensor before it writes, holds the measured
 pressure, in pressure mode, and runs no profile. systemd hears `RELOADING=1`
 before and `READY=1` from the new daemon once it ticks; the watchdog is widened
-for the few seconds of start-up and set back with that `READY=1`.
+for the few seconds of start-up and set back with that `READY=1`, and the old
+daemon's hand-over and the new daemon's start are pinged too (`pamd.service.watchdog`,
+bounded by `STARTUP_WATCHDOG_S`).
 
 Signals: SIGTERM, SIGINT and SIGHUP are blocked from the exec until the new daemon
 has its handlers (`unblock_signals`): one that arrives meanwhile waits for it and is
@@ -35,7 +38,8 @@ from multiprocessing import resource_tracker
 from typing import NoReturn
 
 from pamd.commands import offload
-from pamd.service.notify import Notifier
+from pamd.service.notify import RESTARTED_ENV, Notifier
+from pamd.service.watchdog import STARTUP_WATCHDOG_S
 
 log = logging.getLogger("pamd")
 
@@ -47,6 +51,7 @@ STANDING_OPTIONS: tuple[tuple[str, str, bool], ...] = (
     ("rate_hz", "--rate-hz", True),
     ("json", "--json", False),
     ("note", "--note", True),
+    ("load_kg", "--load-kg", True),
     ("state_dir", "--state-dir", True),
     ("record", "--record", True),
     ("no_record", "--no-record", False),
@@ -54,15 +59,12 @@ STANDING_OPTIONS: tuple[tuple[str, str, bool], ...] = (
     ("no_telemetry", "--no-telemetry", False),
     ("zenoh_config", "--zenoh-config", True),
     ("listen", "--listen", True),
+    ("allow_cleartext", "--allow-cleartext", False),
     ("foxglove", "--foxglove", True),
     ("model", "--model", True),
     ("stay_on_fault", "--stay-on-fault", False),
     ("end_on_fault", "--end-on-fault", False),
 )
-
-# How long systemd may wait for the first ping of the restarted daemon: start-up
-# (imports, drivers, the io process) with room for a busy machine.
-STARTUP_WATCHDOG_S = 60.0
 
 
 def run_argv(args: argparse.Namespace, remaining_s: float | None) -> list[str]:
@@ -70,7 +72,10 @@ def run_argv(args: argparse.Namespace, remaining_s: float | None) -> list[str]:
     argv = [sys.executable, "-m", "pamd", "run"]
     for dest, flag, takes_value in STANDING_OPTIONS:
         value = getattr(args, dest, None)
-        if takes_value and value not in (None, ""):
+        if dest == "load_kg" and value:  # --load-kg, parsed: [[(muscle | None, kg), ...]]
+            argv += [flag, ",".join(f"{kg!r}" if name is None else f"{name}={kg!r}"
+                                    for group in value for name, kg in group)]
+        elif takes_value and value not in (None, ""):
             argv += [flag, str(value)]
         elif (not takes_value and value) or (dest == "record" and value == ""):
             argv.append(flag)  # a switch; or --record without a directory
@@ -104,6 +109,7 @@ def restart_in_place(argv: list[str], reason: str, stop_received: bool) -> NoRet
     if notifier.watchdog_s is not None:  # widened; the new daemon's READY=1 sets it back
         notifier.send("WATCHDOG=1", f"WATCHDOG_USEC={int(STARTUP_WATCHDOG_S * 1e6)}")
     notifier.close()
+    os.environ[RESTARTED_ENV] = str(os.getpid())  # the new daemon pings through its start
     for handler in logging.getLogger().handlers + log.handlers:
         handler.flush()
     sys.stdout.flush()

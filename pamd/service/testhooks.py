@@ -4,7 +4,8 @@ environment variable is set, and says loudly when it is on.
 `PAMD_TEST_STALL_LOOP="TICKS:SECONDS"` makes the loop's thread sleep SECONDS once,
 in tick number TICKS (a hung driver call, say), so a test can see the watchdog
 pings stop while the main thread is alive. SIGSTOP cannot do it: it stops the
-whole process, the pinger with it.
+whole process, the pinger with it. `PAMD_TEST_SLOW_RELOAD="SECONDS"` makes a reload's
+read SECONDS longer.
 """
 
 from __future__ import annotations
@@ -12,11 +13,18 @@ from __future__ import annotations
 import logging
 import os
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import Any, ParamSpec, TypeVar
 
 log = logging.getLogger("pamd")
+P = ParamSpec("P")
+T = TypeVar("T")
 
 STALL_ENV = "PAMD_TEST_STALL_LOOP"
+#: `PAMD_TEST_SLOW_RELOAD="SECONDS"`: a reload's file takes SECONDS longer to read (a
+#: large config or model file on a busy PC), so a test can see that neither the pings
+#: nor the tick records wait for it.
+SLOW_RELOAD_ENV = "PAMD_TEST_SLOW_RELOAD"
 
 
 class StallOnce:
@@ -35,6 +43,13 @@ class StallOnce:
             time.sleep(self.seconds)
 
 
+def _slowed(read: Callable[P, T], seconds: float) -> Callable[P, T]:
+    def slow(*args: P.args, **kwargs: P.kwargs) -> T:
+        time.sleep(seconds)
+        return read(*args, **kwargs)
+    return slow
+
+
 # Any: the Daemon (a layer above this one), whose controller gets a stepper that is no driver
 def install(daemon: Any, environ: dict[str, str] | None = None) -> list[str]:
     """Install the hooks the environment asks for; returns their descriptions."""
@@ -46,6 +61,12 @@ def install(daemon: Any, environ: dict[str, str] | None = None) -> list[str]:
         hook = StallOnce(int(ticks), float(seconds))
         daemon.ctrl.steppers.append(hook)
         active.append(f"{STALL_ENV}: the loop stalls {hook.seconds:g} s in tick {hook.at_tick}")
+    slow = env.get(SLOW_RELOAD_ENV)
+    if slow:
+        reloader = daemon.keeper.reloader
+        reloader.read = _slowed(reloader.read, float(slow))
+        active.append(f"{SLOW_RELOAD_ENV}: a reload's file takes {float(slow):g} s longer "
+                      "to read")
     for what in active:
         log.warning("TEST HOOK ACTIVE (never on a rig): %s", what)
     return active

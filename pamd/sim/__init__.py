@@ -7,6 +7,10 @@ Three places hold simulation code, in this order of layers:
 
   - `options`: the sim driver's option dataclasses (per rig and per muscle), with
     their bounds, documentation and the scripted `faults` schedule.
+  - `specimen`: what a simulated muscle is by its type (`pamd.muscle_type`: a
+    DMSP-20's or DMSP-40's datasheet map, or a custom muscle's table), its inner
+    diameter and its hard stops; `bind_types` gives each simulated muscle the type of
+    the rig muscle reading its channels.
   - `plant`: one muscle with its hanging load: the static force map, Dahl friction
     whose level follows the braid's normal load (pressure and the muscle's pull) with
     Stribeck stiction, slow force drift, and its sensors.

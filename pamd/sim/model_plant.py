@@ -19,10 +19,10 @@ from __future__ import annotations
 import random
 from typing import Protocol
 
-from pamd.muscle_type import ForceModel
 from pamd.sim.options import SimMuscleOptions
 from pamd.sim.plant import MusclePlant
 from pamd.sim.pneumatics import SupplyLine
+from pamd.sim.specimen import Specimen
 
 
 class LengthModel(Protocol):
@@ -41,9 +41,9 @@ class ModelPlant(MusclePlant):
     """A `MusclePlant` whose length is `length_model`'s (see the module doc)."""
 
     def __init__(self, options: SimMuscleOptions, rng: random.Random,
-                 length_model: LengthModel, model: ForceModel | None = None,
+                 length_model: LengthModel, muscle: Specimen | None = None,
                  supply: SupplyLine | None = None) -> None:
-        super().__init__(options, rng, model, supply)
+        super().__init__(options, rng, muscle, supply)
         self.length_model = length_model
         self._period_s = length_model.sample_period_s
         self._since_s = 0.0

@@ -32,8 +32,8 @@ def option(
 
 @dataclass(frozen=True)
 class SimMechanics:
-    """The muscle (a DMSP-20 by default), its hanging load, its friction and its hard
-    stops."""
+    """The muscle (its type: a DMSP-20 by default, or the rig muscle's it stands for),
+    its hanging load, its friction and its hard stops."""
 
     name: str = option(
         "m1",
@@ -50,9 +50,32 @@ class SimMechanics:
         0.0,
         500.0,
     )
+    type: str | None = option(
+        None,
+        "The muscle simulated: dmsp20 or dmsp40 (Festo's datasheet map is the plant's "
+        "static force), or custom (its measured map, map_file). null: the type of the "
+        "rig's muscle whose signals are this muscle's channels (`muscles[].type`, a custom "
+        "one with its map, diameter and stops), dmsp20 where no rig muscle is; give a type "
+        "to keep the simulated muscle what it is while the rig's config changes (e.g. "
+        "after `pamd commission --measure-map --save`).",
+    )
+    map_file: str | None = option(
+        None,
+        "type custom: the force map table (CSV or MAT, read as muscles[].custom.map_file), "
+        "relative to the config file.",
+    )
+    inner_diameter_mm: float | None = option(
+        None,
+        "type custom: the inner diameter, for the air volume of 'flow' pneumatics (the "
+        "DMSP-20-200's volume table scaled by the diameter squared and the length); null: "
+        "the type's.",
+        "mm",
+        1.0,
+        1000.0,
+    )
     force_model: Literal["map", "fit"] = option(
         "map",
-        "Static force model: 'map' interpolates the datasheet map, 'fit' is the "
+        "Static force model: 'map' interpolates the type's map, 'fit' is the DMSP-20's "
         "smooth closed-form fit.",
     )
     force_scale: float = option(
@@ -100,22 +123,24 @@ class SimMechanics:
         0.01,
         100.0,
     )
-    stop_stretch_contraction: float = option(
-        -0.05,
+    stop_stretch_contraction: float | None = option(
+        None,
         "Hard stop that catches the load when the "
         "muscle is stretched this far (contraction "
-        "fraction, negative = longer than nominal).",
+        "fraction, negative = longer than nominal); null: 1 % past the type's rated "
+        "pretension (-0.05 on a DMSP-20, -0.06 on a DMSP-40).",
         "",
-        -0.2,
-        0.4,
+        -0.3,
+        0.6,
     )
-    stop_contraction: float = option(
-        0.25,
+    stop_contraction: float | None = option(
+        None,
         "Hard stop that limits shortening (contraction "
-        "fraction); equal stops clamp the muscle isometric.",
+        "fraction); equal stops clamp the muscle isometric; null: the type's rated "
+        "contraction (0.25 on a DMSP-20 or -40).",
         "",
-        -0.2,
-        0.4,
+        -0.3,
+        0.6,
     )
     stiction_ratio: float = option(
         1.0,

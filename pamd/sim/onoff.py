@@ -85,10 +85,11 @@ class OnOffValves(FedChamber):
 
     @classmethod
     def from_options(cls, o: SimMuscleOptions, supply: Supply, contraction: float,
-                     initial_bar: float) -> OnOffValves:
+                     initial_bar: float, inner_diameter_mm: float = 20.0) -> OnOffValves:
         return cls(
             supply=supply,
-            volume=MuscleVolume.of_muscle(o.nominal_length_mm, o.dead_volume_cm3),
+            volume=MuscleVolume.of_muscle(o.nominal_length_mm, o.dead_volume_cm3,
+                                          inner_diameter_mm),
             contraction=contraction,
             inflate_flow_l_min=o.onoff_inflate_flow_l_min,
             exhaust_flow_l_min=o.onoff_exhaust_flow_l_min,

@@ -11,6 +11,8 @@ This module deliberately does not use `from __future__ import annotations`, so
 
 from dataclasses import dataclass
 
+from pamd.muscle_type import DEFAULT_TYPE, TYPE_NAMES, datasheet_type
+from pamd.muscle_type.custom import NAME as CUSTOM
 from pamd.schema.engine import spec
 from pamd.sim.faults import SimFault, check_faults
 from pamd.sim.muscle_options import SimMechanics, SimPneumatics, SimSensors, option
@@ -18,8 +20,9 @@ from pamd.sim.muscle_options import SimMechanics, SimPneumatics, SimSensors, opt
 
 @dataclass(frozen=True)
 class SimMuscleOptions(SimSensors, SimPneumatics, SimMechanics):
-    """One simulated DMSP-20 with its hanging load, pressure regulator and sensors: its
-    mechanics, pneumatics and sensors (`pamd.sim.muscle_options`), one flat block."""
+    """One simulated muscle (a DMSP-20 unless its `type` says otherwise) with its hanging
+    load, pressure regulator and sensors: its mechanics, pneumatics and sensors
+    (`pamd.sim.muscle_options`), one flat block."""
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,39 @@ class SimOptions:
     )
 
 
+def stops(m: SimMuscleOptions) -> tuple[float | None, float | None]:
+    """The hard stops (stretch, contraction): the options', else the datasheet type's
+    (None for a custom muscle that gives none: a problem `check_options` names)."""
+    lo, hi = m.stop_stretch_contraction, m.stop_contraction
+    name = m.type or DEFAULT_TYPE
+    if (lo is None or hi is None) and name in TYPE_NAMES and name != CUSTOM:
+        t_lo, t_hi = datasheet_type(name).stops()
+        lo = t_lo if lo is None else lo
+        hi = t_hi if hi is None else hi
+    return lo, hi
+
+
+def _type_problems(m: SimMuscleOptions, where: str) -> list[str]:
+    """A type pamd knows; a custom muscle's map, diameter and stops given (nothing about
+    it is assumed), and only a custom muscle's."""
+    name = m.type or DEFAULT_TYPE
+    if name not in TYPE_NAMES:
+        return [f"{where}: type {name!r} is not one of {', '.join(TYPE_NAMES)}"]
+    if name != CUSTOM:
+        given = [k for k in ("map_file", "inner_diameter_mm") if getattr(m, k) is not None]
+        if m.force_model == "fit" and datasheet_type(name).force_fit is None:
+            given.append("force_model: fit (the type has no fit)")
+        return [f"{where}: {', '.join(given)} belong to a custom muscle (a {name}'s figures "
+                "are its datasheet's)"] if given else []
+    missing = [k for k in ("map_file", "inner_diameter_mm", "stop_stretch_contraction",
+                           "stop_contraction") if getattr(m, k) is None]
+    out = [f"{where}: a custom muscle needs {', '.join(missing)} (or no type: the bound rig "
+           "muscle's)"] if missing else []
+    if m.force_model != "map":
+        out.append(f"{where}: a custom muscle's force model is its map (force_model: map)")
+    return out
+
+
 def check_options(options: SimOptions) -> list[str]:
     """Problems the per-field bounds cannot catch, as sentences (empty if none)."""
     problems: list[str] = []
@@ -111,10 +147,12 @@ def check_options(options: SimOptions) -> list[str]:
                 problems.append(f"{where}: {what}_burst_s ({burst} s) must be shorter than "
                                 f"burst_every_s ({m.burst_every_s} s): a link that never "
                                 "delivers is a silent sensor (a fault kind), not a burst")
-        if m.stop_stretch_contraction > m.stop_contraction:
+        problems += _type_problems(m, where)
+        stop_lo, stop_hi = stops(m)
+        if stop_lo is not None and stop_hi is not None and stop_lo > stop_hi:
             problems.append(
-                f"{where}: stop_stretch_contraction ({m.stop_stretch_contraction}) "
-                f"must not exceed stop_contraction ({m.stop_contraction})"
+                f"{where}: stop_stretch_contraction ({stop_lo}) "
+                f"must not exceed stop_contraction ({stop_hi})"
             )
     problems += check_faults(options.faults, [m.name for m in options.muscles])
     return problems

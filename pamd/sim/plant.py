@@ -6,7 +6,8 @@ x = 1 - L / L0): the load hangs from the muscle, so
     m dv/dt = W - T,   T = s F(p, x) + Ff + c v
 
 with m the load plus a small moving mass, W the load's weight, F the static force
-model (`pamd.muscle_type.force_model`) times the force scale `s`, c a viscous damper
+model of the muscle's type (`pamd.sim.specimen`: a DMSP-20's or DMSP-40's datasheet
+map, or a custom muscle's measured one) times the force scale `s`, c a viscous damper
 (larger while contracting) and Ff a Dahl friction state in the same coordinate,
 
     dFf = (Fc sign(dL) - Ff) |dL| / delta,   Fc = mu_p p + mu_T max(s F(p, x), 0).
@@ -50,12 +51,13 @@ import math
 import random
 from collections.abc import Callable
 
-from pamd.muscle_type import GRAVITY_M_S2, ForceModel, equilibrium_contraction, force_model
+from pamd.muscle_type import GRAVITY_M_S2, ForceModel, equilibrium_contraction
 from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions
 from pamd.sim.pneumatics import StiffSupply, SupplyLine
 from pamd.sim.regulator import Regulator
 from pamd.sim.sensors import SampledSensor
+from pamd.sim.specimen import Specimen, specimen
 from pamd.sim.vppm import FlowRegulator
 
 MAX_STEP_S = 0.002
@@ -87,13 +89,15 @@ class MusclePlant:
         self,
         options: SimMuscleOptions,
         rng: random.Random,
-        model: ForceModel | None = None,
+        muscle: Specimen | None = None,
         supply: SupplyLine | None = None,
     ) -> None:
+        """`muscle`: what it simulates (default: its options' datasheet type)."""
         o = options
         self.options = o
         self.name = o.name
-        self.model: ForceModel = model if model is not None else force_model(o.force_model)
+        self.muscle = muscle if muscle is not None else specimen(o)
+        self.model: ForceModel = self.muscle.model
         self._force_fn = self.model.force_n
         self.force_scale = o.force_scale
         self._force_scale_0 = o.force_scale
@@ -105,8 +109,10 @@ class MusclePlant:
         self.nominal_length_m = o.nominal_length_mm * 1e-3
         self._inv_l0 = 1.0 / self.nominal_length_m
         self._probe_m = _PROBE_CONTRACTION * self.nominal_length_m
-        self._length_max_m = self.nominal_length_m * (1.0 - o.stop_stretch_contraction)
-        self._length_min_m = self.nominal_length_m * (1.0 - o.stop_contraction)
+        self.stop_stretch_contraction = self.muscle.stop_stretch_contraction
+        self.stop_contraction = self.muscle.stop_contraction
+        self._length_max_m = self.nominal_length_m * (1.0 - self.stop_stretch_contraction)
+        self._length_min_m = self.nominal_length_m * (1.0 - self.stop_contraction)
         self.moving_mass_kg = o.moving_mass_kg
         self.load_kg = 0.0
         self._mass_kg = 0.0
@@ -126,14 +132,14 @@ class MusclePlant:
         x0 = equilibrium_contraction(
             _ScaledModel(self.model, self.force_scale), p0, self.load_kg, -0.5, 0.9
         )
-        x0 = min(max(x0, o.stop_stretch_contraction), o.stop_contraction)
+        x0 = min(max(x0, self.stop_stretch_contraction), self.stop_contraction)
         # A 'flow' muscle without a shared supply line has a stiff one of its own;
         # a shared one is stepped by its owner (the driver).
         self.regulator: Regulator | FlowRegulator | OnOffValves
         if o.pneumatics == "flow" or o.actuation == "onoff":
             own = StiffSupply(source_bar=o.supply_bar) if supply is None else supply
             self.regulator = (OnOffValves if o.actuation == "onoff" else FlowRegulator
-                              ).from_options(o, own, x0, p0)
+                              ).from_options(o, own, x0, p0, self.muscle.inner_diameter_mm)
         else:
             self.regulator = Regulator(
                 supply_bar=o.supply_bar,

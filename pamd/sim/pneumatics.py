@@ -119,9 +119,15 @@ class MuscleVolume:
                                                                 strict=False))
 
     @classmethod
-    def of_muscle(cls, nominal_length_mm: float, dead_volume_cm3: float) -> MuscleVolume:
-        """A DMSP-20 of this nominal length (the table scaled from 200 mm) plus hose."""
-        return cls(length_scale=nominal_length_mm / 200.0, dead_volume_cm3=dead_volume_cm3)
+    def of_muscle(cls, nominal_length_mm: float, dead_volume_cm3: float,
+                  inner_diameter_mm: float = 20.0) -> MuscleVolume:
+        """A muscle of this nominal length and inner diameter plus hose: the DMSP-20-200's
+        table scaled by the length (from 200 mm) and the diameter squared (from 20 mm).
+        The table's 62.8 cm^3 at 0 % is the 20 mm x 200 mm cylinder; a braid of the same
+        angle on another diameter keeps its shape, so its volume scales with the
+        diameter squared [derived; the braid angle of other sizes is not published]."""
+        scale = nominal_length_mm / 200.0 * (inner_diameter_mm / 20.0) ** 2
+        return cls(length_scale=scale, dead_volume_cm3=dead_volume_cm3)
 
     def volume_m3(self, contraction: float) -> float:
         xs = self._x

@@ -87,11 +87,12 @@ class FlowRegulator(FedChamber):
 
     @classmethod
     def from_options(cls, o: SimMuscleOptions, supply: Supply, contraction: float,
-                     initial_bar: float) -> FlowRegulator:
+                     initial_bar: float, inner_diameter_mm: float = 20.0) -> FlowRegulator:
         """The regulator of a simulated muscle with 'flow' pneumatics (its options)."""
         return cls(
             supply=supply,
-            volume=MuscleVolume.of_muscle(o.nominal_length_mm, o.dead_volume_cm3),
+            volume=MuscleVolume.of_muscle(o.nominal_length_mm, o.dead_volume_cm3,
+                                          inner_diameter_mm),
             contraction=contraction,
             max_bar=o.regulator_max_bar,
             dead_time_s=o.regulator_dead_time_s,

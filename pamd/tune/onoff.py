@@ -63,6 +63,7 @@ import numpy as np
 from pamd.commands.tune import Valve
 from pamd.tick import Flag
 from pamd.tune.run import TuneRefused
+from pamd.tune.yamledit import change_row
 
 LEVEL_BAR = 3.0
 SETTLE_S = 2.0  # the PWM holding the level before the first pulse
@@ -388,7 +389,5 @@ def print_settings(muscle: str, present: dict[str, float], new: dict[str, float]
     """The derived settings beside the present ones, by config key."""
     print(f"Settings (muscles[{muscle}].onoff):")
     print(f"  {'key':28s} {'present':>10s} {'new':>10s} {'change':>8s}")
-    for key, value in new.items():
-        old = present[key]
-        change = f"{100 * (value - old) / old:+.0f} %" if old else "new"
-        print(f"  {key:28s} {old:10.4g} {value:10.4g} {change:>8s}")
+    for key, value in new.items():  # as --save writes them
+        print(change_row(key, 28, present[key], value))

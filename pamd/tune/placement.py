@@ -61,6 +61,8 @@ def _spread(by_muscle: dict[str, Present]) -> str:
         return ""
     first = next(iter(by_muscle.values()))
     for key in first.gains:
+        if "plant" in key:  # the gains decide; each muscle's plant goes with its gains
+            continue
         values = [p.gains[key] for p in by_muscle.values()]
         mean = sum(values) / len(values)
         if mean and max(abs(v - mean) for v in values) / abs(mean) > PER_MUSCLE_SPREAD:

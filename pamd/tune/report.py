@@ -10,46 +10,68 @@ import numpy as np
 
 from pamd.atomic import save_figure
 from pamd.config import LoadedConfig
+from pamd.config.gains import position_plant, pressure_plant
 from pamd.control.tuning import Fopdt
 from pamd.errors import PamdError
 from pamd.tune.run import LoopPlan
 from pamd.tune.steps import Step, position_gains, pressure_gains
-from pamd.tune.yamledit import KeyPath
+from pamd.tune.yamledit import KeyPath, change_row
+
+#: The plant keys of each loop, in the order of the FOPDT model's gain, lag, dead time.
+PLANT_KEYS: dict[str, tuple[KeyPath, KeyPath, KeyPath]] = {
+    "pressure": (("control", "plant", "gain_bar_per_bar"), ("control", "plant", "lag_s"),
+                 ("control", "plant", "dead_time_s")),
+    "position": (("control", "position", "plant", "gain_mm_per_bar"),
+                 ("control", "position", "plant", "lag_s"),
+                 ("control", "position", "plant", "dead_time_s")),
+}
 
 
 @dataclass(frozen=True)
 class Present:
-    """A loop's gains by their config keys (present or new)."""
+    """A loop's gains by their config keys (present or new), and the plant they were
+    derived from (`control.plant`, `control.position.plant`: what the config judges
+    gains against, `pamd.config.gains`)."""
 
     loop: str
     gains: dict[KeyPath, float]
 
     @staticmethod
     def from_model(loop: str, model: Fopdt) -> Present:
+        plant = dict(zip(PLANT_KEYS[loop], (model.gain, model.tau_s, model.dead_time_s),
+                         strict=True))
         if loop == "pressure":
             g = pressure_gains(model)
             return Present(loop, {("control", "pid", "kp"): g.kp,
                                   ("control", "pid", "ki_per_s"): g.ki_per_s,
-                                  ("control", "rate_feedforward_s"): g.rate_feedforward_s})
+                                  ("control", "rate_feedforward_s"): g.rate_feedforward_s,
+                                  **plant})
         x = position_gains(model)
         return Present(loop, {("control", "position", "pid", "kp_bar_per_mm"): x.kp_bar_per_mm,
                               ("control", "position", "pid", "ki_bar_per_mm_s"):
-                              x.ki_bar_per_mm_s})
+                              x.ki_bar_per_mm_s, **plant})
 
     def key_values(self) -> dict[KeyPath, float]:
         return dict(self.gains)
 
 
 def present_gains(cfg: LoadedConfig, loop: str, muscle: str | None = None) -> Present:
-    """The gains in force: the rig's, or those muscle `muscle` runs on (its own)."""
+    """The gains in force: the rig's, or those muscle `muscle` runs on (its own), and
+    the plant they are judged against (stated, or the default)."""
     c = cfg.rig.control if muscle is None else cfg.control_of(muscle)
     if loop == "pressure":
+        pp = pressure_plant(c)
         return Present(loop, {("control", "pid", "kp"): c.pid.kp,
                               ("control", "pid", "ki_per_s"): c.pid.ki_per_s,
-                              ("control", "rate_feedforward_s"): c.rate_feedforward_s})
+                              ("control", "rate_feedforward_s"): c.rate_feedforward_s,
+                              **dict(zip(PLANT_KEYS[loop], (pp.gain, pp.lag_s, pp.dead_time_s),
+                                         strict=True))})
     p = c.position.pid
+    xp = position_plant(c)
     return Present(loop, {("control", "position", "pid", "kp_bar_per_mm"): p.kp_bar_per_mm,
-                          ("control", "position", "pid", "ki_bar_per_mm_s"): p.ki_bar_per_mm_s})
+                          ("control", "position", "pid", "ki_bar_per_mm_s"): p.ki_bar_per_mm_s,
+                          **dict(zip(PLANT_KEYS[loop], (-xp.gain, xp.lag_s, xp.dead_time_s),
+                                     strict=True))})
 
 
 def print_fits(title: str, unit: str, fits: list[tuple[Step, Fopdt]], model: Fopdt) -> None:
@@ -109,12 +131,11 @@ def print_comparison(lp: LoopPlan, model: Fopdt, present: Present, new: Present,
 def print_gains(loop: str, present: Present, new: Present) -> None:
     """The new gains beside the present ones, by config key."""
     print("Gains (SIMC PI, tau_c = dead time"
-          + ("; rate feedforward = dead time + lag):" if loop == "pressure" else "):"))
+          + ("; rate feedforward = dead time + lag" if loop == "pressure" else "")
+          + ") and the plant they are judged against:")
     print(f"  {'key':36s} {'present':>10s} {'new':>10s} {'change':>8s}")
-    for key, value in new.gains.items():
-        old = present.gains.get(key, 0.0)
-        change = f"{100 * (value - old) / old:+.0f} %" if old else "new"
-        print(f"  {'.'.join(key):36s} {old:10.4g} {value:10.4g} {change:>8s}")
+    for key, value in new.gains.items():  # as --save writes them
+        print(change_row(".".join(key), 36, present.gains.get(key, 0.0), value))
 
 
 def pyplot() -> ModuleType:

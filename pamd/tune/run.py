@@ -34,7 +34,6 @@ from pamd.experiment.plan import Plan, load_plan
 from pamd.experiment.sequencer import started_plan
 from pamd.experiment.timeline import StepLine, timeline
 from pamd.io.session import RecordingRequest
-from pamd.muscle_type import force_model
 from pamd.safety import safe_pressure_bar
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.tune.steps import Step, steps_in
@@ -161,9 +160,9 @@ def check_limits(cfg: LoadedConfig, muscle: str, lp: LoopPlan) -> None:
     lim = cfg.limits[muscle]
     mcfg = cfg.muscle(muscle)
     saf = cfg.rig.safety
-    safe = safe_pressure_bar(force_model(mcfg.force_model), mcfg.load_kg, lim.max_pretension,
-                             saf.stretch_margin, saf.safe_pressure_margin_bar,
-                             lim.max_pressure_bar)
+    model = cfg.muscle_type(muscle).force_model(mcfg.force_model)
+    safe = safe_pressure_bar(model, mcfg.load_kg, lim.max_pretension, saf.stretch_margin,
+                             saf.safe_pressure_margin_bar, lim.max_pressure_bar)
     for level in lp.levels_bar:
         if level < safe:
             raise TuneRefused(f"{muscle}: level {level:g} bar is below the safe pressure "

@@ -1,14 +1,16 @@
-"""Write new values (gains, thresholds) into a config file in place, after showing the
-diff, keeping its comments and layout (`pamd.tune.yamledit`); the edited text must still
-load as a valid config. Where the file cannot be edited safely, the values go to an
-overrides file beside it (CONFIG.tuned.yaml) and it says so. `pamd tune --save` and
-`pamd commission --save` both write this way."""
+"""Write new values (gains, thresholds, a muscle's type) into a config file in place,
+after showing the diff, keeping its comments and layout (`pamd.tune.yamledit`); the
+edited text must still load as a valid config. Where the file cannot be edited safely,
+the values go to an overrides file beside it (CONFIG.tuned.yaml) and it says so. Files
+the new values name (a measured map) are written beside the config first, the same
+way. `pamd tune --save` and `pamd commission --save` both write this way."""
 
 from __future__ import annotations
 
 import difflib
 import os
 import sys
+from collections.abc import Mapping
 
 import yaml
 
@@ -16,13 +18,19 @@ from pamd.atomic import write_atomic
 from pamd.config.loader import load_config_text
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ConfigError
-from pamd.tune.yamledit import KeyPath, YamlEditError, format_value, set_values
+from pamd.tune.yamledit import KeyPath, Value, YamlEditError, parsed_value, set_values
 
 
-def save_values(config_path: str, values: dict[KeyPath, float], what: str = "gains",
-                tool: str = "pamd tune", label: str = "tuned") -> int:
+def save_values(config_path: str, values: Mapping[KeyPath, Value], what: str = "gains",
+                tool: str = "pamd tune", label: str = "tuned",
+                files: dict[str, str] | None = None) -> int:
     """Write `values` into the config file (or the overrides file); 0. `what` the
-    values say in messages, `tool` who wrote them, `label` the diff's new side."""
+    values say in messages, `tool` who wrote them, `label` the diff's new side; `files`
+    (path -> text) are written first: what the values name (the edited config must
+    load with them)."""
+    for path, content in (files or {}).items():
+        write_atomic(path, content)  # whole or not at all: FileWriteError names it
+        print(f"wrote {path}")
     with open(config_path, encoding="utf-8") as fh:
         text = fh.read()
     try:
@@ -46,7 +54,7 @@ def check_loads(text: str, path: str) -> None:
         raise YamlEditError(f"the edited config would not load: {exc}") from None
 
 
-def write_overrides(config_path: str, values: dict[KeyPath, float], why: str,
+def write_overrides(config_path: str, values: Mapping[KeyPath, Value], why: str,
                     what: str = "gains", tool: str = "pamd tune") -> int:
     root, _ = os.path.splitext(config_path)
     path = root + ".tuned.yaml"
@@ -63,7 +71,7 @@ def write_overrides(config_path: str, values: dict[KeyPath, float], why: str,
             node, keys = items[name], key_path[2:]
         for key in keys[:-1]:
             node = node.setdefault(key, {})
-        node[keys[-1]] = float(format_value(value))
+        node[keys[-1]] = parsed_value(value)
     write_atomic(path, f"# {tool}: {what} for {os.path.basename(config_path)}, which could "
                  f"not be edited in place\n# ({why}). Merge these keys into it.\n"
                  + yaml.safe_dump(nested, sort_keys=False))

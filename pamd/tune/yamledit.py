@@ -1,5 +1,6 @@
-"""Write numbers into a YAML config file's text in place, keeping its comments and
-layout: `set_values(text, {("control", "pid", "kp"): 0.5, ...})`.
+"""Write numbers (and words: a type's name, a file name) into a YAML config file's text
+in place, keeping its comments and layout: `set_values(text, {("control", "pid", "kp"):
+0.5, ...})`.
 
 A path element `[NAME]` selects the item of a list whose `name` is NAME (a muscle:
 `("muscles", "[m1]", "control", "pid", "kp")`).
@@ -12,26 +13,52 @@ exactly the new values and everything else unchanged; where that cannot be done,
 
 from __future__ import annotations
 
+import json
+import re
+from collections.abc import Mapping
+
 import yaml
 
 from pamd.declare.jsonsafe import JsonValue
 from pamd.errors import PamdError
 
 KeyPath = tuple[str, ...]
+#: what a key may be set to: a number, or a word (a muscle's type, a file's name)
+Value = float | str
+#: a word written plain (unquoted) where YAML reads it back as the same string
+_PLAIN = re.compile(r"[A-Za-z_][A-Za-z0-9_./-]*")
 
 
 class YamlEditError(PamdError):
     """The file's text cannot be edited in place safely."""
 
 
-def format_value(value: float) -> str:
-    """Three significant digits, never in exponent form (YAML 1.1 reads `1e+03` as a
-    string)."""
+def format_value(value: Value) -> str:
+    """A number: three significant digits, never in exponent form (YAML 1.1 reads
+    `1e+03` as a string). A word: plain where YAML reads it back as that word, else
+    double-quoted (JSON's quoting is YAML's)."""
+    if isinstance(value, str):
+        plain = _PLAIN.fullmatch(value) is not None and yaml.safe_load(value) == value
+        return value if plain else json.dumps(value)
     text = f"{value:.3g}"
     return f"{float(text):f}".rstrip("0") if "e" in text else text
 
 
-def set_values(text: str, values: dict[KeyPath, float]) -> str:
+def parsed_value(value: Value) -> JsonValue:
+    """What YAML reads back for `value` as `format_value` writes it."""
+    loaded: JsonValue = yaml.safe_load(format_value(value))
+    return loaded if isinstance(value, str) else float(loaded)
+
+
+def change_row(key: str, width: int, old: float, value: float) -> str:
+    """One row of a "present / new / change" table: the new value as it is saved
+    (`format_value`), its change from the present one counted on that."""
+    saved = format_value(value)
+    change = f"{100 * (float(saved) - old) / old:+.0f} %" if old else "new"
+    return f"  {key:{width}s} {old:10.4g} {saved:>10s} {change:>8s}"
+
+
+def set_values(text: str, values: Mapping[KeyPath, Value]) -> str:
     """`text` with each key path set to its value (see the module's doc)."""
     out = text
     for path, value in values.items():
@@ -82,7 +109,7 @@ def _set_one(text: str, path: KeyPath, value: str) -> str:
         _, child = found
         if depth == len(path) - 1:
             if not isinstance(child, yaml.ScalarNode) or child.style not in (None, ""):
-                raise YamlEditError(f"{'.'.join(path)} is not a plain number in the file")
+                raise YamlEditError(f"{'.'.join(path)} is not a plain number or word in the file")
             a, b = child.start_mark.index, child.end_mark.index
             return text[:a] + value + text[b:]
         name = _item_name(path[depth + 1])
@@ -151,7 +178,7 @@ def _block(keys: KeyPath, value: str, indent: int) -> str:
     return f"{pad}{keys[0]}:\n" + _block(keys[1:], value, indent + 2)
 
 
-def _verify(before: str, after: str, values: dict[KeyPath, float]) -> None:
+def _verify(before: str, after: str, values: Mapping[KeyPath, Value]) -> None:
     """The edited text must parse to the original data with exactly the new values."""
     try:
         want = yaml.safe_load(before) or {}
@@ -171,6 +198,6 @@ def _verify(before: str, after: str, values: dict[KeyPath, float]) -> None:
                 raise YamlEditError(f"{'.'.join(path)}: not a section")
         if not isinstance(node, dict):
             raise YamlEditError(f"{'.'.join(path)}: not a section")
-        node[path[-1]] = float(format_value(value))
+        node[path[-1]] = parsed_value(value)
     if got != want:
         raise YamlEditError("the edit would change more than the tuned keys")

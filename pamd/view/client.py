@@ -15,6 +15,7 @@ with `check=False`, is returned).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Iterator
@@ -27,6 +28,7 @@ from pamd.errors import CommandRefused
 from pamd.net.client.client import Client
 from pamd.net.keys import Keys
 from pamd.net.telemetry import decode
+from pamd.net.zconf import NoDaemon
 
 STREAM_POLL_S = 0.005
 
@@ -101,7 +103,8 @@ class RigClient:
     def stream(self, muscle: str | None = None, duration_s: float | None = None,
                max_batches: int | None = None) -> Iterator[StateBatch]:
         """State batches as they arrive (every muscle, or `muscle`), until `duration_s`
-        has passed or `max_batches` came; the subscription ends with the iterator."""
+        has passed or `max_batches` came; the subscription ends with the iterator.
+        NoDaemon if the daemon goes away meanwhile."""
         key = self.keys.state(muscle) if muscle else self.keys.state_all
         sub = self._client.subscribe(key)
         end = None if duration_s is None else time.monotonic() + duration_s
@@ -111,12 +114,16 @@ class RigClient:
                                                                 or n < max_batches):
                 sample = sub.try_recv()
                 if sample is None:
+                    if self._client.lost:  # its session closed with the daemon
+                        raise NoDaemon(f"rig {self.rig}: the daemon went away while "
+                                       "streaming")
                     time.sleep(STREAM_POLL_S)
                     continue
                 n += 1
                 yield to_batch(decode(sample.payload.to_bytes()))
         finally:
-            sub.undeclare()
+            with contextlib.suppress(Exception):  # a session closed with its daemon
+                sub.undeclare()
 
     def record(self, duration_s: float, muscle: str | None = None
                ) -> dict[str, dict[str, np.ndarray]]:

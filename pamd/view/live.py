@@ -90,7 +90,7 @@ class LiveView:
         try:
             self.server = foxglove.start_server(
                 name=f"pamd {sp.rig_id}", host=sp.host, port=sp.port, context=ctx,
-                message_backlog_size=BACKLOG)
+                message_backlog_size=BACKLOG, tls_cert=sp.tls_cert, tls_key=sp.tls_key)
         except Exception as exc:  # FoxgloveError: address in use, cannot bind
             text = str(exc).removeprefix("FoxgloveError: ")
             hint = (" (another pamd or Foxglove bridge is serving there? choose another "

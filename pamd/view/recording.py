@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -27,7 +27,7 @@ import numpy as np
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import RecordingError
 from pamd.record import files as io_files
-from pamd.record.tables import read_tables
+from pamd.record.tables import read_columns
 from pamd.view import fields
 
 
@@ -86,11 +86,11 @@ class MuscleData:
 
     def states(self) -> np.ndarray:
         """The supervisor state of each tick as a name (IDLE, RUNNING, FAULT, ...)."""
-        return np.array([fields.state_name(x) for x in self.columns["state"]], dtype=object)
+        return _names(self.columns["state"], fields.state_name)
 
     def modes(self) -> np.ndarray:
         """The control mode of each tick as a name (pressure, length_force, position)."""
-        return np.array([fields.mode_name(x) for x in self.columns["mode"]], dtype=object)
+        return _names(self.columns["mode"], fields.mode_name)
 
     def frame(self) -> Any:  # Any: a pandas DataFrame (pandas: an optional extra, untyped)
         """A pandas DataFrame: one row per tick, states and modes as names (categories),
@@ -104,6 +104,14 @@ class MuscleData:
         df.attrs["units"] = {n: fields.unit_of(n) for n in self.columns}
         df.attrs["muscle"] = self.muscle
         return df
+
+
+def _names(codes: np.ndarray, name: Callable[[float], str]) -> np.ndarray:
+    """Each code's name (an object array): each distinct code named once."""
+    values, inverse = np.unique(np.asarray(codes, dtype=np.float64), return_inverse=True)
+    table = np.array([name(float(v)) for v in values] or [""], dtype=object)
+    out: np.ndarray = table[inverse.reshape(-1)]
+    return out
 
 
 class Recording:
@@ -260,26 +268,26 @@ def open_recording(source: str | os.PathLike[str] | Sequence[str | os.PathLike[s
 
 def _read_file(path: str, only: str | None
                ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, np.ndarray]], list[Event]]:
-    t = read_tables(path, only)
+    t = read_columns(path, only)
     events = [Event(t_s=e.t_s, tick=e.tick, kind=e.kind, data=e.data, log_ns=e.log_ns,
                     file=path) for e in t.events]
-    if not t.loop_names and not t.muscles:
+    if not t.loop and not t.muscles:
         raise RecordingError(f"{path}: no pamd state or loop topic in this file (is it a "
                              "pamd recording?)")
-    loop = _columns(t.loop_names, t.loop_rows)
-    by_muscle = {m: _columns(names, rows) for m, (names, rows) in t.muscles.items()}
+    loop = _columns(t.loop)
+    by_muscle = {m: _columns(cols) for m, cols in t.muscles.items()}
     return loop, by_muscle, events
 
 
-def _columns(names: list[str], rows: list[list[float]]) -> dict[str, np.ndarray]:
-    if not names:
-        return {}
-    arr = np.array(rows, dtype=np.float64).reshape(len(rows), len(names))
-    out: dict[str, np.ndarray] = {}
-    for i, n in enumerate(names):
-        col = arr[:, i]
-        out[n] = col.astype(np.int64) if n in ("tick", "flags", "mode") else col
-    return out
+#: fields read as whole numbers (int64); every other as float64
+INTEGER_COLUMNS = ("tick", "flags", "mode")
+
+
+def _columns(recorded: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The recorded columns as the API gives them: float64, the counters and bit
+    fields (`INTEGER_COLUMNS`) int64."""
+    return {n: col.astype(np.int64 if n in INTEGER_COLUMNS else np.float64)
+            for n, col in recorded.items()}
 
 
 def _with_loop(cols: dict[str, np.ndarray], loop: dict[str, np.ndarray]

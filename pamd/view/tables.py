@@ -20,8 +20,16 @@ map): nothing is dropped for settling, nothing decimated, and its rows count as 
 apart for `--split-by block` (so `--block-s` counts rows); a velocity input needs time.
 
 Refused, naming file:row:column (row 1 is the header; in a .mat file, the element of the
-variable): a cell that is not a number, a time that is not finite or does not increase,
-a needed column that is missing, and (at extraction) a NaN/inf among the kept samples.
+variable): a cell that is not a number, a value that cannot be physical (1e308 N, a
+contraction of 25: `pamd.view.table_checks.PHYSICAL`, naming a unit that would fit), a
+time that is not finite or does not increase, a needed column that is missing (or one
+that is there but complex, sparse, a matrix or text: said), and (at extraction) a
+NaN/inf among the kept samples. A column outside what its quantity spans on a PAM rig
+is warned about (`meta["warnings"]`, said on stderr). Bounded in memory and time: a CSV
+is read a block at a time into chunks of cells (`pamd.view.csvtext`: at most 1024
+columns, 1 MiB a line, 64 M cells), a .mat file's declared sizes are checked before
+scipy decompresses or allocates anything (`pamd.view.matscan`: at most 512 MiB
+expanded); headers and names are shown with control characters escaped.
 
 A .mat file (MAT 5, read with scipy.io): `pamd export --mat`'s muscle structs (their
 `units` checked against the names), or a lab's own: top-level column vectors as one
@@ -52,8 +60,11 @@ from pamd.models.anfis.extraction import extract
 from pamd.models.anfis.recordings import actuations_of, read_mcap
 from pamd.models.anfis.samples import FROM_LENGTH, ExtractOptions, Run, Samples
 from pamd.view import fields
+from pamd.view.csvtext import CsvText
 from pamd.view.export import matlab_name
+from pamd.view.matscan import check_mat
 from pamd.view.recording import recording_files
+from pamd.view.table_checks import MAX_TABLE_BYTES, PHYSICAL, shown, unit_warning, unphysical
 
 #: quantity -> (pamd's column, pamd's unit, {unit as written: factor to pamd's unit})
 QUANTITIES: dict[str, tuple[str, str, dict[str, float]]] = {
@@ -125,7 +136,7 @@ def parse_name(header: str, where: str) -> tuple[str, float, str]:
         if low == quantity:
             raise ModelError(f"{where}: column {text!r} states no unit; name it {name} "
                              f"or '{quantity} [{pamd_unit}]' (or in another known unit)")
-    return low, 1.0, ""
+    return shown(low), 1.0, ""  # not a signal pamd models: kept, unconverted
 
 
 def _how(text: str, name: str, factor: float, unit: str) -> str:
@@ -137,57 +148,38 @@ def _how(text: str, name: str, factor: float, unit: str) -> str:
 # -- CSV -------------------------------------------------------------------------------------
 def read_table_csv(path: str) -> Run:
     """One CSV table as a `Run` (see the module doc)."""
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            lines = fh.read().splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ModelError(f"{path}: cannot read it as a CSV text file ({exc})") from None
-    skip = 0
-    while skip < len(lines) and (not lines[skip].strip() or lines[skip].lstrip()
-                                 .startswith("#")):
-        skip += 1
-    if skip == len(lines):
-        raise ModelError(f"{path}: empty file (no header row)")
-    try:
-        dialect: type[csv.Dialect] = csv.Sniffer().sniff("\n".join(lines[skip:skip + 20]),
-                                           delimiters=",;\t")
-    except csv.Error:
-        dialect = csv.excel
-    rows = list(csv.reader(lines[skip:], dialect))
-    header, raw = rows[0], [r for r in rows[1:] if any(c.strip() for c in r)]
-    if not raw:
-        raise ModelError(f"{path}:{skip + 1}: a header but no data rows")
-    first_row = skip + 2  # the file line of the first data row
-    side = _sidecar(path)
+    with CsvText(path) as text:
+        where = text.where
+        side = _sidecar(path)
+        comma = text.dialect.delimiter != ","
+        cols = _csv_columns(text, side)
+        parts: dict[str, list[np.ndarray]] = {c.name: [] for c in cols if c.kind != "text"}
+        breaks: list[list[int]] = []  # [row index, its file line] where lines were skipped
+        n = 0
+        for chunk in text.chunks():
+            if not breaks or chunk.lines[0] != breaks[-1][1] + n - breaks[-1][0]:
+                breaks.append([n, chunk.lines[0]])
+            for k in range(1, len(chunk.lines)):
+                if chunk.lines[k] != chunk.lines[k - 1] + 1:
+                    breaks.append([n + k, chunk.lines[k]])
+            for c in cols:
+                _csv_cells(c, chunk.columns[c.index], chunk.lines, comma, where, n == 0)
+                if c.kind != "text":
+                    parts[c.name].append(c.values)
+            n += len(chunk.lines)
+    if n == 0:
+        raise ModelError(f"{where}:{text.header_line}: a header but no data rows")
     columns: dict[str, np.ndarray] = {}
-    notes: list[str] = []
-    text_cols: dict[str, str] = {}
-    comma = dialect.delimiter != ","
-    for j, head in enumerate(header):
-        if not head.strip():  # a trailing separator (LabVIEW) or an unnamed column
-            head = f"column_{j + 1}"
-        where = f"{path}:{skip + 1}:{head.strip()}"
-        name, factor, how = parse_name(head, where)
-        if name in columns:
-            raise ModelError(f"{where}: a second column read as {name}")
-        _check_side_unit(side, name, head, where)
-        cells = [r[j].strip() if j < len(r) else "" for r in raw]
-        if name in _NAMED and not _numeric(cells[0]):
-            codes = [_NAMED[name].get(c, math.nan) if c else math.nan for c in cells]
-            columns[name] = np.array(codes)
-            continue
-        values, bad = _floats(cells, comma)
-        if bad is not None:
-            if name in columns or bad == 0:
-                text_cols[name] = f"{path}:{first_row}:{head.strip()}"
-                continue  # a text column (notes, events): kept out, said if needed
-            raise ModelError(f"{path}:{first_row + bad}:{head.strip()}: "
-                             f"{cells[bad]!r} is not a number")
-        columns[name] = values * factor
-        if how:
-            notes.append(how)
-    meta: JsonObject = {"row_offset": first_row, "conversions": notes,
-                            "text_columns": text_cols}
+    for c in cols:
+        if c.kind != "text":
+            columns[c.name] = np.concatenate(parts.pop(c.name))  # scaled by `_run`
+    meta: JsonObject = {
+        "row_offset": breaks[0][1], "conversions": [c.how for c in cols if c.how],
+        "text_columns": {c.name: f"{where}:{breaks[0][1]}:{c.head}" for c in cols
+                         if c.kind == "text"},
+        "headers": {c.name: c.head for c in cols}, "factors": {c.name: c.factor for c in cols}}
+    if len(breaks) > 1:
+        meta["row_breaks"] = breaks
     muscle, load = "", None
     if side is not None:
         muscle = side["muscle"]
@@ -198,7 +190,56 @@ def read_table_csv(path: str) -> Run:
         events = (side.get("tables") or {}).get("events")
         if events:  # the profile commands: their lead-in ramps are dropped, as in MCAP
             meta["events"] = _csv_events(os.path.join(os.path.dirname(path), events), muscle)
-    return _run(path, muscle, columns, meta, load)
+    return _run(where, muscle, columns, meta, load)
+
+
+class _CsvColumn:
+    """One CSV column: its header, pamd name and factor, and how its cells are read
+    (numbers, named codes, or text kept out), decided on its first cell."""
+
+    def __init__(self, index: int, head: str, name: str, factor: float, how: str) -> None:
+        self.index, self.head, self.name, self.factor, self.how = index, head, name, factor, how
+        self.kind = ""  # "numbers", "codes" or "text", from the first data row
+        self.values = np.empty(0)
+
+
+def _csv_columns(text: CsvText, side: JsonObject | None) -> list[_CsvColumn]:
+    cols: list[_CsvColumn] = []
+    names: set[str] = set()
+    for j, written in enumerate(text.header):
+        written = written.strip() or f"column_{j + 1}"  # a trailing separator (LabVIEW)
+        head = shown(written)
+        where = f"{text.where}:{text.header_line}:{head}"
+        name, factor, how = parse_name(written, where)
+        if name in names:
+            raise ModelError(f"{where}: a second column read as {name}")
+        names.add(name)
+        _check_side_unit(side, name, head, where)
+        cols.append(_CsvColumn(j, head, name, factor, how))
+    return cols
+
+
+def _csv_cells(c: _CsvColumn, raw: tuple[str, ...], lines: list[int], comma: bool,
+               where: str, first: bool) -> None:
+    """Read one chunk of column `c`'s cells into `c.values` (deciding its kind on the
+    first); ModelError at file:line:column for a cell that is not a number."""
+    cells = [x.strip() for x in raw]
+    if first:
+        c.kind = "codes" if c.name in _NAMED and not _numeric(cells[0]) else "numbers"
+    if c.kind == "codes":
+        codes = _NAMED[c.name]
+        c.values = np.array([codes.get(x, math.nan) if x else math.nan for x in cells])
+        return
+    if c.kind == "text":
+        return
+    values, bad = _floats(cells, comma)
+    if bad is not None:
+        if first and bad == 0:
+            c.kind = "text"  # a text column (notes, events): kept out, said if needed
+            return
+        raise ModelError(f"{where}:{lines[bad]}:{c.head}: {cells[bad][:80]!r} is not a "
+                         "number")
+    c.values = values
 
 
 def _csv_events(path: str, muscle: str) -> list[tuple[float, str, JsonObject]]:
@@ -280,19 +321,28 @@ def _check_side_unit(side: JsonObject | None, name: str, head: str, where: str) 
 
 # -- MAT -------------------------------------------------------------------------------------
 def read_table_mat(path: str) -> list[Run]:
-    """The tables of one .mat file as `Run`s (see the module doc)."""
+    """The tables of one .mat file as `Run`s (see the module doc): its structure and
+    declared sizes checked first (`pamd.view.matscan`: at most `MAX_TABLE_BYTES`
+    expanded, refused before it is decompressed), then read with scipy."""
+    where = shown(path)
     try:
         from scipy.io import loadmat
     except ImportError:
-        raise ModelError(f"{path}: reading .mat files needs scipy: pip install 'pamd[mat]'"
+        raise ModelError(f"{where}: reading .mat files needs scipy: pip install 'pamd[mat]'"
                          ) from None
     try:
-        mat = loadmat(path, simplify_cells=True)
+        check_mat(path, MAX_TABLE_BYTES)
+    except OSError as exc:
+        raise ModelError(f"{where}: cannot read it ({exc})") from None
+    try:
+        with np.errstate(all="ignore"):
+            mat = loadmat(path, simplify_cells=True)
     except NotImplementedError:
-        raise ModelError(f"{path}: a MAT 7.3 (HDF5) file; save it with save(..., '-v7') "
+        raise ModelError(f"{where}: a MAT 7.3 (HDF5) file; save it with save(..., '-v7') "
                          "or export CSV") from None
-    except (OSError, ValueError, TypeError) as exc:
-        raise ModelError(f"{path}: cannot read it as a MAT file ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 (scipy's reader raises many kinds on a corrupt file)
+        raise ModelError(f"{where}: cannot read it as a MAT file ({type(exc).__name__}: "
+                         f"{shown(str(exc))[:200]})") from None
     vars_ = {k: v for k, v in mat.items() if not k.startswith("__")}
     runs = []
     export = isinstance(vars_.get("pamd"), dict)
@@ -300,24 +350,58 @@ def read_table_mat(path: str) -> list[Run]:
         if isinstance(v, dict) and key not in ("loop", "events", "pamd"):
             if export and "t_s" not in v:
                 continue
-            name = str(v.get("muscle", key)) if export else key
-            runs.append(_mat_run(path, name, v, key))
+            name = shown(str(v.get("muscle", key))) if export else shown(key)
+            runs.append(_mat_run(where, name, v, shown(key)))
             if export and isinstance(vars_.get("events"), dict):
-                runs[-1].events = _mat_events(path, vars_["events"], name)
+                runs[-1].events = _mat_events(where, vars_["events"], name)
     if export:  # the exported config says each muscle's actuation (extraction's flags)
         side = vars_["pamd"].get("metadata")
         config = side.get(matlab_name("pamd.config")) if isinstance(side, dict) else None
         actuations = actuations_of({"pamd.config": config})
         for run in runs:
             run.meta["actuation"] = actuations.get(run.muscle)
-    vectors = {k: v for k, v in vars_.items() if isinstance(v, np.ndarray) and v.ndim == 1
-               and v.dtype.kind in "fiub"}
-    if vectors and not export:
-        runs.append(_mat_run(path, "", {**vectors, "units": vars_.get("units")}, ""))
+    top = {k: v for k, v in vars_.items() if not isinstance(v, dict) and k != "units"}
+    if top and not export and any(_mat_column(v) for v in top.values()):
+        runs.append(_mat_run(where, "", {**top, "units": vars_.get("units")}, ""))
     if not runs:
-        raise ModelError(f"{path}: no table in it (column vectors named by signal, or "
-                         "structs of them)")
+        raise ModelError(f"{where}: no table in it (column vectors named by signal, or "
+                         "structs of them)" + _not_columns(where, "", top))
     return runs
+
+
+def _mat_column(v: object) -> bool:
+    """A variable that is a column of real numbers."""
+    return isinstance(v, np.ndarray) and v.ndim == 1 and v.dtype.kind in "fiub"
+
+
+def _mat_what(v: object) -> str:
+    """What a variable that is no column of real numbers is (said where it is needed)."""
+    if isinstance(v, np.ndarray):
+        shape = "x".join(str(d) for d in v.shape) or "1x1"
+        if v.dtype.kind == "c":
+            return f"a complex {shape} array (pamd reads real numbers: save real(x))"
+        if v.dtype.kind in "fiub" and v.ndim != 1:
+            return f"a {shape} matrix (pamd reads column vectors: one per signal)"
+        if v.dtype.kind in "OUS":
+            return f"a {shape} array of text or cells (pamd reads numbers)"
+        return f"a {shape} array of {v.dtype} (pamd reads real numbers)"
+    if type(v).__module__.startswith("scipy.sparse"):
+        return "a sparse matrix (pamd reads full column vectors: save full(x))"
+    if isinstance(v, str):
+        return "text (pamd reads numbers)"
+    if isinstance(v, list):
+        return "a cell array (pamd reads numbers)"
+    if isinstance(v, (int, float)):
+        return "a single number (pamd reads column vectors)"
+    return f"a {type(v).__name__} (pamd reads column vectors)"
+
+
+def _not_columns(where: str, var: str, st: dict[str, Any]  # Any: a .mat struct's fields
+                 ) -> str:
+    found = [f"{shown(k)}: {_mat_what(v)}" for k, v in st.items()
+             if k != "units" and not _mat_column(v)]
+    return f"; {where}{':' + var if var else ''} holds " + "; ".join(found[:8]) if found \
+        else ""
 
 
 def _mat_events(path: str, ev: dict[str, Any], muscle: str  # Any: a .mat struct's fields
@@ -336,15 +420,23 @@ def _mat_run(path: str, muscle: str, st: dict[str, Any], var: str  # Any: a .mat
              ) -> Run:
     units = st.get("units") if isinstance(st.get("units"), dict) else {}
     columns: dict[str, np.ndarray] = {}
-    notes = []
+    notes, heads, factors = [], {}, {}
+    skipped: dict[str, str] = {}  # pamd name -> what the variable is instead
     n = None
-    for key, v in st.items():
-        if key == "units" or not isinstance(v, np.ndarray) or v.ndim != 1 or \
-                v.dtype.kind not in "fiub":
+    for raw_key, v in st.items():
+        key = str(raw_key)
+        where = f"{path}:1:{var + '.' if var else ''}{shown(key)}"
+        if raw_key == "units":
             continue
-        where = f"{path}:1:{var + '.' if var else ''}{key}"
-        said = units.get(key) if isinstance(units, dict) else None
-        unit = said if isinstance(said, str) or said is None else ""  # '' reads as []
+        if not _mat_column(v):
+            try:
+                name = parse_name(key, where)[0]
+            except ModelError:
+                name = shown(key)
+            skipped[name] = f"{_mat_what(v)} at {where}"
+            continue
+        said = units.get(raw_key) if isinstance(units, dict) else None
+        unit = said if isinstance(said, str) else ("" if said is not None else None)
         head = key if unit is None or fields.unit_of(key) == unit or unit in ("", "name") \
             else f"{key} [{unit}]"
         name, factor, how = parse_name(head, where)
@@ -355,31 +447,58 @@ def _mat_run(path: str, muscle: str, st: dict[str, Any], var: str  # Any: a .mat
         if n is not None and v.size != n:
             raise ModelError(f"{where}: {v.size} values where the other columns have {n}")
         n = v.size
-        columns[name] = v.astype(np.float64) * factor
+        columns[name] = np.array(v, dtype=np.float64)
+        heads[name], factors[name] = shown(f"{var}.{head}" if var else head), factor
         if how:
             notes.append(how)
     return _run(f"{path}:{var}" if var else path, muscle, columns,
-                {"row_offset": 1, "conversions": notes, "text_columns": {}}, None)
+                {"row_offset": 1, "conversions": notes, "text_columns": {},
+                 "skipped_columns": skipped, "headers": heads, "factors": factors}, None)
 
 
 # -- both ------------------------------------------------------------------------------------
 def _run(source: str, muscle: str, columns: dict[str, np.ndarray], meta: JsonObject,
          load: float | None) -> Run:
-    off = meta["row_offset"]
+    """The table's columns (as read: `meta["factors"]` converts them to pamd's units)
+    checked and converted: values that cannot be physical refused, time finite and
+    increasing; units that do not fit the data warned (`meta["warnings"]`)."""
+    heads, factors = meta.get("headers") or {}, meta.pop("factors", None) or {}
+    warnings: list[str] = []
+    for name in list(columns):
+        raw, factor = columns[name], float(factors.get(name, 1.0))
+        head = str(heads.get(name, name))
+        off = unphysical(name, raw, factor)
+        if off is not None:
+            read = "" if factor == 1.0 else f" (x {factor:g})"
+            raise ModelError(f"{source}:{_row_line(meta, off.index)}:{head}: {_g(off.value)}"
+                             f"{read} cannot be physical: {name} is {off.expected}"
+                             + _other_units(name, off.value, factor))
+        if factor != 1.0:
+            with np.errstate(over="ignore"):  # a time that overflows is refused below
+                columns[name] = raw = raw * factor
+        quantity = _QUANTITY_OF.get(name)
+        said = unit_warning(name, head, raw, factor,
+                            QUANTITIES[quantity][2] if quantity else {})
+        if said:
+            warnings.append(said)
+    if warnings:
+        meta["warnings"] = warnings
     t = columns.get("t_s")
     if t is None:
         n = next(iter(columns.values())).size if columns else 0
         t = np.arange(n, dtype=np.float64)
         meta["time"] = "rows"  # a set of samples: no settling, no decimation
     else:
+        head = str(heads.get("t_s", "time"))
         bad = np.flatnonzero(~np.isfinite(t))
         if bad.size:
-            raise ModelError(f"{source}:{off + int(bad[0])}:time: not a finite time")
+            raise ModelError(f"{source}:{_row_line(meta, int(bad[0]))}:{head}: not a finite "
+                             "time")
         back = np.flatnonzero(np.diff(t) <= 0)
         if back.size:
             k = int(back[0])
-            raise ModelError(f"{source}:{off + k + 1}:time: time does not increase "
-                             f"({t[k]:g} then {t[k + 1]:g} s)")
+            raise ModelError(f"{source}:{_row_line(meta, k + 1)}:{head}: time does not "
+                             f"increase ({t[k]:g} then {t[k + 1]:g} s)")
     if "load_kg" in columns and np.all(columns["load_kg"] == columns["load_kg"][0]):
         load = float(columns["load_kg"][0])
     events = meta.pop("events", [])
@@ -387,35 +506,85 @@ def _run(source: str, muscle: str, columns: dict[str, np.ndarray], meta: JsonObj
                events=events, meta=meta)
 
 
-def read_data(paths: Sequence[str], muscle: str | None = None) -> list[Run]:
-    """Every run in `paths`: MCAP recordings (by their magic bytes), .mat files, CSV
-    tables; a directory as a collection or `--record` directory, or a `pamd export
-    --csv` directory (its sidecar's muscle tables). A collection's runs carry the load
-    of their step, as its manifest says (a step file's own metadata holds the config's
-    load the collection started with)."""
+#: pamd's column -> its quantity in QUANTITIES
+_QUANTITY_OF = {name: q for q, (name, _, _) in QUANTITIES.items()}
+
+
+def _row_line(meta: JsonObject, index: int) -> int:
+    """The file line (CSV) or element (MAT) of row `index` of a table."""
+    line = int(meta["row_offset"]) + index
+    for at, start in meta.get("row_breaks") or []:
+        if at <= index:
+            line = start + index - at
+    return line
+
+
+def _other_units(name: str, raw: float, factor: float) -> str:
+    """' (in X it would be physical: name the unit)' where another known unit of the
+    column's quantity would make the value physical."""
+    quantity = _QUANTITY_OF.get(name)
+    if quantity is None:
+        return ""
+    lo, hi, _ = PHYSICAL[name]
+    fits = [u for u, f in QUANTITIES[quantity][2].items()
+            if u and f != factor and lo <= raw * f <= hi]
+    if not fits:
+        return ""
+    return (f"; read in {' or '.join(repr(u) for u in fits)} it would be: name the unit "
+            f"in the header ('{quantity} [{fits[0]}]')")
+
+
+def _g(value: float) -> str:
+    return f"{value:.6g}"
+
+
+def data_files(paths: Sequence[str]) -> list[str]:
+    """The files `read_data` reads for `paths`, in its order: a directory as a
+    collection or `--record` directory (its recordings), or a `pamd export --csv`
+    directory (its sidecar's muscle tables); a file as it is."""
+    return [f for f, _ in _data_loads(paths)]
+
+
+def _data_loads(paths: Sequence[str]) -> list[tuple[str, float | None]]:
+    """`data_files` with each file's load where a collection's manifest states it (the
+    load its step hung: a step file's own metadata holds the config's load the
+    collection started with); None elsewhere (the file says its own)."""
     if not paths:
         raise ModelError("no data files given")
-    runs: list[Run] = []
+    out: list[tuple[str, float | None]] = []
     for p in paths:
         if os.path.isdir(p):
             sides = glob.glob(os.path.join(glob.escape(p), "*.meta.json"))
             if sides and not glob.glob(os.path.join(glob.escape(p), "*.mcap")):
-                runs += read_data(_export_tables(sides), muscle)
-            else:  # a collection's step files hang its steps' loads (its manifest says)
-                for f, _, load in recording_files(p):
-                    runs += [r if load is None else replace(r, load_kg=float(load))
-                             for r in read_data([f], muscle)]
+                out += _data_loads(_export_tables(sides))
+            else:
+                out += [(f, None if load is None else float(load))
+                        for f, _, load in recording_files(p)]
             continue
+        out.append((p, None))
+    return out
+
+
+def read_data(paths: Sequence[str], muscle: str | None = None,
+              on_file: Callable[[str], None] | None = None) -> list[Run]:
+    """Every run in `paths` (`data_files`): MCAP recordings (by their magic bytes),
+    .mat files, CSV tables. A collection's runs carry the load of their step, as its
+    manifest says. `on_file` is told each file once it is read (progress)."""
+    runs: list[Run] = []
+    for p, load_kg in _data_loads(paths):
         if not os.path.exists(p):
             raise ModelError(f"{p}: no such file")
         with open(p, "rb") as fh:
             head = fh.read(8)
         if head.startswith(b"\x89MCAP"):
-            runs += read_mcap(p, muscle)
+            got = read_mcap(p, muscle)
         elif p.lower().endswith(".mat"):
-            runs += read_table_mat(p)
+            got = read_table_mat(p)
         else:
-            runs.append(read_table_csv(p))
+            got = [read_table_csv(p)]
+        runs += got if load_kg is None else [replace(r, load_kg=load_kg) for r in got]
+        if on_file is not None:
+            on_file(p)
     return runs
 
 
@@ -430,11 +599,12 @@ def _export_tables(sides: list[str]) -> list[str]:
 
 
 def load_samples(paths: Sequence[str], options: ExtractOptions,
-                 report: Callable[[str], None] | None = None) -> Samples:
+                 report: Callable[[str], None] | None = None,
+                 on_file: Callable[[str], None] | None = None) -> Samples:
     """`read_data` then `extract`, after checking each table has the columns the options
     need (file:1:column); each unit conversion is reported (default: to stderr) and kept
-    in the samples' provenance."""
-    runs = read_data(paths, options.muscle)
+    in the samples' provenance. `on_file`: as `read_data`'s."""
+    runs = read_data(paths, options.muscle, on_file)
     say = report or (lambda line: print(line, file=sys.stderr))
     need = [*options.inputs, options.output]
     for r in runs:
@@ -447,17 +617,27 @@ def load_samples(paths: Sequence[str], options: ExtractOptions,
         if any(n in FROM_LENGTH for n in need) and "length_mm" not in r.columns:
             missing.append("length_mm")
         if missing:
+            skipped = r.meta.get("skipped_columns") or {}
             text = [f"{m} (a text column at {r.meta['text_columns'][m]})"
-                    if m in r.meta["text_columns"] else m for m in missing]
+                    if m in r.meta["text_columns"] else
+                    f"{m} ({skipped[m]})" if m in skipped else m for m in missing]
+            names = list(r.columns)
+            shown_names = ", ".join(names[:20]) + (f", ... ({len(names)} in all)"
+                                                   if len(names) > 20 else "")
             raise ModelError(f"{r.label}:1: missing column(s) {', '.join(text)} (columns: "
-                             f"{', '.join(r.columns) or 'none'})")
+                             f"{shown_names or 'none'})")
         for line in r.meta["conversions"]:
             say(f"{r.label}: {line}")
-    samples = extract(runs, options)
+        for line in r.meta.get("warnings") or []:
+            say(f"{r.label}: warning: {line}")
+    with np.errstate(all="ignore"):  # what a table's numbers raise is said, not warned
+        samples = extract(runs, options)
     for info, r in zip(samples.runs, [r for r in runs if options.muscle is None
                                       or r.muscle in (options.muscle, "")], strict=False):
         if r.meta.get("conversions"):
             info["conversions"] = list(r.meta["conversions"])
+        if r.meta.get("warnings"):
+            info["unit_warnings"] = list(r.meta["warnings"])
         if r.meta.get("time") == "rows":
             info["time"] = "none: rows are samples (not settled, not decimated)"
     return samples

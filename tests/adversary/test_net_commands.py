@@ -13,6 +13,7 @@ import os
 import stat
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -20,8 +21,8 @@ from typing import Any
 import pytest
 
 import pamd
-from pamd.net.client.client import BadRigName, Client
-from pamd.net.credential import attachment, find_token
+from pamd.net.client.client import URGENT_CUT_BYTES, BadRigName, Client, command_body
+from pamd.net.credential import Signer, find_token
 from tests.net.conftest import RigProc, wait_until
 
 RIG = "sim"
@@ -45,9 +46,11 @@ def rig(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RigProc]:
 
 
 def cli(rig: RigProc, *args: str, **env: str) -> subprocess.CompletedProcess[str]:
-    """`pamd ARGS` with --connect to the rig's endpoint (after the subcommand)."""
+    """`pamd ARGS` with --connect to the rig's endpoint (after the subcommand), over Zenoh
+    (--no-local: the daemon's local channel would take it on this machine)."""
     sub, *rest = args
-    return subprocess.run([sys.executable, "-m", "pamd", sub, "--connect", rig.endpoint, *rest],
+    return subprocess.run([sys.executable, "-m", "pamd", sub, "--connect", rig.endpoint,
+                           "--no-local", *rest],
                           capture_output=True, text=True, timeout=120,
                           env={**os.environ, "OPENBLAS_NUM_THREADS": "1", **env})
 
@@ -77,6 +80,25 @@ def test_b8_an_estop_with_a_100000_character_reason_through_connect_stops_the_ri
     reset(rig)
 
 
+def test_an_estop_of_5_mib_is_cut_by_the_client_and_acts_at_once(rig: RigProc) -> None:
+    """Issue 43: an estop over the daemon's 4 MiB message limit was dropped on the way (a
+    10 s timeout, and the error said estops are never dropped). The client cuts it to
+    its declared fields first (`command_body`): it acts, saying what was cut."""
+    with pamd.connect(rig=RIG, endpoint=rig.endpoint) as c:
+        t0 = time.monotonic()
+        v = c.command("estop", reason="r" * (5 << 20), timeout_s=10.0)
+        took_s = time.monotonic() - t0
+    assert v["ok"] and "reason cut from 5242880 characters" in v["cut"], v
+    assert took_s < 9.0  # answered, not timed out
+    wait_until(lambda: rig.status()["state"] == "ESTOP", 30, "ESTOP")
+    reset(rig)
+    body, note = command_body("estop", {"reason": "r" * (5 << 20)})
+    assert len(body) <= URGENT_CUT_BYTES and "reason cut" in note
+    assert command_body("stop", b"j" * 2_000_000)[0] == b"{}"
+    big = {"muscle": "m1", "pad": "p" * 100_000}  # any other verb: as given
+    assert command_body("setpoint", big) == (json.dumps(big).encode(), "")
+
+
 def test_b8_a_stop_with_a_megabyte_of_junk_acts(rig: RigProc) -> None:
     assert rig.cmd("setpoint", {"muscle": "m1", "bar": 1.5})["ok"]
     wait_until(lambda: setpoint(rig) == 1.5, 30, "the setpoint")
@@ -100,10 +122,13 @@ def test_b9_connect_refuses_a_pattern_and_the_daemon_refuses_a_pattern_query(
         pamd.connect(rig="**", endpoint=rig.endpoint)
     token, _ = find_token(RIG)
     assert token is not None
+    body = b'{"muscle": "m1", "bar": 3.0}'
     with Client(connect=rig.endpoint) as c:  # a client that skips the client's check
+        nonce = str(c.status(RIG)["command_nonce"])
         replies = [json.loads(r.ok.payload.to_bytes()) for r in c.session.get(
-            "pamd/*/cmd/setpoint", payload=b'{"muscle": "m1", "bar": 3.0}', timeout=10.0,
-            attachment=attachment(token)) if r.ok is not None]
+            "pamd/*/cmd/setpoint", payload=body, timeout=10.0,
+            attachment=Signer(token).attachment(RIG, "setpoint", body, nonce))
+            if r.ok is not None]
     assert replies and all(not v["ok"] and "not the pattern" in v["error"] for v in replies)
     assert setpoint(rig) != 3.0
 

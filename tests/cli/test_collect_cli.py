@@ -153,3 +153,25 @@ steps:
     assert proc.returncode == 0, (out, err)
     m = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert [s["status"] for s in m["steps"]] == ["done"]
+
+
+def test_the_progress_bar_never_passes_its_total() -> None:
+    """Every collect ended with `TqdmWarning: clamping frac to range [0, 1]` and a
+    negative ETA (issue 40): the bar's total is the timeline's rounded to 0.1 s, the
+    rig time ran past it; the count is held to the bar's own total."""
+    import io
+    import warnings
+
+    from pamd.cli.collect import _bar, show_rig_time
+
+    for total_s, ran_s in ((371.04, 371.07), (20.0, 20.3), (12.5, 3.0)):
+        bar = _bar(total_s, True)
+        assert bar is not None
+        bar.fp = io.StringIO()  # type: ignore[attr-defined]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            show_rig_time(bar, ran_s)
+            bar.set_postfix_str("step 1/1", refresh=True)
+            text = bar.fp.getvalue()  # type: ignore[attr-defined]
+            bar.close()
+        assert bar.n == min(ran_s, bar.total) and "<-" not in text, text

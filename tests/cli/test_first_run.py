@@ -1,6 +1,6 @@
 """A newcomer's first `pamd run` leaves something to look at: in a terminal it records
 (./runs, capped) and ends with the commands that open the file; the summary says the
-load and the tracking after the first cycle (the README's span) beside the whole run's.
+load and the tracking after the first cycle (the docs' span) beside the whole run's.
 A script or the service records as told (--record, the config's recording.dir) and
 nothing more. And what a run refused or a command refused says is said once, with no
 traceback."""

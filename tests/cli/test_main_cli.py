@@ -101,3 +101,35 @@ def test_the_chosen_subcommand_is_the_first_word_not_an_option() -> None:
     assert status is not None and status.name == "status"
     assert chosen_command(["--help"]) is None and chosen_command([]) is None
     assert chosen_command(["rnu"]) is None  # argparse then lists the choices
+
+
+def test_help_suggests_the_readmes_first_command() -> None:
+    """`pamd --help` starts a new user where the README does (issue 40: it suggested a
+    30 s virtual-clock run, the README a 10 s real-clock one)."""
+    from pamd.cli.main import FIRST_COMMAND
+
+    readme = (REPO / "README.md").read_text()
+    first = readme.split("## The two commands", 1)[1].split("```sh\n", 1)[1].split("\n", 1)[0]
+    assert first == f"pip install . && {FIRST_COMMAND}", first
+    out = subprocess.run([sys.executable, "-m", "pamd", "--help"], capture_output=True,
+                         text=True, cwd=REPO, check=True).stdout
+    assert FIRST_COMMAND in " ".join(out.split()), out
+
+
+def test_every_exit_code_is_listed() -> None:
+    """Each exit code pamd's errors and verbs give has its row in the exit-code table
+    (docs/exit-codes.md, generated: tests/docs/test_references.py; issue 40: 5 was
+    missing)."""
+    import re
+
+    codes = {0, 130}  # done; Ctrl-C outside a run (pamd.cli.main)
+    for path in (REPO / "pamd").rglob("*.py"):
+        text = path.read_text()
+        codes |= {int(n) for n in re.findall(r"^\s+exit_code = (\d+)$", text, re.M)}
+        codes |= {int(n) for n in re.findall(r"^EXIT_[A-Z_]+ = (\d+)$", text, re.M)}
+    assert {1, 2, 3, 4, 5, 6, 7, 8, 141} <= codes, codes
+    tables = (REPO / "docs" / "exit-codes.md").read_text().split("| exit code | meaning |")[1:]
+    assert tables, "no exit-code table"
+    rows = {int(m) for t in tables
+            for m in re.findall(r"^\| (\d+) \|", t.split("\n\n", 1)[0], re.M)}
+    assert codes <= rows, f"not listed: {sorted(codes - rows)}"

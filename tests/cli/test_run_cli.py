@@ -12,6 +12,8 @@ from pathlib import Path
 
 import yaml
 
+from pamd.declare.summary import SUMMARY
+
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -35,6 +37,8 @@ def test_virtual_run_with_profile_prints_json_summary() -> None:
     assert (again["ticks"], again["tracking"]) == (s["ticks"], s["tracking"])
     assert s["clock"] == "virtual" and s["final_state"] == "IDLE"
     assert s["stop_reason"] == "profile finished"
+    # the keys are the declared ones, in order (pamd.declare.summary, docs/run-summary.md)
+    assert list(s) == [k.name for k in SUMMARY]
     # 2 s lead-in (0 -> 2 bar at 1 bar/s) + 2 cycles of 2 s, then 0.4 s ramp to safe
     # (2 -> 0 bar at the 5 bar/s slew limit).
     assert 6390 <= s["ticks"] <= 6420
@@ -43,6 +47,22 @@ def test_virtual_run_with_profile_prints_json_summary() -> None:
     assert (track["length_samples"], track["length_rmse_mm"]) == (0, None)  # pressure mode
     assert s["faults"] == [] and s["lost_records"] == 0
     assert "sensors read" in r.stderr
+    assert "not recording: --no-record" in r.stderr
+
+
+def test_a_run_that_records_nothing_says_so_and_one_that_records_does_not(
+        tmp_path: Path) -> None:
+    """`pamd run ... | tee log.txt` recorded nothing and said nothing (issue 40): a run
+    whose output is not a terminal records only when told, and says so."""
+    quiet = pamd("run", "--clock", "virtual", "--duration", "0.1", "--no-telemetry",
+                 timeout=60)
+    assert quiet.returncode == 0, quiet.stderr
+    assert "not recording: its output is not a terminal" in quiet.stderr
+    assert "--record [DIR]" in quiet.stderr and quiet.stdout.count("recording:") == 0
+    told = pamd("run", "--clock", "virtual", "--duration", "0.1", "--no-telemetry",
+                "--record", str(tmp_path / "rec"), timeout=60)
+    assert told.returncode == 0, told.stderr
+    assert "recording into" in told.stderr and "not recording" not in told.stderr
 
 
 def test_profile_faster_than_slew_limit_is_refused_before_anything_moves() -> None:

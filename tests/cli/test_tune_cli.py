@@ -45,16 +45,22 @@ def test_pressure_loop_identified_and_saved_keeping_comments(rig: Path, tmp_path
     after = rig.read_text()
     comments = [ln for ln in before.splitlines() if ln.lstrip().startswith("#")]
     assert comments == [ln for ln in after.splitlines() if ln.lstrip().startswith("#")]
-    changed = [(a, b) for a, b in zip(before.splitlines(), after.splitlines(), strict=True)
-               if a != b]
-    assert [a.split(":")[0] for a, _ in changed] == ["  pid", "  rate_feedforward_s"]
+    old, new = before.splitlines(), after.splitlines()
+    assert [a.split(":")[0] for a in old if a not in new] == ["  pid", "  rate_feedforward_s"]
+    assert [b.split(":")[0] for b in new if b not in old] == [
+        "  pid", "  rate_feedforward_s", "  plant", "    gain_bar_per_bar", "    lag_s",
+        "    dead_time_s"]
+    # the plant the gains came from, added to the section: what later gains are judged on
     pid = load_config(str(rig)).rig.control
+    assert pid.plant is not None and (pid.plant.gain_bar_per_bar, pid.plant.lag_s,
+                                      pid.plant.dead_time_s) == pytest.approx(
+        (0.949, 0.0123, 0.0129), rel=0.01)
     # within 3 % of the bench procedure's figures (the step times are read from the
     # recording here, from the command there: 0.1 ms of dead time apart)
     assert pid.pid.kp == pytest.approx(shipped["pid"]["kp"], rel=0.03)
     assert pid.pid.ki_per_s == pytest.approx(shipped["pid"]["ki_per_s"], rel=0.03)
     assert pid.rate_feedforward_s == pytest.approx(shipped["rate_feedforward_s"], rel=0.03)
-    # the figures README "Tuning the loops" reports
+    # the figures docs/how-to/tune.md reports
     assert (pid.pid.kp, pid.pid.ki_per_s, pid.rate_feedforward_s) == pytest.approx(
         (0.501, 40.8, 0.0252), rel=0.01)
 
@@ -75,7 +81,7 @@ def test_position_loop_agrees_with_the_bench_and_writes_nothing(rig: Path,
     ki = float(rows["control.position.pid.ki_bar_per_mm_s"][2])
     assert kp == pytest.approx(shipped["kp_bar_per_mm"], rel=0.02)  # 0.0661 vs 0.0656
     assert ki == pytest.approx(shipped["ki_bar_per_mm_s"], rel=0.02)  # 2.10 vs 2.08
-    assert "Model: gain -6.596" in r.stdout  # README's figure (-6.60 mm/bar)
+    assert "Model: gain -6.596" in r.stdout  # docs/how-to/tune.md's figure (-6.60 mm/bar)
 
 
 @pytest.mark.parametrize(("args", "reason"), [

@@ -107,9 +107,10 @@ def test_a_child_that_dies_is_a_refusal_not_a_daemon_error() -> None:
 
 
 def test_models_are_capped_alike_by_every_reader() -> None:
-    """README: a model at most 8 MiB; the remote limit and every reader's are one."""
+    """The docs (how-to/remote.md): a model at most 8 MiB; the remote limit and every
+    reader's are one."""
     assert MODEL_MAX_BYTES == registry.MAX_FILE_BYTES == 8 * 1024 * 1024
-    readme = (REPO / "README.md").read_text()
+    readme = (REPO / "docs" / "how-to" / "remote.md").read_text()
     assert "a model 8 MiB" in readme and "models are capped at 16 MiB" not in readme
     assert not re.search(r"models?[^.]{0,80}16 MiB", readme)
 

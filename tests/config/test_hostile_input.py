@@ -177,6 +177,9 @@ def test_sample_period_longer_than_the_timeout_is_refused() -> None:
 def test_sigterm_ends_a_run_at_the_slowest_rate_in_bounded_time(tmp_path: Path) -> None:
     data = yaml.safe_load(SIM)
     data["loop"].update(rate_hz=10, stall_timeout_s=0.5, realtime={"enabled": False})
+    # gains stable at 10 Hz (the 1 kHz ones oscillate there: pamd.config.gains refuses them)
+    data["control"]["pid"] = {"kp": 0.2, "ki_per_s": 2.0}
+    data["control"]["position"]["pid"] = {"kp_bar_per_mm": 0.03, "ki_bar_per_mm_s": 0.5}
     data["telemetry"] = {"enabled": False}
     cfg = tmp_path / "slow.yaml"
     cfg.write_text(yaml.safe_dump(data, sort_keys=False))

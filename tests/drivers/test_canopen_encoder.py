@@ -134,6 +134,31 @@ def test_emergency_and_wrong_length_frames(bus: Bus) -> None:
     assert wait_until(lambda: d.fault is None)
 
 
+def test_frames_from_a_node_whose_configuration_failed_are_never_positions(bus: Bus) -> None:
+    """Issue 43: random frames on node 1's position address were read as lengths
+    although its configuration had failed (the rig went IDLE on random data). The
+    node refuses every configuration write here: what comes on its address is counted
+    and ignored, the value stays unread (NaN), the node named as not configured. Once
+    it takes its configuration, its frames are positions again (the other way)."""
+    enc = bus.encoder(1, physical=500)
+    enc.refuse_config = True
+    d = bus.driver(node(1, heartbeat_ms=20), fault_after_s=0.1, sdo_timeout_s=0.2)
+    tx = can.Bus(interface="virtual", channel=bus.channel)
+    try:
+        assert wait_until(lambda: d.health().counters.get("config_failures", 0) > 0)
+        for k in range(50):  # random data on node 1's TPDO1 address (0x181)
+            tx.send(can.Message(arbitration_id=0x181, data=(k * 7919).to_bytes(4, "little"),
+                                is_extended_id=False))
+        assert wait_until(lambda: d.health().counters.get("unconfigured_frames", 0) >= 50)
+        assert d.in_values[0] != d.in_values[0]  # NaN: never read
+        assert d.health().counters.get("positions", 0) == 0
+        assert wait_until(lambda: d.fault is not None and "not configured" in d.fault)
+        enc.refuse_config = False  # the node takes its configuration: positions again
+        assert wait_until(lambda: d.in_values[0] == pytest.approx(5.0), timeout_s=30.0)
+    finally:
+        tx.shutdown()
+
+
 def test_raw_frames(bus: Bus) -> None:
     d = bus.driver(frames=(
         RawFrame(name="counter", can_id=0x321, byte_offset=2, length=2, signed=True,

@@ -1,8 +1,10 @@
 """The driver contract, one suite run against every driver of the `pamd.drivers` entry
 points (as python-can runs one suite over its interfaces): sim, modbus (over loopback
 TCP, over RTU on socat ptys and RTU frames over TCP, against the emulated module),
-serial-line (a pty) and canopen-encoder (python-can's virtual bus, and its socketcand
-client against the emulator's socketcand server, with an emulated CiA 406 node).
+serial-line (a pty), canopen-encoder (python-can's virtual bus, and its socketcand
+client against the emulator's socketcand server, with an emulated CiA 406 node) and
+nidaqmx (NI's own client library against the emulator's NI gRPC Device Server, on the
+card's sample clock).
 
 What `pamd.drivers.Driver` promises: found by its entry point, options a documented
 frozen dataclass and bad ones refused with a DriverError naming the driver; channels
@@ -33,6 +35,13 @@ from pamd.drivers.can_frames import EncoderNode
 from pamd.drivers.canopen_encoder import CanEncoderOptions
 from pamd.drivers.modbus import ModbusOptions
 from pamd.drivers.modbus_map import ModbusPoint
+from pamd.drivers.nidaq_options import (
+    AnalogInput,
+    AnalogOutput,
+    DigitalLine,
+    EncoderInput,
+    NidaqOptions,
+)
 from pamd.drivers.serial_line import LineField, SerialLineOptions
 from pamd.drivers.sim import SimDriver
 
@@ -43,6 +52,8 @@ from pamd.emulate.modbus_device import (
     serve_rtu_tcp,
     serve_tcp,
 )
+from pamd.emulate.nidaq_device import USB_6211, EmulatedDaq
+from pamd.emulate.nidaq_server import DaqServer
 from pamd.emulate.ptys import PtyPair
 from pamd.emulate.socketcand import SocketcandServer
 from pamd.emulate.testing import AioThread, emulated_dict, free_port, wait_until, write_config
@@ -442,10 +453,61 @@ class CanSocketcandBench(Bench):
         self.net.disconnect()
 
 
+class NidaqBench(Bench):
+    """A USB-6211's channels (config/rig-nidaq-emulated.yaml's, and an encoder) behind
+    the emulator's NI gRPC Device Server, hardware-timed at 200 Hz on the card's sample
+    clock; the device pulled (DAQmx -201003) and plugged back."""
+
+    type_name = "nidaqmx"
+    fault_words = ("Dev1", "-201003")
+
+    def __init__(self, tmp: Path) -> None:
+        super().__init__(tmp)
+        shown = {"dev1/ai0": 3.0, "dev1/ai1": 1.5, "dev1/ctr0": 200.0, "dev1/port0/line0": 1.0}
+        self.device = EmulatedDaq("Dev1", USB_6211, shown.get, lambda k, v: None)
+        self.server = DaqServer({"Dev1": self.device}, "127.0.0.1", free_port())
+        self.server.start()
+
+    def options(self) -> NidaqOptions:
+        return NidaqOptions(
+            server=self.server.address, timing="hardware_timed", sample_rate_hz=200.0,
+            fault_after_s=0.2, reconnect_max_s=0.2,
+            analog_inputs=(AnalogInput(name="pressure", physical_channel="Dev1/ai0"),
+                           AnalogInput(name="force", physical_channel="Dev1/ai1")),
+            encoders=(EncoderInput(name="length", counter="Dev1/ctr0", mm_per_pulse=0.04),),
+            analog_outputs=(AnalogOutput(name="valve", physical_channel="Dev1/ao0"),),
+            digital_inputs=(DigitalLine(name="estop", line="Dev1/port0/line0"),),
+            digital_outputs=(DigitalLine(name="dump", line="Dev1/port1/line0"),))
+
+    def bad_options(self) -> tuple[Any, str]:
+        return dataclasses.replace(self.options(), analog_inputs=(
+            AnalogInput(name="p", physical_channel="Dev1:ai0"),)), "physical name"
+
+    def absent_options(self) -> NidaqOptions:
+        return dataclasses.replace(self.options(), server=f"127.0.0.1:{free_port()}")
+
+    def silence(self) -> None:
+        self.device.remove()
+
+    def restore(self) -> None:
+        self.device.reinsert()
+
+    def check_recovered(self, d: Driver) -> None:
+        assert d.health().counters["connects"] >= 2  # its tasks made again
+
+    def check_absent(self, d: Driver) -> None:
+        assert "does not answer" in d.fault  # type: ignore[operator]
+        assert wait_until(lambda: d.health().counters.get("connect_failures", 0) >= 2)
+
+    def close(self) -> None:
+        self.server.stop()
+
+
 BENCHES: dict[str, type[Bench]] = {
     "sim": SimBench, "modbus-tcp": ModbusTcpBench, "modbus-rtu": ModbusRtuBench,
     "modbus-rtu-tcp": ModbusRtuTcpBench, "serial-line": SerialLineBench,
     "canopen-encoder": CanEncoderBench, "canopen-socketcand": CanSocketcandBench,
+    "nidaqmx": NidaqBench,
 }
 
 

@@ -23,12 +23,12 @@ POINTS = dict(
     outputs=(ModbusPoint(name="tare", function="coil", address=0, unit=""),))
 
 
-def options(port: int, url: bool) -> ModbusOptions:
+def options(port: int, url: bool, timeout_s: float = 0.05) -> ModbusOptions:
     where = (dict(transport="rtu", serial_port=f"socket://127.0.0.1:{port}") if url
              else dict(transport="rtu-tcp", host="127.0.0.1", port=port))
-    return ModbusOptions(baud=115200, device_id=7, timeout_s=0.05, poll_period_s=0.0,
-                         fault_after_s=0.2, reconnect_max_s=0.2, **where,  # type: ignore[arg-type]
-                         **POINTS)  # type: ignore[arg-type]
+    return ModbusOptions(baud=115200, device_id=7, timeout_s=timeout_s, poll_period_s=0.0,
+                         fault_after_s=4 * timeout_s, reconnect_max_s=0.2,
+                         **where, **POINTS)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("url", [False, True], ids=["rtu-tcp", "socket-url"])
@@ -36,7 +36,10 @@ def test_rtu_frames_over_tcp_round_trip(aio: AioThread, url: bool) -> None:
     port = free_port()
     shown: dict[str, float] = {"force": 294.3, "count": -7}
     got: dict[str, float] = {}
-    opts = options(port, url)
+    # Every request answered, none lost: the emulator answers from an asyncio thread of
+    # this test's busy process (three pytest workers on two cores), which a 50 ms reply
+    # deadline sometimes missed; what is checked here is the frames, not the latency
+    opts = options(port, url, timeout_s=0.5)
     dev = EmulatedModbusDevice(opts, shown.get, got.__setitem__)
     server = aio.run(serve_rtu_tcp(dev, "127.0.0.1", port))
     d = ModbusDriver("lc", opts)

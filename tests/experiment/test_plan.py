@@ -42,6 +42,26 @@ def test_shipped_sine_sweep_reproduces_the_seeds_protocol() -> None:
     assert "load-80kg" in format_timeline(plan, lines)
 
 
+def test_a_steps_peak_is_its_own_not_what_the_step_before_left() -> None:
+    """A 0-3 bar step after a ramp to 4.5 bar peaks at 3 bar (issue 40: the dry run
+    showed 4.50, the pressure its lead-in leaves at once); the ramp peaks at 4.5, and a
+    hold after it at the 3 bar the step ended on."""
+    cfg = load_config()
+    plan = parse_plan("""name: peaks
+muscle: m1
+steps:
+  - name: up
+    profile: {kind: ramp, to_bar: 4.5}
+  - name: step
+    profile: {kind: step, min_bar: 0, max_bar: 3, freq_hz: 0.1, cycles: 2}
+  - {name: rest, hold_s: 2}
+""", "plan.yaml", cfg)
+    up, step, rest = timeline(plan, cfg, simulated=True)
+    assert (up.peak_bar, step.peak_bar, rest.peak_bar) == (4.5, 3.0, 3.0)
+    assert step.contraction_max == pytest.approx(rest.contraction_max)  # both at 3 bar
+    assert step.contraction_max < up.contraction_max
+
+
 def test_unknown_key_names_line_and_step() -> None:
     (i,) = issues(PLAN.replace("  - {name: b, load_kg: 30}", "  - {name: b, lod_kg: 30}"))
     assert i.path == "steps[1].lod_kg" and i.line == 7

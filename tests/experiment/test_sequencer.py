@@ -86,6 +86,9 @@ def test_wrong_load_is_a_fault_not_a_run(harness: Any) -> None:
     assert h.state == "FAULT"
     assert "does not agree with 15 kg" in h.ctrl.supervisor.fault_reason
     assert running_plan(h.ctrl).outcome.startswith("fault")
+    # the safe state holds the larger of the two loads, the 30 kg that hang (issue 38)
+    assert "the safe state holds the larger" in h.ctrl.supervisor.fault_reason
+    assert h.m1.load_kg == pytest.approx(30.0, abs=0.2)
 
 
 def test_pause_at_end_of_cycle_then_resume(harness: Any) -> None:

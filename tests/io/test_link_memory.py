@@ -42,3 +42,39 @@ def test_the_block_shows_the_newest_files_that_fit_whole() -> None:
         assert len("\n".join(shown).encode()) <= FILES_MAX
     finally:
         block.close()
+
+
+def test_a_loss_that_goes_on_is_said_every_second_and_in_the_header_at_once() -> None:
+    """Issue 43: lost records were found afterwards only. The loop's count goes into the
+    shared header with every record it loses (the status reads it there, however far
+    behind the io process is), and a loss that goes on is an event after each second of
+    it (`ongoing`), then once more when the ring has room again."""
+    from pamd.ipc.ring import C_HEARTBEAT, C_LOOP_LOST
+    from pamd.tick import I_T, I_TICK
+
+    block = SharedBlock(BlockLayout(record_bytes=16, tick_slots=4), create=True)
+    events: list[tuple[str, dict[str, Any]]] = []
+    try:
+        sink = RingSink(SimpleNamespace(block=block), virtual=False,  # type: ignore[arg-type]
+                        t_start=lambda: 0.0, on_failure=lambda what, why: None,
+                        notify=lambda msg: None)
+        sink.event = lambda t, kind, data: events.append((kind, data))  # type: ignore[method-assign]
+        sink._dead = lambda: False  # type: ignore[method-assign]  # noqa: SLF001
+        rec = array("d", [0.0, 0.0])
+        lost = 0
+        for k in range(3000):  # 3 s at 1 kHz; nobody drains the ring of 4 slots
+            rec[I_TICK], rec[I_T] = float(k), k * 0.001
+            block.set(C_HEARTBEAT, k)  # the io process is alive
+            if not sink.put(rec):
+                lost += 1
+                assert block.get(C_LOOP_LOST) == lost  # at once, record by record
+        ongoing = [d for kind, d in events if kind == "lost_records"]
+        assert lost == 2996 and len(ongoing) == 2, ongoing  # after 1 s and after 2 s
+        assert all(d["ongoing"] for d in ongoing) and ongoing[-1]["total"] < lost
+        block.ticks.release(block.ticks.u64[block.ticks.i_head])  # the io process drains
+        rec[I_TICK], rec[I_T] = 3000.0, 3.0
+        assert sink.put(rec)
+        last = [d for kind, d in events if kind == "lost_records"][-1]
+        assert "ongoing" not in last and last["total"] == lost
+    finally:
+        block.close()

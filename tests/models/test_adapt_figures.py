@@ -1,5 +1,5 @@
-"""The figures bench/adapt_drift.py reports for its test run (README "Online
-adaptation"), reproduced on the same protocol (virtual clock: deterministic): the
+"""The figures bench/adapt_drift.py reports for its test run (docs/explanation/
+adaptation.md), reproduced on the same protocol (virtual clock: deterministic): the
 model trained as bench/position_tracking.py trains it, 10 minutes at 0.2 Hz, 30 kg,
 the muscle losing 10 % of its force. Slow: twelve recorded sweeps and three
 10-minute runs."""
@@ -31,9 +31,9 @@ def test_drift_figures_as_reported(tmp_path: Path) -> None:
     a = ad.track(model, load, 0.0, None, 10.0, 10)
     b = ad.track(model, load, drift, None, 10.0, 10)
     c = ad.track(model, load, drift, ad.ADAPT, 10.0, 10)
-    # README, bench/adapt_drift.py; re-measured when the ANFIS library's default became
-    # two initial widths (1, 3) (#28 item 5): before, with one start at width 1, (a)
-    # 0.498, (b) 0.730, (c) 0.609 mm and max |e| 2.01 / 2.60 / 1.70 mm
+    # docs/explanation/adaptation.md, bench/adapt_drift.py; re-measured when the ANFIS
+    # library's default became two initial widths (1, 3) (#28 item 5): before, with one
+    # start at width 1, (a) 0.498, (b) 0.730, (c) 0.609 mm and max |e| 2.01 / 2.60 / 1.70 mm
     reported = {"a": 0.481, "b": 0.655, "c": 0.658}
     got = {"a": a["rmse"], "b": b["rmse"], "c": c["rmse"]}
     for k, want in reported.items():

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from types import ModuleType
 
+import numpy as np
 import pytest
 
 from pamd.models.anfis import TrainingOptions, fit
@@ -19,10 +20,21 @@ def bench() -> ModuleType:
     return bench_module("anfis_jang")
 
 
+#: Where the sinc check RMSE of the default starts lands, on any machine and build. The
+#: wide start's 500 epochs of step-size-adapted descent are chaotic in the last bits of
+#: the data: with every training target moved by at most one ulp at random, 80 fits (40
+#: each with numpy 2.4's AVX-512 and AVX2 paths) gave 0.0052-0.0282, median 0.011, 2 of
+#: 80 above the 0.025 goal; the data as it is gives 0.0058 on an AVX-512 build and 0.0142
+#: on an AVX2-only one (issue 38: a pin of 0.00577 +- 1e-4 held on one build only). The
+#: narrow start (width 1) is not: 0.034421 in all 24 such fits, both paths.
+SINC_RMSE_RANGE = (0.005, 0.030)
+
+
 def test_sinc_with_the_library_defaults() -> None:
     """4 x 4 Gaussian MFs, 500 epochs, the default starts WIDTH_STARTS: the wide start
-    (3) is kept on training error and reaches 0.0058 (goal <= 0.025); one start at width
-    1 (MATLAB's layout, the old default) stalls at 0.0344."""
+    (3) is kept on training error and lands within SINC_RMSE_RANGE (0.0058 on one build,
+    0.0142 on another: the training's sensitivity, not the build's fault); one start at
+    width 1 (MATLAB's layout, the old default) stalls at 0.0344 on every build."""
     b = bench()
     p = b.PROBLEMS["sinc"]
     train, check = p.data()
@@ -30,9 +42,34 @@ def test_sinc_with_the_library_defaults() -> None:
     got = b.rmse(result.model.predict, *check)
     assert TrainingOptions().width_factor == WIDTH_STARTS == (1.0, 3.0)
     assert result.model.provenance["training"]["width_starts"]["kept"] == 3.0
-    assert got == pytest.approx(0.00577, abs=1e-4) and got <= 0.025
+    lo, hi = SINC_RMSE_RANGE
+    assert lo <= got <= hi, got
     one = fit(*train, TrainingOptions(n_mfs=p.n_mfs, epochs=p.epochs, width_factor=1.0))
     assert b.rmse(one.model.predict, *check) == pytest.approx(0.0344, abs=2e-4)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_sinc_with_the_defaults_is_chaotic_in_the_last_bits() -> None:
+    """The finding behind SINC_RMSE_RANGE, on this build: 12 fits with each training
+    target moved by at most one ulp spread the check RMSE by a factor of more than 1.5,
+    every one within the range; the narrow start gives the same figure every time."""
+    b = bench()
+    p = b.PROBLEMS["sinc"]
+    (X, y), check = p.data()
+    rng = np.random.default_rng(1)
+    wide, narrow = [], []
+    for _ in range(12):
+        yp = y + rng.integers(-1, 2, size=y.shape) * np.spacing(y)
+        fitted = fit(X, yp, TrainingOptions(n_mfs=p.n_mfs, epochs=p.epochs))
+        wide.append(b.rmse(fitted.model.predict, *check))
+    for _ in range(3):
+        yp = y + rng.integers(-1, 2, size=y.shape) * np.spacing(y)
+        fitted = fit(X, yp, TrainingOptions(n_mfs=p.n_mfs, epochs=p.epochs, width_factor=1.0))
+        narrow.append(b.rmse(fitted.model.predict, *check))
+    assert max(wide) / min(wide) > 1.5, wide
+    assert all(SINC_RMSE_RANGE[0] <= g <= SINC_RMSE_RANGE[1] for g in wide), wide
+    assert max(narrow) - min(narrow) < 1e-9, narrow
 
 
 @pytest.mark.slow
@@ -50,7 +87,8 @@ def test_mackey_glass_with_the_library_defaults() -> None:
 @pytest.mark.slow
 @pytest.mark.timeout(1800)  # two Mackey-Glass fits of 500 epochs
 def test_mackey_glass_gap_is_a_forecast_gap() -> None:
-    """Why no training setting reaches 0.0025 (README, bench/anfis_jang.py --diagnose):
+    """Why no training setting reaches 0.0025 (docs/explanation/inverse-model.md,
+    bench/anfis_jang.py --diagnose):
     on the training series' last fifth in time (a forecast, as the check is) the
     held-out RMSE is lowest early (epoch 43, 0.00202) and rises to 0.00245 by epoch 500
     while the training RMSE keeps falling; on a random fifth (points between the data

@@ -1,7 +1,7 @@
 """bench/anfis_mackey_glass_family.py: the library's defaults on Mackey-Glass trajectories
 other than the reference, and the integrator that made the reference. The figures are
 deterministic (no random choice in `fit` without a validation fraction); these tests
-guard the ones the README reports."""
+guard the ones docs/explanation/inverse-model.md reports."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The figures bench/models_compare.py reports for the 50 kg test (README "Comparing
-models"), reproduced on the same protocol (virtual clock: deterministic) for the
+"""The figures bench/models_compare.py reports for the 50 kg test (docs/explanation/
+comparing-models.md), reproduced on the same protocol (virtual clock: deterministic) for the
 kinds whose figures carry a goal. Slow: eight recorded 60 s sweeps and two GA runs."""
 
 from __future__ import annotations
@@ -43,6 +43,6 @@ def test_50kg_test_figures_as_reported(tmp_path: Path) -> None:
         assert got[name] == pytest.approx(want, abs=0.05), (name, got)
     if not (got["ts-fuzzy mga"] <= 1.6 and got["ts-fuzzy mga"] < got["ts-fuzzy ga"]):
         # the figures above are as reported; the bench's goal (seed 001's 1.6 %, MGA below
-        # GA) is not met on today's plant (README "Comparing models"): shown, not hidden
+        # GA) is not met on today's plant (docs/explanation/comparing-models.md): shown, not hidden
         pytest.xfail(f"goal not met: mga {got['ts-fuzzy mga']:.2f} % (goal <= 1.6 and "
                      f"below ga {got['ts-fuzzy ga']:.2f} %)")

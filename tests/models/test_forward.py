@@ -172,7 +172,7 @@ def test_bad_maps_are_refused_naming_row_and_column(header: str, row: str, where
 
 def test_seed_002_figures_as_the_readme_reports() -> None:
     """bench/seed002.py's protocol (leave-one-curve-out over 1-5 bar, the kinds' defaults,
-    seed 0) gives the README's figures for the polynomial, the best MLP and the cubic and
+    seed 0) gives the docs' figures for the polynomial, the best MLP and the cubic and
     fine-Gaussian SVMs (deterministic: no clock, no load dependence)."""
     bench = Path(__file__).resolve().parents[2] / "bench"
     sys.path.insert(0, str(bench))

@@ -25,7 +25,6 @@ import time
 from typing import Any
 
 from pamd.net.client.client import Client
-from pamd.net.credential import attachment, find_token
 from pamd.net.zconf import NoDaemon
 
 
@@ -155,15 +154,12 @@ def _burst(cl: Client, req: dict[str, Any]) -> dict[str, Any]:
             if len(verdicts) >= n:
                 done.set()
 
-    key = f"pamd/{req['rig']}/cmd/{req['verb']}"
-    token, _where = find_token(req["rig"])
-    kw = {} if token is None else {"attachment": attachment(token)}
     t0 = time.perf_counter()
     for i in range(n):
         while time.perf_counter() < t0 + i * req["seconds"] / n:
             time.sleep(0.0005)
         body = json.dumps(req["payloads"][i % len(req["payloads"])]).encode()
-        cl.session.get(key, on_reply, payload=body, timeout=req.get("timeout", 60.0), **kw)
+        cl.send(req["rig"], req["verb"], body, on_reply, timeout_s=req.get("timeout", 60.0))
     done.wait(req.get("timeout", 60.0) + 5.0)
     with lock:
         errors: dict[str, int] = {}

@@ -1,6 +1,6 @@
 """What the client library says when zenoh answers a query with an error: its own
-"Timeout" (the query's time ran out: the command may have been dropped on a congested
-link, or answered too late) becomes a sentence that says what to do next; a rig's own
+"Timeout" (the query's time ran out: the command may not have reached the daemon on a
+congested link, or was answered too late) becomes a sentence that says what to do next; a rig's own
 error text passes through as it is. A fake session stands in for zenoh's, so nothing
 opens a socket here."""
 
@@ -44,15 +44,18 @@ class _Session:
 def _client(error: bytes) -> Client:
     zenoh = pytest.importorskip("zenoh")
     c = Client.__new__(Client)  # no session opened: the fake answers
-    c.zenoh, c.session, c.where = zenoh, _Session(error), "fake"  # type: ignore[assignment]
+    c.__dict__.update(zenoh=zenoh, _session=_Session(error), where="fake", _nonces={},
+                      _closed=False)
     return c
 
 
 def test_zenohs_timeout_says_the_command_may_be_lost_and_what_to_do() -> None:
     v = _client(b"Timeout").status("sim", timeout_s=2.5)
     assert v["ok"] is False
-    assert v["error"].startswith("no answer within 2.5 s: the command may have been dropped")
+    assert v["error"].startswith("no answer within 2.5 s: the command may not have reached "
+                                 "the daemon")
     assert "check the rig's status before sending it again" in v["error"]
+    assert "never dropped" not in v["error"]  # an estop of 4 MiB was, saying so
 
 
 def test_any_other_error_passes_through_unchanged() -> None:

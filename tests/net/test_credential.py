@@ -1,7 +1,8 @@
 """The command credential's file (`pamd.net.credential`): made once, readable by the
 daemon's user and group only, kept across restarts, never taken from a directory
-another user controls; found by the client in the same places (or as told); compared
-by hash. And rig ids are names: the client refuses a pattern before sending."""
+another user controls; found by the client in the same places (or as told); each
+command signed with it, never replayable; rotated in place. And rig ids are names: the
+client refuses a pattern before sending."""
 
 from __future__ import annotations
 
@@ -75,12 +76,52 @@ def test_the_client_finds_the_token_where_the_daemon_wrote_it_or_where_told(
     assert cr.find_token("sim")[0] is None
 
 
-def test_the_check_compares_hashes() -> None:
+def test_a_signature_is_checked_against_the_tokens_hash_in_constant_time() -> None:
     sha = cr.digest("a" * 43)
-    assert cr.matches(cr.attachment("a" * 43), sha)
-    for bad in (None, b"", b"a" * 43, cr.attachment("a" * 42), cr.attachment("b" * 43),
-                cr.attachment("a" * 43 + "x")):
-        assert not cr.matches(bad, sha)
+    v = cr.Verifier(sha, "n0")
+    body = b'{"muscle": "m1"}'
+    assert v.check(cr.Signer("a" * 43).attachment("sim", "hold", body, "n0"), "sim", "hold",
+                   body) is None
+    for bad in (b"a" * 43, cr.Signer("a" * 42).attachment("sim", "hold", body, "n0"),
+                cr.Signer("a" * 43).attachment("other", "hold", body, "n0"),
+                cr.Signer("a" * 43).attachment("sim", "stop", body, "n0"),
+                b"pamd-mac1 zz 1 n0 00", b"pamd-mac1 abcdef12 x n0 00"):
+        assert v.check(bad, "sim", "hold", body) == cr.BAD, bad
+    assert v.check(None, "sim", "hold", body) == cr.NONE
+    assert v.check(b"pamd-token:" + b"a" * 43, "sim", "hold", body) == cr.CLEAR
+    assert "a" * 43 not in cr.Signer("a" * 43).attachment("sim", "hold", body, "n0").decode()
+
+
+def test_counters_go_up_and_a_forgotten_client_cannot_be_replayed(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(cr, "MAX_CLIENTS", 2)
+    v = cr.Verifier(cr.digest("a" * 43), "n0")
+    s1, s2, s3 = (cr.Signer("a" * 43) for _ in range(3))
+    first = s1.attachment("sim", "hold", b"{}", "n0")
+    assert v.check(first, "sim", "hold", b"{}") is None
+    assert v.check(first, "sim", "hold", b"{}") == cr.REPLAY
+    for s in (s2, s3):  # s1 is forgotten: its counters are below the floor
+        assert v.check(s.attachment("sim", "hold", b"{}", "n0"), "sim", "hold", b"{}") is None
+    assert "abcd" not in v.last and len(v.last) == 2
+    assert v.check(first, "sim", "hold", b"{}") == cr.REPLAY
+    assert v.check(s1.attachment("sim", "hold", b"{}", "n0"), "sim", "hold", b"{}") is None
+
+
+def test_rotating_the_token_needs_no_deletion_and_the_io_process_takes_it(
+        token_dir: Path) -> None:
+    path, sha = cr.ensure_token("sim")
+    watch = cr.TokenWatch(path, period_s=0.0)
+    assert watch.changed(1.0) is None  # nothing new
+    old = cr.find_token("sim")[0]
+    assert cr.rotate_token("sim") == path
+    new = cr.find_token("sim")[0]
+    assert new is not None and new != old
+    assert stat.S_IMODE(os.stat(path).st_mode) == 0o640
+    assert watch.changed(2.0) == cr.digest(new)  # the io process's key from now on
+    assert watch.changed(3.0) is None
+    assert list(token_dir.iterdir()) == [Path(path)]  # no temporary file left behind
+    with pytest.raises(cr.CredentialError, match="no command token"):
+        cr.rotate_token("other")
 
 
 @pytest.mark.parametrize("rig", ["*", "**", "s*", "$*", "a/b", "pamd/**", "", "x?", "#"])

@@ -10,12 +10,15 @@ import threading
 from types import SimpleNamespace
 from typing import Any
 
-from pamd.net.credential import attachment, digest
+import pytest
+
+from pamd.net.credential import Signer, digest
 from pamd.net.node import node as node_mod
 from pamd.net.node.node import NetNode
 from pamd.net.spec import NetSpec
 
 TOKEN = "t" * 43
+NONCE = "0123456789abcdef"  # the daemon's run nonce
 
 
 class Bytes:
@@ -28,11 +31,12 @@ class Bytes:
 
 class Query:
     def __init__(self, key: str, payload: bytes = b"{}", token: str | None = TOKEN,
-                 zid: str = "abc") -> None:
+                 zid: str = "abc", nonce: str = NONCE) -> None:
         self.key_expr = key
         self.parameters = {"user": "ana"}
         self.payload = Bytes(payload)
-        self.attachment = None if token is None else Bytes(attachment(token))
+        self.attachment = None if token is None else Bytes(Signer(token).attachment(
+            "sim", key.rsplit("/", 1)[-1], payload, nonce))
         self.source_info = SimpleNamespace(source_id=SimpleNamespace(zid=zid))
         self.replies: list[dict[str, Any]] = []
 
@@ -63,11 +67,12 @@ def make(**kw: Any) -> tuple[NetNode, Port, list[tuple[str, dict[str, Any]]]]:
     spec = NetSpec(rig_id="sim", muscles=("m1",), zenoh_json="{}", every_ticks=10,
                    publish_period_s=0.01, command_rate_per_s=1000.0, command_burst=1000,
                    command_timeout_s=5.0, token_sha256=digest(TOKEN),
-                   token_file="/run/pamd/pamd-sim.token", **kw)
+                   token_file="/run/pamd/pamd-sim.token", run_nonce=NONCE, **kw)
     port = Port()
     recorded: list[tuple[str, dict[str, Any]]] = []
     n = NetNode(spec, SimpleNamespace(virtual=True, wall0_ns=0, clock0_s=0.0),
-                SimpleNamespace(t_start=lambda: 0.0), port,  # type: ignore[arg-type]
+                SimpleNamespace(t_start=lambda: 0.0, newest_f64=lambda i: None,
+                                loop_lost=lambda: 0), port,  # type: ignore[arg-type]
                 lambda t, kind, data: recorded.append((kind, data)))
     n.events_pub = SimpleNamespace(put=lambda *a, **k: None)
     return n, port, recorded
@@ -89,9 +94,11 @@ def test_a_command_with_the_token_is_taken_and_its_verdict_names_the_rig() -> No
 
 def test_a_command_without_or_with_a_wrong_token_is_refused_and_recorded() -> None:
     n, port, recorded = make()
-    for tok in (None, "w" * 43, TOKEN[:-1], ""):
+    for tok, why in ((None, "needs the daemon's command credential"),
+                     ("w" * 43, "does not match"), (TOKEN[:-1], "does not match"),
+                     ("", "does not match")):
         v = send(n, Query("pamd/sim/cmd/setpoint", b'{"muscle": "m1", "bar": 3.0}', tok))
-        assert not v["ok"] and "needs the daemon's command credential" in v["error"], v
+        assert not v["ok"] and why in v["error"] and "credential" in v["error"], v
         assert "/run/pamd/pamd-sim.token" in v["error"] and v["rig"] == "sim"
     assert port.sent == []  # nothing reached the loop
     kinds = [(k, d.get("error", "")) for k, d in recorded]
@@ -106,6 +113,59 @@ def test_an_estop_acts_without_the_token_and_is_recorded_as_such() -> None:
     assert port.sent == [("estop", {"reason": "hand in"}, "zenoh:abc (no credential)")]
     v = send(n, Query("pamd/sim/cmd/stop", b"{}", token=None))  # a stop needs it
     assert not v["ok"] and "credential" in v["error"]
+
+
+def test_a_signed_command_cannot_be_replayed_nor_sent_to_another_run() -> None:
+    """Issue 43: the token travelled in clear with every command; captured, it could be
+    replayed until the file was deleted. A signature taken once is refused the second
+    time; one made for another run of the daemon (its nonce) is refused with this run's
+    nonce; the old clear form is refused as such. An estop acts whatever (recorded as
+    sent without a credential)."""
+    n, port, recorded = make()
+    body = b'{"muscle": "m1", "bar": 3.0}'
+    q = Query("pamd/sim/cmd/setpoint", body)
+    assert send(n, q)["ok"]
+    again = Query("pamd/sim/cmd/setpoint", body)
+    again.attachment = q.attachment  # the same bytes, captured and sent again
+    v = send(n, again)
+    assert not v["ok"] and "taken already" in v["error"], v
+    other = Query("pamd/sim/cmd/setpoint", body, nonce="ffffffffffffffff")
+    v = send(n, other)
+    assert not v["ok"] and "another run" in v["error"] and v["command_nonce"] == NONCE
+    assert v["credential"] == "stale"
+    tampered = Query("pamd/sim/cmd/setpoint", b'{"muscle": "m1", "bar": 5.0}')
+    tampered.attachment = Query("pamd/sim/cmd/setpoint", body).attachment
+    assert "does not match" in send(n, tampered)["error"]  # the payload is signed
+    clear = Query("pamd/sim/cmd/hold")
+    clear.attachment = Bytes(b"pamd-token:" + TOKEN.encode())
+    v = send(n, clear)
+    assert not v["ok"] and "in clear" in v["error"], v
+    assert len(port.sent) == 1  # only the first reached the loop
+    e = Query("pamd/sim/cmd/estop", b'{"reason": "r"}')
+    assert send(n, e)["ok"]
+    e2 = Query("pamd/sim/cmd/estop", b'{"reason": "r"}')
+    e2.attachment = e.attachment
+    assert send(n, e2)["ok"]  # a replayed estop still stops the rig...
+    assert port.sent[-1][2] == "zenoh:abc (no credential)"  # ...recorded as unsigned
+
+
+def test_a_wildcard_key_is_refused_like_a_wildcard_rig() -> None:
+    """Issue 47: `pamd/<rig>/**/setpoint` with a valid signature was taken."""
+    n, port, _ = make()
+    for key in ("pamd/sim/**/setpoint", "pamd/sim/*/setpoint", "pamd/sim/cmd/**/setpoint"):
+        v = send(n, Query(key, b'{"muscle": "m1", "bar": 3.0}'))
+        assert not v["ok"] and "not the pattern" in v["error"], (key, v)
+    assert port.sent == []
+    assert send(n, Query("pamd/sim/**/estop"))["ok"]  # an estop acts on a pattern
+    assert send(n, Query("pamd/sim/cmd/setpoint", b'{"muscle": "m1", "bar": 3.0}'))["ok"]
+
+
+def test_the_local_channel_needs_no_signature_and_names_its_sender() -> None:
+    n, port, _ = make()
+    q = Query("pamd/sim/cmd/hold", token=None)
+    n.intake.on_command(q, sender="local:ana pid 42", trusted=True)
+    assert q.replies == [{"ok": True, "rig": "sim"}]
+    assert port.sent == [("hold", {}, "local:ana pid 42")]
 
 
 def test_rig_patterns_are_refused_but_an_estop_on_one_acts() -> None:
@@ -193,3 +253,17 @@ def test_a_storm_of_status_queries_builds_one_answer_per_interval() -> None:
               for i in range(1000)}  # 1000 queries in 1 s
     assert 45 <= len(reads) <= 51 and len(bodies) <= len(reads)  # one per 20 ms
     assert all(json.loads(b)["state"] == "IDLE" for b in bodies)
+
+
+def test_the_status_says_the_nonce_the_local_channel_and_the_warnings(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from pamd.cli.net import print_status
+
+    clear = "telemetry listens on tcp/0.0.0.0:7447 beyond loopback WITHOUT TLS (allowed)"
+    n, _, _ = make(warnings=(clear,))
+    body = json.loads(n.answer.body((b'{"rig_id": "sim", "state": "IDLE"}', 0.01), 0.0, 0.0,
+                                    None, {}))
+    assert body["command_nonce"] == NONCE and body["local_channel"] is None
+    assert body["warnings"] == [clear]
+    print_status(body)
+    assert f"WARNING: {clear}" in capsys.readouterr().out

@@ -105,4 +105,5 @@ def test_flood_is_rate_limited_and_stop_is_clean(tmp_path: Path, daemons: Any,
     assert d.proc.wait(60) == 0, d.log()[-3000:]
     summary = json.loads(d.out_path.read_text())
     assert summary["stop_reason"] == "SIGTERM received" and summary["final_state"] == "IDLE"
-    assert "no answer" in a.call("status", rig="sim", timeout=1.0)["no_daemon"]
+    gone = a.call("status", rig="sim", timeout=1.0)["no_daemon"]  # its session closed with
+    assert "no answer" in gone or "cannot connect" in gone  # the daemon: not reconnecting

@@ -46,7 +46,7 @@ def node(log: list[str], hang: threading.Event | None = None) -> NetNode:
     spec = NetSpec(rig_id="sim", muscles=("m1",), zenoh_json="{}", every_ticks=10,
                    publish_period_s=0.01, command_rate_per_s=10.0, command_burst=5,
                    command_timeout_s=0.5)
-    block = SimpleNamespace(t_start=lambda: 0.0)
+    block = SimpleNamespace(t_start=lambda: 0.0, newest_f64=lambda i: None, loop_lost=lambda: 0)
     port = RingCommandPort(SimpleNamespace(commands=None))  # type: ignore[arg-type]
     n = NetNode(spec, SimpleNamespace(virtual=True, wall0_ns=0, clock0_s=0.0), block, port,
                 lambda *a: log.append("recorded"))

@@ -30,16 +30,20 @@ REPO = Path(__file__).resolve().parents[2]
 ZCONF = REPO / "config" / "zenoh"
 
 
+#: the how-to page that gives the lab's recipe (the docs site: docs/how-to/)
+RECIPE_PAGE = REPO / "docs" / "how-to" / "lab-network.md"
+
+
 def readme_recipe() -> str:
-    """The README's openssl commands, exactly as written there."""
-    blocks = re.findall(r"```sh\n(.*?)```", (REPO / "README.md").read_text(), re.S)
+    """The lab-network page's openssl commands, exactly as written there."""
+    blocks = re.findall(r"```sh\n(.*?)```", RECIPE_PAGE.read_text(), re.S)
     return next(b for b in blocks if "openssl req -x509" in b)
 
 
 def make_certs(d: Path) -> dict[str, str]:
-    """Run the README's recipe verbatim in `d`; returns its users and passwords."""
+    """Run the page's recipe verbatim in `d`; returns its users and passwords."""
     if shutil.which("openssl") is None:
-        pytest.fail("openssl is not installed: the README's certificate recipe needs it "
+        pytest.fail("openssl is not installed: the docs' certificate recipe needs it "
                     "(apt-get install openssl, or run .ci/setup-tests)")
     d.mkdir(parents=True, exist_ok=True)
     subprocess.run(["sh", "-eu", "-c", readme_recipe()], cwd=d, check=True,

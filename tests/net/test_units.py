@@ -87,6 +87,193 @@ def test_telemetry_request_resolves_from_the_config(sim_config: Any, tmp_path: P
         resolve(cfg, TelemetryRequest(zenoh_config=str(tmp_path / "none.json5")))
 
 
+def test_listening_beyond_loopback_without_tls_must_be_said_and_is_warned(
+        sim_config: Any, tmp_path: Path) -> None:
+    """Issue 43: `pamd run --listen tcp/0.0.0.0:...` started without TLS and without a
+    warning. Refused unless --allow-cleartext (or telemetry.allow_cleartext) says so,
+    naming where the endpoint came from; allowed, warned (at start, in every status)."""
+    on = {"enabled": True, "listen": "tcp/0.0.0.0:7123"}
+    with pytest.raises(ConfigError, match="allow-cleartext") as err:
+        resolve(sim_config(30.0, telemetry=on), TelemetryRequest())
+    assert "telemetry.listen" in str(err.value) and "tcp/0.0.0.0:7123" in str(err.value)
+    spec = resolve(sim_config(30.0, telemetry=on), TelemetryRequest(allow_cleartext=True))
+    assert spec is not None and "WITHOUT TLS" in spec.warnings[0]
+    spec = resolve(sim_config(30.0, telemetry=dict(on, allow_cleartext=True)),
+                   TelemetryRequest())
+    assert spec is not None and spec.warnings
+    loopback = {"enabled": True, "listen": "tcp/127.0.0.1:7123"}
+    with pytest.raises(ConfigError, match="--listen"):
+        resolve(sim_config(30.0, telemetry=loopback),
+                TelemetryRequest(listen="tcp/192.168.7.2:7124"))
+    spec = resolve(sim_config(30.0, telemetry=loopback), TelemetryRequest())
+    assert spec is not None and spec.warnings == ()  # loopback: nothing to say
+    import zenoh
+
+    cfg = zenoh.Config.from_json5(json.dumps({"listen": {"endpoints": [
+        "tls/0.0.0.0:7447", "quic/0.0.0.0:7448", "tcp/127.0.0.1:1", "tcp/[::1]:2",
+        "tcp/localhost:3", "unixsock-stream//tmp/z.sock", "tcp/192.168.1.4:5",
+        "udp/0.0.0.0:6", "tcp/[::]:7"]}}))
+    assert zconf.cleartext_beyond_loopback(cfg) == [
+        "tcp/192.168.1.4:5", "udp/0.0.0.0:6", "tcp/[::]:7"]
+    router = zconf.load_file(str(REPO / "config" / "zenoh" / "lab-router.json5"))
+    assert zconf.cleartext_beyond_loopback(router) == []  # the shipped router: TLS
+
+
+CLEAR = "beyond loopback WITHOUT TLS (allowed on purpose: pamd run --allow-cleartext, or " \
+    "telemetry.allow_cleartext: true)"
+
+
+def test_connecting_in_clear_beyond_loopback_is_judged_as_listening_is(
+        sim_config: Any, tmp_path: Path) -> None:
+    """Issue 43 item 2, completed: a daemon whose Zenoh config connects in clear (tcp/)
+    to a router on another machine sends state, status and commands over the network
+    as a listen in clear does: refused naming the file, line and key unless allowed,
+    then warned in the same words; loopback and TLS connects say nothing."""
+    def with_connect(endpoint: str) -> Any:
+        (tmp_path / "lab.json5").write_text(
+            '{\n  mode: "peer",\n  listen: {endpoints: ["tcp/127.0.0.1:7123"]},\n'
+            f'  connect: {{endpoints: ["{endpoint}"]}},\n}}\n')
+        return sim_config(30.0, telemetry={"enabled": True, "zenoh_config": "lab.json5"})
+
+    with pytest.raises(ConfigError) as err:
+        resolve(with_connect("tcp/192.168.7.2:7447"), TelemetryRequest())
+    text = str(err.value)
+    assert "lab.json5:4: connect/endpoints:" in text and "--allow-cleartext" in text, text
+    assert "the Zenoh session connects to tcp/192.168.7.2:7447 beyond loopback without " \
+        "TLS" in text, text
+    spec = resolve(with_connect("tcp/192.168.7.2:7447"), TelemetryRequest(allow_cleartext=True))
+    assert spec is not None and spec.warnings == (
+        f"the Zenoh session connects to tcp/192.168.7.2:7447 {CLEAR}: state, status and "
+        "signed commands can be read on the network",)
+    for fine in ("tls/lab-router:7447", "tcp/localhost:7447", "quic/10.0.0.1:7447"):
+        spec = resolve(with_connect(fine), TelemetryRequest())
+        assert spec is not None and spec.warnings == (), fine
+
+
+def test_the_foxglove_view_beyond_loopback_needs_tls_or_the_same_permission(
+        sim_config: Any) -> None:
+    """Issue 43 item 2, completed: the live view's WebSocket is plain unless it has a
+    certificate; beyond loopback (0.0.0.0, a LAN address, a host name) it is refused
+    like a Zenoh listen in clear, from the config (its line) or --foxglove, in one error
+    with the Zenoh endpoint when both are; allowed, warned at start and in the status;
+    with TLS (wss://) or on loopback, nothing to say."""
+    from pamd.net.host.resolve import resolve_all
+
+    lan = {"foxglove": {"enabled": True, "listen": "0.0.0.0:8765"}}
+    with pytest.raises(ConfigError) as err:
+        resolve_all(sim_config(30.0, telemetry=lan), TelemetryRequest())
+    text = str(err.value)
+    line = next(i for i, ln in enumerate(
+        sim_config(30.0, telemetry=lan).text.splitlines(), 1) if "0.0.0.0:8765" in ln)
+    assert f"sim.yaml:{line}: telemetry.foxglove.listen:" in text, text
+    assert "the Foxglove live view serves on ws://0.0.0.0:8765 beyond loopback without TLS" in text
+    assert "telemetry.foxglove.tls_cert" in text and "--allow-cleartext" in text
+    with pytest.raises(ConfigError) as err:  # both at once: one error names both
+        resolve_all(sim_config(30.0), TelemetryRequest(
+            foxglove="lab-pc.local:8765", listen="tcp/0.0.0.0:7123"))
+    assert "--foxglove" in str(err.value) and "--listen" in str(err.value)
+    assert len(err.value.issues) == 2
+    got = resolve_all(sim_config(30.0), TelemetryRequest(
+        foxglove="0.0.0.0:8765", listen="tcp/0.0.0.0:7123", allow_cleartext=True))
+    assert got.net is not None and got.net.warnings == got.warnings == (
+        f"the Zenoh session listens on tcp/0.0.0.0:7123 {CLEAR}: state, status and signed "
+        "commands can be read on the network",
+        f"the Foxglove live view serves on ws://0.0.0.0:8765 {CLEAR}: the live state, loop "
+        "timing and events can be read on the network")
+    got = resolve_all(sim_config(30.0, telemetry=dict(lan, allow_cleartext=True)),
+                      TelemetryRequest())  # telemetry off (virtual clock): said at start
+    assert got.net is None and got.viewer is not None and len(got.warnings) == 1
+    for host in ("127.0.0.1", "localhost", "[::1]"):
+        got = resolve_all(sim_config(30.0), TelemetryRequest(foxglove=f"{host}:8765"))
+        assert got.viewer is not None and got.warnings == (), host
+
+
+def test_the_foxglove_certificate_and_key_are_checked_before_anything_starts(
+        sim_config: Any, tmp_path: Path) -> None:
+    from pamd.net.host.resolve import resolve_all
+
+    (tmp_path / "view.pem").write_bytes(b"-----BEGIN CERTIFICATE-----\nMII...\n")
+    (tmp_path / "view.key").write_bytes(b"-----BEGIN PRIVATE KEY-----\nSECRET\n")
+    (tmp_path / "rsa.key").write_bytes(b"-----BEGIN RSA PRIVATE KEY-----\nMII...\n")
+    tls = {"enabled": True, "listen": "0.0.0.0:8765", "tls_cert": "view.pem",
+           "tls_key": "view.key"}
+    got = resolve_all(sim_config(30.0, telemetry={"foxglove": tls}), TelemetryRequest())
+    assert got.viewer is not None and got.viewer.url == "wss://0.0.0.0:8765"
+    assert got.warnings == () and got.viewer.tls_key is not None
+    assert "SECRET" not in repr(got.viewer)  # the key is never printed
+    for change, says in (({"tls_key": None}, "telemetry.foxglove.tls_key: expected a PEM "
+                          "PKCS#8 private key"),
+                         ({"tls_key": "rsa.key"}, "openssl pkcs8 -topk8"),
+                         ({"tls_cert": "none.pem"}, "telemetry.foxglove.tls_cert: expected a "
+                          "PEM certificate file")):
+        with pytest.raises(ConfigError, match=says):
+            resolve_all(sim_config(30.0, telemetry={"foxglove": dict(tls, **change)}),
+                        TelemetryRequest())
+
+
+def test_the_router_judges_its_links_by_the_same_rule(tmp_path: Path) -> None:
+    """`pamd router`: a listen or a connect in clear beyond loopback is refused naming
+    the file's line, in the rule's words, before any session opens."""
+    import argparse
+
+    from pamd.cli.router import run
+
+    conf = tmp_path / "router.json5"
+    conf.write_text('{\n  mode: "router",\n  listen: {endpoints: ["tcp/0.0.0.0:7447"]},\n'
+                    '  connect: {endpoints: ["tcp/10.1.2.3:7447"]},\n}\n')
+    with pytest.raises(ConfigError) as err:
+        run(argparse.Namespace(zenoh_config=str(conf), duration=0.0, allow_cleartext=False))
+    text = str(err.value)
+    assert "router.json5:3: listen/endpoints:" in text and "router.json5:4: connect/" \
+        "endpoints:" in text, text
+    assert "the router connects to tcp/10.1.2.3:7447 beyond loopback without TLS" in text
+    assert "say it: pamd router --allow-cleartext" in text
+
+
+def test_the_io_session_says_the_allowed_links_in_clear_at_start(
+        sim_config: Any, caplog: pytest.LogCaptureFixture) -> None:
+    """The start says each warning, the live view's too with telemetry off (the status
+    says them from NetSpec.warnings: test_intake)."""
+    from pamd.io.session import IoSession
+    from pamd.net.host.resolve import resolve_all
+
+    got = resolve_all(sim_config(30.0), TelemetryRequest(foxglove="0.0.0.0:8765",
+                                                         allow_cleartext=True))
+
+    class Link:
+        def start(self) -> None:
+            pass
+
+    session = IoSession.__new__(IoSession)  # no io process: what `start` says only
+    session.link, session.board, session.net = Link(), None, None  # type: ignore[assignment]
+    session.viewer, session.warnings = got.viewer, got.warnings
+    with caplog.at_level("WARNING", logger="pamd"):
+        session.start()
+    assert [r.getMessage() for r in caplog.records if r.levelname == "WARNING"] == [
+        f"the Foxglove live view serves on ws://0.0.0.0:8765 {CLEAR}: the live state, loop "
+        "timing and events can be read on the network"]
+
+
+def test_a_restart_in_place_keeps_the_permission_to_run_in_clear() -> None:
+    from pamd.cli.main import build_parser
+    from pamd.service.restart import run_argv
+
+    args = build_parser().parse_args(["run", "--listen", "tcp/0.0.0.0:7447",
+                                      "--allow-cleartext"])
+    assert "--allow-cleartext" in run_argv(args, remaining_s=None)
+
+
+def test_pamd_run_refuses_to_listen_in_clear_beyond_loopback(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "pamd", "run", "--clock", "virtual",
+                        "--duration", "1", "--no-record", "--listen", "tcp/0.0.0.0:7999"],
+                       capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert "--allow-cleartext" in r.stderr and "without TLS" in r.stderr, r.stderr
+
+
 def test_state_batches_decimate_and_stay_strict_json() -> None:
     layout = TickLayout(["m1", "m2"])
     b = StateBatcher("sim", layout.muscles, every_ticks=10)

@@ -214,7 +214,9 @@ class RigMaker:
     def __call__(self, load_kg: float, initial_bar: float = 0.0,
                  faults: list[dict[str, Any]] | None = None,
                  actuation: str = "proportional", sensors: str = "sim",
-                 **changes: Any) -> SafetyRig:
+                 dead_weight: bool = True, **changes: Any) -> SafetyRig:
+        """`dead_weight` False: the load does not hang freely (the sim's stops clamp the
+        muscle, say), so the start-up's load check does not apply."""
         changes.setdefault("drivers", sim_driver(load_kg, initial_bar, faults, actuation,
                                                  sensors))
         if actuation == "onoff":
@@ -223,6 +225,10 @@ class RigMaker:
             muscle = copy.deepcopy(sim_dict(load_kg)["muscles"][0])
             muscle["signals"] = sensor_signals(sensors)
             changes.setdefault("muscles", [muscle])
+        if not dead_weight:
+            muscles = copy.deepcopy(changes.get("muscles") or sim_dict(load_kg)["muscles"])
+            muscles[0]["dead_weight"] = False
+            changes["muscles"] = muscles
         return self.adopt(SafetyRig(Harness(self._sim_config(load_kg, **changes))))
 
     def adopt(self, rig: SafetyRig) -> SafetyRig:

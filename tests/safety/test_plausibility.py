@@ -119,7 +119,7 @@ def test_a_pressure_that_does_not_follow_its_valve_names_what_the_readings_point
     assert "does not follow the command" in reason and "supply lost" in reason, reason
     clamp = {"stop_contraction": 0.05, "stop_stretch_contraction": 0.05}
     stuck = safety_rig(30.0, 0.0, [{"at_s": 0.5, "muscle": "m1", "signal": "pressure",
-                                    "kind": "stuck"}], sensors=sensors,
+                                    "kind": "stuck"}], sensors=sensors, dead_weight=False,
                        drivers=sim_driver(30.0, 0.0, [{"at_s": 0.5, "muscle": "m1",
                                                        "signal": "pressure",
                                                        "kind": "stuck"}],
@@ -186,7 +186,7 @@ def test_an_isometric_clamp_is_not_a_frozen_length_nor_a_lost_load(
         safety_rig: Callable[..., SafetyRig], sensors: str) -> None:
     # equal hard stops hold the muscle at 5 % contraction: the length does not move
     # while pressure and force do, and the load cell may read nothing at 0 bar
-    rig = safety_rig(30.0, 0.0, sensors=sensors, drivers=sim_driver(
+    rig = safety_rig(30.0, 0.0, sensors=sensors, dead_weight=False, drivers=sim_driver(
         30.0, 0.0, sensors=sensors, stop_contraction=0.05, stop_stretch_contraction=0.05))
     rig.run(0.01)
     rig.cmd("profile", kind="sine", min_bar=0.0, max_bar=6.0, freq_hz=0.25, cycles=1)

@@ -71,7 +71,8 @@ def test_a_simulated_sensor_that_cannot_exist_is_refused_with_file_line_and_key(
 
 
 @pytest.mark.parametrize("name", ["sim.yaml", "sim-harsh.yaml", "sim-onoff.yaml", "rig.yaml",
-                                  "rig-emulated.yaml"])
+                                  "rig-emulated.yaml", "rig-nidaq.yaml",
+                                  "rig-nidaq-emulated.yaml"])
 def test_the_shipped_configs_pass(name: str) -> None:
     cfg: LoadedConfig = load_config(str(REPO / "config" / name))
     assert cfg.rig.safety.plausibility.enabled

@@ -73,8 +73,8 @@ def test_a_length_mode_is_refused_during_the_safe_ramp_and_taken_after_a_setpoin
     # Before: `mode position` during the start-up's safe ramp (80 kg, vented) was
     # answered ok and dropped on the next tick, since the safe ramp leaves length modes.
     rig = safety_rig(80.0, 0.0)
-    rig.run(5.0)
-    assert rig.m.in_safe_ramp
+    rig.run(0.1)  # the ramp to 1.58 bar at 5 bar/s takes 0.32 s
+    assert rig.m.in_safe_ramp and rig.m.setpoint_bar < rig.m.safe_pressure_bar
     v = rig.h.cmd("mode", muscle="m1", mode="position", feedforward=False)
     assert not v["ok"] and "ramping to its safe pressure" in v["error"], v
     assert "send a setpoint" in v["error"]
@@ -84,6 +84,21 @@ def test_a_length_mode_is_refused_during_the_safe_ramp_and_taken_after_a_setpoin
     rig.cmd("mode", muscle="m1", mode="position", feedforward=False)
     rig.run(0.5)
     assert rig.m.in_length_mode  # taken, and kept
+    rig.check_invariants()
+
+
+def test_a_length_mode_takes_over_from_a_completed_safe_ramp(
+        safety_rig: Callable[..., SafetyRig]) -> None:
+    # issue 38: once the ramp holds the safe pressure, a length mode takes over from it
+    # (as a setpoint would) and is kept, instead of being refused
+    rig = safety_rig(80.0, 0.0)
+    rig.run(1.0)
+    m = rig.m
+    assert m.in_safe_ramp and m.setpoint_bar == pytest.approx(m.safe_pressure_bar)
+    rig.cmd("mode", muscle="m1", mode="position", feedforward=False)
+    rig.run(0.5)
+    assert m.in_length_mode and not m.in_safe_ramp  # taken, and kept
+    assert abs(m.setpoint_bar - m.safe_pressure_bar) < 0.1  # bumpless
     rig.check_invariants()
 
 

@@ -80,7 +80,7 @@ def test_limits_reloaded_during_a_profile_apply_at_the_next_rest_not_during_the_
     r.run(0.1)
     assert h.state == "RUNNING" and m.envelope.max_pressure_bar == 6.0  # not yet
     assert r.keeper.deferred is not None
-    assert h.ctrl.status()["reload"]["outcome"] == "deferred"
+    assert h.ctrl.status()["reload"]["outcome"] == "pending"
     assert "waiting for the rig to rest" in r.keeper.status_text()
     while m.setpoint_bar < 2.45 and h.t < 10.0:
         r.run(0.01)

@@ -35,3 +35,20 @@ def test_faults_since_a_count_are_the_ones_latched_after_it() -> None:
         sup.fault(3.5 + k, f"later {k}")
     since = sup.faults_since(count0)  # more than are kept: the latest FAULTS_KEPT
     assert len(since) == FAULTS_KEPT and since[-1] == f"later {2 * FAULTS_KEPT - 1}"
+
+
+def test_staying_in_a_state_is_no_transition_only_a_new_reason() -> None:
+    """A stop while IDLE logged `IDLE -> IDLE` (issue 40): the state's reason changes,
+    nothing is reported as a transition; a change of state still is."""
+    seen: list[tuple[State, State, str]] = []
+    sup = Supervisor(lambda tr: seen.append((tr.old, tr.new, tr.reason)))
+    sup.go(0.0, State.IDLE, "sensors read")
+    sup.go(1.0, State.IDLE, "collection ended: ramping to the safe state")
+    assert sup.reason == "collection ended: ramping to the safe state"
+    assert seen == [(State.STARTING, State.IDLE, "sensors read")]
+    assert len(sup.history) == 1
+    sup.go(2.0, State.RUNNING, "sine profile started")
+    sup.go(3.0, State.RUNNING, "setpoint m1 2 bar")
+    sup.go(4.0, State.IDLE, "stop: ramping to the safe state")
+    assert [(o.name, n.name) for o, n, _ in seen] == [
+        ("STARTING", "IDLE"), ("IDLE", "RUNNING"), ("RUNNING", "IDLE")]

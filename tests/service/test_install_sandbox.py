@@ -9,7 +9,7 @@ from pathlib import Path
 
 import yaml
 
-from pamd.service.install import executable_paths, hidden_by_sandbox, install
+from pamd.service.install import executable_paths, hidden_by_sandbox, install, sandbox_relief
 
 from .conftest import sim_dict
 
@@ -43,6 +43,22 @@ def test_a_pamd_under_home_is_warned_about(tmp_path: Path) -> None:
     lines.clear()
     install(prefix=str(tmp_path / "root2"), pamd_path="/opt/pamd/bin/pamd", say=lines.append)
     assert not [ln for ln in lines if ln.startswith("WARNING")], lines
+
+
+def test_the_drop_in_suggested_is_the_one_that_shows_the_path(tmp_path: Path) -> None:
+    """ProtectHome=read-only shows /home to the service, but not a private /tmp: a pamd
+    under /tmp needs PrivateTmp=no (issue 40: the dry run suggested ProtectHome there)."""
+    assert sandbox_relief("/home/ana/venv/bin/pamd") == "ProtectHome=read-only"
+    assert sandbox_relief("/tmp/venv/bin/pamd") == "PrivateTmp=no"
+    assert sandbox_relief("/opt/pamd/bin/pamd") is None
+    for where, relief, not_this in (("/tmp/venv/bin/pamd", "PrivateTmp=no", "ProtectHome"),
+                                    ("/home/ana/venv/bin/pamd", "ProtectHome=read-only",
+                                     "PrivateTmp=no")):
+        lines: list[str] = []
+        install(prefix=str(tmp_path / where.replace("/", "_")), pamd_path=where,
+                say=lines.append)
+        warned = next(ln for ln in lines if ln.startswith("WARNING"))
+        assert f"[Service] {relief})" in warned and not_this not in warned, warned
 
 
 def test_the_hint_names_the_recording_directory(tmp_path: Path) -> None:

@@ -112,6 +112,12 @@ def test_refused_reloads_change_nothing(tmp_path: Path,
     path.write_text(yaml.safe_dump(merge(original, {"control": {"pid": {"kp": -1}}})))
     reload_and_wait(d)
     assert m.pressure_loop.pid.kp == kp
+    note = d.ctrl.status()["reload"]  # status says why (it showed nothing of a broken file)
+    assert note["outcome"] == "refused" and "control.pid.kp" in note["reason"], note
+    path.write_text("muscles: [unclosed\n")  # not even YAML
+    reload_and_wait(d)
+    note = d.ctrl.status()["reload"]
+    assert note["outcome"] == "refused" and f"{path}:" in note["reason"], note
     # a new driver option with a new gain: needs a restart, so nothing applies
     drv = original["drivers"][0]
     changed = merge(original, {"control": {"pid": {"kp": 0.9}}})
@@ -119,6 +125,9 @@ def test_refused_reloads_change_nothing(tmp_path: Path,
     path.write_text(yaml.safe_dump(changed))
     reload_and_wait(d)
     assert m.pressure_loop.pid.kp == kp
+    note = d.ctrl.reload_note
+    assert note is not None and note["outcome"] == "refused", note
+    assert "drivers[0].options.seed" in note["reason"] and "restart" in note["reason"], note
     # a pressure limit below the pressure the muscle holds
     v = d.command("profile", {"kind": "constant", "to_bar": 3.0, "duration_s": 0.2})
     assert v["ok"], v  # ends IDLE, holding 3 bar
@@ -133,3 +142,79 @@ def test_refused_reloads_change_nothing(tmp_path: Path,
     verdict = pending.result(10)
     assert not verdict["ok"] and "holds 3.00 bar" in verdict["error"]
     assert (m.pressure_loop.pid.kp, m.envelope.max_pressure_bar) == (kp, 6.0)
+
+
+CUSTOM_YAML = SIM_YAML.parent / "sim-custom.yaml"
+
+
+def _custom_rig(tmp_path: Path) -> Path:
+    """config/sim-custom.yaml on the virtual clock, its map copied beside it."""
+    (tmp_path / "maps").mkdir()
+    table = CUSTOM_YAML.parent / "maps" / "specimen-20.csv"
+    (tmp_path / "maps" / "specimen-20.csv").write_text(table.read_text())
+    data = yaml.safe_load(CUSTOM_YAML.read_text())
+    data["loop"].update(clock="virtual", realtime={"enabled": False})
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _edit_map(path: Path, scale: float) -> None:
+    """The map's forces scaled by `scale` (1.0: rewritten, reformatted, the same rows)."""
+    lines = path.read_text().splitlines()
+    out = []
+    for ln in lines:
+        cells = ln.split(",")
+        if len(cells) == 3 and cells[2].strip().replace(".", "", 1).isdigit():
+            ln = f"{cells[0]}, {cells[1]}, {float(cells[2]) * scale!r}"
+        out.append(ln)
+    path.write_text("# rewritten\n" + "\n".join(out) + "\n")
+
+
+def test_a_custom_map_edited_on_disk_is_a_change_as_a_changed_type_is(tmp_path: Path) -> None:
+    """Issue 44's custom.map_file: the config's text unchanged, its map edited on disk.
+    A reload compares what the config resolves to (the map's rows, by their digest), so
+    the edit is a change that needs a restart (as a changed `type`), said with the file;
+    a map rewritten with the same rows is none."""
+    from pamd.service.reload import describe, plan_reload
+
+    path = _custom_rig(tmp_path)
+    table = tmp_path / "maps" / "specimen-20.csv"
+    old = load_config(str(path))
+    _edit_map(table, 1.0)
+    same = load_config(str(path))
+    assert same.text == old.text and changed_paths(old, same) == []
+    _edit_map(table, 1.05)
+    new = load_config(str(path))
+    assert new.text == old.text
+    assert changed_paths(old, new) == ["muscles[0].custom.map_sha256"]
+    assert classify("muscles[0].custom.map_sha256") == classify("muscles[0].type") == "restart"
+    plan = plan_reload(old, old, old, new)
+    assert plan.restart == ["muscles[0].custom.map_sha256"] and not plan.now + plan.idle
+    said = describe(plan.restart, old, new)
+    digest = old.muscle_type("m1").map_sha256
+    assert digest is not None and said.startswith(f"muscles[0].custom.map_sha256 {digest[:12]}")
+    assert said.count(str(table)) == 2, said
+
+
+def test_a_reload_notices_a_custom_map_edited_on_disk(tmp_path: Path) -> None:
+    """The running daemon (virtual clock: it cannot restart in place) refuses the reload
+    of an edited map as it refuses any change that reopens the devices, and its status
+    says so; the map in force stays the one it started with."""
+    path = _custom_rig(tmp_path)
+    d = Daemon(load_config(str(path)))
+    d.start()
+    try:
+        assert d.wait_for_state((State.IDLE,), 10) == State.IDLE
+        safe = d.ctrl.muscles[0].safe_pressure_bar
+        _edit_map(tmp_path / "maps" / "specimen-20.csv", 0.9)
+        reload_and_wait(d)
+        note = d.ctrl.status()["reload"]
+        assert note["outcome"] == "refused", note
+        assert "muscles[0].custom.map_sha256" in note["reason"], note
+        assert "needs a restart" in note["reason"], note
+        assert d.ctrl.muscles[0].safe_pressure_bar == safe
+    finally:
+        d.stop("test finished")
+        d.wait(timeout_s=30)
+        d.close()

@@ -21,6 +21,7 @@ from pamd.emulate.testing import free_port
 from pamd.service.restart import run_argv
 
 from .conftest import NotifySocket, sim_dict, wait_until, write_yaml
+from .test_signals import read_recording
 
 
 def _zombie_children(pid: int) -> list[int]:
@@ -60,10 +61,10 @@ def test_new_driver_config_waits_for_idle_then_restarts_in_place(
         dict(drv, options=dict(drv["options"], seed=2))])
     write_yaml(cfg, second)
     p.send(signal.SIGHUP)
-    assert p.wait_log("once the rig is IDLE (it is RUNNING", 30), p.log()
+    assert p.wait_log("once the rig is at rest (it is RUNNING", 30), p.log()
     assert "rig_id 'sim' -> 'simb'" in p.log() and "drivers[0].options.seed" in p.log()
-    assert p.until(lambda: any("restart in place for a config reload waiting for IDLE" in s
-                               for s in notify.statuses()), 30)
+    assert p.until(lambda: any("restart in place for a config reload waiting for the rig "
+                               "to rest" in s for s in notify.statuses()), 30)
     assert "restarting in place" not in p.log()  # not while the profile runs
 
     r = _pamd("cmd", "--connect", where, "--rig", "sim", "stop")
@@ -79,6 +80,8 @@ def test_new_driver_config_waits_for_idle_then_restarts_in_place(
     ready_again = max(i for i, m in enumerate(texts) if "READY=1" in m.split("\n"))
     assert ready_before < widened < ready_again
     assert "WATCHDOG_USEC=400000" in texts[ready_again]  # set back
+    # the restarted daemon pings through its own start, before its READY=1 (issue 38)
+    assert "WATCHDOG=1" in texts[widened + 1:ready_again], texts[widened:ready_again + 1]
     assert "STOPPING=1" not in "\n".join(texts)  # a reload, not a stop
     assert _zombie_children(p.proc.pid) == []  # the old image's helpers were reaped
     st = None
@@ -113,6 +116,13 @@ def test_new_driver_config_waits_for_idle_then_restarts_in_place(
     reason = meta["pamd.summary"]["stop_reason"]
     assert reason.startswith("config reload: ") and "rig_id 'sim' -> 'simb'" in reason
     assert meta["pamd.summary"]["final_state"] == "IDLE"
+    # the restart waited for rest: the stop's ramp ran to the safe pressure before the
+    # loop handed over (issue 38: it ended 22 ms into the ramp, the command at 2.288 bar)
+    _summary, _meta, states = read_recording(first_meta)
+    assert max(st.setpoint_bar for st in states) > 0.5  # the profile had the pressure up
+    last = states[-1]
+    assert abs(last.setpoint_bar - last.safe_pressure_bar) < 1e-9, last
+    assert abs(last.valve_cmd_bar - last.safe_pressure_bar) < 0.05, last
 
 
 def test_a_stop_during_the_restart_reaches_the_new_process(tmp_path: Path) -> None:
@@ -144,9 +154,12 @@ def test_the_restarted_daemon_keeps_its_standing_options_only() -> None:
     args = build_parser().parse_args([
         "run", "--config", "/etc/pamd/pamd.yaml", "--state-dir", "/var/lib/pamd",
         "--profile", "sine", "--cycles", "3", "--mode", "position", "--no-feedforward",
-        "--duration", "100", "--no-telemetry", "--record", "/srv/rec", "--json"])
+        "--duration", "100", "--no-telemetry", "--record", "/srv/rec", "--json",
+        "--load-kg", "m1=45", "--load-kg", "m2=12.5"])
     argv = run_argv(args, remaining_s=40.5)
     assert argv[:4] == [sys.executable, "-m", "pamd", "run"]
-    assert argv[4:] == ["--config", "/etc/pamd/pamd.yaml", "--json", "--state-dir",
-                        "/var/lib/pamd", "--record", "/srv/rec", "--no-telemetry",
-                        "--duration", "40.5"]
+    assert argv[4:] == ["--config", "/etc/pamd/pamd.yaml", "--json", "--load-kg",
+                        "m1=45.0,m2=12.5", "--state-dir", "/var/lib/pamd", "--record",
+                        "/srv/rec", "--no-telemetry", "--duration", "40.5"]
+    again = build_parser().parse_args(argv[3:]).load_kg  # read back: the same loads
+    assert [pair for g in again for pair in g] == [pair for g in args.load_kg for pair in g]

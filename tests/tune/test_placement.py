@@ -16,7 +16,7 @@ import yaml
 from pamd.config import LoadedConfig, load_config
 from pamd.control.tuning import Fopdt
 from pamd.tune.placement import place
-from pamd.tune.report import Present
+from pamd.tune.report import PLANT_KEYS, Present
 from pamd.tune.yamledit import set_values
 
 from ..conftest import sim_dict
@@ -44,7 +44,8 @@ def test_agreeing_muscles_go_rig_wide_differing_ones_each_to_its_own(
     same = place(cfg, {"m1": _p(0.0125), "m2": _p(0.0130)}, _p(0.01275), False)
     assert not same.per_muscle and "agree within 15%" in same.why
     assert set(same.values) == {("control", "pid", "kp"), ("control", "pid", "ki_per_s"),
-                                ("control", "rate_feedforward_s")}
+                                ("control", "rate_feedforward_s"),
+                                *PLANT_KEYS["pressure"]}  # the plant with its gains
     differ = place(cfg, {"m1": _p(0.0125), "m2": _p(0.020)}, _p(0.016), False)
     assert differ.per_muscle and "differ by more than 15%" in differ.why
     assert differ.values[("muscles", "[m2]", "control", "pid", "kp")] == _p(0.020).gains[

@@ -32,7 +32,7 @@ def test_relay_gains_agree_with_the_steps(sim_config: Callable[..., LoadedConfig
     assert relay.kp == pytest.approx(step.kp, rel=0.2)
     assert relay.ki_per_s == pytest.approx(step.ki_per_s, rel=0.2)
     assert relay.rate_feedforward_s == pytest.approx(step.rate_feedforward_s, rel=0.2)
-    # the figures reported (README "Tuning the loops"): kp 0.440, ki 37.1, 0.0254 s
+    # the figures reported (docs/how-to/tune.md): kp 0.440, ki 37.1, 0.0254 s
     assert (relay.kp, relay.ki_per_s, relay.rate_feedforward_s) == pytest.approx(
         (0.4395, 37.14, 0.02535), rel=0.02)
     for r in runs:  # the oscillation ran around where the regulator rested

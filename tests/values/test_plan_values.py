@@ -36,7 +36,9 @@ PLAN: dict[str, Any] = {
                                            {"number": 2, "share": 0.3}]},
     "steps": [{"name": "a", "load_kg": 40.0, "hold_s": 1.0},
               {"name": "b", "profile": {"kind": "constant", "to_bar": 3.0,
-                                        "duration_s": 2.0}}],
+                                        "duration_s": 2.0}},
+              {"name": "c", "profile": {"kind": "ramp", "to_bar": 2.0,
+                                        "rate_bar_per_s": 1.0}}],
 }
 #: every numeric key of a plan, as a path into PLAN
 KEYS: list[tuple[Any, ...]] = [
@@ -48,6 +50,7 @@ KEYS: list[tuple[Any, ...]] = [
     ("profile", "harmonics", 0, "share"),
     ("steps", 0, "load_kg"), ("steps", 0, "hold_s"),
     ("steps", 1, "profile", "to_bar"), ("steps", 1, "profile", "duration_s"),
+    ("steps", 2, "profile", "rate_bar_per_s"),
 ]
 
 

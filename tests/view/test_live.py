@@ -12,6 +12,7 @@ import socket
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -122,11 +123,13 @@ def test_a_foxglove_client_decodes_the_live_state_as_recorded(tmp_path: Path) ->
 
 def test_a_stalled_viewer_never_holds_up_the_loop(tmp_path: Path) -> None:
     """A viewer that stops reading: the Foxglove server drops what it cannot send;
-    the io process never waits, so with a ring of 0.2 s no tick record is lost, and a
-    healthy viewer beside it keeps receiving to the end."""
+    the io process never waits, so with a ring of 1 s no tick record is lost, and a
+    healthy viewer beside it keeps receiving to the end. (A viewer that held the io
+    process up would fill any ring within the run's 8 s; 0.2 s lost records on a busy
+    2-core PC, where the io process itself waited that long for a core.)"""
     port = free_port()
     cfg = rig_config(tmp_path, None, telemetry={"rate_hz": 500.0},
-                     recording={"ring_s": 0.2})
+                     recording={"ring_s": 1.0})
     url = f"ws://127.0.0.1:{port}"
     topics = ",".join(TOPICS)
     stalled = Viewer(tmp_path, url, "--topics", topics, "--stall-after", "10", "--summary",
@@ -196,3 +199,55 @@ def test_a_restart_in_place_keeps_the_view() -> None:
         args = build_parser().parse_args(["run", "--no-telemetry", *given])
         argv = run_argv(args, remaining_s=None)
         assert argv[4:] == ["--no-telemetry", *kept]
+
+
+@dataclass(frozen=True)
+class Clock:  # a run's clock (pamd.net.seams.RunClock), as the view reads it
+    virtual: bool
+    wall0_ns: int
+    clock0_s: float
+    rate_hz: float
+
+
+def test_with_a_certificate_the_view_serves_wss_only(tmp_path: Path) -> None:
+    """telemetry.foxglove.tls_cert and tls_key: the server (the foxglove-sdk's, given
+    them) completes a TLS handshake that checks its certificate against the CA and
+    upgrades to the Foxglove protocol; a plain ws:// request gets no upgrade."""
+    import shutil
+    import ssl
+
+    import pytest
+
+    from pamd.view.live import LiveView
+    from pamd.view.spec import ViewerSpec
+
+    if shutil.which("openssl") is None:
+        pytest.fail("openssl is not installed (apt-get install openssl, or run "
+                    ".ci/setup-tests)")
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt",
+                    "ec_paramgen_curve:prime256v1", "-nodes", "-keyout", "view.key", "-out",
+                    "view.pem", "-days", "2", "-subj", "/CN=localhost", "-addext",
+                    "subjectAltName=IP:127.0.0.1"], cwd=tmp_path, check=True,
+                   capture_output=True, timeout=60)
+    port = free_port()
+    spec = ViewerSpec("127.0.0.1", port, "sim", ("m1",), 10,
+                      tls_cert=(tmp_path / "view.pem").read_bytes(),
+                      tls_key=(tmp_path / "view.key").read_bytes())
+    clock = Clock(virtual=True, wall0_ns=0, clock0_s=0.0, rate_hz=1000.0)
+    view = LiveView(spec, clock, lambda: None)
+    assert view.open() is None and spec.url == f"wss://127.0.0.1:{port}"
+    upgrade = (f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+               "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+               "Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: foxglove.sdk.v1\r\n"
+               "\r\n").encode()
+    try:
+        ctx = ssl.create_default_context(cafile=str(tmp_path / "view.pem"))
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as sock, \
+                ctx.wrap_socket(sock, server_hostname="127.0.0.1") as tls:
+            tls.sendall(upgrade)
+            assert tls.recv(200).startswith(b"HTTP/1.1 101 Switching Protocols")
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as sock:
+            sock.sendall(upgrade)
+            assert not sock.recv(200).startswith(b"HTTP/1.1 101")  # a TLS alert, or closed
+    finally:
+        view.close()

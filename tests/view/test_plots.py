@@ -46,3 +46,28 @@ def test_plot_defaults_beside_the_recording_and_refuses_an_unknown_muscle(
     first = Path(capsys.readouterr().out.split()[0])
     assert first.parent == recorded.file.parent
     assert first.name == f"{recorded.file.stem}_m1_pressure.png"
+
+
+def test_a_long_series_is_drawn_through_each_columns_least_and_largest_value() -> None:
+    """A collection's 375 000 ticks a figure took matplotlib seconds (issue 40): a series
+    is drawn through the least and largest value of each of SERIES_BUCKETS runs, at
+    their own times and in order, so every spike, reversal and gap stays; a short one
+    is drawn as it is."""
+    from pamd.view.plots import SERIES_BUCKETS, envelope
+
+    n = 375_000
+    t = np.arange(n) / 1000.0
+    y = np.sin(2 * np.pi * 0.05 * t)
+    y[123_457] = 5.0  # a one-tick spike
+    y[200_000:210_000] = np.nan  # a gap (no target outside position mode)
+    te, ye = envelope(t, y)
+    assert len(te) <= 2 * SERIES_BUCKETS < n // 50
+    assert np.all(np.diff(te) >= 0)  # in time order
+    assert 123.457 in te and np.nanmax(ye) == 5.0 and np.nanmin(ye) == np.nanmin(y)
+    gap = (te > 200.2) & (te < 209.8)
+    assert gap.any() and np.isnan(ye[gap]).all()
+    # each kept point is a sample of the series, at its own time
+    keep = ~np.isnan(ye)
+    np.testing.assert_array_equal(ye[keep], y[np.rint(te[keep] * 1000).astype(int)])
+    short = np.arange(1000.0)
+    assert envelope(short, short)[1] is short

@@ -128,3 +128,55 @@ def test_the_public_api_is_what_pamd_lists() -> None:
     assert set(dir(pamd)) == set(pamd.__all__)
     with pytest.raises(AttributeError):
         pamd.Daemon  # noqa: B018 - internals are not promised
+
+
+def test_the_three_ways_of_reading_give_the_same_columns(
+        recorded: Recorded, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A file is read by its message indexes (pamd's files), else by walking each chunk's
+    records, else (no chunk index: an unfinished file) message by message: the columns
+    and events are the same each way, and an index that misses a message is not trusted
+    (the walk reads it)."""
+    from pamd.record import files, tables
+
+    def columns() -> tables.Columns:
+        return tables.read_columns(str(recorded.file))
+
+    walked: list[int] = []
+    walk = tables.record_starts
+    monkeypatch.setattr(tables, "record_starts",
+                        lambda *a: walked.append(1) or walk(*a))
+    indexed = columns()
+    assert not walked  # pamd writes message indexes: no walk needed
+    with monkeypatch.context() as m:
+        m.setattr(tables, "indexed_starts", lambda index: None)
+        by_walk = columns()
+    assert walked
+    find = tables.indexed_starts
+    with monkeypatch.context() as m:  # an index that lists all but one message a chunk
+        m.setattr(tables, "indexed_starts", lambda index: find(index)[:-1])
+        short_index = columns()
+    with monkeypatch.context() as m:
+        m.setattr(files, "iter_chunk_data", lambda path: None)
+        one_by_one = columns()
+    n = recorded.summary["ticks"]
+    assert len(indexed.muscles["m1"]["tick"]) == len(indexed.loop["tick"]) == n
+    for other in (by_walk, short_index, one_by_one):
+        assert list(other.loop) == list(indexed.loop)
+        for name, col in indexed.loop.items():
+            np.testing.assert_array_equal(other.loop[name], col, err_msg=name)
+        assert list(other.muscles) == ["m1"]
+        for name, col in indexed.muscles["m1"].items():
+            assert other.muscles["m1"][name].dtype == col.dtype
+            np.testing.assert_array_equal(other.muscles["m1"][name], col, err_msg=name)
+        assert other.events == indexed.events
+
+
+def test_states_and_modes_are_named_tick_by_tick(recorded: Recorded) -> None:
+    from pamd.view import fields
+
+    m1 = pamd.open_recording(recorded.file)["m1"]
+    codes = m1["state"].copy()
+    codes[:3] = np.nan  # a tick the loop topic did not have
+    m1.columns["state"] = codes
+    assert list(m1.states()) == [fields.state_name(c) for c in codes]
+    assert list(m1.modes()) == [fields.mode_name(c) for c in m1["mode"]]

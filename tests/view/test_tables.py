@@ -89,8 +89,8 @@ def test_header_names(header: str, name: str, factor: float) -> None:
     ("pressure,force_n,contraction\n1,2,3\n", ":1:pressure", "states no unit"),
     ("pressure_bar,force_n,contraction\n1,2,0.1\n2,x3,0.2\n", ":3:force_n", "'x3' is not a number"),
     ("t_s,pressure_bar,force_n,contraction\n0,1,2,0.1\n0.1,1,2,0.1\n0.1,1,2,0.1\n",
-     ":4:time", "time does not increase"),
-    ("force_n,contraction\n1,2\n", ":1", "missing column(s) pressure_bar"),
+     ":4:t_s", "time does not increase"),
+    ("force_n,contraction\n1,0.2\n", ":1", "missing column(s) pressure_bar"),
 ])
 def test_bad_tables_are_refused_naming_row_and_column(tmp_path: Path, text: str, where: str,
                                                       message: str) -> None:

@@ -19,7 +19,7 @@ import numpy as np
 from pamd.errors import ModelError, RecordingError
 from pamd.models.anfis.samples import Run
 from pamd.record import files
-from pamd.record.tables import read_tables
+from pamd.record.tables import read_columns
 from pamd.tick import Mode, State
 
 #: Accepted names of a CSV time column (case-insensitive) and their scale to seconds.
@@ -69,25 +69,19 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
     if not state_topics:
         raise ModelError(f"{path}: no /pamd/<rig>/state/<muscle> topic in this recording")
     try:
-        t = read_tables(path, muscle)
+        t = read_columns(path, muscle)
     except RecordingError as exc:
         raise ModelError(str(exc)) from None
-    state_by_tick: dict[int, float] = {}
-    if "state" in t.loop_names and "tick" in t.loop_names:
-        it, ist = t.loop_names.index("tick"), t.loop_names.index("state")
-        state_by_tick = {int(r[it]): float(r[ist]) for r in t.loop_rows}
     runs = []
     for m, topic in state_topics.items():
-        names, data = t.muscles.get(m, ([], []))
-        if not data:
+        recorded = t.muscles.get(m, {})
+        if not recorded or not len(next(iter(recorded.values()))):
             raise ModelError(f"{path}: topic {topic} holds no messages")
-        arr = np.array(data, dtype=np.float64)
-        columns = {n: arr[:, i] for i, n in enumerate(names)}
+        columns = {n: c.astype(np.float64) for n, c in recorded.items()}
         if "t_s" not in columns:
             raise ModelError(f"{path}: topic {topic} has no t_s field")
-        if state_by_tick and "tick" in columns:
-            columns["state"] = np.array([state_by_tick.get(int(k), math.nan)
-                                         for k in columns["tick"]])
+        if "state" in t.loop and len(t.loop.get("tick", ())) and "tick" in columns:
+            columns["state"] = state_of_ticks(columns["tick"], t.loop["tick"], t.loop["state"])
         muscle_events = [(e.t_s, e.kind, e.data) for e in t.events
                          if e.data.get("args", {}).get("muscle") in (None, m)]
         runs.append(Run(source=path, muscle=m, t_s=columns["t_s"], columns=columns,
@@ -96,6 +90,25 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
                               "rate_hz": _float_or_none(meta.get("pamd", {}).get("rate_hz")),
                               "actuation": actuations.get(m)}))
     return runs
+
+
+def state_of_ticks(ticks: np.ndarray, loop_ticks: np.ndarray, loop_state: np.ndarray
+                   ) -> np.ndarray:
+    """The supervisor state of each tick in `ticks`, from the loop topic's ticks and
+    states (the last loop message of a tick, as a lookup by tick would keep); NaN for a
+    tick the loop topic does not have."""
+    out = np.full(len(ticks), math.nan)
+    if not len(loop_ticks):
+        return out
+    lt = np.asarray(loop_ticks, dtype=np.float64)
+    order = np.argsort(lt, kind="stable")
+    sorted_ticks = lt[order]
+    pos = np.searchsorted(sorted_ticks, ticks, side="right") - 1
+    ok = pos >= 0
+    idx = order[np.clip(pos, 0, None)]
+    hit = ok & (lt[idx] == ticks)
+    out[hit] = np.asarray(loop_state, dtype=np.float64)[idx[hit]]
+    return out
 
 
 def read_csv(path: str) -> Run:

@@ -59,7 +59,8 @@ NORMAL_EQUATIONS_MAX_COND = 1e12
 #: One start at width 1 (`width_factor=1.0`) is MATLAB's genfis1 layout, the old default.
 #: The same selection over step rules too (initial step 0.01-0.3, growth 1.1/1.2, up to
 #: three starts) picks initial step 0.03 with these widths; the step stays MATLAB's 0.01
-#: for now, since it is also seed 001's gradient descent (README, "ANFIS defaults").
+#: for now, since it is also seed 001's gradient descent (docs/explanation/inverse-model.md,
+#: "ANFIS defaults").
 WIDTH_STARTS: tuple[float, ...] = (1.0, 3.0)
 #: What the premise step is a length in (`TrainingOptions.step_units`).
 STEP_UNITS: tuple[str, ...] = ("scaled", "raw")

@@ -27,6 +27,9 @@ class RecordingState(Protocol):
         """Why the recording stopped ({"reason": ...}), or None while it goes on."""
     def files(self) -> list[str]:
         """The recording's files so far."""
+    @property
+    def lost_records(self) -> int:
+        """Tick records lost to a full io ring so far."""
 
 
 class EventLog(Protocol):

@@ -38,13 +38,14 @@ def recording_status(io: RecordingState | None) -> RecordingStatus | None:
     """What the status says of the recording (None: nothing records)."""
     if io is None or not io.recording:
         return None
-    return {"files": io.files(), "failure": io.failure}
+    return {"files": io.files(), "failure": io.failure, "lost_records": io.lost_records}
 
 
 class StatusLoop(Protocol):
     """What the status says of the loop (`pamd.loop.Loop`)."""
 
     virtual: bool
+    clock_name: str  # real, virtual or daq
 
     @property
     def stop_requested(self) -> str | None: ...
@@ -89,7 +90,7 @@ class StatusBuilder:
             "muscles": {m.name: self._muscle(m) for m in ctrl.muscles},
             "experiment": experiment, "config_sha256": cfg.sha256,
             "config_path": os.path.abspath(cfg.path),
-            "clock": "virtual" if self.loop.virtual else "real",
+            "clock": self.loop.clock_name,
             "rate_hz": cfg.rig.loop.rate_hz, "verbs": sorted(VERBS.names),
             "recording": self.recording(), "stopping": self.loop.stop_requested,
             "pamd_version": __version__, "pid": os.getpid(), "user": self.user,

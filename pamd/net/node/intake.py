@@ -13,9 +13,9 @@ kind per second, the next with the count of those between (a flood cannot grow t
 recording).
 
 Salvage. An `estop` or `stop` always acts: whatever its size, JSON or extra fields, the
-verb is honoured first and the rest is cut and said so (`salvage`). The README has
-promised it since the first round; a 100,000-character reason through `pamd.connect`
-was refused as too large and the rig did not stop.
+verb is honoured first and the rest is cut and said so (`salvage`). The docs have
+promised it since the first round (docs/how-to/remote.md, "Limits"); a 100,000-character
+reason through `pamd.connect` was refused as too large and the rig did not stop.
 
 What is kept: the verb's declared fields of the right type (text cut to
 MAX_TEXT_CHARS, saying how much); what is dropped (extra fields, mistyped ones, an
@@ -45,8 +45,9 @@ from collections.abc import Callable
 
 from pamd.declare.jsonsafe import JsonObject, JsonValue, jsonsafe
 from pamd.errors import CommandRefused
+from pamd.net import credential
 from pamd.net.board import Board
-from pamd.net.credential import matches
+from pamd.net.credential import STALE
 from pamd.net.keys import Keys
 from pamd.net.ratelimit import LineLimiter, RateLimiter, kind_of
 from pamd.net.spec import NetSpec
@@ -119,6 +120,16 @@ def salvage(verb: str, raw: bytes) -> tuple[JsonObject, str]:
     elif not isinstance(got, dict):
         notes.append("payload not a JSON object")
         got = {}
+    return salvage_object(verb, got, notes, whole=len(raw) <= PARSE_MAX_BYTES)
+
+
+def salvage_object(verb: str, got: JsonObject, notes: list[str] | None = None,
+                   whole: bool = True) -> tuple[JsonObject, str]:
+    """`salvage` of a payload already read (`got`): what the verb takes, and the note
+    (`notes` so far; `whole`: its text fields were read whole, so their lengths are
+    known)."""
+    fields = _declared(verb)
+    notes = list(notes or [])
     out: JsonObject = {}
     dropped = []
     for k, v in got.items():
@@ -126,7 +137,7 @@ def salvage(verb: str, raw: bytes) -> tuple[JsonObject, str]:
         if tp is None or not _fits(v, tp):
             dropped.append(cap_text(str(k), 40))
             continue
-        if isinstance(v, str) and len(v) > MAX_TEXT_CHARS and len(raw) <= PARSE_MAX_BYTES:
+        if isinstance(v, str) and len(v) > MAX_TEXT_CHARS and whole:
             notes.append(f"{k} cut from {len(v)} characters")
         out[k] = v
     if dropped:
@@ -263,6 +274,10 @@ class CommandIntake:
         self.lock = port.lock  # one lock for the mailbox, the board and the queries
         self.counts = counts
         self.limiter = RateLimiter(spec.command_rate_per_s, spec.command_burst)
+        self.keys = Keys(spec.rig_id)
+        self.verifier = (credential.Verifier(spec.token_sha256, spec.run_nonce)
+                         if spec.token_sha256 else None)
+        self.token_watch = credential.TokenWatch(spec.token_file)
         self.ranges = PressureRanges(spec.muscles, board)
         self.refusals = RefusalLog(record_io, spec.rig_id)  # recorded per kind
         self.waiting: dict[int, tuple[Query, float, str, int | None]] = {}
@@ -290,31 +305,48 @@ class CommandIntake:
                     f"the {verb} command may still be applied (see status)")})
 
     def _refuse(self, q: Query, key: str, verb: str, args: bytes, sender: str, user: str,
-                error: str, record: bool = True, kind: str | None = None) -> None:
+                error: str, record: bool = True, kind: str | None = None,
+                credential: str | None = None) -> None:
         """Answer a refusal; record it (one per kind per RECORD_INTERVAL_S, the next
         saying how many like it were refused meanwhile: a flood of refusals cannot
-        grow the recording)."""
+        grow the recording). `credential`: why the signature was not taken, said in
+        the reply for the client (signed for another run: with this run's nonce, so it
+        signs again; a wrong signature: it reads its token again)."""
         self.counts["refused_here"] += 1
-        verdict = {"ok": False, "error": error, "rig": self.spec.rig_id}
+        verdict: JsonObject = {"ok": False, "error": error, "rig": self.spec.rig_id}
         if record:
             self.refusals.refused(verb, args, sender, user, verdict, kind)
+        if credential is not None:
+            verdict["credential"] = credential
+        if credential == STALE:
+            verdict["command_nonce"] = self.spec.run_nonce
         send_reply(q, key, json.dumps(verdict).encode())
 
-    def _credentialed(self, q: Query) -> bool:
-        if not self.spec.token_sha256:
-            return True  # a spec without a token (built by hand): commands are open
+    def _credential(self, q: Query, verb: str, raw: bytes) -> str | None:
+        """None if the query's attachment signs this command (pamd.net.credential);
+        else why not."""
+        if self.verifier is None:
+            return None  # a spec without a token (built by hand): commands are open
         try:
             att = q.attachment
             presented = att.to_bytes() if att is not None else None
         except Exception:
             presented = None
-        return matches(presented, self.spec.token_sha256)
+        return self.verifier.check(presented, self.spec.rig_id, verb, raw)
 
-    def on_command(self, q: Query) -> None:
-        """Zenoh's callback thread: refused at once, or into the loop's mailbox."""
+    def watch_token(self, now: float) -> None:
+        """A rotated token file taken (the io loop, under `lock`)."""
+        if self.verifier is not None and (sha := self.token_watch.changed(now)) is not None:
+            self.verifier.set_key(sha)
+            self.counts["token_rotations"] = self.counts.get("token_rotations", 0) + 1
+
+    def on_command(self, q: Query, sender: str | None = None, trusted: bool = False) -> None:
+        """Zenoh's callback thread (or the local channel's, `pamd.net.local`: `sender`
+        named by the kernel, `trusted` as the token's readers are): refused at once, or
+        into the loop's mailbox."""
         with self.lock:
             try:
-                self._command(q, time.monotonic())
+                self._command(q, time.monotonic(), sender, trusted)
             except Exception as exc:  # never leave a query unanswered, nor unrecorded
                 error = cap_text(f"refused: the command failed in the io process "
                                  f"({exc.__class__.__name__}: {exc}); the daemon goes on", 300)
@@ -325,16 +357,53 @@ class CommandIntake:
                     send_reply(q, str(q.key_expr), json.dumps(
                         {"ok": False, "error": error}).encode())
 
-    def _command(self, q: Query, now: float) -> None:
-        self.counts["commands"] += 1
-        key = str(q.key_expr)
-        verb = Keys.last_chunk(key)
+    def _sender(self, q: Query) -> tuple[str, str]:
+        """(the sender's Zenoh id or "", its name for the record)."""
         try:
             si = q.source_info
             zid = str(si.source_id.zid) if si is not None else ""
         except Exception:
             zid = ""
-        sender = f"zenoh:{zid}" if zid else "zenoh"
+        return zid, f"zenoh:{zid}" if zid else "zenoh"
+
+    def _who_refusal(self, key: str, verb: str, why: str | None) -> tuple[str, str] | None:
+        """(error, record kind) if this sender may not send this command here: a key that
+        is a pattern (`pamd/*/cmd/...`, `pamd/<rig>/**/setpoint`), or no valid credential
+        (`why`, pamd.net.credential). An estop passes both (anyone may stop the rig)."""
+        if verb == ESTOP:
+            return None
+        if key != self.keys.cmd(verb):
+            return (f"name the rig and the verb: pamd/{self.spec.rig_id}/cmd/{verb}, not the "
+                    f"pattern {cap_text(key, 80)!r}; rig ids are names (only an estop acts on "
+                    "a pattern); not taken"), "pattern"
+        if why is None:
+            return None
+        self.counts["no_credential"] += 1
+        where = self.spec.token_file or "its token file"
+        if why == credential.CLEAR:
+            error = (f"{verb}: the daemon's token was sent in clear (a pamd client older than "
+                     "this daemon): commands are signed, the token never travels; update pamd "
+                     "where this came from; not taken")
+        elif why == credential.STALE:
+            error = (f"{verb}: signed for another run of the daemon (it restarted): sign again "
+                     "with the command_nonce its status says (pamd's clients do); not taken")
+        elif why == credential.REPLAY:
+            error = (f"{verb}: this signed command was taken already (a replay, or a client's "
+                     "counter gone back); not taken")
+        elif why == credential.BAD:
+            error = (f"{verb}: its signature does not match the daemon's command credential "
+                     f"(a wrong or rotated token? the token is in {where}); not taken")
+        else:
+            error = (f"{verb} needs the daemon's command credential: the token in {where} "
+                     "(readable by the daemon's user and group; pamd cmd and pamd.connect "
+                     "find it there, or give --token-file / PAMD_TOKEN_FILE); not taken")
+        return error, "credential"
+
+    def _command(self, q: Query, now: float, local: str | None, trusted: bool) -> None:
+        self.counts["commands"] += 1
+        key = str(q.key_expr)
+        verb = Keys.last_chunk(key)
+        zid, sender = self._sender(q) if local is None else ("", local)
         user = cap_text(q.parameters.get("user") or "", MAX_WHO_CHARS)
         raw = q.payload.to_bytes() if q.payload is not None else b""
         if "*" in verb or "$" in verb:
@@ -342,30 +411,19 @@ class CommandIntake:
                          "name one verb: pamd/<rig>/cmd/<verb>", record=False)
             return
         urgent = VERBS.is_urgent(verb)  # estop, stop: they reach the loop while it runs
-        pattern = Keys.rig_of(key) != self.spec.rig_id  # `pamd/*/cmd/...`, `pamd/**`
-        credentialed = self._credentialed(q)
-        if verb == ESTOP:  # anyone who reaches the daemon may stop the rig
-            if not credentialed:
-                sender = cap_text(f"{sender} (no credential)", MAX_WHO_CHARS)
-        elif pattern:
-            self._refuse(q, key, verb, raw, sender, user, (
-                f"name the rig: pamd/{self.spec.rig_id}/cmd/{verb}, not the pattern "
-                f"{cap_text(key, 80)!r}; rig ids are names (only an estop acts on a "
-                "pattern); not taken"), kind="pattern")
+        unsigned = None if trusted else self._credential(q, verb, raw)
+        refusal = self._who_refusal(key, verb, unsigned)
+        if refusal is not None:
+            self._refuse(q, key, verb, raw, sender, user, refusal[0], kind=refusal[1],
+                         credential=unsigned if refusal[1] == "credential" else None)
             return
-        elif not credentialed:
-            self.counts["no_credential"] += 1
-            self._refuse(q, key, verb, raw, sender, user, (
-                f"{verb} needs the daemon's command credential: the token in "
-                f"{self.spec.token_file or 'its token file'} (readable by the daemon's user "
-                "and group; pamd cmd and pamd.connect find it there, or give --token-file "
-                "/ PAMD_TOKEN_FILE); not taken"), kind="credential")
-            return
+        if unsigned is not None:  # an estop: anyone who reaches the daemon may stop the rig
+            sender = cap_text(f"{sender} (no credential)", MAX_WHO_CHARS)
         if (self.stop_reason is not None and not urgent) or self.closing:
             self._refuse(q, key, verb, raw, sender, user,
                          f"the daemon is stopping ({self.stop_reason}); command not taken")
             return
-        allowed = self.limiter.allow(zid or "unidentified", now)
+        allowed = self.limiter.allow(zid or sender, now)
         if urgent and not allowed and self._join(q, verb):
             return  # a flood of estops: one reaches the loop at a time, all are answered
         if not urgent and not allowed:

@@ -29,6 +29,7 @@ import contextlib
 import ctypes
 import ctypes.util
 import json
+import os
 import sys
 import threading
 import time
@@ -40,6 +41,7 @@ from pamd.declare.jsonsafe import JsonObject, jsonsafe
 from pamd.net import zconf
 from pamd.net.board import Board
 from pamd.net.keys import Keys
+from pamd.net.local import LocalServer
 from pamd.net.node.answer import StatusAnswer, TickStats
 from pamd.net.node.intake import CommandIntake, send_reply
 from pamd.net.spec import NetSpec
@@ -75,7 +77,7 @@ class NetNode:
         self.keys = Keys(spec.rig_id)
         self.batcher = StateBatcher(spec.rig_id, spec.muscles, spec.every_ticks)
         self.stats = TickStats()
-        self.answer = StatusAnswer(spec, io_spec, self.stats)
+        self.answer = StatusAnswer(spec, io_spec, self.stats, block)
         self.session: zenoh.Session | None = None
         self.board: Board | None = None
         self.token: zenoh.LivelinessToken | None = None
@@ -93,6 +95,7 @@ class NetNode:
                        "status_queries": 0}
         self.intake = CommandIntake(spec, port, lambda: self.board, self._record_io,
                                     self.counts)
+        self.local: LocalServer | None = None  # the local channel (pamd.net.local)
 
     # -- life cycle ---------------------------------------------------------------------
     def open(self) -> str | None:
@@ -117,9 +120,31 @@ class NetNode:
         self.cmd_q = s.declare_queryable(k.cmd_all, self.intake.on_command, complete=True)
         self.token = s.liveliness().declare_token(k.alive)
         self.zid = str(s.zid())
+        self._open_local()
         self._publish_event("run_start", {"rig_id": self.spec.rig_id, "zid": self.zid,
                                           "muscles": list(self.spec.muscles)})
         return None
+
+    def _open_local(self) -> None:
+        """The local channel beside the token (pamd.net.local); where it cannot listen,
+        the status says why."""
+        if not self.spec.local_socket:
+            return
+        local = LocalServer(
+            self.spec.local_socket,
+            {"rig": self.spec.rig_id, "pid": os.getppid(), "listen": list(self.spec.listen)},
+            self._on_status, self._on_local_command, self.keys.cmd, self.keys.status)
+        note = local.open()
+        if note is None:
+            self.local = local
+            self.answer.local = self.spec.local_socket
+        else:
+            self.answer.notes.append(note)
+
+    def _on_local_command(self, q: Query, sender: str) -> None:
+        """The local channel's thread: the kernel named the sender (its user and pid),
+        and only the token's readers reach the socket: no signature needed."""
+        self.intake.on_command(q, sender=sender, trusted=True)
 
     def close(self, reason: str) -> None:
         """Withdraw the token, answer every pending and queued query, close the
@@ -130,6 +155,9 @@ class NetNode:
         with self.lock:
             self._withdraw()
             self.intake.close(reason)  # from now on, commands are refused at once
+        if self.local is not None:
+            self.local.close()
+            self.local = None
         self.flush_records()
         s = self.session
         self.session = None
@@ -235,6 +263,7 @@ class NetNode:
                 work += 1
             if self.intake.waiting:
                 self.intake.expire(now)
+            self.intake.watch_token(now)
         if self.intake.refusals.pending:
             with self.lock:  # the rest of a flood of refusals, counted
                 self.intake.refusals.flush_due()

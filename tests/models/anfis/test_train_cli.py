@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -24,9 +25,20 @@ def test_train_then_evaluate_with_json_and_plots(recording: Path, tmp_path: Path
                  "--val-split", "0.25", "--block-s", "1", "--settle-s", "0.5"]) == 0
     out, err = capsys.readouterr()
     assert "epoch" in err and "train RMSE" in err and "val RMSE" in err  # the progress bar
+    # a bar per phase, each with its total (issue 40: 100/100, then 101 ... 200 epochs
+    # of a second start with no total): reading, then each of ANFIS's two starts
+    assert "reading 1 file(s)" in err
+    for k in (1, 2):
+        assert f"training, start {k}/2: 100%" in err
+    assert re.findall(r"\| *(\d+)/8 \[", err)[-1] == "8"
+    assert not re.search(r"\| *(9|1\d)/8 \[", err)
     for label in ("RMSE", "NRMSE fit %", "AIC", "SBC", "NDEI", "validation"):
         assert label in out
     model = load(model_path)
+    # the closing line's time is the command's wall time, not one start's training time
+    said = re.search(r"; ([\d.]+) s \(wall time, reading included\)", out)
+    assert said, out
+    assert float(said.group(1)) >= model.provenance["training"]["seconds"]
     assert [v.name for v in model.inputs] == ["force_n", "length_mm", "velocity_mm_s"]
     assert model.n_mfs == (2, 3, 2)
     assert model.derived_inputs["velocity_mm_s"]["window_s"] > 0

@@ -1,11 +1,12 @@
-"""Muscle types: their ratings and static force model F(pressure, contraction).
+"""A muscle's static force model F(pressure, contraction) and what is solved on it.
 
-The force map of a Festo DMSP-20 is the datasheet's, digitised
-(`pamd/data/dmsp20_force_map.csv`). `ForceMap` interpolates it the way the
-reference equilibrium table was made: linearly in contraction along each pressure
-curve, then linearly in pressure between neighbouring curves. `SmoothForceFit`
-is the closed-form fit F = (a p + b) e^(c k) + (e p + f) k + g p + h (k in %).
-Both are pure Python: they run inside the tick (safe pressure, simulated plant).
+`ForceMap` interpolates a digitised or measured map (rows `pressure_bar, contraction,
+force_n`) the way the reference equilibrium table was made: linearly in contraction
+along each pressure curve, then linearly in pressure between neighbouring curves.
+`SmoothForceFit` is the closed-form fit F = (a p + b) e^(c k) + (e p + f) k + g p + h
+(k in %) of the DMSP-20's datasheet map. Both are pure Python: they run inside the
+tick (safe pressure, plausibility, simulated plant). `equilibrium_contraction` and
+`pressure_for_force` solve F = m g for the contraction or the pressure.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ class ForceMap:
     """
 
     def __init__(self, points: list[tuple[float, float, float]]) -> None:
+        self.points: tuple[tuple[float, float, float], ...] = tuple(points)
         levels: dict[float, list[tuple[float, float]]] = {}
         for p, x, f in points:
             levels.setdefault(p, []).append((x, f))
@@ -58,18 +60,13 @@ class ForceMap:
 
     @classmethod
     def from_csv(cls, path: str | None = None) -> ForceMap:
-        """Load `pressure_bar,contraction,force_n` rows; default: the DMSP-20 map."""
+        """Load `pressure_bar,contraction,force_n` rows (pamd's own column names; a lab's
+        table in other units goes through `pamd.config.muscle_types`); default: the
+        DMSP-20 map."""
         if path is None:
-            text = resources.files("pamd.data").joinpath("dmsp20_force_map.csv").read_text()
-        else:
-            with open(path) as fh:
-                text = fh.read()
-        rows = [r for r in text.splitlines() if r and not r.startswith("#")]
-        reader = csv.DictReader(rows)
-        return cls(
-            [(float(r["pressure_bar"]), float(r["contraction"]), float(r["force_n"]))
-             for r in reader]
-        )
+            return cls(package_map_points("dmsp20_force_map.csv"))
+        with open(path) as fh:
+            return cls(_points(fh.read()))
 
     def force_n(self, pressure_bar: float, contraction: float) -> float:
         ps = self.pressures_bar
@@ -82,6 +79,17 @@ class ForceMap:
         f0 = _on_curve(curves[i], contraction)
         f1 = _on_curve(curves[i + 1], contraction)
         return f0 + (f1 - f0) * (pressure_bar - ps[i]) / self._p_gaps[i]
+
+
+def package_map_points(name: str) -> list[tuple[float, float, float]]:
+    """The rows of a map shipped in `pamd.data` (a datasheet's, digitised)."""
+    return _points(resources.files("pamd.data").joinpath(name).read_text())
+
+
+def _points(text: str) -> list[tuple[float, float, float]]:
+    rows = [r for r in text.splitlines() if r and not r.startswith("#")]
+    return [(float(r["pressure_bar"]), float(r["contraction"]), float(r["force_n"]))
+            for r in csv.DictReader(rows)]
 
 
 #: A pressure curve as `ForceMap` keeps it: contractions, forces, each segment's rise
@@ -119,32 +127,6 @@ class SmoothForceFit:
         return (self.a * p + self.b) * math.exp(self.c * k) + (self.e * p + self.f) * k + (
             self.g * p + self.h
         )
-
-
-@dataclass(frozen=True)
-class MuscleType:
-    """A muscle model's datasheet ratings."""
-
-    name: str
-    max_pressure_bar: float
-    max_contraction: float
-    max_pretension: float
-    max_load_kg: float
-    theoretical_force_n: float
-
-
-MUSCLE_TYPES: dict[str, MuscleType] = {
-    "dmsp20": MuscleType("dmsp20", 6.0, 0.25, 0.04, 80.0, 1500.0),
-}
-
-
-def force_model(kind: str = "map") -> ForceModel:
-    """The DMSP-20 force model by name: 'map' (interpolated table) or 'fit'."""
-    if kind == "map":
-        return ForceMap.from_csv()
-    if kind == "fit":
-        return SmoothForceFit()
-    raise ValueError(f"unknown force model {kind!r}; use 'map' or 'fit'")
 
 
 def equilibrium_contraction(
