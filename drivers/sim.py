@@ -61,7 +61,7 @@ from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
 from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
-from pamd.sim.specimen import MUSCLE_INPUTS, Specimen, bind_types, specimen
+from pamd.sim.specimen import MUSCLE_INPUTS, bind_types, specimen
 
 INPUTS_PER_MUSCLE = len(MUSCLE_INPUTS)  # pressure, force, length
 OUTPUTS_PER_MUSCLE = 2  # valve, exhaust
@@ -74,10 +74,13 @@ CHAIN_INPUTS: tuple[str, ...] = ("safety_chain", "supply", "reset")
 SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
 
 
-def _model_plant(driver: str, m: SimMuscleOptions, rng: random.Random, muscle: Specimen,
-                 supply: SupplyLine | None) -> ModelPlant:
-    """A muscle whose mechanics are its `plant_model` file's (`pamd.sim.model_plant`)."""
-    assert m.plant_model is not None
+def _plant(driver: str, m: SimMuscleOptions, rng: random.Random,
+           supply: SupplyLine | None) -> MusclePlant:
+    """Muscle `m`'s plant: its type's physics, or, given a `plant_model` file, the
+    mechanics that identified model states (`pamd.sim.model_plant`)."""
+    muscle = specimen(m, _custom_map(driver, m))
+    if m.plant_model is None:
+        return MusclePlant(m, rng, muscle, supply)
     try:
         stepper = plant_model(m.plant_model)
     except ModelError as exc:
@@ -124,11 +127,8 @@ class SimDriver(Driver):
         self._muscle_supply_bar: float = max(m.supply_bar for m in options.muscles)
         self._plants: list[MusclePlant] = []
         for m in options.muscles:
-            rng = muscle_rng(options.seed, m.name)
-            muscle = specimen(m, _custom_map(name, m))
-            self._plants.append(MusclePlant(m, rng, muscle, self.supply_line)
-                                if m.plant_model is None else
-                                _model_plant(name, m, rng, muscle, self.supply_line))
+            self._plants.append(_plant(name, m, muscle_rng(options.seed, m.name),
+                                       self.supply_line))
         self._by_name = {p.name: k for k, p in enumerate(self._plants)}
         # incremental encoders read 0 at power-up: the true length then is their zero
         self._len_zero_mm = [0.0 if m.length_absolute else p.length_read_mm
