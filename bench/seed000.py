@@ -17,19 +17,21 @@ cycles, quick 1): 50 kg with other sensor noise (the sim's seed 2, a trained loa
 pressure_bar, and each run's load for pamd's protocol); the middle load is held out.
 
 The paper's protocol (as MATLAB trains it: `pamd train --preset matlab`, genfis1's grid
-of 5 x 5 Gaussian MFs, one start, 10 epochs, the step in the inputs' own units): every
-training run pooled, split 70/15/15 at random (`--split-by random`, seed 0; the
-validation part keeps the best epoch, as anfis's checking data); test set 1, 85 samples
-drawn at random (seed 0) from the test part: samples of the runs it trained on; test
-set 2 (the simulated rig), 85 random samples of the new 50 kg run.
+of 5 x 5 Gaussian MFs, one start, 10 epochs, plain least squares (no rule ridge), the
+step in the inputs' own units): every training run pooled, split 70/15/15 at random
+(`--split-by random`, seed 0; the validation part keeps the best epoch, as anfis's
+checking data); test set 1, 85 samples drawn at random (seed 0) from the test part:
+samples of the runs it trained on; test set 2 (the simulated rig), 85 random samples of
+the new 50 kg run.
 
-pamd's protocol (`pamd train`'s defaults: two starts at MF widths 1 and 3, 100 epochs,
-the step in scaled units, 10 s blocks, a fifth for validation): the model judged as the
-tick runs it (inputs and output held to the training ranges) on every sample of a load
-it never trained on (40 kg; data: the middle load, left out of training), and of the
-new run at a trained load; the MATLAB-preset model beside it on the unseen load. The
-figure is the largest error in % of the 0-6 bar range (data: of the measured pressure
-range), the model alone (output free) in brackets. Nothing is chosen on a test set.
+pamd's protocol (`pamd train`'s defaults on seed 000's inputs and 5 x 5 layout: two
+starts at MF widths 1 and 3, 100 epochs, the rule ridge since issue 39, the step in
+scaled units, 10 s blocks, a fifth for validation): the model judged as the tick runs
+it (inputs and output held to the training ranges) on every sample of a load it never
+trained on (40 kg; data: the middle load, left out of training), and of the new run at
+a trained load; the MATLAB-preset model beside it on the unseen load. The figure is the
+largest error in % of the 0-6 bar range (data: of the measured pressure range), the
+model alone (output free) in brackets. Nothing is chosen on a test set.
 
 Usage: python bench/seed000.py [--quick] [--keep DIR] [--data FILE|DIR] [--markdown]
 """

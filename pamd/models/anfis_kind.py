@@ -14,7 +14,7 @@ from pamd.models.anfis import modelfile
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.plots import write_plots
 from pamd.models.anfis.samples import OUTPUT_UNITS
-from pamd.models.anfis.training import WIDTH_STARTS, TrainingOptions, fit
+from pamd.models.anfis.training import RULE_RIDGE, WIDTH_STARTS, TrainingOptions, fit
 from pamd.models.contract import InverseModel
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
 
@@ -44,6 +44,14 @@ def mfs_for(mfs: Sequence[int] | None, n_inputs: int) -> int | list[int]:
     return list(mfs)
 
 
+#: `pamd train`'s default inputs: force, length and velocity (seed 001's; seed 000's model
+#: is `--inputs force_n,length_mm`). The velocity tells the inflating branch of the
+#: hysteresis from the deflating one; chosen on held-out loads of the shipped training
+#: data (bench/model_between_loads.py --select; docs/explanation/inverse-model.md):
+#: at a load held out of the seeds' sweep, 3 x 3 x 3 with the rule ridge tracked with
+#: 0.43 of the position PID's error alone, 2 inputs 5 x 5 with it 0.51.
+DEFAULT_INPUTS = ("force_n", "length_mm", "velocity_mm_s")
+
 MFS_HELP = ("membership functions per input: one number or one per input (e.g. 5,5,3)")
 
 
@@ -52,12 +60,13 @@ PRESETS: tuple[str, ...] = ("pamd", "matlab")
 #: MATLAB's anfis trains 10 epochs unless told (seed 000 trained in MATLAB's toolbox).
 MATLAB_EPOCHS = 10
 PRESET_HELP = (
-    "training defaults: pamd's (two starts at MF widths 1 and 3, 100 epochs, the step a "
-    "length in the scaled inputs) or matlab, seed 000's MATLAB Fuzzy Logic Toolbox as it "
-    "trains without options (genfis1's grid: one start, neighbouring MFs crossing at 0.5; "
-    "anfis's 10 epochs; its step 0.01 a length in the inputs' own units, so the premises "
-    "of a force input in newtons hardly move: least squares on genfis1's grid). --epochs "
-    "and --step still apply")
+    "training defaults: pamd's (two starts at MF widths 1 and 3, 100 epochs, the rule "
+    "ridge, the step a length in the scaled inputs) or matlab, seed 000's MATLAB Fuzzy "
+    "Logic Toolbox as it trains without options (genfis1's grid: one start, neighbouring "
+    "MFs crossing at 0.5; anfis's 10 epochs and plain least squares, no rule ridge; its "
+    "step 0.01 a length in the inputs' own units, so the premises of a force input in "
+    "newtons hardly move: least squares on genfis1's grid). --epochs, --step and "
+    "--rule-ridge still apply")
 
 
 @dataclass(frozen=True)
@@ -75,6 +84,13 @@ class AnfisOptions(KindOptions):
         "linear", "rule consequents: linear f = p.x + q (first-order Sugeno, seed 000's) or "
         "constant f = q (zero-order, R parameters instead of R (d + 1))",
         choices=CONSEQUENTS)
+    rule_ridge: float | None = option(
+        None, "ridge on each rule's consequents, relative to the rule's firing mass, "
+        "toward the one linear model of all the data: a slope is fitted along an input "
+        "only where it spreads in the rule's data by more than about the square root of "
+        "this (scaled units), so the narrow force band of a hanging load cannot blow the "
+        "consequents up; 0: plain least squares (seed 000's, MATLAB's)", parse=float,
+        minimum=0.0, default_text=f"{RULE_RIDGE:g}; --preset matlab: 0")
 
     preset: str = option("pamd", PRESET_HELP, choices=PRESETS)
 
@@ -86,11 +102,18 @@ class AnfisOptions(KindOptions):
         """Epochs: as given, else the preset's."""
         return self.epochs or (MATLAB_EPOCHS if self.preset == "matlab" else 100)
 
+    @property
+    def ridge(self) -> float:
+        """The rule ridge: as given, else the preset's (MATLAB's least squares are plain)."""
+        if self.rule_ridge is not None:
+            return self.rule_ridge
+        return 0.0 if self.preset == "matlab" else RULE_RIDGE
+
     def training(self, n_inputs: int, seed: int) -> TrainingOptions:
         """The library's training options these give (`TrainingOptions`)."""
         out = TrainingOptions(n_mfs=mfs_for(self.mfs, n_inputs), mf_type=self.mf_type,
                               epochs=self.steps, initial_step=self.step,
-                              consequent=self.consequent, seed=seed)
+                              consequent=self.consequent, rule_ridge=self.ridge, seed=seed)
         if self.preset == "matlab":  # genfis1's one start, anfis's step in input units
             out = replace(out, width_factor=1.0, step_units="raw")
         return out
@@ -124,7 +147,7 @@ def anfis_plots(prefix: str, model: InverseModel, t_s: np.ndarray, y: np.ndarray
 
 KIND = Kind("anfis", "000", "first-order Sugeno ANFIS (or zero order: --consequent "
             "constant), hybrid learning",
-            modelfile.from_dict, ("force_n", "length_mm"), fit_anfis, AnfisOptions,
+            modelfile.from_dict, DEFAULT_INPUTS, fit_anfis, AnfisOptions,
             adaptable=True, progress=lambda o: (o.steps, "epoch", "RMSE"),
             starts=lambda o: 1 if o.preset == "matlab" else len(WIDTH_STARTS),
             plots=anfis_plots, outputs=tuple(OUTPUT_UNITS))

@@ -49,7 +49,6 @@ import os
 import re
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -542,47 +541,37 @@ def data_files(paths: Sequence[str]) -> list[str]:
     """The files `read_data` reads for `paths`, in its order: a directory as a
     collection or `--record` directory (its recordings), or a `pamd export --csv`
     directory (its sidecar's muscle tables); a file as it is."""
-    return [f for f, _ in _data_loads(paths)]
-
-
-def _data_loads(paths: Sequence[str]) -> list[tuple[str, float | None]]:
-    """`data_files` with each file's load where a collection's manifest states it (the
-    load its step hung: a step file's own metadata holds the config's load the
-    collection started with); None elsewhere (the file says its own)."""
     if not paths:
         raise ModelError("no data files given")
-    out: list[tuple[str, float | None]] = []
+    out: list[str] = []
     for p in paths:
         if os.path.isdir(p):
             sides = glob.glob(os.path.join(glob.escape(p), "*.meta.json"))
             if sides and not glob.glob(os.path.join(glob.escape(p), "*.mcap")):
-                out += _data_loads(_export_tables(sides))
+                out += data_files(_export_tables(sides))
             else:
-                out += [(f, None if load is None else float(load))
-                        for f, _, load in recording_files(p)]
+                out += data_files([f for f, _, _ in recording_files(p)])
             continue
-        out.append((p, None))
+        out.append(p)
     return out
 
 
 def read_data(paths: Sequence[str], muscle: str | None = None,
               on_file: Callable[[str], None] | None = None) -> list[Run]:
     """Every run in `paths` (`data_files`): MCAP recordings (by their magic bytes),
-    .mat files, CSV tables. A collection's runs carry the load of their step, as its
-    manifest says. `on_file` is told each file once it is read (progress)."""
+    .mat files, CSV tables. `on_file` is told each file once it is read (progress)."""
     runs: list[Run] = []
-    for p, load_kg in _data_loads(paths):
+    for p in data_files(paths):
         if not os.path.exists(p):
             raise ModelError(f"{p}: no such file")
         with open(p, "rb") as fh:
             head = fh.read(8)
         if head.startswith(b"\x89MCAP"):
-            got = read_mcap(p, muscle)
+            runs += read_mcap(p, muscle)
         elif p.lower().endswith(".mat"):
-            got = read_table_mat(p)
+            runs += read_table_mat(p)
         else:
-            got = [read_table_csv(p)]
-        runs += got if load_kg is None else [replace(r, load_kg=load_kg) for r in got]
+            runs.append(read_table_csv(p))
         if on_file is not None:
             on_file(p)
     return runs
@@ -613,7 +602,8 @@ def load_samples(paths: Sequence[str], options: ExtractOptions,
         missing = [n for n in need if n not in r.columns and n not in FROM_LENGTH]
         if "velocity_mm_s" in need and r.meta.get("time") == "rows":
             raise ModelError(f"{r.label}: a velocity_mm_s input needs a time column "
-                             "(t_s, time [ms], ...); this table has none")
+                             "(t_s, time [ms], ...); this table has none (without one, "
+                             "train on --inputs force_n,length_mm)")
         if any(n in FROM_LENGTH for n in need) and "length_mm" not in r.columns:
             missing.append("length_mm")
         if missing:

@@ -194,20 +194,3 @@ def test_matlab_preset_trains_one_start_on_the_inputs_units(tmp_path: Path,
     assert training["width_starts"]["widths"] == [1.0]
     assert training["options"]["step_units"] == "raw" and training["epochs_run"] == 10
     assert premise_units(model).tolist()[:3] == [model.scale_span[0]] * 3
-
-
-def test_a_collections_runs_hang_their_steps_loads(tmp_path: Path) -> None:
-    """A collection's step file starts with the config's load in its own metadata; its
-    manifest says the step's: a collection read as a directory gives each run the
-    step's load (FN-QUPI's load input, the seed benches' per-load protocols), a file
-    read alone its own."""
-    from pamd.view.tables import read_data
-
-    for name in ("a.csv", "b.csv"):  # each file says 30 kg itself
-        (tmp_path / name).write_text("t_s,length_mm,pressure_bar,load_kg\n"
-                                     + "\n".join(f"{k * 0.1:.1f},150,2,30" for k in range(5)))
-    (tmp_path / "manifest.json").write_text(json.dumps({"steps": [
-        {"name": "load-20kg", "load_kg": 20.0, "files": ["a.csv"]},
-        {"name": "load-40kg", "load_kg": 40.0, "files": ["b.csv"]}]}))
-    assert [r.load_kg for r in read_data([str(tmp_path)])] == [20.0, 40.0]
-    assert [r.load_kg for r in read_data([str(tmp_path / "b.csv")])] == [30.0]

@@ -58,6 +58,11 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
         raise ModelError(f"{path}: unfinished recording; run `pamd recover {path}` first")
     meta = info["metadata"]
     loads = {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
+    # a plan's step file: the load its step hung (pamd.loads is the config's, at the
+    # run's start), as pamd.view.recording reads it
+    step_load = _float_or_none(meta.get("pamd.experiment", {}).get("load_kg"))
+    if step_load is not None:
+        loads = dict.fromkeys(loads, step_load)
     actuations = actuations_of(meta)
     topics = [c["topic"] for c in info["channels"]]
     state_topics = {t.rsplit("/", 1)[1]: t for t in topics if "/state/" in t}
