@@ -6,13 +6,22 @@ sine, split into the simulated plant (`SimDriver.advance`) and the controller's 
 Printed as the best of `--rounds` rounds of `--ticks` ticks each (CPU time of this
 process), and the harness tick as a ratio to the plant alone measured in the same run
 (the machine's noise cancels in the ratio). Run it with PYTHONPATH set to another tree
-to compare two trees on one machine."""
+to compare two trees on one machine, or with `--against TREE` (a checkout or `git
+archive` of the baseline: `git archive main | tar -x -C /tmp/base`), which alternates
+`--pairs` runs of that tree and this one, each in its own process, and prints the
+median of each and the median of each pair's ratio (this tree / the baseline): on a
+shared machine the load then falls on both runs of a pair alike."""
 
 from __future__ import annotations
 
 import argparse
 import gc
+import json
 import math
+import os
+import statistics
+import subprocess
+import sys
 import time
 from collections.abc import Callable
 
@@ -82,14 +91,55 @@ def split_us(rounds: int, ticks: int) -> tuple[float, float]:
     return best_plant / ticks * 1e6, best_ctrl / ticks * 1e6
 
 
+def _run_tree(tree: str, rounds: int, ticks: int) -> dict[str, float]:
+    """One measurement of the tree at `tree` in its own process."""
+    env = {**os.environ, "PYTHONPATH": tree}
+    out = subprocess.run([sys.executable, __file__, "--rounds", str(rounds), "--ticks",
+                          str(ticks), "--json"], env=env, capture_output=True, text=True,
+                         check=True)
+    result: dict[str, float] = json.loads(out.stdout)
+    return result
+
+
+def against(base: str, pairs: int, rounds: int, ticks: int) -> None:
+    """Alternate runs of the baseline tree and this one; medians and ratios."""
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    runs: dict[str, list[dict[str, float]]] = {"base": [], "this": []}
+    for k in range(pairs):
+        for name, tree in (("base", base), ("this", here)):
+            r = _run_tree(tree, rounds, ticks)
+            runs[name].append(r)
+            print(f"  pair {k + 1} {name}: harness {r['whole']:.1f} us, plant "
+                  f"{r['plant']:.1f} us, controller {r['control']:.1f} us", flush=True)
+    for key, label in (("whole", "harness tick"), ("control", "controller tick"),
+                       ("plant", "plant")):
+        b = statistics.median(r[key] for r in runs["base"])
+        t = statistics.median(r[key] for r in runs["this"])
+        ratio = statistics.median(x[key] / y[key]
+                                  for x, y in zip(runs["this"], runs["base"], strict=True))
+        print(f"{label}: baseline {b:.1f} us, this tree {t:.1f} us; ratio {ratio:.3f} "
+              f"(this / baseline, the median of {pairs} pairs' ratios)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--ticks", type=int, default=5000)
+    ap.add_argument("--json", action="store_true", help="print the figures as JSON")
+    ap.add_argument("--against", metavar="TREE",
+                    help="compare with the tree at TREE (module docstring)")
+    ap.add_argument("--pairs", type=int, default=5,
+                    help="with --against: alternating runs of each tree")
     a = ap.parse_args()
+    if a.against:
+        against(a.against, a.pairs, a.rounds, a.ticks)
+        return
     gc.collect()
     whole = harness_us(a.rounds, a.ticks)
     plant, control = split_us(a.rounds, a.ticks)
+    if a.json:
+        print(json.dumps({"whole": whole, "plant": plant, "control": control}))
+        return
     print(f"harness tick, best of {a.rounds} x {a.ticks}: {whole:.1f} us "
           f"(plant {plant:.1f} us, controller {control:.1f} us; "
           f"harness / plant {whole / plant:.2f})")

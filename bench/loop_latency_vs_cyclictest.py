@@ -4,12 +4,18 @@ real clock, real-time settings on) and cyclictest (SCHED_FIFO at the same priori
 1000 us interval, /dev/cpu_dma_latency 0) alternate. Prints each round's p50/p99/max
 and the median ratio of p99s (goal <= 1.5).
 
-usage: python bench/loop_latency_vs_cyclictest.py [ROUNDS] [SECONDS]   (5 x 15 s)
+With `--against TREE` (a checkout or `git archive` of the baseline) each round runs
+that tree's pamd too, so the baseline, this tree and cyclictest alternate on the same
+machine under the same load, and both medians of p99 ratios are printed.
+
+usage: python bench/loop_latency_vs_cyclictest.py [ROUNDS] [SECONDS] [--against TREE]
+(5 x 15 s)
 """
 
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import statistics
 import subprocess
@@ -22,10 +28,13 @@ from _common import sim_config
 PRIORITY = 80
 
 
-def pamd_round(seconds: float, config_path: str) -> tuple[float, float, float]:
+def pamd_round(seconds: float, config_path: str, tree: str | None = None
+               ) -> tuple[float, float, float]:
+    env = None if tree is None else {**os.environ, "PYTHONPATH": tree}
     out = subprocess.run(
         [sys.executable, "-m", "pamd", "run", "--config", config_path, "--duration",
-         str(seconds), "--json", "--no-record"], capture_output=True, text=True, check=True)
+         str(seconds), "--json", "--no-record"], capture_output=True, text=True, check=True,
+        env=env)
     w = json.loads(out.stdout)["wake_latency_us"]
     return w["p50"], w["p99"], w["max"]
 
@@ -58,23 +67,39 @@ def cyclictest_round(seconds: float) -> tuple[float, float, float]:
 
 
 def main() -> int:
-    rounds = int(sys.argv[1]) if len(sys.argv) > 1 else 5
-    seconds = float(sys.argv[2]) if len(sys.argv) > 2 else 15.0
+    args = sys.argv[1:]
+    base: str | None = None
+    if "--against" in args:
+        k = args.index("--against")
+        base = args[k + 1]
+        del args[k:k + 2]
+    rounds = int(args[0]) if args else 5
+    seconds = float(args[1]) if len(args) > 1 else 15.0
     if shutil.which("cyclictest") is None:
         print("cyclictest not found: apt-get install rt-tests", file=sys.stderr)
         return 2
     cfg = sim_config("real", realtime=True,
                      loop={"realtime": {"enabled": True, "priority": PRIORITY}})
-    ratios = []
+    ratios: list[float] = []
+    base_ratios: list[float] = []
     print(f"wake-up latency at 1 kHz, {rounds} rounds x {seconds:g} s, interleaved (us):")
     for k in range(1, rounds + 1):
+        if base is not None:
+            b = pamd_round(seconds, cfg.path, base)
         p = pamd_round(seconds, cfg.path)
         c = cyclictest_round(seconds)
         ratio = p[1] / max(c[1], 1.0)
         ratios.append(ratio)
+        if base is not None:
+            base_ratios.append(b[1] / max(c[1], 1.0))
+            print(f"  round {k}: baseline p50 {b[0]:4.0f} p99 {b[1]:5.0f} max {b[2]:6.0f} "
+                  f"(p99 ratio {base_ratios[-1]:.2f})")
         print(f"  round {k}: pamd p50 {p[0]:4.0f} p99 {p[1]:5.0f} max {p[2]:6.0f} | "
               f"cyclictest p50 {c[0]:4.0f} p99 {c[1]:5.0f} max {c[2]:6.0f} | "
               f"p99 ratio {ratio:.2f}")
+    if base is not None:
+        print(f"baseline: median ratio of p99s (pamd / cyclictest): "
+              f"{statistics.median(base_ratios):.2f}")
     print(f"median ratio of p99s (pamd / cyclictest): {statistics.median(ratios):.2f} "
           f"(goal <= 1.5)")
     return 0

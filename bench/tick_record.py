@@ -1,5 +1,5 @@
 """The tick record's cost where the field table reaches the tick path: one muscle's
-`MuscleView._record` (18 float stores at offsets from pamd.declare.fields, computed at
+`MuscleController._record` (18 float stores at offsets from pamd.declare.fields, computed at
 import), and the whole `RigController.tick` (pamd's plant excluded), best of
 `--rounds` on a shared machine (compare two trees by alternating runs:
 `PYTHONPATH=TREE python bench/tick_record.py`)."""
@@ -33,7 +33,7 @@ def record_ns(calls: int) -> float:
     try:
         t0 = time.perf_counter()
         for _ in range(calls):
-            write(rec, 0)
+            write(rec, m.tick_values)
         return (time.perf_counter() - t0) / calls * 1e9
     finally:
         gc.enable()
@@ -47,7 +47,7 @@ def main() -> None:
     rec = min(record_ns(200_000) for _ in range(a.rounds))
     p50s = [percentile(controller_compute_us(sim_config("virtual"), [
         ("profile", {"kind": "sine"})], a.seconds), 50) for _ in range(a.rounds)]
-    print(f"MuscleView._record: {rec:.0f} ns a call (best of {a.rounds}); RigController.tick "
+    print(f"MuscleController._record: {rec:.0f} ns a call (best of {a.rounds}); RigController.tick "
           f"p50 {min(p50s):.1f} us (best of {a.rounds} x {a.seconds:g} s, sine profile)")
 
 

@@ -235,14 +235,17 @@ class SimDriver(Driver):
             chain.watch(now_s if clock is not None else self._t_s)
         if self._schedule.pending:
             # the schedule runs on the loop's clock (this tick's time), else on the steps
-            elapsed = now_s - self._t_open + 1e-9 if clock is not None else self._t_s
-            while (f := self._schedule.due(elapsed)) is not None:
-                if f.kind == "stall":  # the readings keep this step's time: the
-                    self.stall_process(f.duration_s or 0.0)  # plant catches up next step
-                else:
-                    self.inject_fault(f.muscle, f.signal, f.kind, f.size)
+            self._scheduled(now_s - self._t_open + 1e-9 if clock is not None else self._t_s)
         if clock is not None:
             self._publish(now_s)
+
+    def _scheduled(self, elapsed: float) -> None:
+        """The scheduled faults due by `elapsed`, injected."""
+        while (f := self._schedule.due(elapsed)) is not None:
+            if f.kind == "stall":  # the readings keep this step's time: the
+                self.stall_process(f.duration_s or 0.0)  # plant catches up next step
+            else:
+                self.inject_fault(f.muscle, f.signal, f.kind, f.size)
 
     def _step_plants(self, dt_s: float) -> None:
         for plant in self._plants:

@@ -169,62 +169,113 @@ class RigController:
 
     # -- the tick -------------------------------------------------------------------
     def tick(self, now: float, dt: float) -> array[float]:
+        """One tick of the rig, as ros2_control's cycle: read every input (the rig's
+        own first: start-up, the deadman, the safety chain, the drivers' faults; then
+        every muscle's), update every muscle, decide the rig's safe state once on
+        what every muscle found, then write every output. A fault found by any muscle
+        shapes every muscle's write of that tick (the safe state's entry, held to its
+        invariants): the muscles of an antagonistic pair enter it together."""
         self.now = now
+        state = self._read_rig(now, dt)
+        muscles = self.muscles
+        found = False
+        for m in muscles:
+            if m.read(now, dt, state):
+                found = True
+        for m in muscles:
+            m.update(now, dt)
+        entering = found and self._decide(now, state)
+        rec = self.record
+        fault = None
+        for m in muscles:
+            reason = m.write(now, dt, entering, rec)
+            if reason is not None and fault is None:
+                fault = reason
+            wd = m.ff_watch
+            if (m.tick_values.finding is not None or m.limit_report is not None
+                    or m.adaptation.report is not None or wd.pending_off or wd.pending_osc):
+                self._report(now, m)
+        if fault is not None:  # the actuation's own: it shapes the next tick
+            self._latch(now, fault)
+        self._finish(now, rec)
+        return rec
+
+    def _read_rig(self, now: float, dt: float) -> int:
+        """The rig's own inputs, before its muscles read theirs: the simulated plant
+        advanced, start-up (read before writing), a streamed setpoint's deadman, the
+        safety chain (its response: an ESTOP, the supply lost, the air held), a
+        driver's fault. What latches here latches before any muscle updates. Returns
+        the state the muscles run in."""
         for drv in self.steppers:
             drv.advance(dt)
         sup = self.supervisor
-        state = int(sup.state)
-        if state == S_STARTING:
+        if sup.state == S_STARTING:
             self._starting(now)
-            state = int(sup.state)
-        deadman = self._deadman
-        if now > deadman.at:  # a streamed setpoint was not refreshed in time
-            deadman.expire(now, state == S_RUNNING, self.by_name)
-            state = int(sup.state)
+        if now > self._deadman.at:  # a streamed setpoint was not refreshed in time
+            self._deadman.expire(now, sup.state == S_RUNNING, self.by_name)
         chain = self.chain
         if chain.configured:
             chain.read(now)
-            if state != S_STARTING:
+            if sup.state != S_STARTING:
                 self._chain_response.respond(now, chain)
-                state = int(sup.state)
-        # A fault latches as soon as it is found, so that every muscle ticked after it
-        # enters the safe state in this same tick (a driver's fault: all of them); the
-        # muscle that found it holds its own command to the safe state's invariants.
-        # Start-up waits for its timeout before faulting.
-        fault = None
         for drv in self.drivers:
             if drv.fault is not None:
-                fault = f"driver {drv.name!r}: {drv.fault}"
+                self._latch(now, f"driver {drv.name!r}: {drv.fault}")
                 break
-        if fault is not None and not sup.latched and state != S_STARTING:
-            sup.fault(now, fault)
-            state = int(sup.state)
-        rec = self.record
+        return int(sup.state)
+
+    def _decide(self, now: float, state: int) -> bool:
+        """The rig's safe state, decided once on what every muscle's read found (called
+        when one found something): each finding said, the first fault latched. Returns
+        whether any muscle found a fault this tick: then every muscle's write is the
+        safe state's entry."""
+        fault = None
         for m in self.muscles:
-            reason = m.tick(now, dt, state, rec)
-            if m.finding is not None:  # rare path: an implausible reading
+            t = m.tick_values
+            if t.finding is not None:  # rare path: an implausible reading
                 self.sink.event(now, "implausible", finding_event(m))
-            if m.limit_report is not None:  # rare path: a profile held at a soft limit
-                self.sink.event(now, "soft_limit", soft_limit_event(m))
-            if m.adapt_report is not None:  # rare path: the model's adaptation froze
-                self.sink.event(now, "adapt", m.take_adapt_report() or {})
-            if m.feedforward_pending:  # rare path: the model off its data, oscillating
-                for ev in feedforward_events(m):
-                    self.sink.event(now, "feedforward", ev)
-            if reason is not None and fault is None:
-                fault = reason
-                if not sup.latched and state != S_STARTING:
-                    sup.fault(now, fault)
-                    state = int(sup.state)
+            if t.fault is not None and fault is None:
+                fault = t.fault
+        if fault is None:
+            return False
+        self._latch(now, fault)
+        return True
+
+    def _latch(self, now: float, fault: str) -> None:
+        """A fault latches FAULT, unless one is latched already or the rig is starting
+        (start-up waits for its timeout before faulting)."""
+        sup = self.supervisor
+        if not sup.latched and sup.state != S_STARTING:
+            sup.fault(now, fault)
+
+    def _report(self, now: float, m: MuscleController) -> None:
+        """What a muscle's write found or reports (rare paths): a valve that does not
+        act, a profile held at a soft limit, the model's adaptation frozen, the model
+        off its data or its feedforward oscillating (`pamd.control.off_data`)."""
+        if m.finding is not None:
+            self.sink.event(now, "implausible", finding_event(m))
+        if m.limit_report is not None:
+            self.sink.event(now, "soft_limit", soft_limit_event(m))
+        if m.adapt_report is not None:
+            self.sink.event(now, "adapt", m.take_adapt_report() or {})
+        if m.feedforward_pending:
+            for ev in feedforward_events(m):
+                self.sink.event(now, "feedforward", ev)
+
+    def _finish(self, now: float, rec: array[float]) -> None:
+        """The plan's step, a finished profile, the rig's fields of the record and the
+        heartbeat, written last."""
+        sup = self.supervisor
         seq = self._plan_run
         if seq is not None:
             seq.tick(now)
-        elif state == S_RUNNING:
+        elif sup.state == S_RUNNING:
             self._running_done(now)
         rec[I_TICK] = self.tick_no
         rec[I_T] = now - self.t_start
-        rec[I_STATE] = sup.state  # stored as a double: the same as int(), without the call
+        rec[I_STATE] = sup.state  # a double: the same as int(), without the call
         rec[I_SEGMENT] = self._segment
+        chain = self.chain
         if chain.configured:
             chain.beat()  # stands still while a valve's device is lost (never for a latch)
             rec[I_CHAIN] = chain.closed
@@ -233,7 +284,6 @@ class RigController:
         else:
             rec[I_CHAIN] = rec[I_SUPPLY] = rec[I_HEARTBEAT] = math.nan
         self.tick_no += 1
-        return rec
 
     def _starting(self, now: float) -> None:
         """Read before writing (`pamd.control.rig_startup`), the declared loads checked."""

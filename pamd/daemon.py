@@ -172,7 +172,9 @@ class Daemon:
         return True
 
     def service(self) -> None:
-        """Housekeeping outside the loop's thread."""
+        """Housekeeping outside the loop's thread. Each share that holds the interpreter
+        lock for long (the keeper's files and watchdog, the status snapshot) starts in
+        the loop's slack, after a tick (`Loop.until_slack`), not at a wake-up."""
         sup = self.ctrl.supervisor
         if self.end_on_fault and sup.latched and self.loop.stop_requested is None:
             self.stop(f"{sup.state.name.lower()}: {sup.fault_reason}")
@@ -190,8 +192,11 @@ class Daemon:
                 log.warning("the new home/tare references hold for this run only: it keeps "
                             "no state (a simulation); --state-dir DIR (or state_dir, or "
                             "calibration_file in the config) keeps them")
+        loop = self.loop
+        loop.until_slack()
         self.keeper.service()
         if self.io is not None:
+            loop.until_slack()
             self.io.service()  # telemetry: status snapshot, collect/model commands
 
     def close(self) -> None:

@@ -42,6 +42,10 @@ COMMAND_BUDGET_FRACTION = 0.3  # of the period: commands after the first wait pa
 SAFE_STATE_DEADLINE_S = 30.0
 GC_EVERY_TICKS = 200
 GIL_SWITCH_FRACTION = 0.1
+#: Another thread's housekeeping starts this far into a period (`Loop.until_slack`):
+#: after the tick (woken ~30 us late, ~100 us of compute here, its p99 ~250 us), in
+#: the slack before the next wake-up.
+SLACK_AT_FRACTION = 0.3
 #: loop.clock daq: a sample this many periods past its due time, and half the stall
 #: timeout, is missing (the OS clock stands in): a sample's reads may take most of a
 #: period on a busy host, and a gap the stall check calls normal is no device gone
@@ -141,8 +145,15 @@ class Loop:
         self.handed_over = False  # ended at an IDLE tick, outputs held (restart in place)
         self.running = False
         self.last_tick_done = math.nan  # monotonic time of the last completed tick
+        self.next_deadline = math.nan  # the clock's time of the next tick (`until_slack`)
         self._idle: Callable[[], bool] | None = None  # see `stand_still_while`
         self._woken = threading.Condition()
+        # one run's state (`_run`): when it ends, when its stop began, the last overrun
+        # said, whether it ran a profile, the drivers' samples' age excused and until when
+        self._end_t = self._stopping_since = math.inf
+        self._last_warn = -math.inf
+        self._saw_running = False
+        self._excuse = self._excused_until = 0.0
 
     @property
     def mailbox(self) -> Mailbox:
@@ -198,6 +209,25 @@ class Loop:
             while self._stop_reason is None and idle():
                 self._woken.wait(0.05)
 
+    def until_slack(self) -> None:
+        """Sleep (another thread: the daemon's main thread, before each share of its
+        housekeeping) until SLACK_AT_FRACTION of a period past the loop's next deadline,
+        where that tick is done: what the caller does next then holds the interpreter
+        lock in the loop's slack, not at its wake-up. The loop's thread, woken, must
+        take the lock back from whichever thread holds it, which lets go only at its
+        next switch interval (a tenth of a period), or after a C call that holds it
+        (a status snapshot's JSON encoding): the main thread's 0.3-0.4 ms of status,
+        persistence and watchdog every 50 ms, at random phase, met 0.6-0.8 % of the
+        wake-ups, the 99th percentile's tail (bench/loop_latency_vs_cyclictest.py).
+        Returns at once on the virtual clock (no wake-ups) or while the loop is not
+        running; never sleeps longer than two periods."""
+        if self.virtual or not self.running:
+            return
+        period = self.period_s
+        wait = self.next_deadline + SLACK_AT_FRACTION * period - time.monotonic()
+        if wait > 0.0:
+            time.sleep(wait if wait < 2.0 * period else 2.0 * period)
+
     def request_stop(self, reason: str) -> None:
         """Ask the loop to reach the safe state and return (any thread)."""
         if self._stop_reason is None:
@@ -252,129 +282,179 @@ class Loop:
             self.running = False
 
     def _run(self, ctrl: RigController, duration_s: float | None, stop_when_done: bool) -> None:
-        virtual = self.virtual
-        vclock = self.clock if virtual else None
-        mono = time.monotonic
-        perf = time.perf_counter
-        sleep = time.sleep
+        """Tick until stopped and the safe state holds (or a hand-over): wait for the
+        deadline, take the waiting commands and tick, account for the tick, judge the
+        run's end, find the next deadline; garbage collected only in slack time."""
         period = self.period_s
         timing = self.timing
-        wake_h, comp_h = timing.wake, timing.compute
-        sink, intake = ctrl.sink, self.intake
+        mono = time.monotonic
         start = self.clock()
         ctrl.start(start)
-        end_t = math.inf if duration_s is None else start + duration_s
-        next_t = start
-        dt = period
-        stopping_since = math.inf
-        last_warn = -math.inf
+        self._end_t = math.inf if duration_s is None else start + duration_s
+        self._stopping_since = math.inf
+        self._last_warn = -math.inf
+        self._saw_running = False
+        self._excuse = self._excused_until = 0.0
         self.running = True
         self.last_tick_done = mono()
-        saw_running = False
-        excuse_after = 2.0 * period  # a tick this late excuses its samples' age
-        excuse = excused_until = 0.0
         # virtual clock: deterministic, so no budget by the machine's speed
-        command_budget_s = math.inf if virtual else COMMAND_BUDGET_FRACTION * period
-        idle = self._idle
-        pacer = self.pacer
-        if pacer is not None:
-            pacer.attach()
+        command_budget_s = math.inf if self.virtual else COMMAND_BUDGET_FRACTION * period
+        wait = self._wait_virtual if self.virtual else self._wait_real
+        relaxed = self.virtual or self.pacer is not None  # no late deadline to judge
+        intake = self.intake
+        if self.pacer is not None:
+            self.pacer.attach()
+        next_t, dt = start, period
+        self.next_deadline = start
         while True:
-            # -- wait for the deadline ---------------------------------------------
-            if virtual:
-                if idle is not None and self._stop_reason is None and idle():
-                    self._stand_still(idle)
-                vclock.t = next_t  # type: ignore[union-attr]
-                wake = 0.0
-                t_wake = perf()
-            else:
-                if pacer is not None:  # loop.clock daq: the tick at the sample's edge
-                    next_t, dt = self._sample_due(pacer, next_t, dt)
-                    now = mono()
-                else:
-                    now = mono()
-                    if now < next_t:
-                        sleep(next_t - now)
-                        now = mono()
-                wake = now - next_t
-                if wake >= period and self.skip_overruns and pacer is None:
-                    # woken periods late (the process got no CPU): this tick runs at
-                    # the present deadline with dt over the whole gap, so a stepped
-                    # plant and its samples' stamps agree (no jump "in 1 ms")
-                    missed = int(wake / period)
-                    timing.overruns += missed
-                    next_t += missed * period
-                    dt += missed * period
-                    if next_t - last_warn >= 1.0:
-                        last_warn = next_t
-                        self.notices.append(f"overrun: {missed} period(s) missed "
-                                            f"({timing.overruns} so far)")
-                t_wake = perf()
-                gap = now - self.last_tick_done
-                if gap > excuse_after:  # the drivers may have stalled with the loop
-                    if gap - period >= excuse or now > excused_until:
-                        excuse = gap - period  # a larger one stands until its own end
-                        excused_until = now + ctrl.excuse_stall(excuse)
-                elif excuse and now > excused_until:
-                    excuse = 0.0
-                    ctrl.excuse_stall(0.0)
-            # -- commands (held until the sensors are read), then the tick -------------
+            next_t, dt, wake, t_wake = wait(next_t, dt)
+            # commands (held until the sensors are read), then the tick
             rec = tick_once(ctrl, intake, next_t, dt, t_wake + command_budget_s)
-            compute = perf() - t_wake
-            rec[I_WAKE] = wake
-            rec[I_COMPUTE] = compute
-            rec[I_OVERRUNS] = timing.overruns
-            rec[I_LOST] = self.lost_records
-            if not sink.put(rec):
-                self.lost_records += 1
-            if pacer is not None:
-                pacer.tick_done()  # the driver writes this tick's outputs
-            wake_h.add(wake)
-            comp_h.add(compute)
-            timing.ticks += 1
-            done = mono()
-            if done - self.last_tick_done > self.stall_s and not virtual:
-                self._stalled(done - self.last_tick_done)
-            self.last_tick_done = done
-            # -- end of run, safe state ----------------------------------------------
-            state = ctrl.supervisor.state
-            if state == State.RUNNING:
-                saw_running = True
-            if self._stop_reason is None:
-                if next_t >= end_t:
-                    self.request_stop("duration reached")
-                elif stop_when_done and saw_running and state == State.IDLE:
-                    self.request_stop("profile finished")
-            if (self._handover_reason is not None and self._stop_reason is None
-                    and state == State.IDLE and ctrl.at_rest()):  # not during a ramp
-                self.handed_over = True  # first: the main thread reads them in this order
-                self.stopped_reason = self._handover_reason
+            self._account(rec, wake, t_wake)
+            if self._ends(ctrl, next_t, stop_when_done):
                 break
-            if self._stop_reason is not None and stopping_since == math.inf:
-                stopping_since = next_t
-                self.stopped_reason = self._stop_reason
-                ctrl.go_safe(f"{self._stop_reason}: ramping to the safe state")
-            if stopping_since != math.inf and (
-                    ctrl.at_safe_state() or next_t - stopping_since > SAFE_STATE_DEADLINE_S):
-                break
-            # -- next deadline -------------------------------------------------------
             next_t += period
             dt = period
-            if not virtual and pacer is None:
-                late = mono() - next_t
-                if late > 0.0:
-                    missed = int(late / period) + 1
-                    timing.overruns += missed
-                    if self.skip_overruns:
-                        next_t += missed * period
-                        dt = period * (missed + 1)
-                    if next_t - last_warn >= 1.0:
-                        last_warn = next_t
-                        self.notices.append(f"overrun: {missed} period(s) missed "
-                                            f"({timing.overruns} so far)")
+            if not relaxed:
+                next_t, dt = self._late(next_t)
+            self.next_deadline = next_t
             if timing.ticks % GC_EVERY_TICKS == 0 and (
-                    virtual or next_t - mono() > 0.5 * period):
+                    self.virtual or next_t - mono() > 0.5 * period):
                 gc.collect(0)
+
+    def _wait_virtual(self, next_t: float, dt: float) -> tuple[float, float, float, float]:
+        """The virtual clock moved to the deadline (standing still first while the
+        commissioning thread says so: `stand_still_while`). Returns (the tick's time, its
+        dt, its wake-up lateness, 0 here, the perf_counter at wake-up)."""
+        idle = self._idle
+        if idle is not None and self._stop_reason is None and idle():
+            self._stand_still(idle)
+        vclock = self.clock
+        assert isinstance(vclock, VirtualClock)
+        vclock.t = next_t
+        return next_t, dt, 0.0, time.perf_counter()
+
+    def _wait_real(self, next_t: float, dt: float) -> tuple[float, float, float, float]:
+        """Sleep to the deadline (or, `loop.clock: daq`, wait for the sample); a wake-up
+        periods late skips the missed periods (`overrun_policy: skip`); the drivers'
+        samples excused a stall's age. Returns as `_wait_virtual`."""
+        mono = time.monotonic
+        pacer = self.pacer
+        if pacer is not None:  # loop.clock daq: the tick at the sample's edge
+            next_t, dt = self._sample_due(pacer, next_t, dt)
+            now = mono()
+        else:
+            now = mono()
+            if now < next_t:
+                time.sleep(next_t - now)
+                now = mono()
+        wake = now - next_t
+        if wake >= self.period_s and self.skip_overruns and pacer is None:
+            next_t, dt = self._skip_missed(wake, next_t, dt)
+        t_wake = time.perf_counter()
+        self._excuse_gap(now)
+        return next_t, dt, wake, t_wake
+
+    def _skip_missed(self, wake: float, next_t: float, dt: float) -> tuple[float, float]:
+        """Woken periods late (the process got no CPU): this tick runs at the present
+        deadline with dt over the whole gap, so a stepped plant and its samples' stamps
+        agree (no jump "in 1 ms")."""
+        period = self.period_s
+        missed = int(wake / period)
+        self.timing.overruns += missed
+        next_t += missed * period
+        dt += missed * period
+        self._say_overrun(next_t, missed)
+        return next_t, dt
+
+    def _say_overrun(self, next_t: float, missed: int) -> None:
+        if next_t - self._last_warn >= 1.0:  # at most once a second
+            self._last_warn = next_t
+            self.notices.append(f"overrun: {missed} period(s) missed "
+                                f"({self.timing.overruns} so far)")
+
+    def _excuse_gap(self, now: float) -> None:
+        """A tick more than two periods after the last one: the drivers may have stalled
+        with the loop, so their samples' age is excused for as long as the gap (a larger
+        one stands until its own end); back to nothing once it is over."""
+        period = self.period_s
+        gap = now - self.last_tick_done
+        if gap > 2.0 * period:
+            if gap - period >= self._excuse or now > self._excused_until:
+                self._excuse = gap - period
+                self._excused_until = now + self.ctrl.excuse_stall(self._excuse)
+        elif self._excuse and now > self._excused_until:
+            self._excuse = 0.0
+            self.ctrl.excuse_stall(0.0)
+
+    def _account(self, rec: array[float], wake: float, t_wake: float) -> None:
+        """The tick's timing into its record and histograms, the record to the sink (a
+        lost one counted), the pacer told, a stall found by the time since the last."""
+        compute = time.perf_counter() - t_wake
+        timing = self.timing
+        rec[I_WAKE] = wake
+        rec[I_COMPUTE] = compute
+        rec[I_OVERRUNS] = timing.overruns
+        rec[I_LOST] = self.lost_records
+        if not self.ctrl.sink.put(rec):
+            self.lost_records += 1
+        if self.pacer is not None:
+            self.pacer.tick_done()  # the driver writes this tick's outputs
+        timing.wake.add(wake)
+        timing.compute.add(compute)
+        timing.ticks += 1
+        done = time.monotonic()
+        if done - self.last_tick_done > self.stall_s and not self.virtual:
+            self._stalled(done - self.last_tick_done)
+        self.last_tick_done = done
+
+    def _ends(self, ctrl: RigController, next_t: float, stop_when_done: bool) -> bool:
+        """Whether the loop ends after this tick: a hand-over at rest, or a stop (the
+        duration reached, a profile finished, a request) once the safe state holds or
+        its deadline passed."""
+        state = ctrl.supervisor.state
+        if state == State.RUNNING:
+            self._saw_running = True
+        if self._stop_reason is None:
+            if next_t >= self._end_t:
+                self.request_stop("duration reached")
+            elif stop_when_done and self._saw_running and state == State.IDLE:
+                self.request_stop("profile finished")
+        if self._handing_over(ctrl, state):
+            return True
+        if self._stop_reason is not None and self._stopping_since == math.inf:
+            self._stopping_since = next_t
+            self.stopped_reason = self._stop_reason
+            ctrl.go_safe(f"{self._stop_reason}: ramping to the safe state")
+        since = self._stopping_since
+        return since != math.inf and (
+            ctrl.at_safe_state() or next_t - since > SAFE_STATE_DEADLINE_S)
+
+    def _handing_over(self, ctrl: RigController, state: State) -> bool:
+        """A hand-over asked for, no stop, the rig at rest (not during a ramp)."""
+        if (self._handover_reason is not None and self._stop_reason is None
+                and state == State.IDLE and ctrl.at_rest()):
+            self.handed_over = True  # first: the main thread reads them in this order
+            self.stopped_reason = self._handover_reason
+            return True
+        return False
+
+    def _late(self, next_t: float) -> tuple[float, float]:
+        """The real clock's next deadline already past (the tick ran late): the periods
+        missed are overruns, skipped with `overrun_policy: skip` (then the next tick's dt
+        spans them). Returns the next deadline and its dt."""
+        period = self.period_s
+        late = time.monotonic() - next_t
+        if late <= 0.0:
+            return next_t, period
+        missed = int(late / period) + 1
+        self.timing.overruns += missed
+        dt = period
+        if self.skip_overruns:
+            next_t += missed * period
+            dt = period * (missed + 1)
+        self._say_overrun(next_t, missed)
+        return next_t, dt
 
     def _sample_due(self, pacer: SampleClock, due_t: float, dt: float) -> tuple[float, float]:
         """loop.clock daq: wait for the next sample; returns the tick's time (its edge, or

@@ -37,7 +37,7 @@ class _Cycles(Protocol):
 
 
 class _Follows(Protocol):
-    """A muscle as the summary reads it (`pamd.control.muscle_view.MuscleView`)."""
+    """A muscle as the summary reads it (`pamd.control.muscle.MuscleController`)."""
 
     @property
     def profile(self) -> _Cycles | None: ...

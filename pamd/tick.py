@@ -10,6 +10,7 @@ reused `array('d')` and hands it to the sink; nothing is allocated per tick. Int
 
 from __future__ import annotations
 
+import math
 from array import array
 from collections.abc import Sequence
 from typing import Any, Protocol
@@ -123,3 +124,71 @@ class Mailbox(Protocol):
 
     # Any: a pamd.verbs Command (this leaf is below the verbs layer and cannot name it)
     def poll(self) -> Any | None: ...
+
+
+NAN = float("nan")
+
+
+class MuscleTick:
+    """What one muscle's stages hand each other within a tick: ros2_control's state and
+    command interfaces, one object per muscle, reused every tick (slots: plain stores,
+    nothing allocated). Every stage is `update(t, now, dt)` on it (`Stage`); each field
+    says which phase writes it. The muscle (`pamd.control.muscle.MuscleController`)
+    owns it and runs its stages in three phases: read (its inputs and the checks on
+    them), update (the setpoint source and the pressure loop), write (the guards, the
+    limiter, the actuation, the adaptation), the rig's safe state decided once between
+    every muscle's update and any write (`pamd.controller.RigController.tick`)."""
+
+    __slots__ = (
+        "state", "flags", "fault", "finding", "last_command_bar", "air_cut",
+        "pressure_bar", "force_n", "length_mm", "contraction", "velocity_mm_s",
+        "pressure_ok", "length_ok",
+        "setpoint_bar", "rate_bar_per_s", "slew_bar_per_s", "flow_bar", "safe",
+        "air_hold", "venting", "positioning", "target_length_mm", "target_rate_mm_s",
+        "command_bar", "held", "step_bar", "lo_bar", "hi_bar", "floor_bar",
+        "position_valves", "ceiling_bar", "valve_floor_bar", "valve_pressure_bar", "vent",
+    )
+
+    def __init__(self) -> None:
+        # -- read: the muscle, then its inputs (pamd.control.inputs) and the checks on
+        # them (pamd.safety.limits.LimitMonitor) -----------------------------------------
+        self.state = 0  # the rig's state (pamd.tick.State) this tick's update runs in
+        self.flags = 0  # the record's flag bits (pamd.tick.Flag): each stage ORs in its own
+        self.fault: str | None = None  # a fault found this tick (read, then write's own)
+        self.finding: str | None = None  # a reading no longer trusted (`implausible`)
+        self.last_command_bar = NAN  # the command written last tick (NaN: none yet)
+        self.air_cut = False  # the air is out or held: no air follows a command
+        self.pressure_bar = self.force_n = self.length_mm = self.contraction = NAN
+        self.velocity_mm_s = 0.0
+        self.pressure_ok = self.length_ok = False  # trusted this tick
+        # -- update: the setpoint source (pamd.control.setpoint, length_control); the
+        # fixed ones set when the muscle chooses it -------------------------------------
+        self.setpoint_bar = NAN  # carried from tick to tick: each source moves it
+        self.rate_bar_per_s = 0.0  # the setpoint's rate, for the rate feedforward
+        self.slew_bar_per_s = 0.0  # what the limiter holds a safe state's command to
+        self.flow_bar = 0.0  # the air the planned motion draws, added to a closed loop
+        self.safe = False  # the source is a safe state's (a safe ramp, the air hold)
+        self.air_hold = False  # ... the air hold: nothing vents, no pressure acted on
+        self.venting = False  # ... a safe ramp at a safe pressure of 0, there: vent
+        self.positioning = False  # the valves position the length themselves
+        self.target_length_mm = NAN  # ... on this target and its rate
+        self.target_rate_mm_s = 0.0
+        # -- update: the pressure loop (what control wants); write: the guards, the
+        # limiter (what it lets through) ------------------------------------------------
+        self.command_bar = NAN
+        self.held = False  # held to the safe state's invariants (a safe state, its entry)
+        self.step_bar = 0.0  # the slew limit times the period
+        self.lo_bar = self.hi_bar = NAN  # the guards' bounds on the command
+        self.floor_bar = 0.0  # the limiter's floor while held: the safe pressure
+        # -- write: what the actuation acts on (pamd.control.actuation) ------------------
+        self.position_valves = False  # the valves position the length this tick
+        self.ceiling_bar = NAN  # ... filling no higher (the pressure limit, the guards')
+        self.valve_floor_bar = -math.inf  # the valves vent no lower (a safe state)
+        self.valve_pressure_bar = NAN  # the pressure the valves act on (NaN: none)
+        self.vent = False  # open the exhaust: the tick asks to vent
+
+
+class Stage(Protocol):
+    """One step of a muscle's tick pipeline: reads and writes its `MuscleTick`."""
+
+    def update(self, t: MuscleTick, now: float, dt: float) -> None: ...

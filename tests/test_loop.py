@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from typing import Any
 
 import pytest
 
-from pamd.loop import GIL_SWITCH_FRACTION
+from pamd.config import LoadedConfig
+from pamd.daemon import Daemon
+from pamd.loop import GIL_SWITCH_FRACTION, SLACK_AT_FRACTION
 from pamd.tick import State
 from pamd.timing import Histogram
 
@@ -105,3 +108,38 @@ def _interval_while_running(sim_daemon: Any) -> None:
     d.stop("test finished")
     assert d.wait(timeout_s=30)
     assert sys.getswitchinterval() == DEFAULT_SWITCH_INTERVAL_S
+
+
+def test_another_threads_housekeeping_waits_for_the_loops_slack(
+        sim_config: Callable[..., LoadedConfig], monkeypatch: pytest.MonkeyPatch) -> None:
+    """`Loop.until_slack` (the daemon's main thread, before each share of its
+    housekeeping) sleeps until SLACK_AT_FRACTION of a period past the loop's next
+    deadline, where that tick is done, so that the interpreter lock it then holds is
+    not the one the loop's wake-up waits for; never more than two periods, and not at
+    all while the loop does not run, on the virtual clock, or once that slack is past.
+    The sleeps asked for are read (a busy host's own lateness cannot decide the test);
+    what they buy at the 99th percentile is bench/loop_latency_vs_cyclictest.py's."""
+    d = Daemon(sim_config(30.0, loop={"clock": "real"}))
+    asked: list[float] = []
+    monkeypatch.setattr(time, "sleep", asked.append)
+    loop, period = d.loop, d.loop.period_s
+
+    def sleeps(ahead_periods: float) -> list[float]:
+        asked.clear()
+        loop.next_deadline = time.monotonic() + ahead_periods * period
+        loop.until_slack()
+        return [s / period for s in asked]
+
+    try:
+        assert sleeps(0.5) == []  # the loop does not run
+        loop.running = True
+        (to_slack,) = sleeps(0.5)
+        assert 0.5 + SLACK_AT_FRACTION - 0.05 <= to_slack <= 0.5 + SLACK_AT_FRACTION
+        assert sleeps(50.0) == [2.0]  # at most two periods
+        assert sleeps(-1.0) == []  # that tick's slack is past: at once
+        loop.virtual = True
+        assert sleeps(0.5) == []  # no wake-ups to keep clear
+    finally:
+        loop.running = False
+        monkeypatch.undo()
+        d.close()

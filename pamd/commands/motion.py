@@ -179,26 +179,33 @@ def _mode(ctrl: RigController, a: ModeArgs) -> JsonObject:
                              "off")
     need_reference(ms)
     for m in ms:
-        if m.in_safe_ramp and abs(m.setpoint_bar - m.safe_pressure_bar) > \
-                SAFE_SETPOINT_BAND_BAR:  # still ramping: it would drop a length mode
-            raise CommandRefused(
-                f"{m.name} is ramping to its safe pressure ({m.safe_pressure_bar:.2f} bar: a "
-                "stop, a deadman or a start-up outside the limits); send a setpoint or a "
-                f"pressure profile to take over from the ramp, then mode {a.mode}")
-        if mode == Mode.POSITION and a.feedforward and m.onoff:
-            raise CommandRefused(f"{m.name}: position mode with feedforward: "
-                                 f"{POSITION_TAKES_NO_MODEL}")
-        if a.feedforward and not m.has_model:
-            raise CommandRefused(
-                f"{m.name}: no model for {a.mode} mode; name model_file in the config, `pamd "
-                "run --model FILE` or send the model command first (position mode with "
-                "feedforward false runs the position PID alone)")
-        if not (math.isfinite(m.length_mm) and math.isfinite(m.force_n)):
-            raise CommandRefused(f"{m.name}: no length/force reading to start from")
+        _can_enter(m, mode, a)
     for m in ms:
         m.enter_mode(mode, a.feedforward, a.ilc)
     return {"mode": a.mode, "muscles": [m.name for m in ms],
             "feedforward_bar": {m.name: m.feedforward_bar for m in ms}}
+
+
+def _can_enter(m: MuscleController, mode: Mode, a: ModeArgs) -> None:
+    """Refuses, saying why, a length mode muscle `m` cannot enter now: still ramping to
+    its safe pressure, an on/off muscle's position mode with a model, no model for a
+    mode with feedforward, no length or force reading to start from."""
+    if m.in_safe_ramp and abs(m.setpoint_bar - m.safe_pressure_bar) > \
+            SAFE_SETPOINT_BAND_BAR:  # still ramping: it would drop a length mode
+        raise CommandRefused(
+            f"{m.name} is ramping to its safe pressure ({m.safe_pressure_bar:.2f} bar: a "
+            "stop, a deadman or a start-up outside the limits); send a setpoint or a "
+            f"pressure profile to take over from the ramp, then mode {a.mode}")
+    if mode == Mode.POSITION and a.feedforward and m.onoff:
+        raise CommandRefused(f"{m.name}: position mode with feedforward: "
+                             f"{POSITION_TAKES_NO_MODEL}")
+    if a.feedforward and not m.has_model:
+        raise CommandRefused(
+            f"{m.name}: no model for {a.mode} mode; name model_file in the config, `pamd "
+            "run --model FILE` or send the model command first (position mode with "
+            "feedforward false runs the position PID alone)")
+    if not (math.isfinite(m.length_mm) and math.isfinite(m.force_n)):
+        raise CommandRefused(f"{m.name}: no length/force reading to start from")
 
 
 def _model(ctrl: RigController, a: object) -> JsonObject:

@@ -1,8 +1,14 @@
 """The actuation stage of one muscle's tick: how its command reaches its valves.
 
-An `Actuation` takes the command the limiter let through (a pressure, bar) once per
-tick and drives the muscle's outputs with it; `actuation_for` picks it from the
-muscle's `actuation`.
+An `Actuation` is the last stage of the muscle's write (`update(t, now_s, dt_s)` on
+the muscle's `pamd.tick.MuscleTick`, as every stage): it takes the command the
+limiter let through (a pressure, bar) once per tick and drives the muscle's outputs
+with it; `actuation_for` picks it from the muscle's `actuation`. What an actuation
+does beyond following the command it says by two attributes the muscle reads when
+it is built and when its mode changes, never per tick: `closes_pressure_loop` (its
+own law closes the pressure loop, the muscle's PID adds nothing) and
+`positions_length` (in mode position it positions the length itself, on the targets
+the muscle hands it through its `MuscleTick`).
 
 `RegulatorActuation` (`actuation: proportional`): a proportional pressure
 regulator's setpoint plus the optional exhaust valve, opened only when the tick asks
@@ -11,8 +17,8 @@ to vent (a safe state whose safe pressure is 0).
 `OnOffActuation` (`actuation: onoff`, seed 004's rig): the command reaches an
 inflate and an exhaust solenoid valve by PWM. The limiter still decides the
 command; this stage only makes the valves deliver it. For an on/off muscle the
-tick's PID adds nothing (`MuscleController` zeroes its gains): the pressure loop
-is here, where the valves' rates are known.
+tick's PID adds nothing (`closes_pressure_loop`: `MuscleController` zeroes its
+gains): the pressure loop is here, where the valves' rates are known.
 
 The law, each tick: the rate of pressure wanted is
 
@@ -30,10 +36,11 @@ a vent ESTOP) opens the exhaust and closes the inflate valve.
 
 In mode position an on/off muscle follows seed 004's sliding mode instead
 (`SlidingModePosition`: a sliding surface on the length error and its rate, a
-boundary layer, inflate / hold / exhaust; `position`), filling never above the
-limiter's ceiling; a safe state leaves the length mode, so PWM takes the safe ramp.
+boundary layer, inflate / hold / exhaust; `positions_length`, the muscle's
+`position_valves`), filling never above the limiter's ceiling (`ceiling_bar`); a safe
+state leaves the length mode, so PWM takes the safe ramp.
 
-In a safe state (`hold_floor`, every tick the muscle is in one) the exhaust never
+In a safe state (`valve_floor_bar`, every tick the muscle is in one) the exhaust never
 opens at or below the safe pressure plus what drains while it closes (the vent rate
 times its closing delay, plus the dead band), and the integral never holds the
 pressure below it: on/off valves do not hold a pressure by themselves, so without
@@ -49,7 +56,7 @@ non-blocking `write`, only on a change.
 
 How to add an actuation: a class with these members in `pamd/control/`, built by
 `actuation_for` from the muscle's signals; nothing else in the tick changes.
-`write` is on the tick path: float arithmetic and the drivers' non-blocking
+`update` is on the tick path: float arithmetic and the drivers' non-blocking
 `write`, nothing allocated.
 """
 
@@ -62,7 +69,7 @@ from pamd.config.schema import MuscleConfig, OnOffConfig
 from pamd.control.onoff import EXHAUST, HOLD, INFLATE, Pulser, SlidingModePosition
 from pamd.control.valve_pulse import TAKEN, ValvePulse
 from pamd.rig import MuscleSignals, OutputBinding
-from pamd.tick import Flag
+from pamd.tick import Flag, MuscleTick
 
 F_EXHAUST = int(Flag.EXHAUST_OPEN)
 F_INFLATE = int(Flag.INFLATE_OPEN)
@@ -81,18 +88,27 @@ class Actuation(Protocol):
     """How one muscle's command reaches its valves."""
 
     exhaust_open: bool  # the exhaust valve is open (vented)
+    #: The valves close the pressure loop themselves (the muscle's PID adds nothing).
+    closes_pressure_loop: bool
+    #: In mode position the valves position the length themselves
+    #: (`pamd.control.setpoint.ValvesPosition`).
+    positions_length: bool
 
     @property
     def switch_count(self) -> int:
         """Valve switches since start, every valve (the record and the summary)."""
         ...
 
-    def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
-              vent: bool) -> int:
-        """Drive the outputs for this tick: `command_bar` is the limited command,
-        `pressure_bar` the measured pressure, `vent` whether the tick asks to vent (the
-        safe pressure is 0 and the command reached it). Returns the tick record's flag
-        bits it sets (EXHAUST_OPEN, INFLATE_OPEN). Tick path: never blocks, allocates nothing."""
+    def update(self, t: MuscleTick, now_s: float, dt_s: float) -> None:
+        """Drive the outputs for this tick from the muscle's `MuscleTick`: the limited
+        command (`command_bar`), the pressure to act on (`valve_pressure_bar`, NaN:
+        none, the air is held), whether to vent (`vent`: the safe pressure is 0 and the
+        command reached it), the pressure not to vent below (`valve_floor_bar`, a safe
+        state's) and, where the valves position the length (`position_valves`), the
+        length, its target and the pressure not to fill above (`ceiling_bar`). ORs the
+        record's flag bits it sets into `t.flags` (EXHAUST_OPEN, INFLATE_OPEN); a fault
+        of its own (valves that do not act) into `t.fault` and `t.finding`. Tick path:
+        never blocks, allocates nothing."""
         ...
 
     def safe_outputs(self, safe_pressure_bar: float) -> list[SafeOutput]:
@@ -116,6 +132,9 @@ class RegulatorActuation:
     while a command below `assist_below_bar` stands well under the measured pressure
     (a regulator alone vents ever slower as the pressure nears the atmosphere's)."""
 
+    closes_pressure_loop = False
+    positions_length = False
+
     def __init__(self, valve: OutputBinding, exhaust: OutputBinding | None,
                  assist_below_bar: float | None = None) -> None:
         self.valve = valve
@@ -124,20 +143,22 @@ class RegulatorActuation:
         self.switch_count = 0
         self.assist_below_bar = -math.inf if assist_below_bar is None else assist_below_bar
 
-    def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
-              vent: bool) -> int:
+    def update(self, t: MuscleTick, now_s: float, dt_s: float) -> None:
+        command_bar = t.command_bar
         self.valve.write_si(command_bar)
         exhaust = self.exhaust
         if exhaust is None:
-            return 0
+            return
+        vent = t.vent
         if not vent and command_bar < self.assist_below_bar:
-            gap = pressure_bar - command_bar  # NaN (untrusted pressure): shut
+            gap = t.valve_pressure_bar - command_bar  # NaN (untrusted pressure): shut
             vent = gap > ASSIST_OPEN_BAR or (self.exhaust_open and gap > ASSIST_CLOSE_BAR)
         if vent != self.exhaust_open:
             exhaust.write_si(1.0 if vent else 0.0)
             self.exhaust_open = vent
             self.switch_count += 1
-        return F_EXHAUST if vent else 0
+        if vent:
+            t.flags |= F_EXHAUST
 
     def switches(self) -> dict[str, int]:
         return {} if self.exhaust is None else {"exhaust": self.switch_count}
@@ -177,6 +198,9 @@ VENTED_BAR = 0.2
 class OnOffActuation:
     """An inflate (3/2 NC) and an exhaust (2/2 NC) valve driven by PWM."""
 
+    closes_pressure_loop = True  # the PWM law is the pressure loop (module docstring)
+    positions_length = True  # seed 004's sliding mode in mode position
+
     def __init__(self, inflate: OutputBinding, exhaust: OutputBinding,
                  cfg: OnOffConfig, *, muscle: str) -> None:
         self.inflate = inflate
@@ -210,7 +234,7 @@ class OnOffActuation:
         self._rest_s = 0.0
         self._p_ref = float("nan")
         self._fault: str | None = None
-        self._floor_bar = -math.inf  # the safe state's floor, this tick (hold_floor)
+        self._floor_bar = -math.inf  # the safe state's floor, this tick (valve_floor_bar)
         self.pulse = ValvePulse()  # pamd tune --loop onoff's step test
 
     def set_config(self, cfg: OnOffConfig) -> None:
@@ -244,35 +268,30 @@ class OnOffActuation:
         self._p_filtered = float("nan")
         self._holding = False
 
-    def position(self, length_mm: float, velocity_mm_s: float, target_mm: float,
-                 target_rate_mm_s: float, ceiling_bar: float) -> None:
-        """Mode position, this tick: the valves follow seed 004's sliding mode on the
-        length instead of the command, never filling above `ceiling_bar` (the pressure
-        limit and the guards'). Called before `write`, every tick it applies."""
-        self._positioning = True
-        self._length_mm = length_mm
-        self._velocity_mm_s = velocity_mm_s
-        self._target_mm = target_mm
-        self._target_rate_mm_s = target_rate_mm_s
-        self._ceiling_bar = ceiling_bar
-
-    def hold_floor(self, floor_bar: float) -> None:
-        """A safe state, this tick: the valves never vent the muscle below `floor_bar`
-        (its safe pressure). Called before `write`, every tick it applies."""
-        self._floor_bar = floor_bar
-
-    def take_fault(self) -> str | None:
-        """Why the pressure does not follow a valve (a tracking fault of the valves
-        themselves: in mode position the command is the measured pressure, so the
-        pressure tracking check cannot see it), once; the check then starts again."""
-        fault, self._fault = self._fault, None
-        return fault
-
-    def write(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
-              vent: bool) -> int:
-        state = self._choose(command_bar, pressure_bar, now_s, dt_s, vent)
+    def update(self, t: MuscleTick, now_s: float, dt_s: float) -> None:
+        """The tick (`Actuation.update`). In mode position (`t.position_valves`) the
+        valves follow seed 004's sliding mode on the length instead of the command,
+        never filling above `t.ceiling_bar` (the pressure limit and the guards'); in a
+        safe state they never vent the muscle below `t.valve_floor_bar` (its safe
+        pressure). A valve that does not act (`_watch`) is this stage's fault: in mode
+        position the command is the measured pressure, so the pressure tracking check
+        cannot see it."""
+        positioning = self._positioning = t.position_valves
+        if positioning:
+            self._length_mm = t.length_mm
+            self._velocity_mm_s = t.velocity_mm_s
+            self._target_mm = t.target_length_mm
+            self._target_rate_mm_s = t.target_rate_mm_s
+            self._ceiling_bar = t.ceiling_bar
+        self._floor_bar = t.valve_floor_bar
+        pressure_bar = t.valve_pressure_bar
+        state = self._choose(t.command_bar, pressure_bar, now_s, dt_s, t.vent)
         self._watch(state, pressure_bar, dt_s)
-        return self._set(state)
+        t.flags |= self._set(state)
+        fault = self._fault
+        if fault is not None:  # once; the check then starts again
+            self._fault = None
+            t.fault = t.finding = fault
 
     def _watch(self, state: int, p: float, dt_s: float) -> None:
         """A valve open for VALVE_OPEN_S in all without the pressure moving its way by
@@ -305,13 +324,18 @@ class OnOffActuation:
                 self._p_ref = p
         self._open_s += dt_s
         if self._open_s >= VALVE_OPEN_S and self._fault is None:
-            valve = "inflate" if state == INFLATE else "exhaust"
-            way = "rising" if state == INFLATE else "falling"
-            self._fault = (f"{self.name}: the pressure does not follow the {valve} valve: "
-                           f"open {self._open_s:.1f} s without {way} ({p:.2f} bar; stuck "
-                           "valve, no supply or a blocked line?)")
-            self._open_s = 0.0
-            self._p_ref = p
+            self._not_acting(state, p)
+
+    def _not_acting(self, state: int, p: float) -> None:
+        """The valve open in `state` has not moved the pressure (fault path): said, and
+        the watch starts again."""
+        valve = "inflate" if state == INFLATE else "exhaust"
+        way = "rising" if state == INFLATE else "falling"
+        self._fault = (f"{self.name}: the pressure does not follow the {valve} valve: "
+                       f"open {self._open_s:.1f} s without {way} ({p:.2f} bar; stuck "
+                       "valve, no supply or a blocked line?)")
+        self._open_s = 0.0
+        self._p_ref = p
 
     def _choose(self, command_bar: float, pressure_bar: float, now_s: float, dt_s: float,
                 vent: bool) -> int:

@@ -56,12 +56,13 @@ from pamd.declare.jsonsafe import JsonObject
 from pamd.models.anfis.compiled import CompiledAnfis
 from pamd.models.anfis.rls import OutputBound, Rls
 from pamd.models.velocity import VelocityFilter
-from pamd.tick import Flag, State
+from pamd.tick import Flag, MuscleTick, State
 
 if TYPE_CHECKING:
     from pamd.config.schema import AdaptConfig
     from pamd.control.feedforward import Feedforward
     from pamd.control.inputs import Inputs
+    from pamd.control.length_control import LengthControl
     from pamd.models.anfis.model import AnfisModel
 
 S_RUNNING, S_LOAD = int(State.RUNNING), int(State.LOAD_CHANGE)
@@ -89,8 +90,13 @@ class Adaptation:
     """One muscle's online adaptation (see the module docstring)."""
 
     def __init__(self, muscle: str, cfg: AdaptConfig, ff: Feedforward | None, *,
-                 onoff: bool = False) -> None:
+                 onoff: bool = False, inputs: Inputs | None = None,
+                 length_control: LengthControl | None = None) -> None:
+        """`inputs` and `length_control`: the muscle's, which `update` reads (a test that
+        calls `step` itself needs neither)."""
         self.muscle = muscle
+        self._inputs = inputs
+        self._lc = length_control
         self.cfg = cfg
         self.bad_flags = ONOFF_BAD_FLAGS if onoff else BAD_FLAGS  # on/off: PWM_VALVE_FLAGS
         self.enabled = False
@@ -237,6 +243,14 @@ class Adaptation:
         self._bad = False
         self.vel.reset()
         self._warm_s = 3.0 * self.vel.window_s if self._uses_velocity else 0.0
+
+    def update(self, t: MuscleTick, now: float, dt: float) -> None:
+        """The muscle's write, last (enabled only): `step` with the model in use where a
+        length mode runs with it and the tick is not held to a safe state."""
+        lc, inp = self._lc, self._inputs
+        assert lc is not None and inp is not None  # the muscle's (`__init__`)
+        self.step(dt, t.state, t.flags, inp, lc.active and lc.use_ff and not t.held,
+                  lc.vel_scale)
 
     def step(self, dt: float, state: int, flags: int, inp: Inputs, in_use: bool,
              vel_scale: float = 1.0) -> None:

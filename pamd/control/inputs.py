@@ -4,11 +4,13 @@ loop's period: a slow encoder or a late tick does not make a step a speed), and 
 plausibility (`pamd.safety.plausibility`, with each value's stamp and jitter);
 and their references (`home`, `tare`, a device's confirmation of a homed preset).
 
-What it leaves for the later stages: `pressure_bar`, `force_n`, `length_mm`,
-`contraction`, `velocity_mm_s`, whether the pressure and the length are trusted
-this tick (`pressure_ok`, `length_ok`: fresh, plausible and, for the length,
-referenced), the STALE / NOT_REFERENCED bits (`flags`) and a new plausibility
-finding (`finding`).
+The first stage of the muscle's read (`update`): what it leaves in the muscle's
+`MuscleTick` for the later stages: `pressure_bar`, `force_n`, `length_mm`,
+`contraction`, `velocity_mm_s` (also kept here, the muscle's properties read them),
+whether the pressure and the length are trusted this tick (`pressure_ok`,
+`length_ok`: fresh, plausible and, for the length, referenced), the STALE /
+NOT_REFERENCED bits (`flags`), the fault they raise and a new plausibility finding
+(`finding`).
 
 Tick path: float arithmetic on cached driver arrays; a string only on a fault.
 """
@@ -21,9 +23,10 @@ from pamd.calibration import MuscleReference
 from pamd.models.velocity import VELOCITY_WINDOW_S, velocity_step
 from pamd.rig import MuscleSignals
 from pamd.safety.plausibility import Plausibility
-from pamd.tick import Flag
+from pamd.tick import Flag, MuscleTick, State
 
 F_STALE, F_NOREF = int(Flag.STALE), int(Flag.NOT_REFERENCED)
+S_LOAD = int(State.LOAD_CHANGE)
 
 
 class Inputs:
@@ -52,8 +55,6 @@ class Inputs:
         self._prev_length_t = math.nan  # the stamp of that length sample
         self.pressure_ok = self.length_ok = False
         self.pressure_fresh = False  # younger than its timeout (trusted or not)
-        self.flags = 0
-        self.finding: str | None = None  # a new plausibility finding, this tick
         # How much of a sample's age a stalled loop excuses (`pamd.stalls`; the rig
         # controller sets it after a late tick, 0 otherwise): not a dead sensor.
         self.stall_excuse_s = 0.0
@@ -134,15 +135,13 @@ class Inputs:
         dirty, self._calibration_dirty = self._calibration_dirty, False
         return dirty
 
-    def take_finding(self) -> str | None:
-        finding, self.finding = self.finding, None
-        return finding
-
     # -- the tick ------------------------------------------------------------------------
-    def read(self, now: float, dt: float, last_command_bar: float, load_known: bool) -> str | None:
-        """Read this tick's inputs; returns the fault they raise (a stale input, else a
-        new plausibility finding), or None. `last_command_bar` is the last valve command
-        (NaN before any), `load_known` False while an experiment changes the load."""
+    def update(self, t: MuscleTick, now: float, dt: float) -> None:
+        """Read this tick's inputs into `t` (and this stage's own attributes): the
+        readings, whether the pressure and the length are trusted, STALE and
+        NOT_REFERENCED, and the fault they raise (a stale input, else a new
+        plausibility finding). Judged against `t.last_command_bar` (NaN before any)
+        and, unless `t.state` is LOAD_CHANGE (the load is changing), the load."""
         pp = self._pending_preset
         if pp is not None and pp[0][pp[1]] != pp[2]:
             self._preset_applied()
@@ -158,31 +157,34 @@ class Inputs:
         p_fresh = aged - pt <= self._pto
         l_fresh = aged - lt <= self._lto
         if not (p_fresh and l_fresh and aged - ft <= self._fto):
-            flags |= F_STALE
+            flags = F_STALE
             fault = self.stale_reason(aged)
-        l0 = self.nominal_length_mm
         if lt != self._prev_length_t:  # a new sample: its rate over the samples' stamps
             self.velocity_mm_s = velocity_step(self.velocity_mm_s, self._prev_length_mm,
                                                length, lt - self._prev_length_t,
                                                VELOCITY_WINDOW_S)
             self._prev_length_mm, self._prev_length_t = length, lt
-        self.pressure_bar, self.force_n, self.length_mm = p, f, length
-        self.contraction = (l0 - length) / l0
+        l0 = self.nominal_length_mm
+        self.pressure_bar = t.pressure_bar = p
+        self.force_n = t.force_n = f
+        self.length_mm = t.length_mm = length
+        self.contraction = t.contraction = (l0 - length) / l0
+        t.velocity_mm_s = self.velocity_mm_s
         referenced = ref.length_referenced
         if not referenced:
             flags |= F_NOREF
         plaus = self.plausibility
-        finding = plaus.check(now, p, pt, f, ft, length, lt, referenced, last_command_bar,
-                              load_known, self._pj[pi], self._fj[fi], self._lj[li])
+        finding = plaus.check(now, p, pt, f, ft, length, lt, referenced, t.last_command_bar,
+                              t.state != S_LOAD, self._pj[pi], self._fj[fi], self._lj[li])
         if finding is not None:
-            self.finding = finding
+            t.finding = finding
             if fault is None:
                 fault = finding
         self.pressure_fresh = p_fresh
-        self.pressure_ok = p_fresh and plaus.pressure_ok
-        self.length_ok = l_fresh and plaus.length_ok and referenced
-        self.flags = flags
-        return fault
+        self.pressure_ok = t.pressure_ok = p_fresh and plaus.pressure_ok
+        self.length_ok = t.length_ok = l_fresh and plaus.length_ok and referenced
+        t.flags = flags
+        t.fault = fault
 
     def stale_reason(self, now: float) -> str:
         for sig, t, i, to in ((self.pressure_signal, self._pt, self._pi, self._pto),

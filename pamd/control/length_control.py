@@ -39,11 +39,13 @@ file), so it is the signal the model learned. The model itself is
 `pamd.control.feedforward`, the learning correction `pamd.control.ilc`, the checks
 of length targets and profiles `pamd.control.length_targets`.
 
-Everything on the tick path (`LengthControl.step`, `Feedforward.pressure`,
+Everything on the tick path (`LengthControl.update` and `step`, `Feedforward.pressure`,
 `Ilc.step`) is plain float arithmetic on attributes prepared outside the loop.
 The muscle (`pamd.control.muscle.MuscleController`) owns its `LengthControl` and
-calls it; it reads the muscle's measurements as arguments and writes nothing but
-its own state (targets, feedforward, the setpoint's rate).
+chooses it as its setpoint source while a length mode runs (`pamd.control.setpoint`;
+on/off valves in mode position through `ValvesPosition`); it reads the muscle's
+measurements from the muscle's `MuscleTick` and writes nothing but its own state
+(targets, feedforward, the setpoint's rate) and the setpoint source's fields there.
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ from pamd.control.pid import Pid
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
 from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfilePoint
-from pamd.tick import Flag, Mode, State
+from pamd.tick import Flag, Mode, MuscleTick, State
 
 if TYPE_CHECKING:
     from pamd.config.control_schema import PositionConfig
@@ -135,6 +137,11 @@ class LengthControl:
         self.flags = 0
         self.last_sp = math.nan
         self.correction = 0.0  # outer PID + ILC part of the setpoint, bar
+        self.profile: Profile | None = None  # the running length profile (set when chosen)
+        # this tick's point the model sees, and what the tick's steps hand each other
+        self._ln_m = self._x_m = math.nan
+        self._rate_m = self._acc_m = self._ff_rate = 0.0
+        self._planned = self._held = False
         # What the muscle records (NaN / 0 outside the length modes).
         self.target_length_mm = self.target_force_n = math.nan
         self.target_rate_mm_s = 0.0  # the length profile's rate (0 at rest)
@@ -242,95 +249,154 @@ class LengthControl:
                        c.resolution_s, c.cutoff_hz)
 
     # -- the tick --------------------------------------------------------------------------
+    def update(self, t: MuscleTick, now: float, dt: float) -> None:
+        """The length modes' setpoint source (`pamd.control.setpoint`): this tick's
+        setpoint from the running length profile (`profile`, set when chosen) and the
+        measured length and force (`step`), its rate, the flow term and the targets."""
+        t.setpoint_bar = self.step(now, dt, t.state, t.setpoint_bar, self.profile,
+                                   t.length_mm, t.force_n)
+        t.flags |= self.flags
+        t.rate_bar_per_s = self.setpoint_rate_bar_per_s
+        t.flow_bar = self.flow_bar
+        t.target_length_mm = self.target_length_mm
+        t.target_rate_mm_s = self.target_rate_mm_s
+
     def step(self, now: float, dt: float, state: int, sp_prev: float, prof: Profile | None,
              length_mm: float, force_n: float) -> float:
         """The pressure setpoint for this tick (bar), from the running length profile
         `prof` (if any) and the measured length and force; sets `target_length_mm`,
         `feedforward_bar`, `setpoint_rate_bar_per_s`, `flow_bar` and `flags`
         (FF_CLIPPED, SLEW_LIMITED)."""
-        flags = 0
-        l0 = self.nominal_length_mm
-        pos = self.position
+        self.flags = 0
         running = prof is not None and (state == S_RUNNING or state == S_LOAD)
         if prof is not self.seen_profile:
             self._new_profile(prof)
-        acc_m = 0.0
-        if prof is not None and running:
-            prof.sample(now)
-            x_t = prof.value
-            ln_t = l0 * (1.0 - x_t)
-            self.target_length_mm = ln_t
-            rate_t = self.target_rate_mm_s = -l0 * prof.rate
-            acc_m = -l0 * prof.accel
-        else:
+        live = prof if running else None
+        ln_t = self._aim(now, live)
+        v_t = self.target_vel.update(self._ln_m, dt) * self.vel_scale
+        ff = self._feedforward(self._model_force(dt, force_n), v_t, now, dt,
+                               state == S_RUNNING, ln_t)
+        pid, inc = self.pid, self.inc
+        i_before = pid.i
+        u_before = inc.u if inc is not None else 0.0
+        want = self._bounded(self._corrected(ff, now, dt, live, length_mm, ln_t), sp_prev, dt)
+        if self._held or sp_prev != self.last_sp:  # clamped here or by the tick's soft limits
+            pid.i = i_before
+            if inc is not None:
+                inc.hold(u_before)
+        self.feedforward_bar = ff
+        rate = self.sp_rate.update(want, dt)
+        rest = self.corr_rate.update(want - ff, dt)
+        self.setpoint_rate_bar_per_s = self._ff_rate + rest if self._planned else rate
+        self.last_sp = want
+        return want
+
+    def _aim(self, now: float, prof: Profile | None) -> float:
+        """The present target, from the running profile `prof` (None: where it stands),
+        and the point the model sees (`_ln_m`, `_x_m`, `_rate_m`, `_acc_m`): the present
+        target, or in position mode the planned motion `preview_s` ahead (the PID
+        compares with the present target). Returns the present target length."""
+        l0 = self.nominal_length_mm
+        if prof is None:
             ln_t = self.target_length_mm
-            x_t = (l0 - ln_t) / l0
-            rate_t = self.target_rate_mm_s = 0.0
-        # What the model sees: the present target, or in position mode the planned
-        # motion `preview_s` ahead (the PID below compares with the present target).
-        ln_m, x_m, rate_m = ln_t, x_t, rate_t
-        if pos and prof is not None and running and self.preview_s > 0.0:
+            self._ln_m, self._x_m = ln_t, (l0 - ln_t) / l0
+            self._rate_m = self.target_rate_mm_s = 0.0
+            self._acc_m = 0.0
+            return ln_t
+        prof.sample(now)
+        x_t = prof.value
+        ln_t = l0 * (1.0 - x_t)
+        self.target_length_mm = ln_t
+        self._rate_m = self.target_rate_mm_s = -l0 * prof.rate
+        self._acc_m = -l0 * prof.accel
+        self._ln_m, self._x_m = ln_t, x_t
+        if self.position and self.preview_s > 0.0:
             pt = self.ahead
             prof.evaluate(now + self.preview_s, pt)
-            x_m = pt.value
-            ln_m = l0 * (1.0 - x_m)
-            rate_m = -l0 * pt.rate
-            acc_m = -l0 * pt.accel
-        tv = self.target_vel
-        vs = self.vel_scale
-        v_t = tv.update(ln_m, dt) * vs
-        f_in = self.target_force_n
-        if pos:
-            fl = self.force_lp
-            f_in = self.force_lp = fl + dt / (self.force_tau_s + dt) * (force_n - fl) if (
-                fl == fl) else force_n
-            if self.planned_force:  # weight + inertia of the load on the planned motion
-                f_in = self.load_kg * (GRAVITY_M_S2 - 0.001 * acc_m)
-        ff = ff_rate = 0.0
+            self._x_m = x_m = pt.value
+            self._ln_m = l0 * (1.0 - x_m)
+            self._rate_m = -l0 * pt.rate
+            self._acc_m = -l0 * pt.accel
+        return ln_t
+
+    def _model_force(self, dt: float, force_n: float) -> float:
+        """The force the model sees: the force target (length_force), or in position mode
+        the measured force low-passed, or with `force_input: planned` the load's weight
+        plus its inertia on the planned motion."""
+        if not self.position:
+            return self.target_force_n
+        fl = self.force_lp
+        f_in = self.force_lp = fl + dt / (self.force_tau_s + dt) * (force_n - fl) if (
+            fl == fl) else force_n
+        if self.planned_force:  # weight + inertia of the load on the planned motion
+            return self.load_kg * (GRAVITY_M_S2 - 0.001 * self._acc_m)
+        return f_in
+
+    def _feedforward(self, f_in: float, v_t: float, now: float, dt: float, running: bool,
+                     ln_t: float) -> float:
+        """The model's pressure at the point `_aim` chose (0 without a model in use);
+        with `planned_rate` its derivative along the planned motion (`_ff_rate`); both
+        weighted by the watch on the model's training domain and oscillation
+        (`pamd.control.off_data`: `running`, the rig RUNNING; `ln_t`, the present
+        target)."""
         ff_obj = self.ff
-        planned = pos and self.planned_rate and ff_obj is not None and not ff_obj.stateful
-        if self.use_ff and ff_obj is not None:
-            ff = ff_obj.pressure(f_in, ln_m, x_m, v_t)
-            off = ff_obj.off_mask
-            if ff_obj.clipped:
-                flags |= F_CLIP
-            if planned:  # the model's derivative along the planned motion
-                h = RATE_STEP_S
-                ln_h = ln_m + rate_m * h
-                v_h = v_t + (rate_m * vs - v_t) * h / (tv.window_s + h)
-                ff_rate = (ff_obj.pressure(f_in, ln_h, (l0 - ln_h) / l0, v_h) - ff) / h
-            wd = self.watch  # off its data, faded, oscillating (pamd.control.off_data)
-            flags |= wd.tick(now, dt, off, state == S_RUNNING, ff, f_in, ln_m, x_m, v_t,
-                             ln_t, self.pid if self.position else None, self.inc)
-            w = wd.weight
-            if w != 1.0:
-                ff *= w
-                ff_rate *= w
-        want = ff
-        pid = self.pid
-        i_before = pid.i
-        inc = self.inc
-        u_before = inc.u if inc is not None else 0.0
-        if pos:
-            err = length_mm - ln_t
-            ilc = self.ilc
-            if ilc is not None and prof is not None and not prof.done and running:
-                tau = now - prof.t0_s - prof.lead_in_s
-                if tau >= 0.0:  # the learned correction shifts what the PID aims at
-                    err += ilc.step(tau, err, dt)
-            corr = pid.step(err, -length_mm, dt) if inc is None else inc.step(now, err)
-            self.correction = corr
-            want += corr
-            # the air the planned motion draws (shortening) or returns
-            self.flow_bar = -self.flow_bar_s_per_mm * rate_m
-        else:
+        self._planned = planned = (self.position and self.planned_rate and ff_obj is not None
+                                   and not ff_obj.stateful)
+        self._ff_rate = 0.0
+        if not self.use_ff or ff_obj is None:
+            return 0.0
+        ln_m, x_m = self._ln_m, self._x_m
+        ff = ff_obj.pressure(f_in, ln_m, x_m, v_t)
+        if ff_obj.clipped:
+            self.flags |= F_CLIP
+        off = ff_obj.off_mask
+        if planned:  # the model's derivative along the planned motion
+            h = RATE_STEP_S
+            rate_m, l0 = self._rate_m, self.nominal_length_mm
+            ln_h = ln_m + rate_m * h
+            v_h = v_t + (rate_m * self.vel_scale - v_t) * h / (self.target_vel.window_s + h)
+            self._ff_rate = (ff_obj.pressure(f_in, ln_h, (l0 - ln_h) / l0, v_h) - ff) / h
+        wd = self.watch  # off its data, faded, oscillating (pamd.control.off_data)
+        self.flags |= wd.tick(now, dt, off, running, ff, f_in, ln_m, x_m, v_t, ln_t,
+                              self.pid if self.position else None, self.inc)
+        w = wd.weight
+        if w != 1.0:
+            ff *= w
+            self._ff_rate *= w
+        return ff
+
+    def _corrected(self, ff: float, now: float, dt: float, prof: Profile | None,
+                   length_mm: float, ln_t: float) -> float:
+        """The feedforward plus the outer loop: in position mode the PID (or seed 003's
+        incremental PID) on the length error, its target shifted by the ILC's learned
+        correction on a running profile `prof`, and the flow term; in length_force the
+        fading offset that made the entry bumpless."""
+        if not self.position:
             b = self.bump
-            if b != 0.0:
-                b -= b * dt / (self.bump_tau_s + dt)
-                self.bump = b if abs(b) > 1e-6 else 0.0
-                want += b
+            if b == 0.0:
+                return ff
+            b -= b * dt / (self.bump_tau_s + dt)
+            self.bump = b if abs(b) > 1e-6 else 0.0
+            return ff + b
+        err = length_mm - ln_t
+        ilc = self.ilc
+        if ilc is not None and prof is not None and not prof.done:
+            tau = now - prof.t0_s - prof.lead_in_s
+            if tau >= 0.0:  # the learned correction shifts what the PID aims at
+                err += ilc.step(tau, err, dt)
+        inc = self.inc
+        corr = self.pid.step(err, -length_mm, dt) if inc is None else inc.step(now, err)
+        self.correction = corr
+        # the air the planned motion draws (shortening) or returns
+        self.flow_bar = -self.flow_bar_s_per_mm * self._rate_m
+        return ff + corr
+
+    def _bounded(self, want: float, sp_prev: float, dt: float) -> float:
+        """`want` within 0, the pressure limit and the slew limit from `sp_prev` (a NaN
+        input, a stale sensor: held at `sp_prev`, the fault follows); `_held` says
+        whether it was bounded, SLEW_LIMITED goes into `flags`."""
         held = False
-        if want != want:  # a NaN input (stale sensor): hold; the fault follows
+        if want != want:
             want = sp_prev
             held = True
         hi = self.max_pressure_bar
@@ -341,20 +407,11 @@ class LengthControl:
         step = self.slew_limit_bar_per_s * dt
         if want > sp_prev + step:
             want, held = sp_prev + step, True
-            flags |= F_SLEW
+            self.flags |= F_SLEW
         elif want < sp_prev - step:
             want, held = sp_prev - step, True
-            flags |= F_SLEW
-        if held or sp_prev != self.last_sp:  # clamped here or by the tick's soft limits
-            pid.i = i_before
-            if inc is not None:
-                inc.hold(u_before)
-        self.feedforward_bar = ff
-        rate = self.sp_rate.update(want, dt)
-        rest = self.corr_rate.update(want - ff, dt)
-        self.setpoint_rate_bar_per_s = ff_rate + rest if planned else rate
-        self.last_sp = want
-        self.flags = flags
+            self.flags |= F_SLEW
+        self._held = held
         return want
 
     def _new_profile(self, prof: Profile | None) -> None:

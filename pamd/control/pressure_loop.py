@@ -25,9 +25,10 @@ import math
 from pamd.config.control_schema import PidConfig
 from pamd.control.pid import Pid
 from pamd.control.relay import Relay
-from pamd.tick import Flag
+from pamd.tick import Flag, MuscleTick, State
 
 F_SAT = int(Flag.OUTPUT_SATURATED)
+S_FAULT, S_ESTOP = int(State.FAULT), int(State.ESTOP)
 
 
 class PressureLoop:
@@ -55,6 +56,21 @@ class PressureLoop:
 
     def reset(self, measured_bar: float, integral_bar: float = 0.0) -> None:
         self.pid.reset(measured_bar, integral_bar)
+
+    def update(self, t: MuscleTick, now: float, dt: float) -> None:
+        """The command control wants (`t.command_bar`, before the guards and the
+        limiter), closed on a trusted pressure, outside FAULT/ESTOP and not while the
+        safe ramp vents (at a safe pressure of 0 a PID on the sensor's noise would lift
+        the command off 0 and make the exhaust chatter); closed, plus the setpoint
+        source's flow term."""
+        state, ok = t.state, t.pressure_ok
+        u = self.step(t.setpoint_bar, t.rate_bar_per_s, t.pressure_bar,
+                      ok and not (state == S_FAULT or state == S_ESTOP or t.venting), ok, dt)
+        flow = t.flow_bar
+        if flow != 0.0 and self.closed:
+            u += flow  # the air the planned motion draws (position mode)
+        t.command_bar = u
+        t.flags |= self.flags
 
     def step(self, setpoint_bar: float, rate_bar_per_s: float, pressure_bar: float,
              close: bool, pressure_ok: bool, dt: float) -> float:

@@ -34,11 +34,7 @@ def start_up(now: float, since_start_s: float, timeout_s: float,
     the disagreements), the transition to IDLE and one `startup` event per muscle
     say what each does, and why; a latched fault restored by a service restart or a
     reading found implausible while starting latches again at once."""
-    missing = chain.missing(now)
-    for m in muscles:
-        if missing is not None:
-            break
-        missing = m.missing_input(now)
+    missing = _first_missing(now, muscles, chain)
     if missing is None:
         wrong = tuple(d for m in muscles if (d := m.load_disagreement()) is not None)
         if wrong and refuse_wrong_load:
@@ -47,33 +43,7 @@ def start_up(now: float, since_start_s: float, timeout_s: float,
             return wrong
         for m, d in ((m, d) for d in wrong for m in muscles if m.name == d.muscle):
             m.set_load(d.larger_kg)  # the safe state holds whichever load hangs
-        held, ramped = [], []
-        for m in muscles:
-            why = m.outside_limits()
-            m.hold_measured(safe_ramp=why is not None)
-            if why is None:
-                held.append(f"{m.name} {m.setpoint_bar:.2f} bar")
-                sink.event(now, "startup", {"muscle": m.name, "action": "hold",
-                                            "pressure_bar": m.setpoint_bar})
-            else:
-                ramped.append(f"{m.name} {why}: ramping from {m.setpoint_bar:.2f} bar to "
-                              f"its safe pressure {m.safe_pressure_bar:.2f} bar at "
-                              f"{m.envelope.safe_slew_bar_per_s:g} bar/s")
-                sink.event(now, "startup", {
-                    "muscle": m.name, "action": "safe_ramp", "reason": why,
-                    "pressure_bar": m.setpoint_bar,
-                    "safe_pressure_bar": m.safe_pressure_bar})
-        parts = []
-        if held:
-            parts.append(f"holding measured pressure ({', '.join(held)})")
-        if ramped:
-            parts.append("; ".join(ramped))
-        pace_safe_entry([m for m in muscles if m.in_safe_ramp], False)
-        supervisor.go(now, State.IDLE, "sensors read; " + "; ".join(parts))
-        supervisor.relatch(now)  # a latched fault or ESTOP restored (service restart)
-        for m in muscles:  # a reading found implausible while starting
-            if m.plausibility.reason is not None:
-                supervisor.fault(now, m.plausibility.reason)
+        _begin(now, muscles, supervisor, sink)
         if wrong:
             safe = {m.name: m.safe_pressure_bar for m in muscles}
             supervisor.fault(now, "; ".join(d.larger_text(safe[d.muscle]) for d in wrong))
@@ -83,3 +53,48 @@ def start_up(now: float, since_start_s: float, timeout_s: float,
                          f"{timeout_s:g} s; nothing was written")
     return ()
 
+
+def _first_missing(now: float, muscles: Sequence[MuscleController], chain: SafetyChain
+                   ) -> str | None:
+    """The first input without a fresh reading (the chain's, then each muscle's), or
+    None."""
+    missing = chain.missing(now)
+    for m in muscles:
+        if missing is not None:
+            break
+        missing = m.missing_input(now)
+    return missing
+
+
+def _begin(now: float, muscles: Sequence[MuscleController], supervisor: Supervisor,
+           sink: Sink) -> None:
+    """Every input fresh, the loads settled: each muscle holds its measured pressure or
+    ramps to its safe pressure (said, with why), the rig goes IDLE, and a fault latched
+    before (a service restart) or a reading found implausible while starting latches."""
+    held, ramped = [], []
+    for m in muscles:
+        why = m.outside_limits()
+        m.hold_measured(safe_ramp=why is not None)
+        if why is None:
+            held.append(f"{m.name} {m.setpoint_bar:.2f} bar")
+            sink.event(now, "startup", {"muscle": m.name, "action": "hold",
+                                        "pressure_bar": m.setpoint_bar})
+        else:
+            ramped.append(f"{m.name} {why}: ramping from {m.setpoint_bar:.2f} bar to "
+                          f"its safe pressure {m.safe_pressure_bar:.2f} bar at "
+                          f"{m.envelope.safe_slew_bar_per_s:g} bar/s")
+            sink.event(now, "startup", {
+                "muscle": m.name, "action": "safe_ramp", "reason": why,
+                "pressure_bar": m.setpoint_bar,
+                "safe_pressure_bar": m.safe_pressure_bar})
+    parts = []
+    if held:
+        parts.append(f"holding measured pressure ({', '.join(held)})")
+    if ramped:
+        parts.append("; ".join(ramped))
+    pace_safe_entry([m for m in muscles if m.in_safe_ramp], False)
+    supervisor.go(now, State.IDLE, "sensors read; " + "; ".join(parts))
+    supervisor.relatch(now)  # a latched fault or ESTOP restored (service restart)
+    for m in muscles:  # a reading found implausible while starting
+        if m.plausibility.reason is not None:
+            supervisor.fault(now, m.plausibility.reason)

@@ -89,6 +89,10 @@ class Sequencer:
         if st == State.IDLE and self.phase not in ("",):
             self._end(now, "aborted: stopped")
             return
+        self._run_phase(now, st)
+
+    def _run_phase(self, now: float, st: State) -> None:
+        """This tick of the phase the plan is in (`st`: the rig's state)."""
         if self.phase == "" or self.phase == DONE:
             self._next_step(now)
         elif self.phase == LOAD:

@@ -213,15 +213,8 @@ class RingSink:
             if self._quiet >= QUIET_TICKS and self._dead():
                 self._lose_io("death", f"the io process (pid {self.link.pid}) died")
                 return True
-        if u[C_IO_STATE] == IO_FAILED and not self.write_failed:
-            self.write_failed = True
-            if not self.keeps_draining:
-                self._lose_io("write", self.block.error() or "the io process failed")
-                return True
-            # the io process stopped recording but still publishes: it keeps getting
-            # the records, so status and telemetry show what the loop does now
-            self.failure = self.block.error() or "the io process failed"
-            self.on_failure("write", self.failure)
+        if u[C_IO_STATE] == IO_FAILED and not self.write_failed and self._io_failed():
+            return True
         mv = self._mv
         if record is not self._rec or mv is None:
             self._rec = record
@@ -233,25 +226,48 @@ class RingSink:
         if self._pending:
             self._flush_pending()
         if not self.ring.put(mv):
-            if not self.virtual:
-                if self._dropped == 0:
-                    self._drop_first = int(record[I_TICK])
-                    self._drop_t = record[I_T]
-                self._dropped += 1
-                self._drop_last = int(record[I_TICK])
-                self.lost_records += 1
-                u[C_LOOP_LOST] = self.lost_records  # the status says it now
-                if record[I_T] - self._drop_t >= DROP_REPORT_S:
-                    self._report_drops(ongoing=True)
-                return False
-            while not self.ring.put(mv):
-                if self._dead():
-                    self._lose_io("death", f"the io process (pid {self.link.pid}) died")
-                    return True
-                if u[C_IO_STATE] == IO_FAILED and not self.keeps_draining:
-                    self._lose_io("write", self.block.error() or "the io process failed")
-                    return True
-                time.sleep(0.0002)
+            return self._ring_full(record, mv)
+        if self._dropped:
+            self._report_drops()
+        return True
+
+    def _io_failed(self) -> bool:
+        """The io process failed to write (rare path): said once. Returns whether the io
+        is lost (it no longer takes records); else it stopped recording but still
+        publishes, and keeps getting the records, so status and telemetry show what the
+        loop does now."""
+        self.write_failed = True
+        if not self.keeps_draining:
+            self._lose_io("write", self.block.error() or "the io process failed")
+            return True
+        self.failure = self.block.error() or "the io process failed"
+        self.on_failure("write", self.failure)
+        return False
+
+    def _ring_full(self, record: array[float], mv: memoryview) -> bool:
+        """The ring is full (the io process is behind). On the real clock the record is
+        lost, counted and said (`put` returns False); on the virtual clock the loop waits
+        for room, unless the io process died or failed."""
+        u = self.u64
+        if not self.virtual:
+            if self._dropped == 0:
+                self._drop_first = int(record[I_TICK])
+                self._drop_t = record[I_T]
+            self._dropped += 1
+            self._drop_last = int(record[I_TICK])
+            self.lost_records += 1
+            u[C_LOOP_LOST] = self.lost_records  # the status says it now
+            if record[I_T] - self._drop_t >= DROP_REPORT_S:
+                self._report_drops(ongoing=True)
+            return False
+        while not self.ring.put(mv):
+            if self._dead():
+                self._lose_io("death", f"the io process (pid {self.link.pid}) died")
+                return True
+            if u[C_IO_STATE] == IO_FAILED and not self.keeps_draining:
+                self._lose_io("write", self.block.error() or "the io process failed")
+                return True
+            time.sleep(0.0002)
         if self._dropped:
             self._report_drops()
         return True

@@ -115,42 +115,50 @@ class SafetyChain:
         aged = now - self.stall_excuse_s
         b = self.estop
         if b is not None:
-            raw = b.driver.in_values[b.index]
-            fresh = aged - b.driver.in_stamps_s[b.index] <= b.timeout_s
-            closed = fresh and b.gain * raw + b.offset >= 0.5
-            self.closed = 1.0 if closed else (math.nan if not fresh else 0.0)
-            if closed or (not fresh and b.driver.fault is not None):
-                # a dead device is its driver's FAULT (the chain's state unknown)
-                self.open_reason = None
-            elif self.open_reason is None:
-                self.open_reason = (
-                    f"safety chain open ({_where(b)} reads 0): "
-                    "the air is cut, the muscles hold their air" if fresh else
-                    f"safety chain open: {_where(b)} has no "
-                    f"reading within {b.timeout_s:g} s")
+            self._read_estop(b, aged)
         s = self.supply
         if s is not None:
-            fresh = aged - s.driver.in_stamps_s[s.index] <= s.timeout_s
-            p = s.gain * s.driver.in_values[s.index] + s.offset if fresh else math.nan
-            self.supply_bar = p
-            out = not (p >= 0.5 if self.supply_digital else p >= self.supply_min_bar)
-            if not out:
-                self.supply_out = False
-                self._supply_out_since = math.inf
-                self.supply_reason = None
-            else:
-                if not self.supply_out:
-                    self.supply_out = True
-                    self._supply_out_since = now
-                if (self.supply_reason is None
-                        and now - self._supply_out_since >= self.supply_lost_s - 1e-9):
-                    self.supply_reason = self._supply_text(p)
+            self._read_supply(s, aged, now)
         r = self.reset_input
         if r is not None:
             fresh = aged - r.driver.in_stamps_s[r.index] <= r.timeout_s
             level = r.gain * r.driver.in_values[r.index] + r.offset if fresh else 0.0
             self.reset_pressed = level >= 0.5 and self._button < 0.5
             self._button = level
+
+    def _read_estop(self, b: InputBinding, aged: float) -> None:
+        """The e-stop chain's input: closed, open (said once) or unknown (no reading)."""
+        raw = b.driver.in_values[b.index]
+        fresh = aged - b.driver.in_stamps_s[b.index] <= b.timeout_s
+        closed = fresh and b.gain * raw + b.offset >= 0.5
+        self.closed = 1.0 if closed else (math.nan if not fresh else 0.0)
+        if closed or (not fresh and b.driver.fault is not None):
+            # a dead device is its driver's FAULT (the chain's state unknown)
+            self.open_reason = None
+        elif self.open_reason is None:
+            self.open_reason = (
+                f"safety chain open ({_where(b)} reads 0): "
+                "the air is cut, the muscles hold their air" if fresh else
+                f"safety chain open: {_where(b)} has no "
+                f"reading within {b.timeout_s:g} s")
+
+    def _read_supply(self, s: InputBinding, aged: float, now: float) -> None:
+        """The supply's pressure (or switch): out for `supply_lost_s` is lost."""
+        fresh = aged - s.driver.in_stamps_s[s.index] <= s.timeout_s
+        p = s.gain * s.driver.in_values[s.index] + s.offset if fresh else math.nan
+        self.supply_bar = p
+        out = not (p >= 0.5 if self.supply_digital else p >= self.supply_min_bar)
+        if not out:
+            self.supply_out = False
+            self._supply_out_since = math.inf
+            self.supply_reason = None
+        else:
+            if not self.supply_out:
+                self.supply_out = True
+                self._supply_out_since = now
+            if (self.supply_reason is None
+                    and now - self._supply_out_since >= self.supply_lost_s - 1e-9):
+                self.supply_reason = self._supply_text(p)
 
     def _supply_text(self, p: float) -> str:
         s = self.supply

@@ -16,8 +16,9 @@ the limits):
 The safe state's entry counts as the safe state: the tick that finds a fault (the
 supervisor latches it at once) or loses its pressure (the pressure loop opens there,
 and its command would jump from the PID's output to the setpoint) is held to these
-invariants from the command written last, whichever signal failed
-(`pamd.control.muscle.MuscleController.tick`). So the entry never takes the command
+invariants from the command written last, whichever signal failed, and so is the
+tick in which any muscle of the rig found one: every muscle's write of that tick
+(`pamd.controller.RigController.tick`). So the entry never takes the command
 below min(safe pressure, the command at entry) nor faster than the safe slew
 (`safety.safe_slew_bar_per_s`). Every path that moves the rig (`pamd run`, `pamd
 tune`, `pamd collect`, remote commands and collections) reaches the valves through
@@ -30,7 +31,9 @@ the exhaust opens (the caller passes a floor of 0 and an unlimited step).
 
 from __future__ import annotations
 
-from pamd.tick import Flag
+import math
+
+from pamd.tick import Flag, MuscleTick
 
 F_SOFT_P, F_SLEW = int(Flag.SOFT_LIMIT_PRESSURE), int(Flag.SLEW_LIMITED)
 F_SOFT_C, F_PRETENSION = int(Flag.SOFT_LIMIT_CONTRACTION), int(Flag.PRETENSION_LIMIT)
@@ -50,36 +53,45 @@ def held_back(flags: int, setpoint_bar: float, command_bar: float) -> bool:
 
 
 class Limiter:
-    """Applies the invariants; `flags` holds the bits of the last `apply`."""
+    """Applies the invariants to the muscle's command (`update`, the write's stage after
+    the guards); `flags` holds the bits of the last one."""
 
-    def __init__(self) -> None:
+    def __init__(self, max_pressure_bar: float = math.inf) -> None:
         self.flags = 0
+        self.max_pressure_bar = max_pressure_bar  # the muscle's (set-up and IDLE reloads)
 
-    def apply(self, u: float, prev: float, max_p: float, lo: float, hi: float, safe: bool,
-              floor: float, step: float) -> float:
-        """The command to write. `u` is what control wants, `prev` the last command
-        written, `lo`/`hi` the guards' bounds (restoring direction only), `safe` whether a
-        safe state holds, `floor` its safe pressure, `step` the slew limit times the
-        period."""
+    def update(self, t: MuscleTick, now: float, dt: float) -> None:
+        """`t.command_bar` (what control wants) becomes the command to write: within
+        the guards' bounds (`t.lo_bar`, `t.hi_bar`: restoring direction only), the
+        pressure limit and 0; and while `t.held` (a safe state or its entry), within
+        `t.step_bar` (the slew limit times the period) of the command written last
+        (`t.last_command_bar`), never below min(`t.floor_bar`, that command)."""
+        u = t.command_bar
         flags = 0
+        hi = t.hi_bar
         if u > hi:
             u = hi
+        lo = t.lo_bar
         if u < lo:
             u = lo
+        max_p = self.max_pressure_bar
         if u > max_p:
             u = max_p
-            flags |= F_SOFT_P
+            flags = F_SOFT_P
         if u < 0.0:
             u = 0.0
-        if safe:
+        if t.held:
+            prev, step = t.last_command_bar, t.step_bar
             if u > prev + step:
                 u = prev + step
                 flags |= F_SLEW
             elif u < prev - step:
                 u = prev - step
                 flags |= F_SLEW
+            floor = t.floor_bar
             bottom = floor if floor < prev else prev
             if u < bottom:
                 u = bottom
         self.flags = flags
-        return u
+        t.flags |= flags
+        t.command_bar = u

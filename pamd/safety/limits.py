@@ -1,5 +1,6 @@
-"""One muscle's limits: hard limits and the tracking check (faults), and the soft-limit
-guards (bounds on the valve command). The limits stage of its tick.
+"""One muscle's limits, two stages of its tick: `LimitMonitor` in its read, the hard
+limits and the tracking check (faults); `Guards` in its write, the soft-limit guards
+(bounds on the valve command) before the limiter.
 
 The guards never write the setpoint: they only bound the command, each in its
 restoring direction (near the contraction limit the command may not rise, beyond
@@ -20,10 +21,11 @@ from typing import TYPE_CHECKING
 
 from pamd.config.safety_schema import SafetyConfig
 from pamd.safety.limiter import held_back
-from pamd.tick import Flag
+from pamd.tick import Flag, MuscleTick
 
 if TYPE_CHECKING:
     from pamd.safety.envelope import MuscleEnvelope
+    from pamd.safety.plausibility import Plausibility
 
 F_SOFT_C, F_PRETENSION = int(Flag.SOFT_LIMIT_CONTRACTION), int(Flag.PRETENSION_LIMIT)
 F_SOFT_P = int(Flag.SOFT_LIMIT_PRESSURE)
@@ -34,41 +36,51 @@ SOFT_LIMIT_REPORT_S = 1.0
 
 
 class LimitMonitor:
-    """Hard limits, tracking and soft-limit guards of one muscle."""
+    """Hard limits and tracking of one muscle: what its readings say is a fault."""
 
     def __init__(self, envelope: MuscleEnvelope, pressure_name: str,
-                 safety: SafetyConfig) -> None:
+                 safety: SafetyConfig, plausibility: Plausibility) -> None:
         self.muscle = envelope.name
         self.p_name = pressure_name
+        self.plausibility = plausibility  # a pressure that does not follow: distrusted
         self.set_envelope(envelope)
         self.set_times(safety)
-        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
         self._over_p_since = self._over_c_since = self._over_s_since = math.inf
         self._track_since = math.inf
-        self._held_since = math.inf
-        self._held_reported = False
-        self.holding_back = False  # a reference is held back at a limit (held_at_limit)
-        self.lo = -math.inf  # guard bounds on the command of this tick (none: +-inf;
-        # the limiter keeps the command >= 0 without naming a guard)
-        self.hi = math.inf
         self.flags = 0
 
     def set_envelope(self, env: MuscleEnvelope) -> None:
-        """Limits and bands (set-up and IDLE reloads)."""
+        """Limits (set-up and IDLE reloads)."""
         self.hard_p = env.hard_max_pressure_bar
-        self.max_c, self.hard_c = env.max_contraction, env.hard_max_contraction
-        self.soft_c = env.soft_max_contraction
-        self.c_release = self.soft_c - 0.5 * env.soft_band_contraction
-        self.max_stretch, self.hard_stretch = env.max_pretension, env.hard_max_pretension
-        self.s_release = -self.max_stretch + 0.5 * env.soft_band_contraction
+        self.hard_c = env.hard_max_contraction
+        self.hard_stretch = env.hard_max_pretension
 
     def set_times(self, saf: SafetyConfig) -> None:
         """The hard-limit hold and the tracking band and time (set-up and any reload)."""
         self.hold_s = saf.hard_limit_hold_s
         self.track_band, self.track_s = saf.tracking_band_bar, saf.tracking_time_s
 
-    def reset_guards(self) -> None:
-        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+    def update(self, t: MuscleTick, now: float, dt: float) -> None:
+        """The read's checks on this tick's readings: the hard limits (on trusted
+        readings), then whether the measured pressure follows the command written last
+        (judged before this tick's command, so that a fault it finds shapes that
+        command; not while the air is out or held, `t.air_cut`: no air follows a
+        command then, and a leak is the hold's, not a sensor's). A pressure that does
+        not follow is distrusted, with what the force and length point to; the first
+        fault of the tick stays `t.fault`."""
+        p = t.pressure_bar
+        fault = self.check_hard(now, p, t.contraction, t.pressure_ok, t.length_ok)
+        if fault is not None and t.fault is None:
+            t.fault = fault
+        command = t.last_command_bar
+        reason = self.track(now, p, command, t.pressure_ok and not t.air_cut)
+        t.flags |= self.flags
+        if reason is not None:
+            reason = self.plausibility.distrust_pressure(reason, p, command, t.force_n,
+                                                         t.length_mm)
+            t.finding = reason
+            if t.fault is None:
+                t.fault = reason
 
     # -- faults -------------------------------------------------------------------
     def check_hard(self, now: float, p: float, x: float, pressure_ok: bool,
@@ -127,17 +139,69 @@ class LimitMonitor:
     def stop_tracking(self) -> None:
         self._track_since = math.inf
 
-    # -- guards -------------------------------------------------------------------
-    def bound(self, length_ok: bool, x: float, prev_cmd: float, wanted: float,
-              step: float) -> int:
-        """This tick's bounds on the command (`lo`, `hi`) from a trusted contraction `x`
-        (an untrusted length bounds nothing); `prev_cmd` is the last command, `wanted`
-        what control wants now, `step` the slew limit times the period. Returns the flag
-        of a guard that holds `wanted` back, or 0."""
-        if not length_ok:
-            self.lo, self.hi = -math.inf, math.inf
+
+class Guards:
+    """The soft-limit guards of one muscle: bounds on its command (module docstring),
+    and a profile held back at a soft limit reported."""
+
+    def __init__(self, envelope: MuscleEnvelope) -> None:
+        self.set_envelope(envelope)
+        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+        self._held_since = math.inf
+        self._held_reported = False
+        self.holding_back = False  # a reference is held back at a limit (held_at_limit)
+        self.lo = -math.inf  # guard bounds on the command of this tick (none: +-inf;
+        # the limiter keeps the command >= 0 without naming a guard)
+        self.hi = math.inf
+
+    def set_envelope(self, env: MuscleEnvelope) -> None:
+        """Limits and bands (set-up and IDLE reloads)."""
+        self.max_c = env.max_contraction
+        self.soft_c = env.soft_max_contraction
+        self.c_release = self.soft_c - 0.5 * env.soft_band_contraction
+        self.max_stretch = env.max_pretension
+        self.s_release = -self.max_stretch + 0.5 * env.soft_band_contraction
+
+    def reset(self) -> None:
+        self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+
+    def update(self, t: MuscleTick, now: float, dt: float) -> None:
+        """The write's bounds on the command (`t.lo_bar`, `t.hi_bar`, also `lo`, `hi`)
+        from a trusted contraction (an untrusted length bounds nothing), around the
+        command written last (`t.last_command_bar`) and `t.step_bar` (the slew limit
+        times the period); the flag of a guard that holds what control wants
+        (`t.command_bar`) back."""
+        if not t.length_ok:
+            self.lo, self.hi = t.lo_bar, t.hi_bar = -math.inf, math.inf
             self.c_recover = self.s_recover = False
-            return 0
+            return
+        x = t.contraction
+        self._engage(x)
+        prev_cmd, step = t.last_command_bar, t.step_bar
+        lo, hi = -math.inf, math.inf  # no guard: 0 bar is the limiter's, not a guard
+        if self.c_guard:
+            # restoring: never up; beyond the limit, down at the slew limit
+            hi = prev_cmd - step if x >= self.max_c else prev_cmd
+        elif self.c_recover:
+            # released: back towards what control wants at the slew limit (bumpless)
+            hi = prev_cmd + step
+        if self.s_guard:
+            if not self.c_guard:  # both at once cannot be: contraction wins
+                # restoring: never down; beyond the limit, up at the slew limit
+                lo = prev_cmd + step if x <= -self.max_stretch else prev_cmd
+        elif self.s_recover and not self.c_guard:
+            lo = prev_cmd - step
+        self.lo, self.hi = t.lo_bar, t.hi_bar = lo, hi
+        wanted = t.command_bar
+        if wanted > hi:
+            t.flags |= F_SOFT_C
+        elif wanted < lo:
+            t.flags |= F_PRETENSION
+        else:
+            self.c_recover = self.s_recover = False  # inside the bounds: recovery is over
+
+    def _engage(self, x: float) -> None:
+        """Each guard engaged at its soft limit, released (to recover) past its band."""
         if self.c_guard:
             if x < self.c_release:
                 self.c_guard = False
@@ -152,26 +216,6 @@ class LimitMonitor:
         elif x <= -self.max_stretch:
             self.s_guard = True
             self.s_recover = False
-        lo, hi = -math.inf, math.inf  # no guard: 0 bar is the limiter's, not a guard
-        if self.c_guard:
-            # restoring: never up; beyond the limit, down at the slew limit
-            hi = prev_cmd - step if x >= self.max_c else prev_cmd
-        elif self.c_recover:
-            # released: back towards what control wants at the slew limit (bumpless)
-            hi = prev_cmd + step
-        if self.s_guard:
-            if not self.c_guard:  # both at once cannot be: contraction wins
-                # restoring: never down; beyond the limit, up at the slew limit
-                lo = prev_cmd + step if x <= -self.max_stretch else prev_cmd
-        elif self.s_recover and not self.c_guard:
-            lo = prev_cmd - step
-        self.lo, self.hi = lo, hi
-        if wanted > hi:
-            return F_SOFT_C
-        if wanted < lo:
-            return F_PRETENSION
-        self.c_recover = self.s_recover = False  # inside the bounds: recovery is over
-        return 0
 
     # -- a reference held back --------------------------------------------------------
     def held_at_limit(self, now: float, flags: int, moving: bool, setpoint_bar: float,

@@ -216,15 +216,7 @@ class Plausibility:
         if not self.enabled:
             return None
         found = None
-        # low-passed pressure and force for the frozen checks (noise is not motion)
-        if p_t != self._p_t and p == p:
-            lp = self._p_lp
-            self._p_lp = p if lp != lp else lp + _alpha(p_t - self._p_lp_t) * (p - lp)
-            self._p_lp_t = p_t
-        if f_t != self._f_t and f == f:
-            lp = self._f_lp
-            self._f_lp = f if lp != lp else lp + _alpha(f_t - self._f_lp_t) * (f - lp)
-            self._f_lp_t = f_t
+        self._lowpass(p, p_t, f, f_t)
         # the pressure first: the length and force checks lean on it
         if self.pressure_ok and p_t != self._p_t:
             found = self._check_pressure(p_t, p_j, p, length, load_known and referenced)
@@ -236,6 +228,18 @@ class Plausibility:
         if found is not None and self.reason is None:
             self.reason = found
         return found
+
+    def _lowpass(self, p: float, p_t: float, f: float, f_t: float) -> None:
+        """The low-passed pressure and force for the frozen checks (noise is not
+        motion), on a new sample."""
+        if p_t != self._p_t and p == p:
+            lp = self._p_lp
+            self._p_lp = p if lp != lp else lp + _alpha(p_t - self._p_lp_t) * (p - lp)
+            self._p_lp_t = p_t
+        if f_t != self._f_t and f == f:
+            lp = self._f_lp
+            self._f_lp = f if lp != lp else lp + _alpha(f_t - self._f_lp_t) * (f - lp)
+            self._f_lp_t = f_t
 
     def _contraction(self, length: float) -> float:
         return (self.nominal_length_mm - length) / self.nominal_length_mm
@@ -274,14 +278,13 @@ class Plausibility:
             self._anchor_l, self._anchor_t = length, t
             self._anchor_p = self._anchor_f = math.nan
             return None
-        anchor_t = self._anchor_t
-        if self._anchor_p != self._anchor_p:
-            if self._p_lp_t >= anchor_t:
-                self._anchor_p, self._anchor_pt = p, self._p_lp_t
-            return None
-        if self._anchor_f != self._anchor_f:
-            if self._f_lp_t >= anchor_t:
-                self._anchor_f = f
+        return self._frozen_length(t, length, x, p, f)
+
+    def _frozen_length(self, t: float, length: float, x: float, p: float, f: float
+                       ) -> str | None:
+        """`_check_length`'s last, while the length stands: frozen if the pressure moved
+        and the force did not follow as it would at a fixed length."""
+        if not self._anchored(p, f):
             return None
         if not (self.pressure_ok and self.force_ok):
             return None  # the frozen check needs both
@@ -289,18 +292,39 @@ class Plausibility:
         # the force must have been sampled since the pressure moved, to show it
         if (abs(dp) >= self.frozen_dp and p == p and f == f and self._p_lp_t > self._anchor_pt
                 and self._f_lp_t >= self._p_lp_t):
-            model_df = (self.model.force_n(p, x) - self.model.force_n(self._anchor_p, x))
-            if abs(model_df) < self.frozen_df:
-                return None  # friction may still hold it: wait for a larger change
-            if abs(f - self._anchor_f) < FROZEN_FORCE_SHARE * abs(model_df):
-                self.length_ok = False
-                return (f"{self.muscle}: {self.l_name} frozen at {length:.2f} mm while the "
-                        f"pressure changed {dp:+.2f} bar and the force only "
-                        f"{f - self._anchor_f:+.0f} N (a fixed length would give "
-                        f"{model_df:+.0f} N): stuck sensor")
-            # isometric: fine; judge on from here
-            self._anchor_l, self._anchor_t = length, t
-            self._anchor_p = self._anchor_f = math.nan
+            return self._frozen_length_judged(t, length, x, p, f, dp)
+        return None
+
+    def _anchored(self, p: float, f: float) -> bool:
+        """Whether the pressure and the force the frozen length is judged against were
+        both sampled since the length stood; else takes the first such sample of the
+        one missing (the pressure first)."""
+        anchor_t = self._anchor_t
+        if self._anchor_p != self._anchor_p:
+            if self._p_lp_t >= anchor_t:
+                self._anchor_p, self._anchor_pt = p, self._p_lp_t
+            return False
+        if self._anchor_f != self._anchor_f:
+            if self._f_lp_t >= anchor_t:
+                self._anchor_f = f
+            return False
+        return True
+
+    def _frozen_length_judged(self, t: float, length: float, x: float, p: float, f: float,
+                              dp: float) -> str | None:
+        """The pressure moved by `dp` since the length stood: the force must show it."""
+        model_df = (self.model.force_n(p, x) - self.model.force_n(self._anchor_p, x))
+        if abs(model_df) < self.frozen_df:
+            return None  # friction may still hold it: wait for a larger change
+        if abs(f - self._anchor_f) < FROZEN_FORCE_SHARE * abs(model_df):
+            self.length_ok = False
+            return (f"{self.muscle}: {self.l_name} frozen at {length:.2f} mm while the "
+                    f"pressure changed {dp:+.2f} bar and the force only "
+                    f"{f - self._anchor_f:+.0f} N (a fixed length would give "
+                    f"{model_df:+.0f} N): stuck sensor")
+        # isometric: fine; judge on from here
+        self._anchor_l, self._anchor_t = length, t
+        self._anchor_p = self._anchor_f = math.nan
         return None
 
     def _check_force(self, now: float, t: float, f: float, p: float, length: float,
@@ -312,12 +336,7 @@ class Plausibility:
             if self._zero_since == math.inf:
                 self._zero_since = t
             elif t - self._zero_since >= self.zero_s - 1e-9:
-                self.force_ok = False
-                return (f"{self.muscle}: {self.f_name} reads {f:.1f} N for "
-                        f"{1000 * (t - self._zero_since):.0f} ms under a known load of "
-                        f"{w:.0f} N that the muscle holds at this pressure and length: "
-                        "dead sensor or broken cable (or the load went without a `load` "
-                        "command)")
+                return self._force_zero(t, f, w)
         else:
             self._zero_since = math.inf
         judged = self.pressure_ok and self.length_ok and p == p and length == length
@@ -327,8 +346,26 @@ class Plausibility:
             self._f_map0 = self._force_map(p, length) if judged else math.nan
             self._f_v0 = self._v_lp
             return None
+        if not judged:
+            return None
+        return self._frozen_force(t, f, p, length, load_known)
+
+    def _force_zero(self, t: float, f: float, w: float) -> str:
+        """The force reads about zero under a known load the muscle holds (fault path)."""
+        self.force_ok = False
+        return (f"{self.muscle}: {self.f_name} reads {f:.1f} N for "
+                f"{1000 * (t - self._zero_since):.0f} ms under a known load of "
+                f"{w:.0f} N that the muscle holds at this pressure and length: "
+                "dead sensor or broken cable (or the load went without a `load` "
+                "command)")
+
+    def _frozen_force(self, t: float, f: float, p: float, length: float,
+                      load_known: bool) -> str | None:
+        """`_check_force`'s last, while the force reads the same (`judged`: the pressure
+        and length trusted): frozen if the force map or the load's acceleration says it
+        moved."""
         span = t - self._f_since
-        if span < self.frozen_s - 1e-9 or not judged:
+        if span < self.frozen_s - 1e-9:
             return None
         m0 = self._f_map0
         if m0 != m0:  # the span began untrusted: start it now

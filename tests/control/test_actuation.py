@@ -10,9 +10,18 @@ import pytest
 from pamd.config import load_config
 from pamd.control.actuation import Actuation, RegulatorActuation
 from pamd.errors import ConfigError
-from pamd.tick import Flag
+from pamd.tick import Flag, MuscleTick
 
 REPO = Path(__file__).resolve().parents[2]
+
+
+def write(act: Actuation, command_bar: float, pressure_bar: float, vent: bool,
+          h: Any) -> int:
+    """One tick of the actuation stage (`Actuation.update`): the flag bits it sets."""
+    t = MuscleTick()
+    t.command_bar, t.valve_pressure_bar, t.vent = command_bar, pressure_bar, vent
+    act.update(t, h.t, h.period_s)
+    return t.flags
 
 
 def test_the_regulator_actuation_writes_the_setpoint_and_vents_on_request(
@@ -22,12 +31,12 @@ def test_the_regulator_actuation_writes_the_setpoint_and_vents_on_request(
     act: Actuation = h.m1.actuation
     assert isinstance(act, RegulatorActuation)
     reg = h.sim.plant("m1").regulator
-    assert act.write(2.0, 0.0, h.t, h.period_s, False) == 0
+    assert write(act, 2.0, 0.0, False, h) == 0
     assert reg.setpoint_bar == pytest.approx(2.0) and not reg.exhaust_open
-    assert act.write(0.0, 0.0, h.t, h.period_s, True) == int(Flag.EXHAUST_OPEN)
+    assert write(act, 0.0, 0.0, True, h) == int(Flag.EXHAUST_OPEN)
     assert reg.exhaust_open and act.exhaust_open and act.switch_count == 1
-    act.write(0.0, 0.0, h.t, h.period_s, True)  # stays open: no new switch
-    act.write(1.0, 0.0, h.t, h.period_s, False)
+    write(act, 0.0, 0.0, True, h)  # stays open: no new switch
+    write(act, 1.0, 0.0, False, h)
     assert not reg.exhaust_open and act.switch_count == 2
 
 
@@ -63,16 +72,16 @@ def test_the_exhaust_assist_opens_below_its_threshold_with_hysteresis(harness: A
     valve, exhaust = act.valve, act.exhaust
     assisted = RegulatorActuation(valve, exhaust, assist_below_bar=2.0)
     reg = h.sim.plant("m1").regulator
-    assert assisted.write(1.0, 1.05, h.t, h.period_s, False) == 0  # 0.05 bar above: shut
-    assert assisted.write(1.0, 1.2, h.t, h.period_s, False) == int(Flag.EXHAUST_OPEN)
+    assert write(assisted, 1.0, 1.05, False, h) == 0  # 0.05 bar above: shut
+    assert write(assisted, 1.0, 1.2, False, h) == int(Flag.EXHAUST_OPEN)
     assert reg.exhaust_open and assisted.switch_count == 1
-    assert assisted.write(1.0, 1.05, h.t, h.period_s, False)  # within the hysteresis: open
-    assert assisted.write(1.0, 1.02, h.t, h.period_s, False) == 0  # within 0.03: shut
+    assert write(assisted, 1.0, 1.05, False, h)  # within the hysteresis: open
+    assert write(assisted, 1.0, 1.02, False, h) == 0  # within 0.03: shut
     assert not reg.exhaust_open and assisted.switch_count == 2
-    assert assisted.write(2.5, 3.5, h.t, h.period_s, False) == 0  # above the threshold
-    assert assisted.write(1.0, float("nan"), h.t, h.period_s, False) == 0  # untrusted: shut
+    assert write(assisted, 2.5, 3.5, False, h) == 0  # above the threshold
+    assert write(assisted, 1.0, float("nan"), False, h) == 0  # untrusted: shut
     # without an assist (the default) the same gap never opens the dump valve
-    assert act.write(1.0, 1.5, h.t, h.period_s, False) == 0 and not reg.exhaust_open
+    assert write(act, 1.0, 1.5, False, h) == 0 and not reg.exhaust_open
 
 
 def _refusal(tmp_path: Path, config: str, edits: list[tuple[str, str]]) -> str:

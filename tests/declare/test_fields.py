@@ -12,7 +12,7 @@ import pytest
 from mcap_ros2._vendor.rosidl_adapter.parser import parse_message_string
 
 from pamd import controller, loop, tick
-from pamd.control import muscle_view
+from pamd.control import muscle
 from pamd.declare import docs, fields
 from pamd.record import cdr
 from pamd.record.recorder import record_schemas
@@ -73,11 +73,11 @@ def _stored(tree: ast.AST, prefix: str) -> set[str]:
 
 
 def test_the_muscle_stage_writes_every_muscle_field() -> None:
-    """`MuscleView._record` stores each muscle field of the table, by its offset."""
-    src = (ROOT / "pamd" / "control" / "muscle_view.py").read_text()
+    """`MuscleController._record` stores each muscle field of the table, by its offset."""
+    src = (ROOT / "pamd" / "control" / "muscle.py").read_text()
     fn = next(n for n in ast.walk(ast.parse(src))
               if isinstance(n, ast.FunctionDef) and n.name == "_record")
-    offsets = {getattr(muscle_view, n) for n in _stored(fn, "M_")}
+    offsets = {getattr(muscle, n) for n in _stored(fn, "M_")}
     missing = [f.name for i, f in enumerate(fields.MUSCLE) if i not in offsets]
     assert not missing, f"declared muscle fields the stage never writes: {missing}"
 

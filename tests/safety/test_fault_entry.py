@@ -192,3 +192,55 @@ def test_the_muscles_of_a_rig_reach_their_safe_state_together(
         assert arrived["m2"] == pytest.approx(arrived["m1"], abs=0.002)
     finally:
         h.rig.close()
+
+
+def _pair(sim_config: Callable[..., LoadedConfig], faults: list[dict[str, Any]]) -> Harness:
+    """Two muscles, both on a 1-5 bar sine at 0.25 Hz from about 0.9 s (its steepest
+    3.1 bar/s), the safe state's slew 1 bar/s: slower than the profile, so a command
+    held to the safe state's invariants visibly leaves it."""
+    drivers = sim_driver(30.0, 0.0)
+    drivers[0]["options"]["muscles"] = [{**m, "initial_pressure_bar": 1.0} for m in TWO]
+    drivers[0]["options"]["faults"] = faults
+    base = sim_dict(30.0)["muscles"][0]
+    muscles = [{**base, "name": n, "signals": {
+        k: {**v, "channel": v["channel"].replace("m1.", f"{n}.")}
+        for k, v in base["signals"].items()}} for n in ("m1", "m2")]
+    h = Harness(sim_config(30.0, drivers=drivers, muscles=muscles,
+                           safety={"safe_slew_bar_per_s": 1.0}))
+    h.step(0.5)
+    verdict = h.cmd("profile", kind="sine", min_bar=1.0, max_bar=5.0, freq_hz=0.25,
+                    lead_in_bar_per_s=5.0)
+    assert verdict["ok"], verdict
+    h.keep = True
+    h.step(1.1)  # the jump at 1.1 s: m1's setpoint rising at ~3 bar/s
+    return h
+
+
+def test_a_fault_one_muscle_finds_holds_every_muscles_command_in_that_tick(
+        sim_config: Callable[..., LoadedConfig]) -> None:
+    """The one change of behaviour of issue 42: the rig decides its safe state once per
+    tick, after every muscle's update and before any write, so a fault m2 finds shapes
+    m1's write of the same tick: m1's command leaves its profile (held to the safe
+    state's slew from its last command) in the tick m2's pressure jumps, not one tick
+    later as when each muscle read, computed and wrote in turn."""
+    jump = [{"at_s": 1.1, "muscle": "m2", "signal": "pressure", "kind": "jump", "size": 1.0}]
+    faulty, clean = _pair(sim_config, jump), _pair(sim_config, [])
+    try:
+        assert faulty.state == "FAULT" and "m2.pressure" in faulty.ctrl.supervisor.fault_reason
+        t_fault = next(tr.t_s for tr in faulty.ctrl.supervisor.history
+                       if tr.new == State.FAULT)
+        cmd = [r["m1"]["valve_cmd_bar"] for r in faulty.records]
+        free = [r["m1"]["valve_cmd_bar"] for r in clean.records]
+        t_s = [r["t_s"] for r in faulty.records]
+        first = next(k for k, (a, b) in enumerate(zip(cmd, free, strict=True)) if a != b)
+        assert t_s[first] == pytest.approx(t_fault)  # the very tick m2 found its fault
+        step = 1.0 * faulty.period_s  # the safe slew's step
+        assert abs(cmd[first] - cmd[first - 1]) <= step + 1e-9  # held from that tick ...
+        # ... off a steeper profile (over 20 ticks: the PID's command is noisy per tick)
+        n = 20
+        assert abs(cmd[first + n - 1] - cmd[first - 1]) <= n * step + 1e-9
+        assert free[first + n - 1] - free[first - 1] > 2.0 * n * step
+        assert faulty.records[first]["state"] == State.FAULT
+    finally:
+        faulty.rig.close()
+        clean.rig.close()
