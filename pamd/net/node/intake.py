@@ -274,6 +274,28 @@ class _Incoming:
     user: str
     urgent: bool
 
+    @classmethod
+    def of(cls, q: Query, local: str | None) -> _Incoming:
+        """The command `q` brings; `local`: its sender as the local channel names it,
+        None for a query over Zenoh."""
+        key = str(q.key_expr)
+        verb = Keys.last_chunk(key)
+        zid, sender = cls._zenoh_sender(q) if local is None else ("", local)
+        user = cap_text(q.parameters.get("user") or "", MAX_WHO_CHARS)
+        raw = q.payload.to_bytes() if q.payload is not None else b""
+        return cls(q, key, verb, raw, zid, sender, user,
+                   urgent=VERBS.is_urgent(verb))  # estop, stop: reach the running loop
+
+    @staticmethod
+    def _zenoh_sender(q: Query) -> tuple[str, str]:
+        """(the sender's Zenoh id or "", its name for the record)."""
+        try:
+            si = q.source_info
+            zid = str(si.source_id.zid) if si is not None else ""
+        except Exception:
+            zid = ""
+        return zid, f"zenoh:{zid}" if zid else "zenoh"
+
 
 class CommandIntake:
     """The node's command path: a query on `cmd/<verb>` refused at once, or into the
@@ -373,15 +395,6 @@ class CommandIntake:
                     send_reply(q, str(q.key_expr), json.dumps(
                         {"ok": False, "error": error}).encode())
 
-    def _sender(self, q: Query) -> tuple[str, str]:
-        """(the sender's Zenoh id or "", its name for the record)."""
-        try:
-            si = q.source_info
-            zid = str(si.source_id.zid) if si is not None else ""
-        except Exception:
-            zid = ""
-        return zid, f"zenoh:{zid}" if zid else "zenoh"
-
     def _who_refusal(self, key: str, verb: str, why: str | None) -> tuple[str, str] | None:
         """(error, record kind) if this sender may not send this command here: a key that
         is a pattern (`pamd/*/cmd/...`, `pamd/<rig>/**/setpoint`), or no valid credential
@@ -419,7 +432,7 @@ class CommandIntake:
         """One command: refused (answered and recorded) at the first check it fails, or
         into the loop's mailbox (or onto the board)."""
         self.counts["commands"] += 1
-        c = self._incoming(q, local)
+        c = _Incoming.of(q, local)
         if not self._admitted(c, now, trusted):
             return
         taken = self._payload(c)
@@ -428,15 +441,6 @@ class CommandIntake:
         payload = self._checked(c, taken[0])
         if payload is not None:
             self._enqueue(c, payload, taken[1], now)
-
-    def _incoming(self, q: Query, local: str | None) -> _Incoming:
-        key = str(q.key_expr)
-        verb = Keys.last_chunk(key)
-        zid, sender = self._sender(q) if local is None else ("", local)
-        user = cap_text(q.parameters.get("user") or "", MAX_WHO_CHARS)
-        raw = q.payload.to_bytes() if q.payload is not None else b""
-        return _Incoming(q, key, verb, raw, zid, sender, user,
-                         urgent=VERBS.is_urgent(verb))  # estop, stop: reach the running loop
 
     def _refuse_incoming(self, c: _Incoming, error: str, record: bool = True,
                          kind: str | None = None, credential: str | None = None) -> None:
