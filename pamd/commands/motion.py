@@ -86,6 +86,23 @@ def _length_setpoint(ctrl: RigController, m: MuscleController, a: SetpointArgs) 
     """A length (and force) target in the length modes, reached by a ramp."""
 
     mode = m.mode.name.lower()
+    _check_length_targets(m, a, mode)
+    out: JsonObject = {"muscle": m.name, "mode": mode}
+    prof = None
+    if a.length_mm is not None:
+        prof, ramp_s = _length_ramp(ctrl, m, a.length_mm, a.ramp_s)
+        out.update(length_mm=a.length_mm, ramp_s=ramp_s)
+    if a.force_n is not None:
+        out["force_n"] = a.force_n
+    m.set_length_targets(prof, a.force_n)
+    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"setpoint {m.name} " + ", ".join(
+        f"{k} {v:g}" for k, v in out.items() if k in ("length_mm", "force_n")))
+    return out
+
+
+def _check_length_targets(m: MuscleController, a: SetpointArgs, mode: str) -> None:
+    """Refused unless the setpoint's targets are this length mode's: a length (and in
+    length_force mode a force, within the muscle's theoretical force), no pressure."""
     if not m.in_length_mode:
         raise CommandRefused(f"{m.name}: give bar, the pressure setpoint (length_mm and "
                              "force_n are targets of the length_force and position modes; "
@@ -104,31 +121,29 @@ def _length_setpoint(ctrl: RigController, m: MuscleController, a: SetpointArgs) 
     if a.force_n is not None and a.force_n > rated:
         raise CommandRefused(f"{m.name}: {a.force_n:g} N exceeds the {env.muscle_type}'s "
                              f"theoretical force ({rated:g} N)")
-    out: JsonObject = {"muscle": m.name, "mode": mode}
-    prof = None
-    if a.length_mm is not None:
-        l0 = env.nominal_length_mm
-        x = (l0 - a.length_mm) / l0
-        max_rate = env.max_length_rate_per_s
-        dist = abs(x - (l0 - m.target_length_mm) / l0)
-        rate = 0.5 * max_rate if not a.ramp_s else dist / a.ramp_s
-        if rate > max_rate:
-            raise CommandRefused(
-                f"{m.name}: reaching {a.length_mm:g} mm in {a.ramp_s:g} s needs "
-                f"{rate * l0:.3g} mm/s, above the length rate limit {max_rate * l0:.3g} mm/s "
-                f"({env.length_rate_origin})")
-        prof = length_profile(env, m.load_kg, m.target_length_mm, ctrl.now, "ramp",
-                              min_contraction=None, max_contraction=None,
-                              to_contraction=x, freq_hz=1.0, cycles=None,
-                              rate_per_s=max(rate, 1e-6), rise_s=None, duration_s=None,
-                              lead_in_per_s=max_rate)
-        out.update(length_mm=a.length_mm, ramp_s=dist / rate if rate > 0 else 0.0)
-    if a.force_n is not None:
-        out["force_n"] = a.force_n
-    m.set_length_targets(prof, a.force_n)
-    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"setpoint {m.name} " + ", ".join(
-        f"{k} {v:g}" for k, v in out.items() if k in ("length_mm", "force_n")))
-    return out
+
+
+def _length_ramp(ctrl: RigController, m: MuscleController, length_mm: float,
+                 ramp_s: float | None) -> tuple[Profile, float]:
+    """(the ramp to `length_mm`, its duration in s): within `ramp_s` if given (refused
+    above the length rate limit), else at half that limit."""
+    env = m.envelope
+    l0 = env.nominal_length_mm
+    x = (l0 - length_mm) / l0
+    max_rate = env.max_length_rate_per_s
+    dist = abs(x - (l0 - m.target_length_mm) / l0)
+    rate = 0.5 * max_rate if not ramp_s else dist / ramp_s
+    if rate > max_rate:
+        raise CommandRefused(
+            f"{m.name}: reaching {length_mm:g} mm in {ramp_s:g} s needs "
+            f"{rate * l0:.3g} mm/s, above the length rate limit {max_rate * l0:.3g} mm/s "
+            f"({env.length_rate_origin})")
+    prof = length_profile(env, m.load_kg, m.target_length_mm, ctrl.now, "ramp",
+                          min_contraction=None, max_contraction=None,
+                          to_contraction=x, freq_hz=1.0, cycles=None,
+                          rate_per_s=max(rate, 1e-6), rise_s=None, duration_s=None,
+                          lead_in_per_s=max_rate)
+    return prof, dist / rate if rate > 0 else 0.0
 
 
 def _length_profile(ctrl: RigController, ms: list[MuscleController],
@@ -172,33 +187,45 @@ def _mode(ctrl: RigController, a: ModeArgs) -> JsonObject:
             if m.in_length_mode:
                 m.leave_length_mode()
         return {"mode": a.mode, "muscles": [m.name for m in ms]}
+    _check_length_mode_args(mode, a)
+    need_reference(ms)
+    for m in ms:  # every muscle checked before any changes mode
+        _check_enters(m, mode, a)
+    for m in ms:
+        m.enter_mode(mode, a.feedforward, a.ilc)
+    return {"mode": a.mode, "muscles": [m.name for m in ms],
+            "feedforward_bar": {m.name: m.feedforward_bar for m in ms}}
+
+
+def _check_length_mode_args(mode: Mode, a: ModeArgs) -> None:
+    """Iterative learning, and feedforward off, are the position mode's only."""
     if a.ilc and mode != Mode.POSITION:
         raise CommandRefused("ilc: iterative learning runs in position mode only")
     if not a.feedforward and mode != Mode.POSITION:
         raise CommandRefused("length_force mode is the model itself: feedforward cannot be "
                              "off")
-    need_reference(ms)
-    for m in ms:
-        if m.in_safe_ramp and abs(m.setpoint_bar - m.safe_pressure_bar) > \
-                SAFE_SETPOINT_BAND_BAR:  # still ramping: it would drop a length mode
-            raise CommandRefused(
-                f"{m.name} is ramping to its safe pressure ({m.safe_pressure_bar:.2f} bar: a "
-                "stop, a deadman or a start-up outside the limits); send a setpoint or a "
-                f"pressure profile to take over from the ramp, then mode {a.mode}")
-        if mode == Mode.POSITION and a.feedforward and m.onoff:
-            raise CommandRefused(f"{m.name}: position mode with feedforward: "
-                                 f"{POSITION_TAKES_NO_MODEL}")
-        if a.feedforward and not m.has_model:
-            raise CommandRefused(
-                f"{m.name}: no model for {a.mode} mode; name model_file in the config, `pamd "
-                "run --model FILE` or send the model command first (position mode with "
-                "feedforward false runs the position PID alone)")
-        if not (math.isfinite(m.length_mm) and math.isfinite(m.force_n)):
-            raise CommandRefused(f"{m.name}: no length/force reading to start from")
-    for m in ms:
-        m.enter_mode(mode, a.feedforward, a.ilc)
-    return {"mode": a.mode, "muscles": [m.name for m in ms],
-            "feedforward_bar": {m.name: m.feedforward_bar for m in ms}}
+
+
+def _check_enters(m: MuscleController, mode: Mode, a: ModeArgs) -> None:
+    """Refused unless muscle `m` can enter length mode `mode` now: not still ramping to
+    its safe pressure, a model where feedforward is asked for (an on/off muscle's
+    position mode takes none), a length and force reading to start from."""
+    if m.in_safe_ramp and abs(m.setpoint_bar - m.safe_pressure_bar) > \
+            SAFE_SETPOINT_BAND_BAR:  # still ramping: it would drop a length mode
+        raise CommandRefused(
+            f"{m.name} is ramping to its safe pressure ({m.safe_pressure_bar:.2f} bar: a "
+            "stop, a deadman or a start-up outside the limits); send a setpoint or a "
+            f"pressure profile to take over from the ramp, then mode {a.mode}")
+    if mode == Mode.POSITION and a.feedforward and m.onoff:
+        raise CommandRefused(f"{m.name}: position mode with feedforward: "
+                             f"{POSITION_TAKES_NO_MODEL}")
+    if a.feedforward and not m.has_model:
+        raise CommandRefused(
+            f"{m.name}: no model for {a.mode} mode; name model_file in the config, `pamd "
+            "run --model FILE` or send the model command first (position mode with "
+            "feedforward false runs the position PID alone)")
+    if not (math.isfinite(m.length_mm) and math.isfinite(m.force_n)):
+        raise CommandRefused(f"{m.name}: no length/force reading to start from")
 
 
 def _model(ctrl: RigController, a: object) -> JsonObject:
