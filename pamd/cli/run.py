@@ -259,31 +259,44 @@ def _profile_options(args: argparse.Namespace, length_mode: bool) -> dict[str, s
     mine, other = ((LENGTH_OPTIONS, PRESSURE_OPTIONS) if length_mode else
                    (PRESSURE_OPTIONS, LENGTH_OPTIONS))
     given = {o for o in {*mine.values(), *other.values()} if getattr(args, _dest(o)) is not None}
-    wrong_mode = sorted(given - set(mine.values()))
-    if wrong_mode:
-        which = "a length profile (--mode position or length_force)" if not length_mode \
-            else "a pressure profile"
-        reads = ", ".join(dict.fromkeys(mine.values()))
-        raise CommandRefused(
-            f"{' and '.join(wrong_mode)}: {'these are' if len(wrong_mode) > 1 else 'this is'} "
-            f"{which}'s; {'--mode ' + args.mode if length_mode else 'the pressure mode'} "
-            f"reads {reads}")
+    _refuse_other_mode(args, length_mode, mine, given)
     if args.profile is None:
         if given:
             raise CommandRefused(f"{' and '.join(sorted(given))} without --profile: name the "
                                  "profile they shape (--profile sine, ...)")
         return {}
-    shape_reads = set(SHAPE_PARAMS[args.profile])
-    unread = sorted(o for p, o in mine.items() if o in given and p not in shape_reads)
-    if unread:
-        wanted = [mine[p] for p in SHAPE_PARAMS[args.profile] if p in mine]
-        raise CommandRefused(
-            f"--profile {args.profile} does not read {' or '.join(unread)} (it reads "
-            f"{', '.join(wanted) or 'none of them'}); leave "
-            f"{'them' if len(unread) > 1 else 'it'} out" + (
-                "; a constant holds until stopped, or for the run's --duration"
-                if args.profile == "constant" else ""))
+    _refuse_unread(args.profile, mine, given)
     return {p: o for p, o in mine.items() if o in given}
+
+
+def _refuse_other_mode(args: argparse.Namespace, length_mode: bool, mine: dict[str, str],
+                       given: set[str]) -> None:
+    """Refused: a profile option given that only the other mode's profiles read."""
+    wrong_mode = sorted(given - set(mine.values()))
+    if not wrong_mode:
+        return
+    which = "a length profile (--mode position or length_force)" if not length_mode \
+        else "a pressure profile"
+    reads = ", ".join(dict.fromkeys(mine.values()))
+    raise CommandRefused(
+        f"{' and '.join(wrong_mode)}: {'these are' if len(wrong_mode) > 1 else 'this is'} "
+        f"{which}'s; {'--mode ' + args.mode if length_mode else 'the pressure mode'} "
+        f"reads {reads}")
+
+
+def _refuse_unread(profile: str, mine: dict[str, str], given: set[str]) -> None:
+    """Refused: a profile option given that the profile's shape does not read."""
+    shape_reads = set(SHAPE_PARAMS[profile])
+    unread = sorted(o for p, o in mine.items() if o in given and p not in shape_reads)
+    if not unread:
+        return
+    wanted = [mine[p] for p in SHAPE_PARAMS[profile] if p in mine]
+    raise CommandRefused(
+        f"--profile {profile} does not read {' or '.join(unread)} (it reads "
+        f"{', '.join(wanted) or 'none of them'}); leave "
+        f"{'them' if len(unread) > 1 else 'it'} out" + (
+            "; a constant holds until stopped, or for the run's --duration"
+            if profile == "constant" else ""))
 
 
 def _checked(verb: str, payload: JsonObject, option_of: dict[str, str]) -> None:
