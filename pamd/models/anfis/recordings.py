@@ -116,6 +116,19 @@ def read_csv(path: str) -> Run:
     names as pamd writes them: force_n, length_mm, pressure_bar, ...) and a time
     column (t_s, time_s, time, t or log_time_ns). A muscle file of `pamd export`
     (<topic>_state_<muscle>.csv) takes each tick's state from the loop file beside it."""
+    names, raw = _csv_rows(path)
+    columns = _csv_columns(names, raw)
+    t = _time_column(path, columns)
+    load = None
+    if "load_kg" in columns and np.all(columns["load_kg"] == columns["load_kg"][0]):
+        load = float(columns["load_kg"][0])
+    muscle = _exported_muscle(path, columns)
+    return Run(source=path, muscle=muscle, t_s=t - t[0], columns=columns, load_kg=load)
+
+
+def _csv_rows(path: str) -> tuple[list[str], list[list[str]]]:
+    """(the header's names, lower case; the data rows) of a CSV file, its dialect
+    sniffed (comma, semicolon or tab)."""
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             sample = fh.read(4096)
@@ -134,6 +147,12 @@ def read_csv(path: str) -> Run:
         raise ModelError(f"{path}: cannot read it as a CSV text file ({exc})") from None
     if not raw:
         raise ModelError(f"{path}: a header but no data rows")
+    return names, raw
+
+
+def _csv_columns(names: list[str], raw: list[list[str]]) -> dict[str, np.ndarray]:
+    """The numeric columns by name, and states and modes by name as their codes; any
+    other text column (events, notes) left out: not usable, not needed."""
     columns: dict[str, np.ndarray] = {}
     for j, name in enumerate(names):
         try:
@@ -142,7 +161,11 @@ def read_csv(path: str) -> Run:
             codes = _named_codes(name, [r[j] if j < len(r) else "" for r in raw])
             if codes is not None:  # states and modes by name (`pamd export --csv`)
                 columns[name] = codes
-            continue  # any other text column (events, notes): not usable, not needed
+    return columns
+
+
+def _time_column(path: str, columns: dict[str, np.ndarray]) -> np.ndarray:
+    """The time in s (the first of TIME_COLUMNS there is), finite and increasing."""
     t = None
     for tname, scale in TIME_COLUMNS:
         if tname in columns:
@@ -158,24 +181,27 @@ def read_csv(path: str) -> Run:
         k = int(np.flatnonzero(np.diff(t) <= 0)[0])
         raise ModelError(f"{path}: time does not increase at row {k + 2} "
                          f"({t[k]:g} then {t[k + 1]:g} s)")
-    load = None
-    if "load_kg" in columns and np.all(columns["load_kg"] == columns["load_kg"][0]):
-        load = float(columns["load_kg"][0])
-    muscle = ""
+    return t
+
+
+def _exported_muscle(path: str, columns: dict[str, np.ndarray]) -> str:
+    """The muscle of a `pamd export` muscle file ("" for any other table), whose
+    `state` column is added from the loop file beside it, which carries the
+    supervisor state of each tick."""
     base = os.path.basename(path)
-    if "_state_" in base and "state" not in columns and "tick" in columns:
-        # `pamd export` writes <rig topic>_state_<muscle>.csv beside <rig topic>_loop.csv:
-        # the loop file carries the supervisor state of each tick.
-        prefix, _, rest = base.rpartition("_state_")
-        muscle = rest[:-4] if rest.endswith(".csv") else rest
-        loop_path = os.path.join(os.path.dirname(path), prefix + "_loop.csv")
-        if os.path.exists(loop_path):
-            loop = read_csv(loop_path).columns
-            if "tick" in loop and "state" in loop:
-                state = dict(zip(loop["tick"].tolist(), loop["state"].tolist(), strict=True))
-                columns["state"] = np.array([state.get(k, math.nan)
-                                             for k in columns["tick"].tolist()])
-    return Run(source=path, muscle=muscle, t_s=t - t[0], columns=columns, load_kg=load)
+    if not ("_state_" in base and "state" not in columns and "tick" in columns):
+        return ""
+    # `pamd export` writes <rig topic>_state_<muscle>.csv beside <rig topic>_loop.csv
+    prefix, _, rest = base.rpartition("_state_")
+    muscle = rest[:-4] if rest.endswith(".csv") else rest
+    loop_path = os.path.join(os.path.dirname(path), prefix + "_loop.csv")
+    if os.path.exists(loop_path):
+        loop = read_csv(loop_path).columns
+        if "tick" in loop and "state" in loop:
+            state = dict(zip(loop["tick"].tolist(), loop["state"].tolist(), strict=True))
+            columns["state"] = np.array([state.get(k, math.nan)
+                                         for k in columns["tick"].tolist()])
+    return muscle
 
 
 def _named_codes(name: str, cells: list[str]) -> np.ndarray | None:
