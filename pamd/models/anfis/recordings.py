@@ -16,10 +16,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError, RecordingError
 from pamd.models.anfis.samples import Run
 from pamd.record import files
-from pamd.record.tables import read_columns
+from pamd.record.tables import Columns, read_columns
 from pamd.tick import Mode, State
 
 #: Accepted names of a CSV time column (case-insensitive) and their scale to seconds.
@@ -57,9 +58,24 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
     if not info["finalised"]:
         raise ModelError(f"{path}: unfinished recording; run `pamd recover {path}` first")
     meta = info["metadata"]
-    loads = {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
+    loads = _loads(meta)
     actuations = actuations_of(meta)
-    topics = [c["topic"] for c in info["channels"]]
+    state_topics = _state_topics(path, [c["topic"] for c in info["channels"]], muscle)
+    try:
+        t = read_columns(path, muscle)
+    except RecordingError as exc:
+        raise ModelError(str(exc)) from None
+    return [_muscle_run(path, t, m, topic, loads.get(m), meta, actuations.get(m))
+            for m, topic in state_topics.items()]
+
+
+def _loads(meta: JsonObject) -> dict[str, float | None]:
+    """Each muscle's load as a recording's metadata says it (pamd.loads)."""
+    return {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
+
+
+def _state_topics(path: str, topics: list[str], muscle: str | None) -> dict[str, str]:
+    """Each muscle's state topic (only `muscle`'s, when it is named)."""
     state_topics = {t.rsplit("/", 1)[1]: t for t in topics if "/state/" in t}
     if muscle is not None:
         if muscle not in state_topics:
@@ -68,28 +84,28 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
         state_topics = {muscle: state_topics[muscle]}
     if not state_topics:
         raise ModelError(f"{path}: no /pamd/<rig>/state/<muscle> topic in this recording")
-    try:
-        t = read_columns(path, muscle)
-    except RecordingError as exc:
-        raise ModelError(str(exc)) from None
-    runs = []
-    for m, topic in state_topics.items():
-        recorded = t.muscles.get(m, {})
-        if not recorded or not len(next(iter(recorded.values()))):
-            raise ModelError(f"{path}: topic {topic} holds no messages")
-        columns = {n: c.astype(np.float64) for n, c in recorded.items()}
-        if "t_s" not in columns:
-            raise ModelError(f"{path}: topic {topic} has no t_s field")
-        if "state" in t.loop and len(t.loop.get("tick", ())) and "tick" in columns:
-            columns["state"] = state_of_ticks(columns["tick"], t.loop["tick"], t.loop["state"])
-        muscle_events = [(e.t_s, e.kind, e.data) for e in t.events
-                         if e.data.get("args", {}).get("muscle") in (None, m)]
-        runs.append(Run(source=path, muscle=m, t_s=columns["t_s"], columns=columns,
-                        load_kg=loads.get(m), events=muscle_events,
-                        meta={"rig_id": meta.get("pamd", {}).get("rig_id"),
-                              "rate_hz": _float_or_none(meta.get("pamd", {}).get("rate_hz")),
-                              "actuation": actuations.get(m)}))
-    return runs
+    return state_topics
+
+
+def _muscle_run(path: str, t: Columns, m: str, topic: str, load_kg: float | None,
+                meta: JsonObject, actuation: str | None) -> Run:
+    """Muscle `m`'s run: its recorded columns, each tick's supervisor state from the loop
+    topic, the events that concern it (`meta`: the recording's metadata)."""
+    recorded = t.muscles.get(m, {})
+    if not recorded or not len(next(iter(recorded.values()))):
+        raise ModelError(f"{path}: topic {topic} holds no messages")
+    columns = {n: c.astype(np.float64) for n, c in recorded.items()}
+    if "t_s" not in columns:
+        raise ModelError(f"{path}: topic {topic} has no t_s field")
+    if "state" in t.loop and len(t.loop.get("tick", ())) and "tick" in columns:
+        columns["state"] = state_of_ticks(columns["tick"], t.loop["tick"], t.loop["state"])
+    muscle_events = [(e.t_s, e.kind, e.data) for e in t.events
+                     if e.data.get("args", {}).get("muscle") in (None, m)]
+    return Run(source=path, muscle=m, t_s=columns["t_s"], columns=columns, load_kg=load_kg,
+               events=muscle_events,
+               meta={"rig_id": meta.get("pamd", {}).get("rig_id"),
+                     "rate_hz": _float_or_none(meta.get("pamd", {}).get("rate_hz")),
+                     "actuation": actuation})
 
 
 def state_of_ticks(ticks: np.ndarray, loop_ticks: np.ndarray, loop_state: np.ndarray
