@@ -25,7 +25,12 @@ from pamd.control.feedforward import LoadedModel
 from pamd.control.muscle import MuscleController
 from pamd.control.rig_chain import ChainResponse
 from pamd.control.rig_deadman import Deadman
-from pamd.control.rig_report import finding_event, rig_status, soft_limit_event
+from pamd.control.rig_report import (
+    feedforward_events,
+    finding_event,
+    rig_status,
+    soft_limit_event,
+)
 from pamd.control.rig_safe_state import (
     SAFE_CMD_BAND_BAR,
     at_rest,
@@ -203,6 +208,9 @@ class RigController:
                 self.sink.event(now, "soft_limit", soft_limit_event(m))
             if m.adapt_report is not None:  # rare path: the model's adaptation froze
                 self.sink.event(now, "adapt", m.take_adapt_report() or {})
+            if m.feedforward_pending:  # rare path: the model off its data, oscillating
+                for ev in feedforward_events(m):
+                    self.sink.event(now, "feedforward", ev)
             if reason is not None and fault is None:
                 fault = reason
                 if not sup.latched and state != S_STARTING:

@@ -266,6 +266,8 @@ class Daemon:
                            "max": t.compute_max_us},
             "loads_kg": {m.name: m.load_kg for m in self.ctrl.muscles},
             "tracking": self.summary.tracking(),
+            # the model's watch: its inputs off its training domain, faded, oscillating
+            "feedforward": {m.name: m.feedforward_report() for m in self.ctrl.muscles},
             "valve_switches": {m.name: m.actuation.switches() for m in self.ctrl.muscles},
             "faults": list(sup.faults),
             "final_state": sup.state.name,

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import pamd
-from pamd.errors import ModelError
 from pamd.models.anfis.samples import ExtractOptions, Samples
-from pamd.models.anfis.splitting import split
+from pamd.models.anfis.splitting import Split, split
+from pamd.models.training import fit_split
 from pamd.view.tables import load_samples
 from tests.benchmod import bench_module
 
@@ -63,10 +63,18 @@ def test_seed_002_anfis_figures_as_the_readme_reports() -> None:
     m5 = s.judge_held_out_curves(dense, *layouts["anfis 5"])
     assert m5["nrmse_fit_pct"] < 50.0 and m5["n_params"] == 64
     assert s.judge_random_split(dense, *layouts["anfis 5"])["nrmse_fit_pct"] > 98.5
-    # pamd's own 58-point map cannot train the paper's 6 x 6 layout on six curves
-    with pytest.raises(ModelError, match="60 parameters"):
-        s.judge_held_out_curves(raw, *layouts["anfis 2"])
-    assert np.isnan(s.judge_random_split(dense, *layouts["anfis 8"])["nrmse_fit_pct"])
+    # pamd's own 58-point map has fewer points on five curves than the paper's 6 x 6
+    # layout has parameters (60): trained regularised, with a warning (refused before
+    # issue 39; MATLAB's anfis trains it too)
+    kind, opts = layouts["anfis 2"]
+    held = s.pressures(raw) == s.HELD_OUT_BAR[0]
+    parts = Split(raw.subset(~held), None, raw.subset(held), {"by": "curve"})
+    model = fit_split(kind, raw, parts, options=opts, seed=0)
+    assert any("60 parameters" in w for w in model.provenance["training"]["warnings"])
+    # so ANFIS 8 on the paper's random split trains (340 parameters, 289 samples): the
+    # docs' 98.95 %
+    m8 = s.judge_random_split(dense, *layouts["anfis 8"])
+    assert m8["nrmse_fit_pct"] == pytest.approx(98.95, abs=0.1)
 
 
 def test_seed_001_ann_baseline_is_pamds_levenberg_marquardt_mlp() -> None:

@@ -18,6 +18,7 @@ from types import FrameType
 from pamd.cli.numbers import number
 from pamd.cli.run_start import StartRequests
 from pamd.config import load_config
+from pamd.config.control_schema import OFF_DATA_POLICIES
 from pamd.config.loader import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.length_targets import check_length_profile_config
@@ -151,6 +152,13 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                     "before anything starts")
     lm.add_argument("--no-feedforward", action="store_true",
                     help="position mode with the position PID alone (no model)")
+    lm.add_argument("--off-data", choices=OFF_DATA_POLICIES,
+                    help="when the model's inputs leave its training domain (a force beyond "
+                    "its trained loads, a length or pressure not seen at that force; a load "
+                    "between two trained loads is inside): fade its feedforward to the "
+                    "position PID alone there and back (fade), only say it (warn), or do not "
+                    "judge (off); overrides control.feedforward.off_data (default fade). "
+                    "The summary's feedforward line says how often")
     lm.add_argument("--ilc", action="store_true", help="position mode: iterative learning "
                     "over the cycles of a periodic length profile")
     lm.add_argument("--min-contraction", type=float, help="length profile: least "
@@ -330,11 +338,14 @@ def _models(cfg: LoadedConfig, args: argparse.Namespace
     attach to a recording."""
     models = load_models(cfg)
     names = [m.name for m in cfg.rig.muscles if args.muscle in (None, m.name)]
-    if args.model is None:
-        chosen = [models[n] for n in names if n in models]
-        return models, chosen[0].path if chosen else None
-    loaded = {n: LoadedModel.read(args.model, cfg.muscle(n), cfg.limits[n]) for n in names}
-    return {**models, **loaded}, args.model
+    if args.model is not None:
+        models |= {n: LoadedModel.read(args.model, cfg.muscle(n), cfg.limits[n])
+                   for n in names}
+    chosen = [models[n] for n in names if n in models]
+    for note in sorted({n for m in chosen for n in m.notes()}):  # an older file's lack
+        log.warning("pamd run: %s", note)
+    return models, args.model if args.model is not None else (
+        chosen[0].path if chosen else None)
 
 
 def _length_profile(args: argparse.Namespace, cfg: LoadedConfig,
@@ -427,12 +438,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _overrides(args: argparse.Namespace) -> JsonObject:
-    """The config's values this run's options override (--clock, --rate-hz)."""
+    """The config's values this run's options override (--clock, --rate-hz,
+    --off-data)."""
     overrides: JsonObject = {}
     if args.clock:
         overrides.setdefault("loop", {})["clock"] = args.clock
     if args.rate_hz is not None:
         overrides.setdefault("loop", {})["rate_hz"] = args.rate_hz
+    if args.off_data:
+        overrides.setdefault("control", {})["feedforward"] = {"off_data": args.off_data}
     return overrides
 
 
@@ -577,6 +591,8 @@ def print_summary(r: JsonObject) -> None:
     for name, t in r["tracking"].items():
         for line in _tracking_lines(name, t):
             print(line, file=out)
+    for line in _feedforward_lines(r):
+        print(line, file=out)
     for line in _switching_lines(r):
         print(line, file=out)
     rec = r.get("recording")
@@ -623,6 +639,16 @@ def _tracking_lines(name: str, t: JsonObject) -> list[str]:
     return lines
 
 
+def _feedforward_lines(r: JsonObject) -> list[str]:
+    """The summary's line on each muscle's model feedforward (none where no model ran)."""
+    lines = []
+    for name, ff in (r.get("feedforward") or {}).items():
+        line = feedforward_line(ff)
+        if line:
+            lines.append(f"  {name}: {line}")
+    return lines
+
+
 def _switching_lines(r: JsonObject) -> list[str]:
     """The summary's line on each muscle's valve switchings (on/off valves), with their
     rates over the run."""
@@ -663,6 +689,22 @@ def _recording_lines(rec: JsonObject, ticks: int) -> list[str]:
         lines.append(f"  recording FAILED: {rec['failure']['reason']} "
                      f"({rec['failure']['policy']})")
     return lines
+
+
+def feedforward_line(ff: JsonObject) -> str:
+    """The summary's line on a muscle's feedforward (none where no model ran)."""
+    if not ff.get("ticks"):
+        return ""
+    parts = []
+    if ff.get("off_data_pct") is not None:
+        parts.append(f"off its training data {ff['off_data_pct']:.1f} % of the running "
+                     f"ticks, faded {ff['faded_pct']:.1f} % (off_data: {ff['off_data']})")
+    else:
+        parts.append("off its training data: not judged (off_data: off)")
+    if ff.get("oscillations"):
+        parts.append(f"OSCILLATING against the pressure loop {ff['oscillating_pct']:.1f} % "
+                     f"of the running ticks ({ff['oscillations']} time(s))")
+    return "model feedforward " + "; ".join(parts)
 
 
 def next_steps(files: list[str]) -> str:

@@ -21,11 +21,12 @@ from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
 from pamd.models.anfis.splitting import split
 from pamd.models.compare import predict_samples
+from pamd.models.domain import derive
 from pamd.models.kind import Kind, KindOptions, OptionSpec
 from pamd.models.registry import KINDS, declared, save_model
 from pamd.models.training import fit_with, rows_of
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
-from pamd.view.judging import coverage, poor_fit
+from pamd.view.judging import poor_fit
 from pamd.view.tables import data_files, load_samples
 
 #: Option parsers argparse applies itself; any other runs after parsing (its ModelError
@@ -191,8 +192,9 @@ def run(args: argparse.Namespace) -> int:
     steps, unit, error = kind.progress(options) if kind.progress else (0, "", "")
     starts = kind.starts(options) if kind.starts else 1
     training = progress.Training(steps, starts, unit, error, args.quiet or not kind.progress)
+    # where the data lay: the training domain the tick judges the model by
     prov: JsonObject = {"data": samples.provenance(), "split": parts.how,
-                        "coverage": coverage(tr.X, inputs)}  # where the data lay
+                        "domain": derive(tr.X, tr.y, inputs, args.target).to_json()}
     try:
         fitted = fit_with(kind.name, samples, parts, options, seed=args.seed,
                           derived_inputs=derived_inputs(inputs, args.velocity_window_s),
@@ -200,6 +202,9 @@ def run(args: argparse.Namespace) -> int:
     finally:
         training.close()
     model = fitted.model
+    how = model.provenance.get("training")
+    for warning in (how.get("warnings") or []) if isinstance(how, dict) else []:
+        print(f"pamd train: WARNING: {warning}", file=sys.stderr)
     rows: dict[str, dict[str, float]] = {
         k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
     if te is not None:

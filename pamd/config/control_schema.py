@@ -262,6 +262,28 @@ class PositionConfig:
         "d2L/dt2), no lag (a hanging load only; bench/position_fast.py measures it).")
 
 
+#: What the loop does when the model's inputs leave its training domain
+#: (`pamd.models.domain`): fade its feedforward to the position PID alone, say it only, or
+#: not judge at all.
+OFF_DATA_POLICIES = ("fade", "warn", "off")
+
+
+@dataclass(frozen=True, kw_only=True)
+class FeedforwardConfig:
+    off_data: Literal["fade", "warn", "off"] = spec(
+        "fade", "The model's inputs outside its training domain (the force beyond its "
+        "outermost trained loads, or a length, velocity or pressure not seen at that force; "
+        "a load between two trained loads is inside): `fade`, the feedforward fades to the "
+        "position PID alone there (the PID's integral takes over what the model gave, so "
+        "the setpoint does not jump) and returns when the inputs are back; `warn`, counted "
+        "and said only; `off`, not judged. Either way once said as a `feedforward` event "
+        "and counted in the run summary. In length_force mode (no PID to fade to) `fade` "
+        "acts as `warn`. `pamd run --off-data` overrides it.")
+    fade_s: float = spec(0.5, "How long the feedforward takes to fade out when its inputs "
+                         "leave the training domain, and to come back.", unit="s", gt=0.0,
+                         max=60.0)
+
+
 @dataclass(frozen=True, kw_only=True)
 class ControlConfig:
     pid: PidConfig = spec(PidConfig(), "PID pressure loop gains.")
@@ -275,6 +297,8 @@ class ControlConfig:
         + ": gain 0.95 bar/bar, lag 12.5 ms, dead time 12.8 ms.")
     position: PositionConfig = spec(PositionConfig(), "The length modes (length_force, "
                                     "position): outer position loop and iterative learning.")
+    feedforward: FeedforwardConfig = spec(FeedforwardConfig(), "The inverse model's "
+                                          "feedforward off its training data.")
     rate_feedforward_s: float = spec(
         0.0253, "The setpoint's rate times this is added to the valve command; it cancels "
         "the pressure loop's dead time plus lag, both measured from a step response "

@@ -3,9 +3,11 @@ read and checked for one muscle (`LoadedModel`), then compiled and wired to the 
 signals (`Feedforward`).
 
 Inputs outside the model's training ranges are clipped to them, never extrapolated,
-and so is its output; the tick then sets `Flag.FF_CLIPPED`. The checks a model file
-must pass are `pamd.control.model_check`; the length modes that use the model are
-`pamd.control.length_control`.
+and so is its output; the tick then sets `Flag.FF_CLIPPED`. Each call also judges the
+inputs and the output against the model's training domain (`off_mask`, a table
+lookup: `pamd.models.domain`), which `pamd.control.off_data` counts and fades by. The
+checks a model file must pass are `pamd.control.model_check`; the length modes that use
+the model are `pamd.control.length_control`.
 
 `Feedforward.pressure` is on the tick path: plain float arithmetic on attributes
 prepared outside the loop. Model files are read and compiled outside the loop's
@@ -16,6 +18,7 @@ only swaps the compiled object.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 from collections.abc import Callable
 from typing import TypeVar
@@ -26,6 +29,7 @@ from pamd.control.model_check import SOURCES, check_model_for, velocity_window
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
+from pamd.models.domain import DomainTable, domain_of
 from pamd.models.registry import adaptable, load_model
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.schema.engine import Context, line_of
@@ -63,6 +67,16 @@ class LoadedModel:
 
     def feedforward(self) -> Feedforward:
         return Feedforward(self.model, self.path, self.sha256)
+
+    def notes(self) -> list[str]:
+        """What the operator is told before a run: an older file without a training
+        domain (the loop judges it by what could be derived)."""
+        d = domain_of(self.model)
+        if d.derived == "training data":
+            return []
+        return [f"model file {self.path} carries no training domain (written by an older "
+                f"pamd train): the loop judges its inputs by one derived from its "
+                f"{d.derived}; retrain it to have its own"]
 
 
 def load_models(cfg: LoadedConfig) -> dict[str, LoadedModel]:
@@ -104,7 +118,8 @@ class Feedforward:
     training range and sets `clipped` if an input or the output had to be held."""
 
     __slots__ = ("model", "source", "sha256", "compiled", "clipped", "velocity_window_s",
-                 "out_lo", "out_hi", "stateful", "_call", "_reset")
+                 "out_lo", "out_hi", "stateful", "_call", "_reset", "domain", "table",
+                 "judging", "off_mask", "_judge")
 
     def __init__(self, model: InverseModel, source: str = "", sha256: str = "") -> None:
         self.model = model
@@ -119,6 +134,13 @@ class Feedforward:
         self._call = _wire(compiled.evaluate, idx)
         self._reset = _wire(compiled.reset, idx)
         self.stateful = model.stateful
+        # the training domain (pamd.models.domain), judged on every call while `judging`
+        self.domain = domain_of(model)
+        self.table = DomainTable(self.domain)
+        self.judging = True
+        self.off_mask = 0  # the last call's: 0 inside the domain, else which columns
+        self._judge = _judge_wire(self.table, [SOURCES.index(c) for c in
+                                               self.domain.columns[:-1]])
 
     @classmethod
     def from_file(cls, path: str, muscle: MuscleConfig,
@@ -128,6 +150,8 @@ class Feedforward:
     def pressure(self, force_n: float, length_mm: float, contraction: float,
                  velocity_mm_s: float) -> float:
         y: float = self._call(force_n, length_mm, contraction, velocity_mm_s)
+        if self.judging:
+            self.off_mask = self._judge(force_n, length_mm, contraction, velocity_mm_s, y)
         clipped = self.compiled.clipped
         # Inside the inputs' ranges but off the data (a load and length never seen
         # together) a model can still answer nonsense: its output is held to the range
@@ -146,7 +170,42 @@ class Feedforward:
         self._reset(force_n, length_mm, contraction, velocity_mm_s)
 
     def describe(self) -> JsonObject:
-        return {"file": self.source, "sha256": self.sha256, **self.model.describe()}
+        return {"file": self.source, "sha256": self.sha256, **self.model.describe(),
+                "domain": self.domain.describe()}
+
+    def off_names(self, mask: int) -> list[str]:
+        """The inputs (and the output, pressure_bar) an off-domain mask names."""
+        return self.table.names(mask)
+
+
+def _judge_wire(table: DomainTable, idx: list[int]
+                ) -> Callable[[float, float, float, float, float], int]:
+    """The domain's test on the tick's four signals and the model's output: the force,
+    the domain's other columns (up to two, by their index among the signals), the
+    output."""
+    out = table.outside
+    nan = math.nan
+    if len(idx) == 2:
+        i, j = idx
+
+        def judge2(f: float, ln: float, x: float, v: float, y: float) -> int:
+            a = (f, ln, x, v)
+            return out(f, a[i], a[j], y)
+
+        return judge2
+    if len(idx) == 1:
+        (i,) = idx
+
+        def judge1(f: float, ln: float, x: float, v: float, y: float) -> int:
+            a = (f, ln, x, v)
+            return out(f, a[i], nan, y)
+
+        return judge1
+
+    def judge0(f: float, ln: float, x: float, v: float, y: float) -> int:
+        return out(f, nan, nan, y)
+
+    return judge0
 
 
 def _wire(ev: Callable[..., R], idx: list[int]) -> Callable[[float, float, float, float], R]:

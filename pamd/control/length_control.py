@@ -51,8 +51,10 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from pamd.config.control_schema import FeedforwardConfig
 from pamd.control.ilc import Ilc
 from pamd.control.incremental_pid import IncrementalPid
+from pamd.control.off_data import OffData
 from pamd.control.pid import Pid
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
 from pamd.muscle_type import GRAVITY_M_S2
@@ -83,9 +85,13 @@ class LengthControl:
 
     def __init__(self, envelope: MuscleEnvelope, position: PositionConfig,
                  feedforward: Feedforward | None, rate_feedforward_s: float = 0.0,
-                 tick_period_s: float = 0.001) -> None:
+                 tick_period_s: float = 0.001,
+                 off_data: FeedforwardConfig | None = None) -> None:
         self.set_envelope(envelope)
         self.cfg = position
+        # the model's training domain and oscillation (pamd.control.off_data)
+        od = off_data or FeedforwardConfig()
+        self.watch = OffData(od.off_data, od.fade_s)
         # position mode's dynamic feedforward (module docstring, "Feedforward that
         # knows the motion")
         self.preview_s = preview_s_of(position, rate_feedforward_s)
@@ -108,6 +114,8 @@ class LengthControl:
             self.inc = IncrementalPid(ic.method, *ic.gains(pc, tick_period_s),
                                       ic.period_s(tick_period_s), ic.output_limit_bar)
         self.ff = feedforward
+        if feedforward is not None:
+            feedforward.judging = self.watch.judging
         self.active = False  # a length mode runs
         self.use_ff = True
         self.position = False
@@ -145,14 +153,16 @@ class LengthControl:
 
     # -- commands (loop thread, not the tick) --------------------------------------------
     def model_value(self) -> float:
-        """The model's pressure at the present targets and measurements (0 without one)."""
+        """The model's pressure at the present targets and measurements, at the weight
+        the feedforward has now (0 without one)."""
         if self.ff is None or not self.use_ff:
             return 0.0
         ln = self.target_length_mm
         l0 = self.nominal_length_mm
         x = (l0 - ln) / l0
         f = self.force_lp if self.position else self.target_force_n
-        return self.ff.pressure(f, ln, x, self.target_vel.value * self.vel_scale)
+        return self.watch.weight * self.ff.pressure(f, ln, x,
+                                                    self.target_vel.value * self.vel_scale)
 
     def enter(self, mode: Mode, use_ff: bool, ilc: bool, *, from_pressure: bool,
               length_mm: float, force_n: float, setpoint_bar: float) -> None:
@@ -170,6 +180,7 @@ class LengthControl:
         self.ilc_on = ilc and self.position
         self.ilc = None
         self.reset_model(length_mm, force_n)
+        self.watch.restart()
         ff = self.model_value()
         self.pid.reset(-length_mm)
         self.bump = 0.0
@@ -209,6 +220,8 @@ class LengthControl:
         the difference between the old and the new model's pressure. Returns it (bar)."""
         before = self.model_value() if self.active else 0.0
         self.ff = ff
+        ff.judging = self.watch.judging
+        self.watch.restart()  # full weight: the difference below is the whole model's
         self.reset_model(length_mm, force_n)
         self.target_vel.window_s = ff.velocity_window_s * self.vel_scale
         if not self.active:
@@ -278,6 +291,7 @@ class LengthControl:
         planned = pos and self.planned_rate and ff_obj is not None and not ff_obj.stateful
         if self.use_ff and ff_obj is not None:
             ff = ff_obj.pressure(f_in, ln_m, x_m, v_t)
+            off = ff_obj.off_mask
             if ff_obj.clipped:
                 flags |= F_CLIP
             if planned:  # the model's derivative along the planned motion
@@ -285,6 +299,13 @@ class LengthControl:
                 ln_h = ln_m + rate_m * h
                 v_h = v_t + (rate_m * vs - v_t) * h / (tv.window_s + h)
                 ff_rate = (ff_obj.pressure(f_in, ln_h, (l0 - ln_h) / l0, v_h) - ff) / h
+            wd = self.watch  # off its data, faded, oscillating (pamd.control.off_data)
+            flags |= wd.tick(now, dt, off, state == S_RUNNING, ff, f_in, ln_m, x_m, v_t,
+                             ln_t, self.pid if self.position else None, self.inc)
+            w = wd.weight
+            if w != 1.0:
+                ff *= w
+                ff_rate *= w
         want = ff
         pid = self.pid
         i_before = pid.i

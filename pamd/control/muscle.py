@@ -84,7 +84,7 @@ class MuscleController(MuscleMotion, MuscleSafeState):
         self.length_control = LengthControl(envelope, ctl.position,  # model: its model_file
                                             None if model is None else model.feedforward(),
                                             ctl.rate_feedforward_s,
-                                            1.0 / cfg.rig.loop.rate_hz)
+                                            1.0 / cfg.rig.loop.rate_hz, ctl.feedforward)
         self.onoff = cfg.muscle(self.name).actuation == "onoff"
         self.adaptation = Adaptation(self.name, cfg.muscle(self.name).adapt,  # the model's
                                      self.length_control.ff,  # online adaptation (adapt.py)

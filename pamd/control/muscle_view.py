@@ -174,6 +174,19 @@ class MuscleView:
     def take_adapt_report(self) -> JsonObject | None:
         return self.adaptation.take_report()
 
+    @property
+    def feedforward_pending(self) -> bool:
+        """The model's inputs left its training domain, or its feedforward began to
+        oscillate, and that is not yet said (`pamd.control.off_data`)."""
+        wd = self.length_control.watch
+        return wd.pending_off or wd.pending_osc
+
+    def feedforward_report(self) -> JsonObject:
+        """The feedforward's watch for the run summary and the status: the policy and
+        the shares of the running ticks off the training domain, faded, oscillating."""
+        out: JsonObject = dict(self.length_control.watch.summary())
+        return out
+
     def take_limit_report(self) -> str | None:
         report, self.limit_report = self.limit_report, None
         return report

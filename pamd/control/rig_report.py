@@ -33,6 +33,44 @@ def soft_limit_event(m: MuscleController) -> JsonObject:
                       f"{sp:.2f} bar, command {cmd:.2f} bar) for more than 1 s"}
 
 
+def feedforward_events(m: MuscleController) -> list[JsonObject]:
+    """The `feedforward` events not yet said (`pamd.control.off_data`): the model's
+    inputs off its training domain (once since the mode or the model came), its
+    feedforward oscillating against the pressure loop (once an episode). Takes them."""
+    lc = m.length_control
+    wd, ff = lc.watch, lc.ff
+    out: list[JsonObject] = []
+    if wd.pending_off and ff is not None:
+        wd.pending_off = False
+        names = ff.off_names(wd.mask)
+        signals = dict(zip(("force_n", "length_mm", "contraction", "velocity_mm_s",
+                            "pressure_bar"), wd.values, strict=True))
+        values = {n: signals[n] for n in names}
+        fades = wd.policy == "fade" and lc.position
+        action = "fade" if fades else "warn"
+        what = ", ".join(f"{n} {values[n]:.4g}" for n in names)
+        then = (f"the feedforward fades to the position PID alone over {wd.fade_s:g} s "
+                "while they are outside" if fades else "the feedforward goes on (off_data: "
+                f"{wd.policy}{', length_force mode' if not lc.position else ''})")
+        out.append({"muscle": m.name, "what": "off_data", "action": action,
+                    "inputs": names, "values": values,
+                    "reason": f"{m.name}: the model's inputs left its training domain "
+                              f"({what}; the domain: {ff.domain.describe()}); {then}"})
+    if wd.pending_osc:
+        wd.pending_osc = False
+        osc = wd.oscillation
+        out.append({"muscle": m.name, "what": "oscillating", "action": "warn",
+                    "inputs": ["force_n"], "values": {},
+                    "amplitude_bar": round(osc.amplitude_bar, 4),
+                    "reason": f"{m.name}: the feedforward oscillates against the pressure "
+                              "loop (it turns round many times a second where the target "
+                              "does not: its force input feeds the load's bounce back; a "
+                              "model whose force slope is far steeper than the muscle's); "
+                              "retrain it (pamd train's default rule ridge), or run the "
+                              "position PID alone"})
+    return out
+
+
 def muscle_status(m: MuscleController) -> JsonObject:
     """One muscle's part of the rig's status."""
     return {

@@ -126,6 +126,17 @@ KINDS: tuple[EventKind, ...] = (
                   Key("total_bar", "number", "the adapted model's output", _BAR),
                   opt("pressure_bar", "number", "the pressure of the refused sample",
                       _BAR))),
+    EventKind("feedforward", "the model's inputs left its training domain (said once a "
+              "mode or model), or its feedforward began to oscillate against the pressure "
+              "loop (once an episode)", "controller (pamd.control.off_data)", (
+                  _MUSCLE,
+                  Key("what", "string", "off_data or oscillating"),
+                  Key("action", "string", "fade (to the position PID alone) or warn"),
+                  Key("inputs", "array", "the inputs outside the domain (pressure_bar: the "
+                      "model's output); force_n for an oscillation"),
+                  Key("values", "object", "their values at the tick that left it"),
+                  opt("amplitude_bar", "number", "half the feedforward's swing so far", _BAR),
+                  _REASON)),
     EventKind("stall", "the loop's thread woke a period or more late", "loop", (
         Key("gap_ms", "number", "how long it was away", "ms"),
         Key("count", "integer", "stalls since start"),

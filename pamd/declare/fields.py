@@ -76,6 +76,9 @@ class Flag(IntFlag):
     EXHAUST_OPEN = 1 << 8
     TRACKING = 1 << 9
     INFLATE_OPEN = 1 << 10
+    FF_OFF_DATA = 1 << 11
+    FF_FADED = 1 << 12
+    FF_OSCILLATING = 1 << 13
 
 
 FLAG_MEANINGS: dict[Flag, str] = {
@@ -90,6 +93,11 @@ FLAG_MEANINGS: dict[Flag, str] = {
     Flag.EXHAUST_OPEN: "exhaust valve open",
     Flag.TRACKING: "pressure outside the tracking band (timer running)",
     Flag.INFLATE_OPEN: "inflate valve open (on/off valves)",
+    Flag.FF_OFF_DATA: "feedforward inputs outside the model's training domain (a force "
+                      "beyond its trained loads, or a length, velocity or pressure not seen "
+                      "at that force)",
+    Flag.FF_FADED: "feedforward faded (partly or wholly) to the position PID alone",
+    Flag.FF_OSCILLATING: "feedforward oscillating against the pressure loop",
 }
 
 #: The valve flags that, on on/off valves (`actuation: onoff`), mark the PWM's own
@@ -151,7 +159,8 @@ MUSCLE: tuple[Field, ...] = (
     Field("velocity_mm_s", "mm/s", "float64", "filtered d(length)/dt"),
     Field("setpoint_bar", "bar", "float64", "pressure reference given to the PID (NaN: "
           "on/off valves in position mode have none)", plot="pressure", label="setpoint"),
-    Field("feedforward_bar", "bar", "float64", "inverse-model (ANFIS) part of the setpoint"),
+    Field("feedforward_bar", "bar", "float64", "inverse-model (ANFIS) part of the setpoint "
+          "(faded off the model's training domain: FF_FADED)"),
     Field("pid_p_bar", "bar", "float64", "PID proportional term"),
     Field("pid_i_bar", "bar", "float64", "PID integral term"),
     Field("pid_d_bar", "bar", "float64", "PID derivative term"),

@@ -45,6 +45,14 @@ SUMMARY: tuple[SummaryKey, ...] = (
                "cycle); `soft_limit_s`, how long a soft limit held the command back while "
                "RUNNING, and `soft_limit_events`, how often that lasted over 1 s (each also a "
                "`soft_limit` event)"),
+    SummaryKey("feedforward", "per muscle, the model's watch while RUNNING with it in use "
+               "(`ticks`): `off_data` (the policy, `control.feedforward.off_data`), "
+               "`off_data_pct` (its inputs off its training domain), `faded_pct` (its "
+               "feedforward faded toward the PID alone), `oscillating_pct` and `oscillations` "
+               "(against the pressure loop); the shares null where nothing was judged. Also in "
+               "the status, and as the summary's `model feedforward` line "
+               "([the inverse model](explanation/inverse-model.md), \"Off its data in the "
+               "loop\")"),
     SummaryKey("valve_switches", "per muscle, switchings per valve since start (`inflate`, "
                "`exhaust` on on/off valves; the dump valve's `exhaust` with a regulator); also "
                "in the recording's `pamd.summary` metadata"),

@@ -407,7 +407,7 @@ def fit_mamdani(X: ArrayLike, y: ArrayLike, opts: MamdaniOptions, *, input_names
     if opts.tune not in TUNES:
         raise ModelError(f"unknown tune {opts.tune!r}; expected one of {', '.join(TUNES)}")
     Xa, ya = as_inputs_outputs(X, y, input_names, output_name)
-    check_trainable(Xa, 0, input_names)
+    check_trainable(Xa, input_names)
     t0 = time.perf_counter()
     model = layout(Xa, ya, opts, input_names=input_names, input_units=input_units,
                    output_name=output_name, output_unit=output_unit,

@@ -31,6 +31,7 @@ from pamd.models import anfis_kind, fn_qupi, learned, qupi, static_force, ts_fuz
 from pamd.models.anfis import modelfile as anfis_file
 from pamd.models.contract import InverseModel
 from pamd.models.document import field, format_json, parse_json
+from pamd.models.domain import domain_of
 from pamd.models.kind import Kind
 from pamd.models.mamdani import KIND as MAMDANI
 
@@ -92,7 +93,10 @@ def kind_of(doc: object) -> str:
 def model_from_dict(doc: object, source: str = "<document>") -> InverseModel:
     """A model from a parsed model file; `ModelError` names `source` and the field."""
     try:
-        return KINDS[kind_of(doc)].from_dict(doc)
+        model = KINDS[kind_of(doc)].from_dict(doc)
+        if "domain" in model.provenance:  # its training domain, checked (pamd.models.domain)
+            domain_of(model)
+        return model
     except ModelError as exc:
         raise ModelError(f"model file {source}: {exc}") from exc
 

@@ -151,7 +151,7 @@ def fit_ts_fuzzy(X: ArrayLike, y: ArrayLike, opts: TsFuzzyOptions, *, input_name
     """Train a ts-fuzzy model; returns (model, best training MSE per epoch/generation)."""
     _check(opts)
     Xa, ya = as_inputs_outputs(X, y, input_names, output_name)
-    check_trainable(Xa, 0, input_names)
+    check_trainable(Xa, input_names)
     t0 = time.perf_counter()
     model = init_model(Xa, ya, n_mfs=opts.n_mfs, input_names=input_names,
                        input_units=input_units, output_name=output_name,

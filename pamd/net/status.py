@@ -56,6 +56,7 @@ class MuscleStatus(TypedDict):
     references: References
     model: JsonObject | None  # the inverse model's description (JSON edge)
     adapt: JsonObject  # online adaptation (pamd.control.adapt; JSON edge)
+    feedforward: JsonObject  # the model off its data, faded (pamd.control.off_data)
     deadman_left_s: float | None
 
 

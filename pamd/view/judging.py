@@ -9,14 +9,16 @@ output held). The model alone (inputs held, output free, as `predict` gives it) 
 reported beside it, so a model that only the clamp rescues shows as such.
 
 Off the data: each input can lie inside its training range while the combination
-was never seen (a load between the trained ones at a length it never had). The rule
-(`OFF_DATA_RULE`): the training inputs, each scaled to [0, 1] by its training range,
-are binned on a grid of `COVERAGE_BINS` equal bins per input, and the occupied cells
-are stored in the model file (`provenance.coverage`, written by `pamd train`). A test
-point (inputs held to the ranges, as the tick holds them) is off the data when its cell
-holds no training sample. `pamd evaluate` warns when more than `WARN_OFF_DATA_PCT` % of
-the points are off the data (its figures are then an extrapolation's), and when the
-output clamp rescued the model (unclamped RMSE over `RESCUED_RATIO` x the clamped one).
+was never seen (a length the muscle never had under that load). The rule is the
+model's training domain (`pamd.models.domain`, `RULE`: the force axis banded, a load
+between two trained loads inside, beyond the outermost not; the other inputs and the
+pressure within the bounds seen at that force), the one the tick judges the
+feedforward by (`control.feedforward.off_data`). `pamd train` writes it into the model
+file (`provenance.domain`); an older file's is derived from its coverage grid or its
+ranges, and the report says so. `pamd evaluate` warns when more than
+`WARN_OFF_DATA_PCT` % of the points are off the domain (its figures are then an
+extrapolation's), and when the output clamp rescued the model (unclamped RMSE over
+`RESCUED_RATIO` x the clamped one).
 
 A model the tick cannot run (a forward force model, seed 002's F(p, k): its target is not
 the pressure, or an input is not a signal of the tick) is judged as `predict` gives it:
@@ -41,46 +43,29 @@ from pamd.metrics import regression_metrics
 from pamd.models.anfis.samples import Samples
 from pamd.models.compare import Judged, columns_for, predict_samples, tick_cost_us
 from pamd.models.contract import MODEL_OUTPUT, SOURCES, InverseModel
+from pamd.models.domain import RULE, DomainTable, domain_of
 
-COVERAGE_BINS = 10
 WARN_OFF_DATA_PCT = 1.0
 #: the output clamp "rescues" a model whose unclamped RMSE is this many times its RMSE
 #: as the tick runs it: `pamd evaluate` then warns (and says both)
 RESCUED_RATIO = 1.1
-OFF_DATA_RULE = (f"a point is off the training data when its cell of a grid of "
-                 f"{COVERAGE_BINS} equal bins over each input's training range holds no "
-                 "training sample")
+OFF_DATA_RULE = f"the model's training domain: {RULE}"
 
 
-def coverage(X: np.ndarray, inputs: Sequence[str]) -> JsonObject:
-    """The occupied grid cells of the training inputs X (n x d), for the model file."""
+def off_data(model: InverseModel, X: np.ndarray, y_hat: np.ndarray) -> np.ndarray:
+    """Which rows of X (the model's input order) with the model's outputs y_hat lie off
+    its training domain (`pamd.models.domain`), as the tick judges them."""
+    domain = domain_of(model)
+    table = DomainTable(domain)
+    names = [v.name for v in model.inputs]
     Xa = np.asarray(X, dtype=np.float64)
-    lo, hi = Xa.min(axis=0), Xa.max(axis=0)
-    cells = np.unique(_cells(Xa, lo, hi))
-    return {"rule": OFF_DATA_RULE, "bins": COVERAGE_BINS, "inputs": list(inputs),
-            "lo": lo.tolist(), "hi": hi.tolist(), "cells": cells.tolist()}
-
-
-def _cells(X: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-           bins: int = COVERAGE_BINS) -> np.ndarray:
-    span = np.where(hi > lo, hi - lo, 1.0)
-    k = np.floor((np.clip(X, lo, hi) - lo) / span * bins).astype(np.int64)
-    k = np.clip(k, 0, bins - 1)  # the top of a range falls in the last bin
-    flat = np.zeros(X.shape[0], dtype=np.int64)
-    for j in range(X.shape[1]):
-        flat = flat * bins + k[:, j]
-    return flat
-
-
-def off_data(model: InverseModel, X: np.ndarray) -> np.ndarray | None:
-    """Which rows of X (the model's input order) are off its training data, or None
-    when the model file does not say where its data lay (trained before the rule)."""
-    cov = model.provenance.get("coverage")
-    if not isinstance(cov, dict) or cov.get("inputs") != [v.name for v in model.inputs]:
-        return None
-    lo, hi = np.array(cov["lo"], dtype=np.float64), np.array(cov["hi"], dtype=np.float64)
-    cells = _cells(np.asarray(X, dtype=np.float64), lo, hi, int(cov["bins"]))
-    return np.asarray(~np.isin(cells, np.array(cov["cells"], dtype=np.int64)))
+    nan = np.full(Xa.shape[0], math.nan)
+    f = Xa[:, names.index(domain.axis)] if domain.axis is not None else nan
+    cols = [Xa[:, names.index(c)] for c in domain.columns[:-1]]
+    cols += [nan] * (2 - len(cols))
+    rows = zip(f.tolist(), cols[0].tolist(), cols[1].tolist(),
+               np.asarray(y_hat, dtype=np.float64).tolist(), strict=True)
+    return np.array([table.outside(*r) != 0 for r in rows], dtype=bool)
 
 
 def poor_fit(metrics: JsonObject) -> str | None:
@@ -133,18 +118,19 @@ class TickReport:
     n: int
     inputs_held: int
     output_held: int
-    off_data: int | None  # None: the model file does not say where its data lay
+    off_data: int
     model_alone: dict[str, float]  # metrics of predict (inputs held, output free)
     tick_rmse: float  # RMSE as the tick runs it
     offline: bool = False  # a model the tick cannot run (judged as predict gives it)
+    domain_from: str = "training data"  # what its domain was made from (older files)
 
     def pct(self, k: int) -> float:
         return 100.0 * k / self.n if self.n else 0.0
 
     def summary(self) -> str:
-        off = ("off the training data: not known (the model file predates the rule; "
-               "retrain to get it)" if self.off_data is None else
-               f"{self.off_data} ({self.pct(self.off_data):.1f} %) off the training data")
+        off = (f"{self.off_data} ({self.pct(self.off_data):.1f} %) off the training data"
+               + ("" if self.domain_from == "training data" else
+                  f" (its domain derived from its {self.domain_from})"))
         if self.offline:
             return (f"a model the tick does not run (judged offline): {self.inputs_held} "
                     f"({self.pct(self.inputs_held):.1f} %) with inputs held to the training "
@@ -156,7 +142,7 @@ class TickReport:
 
     def warnings(self, file: str) -> list[str]:
         out = []
-        if self.off_data is not None and self.pct(self.off_data) > WARN_OFF_DATA_PCT:
+        if self.pct(self.off_data) > WARN_OFF_DATA_PCT:
             out.append(f"warning: {file}: {self.pct(self.off_data):.1f} % of the points lie "
                        "outside the training data jointly (each input may be inside its "
                        f"range; rule: {OFF_DATA_RULE}); these figures are extrapolation")
@@ -171,7 +157,7 @@ class TickReport:
     def as_json(self) -> JsonObject:
         return {"samples": self.n, "offline": self.offline, "inputs_held": self.inputs_held,
                 "output_held": self.output_held, "off_data": self.off_data,
-                "off_data_rule": OFF_DATA_RULE,
+                "off_data_rule": OFF_DATA_RULE, "domain_from": self.domain_from,
                 "model_alone": {k: None if isinstance(v, float) and not math.isfinite(v)
                                 else v for k, v in self.model_alone.items()}}
 
@@ -188,13 +174,12 @@ def judge_as_tick(files: Sequence[str], models: Sequence[InverseModel], samples:
             y, held_in, held_out = alone, alone_held, np.zeros(len(samples), dtype=bool)
         else:
             y, held_in, held_out = tick_predict(m, samples)
-        off = off_data(m, X)
+        off = off_data(m, X, alone)
         metrics = regression_metrics(samples.y, y, m.n_params)
         judged = Judged(file, m, y, held_in | held_out, metrics,
                         tick_cost_us(m, X) if timing else math.nan)
         out.append((judged, TickReport(
-            len(samples), int(held_in.sum()), int(held_out.sum()),
-            None if off is None else int(off.sum()),
+            len(samples), int(held_in.sum()), int(held_out.sum()), int(off.sum()),
             regression_metrics(samples.y, alone, m.n_params), float(metrics["rmse"]),
-            offline)))
+            offline, domain_of(m).derived)))
     return out

@@ -652,7 +652,8 @@ def load_samples(paths: Sequence[str], options: ExtractOptions,
         missing = [n for n in need if n not in r.columns and n != "velocity_mm_s"]
         if "velocity_mm_s" in need and r.meta.get("time") == "rows":
             raise ModelError(f"{r.label}: a velocity_mm_s input needs a time column "
-                             "(t_s, time [ms], ...); this table has none")
+                             "(t_s, time [ms], ...); this table has none (without one, "
+                             "train on --inputs force_n,length_mm)")
         if "velocity_mm_s" in need and "length_mm" not in r.columns:
             missing.append("length_mm")
         if missing:

@@ -78,7 +78,7 @@ def test_adapts_records_its_drift_and_saves_a_model_that_loads(trained, tmp_path
     cfg = load_config(str(cfg_path))
     adapted = LoadedModel.read(str(out), cfg.muscle("m1"), cfg.limits["m1"]).model
     trained_model = load_model(source)
-    x = np.array([[294.0, 180.0], [300.0, 175.0]])
+    x = np.array([[294.0, 180.0, 0.0], [300.0, 175.0, 1.0]])  # pamd train's default inputs
     assert not np.allclose(adapted.predict(x), trained_model.predict(x))  # type: ignore[attr-defined]
 
 

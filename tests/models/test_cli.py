@@ -18,7 +18,9 @@ def test_train_writes_each_kind(trained: dict[str, Path], capsys: Any) -> None:
     # pressure, which changes by ~270 N over the contraction range: it is the weakest.
     # ts-fuzzy: seed 001's 27 singletons and GA as printed since #28 (0.127 with the
     # earlier first-order model, ridge 0.01, scaled wheel and grid start).
-    want = {"anfis": 0.390, "ts-fuzzy": 0.163, "polynomial": 1.781, "sarosi": 0.436}
+    # anfis: pamd train's default 3 inputs and rule ridge since issue 39 (0.390 with 2
+    # inputs and plain least squares).
+    want = {"anfis": 0.0887, "ts-fuzzy": 0.163, "polynomial": 1.781, "sarosi": 0.436}
     for kind, path in trained.items():
         m = load_model(path)
         assert m.kind == kind and "validation" in m.metrics

@@ -357,6 +357,10 @@ def test_status_snapshot_from_a_running_daemon(sim_daemon: Any) -> None:
     assert tuple(st) == STATUS_FIELDS and tuple(st["muscles"]["m1"]) == MUSCLE_STATUS_FIELDS
     assert st["rig_id"] == "sim" and st["config_sha256"] == d.cfg.sha256
     assert st["muscles"]["m1"]["references"]["length_referenced"] is True
+    # the model's watch as the run summary has it (no model ran: nothing judged)
+    assert st["muscles"]["m1"]["feedforward"] == {
+        "off_data": "fade", "off_data_pct": None, "faded_pct": None,
+        "oscillating_pct": None, "oscillations": 0, "ticks": 0}
     assert "setpoint" in st["verbs"] and "timing" not in st  # the io process adds it
     # the io process's timing statistics agree with the loop's own histogram
     stats, hist = TickStats(period_s=0.0), Histogram()

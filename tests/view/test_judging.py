@@ -14,8 +14,10 @@ import pamd
 from pamd.cli.main import main
 from pamd.control.feedforward import Feedforward
 from pamd.models.anfis.samples import ExtractOptions
+from pamd.models.contract import Variable
+from pamd.models.domain import derive
 from pamd.models.registry import load_model
-from pamd.view.judging import coverage, judge_as_tick, off_data, poor_fit
+from pamd.view.judging import judge_as_tick, off_data, poor_fit
 from pamd.view.tables import load_samples
 
 MAP = Path(pamd.__file__).parent / "data" / "dmsp20_force_map.csv"
@@ -63,28 +65,32 @@ def test_the_tick_s_clamps_are_the_feedforward_s(map_model: Path, tmp_path: Path
 
 def test_points_off_the_data_jointly_are_found() -> None:
     """Training on a diagonal band of a square: a point in the empty corner is inside
-    each input's range but off the data; a point on the band is not."""
+    each input's range but off the data; a point on the band is not; nor is a pressure
+    outside the one seen there."""
     rng = np.random.default_rng(0)
     a = rng.uniform(0, 1, 2000)
     X = np.c_[a, a + rng.uniform(-0.05, 0.05, 2000)]
-    cov = coverage(X, ["force_n", "contraction"])
+    y = 2.0 + X[:, 1]
 
     class M:
-        provenance = {"coverage": cov}
-        inputs = [type("V", (), {"name": n})() for n in ("force_n", "contraction")]
+        provenance = {"domain": derive(X, y, ["force_n", "contraction"],
+                                       "pressure_bar").to_json()}
+        inputs = [Variable("force_n", "N", 0, 1), Variable("contraction", "", -0.05, 1.05)]
+        output = Variable("pressure_bar", "bar", 2.0, 3.0)
 
-    test = np.array([[0.9, 0.1], [0.1, 0.9], [0.5, 0.5], [0.2, 0.21], [0.95, 0.96]])
-    mask = off_data(M(), test)  # type: ignore[arg-type]
-    assert mask is not None and mask.tolist() == [True, True, False, False, False]
-    # a model file from before the rule: not known, not guessed
-    M.provenance = {}
-    assert off_data(M(), test) is None  # type: ignore[arg-type]
+    test = np.array([[0.9, 0.1], [0.1, 0.9], [0.5, 0.5], [0.2, 0.21], [0.95, 0.96],
+                     [0.5, 0.5]])
+    y_hat = np.array([2.5, 2.5, 2.5, 2.2, 2.9, 4.0])
+    mask = off_data(M(), test, y_hat)  # type: ignore[arg-type]
+    assert mask.tolist() == [True, True, False, False, False, True]
 
 
-def test_evaluate_warns_off_the_data_and_not_on_held_out_data(
+def test_evaluate_warns_off_the_data_and_not_between_loads(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """A model of a smooth surface trained on two separate bands of its inputs: a test
-    on the same bands is not warned of; one between the bands (each input in range) is."""
+    """A model of a smooth surface trained on two separate bands of force: a test on the
+    same bands is not warned of, nor one between them (interpolating between two loads
+    is the model's job); one beyond the heavier band (each input in range: the force
+    held) is."""
     rng = np.random.default_rng(2)
 
     def surface(n: int, f_lo: float, f_hi: float) -> tuple[np.ndarray, np.ndarray]:
@@ -97,19 +103,20 @@ def test_evaluate_warns_off_the_data_and_not_on_held_out_data(
     model = tmp_path / "m.json"
     assert main(["train", str(train), "--out", str(model), "--inputs", "force_n,contraction",
                  "--mfs", "2", "--quiet"]) == 0
-    assert "coverage" in json.loads(model.read_text())["provenance"]
+    assert "domain" in json.loads(model.read_text())["provenance"]
     capsys.readouterr()
-    Xs, ys = surface(300, 100, 200)
-    same = write_table(tmp_path / "same.csv", Xs, ys)
-    assert main(["evaluate", str(model), str(same), "--no-timing"]) == 0
-    out = capsys.readouterr()
-    assert "0 (0.0 %) off the training data" in out.out and "warning" not in out.err
-    Xg, yg = surface(300, 300, 450)  # forces between the bands
+    for lo, hi in ((100, 200), (300, 450)):  # a band trained on, and between the bands
+        Xs, ys = surface(300, lo, hi)
+        same = write_table(tmp_path / "same.csv", Xs, ys)
+        assert main(["evaluate", str(model), str(same), "--no-timing"]) == 0
+        out = capsys.readouterr()
+        assert "0 (0.0 %) off the training data" in out.out and "warning" not in out.err
+    Xg, yg = surface(300, 800, 900)  # heavier than the heavier band
     gap = write_table(tmp_path / "gap.csv", Xg, yg)
     assert main(["evaluate", str(model), str(gap), "--json", "--no-timing"]) == 0
     out = capsys.readouterr()
     tick = json.loads(out.out)["models"][0]["tick"]
-    assert tick["off_data"] == 300 and tick["inputs_held"] == 0
+    assert tick["off_data"] == 300 and tick["inputs_held"] == 300
     assert "100.0 % of the points lie outside the training data jointly" in out.err
 
 

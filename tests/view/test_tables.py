@@ -43,7 +43,9 @@ def test_the_datasheet_map_trains_and_evaluates(tmp_path: Path,
                  "--mfs", "3", "--block-s", "8", "--quiet"]) == 0
     doc = json.loads(model.read_text())
     assert doc["metrics"]["validation"]["nrmse_fit_pct"] > 85.0
-    assert doc["metrics"]["train"]["rmse"] < 0.05  # bar, over 0-6 bar
+    # bar, over 0-6 bar: pamd train's rule ridge trades in-sample fit (0.009 with plain
+    # least squares) for the held-out blocks' (0.060 against 0.063)
+    assert doc["metrics"]["train"]["rmse"] < 0.06
     capsys.readouterr()
     assert main(["evaluate", str(model), str(MAP), "--json", "--no-timing"]) == 0
     out = json.loads(capsys.readouterr().out)

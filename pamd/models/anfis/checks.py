@@ -3,7 +3,8 @@
 Role: turn whatever the caller passes (lists, arrays) into float64 arrays of the
 expected shapes, or raise `pamd.errors.ModelError` naming the problem and, where the
 caller gave names, the column. Checked: shapes and lengths, NaN/inf, constant input
-columns, and enough samples for the number of model parameters.
+columns; fewer samples than model parameters is said, not refused
+(`fewer_samples_than_parameters`).
 """
 
 from __future__ import annotations
@@ -80,11 +81,10 @@ def _check_finite(col: np.ndarray, label: str, what: str) -> None:
 
 def check_trainable(
     X: np.ndarray,
-    n_params: int,
     input_names: Sequence[str] | None = None,
     what: str = "training data",
 ) -> None:
-    """Refuse constant input columns and fewer samples than model parameters."""
+    """Refuse constant input columns (no membership function can be placed on one)."""
     for i in range(X.shape[1]):
         lo, hi = float(X[:, i].min()), float(X[:, i].max())
         if not hi > lo:
@@ -93,9 +93,15 @@ def check_trainable(
                 "sample, so no membership functions can be placed on it; drop the input "
                 "or collect data that spans a range"
             )
-    n = X.shape[0]
-    if n < n_params:
-        raise ModelError(
-            f"{what}: {n} samples for a model with {n_params} parameters; need at least "
-            f"{n_params} (collect more data or use fewer membership functions)"
-        )
+
+
+def fewer_samples_than_parameters(n: int, n_params: int) -> str | None:
+    """What to say of training `n_params` parameters on `n` samples (None: enough).
+    Not a refusal: the papers (and MATLAB's anfis) train such layouts; the least
+    squares are then regularised (`TrainingOptions.rule_ridge`), so the consequents
+    are unique and bounded, but the figures on the training data flatter the model."""
+    if n >= n_params:
+        return None
+    return (f"{n} samples for a model with {n_params} parameters: trained with the "
+            "consequents' least squares regularised (rule ridge); judge it on data it was "
+            "not trained on, or use fewer membership functions")

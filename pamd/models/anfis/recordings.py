@@ -70,8 +70,15 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
 
 
 def _loads(meta: JsonObject) -> dict[str, float | None]:
-    """Each muscle's load as a recording's metadata says it (pamd.loads)."""
-    return {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
+    """Each muscle's load as a recording's metadata says it (pamd.loads; a plan's step
+    file: the load its step hung)."""
+    loads = {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
+    # a plan's step file: the load its step hung (pamd.loads is the config's, at the
+    # run's start), as pamd.view.recording reads it
+    step_load = _float_or_none(meta.get("pamd.experiment", {}).get("load_kg"))
+    if step_load is not None:
+        loads = dict.fromkeys(loads, step_load)
+    return loads
 
 
 def _state_topics(path: str, topics: list[str], muscle: str | None) -> dict[str, str]:

@@ -26,14 +26,18 @@ import copy
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from pamd.declare.jsonsafe import JsonObject
 from pamd.metrics import regression_metrics
-from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
+from pamd.models.anfis.checks import (
+    as_inputs_outputs,
+    check_trainable,
+    fewer_samples_than_parameters,
+)
 from pamd.models.anfis.membership import log_membership, log_membership_grads
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel, init_model, rule_firing
 from pamd.models.anfis.step_size import StepSizeState, update_step_size
@@ -46,6 +50,13 @@ ProgressCallback = Callable[[int, float, float | None], None]
 #: the "auto" solver uses the normal equations (first solve's relative error about
 #: cond * 1e-16, shrunk by about the same factor again by one refinement step).
 NORMAL_EQUATIONS_MAX_COND = 1e12
+
+
+#: pamd train's `--rule-ridge` (`TrainingOptions.rule_ridge`, 0 there: Jang's algorithm as
+#: written): chosen on held-out loads of the shipped training data
+#: (bench/model_between_loads.py --select; docs/explanation/inverse-model.md, "The
+#: default inverse model").
+RULE_RIDGE = 1e-4
 
 
 #: Initial MF widths to start from, the default (`TrainingOptions.width_factor`): `fit`
@@ -82,6 +93,9 @@ class TrainingOptions:
     error_goal: float = 0.0  # stop once the training RMSE is at or below this
     solver: str = "auto"  # "auto" (normal equations if well conditioned) or "lstsq" (SVD)
     ridge: float = 0.0  # adds ridge * ||consequents||^2 to the squared error (0 = none)
+    # adds rule_ridge * (m_r + mean m) * ||rule r's consequents - the one linear model
+    # of all data||^2, m_r = sum of wbar_r^2 over the samples: see `rule_penalty`
+    rule_ridge: float = 0.0  # Jang's plain least squares; pamd train's default: RULE_RIDGE
     validation_fraction: float = 0.0  # hold out this share when no validation set is given
     seed: int = 0  # seeds the validation hold-out (the only random choice)
     restore_best: bool = True  # end with the best epoch's parameters
@@ -100,12 +114,14 @@ class TrainingResult:
     best_epoch: int
     selected_on: str  # "validation" or "training"
     seconds: float
+    warnings: list[str] = field(default_factory=list)  # what pamd train says of the fit
 
 
 def solve_consequents(
-    A: np.ndarray, y: np.ndarray, *, solver: str = "auto", ridge: float = 0.0
+    A: np.ndarray, y: np.ndarray, *, solver: str = "auto", ridge: float | np.ndarray = 0.0
 ) -> np.ndarray:
-    """Least-squares consequents theta minimising ||A theta - y||^2 + ridge ||theta||^2.
+    """Least-squares consequents theta minimising ||A theta - y||^2 + sum_j ridge_j
+    theta_j^2 (`ridge` one number for every column, or one per column).
 
     ``"lstsq"``: SVD-based `numpy.linalg.lstsq` (rank-deficient columns, e.g. rules
     that never fire, get the minimum-norm solution). ``"auto"``: the normal equations,
@@ -119,10 +135,12 @@ def solve_consequents(
     if solver not in ("lstsq", "auto"):
         raise ValueError(f"unknown solver {solver!r}; expected 'lstsq' or 'auto'")
     p = A.shape[1]
+    lam = np.broadcast_to(np.asarray(ridge, dtype=np.float64), (p,))
+    penalised = bool(np.any(lam > 0))
     if solver == "auto":
         gram = A.T @ A
-        if ridge > 0:
-            gram[np.diag_indices(p)] += ridge
+        if penalised:
+            gram[np.diag_indices(p)] += lam
         d = np.sqrt(np.diag(gram))
         if np.all(d > 0):
             scaled = gram / np.outer(d, d)  # unit diagonal: column equilibration
@@ -135,12 +153,15 @@ def solve_consequents(
                 if cond <= NORMAL_EQUATIONS_MAX_COND:
                     x = (inv @ ((A.T @ y) / d)) / d
                     # One refinement step on the normal-equation residual.
-                    r = A.T @ (y - A @ x) - ridge * x
+                    r = A.T @ (y - A @ x) - lam * x
                     out: np.ndarray = x + (inv @ (r / d)) / d
                     return out
-    if ridge > 0:
-        A = np.vstack([A, math.sqrt(ridge) * np.eye(p)])
-        y = np.concatenate([y, np.zeros(p)])
+    if penalised:
+        rows = np.flatnonzero(lam > 0)
+        extra = np.zeros((rows.size, p))
+        extra[np.arange(rows.size), rows] = np.sqrt(lam[rows])
+        A = np.vstack([A, extra])
+        y = np.concatenate([y, np.zeros(rows.size)])
     theta: np.ndarray = np.linalg.lstsq(A, y, rcond=None)[0]
     return theta
 
@@ -211,6 +232,54 @@ class _Layout:
         return vec
 
 
+def rule_penalty(wbar: np.ndarray, cols: int, rule_ridge: float) -> np.ndarray:
+    """The ridge of every consequent column (rule-major, `cols` per rule): rule r's
+    parameters are penalised by rule_ridge * (m_r + mean m), m_r = sum over the
+    samples of wbar_r^2 (its firing mass, the diagonal of its constant column), toward
+    the one linear model of all the data (`solve_rules`).
+
+    Why per rule and relative to its mass: the data tell a rule's slope p_k from its
+    constant q only by the spread of the scaled input s_k among the samples the rule
+    fires on (the information on p_k beyond q is about m_r var(s_k)). Against a
+    penalty rule_ridge m_r p_k^2, a slope is fitted where the input's spread in the
+    rule's data exceeds about sqrt(rule_ridge) of its training range, and held near
+    the prior where it does not: the force of a hanging-load sweep, constant to +-5 N
+    per load (a 0.1 % spread), gives a force rule's slope nothing to fit, and
+    unpenalised the least squares trade p_k against q to about 1e9 in opposition
+    (exact on the band, wild between bands). The mean mass added to each rule's keeps
+    a rule that hardly fires (a membership function between the loads trained on) at
+    the prior instead of at whatever its few samples say."""
+    if rule_ridge <= 0.0:
+        return np.zeros(wbar.shape[1] * cols)
+    mass = np.einsum("nr,nr->r", wbar, wbar)
+    out: np.ndarray = np.repeat(rule_ridge * (mass + mass.mean()), cols)
+    return out
+
+
+def prior_consequents(Sa: np.ndarray, y: np.ndarray, cols: int) -> np.ndarray:
+    """The one linear model of all the data (least squares of y on the last `cols`
+    columns of Sa = [s, 1]): what `rule_ridge` shrinks every rule toward."""
+    theta: np.ndarray = np.linalg.lstsq(Sa[:, -cols:], y, rcond=None)[0]
+    return theta
+
+
+def solve_rules(layout: _Layout, wbar: np.ndarray, Sa: np.ndarray, y: np.ndarray,
+                opts: TrainingOptions, prior: np.ndarray | None) -> np.ndarray:
+    """The consequents (R x (d + 1)) for firing strengths wbar: least squares, with
+    `opts.ridge` toward 0 and `opts.rule_ridge` toward `prior` (`rule_penalty`): since
+    the normalised strengths sum to 1, the model with every rule at the prior is the
+    prior itself, so the deviations solve the same problem on the prior's residual."""
+    cols = layout.cons_cols
+    A = _design(wbar, Sa[:, -cols:])
+    if prior is None or opts.rule_ridge <= 0.0:
+        return layout.consequents(solve_consequents(A, y, solver=opts.solver,
+                                                    ridge=opts.ridge))
+    penalty = rule_penalty(wbar, cols, opts.rule_ridge) + opts.ridge
+    delta = solve_consequents(A, y - Sa[:, -cols:] @ prior, solver=opts.solver,
+                              ridge=penalty)
+    return layout.consequents(delta + np.tile(prior, layout.n_rules))
+
+
 def _design(wbar: np.ndarray, Sa: np.ndarray) -> np.ndarray:
     """Least-squares design matrix: column r*(d+1)+k is wbar_r * [s, 1]_k."""
     out: np.ndarray = np.einsum("nr,nk->nrk", wbar, Sa).reshape(wbar.shape[0], -1)
@@ -261,7 +330,13 @@ def train(
         Xv, yv = as_inputs_outputs(*validation, names, model.output.name, what="validation data")
     else:
         Xv = yv = None
-    check_trainable(Xa, model.n_params, names)
+    check_trainable(Xa, names)
+    warnings: list[str] = []
+    few = fewer_samples_than_parameters(Xa.shape[0], model.n_params)
+    if few is not None:
+        warnings.append(few)
+        if opts.rule_ridge <= 0.0 and opts.ridge <= 0.0:  # unique and bounded, as said
+            opts = replace(opts, rule_ridge=RULE_RIDGE)
     t0 = time.perf_counter()
     layout = _Layout(model)
     Sa = _with_ones(model.scale(np.clip(Xa, model.input_lo, model.input_hi)))
@@ -275,10 +350,10 @@ def train(
     val_hist: list[float] = []
     steps: list[float] = []
     best = (math.inf, 0, vec.copy(), theta.copy())
+    prior = prior_consequents(Sa, ya, layout.cons_cols) if opts.rule_ridge > 0 else None
     for epoch in range(1, opts.epochs + 1):
         wbar, dlogs = layout.forward(vec, Sa)
-        theta = layout.consequents(solve_consequents(
-            _design(wbar, Sa[:, -layout.cons_cols:]), ya, solver=opts.solver, ridge=opts.ridge))
+        theta = solve_rules(layout, wbar, Sa, ya, opts, prior)
         F = Sa @ theta.T
         y_hat = np.einsum("nr,nr->n", wbar, F)
         err = y_hat - ya
@@ -318,6 +393,7 @@ def train(
         best_epoch=best[1] if opts.restore_best else len(train_hist),
         selected_on="training" if Sva is None else "validation",
         seconds=seconds,
+        warnings=warnings,
     )
     _record(model, opts, result, Xa, ya, Xv, yv)
     return result
@@ -332,6 +408,7 @@ def _check_options(opts: TrainingOptions) -> None:
             ("step_increase", opts.step_increase, opts.step_increase >= 1, "must be >= 1"),
             ("step_decrease", opts.step_decrease, 0 < opts.step_decrease <= 1, "in (0, 1]"),
             ("ridge", opts.ridge, opts.ridge >= 0, "must be >= 0"),
+            ("rule_ridge", opts.rule_ridge, opts.rule_ridge >= 0, "must be >= 0"),
             ("consequent", opts.consequent, opts.consequent in CONSEQUENTS,
              f"one of {CONSEQUENTS}"),
             ("min_width", opts.min_width, opts.min_width > 0, "must be > 0"),
@@ -396,6 +473,7 @@ def _record(
         "selected_on": result.selected_on,
         "final_step": float(result.step_sizes[-1]) if result.step_sizes.size else None,
         "seconds": round(result.seconds, 3),
+        "warnings": list(result.warnings),
         "pamd_version": __version__,
         "numpy_version": np.__version__,
     }
@@ -421,7 +499,7 @@ def fit(
     if validation is None and opts.validation_fraction > 0:
         Xa, ya, Xv, yv = _split(Xa, ya, opts.validation_fraction, opts.seed)
         validation = (Xv, yv)
-    check_trainable(Xa, 0, input_names)  # constant columns first: they break the layout
+    check_trainable(Xa, input_names)  # constant columns first: they break the layout
     starts = width_starts(opts)
     _check_options(opts)
     best: tuple[float, TrainingResult] | None = None

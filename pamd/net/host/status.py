@@ -120,5 +120,6 @@ class StatusBuilder:
                 "force_offset_n": ref.force_offset_n},
             "model": ff.describe() if ff is not None else None,
             "adapt": m.adaptation.describe(),  # online adaptation (pamd.control.adapt)
+            "feedforward": m.feedforward_report(),  # off its data (pamd.control.off_data)
             "deadman_left_s": None if dm is None else max(0.0, dm[0] - self.ctrl.now),
         }

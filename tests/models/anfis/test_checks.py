@@ -49,10 +49,21 @@ def test_constant_column_named() -> None:
     assert "'force_n'" in msg and "constant" in msg
 
 
-def test_too_few_samples_for_the_parameters() -> None:
+def test_fewer_samples_than_parameters_train_regularised_with_a_warning() -> None:
+    """As the papers and MATLAB train them (seed 002's ANFIS 2-8): not refused; the
+    least squares regularised (bounded, unique consequents) and the fit says so."""
     X, y = data(40)  # 5 x 5 MFs: 25 * 3 + 20 = 95 parameters
-    msg = refused(X, y, TrainingOptions(n_mfs=5, epochs=2))
-    assert "40 samples" in msg and "95 parameters" in msg
+    res = fit(X, y, TrainingOptions(n_mfs=5, epochs=2), input_names=NAMES)
+    (warning,) = res.warnings
+    assert "40 samples" in warning and "95 parameters" in warning
+    training = res.model.provenance["training"]
+    assert training["warnings"] == [warning] and training["options"]["rule_ridge"] > 0
+    assert np.all(np.isfinite(res.model.consequents))
+    assert np.abs(res.model.consequents).max() < 100.0  # bounded: y spans about 10
+    # without the ridge (plain least squares) the same data would be underdetermined:
+    # many exact fits; the regularised one is the one that stays near the data's plane
+    X2, y2 = data(400)
+    assert fit(X2, y2, TrainingOptions(n_mfs=5, epochs=2), input_names=NAMES).warnings == []
 
 
 def test_mismatched_shapes() -> None:

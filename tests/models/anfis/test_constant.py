@@ -145,7 +145,8 @@ def test_init_model_lays_out_a_constant_model() -> None:
 def test_pamd_train_consequent_constant(recording: Path, tmp_path: Path, capsys: Any) -> None:
     out = tmp_path / "c.json"
     assert main(["train", str(recording), "--out", str(out), "--kind", "anfis",
-                 "--consequent", "constant", "--mfs", "3", "--epochs", "5",
+                 "--inputs", "force_n,length_mm", "--consequent", "constant", "--mfs", "3",
+                 "--epochs", "5",
                  "--block-s", "1", "--settle-s", "0.5", "--quiet"]) == 0
     model = load(out)
     assert model.consequent == "constant" and np.all(model.consequents[:, :-1] == 0.0)

@@ -71,7 +71,7 @@ def test_train_on_all_data_and_table_without_json(recording: Path, tmp_path: Pat
     assert main(["train", str(recording), "--out", str(model_path), "--val-split", "0",
                  "--mfs", "3", "--epochs", "3", "--quiet"]) == 0
     model = load(model_path)
-    assert model.n_rules == 9 and "validation" not in model.metrics
+    assert model.n_rules == 27 and "validation" not in model.metrics  # 3 inputs: default
     assert model.provenance["split"]["validation_samples"] == 0
     capsys.readouterr()
     assert main(["evaluate", str(model_path), str(recording)]) == 0
@@ -116,7 +116,7 @@ def test_the_actuation_option_does_not_override_a_recordings_config(
 
 @pytest.mark.parametrize("args, message", [
     (["--inputs", "force_n,stiffness"], "unknown input(s) stiffness"),
-    (["--mfs", "5,5,5"], "3 numbers for 2 inputs"),
+    (["--mfs", "5,5"], "2 numbers for 3 inputs"),
     (["--val-split", "1.5"], "fraction must be in [0, 1)"),
 ])
 def test_bad_train_options_are_refused(recording: Path, tmp_path: Path, capsys: Any,
