@@ -143,6 +143,13 @@ def plateaus(load_kg: float, step_mm: float) -> list[dict[str, float]]:
         assert sup.state in (State.RUNNING, State.IDLE) and not sup.faults, sup.faults
     finally:
         h.rig.close()
+    return plateau_figures(trace)
+
+
+def plateau_figures(trace: list[tuple[float, float, float]]) -> list[dict[str, float]]:
+    """Each plateau of a (t_s, target_mm, length_mm) trace, a target held 1 s or more:
+    target (mm), settle_s (the last time the length was outside BAND_MM of it, from the
+    plateau's start) and last_s_max_error_mm (the worst error in its last second)."""
     out: list[dict[str, float]] = []
     start = 0
     for i in range(1, len(trace) + 1):

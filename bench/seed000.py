@@ -1,28 +1,39 @@
-"""Seed 000 beside pamd: the ANFIS inverse model (force, length -> pressure) on the
-paper's protocol as far as the simulated rig allows; `rows(quick)` for bench/seeds.py.
+"""Seed 000 beside pamd: the ANFIS inverse model (force, length -> pressure), under the
+paper's protocol and under pamd's, on the simulated rig or a lab's data (`--data`);
+`rows(quick, data)` for bench/seeds.py.
 
 The paper: PID pressure control follows a 0.05 Hz sine over 0-7 bar with hanging loads
 of 15-100 kg; a first-order Sugeno ANFIS, 5 Gaussian MFs on force and on muscle length
-(25 rules), hybrid learning, maps (force, length) to pressure; two new data sets test
-it, the first of 85 samples drawn at random ("a random mixture ... by a common sequence
-index"), with a largest error of 5-8 %, the second alike (no figure given).
+(25 rules), hybrid learning in MATLAB's toolbox, maps (force, length) to pressure; two
+new data sets test it, the first of 85 samples ("a random mixture ... by a common
+sequence index"), with a largest error of 5-8 %, the second alike (no figure given).
+It does not say whether its test loads were among the trained ones, nor its epochs.
 
-Here: the simulated DMSP-20 (rated 6 bar, largest load 80 kg), so 0.05 Hz 0-6 bar
-sweeps under PID pressure control at 15, 30, 50, 65 and 80 kg (3 cycles each; quick:
-15, 50, 80 kg, 2 cycles), recorded by the daemon on the virtual clock and trained on
-with `pamd train`'s defaults (kind anfis: seed 000's 5 x 5 Gaussian layout, 100
-epochs, 10 s blocks, a fifth for validation) but the paper's plain least squares
-(`--rule-ridge 0`, MATLAB's; pamd's default ridge since issue 39 is not the paper's).
-The paper does not say whether its test loads were among the trained ones, so two new
-runs (2 cycles each, 1 in quick): test set 1 at a trained load (50 kg) with other
-sensor noise (the sim's seed 2, not 1), test set 2 at a load never trained on (40 kg).
-From each, 85 samples drawn at random (seed 0), and the whole run beside. The figure
-is the largest error of the model as the tick runs it (`pamd evaluate`'s: inputs and
-output held to the training ranges), the model alone (output free) in brackets, in %
-of the 0-6 bar range (the paper does not say of what). Nothing here is chosen on the
-test runs.
+Data: the simulated DMSP-20 (rated 6 bar, largest load 80 kg), 0.05 Hz 0-6 bar sweeps
+under PID pressure control at 15, 30, 50, 65 and 80 kg (3 cycles each; quick: 15, 50,
+80 kg, 2 cycles), recorded by the daemon on the virtual clock, and two new runs (2
+cycles, quick 1): 50 kg with other sensor noise (the sim's seed 2, a trained load) and
+40 kg (a load never trained on). With `--data`: the lab's runs (force_n, length_mm,
+pressure_bar, and each run's load for pamd's protocol); the middle load is held out.
 
-Usage: python bench/seed000.py [--quick] [--keep DIR]
+The paper's protocol (as MATLAB trains it: `pamd train --preset matlab`, genfis1's grid
+of 5 x 5 Gaussian MFs, one start, 10 epochs, plain least squares (no rule ridge), the
+step in the inputs' own units): every training run pooled, split 70/15/15 at random
+(`--split-by random`, seed 0; the validation part keeps the best epoch, as anfis's
+checking data); test set 1, 85 samples drawn at random (seed 0) from the test part:
+samples of the runs it trained on; test set 2 (the simulated rig), 85 random samples of
+the new 50 kg run.
+
+pamd's protocol (`pamd train`'s defaults on seed 000's inputs and 5 x 5 layout: two
+starts at MF widths 1 and 3, 100 epochs, the rule ridge since issue 39, the step in
+scaled units, 10 s blocks, a fifth for validation): the model judged as the tick runs
+it (inputs and output held to the training ranges) on every sample of a load it never
+trained on (40 kg; data: the middle load, left out of training), and of the new run at
+a trained load; the MATLAB-preset model beside it on the unseen load. The figure is the
+largest error in % of the 0-6 bar range (data: of the measured pressure range), the
+model alone (output free) in brackets. Nothing is chosen on a test set.
+
+Usage: python bench/seed000.py [--quick] [--keep DIR] [--data FILE|DIR] [--markdown]
 """
 
 from __future__ import annotations
@@ -36,33 +47,54 @@ import glob  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # bench/ (run or imported)
 
 import numpy as np  # noqa: E402
+import seed_data  # noqa: E402
 import yaml  # noqa: E402
 from _common import REPO, record_profile  # noqa: E402
-from seed_table import SeedRow, markdown  # noqa: E402
+from seed_table import PAMD, PAPER, SeedRow, markdown  # noqa: E402
 
-from pamd.cli.main import main as pamd_main  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
-from pamd.models.anfis import AnfisModel, load  # noqa: E402
 from pamd.models.anfis.extraction import extract  # noqa: E402
 from pamd.models.anfis.recordings import read_runs  # noqa: E402
 from pamd.models.anfis.samples import ExtractOptions, Samples  # noqa: E402
+from pamd.models.anfis.splitting import split  # noqa: E402
+from pamd.models.contract import InverseModel  # noqa: E402
+from pamd.models.training import fit_split  # noqa: E402
 from pamd.view.judging import tick_predict  # noqa: E402
 
 TRAIN_LOADS_KG = (15.0, 30.0, 50.0, 65.0, 80.0)
 QUICK_TRAIN_LOADS_KG = (15.0, 50.0, 80.0)
 #: (load, the sim's noise seed): a trained load with new noise, and an unseen load
-TEST_RUNS = ((50.0, 2), (40.0, 1))
+NEW_TRAINED, NEW_UNSEEN = (50.0, 2), (40.0, 1)
 TEST_SAMPLES = 85  # the paper's first test set
 P_RANGE_BAR = 6.0
 PAPER_MAX_ERROR = "5-8 %"
 INPUTS = ("force_n", "length_mm")
-LIKE = ("simulated DMSP-20: 0-6 bar (its rating, not 0-7), loads 15-80 kg (its largest, "
-        "not 100); % of the 0-6 bar range")
+OPTS = ExtractOptions(inputs=INPUTS)
+SIM_LIKE = ("simulated DMSP-20: 0-6 bar (its rating, not 0-7), loads 15-80 kg (its "
+            "largest, not 100); % of the 0-6 bar range")
+DATA_LIKE = "the lab's data; % of its measured pressure range"
+MATLAB = {"mfs": (5,), "preset": "matlab"}
+PAMD_DEFAULTS: dict[str, object] = {"mfs": (5,)}
+
+
+@dataclass
+class Data:
+    """The training runs' samples, the new runs' (None: not recorded), the unseen load's
+    and what the figures are in % of."""
+
+    train: Samples  # every training run (the paper's protocol pools them)
+    pamd_train: Samples  # the runs pamd's protocol trains on (no unseen load among them)
+    new_trained: Samples | None  # a new run at a trained load (the simulated rig only)
+    unseen: Samples
+    unseen_kg: float
+    range_bar: float
+    like: str
 
 
 def config(load_kg: float, noise_seed: int) -> LoadedConfig:
@@ -90,61 +122,112 @@ def sweep(load_kg: float, cycles: int, out_dir: str, noise_seed: int = 1) -> str
                           note=f"seed 000 sweep {load_kg:g} kg")
 
 
-def train(files: list[str], out: str) -> AnfisModel:
-    """`pamd train` with its defaults (kind anfis: seed 000's model), its consequents'
-    least squares plain as the paper's (`--rule-ridge 0`)."""
-    code = pamd_main(["train", *files, "--out", out, "--inputs", ",".join(INPUTS),
-                      "--rule-ridge", "0", "--quiet"])
-    if code != 0:
-        raise SystemExit(f"pamd train failed ({code})")
-    return load(out)
+def simulated(quick: bool, out: str) -> Data:
+    loads, cycles, test_cycles = ((QUICK_TRAIN_LOADS_KG, 2, 1) if quick
+                                  else (TRAIN_LOADS_KG, 3, 2))
+    train = extract(read_runs([sweep(x, cycles, out) for x in loads]), OPTS)
+    new = extract(read_runs([sweep(NEW_TRAINED[0], test_cycles, out, NEW_TRAINED[1])]), OPTS)
+    unseen = extract(read_runs([sweep(NEW_UNSEEN[0], test_cycles, out, NEW_UNSEEN[1])]),
+                     OPTS)
+    return Data(train, train, new, unseen, NEW_UNSEEN[0], P_RANGE_BAR, SIM_LIKE)
 
 
-def max_errors_pct(model: AnfisModel, test: Samples, pick: np.ndarray) -> str:
+def lab(path: str) -> Data:
+    runs = seed_data.read(path)
+    seed_data.need(runs, "000", [*INPUTS, "pressure_bar"])
+    loads = seed_data.need_loads(runs, "000", 3, "pamd's protocol holds the middle load "
+                                 "out of training")
+    unseen_kg = seed_data.held_out_load(loads)
+    rest = [x for x in loads if x != unseen_kg]
+    train = seed_data.samples(runs, OPTS)
+    pamd_train = seed_data.samples(seed_data.at_loads(runs, rest), OPTS)
+    unseen = seed_data.samples(seed_data.at_loads(runs, [unseen_kg]), OPTS)
+    return Data(train, pamd_train, None, unseen, unseen_kg, float(np.ptp(train.y)),
+                DATA_LIKE)
+
+
+def max_errors_pct(model: InverseModel, test: Samples, pick: np.ndarray,
+                   range_bar: float) -> str:
     """The largest error on the rows `pick` as the tick runs the model, and (in
-    brackets) of the model alone, in % of the 0-6 bar range."""
+    brackets) of the model alone, in % of `range_bar`."""
     tick = tick_predict(model, test)[0][pick]
     alone = model.predict(test.X[pick])
     y = test.y[pick]
+
     def pct(e: np.ndarray) -> float:
-        return 100.0 * float(np.abs(e).max()) / P_RANGE_BAR
+        return 100.0 * float(np.abs(e).max()) / range_bar
     return f"{pct(tick - y):.2f} % (model alone {pct(alone - y):.3g} %)"
 
 
-def rows(quick: bool, keep: str | None = None) -> list[SeedRow]:
-    """Seed 000's reported figure beside pamd's (see the module doc)."""
-    out = keep or tempfile.mkdtemp(prefix="pamd-seed000-")
-    loads, cycles, test_cycles = ((QUICK_TRAIN_LOADS_KG, 2, 1) if quick
-                                  else (TRAIN_LOADS_KG, 3, 2))
-    t0 = time.perf_counter()
-    files = [sweep(x, cycles, out) for x in loads]
-    model = train(files, os.path.join(out, "seed000.json"))
-    print(f"seed 000: {model!r} trained on {', '.join(f'{x:g}' for x in loads)} kg "
-          f"({cycles} cycles each), {time.perf_counter() - t0:.0f} s", file=sys.stderr)
-    result: list[SeedRow] = []
+def paper_rows(d: Data) -> list[SeedRow]:
+    """MATLAB's training on every run pooled, split at random; 85 random samples."""
+    parts = split(d.train, 0.15, 0.15, by="random", seed=0)
+    model = fit_split("anfis", d.train, parts, options=MATLAB, seed=0)
+    test = parts.test
+    assert test is not None
     rng = np.random.default_rng(0)
-    for k, (load_kg, noise_seed) in enumerate(TEST_RUNS, start=1):
-        test = extract(read_runs([sweep(load_kg, test_cycles, out, noise_seed)]),
-                       ExtractOptions(inputs=INPUTS))
-        pick = np.sort(rng.choice(len(test), size=TEST_SAMPLES, replace=False))
-        run = (f"a new run at {load_kg:g} kg, "
-               + ("a trained load, other noise" if load_kg in loads else "an unseen load"))
-        result.append(SeedRow(
-            "000", f"inverse ANFIS 5x5, max error, test set {k}: {TEST_SAMPLES} random "
-            f"samples of {run}", PAPER_MAX_ERROR if k == 1 else "not given",
-            max_errors_pct(model, test, pick), LIKE))
-        result.append(SeedRow(
-            "000", f"inverse ANFIS 5x5, max error, all {len(test)} samples of {run}",
-            "not given", max_errors_pct(model, test, np.arange(len(test))), LIKE))
-    return result
+    like = d.like + "; trained as MATLAB's anfis with no options (pamd's --preset matlab)"
+    out = [SeedRow(
+        "000", f"inverse ANFIS 5x5 (MATLAB preset), max error, test set 1: {TEST_SAMPLES} "
+        f"random samples of the random 15 % test part of the runs it trained on",
+        PAPER_MAX_ERROR, max_errors_pct(model, test, _pick(rng, len(test)), d.range_bar),
+        like, PAPER)]
+    if d.new_trained is not None:
+        new = d.new_trained
+        out.append(SeedRow(
+            "000", f"inverse ANFIS 5x5 (MATLAB preset), max error, test set 2: "
+            f"{TEST_SAMPLES} random samples of a new run at a trained load ({NEW_TRAINED[0]:g}"
+            " kg, other sensor noise)", "not given (\"similar\")",
+            max_errors_pct(model, new, _pick(rng, len(new)), d.range_bar), like, PAPER))
+    return out
+
+
+def _pick(rng: np.random.Generator, n: int) -> np.ndarray:
+    return np.sort(rng.choice(n, size=min(TEST_SAMPLES, n), replace=False))
+
+
+def pamd_rows(d: Data, matlab_too: bool = True) -> list[SeedRow]:
+    """pamd's defaults, the unseen load held out; the MATLAB preset beside it."""
+    parts = split(d.pamd_train, 0.2, 0.0, by="block", block_s=10.0, seed=0)
+    model = fit_split("anfis", d.pamd_train, parts, options=PAMD_DEFAULTS, seed=0)
+    every = np.arange(len(d.unseen))
+    out = [SeedRow("000", f"inverse ANFIS 5x5 (pamd's defaults), max error as the tick "
+                   f"runs it, all {len(d.unseen)} samples of a load never trained on "
+                   f"({d.unseen_kg:g} kg)", "not given",
+                   max_errors_pct(model, d.unseen, every, d.range_bar), d.like, PAMD)]
+    if matlab_too:
+        matlab = fit_split("anfis", d.pamd_train, parts, options=MATLAB, seed=0)
+        out.append(SeedRow(
+            "000", f"inverse ANFIS 5x5 (MATLAB preset), the same {d.unseen_kg:g} kg",
+            "not given", max_errors_pct(matlab, d.unseen, every, d.range_bar), d.like, PAMD))
+    if d.new_trained is not None:
+        new = d.new_trained
+        out.append(SeedRow(
+            "000", f"inverse ANFIS 5x5 (pamd's defaults), all {len(new)} samples of a new "
+            f"run at a trained load ({NEW_TRAINED[0]:g} kg, other sensor noise)", "not given",
+            max_errors_pct(model, new, np.arange(len(new)), d.range_bar), d.like, PAMD))
+    return out
+
+
+def rows(quick: bool, keep: str | None = None, data: str | None = None) -> list[SeedRow]:
+    """Seed 000's figures under the paper's protocol and pamd's (see the module doc)."""
+    t0 = time.perf_counter()
+    d = lab(data) if data is not None else simulated(
+        quick, keep or tempfile.mkdtemp(prefix="pamd-seed000-"))
+    print(f"seed 000: {len(d.train)} training samples, unseen load {d.unseen_kg:g} kg "
+          f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
+    return paper_rows(d) + pamd_rows(d)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer loads and cycles")
     ap.add_argument("--keep", metavar="DIR", help="keep (and reuse) recordings in DIR")
+    ap.add_argument("--data", metavar="FILE|DIR", help="a lab's runs instead of the "
+                    "simulated rig (force_n, length_mm, pressure_bar; loads for pamd's "
+                    "protocol)")
     args = ap.parse_args()
-    print(markdown(rows(args.quick, args.keep)))
+    print(markdown(rows(args.quick, args.keep, args.data)))
 
 
 if __name__ == "__main__":

@@ -52,9 +52,11 @@ from pamd.drivers.sim_faults import (
 
 from pamd.config.muscle_types import read_map
 from pamd.errors import DriverError, ModelError
+from pamd.models.fn_qupi_plant import plant_model
 from pamd.muscle_type import ForceMap, MuscleType, check_map
 from pamd.muscle_type.custom import NAME as CUSTOM
 from pamd.sim.faults import FAULT_KINDS, SimFault
+from pamd.sim.model_plant import ModelPlant
 from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
@@ -70,6 +72,21 @@ CLOCK_AGREES_S = 1e-9
 #: The rig's safety-chain inputs after the muscles' (their offsets from 3 x muscles).
 CHAIN_INPUTS: tuple[str, ...] = ("safety_chain", "supply", "reset")
 SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
+
+
+def _plant(driver: str, m: SimMuscleOptions, rng: random.Random,
+           supply: SupplyLine | None) -> MusclePlant:
+    """Muscle `m`'s plant: its type's physics, or, given a `plant_model` file, the
+    mechanics that identified model states (`pamd.sim.model_plant`)."""
+    muscle = specimen(m, _custom_map(driver, m))
+    if m.plant_model is None:
+        return MusclePlant(m, rng, muscle, supply)
+    try:
+        stepper = plant_model(m.plant_model)
+    except ModelError as exc:
+        raise DriverError(f"sim driver {driver!r}: muscle {m.name!r}: plant_model: "
+                          f"{exc}") from None
+    return ModelPlant(m, rng, stepper, muscle, supply)
 
 
 def _custom_map(driver: str, m: SimMuscleOptions) -> ForceMap | None:
@@ -110,9 +127,8 @@ class SimDriver(Driver):
         self._muscle_supply_bar: float = max(m.supply_bar for m in options.muscles)
         self._plants: list[MusclePlant] = []
         for m in options.muscles:
-            rng = muscle_rng(options.seed, m.name)
-            muscle = specimen(m, _custom_map(name, m))
-            self._plants.append(MusclePlant(m, rng, muscle, self.supply_line))
+            self._plants.append(_plant(name, m, muscle_rng(options.seed, m.name),
+                                       self.supply_line))
         self._by_name = {p.name: k for k, p in enumerate(self._plants)}
         # incremental encoders read 0 at power-up: the true length then is their zero
         self._len_zero_mm = [0.0 if m.length_absolute else p.length_read_mm

@@ -33,7 +33,7 @@ LAYERS: list[tuple[str, list[str]]] = [
     ("loop", ["harness", "loop", "commands", "experiment"]),
     ("rig tick", ["controller", "summary", "control", "safety"]),
     ("hardware, models, recordings",
-     ["rig", "emulate", "models", "drivers", "record", "sim", "rt", "stalls", "calibration"]),
+     ["rig", "emulate", "drivers", "models", "record", "sim", "rt", "stalls", "calibration"]),
     ("verbs and config", ["verbs", "config", "schema", "plugins"]),
     ("leaves", ["ipc", "metrics", "timing", "muscle_type", "tick", "profiles", "profile_kinds",
                 "atomic", "errors", "version", "declare", "data"]),

@@ -20,6 +20,7 @@ from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import ModelError
 from pamd.models.anfis.plots import require_matplotlib
 from pamd.models.anfis.samples import Samples
+from pamd.models.anfis.splitting import resplit
 from pamd.models.compare import Judged, common_options, format_comparison
 from pamd.models.contract import InverseModel
 from pamd.models.plots import write_overlay
@@ -30,12 +31,15 @@ from pamd.view.tables import load_samples
 
 #: Table rows: metric key, label, format.
 METRIC_ROWS: tuple[tuple[str, str, str], ...] = (
-    ("mse", "MSE", ".4g"), ("rmse", "RMSE", ".4g"), ("mae", "MAE", ".4g"),
+    ("mse", "MSE", ".4g"), ("half_mse", "MSE/2 (seed 001)", ".4g"), ("rmse", "RMSE", ".4g"),
+    ("mae", "MAE", ".4g"),
     ("max_abs_error", "max |error|", ".4g"), ("max_deviation_pct", "max deviation %", ".2f"),
     ("sse", "SSE", ".4g"), ("nrmse_fit_pct", "NRMSE fit %", ".2f"), ("aic", "AIC", ".1f"),
     ("sbc", "SBC", ".1f"), ("ndei", "NDEI", ".4g"),
 )
 MODEL_SUFFIX = ".json"
+#: `--held-out`: the set the metrics cover.
+HELD_OUT: tuple[str, ...] = ("all", "validation", "test")
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -61,8 +65,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "(a collection, or a --record directory)")
     p.add_argument("--json", action="store_true",
                    help='print one JSON object: {"models": [{"file", "kind", "n_params", '
-                   '"metrics": {...}}, ...]} (with one model also its metrics at the top '
-                   "level: rmse, mae, ndei, ...)")
+                   '"samples", "metrics": {...}}, ...]} (samples: how many the metrics '
+                   "cover; with one model also its metrics and samples at the top level: "
+                   "rmse, mae, ndei, ...)")
     p.add_argument("--plot", metavar="PREFIX", help="write PREFIX_prediction.png and "
                    "_error.png (models overlaid); with one model of a kind that draws more ("
                    + ", ".join(k.name for k in KINDS.values() if k.plots is not None)
@@ -75,10 +80,16 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "training)")
     add_actuation_option(p, "default: as the first model was trained with, else "
                          "proportional")
-    p.add_argument("--held-out", choices=("validation", "test"), default=None,
-                   help="judge only the pressure curves the models' training held out "
-                   "(pamd train --split-by curve lists them in the model file); the models "
-                   "must have held out the same curves. Seed 002 judges on held-out data")
+    p.add_argument("--held-out", choices=HELD_OUT, default=None,
+                   help="the set the metrics cover: all (every sample of DATA: training, "
+                   "validation and test alike; the basis of seed 002's AIC and SBC and of "
+                   "the papers' in-sample figures), or only the validation or the test part "
+                   "the models' training held out, found again in DATA as their files say "
+                   "(pamd train --split-by block, run or random: the split's settings; "
+                   "--split-by curve: the held-out pressure curves); DATA must be what they "
+                   "were trained on, and the models must have held out the same part. "
+                   "Default: every sample of DATA, which need not be training data; --json "
+                   "says per model how many samples the metrics cover (samples)")
     p.add_argument("--no-timing", action="store_true", help="skip the tick-cost measurement")
     p.set_defaults(func=run)
 
@@ -153,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
     samples = load_samples(data, opts)  # recordings and tables (CSV, MAT)
     say_own_actuations(samples, "pamd evaluate")
     if args.held_out:
-        samples = held_out_curves(samples, files, models, args.held_out)
+        samples = held_out_part(samples, files, models, args.held_out)
     pairs = judge_as_tick(files, models, samples, timing=not args.no_timing)  # as the tick
     judged = [j for j, _ in pairs]
     note = f"{len(samples)} samples from {len(samples.runs)} run(s)"
@@ -164,6 +175,7 @@ def run(args: argparse.Namespace) -> int:
         doc: JsonObject = {}
         if len(judged) == 1:
             doc.update({k: _json_float(v) for k, v in judged[0].metrics.items()})
+            doc["samples"] = len(samples)
         doc["models"] = [{**j.as_json(), "tick": r.as_json(),
                           **({"forward": {k: {m: _json_float(v) for m, v in t.items()}
                                           for k, t in forward[j.file].items()}}
@@ -196,6 +208,47 @@ def run(args: argparse.Namespace) -> int:
         paths = _plots(args.plot, judged, samples, ", ".join(data)[:80])
         print(f"plots: {', '.join(paths)}", file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def held_out_part(samples: Samples, files: Sequence[str], models: Sequence[InverseModel],
+                  part: str) -> Samples:
+    """The samples `--held-out` names: all of them, or the part (validation, test) the
+    models' training held out: whole pressure curves where they were split by curve,
+    else the parts their split settings give again on these samples."""
+    if part == "all":
+        print(f"pamd evaluate: judging all {len(samples)} samples (training, validation "
+              "and test alike: in-sample figures where DATA is the training data)",
+              file=sys.stderr)
+        return samples
+    bys = {_split_of(m).get("by") for m in models}
+    if bys == {"curve"}:
+        return held_out_curves(samples, files, models, part)
+    if len(bys) > 1:
+        raise ModelError(f"--held-out {part}: the models were split differently "
+                         f"({', '.join(sorted(str(b) for b in bys))}); judge them separately")
+    mask: np.ndarray | None = None
+    for f, m in zip(files, models, strict=True):
+        parts = resplit(samples, _split_of(m), f)
+        this = parts.in_validation if part == "validation" else parts.in_test
+        if this is None or not this.any():
+            flag = "--test-split" if part == "test" else "--val-split"
+            raise ModelError(f"--held-out {part}: {f} held out no {part} part (train it "
+                             f"with {flag} above 0)")
+        if mask is not None and not np.array_equal(mask, this):
+            raise ModelError(f"--held-out {part}: {f} held out other samples than the first "
+                             "model; judge such models separately")
+        mask = this
+    assert mask is not None
+    how = _split_of(models[0])
+    print(f"pamd evaluate: judging the held-out {part} part ({int(mask.sum())} of "
+          f"{len(samples)} samples; split by {how.get('by')}, seed {how.get('seed')})",
+          file=sys.stderr)
+    return samples.subset(mask)
+
+
+def _split_of(model: InverseModel) -> dict[str, object]:
+    how = model.provenance.get("split")
+    return how if isinstance(how, dict) else {}
 
 
 def held_out_curves(samples: Samples, files: Sequence[str], models: Sequence[InverseModel],

@@ -19,7 +19,7 @@ from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
-from pamd.models.anfis.splitting import split
+from pamd.models.anfis.splitting import SPLITS, default_fractions, split
 from pamd.models.compare import predict_samples
 from pamd.models.domain import derive
 from pamd.models.kind import Kind, KindOptions, OptionSpec
@@ -29,6 +29,9 @@ from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.view.judging import poor_fit
 from pamd.view.tables import data_files, load_samples
 
+#: Names `--inputs` takes for a signal besides its own (seed 001 calls its third input
+#: the change of length, delta L).
+INPUT_ALIASES = {"delta_length": "delta_length_mm"}
 #: Option parsers argparse applies itself; any other runs after parsing (its ModelError
 #: names the flag and what to give).
 _ARGPARSE_TYPES = (int, float, str)
@@ -117,6 +120,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    help="model kind (default anfis; see above)")
     p.add_argument("--inputs", default=None,
                    help=f"comma-separated model inputs from {', '.join(INPUT_UNITS)} "
+                   "(delta_length_mm, or delta_length: seed 001's change of length, the "
+                   "length's change over one sample period 1/--rate-hz, beside the "
+                   "velocity; judged offline: the tick feeds velocity_mm_s) "
                    "(default per kind: " + "; ".join(
                        f"{k.name} {','.join(k.default_inputs)}" for k in KINDS.values()) + ")")
     p.add_argument("--target", "--output", dest="target", default="pressure_bar",
@@ -128,20 +134,26 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "--inputs, the kind's default inputs with the target replaced by "
                    "pressure_bar). Another target only for the kinds that can predict it: "
                    + "; ".join(f"{k.name} {','.join(k.outputs)}" for k in KINDS.values()))
-    p.add_argument("--val-split", type=float, default=0.2, metavar="FRACTION",
+    p.add_argument("--val-split", type=float, default=None, metavar="FRACTION",
                    help="share of the data held out for validation (the best epoch on it is "
-                   "kept); 0 trains on all DATA (default 0.2)")
-    p.add_argument("--test-split", type=float, default=0.0, metavar="FRACTION",
+                   "kept); 0 trains on all DATA (default 0.2; --split-by random: 0.15)")
+    p.add_argument("--test-split", type=float, default=None, metavar="FRACTION",
                    help="share held out as a test set, reported and never trained on "
-                   "(default 0: test with pamd evaluate on other runs)")
-    p.add_argument("--split-by", choices=("block", "run", "curve"), default="block",
-                   help="hold out whole time blocks (default), whole runs, or whole "
-                   "pressure curves of a map (rows sharing a pressure_bar value: a "
-                   "datasheet map is judged on curves it never saw)")
+                   "(default 0: test with pamd evaluate on other runs; --split-by random: "
+                   "0.15, the papers' 70/15/15)")
+    p.add_argument("--split-by", choices=SPLITS, default="block",
+                   help="hold out whole time blocks (default), whole runs, whole pressure "
+                   "curves of a map (rows sharing a pressure_bar value: a datasheet map is "
+                   "judged on curves it never saw), or single samples drawn at random "
+                   "(random: the papers' protocol, 70/15/15 by default; a recorded "
+                   "sample's neighbours then train, so its held-out figures are near "
+                   "in-sample ones). pamd evaluate --held-out validation|test finds the "
+                   "parts again")
     p.add_argument("--block-s", type=float, default=10.0, help="block length for "
                    "--split-by block (default 10 s)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the split and of the "
-                   "kind's random choices (GA, MLP initialisation; default 0)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the split (the same seed "
+                   "and data give the same parts) and of the kind's random choices (GA, MLP "
+                   "initialisation; default 0)")
     p.add_argument("--muscle", help="MCAP: only this muscle (default: every muscle)")
     add_actuation_option(p, "default: proportional")
     p.add_argument("--settle-s", type=float, default=2.0, help="drop this long after each "
@@ -182,7 +194,9 @@ def run(args: argparse.Namespace) -> int:
         reading.close()
     read_s = time.monotonic() - t0
     say_own_actuations(samples, "pamd train")
-    parts = split(samples, args.val_split, args.test_split, by=args.split_by,
+    val_split, test_split = default_fractions(args.split_by, args.val_split,
+                                              args.test_split)
+    parts = split(samples, val_split, test_split, by=args.split_by,
                   block_s=args.block_s, seed=args.seed)
     tr, va, te = parts.train, parts.validation, parts.test
     print(f"pamd train: {len(samples)} samples from {len(samples.runs)} run(s) "
@@ -197,7 +211,8 @@ def run(args: argparse.Namespace) -> int:
                         "domain": derive(tr.X, tr.y, inputs, args.target).to_json()}
     try:
         fitted = fit_with(kind.name, samples, parts, options, seed=args.seed,
-                          derived_inputs=derived_inputs(inputs, args.velocity_window_s),
+                          derived_inputs=derived_inputs(inputs, args.velocity_window_s,
+                                                        args.rate_hz),
                           provenance=prov, callback=training)
     finally:
         training.close()
@@ -232,7 +247,8 @@ def model_inputs(text: str | None, kind: Kind[KindOptions], target: str) -> tupl
     """The inputs `--inputs` names, or the kind's defaults with the target (when it is
     one of them) replaced by pressure_bar: a forward model of the same signals."""
     if text is not None:
-        return tuple(s.strip() for s in text.split(",") if s.strip())
+        return tuple(INPUT_ALIASES.get(s.strip(), s.strip()) for s in text.split(",")
+                     if s.strip())
     return tuple("pressure_bar" if n == target else n for n in kind.default_inputs)
 
 

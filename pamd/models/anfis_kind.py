@@ -5,7 +5,7 @@ makes it zero order (one constant per rule: seed 002 compares both)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -55,9 +55,24 @@ DEFAULT_INPUTS = ("force_n", "length_mm", "velocity_mm_s")
 MFS_HELP = ("membership functions per input: one number or one per input (e.g. 5,5,3)")
 
 
+#: `--preset`: pamd's training defaults, or seed 000's MATLAB ones (`PRESETS`).
+PRESETS: tuple[str, ...] = ("pamd", "matlab")
+#: MATLAB's anfis trains 10 epochs unless told (seed 000 trained in MATLAB's toolbox).
+MATLAB_EPOCHS = 10
+PRESET_HELP = (
+    "training defaults: pamd's (two starts at MF widths 1 and 3, 100 epochs, the rule "
+    "ridge, the step a length in the scaled inputs) or matlab, seed 000's MATLAB Fuzzy "
+    "Logic Toolbox as it trains without options (genfis1's grid: one start, neighbouring "
+    "MFs crossing at 0.5; anfis's 10 epochs and plain least squares, no rule ridge; its "
+    "step 0.01 a length in the inputs' own units, so the premises of a force input in "
+    "newtons hardly move: least squares on genfis1's grid). --epochs, --step and "
+    "--rule-ridge still apply")
+
+
 @dataclass(frozen=True)
 class AnfisOptions(KindOptions):
-    epochs: int = option(100, "training epochs", minimum=1)
+    epochs: int | None = option(None, "training epochs", parse=int, minimum=1,
+                                default_text=f"100; --preset matlab: {MATLAB_EPOCHS}")
     mfs: tuple[int, ...] | None = option(
         None, MFS_HELP, parse=parse_mfs, metavar="N[,N...]",
         default_text="5 for two inputs, 3 for three: the seeds' 25 and 27 rules")
@@ -69,26 +84,46 @@ class AnfisOptions(KindOptions):
         "linear", "rule consequents: linear f = p.x + q (first-order Sugeno, seed 000's) or "
         "constant f = q (zero-order, R parameters instead of R (d + 1))",
         choices=CONSEQUENTS)
-    rule_ridge: float = option(
-        RULE_RIDGE, "ridge on each rule's consequents, relative to the rule's firing mass, "
+    rule_ridge: float | None = option(
+        None, "ridge on each rule's consequents, relative to the rule's firing mass, "
         "toward the one linear model of all the data: a slope is fitted along an input "
         "only where it spreads in the rule's data by more than about the square root of "
         "this (scaled units), so the narrow force band of a hanging load cannot blow the "
-        "consequents up; 0: plain least squares (seed 000's, MATLAB's)", minimum=0.0)
+        "consequents up; 0: plain least squares (seed 000's, MATLAB's)", parse=float,
+        minimum=0.0, default_text=f"{RULE_RIDGE:g}; --preset matlab: 0")
+
+    preset: str = option("pamd", PRESET_HELP, choices=PRESETS)
 
     def check(self, inputs: Sequence[str]) -> None:
         mfs_for(self.mfs, len(inputs))
+
+    @property
+    def steps(self) -> int:
+        """Epochs: as given, else the preset's."""
+        return self.epochs or (MATLAB_EPOCHS if self.preset == "matlab" else 100)
+
+    @property
+    def ridge(self) -> float:
+        """The rule ridge: as given, else the preset's (MATLAB's least squares are plain)."""
+        if self.rule_ridge is not None:
+            return self.rule_ridge
+        return 0.0 if self.preset == "matlab" else RULE_RIDGE
+
+    def training(self, n_inputs: int, seed: int) -> TrainingOptions:
+        """The library's training options these give (`TrainingOptions`)."""
+        out = TrainingOptions(n_mfs=mfs_for(self.mfs, n_inputs), mf_type=self.mf_type,
+                              epochs=self.steps, initial_step=self.step,
+                              consequent=self.consequent, rule_ridge=self.ridge, seed=seed)
+        if self.preset == "matlab":  # genfis1's one start, anfis's step in input units
+            out = replace(out, width_factor=1.0, step_units="raw")
+        return out
 
 
 def fit_anfis(job: FitJob[AnfisOptions]) -> Fitted:
     o = job.options
     s = job.samples
     X, y = job.train
-    result = fit(X, y, TrainingOptions(n_mfs=mfs_for(o.mfs, len(job.inputs)),
-                                       mf_type=o.mf_type, epochs=o.epochs,
-                                       initial_step=o.step, consequent=o.consequent,
-                                       rule_ridge=o.rule_ridge,
-                                       seed=job.seed),
+    result = fit(X, y, o.training(len(job.inputs), job.seed),
                  input_names=list(job.inputs), input_units=job.input_units,
                  output_name=s.output, output_unit=s.output_unit,
                  validation=job.validation, callback=job.callback,
@@ -113,6 +148,6 @@ def anfis_plots(prefix: str, model: InverseModel, t_s: np.ndarray, y: np.ndarray
 KIND = Kind("anfis", "000", "first-order Sugeno ANFIS (or zero order: --consequent "
             "constant), hybrid learning",
             modelfile.from_dict, DEFAULT_INPUTS, fit_anfis, AnfisOptions,
-            adaptable=True, progress=lambda o: (o.epochs, "epoch", "RMSE"),
-            starts=lambda o: len(WIDTH_STARTS),
+            adaptable=True, progress=lambda o: (o.steps, "epoch", "RMSE"),
+            starts=lambda o: 1 if o.preset == "matlab" else len(WIDTH_STARTS),
             plots=anfis_plots, outputs=tuple(OUTPUT_UNITS))

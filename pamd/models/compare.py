@@ -47,6 +47,7 @@ class Judged:
 
     def as_json(self) -> JsonObject:
         return {"file": self.file, "kind": self.model.kind, "n_params": self.model.n_params,
+                "samples": int(self.y_hat.size),  # what the metrics cover
                 "metrics": {k: _json_float(v) for k, v in self.metrics.items()},
                 "tick_cost_us": _json_float(self.tick_cost_us),
                 "clipped_samples": int(self.clipped.sum())}

@@ -90,30 +90,65 @@ class TsFuzzyOptions:
 
 def design(wbar: np.ndarray, Sa: np.ndarray, columns: int) -> np.ndarray:
     """The least-squares design for a model's `n_consequent_columns`: wbar_r * [s, 1]
-    (first order) or wbar_r * 1 (singletons)."""
-    return _design(wbar, Sa[:, -columns:])
+    (first order) or wbar_r * 1 (singletons: wbar itself)."""
+    return wbar if columns == 1 else _design(wbar, Sa[:, -columns:])
 
 
 def premise_cost(model: AnfisModel, X: np.ndarray, y: np.ndarray, solver: str = "auto",
                  ridge: float = 0.0, consequent: str = "constant"
                  ) -> Callable[[np.ndarray], float]:
     """vec -> training MSE with least-squares consequents (`consequent`: singletons,
-    seed 001's, or first order) for that premise vector of `model`'s layout."""
+    seed 001's, or first order) for that premise vector of `model`'s layout.
+
+    The GA calls it 100 times a generation over every training row (seed 001's
+    fitness), so the firing strengths take the grid's shortcut (`grid_firing`)."""
     Sa = _with_ones(model.scale(X))
     S_mf = Sa[:, model.mf_input]
-    rule_index = model.rule_index
+    firing = grid_firing(model)
     k = sum(model.n_mfs)
     columns = 1 if consequent == "constant" else model.n_inputs + 1
 
     def cost(vec: np.ndarray) -> float:
         log_mu = log_membership("gaussian", S_mf, vec[:k], vec[k:])
-        A = design(rule_firing(log_mu, rule_index), Sa, columns)
+        A = design(firing(log_mu), Sa, columns)
         theta = solve_consequents(A, y, solver=solver, ridge=ridge)
         e = A @ theta - y
         mse = float(e @ e) / y.size
         return mse if np.isfinite(mse) else np.inf
 
     return cost
+
+
+def grid_firing(model: AnfisModel) -> Callable[[np.ndarray], np.ndarray]:
+    """log memberships (n x K, flat MF order) -> normalised firing strengths (n x R),
+    as `rule_firing` computes them, for a grid partition's rules (every combination
+    of one MF per input, the last input's MF varying fastest: `init_model`'s layout;
+    other layouts go through `rule_firing` itself).
+
+    Shortcut: on a grid the sum of every rule's strength is the product over the
+    inputs of each input's sum of memberships, so each input's memberships are
+    normalised by their own sum (after shifting its logs by their largest: nothing
+    underflows, as `rule_firing`'s guard) and the rules are the outer product of those,
+    built one input at a time: about 3 x faster than indexing every rule's MFs."""
+    sizes = list(model.n_mfs)
+    grid = np.array(np.meshgrid(*[np.arange(m) for m in sizes], indexing="ij")).reshape(
+        len(sizes), -1) + np.cumsum([0, *sizes[:-1]])[:, None]
+    rule_index = model.rule_index
+    if rule_index.shape != grid.shape or not np.array_equal(rule_index, grid):
+        return lambda log_mu: rule_firing(log_mu, rule_index)
+    bounds = np.cumsum([0, *sizes])
+
+    def firing(log_mu: np.ndarray) -> np.ndarray:
+        w: np.ndarray | None = None
+        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+            part = log_mu[:, lo:hi]
+            mu = np.exp(part - part.max(axis=1, keepdims=True))
+            mu /= mu.sum(axis=1, keepdims=True)
+            w = mu if w is None else (w[:, :, None] * mu[:, None, :]).reshape(w.shape[0], -1)
+        assert w is not None
+        return w
+
+    return firing
 
 
 def _finish(model: AnfisModel, vec: np.ndarray, X: np.ndarray, y: np.ndarray,

@@ -19,6 +19,9 @@ Three places hold simulation code, in this order of layers:
     feeding a chamber through ISO 6358 orifices from a shared supply line); `pilot`
     is the regulator's own pressure loop, shared by both.
   - `onoff`: inflate and exhaust solenoid valves (on/off actuation).
+  - `model_plant`: a muscle whose mechanics are an identified model's (the `plant_model`
+    option: an FN-QUPI file, seed 003's plant for its tracking tables), same regulator
+    and sensors; the sim driver loads the file (`pamd.models.fn_qupi_plant`).
   - `sensors`: devices that sample at their own period, with latency, quantisation,
     noise and a filter; the driver stamps each reading with its sample's time.
 

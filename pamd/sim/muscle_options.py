@@ -156,6 +156,16 @@ class SimMechanics:
         0.001,
         1000.0,
     )
+    plant_model: str | None = option(
+        None,
+        "An identified model file (kind fn-qupi, pamd train's) that stands for this "
+        "muscle's mechanics: the length is its forward model's, from the regulator's "
+        "pressure history and the hanging load, once per sample period it was "
+        "identified on (seed 003 runs its controllers against its FN-QUPI model); the "
+        "regulator and the sensors stay as configured, the load cell reads the load's "
+        "weight. Absolute, or relative to the directory pamd runs in. null: the "
+        "muscle's own physics.",
+    )
 
 
 @dataclass(frozen=True)

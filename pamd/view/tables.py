@@ -57,7 +57,7 @@ from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.extraction import extract
 from pamd.models.anfis.recordings import actuations_of, read_mcap
-from pamd.models.anfis.samples import ExtractOptions, Run, Samples
+from pamd.models.anfis.samples import FROM_LENGTH, ExtractOptions, Run, Samples
 from pamd.view import fields
 from pamd.view.csvtext import CsvText
 from pamd.view.export import matlab_name
@@ -649,12 +649,12 @@ def load_samples(paths: Sequence[str], options: ExtractOptions,
     for r in runs:
         if "row_offset" not in r.meta:
             continue  # a recording: extraction checks it
-        missing = [n for n in need if n not in r.columns and n != "velocity_mm_s"]
+        missing = [n for n in need if n not in r.columns and n not in FROM_LENGTH]
         if "velocity_mm_s" in need and r.meta.get("time") == "rows":
             raise ModelError(f"{r.label}: a velocity_mm_s input needs a time column "
                              "(t_s, time [ms], ...); this table has none (without one, "
                              "train on --inputs force_n,length_mm)")
-        if "velocity_mm_s" in need and "length_mm" not in r.columns:
+        if any(n in FROM_LENGTH for n in need) and "length_mm" not in r.columns:
             missing.append("length_mm")
         if missing:
             skipped = r.meta.get("skipped_columns") or {}

@@ -146,7 +146,7 @@ def test_a_model_without_held_out_curves_is_refused_for_held_out(tmp_path: Path,
                  "--block-s", "8", "--quiet"]) == 0
     capsys.readouterr()
     assert main(["evaluate", str(out), table, "--held-out", "test", "--no-timing"]) == 5
-    assert "lists no held-out test curves (train it with --split-by curve" in \
+    assert "held out no test part (train it with --test-split above 0)" in \
         capsys.readouterr().err
 
 

@@ -212,7 +212,9 @@ def test_the_local_channel_answers_its_users_and_bounds_the_rest(token_dir: Path
     try:
         assert not stale.exists()  # nobody answered on it: removed
         assert stat.S_IMODE(os.stat(path).st_mode) == lc.SOCKET_MODE
-        assert lc.socket_paths(RIG) == [path]
+        # another daemon of this rig on the PC (the lab's own, a test beside this one)
+        # keeps its socket in the shared directories, also searched: count only ours
+        assert [p for p in lc.socket_paths(RIG) if p.startswith(str(token_dir))] == [path]
         with lc.LocalClient(path) as c:
             assert c.hello()["rig"] == RIG
             assert c.status()["state"] == "IDLE"

@@ -25,7 +25,12 @@ The velocity input is computed from the length at the recording's full rate with
 `pamd.models.velocity.filtered_velocity`, the very function the control tick uses
 (with the model's window, stored in the model file and used by the tick), and only
 then are the samples decimated to `rate_hz` (1 kHz is far more than a model
-of a 0.05 Hz sweep needs).
+of a 0.05 Hz sweep needs). Seed 001's change of length (`delta_length_mm`) is the
+length's change over one sample period of the model, 1 / rate_hz: L(t) - L(t - 1 /
+rate_hz), the earlier length read off the full-rate record (linear between its
+samples), so a dropped sample between two kept ones does not stretch it; in a table
+of samples (no time column) the change from the previous row. Where there is no
+earlier length (a run's first sample period) the sample is dropped.
 
 Bad data is refused with `ModelError` naming file, column and problem: a missing
 column, NaN/inf among the kept samples, a constant input, too few samples.
@@ -42,7 +47,7 @@ from pamd.declare.fields import PWM_VALVE_FLAGS
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.models.anfis.recordings import read_runs
-from pamd.models.anfis.samples import ExtractOptions, Run, Samples
+from pamd.models.anfis.samples import FROM_LENGTH, ExtractOptions, Run, Samples
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, derivation, filtered_velocity
 from pamd.profiles import SHAPES, ProfileSpec
 from pamd.tick import Flag, State
@@ -105,8 +110,8 @@ def _extract_run(run: Run, o: ExtractOptions, actuation: str | None,
     c = run.columns
     t = np.asarray(run.t_s, dtype=np.float64)
     n = t.size
-    need = [n_ for n_ in o.inputs if n_ != "velocity_mm_s"] + [o.output]
-    if "velocity_mm_s" in o.inputs:
+    need = [n_ for n_ in o.inputs if n_ not in FROM_LENGTH] + [o.output]
+    if any(n_ in FROM_LENGTH for n_ in o.inputs):
         need.append("length_mm")
     missing = [n_ for n_ in dict.fromkeys(need) if n_ not in c]
     if missing:
@@ -149,9 +154,10 @@ def _extract_run(run: Run, o: ExtractOptions, actuation: str | None,
     for t0, t1 in _lead_ins(run, o.settle_s):
         lead |= (t >= t0) & (t < t1)
     drop(lead, "lead-in ramp")
-    # The velocity at full rate, before decimation (the tick's filter).
+    # The velocity (the tick's filter) and the change of length at full rate, before
+    # decimation.
     cols = dict(c)
-    if "velocity_mm_s" in o.inputs:
+    if any(n_ in FROM_LENGTH for n_ in o.inputs):
         length = c["length_mm"]
         bad = ~np.isfinite(length)
         if bad.any():  # hold the last reading through a hole so the filter can run on
@@ -162,7 +168,13 @@ def _extract_run(run: Run, o: ExtractOptions, actuation: str | None,
             pos = np.maximum.accumulate(np.where(bad, 0, np.arange(n)))
             length = length[pos]
             length[: good[0]] = length[good[0]]
-        cols["velocity_mm_s"] = np.array(filtered_velocity(t, length, o.velocity_window_s))
+        if "velocity_mm_s" in o.inputs:
+            cols["velocity_mm_s"] = np.array(filtered_velocity(t, length,
+                                                               o.velocity_window_s))
+        if "delta_length_mm" in o.inputs:
+            delta = delta_length(t, length, o.rate_hz, timeless)
+            drop(~np.isfinite(delta), "first sample period (no change of length yet)")
+            cols["delta_length_mm"] = delta
     # NaN/inf in a sample that is neither flagged nor outside RUNNING: refused.
     kept_idx = np.flatnonzero(keep)
     for name in dict.fromkeys([*o.inputs, o.output]):
@@ -191,6 +203,21 @@ def _extract_run(run: Run, o: ExtractOptions, actuation: str | None,
         np.empty((0, len(o.inputs)))
     y = cols[o.output][kept_idx]
     return X, y, t[kept_idx], counts
+
+
+def delta_length(t_s: np.ndarray, length_mm: np.ndarray, rate_hz: float,
+                 rows: bool = False) -> np.ndarray:
+    """Seed 001's change of length (mm): L(t) - L(t - 1 / rate_hz), the earlier length
+    linear between the recorded samples; with `rows` (a table of samples, no time)
+    the change from the previous row. NaN where there is no earlier length."""
+    if rows:
+        out = np.empty_like(length_mm)
+        out[0] = np.nan
+        out[1:] = np.diff(length_mm)
+        return out
+    before = np.interp(t_s - 1.0 / rate_hz, t_s, length_mm, left=np.nan)
+    out_t: np.ndarray = length_mm - before
+    return out_t
 
 
 def _lead_ins(run: Run, settle_s: float) -> list[tuple[float, float]]:
@@ -237,7 +264,16 @@ def load_samples(paths: Sequence[str], options: ExtractOptions | None = None) ->
     return extract(read_runs(paths, o.muscle), o)
 
 
-def derived_inputs(inputs: Sequence[str],
-                   window_s: float = MODEL_VELOCITY_WINDOW_S) -> JsonObject:
+def derived_inputs(inputs: Sequence[str], window_s: float = MODEL_VELOCITY_WINDOW_S,
+                   rate_hz: float = 50.0) -> JsonObject:
     """The model file's `derived_inputs` entry for these inputs."""
-    return {"velocity_mm_s": derivation(window_s)} if "velocity_mm_s" in inputs else {}
+    out: JsonObject = {}
+    if "velocity_mm_s" in inputs:
+        out["velocity_mm_s"] = derivation(window_s)
+    if "delta_length_mm" in inputs:
+        out["delta_length_mm"] = {
+            "derived_from": "length_mm", "unit": "mm", "sample_period_s": 1.0 / rate_hz,
+            "method": "L(t) - L(t - sample_period_s), the earlier length linear between "
+                      "the recorded samples (a table of samples: the previous row)",
+            "function": "pamd.models.anfis.extraction.delta_length"}
+    return out

@@ -21,10 +21,15 @@ from pamd.tick import Flag
 
 #: Model inputs this module can produce, with units (pressure_bar: a forward model's
 #: input, seed 002's F(p, k); the tick feeds none, so such a model cannot drive a muscle).
+#: delta_length_mm: seed 001's change of length, the length's change from one sample to
+#: the next at the model's sample rate (mm per sample; `pamd.models.anfis.extraction`);
+#: the tick feeds velocity_mm_s instead, so a model of it is judged offline.
 INPUT_UNITS: dict[str, str] = {
     "force_n": "N", "length_mm": "mm", "contraction": "", "velocity_mm_s": "mm/s",
-    "pressure_bar": "bar",
+    "pressure_bar": "bar", "delta_length_mm": "mm",
 }
+#: Inputs computed from the length column (before decimation, at the recording's rate).
+FROM_LENGTH: tuple[str, ...] = ("velocity_mm_s", "delta_length_mm")
 #: Targets (outputs) it can produce (measured signals), with units.
 OUTPUT_UNITS: dict[str, str] = {"pressure_bar": "bar", "force_n": "N", "length_mm": "mm",
                                 "contraction": ""}

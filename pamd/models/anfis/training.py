@@ -73,6 +73,8 @@ RULE_RIDGE = 1e-4
 #: for now, since it is also seed 001's gradient descent (docs/explanation/inverse-model.md,
 #: "ANFIS defaults").
 WIDTH_STARTS: tuple[float, ...] = (1.0, 3.0)
+#: What the premise step is a length in (`TrainingOptions.step_units`).
+STEP_UNITS: tuple[str, ...] = ("scaled", "raw")
 
 
 @dataclass
@@ -88,6 +90,9 @@ class TrainingOptions:
     width_factor: float | tuple[float, ...] = WIDTH_STARTS
     epochs: int = 100
     initial_step: float = 0.01  # step length in scaled parameter space
+    # "scaled": the step is a length in the scaled inputs' space (pamd's); "raw": in the
+    # inputs' own units, as MATLAB's anfis steps (`step_direction`)
+    step_units: str = "scaled"
     step_increase: float = 1.1
     step_decrease: float = 0.9
     error_goal: float = 0.0  # stop once the training RMSE is at or below this
@@ -345,6 +350,7 @@ def train(
     )
     vec = model.premise_vector()
     theta = model.consequents
+    raw_per_scaled = premise_units(model) if opts.step_units == "raw" else None
     state = StepSizeState(opts.initial_step)
     train_hist: list[float] = []
     val_hist: list[float] = []
@@ -377,7 +383,10 @@ def train(
         norm = float(np.linalg.norm(grad))
         if not norm > 0 or not math.isfinite(norm):
             break  # at a stationary point (or broken): nothing more to learn
-        vec = layout.project(vec - state.step * grad / norm, opts)
+        if raw_per_scaled is None:  # pamd's: a unit step in the scaled space
+            vec = layout.project(vec - state.step * grad / norm, opts)
+        else:
+            vec = layout.project(vec - state.step * raw_step(grad, raw_per_scaled), opts)
     if opts.restore_best:
         vec, theta = best[2], best[3]
     k = layout.k
@@ -399,12 +408,35 @@ def train(
     return result
 
 
+def premise_units(model: AnfisModel) -> np.ndarray:
+    """Each premise parameter's size in the input's own units per scaled unit (in
+    `premise_vector` order): a centre's and a width's the input's scale span, a bell
+    slope's 1 (it has no unit)."""
+    k = sum(model.n_mfs)
+    span = np.asarray(model.scale_span, dtype=np.float64)[model.mf_input]
+    per = [span, span] + ([np.ones(k)] if model.mf_type == "bell" else [])
+    return np.concatenate(per)
+
+
+def raw_step(grad: np.ndarray, raw_per_scaled: np.ndarray) -> np.ndarray:
+    """The unit step (scaled parameters) along -gradient as MATLAB's anfis steps: a unit
+    length in the inputs' own units (a parameter p_raw = f p_scaled has gradient g / f;
+    the raw step, g / f normalised, is (g / f) / f per scaled unit), so a step of 0.01
+    moves the premises of a force input in newtons by 0.01 N in all."""
+    g_raw = grad / raw_per_scaled
+    norm = float(np.linalg.norm(g_raw))
+    out: np.ndarray = g_raw / norm / raw_per_scaled if norm > 0 else np.zeros_like(grad)
+    return out
+
+
 def _check_options(opts: TrainingOptions) -> None:
     problems = [
         f"{name} = {value!r}: {need}"
         for name, value, ok, need in [
             ("epochs", opts.epochs, opts.epochs >= 1, "need at least 1"),
             ("initial_step", opts.initial_step, opts.initial_step > 0, "must be > 0"),
+            ("step_units", opts.step_units, opts.step_units in STEP_UNITS,
+             f"one of {STEP_UNITS}"),
             ("step_increase", opts.step_increase, opts.step_increase >= 1, "must be >= 1"),
             ("step_decrease", opts.step_decrease, 0 < opts.step_decrease <= 1, "in (0, 1]"),
             ("ridge", opts.ridge, opts.ridge >= 0, "must be >= 0"),

@@ -52,9 +52,10 @@ def test_train_then_evaluate_with_json_and_plots(recording: Path, tmp_path: Path
                  str(prefix)]) == 0
     out, err = capsys.readouterr()
     doc = json.loads(out)
-    metrics = {k: v for k, v in doc.items() if k != "models"}
+    metrics = {k: v for k, v in doc.items() if k not in ("models", "samples")}
     assert set(metrics) == set(METRIC_NAMES)
     [entry] = doc["models"]  # the same figures in the list form of several models
+    assert doc["samples"] == entry["samples"] == entry["tick"]["samples"] > 0
     assert entry["kind"] == "anfis" and entry["file"] == str(model_path)
     assert entry["n_params"] == load(model_path).n_params and entry["metrics"] == metrics
     assert entry["tick_cost_us"] > 0
