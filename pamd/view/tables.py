@@ -649,23 +649,7 @@ def load_samples(paths: Sequence[str], options: ExtractOptions,
     for r in runs:
         if "row_offset" not in r.meta:
             continue  # a recording: extraction checks it
-        missing = [n for n in need if n not in r.columns and n not in FROM_LENGTH]
-        if "velocity_mm_s" in need and r.meta.get("time") == "rows":
-            raise ModelError(f"{r.label}: a velocity_mm_s input needs a time column "
-                             "(t_s, time [ms], ...); this table has none (without one, "
-                             "train on --inputs force_n,length_mm)")
-        if any(n in FROM_LENGTH for n in need) and "length_mm" not in r.columns:
-            missing.append("length_mm")
-        if missing:
-            skipped = r.meta.get("skipped_columns") or {}
-            text = [f"{m} (a text column at {r.meta['text_columns'][m]})"
-                    if m in r.meta["text_columns"] else
-                    f"{m} ({skipped[m]})" if m in skipped else m for m in missing]
-            names = list(r.columns)
-            shown_names = ", ".join(names[:20]) + (f", ... ({len(names)} in all)"
-                                                   if len(names) > 20 else "")
-            raise ModelError(f"{r.label}:1: missing column(s) {', '.join(text)} (columns: "
-                             f"{shown_names or 'none'})")
+        _check_table_columns(r, need)
         for line in r.meta["conversions"]:
             say(f"{r.label}: {line}")
         for line in r.meta.get("warnings") or []:
@@ -674,10 +658,44 @@ def load_samples(paths: Sequence[str], options: ExtractOptions,
         samples = extract(runs, options)
     for info, r in zip(samples.runs, [r for r in runs if options.muscle is None
                                       or r.muscle in (options.muscle, "")], strict=False):
-        if r.meta.get("conversions"):
-            info["conversions"] = list(r.meta["conversions"])
-        if r.meta.get("warnings"):
-            info["unit_warnings"] = list(r.meta["warnings"])
-        if r.meta.get("time") == "rows":
-            info["time"] = "none: rows are samples (not settled, not decimated)"
+        _note_table(info, r)
     return samples
+
+
+def _check_table_columns(r: Run, need: list[str]) -> None:
+    """A table has the columns `need` names (the length, for an input computed from it;
+    a time column, for the velocity), each missing one said with what the table holds
+    in its place (file:1)."""
+    missing = [n for n in need if n not in r.columns and n not in FROM_LENGTH]
+    if "velocity_mm_s" in need and r.meta.get("time") == "rows":
+        raise ModelError(f"{r.label}: a velocity_mm_s input needs a time column "
+                         "(t_s, time [ms], ...); this table has none (without one, "
+                         "train on --inputs force_n,length_mm)")
+    if any(n in FROM_LENGTH for n in need) and "length_mm" not in r.columns:
+        missing.append("length_mm")
+    if missing:
+        raise ModelError(f"{r.label}:1: missing column(s) {_missing_text(r, missing)}")
+
+
+def _missing_text(r: Run, missing: list[str]) -> str:
+    """The missing columns, each with what the table holds in its place (a text
+    column, a variable of another kind), and the columns it has."""
+    skipped = r.meta.get("skipped_columns") or {}
+    text = [f"{m} (a text column at {r.meta['text_columns'][m]})"
+            if m in r.meta["text_columns"] else
+            f"{m} ({skipped[m]})" if m in skipped else m for m in missing]
+    names = list(r.columns)
+    shown_names = ", ".join(names[:20]) + (f", ... ({len(names)} in all)"
+                                           if len(names) > 20 else "")
+    return f"{', '.join(text)} (columns: {shown_names or 'none'})"
+
+
+def _note_table(info: JsonObject, r: Run) -> None:
+    """A table's unit conversions, unit warnings and lack of time, into its run's
+    provenance `info`."""
+    if r.meta.get("conversions"):
+        info["conversions"] = list(r.meta["conversions"])
+    if r.meta.get("warnings"):
+        info["unit_warnings"] = list(r.meta["warnings"])
+    if r.meta.get("time") == "rows":
+        info["time"] = "none: rows are samples (not settled, not decimated)"
