@@ -12,10 +12,10 @@ import sys
 from pamd.cli.commission_map import run_map
 from pamd.commission.mapsweep import RATE_BAR_PER_S
 from pamd.commission.moves import MAX_STEP_BAR, CommissionRefused, Moves, choose
-from pamd.commission.propose import thresholds
+from pamd.commission.propose import Threshold, thresholds
 from pamd.commission.report import as_json, text
-from pamd.commission.run import commission
-from pamd.config import load_config
+from pamd.commission.run import Outcome, commission
+from pamd.config import LoadedConfig, load_config
 from pamd.config.loader import builtin_config_path
 from pamd.tune.run import parse_levels
 from pamd.tune.save import save_values
@@ -149,6 +149,18 @@ def run(args: argparse.Namespace) -> int:
     cfg = load_config(path, {"loop": {"clock": args.clock}} if args.clock else None)
     if args.measure_map:
         return run_map(args, path, cfg)
+    out = commission(cfg, _moves(args, cfg), _progress, args.state_dir)
+    rows, refusals = thresholds(cfg, out.measurements)
+    out.refusals += refusals
+    saved = bool(args.save) and not (out.refusals or out.faults) and _save(args, path, rows)
+    _report(args, path, cfg, out, rows, saved)
+    if out.refusals:
+        return CommissionRefused.exit_code
+    return 1 if out.faults else 0
+
+
+def _moves(args: argparse.Namespace, cfg: LoadedConfig) -> list[Moves]:
+    """The moves of each muscle named (default all), each said on stderr."""
     names = args.muscle or [m.name for m in cfg.rig.muscles]
     levels = parse_levels(args.levels, CommissionRefused, "2,3.5")
     moves: list[Moves] = [choose(cfg, n, args.rest_s, args.hold_s, levels, args.step_bar)
@@ -157,27 +169,30 @@ def run(args: argparse.Namespace) -> int:
         _progress(f"{mv.muscle}: rest {mv.rest_s:g} s, then steps of {mv.step_bar:g} bar at "
                   f"{', '.join(f'{lv:g}' for lv in mv.levels_bar)} bar (safe pressure "
                   f"{mv.safe_bar:.2f}, limit {mv.max_bar:g} bar)")
-    out = commission(cfg, moves, _progress, args.state_dir)
-    rows, refusals = thresholds(cfg, out.measurements)
-    out.refusals += refusals
+    return moves
+
+
+def _save(args: argparse.Namespace, path: str, rows: list[Threshold]) -> bool:
+    """Write the thresholds that changed into the config; whether any did (what the
+    save prints goes to stderr under --json)."""
+    values = {r.key: r.proposed for r in rows if r.changed and r.proposed is not None}
+    with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):
+        if values:
+            save_values(path, values, "thresholds", "pamd commission", "commissioned")
+            return True
+        print("the present thresholds are the proposed ones: nothing to save")
+    return False
+
+
+def _report(args: argparse.Namespace, path: str, cfg: LoadedConfig, out: Outcome,
+            rows: list[Threshold], saved: bool) -> None:
+    """The report, as text (with what was or was not written) or as JSON."""
     clock = cfg.rig.loop.clock
-    saved = False
-    if args.save and not (out.refusals or out.faults):
-        values = {r.key: r.proposed for r in rows if r.changed and r.proposed is not None}
-        with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):
-            if values:
-                save_values(path, values, "thresholds", "pamd commission", "commissioned")
-                saved = True
-            else:
-                print("the present thresholds are the proposed ones: nothing to save")
     if args.json:
         print(json.dumps(as_json(path, cfg.rig.rig_id, clock, out, rows, saved), indent=2))
-    else:
-        print(text(path, cfg.rig.rig_id, clock, out, rows))
-        if args.save and (out.refusals or out.faults):
-            print("nothing saved: the run was refused or faulted")
-        elif not args.save:
-            print("nothing written (--save writes the proposed thresholds into the config)")
-    if out.refusals:
-        return CommissionRefused.exit_code
-    return 1 if out.faults else 0
+        return
+    print(text(path, cfg.rig.rig_id, clock, out, rows))
+    if args.save and (out.refusals or out.faults):
+        print("nothing saved: the run was refused or faulted")
+    elif not args.save:
+        print("nothing written (--save writes the proposed thresholds into the config)")

@@ -13,7 +13,7 @@ import sys
 from pamd.commission.mapfit import branches_csv, map_csv
 from pamd.commission.mapreport import as_json, text
 from pamd.commission.maprun import MapOutcome, measure_map
-from pamd.commission.mapsweep import choose_sweep
+from pamd.commission.mapsweep import MapSweep, choose_sweep
 from pamd.commission.moves import CommissionRefused
 from pamd.config import LoadedConfig
 from pamd.muscle_type.custom import NAME as CUSTOM
@@ -22,40 +22,55 @@ from pamd.tune.yamledit import KeyPath, Value
 
 
 def run_map(args: argparse.Namespace, path: str, cfg: LoadedConfig) -> int:
-    names = [m.name for m in cfg.rig.muscles]
-    if args.muscle and len(args.muscle) > 1:
-        raise CommissionRefused("--measure-map measures one muscle at a time: give one "
-                                "--muscle")
-    if not args.muscle and len(names) > 1:
-        raise CommissionRefused(f"--measure-map measures one muscle: name it (--muscle; this "
-                                f"rig has {', '.join(names)})")
-    muscle = args.muscle[0] if args.muscle else names[0]
+    muscle = _map_muscle(args, [m.name for m in cfg.rig.muscles])
     loads = _numbers(args.map_loads, "--map-loads", "loads in kg", "25,50,100")
     levels = _numbers(args.map_levels, "--map-levels", "pressures in bar", "1,2,3,4")
     sweep = choose_sweep(cfg, muscle, loads, levels, args.map_hold_s, args.map_rate)
-    for ls in sweep.loads:
-        _progress(f"{muscle}: {ls.load_kg:g} kg at {', '.join(f'{p:g}' for p in ls.levels_bar)}"
-                  f" bar, rising from {ls.below_bar if ls.below_bar is not None else '-'}, "
-                  f"turning at {ls.above_bar if ls.above_bar is not None else '-'}")
-    for note in sweep.skipped:
-        _progress(f"not measured: {note}")
+    _announce(sweep)
     out = measure_map(cfg, sweep, _progress, _ask, args.state_dir)
     saved = False
     if args.save and out.usable:
         with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):
             save_map(path, cfg, out)
         saved = True
-    if args.json:
-        print(json.dumps(as_json(path, out, saved), indent=2))
-    else:
-        print(text(path, out))
-        if args.save and not saved:
-            print("nothing saved: the run was refused or faulted, or the map is not usable")
-        elif not args.save:
-            print("nothing written (--save writes the map and makes it the muscle's)")
+    _report(args, path, out, saved)
     if out.refusals or (args.save and not saved):
         return CommissionRefused.exit_code
     return 1 if out.faults else 0
+
+
+def _map_muscle(args: argparse.Namespace, names: list[str]) -> str:
+    """The one muscle to measure: --muscle, or the rig's only one."""
+    if args.muscle and len(args.muscle) > 1:
+        raise CommissionRefused("--measure-map measures one muscle at a time: give one "
+                                "--muscle")
+    if not args.muscle and len(names) > 1:
+        raise CommissionRefused(f"--measure-map measures one muscle: name it (--muscle; this "
+                                f"rig has {', '.join(names)})")
+    return str(args.muscle[0]) if args.muscle else names[0]
+
+
+def _announce(sweep: MapSweep) -> None:
+    """Each load's levels and turning points, and what will not be measured (stderr)."""
+    for ls in sweep.loads:
+        _progress(f"{sweep.muscle}: {ls.load_kg:g} kg at "
+                  f"{', '.join(f'{p:g}' for p in ls.levels_bar)}"
+                  f" bar, rising from {ls.below_bar if ls.below_bar is not None else '-'}, "
+                  f"turning at {ls.above_bar if ls.above_bar is not None else '-'}")
+    for note in sweep.skipped:
+        _progress(f"not measured: {note}")
+
+
+def _report(args: argparse.Namespace, path: str, out: MapOutcome, saved: bool) -> None:
+    """The report, as text (with what was or was not written) or as JSON."""
+    if args.json:
+        print(json.dumps(as_json(path, out, saved), indent=2))
+        return
+    print(text(path, out))
+    if args.save and not saved:
+        print("nothing saved: the run was refused or faulted, or the map is not usable")
+    elif not args.save:
+        print("nothing written (--save writes the map and makes it the muscle's)")
 
 
 def save_map(path: str, cfg: LoadedConfig, out: MapOutcome) -> None:

@@ -25,7 +25,7 @@ from pamd.models.compare import Judged, common_options, format_comparison
 from pamd.models.contract import InverseModel
 from pamd.models.plots import write_overlay
 from pamd.models.registry import KINDS, load_model
-from pamd.view.judging import judge_as_tick
+from pamd.view.judging import TickReport, judge_as_tick
 from pamd.view.recording import recording_files
 from pamd.view.tables import load_samples
 
@@ -172,34 +172,12 @@ def run(args: argparse.Namespace) -> int:
                   f"({100.0 * j.clipped.sum() / len(samples):.1f} %) clipped" for j in judged]
     forward = {j.file: _forward(j.model, samples) for j in judged}
     if args.json:
-        doc: JsonObject = {}
-        if len(judged) == 1:
-            doc.update({k: _json_float(v) for k, v in judged[0].metrics.items()})
-            doc["samples"] = len(samples)
-        doc["models"] = [{**j.as_json(), "tick": r.as_json(),
-                          **({"forward": {k: {m: _json_float(v) for m, v in t.items()}
-                                          for k, t in forward[j.file].items()}}
-                             if forward[j.file] else {})} for j, r in pairs]
-        print(json.dumps(doc, indent=2))
+        _print_json(pairs, len(samples), forward)
         print(f"pamd evaluate: {note}; " + "; ".join(clip_notes), file=sys.stderr)
     elif len(judged) == 1:
-        j = judged[0]
-        print(f"{j.file}: {j.model!r}")
-        print(f"  {note}; {int(j.clipped.sum())} ({100.0 * j.clipped.sum() / len(samples):.1f}"
-              " %) had inputs outside the training ranges or an output held (clipped)")
-        format_table({"evaluation": j.metrics}, j.model.output.unit)
-        print(f"  tick cost of the compiled model: {j.tick_cost_us:.2f} us per sample")
-        if forward[j.file]:
-            print("  forward models against the measured length (seed 003's MAE, RMSE):")
-            format_table(forward[j.file], "mm")
+        _print_one(judged[0], len(samples), note, forward[judged[0].file])
     else:
-        print(f"{len(judged)} models on the same {note} ({', '.join(data)[:100]}):")
-        format_comparison(judged)
-        unit = judged[0].model.output.unit
-        print(f"  (errors in {unit}; max dev % of the measured range; fit % = NRMSE fit; "
-              "tick us = compiled evaluator per sample on this machine)")
-        for c in clip_notes:
-            print(f"  {c}")
+        _print_many(judged, f"{note} ({', '.join(data)[:100]})", clip_notes)
     for j, r in pairs:
         print(f"  {j.file}: {r.summary()}", file=sys.stderr if args.json else sys.stdout)
         for w in r.warnings(j.file):
@@ -208,6 +186,47 @@ def run(args: argparse.Namespace) -> int:
         paths = _plots(args.plot, judged, samples, ", ".join(data)[:80])
         print(f"plots: {', '.join(paths)}", file=sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _print_json(pairs: list[tuple[Judged, TickReport]], n_samples: int,
+                forward: dict[str, dict[str, dict[str, float]]]) -> None:
+    """The judgement as one JSON document: one model's metrics at its top, and each
+    model's, as the tick runs it and by its forward models."""
+    doc: JsonObject = {}
+    if len(pairs) == 1:
+        doc.update({k: _json_float(v) for k, v in pairs[0][0].metrics.items()})
+        doc["samples"] = n_samples
+    doc["models"] = [{**j.as_json(), "tick": r.as_json(),
+                      **({"forward": {k: {m: _json_float(v) for m, v in t.items()}
+                                      for k, t in forward[j.file].items()}}
+                         if forward[j.file] else {})} for j, r in pairs]
+    print(json.dumps(doc, indent=2))
+
+
+def _print_many(judged: list[Judged], what: str, clip_notes: list[str]) -> None:
+    """Several models' judgements side by side on the same samples (`what`), with each
+    one's clipped share."""
+    print(f"{len(judged)} models on the same {what}:")
+    format_comparison(judged)
+    unit = judged[0].model.output.unit
+    print(f"  (errors in {unit}; max dev % of the measured range; fit % = NRMSE fit; "
+          "tick us = compiled evaluator per sample on this machine)")
+    for c in clip_notes:
+        print(f"  {c}")
+
+
+def _print_one(j: Judged, n_samples: int, note: str,
+               forward: dict[str, dict[str, float]]) -> None:
+    """One model's judgement as a table, its clipped share, its tick cost and its
+    forward models."""
+    print(f"{j.file}: {j.model!r}")
+    print(f"  {note}; {int(j.clipped.sum())} ({100.0 * j.clipped.sum() / n_samples:.1f}"
+          " %) had inputs outside the training ranges or an output held (clipped)")
+    format_table({"evaluation": j.metrics}, j.model.output.unit)
+    print(f"  tick cost of the compiled model: {j.tick_cost_us:.2f} us per sample")
+    if forward:
+        print("  forward models against the measured length (seed 003's MAE, RMSE):")
+        format_table(forward, "mm")
 
 
 def held_out_part(samples: Samples, files: Sequence[str], models: Sequence[InverseModel],

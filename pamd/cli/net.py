@@ -162,6 +162,16 @@ def print_status(st: JsonObject, via: str = "") -> None:
     print(f"rig {st.get('rig_id')} (daemon of {st.get('user') or '?'}, pid "
           f"{st.get('pid') or '?'}): {st.get('state')} ({st.get('reason')})"
           + (f" [via {via}]" if via else ""))
+    _print_warnings(st)
+    _print_latched(st)
+    for name, m in (st.get("muscles") or {}).items():
+        _print_muscle(name, m)
+    _print_timing(st)
+    _print_run(st)
+
+
+def _print_warnings(st: JsonObject) -> None:
+    """What the daemon warns of: its warnings, stale values, lost records, live lag."""
     for warning in st.get("warnings") or []:
         print(f"  WARNING: {warning}")
     for why in st.get("stale_reasons") or []:
@@ -173,6 +183,10 @@ def print_status(st: JsonObject, via: str = "") -> None:
     lag = st.get("live_lag_s")
     if isinstance(lag, (int, float)) and lag >= 1.0:
         print(f"  live values {lag:.1f} s behind the loop (the io process is busy)")
+
+
+def _print_latched(st: JsonObject) -> None:
+    """What holds: a latched fault, a stopped recording, a stop under way."""
     if st.get("fault"):
         print(f"  latched fault: {st['fault']}")
     failure = (st.get("recording") or {}).get("failure")
@@ -182,21 +196,28 @@ def print_status(st: JsonObject, via: str = "") -> None:
               f"{failure.get('policy')})")
     if st.get("stopping"):
         print(f"  stopping: {st['stopping']}")
-    for name, m in (st.get("muscles") or {}).items():
-        lim, ref = m.get("limits") or {}, m.get("references") or {}
-        print(f"  {name}: {_f(m.get('pressure_bar'))} bar (setpoint "
-              f"{_f(m.get('setpoint_bar'))}, valve {_f(m.get('valve_cmd_bar'))}), force "
-              f"{_f(m.get('force_n'), '.1f')} N, length {_f(m.get('length_mm'), '.2f')} mm, "
-              f"mode {m.get('mode')}, profile {m.get('profile') or '-'}")
-        print(f"      limits {_f(lim.get('max_pressure_bar'), 'g')} bar, contraction "
-              f"{_f(lim.get('max_contraction'), 'g')}, pretension "
-              f"{_f(lim.get('max_pretension'), 'g')}; safe pressure "
-              f"{_f(m.get('safe_pressure_bar'), '.2f')} bar at {_f(m.get('load_kg'), 'g')} "
-              f"kg; referenced {m.get('referenced')} (homed {ref.get('homed_at') or '-'}, "
-              f"tared {ref.get('tared_at') or '-'})")
-        model = m.get("model")
-        if model:
-            print(f"      model {model.get('file')} ({model.get('rules')} rules)")
+
+
+def _print_muscle(name: str, m: JsonObject) -> None:
+    """One muscle: its values, limits and references, and its model."""
+    lim, ref = m.get("limits") or {}, m.get("references") or {}
+    print(f"  {name}: {_f(m.get('pressure_bar'))} bar (setpoint "
+          f"{_f(m.get('setpoint_bar'))}, valve {_f(m.get('valve_cmd_bar'))}), force "
+          f"{_f(m.get('force_n'), '.1f')} N, length {_f(m.get('length_mm'), '.2f')} mm, "
+          f"mode {m.get('mode')}, profile {m.get('profile') or '-'}")
+    print(f"      limits {_f(lim.get('max_pressure_bar'), 'g')} bar, contraction "
+          f"{_f(lim.get('max_contraction'), 'g')}, pretension "
+          f"{_f(lim.get('max_pretension'), 'g')}; safe pressure "
+          f"{_f(m.get('safe_pressure_bar'), '.2f')} bar at {_f(m.get('load_kg'), 'g')} "
+          f"kg; referenced {m.get('referenced')} (homed {ref.get('homed_at') or '-'}, "
+          f"tared {ref.get('tared_at') or '-'})")
+    model = m.get("model")
+    if model:
+        print(f"      model {model.get('file')} ({model.get('rules')} rules)")
+
+
+def _print_timing(st: JsonObject) -> None:
+    """The loop's rate, clock, ticks, overruns, wake-up lateness and compute time."""
     t = st.get("timing") or {}
     if t:
         w, c = t.get("wake_latency_us", {}), t.get("compute_us", {})
@@ -204,6 +225,10 @@ def print_status(st: JsonObject, via: str = "") -> None:
               f" {t.get('overruns')} overruns; wake-up p50/p99/max {_f(w.get('p50'), '.0f')}/"
               f"{_f(w.get('p99'), '.0f')}/{_f(w.get('max'), '.0f')} us; compute p99 "
               f"{_f(c.get('p99'), '.0f')} us")
+
+
+def _print_run(st: JsonObject) -> None:
+    """The experiment under way, this run's faults, the config and the snapshot's age."""
     if st.get("experiment"):
         e = st["experiment"]
         print(f"  experiment {e.get('plan')}: step {e.get('step')} {e.get('phase')}"
@@ -333,6 +358,60 @@ def _name(enum: type[IntEnum], v: JsonValue) -> str:
         return "-"
 
 
+@dataclasses.dataclass
+class _Tally:
+    """What `pamd watch` has received, by muscle: the latest values, the messages
+    (puts) and samples counted, and the messages missed (gaps in their sequence)."""
+
+    latest: dict[str, JsonObject] = dataclasses.field(default_factory=dict)
+    puts: dict[str, int] = dataclasses.field(default_factory=dict)
+    samples: dict[str, int] = dataclasses.field(default_factory=dict)
+    gaps: dict[str, int] = dataclasses.field(default_factory=dict)
+    last_seq: dict[str, int] = dataclasses.field(default_factory=dict)
+    total: int = 0  # messages received in all
+
+    def take(self, msg: JsonObject) -> None:
+        """Count one state message and keep its last sample."""
+        m = msg.get("muscle", "?")
+        self.total += 1
+        self.puts[m] = self.puts.get(m, 0) + 1
+        self.samples[m] = self.samples.get(m, 0) + len(msg.get("tick", []))
+        seq = msg.get("seq", 0)
+        if m in self.last_seq and seq > self.last_seq[m] + 1:
+            self.gaps[m] = self.gaps.get(m, 0) + seq - self.last_seq[m] - 1
+        self.last_seq[m] = seq
+        if msg.get("tick"):
+            self.latest[m] = {k: v[-1] for k, v in msg.items() if isinstance(v, list)}
+
+    def counts(self) -> dict[str, dict[str, int]]:
+        """The counts so far, from which the next table's rates are measured."""
+        return {"puts": dict(self.puts), "samples": dict(self.samples)}
+
+    def rows(self, since: dict[str, dict[str, int]], dt: float) -> list[tuple[str, ...]]:
+        """The table's rows (as COLUMNS), the rates over the `dt` s since `since`."""
+        rows: list[tuple[str, ...]] = []
+        for m, v in sorted(self.latest.items()):
+            rows.append((m, _name(State, v.get("state")), _f(v.get("pressure_bar")),
+                         _f(v.get("setpoint_bar")), _f(v.get("valve_cmd_bar")),
+                         _f(v.get("force_n"), ".1f"), _f(v.get("length_mm"), ".2f"),
+                         _f(None if v.get("contraction") is None
+                            else 100 * v["contraction"], ".2f"),
+                         _name(Mode, v.get("mode")), f"{int(v.get('flags') or 0):#x}",
+                         f"{(self.puts[m] - since['puts'].get(m, 0)) / dt:.0f}",
+                         f"{(self.samples[m] - since['samples'].get(m, 0)) / dt:.0f}",
+                         str(self.gaps.get(m, 0))))
+        return rows
+
+
+def _latest_events(events: list[str], line: str) -> list[str]:
+    """The last five event lines with `line` added."""
+    return (events + [line])[-5:]
+
+
+def _event_line(ev: JsonObject) -> str:
+    return f"{_f(ev.get('t_s'), '.2f')} s {ev.get('kind')}: {json.dumps(ev.get('data'))[:100]}"
+
+
 def watch(args: argparse.Namespace) -> int:
 
     with _client(args) as cl:
@@ -340,16 +419,11 @@ def watch(args: argparse.Namespace) -> int:
         keys = Keys(rig)
         sub = cl.subscribe(keys.state_all)
         evs = cl.subscribe(keys.events, 256)
-        latest: dict[str, JsonObject] = {}
-        puts: dict[str, int] = {}
-        samples: dict[str, int] = {}
-        gaps: dict[str, int] = {}
-        last_seq: dict[str, int] = {}
+        tally = _Tally()
         events: list[str] = []
         t0 = t_draw = time.monotonic()
-        n_draw = {"puts": dict(puts), "samples": dict(samples)}
+        n_draw = tally.counts()
         redraw = sys.stdout.isatty() and not args.plain
-        total = 0
         retry_t = 0.0
         try:
             while True:
@@ -357,47 +431,23 @@ def watch(args: argparse.Namespace) -> int:
                 if cl.lost and now >= retry_t:  # the daemon went: its next one, when up
                     retry_t = now + 2.0
                     gone = "(the daemon went away: waiting for it)"
-                    events = events if events[-1:] == [gone] else (events + [gone])[-5:]
+                    events = events if events[-1:] == [gone] else _latest_events(events, gone)
                     with contextlib.suppress(NoDaemon):
                         sub, evs = cl.subscribe(keys.state_all), cl.subscribe(keys.events, 256)
                 while (s := sub.try_recv()) is not None:
-                    msg = decode(s.payload.to_bytes())
-                    m = msg.get("muscle", "?")
-                    total += 1
-                    puts[m] = puts.get(m, 0) + 1
-                    samples[m] = samples.get(m, 0) + len(msg.get("tick", []))
-                    seq = msg.get("seq", 0)
-                    if m in last_seq and seq > last_seq[m] + 1:
-                        gaps[m] = gaps.get(m, 0) + seq - last_seq[m] - 1
-                    last_seq[m] = seq
-                    if msg.get("tick"):
-                        latest[m] = {k: v[-1] for k, v in msg.items() if isinstance(v, list)}
+                    tally.take(decode(s.payload.to_bytes()))
                 while (e := evs.try_recv()) is not None:
-                    ev = json.loads(e.payload.to_bytes())
-                    events = (events + [f"{_f(ev.get('t_s'), '.2f')} s {ev.get('kind')}: "
-                                        f"{json.dumps(ev.get('data'))[:100]}"])[-5:]
+                    events = _latest_events(events, _event_line(json.loads(e.payload.to_bytes())))
                 if now - t_draw >= 0.5:
-                    dt = now - t_draw
-                    rows: list[tuple[str, ...]] = []
-                    for m, v in sorted(latest.items()):
-                        rows.append((m, _name(State, v.get("state")), _f(v.get("pressure_bar")),
-                                     _f(v.get("setpoint_bar")), _f(v.get("valve_cmd_bar")),
-                                     _f(v.get("force_n"), ".1f"), _f(v.get("length_mm"), ".2f"),
-                                     _f(None if v.get("contraction") is None
-                                        else 100 * v["contraction"], ".2f"),
-                                     _name(Mode, v.get("mode")), f"{int(v.get('flags') or 0):#x}",
-                                     f"{(puts[m] - n_draw['puts'].get(m, 0)) / dt:.0f}",
-                                     f"{(samples[m] - n_draw['samples'].get(m, 0)) / dt:.0f}",
-                                     str(gaps.get(m, 0))))
-                    n_draw = {"puts": dict(puts), "samples": dict(samples)}
-                    t_draw = now
+                    rows = tally.rows(n_draw, now - t_draw)
+                    n_draw, t_draw = tally.counts(), now
                     _draw(rig, rows, events, redraw)
                 if args.duration is not None and now - t0 >= args.duration:
                     break
                 time.sleep(0.02)
         except KeyboardInterrupt:
             pass
-        if total == 0:
+        if tally.total == 0:
             raise NoDaemon(f"no state received on {keys.state_all} (is the daemon running "
                            "with telemetry on?)")
     return 0

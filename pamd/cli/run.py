@@ -267,31 +267,44 @@ def _profile_options(args: argparse.Namespace, length_mode: bool) -> dict[str, s
     mine, other = ((LENGTH_OPTIONS, PRESSURE_OPTIONS) if length_mode else
                    (PRESSURE_OPTIONS, LENGTH_OPTIONS))
     given = {o for o in {*mine.values(), *other.values()} if getattr(args, _dest(o)) is not None}
-    wrong_mode = sorted(given - set(mine.values()))
-    if wrong_mode:
-        which = "a length profile (--mode position or length_force)" if not length_mode \
-            else "a pressure profile"
-        reads = ", ".join(dict.fromkeys(mine.values()))
-        raise CommandRefused(
-            f"{' and '.join(wrong_mode)}: {'these are' if len(wrong_mode) > 1 else 'this is'} "
-            f"{which}'s; {'--mode ' + args.mode if length_mode else 'the pressure mode'} "
-            f"reads {reads}")
+    _refuse_other_mode(args, length_mode, mine, given)
     if args.profile is None:
         if given:
             raise CommandRefused(f"{' and '.join(sorted(given))} without --profile: name the "
                                  "profile they shape (--profile sine, ...)")
         return {}
-    shape_reads = set(SHAPE_PARAMS[args.profile])
-    unread = sorted(o for p, o in mine.items() if o in given and p not in shape_reads)
-    if unread:
-        wanted = [mine[p] for p in SHAPE_PARAMS[args.profile] if p in mine]
-        raise CommandRefused(
-            f"--profile {args.profile} does not read {' or '.join(unread)} (it reads "
-            f"{', '.join(wanted) or 'none of them'}); leave "
-            f"{'them' if len(unread) > 1 else 'it'} out" + (
-                "; a constant holds until stopped, or for the run's --duration"
-                if args.profile == "constant" else ""))
+    _refuse_unread(args.profile, mine, given)
     return {p: o for p, o in mine.items() if o in given}
+
+
+def _refuse_other_mode(args: argparse.Namespace, length_mode: bool, mine: dict[str, str],
+                       given: set[str]) -> None:
+    """Refused: a profile option given that only the other mode's profiles read."""
+    wrong_mode = sorted(given - set(mine.values()))
+    if not wrong_mode:
+        return
+    which = "a length profile (--mode position or length_force)" if not length_mode \
+        else "a pressure profile"
+    reads = ", ".join(dict.fromkeys(mine.values()))
+    raise CommandRefused(
+        f"{' and '.join(wrong_mode)}: {'these are' if len(wrong_mode) > 1 else 'this is'} "
+        f"{which}'s; {'--mode ' + args.mode if length_mode else 'the pressure mode'} "
+        f"reads {reads}")
+
+
+def _refuse_unread(profile: str, mine: dict[str, str], given: set[str]) -> None:
+    """Refused: a profile option given that the profile's shape does not read."""
+    shape_reads = set(SHAPE_PARAMS[profile])
+    unread = sorted(o for p, o in mine.items() if o in given and p not in shape_reads)
+    if not unread:
+        return
+    wanted = [mine[p] for p in SHAPE_PARAMS[profile] if p in mine]
+    raise CommandRefused(
+        f"--profile {profile} does not read {' or '.join(unread)} (it reads "
+        f"{', '.join(wanted) or 'none of them'}); leave "
+        f"{'them' if len(unread) > 1 else 'it'} out" + (
+            "; a constant holds until stopped, or for the run's --duration"
+            if profile == "constant" else ""))
 
 
 def _checked(verb: str, payload: JsonObject, option_of: dict[str, str]) -> None:
@@ -384,35 +397,13 @@ def not_recording_why(args: argparse.Namespace) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    overrides: JsonObject = {}
-    if args.clock:
-        overrides.setdefault("loop", {})["clock"] = args.clock
-    if args.rate_hz is not None:
-        overrides.setdefault("loop", {})["rate_hz"] = args.rate_hz
-    if args.off_data:
-        overrides.setdefault("control", {})["feedforward"] = {"off_data": args.off_data}
+    overrides = _overrides(args)
     cfg = load_config(args.config, overrides)
     if args.load_kg:  # for this run (and its reloads), checked against the ratings first
         overrides["muscles"] = load_overrides(args.load_kg, cfg)
         cfg = load_config(args.config, overrides)
     models, model_path = _models(cfg, args)
-    length_mode = args.mode in ("length_force", "position")
-    given = _profile_options(args, length_mode)  # before any file is read
-    needs_model = args.mode == "length_force" or (args.mode == "position"
-                                                  and not args.no_feedforward)
-    for m in cfg.rig.muscles:
-        if (args.mode == "position" and not args.no_feedforward and m.actuation == "onoff"
-                and args.muscle in (None, m.name)):
-            raise CommandRefused(f"{m.name}: --mode position with a model: "
-                                 f"{POSITION_TAKES_NO_MODEL}")
-        if needs_model and args.muscle in (None, m.name) and m.name not in models:
-            raise CommandRefused(f"{m.name}: --mode {args.mode} needs a model: --model FILE "
-                                 "or model_file in the config (position mode runs without "
-                                 "one with --no-feedforward)")
-    profile = None  # refused before anything opens or moves
-    if args.profile is not None:
-        profile = (_length_profile(args, cfg, given) if length_mode else
-                   _pressure_profile(args, cfg, given))
+    profile = _start_profile(args, cfg, models)  # refused before anything opens or moves
     if args.listen and args.no_telemetry:
         raise CommandRefused("--listen is where telemetry listens: it goes without "
                              "--no-telemetry")
@@ -430,9 +421,70 @@ def run(args: argparse.Namespace) -> int:
     testhooks.install(daemon)
     daemon.keeper.allow_restart_in_place()  # a reload that reopens the devices execs again
     signalled = _install_signals(daemon)
-    # Sent once the start-up is over and its ramp (a muscle that started outside its
-    # limits) has ended; on the virtual clock at a standstill, so a virtual run is the
-    # same every time (pamd.cli.run_start).
+    start = StartRequests(daemon, _start_requests(args, profile),
+                          loads_given=overrides.get("muscles") or {})
+    daemon.start(args.duration, stop_when_profile_done=profile is not None and
+                 args.cycles is not None, end_on_fault=_end_on_fault(args))
+    _say_recording(args, cfg, record_dir, max_mb)
+    try:
+        start.send(cfg.rig.safety.startup_timeout_s + 5.0)
+        daemon.wait()
+        start.refuse_wrong_load()  # a run that ended in start-up (no request waited)
+    finally:
+        daemon.stop("shutting down")
+        daemon.wait()
+        daemon.close()
+    return _finish(args, cfg, daemon, signalled)
+
+
+def _overrides(args: argparse.Namespace) -> JsonObject:
+    """The config's values this run's options override (--clock, --rate-hz,
+    --off-data)."""
+    overrides: JsonObject = {}
+    if args.clock:
+        overrides.setdefault("loop", {})["clock"] = args.clock
+    if args.rate_hz is not None:
+        overrides.setdefault("loop", {})["rate_hz"] = args.rate_hz
+    if args.off_data:
+        overrides.setdefault("control", {})["feedforward"] = {"off_data": args.off_data}
+    return overrides
+
+
+def _start_profile(args: argparse.Namespace, cfg: LoadedConfig,
+                   models: dict[str, LoadedModel]) -> JsonObject | None:
+    """The --profile as the profile command sent at the start (None: no profile), its
+    options, the --mode's model and the profile checked before anything opens."""
+    length_mode = args.mode in ("length_force", "position")
+    given = _profile_options(args, length_mode)  # before any file is read
+    _check_mode_models(args, cfg, models)
+    if args.profile is None:
+        return None
+    return (_length_profile(args, cfg, given) if length_mode else
+            _pressure_profile(args, cfg, given))
+
+
+def _check_mode_models(args: argparse.Namespace, cfg: LoadedConfig,
+                       models: dict[str, LoadedModel]) -> None:
+    """Each selected muscle has a model where --mode needs one, and takes one: an on/off
+    muscle's position mode runs without."""
+    needs_model = args.mode == "length_force" or (args.mode == "position"
+                                                  and not args.no_feedforward)
+    for m in cfg.rig.muscles:
+        if (args.mode == "position" and not args.no_feedforward and m.actuation == "onoff"
+                and args.muscle in (None, m.name)):
+            raise CommandRefused(f"{m.name}: --mode position with a model: "
+                                 f"{POSITION_TAKES_NO_MODEL}")
+        if needs_model and args.muscle in (None, m.name) and m.name not in models:
+            raise CommandRefused(f"{m.name}: --mode {args.mode} needs a model: --model FILE "
+                                 "or model_file in the config (position mode runs without "
+                                 "one with --no-feedforward)")
+
+
+def _start_requests(args: argparse.Namespace, profile: JsonObject | None
+                    ) -> list[tuple[str, JsonObject]]:
+    """The commands sent once the start-up is over and its ramp (a muscle that started
+    outside its limits) has ended; on the virtual clock at a standstill, so a virtual
+    run is the same every time (pamd.cli.run_start): --mode, then --profile."""
     requests: list[tuple[str, JsonObject]] = []
     if args.mode is not None:  # before the profile: both land on the same tick
         mode_args: JsonObject = {"mode": args.mode, "feedforward": not args.no_feedforward,
@@ -442,9 +494,13 @@ def run(args: argparse.Namespace) -> int:
         requests.append(("mode", mode_args))
     if profile is not None:
         requests.append(("profile", profile))
-    start = StartRequests(daemon, requests, loads_given=overrides.get("muscles") or {})
-    daemon.start(args.duration, stop_when_profile_done=profile is not None and
-                 args.cycles is not None, end_on_fault=_end_on_fault(args))
+    return requests
+
+
+def _say_recording(args: argparse.Namespace, cfg: LoadedConfig, record_dir: str | None,
+                   max_mb: float | None) -> None:
+    """Where the run records, or why it does not; that a virtual run without end runs
+    until stopped."""
     if record_dir is not None and not args.json:
         cap = f", at most {max_mb:g} MB" if max_mb else ""
         log.info("recording into %s%s (--no-record: none)", record_dir, cap)
@@ -453,14 +509,12 @@ def run(args: argparse.Namespace) -> int:
     if cfg.rig.loop.clock == "virtual" and args.duration is None and args.cycles is None:
         log.info("virtual clock with no end (no --duration, no --cycles): the simulation "
                  "runs as fast as it can until Ctrl-C or SIGTERM")
-    try:
-        start.send(cfg.rig.safety.startup_timeout_s + 5.0)
-        daemon.wait()
-        start.refuse_wrong_load()  # a run that ended in start-up (no request waited)
-    finally:
-        daemon.stop("shutting down")
-        daemon.wait()
-        daemon.close()
+
+
+def _finish(args: argparse.Namespace, cfg: LoadedConfig, daemon: Daemon,
+            signalled: list[str]) -> int:
+    """After the run: a restart in place where a reload handed the outputs over, the
+    result printed (summary or JSON), the exit code."""
     result = daemon.result()
     if daemon.loop.handed_over and daemon.error is None:
         # the outputs hold: the new daemon must take over (and, with no time left
@@ -535,66 +589,106 @@ def print_summary(r: JsonObject) -> None:
     print(f"  compute time    p50 {c['p50']:.0f} us, p99 {c['p99']:.0f} us, max "
           f"{c['max']:.0f} us", file=out)
     for name, t in r["tracking"].items():
-        if t["samples"] or t.get("length_samples"):
-            if t["samples"]:  # none where no pressure setpoint ran (on/off positioning)
-                print(f"  {name}: pressure tracking RMSE {t['rmse_bar']:.4f} bar, MAE "
-                      f"{t['mae_bar']:.4f} bar, max error "
-                      f"{t['max_error_bar']:.4f} bar ({t['samples']} ticks running)",
-                      file=out)
-            if t.get("samples_after_first_cycle"):
-                print(f"  {name}:   after the first cycle: RMSE "
-                      f"{t['rmse_bar_after_first_cycle']:.4f} bar, MAE "
-                      f"{t['mae_bar_after_first_cycle']:.4f} bar, max error "
-                      f"{t['max_error_bar_after_first_cycle']:.4f} bar "
-                      f"({t['samples_after_first_cycle']} ticks)", file=out)
-            if t.get("length_samples"):
-                print(f"  {name}: length tracking RMSE {t['length_rmse_mm']:.3f} mm, MAE "
-                      f"{t['length_mae_mm']:.3f} mm, max "
-                      f"error {t['length_max_error_mm']:.3f} mm ({t['length_samples']} "
-                      "ticks with a length target)", file=out)
-            if t.get("length_samples_after_first_cycle"):
-                print(f"  {name}:   after the first cycle: RMSE "
-                      f"{t['length_rmse_mm_after_first_cycle']:.3f} mm, MAE "
-                      f"{t['length_mae_mm_after_first_cycle']:.3f} mm, max error "
-                      f"{t['length_max_error_mm_after_first_cycle']:.3f} mm "
-                      f"({t['length_samples_after_first_cycle']} ticks)", file=out)
-            if t.get("soft_limit_s"):
-                print(f"  {name}: held back by a soft limit for {t['soft_limit_s']:.1f} s "
-                      f"while running ({t['soft_limit_events']} time(s) over 1 s): the "
-                      "profile was not followed there", file=out)
-        else:
-            print(f"  {name}: no profile ran (no tracking figures)", file=out)
+        for line in _tracking_lines(name, t):
+            print(line, file=out)
+    for line in _feedforward_lines(r):
+        print(line, file=out)
+    for line in _switching_lines(r):
+        print(line, file=out)
+    rec = r.get("recording")
+    if rec:
+        for line in _recording_lines(rec, r["ticks"]):
+            print(line, file=out)
+    for line in _exit_lines(r):
+        print(line, file=out)
+    if rec and rec["files"]:
+        print(next_steps(rec["files"]), file=out)
+
+
+def _tracking_lines(name: str, t: JsonObject) -> list[str]:
+    """The summary's lines on a muscle's tracking: pressure and length, over the run and
+    after the first cycle, and the time a soft limit held it back."""
+    if not (t["samples"] or t.get("length_samples")):
+        return [f"  {name}: no profile ran (no tracking figures)"]
+    lines = []
+    if t["samples"]:  # none where no pressure setpoint ran (on/off positioning)
+        lines.append(f"  {name}: pressure tracking RMSE {t['rmse_bar']:.4f} bar, MAE "
+                     f"{t['mae_bar']:.4f} bar, max error "
+                     f"{t['max_error_bar']:.4f} bar ({t['samples']} ticks running)")
+    if t.get("samples_after_first_cycle"):
+        lines.append(f"  {name}:   after the first cycle: RMSE "
+                     f"{t['rmse_bar_after_first_cycle']:.4f} bar, MAE "
+                     f"{t['mae_bar_after_first_cycle']:.4f} bar, max error "
+                     f"{t['max_error_bar_after_first_cycle']:.4f} bar "
+                     f"({t['samples_after_first_cycle']} ticks)")
+    if t.get("length_samples"):
+        lines.append(f"  {name}: length tracking RMSE {t['length_rmse_mm']:.3f} mm, MAE "
+                     f"{t['length_mae_mm']:.3f} mm, max "
+                     f"error {t['length_max_error_mm']:.3f} mm ({t['length_samples']} "
+                     "ticks with a length target)")
+    if t.get("length_samples_after_first_cycle"):
+        lines.append(f"  {name}:   after the first cycle: RMSE "
+                     f"{t['length_rmse_mm_after_first_cycle']:.3f} mm, MAE "
+                     f"{t['length_mae_mm_after_first_cycle']:.3f} mm, max error "
+                     f"{t['length_max_error_mm_after_first_cycle']:.3f} mm "
+                     f"({t['length_samples_after_first_cycle']} ticks)")
+    if t.get("soft_limit_s"):
+        lines.append(f"  {name}: held back by a soft limit for {t['soft_limit_s']:.1f} s "
+                     f"while running ({t['soft_limit_events']} time(s) over 1 s): the "
+                     "profile was not followed there")
+    return lines
+
+
+def _feedforward_lines(r: JsonObject) -> list[str]:
+    """The summary's line on each muscle's model feedforward (none where no model ran)."""
+    lines = []
     for name, ff in (r.get("feedforward") or {}).items():
         line = feedforward_line(ff)
         if line:
-            print(f"  {name}: {line}", file=out)
+            lines.append(f"  {name}: {line}")
+    return lines
+
+
+def _switching_lines(r: JsonObject) -> list[str]:
+    """The summary's line on each muscle's valve switchings (on/off valves), with their
+    rates over the run."""
+    lines = []
     for name, sw in r.get("valve_switches", {}).items():
         if sw:
             per_s = r["duration_s"] or 1.0
-            print(f"  {name}: valve switchings "
-                  + ", ".join(f"{v} {n} ({n / per_s:.1f}/s)" for v, n in sw.items()), file=out)
-    rec = r.get("recording")
-    if rec:
-        files = ", ".join(rec["files"]) or "none"
-        print(f"  recording: {files} ({rec['ticks_recorded']} ticks, lost records "
-              f"{rec['lost_records']}, lost events {rec['lost_events']})", file=out)
-        cap = rec.get("max_mb")
-        if cap and rec["ticks_recorded"] + rec["lost_records"] < r["ticks"]:
-            print(f"  recording stopped at its size cap of {cap:g} MB (the run's later "
-                  "ticks are not in it): --record DIR records a run whole", file=out)
-        if rec.get("failure"):
-            print(f"  recording FAILED: {rec['failure']['reason']} "
-                  f"({rec['failure']['policy']})", file=out)
+            lines.append(f"  {name}: valve switchings "
+                         + ", ".join(f"{v} {n} ({n / per_s:.1f}/s)" for v, n in sw.items()))
+    return lines
+
+
+def _exit_lines(r: JsonObject) -> list[str]:
+    """The summary's lines on how the run ended: its faults, the outputs at exit, the
+    final state."""
     faults = r["faults"]
-    print(f"  faults: {'; '.join(faults) if faults else 'none'}", file=out)
+    lines = [f"  faults: {'; '.join(faults) if faults else 'none'}"]
     outputs = r.get("outputs") or {}
     if outputs:
-        print("  outputs at exit: " + ", ".join(
+        lines.append("  outputs at exit: " + ", ".join(
             f"{n} {o['valve_cmd_bar']:.2f} bar (safe pressure {o['safe_pressure_bar']:.2f})"
-            for n, o in outputs.items()), file=out)
-    print(f"  final state: {r['final_state']}", file=out)
-    if rec and rec["files"]:
-        print(next_steps(rec["files"]), file=out)
+            for n, o in outputs.items()))
+    lines.append(f"  final state: {r['final_state']}")
+    return lines
+
+
+def _recording_lines(rec: JsonObject, ticks: int) -> list[str]:
+    """The summary's lines on the recording: its files and counts, a size cap that
+    stopped it before the run's `ticks` were in, a failure."""
+    files = ", ".join(rec["files"]) or "none"
+    lines = [f"  recording: {files} ({rec['ticks_recorded']} ticks, lost records "
+             f"{rec['lost_records']}, lost events {rec['lost_events']})"]
+    cap = rec.get("max_mb")
+    if cap and rec["ticks_recorded"] + rec["lost_records"] < ticks:
+        lines.append(f"  recording stopped at its size cap of {cap:g} MB (the run's later "
+                     "ticks are not in it): --record DIR records a run whole")
+    if rec.get("failure"):
+        lines.append(f"  recording FAILED: {rec['failure']['reason']} "
+                     f"({rec['failure']['policy']})")
+    return lines
 
 
 def feedforward_line(ff: JsonObject) -> str:

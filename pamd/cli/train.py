@@ -18,9 +18,10 @@ from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.extraction import derived_inputs
-from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions
+from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
 from pamd.models.anfis.splitting import SPLITS, default_fractions, split
 from pamd.models.compare import predict_samples
+from pamd.models.contract import InverseModel
 from pamd.models.domain import derive
 from pamd.models.kind import Kind, KindOptions, OptionSpec
 from pamd.models.registry import KINDS, declared, save_model
@@ -223,24 +224,34 @@ def run(args: argparse.Namespace) -> int:
     rows: dict[str, dict[str, float]] = {
         k: model.metrics[k] for k in ("train", "validation") if k in model.metrics}
     if te is not None:
-        if model.stateful:  # over whole runs, scored on the test rows
-            y_all, _ = predict_samples(model, samples.X, samples.run)
-            y_hat = y_all[rows_of(samples, te)]
-        else:
-            y_hat = model.predict(te.X)
-        model.metrics["test"] = regression_metrics(te.y, y_hat, model.n_params)
-        rows["test"] = model.metrics["test"]
+        rows["test"] = model.metrics["test"] = _test_metrics(model, samples, te)
     _refuse_poor_fit(model.metrics, args)
     save_model(model, args.out)
     print(f"{args.out}: " + (fitted.summary or f"{model.kind} model {model!r}, "
                              f"{model.n_params} parameters")
           + f"; {progress.wall_text(time.monotonic() - t0)} (wall time, reading included)")
     format_table(rows, model.output.unit)
+    _print_forward(model, kind)
+    return 0
+
+
+def _print_forward(model: InverseModel, kind: Kind[KindOptions]) -> None:
+    """The figures of the kind's forward model, where it has one."""
     fwd = {k[len("forward_"):]: v for k, v in model.metrics.items() if k.startswith("forward_")}
     if fwd and kind.forward is not None:
         print(f"  forward model ({kind.forward.label}):")
         format_table(fwd, kind.forward.unit)
-    return 0
+
+
+def _test_metrics(model: InverseModel, samples: Samples, te: Samples) -> dict[str, float]:
+    """The model's figures on the test part (a stateful model run over whole runs,
+    scored on the test rows)."""
+    if model.stateful:  # over whole runs, scored on the test rows
+        y_all, _ = predict_samples(model, samples.X, samples.run)
+        y_hat = y_all[rows_of(samples, te)]
+    else:
+        y_hat = model.predict(te.X)
+    return regression_metrics(te.y, y_hat, model.n_params)
 
 
 def model_inputs(text: str | None, kind: Kind[KindOptions], target: str) -> tuple[str, ...]:

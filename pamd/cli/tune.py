@@ -15,7 +15,7 @@ from pamd.control.tuning import Fopdt, IdentificationError
 from pamd.tune.onoff import LEVEL_BAR, StepTest, derived_settings, print_settings, print_test
 from pamd.tune.onoff_plot import plot_onoff
 from pamd.tune.onoff_run import check_onoff, run_onoff
-from pamd.tune.placement import place
+from pamd.tune.placement import Placement, place
 from pamd.tune.relay import MAX_RELAY_BAR, mean_relay_model, print_relay, run_relay
 from pamd.tune.report import (
     Present,
@@ -168,12 +168,8 @@ def run(args: argparse.Namespace) -> int:
     muscles = args.muscle or [m.name for m in cfg.rig.muscles]
     check_actuation(cfg, muscles, lp.loop)  # before anything moves
     out = args.out or os.path.join("runs", f"tune-{lp.loop}-{time.strftime('%Y%m%d-%H%M%S')}")
-    if args.method == "relay" and lp.loop != "pressure":
-        raise TuneRefused("--method relay identifies the pressure loop; the position "
-                          "loop is identified by steps (--method step)")
-    if args.method == "relay" and args.plot:
-        raise TuneRefused("--plot draws step responses: it goes with --method step")
     if args.method == "relay":
+        _check_relay(args, lp)
         models = _relay(args, config_path, lp, muscles, out)
     else:
         models = _steps(args, config_path, lp, muscles, out)
@@ -183,19 +179,34 @@ def run(args: argparse.Namespace) -> int:
         sum(m.tau_s for m in models.values()) / len(models),
         sum(m.dead_time_s for m in models.values()) / len(models)))
     placement = place(cfg, by_muscle, rig_wide, args.per_muscle)
-    if placement.per_muscle:
-        for muscle, new in by_muscle.items():
-            print(f"{muscle}:")
-            print_gains(lp.loop, present_gains(cfg, lp.loop, muscle), new)
-        print(f"per muscle (muscles[].control): {placement.why}")
-    else:
-        print_gains(lp.loop, present_gains(cfg, lp.loop), rig_wide)
-        print(f"rig-wide (control): {placement.why}")
+    _print_placement(cfg, lp.loop, placement, by_muscle, rig_wide)
     print(f"recording: {out}")
     if not args.save:
         print("nothing written (--save writes the new gains into the config file)")
         return 0
     return save_values(config_path, placement.values)
+
+
+def _check_relay(args: argparse.Namespace, lp: LoopPlan) -> None:
+    """The relay test identifies the pressure loop, and draws no step responses."""
+    if lp.loop != "pressure":
+        raise TuneRefused("--method relay identifies the pressure loop; the position "
+                          "loop is identified by steps (--method step)")
+    if args.plot:
+        raise TuneRefused("--plot draws step responses: it goes with --method step")
+
+
+def _print_placement(cfg: LoadedConfig, loop: str, placement: Placement,
+                     by_muscle: dict[str, Present], rig_wide: Present) -> None:
+    """The new gains beside the present ones, where they go and why."""
+    if placement.per_muscle:
+        for muscle, new in by_muscle.items():
+            print(f"{muscle}:")
+            print_gains(loop, present_gains(cfg, loop, muscle), new)
+        print(f"per muscle (muscles[].control): {placement.why}")
+    else:
+        print_gains(loop, present_gains(cfg, loop), rig_wide)
+        print(f"rig-wide (control): {placement.why}")
 
 
 def _steps(args: argparse.Namespace, config_path: str, lp: LoopPlan, muscles: list[str],
@@ -236,6 +247,22 @@ def _relay(args: argparse.Namespace, config_path: str, lp: LoopPlan, muscles: li
 def _onoff(args: argparse.Namespace, cfg: LoadedConfig, config_path: str) -> int:
     """The on/off step test of each muscle (--muscle, default every on/off muscle), its
     measurements and settings printed; --save writes them into muscles[].onoff."""
+    level = _onoff_level(args)
+    muscles = _onoff_muscles(args, cfg, level)
+    if args.plot:
+        pyplot()  # matplotlib missing: refused now, not after the runs
+    out = args.out or os.path.join("runs", f"tune-onoff-{time.strftime('%Y%m%d-%H%M%S')}")
+    values = _onoff_tests(args, cfg, config_path, muscles, level, out)
+    print(f"recording: {out}")
+    if not args.save:
+        print("nothing written (--save writes the new settings into the config file)")
+        return 0
+    return save_values(config_path, values, what="on/off settings")
+
+
+def _onoff_level(args: argparse.Namespace) -> float:
+    """The one level of the on/off step test (--levels, default LEVEL_BAR); the options
+    of the other loops refused."""
     for flag, given in (("--method relay", args.method == "relay"),
                         ("--step-bar", args.step_bar is not None),
                         ("--per-muscle", args.per_muscle)):
@@ -247,17 +274,28 @@ def _onoff(args: argparse.Namespace, cfg: LoadedConfig, config_path: str) -> int
     if levels is not None and len(levels) != 1:
         raise TuneRefused("--loop onoff runs its step test at one level: give one, e.g. "
                           "--levels 3")
-    level = levels[0] if levels else LEVEL_BAR
-    muscles = args.muscle or [m.name for m in cfg.rig.muscles if m.actuation == "onoff"]
+    return levels[0] if levels else LEVEL_BAR
+
+
+def _onoff_muscles(args: argparse.Namespace, cfg: LoadedConfig, level: float) -> list[str]:
+    """The muscles to test (--muscle, default every on/off one), all checked before
+    anything opens."""
+    muscles: list[str] = args.muscle or [m.name for m in cfg.rig.muscles
+                                         if m.actuation == "onoff"]
     if not muscles:
         raise TuneRefused("no muscle of this rig is on on/off valves (actuation: onoff): "
                           "--loop onoff tunes those; tune a regulator with --loop pressure, "
                           "then --loop position")
     for muscle in muscles:  # all of them before anything opens
         check_onoff(cfg, muscle, level)
-    if args.plot:
-        pyplot()  # matplotlib missing: refused now, not after the runs
-    out = args.out or os.path.join("runs", f"tune-onoff-{time.strftime('%Y%m%d-%H%M%S')}")
+    return muscles
+
+
+def _onoff_tests(args: argparse.Namespace, cfg: LoadedConfig, config_path: str,
+                 muscles: list[str], level: float, out: str) -> dict[KeyPath, float]:
+    """Each muscle's step test run, printed with its settings (present and new), and
+    plotted with --plot (what was measured also when a test is refused); the new
+    settings by config key."""
     values: dict[KeyPath, float] = {}
     tests: dict[str, StepTest] = {}
     for muscle in muscles:
@@ -276,11 +314,7 @@ def _onoff(args: argparse.Namespace, cfg: LoadedConfig, config_path: str) -> int
         values.update({("muscles", f"[{muscle}]", "onoff", k): v for k, v in new.items()})
     if args.plot:
         _plot_onoff(args.plot, tests, level)
-    print(f"recording: {out}")
-    if not args.save:
-        print("nothing written (--save writes the new settings into the config file)")
-        return 0
-    return save_values(config_path, values, what="on/off settings")
+    return values
 
 
 def _plot_onoff(path: str, tests: dict[str, StepTest], level_bar: float) -> None:

@@ -75,6 +75,20 @@ def check_step(cfg: LoadedConfig, mv: Moves, steps: list[Step], phase: str,
     shown = "; ".join(f"{s.name}: command {s.command_change_bar:+.2f} bar, pressure "
                       f"{s.pressure_change_bar:+.2f} bar, length {s.length_change_mm:+.2f} mm"
                       for s in steps)
+    _check_pressure_sign(m, steps, shown)
+    _check_length_sign(m, steps, shown)
+    small = [s for s in steps if s.name.startswith(("up", "down"))]
+    if signs_only or not small:
+        return [f"{m} ({phase}, signs): the pressure rose with the valve command, the length "
+                "shortened"]
+    gain = _check_pressure_scale(m, small, shown)
+    return [f"{m} ({phase}): the pressure rose {gain:.2f} bar per bar of valve command "
+            f"(expected {PRESSURE_GAIN[0]:g} to {PRESSURE_GAIN[1]:g})",
+            _check_length_scale(cfg, mv, small, shown, phase)]
+
+
+def _check_pressure_sign(m: str, steps: list[Step], shown: str) -> None:
+    """The valve command moved, and the pressure followed it, the right way round."""
     sc = sum(s.command_change_bar ** 2 for s in steps)
     if not sc > 0.0:
         raise CommissionRefused(f"{m}: the valve command never changed ({shown}): the "
@@ -90,8 +104,10 @@ def check_step(cfg: LoadedConfig, mv: Moves, steps: list[Step], phase: str,
             f"{m}: the pressure did not follow the valve ({gain:.2f} bar per bar of command; "
             f"{shown}): check the air supply, the valve's wiring and scaling (signals.valve) "
             "and the pressure sensor's channel and scaling (signals.pressure)")
-    small = [s for s in steps if s.name.startswith(("up", "down"))]
-    mcfg = cfg.muscle(m)
+
+
+def _check_length_sign(m: str, steps: list[Step], shown: str) -> None:
+    """The length moved, and shortened as the pressure rose."""
     dp = sum(s.pressure_change_bar ** 2 for s in steps)
     per_bar = sum(s.length_change_mm * s.pressure_change_bar for s in steps) / dp if dp else 0.0
     moved = max(abs(s.length_change_mm) for s in steps)
@@ -104,10 +120,11 @@ def check_step(cfg: LoadedConfig, mv: Moves, steps: list[Step], phase: str,
             f"{m}: the length grew as the pressure rose ({shown}); a muscle shortens when "
             f"its pressure rises: check the sign of muscles[{m}].signals.length.gain and "
             "the encoder's counting direction")
-    if signs_only or not small:
-        return [f"{m} ({phase}, signs): the pressure rose with the valve command, the length "
-                "shortened"]
-    steps = small
+
+
+def _check_pressure_scale(m: str, steps: list[Step], shown: str) -> float:
+    """The pressure's change per change of the valve command over the small steps,
+    within PRESSURE_GAIN (returned)."""
     sc = sum(s.command_change_bar ** 2 for s in steps)
     gain = sum(s.pressure_change_bar * s.command_change_bar for s in steps) / sc
     lo, hi = PRESSURE_GAIN
@@ -116,6 +133,16 @@ def check_step(cfg: LoadedConfig, mv: Moves, steps: list[Step], phase: str,
             f"{m}: the pressure changed {gain:.2f} bar per bar of valve command ({shown}), "
             f"not {lo:g} to {hi:g}: check the supply, the valve's scaling (signals.valve "
             f"gain, raw_min/raw_max) and the pressure sensor's (signals.pressure.gain/offset)")
+    return gain
+
+
+def _check_length_scale(cfg: LoadedConfig, mv: Moves, steps: list[Step], shown: str,
+                        phase: str) -> str:
+    """The length's change per bar over the small steps, within LENGTH_RATIO of what the
+    force model predicts for the declared load near the first level; the line that
+    says so."""
+    m = mv.muscle
+    mcfg = cfg.muscle(m)
     model = cfg.muscle_type(m).force_model(mcfg.force_model)
     dp = sum(s.pressure_change_bar ** 2 for s in steps)
     per_bar = sum(s.length_change_mm * s.pressure_change_bar for s in steps) / dp
@@ -130,10 +157,8 @@ def check_step(cfg: LoadedConfig, mv: Moves, steps: list[Step], phase: str,
             f"{m}: the length moved {per_bar:.2f} mm per bar where the force model with "
             f"{mcfg.load_kg:g} kg expects about {expected:.2f} mm per bar ({shown}): check "
             f"muscles[{m}].signals.length.gain (mm per count), nominal_length_mm and load_kg")
-    return [f"{m} ({phase}): the pressure rose {gain:.2f} bar per bar of valve command "
-            f"(expected {PRESSURE_GAIN[0]:g} to {PRESSURE_GAIN[1]:g})",
-            f"{m} ({phase}): the length moved {per_bar:+.2f} mm per bar (the force model "
-            f"with {mcfg.load_kg:g} kg: {expected:+.2f}; expected share {lo:g} to {hi:g})"]
+    return (f"{m} ({phase}): the length moved {per_bar:+.2f} mm per bar (the force model "
+            f"with {mcfg.load_kg:g} kg: {expected:+.2f}; expected share {lo:g} to {hi:g})")
 
 
 def check_changes(meas: Measurements) -> list[str]:

@@ -94,8 +94,17 @@ def two_digits_up(x: float) -> float:
 
 def thresholds(cfg: LoadedConfig, meas: Measurements) -> tuple[list[Threshold], list[str]]:
     """The rows of the thresholds table, and the refusals among the proposals."""
-    rows: list[Threshold] = []
     refusals: list[str] = []
+    rows = _timeout_rows(cfg, meas, refusals) + _jump_rows(cfg, meas)
+    rows += [row for row in (_frozen_row(cfg, meas), _stall_row(cfg, meas)) if row is not None]
+    return rows, refusals
+
+
+def _timeout_rows(cfg: LoadedConfig, meas: Measurements, refusals: list[str]
+                  ) -> list[Threshold]:
+    """Each measured signal's timeout; a proposal above the safe ceiling is refused (the
+    reason added to `refusals`)."""
+    rows: list[Threshold] = []
     safety = cfg.rig.safety
     margin = safety.latency_margin_s
     for m in cfg.rig.muscles:
@@ -103,7 +112,6 @@ def thresholds(cfg: LoadedConfig, meas: Measurements) -> tuple[list[Threshold], 
             st = meas.signals.get(f"{m.name}.{s}")
             if st is None or not math.isfinite(st.worst_age_s):
                 continue
-            sig = getattr(m.signals, s)
             age = st.worst_age_s
             prop = up_to(max(TIMEOUT_FACTOR * age, age + margin), 0.005)
             if prop > TIMEOUT_CEILING_S:
@@ -114,11 +122,17 @@ def thresholds(cfg: LoadedConfig, meas: Measurements) -> tuple[list[Threshold], 
                 prop = math.nan
             rows.append(Threshold(
                 ("muscles", f"[{m.name}]", "signals", s, "timeout_s"), "s",
-                effective_timeout_s(sig, safety), age, "worst age",
+                effective_timeout_s(getattr(m.signals, s), safety), age, "worst age",
                 None if math.isnan(prop) else prop,
                 f"max({TIMEOUT_FACTOR:g} x worst age, worst age + safety.latency_margin_s "
                 f"{margin:g} s), up to 5 ms"))
-    pl = safety.plausibility
+    return rows
+
+
+def _jump_rows(cfg: LoadedConfig, meas: Measurements) -> list[Threshold]:
+    """The pressure and length jump allowances, where a jump was measured."""
+    rows: list[Threshold] = []
+    pl = cfg.rig.safety.plausibility
     for s, key, present in (("pressure", "pressure_jump_bar", pl.pressure_jump_bar),
                             ("length", "length_jump_mm", pl.length_jump_mm)):
         stats = [meas.signals[f"{m.name}.{s}"] for m in cfg.rig.muscles
@@ -135,26 +149,38 @@ def thresholds(cfg: LoadedConfig, meas: Measurements) -> tuple[list[Threshold], 
             max(worst, 0.0), "excess over rate", prop or None,
             f"max({NOISE_SIGMAS:g} x noise sd at rest, {QUANTA:g} x quantum, 2 x largest "
             "change beyond the rate), 2 digits up"))
+    return rows
+
+
+def _frozen_row(cfg: LoadedConfig, meas: Measurements) -> Threshold | None:
+    """The frozen time against the worst update gap of the pressures and forces."""
     gaps = [st.worst_gap_s for st in meas.signals.values()
             if st.name.endswith((".pressure", ".force")) and math.isfinite(st.worst_gap_s)]
-    if gaps:
-        need = round(FROZEN_GAPS * max(gaps), 6)
-        prop = up_to(need, 0.01) if pl.frozen_s < need else pl.frozen_s
-        rows.append(Threshold(
-            ("safety", "plausibility", "frozen_s"), "s", pl.frozen_s, need,
-            f"{FROZEN_GAPS:g} x worst gap", prop,
-            f"at least {FROZEN_GAPS:g} x the worst update gap (one value sampled three "
-            "times), up to 10 ms"))
+    if not gaps:
+        return None
+    pl = cfg.rig.safety.plausibility
+    need = round(FROZEN_GAPS * max(gaps), 6)
+    prop = up_to(need, 0.01) if pl.frozen_s < need else pl.frozen_s
+    return Threshold(
+        ("safety", "plausibility", "frozen_s"), "s", pl.frozen_s, need,
+        f"{FROZEN_GAPS:g} x worst gap", prop,
+        f"at least {FROZEN_GAPS:g} x the worst update gap (one value sampled three "
+        "times), up to 10 ms")
+
+
+def _stall_row(cfg: LoadedConfig, meas: Measurements) -> Threshold | None:
+    """The stall timeout against the worst wake-up lateness (measured on the real clock
+    only), where the loop ticked."""
     lp = meas.loop
     stall = cfg.rig.loop.stall_timeout_s
-    if lp.ticks:
-        prop_s: float | None = None
-        if lp.measured:
-            prop_s = max(stall, up_to(max(STALL_FACTOR * lp.wake_max_s,
-                                          STALL_PERIODS * cfg.period_s), 0.005))
-        rows.append(Threshold(
-            ("loop", "stall_timeout_s"), "s", stall, lp.wake_max_s if lp.measured else math.nan,
-            "worst wake-up" if lp.measured else "not measured (virtual clock)",
-            prop_s, f"max({STALL_FACTOR:g} x worst wake-up lateness, {STALL_PERIODS:g} "
-            "periods), up to 5 ms, never lowered; the real clock only"))
-    return rows, refusals
+    if not lp.ticks:
+        return None
+    prop_s: float | None = None
+    if lp.measured:
+        prop_s = max(stall, up_to(max(STALL_FACTOR * lp.wake_max_s,
+                                      STALL_PERIODS * cfg.period_s), 0.005))
+    return Threshold(
+        ("loop", "stall_timeout_s"), "s", stall, lp.wake_max_s if lp.measured else math.nan,
+        "worst wake-up" if lp.measured else "not measured (virtual clock)",
+        prop_s, f"max({STALL_FACTOR:g} x worst wake-up lateness, {STALL_PERIODS:g} "
+        "periods), up to 5 ms, never lowered; the real clock only")

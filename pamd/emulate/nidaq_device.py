@@ -132,6 +132,12 @@ class EmuTask:
         return self.channels[0].kind if self.channels else ""
 
 
+#: a numbered channel's kind -> (its physical name's prefix, the Product field that
+#: counts them)
+_NUMBERED: dict[str, tuple[str, str]] = {
+    "ai": ("ai", "ai"), "bridge": ("ai", "ai"), "ao": ("ao", "ao"), "ci": ("ctr", "counters")}
+
+
 class Card:
     """What a card has and NI-DAQmx's checks when a program makes a channel on it (each
     refusal with DAQmx's code): a physical name on this device, a range it can do, a
@@ -148,38 +154,48 @@ class Card:
         if dev.lower() != self.name.lower():
             raise DaqmxError(INVALID_DEVICE_ID, f"Device identifier is invalid.\nDevice "
                              f"Specified: {dev}\nSuggested Device(s): {self.name}")
-        p = self.product
         parts = rest.lower().split("/")
         try:
-            if kind in ("ai", "bridge") and parts[0].startswith("ai") and len(parts) == 1:
-                k = int(parts[0][2:])
-                if k < p.ai:
-                    return (k,)
-            elif kind == "ao" and parts[0].startswith("ao") and len(parts) == 1:
-                k = int(parts[0][2:])
-                if k < p.ao:
-                    return (k,)
-            elif kind == "ci" and parts[0].startswith("ctr") and len(parts) == 1:
-                k = int(parts[0][3:])
-                if k < p.counters:
-                    return (k,)
-            elif kind in ("di", "do") and len(parts) == 2 and parts[0].startswith("port"):
-                port, line = int(parts[0][4:]), int(parts[1][4:])
-                ports = {p.di[0]: p.di[1], p.do[0]: p.do[1]}
-                if line < ports.get(port, 0):
-                    want = p.di if kind == "di" else p.do
-                    if port != want[0]:
-                        raise DaqmxError(INVALID_PHYS_CHAN_TYPE, (
-                            "I/O type of the physical channel does not match the I/O type "
-                            f"required for the virtual channel being created.\nPhysical "
-                            f"Channel Name: {rest}"))
-                    return (port, line)
+            found = (self._line(parts, kind, rest) if kind in ("di", "do")
+                     else self._numbered(parts, kind))
         except ValueError:
-            pass
+            found = None
+        if found is not None:
+            return found
         raise DaqmxError(PHYS_CHAN_DOES_NOT_EXIST, (
             "Physical channel specified does not exist on this device.\nRefer to the "
             "documentation for channels available on this device.\n"
             f"Device: {self.name}\nPhysical Channel Name: {rest}"))
+
+    def _numbered(self, parts: list[str], kind: str) -> tuple[int] | None:
+        """(k,) of a numbered channel (`ai3`, `ao0`, `ctr1`) the card has of this kind;
+        None if it is none."""
+        if kind not in _NUMBERED:
+            return None
+        prefix, count = _NUMBERED[kind]
+        if len(parts) == 1 and parts[0].startswith(prefix):
+            k = int(parts[0][len(prefix):])
+            if k < getattr(self.product, count):
+                return (k,)
+        return None
+
+    def _line(self, parts: list[str], kind: str, rest: str) -> tuple[int, int] | None:
+        """(port, line) of a digital line (`port0/line3`) the card has; None if it is
+        none; DAQmx's refusal for a line of the other direction's port."""
+        if len(parts) != 2 or not parts[0].startswith("port"):
+            return None
+        p = self.product
+        port, line = int(parts[0][4:]), int(parts[1][4:])
+        ports = {p.di[0]: p.di[1], p.do[0]: p.do[1]}
+        if line >= ports.get(port, 0):
+            return None
+        want = p.di if kind == "di" else p.do
+        if port != want[0]:
+            raise DaqmxError(INVALID_PHYS_CHAN_TYPE, (
+                "I/O type of the physical channel does not match the I/O type "
+                f"required for the virtual channel being created.\nPhysical "
+                f"Channel Name: {rest}"))
+        return (port, line)
 
     def ai_voltage(self, physical: str, name: str, terminal: int, lo: float, hi: float
                    ) -> EmuChannel:

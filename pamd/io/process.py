@@ -43,7 +43,9 @@ from pamd.net.node.node import NetNode
 from pamd.record.recorder import Recorder
 from pamd.verbs.table import VERBS
 
-if TYPE_CHECKING:  # imported when a run asks for the live view (`_open_viewer`)
+if TYPE_CHECKING:  # types only; the live view is imported when a run asks for it
+    from pamd.net.spec import NetSpec
+    from pamd.record.spec import RecordSpec
     from pamd.view.live import LiveView
 
 IDLE_SLEEP_S = 0.0005
@@ -185,39 +187,61 @@ class IoProcess:
             self.recorder = None
 
     def run(self) -> None:
-        spec, block = self.spec, self.block
-        if spec.net is not None:  # first: a taken endpoint refuses before any file opens
-
-            self.net = NetNode(spec.net, spec, block, self.port, self._record_event)
-            err = self.net.open()
-            if err is not None:  # reported to the daemon, which refuses to start
-                self.net = None
-                block.set_error(f"telemetry: {err}")
-                block.set(C_IO_STATE, IO_FAILED)
-                self.failed = True
-                return
-        if spec.viewer is not None and not self._open_viewer():
+        if not self._open():
             return
-        if spec.record is not None:
-            if spec.record.fsize_limit_bytes:
+        self.block.set(C_IO_STATE, IO_READY)
+        stop_reason, summary = self._serve()
+        self._finish(stop_reason, summary)
 
-                signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # writes fail with EFBIG
-                lim = spec.record.fsize_limit_bytes
-                resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim))
+    def _open(self) -> bool:
+        """Open what the spec asks for: the network first (a taken endpoint refuses
+        before any file opens), the Foxglove server, the recording. False (reported to
+        the daemon, which refuses to start) if one cannot open."""
+        spec = self.spec
+        if spec.net is not None and not self._open_net(spec.net):
+            return False
+        if spec.viewer is not None and not self._open_viewer():
+            return False
+        return spec.record is None or self._open_recording(spec.record)
 
-            try:
-                self.recorder = Recorder(spec)
-                self.recorder.open()
-                block.set_files(self.recorder.files)
-            except Exception as exc:  # reported to the daemon, which refuses to start
-                self._fail("cannot open the recording", exc)
-                if self.net is not None:
-                    self.net.close("the recording could not be opened")
-                if self.viewer is not None:
-                    self.viewer.close()
-                return
-        block.set(C_IO_STATE, IO_READY)
-        stop_reason = "stopped by the daemon"
+    def _open_net(self, net: NetSpec) -> bool:
+        """Telemetry and remote commands (pamd.net)."""
+        self.net = NetNode(net, self.spec, self.block, self.port, self._record_event)
+        err = self.net.open()
+        if err is None:
+            return True
+        self.net = None  # reported to the daemon, which refuses to start
+        self.block.set_error(f"telemetry: {err}")
+        self.block.set(C_IO_STATE, IO_FAILED)
+        self.failed = True
+        return False
+
+    def _open_recording(self, record: RecordSpec) -> bool:
+        """The recording, under its file size limit if it has one."""
+        if record.fsize_limit_bytes:
+
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # writes fail with EFBIG
+            lim = record.fsize_limit_bytes
+            resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim))
+
+        try:
+            self.recorder = Recorder(self.spec)
+            self.recorder.open()
+            self.block.set_files(self.recorder.files)
+        except Exception as exc:  # reported to the daemon, which refuses to start
+            self._fail("cannot open the recording", exc)
+            if self.net is not None:
+                self.net.close("the recording could not be opened")
+            if self.viewer is not None:
+                self.viewer.close()
+            return False
+        return True
+
+    def _serve(self) -> tuple[str, JsonObject | None]:
+        """Drain the loop's ticks and events into their sinks, serve the network and
+        the script, until the daemon says stop and all is drained, or the loop's
+        process is gone. Returns (why it stopped, the run's summary if it came)."""
+        block = self.block
         summary: JsonObject | None = None
         hb = 0
         mono = time.monotonic
@@ -234,26 +258,45 @@ class IoProcess:
             if self.port.backlog:
                 self.port.flush()
             now = mono()
-            k = self.net.poll(now) if self.net is not None else 0
-            if self.recorder is not None:
-                try:
-                    self.recorder.service(now)
-                    block.set_files(self.recorder.files)
-                except Exception as exc:
-                    self._fail("recording write failed", exc)
+            k = self._serve_sinks(now)
             if stop and n == 0 and m == 0:
-                break
+                return "stopped by the daemon", summary
             if now - last_parent_check > 0.1:
                 last_parent_check = now
-                if os.getppid() != spec.parent_pid:
-                    self._drain_ticks()
-                    self._drain_events()
-                    stop_reason = "the loop's process disappeared (killed?)"
-                    break
+                if self._parent_gone():
+                    return "the loop's process disappeared (killed?)", summary
             if n == 0 and m == 0 and k == 0:
-                # a remote command waits for its verdict: look for it sooner
-                time.sleep(VERDICT_SLEEP_S if self.net is not None and self.net.intake.waiting
-                           else IDLE_SLEEP_S)
+                time.sleep(self._idle_sleep_s())
+
+    def _idle_sleep_s(self) -> float:
+        """How long to sleep with nothing to do: shorter while a remote command waits for
+        its verdict (look for it sooner)."""
+        return (VERDICT_SLEEP_S if self.net is not None and self.net.intake.waiting
+                else IDLE_SLEEP_S)
+
+    def _serve_sinks(self, now: float) -> int:
+        """Poll the network (returns what it did: 0 if nothing) and service the
+        recording."""
+        k = self.net.poll(now) if self.net is not None else 0
+        if self.recorder is not None:
+            try:
+                self.recorder.service(now)
+                self.block.set_files(self.recorder.files)
+            except Exception as exc:
+                self._fail("recording write failed", exc)
+        return k
+
+    def _parent_gone(self) -> bool:
+        """Whether the loop's process is gone (what it left is drained first)."""
+        if os.getppid() == self.spec.parent_pid:
+            return False
+        self._drain_ticks()
+        self._drain_events()
+        return True
+
+    def _finish(self, stop_reason: str, summary: JsonObject | None) -> None:
+        """Close the network (token withdrawn, pending queries answered) and the
+        Foxglove server, finish the recording with the summary."""
         if self.net is not None:  # token withdrawn, pending queries answered, closed
             self.net.close(stop_reason)
         if self.viewer is not None:
@@ -265,7 +308,7 @@ class IoProcess:
                 self._fail("recording could not be finalised", exc)
                 return
         if not self.failed:
-            block.set(C_IO_STATE, IO_DONE)
+            self.block.set(C_IO_STATE, IO_DONE)
 
     def _open_viewer(self) -> bool:
         """The Foxglove server (pamd.view.live); a taken port refuses, as Zenoh's does,

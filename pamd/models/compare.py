@@ -69,20 +69,9 @@ def common_options(models: Sequence[InverseModel], muscle: str | None = None,
     if output not in OUTPUT_UNITS:
         raise ModelError(f"model output {output!r} is not a recorded signal "
                          f"(known: {', '.join(OUTPUT_UNITS)})")
-    windows = set()
+    windows: set[float] = set()
     for m in models:
-        for v in m.inputs:
-            if v.name not in INPUT_UNITS:
-                raise ModelError(f"model input {v.name} cannot be taken from recordings "
-                                 f"(known: {', '.join(INPUT_UNITS)})")
-            if v.name not in names:
-                names.append(v.name)
-        if any(v.name == "velocity_mm_s" for v in m.inputs):
-            w = velocity_window(m)
-            if w is None:
-                raise ModelError("the model's velocity_mm_s input does not state its filter "
-                                 "window (derived_inputs.velocity_mm_s.window_s)")
-            windows.add(w)
+        _take_inputs(m, names, windows)
     if len(windows) > 1:
         raise ModelError(f"the models filter their velocity differently ({sorted(windows)} s);"
                          " evaluate them separately")
@@ -94,6 +83,23 @@ def common_options(models: Sequence[InverseModel], muscle: str | None = None,
         rate_hz=rate_hz if rate_hz is not None else float(ext.get("rate_hz", 50.0)),
         velocity_window_s=windows.pop() if windows else MODEL_VELOCITY_WINDOW_S,
         actuation=actuation if actuation is not None else _str_or_none(ext.get("actuation")))
+
+
+def _take_inputs(m: InverseModel, names: list[str], windows: set[float]) -> None:
+    """Add model `m`'s inputs to `names` (each one a recorded signal) and its velocity
+    filter's window, if it has a velocity input, to `windows` (which it must state)."""
+    for v in m.inputs:
+        if v.name not in INPUT_UNITS:
+            raise ModelError(f"model input {v.name} cannot be taken from recordings "
+                             f"(known: {', '.join(INPUT_UNITS)})")
+        if v.name not in names:
+            names.append(v.name)
+    if any(v.name == "velocity_mm_s" for v in m.inputs):
+        w = velocity_window(m)
+        if w is None:
+            raise ModelError("the model's velocity_mm_s input does not state its filter "
+                             "window (derived_inputs.velocity_mm_s.window_s)")
+        windows.add(w)
 
 
 def _str_or_none(v: object) -> str | None:

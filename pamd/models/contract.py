@@ -155,6 +155,25 @@ def tick_problems(model: InverseModel, envelope: Envelope, *,
     `need_force` is False, exactly one of length or contraction, a stated velocity
     filter), its output is a pressure, and its identified ranges overlap the muscle's
     travel. Empty list: it can drive the muscle as far as these go."""
+    out = _signal_problems(model, need_force)
+    l0 = envelope.nominal_length_mm
+    lo_mm = l0 * (1.0 - envelope.max_contraction)
+    hi_mm = l0 * (1.0 + envelope.max_pretension)
+    for v in model.inputs:
+        if v.name == "length_mm" and (v.max < lo_mm or v.min > hi_mm):
+            out.append(f"it was trained on lengths {v.min:.1f}-{v.max:.1f} mm but this muscle "
+                       f"moves within {lo_mm:.1f}-{hi_mm:.1f} mm (nominal {l0:g} mm)")
+        if v.name == "contraction" and (v.max < -envelope.max_pretension
+                                        or v.min > envelope.max_contraction):
+            out.append(f"it was trained on contractions {v.min:.3f}-{v.max:.3f} but this "
+                       f"muscle moves within {-envelope.max_pretension:.3f}-"
+                       f"{envelope.max_contraction:.3f}")
+    return out
+
+
+def _signal_problems(model: InverseModel, need_force: bool) -> list[str]:
+    """Its inputs are signals of the tick (force unless `need_force` is False, exactly one
+    of length or contraction, a stated velocity filter) and its output a pressure."""
     out = []
     names = [v.name for v in model.inputs]
     if model.output.name != MODEL_OUTPUT:
@@ -172,18 +191,6 @@ def tick_problems(model: InverseModel, envelope: Envelope, *,
         out.append("its velocity_mm_s input does not state its filter (derived_inputs."
                    "velocity_mm_s.window_s, a time constant > 0 s), so the tick cannot "
                    "compute the signal it was trained on")
-    l0 = envelope.nominal_length_mm
-    lo_mm = l0 * (1.0 - envelope.max_contraction)
-    hi_mm = l0 * (1.0 + envelope.max_pretension)
-    for v in model.inputs:
-        if v.name == "length_mm" and (v.max < lo_mm or v.min > hi_mm):
-            out.append(f"it was trained on lengths {v.min:.1f}-{v.max:.1f} mm but this muscle "
-                       f"moves within {lo_mm:.1f}-{hi_mm:.1f} mm (nominal {l0:g} mm)")
-        if v.name == "contraction" and (v.max < -envelope.max_pretension
-                                        or v.min > envelope.max_contraction):
-            out.append(f"it was trained on contractions {v.min:.3f}-{v.max:.3f} but this "
-                       f"muscle moves within {-envelope.max_pretension:.3f}-"
-                       f"{envelope.max_contraction:.3f}")
     return out
 
 

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
 
@@ -261,15 +261,7 @@ def from_json(doc: object, inputs: Sequence[str], output: str) -> Domain:
     where = "provenance.domain"
     if not isinstance(doc, dict):
         raise ModelError(f"field {where}: expected an object")
-    try:
-        axis = doc["axis"]
-        columns = tuple(doc["columns"])
-        margins = tuple(float(v) for v in doc["margins"])
-        axis_margin = float(doc["axis_margin"])
-        raw = doc["bands"]
-        derived = str(doc.get("derived", "training data"))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ModelError(f"field {where}: {exc!r} missing or not a number") from None
+    axis, columns, margins, axis_margin, raw, derived = _domain_fields(doc, where)
     want_axis = AXIS if AXIS in inputs else None
     want_cols = tuple(n for n in inputs if n != AXIS) + (output,)
     if axis != want_axis or columns != want_cols:
@@ -280,26 +272,52 @@ def from_json(doc: object, inputs: Sequence[str], output: str) -> Domain:
         raise ModelError(f"field {where}: {k} margins and at least one band expected")
     bands: list[Band] = []
     for i, b in enumerate(raw):
-        try:
-            a_lo, a_hi = ((-math.inf, math.inf) if axis is None and b["axis"] is None
-                          else (float(v) for v in b["axis"]))
-            lo = tuple(float(v) for v in b["lo"])
-            hi = tuple(float(v) for v in b["hi"])
-        except (KeyError, TypeError, ValueError):
-            raise ModelError(f"field {where}.bands[{i}]: axis [lo, hi], lo and hi "
-                             "expected") from None
-        if len(lo) != k or len(hi) != k or not all(a <= c for a, c in zip(lo, hi, strict=True)):
-            raise ModelError(f"field {where}.bands[{i}]: {k} bounds lo <= hi expected")
-        if axis is not None and not (math.isfinite(a_lo) and a_lo <= a_hi
-                                     and (not bands or a_lo >= bands[-1].axis_hi)):
-            raise ModelError(f"field {where}.bands[{i}].axis: bands in ascending force, "
-                             "not overlapping")
-        bands.append(Band(a_lo, a_hi, lo, hi))
+        bands.append(_band_from_json(b, f"{where}.bands[{i}]", axis, k,
+                                     bands[-1] if bands else None))
+    _check_margins_and_bands(margins, axis_margin, axis, len(bands), where)
+    return Domain(axis, columns, tuple(bands), margins, axis_margin, derived)
+
+
+def _check_margins_and_bands(margins: tuple[float, ...], axis_margin: float,
+                             axis: JsonValue, n_bands: int, where: str) -> None:
+    """Margins finite and >= 0; one band where there is no force axis."""
     if not all(math.isfinite(v) and v >= 0 for v in (*margins, axis_margin)):
         raise ModelError(f"field {where}: margins must be finite and >= 0")
-    if axis is None and len(bands) != 1:
+    if axis is None and n_bands != 1:
         raise ModelError(f"field {where}: a domain without a force axis has one band")
-    return Domain(axis, columns, tuple(bands), margins, axis_margin, derived)
+
+
+def _domain_fields(doc: JsonObject, where: str) -> tuple[
+        JsonValue, tuple[str, ...], tuple[float, ...], float, JsonValue, str]:
+    """(axis, columns, margins, axis margin, the bands as written, derived) of the
+    file's domain, each there and of its type."""
+    try:
+        return (doc["axis"], tuple(doc["columns"]),
+                tuple(float(v) for v in doc["margins"]), float(doc["axis_margin"]),
+                doc["bands"], str(doc.get("derived", "training data")))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f"field {where}: {exc!r} missing or not a number") from None
+
+
+def _band_from_json(b: JsonValue, where: str, axis: object, k: int,
+                    before: Band | None) -> Band:
+    """One band as the file states it: its force range (none without a force axis),
+    after the band `before` and not overlapping it, and `k` bounds lo <= hi."""
+    try:
+        a_lo, a_hi = ((-math.inf, math.inf) if axis is None and b["axis"] is None
+                      else (float(v) for v in b["axis"]))
+        lo = tuple(float(v) for v in b["lo"])
+        hi = tuple(float(v) for v in b["hi"])
+    except (KeyError, TypeError, ValueError):
+        raise ModelError(f"field {where}: axis [lo, hi], lo and hi "
+                         "expected") from None
+    if len(lo) != k or len(hi) != k or not all(a <= c for a, c in zip(lo, hi, strict=True)):
+        raise ModelError(f"field {where}: {k} bounds lo <= hi expected")
+    if axis is not None and not (math.isfinite(a_lo) and a_lo <= a_hi
+                                 and (before is None or a_lo >= before.axis_hi)):
+        raise ModelError(f"field {where}.axis: bands in ascending force, "
+                         "not overlapping")
+    return Band(a_lo, a_hi, lo, hi)
 
 
 def domain_of(model: InverseModel) -> Domain:

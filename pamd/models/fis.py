@@ -341,12 +341,7 @@ def to_model(fis: Fis, *, inputs: Sequence[str] | None = None, output: str | Non
     out_var = fis.outputs[0]
     rows = _grid_rules(fis)
     linear = _consequent_rows(fis, rows)
-    lo = np.array([v.range[0] for v in fis.inputs])
-    hi = np.array([v.range[1] for v in fis.inputs])
-    for v in fis.inputs:
-        if not v.range[1] > v.range[0]:
-            raise fis.error(v.range_line, v.section, f"Range=[{v.range[0]:g} "
-                            f"{v.range[1]:g}] has no width: pamd scales an input over it")
+    lo, hi = _input_ranges(fis)
     span = hi - lo
     centres, widths, slopes = [], [], []
     for i, v in enumerate(fis.inputs):
@@ -354,10 +349,7 @@ def to_model(fis: Fis, *, inputs: Sequence[str] | None = None, output: str | Non
         centres.append(c)
         widths.append(w)
         slopes.append(b)
-    # f = sum p_i x_i + q with x_i = lo_i + span_i s_i: p_s = p span, q_s = q + p . lo
-    raw = np.array(linear, dtype=np.float64)
-    consequents = np.column_stack([raw[:, :-1] * span, raw[:, -1] + raw[:, :-1] @ lo])
-    all_constant = not np.any(raw[:, :-1])
+    consequents, consequent = _scaled_consequents(linear, lo, span)
     window = MODEL_VELOCITY_WINDOW_S if velocity_window_s is None else velocity_window_s
     if "velocity_mm_s" in names[0]:
         notes.append(f"velocity_mm_s is filtered as pamd filters it for a model: a "
@@ -374,16 +366,37 @@ def to_model(fis: Fis, *, inputs: Sequence[str] | None = None, output: str | Non
     model = AnfisModel(in_vars, out, mf_type=mf_type, scaling="minmax", scale_offset=lo,
                        scale_span=span, centres=centres, widths=widths,
                        slopes=slopes if mf_type == "bell" else None,
-                       consequents=(np.column_stack([np.zeros_like(consequents[:, :-1]),
-                                                     consequents[:, -1]])
-                                    if all_constant else consequents),
+                       consequents=consequents,
                        derived_inputs=derived_inputs(names[0], window), provenance=prov,
-                       consequent="constant" if all_constant else "linear")
+                       consequent=consequent)
     model.kind = kind
     notes.insert(0, "values taken in the signals' own units: " + ", ".join(
         f"{v.name} [{v.unit or '1'}]" for v in in_vars) + f" -> {out.name} "
         f"[{out.unit or '1'}]")
     return Imported(model, tuple(notes))
+
+
+def _scaled_consequents(linear: list[list[float]], lo: np.ndarray, span: np.ndarray
+                        ) -> tuple[np.ndarray, str]:
+    """(the rules' [p, q] on the scaled inputs, "linear" or "constant": every p 0)."""
+    # f = sum p_i x_i + q with x_i = lo_i + span_i s_i: p_s = p span, q_s = q + p . lo
+    raw = np.array(linear, dtype=np.float64)
+    consequents = np.column_stack([raw[:, :-1] * span, raw[:, -1] + raw[:, :-1] @ lo])
+    if np.any(raw[:, :-1]):
+        return consequents, "linear"
+    return np.column_stack([np.zeros_like(consequents[:, :-1]), consequents[:, -1]]), "constant"
+
+
+def _input_ranges(fis: Fis) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) of the inputs' ranges, each of some width (pamd scales an input over
+    it)."""
+    lo = np.array([v.range[0] for v in fis.inputs])
+    hi = np.array([v.range[1] for v in fis.inputs])
+    for v in fis.inputs:
+        if not v.range[1] > v.range[0]:
+            raise fis.error(v.range_line, v.section, f"Range=[{v.range[0]:g} "
+                            f"{v.range[1]:g}] has no width: pamd scales an input over it")
+    return lo, hi
 
 
 def _check_system(fis: Fis) -> None:
@@ -501,31 +514,8 @@ def _grid_rules(fis: Fis) -> list[FisRule]:
     by_mfs: dict[tuple[int, ...], FisRule] = {}
     for k, rule in enumerate(fis.rules, start=1):
         where = f"rule {k}"
-        if len(rule.antecedent) != len(n_mfs):
-            raise fis.error(rule.line, "Rules", f"{where} names {len(rule.antecedent)} input "
-                            f"MFs for {len(n_mfs)} inputs")
-        mfs = []
-        for i, (a, m) in enumerate(zip(rule.antecedent, n_mfs, strict=True)):
-            if a != int(a) or a <= 0:
-                raise fis.error(rule.line, "Rules", f"{where}: input {i + 1} MF {a:g}: pamd's "
-                                "rules name one MF of every input (no 0 for 'any', no "
-                                "negative 'not', no hedges)")
-            if a > m:
-                raise fis.error(rule.line, "Rules", f"{where} names MF {int(a)} of input "
-                                f"{i + 1}, which has {m} ([{fis.inputs[i].section}] NumMFs "
-                                f"at line {fis.inputs[i].line})")
-            mfs.append(int(a) - 1)
-        if rule.consequent != int(rule.consequent) or not 1 <= rule.consequent <= n_out:
-            raise fis.error(rule.line, "Rules", f"{where} names output MF "
-                            f"{rule.consequent:g}; [Output1] has {n_out}")
-        if rule.connection == 2 and len(n_mfs) > 1:
-            raise fis.error(rule.line, "Rules", f"{where} is an OR rule (connection 2): "
-                            "pamd's rules are AND (the product of their MFs)")
-        if rule.weight <= 0 or (first is not None and rule.weight != first.weight):
-            raise fis.error(rule.line, "Rules", f"{where} has weight {rule.weight:g} where "
-                            f"rule 1 has {first.weight if first else 0:g}: pamd's rules "
-                            "weigh alike (one weight > 0 for every rule)")
-        key = tuple(mfs)
+        key = _rule_mfs(fis, rule, where, n_mfs)
+        _check_rule_form(fis, rule, where, n_out, len(n_mfs), first)
         if key in by_mfs:
             raise fis.error(rule.line, "Rules", f"{where} repeats the MFs of line "
                             f"{by_mfs[key].line}")
@@ -538,6 +528,42 @@ def _grid_rules(fis: Fis) -> list[FisRule]:
                         f"{' '.join(str(m + 1) for m in missing[0])}; pamd's model has one "
                         "rule for every combination of the inputs' MFs (a grid partition)")
     return [by_mfs[g] for g in grid]
+
+
+def _rule_mfs(fis: Fis, rule: FisRule, where: str, n_mfs: list[int]) -> tuple[int, ...]:
+    """The MF (0-based) the rule names of each input: one of every input, each one the
+    input has."""
+    if len(rule.antecedent) != len(n_mfs):
+        raise fis.error(rule.line, "Rules", f"{where} names {len(rule.antecedent)} input "
+                        f"MFs for {len(n_mfs)} inputs")
+    mfs = []
+    for i, (a, m) in enumerate(zip(rule.antecedent, n_mfs, strict=True)):
+        if a != int(a) or a <= 0:
+            raise fis.error(rule.line, "Rules", f"{where}: input {i + 1} MF {a:g}: pamd's "
+                            "rules name one MF of every input (no 0 for 'any', no "
+                            "negative 'not', no hedges)")
+        if a > m:
+            raise fis.error(rule.line, "Rules", f"{where} names MF {int(a)} of input "
+                            f"{i + 1}, which has {m} ([{fis.inputs[i].section}] NumMFs "
+                            f"at line {fis.inputs[i].line})")
+        mfs.append(int(a) - 1)
+    return tuple(mfs)
+
+
+def _check_rule_form(fis: Fis, rule: FisRule, where: str, n_out: int, n_inputs: int,
+                     first: FisRule | None) -> None:
+    """The rule names an output MF there is, is an AND rule (with more than one input)
+    and weighs as rule 1 does (above 0)."""
+    if rule.consequent != int(rule.consequent) or not 1 <= rule.consequent <= n_out:
+        raise fis.error(rule.line, "Rules", f"{where} names output MF "
+                        f"{rule.consequent:g}; [Output1] has {n_out}")
+    if rule.connection == 2 and n_inputs > 1:
+        raise fis.error(rule.line, "Rules", f"{where} is an OR rule (connection 2): "
+                        "pamd's rules are AND (the product of their MFs)")
+    if rule.weight <= 0 or (first is not None and rule.weight != first.weight):
+        raise fis.error(rule.line, "Rules", f"{where} has weight {rule.weight:g} where "
+                        f"rule 1 has {first.weight if first else 0:g}: pamd's rules "
+                        "weigh alike (one weight > 0 for every rule)")
 
 
 def _consequent_rows(fis: Fis, rules: list[FisRule]) -> list[list[float]]:

@@ -301,19 +301,27 @@ def fit_fn_qupi(length_mm: np.ndarray, p_bar: np.ndarray, run: np.ndarray,
         **({} if sample_period_s is None else {"sample_period_s": sample_period_s})}}
     model = FnQupiModel(qupi, st, theta, inverse, ref, inputs, output,
                         derived_inputs=derived_inputs, provenance=prov)
+    sets = {"train": train} if validation is None else {"train": train,
+                                                        "validation": validation}
+    _score_inverse(model, identified, length_mm, u, p_bar, runs, sets)
+    _score_forward(model, length_mm, p_bar, run, loads_kg, sets)
+    return model
+
+
+def _score_inverse(model: FnQupiModel, identified: Qupi, length_mm: np.ndarray,
+                   u: np.ndarray, p_bar: np.ndarray, runs: list[np.ndarray],
+                   sets: dict[str, np.ndarray]) -> None:
+    """The model's metrics, and the identified inverse's (the QUPI fitted from
+    displacement to pressure), on each set of rows, each run simulated whole."""
     pred, ident = np.empty(p_bar.size), np.empty(p_bar.size)
     for m in runs:
         pred[m] = model.predict(length_mm[m])
         ident[m] = identified.simulate(np.clip(u[m], identified.x0, identified.xm))
-    sets = {"train": train} if validation is None else {"train": train,
-                                                        "validation": validation}
     for name, mask in sets.items():
         if mask.any():
             model.metrics[name] = regression_metrics(p_bar[mask], pred[mask], model.n_params)
             model.metrics[f"identified_inverse_{name}"] = regression_metrics(
                 p_bar[mask], ident[mask], int(identified.weights.size + 2))
-    _score_forward(model, length_mm, p_bar, run, loads_kg, sets)
-    return model
 
 
 def _score_forward(model: FnQupiModel, length_mm: np.ndarray, p_bar: np.ndarray,

@@ -69,6 +69,17 @@ WIDTH_BOUNDS = (0.15, 1.0)
 OUT_WIDTH_BOUNDS = (0.02, 0.5)
 
 
+def _check_input_mfs(v: Variable, c: np.ndarray, w: np.ndarray) -> None:
+    """An input's MFs: as many centres as widths, finite, widths > 0; its training range
+    of some width."""
+    if c.ndim != 1 or c.size == 0 or w.shape != c.shape:
+        raise ModelError(f"input {v.name!r}: centres and widths differ in length")
+    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(w)) and np.all(w > 0)):
+        raise ModelError(f"input {v.name!r}: MF parameters must be finite, widths > 0")
+    if not v.max > v.min:
+        raise ModelError(f"input {v.name!r}: training range has zero width")
+
+
 class MamdaniModel(Predictor):
     """A Mamdani fuzzy model (see the module doc). Input MFs in scaled units, output
     MFs in the output's unit; `rules[r]` is the output MF of rule r (grid order)."""
@@ -99,12 +110,7 @@ class MamdaniModel(Predictor):
         if d == 0 or len(self.centres) != d or len(self.widths) != d:
             raise ModelError(f"membership functions: expected one list per input ({d})")
         for v, c, w in zip(self.inputs, self.centres, self.widths, strict=True):
-            if c.ndim != 1 or c.size == 0 or w.shape != c.shape:
-                raise ModelError(f"input {v.name!r}: centres and widths differ in length")
-            if not (np.all(np.isfinite(c)) and np.all(np.isfinite(w)) and np.all(w > 0)):
-                raise ModelError(f"input {v.name!r}: MF parameters must be finite, widths > 0")
-            if not v.max > v.min:
-                raise ModelError(f"input {v.name!r}: training range has zero width")
+            _check_input_mfs(v, c, w)
         m = self.out_centres.size
         if m == 0 or self.out_widths.shape != self.out_centres.shape or not (
                 np.all(np.isfinite(self.out_centres)) and np.all(self.out_widths > 0)):

@@ -104,6 +104,110 @@ def _nguyen_widrow(d: int, h: int, rng: np.random.Generator) -> np.ndarray:
     return np.concatenate([w1.ravel(), b1, w2, [0.0]])
 
 
+@dataclass
+class _Iterate:
+    """The fit's present point: weights w, hidden activations a, residuals e, their sums
+    of squares (SSE, SSW), the cost's weights alpha and beta (br's; lm: 0, 1), br's
+    gamma, and the damping mu."""
+
+    w: np.ndarray
+    a: np.ndarray
+    e: np.ndarray
+    sse: float
+    ssw: float
+    alpha: float
+    beta: float
+    gamma: float | None
+    mu: float
+
+
+def _first_iterate(w: np.ndarray, S: np.ndarray, z: np.ndarray, h: int, bayes: bool
+                   ) -> _Iterate:
+    """The iterate at the initial weights (br: trainbr's start, gamma = P)."""
+    n, P = S.shape[0], w.size
+    y_hat, a = network_outputs(w, S, h)
+    e = y_hat - z
+    sse, ssw = float(e @ e), float(w @ w)
+    alpha, beta = 0.0, 1.0
+    if bayes:  # trainbr's start: gamma = P
+        alpha = P / (2.0 * max(ssw, 1e-12))
+        beta = max(n - P, 1.0) / (2.0 * max(sse, 1e-12))
+    return _Iterate(w, a, e, sse, ssw, alpha, beta, float(P) if bayes else None, MU_START)
+
+
+def _damped_step(it: _Iterate, S: np.ndarray, z: np.ndarray, h: int, JtJ: np.ndarray,
+                 grad: np.ndarray, I_P: np.ndarray) -> None:
+    """Take the first step that lowers F = beta SSE + alpha SSW, the damping mu grown x
+    MU_INC for each refused one and shrunk x MU_DEC once one is taken; give up (mu left
+    above MU_MAX) when mu passes MU_MAX."""
+    cost = it.beta * it.sse + it.alpha * it.ssw
+    while True:
+        try:
+            step = np.linalg.solve(it.beta * JtJ + (it.alpha + it.mu) * I_P, -grad)
+        except np.linalg.LinAlgError:
+            step = None
+        if step is not None and _take_if_lower(it, it.w + step, S, z, h, cost):
+            it.mu = max(it.mu * MU_DEC, 1e-20)
+            return
+        it.mu *= MU_INC
+        if it.mu > MU_MAX:
+            return
+
+
+def _take_if_lower(it: _Iterate, w_new: np.ndarray, S: np.ndarray, z: np.ndarray, h: int,
+                   cost: float) -> bool:
+    """Move the iterate to `w_new` if its cost is below `cost`; whether it moved."""
+    y_new, a_new = network_outputs(w_new, S, h)
+    e_new = y_new - z
+    sse_new, ssw_new = float(e_new @ e_new), float(w_new @ w_new)
+    if not it.beta * sse_new + it.alpha * ssw_new < cost:
+        return False
+    it.w, it.a, it.e, it.sse, it.ssw = w_new, a_new, e_new, sse_new, ssw_new
+    return True
+
+
+def _evidence_update(it: _Iterate, J: np.ndarray, n: int, I_P: np.ndarray) -> None:
+    """br: gamma = P - 2 alpha tr(H^-1), H = 2 beta J'J + 2 alpha I; then alpha =
+    gamma / (2 SSW), beta = (n - gamma) / (2 SSE)."""
+    P = I_P.shape[0]
+    Hm = 2.0 * it.beta * (J.T @ J) + 2.0 * it.alpha * I_P
+    try:
+        gamma = float(P - 2.0 * it.alpha * np.trace(np.linalg.inv(Hm)))
+    except np.linalg.LinAlgError:
+        gamma = float(P)
+    gamma = min(max(gamma, 0.0), float(P))
+    it.gamma = gamma
+    it.alpha = gamma / (2.0 * max(it.ssw, 1e-12))
+    it.beta = max(n - gamma, 1.0) / (2.0 * max(it.sse, 1e-12))
+
+
+def _validation_sse(w: np.ndarray, validation: tuple[np.ndarray, np.ndarray] | None,
+                    h: int) -> float | None:
+    if validation is None:
+        return None
+    yv, _ = network_outputs(w, validation[0], h)
+    ev = yv - validation[1]
+    return float(ev @ ev)
+
+
+@dataclass
+class _EarlyStop:
+    """lm's validation stop (trainlm's max_fail): the best epoch's weights kept."""
+
+    best_w: np.ndarray
+    best_val: float = math.inf
+    fails: int = 0
+
+    def stops(self, val_sse: float, w: np.ndarray) -> bool:
+        """Whether this epoch is the MAX_FAIL-th in a row without a better validation
+        error."""
+        if val_sse < self.best_val:
+            self.best_val, self.best_w, self.fails = val_sse, w.copy(), 0
+            return False
+        self.fails += 1
+        return self.fails >= MAX_FAIL
+
+
 def fit_network(S: np.ndarray, z: np.ndarray, *, hidden: int, solver: str = "br",
                 epochs: int = 1000, seed: int = 0,
                 validation: tuple[np.ndarray, np.ndarray] | None = None,
@@ -115,76 +219,33 @@ def fit_network(S: np.ndarray, z: np.ndarray, *, hidden: int, solver: str = "br"
     n, d = S.shape
     h = hidden
     w = _nguyen_widrow(d, h, np.random.default_rng(seed))
-    P = w.size
     bayes = solver == "br"
-    y_hat, a = network_outputs(w, S, h)
-    e = y_hat - z
-    sse, ssw = float(e @ e), float(w @ w)
-    alpha, beta = 0.0, 1.0
-    if bayes:  # trainbr's start: gamma = P
-        alpha = P / (2.0 * max(ssw, 1e-12))
-        beta = max(n - P, 1.0) / (2.0 * max(sse, 1e-12))
-    gamma: float | None = float(P) if bayes else None
-    mu = MU_START
-    best_val, best_w, fails = math.inf, w.copy(), 0
+    it = _first_iterate(w, S, z, h, bayes)
+    early = _EarlyStop(w.copy())
     stop = "epochs"
-    I_P = np.eye(P)
+    I_P = np.eye(w.size)
     epoch = 0
     for epoch in range(1, epochs + 1):
-        J = jacobian(w, S, a, h)
+        J = jacobian(it.w, S, it.a, h)
         JtJ = J.T @ J
-        grad = beta * (J.T @ e) + alpha * w
+        grad = it.beta * (J.T @ it.e) + it.alpha * it.w
         if float(np.linalg.norm(grad)) < MIN_GRAD:
             stop = "gradient"
             break
-        cost = beta * sse + alpha * ssw
-        while True:
-            try:
-                step = np.linalg.solve(beta * JtJ + (alpha + mu) * I_P, -grad)
-            except np.linalg.LinAlgError:
-                step = None
-            if step is not None:
-                w_new = w + step
-                y_new, a_new = network_outputs(w_new, S, h)
-                e_new = y_new - z
-                sse_new, ssw_new = float(e_new @ e_new), float(w_new @ w_new)
-                if beta * sse_new + alpha * ssw_new < cost:
-                    w, a, e, sse, ssw = w_new, a_new, e_new, sse_new, ssw_new
-                    mu = max(mu * MU_DEC, 1e-20)
-                    break
-            mu *= MU_INC
-            if mu > MU_MAX:
-                break
-        if mu > MU_MAX:
+        _damped_step(it, S, z, h, JtJ, grad, I_P)
+        if it.mu > MU_MAX:
             stop = "mu"
             break
         if bayes:
-            Hm = 2.0 * beta * (J.T @ J) + 2.0 * alpha * I_P
-            try:
-                gamma = float(P - 2.0 * alpha * np.trace(np.linalg.inv(Hm)))
-            except np.linalg.LinAlgError:
-                gamma = float(P)
-            gamma = min(max(gamma, 0.0), float(P))
-            alpha = gamma / (2.0 * max(ssw, 1e-12))
-            beta = max(n - gamma, 1.0) / (2.0 * max(sse, 1e-12))
-        val_sse = None
-        if validation is not None:
-            yv, _ = network_outputs(w, validation[0], h)
-            ev = yv - validation[1]
-            val_sse = float(ev @ ev)
+            _evidence_update(it, J, n, I_P)
+        val_sse = _validation_sse(it.w, validation, h)
         if callback is not None:
-            callback(epoch, sse, val_sse)
-        if not bayes and val_sse is not None:
-            if val_sse < best_val:
-                best_val, best_w, fails = val_sse, w.copy(), 0
-            else:
-                fails += 1
-                if fails >= MAX_FAIL:
-                    stop = "validation"
-                    break
-    if not bayes and validation is not None and math.isfinite(best_val):
-        w = best_w
+            callback(epoch, it.sse, val_sse)
+        if not bayes and val_sse is not None and early.stops(val_sse, it.w):
+            stop = "validation"
+            break
+    w = early.best_w if not bayes and math.isfinite(early.best_val) else it.w
     w1, b1, w2, b2 = _unpack(w, d, h)
     if not np.all(np.isfinite(w)):
         raise ModelError("mlp fit diverged (non-finite weights)")
-    return Network(w1.copy(), b1.copy(), w2.copy(), b2, epoch, stop, gamma)
+    return Network(w1.copy(), b1.copy(), w2.copy(), b2, epoch, stop, it.gamma)

@@ -300,66 +300,86 @@ def describe(path: str) -> JsonObject:
     return _describe(path)[0]
 
 
+@dataclass
+class _Contents:
+    """What a recording holds, as its summary (or a scan) tells it: channels by topic
+    with their message counts, schemas, metadata, attachments, the first and last log
+    times, the number of chunks and the file's status."""
+
+    chans: dict[str, Channel] = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=dict)
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    attachments: list[JsonObject] = field(default_factory=list)
+    start: int | None = None
+    end: int | None = None
+    chunks: int = 0
+    status: str = "finalised"
+
+
 def _describe(path: str) -> tuple[JsonObject, dict[str, Channel], dict[int, Schema]]:
     size = check_file(path)
     final = is_finalised(path)
-    counts: dict[str, int] = {}
-    chans: dict[str, Channel] = {}
-    schemas: dict[int, Schema] = {}
-    metadata: dict[str, dict[str, str]] = {}
-    attachments: list[JsonObject] = []
-    start = end = None
-    chunks = 0
-    status = "finalised"
-    if final:
-        try:
-            with open(path, "rb") as fh:
-                r = make_reader(fh)
-                s = r.get_summary()
-                if s is None or s.statistics is None:
-                    raise RecordingError(f"{path}: finalised but has no summary")
-                for c in s.channels.values():
-                    chans[c.topic] = c
-                    counts[c.topic] = s.statistics.channel_message_counts.get(c.id, 0)
-                schemas = dict(s.schemas)
-                start, end = s.statistics.message_start_time, s.statistics.message_end_time
-                chunks = s.statistics.chunk_count
-                for m in r.iter_metadata():
-                    metadata[m.name] = dict(m.metadata)
-                for a in r.iter_attachments():
-                    attachments.append({"name": a.name, "media_type": a.media_type,
-                                        "bytes": len(a.data)})
-        except (McapError, struct.error, ValueError) as exc:
-            raise RecordingError(f"{path}: unreadable MCAP file ({exc})") from None
-    else:
-        sc = scan(path)
-        status = ("unfinished (no summary/footer; run `pamd recover`): " +
-                  (sc.tail_error or "ends after a complete record"))
-        schemas = sc.schemas
-        for c in sc.channels.values():
-            chans[c.topic] = c
-            counts[c.topic] = 0
-        for m in sc.metadata:
-            metadata[m.name] = dict(m.metadata)
-        attachments = [{"name": a.name, "media_type": a.media_type, "bytes": len(a.data)}
-                       for a in sc.attachments]
-        chunks = len(sc.chunks)
-        for recs in sc.chunks:
-            for rec in recs:
-                if isinstance(rec, Message):
-                    counts[sc.channels[rec.channel_id].topic] += 1
-                    start = rec.log_time if start is None else min(start, rec.log_time)
-                    end = rec.log_time if end is None else max(end, rec.log_time)
+    c = _from_summary(path) if final else _from_scan(path)
+    start, end = c.start, c.end
     return {
-        "file": path, "size_bytes": size, "status": status, "finalised": final,
-        "chunks": chunks, "message_count": sum(counts.values()),
+        "file": path, "size_bytes": size, "status": c.status, "finalised": final,
+        "chunks": c.chunks, "message_count": sum(c.counts.values()),
         "start_ns": start, "end_ns": end,
         "duration_s": (end - start) / 1e9 if start is not None and end is not None else 0.0,
-        "channels": [{"topic": t, "encoding": c.message_encoding,
-                      "schema": schemas[c.schema_id].name if c.schema_id in schemas else "",
-                      "messages": counts[t]} for t, c in chans.items()],
-        "metadata": metadata, "attachments": attachments,
-    }, chans, schemas
+        "channels": [{"topic": t, "encoding": ch.message_encoding,
+                      "schema": c.schemas[ch.schema_id].name if ch.schema_id in c.schemas
+                      else "", "messages": c.counts[t]} for t, ch in c.chans.items()],
+        "metadata": c.metadata, "attachments": c.attachments,
+    }, c.chans, c.schemas
+
+
+def _from_summary(path: str) -> _Contents:
+    """A finalised file's contents, from its summary (its messages unread)."""
+    c = _Contents()
+    try:
+        with open(path, "rb") as fh:
+            r = make_reader(fh)
+            s = r.get_summary()
+            if s is None or s.statistics is None:
+                raise RecordingError(f"{path}: finalised but has no summary")
+            for ch in s.channels.values():
+                c.chans[ch.topic] = ch
+                c.counts[ch.topic] = s.statistics.channel_message_counts.get(ch.id, 0)
+            c.schemas = dict(s.schemas)
+            c.start, c.end = s.statistics.message_start_time, s.statistics.message_end_time
+            c.chunks = s.statistics.chunk_count
+            for m in r.iter_metadata():
+                c.metadata[m.name] = dict(m.metadata)
+            for a in r.iter_attachments():
+                c.attachments.append({"name": a.name, "media_type": a.media_type,
+                                      "bytes": len(a.data)})
+    except (McapError, struct.error, ValueError) as exc:
+        raise RecordingError(f"{path}: unreadable MCAP file ({exc})") from None
+    return c
+
+
+def _from_scan(path: str) -> _Contents:
+    """An unfinished file's contents, scanned record by record."""
+    sc = scan(path)
+    c = _Contents(status=("unfinished (no summary/footer; run `pamd recover`): " +
+                          (sc.tail_error or "ends after a complete record")))
+    c.schemas = sc.schemas
+    for ch in sc.channels.values():
+        c.chans[ch.topic] = ch
+        c.counts[ch.topic] = 0
+    for m in sc.metadata:
+        c.metadata[m.name] = dict(m.metadata)
+    c.attachments = [{"name": a.name, "media_type": a.media_type, "bytes": len(a.data)}
+                     for a in sc.attachments]
+    c.chunks = len(sc.chunks)
+    for recs in sc.chunks:
+        for rec in recs:
+            if isinstance(rec, Message):
+                c.counts[sc.channels[rec.channel_id].topic] += 1
+                c.start = rec.log_time if c.start is None else min(c.start, rec.log_time)
+                c.end = rec.log_time if c.end is None else max(c.end, rec.log_time)
+    return c
 
 
 def _int(v: object, default: int) -> int:

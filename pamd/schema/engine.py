@@ -135,80 +135,170 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
           meta: FieldMeta | None = None) -> Any:  # Any: see above
     """Validate `value` against type `tp`; record issues in ctx; return the built
     value (or None where it was invalid)."""
-    meta = meta or {}
+    return _builder(tp)(tp, value, ctx, path, line, meta or {})
+
+
+class _Builder(typing.Protocol):
+    """Builds a value of one kind of schema type (the arguments as `build` takes them)."""
+
+    # Any: as `build`: the value of the type `tp` names at run time
+    def __call__(self, tp: SchemaType, value: object, ctx: Context, path: str,
+                 line: int | None, meta: FieldMeta) -> Any: ...  # Any: see above
+
+
+def _builder(tp: SchemaType) -> _Builder:
+    """The builder for the kind of schema type `tp` is."""
     origin = typing.get_origin(tp)
     if origin in (Union, types.UnionType):
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        if value is None:
-            return None
-        return build(args[0], value, ctx, path, line, meta)
+        return _build_optional
     if origin is Literal:
-        allowed = typing.get_args(tp)
-        if value not in allowed or isinstance(value, bool) != isinstance(allowed[0], bool):
-            ctx.add(line, path, _type_name(tp), describe(value))
-            return None
-        return value
+        return _build_literal
     if origin is tuple:
-        if not isinstance(value, list):
-            ctx.add(line, path, _type_name(tp), describe(value))
-            return None
-        item_tp = typing.get_args(tp)[0]
-        lines = getattr(value, "item_lines", [line] * len(value))
-        return tuple(
-            build(item_tp, v, ctx, f"{path}[{i}]", lines[i]) for i, v in enumerate(value)
-        )
+        return _build_tuple
     if tp is Any:  # Any: a mapping kept raw, checked later by its owner
-        return value
+        return _build_raw
     if origin is dict or tp is dict:
-        if not isinstance(value, dict):
-            ctx.add(line, path, "a mapping", describe(value))
-            return None
-        return value
+        return _build_mapping
     if isinstance(tp, type) and dataclasses.is_dataclass(tp):
-        return build_dataclass(tp, value, ctx, path, line)
-    if tp is bool:
-        if not isinstance(value, bool):
-            ctx.add(line, path, "true or false", describe(value))
+        return _build_nested
+    return _SCALAR_BUILDERS.get(tp, _unsupported)
+
+
+def _build_optional(tp: SchemaType, value: object, ctx: Context, path: str,
+                    line: int | None, meta: FieldMeta) -> object:
+    """`X | None`: null stays None, anything else is built as X."""
+    args = [a for a in typing.get_args(tp) if a is not type(None)]
+    if value is None:
+        return None
+    return build(args[0], value, ctx, path, line, meta)
+
+
+def _build_literal(tp: SchemaType, value: object, ctx: Context, path: str,
+                   line: int | None, meta: FieldMeta) -> object:
+    """`Literal[...]`: one of the allowed values (a boolean never stands for a number)."""
+    allowed = typing.get_args(tp)
+    if value not in allowed or isinstance(value, bool) != isinstance(allowed[0], bool):
+        ctx.add(line, path, _type_name(tp), describe(value))
+        return None
+    return value
+
+
+def _build_tuple(tp: SchemaType, value: object, ctx: Context, path: str,
+                 line: int | None, meta: FieldMeta) -> object:
+    """`tuple[X, ...]`: a list, each item built as X at its own line."""
+    if not isinstance(value, list):
+        ctx.add(line, path, _type_name(tp), describe(value))
+        return None
+    item_tp = typing.get_args(tp)[0]
+    lines = getattr(value, "item_lines", [line] * len(value))
+    return tuple(
+        build(item_tp, v, ctx, f"{path}[{i}]", lines[i]) for i, v in enumerate(value)
+    )
+
+
+def _build_raw(tp: SchemaType, value: object, ctx: Context, path: str,
+               line: int | None, meta: FieldMeta) -> object:
+    """`Any`: kept as it is, checked later by its owner."""
+    return value
+
+
+def _build_mapping(tp: SchemaType, value: object, ctx: Context, path: str,
+                   line: int | None, meta: FieldMeta) -> object:
+    """`dict[str, Any]`: any mapping, kept raw."""
+    if not isinstance(value, dict):
+        ctx.add(line, path, "a mapping", describe(value))
+        return None
+    return value
+
+
+def _build_nested(tp: SchemaType, value: object, ctx: Context, path: str,
+                  line: int | None, meta: FieldMeta) -> object:
+    """A nested dataclass."""
+    assert isinstance(tp, type)
+    return build_dataclass(tp, value, ctx, path, line)
+
+
+def _build_bool(tp: SchemaType, value: object, ctx: Context, path: str,
+                line: int | None, meta: FieldMeta) -> object:
+    if not isinstance(value, bool):
+        ctx.add(line, path, "true or false", describe(value))
+        return None
+    return value
+
+
+def _build_str(tp: SchemaType, value: object, ctx: Context, path: str,
+               line: int | None, meta: FieldMeta) -> object:
+    if not isinstance(value, str):
+        ctx.add(line, path, "text", describe(value))
+        return None
+    return value
+
+
+def _build_number(tp: SchemaType, value: object, ctx: Context, path: str,
+                  line: int | None, meta: FieldMeta) -> object:
+    """An int or a float: of that type (never a boolean), finite and of a physical size
+    (floats), within its bounds; above its safe ceiling is noted in ctx.over_ceiling."""
+    ok = isinstance(value, int) if tp is int else isinstance(value, (int, float))
+    if isinstance(value, bool) or not ok or not isinstance(value, (int, float)):
+        ctx.add(line, path, _type_name(tp) + _unit_suffix(meta), describe(value))
+        return None
+    if tp is float:
+        value = float(value)
+        if not _float_is_physical(value, ctx, path, line):
             return None
-        return value
-    if tp is str:
-        if not isinstance(value, str):
-            ctx.add(line, path, "text", describe(value))
-            return None
-        return value
-    if tp in (int, float):
-        ok = isinstance(value, int) if tp is int else isinstance(value, (int, float))
-        if isinstance(value, bool) or not ok or not isinstance(value, (int, float)):
-            ctx.add(line, path, _type_name(tp) + _unit_suffix(meta), describe(value))
-            return None
-        if tp is float:
-            value = float(value)
-            if not math.isfinite(value):
-                ctx.add(line, path, "a finite number", describe(value))
-                return None
-            if subnormal(value):
-                ctx.add(line, path, "a number of a physical size (0, or at least 2.2e-308 in "
-                        "magnitude)", describe(value))
-                return None
-        meta = bounds(tp, meta)
-        bad = (
-            ("gt" in meta and not value > meta["gt"])
-            or ("min" in meta and value < meta["min"])
-            or ("max" in meta and value > meta["max"])
-        )
-        if bad:
-            unit = f" {meta['unit']}" if meta.get("unit") else ""
-            why = f" ({meta['why']})" if meta.get("why") else ""
-            ctx.add(line, path, f"a value {_bounds_text(meta)}{why}", f"{value}{unit}")
-            return None
-        if "ceiling" in meta and value > meta["ceiling"]:
-            unit = f" {meta['unit']}" if meta.get("unit") else ""
-            ctx.over_ceiling.append(ConfigIssue(
-                ctx.file, line, path, f"at most {meta['ceiling']}{unit} (the safe ceiling; "
-                "`safety.relax_ceilings: true` allows up to "
-                f"{meta.get('max', 'any')}{unit})", f"{value}{unit}"))
-        return value
+    meta = bounds(typing.cast(type, tp), meta)
+    if not _within_bounds(value, meta, ctx, path, line):
+        return None
+    _note_over_ceiling(value, meta, ctx, path, line)
+    return value
+
+
+def _float_is_physical(value: float, ctx: Context, path: str, line: int | None) -> bool:
+    """Whether a float is finite and not subnormal (reported in ctx when not)."""
+    if not math.isfinite(value):
+        ctx.add(line, path, "a finite number", describe(value))
+        return False
+    if subnormal(value):
+        ctx.add(line, path, "a number of a physical size (0, or at least 2.2e-308 in "
+                "magnitude)", describe(value))
+        return False
+    return True
+
+
+def _within_bounds(value: float, meta: FieldMeta, ctx: Context, path: str,
+                   line: int | None) -> bool:
+    """Whether a number lies within its `gt`, `min` and `max` (reported when not)."""
+    bad = (
+        ("gt" in meta and not value > meta["gt"])
+        or ("min" in meta and value < meta["min"])
+        or ("max" in meta and value > meta["max"])
+    )
+    if bad:
+        unit = f" {meta['unit']}" if meta.get("unit") else ""
+        why = f" ({meta['why']})" if meta.get("why") else ""
+        ctx.add(line, path, f"a value {_bounds_text(meta)}{why}", f"{value}{unit}")
+    return not bad
+
+
+def _note_over_ceiling(value: float, meta: FieldMeta, ctx: Context, path: str,
+                       line: int | None) -> None:
+    """A number above its safe `ceiling` goes to ctx.over_ceiling (the loader decides)."""
+    if "ceiling" in meta and value > meta["ceiling"]:
+        unit = f" {meta['unit']}" if meta.get("unit") else ""
+        ctx.over_ceiling.append(ConfigIssue(
+            ctx.file, line, path, f"at most {meta['ceiling']}{unit} (the safe ceiling; "
+            "`safety.relax_ceilings: true` allows up to "
+            f"{meta.get('max', 'any')}{unit})", f"{value}{unit}"))
+
+
+def _unsupported(tp: SchemaType, value: object, ctx: Context, path: str,
+                 line: int | None, meta: FieldMeta) -> object:
     raise TypeError(f"schema type {tp!r} at {path} is not supported")
+
+
+_SCALAR_BUILDERS: dict[object, _Builder] = {
+    bool: _build_bool, str: _build_str, int: _build_number, float: _build_number,
+}
 
 
 def _unit_suffix(meta: FieldMeta) -> str:
@@ -233,16 +323,7 @@ def build_dataclass(cls: type[_D], value: object, ctx: Context, path: str, line:
     fields = {f.name: f for f in dataclasses.fields(cls)}
     hints = typing.get_type_hints(cls)
     prefix = f"{path}." if path else ""
-    for key in value:
-        if key not in fields:
-            near = _closest(str(key), list(fields))
-            hint = f" (did you mean {near!r}?)" if near else ""
-            ctx.add(
-                key_lines.get(key, getattr(value, "line", line)),
-                f"{prefix}{key}",
-                f"one of the known keys {', '.join(fields)}{hint}",
-                "an unknown key",
-            )
+    _report_unknown_keys(value, list(fields), ctx, prefix, line)
     kwargs: dict[str, object] = {}  # the fields' built values
     for name, f in fields.items():
         key_line = key_lines.get(name, getattr(value, "line", line))
@@ -260,6 +341,22 @@ def build_dataclass(cls: type[_D], value: object, ctx: Context, path: str, line:
     except TypeError:
         return None  # a required field was invalid; already reported
 
+
+
+def _report_unknown_keys(value: dict[YamlKey, JsonValue], known: list[str], ctx: Context,
+                         prefix: str, line: int | None) -> None:
+    """Each key of `value` that is none of `known`, with the nearest known one."""
+    key_lines = getattr(value, "key_lines", {})
+    for key in value:
+        if key not in known:
+            near = _closest(str(key), known)
+            hint = f" (did you mean {near!r}?)" if near else ""
+            ctx.add(
+                key_lines.get(key, getattr(value, "line", line)),
+                f"{prefix}{key}",
+                f"one of the known keys {', '.join(known)}{hint}",
+                "an unknown key",
+            )
 
 
 def field_meta(f: dataclasses.Field[object]) -> FieldMeta:

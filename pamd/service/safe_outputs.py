@@ -110,34 +110,43 @@ def replay(doc: JsonObject, timeout_s: float = 5.0, settle_s: float = 0.3,
 def _wait_and_report(targets: list[_Target], timeout_s: float, settle_s: float,
                      say: Callable[[str], None]) -> int:
     """Wait until each driver's thread has sent its writes (a `writes` counter that
-    moved) or the deadline; then one settle period for the rest of its cycle."""
+    moved) or the deadline; then one settle period for the rest of its cycle. Returns
+    how many drivers failed."""
     deadline = time.monotonic() + timeout_s
     pending = [t for t in targets if _writes_done(t.driver) >= 0]
     while pending and time.monotonic() < deadline:
         pending = [t for t in pending if _writes_done(t.driver) <= t.start_writes]
         time.sleep(0.01)
     time.sleep(settle_s)  # the moment the I/O thread needs for the rest of its cycle
-    failed = 0
-    for t in targets:
-        n = _writes_done(t.driver)
-        what = "; ".join(w for _i, _r, _c, w in t.writes)
-        counters = getattr(t.driver, "counters", {})
-        erred = [c for _i, _r, c, _w in t.writes if counters.get(f"errors.{c}", 0)]
-        describe = getattr(t.driver, "describe", None)
-        device = describe() if callable(describe) else f"{t.type} {t.name!r}"
-        if n < 0:  # a driver without counters: nothing to confirm with
-            if t.driver.fault is None:
-                say(f"{device}: wrote {what} (not confirmed: the driver counts no writes)")
-            else:
-                say(f"{device}: FAILED: {t.driver.fault}")
-                failed += 1
-        elif n > t.start_writes and t.driver.fault is None and not erred:
-            say(f"{device}: wrote {what}")
-        else:
-            errors = list(getattr(t.driver, "recent_errors", []))[-3:]
-            why = t.driver.fault or "; ".join(errors) or f"no answer within {timeout_s:g} s"
-            if erred and n > t.start_writes:
-                why = f"errors on {', '.join(erred)} while writing: {why}"
-            say(f"{device}: FAILED to write {what}: {why}")
-            failed += 1
-    return failed
+    return sum(not _report(t, timeout_s, say) for t in targets)
+
+
+def _report(t: _Target, timeout_s: float, say: Callable[[str], None]) -> bool:
+    """Say what one driver wrote, or why it failed; whether it wrote."""
+    n = _writes_done(t.driver)
+    what = "; ".join(w for _i, _r, _c, w in t.writes)
+    counters = getattr(t.driver, "counters", {})
+    erred = [c for _i, _r, c, _w in t.writes if counters.get(f"errors.{c}", 0)]
+    describe = getattr(t.driver, "describe", None)
+    device = describe() if callable(describe) else f"{t.type} {t.name!r}"
+    if n < 0:  # a driver without counters: nothing to confirm with
+        if t.driver.fault is None:
+            say(f"{device}: wrote {what} (not confirmed: the driver counts no writes)")
+            return True
+        say(f"{device}: FAILED: {t.driver.fault}")
+        return False
+    if n > t.start_writes and t.driver.fault is None and not erred:
+        say(f"{device}: wrote {what}")
+        return True
+    say(f"{device}: FAILED to write {what}: {_why_failed(t, n > t.start_writes, erred, timeout_s)}")
+    return False
+
+
+def _why_failed(t: _Target, wrote: bool, erred: list[str], timeout_s: float) -> str:
+    """Why a driver's writes failed: its fault, its latest errors or no answer in time;
+    the channels that erred first where it wrote at all."""
+    errors = list(getattr(t.driver, "recent_errors", []))[-3:]
+    why = t.driver.fault or "; ".join(errors) or f"no answer within {timeout_s:g} s"
+    if erred and wrote:
+        why = f"errors on {', '.join(erred)} while writing: {why}"
+    return str(why)

@@ -82,30 +82,41 @@ def check_faults(faults: Sequence[SimFault], names: Sequence[str]) -> list[str]:
                 f"{where}: a {f.signal} fault is one of {', '.join(FAULT_KINDS[f.signal])}, "
                 f"not {f.kind!r}"
             )
-        if f.signal == "loop":
-            if f.muscle != "*":
-                problems.append(f"{where}: a loop stall stops the whole process: muscle "
-                                f"'*', not {f.muscle!r}")
-        elif f.signal in ("driver", "supply", "safety_chain"):
-            if f.signal == "safety_chain" and f.muscle != "*":
-                problems.append(f"{where}: the safety chain is the rig's: muscle '*'")
-            elif f.muscle not in ("*", *names):
-                problems.append(f"{where}: no muscle {f.muscle!r} (muscles: {', '.join(names)})")
-        elif f.muscle not in names:
-            problems.append(
-                f"{where}: no muscle {f.muscle!r} in this sim driver (muscles: "
-                f"{', '.join(names)}); a {f.signal} fault names its muscle"
-            )
+        problems += _muscle_problems(f, names, where)
         if (f.kind == "stall") != (f.duration_s is not None):
             problems.append(f"{where}: duration_s is " + (
                 "required by a stall (how long the loop's process stops)"
                 if f.kind == "stall" else f"only for a stall, not a {f.kind} fault"))
-        if f.size is not None and (not math.isfinite(f.size) or
-                                   (f.kind == "noisy" and f.size <= 0.0)):
-            problems.append(f"{where}: size must be finite (and > 0 for noisy), got {f.size}")
-        elif f.kind == "jump" and f.size == 0.0:
-            problems.append(f"{where}: a jump of size 0 changes nothing: no fault to script")
-        elif f.size is not None and f.kind not in ("noisy", "jump"):
-            problems.append(f"{where}: size applies to noisy and jump faults only, not "
-                            f"{f.kind!r}")
+        problems += _size_problems(f, where)
     return problems
+
+
+def _muscle_problems(f: SimFault, names: Sequence[str], where: str) -> list[str]:
+    """The fault's muscle: '*' for the loop and the safety chain (the rig's), '*' or a
+    muscle for a driver or the supply, a muscle of this sim driver for a signal."""
+    if f.signal == "loop":
+        if f.muscle != "*":
+            return [f"{where}: a loop stall stops the whole process: muscle "
+                    f"'*', not {f.muscle!r}"]
+    elif f.signal in ("driver", "supply", "safety_chain"):
+        if f.signal == "safety_chain" and f.muscle != "*":
+            return [f"{where}: the safety chain is the rig's: muscle '*'"]
+        if f.muscle not in ("*", *names):
+            return [f"{where}: no muscle {f.muscle!r} (muscles: {', '.join(names)})"]
+    elif f.muscle not in names:
+        return [f"{where}: no muscle {f.muscle!r} in this sim driver (muscles: "
+                f"{', '.join(names)}); a {f.signal} fault names its muscle"]
+    return []
+
+
+def _size_problems(f: SimFault, where: str) -> list[str]:
+    """The fault's size: finite (and > 0 for noisy), not 0 for a jump, and given for
+    noisy and jump faults only."""
+    if f.size is not None and (not math.isfinite(f.size) or
+                               (f.kind == "noisy" and f.size <= 0.0)):
+        return [f"{where}: size must be finite (and > 0 for noisy), got {f.size}"]
+    if f.kind == "jump" and f.size == 0.0:
+        return [f"{where}: a jump of size 0 changes nothing: no fault to script"]
+    if f.size is not None and f.kind not in ("noisy", "jump"):
+        return [f"{where}: size applies to noisy and jump faults only, not {f.kind!r}"]
+    return []

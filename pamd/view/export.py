@@ -30,7 +30,7 @@ from pamd.atomic import atomic_text
 from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import RecordingError
 from pamd.view import fields
-from pamd.view.recording import Recording, open_recording
+from pamd.view.recording import MuscleData, Recording, open_recording
 
 #: what `open_recording` reads: an MCAP file, a list of files, or a directory
 RecordingSource = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
@@ -103,17 +103,7 @@ def export_mat(source: RecordingSource, out: str) -> MatWritten:
     except ImportError:
         raise RecordingError("MATLAB export needs scipy: pip install 'pamd[mat]'") from None
     rec = _complete(source)
-    tables: dict[str, dict[str, object]] = {}
-    for m, data in rec.muscles.items():
-        st: dict[str, object] = {k: v.astype(np.float64) for k, v in data.columns.items()}
-        doc = _columns_doc(list(data.columns))
-        st["units"] = {k: d["unit"] for k, d in doc.items()}
-        st["description"] = {k: d["description"] for k, d in doc.items()}
-        st["state_names"] = cell(fields.STATE_NAMES.values())
-        st["mode_names"] = cell(fields.MODE_NAMES.values())
-        st["flag_bits"] = {k: float(v) for k, v in fields.FLAG_BITS.items()}
-        st["muscle"] = m
-        tables[matlab_name(m)] = st
+    tables = {matlab_name(m): _mat_muscle(m, data) for m, data in rec.muscles.items()}
     loop: dict[str, object] = {k: v.astype(np.float64) for k, v in rec.loop.items()}
     loop["units"] = {k: fields.unit_of(k) for k in rec.loop}
     loop["state_names"] = cell(fields.STATE_NAMES.values())
@@ -122,14 +112,7 @@ def export_mat(source: RecordingSource, out: str) -> MatWritten:
               "tick": np.array([e.tick for e in ev], dtype=np.float64),
               "kind": cell(e.kind for e in ev),
               "data": cell(json.dumps(e.data, sort_keys=True, default=str) for e in ev)}
-    meta = _meta(rec)
-    pamd = {"source": meta["source"], "rig_id": meta["rig_id"],
-            "rate_hz": math.nan if rec.rate_hz is None else rec.rate_hz,
-            "files": cell(meta["files"]), "steps": cell(meta["steps"]),
-            "loads_kg": np.array(meta["loads_kg"], dtype=np.float64),
-            "muscles": cell(rec.muscles),
-            "metadata": {matlab_name(k): {matlab_name(a): str(b) for a, b in v.items()}
-                         for k, v in rec.metadata.items()}}
+    pamd = _mat_pamd(rec)
     clash = set(tables) & {"loop", "events", "pamd"}
     if clash:
         raise RecordingError(f"a muscle named {clash.pop()!r} would hide a table of the "
@@ -142,6 +125,33 @@ def export_mat(source: RecordingSource, out: str) -> MatWritten:
         raise RecordingError(f"{out}: cannot write ({exc.strerror or exc})") from None
     return {"out": out, "muscles": {m: len(d) for m, d in rec.muscles.items()},
             "events": len(ev), "files": len(rec.files)}
+
+
+def _mat_muscle(m: str, data: MuscleData) -> dict[str, object]:
+    """A muscle's struct: every tick field as a column, their units and descriptions,
+    the names of the states and modes, the flag bits, the muscle's name."""
+    st: dict[str, object] = {k: v.astype(np.float64) for k, v in data.columns.items()}
+    doc = _columns_doc(list(data.columns))
+    st["units"] = {k: d["unit"] for k, d in doc.items()}
+    st["description"] = {k: d["description"] for k, d in doc.items()}
+    st["state_names"] = cell(fields.STATE_NAMES.values())
+    st["mode_names"] = cell(fields.MODE_NAMES.values())
+    st["flag_bits"] = {k: float(v) for k, v in fields.FLAG_BITS.items()}
+    st["muscle"] = m
+    return st
+
+
+def _mat_pamd(rec: Recording) -> dict[str, object]:
+    """The `pamd` struct: the recording's source, rig, rate, files, steps, loads,
+    muscles and metadata."""
+    meta = _meta(rec)
+    return {"source": meta["source"], "rig_id": meta["rig_id"],
+            "rate_hz": math.nan if rec.rate_hz is None else rec.rate_hz,
+            "files": cell(meta["files"]), "steps": cell(meta["steps"]),
+            "loads_kg": np.array(meta["loads_kg"], dtype=np.float64),
+            "muscles": cell(rec.muscles),
+            "metadata": {matlab_name(k): {matlab_name(a): str(b) for a, b in v.items()}
+                         for k, v in rec.metadata.items()}}
 
 
 # -- CSV ---------------------------------------------------------------------------------------

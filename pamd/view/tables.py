@@ -150,28 +150,10 @@ def read_table_csv(path: str) -> Run:
     with CsvText(path) as text:
         where = text.where
         side = _sidecar(path)
-        comma = text.dialect.delimiter != ","
         cols = _csv_columns(text, side)
-        parts: dict[str, list[np.ndarray]] = {c.name: [] for c in cols if c.kind != "text"}
-        breaks: list[list[int]] = []  # [row index, its file line] where lines were skipped
-        n = 0
-        for chunk in text.chunks():
-            if not breaks or chunk.lines[0] != breaks[-1][1] + n - breaks[-1][0]:
-                breaks.append([n, chunk.lines[0]])
-            for k in range(1, len(chunk.lines)):
-                if chunk.lines[k] != chunk.lines[k - 1] + 1:
-                    breaks.append([n + k, chunk.lines[k]])
-            for c in cols:
-                _csv_cells(c, chunk.columns[c.index], chunk.lines, comma, where, n == 0)
-                if c.kind != "text":
-                    parts[c.name].append(c.values)
-            n += len(chunk.lines)
+        columns, breaks, n = _csv_values(text, cols)
     if n == 0:
         raise ModelError(f"{where}:{text.header_line}: a header but no data rows")
-    columns: dict[str, np.ndarray] = {}
-    for c in cols:
-        if c.kind != "text":
-            columns[c.name] = np.concatenate(parts.pop(c.name))  # scaled by `_run`
     meta: JsonObject = {
         "row_offset": breaks[0][1], "conversions": [c.how for c in cols if c.how],
         "text_columns": {c.name: f"{where}:{breaks[0][1]}:{c.head}" for c in cols
@@ -179,17 +161,57 @@ def read_table_csv(path: str) -> Run:
         "headers": {c.name: c.head for c in cols}, "factors": {c.name: c.factor for c in cols}}
     if len(breaks) > 1:
         meta["row_breaks"] = breaks
-    muscle, load = "", None
-    if side is not None:
-        muscle = side["muscle"]
-        meta["rate_hz"] = side.get("rate_hz")
-        meta["actuation"] = actuations_of(side.get("metadata")).get(str(muscle))
-        loads = [x for x in side.get("loads_kg") or [] if x is not None]
-        load = loads[0] if len(set(loads)) == 1 else None
-        events = (side.get("tables") or {}).get("events")
-        if events:  # the profile commands: their lead-in ramps are dropped, as in MCAP
-            meta["events"] = _csv_events(os.path.join(os.path.dirname(path), events), muscle)
+    muscle, load = ("", None) if side is None else _sidecar_meta(path, side, meta)
     return _run(where, muscle, columns, meta, load)
+
+
+def _csv_values(text: CsvText, cols: list[_CsvColumn]
+                ) -> tuple[dict[str, np.ndarray], list[list[int]], int]:
+    """(the columns' values, unscaled: `_run` scales them; each [row index, its file
+    line] where lines were skipped; the number of rows), read chunk by chunk."""
+    comma = text.dialect.delimiter != ","
+    parts: dict[str, list[np.ndarray]] = {c.name: [] for c in cols if c.kind != "text"}
+    breaks: list[list[int]] = []  # [row index, its file line] where lines were skipped
+    n = 0
+    for chunk in text.chunks():
+        _note_breaks(breaks, chunk.lines, n)
+        for c in cols:
+            _csv_cells(c, chunk.columns[c.index], chunk.lines, comma, text.where, n == 0)
+            if c.kind != "text":
+                parts[c.name].append(c.values)
+        n += len(chunk.lines)
+    columns: dict[str, np.ndarray] = {}
+    if n == 0:
+        return columns, breaks, n
+    for c in cols:
+        if c.kind != "text":
+            columns[c.name] = np.concatenate(parts.pop(c.name))  # scaled by `_run`
+    return columns, breaks, n
+
+
+def _note_breaks(breaks: list[list[int]], lines: list[int], n: int) -> None:
+    """Add [row index, file line] for each row of a chunk (its first row `n`) whose line
+    does not follow the previous row's (lines skipped: blank, comments)."""
+    if not breaks or lines[0] != breaks[-1][1] + n - breaks[-1][0]:
+        breaks.append([n, lines[0]])
+    for k in range(1, len(lines)):
+        if lines[k] != lines[k - 1] + 1:
+            breaks.append([n + k, lines[k]])
+
+
+def _sidecar_meta(path: str, side: JsonObject, meta: JsonObject) -> tuple[str, float | None]:
+    """(the muscle, its load if one) of a table a `pamd export --csv` sidecar names;
+    its rate, actuation and events (the profile commands, whose lead-in ramps are
+    dropped, as in MCAP) into `meta`."""
+    muscle = side["muscle"]
+    meta["rate_hz"] = side.get("rate_hz")
+    meta["actuation"] = actuations_of(side.get("metadata")).get(str(muscle))
+    loads = [x for x in side.get("loads_kg") or [] if x is not None]
+    load = loads[0] if len(set(loads)) == 1 else None
+    events = (side.get("tables") or {}).get("events")
+    if events:  # the profile commands: their lead-in ramps are dropped, as in MCAP
+        meta["events"] = _csv_events(os.path.join(os.path.dirname(path), events), muscle)
+    return muscle, load
 
 
 class _CsvColumn:
@@ -324,35 +346,10 @@ def read_table_mat(path: str) -> list[Run]:
     declared sizes checked first (`pamd.view.matscan`: at most `MAX_TABLE_BYTES`
     expanded, refused before it is decompressed), then read with scipy."""
     where = shown(path)
-    try:
-        from scipy.io import loadmat
-    except ImportError:
-        raise ModelError(f"{where}: reading .mat files needs scipy: pip install 'pamd[mat]'"
-                         ) from None
-    try:
-        check_mat(path, MAX_TABLE_BYTES)
-    except OSError as exc:
-        raise ModelError(f"{where}: cannot read it ({exc})") from None
-    try:
-        with np.errstate(all="ignore"):
-            mat = loadmat(path, simplify_cells=True)
-    except NotImplementedError:
-        raise ModelError(f"{where}: a MAT 7.3 (HDF5) file; save it with save(..., '-v7') "
-                         "or export CSV") from None
-    except Exception as exc:  # noqa: BLE001 (scipy's reader raises many kinds on a corrupt file)
-        raise ModelError(f"{where}: cannot read it as a MAT file ({type(exc).__name__}: "
-                         f"{shown(str(exc))[:200]})") from None
+    mat = _loadmat(path, where)
     vars_ = {k: v for k, v in mat.items() if not k.startswith("__")}
-    runs = []
     export = isinstance(vars_.get("pamd"), dict)
-    for key, v in vars_.items():
-        if isinstance(v, dict) and key not in ("loop", "events", "pamd"):
-            if export and "t_s" not in v:
-                continue
-            name = shown(str(v.get("muscle", key))) if export else shown(key)
-            runs.append(_mat_run(where, name, v, shown(key)))
-            if export and isinstance(vars_.get("events"), dict):
-                runs[-1].events = _mat_events(where, vars_["events"], name)
+    runs = _mat_struct_runs(where, vars_, export)
     if export:  # the exported config says each muscle's actuation (extraction's flags)
         side = vars_["pamd"].get("metadata")
         config = side.get(matlab_name("pamd.config")) if isinstance(side, dict) else None
@@ -365,6 +362,47 @@ def read_table_mat(path: str) -> list[Run]:
     if not runs:
         raise ModelError(f"{where}: no table in it (column vectors named by signal, or "
                          "structs of them)" + _not_columns(where, "", top))
+    return runs
+
+
+# Any: a .mat file's variables, as scipy reads them
+def _loadmat(path: str, where: str) -> dict[str, Any]:
+    """The file's variables (scipy's loadmat), its structure and sizes checked first."""
+    try:
+        from scipy.io import loadmat
+    except ImportError:
+        raise ModelError(f"{where}: reading .mat files needs scipy: pip install 'pamd[mat]'"
+                         ) from None
+    try:
+        check_mat(path, MAX_TABLE_BYTES)
+    except OSError as exc:
+        raise ModelError(f"{where}: cannot read it ({exc})") from None
+    try:
+        with np.errstate(all="ignore"):
+            mat: dict[str, Any] = loadmat(path, simplify_cells=True)  # Any: as above
+    except NotImplementedError:
+        raise ModelError(f"{where}: a MAT 7.3 (HDF5) file; save it with save(..., '-v7') "
+                         "or export CSV") from None
+    except Exception as exc:  # noqa: BLE001 (scipy's reader raises many kinds on a corrupt file)
+        raise ModelError(f"{where}: cannot read it as a MAT file ({type(exc).__name__}: "
+                         f"{shown(str(exc))[:200]})") from None
+    return mat
+
+
+def _mat_struct_runs(where: str, vars_: dict[str, Any], export: bool  # Any: as `_loadmat`
+                     ) -> list[Run]:
+    """A run of each struct of columns (`pamd export`'s: each muscle's, with its
+    events; the loop, events and pamd structs are none)."""
+    runs = []
+    for key, v in vars_.items():
+        if not isinstance(v, dict) or key in ("loop", "events", "pamd"):
+            continue
+        if export and "t_s" not in v:
+            continue
+        name = shown(str(v.get("muscle", key))) if export else shown(key)
+        runs.append(_mat_run(where, name, v, shown(key)))
+        if export and isinstance(vars_.get("events"), dict):
+            runs[-1].events = _mat_events(where, vars_["events"], name)
     return runs
 
 
@@ -428,21 +466,10 @@ def _mat_run(path: str, muscle: str, st: dict[str, Any], var: str  # Any: a .mat
         if raw_key == "units":
             continue
         if not _mat_column(v):
-            try:
-                name = parse_name(key, where)[0]
-            except ModelError:
-                name = shown(key)
-            skipped[name] = f"{_mat_what(v)} at {where}"
+            skipped[_skipped_name(key, where)] = f"{_mat_what(v)} at {where}"
             continue
         said = units.get(raw_key) if isinstance(units, dict) else None
-        unit = said if isinstance(said, str) else ("" if said is not None else None)
-        head = key if unit is None or fields.unit_of(key) == unit or unit in ("", "name") \
-            else f"{key} [{unit}]"
-        name, factor, how = parse_name(head, where)
-        if unit not in (None, "", "name") and fields.unit_of(name) not in ("", unit) and \
-                head == key:
-            raise ModelError(f"{where}: its units entry says {unit!r} but the name says "
-                             f"{fields.unit_of(name)!r}")
+        name, factor, how, head = _mat_column_name(key, said, where)
         if n is not None and v.size != n:
             raise ModelError(f"{where}: {v.size} values where the other columns have {n}")
         n = v.size
@@ -453,6 +480,29 @@ def _mat_run(path: str, muscle: str, st: dict[str, Any], var: str  # Any: a .mat
     return _run(f"{path}:{var}" if var else path, muscle, columns,
                 {"row_offset": 1, "conversions": notes, "text_columns": {},
                  "skipped_columns": skipped, "headers": heads, "factors": factors}, None)
+
+
+def _skipped_name(key: str, where: str) -> str:
+    """The pamd name of a variable that is no column (its own where it reads as none)."""
+    try:
+        return parse_name(key, where)[0]
+    except ModelError:
+        return shown(key)
+
+
+def _mat_column_name(key: str, said: object, where: str) -> tuple[str, float, str, str]:
+    """(pamd name, factor, how it was read, header) of a column variable and the unit
+    its struct's `units` entry says (`said`; "" or "name": the name's own), refused
+    where the two disagree."""
+    unit = said if isinstance(said, str) else ("" if said is not None else None)
+    head = key if unit is None or fields.unit_of(key) == unit or unit in ("", "name") \
+        else f"{key} [{unit}]"
+    name, factor, how = parse_name(head, where)
+    if unit not in (None, "", "name") and fields.unit_of(name) not in ("", unit) and \
+            head == key:
+        raise ModelError(f"{where}: its units entry says {unit!r} but the name says "
+                         f"{fields.unit_of(name)!r}")
+    return name, factor, how, head
 
 
 # -- both ------------------------------------------------------------------------------------
@@ -599,23 +649,7 @@ def load_samples(paths: Sequence[str], options: ExtractOptions,
     for r in runs:
         if "row_offset" not in r.meta:
             continue  # a recording: extraction checks it
-        missing = [n for n in need if n not in r.columns and n not in FROM_LENGTH]
-        if "velocity_mm_s" in need and r.meta.get("time") == "rows":
-            raise ModelError(f"{r.label}: a velocity_mm_s input needs a time column "
-                             "(t_s, time [ms], ...); this table has none (without one, "
-                             "train on --inputs force_n,length_mm)")
-        if any(n in FROM_LENGTH for n in need) and "length_mm" not in r.columns:
-            missing.append("length_mm")
-        if missing:
-            skipped = r.meta.get("skipped_columns") or {}
-            text = [f"{m} (a text column at {r.meta['text_columns'][m]})"
-                    if m in r.meta["text_columns"] else
-                    f"{m} ({skipped[m]})" if m in skipped else m for m in missing]
-            names = list(r.columns)
-            shown_names = ", ".join(names[:20]) + (f", ... ({len(names)} in all)"
-                                                   if len(names) > 20 else "")
-            raise ModelError(f"{r.label}:1: missing column(s) {', '.join(text)} (columns: "
-                             f"{shown_names or 'none'})")
+        _check_table_columns(r, need)
         for line in r.meta["conversions"]:
             say(f"{r.label}: {line}")
         for line in r.meta.get("warnings") or []:
@@ -624,10 +658,44 @@ def load_samples(paths: Sequence[str], options: ExtractOptions,
         samples = extract(runs, options)
     for info, r in zip(samples.runs, [r for r in runs if options.muscle is None
                                       or r.muscle in (options.muscle, "")], strict=False):
-        if r.meta.get("conversions"):
-            info["conversions"] = list(r.meta["conversions"])
-        if r.meta.get("warnings"):
-            info["unit_warnings"] = list(r.meta["warnings"])
-        if r.meta.get("time") == "rows":
-            info["time"] = "none: rows are samples (not settled, not decimated)"
+        _note_table(info, r)
     return samples
+
+
+def _check_table_columns(r: Run, need: list[str]) -> None:
+    """A table has the columns `need` names (the length, for an input computed from it;
+    a time column, for the velocity), each missing one said with what the table holds
+    in its place (file:1)."""
+    missing = [n for n in need if n not in r.columns and n not in FROM_LENGTH]
+    if "velocity_mm_s" in need and r.meta.get("time") == "rows":
+        raise ModelError(f"{r.label}: a velocity_mm_s input needs a time column "
+                         "(t_s, time [ms], ...); this table has none (without one, "
+                         "train on --inputs force_n,length_mm)")
+    if any(n in FROM_LENGTH for n in need) and "length_mm" not in r.columns:
+        missing.append("length_mm")
+    if missing:
+        raise ModelError(f"{r.label}:1: missing column(s) {_missing_text(r, missing)}")
+
+
+def _missing_text(r: Run, missing: list[str]) -> str:
+    """The missing columns, each with what the table holds in its place (a text
+    column, a variable of another kind), and the columns it has."""
+    skipped = r.meta.get("skipped_columns") or {}
+    text = [f"{m} (a text column at {r.meta['text_columns'][m]})"
+            if m in r.meta["text_columns"] else
+            f"{m} ({skipped[m]})" if m in skipped else m for m in missing]
+    names = list(r.columns)
+    shown_names = ", ".join(names[:20]) + (f", ... ({len(names)} in all)"
+                                           if len(names) > 20 else "")
+    return f"{', '.join(text)} (columns: {shown_names or 'none'})"
+
+
+def _note_table(info: JsonObject, r: Run) -> None:
+    """A table's unit conversions, unit warnings and lack of time, into its run's
+    provenance `info`."""
+    if r.meta.get("conversions"):
+        info["conversions"] = list(r.meta["conversions"])
+    if r.meta.get("warnings"):
+        info["unit_warnings"] = list(r.meta["warnings"])
+    if r.meta.get("time") == "rows":
+        info["time"] = "none: rows are samples (not settled, not decimated)"

@@ -105,33 +105,73 @@ def _actuation(run: Run, o: ExtractOptions) -> str | None:
     return said if isinstance(said, str) else o.actuation
 
 
+class _Kept:
+    """Which of a run's samples are kept, and how many were dropped for each reason (in
+    the order the reasons first dropped one)."""
+
+    def __init__(self, n: int) -> None:
+        self.mask = np.ones(n, dtype=bool)
+        self.counts: dict[str, int] = {}
+
+    def drop(self, mask: np.ndarray, reason: str) -> None:
+        """Drop the kept samples `mask` selects, counted under `reason`."""
+        new = mask & self.mask
+        if new.any():
+            self.counts[reason] = self.counts.get(reason, 0) + int(new.sum())
+            self.mask[new] = False
+
+
 def _extract_run(run: Run, o: ExtractOptions, actuation: str | None,
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int]]:
     c = run.columns
     t = np.asarray(run.t_s, dtype=np.float64)
-    n = t.size
+    _check_columns(run, o)
+    kept = _Kept(t.size)
+    accepted = _drop_state_and_flags(c, o, actuation, kept)
+    timeless = run.meta.get("time") == "rows"  # a table of samples (pamd.view.tables)
+    _drop_settling(run, o, t, accepted, timeless, kept)
+    # The velocity (the tick's filter) and the change of length at full rate, before
+    # decimation.
+    cols = _with_length_inputs(run, o, t, timeless, kept)
+    kept_idx = np.flatnonzero(kept.mask)
+    _refuse_nonfinite(run, o, cols, kept_idx, t)
+    # Decimate: the first kept sample in each 1/rate_hz bin.
+    bins = np.floor(t * o.rate_hz).astype(np.int64)
+    if kept_idx.size and not timeless:
+        b = bins[kept_idx]
+        first = np.ones(kept_idx.size, dtype=bool)
+        first[1:] = b[1:] != b[:-1]
+        kept.counts["decimated"] = int((~first).sum())
+        kept_idx = kept_idx[first]
+    X = np.column_stack([cols[n_][kept_idx] for n_ in o.inputs]) if kept_idx.size else \
+        np.empty((0, len(o.inputs)))
+    y = cols[o.output][kept_idx]
+    return X, y, t[kept_idx], kept.counts
+
+
+def _check_columns(run: Run, o: ExtractOptions) -> None:
+    """The run has the columns the options need (the length, for an input computed
+    from it)."""
     need = [n_ for n_ in o.inputs if n_ not in FROM_LENGTH] + [o.output]
     if any(n_ in FROM_LENGTH for n_ in o.inputs):
         need.append("length_mm")
-    missing = [n_ for n_ in dict.fromkeys(need) if n_ not in c]
+    missing = [n_ for n_ in dict.fromkeys(need) if n_ not in run.columns]
     if missing:
-        have = ", ".join(sorted(c)) or "none"
+        have = ", ".join(sorted(run.columns)) or "none"
         raise ModelError(f"{run.label}: missing column(s) {', '.join(missing)} (columns: "
                          f"{have})")
-    counts: dict[str, int] = {}
-    keep = np.ones(n, dtype=bool)
 
-    def drop(mask: np.ndarray, reason: str) -> None:
-        new = mask & keep
-        if new.any():
-            counts[reason] = counts.get(reason, 0) + int(new.sum())
-            keep[new] = False
 
+def _drop_state_and_flags(c: dict[str, np.ndarray], o: ExtractOptions, actuation: str | None,
+                          kept: _Kept) -> np.ndarray:
+    """Drop the samples outside RUNNING and those with a flag the options drop (an
+    on/off muscle's valve flags kept: they are its actuation); the samples in RUNNING
+    returned (all, without a state column)."""
     state = c.get("state")
-    accepted = np.ones(n, dtype=bool)
+    accepted = np.ones(kept.mask.size, dtype=bool)
     if state is not None:
         accepted = state == _RUNNING
-        drop(~accepted, "not running (idle, hold, load change, fault, estop)")
+        kept.drop(~accepted, "not running (idle, hold, load change, fault, estop)")
     if "flags" in c:
         flags = np.nan_to_num(c["flags"], nan=0.0).astype(np.int64)
         dropped = o.drop_flags
@@ -139,70 +179,82 @@ def _extract_run(run: Run, o: ExtractOptions, actuation: str | None,
             dropped &= ~int(PWM_VALVE_FLAGS)
         for f in Flag:
             if f & dropped:
-                drop((flags & int(f)) != 0, f"flag {f.name}")
-    # Settling: the run's start and the start of each accepted stretch.
+                kept.drop((flags & int(f)) != 0, f"flag {f.name}")
+    return accepted
+
+
+def _drop_settling(run: Run, o: ExtractOptions, t: np.ndarray, accepted: np.ndarray,
+                   timeless: bool, kept: _Kept) -> None:
+    """Drop `settle_s` after the run's start and the start of each accepted stretch (a
+    table of samples, `timeless`: none), and each profile's lead-in ramp."""
     starts = [float(t[0])]
-    if state is not None:
+    if run.columns.get("state") is not None:
         edges = np.flatnonzero(accepted[1:] & ~accepted[:-1]) + 1
         starts += [float(t[i]) for i in edges]
-    settle = np.zeros(n, dtype=bool)
-    timeless = run.meta.get("time") == "rows"  # a table of samples (pamd.view.tables)
+    settle = np.zeros(t.size, dtype=bool)
     for s in [] if timeless else starts:
         settle |= (t >= s) & (t < s + o.settle_s)
-    drop(settle, "settling")
-    lead = np.zeros(n, dtype=bool)
+    kept.drop(settle, "settling")
+    lead = np.zeros(t.size, dtype=bool)
     for t0, t1 in _lead_ins(run, o.settle_s):
         lead |= (t >= t0) & (t < t1)
-    drop(lead, "lead-in ramp")
-    # The velocity (the tick's filter) and the change of length at full rate, before
-    # decimation.
-    cols = dict(c)
-    if any(n_ in FROM_LENGTH for n_ in o.inputs):
-        length = c["length_mm"]
-        bad = ~np.isfinite(length)
-        if bad.any():  # hold the last reading through a hole so the filter can run on
-            drop(bad, "length NaN (velocity undefined)")
-            good = np.flatnonzero(~bad)
-            if good.size == 0:
-                raise ModelError(f"{run.label}: column 'length_mm' has no finite value")
-            pos = np.maximum.accumulate(np.where(bad, 0, np.arange(n)))
-            length = length[pos]
-            length[: good[0]] = length[good[0]]
-        if "velocity_mm_s" in o.inputs:
-            cols["velocity_mm_s"] = np.array(filtered_velocity(t, length,
-                                                               o.velocity_window_s))
-        if "delta_length_mm" in o.inputs:
-            delta = delta_length(t, length, o.rate_hz, timeless)
-            drop(~np.isfinite(delta), "first sample period (no change of length yet)")
-            cols["delta_length_mm"] = delta
-    # NaN/inf in a sample that is neither flagged nor outside RUNNING: refused.
-    kept_idx = np.flatnonzero(keep)
+    kept.drop(lead, "lead-in ramp")
+
+
+def _with_length_inputs(run: Run, o: ExtractOptions, t: np.ndarray, timeless: bool,
+                        kept: _Kept) -> dict[str, np.ndarray]:
+    """The run's columns with the inputs computed from the length (the velocity, the
+    change of length) at full rate; a hole in the length held through (its samples
+    dropped) so the filter can run on."""
+    cols = dict(run.columns)
+    if not any(n_ in FROM_LENGTH for n_ in o.inputs):
+        return cols
+    length = _length_held(run, kept)
+    if "velocity_mm_s" in o.inputs:
+        cols["velocity_mm_s"] = np.array(filtered_velocity(t, length, o.velocity_window_s))
+    if "delta_length_mm" in o.inputs:
+        delta = delta_length(t, length, o.rate_hz, timeless)
+        kept.drop(~np.isfinite(delta), "first sample period (no change of length yet)")
+        cols["delta_length_mm"] = delta
+    return cols
+
+
+def _length_held(run: Run, kept: _Kept) -> np.ndarray:
+    """The length, each non-finite reading replaced by the last finite one (the first
+    finite one before it) and its sample dropped."""
+    length = run.columns["length_mm"]
+    bad = ~np.isfinite(length)
+    if not bad.any():
+        return length
+    kept.drop(bad, "length NaN (velocity undefined)")
+    good = np.flatnonzero(~bad)
+    if good.size == 0:
+        raise ModelError(f"{run.label}: column 'length_mm' has no finite value")
+    pos = np.maximum.accumulate(np.where(bad, 0, np.arange(kept.mask.size)))
+    length = length[pos]
+    length[: good[0]] = length[good[0]]
+    return length
+
+
+def _refuse_nonfinite(run: Run, o: ExtractOptions, cols: dict[str, np.ndarray],
+                      kept_idx: np.ndarray, t: np.ndarray) -> None:
+    """NaN/inf in a sample that is neither flagged nor outside RUNNING: refused (a
+    table: at its file row and column)."""
     for name in dict.fromkeys([*o.inputs, o.output]):
         col = cols[name][kept_idx]
         bad = ~np.isfinite(col)
-        if bad.any():
-            at = int(kept_idx[np.flatnonzero(bad)[0]])
-            if "row_offset" in run.meta:  # a table: its file row and column
-                raise ModelError(f"{run.source}:{at + run.meta['row_offset']}:{name}: "
-                                 f"{cols[name][at]} in a sample kept for training "
-                                 f"({int(bad.sum())} NaN/inf value(s) in the column); "
-                                 "repair or cut that row")
-            first_t = float(t[at])
-            raise ModelError(f"{run.label}: column {name!r} has {int(bad.sum())} NaN/inf "
-                             f"value(s) among the samples kept for training, first at "
-                             f"t = {first_t:.3f} s; repair or cut that part of the data")
-    # Decimate: the first kept sample in each 1/rate_hz bin.
-    bins = np.floor(t * o.rate_hz).astype(np.int64)
-    if kept_idx.size and not timeless:
-        b = bins[kept_idx]
-        first = np.ones(kept_idx.size, dtype=bool)
-        first[1:] = b[1:] != b[:-1]
-        counts["decimated"] = int((~first).sum())
-        kept_idx = kept_idx[first]
-    X = np.column_stack([cols[n_][kept_idx] for n_ in o.inputs]) if kept_idx.size else \
-        np.empty((0, len(o.inputs)))
-    y = cols[o.output][kept_idx]
-    return X, y, t[kept_idx], counts
+        if not bad.any():
+            continue
+        at = int(kept_idx[np.flatnonzero(bad)[0]])
+        if "row_offset" in run.meta:  # a table: its file row and column
+            raise ModelError(f"{run.source}:{at + run.meta['row_offset']}:{name}: "
+                             f"{cols[name][at]} in a sample kept for training "
+                             f"({int(bad.sum())} NaN/inf value(s) in the column); "
+                             "repair or cut that row")
+        first_t = float(t[at])
+        raise ModelError(f"{run.label}: column {name!r} has {int(bad.sum())} NaN/inf "
+                         f"value(s) among the samples kept for training, first at "
+                         f"t = {first_t:.3f} s; repair or cut that part of the data")
 
 
 def delta_length(t_s: np.ndarray, length_mm: np.ndarray, rate_hz: float,

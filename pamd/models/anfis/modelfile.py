@@ -41,7 +41,7 @@ import os
 from pathlib import Path
 
 from pamd.atomic import write_atomic
-from pamd.declare.jsonsafe import JsonObject
+from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.errors import ModelError
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.serialize import FORMAT as FORMAT  # re-exported: pamd.models.registry
@@ -103,18 +103,7 @@ def loads(text: str, source: str = "<string>") -> AnfisModel:
 def from_dict(doc: object) -> AnfisModel:
     """Build a model from a parsed version-1 document (checks everything)."""
     doc = _mapping(doc, "")
-    fmt = _field(doc, "format", str, "")
-    if fmt != FORMAT:
-        raise ModelError(f"format is {fmt!r}, not {FORMAT!r}: not a pamd ANFIS model")
-    kind = _field(doc, "kind", str, "") if "kind" in doc else "anfis"
-    if kind not in KINDS:
-        raise ModelError(f"kind {kind!r} is not stored in the {FORMAT} layout")
-    version = _field(doc, "version", int, "")
-    if version != VERSION:
-        raise ModelError(
-            f"version {version} is not supported (this pamd reads version {VERSION}); "
-            "use a matching pamd or re-train the model"
-        )
+    kind = _kind(doc)
     raw_inputs = _field(doc, "inputs", list, "")
     inputs = [_variable(v, f"inputs[{i}]") for i, v in enumerate(raw_inputs)]
     d = len(inputs)
@@ -122,42 +111,8 @@ def from_dict(doc: object) -> AnfisModel:
         raise ModelError("field inputs: no inputs")
     output = _variable(_field(doc, "output", dict, ""), "output")
     scaling = _field(doc, "scaling", dict, "")
-    membership = _field(doc, "membership", dict, "")
-    mf_type = _field(membership, "type", str, "membership")
-    mf_inputs = _field(membership, "inputs", list, "membership")
-    if len(mf_inputs) != d:
-        raise ModelError(f"field membership.inputs: expected {d} entries, got {len(mf_inputs)}")
-    centres, widths, slopes = [], [], []
-    for i, entry in enumerate(mf_inputs):
-        where = f"membership.inputs[{i}]"
-        c = _numbers(entry, "centres", where)
-        centres.append(c)
-        widths.append(_numbers(entry, "widths", where, len(c)))
-        if mf_type == "bell":
-            slopes.append(_numbers(entry, "slopes", where, len(c)))
-    n_rules = math.prod(len(c) for c in centres)
-    rules = _field(doc, "rules", list, "")
-    if len(rules) != n_rules:
-        raise ModelError(f"field rules: expected {n_rules} rules for the MF grid, got {len(rules)}")
-    consequent = _field(doc, "consequent", str, "") if "consequent" in doc else "linear"
-    if consequent not in CONSEQUENTS:
-        raise ModelError(f"field consequent: {consequent!r} is not one of {CONSEQUENTS}")
-    consequents = []
-    expected_mfs = _grid(tuple(len(c) for c in centres))
-    for r, (rule, mfs) in enumerate(zip(rules, expected_mfs, strict=True)):
-        where = f"rules[{r}]"
-        if _field(rule, "mfs", list, where) != list(mfs):
-            raise ModelError(f"field {where}.mfs: expected {list(mfs)} (grid order)")
-        q = _field(rule, "q", (int, float), where)
-        if not math.isfinite(q):
-            raise ModelError(f"field {where}.q: non-finite number")
-        if consequent == "linear":
-            consequents.append([*_numbers(rule, "p", where, d), float(q)])
-        elif "p" in rule and any(v != 0.0 for v in _numbers(rule, "p", where, d)):
-            raise ModelError(f"field {where}.p: a model with constant consequents has p = 0 "
-                             "(f = q; written without p)")
-        else:
-            consequents.append([*([0.0] * d), float(q)])
+    mf_type, centres, widths, slopes = _membership(_field(doc, "membership", dict, ""), d)
+    consequent, consequents = _consequents(doc, centres, d)
     model = AnfisModel(
         inputs,
         output,
@@ -176,6 +131,73 @@ def from_dict(doc: object) -> AnfisModel:
     )
     model.kind = kind
     return model
+
+
+def _kind(doc: JsonObject) -> str:
+    """The document's kind, once its format and version are this layout's."""
+    fmt = _field(doc, "format", str, "")
+    if fmt != FORMAT:
+        raise ModelError(f"format is {fmt!r}, not {FORMAT!r}: not a pamd ANFIS model")
+    kind: str = _field(doc, "kind", str, "") if "kind" in doc else "anfis"
+    if kind not in KINDS:
+        raise ModelError(f"kind {kind!r} is not stored in the {FORMAT} layout")
+    version = _field(doc, "version", int, "")
+    if version != VERSION:
+        raise ModelError(
+            f"version {version} is not supported (this pamd reads version {VERSION}); "
+            "use a matching pamd or re-train the model"
+        )
+    return kind
+
+
+def _membership(membership: JsonObject, d: int
+                ) -> tuple[str, list[list[float]], list[list[float]], list[list[float]]]:
+    """(MF type, centres, widths, slopes: bell only) of each of the `d` inputs."""
+    mf_type: str = _field(membership, "type", str, "membership")
+    mf_inputs = _field(membership, "inputs", list, "membership")
+    if len(mf_inputs) != d:
+        raise ModelError(f"field membership.inputs: expected {d} entries, got {len(mf_inputs)}")
+    centres, widths, slopes = [], [], []
+    for i, entry in enumerate(mf_inputs):
+        where = f"membership.inputs[{i}]"
+        c = _numbers(entry, "centres", where)
+        centres.append(c)
+        widths.append(_numbers(entry, "widths", where, len(c)))
+        if mf_type == "bell":
+            slopes.append(_numbers(entry, "slopes", where, len(c)))
+    return mf_type, centres, widths, slopes
+
+
+def _consequents(doc: JsonObject, centres: list[list[float]], d: int
+                 ) -> tuple[str, list[list[float]]]:
+    """(the consequent form, each rule's [p, q]): one rule for each cell of the MF grid,
+    in grid order."""
+    n_rules = math.prod(len(c) for c in centres)
+    rules = _field(doc, "rules", list, "")
+    if len(rules) != n_rules:
+        raise ModelError(f"field rules: expected {n_rules} rules for the MF grid, got {len(rules)}")
+    consequent: str = _field(doc, "consequent", str, "") if "consequent" in doc else "linear"
+    if consequent not in CONSEQUENTS:
+        raise ModelError(f"field consequent: {consequent!r} is not one of {CONSEQUENTS}")
+    expected_mfs = _grid(tuple(len(c) for c in centres))
+    return consequent, [_rule_row(rule, mfs, f"rules[{r}]", consequent, d)
+                        for r, (rule, mfs) in enumerate(zip(rules, expected_mfs, strict=True))]
+
+
+def _rule_row(rule: JsonValue, mfs: tuple[int, ...], where: str, consequent: str, d: int
+              ) -> list[float]:
+    """One rule's [p_1 .. p_d, q] (constant: p = 0, and written without p)."""
+    if _field(rule, "mfs", list, where) != list(mfs):
+        raise ModelError(f"field {where}.mfs: expected {list(mfs)} (grid order)")
+    q = _field(rule, "q", (int, float), where)
+    if not math.isfinite(q):
+        raise ModelError(f"field {where}.q: non-finite number")
+    if consequent == "linear":
+        return [*_numbers(rule, "p", where, d), float(q)]
+    if "p" in rule and any(v != 0.0 for v in _numbers(rule, "p", where, d)):
+        raise ModelError(f"field {where}.p: a model with constant consequents has p = 0 "
+                         "(f = q; written without p)")
+    return [*([0.0] * d), float(q)]
 
 
 def _optional_dict(doc: JsonObject, key: str) -> JsonObject:

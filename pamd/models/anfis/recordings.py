@@ -16,10 +16,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from pamd.declare.jsonsafe import JsonObject
 from pamd.errors import ModelError, RecordingError
 from pamd.models.anfis.samples import Run
 from pamd.record import files
-from pamd.record.tables import read_columns
+from pamd.record.tables import Columns, read_columns
 from pamd.tick import Mode, State
 
 #: Accepted names of a CSV time column (case-insensitive) and their scale to seconds.
@@ -57,14 +58,31 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
     if not info["finalised"]:
         raise ModelError(f"{path}: unfinished recording; run `pamd recover {path}` first")
     meta = info["metadata"]
+    loads = _loads(meta)
+    actuations = actuations_of(meta)
+    state_topics = _state_topics(path, [c["topic"] for c in info["channels"]], muscle)
+    try:
+        t = read_columns(path, muscle)
+    except RecordingError as exc:
+        raise ModelError(str(exc)) from None
+    return [_muscle_run(path, t, m, topic, loads.get(m), meta, actuations.get(m))
+            for m, topic in state_topics.items()]
+
+
+def _loads(meta: JsonObject) -> dict[str, float | None]:
+    """Each muscle's load as a recording's metadata says it (pamd.loads; a plan's step
+    file: the load its step hung)."""
     loads = {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
     # a plan's step file: the load its step hung (pamd.loads is the config's, at the
     # run's start), as pamd.view.recording reads it
     step_load = _float_or_none(meta.get("pamd.experiment", {}).get("load_kg"))
     if step_load is not None:
         loads = dict.fromkeys(loads, step_load)
-    actuations = actuations_of(meta)
-    topics = [c["topic"] for c in info["channels"]]
+    return loads
+
+
+def _state_topics(path: str, topics: list[str], muscle: str | None) -> dict[str, str]:
+    """Each muscle's state topic (only `muscle`'s, when it is named)."""
     state_topics = {t.rsplit("/", 1)[1]: t for t in topics if "/state/" in t}
     if muscle is not None:
         if muscle not in state_topics:
@@ -73,28 +91,28 @@ def read_mcap(path: str, muscle: str | None = None) -> list[Run]:
         state_topics = {muscle: state_topics[muscle]}
     if not state_topics:
         raise ModelError(f"{path}: no /pamd/<rig>/state/<muscle> topic in this recording")
-    try:
-        t = read_columns(path, muscle)
-    except RecordingError as exc:
-        raise ModelError(str(exc)) from None
-    runs = []
-    for m, topic in state_topics.items():
-        recorded = t.muscles.get(m, {})
-        if not recorded or not len(next(iter(recorded.values()))):
-            raise ModelError(f"{path}: topic {topic} holds no messages")
-        columns = {n: c.astype(np.float64) for n, c in recorded.items()}
-        if "t_s" not in columns:
-            raise ModelError(f"{path}: topic {topic} has no t_s field")
-        if "state" in t.loop and len(t.loop.get("tick", ())) and "tick" in columns:
-            columns["state"] = state_of_ticks(columns["tick"], t.loop["tick"], t.loop["state"])
-        muscle_events = [(e.t_s, e.kind, e.data) for e in t.events
-                         if e.data.get("args", {}).get("muscle") in (None, m)]
-        runs.append(Run(source=path, muscle=m, t_s=columns["t_s"], columns=columns,
-                        load_kg=loads.get(m), events=muscle_events,
-                        meta={"rig_id": meta.get("pamd", {}).get("rig_id"),
-                              "rate_hz": _float_or_none(meta.get("pamd", {}).get("rate_hz")),
-                              "actuation": actuations.get(m)}))
-    return runs
+    return state_topics
+
+
+def _muscle_run(path: str, t: Columns, m: str, topic: str, load_kg: float | None,
+                meta: JsonObject, actuation: str | None) -> Run:
+    """Muscle `m`'s run: its recorded columns, each tick's supervisor state from the loop
+    topic, the events that concern it (`meta`: the recording's metadata)."""
+    recorded = t.muscles.get(m, {})
+    if not recorded or not len(next(iter(recorded.values()))):
+        raise ModelError(f"{path}: topic {topic} holds no messages")
+    columns = {n: c.astype(np.float64) for n, c in recorded.items()}
+    if "t_s" not in columns:
+        raise ModelError(f"{path}: topic {topic} has no t_s field")
+    if "state" in t.loop and len(t.loop.get("tick", ())) and "tick" in columns:
+        columns["state"] = state_of_ticks(columns["tick"], t.loop["tick"], t.loop["state"])
+    muscle_events = [(e.t_s, e.kind, e.data) for e in t.events
+                     if e.data.get("args", {}).get("muscle") in (None, m)]
+    return Run(source=path, muscle=m, t_s=columns["t_s"], columns=columns, load_kg=load_kg,
+               events=muscle_events,
+               meta={"rig_id": meta.get("pamd", {}).get("rig_id"),
+                     "rate_hz": _float_or_none(meta.get("pamd", {}).get("rate_hz")),
+                     "actuation": actuation})
 
 
 def state_of_ticks(ticks: np.ndarray, loop_ticks: np.ndarray, loop_state: np.ndarray
@@ -121,6 +139,19 @@ def read_csv(path: str) -> Run:
     names as pamd writes them: force_n, length_mm, pressure_bar, ...) and a time
     column (t_s, time_s, time, t or log_time_ns). A muscle file of `pamd export`
     (<topic>_state_<muscle>.csv) takes each tick's state from the loop file beside it."""
+    names, raw = _csv_rows(path)
+    columns = _csv_columns(names, raw)
+    t = _time_column(path, columns)
+    load = None
+    if "load_kg" in columns and np.all(columns["load_kg"] == columns["load_kg"][0]):
+        load = float(columns["load_kg"][0])
+    muscle = _exported_muscle(path, columns)
+    return Run(source=path, muscle=muscle, t_s=t - t[0], columns=columns, load_kg=load)
+
+
+def _csv_rows(path: str) -> tuple[list[str], list[list[str]]]:
+    """(the header's names, lower case; the data rows) of a CSV file, its dialect
+    sniffed (comma, semicolon or tab)."""
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             sample = fh.read(4096)
@@ -139,6 +170,12 @@ def read_csv(path: str) -> Run:
         raise ModelError(f"{path}: cannot read it as a CSV text file ({exc})") from None
     if not raw:
         raise ModelError(f"{path}: a header but no data rows")
+    return names, raw
+
+
+def _csv_columns(names: list[str], raw: list[list[str]]) -> dict[str, np.ndarray]:
+    """The numeric columns by name, and states and modes by name as their codes; any
+    other text column (events, notes) left out: not usable, not needed."""
     columns: dict[str, np.ndarray] = {}
     for j, name in enumerate(names):
         try:
@@ -147,7 +184,11 @@ def read_csv(path: str) -> Run:
             codes = _named_codes(name, [r[j] if j < len(r) else "" for r in raw])
             if codes is not None:  # states and modes by name (`pamd export --csv`)
                 columns[name] = codes
-            continue  # any other text column (events, notes): not usable, not needed
+    return columns
+
+
+def _time_column(path: str, columns: dict[str, np.ndarray]) -> np.ndarray:
+    """The time in s (the first of TIME_COLUMNS there is), finite and increasing."""
     t = None
     for tname, scale in TIME_COLUMNS:
         if tname in columns:
@@ -163,24 +204,27 @@ def read_csv(path: str) -> Run:
         k = int(np.flatnonzero(np.diff(t) <= 0)[0])
         raise ModelError(f"{path}: time does not increase at row {k + 2} "
                          f"({t[k]:g} then {t[k + 1]:g} s)")
-    load = None
-    if "load_kg" in columns and np.all(columns["load_kg"] == columns["load_kg"][0]):
-        load = float(columns["load_kg"][0])
-    muscle = ""
+    return t
+
+
+def _exported_muscle(path: str, columns: dict[str, np.ndarray]) -> str:
+    """The muscle of a `pamd export` muscle file ("" for any other table), whose
+    `state` column is added from the loop file beside it, which carries the
+    supervisor state of each tick."""
     base = os.path.basename(path)
-    if "_state_" in base and "state" not in columns and "tick" in columns:
-        # `pamd export` writes <rig topic>_state_<muscle>.csv beside <rig topic>_loop.csv:
-        # the loop file carries the supervisor state of each tick.
-        prefix, _, rest = base.rpartition("_state_")
-        muscle = rest[:-4] if rest.endswith(".csv") else rest
-        loop_path = os.path.join(os.path.dirname(path), prefix + "_loop.csv")
-        if os.path.exists(loop_path):
-            loop = read_csv(loop_path).columns
-            if "tick" in loop and "state" in loop:
-                state = dict(zip(loop["tick"].tolist(), loop["state"].tolist(), strict=True))
-                columns["state"] = np.array([state.get(k, math.nan)
-                                             for k in columns["tick"].tolist()])
-    return Run(source=path, muscle=muscle, t_s=t - t[0], columns=columns, load_kg=load)
+    if not ("_state_" in base and "state" not in columns and "tick" in columns):
+        return ""
+    # `pamd export` writes <rig topic>_state_<muscle>.csv beside <rig topic>_loop.csv
+    prefix, _, rest = base.rpartition("_state_")
+    muscle = rest[:-4] if rest.endswith(".csv") else rest
+    loop_path = os.path.join(os.path.dirname(path), prefix + "_loop.csv")
+    if os.path.exists(loop_path):
+        loop = read_csv(loop_path).columns
+        if "tick" in loop and "state" in loop:
+            state = dict(zip(loop["tick"].tolist(), loop["state"].tolist(), strict=True))
+            columns["state"] = np.array([state.get(k, math.nan)
+                                         for k in columns["tick"].tolist()])
+    return muscle
 
 
 def _named_codes(name: str, cells: list[str]) -> np.ndarray | None:

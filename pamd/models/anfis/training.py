@@ -325,17 +325,8 @@ def train(
     """
     opts = options or TrainingOptions()
     _check_options(opts)
-    names = [v.name for v in model.inputs]
-    Xa, ya = as_inputs_outputs(X, y, names, model.output.name)
-    Xv: np.ndarray | None
-    yv: np.ndarray | None
-    if validation is None and opts.validation_fraction > 0:
-        Xa, ya, Xv, yv = _split(Xa, ya, opts.validation_fraction, opts.seed)
-    elif validation is not None:
-        Xv, yv = as_inputs_outputs(*validation, names, model.output.name, what="validation data")
-    else:
-        Xv = yv = None
-    check_trainable(Xa, names)
+    Xa, ya, Xv, yv = _training_data(model, X, y, opts, validation)
+    check_trainable(Xa, [v.name for v in model.inputs])
     warnings: list[str] = []
     few = fewer_samples_than_parameters(Xa.shape[0], model.n_params)
     if few is not None:
@@ -344,51 +335,12 @@ def train(
             opts = replace(opts, rule_ridge=RULE_RIDGE)
     t0 = time.perf_counter()
     layout = _Layout(model)
-    Sa = _with_ones(model.scale(np.clip(Xa, model.input_lo, model.input_hi)))
-    Sva = (
-        None if Xv is None else _with_ones(model.scale(np.clip(Xv, model.input_lo, model.input_hi)))
-    )
-    vec = model.premise_vector()
-    theta = model.consequents
-    raw_per_scaled = premise_units(model) if opts.step_units == "raw" else None
-    state = StepSizeState(opts.initial_step)
-    train_hist: list[float] = []
-    val_hist: list[float] = []
-    steps: list[float] = []
-    best = (math.inf, 0, vec.copy(), theta.copy())
-    prior = prior_consequents(Sa, ya, layout.cons_cols) if opts.rule_ridge > 0 else None
-    for epoch in range(1, opts.epochs + 1):
-        wbar, dlogs = layout.forward(vec, Sa)
-        theta = solve_rules(layout, wbar, Sa, ya, opts, prior)
-        F = Sa @ theta.T
-        y_hat = np.einsum("nr,nr->n", wbar, F)
-        err = y_hat - ya
-        rmse = math.sqrt(float(err @ err) / err.size)
-        train_hist.append(rmse)
-        val_rmse = None
-        if Sva is not None and yv is not None:
-            ev = layout.predict(vec, theta, Sva) - yv
-            val_rmse = math.sqrt(float(ev @ ev) / ev.size)
-            val_hist.append(val_rmse)
-        score = rmse if val_rmse is None else val_rmse
-        if score < best[0]:
-            best = (score, epoch, vec.copy(), theta.copy())
-        if callback is not None:
-            callback(epoch, rmse, val_rmse)
-        state = update_step_size(train_hist, state, opts.step_increase, opts.step_decrease)
-        steps.append(state.step)
-        if epoch == opts.epochs or rmse <= opts.error_goal:
-            break
-        grad = layout.gradient(wbar, dlogs, F, y_hat, err)
-        norm = float(np.linalg.norm(grad))
-        if not norm > 0 or not math.isfinite(norm):
-            break  # at a stationary point (or broken): nothing more to learn
-        if raw_per_scaled is None:  # pamd's: a unit step in the scaled space
-            vec = layout.project(vec - state.step * grad / norm, opts)
-        else:
-            vec = layout.project(vec - state.step * raw_step(grad, raw_per_scaled), opts)
-    if opts.restore_best:
-        vec, theta = best[2], best[3]
+    Sa = _scaled(model, Xa)
+    Sva = None if Xv is None else _scaled(model, Xv)
+    h = _History(model.premise_vector(), model.consequents)
+    _descend(layout, h, Sa, ya, Sva, yv, opts, _Descent(model, Sa, ya, layout, opts),
+             callback)
+    vec, theta = (h.best_vec, h.best_theta) if opts.restore_best else (h.vec, h.theta)
     k = layout.k
     vec[k : 2 * k] = np.abs(vec[k : 2 * k])  # the sign of a width is immaterial
     model.set_premise_vector(vec)
@@ -396,16 +348,116 @@ def train(
     seconds = time.perf_counter() - t0
     result = TrainingResult(
         model=model,
-        train_rmse=np.array(train_hist),
-        val_rmse=None if Sva is None else np.array(val_hist),
-        step_sizes=np.array(steps),
-        best_epoch=best[1] if opts.restore_best else len(train_hist),
+        train_rmse=np.array(h.train),
+        val_rmse=None if Sva is None else np.array(h.val),
+        step_sizes=np.array(h.steps),
+        best_epoch=h.best_epoch if opts.restore_best else len(h.train),
         selected_on="training" if Sva is None else "validation",
         seconds=seconds,
         warnings=warnings,
     )
     _record(model, opts, result, Xa, ya, Xv, yv)
     return result
+
+
+def _training_data(model: AnfisModel, X: ArrayLike, y: ArrayLike, opts: TrainingOptions,
+                   validation: tuple[ArrayLike, ArrayLike] | None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """(Xa, ya, Xv, yv): the training data, and the validation data given or held out
+    (`validation_fraction`; None: none)."""
+    names = [v.name for v in model.inputs]
+    Xa, ya = as_inputs_outputs(X, y, names, model.output.name)
+    if validation is None and opts.validation_fraction > 0:
+        return _split(Xa, ya, opts.validation_fraction, opts.seed)
+    if validation is not None:
+        Xv, yv = as_inputs_outputs(*validation, names, model.output.name,
+                                   what="validation data")
+        return Xa, ya, Xv, yv
+    return Xa, ya, None, None
+
+
+def _scaled(model: AnfisModel, X: np.ndarray) -> np.ndarray:
+    """Raw inputs clipped to the model's ranges, scaled, with a column of ones."""
+    return _with_ones(model.scale(np.clip(X, model.input_lo, model.input_hi)))
+
+
+@dataclass
+class _History:
+    """The descent's present premises and consequents, its per-epoch training and
+    validation RMSE and step sizes, and the best epoch's (by validation, else training
+    RMSE) score, number, premises and consequents."""
+
+    vec: np.ndarray
+    theta: np.ndarray
+    train: list[float] = field(default_factory=list)
+    val: list[float] = field(default_factory=list)
+    steps: list[float] = field(default_factory=list)
+    best_score: float = math.inf
+    best_epoch: int = 0
+    best_vec: np.ndarray = field(default_factory=lambda: np.empty(0))
+    best_theta: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    def __post_init__(self) -> None:
+        self.best_vec, self.best_theta = self.vec.copy(), self.theta.copy()
+
+    def note(self, epoch: int, score: float) -> None:
+        """This epoch's score: kept as the best if it is."""
+        if score < self.best_score:
+            self.best_score, self.best_epoch = score, epoch
+            self.best_vec, self.best_theta = self.vec.copy(), self.theta.copy()
+
+
+class _Descent:
+    """The premises' gradient step: the step size adapted to the error history, a unit
+    step in the scaled space (pamd's) or in the inputs' own units (`step_units`: raw,
+    MATLAB's), projected into the premises' bounds; the consequents' prior (rule ridge)."""
+
+    def __init__(self, model: AnfisModel, Sa: np.ndarray, ya: np.ndarray, layout: _Layout,
+                 opts: TrainingOptions) -> None:
+        self.raw_per_scaled = premise_units(model) if opts.step_units == "raw" else None
+        self.state = StepSizeState(opts.initial_step)
+        self.prior = prior_consequents(Sa, ya, layout.cons_cols) if opts.rule_ridge > 0 \
+            else None
+
+    def step(self, layout: _Layout, vec: np.ndarray, grad: np.ndarray, norm: float,
+             opts: TrainingOptions) -> np.ndarray:
+        if self.raw_per_scaled is None:  # pamd's: a unit step in the scaled space
+            return layout.project(vec - self.state.step * grad / norm, opts)
+        return layout.project(vec - self.state.step * raw_step(grad, self.raw_per_scaled),
+                              opts)
+
+
+def _descend(layout: _Layout, h: _History, Sa: np.ndarray, ya: np.ndarray,
+             Sva: np.ndarray | None, yv: np.ndarray | None, opts: TrainingOptions,
+             d: _Descent, callback: ProgressCallback | None) -> None:
+    """The epochs: each solves the consequents by least squares, measures the errors,
+    then steps the premises down the gradient; until `epochs`, the error goal, or a
+    stationary point."""
+    for epoch in range(1, opts.epochs + 1):
+        wbar, dlogs = layout.forward(h.vec, Sa)
+        h.theta = solve_rules(layout, wbar, Sa, ya, opts, d.prior)
+        F = Sa @ h.theta.T
+        y_hat = np.einsum("nr,nr->n", wbar, F)
+        err = y_hat - ya
+        rmse = math.sqrt(float(err @ err) / err.size)
+        h.train.append(rmse)
+        val_rmse = None
+        if Sva is not None and yv is not None:
+            ev = layout.predict(h.vec, h.theta, Sva) - yv
+            val_rmse = math.sqrt(float(ev @ ev) / ev.size)
+            h.val.append(val_rmse)
+        h.note(epoch, rmse if val_rmse is None else val_rmse)
+        if callback is not None:
+            callback(epoch, rmse, val_rmse)
+        d.state = update_step_size(h.train, d.state, opts.step_increase, opts.step_decrease)
+        h.steps.append(d.state.step)
+        if epoch == opts.epochs or rmse <= opts.error_goal:
+            break
+        grad = layout.gradient(wbar, dlogs, F, y_hat, err)
+        norm = float(np.linalg.norm(grad))
+        if not norm > 0 or not math.isfinite(norm):
+            break  # at a stationary point (or broken): nothing more to learn
+        h.vec = d.step(layout, h.vec, grad, norm, opts)
 
 
 def premise_units(model: AnfisModel) -> np.ndarray:

@@ -259,6 +259,44 @@ def send_reply(q: Query, key: str, body: bytes) -> None:
         q.drop()
 
 
+@dataclasses.dataclass
+class _Incoming:
+    """A command as it came: its query, key, verb and payload bytes, who sent it (the
+    sender's Zenoh id, or "", and its name for the record) and whether its verb is
+    urgent (estop, stop)."""
+
+    q: Query
+    key: str
+    verb: str
+    raw: bytes
+    zid: str
+    sender: str
+    user: str
+    urgent: bool
+
+    @classmethod
+    def of(cls, q: Query, local: str | None) -> _Incoming:
+        """The command `q` brings; `local`: its sender as the local channel names it,
+        None for a query over Zenoh."""
+        key = str(q.key_expr)
+        verb = Keys.last_chunk(key)
+        zid, sender = cls._zenoh_sender(q) if local is None else ("", local)
+        user = cap_text(q.parameters.get("user") or "", MAX_WHO_CHARS)
+        raw = q.payload.to_bytes() if q.payload is not None else b""
+        return cls(q, key, verb, raw, zid, sender, user,
+                   urgent=VERBS.is_urgent(verb))  # estop, stop: reach the running loop
+
+    @staticmethod
+    def _zenoh_sender(q: Query) -> tuple[str, str]:
+        """(the sender's Zenoh id or "", its name for the record)."""
+        try:
+            si = q.source_info
+            zid = str(si.source_id.zid) if si is not None else ""
+        except Exception:
+            zid = ""
+        return zid, f"zenoh:{zid}" if zid else "zenoh"
+
+
 class CommandIntake:
     """The node's command path: a query on `cmd/<verb>` refused at once, or into the
     loop's mailbox (or, for the verbs declared `main_thread`, onto the board for the
@@ -357,15 +395,6 @@ class CommandIntake:
                     send_reply(q, str(q.key_expr), json.dumps(
                         {"ok": False, "error": error}).encode())
 
-    def _sender(self, q: Query) -> tuple[str, str]:
-        """(the sender's Zenoh id or "", its name for the record)."""
-        try:
-            si = q.source_info
-            zid = str(si.source_id.zid) if si is not None else ""
-        except Exception:
-            zid = ""
-        return zid, f"zenoh:{zid}" if zid else "zenoh"
-
     def _who_refusal(self, key: str, verb: str, why: str | None) -> tuple[str, str] | None:
         """(error, record kind) if this sender may not send this command here: a key that
         is a pattern (`pamd/*/cmd/...`, `pamd/<rig>/**/setpoint`), or no valid credential
@@ -400,96 +429,134 @@ class CommandIntake:
         return error, "credential"
 
     def _command(self, q: Query, now: float, local: str | None, trusted: bool) -> None:
+        """One command: refused (answered and recorded) at the first check it fails, or
+        into the loop's mailbox (or onto the board)."""
         self.counts["commands"] += 1
-        key = str(q.key_expr)
-        verb = Keys.last_chunk(key)
-        zid, sender = self._sender(q) if local is None else ("", local)
-        user = cap_text(q.parameters.get("user") or "", MAX_WHO_CHARS)
-        raw = q.payload.to_bytes() if q.payload is not None else b""
-        if "*" in verb or "$" in verb:
-            self._refuse(q, key, verb, raw, sender, user,
-                         "name one verb: pamd/<rig>/cmd/<verb>", record=False)
+        c = _Incoming.of(q, local)
+        if not self._admitted(c, now, trusted):
             return
-        urgent = VERBS.is_urgent(verb)  # estop, stop: they reach the loop while it runs
-        unsigned = None if trusted else self._credential(q, verb, raw)
-        refusal = self._who_refusal(key, verb, unsigned)
+        taken = self._payload(c)
+        if taken is None:
+            return
+        payload = self._checked(c, taken[0])
+        if payload is not None:
+            self._enqueue(c, payload, taken[1], now)
+
+    def _refuse_incoming(self, c: _Incoming, error: str, record: bool = True,
+                         kind: str | None = None, credential: str | None = None) -> None:
+        self._refuse(c.q, c.key, c.verb, c.raw, c.sender, c.user, error, record=record,
+                     kind=kind, credential=credential)
+
+    def _admitted(self, c: _Incoming, now: float, trusted: bool) -> bool:
+        """Whether this sender may send this command now: one verb named, a valid
+        credential (an estop passes without), the daemon not stopping (urgent verbs
+        pass), within the sender's rate. A command refused is answered here."""
+        if "*" in c.verb or "$" in c.verb:
+            self._refuse_incoming(c, "name one verb: pamd/<rig>/cmd/<verb>", record=False)
+            return False
+        unsigned = None if trusted else self._credential(c.q, c.verb, c.raw)
+        refusal = self._who_refusal(c.key, c.verb, unsigned)
         if refusal is not None:
-            self._refuse(q, key, verb, raw, sender, user, refusal[0], kind=refusal[1],
-                         credential=unsigned if refusal[1] == "credential" else None)
-            return
+            self._refuse_incoming(c, refusal[0], kind=refusal[1],
+                                  credential=unsigned if refusal[1] == "credential" else None)
+            return False
         if unsigned is not None:  # an estop: anyone who reaches the daemon may stop the rig
-            sender = cap_text(f"{sender} (no credential)", MAX_WHO_CHARS)
-        if (self.stop_reason is not None and not urgent) or self.closing:
-            self._refuse(q, key, verb, raw, sender, user,
-                         f"the daemon is stopping ({self.stop_reason}); command not taken")
-            return
-        allowed = self.limiter.allow(zid or sender, now)
-        if urgent and not allowed and self._join(q, verb):
-            return  # a flood of estops: one reaches the loop at a time, all are answered
-        if not urgent and not allowed:
+            c.sender = cap_text(f"{c.sender} (no credential)", MAX_WHO_CHARS)
+        if (self.stop_reason is not None and not c.urgent) or self.closing:
+            self._refuse_incoming(
+                c, f"the daemon is stopping ({self.stop_reason}); command not taken")
+            return False
+        return self._within_rate(c, now)
+
+    def _within_rate(self, c: _Incoming, now: float) -> bool:
+        """Whether the sender is within its command rate. Beyond it an urgent verb joins
+        the same verb's command in flight, if any; anything else is refused."""
+        allowed = self.limiter.allow(c.zid or c.sender, now)
+        if c.urgent and not allowed and self._join(c.q, c.verb):
+            return False  # a flood of estops: one reaches the loop at a time, all are answered
+        if not c.urgent and not allowed:
             self.counts["rate_limited"] += 1
-            self._refuse(q, key, verb, raw, sender, user, (
+            self._refuse_incoming(c, (
                 f"rate limited: more than {self.spec.command_rate_per_s:g} commands/s "
-                f"(burst {self.spec.command_burst}) from {sender}; not taken"), kind="rate")
-            return
-        note = ""
-        if urgent:  # honoured whatever came with it; the rest cut and said so
-            payload, note = salvage(verb, raw)
+                f"(burst {self.spec.command_burst}) from {c.sender}; not taken"), kind="rate")
+            return False
+        return True
+
+    def _payload(self, c: _Incoming) -> tuple[JsonValue, str] | None:
+        """(the payload, what was cut of it: "" if nothing), or None if refused: an
+        urgent verb's salvaged whatever came with it; any other's read as JSON, within
+        MAX_PAYLOAD_BYTES."""
+        if c.urgent:  # honoured whatever came with it; the rest cut and said so
+            payload, note = salvage(c.verb, c.raw)
             if note:
-                self.refusals.cut(verb, raw, sender, user, note)
-        elif len(raw) > MAX_PAYLOAD_BYTES:
-            self._refuse(q, key, cap_text(verb, 40), raw, sender, user,
-                         f"payload of {len(raw)} bytes, above the limit of "
+                self.refusals.cut(c.verb, c.raw, c.sender, c.user, note)
+            return payload, note
+        if len(c.raw) > MAX_PAYLOAD_BYTES:
+            self._refuse(c.q, c.key, cap_text(c.verb, 40), c.raw, c.sender, c.user,
+                         f"payload of {len(c.raw)} bytes, above the limit of "
                          f"{MAX_PAYLOAD_BYTES} bytes; not taken", kind="size")
-            return
-        else:
-            text = raw.decode("utf-8", "replace")
-            try:
-                payload = json.loads(text) if text.strip() else {}
-            except (ValueError, RecursionError) as exc:
-                why = exc if isinstance(exc, ValueError) else "nested too deep"
-                self._refuse(q, key, verb, raw, sender, user, f"malformed JSON: {why}",
-                             kind="json")
-                return
+            return None
+        text = c.raw.decode("utf-8", "replace")
+        try:
+            return (json.loads(text) if text.strip() else {}), ""
+        except (ValueError, RecursionError) as exc:
+            why = exc if isinstance(exc, ValueError) else "nested too deep"
+            self._refuse_incoming(c, f"malformed JSON: {why}", kind="json")
+            return None
+
+    def _checked(self, c: _Incoming, payload: JsonValue) -> JsonObject | None:
+        """The payload as it goes on (text fields capped) if the verb's parser and the
+        pressure ranges take it, else None (refused). An urgent verb whose salvaged
+        payload does not parse goes on alone, with its defaults."""
         try:
             try:
-                parse_command(verb, payload, sender=sender, user=user)
+                parse_command(c.verb, payload, sender=c.sender, user=c.user)
             except CommandRefused:
-                if not urgent:
+                if not c.urgent:
                     raise
                 payload = {}  # what salvage kept did not parse: the verb alone, with defaults
-            payload = cap_payload(payload)  # what goes on: text fields capped
-            self.ranges.check(verb, payload)
+            checked = cap_payload(payload)  # what goes on: text fields capped
+            self.ranges.check(c.verb, checked)
         except CommandRefused as exc:
-            self._refuse(q, key, verb, raw, sender, user, str(exc))
-            return
+            self._refuse_incoming(c, str(exc))
+            return None
+        return checked
+
+    def _enqueue(self, c: _Incoming, payload: JsonObject, note: str, now: float) -> None:
+        """Wait for the command's verdict: from the loop's mailbox, or, for the verbs
+        declared `main_thread`, from the daemon's main thread through the board."""
         k = self.next_id
         self.next_id += 1
         deadline = now + self.spec.command_timeout_s
-        self.waiting[k] = (q, deadline, verb, None)
+        self.waiting[k] = (c.q, deadline, c.verb, None)
         if note:
             self.notes[k] = note
-        if verb in VERBS.main_thread:
-            board = self.board()
-            assert board is not None
-            blob = json.dumps({"id": k, "verb": verb, "payload": payload, "sender": sender,
-                               "user": user}).encode()
-            try:
-                taken = board.requests.put_blob(blob)
-            except ValueError:  # larger than a slot, even with its text capped
-                self.resolve(k, {"ok": False, "error": f"{verb}: the request is too large "
-                                  f"({len(blob)} bytes); not taken"})
-                return
-            if not taken:
-                self.resolve(k, {"ok": False, "error": "the daemon is busy (request queue "
-                                  "full); try again"})
+        if c.verb in VERBS.main_thread:
+            self._to_main_thread(k, c, payload)
             return
         def on_verdict(verdict: Verdict, _k: int = k) -> None:
             self.resolve(_k, verdict)
 
-        cid = self.port.send(verb, payload, sender, user, on_verdict=on_verdict)
+        cid = self.port.send(c.verb, payload, c.sender, c.user, on_verdict=on_verdict)
         if cid is not None and k in self.waiting:
-            self.waiting[k] = (q, deadline, verb, cid)
+            self.waiting[k] = (c.q, deadline, c.verb, cid)
+
+    def _to_main_thread(self, k: int, c: _Incoming, payload: JsonObject) -> None:
+        """Put waiting command `k` on the board for the daemon's main thread; refused
+        (answered now) when too large for a slot or when the board's queue is full."""
+        board = self.board()
+        assert board is not None
+        blob = json.dumps({"id": k, "verb": c.verb, "payload": payload, "sender": c.sender,
+                           "user": c.user}).encode()
+        try:
+            taken = board.requests.put_blob(blob)
+        except ValueError:  # larger than a slot, even with its text capped
+            self.resolve(k, {"ok": False, "error": f"{c.verb}: the request is too large "
+                              f"({len(blob)} bytes); not taken"})
+            return
+        if not taken:
+            self.resolve(k, {"ok": False, "error": "the daemon is busy (request queue "
+                              "full); try again"})
 
     def _join(self, q: Query, verb: str) -> bool:
         """An estop or stop beyond its sender's rate joins the same verb's command that
