@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import math
 from array import array
+from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -107,6 +108,8 @@ if TYPE_CHECKING:
 S_LOAD, S_RUNNING = int(State.LOAD_CHANGE), int(State.RUNNING)
 S_FAULT, S_ESTOP = int(State.FAULT), int(State.ESTOP)
 NAN = math.nan
+#: A stage's `update(t, now, dt)`, bound (`pamd.tick.Stage`)
+StageUpdate = Callable[[MuscleTick, float, float], None]
 __all__ = ["VENT_BELOW_BAR", "MuscleController"]
 
 
@@ -158,7 +161,17 @@ class MuscleController:
         self._profile: Profile | None = None
         self._safe_ramp = False
         self._source: Stage = self.hold  # the setpoint source (`_choose_source`) ...
+        self._source_update: StageUpdate = self.hold.update  # ... its update, bound
         self._chosen_for = -1  # ... chosen for this state (-1: to be chosen again)
+        # The fixed stages' updates, bound once (the tick calls them without looking
+        # each up through its stage: the stages are built above and never replaced)
+        self._update_inputs: StageUpdate = self.inputs.update
+        self._update_limits: StageUpdate = self.limit_monitor.update
+        self._update_pressure: StageUpdate = self.pressure_loop.update
+        self._update_guards: StageUpdate = self.guards.update
+        self._update_limiter: StageUpdate = self.limiter.update
+        self._update_actuation: StageUpdate = self.actuation.update
+        self._pid = self.pressure_loop.pid  # its terms for the record
         self.limit_report: str | None = None  # a profile held at a soft limit (> 1 s)
         self._set_envelope(envelope)
         self._load_kg = 0.0
@@ -633,6 +646,7 @@ class MuscleController:
             self.profile_follower.profile = self._profile
             source = self.profile_follower
         self._source = source
+        self._source_update = source.update
         self._chosen_for = state
 
     # -- the tick: read, update, write (`pamd.controller.RigController.tick`) -----------
@@ -643,11 +657,11 @@ class MuscleController:
         t = self.tick_values
         t.state = state
         t.last_command_bar = self._valve_cmd_bar
-        self.inputs.update(t, now, dt)
+        self._update_inputs(t, now, dt)
         air = self.air
         hold = air.hold_bar
         t.air_cut = air.out or (hold == hold and (state == S_FAULT or state == S_ESTOP))
-        self.limit_monitor.update(t, now, dt)
+        self._update_limits(t, now, dt)
         return t.fault is not None or t.finding is not None
 
     def update(self, now: float, dt: float) -> None:
@@ -658,8 +672,8 @@ class MuscleController:
         t = self.tick_values
         if t.state != self._chosen_for:
             self._choose_source(t.state)
-        self._source.update(t, now, dt)
-        self.pressure_loop.update(t, now, dt)
+        self._source_update(t, now, dt)
+        self._update_pressure(t, now, dt)
 
     def write(self, now: float, dt: float, entering: bool, rec: array[float]) -> str | None:
         """Bound, limit and write this tick's command, adapt, record. `entering`: the
@@ -680,10 +694,10 @@ class MuscleController:
         t.step_bar = slew * dt
         if t.last_command_bar != t.last_command_bar:  # nothing written yet
             t.last_command_bar = t.command_bar
-        self.guards.update(t, now, dt)
+        self._update_guards(t, now, dt)
         t.floor_bar = 0.0 if t.state == S_ESTOP and slew == math.inf else self._safe_pressure_bar
         wanted = t.command_bar
-        self.limiter.update(t, now, dt)
+        self._update_limiter(t, now, dt)
         u = self._valve_cmd_bar = t.command_bar
         if u != wanted:
             self.pressure_loop.unwind(u, wanted)
@@ -719,12 +733,12 @@ class MuscleController:
                              else -math.inf)
         t.valve_pressure_bar = NAN if air_hold else t.pressure_bar
         t.fault = None
-        self.actuation.update(t, now, dt)
+        self._update_actuation(t, now, dt)
 
     def _record(self, rec: array[float], t: MuscleTick) -> None:
         """The muscle's slots of the tick record (plain float stores)."""
         b = self._base
-        lc, pid = self.length_control, self.pressure_loop.pid
+        lc, pid = self.length_control, self._pid
         rec[b + M_PRESSURE] = t.pressure_bar
         rec[b + M_FORCE] = t.force_n
         rec[b + M_LENGTH] = t.length_mm
