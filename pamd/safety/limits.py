@@ -73,7 +73,12 @@ class LimitMonitor:
         if fault is not None and t.fault is None:
             t.fault = fault
         command = t.last_command_bar
-        reason = self.track(now, p, command, t.pressure_ok and not t.air_cut)
+        tracked = t.pressure_ok and not t.air_cut
+        if tracked and abs(p - command) <= self.track_band:  # it follows: `track`'s
+            self.flags = 0  # common path, inline (a call less a tick)
+            self._track_since = math.inf
+            return
+        reason = self.track(now, p, command, tracked)
         t.flags |= self.flags
         if reason is not None:
             reason = self.plausibility.distrust_pressure(reason, p, command, t.force_n,
@@ -147,6 +152,7 @@ class Guards:
     def __init__(self, envelope: MuscleEnvelope) -> None:
         self.set_envelope(envelope)
         self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+        self._engaged = False  # either guard engaged (`_engage` judges every tick then)
         self._held_since = math.inf
         self._held_reported = False
         self.holding_back = False  # a reference is held back at a limit (held_at_limit)
@@ -161,9 +167,11 @@ class Guards:
         self.c_release = self.soft_c - 0.5 * env.soft_band_contraction
         self.max_stretch = env.max_pretension
         self.s_release = -self.max_stretch + 0.5 * env.soft_band_contraction
+        self._stretch_at = -self.max_stretch  # the pretension guard engages at or below
 
     def reset(self) -> None:
         self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+        self._engaged = False
 
     def update(self, t: MuscleTick, now: float, dt: float) -> None:
         """The write's bounds on the command (`t.lo_bar`, `t.hi_bar`, also `lo`, `hi`)
@@ -176,7 +184,8 @@ class Guards:
             self.c_recover = self.s_recover = False
             return
         x = t.contraction
-        self._engage(x)
+        if self._engaged or not self._stretch_at < x < self.soft_c:
+            self._engage(x)  # else between both soft limits, neither engaged: nothing to do
         prev_cmd, step = t.last_command_bar, t.step_bar
         lo, hi = -math.inf, math.inf  # no guard: 0 bar is the limiter's, not a guard
         if self.c_guard:
@@ -216,6 +225,7 @@ class Guards:
         elif x <= -self.max_stretch:
             self.s_guard = True
             self.s_recover = False
+        self._engaged = self.c_guard or self.s_guard
 
     # -- a reference held back --------------------------------------------------------
     def held_at_limit(self, now: float, flags: int, moving: bool, setpoint_bar: float,

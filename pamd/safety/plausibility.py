@@ -284,7 +284,8 @@ class Plausibility:
                        ) -> str | None:
         """`_check_length`'s last, while the length stands: frozen if the pressure moved
         and the force did not follow as it would at a fixed length."""
-        if not self._anchored(p, f):
+        if self._anchor_p != self._anchor_p or self._anchor_f != self._anchor_f:
+            self._anchored(p, f)  # an anchor missing: take it (judged from the next)
             return None
         if not (self.pressure_ok and self.force_ok):
             return None  # the frozen check needs both
@@ -343,7 +344,8 @@ class Plausibility:
         if f != self._f_last:
             self._f_last = f
             self._f_since = t
-            self._f_map0 = self._force_map(p, length) if judged else math.nan
+            l0 = self.nominal_length_mm  # `_force_map`, inline (a call less a tick)
+            self._f_map0 = self.model.force_n(p, (l0 - length) / l0) if judged else math.nan
             self._f_v0 = self._v_lp
             return None
         if not judged:
