@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import math
 from array import array
-from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -108,8 +107,6 @@ if TYPE_CHECKING:
 S_LOAD, S_RUNNING = int(State.LOAD_CHANGE), int(State.RUNNING)
 S_FAULT, S_ESTOP = int(State.FAULT), int(State.ESTOP)
 NAN = math.nan
-#: A stage's `update(t, now, dt)`, bound (`pamd.tick.Stage`)
-StageUpdate = Callable[[MuscleTick, float, float], None]
 __all__ = ["VENT_BELOW_BAR", "MuscleController"]
 
 
@@ -158,19 +155,13 @@ class MuscleController:
         self._mode = Mode.PRESSURE
         self._started = False  # True once the pressure has been read and held
         self._valve_cmd_bar = NAN  # the command written last
-        self._profile: Profile | None = None
+        # the running profile: read by others every tick (the rig's end of a profile,
+        # the summary's cycles), so a plain attribute, not a property; only this class
+        # writes it
+        self.profile: Profile | None = None
         self._safe_ramp = False
         self._source: Stage = self.hold  # the setpoint source (`_choose_source`) ...
-        self._source_update: StageUpdate = self.hold.update  # ... its update, bound
         self._chosen_for = -1  # ... chosen for this state (-1: to be chosen again)
-        # The fixed stages' updates, bound once (the tick calls them without looking
-        # each up through its stage: the stages are built above and never replaced)
-        self._update_inputs: StageUpdate = self.inputs.update
-        self._update_limits: StageUpdate = self.limit_monitor.update
-        self._update_pressure: StageUpdate = self.pressure_loop.update
-        self._update_guards: StageUpdate = self.guards.update
-        self._update_limiter: StageUpdate = self.limiter.update
-        self._update_actuation: StageUpdate = self.actuation.update
         self._pid = self.pressure_loop.pid  # its terms for the record
         self.limit_report: str | None = None  # a profile held at a soft limit (> 1 s)
         self._set_envelope(envelope)
@@ -293,10 +284,6 @@ class MuscleController:
         return self._mode
 
     @property
-    def profile(self) -> Profile | None:
-        return self._profile
-
-    @property
     def started(self) -> bool:
         return self._started
 
@@ -376,26 +363,26 @@ class MuscleController:
 
     def start_profile(self, profile: Profile) -> None:
         """A pressure profile (or a setpoint's ramp) from the present setpoint."""
-        self._profile = profile
+        self.profile = profile
         self._safe_ramp = False
         self.pressure_loop.reset(self.inputs.pressure_bar, self.pressure_loop.pid.i)
         self._chosen_for = -1
 
     def stop_profile(self) -> None:
-        self._profile = None
+        self.profile = None
         self._chosen_for = -1
 
     def resume(self, paused_s: float) -> bool:
         """After a HOLD of `paused_s`: the profile goes on where it was. Whether one runs."""
-        if self._profile is None:
+        if self.profile is None:
             return False
-        self._profile.t0_s += paused_s
+        self.profile.t0_s += paused_s
         return True
 
     def enter_mode(self, mode: Mode, use_ff: bool, ilc: bool) -> None:
         """A length mode, bumpless (`LengthControl.enter`); any profile ends, and a
         completed ramp to the safe pressure hands over to it, as a setpoint would."""
-        self._profile = None
+        self.profile = None
         self._safe_ramp = False
         inp = self.inputs
         self.length_control.enter(mode, use_ff, ilc, from_pressure=self._mode == Mode.PRESSURE,
@@ -407,20 +394,20 @@ class MuscleController:
     def leave_length_mode(self) -> None:
         """Back to pressure mode; the setpoint stays where it is (bumpless)."""
         self._mode = Mode.PRESSURE
-        self._profile = None
+        self.profile = None
         self.length_control.leave()
         self._chosen_for = -1
 
     def set_length_targets(self, profile: Profile | None, force_n: float | None) -> None:
         """A length setpoint: its ramp (a length profile) and/or a force target."""
         if profile is not None:
-            self._profile = profile
+            self.profile = profile
             self._chosen_for = -1
         if force_n is not None:
             self.length_control.set_force_target(force_n)
 
     def start_length_profile(self, profile: Profile) -> None:
-        self._profile = profile
+        self.profile = profile
         self._chosen_for = -1
         lc = self.length_control
         if lc.ilc_on and profile.period_s > 0:
@@ -464,7 +451,7 @@ class MuscleController:
         self.tick_values.setpoint_bar = p
         self._valve_cmd_bar = p
         self.pressure_loop.reset(p)
-        self._profile = None
+        self.profile = None
         self._safe_ramp = safe_ramp
         self.safe_ramp.unpace()
         self._started = True
@@ -492,7 +479,7 @@ class MuscleController:
     def go_safe(self) -> None:
         """End what runs and ramp to the safe pressure (at its own slew limit until the
         rig paces it: `pace_safe_entry`)."""
-        self._profile = None
+        self.profile = None
         self._safe_ramp = True
         self.safe_ramp.unpace()
         self._chosen_for = -1
@@ -637,16 +624,15 @@ class MuscleController:
             source = self.safe_ramp
             self.safe_ramp.estop = state == S_ESTOP
         elif lc.active:
-            lc.profile = self._profile
+            lc.profile = self.profile
             source = lc
             if lc.position and self.actuation.positions_length:
                 source = self.valves_position
                 t.positioning = True
-        elif (state == S_RUNNING or state == S_LOAD) and self._profile is not None:
-            self.profile_follower.profile = self._profile
+        elif (state == S_RUNNING or state == S_LOAD) and self.profile is not None:
+            self.profile_follower.profile = self.profile
             source = self.profile_follower
         self._source = source
-        self._source_update = source.update
         self._chosen_for = state
 
     # -- the tick: read, update, write (`pamd.controller.RigController.tick`) -----------
@@ -657,11 +643,11 @@ class MuscleController:
         t = self.tick_values
         t.state = state
         t.last_command_bar = self._valve_cmd_bar
-        self._update_inputs(t, now, dt)
+        self.inputs.update(t, now, dt)
         air = self.air
         hold = air.hold_bar
         t.air_cut = air.out or (hold == hold and (state == S_FAULT or state == S_ESTOP))
-        self._update_limits(t, now, dt)
+        self.limit_monitor.update(t, now, dt)
         return t.fault is not None or t.finding is not None
 
     def update(self, now: float, dt: float) -> None:
@@ -672,8 +658,8 @@ class MuscleController:
         t = self.tick_values
         if t.state != self._chosen_for:
             self._choose_source(t.state)
-        self._source_update(t, now, dt)
-        self._update_pressure(t, now, dt)
+        self._source.update(t, now, dt)
+        self.pressure_loop.update(t, now, dt)
 
     def write(self, now: float, dt: float, entering: bool, rec: array[float]) -> str | None:
         """Bound, limit and write this tick's command, adapt, record. `entering`: the
@@ -694,10 +680,10 @@ class MuscleController:
         t.step_bar = slew * dt
         if t.last_command_bar != t.last_command_bar:  # nothing written yet
             t.last_command_bar = t.command_bar
-        self._update_guards(t, now, dt)
+        self.guards.update(t, now, dt)
         t.floor_bar = 0.0 if t.state == S_ESTOP and slew == math.inf else self._safe_pressure_bar
         wanted = t.command_bar
-        self._update_limiter(t, now, dt)
+        self.limiter.update(t, now, dt)
         u = self._valve_cmd_bar = t.command_bar
         if u != wanted:
             self.pressure_loop.unwind(u, wanted)
@@ -733,7 +719,7 @@ class MuscleController:
                              else -math.inf)
         t.valve_pressure_bar = NAN if air_hold else t.pressure_bar
         t.fault = None
-        self._update_actuation(t, now, dt)
+        self.actuation.update(t, now, dt)
 
     def _record(self, rec: array[float], t: MuscleTick) -> None:
         """The muscle's slots of the tick record (plain float stores)."""
