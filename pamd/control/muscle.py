@@ -681,7 +681,9 @@ class MuscleController:
         if t.last_command_bar != t.last_command_bar:  # nothing written yet
             t.last_command_bar = t.command_bar
         self.guards.update(t, now, dt)
-        t.floor_bar = 0.0 if t.state == S_ESTOP and slew == math.inf else self._safe_pressure_bar
+        if held:  # the limiter's floor, which it reads only then
+            t.floor_bar = (0.0 if t.state == S_ESTOP and slew == math.inf
+                           else self._safe_pressure_bar)
         wanted = t.command_bar
         self.limiter.update(t, now, dt)
         u = self._valve_cmd_bar = t.command_bar

@@ -180,7 +180,8 @@ class Guards:
         times the period); the flag of a guard that holds what control wants
         (`t.command_bar`) back."""
         if not t.length_ok:
-            self.lo, self.hi = t.lo_bar, t.hi_bar = -math.inf, math.inf
+            self.lo = t.lo_bar = -math.inf  # (one name each: a chained tuple target
+            self.hi = t.hi_bar = math.inf  # would build a tuple every tick)
             self.c_recover = self.s_recover = False
             return
         x = t.contraction
@@ -200,7 +201,8 @@ class Guards:
                 lo = prev_cmd + step if x <= -self.max_stretch else prev_cmd
         elif self.s_recover and not self.c_guard:
             lo = prev_cmd - step
-        self.lo, self.hi = t.lo_bar, t.hi_bar = lo, hi
+        self.lo = t.lo_bar = lo
+        self.hi = t.hi_bar = hi
         wanted = t.command_bar
         if wanted > hi:
             t.flags |= F_SOFT_C
