@@ -38,6 +38,7 @@ from pamd.tick import I_COMPUTE, I_LOST, I_OVERRUNS, I_WAKE, Mailbox, State
 from pamd.timing import TickTiming
 
 MAX_COMMANDS_PER_TICK = 4
+_STARTING = State.STARTING  # (tick_once's: no lookup on the enum class every tick)
 COMMAND_BUDGET_FRACTION = 0.3  # of the period: commands after the first wait past it
 SAFE_STATE_DEADLINE_S = 30.0
 GC_EVERY_TICKS = 200
@@ -107,7 +108,7 @@ def tick_once(ctrl: RigController, intake: CommandIntake, now_s: float, dt_s: fl
     """One tick, as both `Loop` and `pamd.harness.Harness` run it: the waiting commands
     first (held in the mailbox until the sensors are read: none while STARTING), then
     the controller's tick. Returns the tick record."""
-    if ctrl.supervisor.state != State.STARTING:
+    if ctrl.supervisor.state != _STARTING:
         intake.take(ctrl, commands_until)
     return ctrl.tick(now_s, dt_s)
 

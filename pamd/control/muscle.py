@@ -155,10 +155,14 @@ class MuscleController:
         self._mode = Mode.PRESSURE
         self._started = False  # True once the pressure has been read and held
         self._valve_cmd_bar = NAN  # the command written last
-        self._profile: Profile | None = None
+        # the running profile: read by others every tick (the rig's end of a profile,
+        # the summary's cycles), so a plain attribute, not a property; only this class
+        # writes it
+        self.profile: Profile | None = None
         self._safe_ramp = False
         self._source: Stage = self.hold  # the setpoint source (`_choose_source`) ...
         self._chosen_for = -1  # ... chosen for this state (-1: to be chosen again)
+        self._pid = self.pressure_loop.pid  # its terms for the record
         self.limit_report: str | None = None  # a profile held at a soft limit (> 1 s)
         self._set_envelope(envelope)
         self._load_kg = 0.0
@@ -280,10 +284,6 @@ class MuscleController:
         return self._mode
 
     @property
-    def profile(self) -> Profile | None:
-        return self._profile
-
-    @property
     def started(self) -> bool:
         return self._started
 
@@ -363,26 +363,26 @@ class MuscleController:
 
     def start_profile(self, profile: Profile) -> None:
         """A pressure profile (or a setpoint's ramp) from the present setpoint."""
-        self._profile = profile
+        self.profile = profile
         self._safe_ramp = False
         self.pressure_loop.reset(self.inputs.pressure_bar, self.pressure_loop.pid.i)
         self._chosen_for = -1
 
     def stop_profile(self) -> None:
-        self._profile = None
+        self.profile = None
         self._chosen_for = -1
 
     def resume(self, paused_s: float) -> bool:
         """After a HOLD of `paused_s`: the profile goes on where it was. Whether one runs."""
-        if self._profile is None:
+        if self.profile is None:
             return False
-        self._profile.t0_s += paused_s
+        self.profile.t0_s += paused_s
         return True
 
     def enter_mode(self, mode: Mode, use_ff: bool, ilc: bool) -> None:
         """A length mode, bumpless (`LengthControl.enter`); any profile ends, and a
         completed ramp to the safe pressure hands over to it, as a setpoint would."""
-        self._profile = None
+        self.profile = None
         self._safe_ramp = False
         inp = self.inputs
         self.length_control.enter(mode, use_ff, ilc, from_pressure=self._mode == Mode.PRESSURE,
@@ -394,20 +394,20 @@ class MuscleController:
     def leave_length_mode(self) -> None:
         """Back to pressure mode; the setpoint stays where it is (bumpless)."""
         self._mode = Mode.PRESSURE
-        self._profile = None
+        self.profile = None
         self.length_control.leave()
         self._chosen_for = -1
 
     def set_length_targets(self, profile: Profile | None, force_n: float | None) -> None:
         """A length setpoint: its ramp (a length profile) and/or a force target."""
         if profile is not None:
-            self._profile = profile
+            self.profile = profile
             self._chosen_for = -1
         if force_n is not None:
             self.length_control.set_force_target(force_n)
 
     def start_length_profile(self, profile: Profile) -> None:
-        self._profile = profile
+        self.profile = profile
         self._chosen_for = -1
         lc = self.length_control
         if lc.ilc_on and profile.period_s > 0:
@@ -451,7 +451,7 @@ class MuscleController:
         self.tick_values.setpoint_bar = p
         self._valve_cmd_bar = p
         self.pressure_loop.reset(p)
-        self._profile = None
+        self.profile = None
         self._safe_ramp = safe_ramp
         self.safe_ramp.unpace()
         self._started = True
@@ -479,7 +479,7 @@ class MuscleController:
     def go_safe(self) -> None:
         """End what runs and ramp to the safe pressure (at its own slew limit until the
         rig paces it: `pace_safe_entry`)."""
-        self._profile = None
+        self.profile = None
         self._safe_ramp = True
         self.safe_ramp.unpace()
         self._chosen_for = -1
@@ -624,13 +624,13 @@ class MuscleController:
             source = self.safe_ramp
             self.safe_ramp.estop = state == S_ESTOP
         elif lc.active:
-            lc.profile = self._profile
+            lc.profile = self.profile
             source = lc
             if lc.position and self.actuation.positions_length:
                 source = self.valves_position
                 t.positioning = True
-        elif (state == S_RUNNING or state == S_LOAD) and self._profile is not None:
-            self.profile_follower.profile = self._profile
+        elif (state == S_RUNNING or state == S_LOAD) and self.profile is not None:
+            self.profile_follower.profile = self.profile
             source = self.profile_follower
         self._source = source
         self._chosen_for = state
@@ -681,7 +681,9 @@ class MuscleController:
         if t.last_command_bar != t.last_command_bar:  # nothing written yet
             t.last_command_bar = t.command_bar
         self.guards.update(t, now, dt)
-        t.floor_bar = 0.0 if t.state == S_ESTOP and slew == math.inf else self._safe_pressure_bar
+        if held:  # the limiter's floor, which it reads only then
+            t.floor_bar = (0.0 if t.state == S_ESTOP and slew == math.inf
+                           else self._safe_pressure_bar)
         wanted = t.command_bar
         self.limiter.update(t, now, dt)
         u = self._valve_cmd_bar = t.command_bar
@@ -724,7 +726,7 @@ class MuscleController:
     def _record(self, rec: array[float], t: MuscleTick) -> None:
         """The muscle's slots of the tick record (plain float stores)."""
         b = self._base
-        lc, pid = self.length_control, self.pressure_loop.pid
+        lc, pid = self.length_control, self._pid
         rec[b + M_PRESSURE] = t.pressure_bar
         rec[b + M_FORCE] = t.force_n
         rec[b + M_LENGTH] = t.length_mm

@@ -73,7 +73,12 @@ class LimitMonitor:
         if fault is not None and t.fault is None:
             t.fault = fault
         command = t.last_command_bar
-        reason = self.track(now, p, command, t.pressure_ok and not t.air_cut)
+        tracked = t.pressure_ok and not t.air_cut
+        if tracked and abs(p - command) <= self.track_band:  # it follows: `track`'s
+            self.flags = 0  # common path, inline (a call less a tick)
+            self._track_since = math.inf
+            return
+        reason = self.track(now, p, command, tracked)
         t.flags |= self.flags
         if reason is not None:
             reason = self.plausibility.distrust_pressure(reason, p, command, t.force_n,
@@ -147,6 +152,7 @@ class Guards:
     def __init__(self, envelope: MuscleEnvelope) -> None:
         self.set_envelope(envelope)
         self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+        self._engaged = False  # either guard engaged (`_engage` judges every tick then)
         self._held_since = math.inf
         self._held_reported = False
         self.holding_back = False  # a reference is held back at a limit (held_at_limit)
@@ -161,9 +167,11 @@ class Guards:
         self.c_release = self.soft_c - 0.5 * env.soft_band_contraction
         self.max_stretch = env.max_pretension
         self.s_release = -self.max_stretch + 0.5 * env.soft_band_contraction
+        self._stretch_at = -self.max_stretch  # the pretension guard engages at or below
 
     def reset(self) -> None:
         self.c_guard = self.s_guard = self.c_recover = self.s_recover = False
+        self._engaged = False
 
     def update(self, t: MuscleTick, now: float, dt: float) -> None:
         """The write's bounds on the command (`t.lo_bar`, `t.hi_bar`, also `lo`, `hi`)
@@ -172,11 +180,13 @@ class Guards:
         times the period); the flag of a guard that holds what control wants
         (`t.command_bar`) back."""
         if not t.length_ok:
-            self.lo, self.hi = t.lo_bar, t.hi_bar = -math.inf, math.inf
+            self.lo = t.lo_bar = -math.inf  # (one name each: a chained tuple target
+            self.hi = t.hi_bar = math.inf  # would build a tuple every tick)
             self.c_recover = self.s_recover = False
             return
         x = t.contraction
-        self._engage(x)
+        if self._engaged or not self._stretch_at < x < self.soft_c:
+            self._engage(x)  # else between both soft limits, neither engaged: nothing to do
         prev_cmd, step = t.last_command_bar, t.step_bar
         lo, hi = -math.inf, math.inf  # no guard: 0 bar is the limiter's, not a guard
         if self.c_guard:
@@ -191,7 +201,8 @@ class Guards:
                 lo = prev_cmd + step if x <= -self.max_stretch else prev_cmd
         elif self.s_recover and not self.c_guard:
             lo = prev_cmd - step
-        self.lo, self.hi = t.lo_bar, t.hi_bar = lo, hi
+        self.lo = t.lo_bar = lo
+        self.hi = t.hi_bar = hi
         wanted = t.command_bar
         if wanted > hi:
             t.flags |= F_SOFT_C
@@ -216,6 +227,7 @@ class Guards:
         elif x <= -self.max_stretch:
             self.s_guard = True
             self.s_recover = False
+        self._engaged = self.c_guard or self.s_guard
 
     # -- a reference held back --------------------------------------------------------
     def held_at_limit(self, now: float, flags: int, moving: bool, setpoint_bar: float,

@@ -88,6 +88,9 @@ MOVED_MM = 0.5
 #: Time constant of the low-pass on pressure, force and velocity that the frozen
 #: checks use (noise is not motion), from the samples' stamps.
 LOWPASS_TAU_S = 0.02
+# (a new sample `dt` after the previous one weighs 1 - exp(-dt / LOWPASS_TAU_S), 1 for
+# dt <= 0, computed inline where the tick low-passes; not cached: on a real clock the
+# samples' spacing differs at every sample, a cache would miss each time)
 #: Within this contraction of a stop (the contraction limit, the pretension limit)
 #: the length rightly stands still: the frozen-length check holds its judgement.
 STOP_BAND = 0.01
@@ -232,13 +235,16 @@ class Plausibility:
     def _lowpass(self, p: float, p_t: float, f: float, f_t: float) -> None:
         """The low-passed pressure and force for the frozen checks (noise is not
         motion), on a new sample."""
+        # `_alpha`, inline (two calls less a tick)
         if p_t != self._p_t and p == p:
-            lp = self._p_lp
-            self._p_lp = p if lp != lp else lp + _alpha(p_t - self._p_lp_t) * (p - lp)
+            lp, dt = self._p_lp, p_t - self._p_lp_t
+            a = 1.0 - math.exp(-dt / LOWPASS_TAU_S) if dt > 0.0 else 1.0
+            self._p_lp = p if lp != lp else lp + a * (p - lp)
             self._p_lp_t = p_t
         if f_t != self._f_t and f == f:
-            lp = self._f_lp
-            self._f_lp = f if lp != lp else lp + _alpha(f_t - self._f_lp_t) * (f - lp)
+            lp, dt = self._f_lp, f_t - self._f_lp_t
+            a = 1.0 - math.exp(-dt / LOWPASS_TAU_S) if dt > 0.0 else 1.0
+            self._f_lp = f if lp != lp else lp + a * (f - lp)
             self._f_lp_t = f_t
 
     def _contraction(self, length: float) -> float:
@@ -265,8 +271,8 @@ class Plausibility:
                         f"{1000 * dt:.0f} ms (samples' stamps, jitter "
                         f"{1000 * (prev_j + jitter):.0f} ms), faster than the muscle can move "
                         f"({self.max_rate:g} mm/s)")
-            v = self._v_lp
-            self._v_lp = v + _alpha(dt) * ((length - prev) / dt - v)
+            v = self._v_lp  # dt > 0 here: `_alpha`, inline
+            self._v_lp = v + (1.0 - math.exp(-dt / LOWPASS_TAU_S)) * ((length - prev) / dt - v)
         # Frozen: the length does not move while the pressure moves, and the force does
         # not change as it would if the muscle really stood still (an isometric clamp
         # keeps the length, but then the force follows the pressure). At a stop the
@@ -284,7 +290,8 @@ class Plausibility:
                        ) -> str | None:
         """`_check_length`'s last, while the length stands: frozen if the pressure moved
         and the force did not follow as it would at a fixed length."""
-        if not self._anchored(p, f):
+        if self._anchor_p != self._anchor_p or self._anchor_f != self._anchor_f:
+            self._anchored(p, f)  # an anchor missing: take it (judged from the next)
             return None
         if not (self.pressure_ok and self.force_ok):
             return None  # the frozen check needs both
@@ -343,7 +350,8 @@ class Plausibility:
         if f != self._f_last:
             self._f_last = f
             self._f_since = t
-            self._f_map0 = self._force_map(p, length) if judged else math.nan
+            l0 = self.nominal_length_mm  # `_force_map`, inline (a call less a tick)
+            self._f_map0 = self.model.force_n(p, (l0 - length) / l0) if judged else math.nan
             self._f_v0 = self._v_lp
             return None
         if not judged:
@@ -455,12 +463,3 @@ def force_map_pressure(model: ForceModel, nominal_length_mm: float, f: float,
         else:
             hi = mid
     return 0.5 * (lo + hi)
-
-
-def _alpha(dt_s: float) -> float:
-    """The low-pass's weight of a new sample `dt_s` after the previous one. Not cached:
-    on a real clock the samples' spacing differs at every sample (a cache would miss
-    each time and cost more than the exp)."""
-    if not dt_s > 0.0:
-        return 1.0
-    return 1.0 - math.exp(-dt_s / LOWPASS_TAU_S)
