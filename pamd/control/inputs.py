@@ -32,6 +32,18 @@ S_LOAD = int(State.LOAD_CHANGE)
 class Inputs:
     """One muscle's readings, read once per tick."""
 
+    # slots: attribute reads on the tick path stay specialised past CPython's 30-key
+    # shared dict (issue 42 item 3)
+    __slots__ = (
+        'pressure_signal', 'force_signal', 'length_signal', 'reference', 'plausibility',
+        'nominal_length_mm', '_pv', '_pt', '_pi', '_fv', '_ft', '_fi', '_lv', '_lt',
+        '_li', '_pj', '_fj', '_lj', '_pg', '_po', '_fg', '_fo', '_lg', '_lo', '_pto',
+        '_fto', '_lto', 'pressure_bar', 'force_n', 'length_mm', 'contraction',
+        'velocity_mm_s', '_prev_length_mm', '_prev_length_t', 'pressure_ok',
+        'length_ok', 'pressure_fresh', 'stall_excuse_s', '_pending_preset',
+        '_calibration_dirty'
+    )
+
     def __init__(self, signals: MuscleSignals, plausibility: Plausibility,
                  nominal_length_mm: float) -> None:
         p, f, ln = signals.pressure, signals.force, signals.length

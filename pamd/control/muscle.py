@@ -113,6 +113,18 @@ __all__ = ["VENT_BELOW_BAR", "MuscleController"]
 class MuscleController:
     """State, commands and tick of one muscle (see the module docstring)."""
 
+    # slots: attribute reads on the tick path stay specialised past CPython's 30-key
+    # shared dict (issue 42 item 3)
+    __slots__ = (
+        'index', 'name', 'signals', '_base', 'plausibility', 'tick_values', 'inputs',
+        'limit_monitor', 'safe_ramp', 'air', 'profile_follower', 'hold',
+        'length_control', 'valves_position', 'ff_watch', 'actuation', 'onoff',
+        'pressure_loop', 'guards', 'limiter', 'adaptation', 'length_absolute', '_mode',
+        '_started', '_valve_cmd_bar', 'profile', '_safe_ramp', '_source', '_chosen_for',
+        '_pid', 'limit_report', '_load_kg', '_safe_pressure_bar', '_envelope',
+        '_max_pressure_bar', '_slew_limit_bar_per_s'
+    )
+
     def __init__(self, index: int, envelope: MuscleEnvelope, cfg: LoadedConfig,
                  signals: MuscleSignals, record_base: int,
                  model: LoadedModel | None = None) -> None:

@@ -104,6 +104,19 @@ _PRESSURE_SEARCH_BAR = (0.0, 10.0)
 class Plausibility:
     """The plausibility state of one muscle's three readings."""
 
+    # slots: attribute reads on the tick path stay specialised past CPython's 30-key
+    # shared dict (issue 42 item 3)
+    __slots__ = (
+        'muscle', 'p_name', 'f_name', 'l_name', 'model', 'nominal_length_mm',
+        'weight_n', 'mass_kg', 'enabled', 'max_rate', 'jump_mm', 'p_max_rate', 'p_jump',
+        'min_x', 'max_x', 'frozen_dp', 'frozen_mm', 'frozen_s', 'frozen_df',
+        'zero_share', 'zero_s', 'min_load_kg', 'stop_hi', 'stop_lo', 'length_ok',
+        'force_ok', 'pressure_ok', 'reason', '_l_t', '_l_j', '_l_last', '_v_lp',
+        '_anchor_l', '_anchor_p', '_anchor_f', '_anchor_t', '_anchor_pt', '_f_t',
+        '_f_last', '_f_since', '_f_map0', '_f_v0', '_zero_since', '_p_t', '_p_j',
+        '_p_last', '_p_since', '_p_l0', '_p_lp', '_f_lp', '_p_lp_t', '_f_lp_t'
+    )
+
     def __init__(self, muscle: str, names: tuple[str, str, str], cfg: PlausibilityConfig,
                  nominal_length_mm: float, model: ForceModel,
                  stops: tuple[float, float] = (0.25, 0.04)) -> None:
