@@ -9,7 +9,7 @@ that tree's pamd too, so the baseline, this tree and cyclictest alternate on the
 machine under the same load, and both medians of p99 ratios are printed.
 
 usage: python bench/loop_latency_vs_cyclictest.py [ROUNDS] [SECONDS] [--against TREE]
-(5 x 15 s)
+(5 x 15 s by default)
 """
 
 from __future__ import annotations
@@ -67,14 +67,19 @@ def cyclictest_round(seconds: float) -> tuple[float, float, float]:
 
 
 def main() -> int:
-    args = sys.argv[1:]
-    base: str | None = None
-    if "--against" in args:
-        k = args.index("--against")
-        base = args[k + 1]
-        del args[k:k + 2]
-    rounds = int(args[0]) if args else 5
-    seconds = float(args[1]) if len(args) > 1 else 15.0
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("rounds", nargs="?", type=int, default=5,
+                    help="interleaved rounds of each (default 5)")
+    ap.add_argument("seconds", nargs="?", type=float, default=15.0,
+                    help="length of each round in seconds (default 15)")
+    ap.add_argument("--against", metavar="TREE", default=None,
+                    help="a checkout of the baseline; its pamd runs in each round too")
+    a = ap.parse_args()
+    base: str | None = a.against
+    rounds: int = a.rounds
+    seconds: float = a.seconds
     if shutil.which("cyclictest") is None:
         print("cyclictest not found: apt-get install rt-tests", file=sys.stderr)
         return 2
