@@ -63,7 +63,7 @@ def controller_compute_us(cfg: LoadedConfig, commands: list[tuple[str, dict[str,
     from pamd.loop import VirtualClock
     from pamd.rig import Rig
     from pamd.summary import SummarySink
-    from pamd.tick import TickLayout
+    from pamd.wire.tick import TickLayout
 
     rig = Rig(cfg, load_calibration(cfg.calibration_path))
     sink = SummarySink(TickLayout([m.name for m in cfg.rig.muscles]))

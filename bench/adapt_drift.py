@@ -44,7 +44,7 @@ from position_tracking import RANGES_BAR, TRAIN_LOADS_KG, record, train  # noqa:
 from pamd.config import LoadedConfig  # noqa: E402
 from pamd.control.feedforward import LoadedModel  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
-from pamd.tick import State  # noqa: E402
+from pamd.wire.tick import State  # noqa: E402
 
 FREQ_HZ = 0.2
 PERIOD_S = 1.0 / FREQ_HZ

@@ -13,7 +13,7 @@ import yaml
 from pamd.config import load_config
 from pamd.daemon import Daemon
 from pamd.emulate.testing import REPO, emulated_dict, free_port, write_config
-from pamd.tick import State
+from pamd.wire.tick import State
 
 
 def sim_config(tmp: Path, realtime: bool = True) -> Any:

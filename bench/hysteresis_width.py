@@ -42,7 +42,7 @@ from _common import sim_config
 
 from pamd.commands import apply_command, parse_command
 from pamd.harness import Harness
-from pamd.tick import State
+from pamd.wire.tick import State
 
 FREQ_HZ = 0.05
 MAX_BAR = 6.0

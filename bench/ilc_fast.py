@@ -30,7 +30,7 @@ from _common import CycleErrors, sim_config
 
 from pamd.control.feedforward import LoadedModel
 from pamd.harness import Harness
-from pamd.tick import State
+from pamd.wire.tick import State
 
 FAST = {"slew_limit_bar_per_s": 25.0}
 

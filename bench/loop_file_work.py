@@ -22,7 +22,7 @@ from pathlib import Path
 from _common import sim_config
 
 from pamd.daemon import Daemon
-from pamd.tick import State
+from pamd.wire.tick import State
 
 DEFAULT_SWITCH_INTERVAL_S = 0.005  # CPython's
 

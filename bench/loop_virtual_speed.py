@@ -16,7 +16,7 @@ from _common import sim_config
 from tracking_sine import OLD_PLANT, plant_drivers
 
 from pamd.daemon import Daemon
-from pamd.tick import State
+from pamd.wire.tick import State
 
 
 def run(cycles: int, **changes: Any) -> tuple[float, float, dict[str, Any]]:

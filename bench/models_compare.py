@@ -47,7 +47,6 @@ import numpy as np  # noqa: E402
 from _common import record_profile, sim_config  # noqa: E402
 
 from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.errors import ModelError  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
 from pamd.metrics import regression_metrics  # noqa: E402
 from pamd.models.anfis.extraction import derived_inputs, extract  # noqa: E402
@@ -64,7 +63,8 @@ from pamd.models.contract import InverseModel  # noqa: E402
 from pamd.models.registry import save_model  # noqa: E402
 from pamd.models.static_force import fit_coefficients, gain_offset  # noqa: E402
 from pamd.models.training import fit_split  # noqa: E402
-from pamd.tick import State  # noqa: E402
+from pamd.wire.errors import ModelError  # noqa: E402
+from pamd.wire.tick import State  # noqa: E402
 
 ALL_INPUTS = ("force_n", "length_mm", "contraction", "velocity_mm_s")
 WINDOW_S = 3.0

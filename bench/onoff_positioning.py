@@ -38,7 +38,7 @@ import yaml
 
 from pamd.config import load_config
 from pamd.harness import Harness
-from pamd.tick import State
+from pamd.wire.tick import State
 
 REPO = Path(__file__).resolve().parents[1]
 DT = 0.001

@@ -60,7 +60,7 @@ from position_tracking import RANGES_BAR, TRAIN_LOADS_KG, record, train  # noqa:
 
 from pamd.control.feedforward import LoadedModel  # noqa: E402
 from pamd.harness import Harness  # noqa: E402
-from pamd.tick import State  # noqa: E402
+from pamd.wire.tick import State  # noqa: E402
 
 MAX_RATE_PER_S = 0.5
 #: the default 5 bar/s would cut the 1 Hz sine's pressure swing (about 10 bar/s)

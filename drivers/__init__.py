@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint
 from typing import Any, ClassVar, Literal, Protocol
 
-from pamd.errors import DriverError
 from pamd.plugins import DRIVERS_GROUP, installed, load_driver_entry
+from pamd.wire.errors import DriverError
 
 Clock = Callable[[], float]
 """Returns the loop's time in seconds (monotonic, or virtual)."""

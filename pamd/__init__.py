@@ -62,7 +62,7 @@ def _find_source_drivers() -> None:
 
 _find_source_drivers()
 
-from pamd.version import __version__  # noqa: E402
+from pamd.wire.version import __version__  # noqa: E402
 
 __all__ = [
     "CommandRefused", "Event", "MuscleData", "NoDaemon", "PamdError", "Recording",
@@ -71,8 +71,6 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from pamd.errors import CommandRefused, PamdError, RecordingError
-    from pamd.net.zconf import NoDaemon
     from pamd.view.client import RigClient, StateBatch, connect
     from pamd.view.recording import (
         Event,
@@ -81,6 +79,8 @@ if TYPE_CHECKING:
         RecordingIncomplete,
         open_recording,
     )
+    from pamd.wire.errors import CommandRefused, PamdError, RecordingError
+    from pamd.wire.zconf import NoDaemon
 
 # Imported on first use: `import pamd` stays cheap for the daemon and its io process.
 _WHERE = {
@@ -88,8 +88,8 @@ _WHERE = {
     "MuscleData": "pamd.view.recording", "Event": "pamd.view.recording",
     "RecordingIncomplete": "pamd.view.recording", "connect": "pamd.view.client",
     "RigClient": "pamd.view.client", "StateBatch": "pamd.view.client",
-    "PamdError": "pamd.errors", "RecordingError": "pamd.errors",
-    "CommandRefused": "pamd.errors", "NoDaemon": "pamd.net.zconf",
+    "PamdError": "pamd.wire.errors", "RecordingError": "pamd.wire.errors",
+    "CommandRefused": "pamd.wire.errors", "NoDaemon": "pamd.wire.zconf",
 }
 
 

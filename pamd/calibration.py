@@ -13,9 +13,9 @@ from dataclasses import asdict, dataclass, field
 
 import yaml
 
-from pamd.atomic import write_atomic
-from pamd.schema.engine import Context, build_dataclass, spec
-from pamd.schema.yamlload import load_yaml_file
+from pamd.wire.atomic import write_atomic
+from pamd.wire.schema.engine import Context, build_dataclass, spec
+from pamd.wire.schema.yamlload import load_yaml_file
 
 
 @dataclass
@@ -55,7 +55,7 @@ def load_calibration(path: str | None) -> Calibration:
 
 
 def save_calibration(cal: Calibration, path: str) -> None:
-    """Write whole or not at all (`pamd.atomic`): a power cut never leaves half a file,
+    """Write whole or not at all (`pamd.wire.atomic`): a power cut never leaves half a file,
     a failed write the old one (FileWriteError naming it)."""
     data = {"muscles": {k: asdict(v) for k, v in cal.muscles.items()}}
     directory = os.path.dirname(os.path.abspath(path))

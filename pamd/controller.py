@@ -39,7 +39,6 @@ from pamd.control.rig_safe_state import (
     rest_text,
 )
 from pamd.control.rig_startup import start_up
-from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.profiles import Profile
 from pamd.rig import Rig
@@ -47,7 +46,8 @@ from pamd.safety import Supervisor, Transition
 from pamd.safety.chain import SafetyChain
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.safety.load_check import LoadDisagreement
-from pamd.tick import (
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.tick import (
     I_CHAIN,
     I_HEARTBEAT,
     I_SEGMENT,

@@ -20,13 +20,10 @@ from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers.safe_outputs import push_safe_outputs
-from pamd.errors import CommandRefused
 from pamd.experiment.plan import Plan
 from pamd.io.session import IoParts, IoSession, RecordingRequest
 from pamd.loop import Loop
-from pamd.net.spec import TelemetryRequest
 from pamd.rig import Rig
 from pamd.safety import Transition
 from pamd.service.keeper import ServiceKeeper
@@ -34,8 +31,11 @@ from pamd.service.notify import Notifier
 from pamd.service.riglock import RunLocks
 from pamd.service.state import calibration_path, state_paths
 from pamd.summary import LocalMailbox, SummarySink
-from pamd.tick import State, TickLayout
-from pamd.verbs.schema import args_for_record
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
+from pamd.wire.net_spec import TelemetryRequest
+from pamd.wire.tick import State, TickLayout
+from pamd.wire.verbs.args import args_for_record
 
 log = logging.getLogger("pamd")
 
@@ -253,7 +253,7 @@ class Daemon:
         return self.ctrl.supervisor.state
 
     def result(self) -> JsonObject:
-        """The run summary (`pamd run --json`), its keys declared in pamd.declare.summary
+        """The run summary (`pamd run --json`), its keys declared in pamd.wire.declare.summary_keys
         (docs/run-summary.md)."""
         t = self.loop.timing.summary()
         sup = self.ctrl.supervisor

@@ -18,12 +18,12 @@ from pamd.config import LoadedConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.muscle import MuscleController
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.drivers.sim import SimDriver
 from pamd.loop import CommandIntake, VirtualClock, tick_once
 from pamd.rig import Rig
 from pamd.summary import SummarySink
-from pamd.tick import State, TickLayout
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.tick import State, TickLayout
 
 
 class _Queue:

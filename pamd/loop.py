@@ -34,8 +34,8 @@ from pamd.controller import RigController
 from pamd.drivers import SampleClock
 from pamd.rt import RealtimeSession
 from pamd.stalls import StallWatch, stall_limit
-from pamd.tick import I_COMPUTE, I_LOST, I_OVERRUNS, I_WAKE, Mailbox, State
 from pamd.timing import TickTiming
+from pamd.wire.tick import I_COMPUTE, I_LOST, I_OVERRUNS, I_WAKE, Mailbox, State
 
 MAX_COMMANDS_PER_TICK = 4
 _STARTING = State.STARTING  # (tick_once's: no lookup on the enum class every tick)

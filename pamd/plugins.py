@@ -11,7 +11,7 @@ import os
 import sys
 from importlib.metadata import EntryPoint, entry_points
 
-from pamd.errors import DriverError
+from pamd.wire.errors import DriverError
 
 DRIVERS_GROUP = "pamd.drivers"
 

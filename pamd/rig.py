@@ -15,7 +15,7 @@ from pamd.config.loader import LoadedConfig, effective_timeout_s
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import SignalConfig
 from pamd.drivers import Clock, Driver, load_driver_class
-from pamd.errors import ConfigError, ConfigIssue, DriverError
+from pamd.wire.errors import ConfigError, ConfigIssue, DriverError
 
 
 @dataclass

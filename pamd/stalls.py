@@ -34,7 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pamd.config.schema import MuscleConfig, RigConfig
-from pamd.declare.jsonsafe import JsonObject
+from pamd.wire.declare.jsonsafe import JsonObject
 
 HOLD_S = 0.5  # a proportional regulator without a module watchdog: see the docstring
 

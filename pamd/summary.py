@@ -10,9 +10,9 @@ from collections import deque
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Protocol
 
-from pamd.declare.jsonsafe import JsonObject
 from pamd.safety.limiter import held_back
-from pamd.tick import (
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.tick import (
     I_STATE,
     I_T,
     M_FLAGS,
@@ -28,7 +28,7 @@ from pamd.tick import (
 )
 
 if TYPE_CHECKING:  # what the mailbox holds (a type only: the sink needs no verbs to run)
-    from pamd.verbs.schema import Command
+    from pamd.wire.verbs.args import Command
 
 
 class _Cycles(Protocol):

@@ -20,7 +20,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 # a `sim` rig running on this machine, nor another checkout's test run.
 _RUN_LOCK_DIR = tempfile.mkdtemp(prefix="pamd-test-locks-")
 os.environ["PAMD_LOCK_DIR"] = _RUN_LOCK_DIR
-# ... and of command tokens (pamd.net.credential): every daemon the run starts writes its
+# ... and of command tokens (pamd.wire.credential): every daemon the run starts writes its
 # token there and every client the run starts (same environment) finds it there.
 os.environ["PAMD_TOKEN_DIR"] = _RUN_LOCK_DIR
 atexit.register(shutil.rmtree, _RUN_LOCK_DIR, True)

@@ -60,7 +60,7 @@ LAZY_OWN = {
     # the io process imports the Foxglove live view only for a run that asks for it
     "pamd/io/process.py": "pamd.view.live",
     # the io process checks tokens with this module; only the daemon writes one
-    "pamd/net/credential.py": "pamd.atomic",
+    "pamd/wire/credential.py": "pamd.wire.atomic",
 }
 
 #: the modules that import by name (`importlib.import_module`), which the checks
@@ -236,7 +236,7 @@ def test_the_check_sees_an_upward_and_a_lazy_import(tmp_path: Path) -> None:
     assert ("pamd.daemon", 3, True) in found
     layer = _layer_of()
     assert layer["control"] < layer["config"] and layer["daemon"] < layer["config"]
-    assert _package("pamd.net.node.intake") == "net.node" and _package("pamd.net.keys") == "net"
+    assert _package("pamd.net.node.intake") == "net.node" and _package("pamd.wire.keys") == "net"
     assert layer["net.node"] < layer["net"] and layer["io"] < layer["net.node"]
 
 

@@ -14,11 +14,11 @@ from typing import Any
 import pytest
 
 from pamd.commands import Command, named_files, parse_command
-from pamd.errors import CommandRefused
-from pamd.ipc.ring import BlockLayout
 from pamd.loop import MAX_COMMANDS_PER_TICK
-from pamd.tick import State
-from pamd.verbs.schema import MAX_TEXT_CHARS, args_for_record
+from pamd.wire.errors import CommandRefused
+from pamd.wire.ring import BlockLayout
+from pamd.wire.tick import State
+from pamd.wire.verbs.args import MAX_TEXT_CHARS, args_for_record
 
 SECRET = "-----BEGIN PRIVATE KEY-----\nMIIEsecretsecretsecret\n-----END PRIVATE KEY-----\n"
 

@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from pamd.calibration import load_calibration
-from pamd.tick import State
+from pamd.wire.tick import State
 
 INCREMENTAL = {"drivers": [{"name": "sim", "type": "sim", "options": {
     "seed": 1, "muscles": [{"name": "m1", "load_kg": 30.0, "length_absolute": False}]}}]}

@@ -42,7 +42,7 @@ UNTRACED_TICK_PATH = ("pamd/io/link.py:RingSink.put",)
 
 #: The tick's own code (issue 42 item 1: the tick path and what builds and commands it):
 #: nothing here is over MAX_COMPLEXITY, whether a tick runs it or not.
-TICK_OWNED = ("pamd/control/", "pamd/safety/", "pamd/controller.py", "pamd/tick.py",
+TICK_OWNED = ("pamd/control/", "pamd/safety/", "pamd/controller.py", "pamd/wire/tick.py",
               "pamd/loop.py", "pamd/io/link.py", "pamd/experiment/sequencer.py",
               "drivers/sim.py", "drivers/sim_chain.py", "drivers/sim_faults.py",
               "pamd/sim/")
@@ -226,7 +226,7 @@ def _loop(into: set[CodeType]) -> None:
     waiting = deque([parse_command("setpoint", {"muscle": "m1", "bar": 2.0})])
 
     class Queue:
-        def poll(self) -> Any:  # Any: a Command, as pamd.tick.Mailbox says
+        def poll(self) -> Any:  # Any: a Command, as pamd.wire.tick.Mailbox says
             return waiting.popleft() if waiting else None
 
     loop = Loop(h.cfg, h.ctrl, Queue())

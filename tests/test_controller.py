@@ -12,7 +12,7 @@ from pamd.loop import VirtualClock
 from pamd.muscle_type import GRAVITY_M_S2, force_model
 from pamd.rig import Rig
 from pamd.summary import SummarySink
-from pamd.tick import Flag, TickLayout
+from pamd.wire.tick import Flag, TickLayout
 
 
 def sim_muscle(**opts: Any) -> dict[str, Any]:

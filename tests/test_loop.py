@@ -12,8 +12,8 @@ import pytest
 from pamd.config import LoadedConfig
 from pamd.daemon import Daemon
 from pamd.loop import GIL_SWITCH_FRACTION, SLACK_AT_FRACTION
-from pamd.tick import State
 from pamd.timing import Histogram
+from pamd.wire.tick import State
 
 DEFAULT_SWITCH_INTERVAL_S = 0.005  # CPython's, while nothing lowers it
 

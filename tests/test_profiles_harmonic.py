@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import CommandRefused
 from pamd.harness import Harness
 from pamd.profiles import DEFAULT_HARMONICS, Profile, ProfileSpec
+from pamd.wire.errors import CommandRefused
 
 
 def _trace(p: Profile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -20,13 +20,13 @@ from pamd.drivers.sim import SimDriver
 from pamd.config import LoadedConfig, load_config, load_config_text
 from pamd.config.schema import RealtimeConfig
 from pamd.daemon import Daemon
-from pamd.errors import ConfigError
 from pamd.harness import Harness
 from pamd.loop import Loop
 from pamd.rt import RESET_ON_FORK, RealtimeSession
 from pamd.sim.options import SimCommSafety, SimMuscleOptions, SimOptions
 from pamd.stalls import HOLD_S, stall_limit
-from pamd.tick import State
+from pamd.wire.errors import ConfigError
+from pamd.wire.tick import State
 from tests.sim.rig import Rig
 
 from .conftest import sim_dict

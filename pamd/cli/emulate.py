@@ -16,8 +16,8 @@ from types import FrameType
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
 from pamd.drivers import load_driver_class
-from pamd.errors import DriverError
 from pamd.service.riglock import RunLocks
+from pamd.wire.errors import DriverError
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

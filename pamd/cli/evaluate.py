@@ -16,8 +16,6 @@ from typing import TextIO
 import numpy as np
 
 from pamd.config.schema import ACTUATIONS
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import ModelError
 from pamd.models.anfis.plots import require_matplotlib
 from pamd.models.anfis.samples import Samples
 from pamd.models.anfis.splitting import resplit
@@ -28,6 +26,8 @@ from pamd.models.registry import KINDS, load_model
 from pamd.view.judging import TickReport, judge_as_tick
 from pamd.view.recording import recording_files
 from pamd.view.tables import load_samples
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import ModelError
 
 #: Table rows: metric key, label, format.
 METRIC_ROWS: tuple[tuple[str, str, str], ...] = (

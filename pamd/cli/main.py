@@ -22,8 +22,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, cast
 
-from pamd.errors import PamdError
-from pamd.version import __version__
+from pamd.wire.errors import PamdError
+from pamd.wire.version import __version__
 
 
 class SubCommand(Protocol):
@@ -150,7 +150,7 @@ def build_parser_for(argv: Sequence[str]) -> argparse.ArgumentParser:
     return _build({command.module} if command else set())
 
 
-#: Exit status of a command that did its job (pamd.errors.EXIT_MEANINGS says what each
+#: Exit status of a command that did its job (pamd.wire.errors.EXIT_MEANINGS says what each
 #: status means; docs/exit-codes.md lists them).
 EXIT_OK = 0
 #: Exit status of a command interrupted by Ctrl-C outside a run (a run's own Ctrl-C

@@ -19,13 +19,13 @@ import os
 import sys
 
 from pamd.cli.net import add_client_args
-from pamd.errors import CommandRefused, ModelError
 from pamd.models.anfis.adapted import save_adapted
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS
 from pamd.models.fis import KINDS as FIS_KINDS
 from pamd.models.fis import export_fis, import_fis, names_given
 from pamd.models.registry import load_model, save_model
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
+from pamd.wire.errors import CommandRefused, ModelError
 
 #: The line `pamd --help` shows (pamd.cli.main declares the same)
 HELP = "model files: MATLAB .fis export and import; a running daemon's adapted model"

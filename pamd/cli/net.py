@@ -1,5 +1,5 @@
 """`pamd status`, `pamd cmd`, `pamd watch`: clients of a running daemon over Zenoh (or,
-on the rig PC, its local channel: `pamd.net.local`); `pamd token`: the command
+on the rig PC, its local channel: `pamd.wire.local_channel`); `pamd token`: the command
 credential's file, rotated on demand.
 
 `pamd status` and `pamd cmd` use the daemon's local channel when it is on this machine
@@ -9,7 +9,7 @@ session in client mode: to `tcp/127.0.0.1:7447` by default, to `--connect ENDPOI
 or as `--zenoh-config FILE` says (a client config such as config/zenoh/lab-client.json5;
 given a daemon's config, it connects where that daemon listens). With no `--rig`, the
 one rig alive is used (several: refused, listing them); a rig id is a name, never a
-pattern. Commands are signed with the daemon's token (`pamd.net.credential`;
+pattern. Commands are signed with the daemon's token (`pamd.wire.credential`;
 `--token-file`). Exit codes: 0 ok, 4 command refused, 7 no
 daemon answers (or not allowed), 2 bad arguments, config or rig name.
 """
@@ -28,15 +28,15 @@ from collections.abc import Callable
 from enum import IntEnum
 
 from pamd.cli.numbers import number
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import CommandRefused
 from pamd.net.client.client import Client, LocalRig, local_rig, rig_name
-from pamd.net.credential import CredentialError, find_token, rotate_token
-from pamd.net.keys import Keys
-from pamd.net.telemetry import decode
-from pamd.net.zconf import NoDaemon
-from pamd.tick import Mode, State
-from pamd.verbs.table import VERBS, parse_command
+from pamd.wire.credential import CredentialError, find_token, rotate_token
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import CommandRefused
+from pamd.wire.keys import Keys
+from pamd.wire.telemetry import decode
+from pamd.wire.tick import Mode, State
+from pamd.wire.verbs.table import VERBS, parse_command
+from pamd.wire.zconf import NoDaemon
 
 CMD_EPILOG = """examples:
   pamd cmd setpoint --muscle m1 --bar 3.0
@@ -98,7 +98,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     c.set_defaults(func=cmd)
 
     k = sub.add_parser("token", help="where a rig's command credential is; a new one "
-                       "with --rotate", description="The command credential (pamd.net."
+                       "with --rotate", description="The command credential (pamd.wire."
                        "credential): the token file a daemon keeps for its rig, with which "
                        "pamd cmd and pamd.connect sign each command (the token itself never "
                        "travels). --rotate writes a new token over the old one atomically: "
@@ -127,7 +127,7 @@ def _client(args: argparse.Namespace) -> Client:
 
 
 def _channel(args: argparse.Namespace) -> Client | LocalRig:
-    """On the rig PC, the daemon's local channel (pamd.net.local: no Zenoh session, so
+    """On the rig PC, the daemon's local channel (pamd.wire.local_channel: no Zenoh session, so
     no number of them keeps a status or an estop out): when no Zenoh config is named
     and --connect, if given, is a loopback endpoint the daemon listens on. Else (or
     with no local channel found) a Zenoh session."""

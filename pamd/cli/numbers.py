@@ -1,5 +1,5 @@
 """A command-line number taken as the config and command schemas take one: finite, of
-a physical size (not subnormal), inside its unit's domain (`pamd.schema.domains`) and
+a physical size (not subnormal), inside its unit's domain (`pamd.wire.schema.domains`) and
 the option's own bounds. An argparse `type`, so a bad value is a usage error before
 anything opens: `--duration 1e-320`, `--duration nan` and `--duration -1` alike."""
 
@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 
-from pamd.schema.domains import FieldMeta
-from pamd.schema.engine import Context, build
+from pamd.wire.schema.domains import FieldMeta
+from pamd.wire.schema.engine import Context, build
 
 
 def number(unit: str = "", **bounds: float) -> Callable[[str], float]:

@@ -18,10 +18,10 @@ import time
 
 from pamd.config import load_config
 from pamd.daemon import Daemon
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused, DriverError
 from pamd.safety.datums import AT_REST_MM_S
-from pamd.tick import State
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused, DriverError
+from pamd.wire.tick import State
 
 #: How long the rig may take to read its sensors and come to rest.
 SETTLE_TIMEOUT_S = 10.0

@@ -11,10 +11,10 @@ import json
 import os
 import sys
 
-from pamd.errors import RecordingError
-from pamd.record import files
 from pamd.view import export
 from pamd.view.collection import inspect_collection, print_collection
+from pamd.wire.errors import RecordingError
+from pamd.wire.record import files
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

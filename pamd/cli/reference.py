@@ -15,7 +15,7 @@ from collections.abc import Iterator
 
 from pamd.cli.main import COMMANDS, build_parser
 from pamd.cli.net import verb_parser
-from pamd.verbs.table import VERBS
+from pamd.wire.verbs.table import VERBS
 
 #: the width usage lines are wrapped to, whatever the terminal that runs the generator
 WIDTH = 88

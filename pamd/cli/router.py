@@ -12,8 +12,8 @@ import sys
 import threading
 from types import FrameType
 
-from pamd.net import cleartext, zconf
-from pamd.net.zconf import NoDaemon
+from pamd.wire import cleartext, zconf
+from pamd.wire.zconf import NoDaemon
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

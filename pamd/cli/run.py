@@ -24,17 +24,17 @@ from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.length_targets import check_length_profile_config
 from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.daemon import Daemon
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused, ConfigError, ConfigIssue
 from pamd.io.session import RecordingRequest
-from pamd.net.spec import TelemetryRequest
-from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
 from pamd.service import testhooks
 from pamd.service.notify import Notifier
 from pamd.service.restart import restart_in_place, run_argv, unblock_signals
-from pamd.verbs.table import parse_command
 from pamd.view.spec import parse_listen
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused, ConfigError, ConfigIssue
+from pamd.wire.net_spec import TelemetryRequest
+from pamd.wire.shape_names import SHAPE_PARAMS
+from pamd.wire.verbs.table import parse_command
 
 log = logging.getLogger("pamd")
 
@@ -308,7 +308,7 @@ def _refuse_unread(profile: str, mine: dict[str, str], given: set[str]) -> None:
 
 
 def _checked(verb: str, payload: JsonObject, option_of: dict[str, str]) -> None:
-    """`payload` as the daemon would parse the command (`pamd.verbs`: types, each
+    """`payload` as the daemon would parse the command (`pamd.wire.verbs`: types, each
     number finite, of a physical size and inside its unit's domain), before anything
     opens: a refusal names the option (`option_of`: field -> option)."""
     parse_command(verb, payload, label=lambda field: option_of.get(field, field))

@@ -22,12 +22,12 @@ from collections.abc import Callable, Collection
 
 from pamd.commands.pending import PendingCommand
 from pamd.daemon import Daemon
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused, ConfigError, ConfigIssue
 from pamd.safety.load_check import LoadDisagreement
-from pamd.schema.engine import line_of
-from pamd.schema.yamlload import load_yaml_text
-from pamd.tick import State
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused, ConfigError, ConfigIssue
+from pamd.wire.schema.engine import line_of
+from pamd.wire.schema.yamlload import load_yaml_text
+from pamd.wire.tick import State
 
 log = logging.getLogger("pamd")
 

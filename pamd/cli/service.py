@@ -7,10 +7,10 @@ import argparse
 import logging
 import os
 
-from pamd.errors import PamdError
 from pamd.service.install import install
 from pamd.service.safe_outputs import replay
 from pamd.service.state import SAFE_OUTPUTS_FILE, StateFileError, read_safe_outputs
+from pamd.wire.errors import PamdError
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

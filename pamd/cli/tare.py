@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 
 from pamd.cli.offline import add_state_args, apply_offline, print_verdict
-from pamd.declare.jsonsafe import JsonObject
+from pamd.wire.declare.jsonsafe import JsonObject
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

@@ -14,8 +14,6 @@ import time
 
 from pamd.cli import progress
 from pamd.cli.evaluate import add_actuation_option, format_table, say_own_actuations
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
@@ -29,6 +27,8 @@ from pamd.models.training import fit_with, rows_of
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.view.judging import poor_fit
 from pamd.view.tables import data_files, load_samples
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 #: Names `--inputs` takes for a signal besides its own (seed 001 calls its third input
 #: the change of length, delta L).

@@ -6,9 +6,9 @@ import argparse
 import os
 import warnings
 
-from pamd.errors import RecordingError
 from pamd.view.plots import write_plots
 from pamd.view.recording import RecordingIncomplete, open_recording
+from pamd.wire.errors import RecordingError
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

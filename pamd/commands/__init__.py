@@ -2,9 +2,9 @@
 
 The loop side of the command verbs: each verb's handler, declared in the module of
 its kind (`motion`, `rig`, `plan`, sharing `guards`) against its spec in
-`pamd.verbs.VERBS` (name, argument dataclass, routing, help: what the io process
+`pamd.wire.verbs.table.VERBS` (name, argument dataclass, routing, help: what the io process
 parses and routes by, without these modules); `verbs.REGISTRY` holds them all.
-`parse_command` (`pamd.verbs.table`, re-exported) checks a payload's shape;
+`parse_command` (`pamd.wire.verbs.table`, re-exported) checks a payload's shape;
 `prepare_command` does a command's I/O (a `model` file) outside the loop's thread.
 `apply_command` (`apply`) runs in the loop's thread at the start of a tick, checks the
 command against the present state and limits, and returns the verdict. A refused
@@ -17,7 +17,7 @@ from pamd.commands.registry import Verb, VerbRegistry
 from pamd.commands.schema import PreparedModelArgs, ReloadArgs
 from pamd.commands.verbs import REGISTRY
 from pamd.control.settings import MuscleSettings
-from pamd.verbs.schema import (
+from pamd.wire.verbs.args import (
     LENGTH_PROFILE_FIELDS,
     CollectArgs,
     Command,

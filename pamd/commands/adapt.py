@@ -9,10 +9,10 @@ from pamd.commands.guards import named_muscles
 from pamd.commands.registry import Verb
 from pamd.control.adapt import ACTIONS
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
-from pamd.verbs.schema import AdaptArgs
-from pamd.verbs.table import VERBS as SPECS
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
+from pamd.wire.verbs.args import AdaptArgs
+from pamd.wire.verbs.table import VERBS as SPECS
 
 
 def _adapt(ctrl: RigController, a: AdaptArgs) -> JsonObject:

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from pamd.commands.verbs import REGISTRY
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
-from pamd.verbs.schema import MAX_ERROR_CHARS, Command, cap_text
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
+from pamd.wire.verbs.args import MAX_ERROR_CHARS, Command, cap_text
 
 
 def apply_command(ctrl: RigController, cmd: Command) -> JsonObject:

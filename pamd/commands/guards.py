@@ -8,11 +8,11 @@ from typing import Any
 
 from pamd.control.muscle import MuscleController
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
-from pamd.tick import State
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
+from pamd.wire.tick import State
 
-# Any: each verb's own args dataclass (pamd.verbs pairs a verb's args with its handler)
+# Any: each verb's own args dataclass (pamd.wire.verbs pairs a verb's args with its handler)
 Handler = Callable[[RigController, Any], JsonObject | None]
 """A verb's handler: (controller, args) -> verdict fields; raises CommandRefused."""
 

@@ -27,9 +27,9 @@ from pamd.config.loader import LoadedConfig, MuscleLimitsResolved, load_config
 from pamd.config.schema import MuscleConfig
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.model_check import SOURCES
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused, ModelError
-from pamd.verbs.schema import MAX_ERROR_CHARS, Command, cap_text
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused, ModelError
+from pamd.wire.verbs.args import MAX_ERROR_CHARS, Command, cap_text
 
 #: Largest share of the loop's period one evaluation of a model may take.
 MODEL_TICK_FRACTION = 0.25

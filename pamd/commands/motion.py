@@ -16,12 +16,12 @@ from pamd.control.muscle import MuscleController
 from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.control.rig_safe_state import SAFE_SETPOINT_BAND_BAR
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
 from pamd.profiles import Profile, ProfileSpec
-from pamd.tick import Mode, State
-from pamd.verbs.schema import LENGTH_PROFILE_FIELDS, ModeArgs, ProfileArgs, SetpointArgs
-from pamd.verbs.table import VERBS as SPECS
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
+from pamd.wire.tick import Mode, State
+from pamd.wire.verbs.args import LENGTH_PROFILE_FIELDS, ModeArgs, ProfileArgs, SetpointArgs
+from pamd.wire.verbs.table import VERBS as SPECS
 
 
 def _start(ctrl: RigController, ms: list[MuscleController], spec_: ProfileSpec) -> float | None:

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
 from pamd.config.schema import PLAN_FILE_MAX_BYTES
-from pamd.errors import CommandRefused
 from pamd.models.registry import MAX_FILE_BYTES
+from pamd.wire.errors import CommandRefused
 
 MAX_DEPTH = 64
 PLAN_MAX_BYTES = PLAN_FILE_MAX_BYTES

@@ -32,7 +32,7 @@ from multiprocessing import forkserver
 from multiprocessing.connection import Connection
 from typing import TypeVar
 
-from pamd.errors import CommandRefused, PamdError
+from pamd.wire.errors import CommandRefused, PamdError
 
 T = TypeVar("T")
 

@@ -1,14 +1,14 @@
 """`prepare_command`: a command's I/O (a `model` file) before it is queued, by its
 verb's loop-side declaration. `parse_command` (a payload's shape checked by its
-verb's spec) is `pamd.verbs.table`, which the io process uses without the loop's
+verb's spec) is `pamd.wire.verbs.table`, which the io process uses without the loop's
 modules; it is re-exported here for the loop's side."""
 
 from __future__ import annotations
 
 from pamd.commands.verbs import REGISTRY
 from pamd.config.loader import LoadedConfig
-from pamd.verbs.schema import Command
-from pamd.verbs.table import parse_command
+from pamd.wire.verbs.args import Command
+from pamd.wire.verbs.table import parse_command
 
 __all__ = ["parse_command", "prepare_command"]
 

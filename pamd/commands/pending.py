@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import threading
 
-from pamd.declare.jsonsafe import JsonObject
+from pamd.wire.declare.jsonsafe import JsonObject
 
 
 class PendingCommand:

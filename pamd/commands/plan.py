@@ -6,11 +6,11 @@ from __future__ import annotations
 from pamd.commands.guards import can_move, need_reference
 from pamd.commands.registry import Verb
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import Sequencer, running_plan
-from pamd.verbs.schema import CollectArgs, NoArgs
-from pamd.verbs.table import VERBS as SPECS
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
+from pamd.wire.verbs.args import CollectArgs, NoArgs
+from pamd.wire.verbs.table import VERBS as SPECS
 
 
 def _confirm(ctrl: RigController, a: NoArgs) -> JsonObject:

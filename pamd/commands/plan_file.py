@@ -9,8 +9,8 @@ from __future__ import annotations
 from pamd.commands import named_files
 from pamd.commands.offload import run_isolated
 from pamd.config.loader import LoadedConfig
-from pamd.errors import CommandRefused, PamdError
 from pamd.experiment.plan import Plan, parse_plan
+from pamd.wire.errors import CommandRefused, PamdError
 
 
 def parse_named_plan(path: str, name: str, cfg: LoadedConfig) -> Plan:

@@ -1,10 +1,10 @@
 """The loop side of a command verb: its handler (and the file I/O done before it is
-queued), declared against its spec (`pamd.verbs.table.VerbSpec`: name, argument
+queued), declared against its spec (`pamd.wire.verbs.table.VerbSpec`: name, argument
 dataclass, routing, help), and the `VerbRegistry` the loop dispatches by.
 
 Each handler module (`motion`, `rig`, `plan`, ...) declares its verbs in a `VERBS`
 tuple; `pamd.commands.verbs.REGISTRY` holds them all and checks them against
-`pamd.verbs.VERBS`: every public spec has exactly one handler. The internal verbs
+`pamd.wire.verbs.table.VERBS`: every public spec has exactly one handler. The internal verbs
 (`reload`, `relay`) have their spec here, beside their handler: no client can send
 them, so the io process never needs them.
 """
@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 from pamd.commands.guards import Handler
 from pamd.config.loader import LoadedConfig
-from pamd.verbs.schema import Command
-from pamd.verbs.table import VerbSpec, VerbTable
+from pamd.wire.verbs.args import Command
+from pamd.wire.verbs.table import VerbSpec, VerbTable
 
 Prepare = Callable[[Command, LoadedConfig, bytes | None], Command]
 """(command, loaded config, the file's bytes already read or None) -> the command

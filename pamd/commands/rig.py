@@ -10,15 +10,15 @@ from pamd.commands.guards import can_move, idle_or_hold, named_muscles
 from pamd.commands.registry import Verb
 from pamd.commands.schema import ReloadArgs
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers.safe_outputs import push_safe_outputs
-from pamd.errors import CommandRefused
 from pamd.experiment.sequencer import running_plan
 from pamd.safety.datums import check_home, tare_offset
-from pamd.tick import State
-from pamd.verbs.schema import EstopArgs, HomeArgs, LoadArgs, NoArgs, TareArgs
-from pamd.verbs.table import VERBS as SPECS
-from pamd.verbs.table import VerbSpec
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
+from pamd.wire.tick import State
+from pamd.wire.verbs.args import EstopArgs, HomeArgs, LoadArgs, NoArgs, TareArgs
+from pamd.wire.verbs.table import VERBS as SPECS
+from pamd.wire.verbs.table import VerbSpec
 
 
 def _hold(ctrl: RigController, a: NoArgs) -> JsonObject:

@@ -1,7 +1,7 @@
 """The loop side's own argument types: a `model` command once its file is compiled
 (`PreparedModelArgs`) and the internal `reload` (`ReloadArgs`), which carry live
 objects no client sends. The argument schemas a client's payload is parsed into are
-`pamd.verbs.schema`."""
+`pamd.wire.verbs.args`."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 from pamd.control.feedforward import Feedforward
 from pamd.control.settings import MuscleSettings
-from pamd.declare.jsonsafe import JsonObject
+from pamd.wire.declare.jsonsafe import JsonObject
 
 
 class PreparedModelArgs:

@@ -16,10 +16,10 @@ from pamd.commands.registry import Verb
 from pamd.control.actuation import OnOffActuation
 from pamd.control.onoff import EXHAUST, INFLATE
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
-from pamd.verbs.schema import SetpointArgs
-from pamd.verbs.table import VerbSpec
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
+from pamd.wire.verbs.args import SetpointArgs
+from pamd.wire.verbs.table import VerbSpec
 
 
 @dataclass(frozen=True)

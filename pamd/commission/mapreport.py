@@ -5,7 +5,7 @@ measured range, and what a save would write (text, or one JSON object)."""
 from __future__ import annotations
 
 from pamd.commission.maprun import MapOutcome
-from pamd.declare.jsonsafe import JsonObject
+from pamd.wire.declare.jsonsafe import JsonObject
 
 
 def as_json(path: str, out: MapOutcome, saved: bool) -> JsonObject:

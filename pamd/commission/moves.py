@@ -20,9 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pamd.config import LoadedConfig
-from pamd.errors import PamdError
 from pamd.experiment.plan import Plan, parse_plan
 from pamd.safety.envelope import MuscleEnvelope
+from pamd.wire.errors import PamdError
 
 #: the largest step a commissioning run makes, bar
 MAX_STEP_BAR = 0.5

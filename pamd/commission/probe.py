@@ -24,8 +24,8 @@ from typing import Protocol
 import numpy as np
 
 from pamd.controller import PlanRun
-from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers import Driver
+from pamd.wire.declare.jsonsafe import JsonObject
 
 #: Per-muscle columns, in this order after the loop's `LOOP_COLUMNS`.
 SIGNALS = ("pressure", "force", "length")

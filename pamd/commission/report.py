@@ -9,7 +9,7 @@ import math
 from pamd.commission.measure import Measurements, SignalStats, Step
 from pamd.commission.propose import Threshold
 from pamd.commission.run import Outcome
-from pamd.declare.jsonsafe import JsonObject
+from pamd.wire.declare.jsonsafe import JsonObject
 
 
 def _ms(x: float) -> str:

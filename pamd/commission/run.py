@@ -26,10 +26,10 @@ from pamd.commission.moves import CommissionRefused, Moves, plans
 from pamd.commission.probe import SIGNALS, Probe
 from pamd.config import LoadedConfig
 from pamd.daemon import Daemon
-from pamd.declare.jsonsafe import JsonObject
 from pamd.experiment.plan import Plan
 from pamd.experiment.sequencer import Sequencer, running_plan, started_plan
-from pamd.tick import State
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.tick import State
 
 Progress = Callable[[str], None]
 #: an operator's action a plan waits for (a load to hang): True once it is done

@@ -19,8 +19,8 @@ from collections.abc import Callable
 
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import MuscleConfig, RigConfig, SignalConfig
-from pamd.declare.jsonsafe import JsonValue
-from pamd.schema.engine import Context, line_of
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.schema.engine import Context, line_of
 
 #: The sim driver's sensor options, per input signal: (sample period, latency).
 _SIM_SENSORS = {"pressure": ("pressure_sample_period_s", "pressure_latency_s"),

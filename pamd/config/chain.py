@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from pamd.config.drivertype import driver_type
 from pamd.config.schema import RigConfig, SignalConfig
-from pamd.declare.jsonsafe import JsonValue
-from pamd.schema.engine import Context, line_of
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.schema.engine import Context, line_of
 
 #: signal -> (direction, digital required, what it is for)
 _RULES: dict[str, tuple[str, bool, str]] = {

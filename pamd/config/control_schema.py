@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from pamd.schema.engine import spec
+from pamd.wire.schema.engine import spec
 
 # Gain caps (what `pamd tune` always satisfies: `pamd.control.tuning.simc_pi` slows its
 # closed loop until they hold), bounds of what a gain can mean: within them, whether a

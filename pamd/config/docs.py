@@ -10,7 +10,7 @@ from dataclasses import MISSING
 
 from pamd.config.schema import RigConfig
 from pamd.plugins import DRIVERS_GROUP, installed
-from pamd.schema.engine import _type_name
+from pamd.wire.schema.engine import _type_name
 
 HEADER = """# pamd config reference
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import ClassVar, Protocol, cast, runtime_checkable
 
-from pamd.errors import DriverError
 from pamd.muscle_type import MuscleType
 from pamd.plugins import load_driver_entry
+from pamd.wire.errors import DriverError
 
 
 class DriverType(Protocol):

@@ -25,11 +25,11 @@ from pamd.config.request_timeouts import check_request_timeouts
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import InputSignal, MuscleConfig, RigConfig, SignalConfig, muscle_control
 from pamd.config.timing import check_timing
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import DriverError
 from pamd.muscle_type import MuscleType
-from pamd.schema.engine import Context, build_dataclass, describe, line_of
-from pamd.schema.yamlload import load_yaml_text, read_text
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import DriverError
+from pamd.wire.schema.engine import Context, build_dataclass, describe, line_of
+from pamd.wire.schema.yamlload import load_yaml_text, read_text
 
 log = logging.getLogger(__name__)
 

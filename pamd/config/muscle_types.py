@@ -20,8 +20,6 @@ from dataclasses import replace
 from typing import Protocol, cast
 
 from pamd.config.schema import CustomMuscleConfig, MuscleConfig
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import ModelError
 from pamd.muscle_type import (
     TYPE_NAMES,
     MapBox,
@@ -32,7 +30,9 @@ from pamd.muscle_type import (
 )
 from pamd.muscle_type.custom import NAME as CUSTOM
 from pamd.muscle_type.custom import custom_type
-from pamd.schema.engine import Context, line_of
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import ModelError
+from pamd.wire.schema.engine import Context, line_of
 
 #: the module whose `read_data` reads a lab's tables (`pamd train`'s reader)
 TABLE_READER = "pamd.view.tables"

@@ -22,9 +22,9 @@ from typing import Protocol
 
 from pamd.config.safety_schema import PlausibilityConfig
 from pamd.config.schema import MuscleConfig, RigConfig
-from pamd.declare.jsonsafe import JsonValue
 from pamd.muscle_type import MuscleType
-from pamd.schema.engine import Context, line_of
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.schema.engine import Context, line_of
 
 #: A healthy load cell under a hanging load reads the weight give or take friction and
 #: the load's acceleration (tens of percent while it moves): the zero-force check's

@@ -22,9 +22,9 @@ from pamd.config.control_schema import (
     PressurePlantConfig,
 )
 from pamd.config.safety_schema import SafetyConfig
-from pamd.declare.jsonsafe import JsonValue
 from pamd.muscle_type import DEFAULT_TYPE, TYPE_NAMES
-from pamd.schema.engine import spec
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.schema.engine import spec
 
 #: The largest model file any reader reads (`pamd.models.registry`, the `model` command's
 #: named files): the largest kind, an offline svr, stays far below it.

@@ -32,8 +32,8 @@ from __future__ import annotations
 
 from pamd.config.gains import pressure_plant
 from pamd.config.schema import RigConfig, SignalConfig, muscle_control
-from pamd.declare.jsonsafe import JsonValue
-from pamd.schema.engine import Context, line_at
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.schema.engine import Context, line_at
 
 #: The most learning bins a tick may hold (`control.position.ilc.resolution_s`).
 ILC_BINS_PER_TICK = 10

@@ -1,7 +1,7 @@
 """The actuation stage of one muscle's tick: how its command reaches its valves.
 
 An `Actuation` is the last stage of the muscle's write (`update(t, now_s, dt_s)` on
-the muscle's `pamd.tick.MuscleTick`, as every stage): it takes the command the
+the muscle's `pamd.wire.tick.MuscleTick`, as every stage): it takes the command the
 limiter let through (a pressure, bar) once per tick and drives the muscle's outputs
 with it; `actuation_for` picks it from the muscle's `actuation`. What an actuation
 does beyond following the command it says by two attributes the muscle reads when
@@ -69,7 +69,7 @@ from pamd.config.schema import MuscleConfig, OnOffConfig
 from pamd.control.onoff import EXHAUST, HOLD, INFLATE, Pulser, SlidingModePosition
 from pamd.control.valve_pulse import TAKEN, ValvePulse
 from pamd.rig import MuscleSignals, OutputBinding
-from pamd.tick import Flag, MuscleTick
+from pamd.wire.tick import Flag, MuscleTick
 
 F_EXHAUST = int(Flag.EXHAUST_OPEN)
 F_INFLATE = int(Flag.INFLATE_OPEN)

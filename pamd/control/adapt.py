@@ -51,12 +51,12 @@ from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
-from pamd.declare.fields import PWM_VALVE_FLAGS
-from pamd.declare.jsonsafe import JsonObject
 from pamd.models.anfis.compiled import CompiledAnfis
 from pamd.models.anfis.rls import OutputBound, Rls
 from pamd.models.velocity import VelocityFilter
-from pamd.tick import Flag, MuscleTick, State
+from pamd.wire.declare.fields import PWM_VALVE_FLAGS
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.tick import Flag, MuscleTick, State
 
 if TYPE_CHECKING:
     from pamd.config.schema import AdaptConfig

@@ -26,14 +26,14 @@ from typing import TypeVar
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.schema import MuscleConfig
 from pamd.control.model_check import SOURCES, check_model_for, velocity_window
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
 from pamd.models.domain import DomainTable, domain_of
 from pamd.models.registry import adaptable, load_model
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
-from pamd.schema.engine import Context, line_of
-from pamd.schema.yamlload import load_yaml_text
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
+from pamd.wire.schema.engine import Context, line_of
+from pamd.wire.schema.yamlload import load_yaml_text
 
 R = TypeVar("R")  # what the compiled model's call returns (evaluate: float, reset: None)
 

@@ -23,7 +23,7 @@ from pamd.calibration import MuscleReference
 from pamd.models.velocity import VELOCITY_WINDOW_S, velocity_step
 from pamd.rig import MuscleSignals
 from pamd.safety.plausibility import Plausibility
-from pamd.tick import Flag, MuscleTick, State
+from pamd.wire.tick import Flag, MuscleTick, State
 
 F_STALE, F_NOREF = int(Flag.STALE), int(Flag.NOT_REFERENCED)
 S_LOAD = int(State.LOAD_CHANGE)

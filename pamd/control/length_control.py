@@ -1,7 +1,7 @@
 """The length modes of a muscle: the inverse model (any kind) as feedforward, an outer
 position loop, and iterative learning across cycles.
 
-Modes (`pamd.tick.Mode`), per muscle:
+Modes (`pamd.wire.tick.Mode`), per muscle:
 
 * ``pressure``: the pressure setpoint comes from a pressure profile or setpoint
   (`pamd.control.muscle`); nothing here runs.
@@ -61,7 +61,7 @@ from pamd.control.pid import Pid
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, VelocityFilter
 from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfilePoint
-from pamd.tick import Flag, Mode, MuscleTick, State
+from pamd.wire.tick import Flag, Mode, MuscleTick, State
 
 if TYPE_CHECKING:
     from pamd.config.control_schema import PositionConfig

@@ -11,11 +11,11 @@ from __future__ import annotations
 from dataclasses import replace
 
 from pamd.config.loader import LoadedConfig
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
 from pamd.muscle_type import equilibrium_contraction
 from pamd.profiles import Harmonic, Profile, ProfileSpec, shape_of
 from pamd.safety.envelope import MuscleEnvelope
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
 
 #: Length targets keep this far (contraction) inside what the load lets the muscle reach.
 REACH_MARGIN = 0.005

@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING
 
-from pamd.errors import ModelError
 from pamd.models.contract import (
     LENGTH_INPUTS,
     MODEL_OUTPUT,
@@ -23,6 +22,7 @@ from pamd.models.contract import (
 from pamd.models.domain import Domain, domain_of
 from pamd.models.registry import load_model
 from pamd.muscle_type.registry import DATASHEET_TYPES, datasheet_type
+from pamd.wire.errors import ModelError
 
 if TYPE_CHECKING:
     from pamd.config.loader import MuscleLimitsResolved

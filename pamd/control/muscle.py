@@ -19,7 +19,7 @@ write     guards     the soft limits' bounds on the command (`pamd.safety.limits
           adapt      the model's online adaptation (`pamd.control.adapt`); the tick record
 
 Every stage is `update(t, now, dt)` on the muscle's `MuscleTick` (`tick_values`, the
-values the stages hand each other: `pamd.tick`). The setpoint source is chosen when
+values the stages hand each other: `pamd.wire.tick`). The setpoint source is chosen when
 the rig's state or the muscle's mode, profile, safe ramp or air hold changes
 (`_choose_source`), never branched on per tick; so is what the actuation does beyond
 following the command (`Actuation.closes_pressure_loop`, `positions_length`).
@@ -68,7 +68,6 @@ from pamd.control.setpoint import (
     ValvesPosition,
 )
 from pamd.control.settings import MuscleSettings
-from pamd.declare.jsonsafe import JsonObject
 from pamd.profiles import Profile
 from pamd.rig import MuscleSignals
 from pamd.safety.envelope import MuscleEnvelope
@@ -76,7 +75,8 @@ from pamd.safety.limiter import Limiter
 from pamd.safety.limits import F_AT_LIMIT, Guards, LimitMonitor
 from pamd.safety.load_check import LoadDisagreement, check_load
 from pamd.safety.plausibility import Plausibility
-from pamd.tick import (
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.tick import (
     M_ADAPT_DRIFT,
     M_ADAPT_STATE,
     M_CONTRACTION,

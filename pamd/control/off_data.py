@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from pamd.tick import Flag
+from pamd.wire.tick import Flag
 
 if TYPE_CHECKING:
     from pamd.control.incremental_pid import IncrementalPid

@@ -25,7 +25,7 @@ import math
 from pamd.config.control_schema import PidConfig
 from pamd.control.pid import Pid
 from pamd.control.relay import Relay
-from pamd.tick import Flag, MuscleTick, State
+from pamd.wire.tick import Flag, MuscleTick, State
 
 F_SAT = int(Flag.OUTPUT_SATURATED)
 S_FAULT, S_ESTOP = int(State.FAULT), int(State.ESTOP)

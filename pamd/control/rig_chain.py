@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 from pamd.control.muscle import MuscleController
 from pamd.safety import Supervisor
 from pamd.safety.chain import SafetyChain
-from pamd.tick import Sink, State
+from pamd.wire.tick import Sink, State
 
 
 class ChainResponse:

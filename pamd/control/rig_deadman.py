@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 
 from pamd.control.muscle import MuscleController
 from pamd.profiles import Profile
-from pamd.tick import Sink
+from pamd.wire.tick import Sink
 
 
 class Deadman:

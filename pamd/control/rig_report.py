@@ -7,9 +7,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from pamd.control.muscle import MuscleController
-from pamd.declare.jsonsafe import JsonObject
 from pamd.safety import Supervisor
 from pamd.safety.chain import SafetyChain
+from pamd.wire.declare.jsonsafe import JsonObject
 
 
 def finding_event(m: MuscleController) -> JsonObject:

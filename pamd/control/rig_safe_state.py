@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from pamd.control.muscle import MuscleController
-from pamd.tick import State
+from pamd.wire.tick import State
 
 #: In FAULT or ESTOP, the valve command is at the safe pressure within this (bar).
 SAFE_CMD_BAND_BAR = 1e-3

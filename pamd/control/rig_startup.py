@@ -22,7 +22,7 @@ from pamd.control.rig_safe_state import pace_safe_entry
 from pamd.safety import Supervisor
 from pamd.safety.chain import SafetyChain
 from pamd.safety.load_check import LoadDisagreement
-from pamd.tick import Sink, State
+from pamd.wire.tick import Sink, State
 
 
 def start_up(now: float, since_start_s: float, timeout_s: float,

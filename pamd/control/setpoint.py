@@ -1,6 +1,6 @@
 """The setpoint stage of one muscle's tick: where the pressure setpoint comes from.
 
-Each is a source with one update signature (`pamd.tick.Stage`: `update(t, now, dt)` on
+Each is a source with one update signature (`pamd.wire.tick.Stage`: `update(t, now, dt)` on
 the muscle's `MuscleTick`), chosen by the muscle when its mode or the rig's state
 changes (`pamd.control.muscle.MuscleController`), never branched on per tick:
 
@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 
 from pamd.profiles import Profile
 from pamd.safety.envelope import MuscleEnvelope
-from pamd.tick import Flag, MuscleTick
+from pamd.wire.tick import Flag, MuscleTick
 
 if TYPE_CHECKING:
     from pamd.control.length_control import LengthControl

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from pamd.config.stability import Plant, simc
-from pamd.errors import PamdError
+from pamd.wire.errors import PamdError
 
 
 class IdentificationError(PamdError):

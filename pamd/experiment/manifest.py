@@ -16,15 +16,15 @@ import json
 import os
 import time
 
-from pamd.atomic import atomic_text
 from pamd.config.loader import LoadedConfig
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ConfigError, ConfigIssue
 from pamd.experiment.plan import Plan
 from pamd.experiment.sequencer import Sequencer
 from pamd.experiment.stepfiles import read_step_file
 from pamd.experiment.timeline import StepLine
-from pamd.version import __version__
+from pamd.wire.atomic import atomic_text
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ConfigError, ConfigIssue
+from pamd.wire.version import __version__
 
 FORMAT, VERSION = "pamd-collection", 1
 
@@ -178,7 +178,7 @@ class Manifest:
             "files": files, **(extra or {})})
 
     def save(self, durable: bool = True) -> None:
-        """Write it whole or not at all (`pamd.atomic`). `durable` fsyncs it first, so a
+        """Write it whole or not at all (`pamd.wire.atomic`). `durable` fsyncs it first, so a
         power cut finds it too; without, only a process crash does (what a verdict with
         a deadline can afford: the daemon saves it durably after)."""
         # Made like the recordings beside it (as `open()` makes a file: 0644 less the

@@ -13,15 +13,15 @@ from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
 from pamd.config.names import NAME_RE
-from pamd.declare.jsonsafe import JsonValue
-from pamd.errors import CommandRefused
 from pamd.muscle_type import equilibrium_contraction
-from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
 from pamd.profiles.harmonic import MAX_HARMONIC_NUMBER
 from pamd.safety.envelope import MuscleEnvelope
-from pamd.schema.engine import Context, build_dataclass, line_of, spec
-from pamd.schema.yamlload import load_yaml_text, read_text
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.errors import CommandRefused
+from pamd.wire.schema.engine import Context, build_dataclass, line_of, spec
+from pamd.wire.schema.yamlload import load_yaml_text, read_text
+from pamd.wire.shape_names import SHAPE_PARAMS
 
 #: a plan step's cycles where it gives none, for the shapes that repeat
 PLAN_CYCLES = 3

@@ -20,13 +20,13 @@ import math
 from typing import cast
 
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.experiment.plan import Plan, PlanStep
 from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfileSpec
 from pamd.safety.load_check import check_load
-from pamd.tick import State
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.tick import State
 
 LOAD, SETTLE, PROFILE, HOLD, PAUSE, DONE = "load", "settle", "profile", "hold", "pause", "done"
 FORCE_AGREE_S = 0.5  # the force must agree this long to confirm a load

@@ -13,8 +13,8 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 
-from pamd.errors import RecordingError
-from pamd.record import files as io_files
+from pamd.wire.errors import RecordingError
+from pamd.wire.record import files as io_files
 
 
 @dataclass(frozen=True)

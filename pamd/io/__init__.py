@@ -1,4 +1,4 @@
-"""The io process: where recording (`pamd.record`), telemetry (`pamd.net`) and the
+"""The io process: where recording (`pamd.wire.record`), telemetry (`pamd.net`) and the
 live view (`pamd.view`) run, away from the loop's interpreter lock.
 
 - `spec`: the picklable description of one io process.

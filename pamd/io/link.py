@@ -28,11 +28,12 @@ from collections import deque
 from collections.abc import Callable
 from multiprocessing.process import BaseProcess
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused, RecordingError
 from pamd.io.process import io_main
 from pamd.io.spec import IoSpec
-from pamd.ipc.ring import (
+from pamd.summary import LocalMailbox
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused, RecordingError
+from pamd.wire.ring import (
     C_HEARTBEAT,
     C_IO_STATE,
     C_LOOP_LOST,
@@ -45,10 +46,9 @@ from pamd.ipc.ring import (
     BlockLayout,
     SharedBlock,
 )
-from pamd.summary import LocalMailbox
-from pamd.tick import I_T, I_TICK, Mailbox
-from pamd.verbs.schema import Command
-from pamd.verbs.table import parse_command
+from pamd.wire.tick import I_T, I_TICK, Mailbox
+from pamd.wire.verbs.args import Command
+from pamd.wire.verbs.table import parse_command
 
 QUIET_TICKS = 1
 DROP_REPORT_S = 1.0  # a loss that goes on is said this often (loop time), not only at its end

@@ -3,7 +3,7 @@
 watches, sends commands to the loop and routes their verdicts.
 
 With telemetry, it also takes recording control from the daemon's main thread (the
-board's control ring: a collection started over the network, `pamd.record.control`) and
+board's control ring: a collection started over the network, `pamd.wire.record.control`) and
 sends the recorder's notices back through the board.
 
 It never blocks the loop: it only reads rings the loop writes without waiting. If a
@@ -27,9 +27,11 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from pamd.declare.jsonsafe import JsonObject
 from pamd.io.spec import IoSpec
-from pamd.ipc.ring import (
+from pamd.net.node.node import NetNode
+from pamd.record.recorder import Recorder
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.ring import (
     C_HEARTBEAT,
     C_IO_STATE,
     C_RECORDED,
@@ -39,14 +41,12 @@ from pamd.ipc.ring import (
     IO_READY,
     SharedBlock,
 )
-from pamd.net.node.node import NetNode
-from pamd.record.recorder import Recorder
-from pamd.verbs.table import VERBS
+from pamd.wire.verbs.table import VERBS
 
 if TYPE_CHECKING:  # types only; the live view is imported when a run asks for it
-    from pamd.net.spec import NetSpec
-    from pamd.record.spec import RecordSpec
     from pamd.view.live import LiveView
+    from pamd.wire.net_spec import NetSpec
+    from pamd.wire.record.record_spec import RecordSpec
 
 IDLE_SLEEP_S = 0.0005
 BACKLOG_MAX = 1024  # commands waiting for room in the loop's mailbox
@@ -410,7 +410,7 @@ class IoProcess:
         return n, summary
 
     def _control(self, net: NetNode, rec: Recorder) -> None:
-        """Recording control from the daemon's main thread (pamd.record.control)."""
+        """Recording control from the daemon's main thread (pamd.wire.record.control)."""
         board = net.board
         while board is not None and (blob := board.control.get_blob()) is not None:
             rec.control(json.loads(blob))

@@ -19,20 +19,20 @@ from dataclasses import dataclass
 from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
 from pamd.io.link import IoLink, MultiMailbox, RingMailbox, RingSink
 from pamd.io.spec import IoSpec
-from pamd.ipc.ring import BlockLayout, pow2_at_least
 from pamd.loop import Loop
-from pamd.net.board import Board
 from pamd.net.host.host import NetHost
 from pamd.net.host.ports import HostParts
 from pamd.net.host.resolve import resolve_all
-from pamd.net.spec import NetSpec, TelemetryRequest
 from pamd.record.meta import build_record_spec
 from pamd.summary import LocalMailbox, SummarySink
-from pamd.tick import TickLayout
 from pamd.view.spec import ViewerSpec
+from pamd.wire.board import Board
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.net_spec import NetSpec, TelemetryRequest
+from pamd.wire.ring import BlockLayout, pow2_at_least
+from pamd.wire.tick import TickLayout
 
 
 @dataclass(frozen=True)
@@ -99,7 +99,7 @@ class IoSession:
             run_name=req.run_name, model_path=req.model_path, profile=req.profile,
             virtual=self.virtual, wall0_ns=wall0, fsize_limit_bytes=req.fsize_limit_bytes,
             steps=req.segments, max_mb=req.max_mb)
-        # Telemetry: the status board the main thread writes (pamd.net.board)
+        # Telemetry: the status board the main thread writes (pamd.wire.board)
         self.board: Board | None = None
         self.host: NetHost | None = None
         if net is not None:

@@ -6,10 +6,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.ipc.ring import BlockLayout
-from pamd.net.spec import NetSpec
-from pamd.record.spec import RecordSpec
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.net_spec import NetSpec
+from pamd.wire.record.record_spec import RecordSpec
+from pamd.wire.ring import BlockLayout
 
 if TYPE_CHECKING:  # a type only: a run without the live view never imports pamd.view
     from pamd.view.spec import ViewerSpec

@@ -18,12 +18,12 @@ from typing import TextIO
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
 from pamd.models.contract import InverseModel, velocity_window
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import ModelError
 
 #: Comparison table columns: metric key, header, format (seed 002's Table 4 and more).
 COMPARISON_COLUMNS: tuple[tuple[str, str, str], ...] = (

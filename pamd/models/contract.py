@@ -32,8 +32,8 @@ from typing import Literal, Protocol, overload, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 #: Signals a model input can be fed from, in the order `Feedforward.pressure` takes them.
 SOURCES: tuple[str, ...] = ("force_n", "length_mm", "contraction", "velocity_mm_s")

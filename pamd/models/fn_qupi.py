@@ -42,8 +42,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.samples import Samples
 from pamd.models.contract import Envelope, Predictor, Variable, describe_common, tick_problems
@@ -59,6 +57,8 @@ from pamd.models.fn_qupi_narmax import (
 )
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions, option
 from pamd.models.qupi import DEFAULT_OPERATORS, Qupi, _identify
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 VERSION = 1
 

@@ -36,8 +36,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models import svr_kernels
 from pamd.models.anfis.samples import OUTPUT_UNITS
@@ -52,6 +50,8 @@ from pamd.models.learned_base import (
     standardise,
 )
 from pamd.models.mlp_fit import SOLVERS, fit_network, minmax_scaling
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 __all__ = ["MAX_TICK_SUPPORT_VECTORS", "MLP", "SVR", "CompiledLearned", "LearnedModel",
            "MlpModel", "SvrModel"]

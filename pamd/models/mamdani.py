@@ -41,8 +41,6 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
 from pamd.models.anfis.membership import initial_parameters
@@ -58,6 +56,8 @@ from pamd.models.contract import (
 from pamd.models.document import field, footer, header, numbers, read_header
 from pamd.models.genetic import GaOptions, minimise
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 VERSION = 1
 #: Points of the output range the centroid is taken over (MATLAB's default, 101).

@@ -43,8 +43,6 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.contract import (
     Envelope,
@@ -62,6 +60,8 @@ from pamd.models.static_force_tick import (
     CompiledForwardForce,
     CompiledStaticForce,
 )
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 VERSION = 1
 #: The two orientations: inputs -> output (the inverse, and the forward model itself).

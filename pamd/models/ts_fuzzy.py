@@ -48,8 +48,6 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.metrics import regression_metrics
 from pamd.models.anfis import modelfile
 from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
@@ -66,6 +64,8 @@ from pamd.models.anfis.training import (
 from pamd.models.anfis_kind import anfis_plots, parse_mfs
 from pamd.models.genetic import SCALINGS, GaOptions, GaResult, minimise
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 TUNERS: tuple[str, ...] = ("gd", "ga", "mga")
 CONSEQUENTS: tuple[str, ...] = ("constant", "linear")

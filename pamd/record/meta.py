@@ -13,9 +13,9 @@ import time
 
 from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
-from pamd.declare.jsonsafe import JsonObject
-from pamd.record.spec import RecordSpec
-from pamd.version import __version__
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.record.record_spec import RecordSpec
+from pamd.wire.version import __version__
 
 
 def _s(v: object) -> str:

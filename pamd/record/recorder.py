@@ -5,7 +5,7 @@ Topics (they match the Zenoh key names):
   /pamd/<rig>/state/<muscle>  pamd_msgs/msg/MuscleState, cdr, one per muscle per tick
   /pamd/<rig>/loop            pamd_msgs/msg/LoopTiming,  cdr, one per tick
   /pamd/<rig>/events          pamd_msgs/msg/Event, json (jsonschema): every recorded kind
-                              of pamd.declare.events (transitions, commands and verdicts,
+                              of pamd.wire.declare.events (transitions, commands and verdicts,
                               lost records, recording notices, ...)
 Log time: wall-clock ns of the tick's scheduled time in real time; with the virtual
 clock, run start (wall clock) + tick x period, so the time axis is the rig's.
@@ -13,7 +13,7 @@ clock, run start (wall clock) + tick x period, so the time axis is the rig's.
 Experiment steps (the tick field `segment`, step + 1) get a file each: from the start
 when the run is a collection (`pamd collect`: `RecordSpec.steps`), or, in a daemon
 already recording, for the span of a collection started over the network
-(`pamd.record.control`: the recorder switches into the collection's directory at its first
+(`pamd.wire.record.control`: the recorder switches into the collection's directory at its first
 step and back to an ordinary run file when `segment` returns to 0).
 """
 
@@ -25,14 +25,14 @@ import os
 import struct
 import time
 
-from pamd.declare import events
-from pamd.declare.jsonsafe import JsonObject, dumps, jsonsafe
-from pamd.record import cdr, control
-from pamd.record.mcapw import McapWriter
-from pamd.record.spec import RecordedRun, RecordSpec
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
+from pamd.wire.declare import events
+from pamd.wire.declare.jsonsafe import JsonObject, dumps, jsonsafe
+from pamd.wire.record import cdr, control
+from pamd.wire.record.mcapw import McapWriter
+from pamd.wire.record.record_spec import RecordedRun, RecordSpec
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
-#: the recorded event's JSON schema, from the event registry (pamd.declare.events)
+#: the recorded event's JSON schema, from the event registry (pamd.wire.declare.events)
 EVENT_SCHEMA = events.json_schema()
 
 
@@ -103,7 +103,7 @@ class Recorder:
         self.pending: JsonObject | None = None  # a collection announced (`begin`)
         self.coll: JsonObject | None = None  # the collection being recorded
         self.coll_files = self.coll_ticks = 0  # where it started in files and ticks
-        self.notices: list[JsonObject] = []  # for the daemon (pamd.record.control)
+        self.notices: list[JsonObject] = []  # for the daemon (pamd.wire.record.control)
         self.name_suffix = ""  # "-2"... when the plain name was taken by an earlier run
 
     # -- files ------------------------------------------------------------------------
@@ -189,7 +189,7 @@ class Recorder:
 
     # -- experiment steps and collections ------------------------------------------------
     def control(self, msg: JsonObject) -> None:
-        """A control message of the daemon's main thread (pamd.record.control)."""
+        """A control message of the daemon's main thread (pamd.wire.record.control)."""
         if msg.get("op") == control.BEGIN:
             self.pending = msg
         elif msg.get("op") == control.END:

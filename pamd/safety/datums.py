@@ -23,11 +23,11 @@ import math
 from typing import Protocol
 
 from pamd.calibration import MuscleReference
-from pamd.errors import CommandRefused
 from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction
 from pamd.rig import MuscleSignals
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.safety.plausibility import Plausibility
+from pamd.wire.errors import CommandRefused
 
 
 class DatumMuscle(Protocol):

@@ -19,11 +19,11 @@ from dataclasses import dataclass, replace
 from pamd.config.loader import LoadedConfig, MuscleLimitsResolved
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import MuscleConfig
-from pamd.declare.jsonsafe import JsonObject
 from pamd.muscle_type import ForceModel, MuscleType
 from pamd.safety import safe_pressure_bar
 from pamd.safety.length_rate import LengthRate, derive_length_rate
 from pamd.safety.load_check import load_tolerance_n
+from pamd.wire.declare.jsonsafe import JsonObject
 
 
 @dataclass(frozen=True, slots=True)

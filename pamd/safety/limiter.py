@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 
-from pamd.tick import Flag, MuscleTick
+from pamd.wire.tick import Flag, MuscleTick
 
 F_SOFT_P, F_SLEW = int(Flag.SOFT_LIMIT_PRESSURE), int(Flag.SLEW_LIMITED)
 F_SOFT_C, F_PRETENSION = int(Flag.SOFT_LIMIT_CONTRACTION), int(Flag.PRETENSION_LIMIT)

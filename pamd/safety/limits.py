@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 from pamd.config.safety_schema import SafetyConfig
 from pamd.safety.limiter import held_back
-from pamd.tick import Flag, MuscleTick
+from pamd.wire.tick import Flag, MuscleTick
 
 if TYPE_CHECKING:
     from pamd.safety.envelope import MuscleEnvelope

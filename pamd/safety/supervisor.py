@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from pamd.muscle_type import GRAVITY_M_S2, ForceModel, pressure_for_force
-from pamd.tick import State
+from pamd.wire.tick import State
 
 
 def safe_pressure_bar(model: ForceModel, load_kg: float, max_pretension: float,

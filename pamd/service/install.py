@@ -20,9 +20,9 @@ from collections.abc import Callable
 from importlib import resources
 from pathlib import Path
 
-from pamd.atomic import write_atomic
 from pamd.config import LoadedConfig, load_config
-from pamd.errors import ConfigError
+from pamd.wire.atomic import write_atomic
+from pamd.wire.errors import ConfigError
 
 PLACEHOLDER = "/opt/pamd/bin/pamd"
 FILES = (  # (source in systemd/, target below the prefix)

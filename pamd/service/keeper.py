@@ -29,7 +29,6 @@ from collections.abc import Callable
 from pamd.commands import Command
 from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig
-from pamd.declare.jsonsafe import JsonObject
 from pamd.service.notify import Notifier
 from pamd.service.persistence import StateKeeper
 from pamd.service.ports import KeptLoop, KeptRig, SafeMuscleView, tick_gap_s
@@ -37,6 +36,7 @@ from pamd.service.reload import ReloadPlan
 from pamd.service.reloader import Reloader
 from pamd.service.state import FaultRecord, StatePaths
 from pamd.service.watchdog import Watchdog
+from pamd.wire.declare.jsonsafe import JsonObject
 
 __all__ = ["RT_SCAN_S", "KeptLoop", "KeptRig", "SafeMuscleView", "ServiceKeeper"]
 

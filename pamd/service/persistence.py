@@ -25,7 +25,7 @@ from pamd.service.state import (
     write_fault,
     write_safe_outputs,
 )
-from pamd.tick import State
+from pamd.wire.tick import State
 
 log = logging.getLogger("pamd")
 

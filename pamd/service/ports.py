@@ -10,11 +10,11 @@ from collections.abc import Sequence
 from typing import Protocol
 
 from pamd.config.loader import LoadedConfig
-from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers.safe_outputs import SafeMuscle
 from pamd.rt import RealtimeSession
 from pamd.safety.supervisor import Supervisor
 from pamd.timing import TickTiming
+from pamd.wire.declare.jsonsafe import JsonObject
 
 
 class KeptRig(Protocol):

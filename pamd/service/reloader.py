@@ -34,12 +34,12 @@ from pamd.commands.model_file import read_config, read_config_isolated
 from pamd.commands.offload import Preparer
 from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import PamdError
 from pamd.service.notify import Notifier
 from pamd.service.ports import KeptLoop, KeptRig
 from pamd.service.reload import ReloadPlan, describe, plan_reload
-from pamd.tick import State
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import PamdError
+from pamd.wire.tick import State
 
 log = logging.getLogger("pamd")
 

@@ -36,7 +36,7 @@ import time
 from collections.abc import Sequence
 from typing import IO
 
-from pamd.errors import PamdError
+from pamd.wire.errors import PamdError
 
 LOCK_DIR_ENV = "PAMD_LOCK_DIR"
 SYSTEM_LOCK_DIR = "/run/pamd"

@@ -19,10 +19,10 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from pamd.declare.jsonsafe import JsonObject
 from pamd.drivers import Driver, load_driver_class
-from pamd.errors import DriverError
-from pamd.schema.engine import Context, build_dataclass
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import DriverError
+from pamd.wire.schema.engine import Context, build_dataclass
 
 SIMULATED = ("sim",)
 

@@ -31,11 +31,11 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from pamd.atomic import fsync_dir, write_atomic
 from pamd.config.loader import LoadedConfig, builtin_config_path
-from pamd.declare.jsonsafe import JsonObject, JsonValue
 from pamd.drivers.safe_outputs import safe_output_values
-from pamd.errors import PamdError
+from pamd.wire.atomic import fsync_dir, write_atomic
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import PamdError
 
 if TYPE_CHECKING:  # a type only: reading the state files needs no controller
     from pamd.service.ports import KeptRig
@@ -119,7 +119,7 @@ STATE_FILE_MODE = 0o600
 
 def write_json_atomic(path: str, doc: JsonObject) -> None:
     """Write `doc` so that a crash or power cut leaves the old file or the new one,
-    never half of one (`pamd.atomic`: FileWriteError, an OSError, if it cannot)."""
+    never half of one (`pamd.wire.atomic`: FileWriteError, an OSError, if it cannot)."""
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     write_atomic(path, json.dumps(doc, indent=2, allow_nan=False) + "\n",
                  file_mode=STATE_FILE_MODE)

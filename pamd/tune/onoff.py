@@ -61,9 +61,9 @@ from typing import NamedTuple
 import numpy as np
 
 from pamd.commands.tune import Valve
-from pamd.tick import Flag
 from pamd.tune.run import TuneRefused
 from pamd.tune.yamledit import change_row
+from pamd.wire.tick import Flag
 
 LEVEL_BAR = 3.0
 SETTLE_S = 2.0  # the PWM holding the level before the first pulse

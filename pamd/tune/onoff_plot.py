@@ -28,7 +28,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pamd.atomic import save_figure
 from pamd.tune.onoff import (
     SHORTEST_REPEATS,
     SPEED_PULSE_S,
@@ -42,6 +41,7 @@ from pamd.tune.onoff import (
     unsound,
 )
 from pamd.tune.report import pyplot
+from pamd.wire.atomic import save_figure
 
 if TYPE_CHECKING:  # matplotlib is the optional extra: its types only
     from matplotlib.axes import Axes
@@ -56,7 +56,7 @@ def plot_onoff(path: str, tests: dict[str, StepTest], level_bar: float) -> None:
     """Write the PNG of the step tests (by muscle) at `level_bar` to `path`."""
     plt = pyplot()
     fig = onoff_figure(plt, tests, level_bar)
-    save_figure(fig, path, DPI)  # whole or not at all (pamd.atomic)
+    save_figure(fig, path, DPI)  # whole or not at all (pamd.wire.atomic)
     plt.close(fig)
 
 

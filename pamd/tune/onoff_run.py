@@ -26,10 +26,8 @@ from pamd.config import LoadedConfig, load_config
 from pamd.control.actuation import OnOffActuation, min_pulse_s
 from pamd.control.relay import DONE
 from pamd.daemon import Daemon
-from pamd.declare.jsonsafe import JsonObject
 from pamd.io.session import RecordingRequest
 from pamd.safety.envelope import MuscleEnvelope
-from pamd.tick import State
 from pamd.tune.onoff import (
     AFTER_S,
     IDENT_DEAD_BAND_BAR,
@@ -45,8 +43,10 @@ from pamd.tune.onoff import (
     smallest_change_mm,
 )
 from pamd.tune.run import TuneRefused, start
-from pamd.verbs.schema import Command, SetpointArgs
 from pamd.view.recording import open_recording
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.tick import State
+from pamd.wire.verbs.args import Command, SetpointArgs
 
 Progress = Callable[[str], None]
 #: told the step test as measured, before it is checked (`pamd tune --plot` draws a

@@ -36,8 +36,8 @@ from pamd.control.tuning import (
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
 from pamd.tune.run import PRESSURE, TuneRefused, check_limits, start, tuning_config
-from pamd.verbs.schema import Command
 from pamd.view.recording import open_recording
+from pamd.wire.verbs.args import Command
 
 #: the largest relay amplitude allowed unless --relay-max-bar says otherwise (bar): the
 #: loop's working range, as for the steps

@@ -8,14 +8,14 @@ from types import ModuleType
 
 import numpy as np
 
-from pamd.atomic import save_figure
 from pamd.config import LoadedConfig
 from pamd.config.gains import position_plant, pressure_plant
 from pamd.control.tuning import Fopdt
-from pamd.errors import PamdError
 from pamd.tune.run import LoopPlan
 from pamd.tune.steps import Step, position_gains, pressure_gains
 from pamd.tune.yamledit import KeyPath, change_row
+from pamd.wire.atomic import save_figure
+from pamd.wire.errors import PamdError
 
 #: The plant keys of each loop, in the order of the FOPDT model's gain, lag, dead time.
 PLANT_KEYS: dict[str, tuple[KeyPath, KeyPath, KeyPath]] = {
@@ -171,5 +171,5 @@ def plot_fits(path: str, lp: LoopPlan, model: Fopdt,
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
-    save_figure(fig, path, 120)  # whole or not at all (pamd.atomic)
+    save_figure(fig, path, 120)  # whole or not at all (pamd.wire.atomic)
     plt.close(fig)

@@ -24,11 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.atomic import write_atomic
 from pamd.config import LoadedConfig, load_config
 from pamd.daemon import Daemon
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import PamdError
 from pamd.experiment.manifest import step_records
 from pamd.experiment.plan import Plan, load_plan
 from pamd.experiment.sequencer import started_plan
@@ -38,6 +35,9 @@ from pamd.safety import safe_pressure_bar
 from pamd.safety.envelope import MuscleEnvelope
 from pamd.tune.steps import Step, steps_in
 from pamd.view.recording import open_recording
+from pamd.wire.atomic import write_atomic
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import PamdError
 
 log = logging.getLogger(__name__)
 

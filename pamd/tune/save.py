@@ -14,11 +14,11 @@ from collections.abc import Mapping
 
 import yaml
 
-from pamd.atomic import write_atomic
 from pamd.config.loader import load_config_text
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ConfigError
 from pamd.tune.yamledit import KeyPath, Value, YamlEditError, parsed_value, set_values
+from pamd.wire.atomic import write_atomic
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ConfigError
 
 
 def save_values(config_path: str, values: Mapping[KeyPath, Value], what: str = "gains",

@@ -19,8 +19,8 @@ from collections.abc import Mapping
 
 import yaml
 
-from pamd.declare.jsonsafe import JsonValue
-from pamd.errors import PamdError
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.errors import PamdError
 
 KeyPath = tuple[str, ...]
 #: what a key may be set to: a number, or a word (a muscle's type, a file's name)

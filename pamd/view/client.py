@@ -23,12 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import CommandRefused
 from pamd.net.client.client import Client
-from pamd.net.keys import Keys
-from pamd.net.telemetry import decode
-from pamd.net.zconf import NoDaemon
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import CommandRefused
+from pamd.wire.keys import Keys
+from pamd.wire.telemetry import decode
+from pamd.wire.zconf import NoDaemon
 
 STREAM_POLL_S = 0.005
 
@@ -142,5 +142,5 @@ def connect(rig: str | None = None, endpoint: str | None = None,
     None: the one rig alive, NoDaemon listing them if several answer), reached at
     `endpoint` (default tcp/127.0.0.1:7447) or as the Zenoh client config file says.
     Commands carry the daemon's token, from `token_file` or found as
-    `pamd.net.credential.find_token` says. NoDaemon (a PamdError) if none answers."""
+    `pamd.wire.credential.find_token` says. NoDaemon (a PamdError) if none answers."""
     return RigClient(rig, endpoint, zenoh_config, timeout_s, token_file)

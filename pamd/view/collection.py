@@ -9,10 +9,10 @@ from __future__ import annotations
 import json
 import os
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import RecordingError
 from pamd.experiment.manifest import Manifest
-from pamd.record import files as io_files
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import RecordingError
+from pamd.wire.record import files as io_files
 
 
 def _file(path: str) -> JsonObject:

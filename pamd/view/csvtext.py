@@ -15,8 +15,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TextIO
 
-from pamd.errors import ModelError
 from pamd.view.table_checks import MAX_CELLS, MAX_COLUMNS, MAX_LINE_CHARS, shown
+from pamd.wire.errors import ModelError
 
 #: Cells handed over per chunk (rows = this / columns).
 CHUNK_CELLS = 1 << 20

@@ -26,11 +26,11 @@ from typing import TypedDict
 
 import numpy as np
 
-from pamd.atomic import atomic_text
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import RecordingError
 from pamd.view import fields
 from pamd.view.recording import MuscleData, Recording, open_recording
+from pamd.wire.atomic import atomic_text
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import RecordingError
 
 #: what `open_recording` reads: an MCAP file, a list of files, or a directory
 RecordingSource = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]

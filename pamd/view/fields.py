@@ -1,11 +1,11 @@
 """What each recorded field is: its unit, its description, and the names behind the
 codes (supervisor states, control modes, flag bits), for the Python API, the MATLAB
-and CSV exports and the plots. All of it from the field table (pamd.declare.fields)."""
+and CSV exports and the plots. All of it from the field table (pamd.wire.declare.fields)."""
 
 from __future__ import annotations
 
-from pamd.declare import fields as table
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS, Flag, Mode, State
+from pamd.wire.declare import fields as table
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS, Flag, Mode, State
 
 #: units of names the table does not declare (a column of an older recording): by suffix
 _SUFFIXES = (("_mm_s", "mm/s"), ("_bar", "bar"), ("_n", "N"), ("_mm", "mm"), ("_s", "s"),

@@ -38,12 +38,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from pamd.control.feedforward import Feedforward
-from pamd.declare.jsonsafe import JsonObject
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.samples import Samples
 from pamd.models.compare import Judged, columns_for, predict_samples, tick_cost_us
 from pamd.models.contract import MODEL_OUTPUT, SOURCES, InverseModel
 from pamd.models.domain import RULE, DomainTable, domain_of
+from pamd.wire.declare.jsonsafe import JsonObject
 
 WARN_OFF_DATA_PCT = 1.0
 #: the output clamp "rescues" a model whose unclamped RMSE is this many times its RMSE

@@ -19,14 +19,14 @@ import json
 import sys
 from collections.abc import Sequence
 
-from pamd.atomic import write_atomic
 from pamd.config import load_config
-from pamd.declare import fields
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.tick import Mode, State
+from pamd.wire.atomic import write_atomic
+from pamd.wire.declare import fields
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.tick import Mode, State
 
 #: the plot panels of a muscle's tab: title, y unit, series colours in order; the
-#: series are the field table's fields with that `plot` (pamd.declare.fields)
+#: series are the field table's fields with that `plot` (pamd.wire.declare.fields)
 PANELS: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "pressure": ("pressure vs setpoint, valve command", "bar",
                  ("#1f77b4", "#ff7f0e", "#7f7f7f", "#2ca02c")),

@@ -33,13 +33,13 @@ import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
-from pamd.declare.jsonsafe import JsonObject, dumps
 from pamd.net.ratelimit import RateLimitedHandler, limit_logger
-from pamd.net.seams import RunClock
-from pamd.record import cdr
 from pamd.record.recorder import record_schemas
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 from pamd.view.spec import ViewerSpec
+from pamd.wire.declare.jsonsafe import JsonObject, dumps
+from pamd.wire.record import cdr
+from pamd.wire.seams import RunClock
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 if TYPE_CHECKING:  # foxglove-sdk: an optional extra, imported on `open`; its types only
     from foxglove import Channel, Context

@@ -30,8 +30,8 @@ import struct
 import zlib
 from typing import BinaryIO, Protocol
 
-from pamd.errors import ModelError
 from pamd.view.table_checks import shown
+from pamd.wire.errors import ModelError
 
 HEADER_BYTES = 128
 MI_MATRIX, MI_COMPRESSED = 14, 15

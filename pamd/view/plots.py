@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pamd.atomic import save_figure
-from pamd.errors import RecordingError
 from pamd.view.recording import MuscleData, Recording
+from pamd.wire.atomic import save_figure
+from pamd.wire.errors import RecordingError
 
 if TYPE_CHECKING:  # matplotlib is the optional extra: its types only
     from matplotlib.figure import Figure
@@ -161,6 +161,6 @@ def _hysteresis(plt: ModuleType, path: str, m: MuscleData, title: str) -> str:
 
 def _save(fig: Figure, plt: ModuleType, path: str) -> str:
     fig.tight_layout()
-    save_figure(fig, path, DPI)  # whole or not at all (pamd.atomic)
+    save_figure(fig, path, DPI)  # whole or not at all (pamd.wire.atomic)
     plt.close(fig)
     return path

@@ -24,11 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import RecordingError
-from pamd.record import files as io_files
-from pamd.record.tables import read_columns
 from pamd.view import fields
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import RecordingError
+from pamd.wire.record import files as io_files
+from pamd.wire.record.tables import read_columns
 
 
 class RecordingIncomplete(UserWarning):

@@ -9,7 +9,7 @@ import re
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from pamd.errors import ConfigError, ConfigIssue
+from pamd.wire.errors import ConfigError, ConfigIssue
 
 if TYPE_CHECKING:  # a type only: the io process unpickles a ViewerSpec without the config
     from pamd.config.loader import LoadedConfig

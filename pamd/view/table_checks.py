@@ -13,7 +13,7 @@ nothing it holds echoed raw.
 - **Physics.** A value no sensor on a PAM rig can report (`PHYSICAL`, by column: one
   sample of 1e308 N would set the model's training range, and so its input clamping,
   to 1e308) is refused with its file:row:column; the bounds are the config's unit
-  domains (`pamd.schema.domains`), narrowed where the quantity has a sign (a length,
+  domains (`pamd.wire.schema.domains`), narrowed where the quantity has a sign (a length,
   a load) or a range of its own (a contraction: the length between 0 and twice the
   nominal; a gauge pressure: not below vacuum).
 - **Units.** A column whose values lie outside what the quantity spans on any PAM rig
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.schema.domains import UNIT_DOMAIN
+from pamd.wire.schema.domains import UNIT_DOMAIN
 
 #: The most a table may hold, as doubles (see the module doc).
 MAX_TABLE_BYTES = 512 << 20

@@ -53,8 +53,6 @@ from typing import Any
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.anfis.extraction import extract
 from pamd.models.anfis.recordings import actuations_of, read_mcap
 from pamd.models.anfis.samples import FROM_LENGTH, ExtractOptions, Run, Samples
@@ -64,6 +62,8 @@ from pamd.view.export import matlab_name
 from pamd.view.matscan import check_mat
 from pamd.view.recording import recording_files
 from pamd.view.table_checks import MAX_TABLE_BYTES, PHYSICAL, shown, unit_warning, unphysical
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 #: quantity -> (pamd's column, pamd's unit, {unit as written: factor to pamd's unit})
 QUANTITIES: dict[str, tuple[str, str, dict[str, float]]] = {

@@ -24,11 +24,11 @@ from pamd.commands.named_files import MODEL_MAX_BYTES
 from pamd.commands.offload import run_isolated, warm_up
 from pamd.commands.schema import PreparedModelArgs
 from pamd.config import LoadedConfig, load_config
-from pamd.errors import CommandRefused, ConfigError
 from pamd.models import registry
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.anfis.serialize import to_dict
 from pamd.models.contract import Variable
+from pamd.wire.errors import CommandRefused, ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -9,7 +9,7 @@ import time
 import pytest
 
 from pamd.commands import offload
-from pamd.errors import CommandRefused
+from pamd.wire.errors import CommandRefused
 
 
 def _sleep(seconds: float) -> float:

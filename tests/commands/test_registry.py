@@ -1,4 +1,4 @@
-"""Each command verb's spec is declared once (`pamd.verbs.VERBS`) and its handler once
+"""Each command verb's spec is declared once (`pamd.wire.verbs.table.VERBS`) and its handler once
 (`pamd.commands.registry.Verb`); the parser, the loop's dispatcher, the io process's
 routing, the status and `pamd cmd --help` derive from them."""
 
@@ -23,9 +23,9 @@ from pamd.commands import (
     plan,
     rig,
 )
-from pamd.errors import CommandRefused
-from pamd.verbs.schema import NoArgs
-from pamd.verbs.table import VERBS, VerbSpec, VerbTable
+from pamd.wire.errors import CommandRefused
+from pamd.wire.verbs.args import NoArgs
+from pamd.wire.verbs.table import VERBS, VerbSpec, VerbTable
 
 PUBLIC = ("setpoint", "profile", "mode", "model", "adapt", "hold", "resume", "stop", "estop",
           "reset", "home", "tare", "load", "confirm", "pause", "collect")
@@ -111,7 +111,7 @@ def specs_of(verbs: tuple[Verb, ...]) -> tuple[VerbSpec, ...]:
 
 
 def test_the_io_side_specs_are_the_loops_verbs() -> None:
-    """`pamd.verbs.VERBS` (the io process's) and the loop's registry name the same
+    """`pamd.wire.verbs.table.VERBS` (the io process's) and the loop's registry name the same
     public verbs, in the same order, with the same specs."""
     assert VERBS.names == REGISTRY.names
     assert all(REGISTRY.public(s.name).spec is s for s in VERBS)  # type: ignore[union-attr]

@@ -18,7 +18,7 @@ from pamd.commission.probe import Probe
 from pamd.commission.run import Between, Outcome, commission
 from pamd.config import load_config
 from pamd.daemon import Daemon
-from pamd.tick import State
+from pamd.wire.tick import State
 
 from .conftest import REPO
 

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 from pamd.config import load_config, load_config_text
-from pamd.errors import ConfigError
 from pamd.experiment.plan import parse_plan
 from pamd.muscle_type import (
     TYPE_NAMES,
@@ -25,6 +24,7 @@ from pamd.muscle_type import (
     equilibrium_contraction,
 )
 from pamd.safety.envelope import MuscleEnvelope
+from pamd.wire.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
 SIM = (REPO / "config" / "sim.yaml").read_text()

@@ -21,7 +21,7 @@ from pamd.control.feedforward import Feedforward  # noqa: E402
 from pamd.models.anfis import AnfisModel, Variable  # noqa: E402
 from pamd.models.anfis.rls import OutputBound  # noqa: E402
 from pamd.models.static_force import PolynomialModel  # noqa: E402
-from pamd.tick import Flag, State  # noqa: E402
+from pamd.wire.tick import Flag, State  # noqa: E402
 
 DT = 0.001
 L0 = 200.0

@@ -23,7 +23,7 @@ from pamd.models.contract import InverseModel
 from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfilePoint, ProfileSpec
 from pamd.safety.envelope import MuscleEnvelope
-from pamd.tick import Mode, State
+from pamd.wire.tick import Mode, State
 
 S_RUNNING = int(State.RUNNING)
 #: the known model: p = 3 + DP_DF (F - 295) + DP_DL (L - 180), bar

@@ -17,10 +17,10 @@ from pamd.commands import apply_command, parse_command, prepare_command
 from pamd.config import LoadedConfig, load_config
 from pamd.control.feedforward import LoadedModel, load_models
 from pamd.control.model_check import velocity_window
-from pamd.errors import CommandRefused, ConfigError
 from pamd.harness import Harness
 from pamd.models.anfis import TrainingOptions, fit, save
-from pamd.tick import Flag, Mode, State
+from pamd.wire.errors import CommandRefused, ConfigError
+from pamd.wire.tick import Flag, Mode, State
 
 CLIP = int(Flag.FF_CLIPPED)
 SIM_YAML = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"

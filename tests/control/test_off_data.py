@@ -21,7 +21,7 @@ from pamd.harness import Harness
 from pamd.models.anfis import TrainingOptions, fit, save
 from pamd.models.domain import derive
 from pamd.muscle_type import force_model, pressure_for_force
-from pamd.tick import Flag, State
+from pamd.wire.tick import Flag, State
 
 FIXTURES = Path(__file__).parent / "fixtures"
 OFF, FADED, OSC = int(Flag.FF_OFF_DATA), int(Flag.FF_FADED), int(Flag.FF_OSCILLATING)

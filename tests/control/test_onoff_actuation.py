@@ -10,7 +10,7 @@ import pytest
 
 from pamd.control.actuation import OnOffActuation
 from pamd.harness import Harness
-from pamd.tick import Flag, State
+from pamd.wire.tick import Flag, State
 from tests.safety.conftest import onoff_muscles, sim_driver
 
 

@@ -24,7 +24,7 @@ from pamd.io.process import MODULES_ENV
 ROOT = Path(__file__).resolve().parents[2]
 
 #: at most this many of pamd's modules (packages included) in the io process, the 4 of
-#: `pamd.declare` (the field table, the event registry and the JSON encoder the recorder
+#: `pamd.wire.declare` (the field table, the event registry and the JSON encoder the recorder
 #: and the node are built from) among them: #26 asks for 40. Was 191 before the split,
 #: 44 before the node's ports became types only and the YAML loader stayed out.
 MAX_PAMD_MODULES = 40
@@ -35,7 +35,7 @@ FORBIDDEN = ("pamd.controller", "pamd.loop", "pamd.harness", "pamd.control", "pa
              "pamd.daemon", "pamd.service", "pamd.net.host", "pamd.net.client", "pamd.rig",
              "pamd.drivers", "pamd.sim", "numpy",
              # it parses no YAML (commands are JSON; the config is read in the daemon)
-             "pamd.schema.yamlload", "yaml")
+             "pamd.wire.schema.yamlload", "yaml")
 
 
 def console_script(tmp: Path) -> Path:
@@ -81,7 +81,7 @@ def test_the_io_process_of_a_recorded_run_with_telemetry_imports_what_it_needs(
     names = io_modules(tmp_path, "--listen", f"tcp/127.0.0.1:{free_port()}")
     pamd = check(names)
     # it did what it is there for: recorded, and served Zenoh with the command schemas
-    for needed in ("pamd.record.recorder", "pamd.net.node.node", "pamd.verbs.table",
+    for needed in ("pamd.record.recorder", "pamd.net.node.node", "pamd.wire.verbs.table",
                    "zenoh"):
         assert needed in names, needed
     assert "pamd.__main__" in pamd and "pamd.cli.main" not in pamd

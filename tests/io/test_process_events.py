@@ -19,10 +19,10 @@ import pytest
 from pamd.experiment.stepfiles import read_step_file
 from pamd.io.process import IoProcess
 from pamd.io.spec import IoSpec
-from pamd.ipc.ring import BlockLayout, SharedBlock
 from pamd.record.recorder import Recorder
-from pamd.record.spec import RecordSpec
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
+from pamd.wire.record.record_spec import RecordSpec
+from pamd.wire.ring import BlockLayout, SharedBlock
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 RATE_HZ = 100.0
 STEPS = ({"step": "light", "index": 0, "plan": "quick", "load_kg": 15.0},

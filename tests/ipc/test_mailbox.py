@@ -13,7 +13,7 @@ from pamd.daemon import Daemon
 from pamd.io.link import RingMailbox
 from pamd.io.process import RingCommandPort
 from pamd.io.session import RecordingRequest
-from pamd.ipc.ring import BlockLayout, SharedBlock
+from pamd.wire.ring import BlockLayout, SharedBlock
 
 from ..record.conftest import make_sim_config
 

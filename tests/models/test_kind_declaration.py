@@ -16,9 +16,9 @@ from typing import Any
 import pytest
 
 from pamd.cli.main import main
-from pamd.errors import ModelError
 from pamd.models import kinds_doc
 from pamd.models.registry import KINDS, adaptable, load_model, register
+from pamd.wire.errors import ModelError
 
 ROOT = Path(__file__).resolve().parents[2]
 

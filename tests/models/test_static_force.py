@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import ModelError
 from pamd.models.contract import ModelEnvelope
 from pamd.models.registry import load_model, save_model
 from pamd.models.static_force import PolynomialModel, fit_coefficients, fit_static
+from pamd.wire.errors import ModelError
 
 #: rig-physics.md's smooth fit of the DMSP-20 force map (d = 0): a known Sarosi model.
 SAROSI = {"a": -10.1206, "b": 236.3164, "c": -0.3378, "d": 0.0, "e": -7.9242,

@@ -25,7 +25,7 @@ import time
 from typing import Any
 
 from pamd.net.client.client import Client
-from pamd.net.zconf import NoDaemon
+from pamd.wire.zconf import NoDaemon
 
 
 def _payload(req: dict[str, Any]) -> Any:

@@ -17,11 +17,11 @@ import pytest
 import yaml
 
 from pamd.config import load_config
-from pamd.errors import CommandRefused
 from pamd.experiment.manifest import Manifest
 from pamd.experiment.plan import load_plan
 from pamd.net.host.collections import Collections
 from pamd.safety.supervisor import Supervisor
+from pamd.wire.errors import CommandRefused
 
 PLAN = yaml.safe_dump({
     "name": "quick", "muscle": "m1", "settle": {"seconds": 1},

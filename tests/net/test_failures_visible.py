@@ -18,7 +18,7 @@ from pathlib import Path
 from pamd.config.loader import load_config
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
-from pamd.net.spec import TelemetryRequest
+from pamd.wire.net_spec import TelemetryRequest
 from tests.net.conftest import Agent, free_port, rig_config, wait_listening, wait_until
 
 

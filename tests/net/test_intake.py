@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
-from pamd.net.credential import Signer, digest
 from pamd.net.node import node as node_mod
 from pamd.net.node.node import NetNode
-from pamd.net.spec import NetSpec
+from pamd.wire.credential import Signer, digest
+from pamd.wire.net_spec import NetSpec
 
 TOKEN = "t" * 43
 NONCE = "0123456789abcdef"  # the daemon's run nonce

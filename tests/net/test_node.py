@@ -13,7 +13,7 @@ from typing import Any
 
 from pamd.io.process import RingCommandPort
 from pamd.net.node.node import NetNode
-from pamd.net.spec import NetSpec
+from pamd.wire.net_spec import NetSpec
 
 
 class Query:

@@ -78,9 +78,9 @@ def test_salvage_keeps_the_declared_fields_and_says_what_it_cut() -> None:
 
 
 def test_the_daemons_own_endpoint_bounds_what_clients_cost() -> None:
-    """Sessions, message size and no shared-memory pool (pamd.net.zconf): what 50
+    """Sessions, message size and no shared-memory pool (pamd.wire.zconf): what 50
     clients cost the io process is bounded and comes back (tests/adversary)."""
-    from pamd.net import zconf
+    from pamd.wire import zconf
 
     cfg = zconf.daemon_config(None)
     assert zconf.get(cfg, "transport/unicast/max_sessions") == zconf.MAX_SESSIONS == 100

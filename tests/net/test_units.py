@@ -11,15 +11,15 @@ from typing import Any
 import pytest
 
 from pamd.cli.net import _parse_bool, build_payload, verb_parser
-from pamd.errors import ConfigError
-from pamd.net import zconf
-from pamd.net.board import Board
 from pamd.net.host.resolve import resolve
 from pamd.net.ratelimit import RateLimiter
-from pamd.net.spec import TelemetryRequest
-from pamd.net.telemetry import LOOP_COLUMNS, StateBatcher, decode, rows
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS, State, TickLayout
 from pamd.timing import Histogram
+from pamd.wire import zconf
+from pamd.wire.board import Board
+from pamd.wire.errors import ConfigError
+from pamd.wire.net_spec import TelemetryRequest
+from pamd.wire.telemetry import LOOP_COLUMNS, StateBatcher, decode, rows
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS, State, TickLayout
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -347,13 +347,13 @@ def test_cmd_payloads_from_options() -> None:
 def test_status_snapshot_from_a_running_daemon(sim_daemon: Any) -> None:
     from pamd.net.host.status import StatusBuilder, recording_status
     from pamd.net.node.answer import TickStats
-    from pamd.net.status import MUSCLE_STATUS_FIELDS, STATUS_FIELDS
+    from pamd.wire.status import MUSCLE_STATUS_FIELDS, STATUS_FIELDS
 
     d = sim_daemon(duration_s=None)
     assert d.wait_for_state((State.IDLE,)) == State.IDLE
     st = StatusBuilder(d.ctrl, d.loop, lambda: d.cfg, lambda: recording_status(d.io)).build(0.0)
     json.dumps(st, allow_nan=False)  # strict JSON
-    # every declared field, and only those (pamd.net.status declares them)
+    # every declared field, and only those (pamd.wire.status declares them)
     assert tuple(st) == STATUS_FIELDS and tuple(st["muscles"]["m1"]) == MUSCLE_STATUS_FIELDS
     assert st["rig_id"] == "sim" and st["config_sha256"] == d.cfg.sha256
     assert st["muscles"]["m1"]["references"]["length_referenced"] is True

@@ -21,8 +21,8 @@ from mcap.reader import make_reader
 
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
-from pamd.record import files
-from pamd.tick import State
+from pamd.wire.record import files
+from pamd.wire.tick import State
 
 
 def until(cond: Callable[[], bool], timeout_s: float = 60.0, what: str = "") -> None:

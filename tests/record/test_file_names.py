@@ -10,7 +10,7 @@ from mcap.reader import make_reader
 
 from pamd.io.spec import IoSpec
 from pamd.record.recorder import Recorder
-from pamd.record.spec import RecordSpec
+from pamd.wire.record.record_spec import RecordSpec
 
 
 def _spec(tmp_path: Path) -> IoSpec:

@@ -11,7 +11,7 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS, TickLayout
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS, TickLayout
 
 from .conftest import same
 

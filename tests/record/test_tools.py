@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from pamd.cli.main import main
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
 from pamd.view.export import column_decimals
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 BAD = {
     "missing": None,

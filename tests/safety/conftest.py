@@ -20,7 +20,7 @@ import yaml
 from pamd.config import LoadedConfig
 from pamd.harness import Harness
 from pamd.sim.faults import SimFault
-from pamd.tick import State
+from pamd.wire.tick import State
 
 from ..conftest import sim_dict
 

@@ -11,9 +11,9 @@ import pytest
 
 from pamd.config import LoadedConfig
 from pamd.control.length_targets import check_length_profile_config
-from pamd.errors import CommandRefused
 from pamd.safety import safe_pressure_bar
 from pamd.safety.envelope import MuscleEnvelope
+from pamd.wire.errors import CommandRefused
 
 
 def test_the_envelope_holds_the_configs_limits_and_names(

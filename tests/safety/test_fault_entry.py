@@ -20,7 +20,7 @@ import pytest
 from pamd.config import LoadedConfig
 from pamd.control.feedforward import LoadedModel
 from pamd.harness import Harness
-from pamd.tick import State
+from pamd.wire.tick import State
 from tests.experiment.test_sequencer import start
 
 from ..conftest import sim_dict

@@ -12,8 +12,8 @@ from pamd.commands import Command, apply_command
 from pamd.commands.tune import RelayArgs
 from pamd.experiment.sequencer import running_plan
 from pamd.harness import Harness
-from pamd.tick import State
 from pamd.tune.run import IDENT_SLEW_BAR_PER_S, tuning_config
+from pamd.wire.tick import State
 from tests.experiment.test_sequencer import start
 
 from .conftest import SafetyRig

@@ -11,9 +11,9 @@ import pytest
 
 from pamd.config import LoadedConfig
 from pamd.control.length_targets import check_length_profile_config
-from pamd.errors import CommandRefused
 from pamd.muscle_type import equilibrium_contraction
 from pamd.safety.envelope import MuscleEnvelope
+from pamd.wire.errors import CommandRefused
 
 
 def _sine(freq_hz: float) -> dict[str, object]:

@@ -24,7 +24,7 @@ from pamd.harness import Harness
 from pamd.muscle_type import GRAVITY_M_S2
 from pamd.safety.load_check import check_load, load_tolerance_n
 from pamd.service.reload import plan_reload
-from pamd.tick import State
+from pamd.wire.tick import State
 
 from ..conftest import sim_dict
 

@@ -14,7 +14,7 @@ import pytest
 from pamd.config import LoadedConfig
 from pamd.daemon import Daemon
 from pamd.service.state import state_paths
-from pamd.tick import State
+from pamd.wire.tick import State
 
 from .conftest import wait_until
 

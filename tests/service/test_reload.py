@@ -14,7 +14,7 @@ import yaml
 from pamd.config import load_config
 from pamd.daemon import Daemon
 from pamd.service.reload import changed_paths, classify
-from pamd.tick import State
+from pamd.wire.tick import State
 
 from .conftest import merge, wait_until
 

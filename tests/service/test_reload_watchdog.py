@@ -18,10 +18,10 @@ import pytest
 
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
-from pamd.declare.jsonsafe import JsonObject
 from pamd.harness import Harness
 from pamd.service.keeper import ServiceKeeper
 from pamd.service.testhooks import SLOW_RELOAD_ENV
+from pamd.wire.declare.jsonsafe import JsonObject
 from tests.benchmod import bench_module
 
 from .conftest import NotifySocket, sim_dict, wait_until, write_yaml

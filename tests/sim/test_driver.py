@@ -12,9 +12,9 @@ import pytest
 from pamd.drivers import load_driver_class
 from pamd.drivers.sim import SimDriver
 
-from pamd.errors import DriverError
 from pamd.muscle_type import equilibrium_contraction, force_model
 from pamd.sim.options import SimMuscleOptions, SimOptions
+from pamd.wire.errors import DriverError
 
 # --- protocol and options -------------------------------------------------------
 

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from pamd.cli import tune as tune_cli
-from pamd.errors import PamdError
 from pamd.tune.onoff import PULSES, SPEED_PULSE_S, SPEED_WINDOW_S, WINDOW_S, StepTest, unsound
 from pamd.tune.onoff_plot import onoff_figure, plot_onoff
 from pamd.tune.report import pyplot
+from pamd.wire.errors import PamdError
 from tests.tune.conftest import ONOFF
 
 

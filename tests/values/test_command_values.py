@@ -13,9 +13,9 @@ from typing import Any
 
 import pytest
 
-from pamd.errors import CommandRefused
 from pamd.harness import Harness
-from pamd.verbs.table import VERBS
+from pamd.wire.errors import CommandRefused
+from pamd.wire.verbs.table import VERBS
 
 BAD = {"subnormal": 5e-324, "huge": 1e308, "nan": math.nan, "inf": math.inf,
        "negative": -1.0}

@@ -19,10 +19,10 @@ import yaml
 
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
-from pamd.errors import CommandRefused, ConfigError
 from pamd.experiment.plan import parse_plan
 from pamd.profiles import ProfileSpec
 from pamd.profiles.harmonic import max_harmonics
+from pamd.wire.errors import CommandRefused, ConfigError
 from tests.conftest import CliResult
 
 BAD: dict[str, Any] = {"subnormal": 1e-320, "huge": 1e308, "nan": math.nan, "negative": -1}

@@ -15,7 +15,7 @@ from mat4py import loadmat
 import pamd
 from pamd.cli.main import main
 from pamd.models.anfis.recordings import read_csv
-from pamd.tick import MUSCLE_FIELDS, Flag, State
+from pamd.wire.tick import MUSCLE_FIELDS, Flag, State
 
 from .conftest import Recorded
 

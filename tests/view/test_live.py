@@ -19,9 +19,9 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap.records import Channel, Schema
 
-from pamd.record.files import Decoder
 from pamd.record.recorder import record_schemas
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
+from pamd.wire.record.files import Decoder
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 from ..net.conftest import DaemonProc, free_port, rig_config
 from .conftest import Viewer
@@ -202,7 +202,7 @@ def test_a_restart_in_place_keeps_the_view() -> None:
 
 
 @dataclass(frozen=True)
-class Clock:  # a run's clock (pamd.net.seams.RunClock), as the view reads it
+class Clock:  # a run's clock (pamd.wire.seams.RunClock), as the view reads it
     virtual: bool
     wall0_ns: int
     clock0_s: float

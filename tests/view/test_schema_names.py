@@ -12,7 +12,7 @@ from mcap.writer import Writer
 
 import pamd
 from pamd.models.anfis.recordings import read_runs
-from pamd.record.cdr import EVENT_SCHEMA_NAME
+from pamd.wire.record.cdr import EVENT_SCHEMA_NAME
 
 from .conftest import Recorded
 

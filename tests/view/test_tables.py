@@ -13,9 +13,9 @@ from scipy.io import savemat
 
 import pamd
 from pamd.cli.main import main
-from pamd.errors import ModelError
 from pamd.models.anfis.samples import ExtractOptions
 from pamd.view.tables import load_samples, parse_name, read_data, read_table_csv
+from pamd.wire.errors import ModelError
 
 from .conftest import Recorded
 

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.registry import load_model, save_model
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 
 def _iso(unix: float | None) -> str | None:

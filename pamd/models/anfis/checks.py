@@ -1,7 +1,7 @@
 """Data checks run before training: refuse data that cannot give a sound model.
 
 Role: turn whatever the caller passes (lists, arrays) into float64 arrays of the
-expected shapes, or raise `pamd.errors.ModelError` naming the problem and, where the
+expected shapes, or raise `pamd.wire.errors.ModelError` naming the problem and, where the
 caller gave names, the column. Checked: shapes and lengths, NaN/inf, constant input
 columns; fewer samples than model parameters is said, not refused
 (`fewer_samples_than_parameters`).
@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.errors import ModelError
+from pamd.wire.errors import ModelError
 
 
 def _column_label(names: Sequence[str] | None, i: int) -> str:

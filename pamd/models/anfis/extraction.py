@@ -16,7 +16,7 @@ What is dropped, per run (counted per reason in the provenance):
   (`pamd.models.anfis.samples.DROP_FLAGS`); on on/off valves (the recording's config
   says `actuation: onoff`, or for a table that carries no config, the options'
   `actuation`) the exhaust's PWM pulses are the control itself, as the inflate
-  valve's are, and are kept (`pamd.declare.fields.PWM_VALVE_FLAGS`);
+  valve's are, and are kept (`pamd.wire.declare.fields.PWM_VALVE_FLAGS`);
 * settling transients: the first `settle_s` of each run and of each stretch of
   accepted state, and, in MCAP files, each profile's lead-in ramp (computed from the
   profile command recorded on the events topic) plus `settle_s`.
@@ -43,14 +43,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pamd.declare.fields import PWM_VALVE_FLAGS
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.anfis.recordings import read_runs
 from pamd.models.anfis.samples import FROM_LENGTH, ExtractOptions, Run, Samples
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, derivation, filtered_velocity
 from pamd.profiles import SHAPES, ProfileSpec
-from pamd.tick import Flag, State
+from pamd.wire.declare.fields import PWM_VALVE_FLAGS
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
+from pamd.wire.tick import Flag, State
 
 _RUNNING = int(State.RUNNING)
 _PROFILE_VERBS = ("profile", "setpoint")

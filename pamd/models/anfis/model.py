@@ -32,8 +32,6 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.anfis.compiled import CompiledAnfis
 from pamd.models.anfis.membership import (
     UNDERFLOW_GUARD,
@@ -49,6 +47,8 @@ from pamd.models.contract import (
     describe_common,
     tick_problems,
 )
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 SCALINGS: tuple[str, ...] = ("minmax", "zscore")
 #: Rule consequents: "linear" f = p . s + q (first-order Sugeno, seed 000's; Jang's

@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from pamd.atomic import save_figure
-from pamd.errors import ModelError
 from pamd.models.anfis.membership import log_membership
 from pamd.models.anfis.model import AnfisModel
+from pamd.wire.atomic import save_figure
+from pamd.wire.errors import ModelError
 
 
 def _pyplot() -> Any:  # Any: matplotlib.pyplot, imported lazily (heavy third party)
@@ -167,6 +167,6 @@ def training_plot(path: str, curve: dict[str, Sequence[float] | None]) -> str:
 # Any: a matplotlib figure and pyplot, imported lazily (heavy third party)
 def _save(fig: Any, plt: Any, path: str) -> str:
     fig.tight_layout()
-    save_figure(fig, path, 110)  # whole or not at all (pamd.atomic)
+    save_figure(fig, path, 110)  # whole or not at all (pamd.wire.atomic)
     plt.close(fig)
     return path

@@ -16,12 +16,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError, RecordingError
 from pamd.models.anfis.samples import Run
-from pamd.record import files
-from pamd.record.tables import Columns, read_columns
-from pamd.tick import Mode, State
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError, RecordingError
+from pamd.wire.record import files
+from pamd.wire.record.tables import Columns, read_columns
+from pamd.wire.tick import Mode, State
 
 #: Accepted names of a CSV time column (case-insensitive) and their scale to seconds.
 TIME_COLUMNS: tuple[tuple[str, float], ...] = (

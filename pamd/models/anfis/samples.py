@@ -13,11 +13,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from pamd.config.schema import ACTUATIONS
-from pamd.declare.fields import PWM_VALVE_FLAGS
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
-from pamd.tick import Flag
+from pamd.wire.declare.fields import PWM_VALVE_FLAGS
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
+from pamd.wire.tick import Flag
 
 #: Model inputs this module can produce, with units (pressure_bar: a forward model's
 #: input, seed 002's F(p, k); the tick feeds none, so such a model cannot drive a muscle).

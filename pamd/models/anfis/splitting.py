@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.anfis.samples import Samples
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 #: How `split` can part the samples (`pamd train --split-by`).
 SPLITS: tuple[str, ...] = ("block", "run", "curve", "random")

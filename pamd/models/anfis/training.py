@@ -31,7 +31,6 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.checks import (
     as_inputs_outputs,
@@ -41,7 +40,8 @@ from pamd.models.anfis.checks import (
 from pamd.models.anfis.membership import log_membership, log_membership_grads
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel, init_model, rule_firing
 from pamd.models.anfis.step_size import StepSizeState, update_step_size
-from pamd.version import __version__
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.version import __version__
 
 #: Progress callback: (epoch 1-based, training RMSE, validation RMSE or None).
 ProgressCallback = Callable[[int, float, float | None], None]

@@ -6,7 +6,7 @@ use it too, or talk to the key space with any Zenoh client.
 Each command query declares this session's Zenoh id (`source_info`) and the user
 (`?user=NAME`); the daemon records both but authenticates neither. What it checks is
 the command's signature, made with the daemon's token (found as
-`pamd.net.credential.find_token` says) over the command, a counter and the daemon's
+`pamd.wire.credential.find_token` says) over the command, a counter and the daemon's
 run nonce (its status says it; asked once per rig): the token itself never travels
 (on a lab network the router's access control decides, besides, who reaches the
 daemon at all: config/zenoh/lab-router.json5). An estop or stop too large is cut here
@@ -35,15 +35,15 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from pamd.config.names import CHUNK_RE
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import PamdError
-from pamd.net import zconf
-from pamd.net.credential import BAD, STALE, Signer, find_token
-from pamd.net.keys import ROOT, Keys
-from pamd.net.local import LocalClient, socket_paths
 from pamd.net.node.intake import ESTOP, MAX_PAYLOAD_BYTES, salvage, salvage_object
-from pamd.net.zconf import NoDaemon
-from pamd.verbs.table import VERBS
+from pamd.wire import zconf
+from pamd.wire.credential import BAD, STALE, Signer, find_token
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import PamdError
+from pamd.wire.keys import ROOT, Keys
+from pamd.wire.local_channel import LocalClient, socket_paths
+from pamd.wire.verbs.table import VERBS
+from pamd.wire.zconf import NoDaemon
 
 if TYPE_CHECKING:  # zenoh is imported when a client opens its session, never on import
     import zenoh
@@ -72,7 +72,7 @@ class Client:
     def __init__(self, zenoh_config: str | None = None, connect: str | None = None,
                  token_file: str | None = None) -> None:
         """`token_file`: the command credential's file (default: as
-        `pamd.net.credential.find_token` finds it for the rig)."""
+        `pamd.wire.credential.find_token` finds it for the rig)."""
         import zenoh
 
         self.zenoh = zenoh
@@ -243,7 +243,7 @@ class Client:
 
     def _attachment(self, rig: str, verb: str, body: bytes, timeout_s: float
                     ) -> tuple[bytes | None, str]:
-        """The command's signature (pamd.net.credential), and where the token was looked
+        """The command's signature (pamd.wire.credential), and where the token was looked
         for when none was found. An estop goes at once: unsigned when this client has not
         seen the daemon's nonce yet (anyone may stop the rig; it is recorded as sent
         without a credential), never waiting for a status first."""
@@ -364,7 +364,7 @@ def selector_user(user: str | None) -> str:
     return f"?user={user}" if user else ""
 
 
-# -- the local channel (pamd.net.local): the rig PC's way in, outside Zenoh -------------
+# -- the local channel (pamd.wire.local_channel): the rig PC's way in, outside Zenoh -------------
 class LocalRig:
     """A daemon's local channel in the shape `pamd status` and `pamd cmd` use of a
     `Client` (`rig`, `status`, `command`): its commands need no signature (the kernel

@@ -24,7 +24,7 @@ own under the daemon's recording directory: `<recording dir>/<plan>-<YYYYmmdd-HH
 
 Everything here runs in the daemon's main thread (`NetHost.service`, and the io
 session's close): the directory, the manifest (file I/O), and the control message that
-tells the io process's recorder where the steps go (`pamd.record.control`), sent before
+tells the io process's recorder where the steps go (`pamd.wire.record.control`), sent before
 the plan reaches the loop. The loop's thread does none of it.
 """
 
@@ -37,14 +37,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import CommandRefused, ConfigError, PamdError
 from pamd.experiment.manifest import Manifest, collection_name, step_records
 from pamd.experiment.plan import Plan
 from pamd.experiment.sequencer import Sequencer, running_plan
 from pamd.experiment.timeline import simulated_loads, timeline
 from pamd.net.host.ports import HostParts
-from pamd.record import control
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import CommandRefused, ConfigError, PamdError
+from pamd.wire.record import control
 
 log = logging.getLogger("pamd")
 

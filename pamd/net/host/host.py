@@ -24,15 +24,15 @@ from pamd.commands import Command, named_files, parse_command
 from pamd.commands.model_file import ModelSource, prepare_model_from
 from pamd.commands.offload import Preparer, warm_up
 from pamd.commands.plan_file import read_plan
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import CommandRefused
 from pamd.experiment.plan import Plan
-from pamd.net.board import Board
 from pamd.net.host.collections import Collection, Collections
 from pamd.net.host.ports import HostParts
 from pamd.net.host.status import StatusBuilder, recording_status
-from pamd.net.status import jsonsafe
-from pamd.verbs.schema import args_for_record
+from pamd.wire.board import Board
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import CommandRefused
+from pamd.wire.status import jsonsafe
+from pamd.wire.verbs.args import args_for_record
 
 log = logging.getLogger("pamd")
 
@@ -139,7 +139,7 @@ class NetHost:
     def _request(self, blob: bytes) -> None:
         try:
             req = json.loads(blob)
-            if "notice" in req:  # the io process's (pamd.record.control)
+            if "notice" in req:  # the io process's (pamd.wire.record.control)
                 self.collections.notice(req["notice"])
                 return
             rid = int(req["id"])

@@ -12,8 +12,8 @@ from typing import Protocol
 from pamd.commands import Command
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
 from pamd.loop import Loop
+from pamd.wire.declare.jsonsafe import JsonObject
 
 
 class RecordingState(Protocol):

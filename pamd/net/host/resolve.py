@@ -1,6 +1,6 @@
 """The io process's telemetry and live-view specs from the config and the caller's
 request, decided in the daemon before anything starts (`resolve_all`), links in clear
-beyond loopback included (`pamd.net.cleartext`)."""
+beyond loopback included (`pamd.wire.cleartext`)."""
 
 from __future__ import annotations
 
@@ -11,15 +11,15 @@ from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
 from pamd.config.names import check_chunk
-from pamd.errors import ConfigError, ConfigIssue
-from pamd.net import cleartext, zconf
-from pamd.net.cleartext import is_loopback_host
-from pamd.net.credential import ensure_token
-from pamd.net.local import socket_path as local_socket_path
-from pamd.net.spec import NetSpec, TelemetryRequest
 from pamd.stalls import stall_limit
 from pamd.view.spec import ViewerSpec
 from pamd.view.spec import resolve as resolve_viewer
+from pamd.wire import cleartext, zconf
+from pamd.wire.cleartext import is_loopback_host
+from pamd.wire.credential import ensure_token
+from pamd.wire.errors import ConfigError, ConfigIssue
+from pamd.wire.local_channel import socket_path as local_socket_path
+from pamd.wire.net_spec import NetSpec, TelemetryRequest
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,7 @@ def resolve_all(cfg: LoadedConfig, req: TelemetryRequest | None) -> Resolved:
     """The run's telemetry and live view, decided before anything starts. Every link
     they open in clear beyond loopback (the Zenoh session's listen and connect
     endpoints, the live view's plain WebSocket) is judged by one rule
-    (pamd.net.cleartext): refused unless allowed (a ConfigError), allowed and warned."""
+    (pamd.wire.cleartext): refused unless allowed (a ConfigError), allowed and warned."""
     viewer = resolve_viewer(cfg, req.foxglove if req is not None else None)
     session = _session(cfg, req)
     exposed = [] if session is None else _zenoh_exposures(cfg, *session)
@@ -83,7 +83,7 @@ def _session(cfg: LoadedConfig, req: TelemetryRequest | None
 
 def _net_spec(cfg: LoadedConfig, zcfg: zconf.ZenohConfig, warnings: tuple[str, ...]
               ) -> NetSpec:
-    """The io process's telemetry spec. The command token (`pamd.net.credential`) is
+    """The io process's telemetry spec. The command token (`pamd.wire.credential`) is
     kept or made here: commands need it, loopback included."""
     tc = cfg.rig.telemetry
     rate = cfg.rig.loop.rate_hz

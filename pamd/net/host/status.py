@@ -1,6 +1,6 @@
 """The status snapshot, built here, in one place, by the daemon's main thread a few
 times a second (never by the loop's thread, never per tick); its fields are declared
-in `pamd.net.status`. The io process answers it from the board."""
+in `pamd.wire.status`. The io process answers it from the board."""
 
 from __future__ import annotations
 
@@ -13,18 +13,12 @@ from typing import Protocol, cast
 from pamd.config.loader import LoadedConfig
 from pamd.control.muscle import MuscleController
 from pamd.controller import RigController
-from pamd.declare.jsonsafe import JsonObject
 from pamd.experiment.sequencer import running_plan
 from pamd.net.host.ports import RecordingState
-from pamd.net.status import (
-    ExperimentStatus,
-    MuscleStatus,
-    RecordingStatus,
-    Status,
-    jsonsafe,
-)
-from pamd.verbs.table import VERBS
-from pamd.version import __version__
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.status import ExperimentStatus, MuscleStatus, RecordingStatus, Status, jsonsafe
+from pamd.wire.verbs.table import VERBS
+from pamd.wire.version import __version__
 
 
 def _user() -> str:
@@ -52,7 +46,7 @@ class StatusLoop(Protocol):
 
 
 class StatusBuilder:
-    """Builds the status (`pamd.net.status.Status`, every field declared there) in the
+    """Builds the status (`pamd.wire.status.Status`, every field declared there) in the
     daemon's main thread, in this one place. It gets what it reads, not the daemon:
     the rig's controller, the loop, the config in force (`config`), the recording's
     state (`recording`: None when nothing records) and the remote collection that

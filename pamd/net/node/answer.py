@@ -29,9 +29,9 @@ from array import array
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.net.spec import NetSpec
-from pamd.tick import (
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.net_spec import NetSpec
+from pamd.wire.tick import (
     I_COMPUTE,
     I_LOST,
     I_OVERRUNS,
@@ -46,7 +46,7 @@ from pamd.tick import (
 )
 
 if TYPE_CHECKING:  # ports: types only, so the io process never loads them
-    from pamd.net.seams import LoopStart, RunClock
+    from pamd.wire.seams import LoopStart, RunClock
 
 #: what a status answer takes from the latest tick record rather than the snapshot
 LIVE_FIELDS = ("pressure_bar", "setpoint_bar", "valve_cmd_bar", "force_n", "length_mm",

@@ -4,7 +4,7 @@ with it (`salvage`), the pressure ranges (`PressureRanges`) and what is recorded
 the commands refused (`RefusalLog`).
 
 Who may command: a query whose attachment carries the daemon's token
-(`pamd.net.credential`), to this rig by name: a pattern (`pamd/*/cmd/...`) is refused.
+(`pamd.wire.credential`), to this rig by name: a pattern (`pamd/*/cmd/...`) is refused.
 An `estop` acts from anyone, credential and pattern or not, and is recorded with who
 sent it; an `estop` or `stop` acts whatever its size or extra fields, the rest cut and
 recorded (`salvage`); beyond its sender's rate it joins the same verb's command that
@@ -43,19 +43,25 @@ import time
 import typing
 from collections.abc import Callable
 
-from pamd.declare.jsonsafe import JsonObject, JsonValue, jsonsafe
-from pamd.errors import CommandRefused
-from pamd.net import credential
-from pamd.net.board import Board
-from pamd.net.credential import STALE
-from pamd.net.keys import Keys
 from pamd.net.ratelimit import LineLimiter, RateLimiter, kind_of
-from pamd.net.spec import NetSpec
-from pamd.verbs.schema import MAX_TEXT_CHARS, MAX_WHO_CHARS, args_for_record, cap_payload, cap_text
-from pamd.verbs.table import VERBS, parse_command
+from pamd.wire import credential
+from pamd.wire.board import Board
+from pamd.wire.credential import STALE
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue, jsonsafe
+from pamd.wire.errors import CommandRefused
+from pamd.wire.keys import Keys
+from pamd.wire.net_spec import NetSpec
+from pamd.wire.verbs.args import (
+    MAX_TEXT_CHARS,
+    MAX_WHO_CHARS,
+    args_for_record,
+    cap_payload,
+    cap_text,
+)
+from pamd.wire.verbs.table import VERBS, parse_command
 
 if typing.TYPE_CHECKING:  # the node's ports: types only, so the io process never loads them
-    from pamd.net.seams import CommandPort, Query, Verdict
+    from pamd.wire.seams import CommandPort, Query, Verdict
 
 ESTOP = "estop"
 MAX_PAYLOAD_BYTES = 64 * 1024  # a command's JSON; larger ones are refused unread
@@ -361,7 +367,7 @@ class CommandIntake:
         send_reply(q, key, json.dumps(verdict).encode())
 
     def _credential(self, q: Query, verb: str, raw: bytes) -> str | None:
-        """None if the query's attachment signs this command (pamd.net.credential);
+        """None if the query's attachment signs this command (pamd.wire.credential);
         else why not."""
         if self.verifier is None:
             return None  # a spec without a token (built by hand): commands are open
@@ -379,7 +385,7 @@ class CommandIntake:
             self.counts["token_rotations"] = self.counts.get("token_rotations", 0) + 1
 
     def on_command(self, q: Query, sender: str | None = None, trusted: bool = False) -> None:
-        """Zenoh's callback thread (or the local channel's, `pamd.net.local`: `sender`
+        """Zenoh's callback thread (or the local channel's, `pamd.wire.local_channel`: `sender`
         named by the kernel, `trusted` as the token's readers are): refused at once, or
         into the loop's mailbox."""
         with self.lock:
@@ -398,7 +404,7 @@ class CommandIntake:
     def _who_refusal(self, key: str, verb: str, why: str | None) -> tuple[str, str] | None:
         """(error, record kind) if this sender may not send this command here: a key that
         is a pattern (`pamd/*/cmd/...`, `pamd/<rig>/**/setpoint`), or no valid credential
-        (`why`, pamd.net.credential). An estop passes both (anyone may stop the rig)."""
+        (`why`, pamd.wire.credential). An estop passes both (anyone may stop the rig)."""
         if verb == ESTOP:
             return None
         if key != self.keys.cmd(verb):

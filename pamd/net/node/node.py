@@ -37,20 +37,20 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
-from pamd.declare.jsonsafe import JsonObject, jsonsafe
-from pamd.net import zconf
-from pamd.net.board import Board
-from pamd.net.keys import Keys
-from pamd.net.local import LocalServer
 from pamd.net.node.answer import StatusAnswer, TickStats
 from pamd.net.node.intake import CommandIntake, send_reply
-from pamd.net.spec import NetSpec
-from pamd.net.telemetry import StateBatcher
+from pamd.wire import zconf
+from pamd.wire.board import Board
+from pamd.wire.declare.jsonsafe import JsonObject, jsonsafe
+from pamd.wire.keys import Keys
+from pamd.wire.local_channel import LocalServer
+from pamd.wire.net_spec import NetSpec
+from pamd.wire.telemetry import StateBatcher
 
 if TYPE_CHECKING:  # types only: the io process loads neither the ports nor (until `open`) zenoh
     import zenoh
 
-    from pamd.net.seams import CommandPort, LoopStart, Query, RunClock
+    from pamd.wire.seams import CommandPort, LoopStart, Query, RunClock
 
 CLOSE_TIMEOUT_S = 3.0
 SWITCH_INTERVAL_S = 0.0005  # the io process's: a query callback waits at most this
@@ -95,7 +95,7 @@ class NetNode:
                        "status_queries": 0}
         self.intake = CommandIntake(spec, port, lambda: self.board, self._record_io,
                                     self.counts)
-        self.local: LocalServer | None = None  # the local channel (pamd.net.local)
+        self.local: LocalServer | None = None  # the local channel (pamd.wire.local_channel)
 
     # -- life cycle ---------------------------------------------------------------------
     def open(self) -> str | None:
@@ -126,7 +126,7 @@ class NetNode:
         return None
 
     def _open_local(self) -> None:
-        """The local channel beside the token (pamd.net.local); where it cannot listen,
+        """The local channel beside the token (pamd.wire.local_channel); where it cannot listen,
         the status says why."""
         if not self.spec.local_socket:
             return
@@ -276,7 +276,7 @@ class NetNode:
         return work
 
     def notify_main(self, msg: JsonObject) -> None:
-        """A notice for the daemon's main thread (the recorder's: pamd.record.control), sent
+        """A notice for the daemon's main thread (the recorder's: pamd.wire.record.control), sent
         on the board's request ring by the next poll (the io loop's thread)."""
         self.to_main.append(json.dumps({"notice": msg}, default=str).encode())
 

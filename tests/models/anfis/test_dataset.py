@@ -13,13 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import ModelError
 from pamd.models.anfis.extraction import extract, load_samples
 from pamd.models.anfis.recordings import read_csv, read_runs
 from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.anfis.splitting import split
 from pamd.models.velocity import VELOCITY_WINDOW_S, filtered_velocity, velocity_step
-from pamd.tick import Flag, State
+from pamd.wire.errors import ModelError
+from pamd.wire.tick import Flag, State
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -258,7 +258,7 @@ def test_pamd_export_csv_gives_the_same_pairs(recording: Path, tmp_path: Path) -
     """The CSVs of `pamd export` (state taken from the loop file beside the muscle's)
     give the pairs the MCAP file gives, but for the lead-in, which only MCAP events
     tell (so its settling is dropped by --settle-s alone)."""
-    from pamd.record.files import export_csv
+    from pamd.wire.record.files import export_csv
 
     out = export_csv(str(recording), str(tmp_path / "csv"))
     muscle_csv = next(p for t, (p, _n) in out.items() if t.endswith("/state/m1"))

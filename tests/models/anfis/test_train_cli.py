@@ -13,7 +13,7 @@ import pytest
 from pamd.cli.main import main
 from pamd.metrics import METRIC_NAMES
 from pamd.models.anfis import load
-from pamd.tick import Flag
+from pamd.wire.tick import Flag
 from tests.models.anfis.test_dataset import write_csv
 
 
