@@ -58,7 +58,7 @@ LAZY_OWN = {
     # the console script's module: a spawned process (the io process) runs it again
     "pamd/__main__.py": "pamd.cli.main",
     # the io process imports the Foxglove live view only for a run that asks for it
-    "pamd/io/process.py": "pamd.view.live",
+    "pamd/iohost/process.py": "pamd.iohost.live",
     # the io process checks tokens with this module; only the daemon writes one
     "pamd/wire/credential.py": "pamd.wire.atomic",
 }
@@ -236,7 +236,7 @@ def test_the_check_sees_an_upward_and_a_lazy_import(tmp_path: Path) -> None:
     assert ("pamd.daemon", 3, True) in found
     layer = _layer_of()
     assert layer["control"] < layer["config"] and layer["daemon"] < layer["config"]
-    assert _package("pamd.net.node.intake") == "net.node" and _package("pamd.wire.keys") == "net"
+    assert _package("pamd.iohost.intake") == "net.node" and _package("pamd.wire.keys") == "net"
     assert layer["net.node"] < layer["net"] and layer["io"] < layer["net.node"]
 
 

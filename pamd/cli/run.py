@@ -25,11 +25,11 @@ from pamd.control.length_targets import check_length_profile_config
 from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
+from pamd.iohost.viewer_spec import parse_listen
 from pamd.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
 from pamd.service import testhooks
 from pamd.service.notify import Notifier
 from pamd.service.restart import restart_in_place, run_argv, unblock_signals
-from pamd.view.spec import parse_listen
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused, ConfigError, ConfigIssue
 from pamd.wire.net_spec import TelemetryRequest

@@ -551,7 +551,7 @@ class TelemetryConfig:
                                     "this time is answered with an error saying so.",
                                     unit="s", gt=0.0)
     foxglove: FoxgloveConfig = spec(FoxgloveConfig(), "Live view in Foxglove (WebSocket, "
-                                    "in the io process; pamd.view.live).")
+                                    "in the io process; pamd.iohost.live).")
     plans_dir: str | None = spec(
         None, "Directory (relative to the config file) whose plan files a remote `collect` "
         "may name, by file name only (`pamd cmd collect --plan-file sweep.yaml`); at most "

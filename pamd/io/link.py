@@ -28,8 +28,8 @@ from collections import deque
 from collections.abc import Callable
 from multiprocessing.process import BaseProcess
 
-from pamd.io.process import io_main
-from pamd.io.spec import IoSpec
+from pamd.iohost.io_spec import IoSpec
+from pamd.iohost.process import io_main
 from pamd.summary import LocalMailbox
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused, RecordingError

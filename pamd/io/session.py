@@ -20,14 +20,14 @@ from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
 from pamd.controller import RigController
 from pamd.io.link import IoLink, MultiMailbox, RingMailbox, RingSink
-from pamd.io.spec import IoSpec
+from pamd.iohost.io_spec import IoSpec
+from pamd.iohost.viewer_spec import ViewerSpec
 from pamd.loop import Loop
 from pamd.net.host.host import NetHost
 from pamd.net.host.ports import HostParts
 from pamd.net.host.resolve import resolve_all
 from pamd.record.meta import build_record_spec
 from pamd.summary import LocalMailbox, SummarySink
-from pamd.view.spec import ViewerSpec
 from pamd.wire.board import Board
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.net_spec import NetSpec, TelemetryRequest

@@ -1,6 +1,6 @@
 """Live telemetry, status and remote commands over Zenoh.
 
-The Zenoh session lives in the io process (`pamd.io.process`), never in the loop's
+The Zenoh session lives in the io process (`pamd.iohost.process`), never in the loop's
 process: Zenoh's Python callbacks run on their own threads and take the interpreter
 lock. The io process polls Zenoh's channels from its own single thread (`node`),
 publishes decimated, batched state and the loop's events, answers `status` from a

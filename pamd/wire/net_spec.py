@@ -14,7 +14,7 @@ class TelemetryRequest:
 
     enabled: bool = True
     zenoh_config: str | None = None
-    # The live Foxglove view (pamd.view.spec.resolve): None as telemetry.foxglove says,
+    # The live Foxglove view (pamd.iohost.viewer_spec.resolve): None as telemetry.foxglove says,
     # "default" on at its listen address, "HOST:PORT" on there. Independent of `enabled`.
     foxglove: str | None = None
     # `pamd run --listen ENDPOINT`: where the daemon's session listens (overrides

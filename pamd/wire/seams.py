@@ -1,4 +1,4 @@
-"""What the io process's telemetry (`pamd.net.node`, `pamd.view.live`) needs of its
+"""What the io process's telemetry (`pamd.iohost`, `pamd.iohost.live`) needs of its
 collaborators, as small Protocols.
 
 The io process (`pamd.io`, a layer above) builds the Zenoh node and hands it its
@@ -21,7 +21,7 @@ Verdict = JsonObject
 
 
 class CommandPort(Protocol):
-    """The io side of the loop's command mailbox (`pamd.io.process.RingCommandPort`)."""
+    """The io side of the loop's command mailbox (`pamd.iohost.process.RingCommandPort`)."""
 
     @property
     def lock(self) -> AbstractContextManager[object]:
@@ -37,7 +37,7 @@ class CommandPort(Protocol):
 
 
 class RunClock(Protocol):
-    """How the run's loop clock maps to the wall clock (`pamd.io.spec.IoSpec` gives it)."""
+    """How the run's loop clock maps to the wall clock (`pamd.iohost.io_spec.IoSpec` gives it)."""
 
     @property
     def virtual(self) -> bool: ...

@@ -3,7 +3,7 @@ JSON encoding of it (`jsonsafe`: non-finite floats become null).
 
 The daemon's main thread builds it, in one place (`pamd.net.host.status.StatusBuilder`),
 a few times a second (never the loop's thread, never per tick; some 50 us); the io
-process answers `status` queries from it (`pamd.net.node.answer`), with the live
+process answers `status` queries from it (`pamd.iohost.answer`), with the live
 values of the latest tick record it drained over it (state, measured values,
 setpoint, valve command, mode, flags) and what only it knows (`IoStatus`).
 """
@@ -116,7 +116,7 @@ class IoStatus(TypedDict, total=False):
     tick: int
     t_s: float
     snapshot_age_s: float
-    timing: JsonObject  # from the tick records (pamd.net.node.answer)
+    timing: JsonObject  # from the tick records (pamd.iohost.answer)
     io: dict[str, int]  # its own counters
     stale: bool
     stale_reasons: list[str]

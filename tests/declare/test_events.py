@@ -15,7 +15,7 @@ from typing import Any
 import jsonschema
 import pytest
 
-from pamd.record import recorder
+from pamd.iohost import recorder
 from pamd.wire.declare import events
 from pamd.wire.declare.jsonsafe import dumps, jsonsafe
 

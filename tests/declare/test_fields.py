@@ -13,7 +13,7 @@ from mcap_ros2._vendor.rosidl_adapter.parser import parse_message_string
 
 from pamd import controller, loop
 from pamd.control import muscle
-from pamd.record.recorder import record_schemas
+from pamd.iohost.recorder import record_schemas
 from pamd.view import fields as view_fields
 from pamd.view.layout import PANELS, build_layout
 from pamd.wire import tick

@@ -6,7 +6,7 @@ A real recorded run with telemetry is started through the console script (genera
 from pyproject's `[project.scripts]` as pip writes it: multiprocessing's spawn runs the
 parent's main module again in the child, so what the console script imports at its
 top is what the io process pays for). The io process writes the modules it imported as
-it exits (`pamd.io.process.MODULES_ENV`, a test hook).
+it exits (`pamd.iohost.process.MODULES_ENV`, a test hook).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 from pamd.emulate.testing import free_port
-from pamd.io.process import MODULES_ENV
+from pamd.iohost.process import MODULES_ENV
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -81,7 +81,7 @@ def test_the_io_process_of_a_recorded_run_with_telemetry_imports_what_it_needs(
     names = io_modules(tmp_path, "--listen", f"tcp/127.0.0.1:{free_port()}")
     pamd = check(names)
     # it did what it is there for: recorded, and served Zenoh with the command schemas
-    for needed in ("pamd.record.recorder", "pamd.net.node.node", "pamd.wire.verbs.table",
+    for needed in ("pamd.iohost.recorder", "pamd.iohost.node", "pamd.wire.verbs.table",
                    "zenoh"):
         assert needed in names, needed
     assert "pamd.__main__" in pamd and "pamd.cli.main" not in pamd
@@ -89,8 +89,8 @@ def test_the_io_process_of_a_recorded_run_with_telemetry_imports_what_it_needs(
 
 def test_the_check_sees_a_forbidden_module() -> None:
     """The check itself: the loop's controller, or one module too many, is caught."""
-    light = ["pamd", "pamd.io.process", "zenoh"]
-    assert check(light) == ["pamd", "pamd.io.process"]
+    light = ["pamd", "pamd.iohost.process", "zenoh"]
+    assert check(light) == ["pamd", "pamd.iohost.process"]
     for heavy in (light + ["pamd.controller"], light + ["numpy.linalg"],
                   light + [f"pamd.x{i}" for i in range(MAX_PAMD_MODULES)]):
         try:

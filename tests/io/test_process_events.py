@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 
 from pamd.experiment.stepfiles import read_step_file
-from pamd.io.process import IoProcess
-from pamd.io.spec import IoSpec
-from pamd.record.recorder import Recorder
+from pamd.iohost.io_spec import IoSpec
+from pamd.iohost.process import IoProcess
+from pamd.iohost.recorder import Recorder
 from pamd.wire.record.record_spec import RecordSpec
 from pamd.wire.ring import BlockLayout, SharedBlock
 from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
@@ -82,7 +82,7 @@ def test_the_io_process_takes_its_nice_value_before_any_thread_and_says_a_refusa
     and the io process goes on at normal priority."""
     import threading
 
-    from pamd.io.process import take_nice
+    from pamd.iohost.process import take_nice
 
     seen: dict[str, int] = {}
 

@@ -11,8 +11,8 @@ from mcap.reader import make_reader
 
 from pamd.daemon import Daemon
 from pamd.io.link import RingMailbox
-from pamd.io.process import RingCommandPort
 from pamd.io.session import RecordingRequest
+from pamd.iohost.process import RingCommandPort
 from pamd.wire.ring import BlockLayout, SharedBlock
 
 from ..record.conftest import make_sim_config

@@ -12,8 +12,8 @@ from typing import Any
 
 import pytest
 
-from pamd.net.node import node as node_mod
-from pamd.net.node.node import NetNode
+from pamd.iohost import node as node_mod
+from pamd.iohost.node import NetNode
 from pamd.wire.credential import Signer, digest
 from pamd.wire.net_spec import NetSpec
 

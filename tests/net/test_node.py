@@ -11,8 +11,8 @@ import time
 from types import SimpleNamespace
 from typing import Any
 
-from pamd.io.process import RingCommandPort
-from pamd.net.node.node import NetNode
+from pamd.iohost.node import NetNode
+from pamd.iohost.process import RingCommandPort
 from pamd.wire.net_spec import NetSpec
 
 

@@ -1,6 +1,6 @@
 """One line per kind per interval, the next saying how many were dropped
-(`pamd.net.ratelimit`): what clients send cannot grow a log. And what an estop or stop
-keeps of a payload it cannot take whole (`pamd.net.node.intake.salvage`)."""
+(`pamd.iohost.ratelimit`): what clients send cannot grow a log. And what an estop or stop
+keeps of a payload it cannot take whole (`pamd.iohost.intake.salvage`)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from typing import Any
 
 import pytest
 
-from pamd.net import ratelimit
-from pamd.net.node.intake import salvage
-from pamd.net.ratelimit import LineLimiter, RateLimitedHandler, kind_of
+from pamd.iohost import ratelimit
+from pamd.iohost.intake import salvage
+from pamd.iohost.ratelimit import LineLimiter, RateLimitedHandler, kind_of
 
 
 def test_one_line_per_kind_per_interval_then_the_count() -> None:

@@ -12,7 +12,7 @@ import json
 from types import SimpleNamespace
 from typing import Any
 
-from pamd.net.node.answer import StatusAnswer, TickStats
+from pamd.iohost.answer import StatusAnswer, TickStats
 from pamd.wire.net_spec import NetSpec
 from pamd.wire.tick import I_T, LOOP_FIELDS, MUSCLE_FIELDS
 

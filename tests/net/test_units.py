@@ -11,8 +11,8 @@ from typing import Any
 import pytest
 
 from pamd.cli.net import _parse_bool, build_payload, verb_parser
+from pamd.iohost.ratelimit import RateLimiter
 from pamd.net.host.resolve import resolve
-from pamd.net.ratelimit import RateLimiter
 from pamd.timing import Histogram
 from pamd.wire import zconf
 from pamd.wire.board import Board
@@ -345,8 +345,8 @@ def test_cmd_payloads_from_options() -> None:
 
 
 def test_status_snapshot_from_a_running_daemon(sim_daemon: Any) -> None:
+    from pamd.iohost.answer import TickStats
     from pamd.net.host.status import StatusBuilder, recording_status
-    from pamd.net.node.answer import TickStats
     from pamd.wire.status import MUSCLE_STATUS_FIELDS, STATUS_FIELDS
 
     d = sim_daemon(duration_s=None)

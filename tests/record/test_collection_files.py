@@ -16,8 +16,8 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from pamd.io.spec import IoSpec
-from pamd.record.recorder import Recorder
+from pamd.iohost.io_spec import IoSpec
+from pamd.iohost.recorder import Recorder
 from pamd.wire.record import control
 from pamd.wire.record.record_spec import RecordSpec
 from pamd.wire.ring import BlockLayout

@@ -19,7 +19,7 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap.records import Channel, Schema
 
-from pamd.record.recorder import record_schemas
+from pamd.iohost.recorder import record_schemas
 from pamd.wire.record.files import Decoder
 from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
@@ -218,8 +218,8 @@ def test_with_a_certificate_the_view_serves_wss_only(tmp_path: Path) -> None:
 
     import pytest
 
-    from pamd.view.live import LiveView
-    from pamd.view.spec import ViewerSpec
+    from pamd.iohost.live import LiveView
+    from pamd.iohost.viewer_spec import ViewerSpec
 
     if shutil.which("openssl") is None:
         pytest.fail("openssl is not installed (apt-get install openssl, or run "

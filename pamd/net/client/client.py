@@ -35,7 +35,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from pamd.config.names import CHUNK_RE
-from pamd.net.node.intake import ESTOP, MAX_PAYLOAD_BYTES, salvage, salvage_object
+from pamd.iohost.intake import ESTOP, MAX_PAYLOAD_BYTES, salvage, salvage_object
 from pamd.wire import zconf
 from pamd.wire.credential import BAD, STALE, Signer, find_token
 from pamd.wire.declare.jsonsafe import JsonObject

@@ -35,7 +35,7 @@ class RecordSpec:
 
 class RecordedRun(Protocol):
     """What the recorder needs to know of the run it records (the io process's
-    `pamd.io.spec.IoSpec` is one)."""
+    `pamd.iohost.io_spec.IoSpec` is one)."""
 
     @property
     def rig_id(self) -> str: ...

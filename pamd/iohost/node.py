@@ -20,7 +20,7 @@ declares (`source_info`), the user the `user` selector parameter
 (`pamd/sim/cmd/hold?user=ana`): both declared, not authenticated.
 
 What a command must pass, and how it reaches the loop, is the node's command intake
-(`pamd.net.node.intake.CommandIntake`).
+(`pamd.iohost.intake.CommandIntake`).
 """
 
 from __future__ import annotations
@@ -37,8 +37,8 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
-from pamd.net.node.answer import StatusAnswer, TickStats
-from pamd.net.node.intake import CommandIntake, send_reply
+from pamd.iohost.answer import StatusAnswer, TickStats
+from pamd.iohost.intake import CommandIntake, send_reply
 from pamd.wire import zconf
 from pamd.wire.board import Board
 from pamd.wire.declare.jsonsafe import JsonObject, jsonsafe

@@ -21,7 +21,7 @@ Zenoh, where the router authenticates them.
 What the server says of its clients (a garbage frame, a subscribe to an unknown
 channel, a dropped connection) comes through Python's logging (logger `foxglove`) and
 goes to stderr one line per kind per 10 s, each saying how many like it were dropped
-(`pamd.net.ratelimit`): a client cannot grow the daemon's log (one line per bad frame
+(`pamd.iohost.ratelimit`): a client cannot grow the daemon's log (one line per bad frame
 was 108 MB in 100 s).
 """
 
@@ -33,9 +33,9 @@ import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
-from pamd.net.ratelimit import RateLimitedHandler, limit_logger
-from pamd.record.recorder import record_schemas
-from pamd.view.spec import ViewerSpec
+from pamd.iohost.ratelimit import RateLimitedHandler, limit_logger
+from pamd.iohost.recorder import record_schemas
+from pamd.iohost.viewer_spec import ViewerSpec
 from pamd.wire.declare.jsonsafe import JsonObject, dumps
 from pamd.wire.record import cdr
 from pamd.wire.seams import RunClock
@@ -112,7 +112,7 @@ class LiveView:
         return None
 
     def _log_ns(self, tick: int, t_s: float) -> int:
-        """The recording's log time of a tick (pamd.record.recorder.Recorder.tick)."""
+        """The recording's log time of a tick (pamd.iohost.recorder.Recorder.tick)."""
         io = self.io_spec
         if io.virtual:
             return io.wall0_ns + tick * self.period_ns

@@ -1,5 +1,5 @@
 """The io process: drains the loop's rings into the recorder and the Zenoh node
-(`pamd.net.node.node`: telemetry, status, remote commands), bumps the heartbeat the loop
+(`pamd.iohost.node`: telemetry, status, remote commands), bumps the heartbeat the loop
 watches, sends commands to the loop and routes their verdicts.
 
 With telemetry, it also takes recording control from the daemon's main thread (the
@@ -27,9 +27,9 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from pamd.io.spec import IoSpec
-from pamd.net.node.node import NetNode
-from pamd.record.recorder import Recorder
+from pamd.iohost.io_spec import IoSpec
+from pamd.iohost.node import NetNode
+from pamd.iohost.recorder import Recorder
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.ring import (
     C_HEARTBEAT,
@@ -44,7 +44,7 @@ from pamd.wire.ring import (
 from pamd.wire.verbs.table import VERBS
 
 if TYPE_CHECKING:  # types only; the live view is imported when a run asks for it
-    from pamd.view.live import LiveView
+    from pamd.iohost.live import LiveView
     from pamd.wire.net_spec import NetSpec
     from pamd.wire.record.record_spec import RecordSpec
 
@@ -311,12 +311,12 @@ class IoProcess:
             self.block.set(C_IO_STATE, IO_DONE)
 
     def _open_viewer(self) -> bool:
-        """The Foxglove server (pamd.view.live); a taken port refuses, as Zenoh's does,
+        """The Foxglove server (pamd.iohost.live); a taken port refuses, as Zenoh's does,
         before any file opens."""
 
         assert self.spec.viewer is not None
         # only a run with the live view pays for it (see LAZY_OWN in the layer test)
-        from pamd.view.live import LiveView
+        from pamd.iohost.live import LiveView
 
         self.viewer = LiveView(self.spec.viewer, self.spec, self.block.t_start)
         err = self.viewer.open()

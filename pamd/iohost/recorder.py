@@ -38,7 +38,7 @@ EVENT_SCHEMA = events.json_schema()
 
 def record_schemas() -> list[tuple[str, str, bytes]]:
     """(name, encoding, data) of the muscle state, loop and event schemas: the
-    recording's, and the live Foxglove view's (pamd.view.live)."""
+    recording's, and the live Foxglove view's (pamd.iohost.live)."""
     return [
         (cdr.MUSCLE_SCHEMA_NAME, "ros2msg", cdr.schema_text(cdr.muscle_fields(), "pamd muscle "
                                                             "state, one per muscle per tick")),

@@ -43,7 +43,7 @@ import time
 import typing
 from collections.abc import Callable
 
-from pamd.net.ratelimit import LineLimiter, RateLimiter, kind_of
+from pamd.iohost.ratelimit import LineLimiter, RateLimiter, kind_of
 from pamd.wire import credential
 from pamd.wire.board import Board
 from pamd.wire.credential import STALE

@@ -12,7 +12,7 @@ from pamd.wire.record.record_spec import RecordSpec
 from pamd.wire.ring import BlockLayout
 
 if TYPE_CHECKING:  # a type only: a run without the live view never imports pamd.view
-    from pamd.view.spec import ViewerSpec
+    from pamd.iohost.viewer_spec import ViewerSpec
 
 
 @dataclass(frozen=True)
