@@ -56,13 +56,13 @@ def controller_compute_us(cfg: LoadedConfig, commands: list[tuple[str, dict[str,
     import gc
     import time
 
-    from pamd.calibration import load_calibration
-    from pamd.commands import apply_command, parse_command
-    from pamd.control.feedforward import load_models
-    from pamd.controller import RigController
-    from pamd.loop import VirtualClock
-    from pamd.rig import Rig
-    from pamd.summary import SummarySink
+    from pamd.loop.commands import apply_command, parse_command
+    from pamd.loop.control.controller import RigController
+    from pamd.loop.control.feedforward import load_models
+    from pamd.loop.control.summary import SummarySink
+    from pamd.loop.devices.bindings import Rig
+    from pamd.loop.devices.datum_file import load_calibration
+    from pamd.loop.loop import VirtualClock
     from pamd.wire.tick import TickLayout
 
     rig = Rig(cfg, load_calibration(cfg.calibration_path))

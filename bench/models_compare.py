@@ -46,8 +46,8 @@ from importlib import resources  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import record_profile, sim_config  # noqa: E402
 
-from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
+from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 from pamd.metrics import regression_metrics  # noqa: E402
 from pamd.models.anfis.extraction import derived_inputs, extract  # noqa: E402
 from pamd.models.anfis.recordings import read_runs  # noqa: E402

@@ -40,8 +40,8 @@ from _common import (  # noqa: E402
     sim_config,
 )
 
-from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
+from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 from pamd.models.anfis import TrainingOptions, fit, save  # noqa: E402
 from pamd.models.anfis.extraction import derived_inputs, extract  # noqa: E402
 from pamd.models.anfis.recordings import read_runs  # noqa: E402

@@ -24,7 +24,7 @@ from typing import Any
 
 from _common import sim_config
 
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 from pamd.wire.tick import State
 
 FAULTS = [(s, k) for s in ("length", "force", "pressure")

@@ -71,8 +71,8 @@ from _common import REPO, sim_config  # noqa: E402
 from seed_table import PAMD, PAPER, SeedRow, markdown  # noqa: E402
 
 from pamd.config import LoadedConfig, load_config  # noqa: E402
-from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
+from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 from pamd.models.anfis.samples import ExtractOptions  # noqa: E402
 from pamd.models.fn_qupi import FnQupiModel, FnQupiOptions, fit_fn_qupi  # noqa: E402
 from pamd.models.qupi import _identify  # noqa: E402

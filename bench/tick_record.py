@@ -12,11 +12,11 @@ import time
 
 from _common import controller_compute_us, percentile, sim_config
 
-from pamd.calibration import load_calibration
-from pamd.control.feedforward import load_models
-from pamd.controller import RigController
-from pamd.rig import Rig
-from pamd.summary import SummarySink
+from pamd.loop.control.controller import RigController
+from pamd.loop.control.feedforward import load_models
+from pamd.loop.control.summary import SummarySink
+from pamd.loop.devices.bindings import Rig
+from pamd.loop.devices.datum_file import load_calibration
 from pamd.wire.tick import TickLayout
 
 

@@ -33,9 +33,9 @@ import numpy as np
 import yaml
 
 from pamd.config import load_config
-from pamd.control.actuation import OnOffActuation, min_pulse_s
-from pamd.harness import Harness
-from pamd.rig import OutputBinding
+from pamd.loop.control.actuation import OnOffActuation, min_pulse_s
+from pamd.loop.devices.bindings import OutputBinding
+from pamd.loop.harness import Harness
 from pamd.tune.onoff import (
     IDENT_DEAD_BAND_BAR,
     LEVEL_BAR,

@@ -9,7 +9,7 @@ parameters, only from what the sensors saw.
    regulator's own loop acts), small steps of the regulator setpoint (+-0.2 bar, the
    loop's working range, not the saturated fill of a large step) at 1.5, 3 and
    4.5 bar, up and down. Each response is fitted with a first-order-plus-dead-time
-   model (`pamd.control.tuning.fit_step`); the design model is their mean. Gains:
+   model (`pamd.loop.control.tuning.fit_step`); the design model is their mean. Gains:
    Skogestad's SIMC PI (tau_c = theta) and `rate_feedforward_s` = theta + tau.
 2. **Position loop** (pressure setpoint -> measured length), with the pressure loop
    closed on the gains of 1: +-0.5 bar steps of the pressure setpoint at 2.5 and
@@ -48,8 +48,8 @@ import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
 from pamd.config import LoadedConfig, load_config  # noqa: E402
-from pamd.control.tuning import Fopdt  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
+from pamd.loop.control.tuning import Fopdt  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 from pamd.tune.report import print_fits  # noqa: E402
 from pamd.tune.run import IDENT_SLEW_BAR_PER_S  # noqa: E402
 from pamd.tune.steps import Step, fit_all, mean_model, steps_in  # noqa: E402

@@ -24,7 +24,7 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 # Before anything loads numpy: one BLAS thread. The loop's own numpy calls (the model's
-# online adaptation, pamd.control.adapt) are small; a threaded BLAS would only add
+# online adaptation, pamd.loop.control.adapt) are small; a threaded BLAS would only add
 # wake-ups and contention on the rig PC's cores. A value set by the user stays.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 

@@ -14,23 +14,23 @@ from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from pamd.calibration import load_calibration, save_calibration
-from pamd.commands import Command, parse_command, prepare_command
-from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig
-from pamd.control.feedforward import LoadedModel, load_models
-from pamd.controller import RigController
 from pamd.drivers.safe_outputs import push_safe_outputs
-from pamd.experiment.plan import Plan
 from pamd.io.session import IoParts, IoSession, RecordingRequest
-from pamd.loop import Loop
-from pamd.rig import Rig
-from pamd.safety import Transition
+from pamd.loop.commands import Command, parse_command, prepare_command
+from pamd.loop.commands.pending import PendingCommand
+from pamd.loop.control.controller import RigController
+from pamd.loop.control.feedforward import LoadedModel, load_models
+from pamd.loop.control.summary import LocalMailbox, SummarySink
+from pamd.loop.devices.bindings import Rig
+from pamd.loop.devices.datum_file import load_calibration, save_calibration
+from pamd.loop.experiment.plan import Plan
+from pamd.loop.loop import Loop
+from pamd.loop.safety import Transition
 from pamd.service.keeper import ServiceKeeper
 from pamd.service.notify import Notifier
 from pamd.service.riglock import RunLocks
 from pamd.service.state import calibration_path, state_paths
-from pamd.summary import LocalMailbox, SummarySink
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused
 from pamd.wire.net_spec import TelemetryRequest

@@ -73,7 +73,7 @@ import yaml  # noqa: E402
 from pamd.cli.main import main  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
 from pamd.daemon import Daemon  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SIM_YAML = REPO / "config" / "sim.yaml"

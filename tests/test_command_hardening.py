@@ -13,8 +13,8 @@ from typing import Any
 
 import pytest
 
-from pamd.commands import Command, named_files, parse_command
-from pamd.loop import MAX_COMMANDS_PER_TICK
+from pamd.loop.commands import Command, named_files, parse_command
+from pamd.loop.loop import MAX_COMMANDS_PER_TICK
 from pamd.wire.errors import CommandRefused
 from pamd.wire.ring import BlockLayout
 from pamd.wire.tick import State

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from pamd.calibration import load_calibration
+from pamd.loop.devices.datum_file import load_calibration
 from pamd.wire.tick import State
 
 INCREMENTAL = {"drivers": [{"name": "sim", "type": "sim", "options": {

@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 from pamd.config import load_config
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 from pamd.wire.tick import LOOP_FIELDS
 
 ROOT = Path(__file__).resolve().parents[1]

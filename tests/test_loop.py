@@ -11,8 +11,8 @@ import pytest
 
 from pamd.config import LoadedConfig
 from pamd.daemon import Daemon
-from pamd.loop import GIL_SWITCH_FRACTION, SLACK_AT_FRACTION
-from pamd.timing import Histogram
+from pamd.loop.loop import GIL_SWITCH_FRACTION, SLACK_AT_FRACTION
+from pamd.loop.tick_timing import Histogram
 from pamd.wire.tick import State
 
 DEFAULT_SWITCH_INTERVAL_S = 0.005  # CPython's, while nothing lowers it

@@ -3,7 +3,7 @@ a daemon that takes commands for months does not grow by each one."""
 
 from __future__ import annotations
 
-from pamd.summary import EVENTS_KEPT, SummarySink
+from pamd.loop.control.summary import EVENTS_KEPT, SummarySink
 from pamd.wire.tick import TickLayout
 
 

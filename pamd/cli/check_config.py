@@ -6,8 +6,8 @@ import argparse
 
 from pamd.config import load_config
 from pamd.config.gains import loop_margins
-from pamd.control.feedforward import load_models
-from pamd.safety.envelope import MuscleEnvelope
+from pamd.loop.control.feedforward import load_models
+from pamd.loop.safety.envelope import MuscleEnvelope
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

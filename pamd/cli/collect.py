@@ -18,11 +18,11 @@ from typing import Protocol
 
 from pamd.config import load_config
 from pamd.daemon import Daemon
-from pamd.experiment.manifest import Manifest, collection_name, step_records
-from pamd.experiment.plan import load_plan
-from pamd.experiment.sequencer import Sequencer, running_plan, started_plan
-from pamd.experiment.timeline import StepLine, format_timeline, simulated_loads, timeline
 from pamd.io.session import RecordingRequest
+from pamd.loop.experiment.manifest import Manifest, collection_name, step_records
+from pamd.loop.experiment.plan import load_plan
+from pamd.loop.experiment.sequencer import Sequencer, running_plan, started_plan
+from pamd.loop.experiment.timeline import StepLine, format_timeline, simulated_loads, timeline
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused
 from pamd.wire.tick import State

@@ -18,7 +18,7 @@ import time
 
 from pamd.config import load_config
 from pamd.daemon import Daemon
-from pamd.safety.datums import AT_REST_MM_S
+from pamd.loop.safety.datums import AT_REST_MM_S
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused, DriverError
 from pamd.wire.tick import State

@@ -20,12 +20,12 @@ from pamd.cli.run_start import StartRequests
 from pamd.config import load_config
 from pamd.config.control_schema import OFF_DATA_POLICIES
 from pamd.config.loader import LoadedConfig
-from pamd.control.feedforward import LoadedModel, load_models
-from pamd.control.length_targets import check_length_profile_config
-from pamd.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
 from pamd.iohost.viewer_spec import parse_listen
+from pamd.loop.control.feedforward import LoadedModel, load_models
+from pamd.loop.control.length_targets import check_length_profile_config
+from pamd.loop.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
 from pamd.service import testhooks
 from pamd.service.notify import Notifier

@@ -2,7 +2,7 @@
 the declared loads' verdict.
 
 The requests are sent once the start-up is over (the sensors read, every declared
-load checked against the force at rest: `pamd.control.rig_startup`) and the rig is at
+load checked against the force at rest: `pamd.loop.control.rig_startup`) and the rig is at
 rest: a muscle that started outside its limits (stretched past its pretension limit
 under a heavy load, say) first ramps to its safe pressure, and the requests wait for
 that ramp (bounded, said on stderr) instead of cutting it short or being refused for
@@ -10,7 +10,7 @@ it. On the virtual clock the loop's time stands still while they are sent
 (`Loop.stand_still_while`), so a virtual run is the same every time.
 
 A declared load the force at rest disagrees with, in a run that refuses it (a run
-with an end: `pamd.controller.RigController.refuse_wrong_load`), is a `ConfigError`
+with an end: `pamd.loop.control.controller.RigController.refuse_wrong_load`), is a `ConfigError`
 (exit 2) naming both loads, the key (file and line, or `--load-kg`) and what to do.
 """
 
@@ -20,9 +20,9 @@ import logging
 import math
 from collections.abc import Callable, Collection
 
-from pamd.commands.pending import PendingCommand
 from pamd.daemon import Daemon
-from pamd.safety.load_check import LoadDisagreement
+from pamd.loop.commands.pending import PendingCommand
+from pamd.loop.safety.load_check import LoadDisagreement
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused, ConfigError, ConfigIssue
 from pamd.wire.schema.engine import line_of

@@ -11,7 +11,7 @@ from functools import partial
 
 from pamd.config import LoadedConfig, load_config
 from pamd.config.loader import builtin_config_path
-from pamd.control.tuning import Fopdt, IdentificationError
+from pamd.loop.control.tuning import Fopdt, IdentificationError
 from pamd.tune.onoff import LEVEL_BAR, StepTest, derived_settings, print_settings, print_test
 from pamd.tune.onoff_plot import plot_onoff
 from pamd.tune.onoff_run import check_onoff, run_onoff

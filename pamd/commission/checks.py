@@ -7,7 +7,7 @@ check, before anything else moves.
 - **The force reads the declared load** at rest: a dead weight hanging still pulls
   m g on an in-line load cell (no acceleration), within `FORCE_TOLERANCE` of it or
   `safety.tare_tolerance_n`, whichever is larger; the opposite sign is an inverted
-  load cell (`pamd.safety.load_check`, the rule every declared load is checked by).
+  load cell (`pamd.loop.safety.load_check`, the rule every declared load is checked by).
 - **The pressure rises when the valve opens**: over the steps, the measured pressure's
   change per change of the valve command (least squares through 0) lies between
   `PRESSURE_GAIN` bounds (a regulator follows its setpoint; the opposite sign is an
@@ -25,8 +25,8 @@ from __future__ import annotations
 from pamd.commission.measure import Measurements, Step
 from pamd.commission.moves import CommissionRefused, Moves
 from pamd.config import LoadedConfig
+from pamd.loop.safety.load_check import check_load, inverted
 from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction
-from pamd.safety.load_check import check_load, inverted
 
 FORCE_TOLERANCE = 0.1
 PRESSURE_GAIN = (0.5, 2.0)
@@ -48,7 +48,7 @@ def check_rest(cfg: LoadedConfig, meas: Measurements) -> list[str]:
     for m in cfg.rig.muscles:
         st = meas.signals[f"{m.name}.force"]
         weight = m.load_kg * GRAVITY_M_S2
-        # a gain check: tighter than the start-up's (pamd.safety.load_check), whose
+        # a gain check: tighter than the start-up's (pamd.loop.safety.load_check), whose
         # tolerance allows for friction a commissioning rest does not need
         tol = max(FORCE_TOLERANCE * weight, cfg.rig.safety.tare_tolerance_n)
         f = st.rest_mean

@@ -26,9 +26,9 @@ from pamd.commission.probe import Probe
 from pamd.commission.run import Ask, Between, Progress, run_phase
 from pamd.config import LoadedConfig
 from pamd.daemon import Daemon
-from pamd.experiment.plan import Plan
+from pamd.loop.experiment.plan import Plan
+from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.muscle_type import MapBox, MapPoint, check_map
-from pamd.safety.envelope import MuscleEnvelope
 
 #: the probe's phases: one per load's plan, from here
 PHASE_MAP = 10

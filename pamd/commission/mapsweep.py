@@ -32,9 +32,9 @@ from dataclasses import dataclass
 
 from pamd.commission.moves import CommissionRefused
 from pamd.config import LoadedConfig
-from pamd.experiment.plan import Plan, parse_plan
+from pamd.loop.experiment.plan import Plan, parse_plan
+from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.muscle_type import equilibrium_contraction
-from pamd.safety.envelope import MuscleEnvelope
 
 #: the load's contraction at a level stays this far inside the soft limits (by the
 #: present map: a muscle that differs from it should still not meet the guards)

@@ -20,8 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pamd.config import LoadedConfig
-from pamd.experiment.plan import Plan, parse_plan
-from pamd.safety.envelope import MuscleEnvelope
+from pamd.loop.experiment.plan import Plan, parse_plan
+from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.wire.errors import PamdError
 
 #: the largest step a commissioning run makes, bar

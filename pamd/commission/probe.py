@@ -23,8 +23,8 @@ from typing import Protocol
 
 import numpy as np
 
-from pamd.controller import PlanRun
 from pamd.drivers import Driver
+from pamd.loop.control.controller import PlanRun
 from pamd.wire.declare.jsonsafe import JsonObject
 
 #: Per-muscle columns, in this order after the loop's `LOOP_COLUMNS`.
@@ -38,7 +38,7 @@ _RECORD_FIELD = {"pressure": "pressure_bar", "force": "force_n", "length": "leng
 
 
 class _Input(Protocol):
-    """An input binding of the rig (`pamd.rig.InputBinding`)."""
+    """An input binding of the rig (`pamd.loop.devices.bindings.InputBinding`)."""
 
     @property
     def driver(self) -> Driver: ...
@@ -48,7 +48,7 @@ class _Input(Protocol):
 
 
 class _Rig(Protocol):
-    """The rig's controller (`pamd.controller.RigController`): its clock and plan."""
+    """The rig's controller (`pamd.loop.control.controller.RigController`): its clock and plan."""
 
     @property
     def now(self) -> float: ...

@@ -26,8 +26,8 @@ from pamd.commission.moves import CommissionRefused, Moves, plans
 from pamd.commission.probe import SIGNALS, Probe
 from pamd.config import LoadedConfig
 from pamd.daemon import Daemon
-from pamd.experiment.plan import Plan
-from pamd.experiment.sequencer import Sequencer, running_plan, started_plan
+from pamd.loop.experiment.plan import Plan
+from pamd.loop.experiment.sequencer import Sequencer, running_plan, started_plan
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.tick import State
 

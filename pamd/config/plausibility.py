@@ -1,6 +1,6 @@
 """Plausibility thresholds that can never fire, or fire on a healthy rig, are refused at
 load with the reason (`safety.plausibility`; the checks and their physics are in
-`pamd.safety.plausibility`). Per muscle, against its limits and its type's ratings:
+`pamd.loop.safety.plausibility`). Per muscle, against its limits and its type's ratings:
 
 * an impossible-length range (`min_contraction` .. `max_contraction`) that does not
   contain the muscle's own hard limits faults a healthy muscle at its limit (always);

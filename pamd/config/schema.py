@@ -29,7 +29,7 @@ from pamd.wire.schema.engine import spec
 #: The largest model file any reader reads (`pamd.models.registry`, the `model` command's
 #: named files): the largest kind, an offline svr, stays far below it.
 MODEL_FILE_MAX_BYTES = 8 << 20
-#: The largest plan file a remote `collect` may name (`pamd.commands.named_files`).
+#: The largest plan file a remote `collect` may name (`pamd.loop.commands.named_files`).
 PLAN_FILE_MAX_BYTES = 1 << 20
 
 #: How air reaches a muscle (`muscles[].actuation`): a proportional pressure regulator,

@@ -21,7 +21,7 @@ shorter than the rig's own response. Each refusal names the key, the bound and w
 * `control.position.incremental.sample_period_s`: the controller is sampled by the
   tick: at least one period.
 * `control.position.ilc.resolution_s`: the learning's bins are allocated per cycle
-  (`pamd.control.ilc`), and one finer than the tick holds no reading of its own (it is
+  (`pamd.loop.control.ilc`), and one finer than the tick holds no reading of its own (it is
   read between its neighbours): at most `ILC_BINS_PER_TICK` bins a tick, or a cycle's
   bins grow without bound (1e-300 s: 10^301 of them).
 * `muscles[].onoff.pwm_period_s`, `muscles[].onoff.position_period_s`: a PWM period

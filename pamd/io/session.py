@@ -16,18 +16,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
-from pamd.controller import RigController
-from pamd.io.link import IoLink, MultiMailbox, RingMailbox, RingSink
 from pamd.iohost.io_spec import IoSpec
 from pamd.iohost.viewer_spec import ViewerSpec
-from pamd.loop import Loop
+from pamd.loop.control.controller import RigController
+from pamd.loop.control.summary import LocalMailbox, SummarySink
+from pamd.loop.devices.datum_file import Calibration
+from pamd.loop.io_link import IoLink, MultiMailbox, RingMailbox, RingSink
+from pamd.loop.loop import Loop
 from pamd.net.host.host import NetHost
 from pamd.net.host.ports import HostParts
 from pamd.net.host.resolve import resolve_all
 from pamd.record.meta import build_record_spec
-from pamd.summary import LocalMailbox, SummarySink
 from pamd.wire.board import Board
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.net_spec import NetSpec, TelemetryRequest

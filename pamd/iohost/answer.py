@@ -5,7 +5,7 @@ snapshot is old or the loop is not running; and the loop's timing in it (`TickSt
 kept by the io process from the tick records it drains (each record carries its
 wake-up latency, compute time, overruns and lost records), so that the loop's process
 never spends time on percentiles for status queries. Histograms of 1 us bins like
-`pamd.timing.Histogram`; percentiles at most every `period_s`, in the io loop.
+`pamd.loop.tick_timing.Histogram`; percentiles at most every `period_s`, in the io loop.
 
 Stale, for the live values, means the loop is not running, judged by the loop's own
 rule: it has written no tick record into its ring for longer than its stall fault

@@ -2,8 +2,8 @@
 
 Role: a leaf module (imports nothing of pamd but the errors) naming the seam between
 model kinds (`pamd.models.registry` finds them by a file's ``kind``) and their users:
-the feedforward (`pamd.control.feedforward`), the config-time and command-time checks
-(`pamd.control.model_check`), `pamd train` and `pamd evaluate`.
+the feedforward (`pamd.loop.control.feedforward`), the config-time and command-time checks
+(`pamd.loop.control.model_check`), `pamd train` and `pamd evaluate`.
 
 An `InverseModel` maps tick signals (`SOURCES`: force, length or contraction,
 velocity) to a pressure. It says what it takes (`inputs`, each with the range it was

@@ -11,8 +11,8 @@ import socket
 import sys
 import time
 
-from pamd.calibration import Calibration
 from pamd.config.loader import LoadedConfig
+from pamd.loop.devices.datum_file import Calibration
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.record.record_spec import RecordSpec
 from pamd.wire.version import __version__

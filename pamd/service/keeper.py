@@ -26,9 +26,9 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from pamd.commands import Command
-from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig
+from pamd.loop.commands import Command
+from pamd.loop.commands.pending import PendingCommand
 from pamd.service.notify import Notifier
 from pamd.service.persistence import StateKeeper
 from pamd.service.ports import KeptLoop, KeptRig, SafeMuscleView, tick_gap_s

@@ -11,14 +11,14 @@ from typing import Protocol
 
 from pamd.config.loader import LoadedConfig
 from pamd.drivers.safe_outputs import SafeMuscle
-from pamd.rt import RealtimeSession
-from pamd.safety.supervisor import Supervisor
-from pamd.timing import TickTiming
+from pamd.loop.rt import RealtimeSession
+from pamd.loop.safety.supervisor import Supervisor
+from pamd.loop.tick_timing import TickTiming
 from pamd.wire.declare.jsonsafe import JsonObject
 
 
 class KeptRig(Protocol):
-    """What the keeper uses of the rig's controller (`pamd.controller.RigController`):
+    """What the keeper uses of the rig's controller (`pamd.loop.control.controller.RigController`):
     its supervisor (the latched fault, the state), the reload's fate (status shows it;
     the reloader and the loop's `reload` handler write it), the loop's time, the
     muscles' safe pressures (the safe outputs kept), whether it is at rest and why not."""
@@ -46,7 +46,7 @@ class SafeMuscleView(SafeMuscle, Protocol):
 
 
 class KeptLoop(Protocol):
-    """What the keeper uses of the loop (`pamd.loop.Loop`): whether it ticks and when it
+    """What the keeper uses of the loop (`pamd.loop.loop.Loop`): whether it ticks and when it
     last did (systemd's watchdog, the stall the main thread sees), how it ended, the
     real-time session of its process, and the reload's hand-over and stall limits."""
 

@@ -36,8 +36,8 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
-from pamd.commands import MuscleSettings, ReloadArgs
 from pamd.config.loader import LoadedConfig, effective_timeout_s
+from pamd.loop.commands import MuscleSettings, ReloadArgs
 
 Kind = Literal["now", "idle", "restart"]
 

@@ -7,7 +7,7 @@ reload that fails is refused and the daemon runs on the config loaded before: a
 reload never takes the rig down.
 
 **Off the loop.** The file is read, parsed, validated and its model files checked in a
-child process (`pamd.commands.model_file.read_config_isolated`), waited for by a
+child process (`pamd.loop.commands.model_file.read_config_isolated`), waited for by a
 worker thread; the main thread only looks whether it is done, every 50 ms, so the
 status, the persistence and systemd's notifications go on meanwhile (the watchdog's
 pings come from a thread of their own and prove only that the loop ticks). On the
@@ -29,11 +29,11 @@ import logging
 from collections.abc import Callable
 from concurrent.futures import Future
 
-from pamd.commands import Command
-from pamd.commands.model_file import read_config, read_config_isolated
-from pamd.commands.offload import Preparer
-from pamd.commands.pending import PendingCommand
 from pamd.config.loader import LoadedConfig
+from pamd.loop.commands import Command
+from pamd.loop.commands.model_file import read_config, read_config_isolated
+from pamd.loop.commands.offload import Preparer
+from pamd.loop.commands.pending import PendingCommand
 from pamd.service.notify import Notifier
 from pamd.service.ports import KeptLoop, KeptRig
 from pamd.service.reload import ReloadPlan, describe, plan_reload

@@ -37,7 +37,7 @@ import threading
 from multiprocessing import resource_tracker
 from typing import NoReturn
 
-from pamd.commands import offload
+from pamd.loop.commands import offload
 from pamd.service.notify import RESTARTED_ENV, Notifier
 from pamd.service.watchdog import STARTUP_WATCHDOG_S
 

@@ -12,7 +12,7 @@ before and 0.2 s + `WINDOW_S` after), the pressure wandering from pulse to pulse
 
 1. a 40 ms pulse: the pressure step over the pulse's recorded length is the valve's rate
    (`fill_rate_bar_per_s`, `vent_rate_bar_per_s`; the duty's gain);
-2. the shortest pulse the PWM sends (`pamd.control.actuation.min_pulse_s`),
+2. the shortest pulse the PWM sends (`pamd.loop.control.actuation.min_pulse_s`),
    `SHORTEST_REPEATS` (3) times per valve, inflate and exhaust alternating (the
    pressure stays within a few steps of the level): half the smaller of the two
    valves' typical steps (`typical_step_bar`: the mean of the repeats `counted`) is
@@ -60,7 +60,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pamd.commands.tune import Valve
+from pamd.loop.commands.tune_verbs import Valve
 from pamd.tune.run import TuneRefused
 from pamd.tune.yamledit import change_row
 from pamd.wire.tick import Flag

@@ -3,8 +3,8 @@ any run (`pamd.tune.onoff` says what it measures and derives).
 
 The daemon runs the rig's own config; its setpoint goes to the level (a `setpoint`
 command, queued before it starts) and holds there `SETTLE_S`; then each pulse is one
-`pulse` command (`pamd.commands.tune`: checked against the muscle's valves and
-limits, then timed in the tick by `pamd.control.valve_pulse`), sent once the one
+`pulse` command (`pamd.loop.commands.tune_verbs`: checked against the muscle's valves and
+limits, then timed in the tick by `pamd.loop.control.valve_pulse`), sent once the one
 before is done. On the virtual clock the loop's time stands still between them
 (`Loop.stand_still_while`), so the run is the same however fast this thread is. Each
 pulse's verdict says at which recorded time the loop took it; the analysis finds the
@@ -20,14 +20,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from pamd.commands.pending import PendingCommand
-from pamd.commands.tune import PulseArgs
 from pamd.config import LoadedConfig, load_config
-from pamd.control.actuation import OnOffActuation, min_pulse_s
-from pamd.control.relay import DONE
 from pamd.daemon import Daemon
 from pamd.io.session import RecordingRequest
-from pamd.safety.envelope import MuscleEnvelope
+from pamd.loop.commands.pending import PendingCommand
+from pamd.loop.commands.tune_verbs import PulseArgs
+from pamd.loop.control.actuation import OnOffActuation, min_pulse_s
+from pamd.loop.control.relay import DONE
+from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.tune.onoff import (
     AFTER_S,
     IDENT_DEAD_BAND_BAR,

@@ -3,7 +3,7 @@ Hagglund, Klipper's PID_CALIBRATE), run through the daemon and recorded.
 
 Per level (1.5, 3 and 4.5 bar by default): the setpoint ramps to the level and holds
 it (the PID and rate feedforward off and a fast slew limit, as for the steps: only the
-regulator acts), then the loop's relay element (`pamd.control.relay`) switches the
+regulator acts), then the loop's relay element (`pamd.loop.control.relay`) switches the
 regulator setpoint between level +/- amplitude on the measured pressure crossing where
 it rested (with hysteresis) for a few cycles. From the recording: the ultimate gain
 Ku = 4 d / (pi a) and period Tu of the oscillation (`relay_oscillation`), the static
@@ -22,19 +22,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pamd.commands.pending import PendingCommand
-from pamd.commands.tune import RelayArgs
 from pamd.config import LoadedConfig
-from pamd.control.relay import DONE
-from pamd.control.tuning import (
+from pamd.daemon import Daemon
+from pamd.io.session import RecordingRequest
+from pamd.loop.commands.pending import PendingCommand
+from pamd.loop.commands.tune_verbs import RelayArgs
+from pamd.loop.control.relay import DONE
+from pamd.loop.control.tuning import (
     Fopdt,
     IdentificationError,
     RelayResult,
     relay_fopdt,
     relay_oscillation,
 )
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
 from pamd.tune.run import PRESSURE, TuneRefused, check_limits, start, tuning_config
 from pamd.view.recording import open_recording
 from pamd.wire.verbs.args import Command

@@ -10,7 +10,7 @@ import numpy as np
 
 from pamd.config import LoadedConfig
 from pamd.config.gains import position_plant, pressure_plant
-from pamd.control.tuning import Fopdt
+from pamd.loop.control.tuning import Fopdt
 from pamd.tune.run import LoopPlan
 from pamd.tune.steps import Step, position_gains, pressure_gains
 from pamd.tune.yamledit import KeyPath, change_row

@@ -26,13 +26,13 @@ import numpy as np
 
 from pamd.config import LoadedConfig, load_config
 from pamd.daemon import Daemon
-from pamd.experiment.manifest import step_records
-from pamd.experiment.plan import Plan, load_plan
-from pamd.experiment.sequencer import started_plan
-from pamd.experiment.timeline import StepLine, timeline
 from pamd.io.session import RecordingRequest
-from pamd.safety import safe_pressure_bar
-from pamd.safety.envelope import MuscleEnvelope
+from pamd.loop.experiment.manifest import step_records
+from pamd.loop.experiment.plan import Plan, load_plan
+from pamd.loop.experiment.sequencer import started_plan
+from pamd.loop.experiment.timeline import StepLine, timeline
+from pamd.loop.safety import safe_pressure_bar
+from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.tune.steps import Step, steps_in
 from pamd.view.recording import open_recording
 from pamd.wire.atomic import write_atomic

@@ -4,7 +4,7 @@ bench/tune_pressure_loop.py share.
 - `Step`: one recorded step of a loop's input and its output around it.
 - `steps_in`: the steps of a recorded input column (a recording's `valve_cmd_bar` or
   `setpoint_bar`), each with the output from 50 ms before it.
-- `fit_all`, `mean_model`: an FOPDT fit per step (`pamd.control.tuning.fit_step`) and
+- `fit_all`, `mean_model`: an FOPDT fit per step (`pamd.loop.control.tuning.fit_step`) and
   the design model, their mean.
 - `check_model`: refuse a model no loop can be tuned on (wrong sign, no lag, a poor
   fit) with the reason.
@@ -27,7 +27,13 @@ from pamd.config.control_schema import (
     POSITION_KI_MAX_BAR_PER_MM_S,
     POSITION_KP_MAX_BAR_PER_MM,
 )
-from pamd.control.tuning import Fopdt, IdentificationError, fit_step, rate_feedforward_s, simc_pi
+from pamd.loop.control.tuning import (
+    Fopdt,
+    IdentificationError,
+    fit_step,
+    rate_feedforward_s,
+    simc_pi,
+)
 
 #: A fit whose rms error exceeds this fraction of the step's change is not a FOPDT
 #: response (an oscillation, a saturated fill, a disturbance in the record).

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import os
 
-from pamd.experiment.manifest import Manifest
+from pamd.loop.experiment.manifest import Manifest
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import RecordingError
 from pamd.wire.record import files as io_files

@@ -1,7 +1,7 @@
 """Models judged as the tick runs them, and told when they do not know.
 
 Role: `pamd evaluate`'s predictions come from the feedforward stage itself
-(`pamd.control.feedforward.Feedforward.pressure`, the code the tick calls): inputs held
+(`pamd.loop.control.feedforward.Feedforward.pressure`, the code the tick calls): inputs held
 to the model's training ranges, the output held to its training range, a stateful
 model reset from the measured signals at the start of each run. So the figures are
 those of the model as it acts on the rig, and every held sample is counted (inputs held,
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.control.feedforward import Feedforward
+from pamd.loop.control.feedforward import Feedforward
 from pamd.metrics import regression_metrics
 from pamd.models.anfis.samples import Samples
 from pamd.models.compare import Judged, columns_for, predict_samples, tick_cost_us

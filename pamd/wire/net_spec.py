@@ -46,6 +46,6 @@ class NetSpec:
     listen: tuple[str, ...] = ()  # the session's listen endpoints (the local channel says them)
     warnings: tuple[str, ...] = ()  # said at start and in every status (cleartext beyond
     # loopback, allowed by --allow-cleartext)
-    # the loop's stall fault limit (pamd.stalls): a loop that writes no tick record this
+    # the loop's stall fault limit (pamd.loop.stalls): a loop that writes no tick record this
     # long is not running (it would latch FAULT), so its status is stale
     stall_fault_s: float = 0.5

@@ -55,8 +55,8 @@ class MuscleStatus(TypedDict):
     limits: MuscleLimits
     references: References
     model: JsonObject | None  # the inverse model's description (JSON edge)
-    adapt: JsonObject  # online adaptation (pamd.control.adapt; JSON edge)
-    feedforward: JsonObject  # the model off its data, faded (pamd.control.off_data)
+    adapt: JsonObject  # online adaptation (pamd.loop.control.adapt; JSON edge)
+    feedforward: JsonObject  # the model off its data, faded (pamd.loop.control.off_data)
     deadman_left_s: float | None
 
 

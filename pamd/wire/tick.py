@@ -133,11 +133,11 @@ class MuscleTick:
     """What one muscle's stages hand each other within a tick: ros2_control's state and
     command interfaces, one object per muscle, reused every tick (slots: plain stores,
     nothing allocated). Every stage is `update(t, now, dt)` on it (`Stage`); each field
-    says which phase writes it. The muscle (`pamd.control.muscle.MuscleController`)
+    says which phase writes it. The muscle (`pamd.loop.control.muscle.MuscleController`)
     owns it and runs its stages in three phases: read (its inputs and the checks on
     them), update (the setpoint source and the pressure loop), write (the guards, the
     limiter, the actuation, the adaptation), the rig's safe state decided once between
-    every muscle's update and any write (`pamd.controller.RigController.tick`)."""
+    every muscle's update and any write (`pamd.loop.control.controller.RigController.tick`)."""
 
     __slots__ = (
         "state", "flags", "fault", "finding", "last_command_bar", "air_cut",
@@ -150,8 +150,8 @@ class MuscleTick:
     )
 
     def __init__(self) -> None:
-        # -- read: the muscle, then its inputs (pamd.control.inputs) and the checks on
-        # them (pamd.safety.limits.LimitMonitor) -----------------------------------------
+        # -- read: the muscle, then its inputs (pamd.loop.control.inputs) and the checks on
+        # them (pamd.loop.safety.limits.LimitMonitor) -----------------------------------------
         self.state = 0  # the rig's state (pamd.wire.tick.State) this tick's update runs in
         self.flags = 0  # the record's flag bits (pamd.wire.tick.Flag): each stage ORs in its own
         self.fault: str | None = None  # a fault found this tick (read, then write's own)
@@ -161,7 +161,7 @@ class MuscleTick:
         self.pressure_bar = self.force_n = self.length_mm = self.contraction = NAN
         self.velocity_mm_s = 0.0
         self.pressure_ok = self.length_ok = False  # trusted this tick
-        # -- update: the setpoint source (pamd.control.setpoint, length_control); the
+        # -- update: the setpoint source (pamd.loop.control.setpoint, length_control); the
         # fixed ones set when the muscle chooses it -------------------------------------
         self.setpoint_bar = NAN  # carried from tick to tick: each source moves it
         self.rate_bar_per_s = 0.0  # the setpoint's rate, for the rate feedforward
@@ -180,7 +180,7 @@ class MuscleTick:
         self.step_bar = 0.0  # the slew limit times the period
         self.lo_bar = self.hi_bar = NAN  # the guards' bounds on the command
         self.floor_bar = 0.0  # the limiter's floor while held: the safe pressure
-        # -- write: what the actuation acts on (pamd.control.actuation) ------------------
+        # -- write: what the actuation acts on (pamd.loop.control.actuation) ------------------
         self.position_valves = False  # the valves position the length this tick
         self.ceiling_bar = NAN  # ... filling no higher (the pressure limit, the guards')
         self.valve_floor_bar = -math.inf  # the valves vent no lower (a safe state)

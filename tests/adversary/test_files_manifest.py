@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from pamd.experiment.manifest import Manifest
+from pamd.loop.experiment.manifest import Manifest
 from pamd.view.collection import inspect_collection
 
 REPO = Path(__file__).resolve().parents[2]

@@ -84,7 +84,7 @@ def test_help_lists_every_subcommand_without_importing_them() -> None:
     for command in COMMANDS:
         assert f"    {command.name}" in text, command.name
     assert not {c.module for c in COMMANDS} & modules
-    assert "pamd.daemon" not in modules and "pamd.controller" not in modules
+    assert "pamd.daemon" not in modules and "pamd.loop.control.controller" not in modules
 
 
 def test_a_chosen_subcommand_imports_its_module_only() -> None:

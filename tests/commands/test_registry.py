@@ -1,5 +1,5 @@
 """Each command verb's spec is declared once (`pamd.wire.verbs.table.VERBS`) and its handler once
-(`pamd.commands.registry.Verb`); the parser, the loop's dispatcher, the io process's
+(`pamd.loop.commands.verb_registry.Verb`); the parser, the loop's dispatcher, the io process's
 routing, the status and `pamd cmd --help` derive from them."""
 
 from __future__ import annotations
@@ -11,17 +11,25 @@ import pytest
 
 from pamd.cli.main import build_parser
 from pamd.cli.net import verb_parser
-from pamd.commands import (
+from pamd.loop.commands import (
     REGISTRY,
     Command,
     Verb,
     VerbRegistry,
-    adapt,
     apply_command,
-    motion,
     parse_command,
-    plan,
-    rig,
+)
+from pamd.loop.commands import (
+    adapt_verbs as adapt,
+)
+from pamd.loop.commands import (
+    motion_verbs as motion,
+)
+from pamd.loop.commands import (
+    plan_verbs as plan,
+)
+from pamd.loop.commands import (
+    rig_verbs as rig,
 )
 from pamd.wire.errors import CommandRefused
 from pamd.wire.verbs.args import NoArgs

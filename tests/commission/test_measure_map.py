@@ -28,7 +28,7 @@ from pamd.commission.mapsweep import FALLING, RISING, choose_sweep, plans
 from pamd.commission.moves import CommissionRefused
 from pamd.config import load_config
 from pamd.config.muscle_types import read_map
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 from pamd.muscle_type import (
     ForceMap,
     MapBox,

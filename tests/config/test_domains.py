@@ -12,8 +12,6 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pamd.commands import parse_command
-from pamd.commands.verbs import REGISTRY
 from pamd.config import load_config
 from pamd.config.control_schema import (
     PID_KI_MAX_PER_S,
@@ -22,8 +20,10 @@ from pamd.config.control_schema import (
     POSITION_KP_MAX_BAR_PER_MM,
 )
 from pamd.config.schema import RigConfig
-from pamd.control.tuning import Fopdt, simc_pi
-from pamd.experiment.plan import Plan, parse_plan
+from pamd.loop.commands import parse_command
+from pamd.loop.commands.verbs import REGISTRY
+from pamd.loop.control.tuning import Fopdt, simc_pi
+from pamd.loop.experiment.plan import Plan, parse_plan
 from pamd.wire.errors import CommandRefused, ConfigError
 from pamd.wire.schema.domains import bounds
 

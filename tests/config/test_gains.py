@@ -25,7 +25,7 @@ from pamd.config.stability import (
     pid,
     sampled_plant,
 )
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 from pamd.models.registry import MAX_FILE_BYTES
 from pamd.service.reload import classify
 from pamd.wire.errors import ConfigError

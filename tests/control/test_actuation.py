@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from pamd.config import load_config
-from pamd.control.actuation import Actuation, RegulatorActuation
+from pamd.loop.control.actuation import Actuation, RegulatorActuation
 from pamd.wire.errors import ConfigError
 from pamd.wire.tick import Flag, MuscleTick
 

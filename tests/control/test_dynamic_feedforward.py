@@ -15,14 +15,14 @@ import pytest
 
 from pamd.config import LoadedConfig
 from pamd.config.control_schema import PositionConfig, PositionPidConfig
-from pamd.control.feedforward import Feedforward, LoadedModel
-from pamd.control.length_control import LengthControl, preview_s_of
-from pamd.harness import Harness
+from pamd.loop.control.feedforward import Feedforward, LoadedModel
+from pamd.loop.control.length_control import LengthControl, preview_s_of
+from pamd.loop.harness import Harness
+from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.models.anfis import TrainingOptions, fit
 from pamd.models.contract import InverseModel
 from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfilePoint, ProfileSpec
-from pamd.safety.envelope import MuscleEnvelope
 from pamd.wire.tick import Mode, State
 
 S_RUNNING = int(State.RUNNING)

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 import yaml
 
-from pamd.commands import apply_command, parse_command, prepare_command
 from pamd.config import LoadedConfig, load_config
-from pamd.control.feedforward import LoadedModel, load_models
-from pamd.control.model_check import velocity_window
-from pamd.harness import Harness
+from pamd.loop.commands import apply_command, parse_command, prepare_command
+from pamd.loop.control.feedforward import LoadedModel, load_models
+from pamd.loop.control.model_check import velocity_window
+from pamd.loop.harness import Harness
 from pamd.models.anfis import TrainingOptions, fit, save
 from pamd.wire.errors import CommandRefused, ConfigError
 from pamd.wire.tick import Flag, Mode, State

@@ -14,9 +14,9 @@ import pytest
 
 from pamd.config import LoadedConfig
 from pamd.config.control_schema import IncrementalPidConfig, PositionPidConfig
-from pamd.control.feedforward import LoadedModel
-from pamd.control.incremental_pid import IncrementalPid
-from pamd.harness import Harness
+from pamd.loop.control.feedforward import LoadedModel
+from pamd.loop.control.incremental_pid import IncrementalPid
+from pamd.loop.harness import Harness
 from pamd.models.fn_qupi import FnQupiOptions, fit_fn_qupi
 from pamd.models.registry import save_model
 from pamd.wire.tick import State

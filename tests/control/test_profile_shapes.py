@@ -11,7 +11,7 @@ import typing
 import pytest
 
 from pamd.cli.main import build_parser
-from pamd.experiment.plan import PlanProfile
+from pamd.loop.experiment.plan import PlanProfile
 from pamd.profiles import (
     SHAPE_NAMES,
     SHAPES,

@@ -9,11 +9,11 @@ from typing import Any, Literal
 
 import pytest
 
-from pamd.commands.tune import PulseArgs
-from pamd.control.actuation import OnOffActuation
-from pamd.control.relay import DONE
-from pamd.control.valve_pulse import AT_LIMIT, MOVED
-from pamd.harness import Harness
+from pamd.loop.commands.tune_verbs import PulseArgs
+from pamd.loop.control.actuation import OnOffActuation
+from pamd.loop.control.relay import DONE
+from pamd.loop.control.valve_pulse import AT_LIMIT, MOVED
+from pamd.loop.harness import Harness
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.tick import Flag
 from pamd.wire.verbs.args import Command

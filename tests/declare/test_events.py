@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[2]
 KIND_SECOND = {"event"}
 KIND_FIRST = {"_publish_event", "_record_io", "record"}
 #: wrappers whose callers name a sub-kind: the kind they emit, and the key it goes in
-WRAPPERS = {("experiment/sequencer.py", "_event"): "experiment",
+WRAPPERS = {("loop/experiment/sequencer.py", "_event"): "experiment",
             ("net/collections.py", "_event"): "collection"}
 
 

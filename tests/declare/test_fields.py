@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 from mcap_ros2._vendor.rosidl_adapter.parser import parse_message_string
 
-from pamd import controller, loop
-from pamd.control import muscle
 from pamd.iohost.recorder import record_schemas
+from pamd.loop import loop
+from pamd.loop.control import controller, muscle
 from pamd.view import fields as view_fields
 from pamd.view.layout import PANELS, build_layout
 from pamd.wire import tick
@@ -76,7 +76,7 @@ def _stored(tree: ast.AST, prefix: str) -> set[str]:
 
 def test_the_muscle_stage_writes_every_muscle_field() -> None:
     """`MuscleController._record` stores each muscle field of the table, by its offset."""
-    src = (ROOT / "pamd" / "control" / "muscle.py").read_text()
+    src = (ROOT / "pamd" / "loop" / "control" / "muscle.py").read_text()
     fn = next(n for n in ast.walk(ast.parse(src))
               if isinstance(n, ast.FunctionDef) and n.name == "_record")
     offsets = {getattr(muscle, n) for n in _stored(fn, "M_")}

@@ -9,7 +9,7 @@ from array import array
 from types import SimpleNamespace
 from typing import Any
 
-from pamd.io.link import HELD_EVENTS_MAX, RingSink
+from pamd.loop.io_link import HELD_EVENTS_MAX, RingSink
 from pamd.wire.ring import C_LOST_EVENTS, FILES_MAX, BlockLayout, SharedBlock
 
 

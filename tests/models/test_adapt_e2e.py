@@ -15,9 +15,9 @@ import yaml
 
 import pamd
 from pamd.config import load_config
-from pamd.control.adapt import AdaptState
-from pamd.control.feedforward import LoadedModel, load_models
 from pamd.daemon import Daemon, RecordingRequest
+from pamd.loop.control.adapt import AdaptState
+from pamd.loop.control.feedforward import LoadedModel, load_models
 from pamd.models.anfis.adapted import save_adapted
 from pamd.models.registry import load_model
 from pamd.wire.errors import ConfigError

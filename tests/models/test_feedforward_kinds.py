@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.control.feedforward import LoadedModel
-from pamd.harness import Harness
+from pamd.loop.control.feedforward import LoadedModel
+from pamd.loop.harness import Harness
 from pamd.wire.errors import ModelError
 from pamd.wire.tick import State
 

@@ -17,10 +17,10 @@ import pytest
 import yaml
 
 from pamd.config import load_config
-from pamd.experiment.manifest import Manifest
-from pamd.experiment.plan import load_plan
+from pamd.loop.experiment.manifest import Manifest
+from pamd.loop.experiment.plan import load_plan
+from pamd.loop.safety.supervisor import Supervisor
 from pamd.net.host.collections import Collections
-from pamd.safety.supervisor import Supervisor
 from pamd.wire.errors import CommandRefused
 
 PLAN = yaml.safe_dump({

@@ -12,8 +12,8 @@ import pytest
 
 from pamd.cli.net import _parse_bool, build_payload, verb_parser
 from pamd.iohost.ratelimit import RateLimiter
+from pamd.loop.tick_timing import Histogram
 from pamd.net.host.resolve import resolve
-from pamd.timing import Histogram
 from pamd.wire import zconf
 from pamd.wire.board import Board
 from pamd.wire.errors import ConfigError

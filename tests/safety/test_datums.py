@@ -11,8 +11,8 @@ from typing import Any
 import pytest
 import yaml
 
-from pamd.calibration import load_calibration
 from pamd.cli.main import main
+from pamd.loop.devices.datum_file import load_calibration
 from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction, force_model
 
 from .conftest import SafetyRig

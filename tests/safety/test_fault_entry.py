@@ -18,8 +18,8 @@ from typing import Any
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.control.feedforward import LoadedModel
-from pamd.harness import Harness
+from pamd.loop.control.feedforward import LoadedModel
+from pamd.loop.harness import Harness
 from pamd.wire.tick import State
 from tests.experiment.test_sequencer import start
 

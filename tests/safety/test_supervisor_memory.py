@@ -4,7 +4,7 @@ faults came since a given moment."""
 
 from __future__ import annotations
 
-from pamd.safety.supervisor import FAULTS_KEPT, HISTORY_KEPT, Supervisor
+from pamd.loop.safety.supervisor import FAULTS_KEPT, HISTORY_KEPT, Supervisor
 from pamd.wire.tick import State
 
 

@@ -18,7 +18,7 @@ import pytest
 
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 from pamd.service.keeper import ServiceKeeper
 from pamd.service.testhooks import SLOW_RELOAD_ENV
 from pamd.wire.declare.jsonsafe import JsonObject

@@ -14,7 +14,7 @@ from typing import Any
 import yaml
 
 from pamd.config import LoadedConfig, load_config
-from pamd.control.tuning import Fopdt
+from pamd.loop.control.tuning import Fopdt
 from pamd.tune.placement import place
 from pamd.tune.report import PLANT_KEYS, Present
 from pamd.tune.yamledit import set_values

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 from pamd.wire.errors import CommandRefused
 from pamd.wire.verbs.table import VERBS
 

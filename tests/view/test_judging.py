@@ -12,7 +12,7 @@ import pytest
 
 import pamd
 from pamd.cli.main import main
-from pamd.control.feedforward import Feedforward
+from pamd.loop.control.feedforward import Feedforward
 from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.contract import Variable
 from pamd.models.domain import derive

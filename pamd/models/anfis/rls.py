@@ -35,7 +35,7 @@ max |Phi_grid delta|, one (points x n) product (about 25 us for 1000 x 108). The
 model's output is smooth between the points (Gaussian or bell memberships wider than
 the grid's spacing), so this is what an operator means by "the adapted model differs
 from the trained one by at most so many bar anywhere". The adaptation bounds
-(`pamd.control.adapt`) are stated in it.
+(`pamd.loop.control.adapt`) are stated in it.
 """
 
 from __future__ import annotations

@@ -20,11 +20,11 @@ import time
 from concurrent.futures import Future
 from dataclasses import dataclass
 
-from pamd.commands import Command, named_files, parse_command
-from pamd.commands.model_file import ModelSource, prepare_model_from
-from pamd.commands.offload import Preparer, warm_up
-from pamd.commands.plan_file import read_plan
-from pamd.experiment.plan import Plan
+from pamd.loop.commands import Command, named_files, parse_command
+from pamd.loop.commands.model_file import ModelSource, prepare_model_from
+from pamd.loop.commands.offload import Preparer, warm_up
+from pamd.loop.commands.plan_file import read_plan
+from pamd.loop.experiment.plan import Plan
 from pamd.net.host.collections import Collection, Collections
 from pamd.net.host.ports import HostParts
 from pamd.net.host.status import StatusBuilder, recording_status
@@ -74,7 +74,7 @@ class NetHost:
         self.last_t = -1e9
         self.pending: dict[int, _Pending] = {}
         self.outbox: list[bytes] = []  # replies waiting for room in the ring
-        # collect/model: their files read in a child process (pamd.commands.offload),
+        # collect/model: their files read in a child process (pamd.loop.commands.offload),
         # waited for by a worker thread, taken up by service()
         self.preparer = Preparer()
         self.preparing: list[tuple[_Request, Future[Command]]] = []

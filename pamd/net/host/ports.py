@@ -9,10 +9,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from pamd.commands import Command
 from pamd.config.loader import LoadedConfig
-from pamd.controller import RigController
-from pamd.loop import Loop
+from pamd.loop.commands import Command
+from pamd.loop.control.controller import RigController
+from pamd.loop.loop import Loop
 from pamd.wire.declare.jsonsafe import JsonObject
 
 
@@ -39,7 +39,7 @@ class EventLog(Protocol):
 
 
 class CommandInbox(Protocol):
-    """The loop's mailbox as the main thread fills it (`pamd.summary.LocalMailbox`)."""
+    """The loop's mailbox as the main thread fills it (`pamd.loop.control.summary.LocalMailbox`)."""
 
     def put(self, cmd: Command) -> None: ...
 

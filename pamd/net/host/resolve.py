@@ -13,7 +13,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.config.names import check_chunk
 from pamd.iohost.viewer_spec import ViewerSpec
 from pamd.iohost.viewer_spec import resolve as resolve_viewer
-from pamd.stalls import stall_limit
+from pamd.loop.stalls import stall_limit
 from pamd.wire import cleartext, zconf
 from pamd.wire.cleartext import is_loopback_host
 from pamd.wire.credential import ensure_token

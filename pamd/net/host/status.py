@@ -11,9 +11,9 @@ from collections.abc import Callable
 from typing import Protocol, cast
 
 from pamd.config.loader import LoadedConfig
-from pamd.control.muscle import MuscleController
-from pamd.controller import RigController
-from pamd.experiment.sequencer import running_plan
+from pamd.loop.control.controller import RigController
+from pamd.loop.control.muscle import MuscleController
+from pamd.loop.experiment.sequencer import running_plan
 from pamd.net.host.ports import RecordingState
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.status import ExperimentStatus, MuscleStatus, RecordingStatus, Status, jsonsafe
@@ -36,7 +36,7 @@ def recording_status(io: RecordingState | None) -> RecordingStatus | None:
 
 
 class StatusLoop(Protocol):
-    """What the status says of the loop (`pamd.loop.Loop`)."""
+    """What the status says of the loop (`pamd.loop.loop.Loop`)."""
 
     virtual: bool
     clock_name: str  # real, virtual or daq
@@ -113,7 +113,7 @@ class StatusBuilder:
                 "tared_at": ref.tared_at, "length_offset_mm": ref.length_offset_mm,
                 "force_offset_n": ref.force_offset_n},
             "model": ff.describe() if ff is not None else None,
-            "adapt": m.adaptation.describe(),  # online adaptation (pamd.control.adapt)
-            "feedforward": m.feedforward_report(),  # off its data (pamd.control.off_data)
+            "adapt": m.adaptation.describe(),  # online adaptation (pamd.loop.control.adapt)
+            "feedforward": m.feedforward_report(),  # off its data (pamd.loop.control.off_data)
             "deadman_left_s": None if dm is None else max(0.0, dm[0] - self.ctrl.now),
         }

@@ -118,7 +118,7 @@ KINDS: tuple[EventKind, ...] = (
                   _MUSCLE,
                   Key("timeout_s", "number", "the deadman time", "s"))),
     EventKind("adapt", "the model's online adaptation froze or hit its rate bound",
-              "controller (pamd.control.adapt)", (
+              "controller (pamd.loop.control.adapt)", (
                   _MUSCLE,
                   Key("action", "string", "frozen or rate_bound"),
                   _REASON,
@@ -128,7 +128,7 @@ KINDS: tuple[EventKind, ...] = (
                       _BAR))),
     EventKind("feedforward", "the model's inputs left its training domain (said once a "
               "mode or model), or its feedforward began to oscillate against the pressure "
-              "loop (once an episode)", "controller (pamd.control.off_data)", (
+              "loop (once an episode)", "controller (pamd.loop.control.off_data)", (
                   _MUSCLE,
                   Key("what", "string", "off_data or oscillating"),
                   Key("action", "string", "fade (to the position PID alone) or warn"),
@@ -161,7 +161,7 @@ KINDS: tuple[EventKind, ...] = (
                   opt("cycle", "integer", "the profile's cycle (cycle)"),
                   opt("outcome", "string", "how the plan ended (plan_finished, plan_ended)"))),
     EventKind("command", "a command and its verdict (refused before or by the loop, or done)",
-              "loop (pamd.commands.apply), daemon, io process", (
+              "loop (pamd.loop.commands.apply), daemon, io process", (
                   *_COMMAND, *VERDICT,
                   opt("refused_unrecorded", "integer", "refusals like it not recorded "
                       "since the last recorded one (a flood)")),

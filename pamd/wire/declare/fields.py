@@ -107,7 +107,7 @@ FLAG_MEANINGS: dict[Flag, str] = {
 #: the pressure is the vent's, and training and adaptation drop those samples.
 PWM_VALVE_FLAGS = Flag.EXHAUST_OPEN | Flag.INFLATE_OPEN
 
-#: `adapt_state`'s codes (pamd.control.adapt.AdaptState holds the same values)
+#: `adapt_state`'s codes (pamd.loop.control.adapt.AdaptState holds the same values)
 ADAPT_STATES: dict[int, str] = {0: "off", 1: "adapting", 2: "paused", 3: "frozen",
                                 4: "rate-limited"}
 

@@ -7,5 +7,5 @@
   types, NaN).
 
 The io process parses, validates and routes by these alone; the loop's handlers are in
-`pamd.commands`, declared against these specs by name.
+`pamd.loop.commands`, declared against these specs by name.
 """

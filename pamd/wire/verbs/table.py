@@ -5,7 +5,7 @@ runs anywhere: the io process does it before anything reaches the loop).
 
 This is what the io process parses, validates and routes by, and what `pamd cmd`,
 the status's verb list and `pamd.connect` read; the loop's handlers
-(`pamd.commands`) are declared against these specs by name, and its registry refuses
+(`pamd.loop.commands`) are declared against these specs by name, and its registry refuses
 a spec without a handler or a handler without a spec.
 """
 
@@ -125,7 +125,7 @@ VERBS = VerbTable((
              "telemetry.plans_dir)", main_thread=True),
 ))
 """The verbs a client may send (internal ones, `reload`, `relay` and `pulse`, are declared with
-their handlers in `pamd.commands`)."""
+their handlers in `pamd.loop.commands`)."""
 
 
 def parse_command(verb: str, payload: JsonValue, sender: str = "local", user: str = "",
