@@ -104,8 +104,8 @@ def record_profile(cfg: LoadedConfig, out_dir: str, run_name: str,
                    profile: dict[str, Any], note: str = "") -> str:
     """Run `profile` to its end on a virtual daemon recording into `out_dir`; the
     first recorded file."""
-    from pamd.daemon import Daemon
-    from pamd.io.session import RecordingRequest
+    from pamd.daemon.daemon import Daemon
+    from pamd.daemon.io_session import RecordingRequest
 
     d = Daemon(cfg, note=note, recording=RecordingRequest(dir=out_dir, run_name=run_name))
     pending = d.submit("profile", profile)

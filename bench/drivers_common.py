@@ -11,7 +11,7 @@ import _lockdir  # noqa: F401  (the run's own rig-lock directory)
 import yaml
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.emulate.testing import REPO, emulated_dict, free_port, write_config
 from pamd.wire.tick import State
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from _common import sim_config
 
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.wire.tick import State
 
 DEFAULT_SWITCH_INTERVAL_S = 0.005  # CPython's

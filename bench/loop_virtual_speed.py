@@ -15,7 +15,7 @@ from typing import Any
 from _common import sim_config
 from tracking_sine import OLD_PLANT, plant_drivers
 
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.wire.tick import State
 
 

@@ -230,10 +230,10 @@ def test_the_cli_imports_only_its_own_subcommands_by_name() -> None:
 def test_the_check_sees_an_upward_and_a_lazy_import(tmp_path: Path) -> None:
     """The check itself: an import of a higher layer, and one inside a function."""
     probe = tmp_path / "probe.py"
-    probe.write_text("from pamd.loop.control.pid import Pid\ndef f():\n    import pamd.daemon\n")
+    probe.write_text("from pamd.loop.control.pid import Pid\ndef f():\n    import pamd.daemon.daemon\n")
     found = list(_imports("pamd.config.probe", probe))
     assert ("pamd.loop.control.pid", 1, False) in found
-    assert ("pamd.daemon", 3, True) in found
+    assert ("pamd.daemon.daemon", 3, True) in found
     layer = _layer_of()
     assert layer["control"] < layer["config"] and layer["daemon"] < layer["config"]
     assert _package("pamd.iohost.intake") == "net.node" and _package("pamd.wire.keys") == "net"

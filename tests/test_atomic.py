@@ -27,7 +27,7 @@ REPO = Path(__file__).resolve().parents[1]
 #: (recordings recover on their own), a lock, a device, a test hook
 NOT_KEPT = {
     "pamd/wire/record/": "MCAP recordings are streams, recovered by `pamd recover`",
-    "pamd/service/riglock.py": "a lock file, held open and locked, never replaced",
+    "pamd/daemon/service/riglock.py": "a lock file, held open and locked, never replaced",
     "pamd/loop/rt.py": "/dev/cpu_dma_latency, a device",
     "pamd/iohost/process.py": "a test hook's list of modules (PAMD_TEST_IO_MODULES)",
     "pamd/emulate/testing.py": "the tests' config files in their own temporary directory",

@@ -55,7 +55,7 @@ def test_binary_deep_and_large_files_are_refused_with_their_position(tmp_path: P
 
 def test_a_refused_plan_names_file_line_and_key_but_never_its_contents(
         tmp_path: Path, sim_config: Any) -> None:
-    from pamd.net.host.host import read_plan
+    from pamd.daemon.host.host import read_plan
 
     cfg = sim_config(telemetry={"plans_dir": str(tmp_path)})
     (tmp_path / "ca.key").write_text(SECRET)

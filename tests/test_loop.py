@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.loop.loop import GIL_SWITCH_FRACTION, SLACK_AT_FRACTION
 from pamd.loop.tick_timing import Histogram
 from pamd.wire.tick import State

@@ -19,7 +19,7 @@ from pamd.drivers.sim import SimDriver
 
 from pamd.config import LoadedConfig, load_config, load_config_text
 from pamd.config.schema import RealtimeConfig
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.loop.harness import Harness
 from pamd.loop.loop import Loop
 from pamd.loop.rt import RESET_ON_FORK, RealtimeSession

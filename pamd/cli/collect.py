@@ -17,8 +17,8 @@ from types import FrameType
 from typing import Protocol
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
 from pamd.loop.experiment.manifest import Manifest, collection_name, step_records
 from pamd.loop.experiment.plan import load_plan
 from pamd.loop.experiment.sequencer import Sequencer, running_plan, started_plan

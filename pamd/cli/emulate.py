@@ -15,8 +15,8 @@ from types import FrameType
 
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
+from pamd.daemon.service.riglock import RunLocks
 from pamd.drivers import load_driver_class
-from pamd.service.riglock import RunLocks
 from pamd.wire.errors import DriverError
 
 

@@ -17,7 +17,7 @@ import json
 import time
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.loop.safety.datums import AT_REST_MM_S
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused, DriverError

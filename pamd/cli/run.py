@@ -20,16 +20,16 @@ from pamd.cli.run_start import StartRequests
 from pamd.config import load_config
 from pamd.config.control_schema import OFF_DATA_POLICIES
 from pamd.config.loader import LoadedConfig
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
+from pamd.daemon.service import testhooks
+from pamd.daemon.service.notify import Notifier
+from pamd.daemon.service.restart import restart_in_place, run_argv, unblock_signals
 from pamd.iohost.viewer_spec import parse_listen
 from pamd.loop.control.feedforward import LoadedModel, load_models
 from pamd.loop.control.length_targets import check_length_profile_config
 from pamd.loop.control.onoff import POSITION_TAKES_NO_MODEL
 from pamd.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
-from pamd.service import testhooks
-from pamd.service.notify import Notifier
-from pamd.service.restart import restart_in_place, run_argv, unblock_signals
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused, ConfigError, ConfigIssue
 from pamd.wire.net_spec import TelemetryRequest

@@ -20,7 +20,7 @@ import logging
 import math
 from collections.abc import Callable, Collection
 
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.loop.commands.pending import PendingCommand
 from pamd.loop.safety.load_check import LoadDisagreement
 from pamd.wire.declare.jsonsafe import JsonObject

@@ -7,9 +7,9 @@ import argparse
 import logging
 import os
 
-from pamd.service.install import install
-from pamd.service.safe_outputs import replay
-from pamd.service.state import SAFE_OUTPUTS_FILE, StateFileError, read_safe_outputs
+from pamd.daemon.service.install import install
+from pamd.daemon.service.safe_outputs import replay
+from pamd.daemon.service.state import SAFE_OUTPUTS_FILE, StateFileError, read_safe_outputs
 from pamd.wire.errors import PamdError
 
 

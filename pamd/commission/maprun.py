@@ -25,7 +25,7 @@ from pamd.commission.moves import CommissionRefused
 from pamd.commission.probe import Probe
 from pamd.commission.run import Ask, Between, Progress, run_phase
 from pamd.config import LoadedConfig
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.loop.experiment.plan import Plan
 from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.muscle_type import MapBox, MapPoint, check_map

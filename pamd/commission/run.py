@@ -25,7 +25,7 @@ from pamd.commission.measure import (
 from pamd.commission.moves import CommissionRefused, Moves, plans
 from pamd.commission.probe import SIGNALS, Probe
 from pamd.config import LoadedConfig
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.loop.experiment.plan import Plan
 from pamd.loop.experiment.sequencer import Sequencer, running_plan, started_plan
 from pamd.wire.declare.jsonsafe import JsonObject

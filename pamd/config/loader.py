@@ -55,7 +55,7 @@ class LoadedConfig:
     text: str
     limits: dict[str, MuscleLimitsResolved]
     #: the config's own `calibration_file`, resolved; None: in the run's state directory
-    #: (pamd.service.state.calibration_path), or for the run only without one
+    #: (pamd.daemon.service.state.calibration_path), or for the run only without one
     calibration_path: str | None
     #: values above their safe ceiling that `safety.relax_ceilings` let pass (said at start)
     warnings: tuple[str, ...] = ()

@@ -56,7 +56,7 @@ def resolve(cfg: LoadedConfig, foxglove: str | None) -> ViewerSpec | None:
     """The viewer of this run, or None. `foxglove`: None: as `telemetry.foxglove`
     says; "default": on at `telemetry.foxglove.listen`; "HOST:PORT": on there. A bad
     listen address, certificate or key is a ConfigError before anything starts. (Whether
-    it may serve beyond loopback is the daemon's to judge: pamd.net.host.resolve.)"""
+    it may serve beyond loopback is the daemon's to judge: pamd.daemon.host.resolve.)"""
     fc = cfg.rig.telemetry.foxglove
     if foxglove is None and not fc.enabled:
         return None

@@ -21,8 +21,8 @@ from dataclasses import replace
 import numpy as np
 
 from pamd.config import LoadedConfig, load_config
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
 from pamd.loop.commands.pending import PendingCommand
 from pamd.loop.commands.tune_verbs import PulseArgs
 from pamd.loop.control.actuation import OnOffActuation, min_pulse_s

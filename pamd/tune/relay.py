@@ -23,8 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pamd.config import LoadedConfig
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
 from pamd.loop.commands.pending import PendingCommand
 from pamd.loop.commands.tune_verbs import RelayArgs
 from pamd.loop.control.relay import DONE

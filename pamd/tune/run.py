@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pamd.config import LoadedConfig, load_config
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
 from pamd.loop.experiment.manifest import step_records
 from pamd.loop.experiment.plan import Plan, load_plan
 from pamd.loop.experiment.sequencer import started_plan

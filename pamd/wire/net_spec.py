@@ -1,6 +1,6 @@
 """What the daemon asks of telemetry (`TelemetryRequest`, from the CLI) and what it
 tells the io process (`NetSpec`, picklable, handed over at spawn). The config decides
-them in the daemon (`pamd.net.host.resolve`), so the io process needs no config."""
+them in the daemon (`pamd.daemon.host.resolve`), so the io process needs no config."""
 
 from __future__ import annotations
 

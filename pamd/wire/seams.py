@@ -1,11 +1,11 @@
 """What the io process's telemetry (`pamd.iohost`, `pamd.iohost.live`) needs of its
 collaborators, as small Protocols.
 
-The io process (`pamd.io`, a layer above) builds the Zenoh node and hands it its
+The io process (`pamd.iohost`, a layer above) builds the Zenoh node and hands it its
 command port and its spec; Zenoh hands it queries. The node depends on these shapes
 only, so it imports neither the io process nor the loop's modules, nor (outside
 `NetNode.open`) Zenoh itself. The daemon's side has its own ports
-(`pamd.net.host.ports`).
+(`pamd.daemon.host.parts`).
 """
 
 from __future__ import annotations

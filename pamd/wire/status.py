@@ -1,7 +1,7 @@
 """What a status says, declared once (`Status` and its parts, typed), and the one
 JSON encoding of it (`jsonsafe`: non-finite floats become null).
 
-The daemon's main thread builds it, in one place (`pamd.net.host.status.StatusBuilder`),
+The daemon's main thread builds it, in one place (`pamd.daemon.host.snapshot.StatusBuilder`),
 a few times a second (never the loop's thread, never per tick; some 50 us); the io
 process answers `status` queries from it (`pamd.iohost.answer`), with the live
 values of the latest tick record it drained over it (state, measured values,

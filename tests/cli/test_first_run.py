@@ -23,10 +23,10 @@ import yaml
 
 from pamd.cli import run as run_cli
 from pamd.cli.net import refusal
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
+from pamd.daemon.service.riglock import ResourceLock
 from pamd.emulate.testing import free_port
-from pamd.io.session import RecordingRequest
-from pamd.service.riglock import ResourceLock
 
 from ..conftest import sim_dict
 

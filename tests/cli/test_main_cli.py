@@ -84,13 +84,13 @@ def test_help_lists_every_subcommand_without_importing_them() -> None:
     for command in COMMANDS:
         assert f"    {command.name}" in text, command.name
     assert not {c.module for c in COMMANDS} & modules
-    assert "pamd.daemon" not in modules and "pamd.loop.control.controller" not in modules
+    assert "pamd.daemon.daemon" not in modules and "pamd.loop.control.controller" not in modules
 
 
 def test_a_chosen_subcommand_imports_its_module_only() -> None:
     modules, text = _imported_by("status", "--help")
     assert "--connect" in text and "pamd.cli.net" in modules  # status's own parser
-    assert "pamd.cli.run" not in modules and "pamd.daemon" not in modules
+    assert "pamd.cli.run" not in modules and "pamd.daemon.daemon" not in modules
     modules, text = _imported_by("-v", "run", "--help")
     assert "--profile" in text and "pamd.cli.run" in modules
 

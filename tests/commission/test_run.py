@@ -17,7 +17,7 @@ from pamd.commission.moves import choose
 from pamd.commission.probe import Probe
 from pamd.commission.run import Between, Outcome, commission
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.wire.tick import State
 
 from .conftest import REPO

@@ -26,7 +26,7 @@ KIND_SECOND = {"event"}
 KIND_FIRST = {"_publish_event", "_record_io", "record"}
 #: wrappers whose callers name a sub-kind: the kind they emit, and the key it goes in
 WRAPPERS = {("loop/experiment/sequencer.py", "_event"): "experiment",
-            ("net/collections.py", "_event"): "collection"}
+            ("daemon/host/collections.py", "_event"): "collection"}
 
 
 def _sites() -> Iterator[tuple[str, int, str, ast.expr | None]]:

@@ -53,7 +53,7 @@ def test_every_exit_status_given_has_a_meaning_and_every_meaning_a_status() -> N
     assert set(EXIT_MEANINGS) == given
     names = {r.name for r in exit_codes.raisers()}
     assert {"pamd.wire.errors.ConfigError", "pamd.wire.zconf.NoDaemon",
-            "pamd.service.riglock.RigBusy", "pamd.cli.main.EXIT_BROKEN_PIPE"} <= names
+            "pamd.daemon.service.riglock.RigBusy", "pamd.cli.main.EXIT_BROKEN_PIPE"} <= names
 
 
 def test_a_status_without_a_meaning_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -25,7 +25,7 @@ from typing import Any
 import pytest
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.emulate.rig import EmulatedRig
 from pamd.emulate.testing import emulated_dict, free_port, wait_until, write_config
 from pamd.wire.tick import State

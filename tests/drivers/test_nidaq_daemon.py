@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.emulate.rig import EmulatedRig
 from pamd.emulate.testing import free_port, nidaq_emulated_dict, wait_until, write_config
 from pamd.wire.tick import State

@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.emulate.rig import EmulatedRig
 from pamd.emulate.testing import REPO, free_port, wait_until
 from pamd.wire.tick import State

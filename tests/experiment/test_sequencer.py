@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from pamd.daemon import _PlanArgs
+from pamd.daemon.daemon import _PlanArgs
 from pamd.loop.commands import Command, apply_command, parse_command
 from pamd.loop.experiment.plan import parse_plan
 from pamd.loop.experiment.sequencer import running_plan

@@ -33,7 +33,7 @@ MAX_PAMD_MODULES = 40
 FORBIDDEN = ("pamd.loop.control.controller", "pamd.loop.loop", "pamd.loop.harness",
              "pamd.loop.control", "pamd.models",
              "pamd.loop.commands", "pamd.loop.safety", "pamd.config", "pamd.experiment", "pamd.cli",
-             "pamd.daemon", "pamd.service", "pamd.net.host", "pamd.net.client", "pamd.loop.devices.bindings",
+             "pamd.daemon.daemon", "pamd.service", "pamd.daemon.host", "pamd.net.client", "pamd.loop.devices.bindings",
              "pamd.drivers", "pamd.sim", "numpy",
              # it parses no YAML (commands are JSON; the config is read in the daemon)
              "pamd.wire.schema.yamlload", "yaml")

@@ -9,8 +9,8 @@ from typing import Any
 
 from mcap.reader import make_reader
 
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
 from pamd.iohost.process import RingCommandPort
 from pamd.loop.io_link import RingMailbox
 from pamd.wire.ring import BlockLayout, SharedBlock

@@ -15,7 +15,7 @@ import yaml
 
 import pamd
 from pamd.config import load_config
-from pamd.daemon import Daemon, RecordingRequest
+from pamd.daemon.daemon import Daemon, RecordingRequest
 from pamd.loop.control.adapt import AdaptState
 from pamd.loop.control.feedforward import LoadedModel, load_models
 from pamd.models.anfis.adapted import save_adapted

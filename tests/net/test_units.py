@@ -11,9 +11,9 @@ from typing import Any
 import pytest
 
 from pamd.cli.net import _parse_bool, build_payload, verb_parser
+from pamd.daemon.host.resolve import resolve
 from pamd.iohost.ratelimit import RateLimiter
 from pamd.loop.tick_timing import Histogram
-from pamd.net.host.resolve import resolve
 from pamd.wire import zconf
 from pamd.wire.board import Board
 from pamd.wire.errors import ConfigError
@@ -157,7 +157,7 @@ def test_the_foxglove_view_beyond_loopback_needs_tls_or_the_same_permission(
     like a Zenoh listen in clear, from the config (its line) or --foxglove, in one error
     with the Zenoh endpoint when both are; allowed, warned at start and in the status;
     with TLS (wss://) or on loopback, nothing to say."""
-    from pamd.net.host.resolve import resolve_all
+    from pamd.daemon.host.resolve import resolve_all
 
     lan = {"foxglove": {"enabled": True, "listen": "0.0.0.0:8765"}}
     with pytest.raises(ConfigError) as err:
@@ -190,7 +190,7 @@ def test_the_foxglove_view_beyond_loopback_needs_tls_or_the_same_permission(
 
 def test_the_foxglove_certificate_and_key_are_checked_before_anything_starts(
         sim_config: Any, tmp_path: Path) -> None:
-    from pamd.net.host.resolve import resolve_all
+    from pamd.daemon.host.resolve import resolve_all
 
     (tmp_path / "view.pem").write_bytes(b"-----BEGIN CERTIFICATE-----\nMII...\n")
     (tmp_path / "view.key").write_bytes(b"-----BEGIN PRIVATE KEY-----\nSECRET\n")
@@ -234,8 +234,8 @@ def test_the_io_session_says_the_allowed_links_in_clear_at_start(
         sim_config: Any, caplog: pytest.LogCaptureFixture) -> None:
     """The start says each warning, the live view's too with telemetry off (the status
     says them from NetSpec.warnings: test_intake)."""
-    from pamd.io.session import IoSession
-    from pamd.net.host.resolve import resolve_all
+    from pamd.daemon.host.resolve import resolve_all
+    from pamd.daemon.io_session import IoSession
 
     got = resolve_all(sim_config(30.0), TelemetryRequest(foxglove="0.0.0.0:8765",
                                                          allow_cleartext=True))
@@ -256,7 +256,7 @@ def test_the_io_session_says_the_allowed_links_in_clear_at_start(
 
 def test_a_restart_in_place_keeps_the_permission_to_run_in_clear() -> None:
     from pamd.cli.main import build_parser
-    from pamd.service.restart import run_argv
+    from pamd.daemon.service.restart import run_argv
 
     args = build_parser().parse_args(["run", "--listen", "tcp/0.0.0.0:7447",
                                       "--allow-cleartext"])
@@ -345,8 +345,8 @@ def test_cmd_payloads_from_options() -> None:
 
 
 def test_status_snapshot_from_a_running_daemon(sim_daemon: Any) -> None:
+    from pamd.daemon.host.snapshot import StatusBuilder, recording_status
     from pamd.iohost.answer import TickStats
-    from pamd.net.host.status import StatusBuilder, recording_status
     from pamd.wire.status import MUSCLE_STATUS_FIELDS, STATUS_FIELDS
 
     d = sim_daemon(duration_s=None)

@@ -15,8 +15,8 @@ import pytest
 import yaml
 
 from pamd.config import LoadedConfig, load_config
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
 from pamd.wire.declare import events
 from pamd.wire.declare.jsonsafe import dumps
 

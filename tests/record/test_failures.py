@@ -19,8 +19,8 @@ from typing import Any
 import pytest
 from mcap.reader import make_reader
 
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
 from pamd.wire.record import files
 from pamd.wire.tick import State
 

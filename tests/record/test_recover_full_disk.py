@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
 from pamd.wire.errors import RecordingError
 from pamd.wire.record import files
 

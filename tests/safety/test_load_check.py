@@ -19,11 +19,11 @@ import pytest
 import yaml
 
 from pamd.config import load_config
+from pamd.daemon.service.reload import plan_reload
 from pamd.loop.commands import Command, apply_command
 from pamd.loop.harness import Harness
 from pamd.loop.safety.load_check import check_load, load_tolerance_n
 from pamd.muscle_type import GRAVITY_M_S2
-from pamd.service.reload import plan_reload
 from pamd.wire.tick import State
 
 from ..conftest import sim_dict

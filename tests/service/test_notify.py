@@ -12,9 +12,9 @@ import signal
 import socket
 from pathlib import Path
 
+from pamd.daemon.service.notify import Notifier, socket_address
+from pamd.daemon.service.testhooks import STALL_ENV
 from pamd.emulate.testing import free_port
-from pamd.service.notify import Notifier, socket_address
-from pamd.service.testhooks import STALL_ENV
 
 from .conftest import NotifySocket, sim_dict, wait_until, write_yaml
 

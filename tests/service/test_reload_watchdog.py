@@ -18,9 +18,9 @@ import pytest
 
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
+from pamd.daemon.service.keeper import ServiceKeeper
+from pamd.daemon.service.testhooks import SLOW_RELOAD_ENV
 from pamd.loop.harness import Harness
-from pamd.service.keeper import ServiceKeeper
-from pamd.service.testhooks import SLOW_RELOAD_ENV
 from pamd.wire.declare.jsonsafe import JsonObject
 from tests.benchmod import bench_module
 

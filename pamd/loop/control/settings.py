@@ -1,5 +1,5 @@
 """One muscle's share of a reloaded config (SIGHUP), computed outside the loop's thread
-(`pamd.service.reload`) and handed to the muscle in the `reload` command."""
+(`pamd.daemon.service.reload`) and handed to the muscle in the `reload` command."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pamd.config.safety_schema import SafetyConfig
 @dataclass(frozen=True, kw_only=True)
 class MuscleSettings:
     """One muscle's share of a reloaded config, computed outside the loop's thread
-    (`pamd.service.reload`); the loop only assigns it (`MuscleController.apply_settings`).
+    (`pamd.daemon.service.reload`); the loop only assigns it (`MuscleController.apply_settings`).
     """
 
     muscle: str

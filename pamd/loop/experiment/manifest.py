@@ -7,7 +7,7 @@ write) is brought in line with the step files' own metadata (`reconcile`,
 `pamd.loop.experiment.stepfiles`) by `pamd inspect`, `--resume` and a remote resume.
 
 Also what `pamd collect` and a collection started over the network
-(`pamd.net.host.collections`) share: the collection directory's name and what each step's
+(`pamd.daemon.host.collections`) share: the collection directory's name and what each step's
 recording file states (`step_records`)."""
 
 from __future__ import annotations

@@ -181,7 +181,7 @@ KINDS: tuple[EventKind, ...] = (
               "io process", (Key("by", "string", "io process"), *VERDICT),
               extra=VERDICT_EXTRA),
     EventKind("collection", "a collection started over the network: begun, started, closed, "
-              "ended, dropped", "recorder, daemon (pamd.net.collections)", (
+              "ended, dropped", "recorder, daemon (pamd.daemon.host.collections)", (
                   Key("what", "string", "what happened"),
                   Key("id", ("string", "integer"), "the collection's id"),
                   opt("dir", "string", "its directory"),

@@ -1,6 +1,6 @@
 """The run summary's keys, declared once: what `pamd run --json` prints, the daemon's
 `result()` returns and the recording's `pamd.summary` metadata holds
-(`pamd.daemon.Daemon.result` builds it; a test runs a virtual run and compares its keys
+(`pamd.daemon.daemon.Daemon.result` builds it; a test runs a virtual run and compares its keys
 with these). docs/run-summary.md is generated from this table:
 ``python -m pamd.wire.declare.summary_keys > docs/run-summary.md``."""
 

@@ -2,7 +2,7 @@
 while it runs, through the status board's control ring (`pamd.wire.board`, main -> io),
 and what the recorder answers (notices, through the board's request ring, io -> main).
 
-A collection started over the network (`pamd cmd collect`, `pamd.net.host.collections`)
+A collection started over the network (`pamd cmd collect`, `pamd.daemon.host.collections`)
 runs in a daemon that is already recording one continuous run file, so the recorder
 learns the collection's directory and steps only when it is asked for:
 

@@ -105,7 +105,7 @@ class Notifier:
     # -- the messages pamd sends ----------------------------------------------------
     def ready(self, status: str) -> bool:
         """`READY=1` with the status; with a watchdog also `WATCHDOG_USEC=`, which sets
-        back a timeout widened for a restart in place (`pamd.service.restart`)."""
+        back a timeout widened for a restart in place (`pamd.daemon.service.restart`)."""
         watchdog = () if self.watchdog_s is None else (
             f"WATCHDOG_USEC={round(self.watchdog_s * 1e6)}",)
         return self.send("READY=1", f"STATUS={one_line(status)}", *watchdog)

@@ -16,7 +16,7 @@ real-clock run of a config, `$XDG_STATE_HOME/pamd/<rig_id>` (by default
 ~/.local/state/pamd/<rig_id>): never beside the config. A private simulation keeps
 no state unless a directory is named: a virtual-clock run, and the built-in
 simulated rig (no `--config`). A run that keeps state locks its state directory
-(pamd.service.riglock): two daemons never write one fault file.
+(pamd.daemon.service.riglock): two daemons never write one fault file.
 
 Everything here is file I/O: it runs in the daemon's main thread, never in the
 loop's.
@@ -38,7 +38,7 @@ from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
 from pamd.wire.errors import PamdError
 
 if TYPE_CHECKING:  # a type only: reading the state files needs no controller
-    from pamd.service.ports import KeptRig
+    from pamd.daemon.service.ports import KeptRig
 
 FAULT_FORMAT = "pamd-fault"
 SAFE_OUTPUTS_FORMAT = "pamd-safe-outputs"
@@ -72,7 +72,7 @@ class StatePaths:
 
     @property
     def claim(self) -> str:
-        """The state directory as a resource a run locks (pamd.service.riglock)."""
+        """The state directory as a resource a run locks (pamd.daemon.service.riglock)."""
         return f"state directory {self.directory}"
 
 

@@ -3,21 +3,21 @@ under systemd for months. `Daemon.service()` calls `ServiceKeeper.service()` eve
 50 ms (from `wait()`); nothing here runs in the loop's thread. Each job is a part of
 its own, and the keeper ties them to one daemon:
 
-* notify (`pamd.service.watchdog`): `READY=1` once the loop ticks, `WATCHDOG=1`
+* notify (`pamd.daemon.service.watchdog`): `READY=1` once the loop ticks, `WATCHDOG=1`
   while it ticks on time (from a thread of its own: what the main thread does never
   delays a ping), `STATUS=` with the supervisor's state and reason, `STOPPING=1` on
   shutdown, `RELOADING=1` ... `READY=1` around a reload;
-* persistence (`pamd.service.persistence`): the latched fault in the state directory
+* persistence (`pamd.daemon.service.persistence`): the latched fault in the state directory
   (a daemon started again comes back latched, `restore()` before start), a stall the
   main thread sees saved as a fault at once, the safe outputs for `pamd safe-outputs`;
-* SIGHUP (`pamd.service.reloader`): the config read again and validated in a child
+* SIGHUP (`pamd.daemon.service.reloader`): the config read again and validated in a child
   process, then applied through the loop's mailbox; changes that reopen the devices
-  restart the daemon in place once the rig is at rest (`pamd.service.restart`), where
+  restart the daemon in place once the rig is at rest (`pamd.daemon.service.restart`), where
   `pamd run` allows it;
 * the real-time scan: threads started meanwhile are raised below the loop.
 
 The keeper gets the parts it looks after through narrow ports
-(`pamd.service.ports`), not the daemon. Outside systemd the notifier is disabled and
+(`pamd.daemon.service.ports`), not the daemon. Outside systemd the notifier is disabled and
 only the persistence remains.
 """
 
@@ -27,15 +27,15 @@ import time
 from collections.abc import Callable
 
 from pamd.config.loader import LoadedConfig
+from pamd.daemon.service.notify import Notifier
+from pamd.daemon.service.persistence import StateKeeper
+from pamd.daemon.service.ports import KeptLoop, KeptRig, SafeMuscleView, tick_gap_s
+from pamd.daemon.service.reload import ReloadPlan
+from pamd.daemon.service.reloader import Reloader
+from pamd.daemon.service.state import FaultRecord, StatePaths
+from pamd.daemon.service.watchdog import Watchdog
 from pamd.loop.commands import Command
 from pamd.loop.commands.pending import PendingCommand
-from pamd.service.notify import Notifier
-from pamd.service.persistence import StateKeeper
-from pamd.service.ports import KeptLoop, KeptRig, SafeMuscleView, tick_gap_s
-from pamd.service.reload import ReloadPlan
-from pamd.service.reloader import Reloader
-from pamd.service.state import FaultRecord, StatePaths
-from pamd.service.watchdog import Watchdog
 from pamd.wire.declare.jsonsafe import JsonObject
 
 __all__ = ["RT_SCAN_S", "KeptLoop", "KeptRig", "SafeMuscleView", "ServiceKeeper"]

@@ -13,7 +13,7 @@ like every start: it reads every sensor before it writes, holds the measured
 pressure, in pressure mode, and runs no profile. systemd hears `RELOADING=1`
 before and `READY=1` from the new daemon once it ticks; the watchdog is widened
 for the few seconds of start-up and set back with that `READY=1`, and the old
-daemon's hand-over and the new daemon's start are pinged too (`pamd.service.watchdog`,
+daemon's hand-over and the new daemon's start are pinged too (`pamd.daemon.service.watchdog`,
 bounded by `STARTUP_WATCHDOG_S`).
 
 Signals: SIGTERM, SIGINT and SIGHUP are blocked from the exec until the new daemon
@@ -37,9 +37,9 @@ import threading
 from multiprocessing import resource_tracker
 from typing import NoReturn
 
+from pamd.daemon.service.notify import RESTARTED_ENV, Notifier
+from pamd.daemon.service.watchdog import STARTUP_WATCHDOG_S
 from pamd.loop.commands import offload
-from pamd.service.notify import RESTARTED_ENV, Notifier
-from pamd.service.watchdog import STARTUP_WATCHDOG_S
 
 log = logging.getLogger("pamd")
 

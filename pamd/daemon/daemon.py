@@ -15,8 +15,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
+from pamd.daemon.io_session import IoParts, IoSession, RecordingRequest
+from pamd.daemon.service.keeper import ServiceKeeper
+from pamd.daemon.service.notify import Notifier
+from pamd.daemon.service.riglock import RunLocks
+from pamd.daemon.service.state import calibration_path, state_paths
 from pamd.drivers.safe_outputs import push_safe_outputs
-from pamd.io.session import IoParts, IoSession, RecordingRequest
 from pamd.loop.commands import Command, parse_command, prepare_command
 from pamd.loop.commands.pending import PendingCommand
 from pamd.loop.control.controller import RigController
@@ -27,10 +31,6 @@ from pamd.loop.devices.datum_file import load_calibration, save_calibration
 from pamd.loop.experiment.plan import Plan
 from pamd.loop.loop import Loop
 from pamd.loop.safety import Transition
-from pamd.service.keeper import ServiceKeeper
-from pamd.service.notify import Notifier
-from pamd.service.riglock import RunLocks
-from pamd.service.state import calibration_path, state_paths
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused
 from pamd.wire.net_spec import TelemetryRequest
@@ -59,7 +59,7 @@ class Daemon:
                  models: Mapping[str, LoadedModel] | None = None) -> None:
         """`models`: each muscle's inverse model, loaded; by default the daemon loads
         the config's `model_file`s (`load_models`: a ConfigError before anything opens).
-        `state_dir` overrides the config's (see pamd.service.state: where the fault,
+        `state_dir` overrides the config's (see pamd.daemon.service.state: where the fault,
         the safe outputs and the references are kept, if anywhere); `notifier`
         talks to systemd (the CLI passes `Notifier.from_environ()`);
         `config_overrides` are re-applied when the config is reloaded (SIGHUP);

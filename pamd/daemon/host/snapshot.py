@@ -11,10 +11,10 @@ from collections.abc import Callable
 from typing import Protocol, cast
 
 from pamd.config.loader import LoadedConfig
+from pamd.daemon.host.parts import RecordingState
 from pamd.loop.control.controller import RigController
 from pamd.loop.control.muscle import MuscleController
 from pamd.loop.experiment.sequencer import running_plan
-from pamd.net.host.ports import RecordingState
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.status import ExperimentStatus, MuscleStatus, RecordingStatus, Status, jsonsafe
 from pamd.wire.verbs.table import VERBS

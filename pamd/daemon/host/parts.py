@@ -17,7 +17,7 @@ from pamd.wire.declare.jsonsafe import JsonObject
 
 
 class RecordingState(Protocol):
-    """The daemon's io session as the telemetry host sees it (`pamd.io.session`)."""
+    """The daemon's io session as the telemetry host sees it (`pamd.daemon.io_session`)."""
 
     @property
     def recording(self) -> bool:

@@ -1,7 +1,7 @@
 """The daemon's main-process side of telemetry: writes the status snapshot into the
 board at `telemetry.status_hz`, and does the work of the commands that need the main
 thread (`collect`: read and check the plan file, make the collection's directory and
-manifest and tell the io process's recorder (`pamd.net.host.collections`), then queue
+manifest and tell the io process's recorder (`pamd.daemon.host.collections`), then queue
 it; `model`: load, check and compile the model file, then queue it) before the loop
 gives its verdict, which goes back to the io process by id. It also takes the io
 process's notices (a collection's files closed) and writes a collection's manifest
@@ -20,14 +20,14 @@ import time
 from concurrent.futures import Future
 from dataclasses import dataclass
 
+from pamd.daemon.host.collections import Collection, Collections
+from pamd.daemon.host.parts import HostParts
+from pamd.daemon.host.snapshot import StatusBuilder, recording_status
 from pamd.loop.commands import Command, named_files, parse_command
 from pamd.loop.commands.model_file import ModelSource, prepare_model_from
 from pamd.loop.commands.offload import Preparer, warm_up
 from pamd.loop.commands.plan_file import read_plan
 from pamd.loop.experiment.plan import Plan
-from pamd.net.host.collections import Collection, Collections
-from pamd.net.host.ports import HostParts
-from pamd.net.host.status import StatusBuilder, recording_status
 from pamd.wire.board import Board
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused

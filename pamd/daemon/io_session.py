@@ -17,6 +17,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from pamd.config.loader import LoadedConfig
+from pamd.daemon.host.host import NetHost
+from pamd.daemon.host.parts import HostParts
+from pamd.daemon.host.resolve import resolve_all
+from pamd.daemon.record_meta import build_record_spec
 from pamd.iohost.io_spec import IoSpec
 from pamd.iohost.viewer_spec import ViewerSpec
 from pamd.loop.control.controller import RigController
@@ -24,10 +28,6 @@ from pamd.loop.control.summary import LocalMailbox, SummarySink
 from pamd.loop.devices.datum_file import Calibration
 from pamd.loop.io_link import IoLink, MultiMailbox, RingMailbox, RingSink
 from pamd.loop.loop import Loop
-from pamd.net.host.host import NetHost
-from pamd.net.host.ports import HostParts
-from pamd.net.host.resolve import resolve_all
-from pamd.record.meta import build_record_spec
 from pamd.wire.board import Board
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.net_spec import NetSpec, TelemetryRequest
@@ -37,7 +37,7 @@ from pamd.wire.tick import TickLayout
 
 @dataclass(frozen=True)
 class IoParts:
-    """What the daemon (`pamd.daemon.Daemon`) hands its io session, never itself: the
+    """What the daemon (`pamd.daemon.daemon.Daemon`) hands its io session, never itself: the
     config in force (`config()`: a reload replaces it), the run's note, the tick's
     layout and the references (the recording's metadata), the rig's controller (its
     clock, counters and supervisor: a lost io process may fault it), the loop (its

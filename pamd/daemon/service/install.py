@@ -5,7 +5,7 @@ under DIR only (for packaging, or to look at them); `--dry-run` changes nothing
 and prints what it would do.
 
 The files come from the repository's systemd/ directory (installed with the
-package as `pamd.service.units`); the unit's placeholder /opt/pamd/bin/pamd is
+package as `pamd.daemon.service.units`); the unit's placeholder /opt/pamd/bin/pamd is
 replaced by the pamd that runs this command.
 """
 
@@ -84,10 +84,10 @@ def executable_paths(pamd: str) -> list[str]:
 def unit_text(name: str) -> str:
     """A file of systemd/: the source tree's (a checkout, an editable install), else
     the copy installed with the package."""
-    path = Path(__file__).resolve().parents[2] / "systemd" / name
+    path = Path(__file__).resolve().parents[3] / "systemd" / name
     if path.is_file():
         return path.read_text(encoding="utf-8")
-    return resources.files("pamd.service.units").joinpath(name).read_text(encoding="utf-8")
+    return resources.files("pamd.daemon.service.units").joinpath(name).read_text(encoding="utf-8")
 
 
 def installed_pamd() -> str:

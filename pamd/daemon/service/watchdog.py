@@ -1,4 +1,4 @@
-"""What systemd is told (one job of the service keeper, `pamd.service.keeper`):
+"""What systemd is told (one job of the service keeper, `pamd.daemon.service.keeper`):
 `READY=1` once the loop ticks (even with a device missing: the rig is then in FAULT
 and STATUS says why), `WATCHDOG=1` while the loop ticks on time (a stalled loop gets
 no pings and systemd restarts it; a FAULT is not a stall), `STATUS=` with the
@@ -10,7 +10,7 @@ the loop has completed a tick within its stall limit, and asks again every
 `RETRY_S` while it has not (so one late check never costs a whole period). What the
 main thread does (a reload's file read and checked, the status, a collection's files)
 never delays them, and a reload is invisible to systemd's watchdog. A daemon
-restarted in place (`pamd.service.restart`), whose watchdog systemd keeps running
+restarted in place (`pamd.daemon.service.restart`), whose watchdog systemd keeps running
 through its start, is pinged through that start too, for at most
 `STARTUP_WATCHDOG_S`, and so is the old daemon between the loop's hand-over and the
 exec. Outside systemd the notifier is disabled and this sends nothing.
@@ -23,8 +23,8 @@ import threading
 import time
 from collections.abc import Callable
 
-from pamd.service.notify import Notifier
-from pamd.service.ports import KeptLoop, tick_gap_s
+from pamd.daemon.service.notify import Notifier
+from pamd.daemon.service.ports import KeptLoop, tick_gap_s
 
 log = logging.getLogger("pamd")
 

@@ -1,8 +1,8 @@
-"""SIGHUP (one job of the service keeper, `pamd.service.keeper`): the config is read
-again, validated and applied through the loop's mailbox (`pamd.service.reload` plans
+"""SIGHUP (one job of the service keeper, `pamd.daemon.service.keeper`): the config is read
+again, validated and applied through the loop's mailbox (`pamd.daemon.service.reload` plans
 what applies when); limits and loads wait for the rig to rest; changes that reopen the
 devices wait for rest too and then restart the daemon in place
-(`pamd.service.restart`), where `pamd run` allows it (`allow_restart_in_place`). A
+(`pamd.daemon.service.restart`), where `pamd run` allows it (`allow_restart_in_place`). A
 reload that fails is refused and the daemon runs on the config loaded before: a
 reload never takes the rig down.
 
@@ -30,13 +30,13 @@ from collections.abc import Callable
 from concurrent.futures import Future
 
 from pamd.config.loader import LoadedConfig
+from pamd.daemon.service.notify import Notifier
+from pamd.daemon.service.ports import KeptLoop, KeptRig
+from pamd.daemon.service.reload import ReloadPlan, describe, plan_reload
 from pamd.loop.commands import Command
 from pamd.loop.commands.model_file import read_config, read_config_isolated
 from pamd.loop.commands.offload import Preparer
 from pamd.loop.commands.pending import PendingCommand
-from pamd.service.notify import Notifier
-from pamd.service.ports import KeptLoop, KeptRig
-from pamd.service.reload import ReloadPlan, describe, plan_reload
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import PamdError
 from pamd.wire.tick import State

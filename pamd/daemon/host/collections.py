@@ -37,11 +37,11 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from pamd.daemon.host.parts import HostParts
 from pamd.loop.experiment.manifest import Manifest, collection_name, step_records
 from pamd.loop.experiment.plan import Plan
 from pamd.loop.experiment.sequencer import Sequencer, running_plan
 from pamd.loop.experiment.timeline import simulated_loads, timeline
-from pamd.net.host.ports import HostParts
 from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
 from pamd.wire.errors import CommandRefused, ConfigError, PamdError
 from pamd.wire.record import control

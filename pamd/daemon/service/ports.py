@@ -1,4 +1,4 @@
-"""What the service keeper (`pamd.service.keeper`) and its parts use of the daemon's
+"""What the service keeper (`pamd.daemon.service.keeper`) and its parts use of the daemon's
 rig controller and loop: narrow ports, so that the keeper gets the parts it looks
 after and not the daemon (nor the controller's and loop's classes)."""
 

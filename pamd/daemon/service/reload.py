@@ -21,7 +21,7 @@ the one it has, saying why. The changes of a valid one fall in three classes:
   (`muscles[i].custom.map_sha256`): a table edited on disk under an unchanged config
   is a changed map, as a changed `type` is. Changing them
   means reopening the devices: once the rig is at rest, `pamd run` restarts in place
-  (`pamd.service.restart`) through the start-up that reads before it writes;
+  (`pamd.daemon.service.restart`) through the start-up that reads before it writes;
   where it cannot (a virtual-clock run, a daemon used as a library) the whole
   reload is refused.
 

@@ -7,7 +7,7 @@ lock to clean up. A second daemon that would open one of them (`pamd run`, `pamd
 tune`, a collection) is refused with what and who holds it: the holder writes its
 pid, command line, rig and start time into the file. A simulation opens nothing: a
 virtual-clock run of the simulated rig takes no lock at all (and keeps no state, see
-pamd.service.state), so simulations never refuse each other.
+pamd.daemon.service.state), so simulations never refuse each other.
 
 Where the lock files are (the first that applies):
 

@@ -1,4 +1,4 @@
-"""What survives a restart (one job of the service keeper, `pamd.service.keeper`):
+"""What survives a restart (one job of the service keeper, `pamd.daemon.service.keeper`):
 the latched fault is written to the state directory when the supervisor latches it
 and removed when it is reset, and a daemon started again comes back latched
 (`restore()`, before start); a loop the main thread sees stalled past the stall fault
@@ -13,8 +13,8 @@ import logging
 from collections.abc import Callable
 
 from pamd.config.loader import LoadedConfig
-from pamd.service.ports import KeptLoop, KeptRig, tick_gap_s
-from pamd.service.state import (
+from pamd.daemon.service.ports import KeptLoop, KeptRig, tick_gap_s
+from pamd.daemon.service.state import (
     FaultRecord,
     StateFileError,
     StatePaths,
