@@ -45,7 +45,7 @@ from pathlib import Path  # noqa: E402
 
 from _common import REPO, controller_compute_us, percentile, sim_config  # noqa: E402
 
-from pamd.cli.main import main as pamd_main  # noqa: E402
+from pamd.client.cli.main import main as pamd_main  # noqa: E402
 from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
 from pamd.loop.harness import Harness  # noqa: E402
 from pamd.muscle_type import equilibrium_contraction, force_model  # noqa: E402

@@ -32,7 +32,7 @@ sys.path.insert(0, str(REPO))
 
 from pamd.drivers.sim import SimDriver  # noqa: E402
 
-from pamd.cli.main import main  # noqa: E402
+from pamd.client.cli.main import main  # noqa: E402
 from pamd.config import load_config  # noqa: E402
 from pamd.loop.safety.envelope import MuscleEnvelope  # noqa: E402
 from pamd.muscle_type import datasheet_type, equilibrium_contraction  # noqa: E402

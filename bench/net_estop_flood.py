@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from net_common import free_port, pct, wait_listening, wait_status, write_config  # noqa: E402
 
-from pamd.net.client.client import Client, LocalRig, local_rig  # noqa: E402
+from pamd.client.remote import Client, LocalRig, local_rig  # noqa: E402
 from pamd.wire.zconf import NoDaemon  # noqa: E402
 
 

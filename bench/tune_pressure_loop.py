@@ -47,14 +47,14 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
+from pamd.client.tune.ident_run import IDENT_SLEW_BAR_PER_S  # noqa: E402
+from pamd.client.tune.step_responses import Step, fit_all, mean_model, steps_in  # noqa: E402
+from pamd.client.tune.step_responses import position_gains as pkg_position_gains  # noqa: E402
+from pamd.client.tune.step_responses import pressure_gains as pkg_pressure_gains  # noqa: E402
+from pamd.client.tune.tune_report import print_fits  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
 from pamd.loop.control.tuning import Fopdt  # noqa: E402
 from pamd.loop.harness import Harness  # noqa: E402
-from pamd.tune.report import print_fits  # noqa: E402
-from pamd.tune.run import IDENT_SLEW_BAR_PER_S  # noqa: E402
-from pamd.tune.steps import Step, fit_all, mean_model, steps_in  # noqa: E402
-from pamd.tune.steps import position_gains as pkg_position_gains  # noqa: E402
-from pamd.tune.steps import pressure_gains as pkg_pressure_gains  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 

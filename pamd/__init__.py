@@ -71,8 +71,8 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from pamd.view.client import RigClient, StateBatch, connect
-    from pamd.view.recording import (
+    from pamd.client.connect import RigClient, StateBatch, connect
+    from pamd.client.recording import (
         Event,
         MuscleData,
         Recording,
@@ -84,10 +84,10 @@ if TYPE_CHECKING:
 
 # Imported on first use: `import pamd` stays cheap for the daemon and its io process.
 _WHERE = {
-    "open_recording": "pamd.view.recording", "Recording": "pamd.view.recording",
-    "MuscleData": "pamd.view.recording", "Event": "pamd.view.recording",
-    "RecordingIncomplete": "pamd.view.recording", "connect": "pamd.view.client",
-    "RigClient": "pamd.view.client", "StateBatch": "pamd.view.client",
+    "open_recording": "pamd.client.recording", "Recording": "pamd.client.recording",
+    "MuscleData": "pamd.client.recording", "Event": "pamd.client.recording",
+    "RecordingIncomplete": "pamd.client.recording", "connect": "pamd.client.connect",
+    "RigClient": "pamd.client.connect", "StateBatch": "pamd.client.connect",
     "PamdError": "pamd.wire.errors", "RecordingError": "pamd.wire.errors",
     "CommandRefused": "pamd.wire.errors", "NoDaemon": "pamd.wire.zconf",
 }

@@ -70,7 +70,7 @@ from typing import Any  # noqa: E402
 import pytest  # noqa: E402
 import yaml  # noqa: E402
 
-from pamd.cli.main import main  # noqa: E402
+from pamd.client.cli.main import main  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
 from pamd.daemon.daemon import Daemon  # noqa: E402
 from pamd.loop.harness import Harness  # noqa: E402

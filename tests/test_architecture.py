@@ -56,7 +56,7 @@ LAZY_THIRD_PARTY = {
 LAZY_OWN = {
     "pamd/__init__.py": "pamd.",
     # the console script's module: a spawned process (the io process) runs it again
-    "pamd/__main__.py": "pamd.cli.main",
+    "pamd/__main__.py": "pamd.client.cli.main",
     # the io process imports the Foxglove live view only for a run that asks for it
     "pamd/iohost/process.py": "pamd.iohost.live",
     # the io process checks tokens with this module; only the daemon writes one
@@ -65,14 +65,14 @@ LAZY_OWN = {
 
 #: the modules that import by name (`importlib.import_module`), which the checks
 #: above cannot read, and the modules each may name: the public API's lazy names, and
-#: the command line's sub-commands (pamd.cli.main.COMMANDS), each imported only when
+#: the command line's sub-commands (pamd.client.cli.main.COMMANDS), each imported only when
 #: chosen so that `pamd --help` and `pamd status` do not import the daemon
 LAZY_BY_NAME = {
     "pamd/__init__.py": "pamd.",
-    "pamd/cli/main.py": "pamd.cli.",
-    # a custom muscle's map is read by the reader `pamd train` uses (pamd.view.tables, a
+    "pamd/client/cli/main.py": "pamd.client.cli.",
+    # a custom muscle's map is read by the reader `pamd train` uses (pamd.client.training_tables, a
     # layer above the config), only when a config names one
-    "pamd/config/muscle_types.py": "pamd.view.tables",
+    "pamd/config/muscle_types.py": "pamd.client.training_tables",
 }
 
 
@@ -215,16 +215,16 @@ def test_only_the_named_modules_import_by_name() -> None:
 
 
 def test_the_cli_imports_only_its_own_subcommands_by_name() -> None:
-    """pamd.cli.main imports a sub-command's module by its declared name: each one a
-    module of pamd.cli (so the layers hold), and none imported at the top."""
-    from pamd.cli.main import COMMANDS
+    """pamd.client.cli.main imports a sub-command's module by its declared name: each one a
+    module of pamd.client.cli (so the layers hold), and none imported at the top."""
+    from pamd.client.cli.main import COMMANDS
 
-    prefix = LAZY_BY_NAME["pamd/cli/main.py"]
+    prefix = LAZY_BY_NAME["pamd/client/cli/main.py"]
     for command in COMMANDS:
         assert command.module.startswith(prefix), command
         assert (ROOT / (command.module.replace(".", "/") + ".py")).is_file(), command
-    main = ROOT / "pamd" / "cli" / "main.py"
-    assert not [t for t, _, _ in _imports("pamd.cli.main", main) if t.startswith(prefix)]
+    main = ROOT / "pamd" / "client" / "cli" / "main.py"
+    assert not [t for t, _, _ in _imports("pamd.client.cli.main", main) if t.startswith(prefix)]
 
 
 def test_the_check_sees_an_upward_and_a_lazy_import(tmp_path: Path) -> None:

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from pamd.client.tune.save import save_values
 from pamd.config import load_config
-from pamd.tune.save import save_values
 from pamd.wire.atomic import atomic_text, write_atomic
 from pamd.wire.errors import FileWriteError
 
@@ -96,7 +96,7 @@ def test_a_save_beyond_a_file_size_limit_keeps_the_config(tmp_path: Path) -> Non
     it (the CLI exits 9 with it)."""
     path = _big_config(tmp_path)
     before = path.read_bytes()
-    code = ("import sys\nfrom pamd.tune.save import save_values\n"
+    code = ("import sys\nfrom pamd.client.tune.save import save_values\n"
             "from pamd.wire.errors import PamdError\n"
             "try:\n"
             f"    save_values({str(path)!r}, {{('control', 'pid', 'kp'): 0.6}})\n"

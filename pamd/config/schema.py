@@ -579,7 +579,7 @@ class RigConfig:
         "(docs/safety.md).")
     recording: RecordingConfig = spec(RecordingConfig(), "MCAP recording by the io process.")
     telemetry: TelemetryConfig = spec(TelemetryConfig(), "Live state, events, status and "
-                                      "remote commands over Zenoh (pamd.net, in the io "
+                                      "remote commands over Zenoh (pamd.iohost, in the io "
                                       "process).")
     calibration_file: str | None = spec(
         None, "Where home/tare references are kept (relative to the config file); null: "

@@ -3,7 +3,7 @@ the ring sink downstream of the summary sink and the ring mailbox beside the loc
 one, and decides what a lost io process or a failed write means (by config: fault to
 the safe state, or keep controlling without recording; either way it says so).
 
-It starts when the run records, publishes telemetry (`pamd.net`), or both; with
+It starts when the run records, publishes telemetry (`pamd.iohost`), or both; with
 telemetry it also owns the status board and the main thread's share of it
 (`service`, `stopping`)."""
 

@@ -11,7 +11,7 @@ from pamd.wire.net_spec import NetSpec
 from pamd.wire.record.record_spec import RecordSpec
 from pamd.wire.ring import BlockLayout
 
-if TYPE_CHECKING:  # a type only: a run without the live view never imports pamd.view
+if TYPE_CHECKING:  # a type only: a run without the live view never imports pamd.client
     from pamd.iohost.viewer_spec import ViewerSpec
 
 

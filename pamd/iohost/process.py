@@ -205,7 +205,7 @@ class IoProcess:
         return spec.record is None or self._open_recording(spec.record)
 
     def _open_net(self, net: NetSpec) -> bool:
-        """Telemetry and remote commands (pamd.net)."""
+        """Telemetry and remote commands (pamd.iohost)."""
         self.net = NetNode(net, self.spec, self.block, self.port, self._record_event)
         err = self.net.open()
         if err is None:

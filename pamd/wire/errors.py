@@ -93,8 +93,8 @@ class FileWriteError(PamdError, OSError):
 
 #: What each exit status of a `pamd` command means, declared once: the error classes
 #: above (and the few elsewhere: `NoDaemon`, `RigBusy`, ...) carry their `exit_code`,
-#: the command line (`pamd.cli.main`) its own statuses; docs/exit-codes.md is generated
-#: from this table and those classes (`python -m pamd.cli.exit_codes`), and a test
+#: the command line (`pamd.client.cli.main`) its own statuses; docs/exit-codes.md is generated
+#: from this table and those classes (`python -m pamd.client.cli.exit_codes`), and a test
 #: fails when a status is given that has no meaning here, or the reverse.
 EXIT_MEANINGS: dict[int, str] = {
     0: "done; a run stopped by SIGTERM or Ctrl-C that reached its safe state too, even "

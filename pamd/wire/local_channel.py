@@ -18,7 +18,7 @@ bounded. Requests: one JSON header line (`op`: hello, status or cmd; `verb`, `us
 says the rig, the daemon's pid and where its Zenoh session listens, so a client that
 names an endpoint (`--connect`) uses the local channel of the daemon listening there
 only. The client is `LocalClient`; `socket_paths` finds a rig's sockets
-(`pamd.net.client.client.local_rig` chooses).
+(`pamd.client.remote.local_rig` chooses).
 
 Each daemon has its own socket (`pamd-<rig>.<pid>.sock`): a client that names no
 endpoint takes the rig's one daemon on this machine (several: it names none, and Zenoh

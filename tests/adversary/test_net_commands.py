@@ -21,7 +21,7 @@ from typing import Any
 import pytest
 
 import pamd
-from pamd.net.client.client import URGENT_CUT_BYTES, BadRigName, Client, command_body
+from pamd.client.remote import URGENT_CUT_BYTES, BadRigName, Client, command_body
 from pamd.wire.credential import Signer, find_token
 from tests.net.conftest import RigProc, wait_until
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from pamd.net.client.client import Client
+from pamd.client.remote import Client
 from tests.adversary.wsraw import OP_BINARY, WS
 from tests.net.conftest import RigProc, free_port, wait_listening
 

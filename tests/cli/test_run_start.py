@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pamd.cli.run import add_parser, load_overrides
+from pamd.client.cli.run import add_parser, load_overrides
 from pamd.config import load_config
 from pamd.wire.errors import ConfigError
 

@@ -9,8 +9,8 @@ from typing import Any
 
 import pytest
 
-from pamd.cli.main import build_parser
-from pamd.cli.net import verb_parser
+from pamd.client.cli.main import build_parser
+from pamd.client.cli.net import verb_parser
 from pamd.loop.commands import (
     REGISTRY,
     Command,

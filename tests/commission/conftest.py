@@ -11,7 +11,7 @@ from typing import Any
 
 import yaml
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 from pamd.config import load_config
 from pamd.loop.harness import Harness
 

@@ -10,7 +10,7 @@ import typing
 
 import pytest
 
-from pamd.cli.main import build_parser
+from pamd.client.cli.main import build_parser
 from pamd.loop.experiment.plan import PlanProfile
 from pamd.profiles import (
     SHAPE_NAMES,

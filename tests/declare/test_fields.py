@@ -11,11 +11,11 @@ from pathlib import Path
 import pytest
 from mcap_ros2._vendor.rosidl_adapter.parser import parse_message_string
 
+from pamd.client import field_info as view_fields
+from pamd.client.layout import PANELS, build_layout
 from pamd.iohost.recorder import record_schemas
 from pamd.loop import loop
 from pamd.loop.control import controller, muscle
-from pamd.view import fields as view_fields
-from pamd.view.layout import PANELS, build_layout
 from pamd.wire import tick
 from pamd.wire.declare import fields
 from pamd.wire.declare import fields_doc as docs

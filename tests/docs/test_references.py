@@ -10,16 +10,16 @@ from pathlib import Path
 
 import pytest
 
-from pamd.cli import exit_codes, reference
-from pamd.cli.main import COMMANDS
+from pamd.client.cli import exit_codes, reference
+from pamd.client.cli.main import COMMANDS
 from pamd.wire.declare import summary_keys as summary
 from pamd.wire.errors import EXIT_MEANINGS
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 
 PAGES: dict[str, tuple[Callable[[], str], str]] = {
-    "cli-reference.md": (reference.markdown, "pamd.cli.reference"),
-    "exit-codes.md": (exit_codes.markdown, "pamd.cli.exit_codes"),
+    "cli-reference.md": (reference.markdown, "pamd.client.cli.reference"),
+    "exit-codes.md": (exit_codes.markdown, "pamd.client.cli.exit_codes"),
     "run-summary.md": (summary.markdown, "pamd.wire.declare.summary_keys"),
 }
 
@@ -53,7 +53,7 @@ def test_every_exit_status_given_has_a_meaning_and_every_meaning_a_status() -> N
     assert set(EXIT_MEANINGS) == given
     names = {r.name for r in exit_codes.raisers()}
     assert {"pamd.wire.errors.ConfigError", "pamd.wire.zconf.NoDaemon",
-            "pamd.daemon.service.riglock.RigBusy", "pamd.cli.main.EXIT_BROKEN_PIPE"} <= names
+            "pamd.daemon.service.riglock.RigBusy", "pamd.client.cli.main.EXIT_BROKEN_PIPE"} <= names
 
 
 def test_a_status_without_a_meaning_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:

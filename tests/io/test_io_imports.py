@@ -32,8 +32,8 @@ MAX_PAMD_MODULES = 40
 #: never in the io process: the loop's side, the models, the CLI, numpy
 FORBIDDEN = ("pamd.loop.control.controller", "pamd.loop.loop", "pamd.loop.harness",
              "pamd.loop.control", "pamd.models",
-             "pamd.loop.commands", "pamd.loop.safety", "pamd.config", "pamd.experiment", "pamd.cli",
-             "pamd.daemon.daemon", "pamd.service", "pamd.daemon.host", "pamd.net.client", "pamd.loop.devices.bindings",
+             "pamd.loop.commands", "pamd.loop.safety", "pamd.config", "pamd.experiment", "pamd.client.cli",
+             "pamd.daemon.daemon", "pamd.service", "pamd.daemon.host", "pamd.client.remote", "pamd.loop.devices.bindings",
              "pamd.drivers", "pamd.sim", "numpy",
              # it parses no YAML (commands are JSON; the config is read in the daemon)
              "pamd.wire.schema.yamlload", "yaml")
@@ -85,7 +85,7 @@ def test_the_io_process_of_a_recorded_run_with_telemetry_imports_what_it_needs(
     for needed in ("pamd.iohost.recorder", "pamd.iohost.node", "pamd.wire.verbs.table",
                    "zenoh"):
         assert needed in names, needed
-    assert "pamd.__main__" in pamd and "pamd.cli.main" not in pamd
+    assert "pamd.__main__" in pamd and "pamd.client.cli.main" not in pamd
 
 
 def test_the_check_sees_a_forbidden_module() -> None:

@@ -12,7 +12,7 @@ from pathlib import Path  # noqa: E402
 import pytest  # noqa: E402
 import yaml  # noqa: E402
 
-from pamd.cli.main import main  # noqa: E402
+from pamd.client.cli.main import main  # noqa: E402
 from pamd.config import load_config  # noqa: E402
 from pamd.daemon.daemon import Daemon  # noqa: E402
 from pamd.daemon.io_session import RecordingRequest  # noqa: E402

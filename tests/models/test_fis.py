@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.contract import ModelEnvelope, Variable
 from pamd.models.fis import FisError, export_fis, fis_text, import_fis, parse_fis

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 from pamd.models.anfis.extraction import load_samples
 from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.contract import ModelEnvelope

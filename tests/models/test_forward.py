@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 
 import pamd
-from pamd.cli.main import main
+from pamd.client.cli.main import main
+from pamd.client.training_tables import load_samples
 from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.anfis.splitting import split
 from pamd.models.contract import ModelEnvelope
 from pamd.models.registry import load_model
 from pamd.models.static_force import PolynomialModel
-from pamd.view.tables import load_samples
 from pamd.wire.errors import ModelError
 
 DATA = Path(pamd.__file__).parent / "data"

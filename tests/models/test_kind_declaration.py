@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 from pamd.models import kinds_doc
 from pamd.models.registry import KINDS, adaptable, load_model, register
 from pamd.wire.errors import ModelError

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.contract import ModelEnvelope, Variable
 from pamd.models.mamdani import (

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from pamd.net.client.client import BadRigName, Client, rig_name
+from pamd.client.remote import BadRigName, Client, rig_name
 from pamd.wire import credential as cr
 from pamd.wire.zconf import NoDaemon
 

@@ -34,7 +34,7 @@ from typing import Any
 
 import pytest
 
-from pamd.net.client.client import Client, local_rig
+from pamd.client.remote import Client, local_rig
 from pamd.wire import credential as cr
 from pamd.wire import local_channel as lc
 from pamd.wire.zconf import NoDaemon

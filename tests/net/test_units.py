@@ -1,4 +1,4 @@
-"""The pieces of pamd.net without a network: configs secure by default, the state
+"""The pieces of pamd.iohost without a network: configs secure by default, the state
 encoding, rate limits, the status board, the CLI's payloads and the status snapshot."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from pamd.cli.net import _parse_bool, build_payload, verb_parser
+from pamd.client.cli.net import _parse_bool, build_payload, verb_parser
 from pamd.daemon.host.resolve import resolve
 from pamd.iohost.ratelimit import RateLimiter
 from pamd.loop.tick_timing import Histogram
@@ -216,7 +216,7 @@ def test_the_router_judges_its_links_by_the_same_rule(tmp_path: Path) -> None:
     the file's line, in the rule's words, before any session opens."""
     import argparse
 
-    from pamd.cli.router import run
+    from pamd.client.cli.router import run
 
     conf = tmp_path / "router.json5"
     conf.write_text('{\n  mode: "router",\n  listen: {endpoints: ["tcp/0.0.0.0:7447"]},\n'
@@ -255,7 +255,7 @@ def test_the_io_session_says_the_allowed_links_in_clear_at_start(
 
 
 def test_a_restart_in_place_keeps_the_permission_to_run_in_clear() -> None:
-    from pamd.cli.main import build_parser
+    from pamd.client.cli.main import build_parser
     from pamd.daemon.service.restart import run_argv
 
     args = build_parser().parse_args(["run", "--listen", "tcp/0.0.0.0:7447",

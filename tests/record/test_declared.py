@@ -17,8 +17,8 @@ from mcap.reader import make_reader
 from mcap_ros2._vendor.rosidl_adapter.parser import parse_message_string
 from mcap_ros2.decoder import DecoderFactory
 
-from pamd.view.export import export_mat, export_named_csv
-from pamd.view.fields import MUSCLE_COLUMNS
+from pamd.client.export import export_mat, export_named_csv
+from pamd.client.field_info import MUSCLE_COLUMNS
 from pamd.wire.declare import events, fields
 
 PY_TYPE = {"float64": float, "uint8": int, "uint16": int, "uint32": int, "uint64": int}

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 import yaml
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 from pamd.loop.devices.datum_file import load_calibration
 from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction, force_model
 

@@ -8,11 +8,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from pamd.client.tune.ident_run import IDENT_SLEW_BAR_PER_S, tuning_config
 from pamd.loop.commands import Command, apply_command
 from pamd.loop.commands.tune_verbs import RelayArgs
 from pamd.loop.experiment.sequencer import running_plan
 from pamd.loop.harness import Harness
-from pamd.tune.run import IDENT_SLEW_BAR_PER_S, tuning_config
 from pamd.wire.tick import State
 from tests.experiment.test_sequencer import start
 

@@ -36,7 +36,7 @@ def gaps_s(times: list[float]) -> list[float]:
 
 
 def sighup_blocked(pid: int) -> bool:
-    """The process holds SIGHUP (`pamd.cli.main` blocks it at its first line)."""
+    """The process holds SIGHUP (`pamd.client.cli.main` blocks it at its first line)."""
     try:
         status = Path(f"/proc/{pid}/status").read_text()
     except OSError:

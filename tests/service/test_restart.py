@@ -16,7 +16,7 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
-from pamd.cli.main import build_parser
+from pamd.client.cli.main import build_parser
 from pamd.daemon.service.restart import run_argv
 from pamd.emulate.testing import free_port
 

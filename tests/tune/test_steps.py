@@ -5,8 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pamd.client.tune.step_responses import (
+    Step,
+    check_model,
+    fit_all,
+    mean_model,
+    pressure_gains,
+    steps_in,
+)
 from pamd.loop.control.tuning import Fopdt, IdentificationError
-from pamd.tune.steps import Step, check_model, fit_all, mean_model, pressure_gains, steps_in
 
 PLANT = Fopdt(0.95, 0.013, 0.0126)
 

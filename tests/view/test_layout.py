@@ -10,7 +10,7 @@ from typing import Any
 
 from mcap.reader import make_reader
 
-from pamd.view.layout import build_layout, layout_json, main
+from pamd.client.layout import build_layout, layout_json, main
 from pamd.wire.record.cdr import parse_flat_schema
 
 from .conftest import Recorded

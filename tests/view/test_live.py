@@ -190,7 +190,7 @@ def test_a_bad_listen_address_is_refused_with_its_field(tmp_path: Path) -> None:
 
 def test_a_restart_in_place_keeps_the_view() -> None:
     """A reload that reopens the devices execs `pamd run` again: the view stays on."""
-    from pamd.cli.main import build_parser
+    from pamd.client.cli.main import build_parser
     from pamd.daemon.service.restart import run_argv
 
     for given, kept in ((["--foxglove"], ["--foxglove", "default"]),

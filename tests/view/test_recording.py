@@ -172,7 +172,7 @@ def test_the_three_ways_of_reading_give_the_same_columns(
 
 
 def test_states_and_modes_are_named_tick_by_tick(recorded: Recorded) -> None:
-    from pamd.view import fields
+    from pamd.client import field_info as fields
 
     m1 = pamd.open_recording(recorded.file)["m1"]
     codes = m1["state"].copy()

@@ -128,7 +128,7 @@ def _extract_run(run: Run, o: ExtractOptions, actuation: str | None,
     _check_columns(run, o)
     kept = _Kept(t.size)
     accepted = _drop_state_and_flags(c, o, actuation, kept)
-    timeless = run.meta.get("time") == "rows"  # a table of samples (pamd.view.tables)
+    timeless = run.meta.get("time") == "rows"  # a table of samples (pamd.client.training_tables)
     _drop_settling(run, o, t, accepted, timeless, kept)
     # The velocity (the tick's filter) and the change of length at full rate, before
     # decimation.

@@ -74,7 +74,7 @@ def _loads(meta: JsonObject) -> dict[str, float | None]:
     file: the load its step hung)."""
     loads = {k: _float_or_none(v) for k, v in meta.get("pamd.loads", {}).items()}
     # a plan's step file: the load its step hung (pamd.loads is the config's, at the
-    # run's start), as pamd.view.recording reads it
+    # run's start), as pamd.client.recording reads it
     step_load = _float_or_none(meta.get("pamd.experiment", {}).get("load_kg"))
     if step_load is not None:
         loads = dict.fromkeys(loads, step_load)

@@ -4,7 +4,7 @@ event kinds and command verdicts (`events`), and the one JSON encoder (`jsonsafe
 Everything else derives from these tables: the tick record's layout and indices
 (`pamd.wire.tick`), the MCAP/ROS 2 message schemas (`pamd.wire.record.cdr`), the event JSON
 schema (`pamd.iohost.recorder`), the exports' columns, units and descriptions
-(`pamd.view.fields`), the Foxglove layout (`pamd.view.layout`) and the generated
+(`pamd.client.field_info`), the Foxglove layout (`pamd.client.layout`) and the generated
 docs/fields-reference.md (`python -m pamd.wire.declare.fields_doc`). This package imports
 nothing of pamd, so every layer may read it.
 """

@@ -18,7 +18,7 @@ from typing import Any, TypeAlias
 #
 # * in: a command's payload (checked by pamd.wire.verbs), a config file's nodes (pamd.wire.schema,
 #   pamd.config, which name file, line and key), a model file (pamd.models.document),
-#   a status answer, a recording's metadata or events (pamd.wire.record, pamd.view);
+#   a status answer, a recording's metadata or events (pamd.wire.record, pamd.client);
 # * out: an event's payload, a verdict, the status, a model file's provenance and
 #   metrics: any value `jsonsafe` below can write (it writes what JSON cannot hold
 #   as its text).

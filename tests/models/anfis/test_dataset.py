@@ -115,8 +115,8 @@ def test_an_onoff_recording_says_its_actuation(tmp_path: Path, recording: Path) 
     assert "flag EXHAUST_OPEN" not in s.runs[0]["dropped"]
     assert [r.meta["actuation"] for r in read_runs([str(recording)])] == ["proportional"]
     # `pamd export --csv`'s tables say it through their sidecar's copy of the config
-    from pamd.view.export import export_named_csv
-    from pamd.view.tables import load_samples as load_tables
+    from pamd.client.export import export_named_csv
+    from pamd.client.training_tables import load_samples as load_tables
 
     out = export_named_csv(str(path), str(tmp_path / "csv"))
     table = out["m1"][0]
@@ -124,7 +124,7 @@ def test_an_onoff_recording_says_its_actuation(tmp_path: Path, recording: Path) 
     assert "flag EXHAUST_OPEN" not in from_csv.runs[0]["dropped"]
     assert abs(len(from_csv) - len(s)) <= 0.02 * len(s)
     pytest.importorskip("scipy.io")  # `pamd export --mat`'s file says it too
-    from pamd.view.export import export_mat
+    from pamd.client.export import export_mat
 
     mat = str(tmp_path / "sweep.mat")
     export_mat(str(path), mat)

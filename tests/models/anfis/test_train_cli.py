@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 from pamd.metrics import METRIC_NAMES
 from pamd.models.anfis import load
 from pamd.wire.tick import Flag
