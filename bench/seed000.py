@@ -60,11 +60,11 @@ from seed_table import PAMD, PAPER, SeedRow, markdown  # noqa: E402
 
 from pamd.client.judging import tick_predict  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
-from pamd.models.anfis.extraction import extract  # noqa: E402
-from pamd.models.anfis.recordings import read_runs  # noqa: E402
-from pamd.models.anfis.samples import ExtractOptions, Samples  # noqa: E402
-from pamd.models.anfis.splitting import split  # noqa: E402
 from pamd.models.contract import InverseModel  # noqa: E402
+from pamd.models.data.extraction import extract  # noqa: E402
+from pamd.models.data.recordings import read_runs  # noqa: E402
+from pamd.models.data.samples import ExtractOptions, Samples  # noqa: E402
+from pamd.models.data.splitting import split  # noqa: E402
 from pamd.models.training import fit_split  # noqa: E402
 
 TRAIN_LOADS_KG = (15.0, 30.0, 50.0, 65.0, 80.0)

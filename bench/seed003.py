@@ -73,7 +73,7 @@ from seed_table import PAMD, PAPER, SeedRow, markdown  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
 from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
 from pamd.loop.harness import Harness  # noqa: E402
-from pamd.models.anfis.samples import ExtractOptions  # noqa: E402
+from pamd.models.data.samples import ExtractOptions  # noqa: E402
 from pamd.models.fn_qupi import FnQupiModel, FnQupiOptions, fit_fn_qupi  # noqa: E402
 from pamd.models.qupi import _identify  # noqa: E402
 from pamd.models.registry import save_model  # noqa: E402

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint
 from typing import Any, ClassVar, Literal, Protocol
 
-from pamd.plugins import DRIVERS_GROUP, installed, load_driver_entry
+from pamd.config.plugins import DRIVERS_GROUP, installed, load_driver_entry
 from pamd.wire.errors import DriverError
 
 Clock = Callable[[], float]

@@ -11,8 +11,8 @@ import pytest
 
 import pamd
 from pamd.client.training_tables import load_samples
-from pamd.models.anfis.samples import ExtractOptions, Samples
-from pamd.models.anfis.splitting import Split, split
+from pamd.models.data.samples import ExtractOptions, Samples
+from pamd.models.data.splitting import Split, split
 from pamd.models.training import fit_split
 from tests.benchmod import bench_module
 

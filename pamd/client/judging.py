@@ -38,11 +38,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from pamd.loop.control.feedforward import Feedforward
-from pamd.metrics import regression_metrics
-from pamd.models.anfis.samples import Samples
 from pamd.models.compare import Judged, columns_for, predict_samples, tick_cost_us
 from pamd.models.contract import MODEL_OUTPUT, SOURCES, InverseModel
+from pamd.models.data.samples import Samples
 from pamd.models.domain import RULE, DomainTable, domain_of
+from pamd.models.metrics import regression_metrics
 from pamd.wire.declare.jsonsafe import JsonObject
 
 WARN_OFF_DATA_PCT = 1.0

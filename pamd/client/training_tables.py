@@ -2,7 +2,7 @@
 
 Role: read a lab's table (LabVIEW's or a spreadsheet's CSV, MATLAB's .mat) or a table
 `pamd export` wrote, beside MCAP recordings, into the `Run`s that extraction
-(`pamd.models.anfis.extraction`) consumes, so that a table trains and evaluates exactly
+(`pamd.models.data.extraction`) consumes, so that a table trains and evaluates exactly
 as a recording does (`load_samples`).
 
 Column names: pamd's own signal names with the unit in the name (`pressure_bar`,
@@ -59,9 +59,9 @@ from pamd.client.export import matlab_name
 from pamd.client.matscan import check_mat
 from pamd.client.recording import recording_files
 from pamd.client.table_checks import MAX_TABLE_BYTES, PHYSICAL, shown, unit_warning, unphysical
-from pamd.models.anfis.extraction import extract
-from pamd.models.anfis.recordings import actuations_of, read_mcap
-from pamd.models.anfis.samples import FROM_LENGTH, ExtractOptions, Run, Samples
+from pamd.models.data.extraction import extract
+from pamd.models.data.recordings import actuations_of, read_mcap
+from pamd.models.data.samples import FROM_LENGTH, ExtractOptions, Run, Samples
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import ModelError
 

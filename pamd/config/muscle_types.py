@@ -41,7 +41,7 @@ PROBLEMS_SAID = 5
 
 
 class _Table(Protocol):
-    """One table as the reader gives it (`pamd.models.anfis.samples.Run`)."""
+    """One table as the reader gives it (`pamd.models.data.samples.Run`)."""
 
     source: str
     columns: Mapping[str, Sequence[float]]

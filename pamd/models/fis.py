@@ -57,10 +57,10 @@ from pathlib import Path
 
 import numpy as np
 
-from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.model import AnfisModel
-from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS
 from pamd.models.contract import InverseModel, Variable
+from pamd.models.data.extraction import derived_inputs
+from pamd.models.data.samples import INPUT_UNITS, OUTPUT_UNITS
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
 from pamd.wire.atomic import write_atomic
 from pamd.wire.declare.jsonsafe import JsonObject

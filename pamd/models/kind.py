@@ -31,9 +31,9 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
-from pamd.models.anfis.samples import Samples
-from pamd.models.anfis.splitting import Split
 from pamd.models.contract import InverseModel
+from pamd.models.data.samples import Samples
+from pamd.models.data.splitting import Split
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import ModelError
 

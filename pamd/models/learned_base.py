@@ -17,7 +17,6 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.metrics import regression_metrics
 from pamd.models.contract import (
     Envelope,
     Predictor,
@@ -27,6 +26,7 @@ from pamd.models.contract import (
     tick_problems,
 )
 from pamd.models.document import field, footer, header, numbers, read_header
+from pamd.models.metrics import regression_metrics
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import ModelError
 

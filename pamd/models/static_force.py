@@ -43,7 +43,6 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.metrics import regression_metrics
 from pamd.models.contract import (
     Envelope,
     Predictor,
@@ -54,6 +53,7 @@ from pamd.models.contract import (
 )
 from pamd.models.document import field, footer, header, numbers, read_header
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions
+from pamd.models.metrics import regression_metrics
 from pamd.models.static_force_fit import fit_sarosi, lstsq
 from pamd.models.static_force_tick import (
     MIN_GAIN_N_PER_BAR,

@@ -13,9 +13,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from pamd.models.anfis.samples import Samples
-from pamd.models.anfis.splitting import Split
 from pamd.models.contract import InverseModel
+from pamd.models.data.samples import Samples
+from pamd.models.data.splitting import Split
 from pamd.models.kind import FitJob, Fitted, KindOptions, Progress, rows_of
 from pamd.models.registry import declared
 from pamd.wire.declare.jsonsafe import JsonObject

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from pamd.client.cli.main import main
-from pamd.models.anfis.extraction import load_samples
-from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.contract import ModelEnvelope
+from pamd.models.data.extraction import load_samples
+from pamd.models.data.samples import ExtractOptions
 from pamd.models.fn_qupi import FnQupiOptions, fit_fn_qupi
 from pamd.models.fn_qupi_inverse import PlayQupi, fit_play_qupi
 from pamd.models.qupi import _identify

@@ -16,9 +16,9 @@ import pytest
 import pamd
 from pamd.client.cli.main import main
 from pamd.client.training_tables import load_samples
-from pamd.models.anfis.samples import ExtractOptions
-from pamd.models.anfis.splitting import split
 from pamd.models.contract import ModelEnvelope
+from pamd.models.data.samples import ExtractOptions
+from pamd.models.data.splitting import split
 from pamd.models.registry import load_model
 from pamd.models.static_force import PolynomialModel
 from pamd.wire.errors import ModelError

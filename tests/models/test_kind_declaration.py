@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from pamd.metrics import regression_metrics
+from pamd.models.metrics import regression_metrics
 from pamd.models.contract import (Predictor, Variable, clip_inputs, describe_common,
                                   tick_problems)
 from pamd.models.document import footer, header, numbers, read_header

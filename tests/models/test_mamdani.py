@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from pamd.client.cli.main import main
-from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.contract import ModelEnvelope, Variable
+from pamd.models.data.extraction import derived_inputs
 from pamd.models.mamdani import (
     DEFUZZ_POINTS,
     MamdaniModel,

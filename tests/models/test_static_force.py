@@ -130,7 +130,7 @@ def test_fits_to_the_datasheet_map_as_reported() -> None:
     """Seed 002's static use: the force map itself. Sarosi's form fits it to 98.9 %
     NRMSE (RMSE 6.5 N, as rig-physics.md's smooth fit); the 4-parameter polynomial,
     whose offset cannot follow the force at 0 bar, to 67.4 %."""
-    from pamd.metrics import regression_metrics
+    from pamd.models.metrics import regression_metrics
     from pamd.models.static_force import gain_offset
 
     p, x, F = datasheet_map()

@@ -14,7 +14,7 @@ from mat4py import loadmat
 
 import pamd
 from pamd.client.cli.main import main
-from pamd.models.anfis.recordings import read_csv
+from pamd.models.data.recordings import read_csv
 from pamd.wire.tick import MUSCLE_FIELDS, Flag, State
 
 from .conftest import Recorded

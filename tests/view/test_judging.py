@@ -15,8 +15,8 @@ from pamd.client.cli.main import main
 from pamd.client.judging import judge_as_tick, off_data, poor_fit
 from pamd.client.training_tables import load_samples
 from pamd.loop.control.feedforward import Feedforward
-from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.contract import Variable
+from pamd.models.data.samples import ExtractOptions
 from pamd.models.domain import derive
 from pamd.models.registry import load_model
 

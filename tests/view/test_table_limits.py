@@ -27,7 +27,7 @@ from pamd.client import csvtext
 from pamd.client import training_tables as tables
 from pamd.client.table_checks import MAX_COLUMNS, MAX_LINE_CHARS, shown
 from pamd.client.training_tables import load_samples, read_data
-from pamd.models.anfis.samples import ExtractOptions
+from pamd.models.data.samples import ExtractOptions
 from pamd.wire.errors import ModelError
 
 REPO = Path(__file__).resolve().parents[2]

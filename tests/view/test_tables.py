@@ -14,7 +14,7 @@ from scipy.io import savemat
 import pamd
 from pamd.client.cli.main import main
 from pamd.client.training_tables import load_samples, parse_name, read_data, read_table_csv
-from pamd.models.anfis.samples import ExtractOptions
+from pamd.models.data.samples import ExtractOptions
 from pamd.wire.errors import ModelError
 
 from .conftest import Recorded

@@ -19,11 +19,11 @@ from pamd.client.judging import TickReport, judge_as_tick
 from pamd.client.recording import recording_files
 from pamd.client.training_tables import load_samples
 from pamd.config.schema import ACTUATIONS
-from pamd.models.anfis.plots import require_matplotlib
-from pamd.models.anfis.samples import Samples
-from pamd.models.anfis.splitting import resplit
+from pamd.models.anfis.anfis_plots import require_matplotlib
 from pamd.models.compare import Judged, common_options, format_comparison
 from pamd.models.contract import InverseModel
+from pamd.models.data.samples import Samples
+from pamd.models.data.splitting import resplit
 from pamd.models.plots import write_overlay
 from pamd.models.registry import KINDS, load_model
 from pamd.wire.declare.jsonsafe import JsonObject, JsonValue

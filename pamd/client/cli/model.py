@@ -20,7 +20,7 @@ import sys
 
 from pamd.client.cli.net import add_client_args
 from pamd.models.anfis.adapted import save_adapted
-from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS
+from pamd.models.data.samples import INPUT_UNITS, OUTPUT_UNITS
 from pamd.models.fis import KINDS as FIS_KINDS
 from pamd.models.fis import export_fis, import_fis, names_given
 from pamd.models.registry import load_model, save_model

@@ -16,14 +16,14 @@ from pamd.client.cli import progress
 from pamd.client.cli.evaluate import add_actuation_option, format_table, say_own_actuations
 from pamd.client.judging import poor_fit
 from pamd.client.training_tables import data_files, load_samples
-from pamd.metrics import regression_metrics
-from pamd.models.anfis.extraction import derived_inputs
-from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
-from pamd.models.anfis.splitting import SPLITS, default_fractions, split
 from pamd.models.compare import predict_samples
 from pamd.models.contract import InverseModel
+from pamd.models.data.extraction import derived_inputs
+from pamd.models.data.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
+from pamd.models.data.splitting import SPLITS, default_fractions, split
 from pamd.models.domain import derive
 from pamd.models.kind import Kind, KindOptions, OptionSpec
+from pamd.models.metrics import regression_metrics
 from pamd.models.registry import KINDS, declared, save_model
 from pamd.models.training import fit_with, rows_of
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S

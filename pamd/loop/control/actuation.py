@@ -442,7 +442,7 @@ class OnOffActuation:
 
 def actuation_for(signals: MuscleSignals, muscle: MuscleConfig) -> Actuation:
     """The actuation a muscle's config describes: a regulator (and its optional exhaust)
-    or on/off valves (both required by the config's rules: pamd.config.actuation)."""
+    or on/off valves (both required by the config's rules: pamd.config.actuation_rules)."""
     if muscle.actuation == "onoff":
         if signals.inflate is None or signals.exhaust is None:
             raise ValueError(f"muscle {muscle.name!r}: on/off actuation needs its inflate "

@@ -146,7 +146,7 @@ class Rig:
 
 def _required(sig: SignalConfig | None, path: str, muscle: str) -> SignalConfig:
     """The regulator setpoint that `actuation: proportional` requires (the loader
-    refuses a config without it: pamd.config.actuation)."""
+    refuses a config without it: pamd.config.actuation_rules)."""
     if sig is None:
         raise ConfigError([ConfigIssue(path, None, f"muscles ({muscle}).signals.valve",
                                        "the pressure regulator's setpoint output", "none")])

@@ -3,7 +3,7 @@
 Role: hold every parameter of a trained or initialised model (input/output
 description, input scaling, membership functions, rule consequents, provenance and
 metrics) and evaluate it on many samples at once. Training lives in
-`pamd.models.anfis.training`, the 1 kHz single-sample path in `pamd.models.anfis.compiled`, files
+`pamd.models.anfis.hybrid`, the 1 kHz single-sample path in `pamd.models.anfis.compiled`, files
 in `pamd.models.anfis.modelfile`.
 
 Structure (Jang 1993; seed 000 eqs. 1-6):
@@ -376,7 +376,7 @@ def init_model(
 ) -> AnfisModel:
     """An untrained model laid out over the ranges of X (n x d) and y (consequents 0).
 
-    X and y must already have passed `pamd.models.anfis.checks.as_inputs_outputs`.
+    X and y must already have passed `pamd.models.data.checks.as_inputs_outputs`.
     """
 
     d = X.shape[1]

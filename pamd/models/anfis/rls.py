@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pamd.models.anfis.training import _design, _with_ones
+from pamd.models.anfis.hybrid import _design, _with_ones
 
 if TYPE_CHECKING:
     from pamd.models.anfis.model import AnfisModel

@@ -1,6 +1,6 @@
 """A pamd recording's messages as columns: the loop's, each muscle's state, and the
 events, decoded once (`read_columns`). The recording API (`pamd.client.recording`) and
-training's reader (`pamd.models.anfis.recordings`) take their columns from these.
+training's reader (`pamd.models.data.recordings`) take their columns from these.
 
 Reading is columnar: a state or loop message is a flat CDR struct of fixed size, so a
 file's chunks are joined, every message is found by the message indexes written after

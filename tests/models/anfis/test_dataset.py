@@ -1,4 +1,4 @@
-"""Training pairs from recordings (pamd.models.anfis.recordings, .extraction, .splitting): CSV
+"""Training pairs from recordings (pamd.models.data.recordings, .extraction, .splitting): CSV
 and MCAP, what is dropped, the velocity filter shared with the tick, the split, and bad
 data refused."""
 
@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.models.anfis.extraction import extract, load_samples
-from pamd.models.anfis.recordings import read_csv, read_runs
-from pamd.models.anfis.samples import ExtractOptions
-from pamd.models.anfis.splitting import split
+from pamd.models.data.extraction import extract, load_samples
+from pamd.models.data.recordings import read_csv, read_runs
+from pamd.models.data.samples import ExtractOptions
+from pamd.models.data.splitting import split
 from pamd.models.velocity import VELOCITY_WINDOW_S, filtered_velocity, velocity_step
 from pamd.wire.errors import ModelError
 from pamd.wire.tick import Flag, State

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from pamd.client.cli.main import main
-from pamd.metrics import METRIC_NAMES
 from pamd.models.anfis import load
+from pamd.models.metrics import METRIC_NAMES
 from pamd.wire.tick import Flag
 from tests.models.anfis.test_dataset import write_csv
 

@@ -1,8 +1,8 @@
 """The data of ANFIS training: one recorded run, what to extract from runs, and the
 training pairs with their provenance.
 
-Role: the types that reading (`pamd.models.anfis.recordings`), extraction
-(`pamd.models.anfis.extraction`) and splitting (`pamd.models.anfis.splitting`) pass between them,
+Role: the types that reading (`pamd.models.data.recordings`), extraction
+(`pamd.models.data.extraction`) and splitting (`pamd.models.data.splitting`) pass between them,
 and the model inputs and outputs they can produce, with units.
 """
 
@@ -22,7 +22,7 @@ from pamd.wire.tick import Flag
 #: Model inputs this module can produce, with units (pressure_bar: a forward model's
 #: input, seed 002's F(p, k); the tick feeds none, so such a model cannot drive a muscle).
 #: delta_length_mm: seed 001's change of length, the length's change from one sample to
-#: the next at the model's sample rate (mm per sample; `pamd.models.anfis.extraction`);
+#: the next at the model's sample rate (mm per sample; `pamd.models.data.extraction`);
 #: the tick feeds velocity_mm_s instead, so a model of it is judged offline.
 INPUT_UNITS: dict[str, str] = {
     "force_n": "N", "length_mm": "mm", "contraction": "", "velocity_mm_s": "mm/s",
@@ -63,7 +63,7 @@ class Run:
 
 @dataclass(frozen=True)
 class ExtractOptions:
-    """What to extract and what to drop (see `pamd.models.anfis.extraction`)."""
+    """What to extract and what to drop (see `pamd.models.data.extraction`)."""
 
     inputs: tuple[str, ...] = ("force_n", "length_mm")
     output: str = "pressure_bar"

@@ -1,9 +1,9 @@
 """Training pairs for the inverse model, taken from recorded runs.
 
-Role: from `Run`s (`pamd.models.anfis.recordings`), keep the samples that show the
+Role: from `Run`s (`pamd.models.data.recordings`), keep the samples that show the
 muscle's steady behaviour and return inputs X (force, length or contraction,
 optionally velocity) and the measured output y (pressure) as `Samples`, with each
-run's provenance; `pamd.models.anfis.splitting` then cuts them into training / validation /
+run's provenance; `pamd.models.data.splitting` then cuts them into training / validation /
 test sets.
 
 What is dropped, per run (counted per reason in the provenance):
@@ -13,7 +13,7 @@ What is dropped, per run (counted per reason in the provenance):
   the sweep);
 * flagged samples: stale signals, soft limits (pressure, contraction, pretension),
   PID saturation, open exhaust, tracking alarms, unreferenced length
-  (`pamd.models.anfis.samples.DROP_FLAGS`); on on/off valves (the recording's config
+  (`pamd.models.data.samples.DROP_FLAGS`); on on/off valves (the recording's config
   says `actuation: onoff`, or for a table that carries no config, the options'
   `actuation`) the exhaust's PWM pulses are the control itself, as the inflate
   valve's are, and are kept (`pamd.wire.declare.fields.PWM_VALVE_FLAGS`);
@@ -43,8 +43,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pamd.models.anfis.recordings import read_runs
-from pamd.models.anfis.samples import FROM_LENGTH, ExtractOptions, Run, Samples
+from pamd.models.data.recordings import read_runs
+from pamd.models.data.samples import FROM_LENGTH, ExtractOptions, Run, Samples
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S, derivation, filtered_velocity
 from pamd.profiles import SHAPES, ProfileSpec
 from pamd.wire.declare.fields import PWM_VALVE_FLAGS
@@ -327,5 +327,5 @@ def derived_inputs(inputs: Sequence[str], window_s: float = MODEL_VELOCITY_WINDO
             "derived_from": "length_mm", "unit": "mm", "sample_period_s": 1.0 / rate_hz,
             "method": "L(t) - L(t - sample_period_s), the earlier length linear between "
                       "the recorded samples (a table of samples: the previous row)",
-            "function": "pamd.models.anfis.extraction.delta_length"}
+            "function": "pamd.models.data.extraction.delta_length"}
     return out

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.models.anfis.samples import Samples
+from pamd.models.data.samples import Samples
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import ModelError
 

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pamd.models.anfis.samples import Run
+from pamd.models.data.samples import Run
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import ModelError, RecordingError
 from pamd.wire.record import files

@@ -31,15 +31,15 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.metrics import regression_metrics
-from pamd.models.anfis.checks import (
+from pamd.models.anfis.membership import log_membership, log_membership_grads
+from pamd.models.anfis.model import CONSEQUENTS, AnfisModel, init_model, rule_firing
+from pamd.models.anfis.step_size import StepSizeState, update_step_size
+from pamd.models.data.checks import (
     as_inputs_outputs,
     check_trainable,
     fewer_samples_than_parameters,
 )
-from pamd.models.anfis.membership import log_membership, log_membership_grads
-from pamd.models.anfis.model import CONSEQUENTS, AnfisModel, init_model, rule_firing
-from pamd.models.anfis.step_size import StepSizeState, update_step_size
+from pamd.models.metrics import regression_metrics
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.version import __version__
 
