@@ -582,13 +582,13 @@ class RigConfig:
                                       "remote commands over Zenoh (pamd.iohost, in the io "
                                       "process).")
     calibration_file: str | None = spec(
-        None, "Where home/tare references are kept (relative to the config file); null: "
+        None, "Where home/tare datums are kept (relative to the config file); null: "
         "calibration.yaml in the state directory (see state_dir; without one, for the run "
         "only).")
     state_dir: str | None = spec(
         None, "Directory for state that survives a restart: the latched fault (fault.json) "
         "and the last known-good safe outputs (safe-outputs.json, replayed by `pamd "
-        "safe-outputs`) and, by default, the home/tare references (calibration.yaml). "
+        "safe-outputs`) and, by default, the home/tare datums (calibration.yaml). "
         "Relative to the config file; null: $XDG_STATE_HOME/pamd/<rig_id> "
         "(~/.local/state/pamd/<rig_id>) for a real-clock run, none for a virtual-clock "
         "run or the built-in simulated rig (a private simulation keeps no state). `pamd "

@@ -2,7 +2,7 @@
 loop thread), with a thread-safe way in (commands) and out (status, summary).
 
 The loop runs in its own thread; the calling thread waits, prints the loop's
-notices, saves references changed by home/tare, and handles signals.
+notices, saves datums changed by home/tare, and handles signals.
 """
 
 from __future__ import annotations
@@ -60,13 +60,13 @@ class Daemon:
         """`models`: each muscle's inverse model, loaded; by default the daemon loads
         the config's `model_file`s (`load_models`: a ConfigError before anything opens).
         `state_dir` overrides the config's (see pamd.daemon.service.state: where the fault,
-        the safe outputs and the references are kept, if anywhere); `notifier`
+        the safe outputs and the datums are kept, if anywhere); `notifier`
         talks to systemd (the CLI passes `Notifier.from_environ()`);
         `config_overrides` are re-applied when the config is reloaded (SIGHUP);
         `telemetry` asks for Zenoh telemetry and commands as the config's
         `telemetry` section says (None: off; `pamd run` asks unless --no-telemetry)."""
         self.state = state_paths(cfg, state_dir)
-        # the references' file as this run keeps it (the state directory's by default)
+        # the datums' file as this run keeps it (the state directory's by default)
         self.calibration_path = calibration_path(cfg, self.state)
         cfg = dataclasses.replace(cfg, calibration_path=self.calibration_path)
         self.cfg = cfg
@@ -159,7 +159,7 @@ class Daemon:
 
     def wait(self, timeout_s: float | None = None, poll_s: float = 0.05) -> bool:
         """Wait for the loop to end (True) or the timeout (False), meanwhile printing
-        notices and transitions and saving changed references."""
+        notices and transitions and saving changed datums."""
         assert self._thread is not None
         waited = 0.0
         while self._thread.is_alive():
@@ -189,7 +189,7 @@ class Daemon:
                 save_calibration(self.calibration, self.calibration_path)
             elif not self._unsaved_said:
                 self._unsaved_said = True
-                log.warning("the new home/tare references hold for this run only: it keeps "
+                log.warning("the new home/tare datums hold for this run only: it keeps "
                             "no state (a simulation); --state-dir DIR (or state_dir, or "
                             "calibration_file in the config) keeps them")
         loop = self.loop

@@ -39,7 +39,7 @@ from pamd.wire.tick import TickLayout
 class IoParts:
     """What the daemon (`pamd.daemon.daemon.Daemon`) hands its io session, never itself: the
     config in force (`config()`: a reload replaces it), the run's note, the tick's
-    layout and the references (the recording's metadata), the rig's controller (its
+    layout and the datums (the recording's metadata), the rig's controller (its
     clock, counters and supervisor: a lost io process may fault it), the loop (its
     clock kind, notices, and the mailbox the ring's commands join), the summary sink
     (the ring sink goes downstream of it) and the loop's local mailbox."""

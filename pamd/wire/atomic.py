@@ -1,6 +1,6 @@
 """The one way pamd writes a file it keeps: whole, or not at all (issue 37 item 3).
 
-Configs on `--save` (`pamd tune`, `pamd commission`), the home/tare references, the
+Configs on `--save` (`pamd tune`, `pamd commission`), the home/tare datums, the
 latched fault and the safe outputs, a collection's manifest, model files, the command
 credential, the service's unit files, exports and plots: each is written to a
 temporary file in the same directory (created exclusively, so two writers never share

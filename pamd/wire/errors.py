@@ -84,7 +84,7 @@ class RecordingError(PamdError):
 
 
 class FileWriteError(PamdError, OSError):
-    """A file pamd keeps (a config on --save, the references, a model file, ...) could
+    """A file pamd keeps (a config on --save, the datums, a model file, ...) could
     not be written; the old one is as it was (`pamd.wire.atomic`). An OSError too, so that
     whoever handled a failed write before (the service's state files) still does."""
 

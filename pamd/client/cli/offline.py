@@ -37,14 +37,14 @@ def _at_rest(d: Daemon) -> bool:
 def add_state_args(p: argparse.ArgumentParser) -> None:
     """--state-dir and --json, as every offline reference command takes them."""
     p.add_argument("--state-dir", metavar="DIR", help="the state directory whose "
-                   "calibration.yaml keeps the references (the service's: /var/lib/pamd; "
+                   "calibration.yaml keeps the datums (the service's: /var/lib/pamd; "
                    "default: as `pamd run` keeps it, see state_dir)")
     p.add_argument("--json", action="store_true", help="print the verdict as JSON")
 
 
 def apply_offline(config: str | None, verb: str, payload: JsonObject,
                   state_dir: str | None = None) -> JsonObject:
-    """Open the rig, apply `verb` once it rests, save the references (in the state
+    """Open the rig, apply `verb` once it rests, save the datums (in the state
     directory, or the config's `calibration_file`); the verdict. CommandRefused when
     refused (nothing saved), DriverError if the rig never read."""
     cfg = load_config(config)

@@ -95,7 +95,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "--duration or --cycles, as the service runs) ends once the safe state "
                    "of a fault holds, exit 1 (default: it stays up for a reset)")
     p.add_argument("--state-dir", metavar="DIR", help="keep the latched fault, the safe "
-                   "outputs and the home/tare references in DIR (overrides state_dir of the "
+                   "outputs and the home/tare datums in DIR (overrides state_dir of the "
                    "config; default: ~/.local/state/pamd/<rig_id> for a real-clock run of "
                    "a config, none for a virtual-clock run or the built-in sim; the service "
                    "uses /var/lib/pamd)")

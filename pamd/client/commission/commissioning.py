@@ -101,8 +101,8 @@ class Outcome:
 def commission(cfg: LoadedConfig, moves: list[Moves], progress: Progress,
                state_dir: str | None = None) -> Outcome:
     """Run the plans of `moves` (one per muscle) on the rig of `cfg`; `state_dir` as
-    `pamd run --state-dir` (the latched fault, the references: the rig's own by
-    default, so that commissioning sees the references `tare` and `home` set)."""
+    `pamd run --state-dir` (the latched fault, the datums: the rig's own by
+    default, so that commissioning sees the datums `tare` and `home` set)."""
     all_plans = {mv.muscle: plans(cfg, mv) for mv in moves}  # checked before anything opens
     seconds = sum(_plan_s(p, cfg) for ps in all_plans.values() for _, p in ps)
     daemon = Daemon(cfg, note="pamd commission", state_dir=state_dir)

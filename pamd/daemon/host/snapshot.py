@@ -93,7 +93,7 @@ class StatusBuilder:
         return cast(Status, jsonsafe(st))
 
     def _muscle(self, m: MuscleController) -> MuscleStatus:
-        ref, env, pl = m.reference, m.envelope, m.plausibility
+        ref, env, pl = m.datums, m.envelope, m.plausibility
         ff = m.length_control.ff
         dm = self.ctrl.deadman.get(m.name)
         return {

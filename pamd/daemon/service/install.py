@@ -170,7 +170,7 @@ def _check_config(path: str, say: Callable[[str], None]) -> None:
     if not os.path.exists(path):
         say(f"next: put the rig config at {path} (`pamd check-config` it first), with "
             f"recording: {{dir: {RECORDINGS}}} (the service records only where its config "
-            f"says); its fault, safe outputs and references go to {STATE_DIR}")
+            f"says); its fault, safe outputs and datums go to {STATE_DIR}")
         return
 
     try:
@@ -182,7 +182,7 @@ def _check_config(path: str, say: Callable[[str], None]) -> None:
     cal = cfg.calibration_path
     if cal and not cal.startswith(STATE_DIR + "/"):
         say(f"  calibration file {cal} is read-only to the service (ProtectSystem=strict); "
-            f"remove calibration_file (the references then go to {STATE_DIR}) or set "
+            f"remove calibration_file (the datums then go to {STATE_DIR}) or set "
             f"calibration_file: {STATE_DIR}/calibration.yaml")
     rec = cfg.rig.recording.dir
     if not rec:

@@ -7,7 +7,7 @@ written atomically (temp file, fsync, rename, fsync of the directory):
   options, and per output channel the raw value of the present safe state. The
   second-line command `pamd safe-outputs` replays them when the daemon is gone and
   the config may be unreadable;
-* the home/tare references (`calibration.yaml`) unless the config names its own
+* the home/tare datums (`calibration.yaml`) unless the config names its own
   `calibration_file`.
 
 The state directory is, the first that applies: `--state-dir DIR` (the service:
@@ -101,7 +101,7 @@ def state_paths(cfg: LoadedConfig, state_dir: str | None = None) -> StatePaths |
 
 
 def calibration_path(cfg: LoadedConfig, paths: StatePaths | None) -> str | None:
-    """Where the home/tare references are kept: the config's `calibration_file`, else
+    """Where the home/tare datums are kept: the config's `calibration_file`, else
     the state directory's calibration.yaml; None: for this run only (no state)."""
     if cfg.calibration_path:
         return cfg.calibration_path

@@ -36,7 +36,7 @@ def can_move(ctrl: RigController) -> None:
                              "once the cause is gone")
 
 
-def need_reference(ms: list[MuscleController]) -> None:
+def need_homed(ms: list[MuscleController]) -> None:
     """Refuse unless every muscle has its length referenced (home)."""
     for m in ms:
         if not m.referenced:

@@ -67,7 +67,7 @@ def _reset(ctrl: RigController, a: NoArgs) -> JsonObject:
 def _home(ctrl: RigController, a: HomeArgs) -> JsonObject:
     idle_or_hold(ctrl, "home")
     m = named_muscles(ctrl, a.muscle)[0]
-    raw_len = m.length_mm - m.reference.length_offset_mm
+    raw_len = m.length_mm - m.datums.length_offset_mm
     if not math.isfinite(raw_len):
         raise CommandRefused(f"{m.name}: no length reading to reference")
     check_home(m, a.length_mm)  # absolute sensor, untrusted, moving, or disagreeing: refused

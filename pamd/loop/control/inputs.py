@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 
 from pamd.loop.devices.bindings import MuscleSignals
-from pamd.loop.devices.datum_file import MuscleReference
+from pamd.loop.devices.datum_file import MuscleDatums
 from pamd.loop.safety.plausibility import Plausibility
 from pamd.models.velocity import VELOCITY_WINDOW_S, velocity_step
 from pamd.wire.tick import Flag, MuscleTick, State
@@ -35,7 +35,7 @@ class Inputs:
     # slots: attribute reads on the tick path stay specialised past CPython's 30-key
     # shared dict (issue 42 item 3)
     __slots__ = (
-        'pressure_signal', 'force_signal', 'length_signal', 'reference', 'plausibility',
+        'pressure_signal', 'force_signal', 'length_signal', 'datums', 'plausibility',
         'nominal_length_mm', '_pv', '_pt', '_pi', '_fv', '_ft', '_fi', '_lv', '_lt',
         '_li', '_pj', '_fj', '_lj', '_pg', '_po', '_fg', '_fo', '_lg', '_lo', '_pto',
         '_fto', '_lto', 'pressure_bar', 'force_n', 'length_mm', 'contraction',
@@ -48,7 +48,7 @@ class Inputs:
                  nominal_length_mm: float) -> None:
         p, f, ln = signals.pressure, signals.force, signals.length
         self.pressure_signal, self.force_signal, self.length_signal = p, f, ln
-        self.reference: MuscleReference = signals.reference
+        self.datums: MuscleDatums = signals.datums
         self.plausibility = plausibility
         self.nominal_length_mm = nominal_length_mm
         # Cached signal access (tick path).
@@ -96,11 +96,11 @@ class Inputs:
 
     def measured_force_n(self) -> float:
         """The newest force reading with the tare offset (whatever its age)."""
-        return self._fg * self._fv[self._fi] + self._fo - self.reference.force_offset_n
+        return self._fg * self._fv[self._fi] + self._fo - self.datums.force_offset_n
 
     def measured_length_mm(self) -> float:
         """The newest length reading with the reference offset (whatever its age)."""
-        return self._lg * self._lv[self._li] + self._lo + self.reference.length_offset_mm
+        return self._lg * self._lv[self._li] + self._lo + self.datums.length_offset_mm
 
     def missing(self, now: float) -> str | None:
         """None when every input has a fresh reading; else which one is missing."""
@@ -111,17 +111,17 @@ class Inputs:
                 return f"{sig.name} (driver {sig.driver.name!r})"
         return None
 
-    def reference_changed(self) -> None:
+    def datums_changed(self) -> None:
         """A new length reference (home, a device preset): the velocity and the length
         checks start afresh (the reading's step is the new offset, not a motion)."""
         self._prev_length_mm = math.nan
-        self.plausibility.reference_changed()
+        self.plausibility.datums_changed()
 
     def home(self, length_mm: float, raw_length_mm: float, at: str) -> float:
         """Reference the length: this reading (`raw_length_mm`, without the present
         offset) is `length_mm`, at once in software; a device that takes a preset
         confirms later (`read` then drops the software offset). Returns the offset."""
-        ref = self.reference
+        ref = self.datums
         ref.length_offset_mm = length_mm - raw_length_mm
         b = self.length_signal
         counts = b.driver.preset_counts
@@ -129,17 +129,17 @@ class Inputs:
             self._pending_preset = (counts, b.index, counts[b.index])
         ref.length_referenced = True
         ref.homed_at = at
-        self.reference_changed()
+        self.datums_changed()
         return ref.length_offset_mm
 
     def tare(self, force_offset_n: float, at: str) -> None:
-        self.reference.force_offset_n = force_offset_n
-        self.reference.tared_at = at
+        self.datums.force_offset_n = force_offset_n
+        self.datums.tared_at = at
 
     def _preset_applied(self) -> None:
         """The encoder now reads the homed length itself: drop the software offset."""
-        self.reference.length_offset_mm = 0.0
-        self.reference_changed()
+        self.datums.length_offset_mm = 0.0
+        self.datums_changed()
         self._pending_preset = None
         self._calibration_dirty = True
 
@@ -159,7 +159,7 @@ class Inputs:
             self._preset_applied()
         pi, fi, li = self._pi, self._fi, self._li
         pt, ft, lt = self._pt[pi], self._ft[fi], self._lt[li]
-        ref = self.reference
+        ref = self.datums
         p = self._pg * self._pv[pi] + self._po
         f = self._fg * self._fv[fi] + self._fo - ref.force_offset_n
         length = self._lg * self._lv[li] + self._lo + ref.length_offset_mm

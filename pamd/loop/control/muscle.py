@@ -68,7 +68,7 @@ from pamd.loop.control.setpoint import (
 )
 from pamd.loop.control.settings import MuscleSettings
 from pamd.loop.devices.bindings import MuscleSignals
-from pamd.loop.devices.datum_file import MuscleReference
+from pamd.loop.devices.datum_file import MuscleDatums
 from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.loop.safety.limiter import Limiter
 from pamd.loop.safety.limits import F_AT_LIMIT, Guards, LimitMonitor
@@ -234,13 +234,13 @@ class MuscleController:
         return self._envelope
 
     @property
-    def reference(self) -> MuscleReference:
-        """The length and force references (home, tare), saved in the calibration."""
-        return self.signals.reference
+    def datums(self) -> MuscleDatums:
+        """The length and force datums (home, tare), saved in the calibration."""
+        return self.signals.datums
 
     @property
     def referenced(self) -> bool:
-        return self.signals.reference.length_referenced
+        return self.signals.datums.length_referenced
 
     @property
     def pressure_bar(self) -> float:

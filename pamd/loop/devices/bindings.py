@@ -1,5 +1,5 @@
 """The rig: drivers built from the config, and each muscle's named signals bound to
-driver channels with calibration (raw -> SI) and references (home, tare).
+driver channels with calibration (raw -> SI) and datums (home, tare).
 
 Drivers know nothing of muscles; the rig knows nothing of protocols.
 """
@@ -14,7 +14,7 @@ from pamd.config.loader import LoadedConfig, effective_timeout_s
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import SignalConfig
 from pamd.drivers import Clock, Driver, load_driver_class
-from pamd.loop.devices.datum_file import Calibration, MuscleReference
+from pamd.loop.devices.datum_file import Calibration, MuscleDatums
 from pamd.wire.errors import ConfigError, ConfigIssue, DriverError
 
 
@@ -69,7 +69,7 @@ class MuscleSignals:
     length: InputBinding
     valve: OutputBinding | None  # the regulator (actuation: proportional)
     exhaust: OutputBinding | None  # the dump valve, or on/off's exhaust valve
-    reference: MuscleReference
+    datums: MuscleDatums
     inflate: OutputBinding | None = None  # on/off's inflate valve (actuation: onoff)
 
 
@@ -101,7 +101,7 @@ class Rig:
                 valve=(None if m.actuation == "onoff" else
                        self._output(f"{m.name}.valve", _required(s.valve, cfg.path, m.name))),
                 exhaust=self._output(f"{m.name}.exhaust", s.exhaust) if s.exhaust else None,
-                reference=ref,
+                datums=ref,
                 inflate=(self._output(f"{m.name}.inflate", s.inflate)
                          if m.actuation == "onoff" and s.inflate else None),
             ))

@@ -1,4 +1,4 @@
-"""Signal references that change at run time: `home` (length offset) and `tare`
+"""Signal datums that change at run time: `home` (length offset) and `tare`
 (force offset), persisted in a small YAML file beside the config.
 
 An incremental encoder reads 0 at power-up and a load cell drifts, so length and
@@ -19,7 +19,7 @@ from pamd.wire.schema.yamlload import load_yaml_file
 
 
 @dataclass
-class MuscleReference:
+class MuscleDatums:
     length_offset_mm: float = spec(0.0, "Added to the calibrated length (set by home).",
                                    unit="mm")
     force_offset_n: float = spec(0.0, "Subtracted from the calibrated force (set by tare).",
@@ -31,14 +31,14 @@ class MuscleReference:
 
 @dataclass
 class Calibration:
-    muscles: dict[str, MuscleReference] = field(default_factory=dict)
+    muscles: dict[str, MuscleDatums] = field(default_factory=dict)
 
-    def for_muscle(self, name: str) -> MuscleReference:
-        return self.muscles.setdefault(name, MuscleReference())
+    def for_muscle(self, name: str) -> MuscleDatums:
+        return self.muscles.setdefault(name, MuscleDatums())
 
 
 def load_calibration(path: str | None) -> Calibration:
-    """The references in `path`, or empty ones if the file does not exist yet (or
+    """The datums in `path`, or empty ones if the file does not exist yet (or
     there is none: a run that keeps no state)."""
     if path is None or not os.path.exists(path):
         return Calibration()
@@ -47,7 +47,7 @@ def load_calibration(path: str | None) -> Calibration:
     cal = Calibration()
     muscles = raw.get("muscles", {}) if isinstance(raw, dict) else {}
     for name, node in (muscles or {}).items():
-        ref = build_dataclass(MuscleReference, node, ctx, f"muscles.{name}", None)
+        ref = build_dataclass(MuscleDatums, node, ctx, f"muscles.{name}", None)
         if ref is not None:
             cal.muscles[str(name)] = ref
     ctx.raise_if_any()
@@ -59,6 +59,6 @@ def save_calibration(cal: Calibration, path: str) -> None:
     a failed write the old one (FileWriteError naming it)."""
     data = {"muscles": {k: asdict(v) for k, v in cal.muscles.items()}}
     directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)  # a state directory's first reference
-    write_atomic(path, "# pamd signal references (home/tare); written by pamd\n"
+    os.makedirs(directory, exist_ok=True)  # a state directory's first datum
+    write_atomic(path, "# pamd signal datums (home/tare); written by pamd\n"
                  + yaml.safe_dump(data, sort_keys=False))

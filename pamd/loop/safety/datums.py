@@ -23,7 +23,7 @@ import math
 from typing import Protocol
 
 from pamd.loop.devices.bindings import MuscleSignals
-from pamd.loop.devices.datum_file import MuscleReference
+from pamd.loop.devices.datum_file import MuscleDatums
 from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.loop.safety.plausibility import Plausibility
 from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction
@@ -41,7 +41,7 @@ class DatumMuscle(Protocol):
     @property
     def envelope(self) -> MuscleEnvelope: ...
     @property
-    def reference(self) -> MuscleReference: ...
+    def datums(self) -> MuscleDatums: ...
     @property
     def pressure_bar(self) -> float: ...
     @property
@@ -105,7 +105,7 @@ def tare_offset(m: DatumMuscle, load_kg: float | None) -> float:
     if not m.plausibility.force_ok:
         raise CommandRefused(f"{m.name}: {b.name} is not trusted (an implausible reading); "
                              "reset once it reads right, then tare")
-    raw = m.force_n + m.reference.force_offset_n
+    raw = m.force_n + m.datums.force_offset_n
     if not math.isfinite(raw):
         raise CommandRefused(f"{m.name}: no force reading to tare")
     _at_rest(m, "tare")
@@ -122,7 +122,7 @@ def tare_offset(m: DatumMuscle, load_kg: float | None) -> float:
             f"{m.name}: tare against {load_kg:g} kg, but the configured load is "
             f"{m.load_kg:g} kg; send load first (it also sets the safe pressure)")
     offset = raw - load_kg * GRAVITY_M_S2
-    moved = offset - m.reference.force_offset_n
+    moved = offset - m.datums.force_offset_n
     tol = m.envelope.tare_tolerance_n
     if abs(moved) > tol:
         raise CommandRefused(

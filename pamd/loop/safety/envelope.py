@@ -56,7 +56,7 @@ class MuscleEnvelope:
     # the safe pressure's inputs (with the load)
     stretch_margin: float
     safe_pressure_margin_bar: float
-    # reference checks (`pamd.loop.safety.datums`)
+    # datum checks (`pamd.loop.safety.datums`)
     home_tolerance: float
     tare_tolerance_n: float
     # the declared load's check (`pamd.loop.safety.load_check`)

@@ -180,7 +180,7 @@ class Plausibility:
         any): the sensor's noise a sixth of a sample's at 1 kHz."""
         return self._p_lp
 
-    def reference_changed(self) -> None:
+    def datums_changed(self) -> None:
         """A new length reference (home, a device preset): the reading steps by the new
         offset, which is not a jump; the length checks start afresh."""
         self._l_last = math.nan
