@@ -21,7 +21,7 @@ from pamd.loop.control.muscle import MuscleController
 from pamd.loop.control.summary import SummarySink
 from pamd.loop.devices.bindings import Rig
 from pamd.loop.devices.datum_file import load_calibration
-from pamd.loop.loop import CommandIntake, VirtualClock, tick_once
+from pamd.loop.loop import CommandDispatch, VirtualClock, tick_once
 from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
 from pamd.wire.tick import State, TickLayout
 
@@ -52,7 +52,7 @@ class Harness:
                                   load_models(cfg) if models is None else models)
         self.clock = VirtualClock()
         self.queue = _Queue()
-        self.intake = CommandIntake(self.queue, deque(maxlen=256))
+        self.intake = CommandDispatch(self.queue, deque(maxlen=256))
         self.rig.open(self.clock)
         self.ctrl.start(0.0)
         self.t = 0.0

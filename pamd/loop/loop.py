@@ -65,7 +65,7 @@ class VirtualClock:
         return self.t
 
 
-class CommandIntake:
+class CommandDispatch:
     """How commands reach the controller: at most MAX_COMMANDS_PER_TICK a tick, and
     after the first none once the tick has spent its command budget (perf_counter
     `until`): a burst waits its turn in the mailbox (each reply still waits for its
@@ -103,7 +103,7 @@ class CommandIntake:
                             f"{self.faults} so far, the loop goes on")
 
 
-def tick_once(ctrl: RigController, intake: CommandIntake, now_s: float, dt_s: float,
+def tick_once(ctrl: RigController, intake: CommandDispatch, now_s: float, dt_s: float,
               commands_until: float) -> array[float]:
     """One tick, as both `Loop` and `pamd.loop.harness.Harness` run it: the waiting commands
     first (held in the mailbox until the sensors are read: none while STARTING), then
@@ -139,7 +139,7 @@ class Loop:
         self.notices: deque[str] = deque(maxlen=256)
         self.lost_records = 0
         self.rt = RealtimeSession()
-        self.intake = CommandIntake(mailbox, self.notices)
+        self.intake = CommandDispatch(mailbox, self.notices)
         self._stop_reason: str | None = None
         self.stopped_reason = ""
         self._handover_reason: str | None = None
@@ -167,7 +167,7 @@ class Loop:
 
     @property
     def command_faults(self) -> int:
-        """Mailboxes or replies that raised (see `CommandIntake`)."""
+        """Mailboxes or replies that raised (see `CommandDispatch`)."""
         return self.intake.faults
 
     @property
