@@ -69,7 +69,7 @@ def sine(freq_hz: float = 0.5) -> Profile:
 
 def run(lc: LengthControl, prof: Profile, until_s: float, force_n: float = 294.0) -> float:
     """Tick `lc` on the profile to `until_s`, the length on target; the last setpoint."""
-    sp = lc.last_sp
+    sp = lc.last_setpoint
     t = 0.0
     while t < until_s - 1e-9:
         t += DT

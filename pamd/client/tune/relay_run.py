@@ -158,10 +158,10 @@ def analyse(out_dir: str, muscle: str, level: float, rest: float,
     t = np.asarray(rec["t_s"], dtype=float)
     u = np.asarray(rec["valve_cmd_bar"], dtype=float)
     p = np.asarray(rec["pressure_bar"], dtype=float)
-    sp = np.asarray(rec["setpoint_bar"], dtype=float)
-    at_level = np.nonzero(np.abs(sp - level) < 1e-9)[0]  # the ramp there done
+    setpoint = np.asarray(rec["setpoint_bar"], dtype=float)
+    at_level = np.nonzero(np.abs(setpoint - level) < 1e-9)[0]  # the ramp there done
     first = int(at_level[0]) if at_level.size else len(u)
-    left = first + np.nonzero(np.abs(sp[first:] - level) > 1e-9)[0]  # the stop's ramp
+    left = first + np.nonzero(np.abs(setpoint[first:] - level) > 1e-9)[0]  # the stop's ramp
     end = int(left[0]) if left.size else len(u)
     on = first + np.nonzero(np.abs(u[first:end] - level) > 0.5 * amplitude_bar)[0]
     try:

@@ -69,7 +69,7 @@ if TYPE_CHECKING:
     from pamd.loop.safety.envelope import MuscleEnvelope
 
 #: Time constant of the setpoint's rate estimate (for the rate feedforward), s.
-SP_RATE_WINDOW_S = 0.05
+SETPOINT_RATE_WINDOW_S = 0.05
 #: Step along the planned motion for the model's derivative (the planned rate), s.
 RATE_STEP_S = 0.005
 
@@ -102,7 +102,7 @@ class LengthControl:
         self.planned_force = position.force_input == "planned"
         self.load_kg = 0.0
         self.ahead = ProfilePoint()  # the profile at now + preview_s
-        self.corr_rate = VelocityFilter(SP_RATE_WINDOW_S)  # d(correction)/dt, bar/s
+        self.corr_rate = VelocityFilter(SETPOINT_RATE_WINDOW_S)  # d(correction)/dt, bar/s
         self.flow_bar = 0.0  # the flow term: the muscle adds it to the valve command
         self.model_sweep_hz = position.model_sweep_hz
         self.vel_scale = 1.0  # the model's velocity input's time scale (`_new_profile`)
@@ -126,7 +126,7 @@ class LengthControl:
         # The target's velocity, filtered as the model's velocity input was in training.
         self.target_vel = VelocityFilter(MODEL_VELOCITY_WINDOW_S if feedforward is None
                                          else feedforward.velocity_window_s)
-        self.sp_rate = VelocityFilter(SP_RATE_WINDOW_S)  # d(setpoint)/dt, bar/s
+        self.setpoint_rate = VelocityFilter(SETPOINT_RATE_WINDOW_S)  # d(setpoint)/dt, bar/s
         # position mode: the measured force through a low-pass before the model. The
         # model is a quasi-static inverse; the force's fast part (damping, inertia,
         # noise) would close a loop pressure -> motion -> force -> model -> pressure.
@@ -135,7 +135,7 @@ class LengthControl:
         self.bump = 0.0
         self.bump_tau_s = position.bumpless_s
         self.flags = 0
-        self.last_sp = math.nan
+        self.last_setpoint = math.nan
         self.correction = 0.0  # outer PID + ILC part of the setpoint, bar
         self.profile: Profile | None = None  # the running length profile (set when chosen)
         # this tick's point the model sees, and what the tick's steps hand each other
@@ -181,7 +181,7 @@ class LengthControl:
             self.target_force_n = force_n
             self.target_vel.reset(length_mm, 0.0)
             self.force_lp = force_n
-            self.sp_rate.reset(setpoint_bar, 0.0)
+            self.setpoint_rate.reset(setpoint_bar, 0.0)
         self.position = mode == Mode.POSITION
         self.use_ff = use_ff
         self.ilc_on = ilc and self.position
@@ -198,7 +198,7 @@ class LengthControl:
                 self.inc.reset(setpoint_bar - ff)
         else:
             self.bump = setpoint_bar - ff
-        self.last_sp = setpoint_bar
+        self.last_setpoint = setpoint_bar
         self.feedforward_bar = ff
         self.corr_rate.reset(setpoint_bar - ff, 0.0)
         self.flow_bar = 0.0
@@ -261,7 +261,7 @@ class LengthControl:
         t.target_length_mm = self.target_length_mm
         t.target_rate_mm_s = self.target_rate_mm_s
 
-    def step(self, now: float, dt: float, state: int, sp_prev: float, prof: Profile | None,
+    def step(self, now: float, dt: float, state: int, setpoint_prev: float, prof: Profile | None,
              length_mm: float, force_n: float) -> float:
         """The pressure setpoint for this tick (bar), from the running length profile
         `prof` (if any) and the measured length and force; sets `target_length_mm`,
@@ -279,16 +279,17 @@ class LengthControl:
         pid, inc = self.pid, self.inc
         i_before = pid.i
         u_before = inc.u if inc is not None else 0.0
-        want = self._bounded(self._corrected(ff, now, dt, live, length_mm, ln_t), sp_prev, dt)
-        if self._held or sp_prev != self.last_sp:  # clamped here or by the tick's soft limits
+        want = self._bounded(self._corrected(ff, now, dt, live, length_mm, ln_t), setpoint_prev, dt)
+        # clamped here or by the tick's soft limits
+        if self._held or setpoint_prev != self.last_setpoint:
             pid.i = i_before
             if inc is not None:
                 inc.hold(u_before)
         self.feedforward_bar = ff
-        rate = self.sp_rate.update(want, dt)
+        rate = self.setpoint_rate.update(want, dt)
         rest = self.corr_rate.update(want - ff, dt)
         self.setpoint_rate_bar_per_s = self._ff_rate + rest if self._planned else rate
-        self.last_sp = want
+        self.last_setpoint = want
         return want
 
     def _aim(self, now: float, prof: Profile | None) -> float:
@@ -391,13 +392,13 @@ class LengthControl:
         self.flow_bar = -self.flow_bar_s_per_mm * self._rate_m
         return ff + corr
 
-    def _bounded(self, want: float, sp_prev: float, dt: float) -> float:
-        """`want` within 0, the pressure limit and the slew limit from `sp_prev` (a NaN
-        input, a stale sensor: held at `sp_prev`, the fault follows); `_held` says
+    def _bounded(self, want: float, setpoint_prev: float, dt: float) -> float:
+        """`want` within 0, the pressure limit and the slew limit from `setpoint_prev` (a NaN
+        input, a stale sensor: held at `setpoint_prev`, the fault follows); `_held` says
         whether it was bounded, SLEW_LIMITED goes into `flags`."""
         held = False
         if want != want:
-            want = sp_prev
+            want = setpoint_prev
             held = True
         hi = self.max_pressure_bar
         if want > hi:
@@ -405,11 +406,11 @@ class LengthControl:
         elif want < 0.0:
             want, held = 0.0, True
         step = self.slew_limit_bar_per_s * dt
-        if want > sp_prev + step:
-            want, held = sp_prev + step, True
+        if want > setpoint_prev + step:
+            want, held = setpoint_prev + step, True
             self.flags |= F_SLEW
-        elif want < sp_prev - step:
-            want, held = sp_prev - step, True
+        elif want < setpoint_prev - step:
+            want, held = setpoint_prev - step, True
             self.flags |= F_SLEW
         self._held = held
         return want

@@ -70,8 +70,9 @@ class PressureLoop:
             pid = self.pid
             self.closed = True
             self._i_before = pid.i
-            sp, p = t.setpoint_bar, t.pressure_bar
-            u = sp + self.rate_feedforward_s * t.rate_bar_per_s + pid.step(sp - p, p, dt)
+            setpoint, p = t.setpoint_bar, t.pressure_bar
+            u = setpoint + self.rate_feedforward_s * t.rate_bar_per_s + pid.step(setpoint - p, p,
+                                                                                 dt)
             self.flags = flags = F_SAT if pid.saturated else 0
         else:
             u = self.step(t.setpoint_bar, t.rate_bar_per_s, t.pressure_bar, close, ok, dt)

@@ -26,11 +26,11 @@ def soft_limit_event(m: MuscleController) -> JsonObject:
     """The `soft_limit` event of a profile held at a soft limit for more than 1 s.
     Takes the muscle's limit report."""
     limit = m.take_limit_report()
-    sp, cmd = m.setpoint_bar, m.valve_cmd_bar
+    setpoint, cmd = m.setpoint_bar, m.valve_cmd_bar
     return {"muscle": m.name, "limit": limit, "held_s": 1.0,
-            "setpoint_bar": sp, "valve_cmd_bar": cmd,
+            "setpoint_bar": setpoint, "valve_cmd_bar": cmd,
             "reason": f"{m.name}: the profile is held at the {limit} limit (setpoint "
-                      f"{sp:.2f} bar, command {cmd:.2f} bar) for more than 1 s"}
+                      f"{setpoint:.2f} bar, command {cmd:.2f} bar) for more than 1 s"}
 
 
 def feedforward_events(m: MuscleController) -> list[JsonObject]:

@@ -82,12 +82,12 @@ class SafeRamp:
     def unpace(self) -> None:
         self._paced_bar_per_s = math.inf
 
-    def _target_and_slew(self, sp: float, safe_pressure_bar: float,
+    def _target_and_slew(self, setpoint: float, safe_pressure_bar: float,
                          estop: bool) -> tuple[float, float]:
         if not estop:
             return safe_pressure_bar, self._slew
         if self._estop_holds:
-            return sp, self._estop_slew
+            return setpoint, self._estop_slew
         if self._estop_vents and safe_pressure_bar == 0.0:
             return 0.0, math.inf
         return safe_pressure_bar, self._estop_slew
@@ -99,10 +99,10 @@ class SafeRamp:
         self._estop_vents = envelope.estop_action == "vent"
 
     def update(self, t: MuscleTick, now: float, dt: float) -> None:
-        sp = t.setpoint_bar
+        setpoint = t.setpoint_bar
         target = self.safe_pressure_bar
         if self.estop:
-            sp, target, slew = self._estop_step(sp, target)
+            setpoint, target, slew = self._estop_step(setpoint, target)
         else:
             slew = self._slew
         self.slew_bar_per_s = t.slew_bar_per_s = slew  # what the limiter holds it to
@@ -110,24 +110,24 @@ class SafeRamp:
         if pace < slew:
             slew = pace
         step = slew * dt
-        if sp < target - step:
-            rate, sp = slew, sp + step
-        elif sp > target + step:
-            rate, sp = -slew, sp - step
+        if setpoint < target - step:
+            rate, setpoint = slew, setpoint + step
+        elif setpoint > target + step:
+            rate, setpoint = -slew, setpoint - step
         else:
-            rate, sp = 0.0, target
+            rate, setpoint = 0.0, target
             self._paced_bar_per_s = math.inf  # there: a new target goes at the slew limit
         self.rate_bar_per_s = t.rate_bar_per_s = rate
-        t.setpoint_bar = sp
-        t.venting = self.safe_pressure_bar == 0.0 and sp <= VENT_BELOW_BAR
+        t.setpoint_bar = setpoint
+        t.venting = self.safe_pressure_bar == 0.0 and setpoint <= VENT_BELOW_BAR
 
-    def _estop_step(self, sp: float, target: float) -> tuple[float, float, float]:
+    def _estop_step(self, setpoint: float, target: float) -> tuple[float, float, float]:
         """ESTOP's action: (setpoint, target, slew)."""
         if self._estop_holds:
-            return sp, sp, self._estop_slew
+            return setpoint, setpoint, self._estop_slew
         if self._estop_vents and target == 0.0:
             return 0.0, target, math.inf  # vent at once: only where the load allows it
-        return sp, target, self._estop_slew
+        return setpoint, target, self._estop_slew
 
 
 class AirHold:
@@ -182,15 +182,15 @@ class ProfileFollower:
         want = profile.value
         slew = self._slew
         step = slew * dt
-        sp = t.setpoint_bar
-        if want > sp + step:
+        setpoint = t.setpoint_bar
+        if want > setpoint + step:
             t.flags |= F_SLEW
             t.rate_bar_per_s = slew
-            t.setpoint_bar = sp + step
-        elif want < sp - step:
+            t.setpoint_bar = setpoint + step
+        elif want < setpoint - step:
             t.flags |= F_SLEW
             t.rate_bar_per_s = -slew
-            t.setpoint_bar = sp - step
+            t.setpoint_bar = setpoint - step
         else:
             t.rate_bar_per_s = profile.rate
             t.setpoint_bar = want

@@ -276,18 +276,18 @@ def _lead_ins(run: Run, settle_s: float) -> list[tuple[float, float]]:
     """(start, end) of each profile's lead-in ramp plus `settle_s`, from the profile
     and setpoint commands on the events topic (MCAP only)."""
     out = []
-    sp = run.columns.get("setpoint_bar")
+    setpoint = run.columns.get("setpoint_bar")
     for t0, kind, data in run.events:
         if kind != "command" or data.get("verb") not in _PROFILE_VERBS or not data.get("ok"):
             continue
         args = data.get("args") or {}
         lead_s = 0.0
-        if data.get("verb") == "profile" and sp is not None:
+        if data.get("verb") == "profile" and setpoint is not None:
             start = _profile_start(args)
             rate = float(args.get("lead_in_bar_per_s") or 1.0)
             i = int(np.searchsorted(run.t_s, t0))
-            if start is not None and 0 <= i < sp.size and math.isfinite(sp[i]):
-                lead_s = abs(start - float(sp[i])) / rate
+            if start is not None and 0 <= i < setpoint.size and math.isfinite(setpoint[i]):
+                lead_s = abs(start - float(setpoint[i])) / rate
         out.append((t0, t0 + lead_s + settle_s))
     return out
 
