@@ -48,7 +48,7 @@ import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
 from pamd.client.tune.ident_run import IDENT_SLEW_BAR_PER_S  # noqa: E402
-from pamd.client.tune.step_responses import Step, fit_all, mean_model, steps_in  # noqa: E402
+from pamd.client.tune.step_responses import StepResponse, fit_all, mean_model, steps_in  # noqa: E402
 from pamd.client.tune.step_responses import position_gains as pkg_position_gains  # noqa: E402
 from pamd.client.tune.step_responses import pressure_gains as pkg_pressure_gains  # noqa: E402
 from pamd.client.tune.tune_report import print_fits  # noqa: E402
@@ -93,11 +93,11 @@ def ident_config(path: str, load_kg: float | None, control: dict[str, Any]) -> L
 
 
 def _record_steps(h: Harness, levels: tuple[float, ...], step_bar: float, record_s: float,
-                  signal: str) -> list[Step]:
+                  signal: str) -> list[StepResponse]:
     """From each level (reached slowly and settled), a step up by `step_bar` and back
     down, each recorded for `record_s`: `signal` is the muscle attribute recorded."""
     m = h.m1
-    steps: list[Step] = []
+    steps: list[StepResponse] = []
     pre_s = 0.05
     for level in levels:
         for target, label in ((level, None), (level + step_bar, "up"), (level, "down")):
@@ -123,7 +123,7 @@ def _record_steps(h: Harness, levels: tuple[float, ...], step_bar: float, record
             # the command moves at the first tick after it was taken, over one edge
             t_step = t_cmd + 0.5 * EDGE_S
             amp = step_bar if label == "up" else -step_bar
-            steps.append(Step(f"{level:.1f} bar {label}", t_step, amp, np.array(ts),
+            steps.append(StepResponse(f"{level:.1f} bar {label}", t_step, amp, np.array(ts),
                               np.array(ys)))
     return steps
 

@@ -30,7 +30,7 @@ from pamd.client.tune.onoff_steps import (
 from pamd.client.tune.placement import Placement, place
 from pamd.client.tune.relay_run import MAX_RELAY_BAR, mean_relay_model, print_relay, run_relay
 from pamd.client.tune.save import save_values
-from pamd.client.tune.step_responses import Step, check_model, fit_all, mean_model
+from pamd.client.tune.step_responses import StepResponse, check_model, fit_all, mean_model
 from pamd.client.tune.tune_report import (
     Present,
     plot_fits,
@@ -218,7 +218,7 @@ def _print_placement(cfg: LoadedConfig, loop: str, placement: Placement,
 def _steps(args: argparse.Namespace, config_path: str, lp: LoopPlan, muscles: list[str],
            out: str) -> dict[str, Fopdt]:
     """The step runs of each muscle, their fits printed; each muscle's mean model."""
-    fits_by_muscle: dict[str, list[tuple[Step, Fopdt]]] = {}
+    fits_by_muscle: dict[str, list[tuple[StepResponse, Fopdt]]] = {}
     for muscle in muscles:
         steps = run_identification(config_path, args.clock, muscle, lp,
                                    os.path.join(out, muscle), _progress)
@@ -332,7 +332,7 @@ def _progress(line: str) -> None:
     print(f"pamd tune: {line}", file=sys.stderr, flush=True)
 
 
-def _fit(muscle: str, lp: LoopPlan, steps: list[Step]) -> list[tuple[Step, Fopdt]]:
+def _fit(muscle: str, lp: LoopPlan, steps: list[StepResponse]) -> list[tuple[StepResponse, Fopdt]]:
     if not steps:
         raise TuneRefused(f"{muscle}: no {lp.step_bar:g} bar step of {lp.input_column} was "
                           "found in the recording; the present gains are kept")

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pamd.client.recording import open_recording
-from pamd.client.tune.step_responses import Step, steps_in
+from pamd.client.tune.step_responses import StepResponse, steps_in
 from pamd.config import LoadedConfig, load_config
 from pamd.daemon.daemon import Daemon
 from pamd.daemon.io_session import RecordingRequest
@@ -192,7 +192,7 @@ def plan_text(muscle: str, lp: LoopPlan) -> str:
 
 def run_identification(config_path: str | None, clock: str | None, muscle: str,
                        lp: LoopPlan, out_dir: str,
-                       progress: Callable[[str], None] | None = None) -> list[Step]:
+                       progress: Callable[[str], None] | None = None) -> list[StepResponse]:
     """Run the steps on the rig, recorded into `out_dir`; the steps of the recording."""
     cfg = tuning_config(config_path, clock, lp.loop,
                         lambda base: check_limits(base, muscle, lp))
@@ -258,7 +258,7 @@ def _follow(daemon: Daemon, plan: Plan, progress: Callable[[str], None] | None) 
     return outcome
 
 
-def recorded_steps(out_dir: str, muscle: str, lp: LoopPlan) -> list[Step]:
+def recorded_steps(out_dir: str, muscle: str, lp: LoopPlan) -> list[StepResponse]:
     """The steps of the loop's input found in the recordings in `out_dir`."""
     rec = open_recording(out_dir, muscle=muscle)
     m = rec[muscle]
@@ -270,7 +270,7 @@ def recorded_steps(out_dir: str, muscle: str, lp: LoopPlan) -> list[Step]:
     wanted = [(level, lp.step_bar) for level in lp.levels_bar] + [
         (level + lp.step_bar, -lp.step_bar) for level in lp.levels_bar]
     tol = 0.25 * lp.step_bar
-    found: list[Step] = []
+    found: list[StepResponse] = []
     for s in steps_in(t, u, y, lp.record_s, min_step=0.5 * lp.step_bar):
         u0 = float(u[max(int(np.searchsorted(t, s.t_step_s - 0.01)), 0)])
         match = [w for w in wanted if abs(w[0] - u0) < tol and abs(w[1] - s.amplitude) < tol]

@@ -1,7 +1,7 @@
 """Step responses and the rules that turn them into gains: what `pamd tune` and
 bench/tune_pressure_loop.py share.
 
-- `Step`: one recorded step of a loop's input and its output around it.
+- `StepResponse`: one recorded step of a loop's input and its output around it.
 - `steps_in`: the steps of a recorded input column (a recording's `valve_cmd_bar` or
   `setpoint_bar`), each with the output from 50 ms before it.
 - `fit_all`, `mean_model`: an FOPDT fit per step (`pamd.loop.control.tuning.fit_step`) and
@@ -41,7 +41,7 @@ MAX_RELATIVE_FIT_ERROR = 0.15
 
 
 @dataclass(frozen=True)
-class Step:
+class StepResponse:
     """One recorded step: the input's change at `t_step_s` and the output around it."""
 
     label: str
@@ -65,11 +65,11 @@ class PositionGains:
 
 
 def steps_in(t_s: np.ndarray, u: np.ndarray, y: np.ndarray, record_s: float,
-             min_step: float = 0.05, pre_s: float = 0.05) -> list[Step]:
+             min_step: float = 0.05, pre_s: float = 0.05) -> list[StepResponse]:
     """The steps of input `u` (a change of more than `min_step` within 50 ms, at least
     0.2 s after the last), each with `y` from `pre_s` before it to `record_s` after.
     A step's time is the middle of its edge: where `u` crosses half its change."""
-    steps: list[Step] = []
+    steps: list[StepResponse] = []
     last = -np.inf
     for k in np.nonzero(np.abs(np.diff(u)) > 0.02)[0]:
         if t_s[k] - last < 0.2:
@@ -83,7 +83,7 @@ def steps_in(t_s: np.ndarray, u: np.ndarray, y: np.ndarray, record_s: float,
         t_step = _half_crossing(t_s, u, int(k), u0, amp)
         sel = (t_s >= t_step - pre_s) & (t_s <= t_step + record_s)
         label = f"{u0:.2f} bar {'up' if amp > 0 else 'down'}"
-        steps.append(Step(label, t_step, amp, t_s[sel], y[sel]))
+        steps.append(StepResponse(label, t_step, amp, t_s[sel], y[sel]))
     return steps
 
 
@@ -100,11 +100,11 @@ def _half_crossing(t_s: np.ndarray, u: np.ndarray, k: int, u0: float, amp: float
     return float(t_s[j] + frac * (t_s[j + 1] - t_s[j]))
 
 
-def fit_all(steps: list[Step]) -> list[tuple[Step, Fopdt]]:
+def fit_all(steps: list[StepResponse]) -> list[tuple[StepResponse, Fopdt]]:
     return [(s, fit_step(s.t_s, s.y, s.t_step_s, s.amplitude)) for s in steps]
 
 
-def mean_model(fits: list[tuple[Step, Fopdt]]) -> Fopdt:
+def mean_model(fits: list[tuple[StepResponse, Fopdt]]) -> Fopdt:
     if not fits:
         raise IdentificationError("no step was fitted")
     g = float(np.mean([f.gain for _, f in fits]))
@@ -113,7 +113,7 @@ def mean_model(fits: list[tuple[Step, Fopdt]]) -> Fopdt:
     return Fopdt(g, tau, theta)
 
 
-def check_model(loop: str, fits: list[tuple[Step, Fopdt]], model: Fopdt) -> None:
+def check_model(loop: str, fits: list[tuple[StepResponse, Fopdt]], model: Fopdt) -> None:
     """Refuse (IdentificationError) a model the loop cannot be tuned on."""
     for s, f in fits:
         change = abs(f.gain * s.amplitude)

@@ -9,7 +9,7 @@ from types import ModuleType
 import numpy as np
 
 from pamd.client.tune.ident_run import LoopPlan
-from pamd.client.tune.step_responses import Step, position_gains, pressure_gains
+from pamd.client.tune.step_responses import StepResponse, position_gains, pressure_gains
 from pamd.client.tune.yamledit import KeyPath, change_row
 from pamd.config import LoadedConfig
 from pamd.config.gains import position_plant, pressure_plant
@@ -74,7 +74,7 @@ def present_gains(cfg: LoadedConfig, loop: str, muscle: str | None = None) -> Pr
                                      strict=True))})
 
 
-def print_fits(title: str, unit: str, fits: list[tuple[Step, Fopdt]], model: Fopdt) -> None:
+def print_fits(title: str, unit: str, fits: list[tuple[StepResponse, Fopdt]], model: Fopdt) -> None:
     print(title)
     print(f"  {'step':14s} {'gain ' + unit:>14s} {'dead time ms':>13s} {'tau ms':>8s} "
           f"{'t63 ms':>8s} {'rms fit':>8s}")
@@ -85,7 +85,7 @@ def print_fits(title: str, unit: str, fits: list[tuple[Step, Fopdt]], model: Fop
           f"{1e3 * model.tau_s:8.1f} {1e3 * model.t63_s:8.1f}")
 
 
-def predicted_vs_measured(model: Fopdt, step: Step, t_after_s: np.ndarray) -> list[
+def predicted_vs_measured(model: Fopdt, step: StepResponse, t_after_s: np.ndarray) -> list[
         tuple[float, float, float]]:
     """(t after the step, measured change, the model's change) at the times given."""
     t = step.t_s - step.t_step_s
@@ -100,7 +100,7 @@ def predicted_vs_measured(model: Fopdt, step: Step, t_after_s: np.ndarray) -> li
     return out
 
 
-def model_rms_error(model: Fopdt, step: Step) -> float:
+def model_rms_error(model: Fopdt, step: StepResponse) -> float:
     """The rms difference between the design model's response and the step's."""
     t = step.t_s - step.t_step_s
     after = t >= 0
@@ -110,7 +110,7 @@ def model_rms_error(model: Fopdt, step: Step) -> float:
 
 
 def print_comparison(lp: LoopPlan, model: Fopdt, present: Present, new: Present,
-                     fits: list[tuple[Step, Fopdt]]) -> None:
+                     fits: list[tuple[StepResponse, Fopdt]]) -> None:
     out_unit = "bar" if lp.output_column == "pressure_bar" else "mm"
     print(f"Model: gain {model.gain:.3f} {lp.unit}, dead time {1e3 * model.dead_time_s:.1f} ms, "
           f"lag {1e3 * model.tau_s:.1f} ms (mean of {len(fits)} steps)")
@@ -152,7 +152,7 @@ def pyplot() -> ModuleType:
 
 
 def plot_fits(path: str, lp: LoopPlan, model: Fopdt,
-              fits_by_muscle: dict[str, list[tuple[Step, Fopdt]]]) -> None:
+              fits_by_muscle: dict[str, list[tuple[StepResponse, Fopdt]]]) -> None:
     """Each step's measured response (normalised by its amplitude) and the model's."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.5))
