@@ -62,6 +62,23 @@ def _find_source_drivers() -> None:
 
 _find_source_drivers()
 
+
+class _OldNames(importlib.abc.MetaPathFinder):
+    """The module names pamd had before issue 41's move, found in `pamd._moved` (loaded
+    only when a name nothing else found is asked for: last on `sys.meta_path`)."""
+
+    def find_spec(self, fullname: str, path: Sequence[str] | None,
+                  target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
+        if not fullname.startswith("pamd.") or fullname == "pamd._moved":
+            return None
+        from pamd import _moved
+
+        return _moved.OldNames().find_spec(fullname, path, target)
+
+
+if not any(isinstance(f, _OldNames) for f in sys.meta_path):
+    sys.meta_path.append(_OldNames())
+
 from pamd.wire.version import __version__  # noqa: E402
 
 __all__ = [
