@@ -17,7 +17,7 @@ of times per experiment, never in the per-tick checks.
 from __future__ import annotations
 
 import math
-from typing import cast
+from typing import Literal, cast
 
 from pamd.drivers.safe_outputs import push_safe_outputs
 from pamd.loop.control.controller import RigController
@@ -28,7 +28,17 @@ from pamd.profiles import Profile, ProfileSpec
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.tick import State
 
-LOAD, SETTLE, PROFILE, HOLD, PAUSE, DONE = "load", "settle", "profile", "hold", "pause", "done"
+#: the sequencer's phases: "" before the first step, then per step LOAD (only when the
+#: step changes the load), SETTLE, PROFILE (only when the step has one), HOLD, or PAUSE
+#: (a pause step, or the operator's), and DONE between steps; the values are what the
+#: `experiment` events and the status say
+Phase = Literal["", "load", "settle", "profile", "hold", "pause", "done"]
+LOAD: Phase = "load"
+SETTLE: Phase = "settle"
+PROFILE: Phase = "profile"
+HOLD: Phase = "hold"
+PAUSE: Phase = "pause"
+DONE: Phase = "done"
 FORCE_AGREE_S = 0.5  # the force must agree this long to confirm a load
 FORCE_AGREE_TIMEOUT_S = 15.0
 
@@ -55,8 +65,8 @@ class Sequencer:
         self.ctrl = ctrl
         self.muscle = ctrl.by_name[plan.muscle]
         self.index = start_step - 1
-        self.step: PlanStep | None = None
-        self.phase = ""
+        self.step: PlanStep | None = None  # None before the first step and after the last
+        self.phase: Phase = ""
         self.phase_t0 = 0.0
         self.outcome = ""  # "", "done", "aborted: ...", "fault: ..."
         self.finished_steps: list[str] = []
@@ -67,13 +77,23 @@ class Sequencer:
         self._still_since = math.inf
         self._cycle = 0
 
+    @property
+    def current(self) -> PlanStep:
+        """The step under way: every phase but "" has one (`_next_step` sets it before it
+        enters one), so a phase's code reads it here, typed, never None."""
+        step = self.step
+        if step is None:
+            raise RuntimeError(f"plan {self.plan.name}: no step under way in phase "
+                               f"{self.phase!r}")
+        return step
+
     # -- operator actions (commands, in the loop's thread) ------------------------------
     def confirm_load(self) -> str:
         if self.phase != LOAD or not self.awaiting_operator:
             raise ValueError("no load change is waiting for confirmation")
         self._load_confirmed = True
         self.awaiting_operator = ""
-        return f"load {self.step.load_kg:g} kg confirmed; checking the force"  # type: ignore[union-attr]
+        return f"load {self.current.load_kg:g} kg confirmed; checking the force"
 
     # -- the tick ---------------------------------------------------------------------
     def tick(self, now: float) -> None:
@@ -104,7 +124,7 @@ class Sequencer:
         elif self.phase == HOLD:
             if self.pause_at_cycle_end:  # asked for while the step holds: no cycle to end
                 self._pause(now, "paused in the step's hold")
-            elif now - self.phase_t0 >= self.step.hold_s:  # type: ignore[union-attr]
+            elif now - self.phase_t0 >= self.current.hold_s:
                 self._step_done(now)
         elif self.phase == PAUSE and st == State.RUNNING:
             self._step_done(now)  # the operator resumed
@@ -150,8 +170,8 @@ class Sequencer:
 
     def _load(self, now: float) -> None:
         m = self.muscle
-        step = self.step
-        assert step is not None and step.load_kg is not None
+        step = self.current
+        assert step.load_kg is not None  # LOAD is entered for a step that changes the load
         if m.profile is not None and not m.profile.done:
             return  # still ramping to the working pressure
         if not self._load_confirmed and not self.awaiting_operator:
@@ -198,12 +218,12 @@ class Sequencer:
     def _start_settle(self, now: float) -> None:
         self._still_since = math.inf
         if self.ctrl.supervisor.state != State.RUNNING:
-            self.ctrl.supervisor.go(now, State.RUNNING, f"plan step {self.step.name}")  # type: ignore[union-attr]
+            self.ctrl.supervisor.go(now, State.RUNNING, f"plan step {self.current.name}")
         self.muscle.stop_profile()
         self._phase(now, SETTLE)
 
     def _settle(self, now: float) -> None:
-        s = self.plan.step_settle(self.step)  # type: ignore[arg-type]
+        s = self.plan.step_settle(self.current)
         if s is not None:
             if now - self.phase_t0 < s.seconds:
                 return
@@ -225,7 +245,7 @@ class Sequencer:
                             f"within {s.timeout_s:g} s of settling (|velocity| below "
                             f"{s.still_mm_s:g} mm/s)")
                     return
-        prof = self.plan.step_profile(self.step)  # type: ignore[arg-type]
+        prof = self.plan.step_profile(self.current)
         if prof is None:
             self._phase(now, HOLD)
             return
@@ -258,7 +278,7 @@ class Sequencer:
         self.ctrl.enter_hold(now, reason)
 
     def _step_done(self, now: float) -> None:
-        self.finished_steps.append(self.step.name)  # type: ignore[union-attr]
+        self.finished_steps.append(self.current.name)
         self._event(now, "step_finished")
         self._phase(now, DONE)
 
@@ -270,7 +290,7 @@ class Sequencer:
                            lead_in_bar_per_s=slew)
         m.start_profile(Profile(spec, now, m.setpoint_bar, slew))
 
-    def _phase(self, now: float, phase: str) -> None:
+    def _phase(self, now: float, phase: Phase) -> None:
         self.phase = phase
         self.phase_t0 = now
 
