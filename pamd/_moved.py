@@ -199,7 +199,6 @@ MOVED: dict[str, str] = {
     "pamd.service.riglock": "pamd.daemon.service.riglock",
     "pamd.service.safe_outputs": "pamd.daemon.service.safe_outputs",
     "pamd.service.state": "pamd.daemon.service.state",
-    "pamd.service.testhooks": "pamd.daemon.service.testhooks",
     "pamd.service.watchdog": "pamd.daemon.service.watchdog",
     "pamd.sim.onoff": "pamd.sim.solenoid",
     "pamd.stalls": "pamd.loop.stalls",

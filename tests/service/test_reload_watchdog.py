@@ -19,12 +19,12 @@ import pytest
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
 from pamd.daemon.service.keeper import ServiceKeeper
-from pamd.daemon.service.testhooks import SLOW_RELOAD_ENV
 from pamd.loop.harness import Harness
 from pamd.wire.declare.jsonsafe import JsonObject
 from tests.benchmod import bench_module
 
 from .conftest import NotifySocket, sim_dict, wait_until, write_yaml
+from .testhooks import SLOW_RELOAD_ENV
 
 WATCHDOG_S = 1.0
 #: the read of each reload is made this much slower: longer than WatchdogSec

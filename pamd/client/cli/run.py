@@ -22,7 +22,6 @@ from pamd.config.control_schema import OFF_DATA_POLICIES
 from pamd.config.loader import LoadedConfig
 from pamd.daemon.daemon import Daemon
 from pamd.daemon.io_session import RecordingRequest
-from pamd.daemon.service import testhooks
 from pamd.daemon.service.notify import Notifier
 from pamd.daemon.service.restart import restart_in_place, run_argv, unblock_signals
 from pamd.iohost.viewer_spec import parse_listen
@@ -418,7 +417,6 @@ def run(args: argparse.Namespace) -> int:
                     models=models,
                     notifier=Notifier.from_environ(), config_overrides=overrides,
                     telemetry=telemetry)
-    testhooks.install(daemon)
     daemon.keeper.allow_restart_in_place()  # a reload that reopens the devices execs again
     signalled = _install_signals(daemon)
     start = StartRequests(daemon, _start_requests(args, profile),

@@ -1,5 +1,8 @@
 """Test hooks of `pamd run`, for the service tests only: each is off unless its
-environment variable is set, and says loudly when it is on.
+environment variable is set, and says loudly when it is on. They live with the tests,
+not in pamd (issue 41): `python tests/service/testhooks.py run ARGS` is `pamd run ARGS`
+with the hooks installed on its daemon as it is built (`DaemonProcess` runs it so when
+a test's environment asks for a hook).
 
 `PAMD_TEST_STALL_LOOP="TICKS:SECONDS"` makes the loop's thread sleep SECONDS once,
 in tick number TICKS (a hung driver call, say), so a test can see the watchdog
@@ -12,8 +15,10 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, ParamSpec, TypeVar
 
 log = logging.getLogger("pamd")
@@ -50,7 +55,7 @@ def _slowed(read: Callable[P, T], seconds: float) -> Callable[P, T]:
     return slow
 
 
-# Any: the Daemon (a layer above this one), whose controller gets a stepper that is no driver
+# Any: the Daemon, whose controller gets a stepper that is no driver
 def install(daemon: Any, environ: dict[str, str] | None = None) -> list[str]:
     """Install the hooks the environment asks for; returns their descriptions."""
     env = os.environ if environ is None else environ
@@ -70,3 +75,22 @@ def install(daemon: Any, environ: dict[str, str] | None = None) -> list[str]:
     for what in active:
         log.warning("TEST HOOK ACTIVE (never on a rig): %s", what)
     return active
+
+
+def main() -> int:
+    """`pamd run` (`python -m pamd`), each daemon built with the hooks installed."""
+    from pamd.__main__ import main as pamd_main
+    from pamd.daemon.daemon import Daemon
+
+    built = Daemon.__init__
+
+    def hooked(self: Daemon, *args: Any, **kwargs: Any) -> None:  # Any: as Daemon's own
+        built(self, *args, **kwargs)
+        install(self)
+    Daemon.__init__ = hooked  # type: ignore[method-assign]
+    sys.argv[0] = str(Path(pamd_main.__code__.co_filename))  # as `python -m pamd` says
+    return pamd_main()
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
