@@ -14,6 +14,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.daemon.host.parts import RecordingState
 from pamd.loop.control.controller import RigController
 from pamd.loop.control.muscle import MuscleController
+from pamd.loop.control.rig_report import muscle_status
 from pamd.loop.experiment.sequencer import running_plan
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.status import ExperimentStatus, MuscleStatus, RecordingStatus, Status, jsonsafe
@@ -93,21 +94,14 @@ class StatusBuilder:
         return cast(Status, jsonsafe(st))
 
     def _muscle(self, m: MuscleController) -> MuscleStatus:
-        ref, env, pl = m.datums, m.envelope, m.plausibility
+        """The muscle's status as the rig controller says it (`muscle_status`, built
+        there once), and what only the daemon's status adds: the datums, the model, its
+        adaptation and feedforward, the deadman."""
+        ref = m.datums
         ff = m.length_control.ff
         dm = self.ctrl.deadman.get(m.name)
-        return {
-            "pressure_bar": m.pressure_bar, "setpoint_bar": m.setpoint_bar,
-            "valve_cmd_bar": m.valve_cmd_bar, "force_n": m.force_n, "length_mm": m.length_mm,
-            "contraction": m.contraction, "load_kg": m.load_kg,
-            "safe_pressure_bar": m.safe_pressure_bar, "referenced": m.referenced,
-            "mode": m.mode.name.lower(), "safe_ramp": m.in_safe_ramp,
-            "trusted": {"pressure": pl.pressure_ok, "force": pl.force_ok,
-                        "length": pl.length_ok},
-            "profile": m.profile.spec.kind if m.profile else None,
-            "limits": {"max_pressure_bar": env.max_pressure_bar,
-                       "max_contraction": env.max_contraction,
-                       "max_pretension": env.max_pretension},
+        return cast(MuscleStatus, {
+            **muscle_status(m),
             "references": {
                 "length_referenced": ref.length_referenced, "homed_at": ref.homed_at,
                 "tared_at": ref.tared_at, "length_offset_mm": ref.length_offset_mm,
@@ -116,4 +110,4 @@ class StatusBuilder:
             "adapt": m.adaptation.describe(),  # online adaptation (pamd.loop.control.adapt)
             "feedforward": m.feedforward_report(),  # off its data (pamd.loop.control.off_data)
             "deadman_left_s": None if dm is None else max(0.0, dm[0] - self.ctrl.now),
-        }
+        })
