@@ -56,14 +56,14 @@ def controller_compute_us(cfg: LoadedConfig, commands: list[tuple[str, dict[str,
     import gc
     import time
 
-    from pamd.calibration import load_calibration
-    from pamd.commands import apply_command, parse_command
-    from pamd.control.feedforward import load_models
-    from pamd.controller import RigController
-    from pamd.loop import VirtualClock
-    from pamd.rig import Rig
-    from pamd.summary import SummarySink
-    from pamd.tick import TickLayout
+    from pamd.loop.commands import apply_command, parse_command
+    from pamd.loop.control.controller import RigController
+    from pamd.loop.control.feedforward import load_models
+    from pamd.loop.control.summary import SummarySink
+    from pamd.loop.devices.bindings import Rig
+    from pamd.loop.devices.datum_file import load_calibration
+    from pamd.loop.loop import VirtualClock
+    from pamd.wire.tick import TickLayout
 
     rig = Rig(cfg, load_calibration(cfg.calibration_path))
     sink = SummarySink(TickLayout([m.name for m in cfg.rig.muscles]))
@@ -104,8 +104,8 @@ def record_profile(cfg: LoadedConfig, out_dir: str, run_name: str,
                    profile: dict[str, Any], note: str = "") -> str:
     """Run `profile` to its end on a virtual daemon recording into `out_dir`; the
     first recorded file."""
-    from pamd.daemon import Daemon
-    from pamd.io.session import RecordingRequest
+    from pamd.daemon.daemon import Daemon
+    from pamd.daemon.io_session import RecordingRequest
 
     d = Daemon(cfg, note=note, recording=RecordingRequest(dir=out_dir, run_name=run_name))
     pending = d.submit("profile", profile)

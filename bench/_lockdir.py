@@ -1,5 +1,5 @@
-"""The benchmarks' simulated rigs are each their own: their locks (pamd.service.riglock)
-and the state a real-clock run keeps (pamd.service.state) go in directories of this run,
+"""The benchmarks' simulated rigs are each their own: their locks (pamd.daemon.service.riglock)
+and the state a real-clock run keeps (pamd.daemon.service.state) go in directories of this run,
 so benchmarks run at once on one machine, or beside a `sim` daemon, do not refuse each
 other, and none writes into the user's ~/.local/state. Imported for its effect, first,
 by every benchmark that starts a daemon (bench/_common.py does it for its users)."""

@@ -42,9 +42,9 @@ from _common import REPO, controller_compute_us, percentile, sim_config  # noqa:
 from position_tracking import RANGES_BAR, TRAIN_LOADS_KG, record, train  # noqa: E402
 
 from pamd.config import LoadedConfig  # noqa: E402
-from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
-from pamd.tick import State  # noqa: E402
+from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
+from pamd.wire.tick import State  # noqa: E402
 
 FREQ_HZ = 0.2
 PERIOD_S = 1.0 / FREQ_HZ
@@ -135,7 +135,7 @@ def update_cost_us(model: str, n: int = 3000) -> dict[str, tuple[float, float]]:
     from types import SimpleNamespace
 
     from pamd.config.schema import AdaptConfig
-    from pamd.control.adapt import Adaptation
+    from pamd.loop.control.adapt import Adaptation
 
     cfg = bench_config(TEST["load_kg"], 0.0, None)
     loaded = LoadedModel.read(model, cfg.muscle("m1"), cfg.limits["m1"])

@@ -39,12 +39,12 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import record_profile, sim_config  # noqa: E402
 
-from pamd.metrics import regression_metrics  # noqa: E402
 from pamd.models.anfis import AnfisModel, TrainingOptions, fit, save  # noqa: E402
-from pamd.models.anfis.extraction import derived_inputs, extract  # noqa: E402
-from pamd.models.anfis.recordings import read_runs  # noqa: E402
-from pamd.models.anfis.samples import ExtractOptions, Run  # noqa: E402
-from pamd.models.anfis.splitting import split  # noqa: E402
+from pamd.models.data.extraction import derived_inputs, extract  # noqa: E402
+from pamd.models.data.recordings import read_runs  # noqa: E402
+from pamd.models.data.samples import ExtractOptions, Run  # noqa: E402
+from pamd.models.data.splitting import split  # noqa: E402
+from pamd.models.metrics import regression_metrics  # noqa: E402
 from pamd.muscle_type import SmoothForceFit, force_model, pressure_for_force  # noqa: E402
 
 LOAD_SETS_KG = {"A (15, 30, 80 kg)": (15.0, 30.0, 80.0),

@@ -55,7 +55,7 @@ import numpy as np  # noqa: E402
 from anfis_mackey_glass import DEFAULT_CSV, reference_series  # noqa: E402  (this directory)
 
 from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
-from pamd.models.anfis.training import WIDTH_STARTS  # noqa: E402
+from pamd.models.anfis.hybrid import WIDTH_STARTS  # noqa: E402
 
 WIDTHS = (0.6, 0.8, 1.0, 1.5, 2.0, 3.0)
 RIDGES = (0.0, 1e-8, 1e-6)

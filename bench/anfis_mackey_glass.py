@@ -29,8 +29,8 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from pamd.metrics import regression_metrics  # noqa: E402
 from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
+from pamd.models.metrics import regression_metrics  # noqa: E402
 
 DEFAULT_CSV = Path(__file__).resolve().parents[2] / "shared/reference/mackey_glass.csv"
 

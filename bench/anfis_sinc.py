@@ -22,8 +22,8 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from pamd.metrics import regression_metrics  # noqa: E402
 from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
+from pamd.models.metrics import regression_metrics  # noqa: E402
 
 #: Settings picked by --sweep ON THE TEST SET (optimistic; comparison only). Wide initial
 #: MFs (3.3 x the width at which grid neighbours cross at 0.5) let the gradient descent

@@ -8,7 +8,7 @@ record) plus handing the record to the summary sink.
 Also the iterative learning's share (mode position, `ilc: true`, a 1 Hz length sine):
 the whole tick with and without it in the same run, and `Ilc.step` alone, on the ticks
 that carry a share of the once-per-cycle learning pass (spread over ticks,
-`pamd.control.ilc.BINS_PER_TICK` bins each) and on the others, at 1 Hz (100 bins) and
+`pamd.loop.control.ilc.BINS_PER_TICK` bins each) and on the others, at 1 Hz (100 bins) and
 0.05 Hz (2000 bins: the longest pass). On a shared machine the max is the scheduler's
 (a preempted tick), not the code's: compare the p99s."""
 
@@ -20,7 +20,7 @@ import time
 
 from _common import controller_compute_us, percentile, sim_config
 
-from pamd.control.ilc import IDLE, Ilc
+from pamd.loop.control.ilc import IDLE, Ilc
 
 FAST = {"slew_limit_bar_per_s": 25.0, "position": {"max_rate_per_s": 1.0}}
 

@@ -11,9 +11,9 @@ import _lockdir  # noqa: F401  (the run's own rig-lock directory)
 import yaml
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.emulate.testing import REPO, emulated_dict, free_port, write_config
-from pamd.tick import State
+from pamd.wire.tick import State
 
 
 def sim_config(tmp: Path, realtime: bool = True) -> Any:

@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 from _common import record_profile, sim_config  # noqa: E402
 
 import pamd  # noqa: E402
-from pamd.view import export  # noqa: E402
+from pamd.client import export  # noqa: E402
 
 
 def repr_writer(path: str, cols: dict[str, np.ndarray], named: dict[str, np.ndarray],

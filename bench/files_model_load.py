@@ -35,12 +35,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np  # noqa: E402
 from net_common import free_port, wait_listening, wait_status, write_config  # noqa: E402
 
+from pamd.client.recording import open_recording  # noqa: E402
+from pamd.client.remote import Client  # noqa: E402
 from pamd.models.anfis.model import AnfisModel  # noqa: E402
 from pamd.models.anfis.serialize import to_dict  # noqa: E402
 from pamd.models.contract import Variable  # noqa: E402
 from pamd.models.registry import save_model  # noqa: E402
-from pamd.net.client.client import Client  # noqa: E402
-from pamd.view.recording import open_recording  # noqa: E402
 
 
 def anfis(n_mfs: tuple[int, int]) -> AnfisModel:

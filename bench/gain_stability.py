@@ -25,7 +25,7 @@ from _common import sim_config
 from pamd.config.control_schema import DEFAULT_POSITION_PLANT, DEFAULT_PRESSURE_PLANT
 from pamd.config.gains import Judged, judge
 from pamd.config.stability import Plant, margins, pid
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 
 PRESSURE = [(0.516, 41.2), (0.516, 70.0), (0.516, 100.0), (0.516, 120.0), (0.516, 150.0),
             (0.516, 400.0), (1.0, 41.2), (1.5, 41.2), (1.8, 41.2), (2.2, 41.2),

@@ -1,4 +1,4 @@
-"""Cost of one virtual-clock tick of `pamd.harness.Harness` (what the test suite pays
+"""Cost of one virtual-clock tick of `pamd.loop.harness.Harness` (what the test suite pays
 per simulated millisecond): config/sim.yaml's rig at 30 kg running a 0.25 Hz pressure
 sine, split into the simulated plant (`SimDriver.advance`) and the controller's tick
 (`RigController.tick` with the waiting commands, and the summary sink).
@@ -27,8 +27,8 @@ from collections.abc import Callable
 
 from _common import sim_config
 
-from pamd.harness import Harness
-from pamd.loop import tick_once
+from pamd.loop.harness import Harness
+from pamd.loop.loop import tick_once
 
 
 def _harness() -> Harness:

@@ -16,7 +16,7 @@ slower or larger:
   csv-lab        --lab-mb MB (100) of a 1 kHz log: t_s and four signals, 8 digits each
   mat-lab        the same columns in a compressed .mat (scipy's savemat)
 The hostile ones run in a child process (`python -m pamd train FILE --out ...`), the
-lab ones through the reader alone (`pamd.view.tables.read_data`); each its peak memory
+lab ones through the reader alone (`pamd.client.training_tables.read_data`); each its peak memory
 and CPU time from the kernel's accounting of that child (os.wait4: ru_maxrss, user +
 system; on a shared machine the CPU time is the figure, the wall time waits for others)
 and its wall time.
@@ -157,7 +157,7 @@ def run_case(path: Path, pythonpath: str | None, cap_gb: float
     args = ["-m", "pamd", "train", str(path), "--out", str(out), "--quiet", "--inputs",
             "force_n,contraction"]
     if "-lab" in path.name:  # read, not refused: the reader alone
-        args = ["-c", "import sys; from pamd.view.tables import read_data; "
+        args = ["-c", "import sys; from pamd.client.training_tables import read_data; "
                 "r = read_data([sys.argv[1]]); print(f'read {r[0].t_s.size} rows', "
                 "file=sys.stderr)", str(path)]
     t0 = time.perf_counter()

@@ -40,9 +40,9 @@ from typing import Any
 import numpy as np
 from _common import sim_config
 
-from pamd.commands import apply_command, parse_command
-from pamd.harness import Harness
-from pamd.tick import State
+from pamd.loop.commands import apply_command, parse_command
+from pamd.loop.harness import Harness
+from pamd.wire.tick import State
 
 FREQ_HZ = 0.05
 MAX_BAR = 6.0

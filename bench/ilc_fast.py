@@ -28,9 +28,9 @@ from typing import Any
 
 from _common import CycleErrors, sim_config
 
-from pamd.control.feedforward import LoadedModel
-from pamd.harness import Harness
-from pamd.tick import State
+from pamd.loop.control.feedforward import LoadedModel
+from pamd.loop.harness import Harness
+from pamd.wire.tick import State
 
 FAST = {"slew_limit_bar_per_s": 25.0}
 

@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from net_common import free_port, wait_listening, wait_status, write_config  # noqa: E402
 
-from pamd.net.client.client import Client  # noqa: E402
+from pamd.client.remote import Client  # noqa: E402
 
 
 def rss_kb(pid: int) -> int | None:

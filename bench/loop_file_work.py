@@ -4,7 +4,7 @@ directory and manifest, status) against the loop thread that never sleeps.
 Each small file write hands the interpreter lock back and must win it again from the
 loop thread; a thread waiting for the lock asks for it only after the switch interval
 (CPython's default 5 ms). The loop lowers the interval to a tenth of its period while
-it runs (`pamd.loop.GIL_SWITCH_FRACTION`). This prints the median write with the
+it runs (`pamd.loop.loop.GIL_SWITCH_FRACTION`). This prints the median write with the
 loop's interval and, as the baseline measured in the same run, with the default put
 back for a moment (interleaved blocks, so a burst of host load falls on both), and
 their ratio. On a busy host the OS's wake-up latency adds to both, and a loop thread
@@ -21,8 +21,8 @@ from pathlib import Path
 
 from _common import sim_config
 
-from pamd.daemon import Daemon
-from pamd.tick import State
+from pamd.daemon.daemon import Daemon
+from pamd.wire.tick import State
 
 DEFAULT_SWITCH_INTERVAL_S = 0.005  # CPython's
 

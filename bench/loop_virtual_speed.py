@@ -15,8 +15,8 @@ from typing import Any
 from _common import sim_config
 from tracking_sine import OLD_PLANT, plant_drivers
 
-from pamd.daemon import Daemon
-from pamd.tick import State
+from pamd.daemon.daemon import Daemon
+from pamd.wire.tick import State
 
 
 def run(cycles: int, **changes: Any) -> tuple[float, float, dict[str, Any]]:

@@ -45,11 +45,11 @@ from pathlib import Path  # noqa: E402
 
 from _common import REPO, controller_compute_us, percentile, sim_config  # noqa: E402
 
-from pamd.cli.main import main as pamd_main  # noqa: E402
-from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
+from pamd.client.cli.main import main as pamd_main  # noqa: E402
+from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 from pamd.muscle_type import equilibrium_contraction, force_model  # noqa: E402
-from pamd.tick import State  # noqa: E402
+from pamd.wire.tick import State  # noqa: E402
 
 PLANS = {"sweep": "sine-sweep.yaml", "half": "half-range-sweeps.yaml"}
 TRAIN_LOADS_KG = (15.0, 30.0, 50.0, 65.0, 80.0)

@@ -46,14 +46,8 @@ from importlib import resources  # noqa: E402
 import numpy as np  # noqa: E402
 from _common import record_profile, sim_config  # noqa: E402
 
-from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.errors import ModelError  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
-from pamd.metrics import regression_metrics  # noqa: E402
-from pamd.models.anfis.extraction import derived_inputs, extract  # noqa: E402
-from pamd.models.anfis.recordings import read_runs  # noqa: E402
-from pamd.models.anfis.samples import ExtractOptions, Samples  # noqa: E402
-from pamd.models.anfis.splitting import split  # noqa: E402
+from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 from pamd.models.compare import (  # noqa: E402
     Judged,
     format_comparison,
@@ -61,10 +55,16 @@ from pamd.models.compare import (  # noqa: E402
     tick_cost_us,
 )
 from pamd.models.contract import InverseModel  # noqa: E402
+from pamd.models.data.extraction import derived_inputs, extract  # noqa: E402
+from pamd.models.data.recordings import read_runs  # noqa: E402
+from pamd.models.data.samples import ExtractOptions, Samples  # noqa: E402
+from pamd.models.data.splitting import split  # noqa: E402
+from pamd.models.metrics import regression_metrics  # noqa: E402
 from pamd.models.registry import save_model  # noqa: E402
 from pamd.models.static_force import fit_coefficients, gain_offset  # noqa: E402
 from pamd.models.training import fit_split  # noqa: E402
-from pamd.tick import State  # noqa: E402
+from pamd.wire.errors import ModelError  # noqa: E402
+from pamd.wire.tick import State  # noqa: E402
 
 ALL_INPUTS = ("force_n", "length_mm", "contraction", "velocity_mm_s")
 WINDOW_S = 3.0

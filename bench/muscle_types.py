@@ -32,10 +32,10 @@ sys.path.insert(0, str(REPO))
 
 from pamd.drivers.sim import SimDriver  # noqa: E402
 
-from pamd.cli.main import main  # noqa: E402
+from pamd.client.cli.main import main  # noqa: E402
 from pamd.config import load_config  # noqa: E402
+from pamd.loop.safety.envelope import MuscleEnvelope  # noqa: E402
 from pamd.muscle_type import datasheet_type, equilibrium_contraction  # noqa: E402
-from pamd.safety.envelope import MuscleEnvelope  # noqa: E402
 from pamd.sim.options import SimMuscleOptions, SimOptions  # noqa: E402
 
 G = 9.80665

@@ -48,7 +48,7 @@ from net_common import REPO, free_port, wait_listening, wait_status, write_confi
 from net_storm import io_pid  # noqa: E402
 from wsraw import OP_BINARY, WS  # noqa: E402
 
-from pamd.net.client.client import Client  # noqa: E402
+from pamd.client.remote import Client  # noqa: E402
 
 VIEWER = REPO / "tests" / "js" / "foxglove_view.js"
 CASES = ("combined", "storm", "subscribers", "viewers", "none")

@@ -2,7 +2,7 @@
 real clock, 1 kHz, simulated rig, telemetry on its own loopback port) whose Zenoh
 endpoint is then filled by `--sessions` client sessions without a credential (the
 shipped cap is 100: the rest are refused). Before and under the flood, `--rounds`
-estops (each followed by a reset) go through the daemon's local channel (pamd.net.local,
+estops (each followed by a reset) go through the daemon's local channel (pamd.wire.local_channel,
 as `pamd cmd estop` on the rig PC sends them), and as many status queries.
 
 Prints, quiet and under the flood: the estop's latency from the moment it is sent to
@@ -32,8 +32,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from net_common import free_port, pct, wait_listening, wait_status, write_config  # noqa: E402
 
-from pamd.net.client.client import Client, LocalRig, local_rig  # noqa: E402
-from pamd.net.zconf import NoDaemon  # noqa: E402
+from pamd.client.remote import Client, LocalRig, local_rig  # noqa: E402
+from pamd.wire.zconf import NoDaemon  # noqa: E402
 
 
 def bare_session(endpoint: str) -> Any:

@@ -27,7 +27,7 @@ from net_common import free_port, wait_listening, write_config  # noqa: E402
 
 CLIENT = textwrap.dedent("""
     import sys, time
-    from pamd.net.client.client import Client
+    from pamd.client.remote import Client
     with Client(connect=sys.argv[1]) as cl:
         sub = cl.subscribe("pamd/sim/state/*")
         n = i = 0

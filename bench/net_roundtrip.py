@@ -31,7 +31,7 @@ from net_common import (  # noqa: E402
     write_config,
 )
 
-from pamd.net.client.client import Client  # noqa: E402
+from pamd.client.remote import Client  # noqa: E402
 
 
 def timed(fn, n: int, pause_s: float = 0.0) -> tuple[list[float], list[dict]]:

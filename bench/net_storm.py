@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "adversar
 from net_common import free_port, wait_listening, wait_status, write_config  # noqa: E402
 from wsraw import OP_BINARY, WS  # noqa: E402
 
-from pamd.net.client.client import Client  # noqa: E402
+from pamd.client.remote import Client  # noqa: E402
 
 
 def rss_mb(pid: int) -> float:

@@ -37,8 +37,8 @@ import _lockdir  # noqa: F401  (the run's own rig-lock directory)
 import yaml
 
 from pamd.config import load_config
-from pamd.harness import Harness
-from pamd.tick import State
+from pamd.loop.harness import Harness
+from pamd.wire.tick import State
 
 REPO = Path(__file__).resolve().parents[1]
 DT = 0.001

@@ -9,12 +9,12 @@ the pressure swing the 0.5 and 1 Hz sines need). RMSE and max |error| of the len
   * the position PID alone (mode position, feedforward false),
   * the inverse model + PID as before issue 16 (no preview, the setpoint's filtered
     numeric rate, no flow term),
-  * the model + PID with the dynamic feedforward (pamd.control.length_control):
+  * the model + PID with the dynamic feedforward (pamd.loop.control.length_control):
     preview, the model's derivative along the planned motion, the flow term, the
     model's velocity input on its training sweeps' time axis (`model_sweep_hz`) and
     the force input (measured, or planned: weight + inertia of the load) the
     validation set prefers; and the same without `model_sweep_hz`,
-  * with `--ilc`, the same + the ILC as `pamd.control.ilc` is (control.position.ilc).
+  * with `--ilc`, the same + the ILC as `pamd.loop.control.ilc` is (control.position.ilc).
 Goals (issue 16): 0.2 Hz <= 0.15 mm, 0.5 Hz <= 0.3 mm, 1 Hz <= 0.6 mm RMSE.
 
 The model is the 3-input (force, length, velocity) ANFIS trained as
@@ -58,9 +58,9 @@ from _common import (  # noqa: E402
 )
 from position_tracking import RANGES_BAR, TRAIN_LOADS_KG, record, train  # noqa: E402
 
-from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
-from pamd.tick import State  # noqa: E402
+from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
+from pamd.wire.tick import State  # noqa: E402
 
 MAX_RATE_PER_S = 0.5
 #: the default 5 bar/s would cut the 1 Hz sine's pressure swing (about 10 bar/s)
@@ -206,7 +206,7 @@ def main() -> None:
     ap.add_argument("--cycles", type=int, default=6, help="cycles per run (the first two "
                     "are not scored)")
     ap.add_argument("--ilc", action="store_true", help="also with the ILC "
-                    "(control.position.ilc, pamd.control.ilc as it is)")
+                    "(control.position.ilc, pamd.loop.control.ilc as it is)")
     ap.add_argument("--ilc-cycles", type=int, default=50)
     ap.add_argument("--model", metavar="FILE", help="a 3-input model file instead of "
                     "training one here")

@@ -40,14 +40,14 @@ from _common import (  # noqa: E402
     sim_config,
 )
 
-from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
+from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 from pamd.models.anfis import TrainingOptions, fit, save  # noqa: E402
-from pamd.models.anfis.extraction import derived_inputs, extract  # noqa: E402
-from pamd.models.anfis.recordings import read_runs  # noqa: E402
-from pamd.models.anfis.samples import ExtractOptions  # noqa: E402
-from pamd.models.anfis.splitting import split  # noqa: E402
-from pamd.tick import Flag, State  # noqa: E402
+from pamd.models.data.extraction import derived_inputs, extract  # noqa: E402
+from pamd.models.data.recordings import read_runs  # noqa: E402
+from pamd.models.data.samples import ExtractOptions  # noqa: E402
+from pamd.models.data.splitting import split  # noqa: E402
+from pamd.wire.tick import Flag, State  # noqa: E402
 
 LOAD_KG = 30.0
 TRAIN_LOADS_KG = (20.0, 30.0, 40.0)

@@ -15,9 +15,9 @@ import argparse
 import math
 import time
 
-from pamd.errors import CommandRefused
 from pamd.profiles import Profile, ProfileSpec
 from pamd.profiles.harmonic import HARMONIC_TICK_COST_S, MAX_HARMONIC_NUMBER, max_harmonics
+from pamd.wire.errors import CommandRefused
 
 COUNTS = (1, 3, 10, 41, 64)
 

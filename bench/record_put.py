@@ -18,8 +18,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from record_common import sim_config  # noqa: E402
 
-from pamd.daemon import Daemon  # noqa: E402
-from pamd.io.session import RecordingRequest  # noqa: E402
+from pamd.daemon.daemon import Daemon  # noqa: E402
+from pamd.daemon.io_session import RecordingRequest  # noqa: E402
 
 
 def main() -> None:

@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from record_common import write_config  # noqa: E402
 
-from pamd.record import files  # noqa: E402
+from pamd.wire.record import files  # noqa: E402
 
 
 def one(after_s: float) -> tuple[float, int, float]:

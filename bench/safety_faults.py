@@ -24,8 +24,8 @@ from typing import Any
 
 from _common import sim_config
 
-from pamd.harness import Harness
-from pamd.tick import State
+from pamd.loop.harness import Harness
+from pamd.wire.tick import State
 
 FAULTS = [(s, k) for s in ("length", "force", "pressure")
           for k in ("dead", "stuck", "noisy", "jump", "silent")]

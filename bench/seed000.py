@@ -58,14 +58,14 @@ import yaml  # noqa: E402
 from _common import REPO, record_profile  # noqa: E402
 from seed_table import PAMD, PAPER, SeedRow, markdown  # noqa: E402
 
+from pamd.client.judging import tick_predict  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
-from pamd.models.anfis.extraction import extract  # noqa: E402
-from pamd.models.anfis.recordings import read_runs  # noqa: E402
-from pamd.models.anfis.samples import ExtractOptions, Samples  # noqa: E402
-from pamd.models.anfis.splitting import split  # noqa: E402
 from pamd.models.contract import InverseModel  # noqa: E402
+from pamd.models.data.extraction import extract  # noqa: E402
+from pamd.models.data.recordings import read_runs  # noqa: E402
+from pamd.models.data.samples import ExtractOptions, Samples  # noqa: E402
+from pamd.models.data.splitting import split  # noqa: E402
 from pamd.models.training import fit_split  # noqa: E402
-from pamd.view.judging import tick_predict  # noqa: E402
 
 TRAIN_LOADS_KG = (15.0, 30.0, 50.0, 65.0, 80.0)
 QUICK_TRAIN_LOADS_KG = (15.0, 50.0, 80.0)

@@ -58,12 +58,12 @@ import numpy as np  # noqa: E402
 import seed_data  # noqa: E402
 from seed_table import PAMD, PAPER, SeedRow, markdown  # noqa: E402
 
-from pamd.cli.main import main as pamd_main  # noqa: E402
-from pamd.metrics import regression_metrics  # noqa: E402
-from pamd.models.anfis.extraction import derived_inputs  # noqa: E402
-from pamd.models.anfis.samples import INPUT_UNITS, ExtractOptions, Run, Samples  # noqa: E402
-from pamd.models.anfis.splitting import Split, split  # noqa: E402
+from pamd.client.cli.main import main as pamd_main  # noqa: E402
+from pamd.models.data.extraction import derived_inputs  # noqa: E402
+from pamd.models.data.samples import INPUT_UNITS, ExtractOptions, Run, Samples  # noqa: E402
+from pamd.models.data.splitting import Split, split  # noqa: E402
 from pamd.models.mamdani import MamdaniOptions, fit_mamdani  # noqa: E402
+from pamd.models.metrics import regression_metrics  # noqa: E402
 from pamd.models.training import fit_split  # noqa: E402
 from pamd.models.ts_fuzzy import TsFuzzyOptions, fit_ts_fuzzy  # noqa: E402
 

@@ -65,13 +65,13 @@ import seed_data  # noqa: E402
 from seed_table import PAMD, PAPER, SeedRow, markdown  # noqa: E402
 
 import pamd  # noqa: E402
-from pamd.declare.jsonsafe import JsonObject  # noqa: E402
-from pamd.errors import ModelError  # noqa: E402
-from pamd.metrics import regression_metrics  # noqa: E402
-from pamd.models.anfis.samples import ExtractOptions, Samples  # noqa: E402
-from pamd.models.anfis.splitting import Split, split  # noqa: E402
+from pamd.client.training_tables import load_samples  # noqa: E402
+from pamd.models.data.samples import ExtractOptions, Samples  # noqa: E402
+from pamd.models.data.splitting import Split, split  # noqa: E402
+from pamd.models.metrics import regression_metrics  # noqa: E402
 from pamd.models.training import fit_split  # noqa: E402
-from pamd.view.tables import load_samples  # noqa: E402
+from pamd.wire.declare.jsonsafe import JsonObject  # noqa: E402
+from pamd.wire.errors import ModelError  # noqa: E402
 
 DATA = Path(pamd.__file__).parent / "data"
 MAPS = {"DMSP-20": "dmsp20_force_map.csv", "DMSP-40": "dmsp40_force_map.csv"}

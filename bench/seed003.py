@@ -71,14 +71,14 @@ from _common import REPO, sim_config  # noqa: E402
 from seed_table import PAMD, PAPER, SeedRow, markdown  # noqa: E402
 
 from pamd.config import LoadedConfig, load_config  # noqa: E402
-from pamd.control.feedforward import LoadedModel  # noqa: E402
-from pamd.errors import ConfigError  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
-from pamd.models.anfis.samples import ExtractOptions  # noqa: E402
+from pamd.loop.control.feedforward import LoadedModel  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
+from pamd.models.data.samples import ExtractOptions  # noqa: E402
 from pamd.models.fn_qupi import FnQupiModel, FnQupiOptions, fit_fn_qupi  # noqa: E402
 from pamd.models.qupi import _identify  # noqa: E402
 from pamd.models.registry import save_model  # noqa: E402
-from pamd.tick import State  # noqa: E402
+from pamd.wire.errors import ConfigError  # noqa: E402
+from pamd.wire.tick import State  # noqa: E402
 
 RATE_HZ = 250
 EVERY = 10  # ticks between model samples: 25 Hz

@@ -21,10 +21,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from pamd.errors import ModelError
-from pamd.models.anfis.extraction import extract
-from pamd.models.anfis.samples import FROM_LENGTH, ExtractOptions, Run, Samples
-from pamd.view.tables import read_data
+from pamd.client.training_tables import read_data
+from pamd.models.data.extraction import extract
+from pamd.models.data.samples import FROM_LENGTH, ExtractOptions, Run, Samples
+from pamd.wire.errors import ModelError
 
 #: The papers by seed, as a refusal names them.
 PAPERS = {

@@ -1,5 +1,5 @@
 """The tick record's cost where the field table reaches the tick path: one muscle's
-`MuscleController._record` (18 float stores at offsets from pamd.declare.fields, computed at
+`MuscleController._record` (18 float stores at offsets from pamd.wire.declare.fields, computed at
 import), and the whole `RigController.tick` (pamd's plant excluded), best of
 `--rounds` on a shared machine (compare two trees by alternating runs:
 `PYTHONPATH=TREE python bench/tick_record.py`)."""
@@ -12,12 +12,12 @@ import time
 
 from _common import controller_compute_us, percentile, sim_config
 
-from pamd.calibration import load_calibration
-from pamd.control.feedforward import load_models
-from pamd.controller import RigController
-from pamd.rig import Rig
-from pamd.summary import SummarySink
-from pamd.tick import TickLayout
+from pamd.loop.control.controller import RigController
+from pamd.loop.control.feedforward import load_models
+from pamd.loop.control.summary import SummarySink
+from pamd.loop.devices.bindings import Rig
+from pamd.loop.devices.datum_file import load_calibration
+from pamd.wire.tick import TickLayout
 
 
 def record_ns(calls: int) -> float:

@@ -39,9 +39,9 @@ from typing import Any
 import yaml
 from _common import REPO, sim_config
 
-from pamd.commands import apply_command, parse_command
-from pamd.harness import Harness
-from pamd.tick import State
+from pamd.loop.commands import apply_command, parse_command
+from pamd.loop.harness import Harness
+from pamd.wire.tick import State
 
 OPEN_LOOP = {"pid": {"kp": 0.0, "ki_per_s": 0.0, "kd_s": 0.0}, "rate_feedforward_s": 0.0}
 OLD_GAINS = {"pid": {"kp": 0.3, "ki_per_s": 20.0, "kd_s": 0.0}, "rate_feedforward_s": 0.035}

@@ -2,7 +2,7 @@
 seed 004's sliding mode's settings (`muscles[].onoff`), never from the simulator's
 parameters, only from what the sensors saw.
 
-The procedure and its rules, each with its reason, are `pamd.tune.onoff`'s (its
+The procedure and its rules, each with its reason, are `pamd.client.tune.onoff_steps`'s (its
 docstring): an identification run (the PWM's dead band opened to 1 bar, so it leaves
 the valves to this script once the muscle holds 3 bar at 30 kg), then each valve in
 turn, inflate then exhaust, a 40 ms pulse (the fill / vent rate), the PWM's shortest
@@ -14,7 +14,7 @@ boundary layer and lambda);
 `pamd tune --loop onoff` runs the same pulses through the daemon (the `pulse` command,
 timed in the tick) and reads them from the recording; this script runs them tick by
 tick on the in-process harness, writing the valves' outputs itself, and applies the
-same rules (`pamd.tune.onoff.derive`). The shipped settings of
+same rules (`pamd.client.tune.onoff_steps.derive`). The shipped settings of
 config/sim-onoff.yaml are its figures.
 
     python bench/tune_onoff.py [--config config/sim-onoff.yaml]
@@ -32,11 +32,7 @@ import _lockdir  # noqa: F401  (the run's own rig-lock directory)
 import numpy as np
 import yaml
 
-from pamd.config import load_config
-from pamd.control.actuation import OnOffActuation, min_pulse_s
-from pamd.harness import Harness
-from pamd.rig import OutputBinding
-from pamd.tune.onoff import (
+from pamd.client.tune.onoff_steps import (
     IDENT_DEAD_BAND_BAR,
     LEVEL_BAR,
     PULSES,
@@ -50,6 +46,10 @@ from pamd.tune.onoff import (
     smallest_change_mm,
     typical_step_bar,
 )
+from pamd.config import load_config
+from pamd.loop.control.actuation import OnOffActuation, min_pulse_s
+from pamd.loop.devices.bindings import OutputBinding
+from pamd.loop.harness import Harness
 
 REPO = Path(__file__).resolve().parents[1]
 DT = 0.001

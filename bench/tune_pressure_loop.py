@@ -9,7 +9,7 @@ parameters, only from what the sensors saw.
    regulator's own loop acts), small steps of the regulator setpoint (+-0.2 bar, the
    loop's working range, not the saturated fill of a large step) at 1.5, 3 and
    4.5 bar, up and down. Each response is fitted with a first-order-plus-dead-time
-   model (`pamd.control.tuning.fit_step`); the design model is their mean. Gains:
+   model (`pamd.loop.control.tuning.fit_step`); the design model is their mean. Gains:
    Skogestad's SIMC PI (tau_c = theta) and `rate_feedforward_s` = theta + tau.
 2. **Position loop** (pressure setpoint -> measured length), with the pressure loop
    closed on the gains of 1: +-0.5 bar steps of the pressure setpoint at 2.5 and
@@ -47,14 +47,14 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
+from pamd.client.tune.ident_run import IDENT_SLEW_BAR_PER_S  # noqa: E402
+from pamd.client.tune.step_responses import StepResponse, fit_all, mean_model, steps_in  # noqa: E402
+from pamd.client.tune.step_responses import position_gains as pkg_position_gains  # noqa: E402
+from pamd.client.tune.step_responses import pressure_gains as pkg_pressure_gains  # noqa: E402
+from pamd.client.tune.tune_report import print_fits  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
-from pamd.control.tuning import Fopdt  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
-from pamd.tune.report import print_fits  # noqa: E402
-from pamd.tune.run import IDENT_SLEW_BAR_PER_S  # noqa: E402
-from pamd.tune.steps import Step, fit_all, mean_model, steps_in  # noqa: E402
-from pamd.tune.steps import position_gains as pkg_position_gains  # noqa: E402
-from pamd.tune.steps import pressure_gains as pkg_pressure_gains  # noqa: E402
+from pamd.loop.control.tuning import Fopdt  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -93,11 +93,11 @@ def ident_config(path: str, load_kg: float | None, control: dict[str, Any]) -> L
 
 
 def _record_steps(h: Harness, levels: tuple[float, ...], step_bar: float, record_s: float,
-                  signal: str) -> list[Step]:
+                  signal: str) -> list[StepResponse]:
     """From each level (reached slowly and settled), a step up by `step_bar` and back
     down, each recorded for `record_s`: `signal` is the muscle attribute recorded."""
     m = h.m1
-    steps: list[Step] = []
+    steps: list[StepResponse] = []
     pre_s = 0.05
     for level in levels:
         for target, label in ((level, None), (level + step_bar, "up"), (level, "down")):
@@ -123,7 +123,7 @@ def _record_steps(h: Harness, levels: tuple[float, ...], step_bar: float, record
             # the command moves at the first tick after it was taken, over one edge
             t_step = t_cmd + 0.5 * EDGE_S
             amp = step_bar if label == "up" else -step_bar
-            steps.append(Step(f"{level:.1f} bar {label}", t_step, amp, np.array(ts),
+            steps.append(StepResponse(f"{level:.1f} bar {label}", t_step, amp, np.array(ts),
                               np.array(ys)))
     return steps
 

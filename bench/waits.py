@@ -34,8 +34,8 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import pamd  # noqa: E402
-from pamd.record import files  # noqa: E402
-from pamd.view.recording import recording_files  # noqa: E402
+from pamd.client.recording import recording_files  # noqa: E402
+from pamd.wire.record import files  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 PAMD = [sys.executable, "-m", "pamd"]

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint
 from typing import Any, ClassVar, Literal, Protocol
 
-from pamd.errors import DriverError
-from pamd.plugins import DRIVERS_GROUP, installed, load_driver_entry
+from pamd.config.plugins import DRIVERS_GROUP, installed, load_driver_entry
+from pamd.wire.errors import DriverError
 
 Clock = Callable[[], float]
 """Returns the loop's time in seconds (monotonic, or virtual)."""
@@ -156,7 +156,7 @@ class Driver(ABC):
         """What this driver opens that one process at a time may use, one name each
         (`serial_port_claim`, "Modbus TCP device HOST:PORT id N", "CAN channel
         INTERFACE:CHANNEL"): the daemon locks each before it opens anything
-        (pamd.service.riglock). Simulated devices open nothing: () by default."""
+        (pamd.daemon.service.riglock). Simulated devices open nothing: () by default."""
         return ()
 
     def sample_clock(self) -> SampleClock | None:

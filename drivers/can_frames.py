@@ -13,7 +13,7 @@ import struct
 from dataclasses import dataclass
 from typing import Literal
 
-from pamd.schema.engine import spec
+from pamd.wire.schema.engine import spec
 
 # CANopen function codes (COB-ID = base + node id)
 NMT_ID = 0x000

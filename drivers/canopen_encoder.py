@@ -53,8 +53,8 @@ from pamd.drivers.canopen_nodes import EncoderNodes, NodeState
 from pamd.drivers.device import ArrivalWindow, Backoff, ThreadedDriver
 from pamd.drivers.socketcand_link import one_connect_attempt, server_closed
 
-from pamd.errors import DriverError
-from pamd.schema.engine import spec
+from pamd.wire.errors import DriverError
+from pamd.wire.schema.engine import spec
 
 BAD_FRAME_HOLD_S = 0.05  # a bad frame counts as a failing cycle this long
 

@@ -62,8 +62,8 @@ from pamd.drivers.modbus_map import (
 from pamd.drivers.modbus_presets import PRESETS
 from pamd.drivers.modbus_writes import OutputWriter, Payload
 
-from pamd.errors import DriverError
-from pamd.schema.engine import spec
+from pamd.wire.errors import DriverError
+from pamd.wire.schema.engine import spec
 
 EXCEPTION_NAMES = {1: "illegal function", 2: "illegal data address", 3: "illegal data value",
                    4: "device failure", 5: "acknowledge", 6: "device busy",

@@ -46,7 +46,7 @@ from pamd.drivers.device import Backoff, DeviceHealth, ThreadedDriver
 from pamd.drivers.nidaq_clock import EdgeEstimate, PacedSamples
 from pamd.drivers.nidaq_options import NidaqOptions, check_options, device_of
 
-from pamd.errors import DriverError
+from pamd.wire.errors import DriverError
 
 if TYPE_CHECKING:  # imported when the driver opens: nidaqmx is an optional extra
     from pamd.drivers.nidaq_tasks import DaqTasks

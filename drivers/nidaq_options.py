@@ -17,7 +17,7 @@ import re
 from dataclasses import dataclass
 from typing import Literal
 
-from pamd.schema.engine import spec
+from pamd.wire.schema.engine import spec
 
 Terminal = Literal["default", "rse", "nrse", "diff", "pseudodiff"]
 Timing = Literal["on_demand", "hardware_timed"]

@@ -18,7 +18,8 @@ from pamd.drivers import Driver
 
 
 class OutputPoint(Protocol):
-    """An output signal's name, place and calibration (`pamd.rig.OutputBinding`)."""
+    """An output signal's name, place and calibration
+    (`pamd.loop.devices.bindings.OutputBinding`)."""
 
     @property
     def name(self) -> str: ...
@@ -37,7 +38,7 @@ class OutputPoint(Protocol):
 
 
 class SafeActuation(Protocol):
-    """What a muscle's actuation holds in the safe state (`pamd.control.actuation`):
+    """What a muscle's actuation holds in the safe state (`pamd.loop.control.actuation`):
     (output, value in its unit, unit) per output."""
 
     def safe_outputs(self, safe_pressure_bar: float
@@ -54,7 +55,7 @@ class SafeMuscle(Protocol):
 
 
 class SafeRig(Protocol):
-    """The controller's muscles (`pamd.controller.RigController`)."""
+    """The controller's muscles (`pamd.loop.control.controller.RigController`)."""
 
     @property
     def muscles(self) -> Sequence[SafeMuscle]: ...

@@ -28,8 +28,8 @@ from typing import Any, Literal
 from pamd.drivers import Channel, serial_port_claim
 from pamd.drivers.device import ArrivalWindow, Backoff, ThreadedDriver
 
-from pamd.errors import DriverError
-from pamd.schema.engine import spec
+from pamd.wire.errors import DriverError
+from pamd.wire.schema.engine import spec
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -51,17 +51,17 @@ from pamd.drivers.sim_faults import (
 )
 
 from pamd.config.muscle_types import read_map
-from pamd.errors import DriverError, ModelError
 from pamd.models.fn_qupi_plant import plant_model
 from pamd.muscle_type import ForceMap, MuscleType, check_map
 from pamd.muscle_type.custom import NAME as CUSTOM
 from pamd.sim.faults import FAULT_KINDS, SimFault
 from pamd.sim.model_plant import ModelPlant
-from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
 from pamd.sim.pneumatics import SupplyLine, conductance_from_nominal_flow
+from pamd.sim.solenoid import OnOffValves
 from pamd.sim.specimen import MUSCLE_INPUTS, bind_types, specimen
+from pamd.wire.errors import DriverError, ModelError
 
 INPUTS_PER_MUSCLE = len(MUSCLE_INPUTS)  # pressure, force, length
 OUTPUTS_PER_MUSCLE = 2  # valve, exhaust

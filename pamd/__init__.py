@@ -24,7 +24,7 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 # Before anything loads numpy: one BLAS thread. The loop's own numpy calls (the model's
-# online adaptation, pamd.control.adapt) are small; a threaded BLAS would only add
+# online adaptation, pamd.loop.control.adapt) are small; a threaded BLAS would only add
 # wake-ups and contention on the rig PC's cores. A value set by the user stays.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
@@ -62,7 +62,24 @@ def _find_source_drivers() -> None:
 
 _find_source_drivers()
 
-from pamd.version import __version__  # noqa: E402
+
+class _OldNames(importlib.abc.MetaPathFinder):
+    """The module names pamd had before issue 41's move, found in `pamd._moved` (loaded
+    only when a name nothing else found is asked for: last on `sys.meta_path`)."""
+
+    def find_spec(self, fullname: str, path: Sequence[str] | None,
+                  target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
+        if not fullname.startswith("pamd.") or fullname == "pamd._moved":
+            return None
+        from pamd import _moved
+
+        return _moved.OldNames().find_spec(fullname, path, target)
+
+
+if not any(isinstance(f, _OldNames) for f in sys.meta_path):
+    sys.meta_path.append(_OldNames())
+
+from pamd.wire.version import __version__  # noqa: E402
 
 __all__ = [
     "CommandRefused", "Event", "MuscleData", "NoDaemon", "PamdError", "Recording",
@@ -71,25 +88,25 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from pamd.errors import CommandRefused, PamdError, RecordingError
-    from pamd.net.zconf import NoDaemon
-    from pamd.view.client import RigClient, StateBatch, connect
-    from pamd.view.recording import (
+    from pamd.client.connect import RigClient, StateBatch, connect
+    from pamd.client.recording import (
         Event,
         MuscleData,
         Recording,
         RecordingIncomplete,
         open_recording,
     )
+    from pamd.wire.errors import CommandRefused, PamdError, RecordingError
+    from pamd.wire.zconf import NoDaemon
 
 # Imported on first use: `import pamd` stays cheap for the daemon and its io process.
 _WHERE = {
-    "open_recording": "pamd.view.recording", "Recording": "pamd.view.recording",
-    "MuscleData": "pamd.view.recording", "Event": "pamd.view.recording",
-    "RecordingIncomplete": "pamd.view.recording", "connect": "pamd.view.client",
-    "RigClient": "pamd.view.client", "StateBatch": "pamd.view.client",
-    "PamdError": "pamd.errors", "RecordingError": "pamd.errors",
-    "CommandRefused": "pamd.errors", "NoDaemon": "pamd.net.zconf",
+    "open_recording": "pamd.client.recording", "Recording": "pamd.client.recording",
+    "MuscleData": "pamd.client.recording", "Event": "pamd.client.recording",
+    "RecordingIncomplete": "pamd.client.recording", "connect": "pamd.client.connect",
+    "RigClient": "pamd.client.connect", "StateBatch": "pamd.client.connect",
+    "PamdError": "pamd.wire.errors", "RecordingError": "pamd.wire.errors",
+    "CommandRefused": "pamd.wire.errors", "NoDaemon": "pamd.wire.zconf",
 }
 
 

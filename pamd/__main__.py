@@ -10,7 +10,7 @@ from __future__ import annotations
 
 
 def main() -> int:
-    from pamd.cli.main import main as cli_main  # see the module's doc (LAZY_OWN)
+    from pamd.client.cli.main import main as cli_main  # see the module's doc (LAZY_OWN)
 
     return cli_main()
 

@@ -15,16 +15,16 @@ import sys
 import tempfile
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-# The run's own directory of rig locks (pamd.service.riglock) for what starts before a
+# The run's own directory of rig locks (pamd.daemon.service.riglock) for what starts before a
 # test's own (`rig_lock_dir`): session and module fixtures that run a daemon never meet
 # a `sim` rig running on this machine, nor another checkout's test run.
 _RUN_LOCK_DIR = tempfile.mkdtemp(prefix="pamd-test-locks-")
 os.environ["PAMD_LOCK_DIR"] = _RUN_LOCK_DIR
-# ... and of command tokens (pamd.net.credential): every daemon the run starts writes its
+# ... and of command tokens (pamd.wire.credential): every daemon the run starts writes its
 # token there and every client the run starts (same environment) finds it there.
 os.environ["PAMD_TOKEN_DIR"] = _RUN_LOCK_DIR
 atexit.register(shutil.rmtree, _RUN_LOCK_DIR, True)
-# ... and its own state home (pamd.service.state: where a real-clock run keeps its state
+# ... and its own state home (pamd.daemon.service.state: where a real-clock run keeps its state
 # by default), never the user's ~/.local/state
 _RUN_STATE_HOME = tempfile.mkdtemp(prefix="pamd-test-state-")
 os.environ["XDG_STATE_HOME"] = _RUN_STATE_HOME
@@ -70,10 +70,10 @@ from typing import Any  # noqa: E402
 import pytest  # noqa: E402
 import yaml  # noqa: E402
 
-from pamd.cli.main import main  # noqa: E402
+from pamd.client.cli.main import main  # noqa: E402
 from pamd.config import LoadedConfig, load_config  # noqa: E402
-from pamd.daemon import Daemon  # noqa: E402
-from pamd.harness import Harness  # noqa: E402
+from pamd.daemon.daemon import Daemon  # noqa: E402
+from pamd.loop.harness import Harness  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 SIM_YAML = REPO / "config" / "sim.yaml"
@@ -150,7 +150,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 
 @pytest.fixture(autouse=True)
 def rig_lock_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """Each test its own directory of rig locks (pamd.service.riglock): tests running
+    """Each test its own directory of rig locks (pamd.daemon.service.riglock): tests running
     at once (here or in another checkout on this machine) never share a rig's lock,
     while two daemons on one rig within a test still meet it."""
     path = tmp_path / "locks"

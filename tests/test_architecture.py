@@ -21,27 +21,36 @@ import tomllib  # tests run on Python >= 3.11
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: top to bottom, each named for what it is. A package imports only from the layers
-#: below its own and, within its layer, from the packages listed after it (so there is
-#: no import cycle). `net` is split by role: `net.host` (the daemon's main process),
-#: `net.node` (the io process's Zenoh node), `net.client` (the client library), and
-#: `net` itself, what they share (keys, specs, the board, the status's declaration).
+#: top to bottom, each named for what it is: the processes, each its own package (the
+#: client side, the main process, the loop process, the io process), the libraries,
+#: and at the bottom what crosses between the processes (`wire`). A package imports
+#: only from the layers below its own and, within its layer, from the packages listed
+#: after it (so there is no import cycle). A process package's subpackages that form
+#: layers of their own are placed on their own (`loop.control` under `loop.commands`).
 LAYERS: list[tuple[str, list[str]]] = [
-    ("command line", ["__main__", "cli", "commission", "tune"]),
-    ("main process", ["daemon", "service", "io", "net.host"]),
-    ("telemetry and views", ["view", "net.client", "net.node", "net"]),
-    ("loop", ["harness", "loop", "commands", "experiment"]),
-    ("rig tick", ["controller", "summary", "control", "safety"]),
-    ("hardware, models, recordings",
-     ["rig", "emulate", "drivers", "models", "record", "sim", "rt", "stalls", "calibration"]),
-    ("verbs and config", ["verbs", "config", "schema", "plugins"]),
-    ("leaves", ["ipc", "metrics", "timing", "muscle_type", "tick", "profiles", "profile_kinds",
-                "atomic", "errors", "version", "declare", "data"]),
+    ("client", ["__main__", "_moved", "client.cli", "client.commission", "client.tune",
+                "client"]),
+    ("main process", ["daemon", "daemon.service", "daemon.host"]),
+    ("loop process", ["loop", "loop.commands", "loop.experiment", "loop.control",
+                      "loop.safety", "loop.devices"]),
+    ("io process", ["iohost"]),
+    ("libraries", ["emulate", "drivers", "sim", "models", "config", "profiles",
+                   "muscle_type", "data"]),
+    ("wire", ["wire"]),
 ]
 MAX_LAYERS = 10
 
-#: the subpackages placed in LAYERS on their own
-SUBPACKAGES = {"net.node", "net.host", "net.client"}
+#: the process packages (issue 41): each process's code in one, and what crosses a
+#: process boundary in one (`wire`); no module base name twice in one of them
+PROCESS_PACKAGES = {"client": "the Python API, recordings, the command line",
+                    "daemon": "the main process", "loop": "the loop process",
+                    "iohost": "the io process", "wire": "what crosses between them"}
+#: at most this many modules at pamd/'s root (`__init__`, `__main__` included; 19
+#: before issue 41)
+MAX_ROOT_MODULES = 6
+#: at most this many module base names found more than once in pamd/ (27 before
+#: issue 41): a name that recurs says less than it should
+MAX_RECURRING_NAMES = 10
 
 #: third-party packages a function may import when it needs them (heavy, or optional
 #: extras, or only one command uses them): keeps `import pamd` and the daemon light
@@ -56,23 +65,25 @@ LAZY_THIRD_PARTY = {
 LAZY_OWN = {
     "pamd/__init__.py": "pamd.",
     # the console script's module: a spawned process (the io process) runs it again
-    "pamd/__main__.py": "pamd.cli.main",
+    "pamd/__main__.py": "pamd.client.cli.main",
     # the io process imports the Foxglove live view only for a run that asks for it
-    "pamd/io/process.py": "pamd.view.live",
+    "pamd/iohost/process.py": "pamd.iohost.live",
     # the io process checks tokens with this module; only the daemon writes one
-    "pamd/net/credential.py": "pamd.atomic",
+    "pamd/wire/credential.py": "pamd.wire.atomic",
 }
 
 #: the modules that import by name (`importlib.import_module`), which the checks
 #: above cannot read, and the modules each may name: the public API's lazy names, and
-#: the command line's sub-commands (pamd.cli.main.COMMANDS), each imported only when
+#: the command line's sub-commands (pamd.client.cli.main.COMMANDS), each imported only when
 #: chosen so that `pamd --help` and `pamd status` do not import the daemon
 LAZY_BY_NAME = {
     "pamd/__init__.py": "pamd.",
-    "pamd/cli/main.py": "pamd.cli.",
-    # a custom muscle's map is read by the reader `pamd train` uses (pamd.view.tables, a
-    # layer above the config), only when a config names one
-    "pamd/config/muscle_types.py": "pamd.view.tables",
+    # the module names before issue 41's move, each imported as the module it names now
+    "pamd/_moved.py": "pamd.",
+    "pamd/client/cli/main.py": "pamd.client.cli.",
+    # a custom muscle's map is read by the reader `pamd train` uses
+    # (pamd.client.training_tables, a layer above the config), only when a config names one
+    "pamd/config/muscle_types.py": "pamd.client.training_tables",
 }
 
 
@@ -84,11 +95,21 @@ def _sources() -> Iterator[tuple[str, Path]]:
             yield ".".join([prefix, *parts]), path
 
 
+@functools.cache
+def _placed() -> frozenset[str]:
+    return frozenset(n for _, layer in LAYERS for n in layer)
+
+
 def _package(module: str) -> str | None:
+    """The longest package placed in LAYERS that holds the module (its first-level
+    package when none is: `test_every_package_has_a_layer` names it)."""
     parts = module.split(".")
-    if len(parts) > 2 and parts[0] == "pamd" and ".".join(parts[1:3]) in SUBPACKAGES:
-        return ".".join(parts[1:3])
-    return parts[1] if len(parts) > 1 and parts[0] == "pamd" else None
+    if len(parts) < 2 or parts[0] != "pamd":
+        return None
+    for k in range(len(parts) - 1, 1, -1):
+        if ".".join(parts[1:k + 1]) in _placed():
+            return ".".join(parts[1:k + 1])
+    return parts[1]
 
 
 def _imports(module: str, path: Path) -> Iterator[tuple[str, int, bool]]:
@@ -215,29 +236,32 @@ def test_only_the_named_modules_import_by_name() -> None:
 
 
 def test_the_cli_imports_only_its_own_subcommands_by_name() -> None:
-    """pamd.cli.main imports a sub-command's module by its declared name: each one a
-    module of pamd.cli (so the layers hold), and none imported at the top."""
-    from pamd.cli.main import COMMANDS
+    """pamd.client.cli.main imports a sub-command's module by its declared name: each one a
+    module of pamd.client.cli (so the layers hold), and none imported at the top."""
+    from pamd.client.cli.main import COMMANDS
 
-    prefix = LAZY_BY_NAME["pamd/cli/main.py"]
+    prefix = LAZY_BY_NAME["pamd/client/cli/main.py"]
     for command in COMMANDS:
         assert command.module.startswith(prefix), command
         assert (ROOT / (command.module.replace(".", "/") + ".py")).is_file(), command
-    main = ROOT / "pamd" / "cli" / "main.py"
-    assert not [t for t, _, _ in _imports("pamd.cli.main", main) if t.startswith(prefix)]
+    main = ROOT / "pamd" / "client" / "cli" / "main.py"
+    assert not [t for t, _, _ in _imports("pamd.client.cli.main", main)
+                if t.startswith(prefix)]
 
 
 def test_the_check_sees_an_upward_and_a_lazy_import(tmp_path: Path) -> None:
     """The check itself: an import of a higher layer, and one inside a function."""
     probe = tmp_path / "probe.py"
-    probe.write_text("from pamd.control.pid import Pid\ndef f():\n    import pamd.daemon\n")
+    probe.write_text("from pamd.loop.control.pid import Pid\ndef f():\n"
+                     "    import pamd.daemon.daemon\n")
     found = list(_imports("pamd.config.probe", probe))
-    assert ("pamd.control.pid", 1, False) in found
-    assert ("pamd.daemon", 3, True) in found
+    assert ("pamd.loop.control.pid", 1, False) in found
+    assert ("pamd.daemon.daemon", 3, True) in found
     layer = _layer_of()
-    assert layer["control"] < layer["config"] and layer["daemon"] < layer["config"]
-    assert _package("pamd.net.node.intake") == "net.node" and _package("pamd.net.keys") == "net"
-    assert layer["net.node"] < layer["net"] and layer["io"] < layer["net.node"]
+    assert layer["loop.control"] < layer["config"] and layer["daemon"] < layer["config"]
+    assert _package("pamd.loop.control.pid") == "loop.control"
+    assert _package("pamd.loop.loop") == "loop" and _package("pamd.wire.declare.fields") == "wire"
+    assert layer["loop.commands"] < layer["loop.control"] < layer["wire"]
 
 
 def test_every_package_of_the_tree_is_installed() -> None:
@@ -249,3 +273,27 @@ def test_every_package_of_the_tree_is_installed() -> None:
     tree = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "pamd").rglob(
         "__init__.py") if "__pycache__" not in p.parts}
     assert tree <= listed, f"not in pyproject's packages: {sorted(tree - listed)}"
+
+
+def _modules() -> list[Path]:
+    return [p for p in sorted((ROOT / "pamd").rglob("*.py")) if "__pycache__" not in p.parts]
+
+
+def test_the_tree_shows_the_processes() -> None:
+    """Issue 41: each process package is there and placed; few modules at pamd/'s root;
+    few base names recur, and none twice in one process package (`pamd/loop/` holds one
+    `plan.py` at most: the experiment's, not the verbs')."""
+    placed = {n.split(".")[0] for n in _placed()}
+    for name in PROCESS_PACKAGES:
+        assert (ROOT / "pamd" / name / "__init__.py").is_file() and name in placed, name
+    root = [p.name for p in (ROOT / "pamd").glob("*.py")]
+    assert len(root) <= MAX_ROOT_MODULES, f"{len(root)} modules at pamd/'s root: {root}"
+    where: dict[str, list[str]] = {}
+    for path in _modules():
+        if path.name != "__init__.py":
+            where.setdefault(path.name, []).append(str(path.relative_to(ROOT)))
+    recurring = {name: paths for name, paths in where.items() if len(paths) > 1}
+    assert len(recurring) <= MAX_RECURRING_NAMES, f"{len(recurring)} recur: {recurring}"
+    twice = {name: paths for name, paths in recurring.items() for process in PROCESS_PACKAGES
+             if sum(p.startswith(f"pamd/{process}/") for p in paths) > 1}
+    assert not twice, f"a base name twice in one process package: {twice}"

@@ -1,5 +1,5 @@
 """Every file pamd keeps is written by one writer, whole or not at all (issue 37 item 3,
-`pamd.atomic`): a temporary file beside it, synced and renamed; a failed write leaves
+`pamd.wire.atomic`): a temporary file beside it, synced and renamed; a failed write leaves
 the old file and says so, naming it, with a non-zero exit. Before,
 `(ulimit -f 3; pamd commission t.yaml --clock virtual --rest-s 2 --hold-s 1 --save)`
 cut t.yaml to 3072 bytes, its control: and safety: sections gone, and
@@ -17,21 +17,21 @@ from pathlib import Path
 
 import pytest
 
-from pamd.atomic import atomic_text, write_atomic
+from pamd.client.tune.save import save_values
 from pamd.config import load_config
-from pamd.errors import FileWriteError
-from pamd.tune.save import save_values
+from pamd.wire.atomic import atomic_text, write_atomic
+from pamd.wire.errors import FileWriteError
 
 REPO = Path(__file__).resolve().parents[1]
-#: files written elsewhere than pamd.atomic, and why: streams written as they are made
+#: files written elsewhere than pamd.wire.atomic, and why: streams written as they are made
 #: (recordings recover on their own), a lock, a device, a test hook
 NOT_KEPT = {
-    "pamd/record/": "MCAP recordings are streams, recovered by `pamd recover`",
-    "pamd/service/riglock.py": "a lock file, held open and locked, never replaced",
-    "pamd/rt.py": "/dev/cpu_dma_latency, a device",
-    "pamd/io/process.py": "a test hook's list of modules (PAMD_TEST_IO_MODULES)",
+    "pamd/wire/record/": "MCAP recordings are streams, recovered by `pamd recover`",
+    "pamd/daemon/service/riglock.py": "a lock file, held open and locked, never replaced",
+    "pamd/loop/rt.py": "/dev/cpu_dma_latency, a device",
+    "pamd/iohost/process.py": "a test hook's list of modules (PAMD_TEST_IO_MODULES)",
     "pamd/emulate/testing.py": "the tests' config files in their own temporary directory",
-    "pamd/atomic.py": "the writer itself",
+    "pamd/wire/atomic.py": "the writer itself",
 }
 
 
@@ -96,8 +96,8 @@ def test_a_save_beyond_a_file_size_limit_keeps_the_config(tmp_path: Path) -> Non
     it (the CLI exits 9 with it)."""
     path = _big_config(tmp_path)
     before = path.read_bytes()
-    code = ("import sys\nfrom pamd.tune.save import save_values\n"
-            "from pamd.errors import PamdError\n"
+    code = ("import sys\nfrom pamd.client.tune.save import save_values\n"
+            "from pamd.wire.errors import PamdError\n"
             "try:\n"
             f"    save_values({str(path)!r}, {{('control', 'pid', 'kp'): 0.6}})\n"
             "except PamdError as exc:\n"
@@ -130,7 +130,7 @@ def test_every_file_pamd_keeps_goes_through_the_one_writer() -> None:
         for n, line in enumerate(path.read_text().splitlines(), 1):
             if DIRECT_WRITE.search(line) and not line.lstrip().startswith("#"):
                 stray.append(f"{rel}:{n}: {line.strip()}")
-    assert not stray, "write these through pamd.atomic:\n" + "\n".join(stray)
+    assert not stray, "write these through pamd.wire.atomic:\n" + "\n".join(stray)
     assert DIRECT_WRITE.search('with open(path, "w", encoding="utf-8") as fh:')  # it sees
     assert DIRECT_WRITE.search("fig.savefig(path, dpi=120)")
 

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import pamd
-from pamd.models.anfis.samples import ExtractOptions, Samples
-from pamd.models.anfis.splitting import Split, split
+from pamd.client.training_tables import load_samples
+from pamd.models.data.samples import ExtractOptions, Samples
+from pamd.models.data.splitting import Split, split
 from pamd.models.training import fit_split
-from pamd.view.tables import load_samples
 from tests.benchmod import bench_module
 
 DATA = Path(pamd.__file__).parent / "data"

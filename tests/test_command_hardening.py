@@ -13,12 +13,12 @@ from typing import Any
 
 import pytest
 
-from pamd.commands import Command, named_files, parse_command
-from pamd.errors import CommandRefused
-from pamd.ipc.ring import BlockLayout
-from pamd.loop import MAX_COMMANDS_PER_TICK
-from pamd.tick import State
-from pamd.verbs.schema import MAX_TEXT_CHARS, args_for_record
+from pamd.loop.commands import Command, named_files, parse_command
+from pamd.loop.loop import MAX_COMMANDS_PER_TICK
+from pamd.wire.errors import CommandRefused
+from pamd.wire.ring import BlockLayout
+from pamd.wire.tick import State
+from pamd.wire.verbs.args import MAX_TEXT_CHARS, args_for_record
 
 SECRET = "-----BEGIN PRIVATE KEY-----\nMIIEsecretsecretsecret\n-----END PRIVATE KEY-----\n"
 
@@ -55,7 +55,7 @@ def test_binary_deep_and_large_files_are_refused_with_their_position(tmp_path: P
 
 def test_a_refused_plan_names_file_line_and_key_but_never_its_contents(
         tmp_path: Path, sim_config: Any) -> None:
-    from pamd.net.host.host import read_plan
+    from pamd.daemon.host.host import read_plan
 
     cfg = sim_config(telemetry={"plans_dir": str(tmp_path)})
     (tmp_path / "ca.key").write_text(SECRET)

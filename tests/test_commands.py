@@ -7,8 +7,8 @@ from typing import Any
 
 import pytest
 
-from pamd.calibration import load_calibration
-from pamd.tick import State
+from pamd.loop.devices.datum_file import load_calibration
+from pamd.wire.tick import State
 
 INCREMENTAL = {"drivers": [{"name": "sim", "type": "sim", "options": {
     "seed": 1, "muscles": [{"name": "m1", "load_kg": 30.0, "length_absolute": False}]}}]}
@@ -183,7 +183,7 @@ def test_home_uses_the_devices_preset_when_it_has_one(harness: Any) -> None:
     assert asked == [(idx, pytest.approx(true_len + 2.0))]
     h.step(0.01)
     assert h.m1.length_mm == pytest.approx(true_len + 2.0, abs=0.05)  # software offset
-    assert h.m1.reference.length_offset_mm == pytest.approx(true_len + 2.0 - raw_len, abs=0.05)
+    assert h.m1.datums.length_offset_mm == pytest.approx(true_len + 2.0 - raw_len, abs=0.05)
     sim.preset_counts[idx] += 1  # the device confirms: it now reads the reference
     h.step(0.001)
-    assert h.m1.reference.length_offset_mm == 0.0 and h.m1.take_calibration_dirty()
+    assert h.m1.datums.length_offset_mm == 0.0 and h.m1.take_calibration_dirty()

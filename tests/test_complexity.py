@@ -37,13 +37,14 @@ MAX_TICK_COMPLEXITY = 15
 MODEL = ROOT / "tests" / "models" / "fixtures" / "anfis-v1.json"
 
 #: On the tick path but not run by the traced scenarios, which start no io process: the
-#: io link's sink, which the summary hands every record (`pamd.io.link.RingSink`).
-UNTRACED_TICK_PATH = ("pamd/io/link.py:RingSink.put",)
+#: io link's sink, which the summary hands every record (`pamd.loop.io_link.RingSink`).
+UNTRACED_TICK_PATH = ("pamd/loop/io_link.py:RingSink.put",)
 
 #: The tick's own code (issue 42 item 1: the tick path and what builds and commands it):
 #: nothing here is over MAX_COMPLEXITY, whether a tick runs it or not.
-TICK_OWNED = ("pamd/control/", "pamd/safety/", "pamd/controller.py", "pamd/tick.py",
-              "pamd/loop.py", "pamd/io/link.py", "pamd/experiment/sequencer.py",
+TICK_OWNED = ("pamd/loop/control/", "pamd/loop/safety/", "pamd/loop/control/controller.py",
+              "pamd/wire/tick.py",
+              "pamd/loop/loop.py", "pamd/loop/io_link.py", "pamd/loop/experiment/sequencer.py",
               "drivers/sim.py", "drivers/sim_chain.py", "drivers/sim_faults.py",
               "pamd/sim/")
 
@@ -115,14 +116,14 @@ def test_the_checks_see_a_branchy_function_and_the_tick_path() -> None:
     (fn,) = cc_visit(src)
     assert isinstance(fn, Function) and fn.complexity == MAX_COMPLEXITY + 1
     traced = tick_path()
-    for must in ("pamd/controller.py:RigController.tick",
-                 "pamd/control/muscle.py:MuscleController.write",
-                 "pamd/control/setpoint.py:SafeRamp.update",
-                 "pamd/control/length_control.py:LengthControl.step",
-                 "pamd/control/actuation.py:OnOffActuation.update",
-                 "pamd/control/adapt.py:Adaptation.update",
-                 "pamd/loop.py:Loop._run", "pamd/loop.py:tick_once",
-                 "pamd/experiment/sequencer.py:Sequencer.tick"):
+    for must in ("pamd/loop/control/controller.py:RigController.tick",
+                 "pamd/loop/control/muscle.py:MuscleController.write",
+                 "pamd/loop/control/setpoint.py:SafeRamp.update",
+                 "pamd/loop/control/length_control.py:LengthControl.step",
+                 "pamd/loop/control/actuation.py:OnOffActuation.update",
+                 "pamd/loop/control/adapt.py:Adaptation.update",
+                 "pamd/loop/loop.py:Loop._run", "pamd/loop/loop.py:tick_once",
+                 "pamd/loop/experiment/sequencer.py:Sequencer.tick"):
         assert must in traced, must
 
 
@@ -139,9 +140,9 @@ def _traced(run: Callable[[], None], into: set[CodeType]) -> None:
         sys.setprofile(None)
 
 
-def _harness(config: str, **changes: Any) -> Any:  # Any: pamd.harness.Harness
+def _harness(config: str, **changes: Any) -> Any:  # Any: pamd.loop.harness.Harness
     from pamd.config import load_config
-    from pamd.harness import Harness
+    from pamd.loop.harness import Harness
 
     return Harness(load_config(str(ROOT / config), {
         "loop": {"clock": "virtual"}, "telemetry": {"enabled": False}, **changes}))
@@ -153,9 +154,9 @@ def _ok(verdict: dict[str, Any]) -> None:
 
 def _scenarios(into: set[CodeType]) -> None:
     """Every scenario's ticks traced into `into` (what is set up between them is not)."""
-    from pamd.commands import Command, apply_command
-    from pamd.commands.tune import PulseArgs, RelayArgs
-    from pamd.control.feedforward import LoadedModel
+    from pamd.loop.commands import Command, apply_command
+    from pamd.loop.commands.tune_verbs import PulseArgs, RelayArgs
+    from pamd.loop.control.feedforward import LoadedModel
     from tests.experiment.test_sequencer import start
 
     def steps(h: Any, seconds: float) -> None:
@@ -219,14 +220,14 @@ def _loop(into: set[CodeType]) -> None:
     """The loop on the virtual clock, a command waiting, to its stop and safe state."""
     from collections import deque
 
-    from pamd.commands import parse_command
-    from pamd.loop import Loop
+    from pamd.loop.commands import parse_command
+    from pamd.loop.loop import Loop
 
     h = _harness("config/sim.yaml")
     waiting = deque([parse_command("setpoint", {"muscle": "m1", "bar": 2.0})])
 
     class Queue:
-        def poll(self) -> Any:  # Any: a Command, as pamd.tick.Mailbox says
+        def poll(self) -> Any:  # Any: a Command, as pamd.wire.tick.Mailbox says
             return waiting.popleft() if waiting else None
 
     loop = Loop(h.cfg, h.ctrl, Queue())

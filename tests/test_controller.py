@@ -6,13 +6,13 @@ from typing import Any
 
 import pytest
 
-from pamd.calibration import load_calibration
-from pamd.controller import RigController
-from pamd.loop import VirtualClock
+from pamd.loop.control.controller import RigController
+from pamd.loop.control.summary import SummarySink
+from pamd.loop.devices.bindings import Rig
+from pamd.loop.devices.datum_file import load_calibration
+from pamd.loop.loop import VirtualClock
 from pamd.muscle_type import GRAVITY_M_S2, force_model
-from pamd.rig import Rig
-from pamd.summary import SummarySink
-from pamd.tick import Flag, TickLayout
+from pamd.wire.tick import Flag, TickLayout
 
 
 def sim_muscle(**opts: Any) -> dict[str, Any]:

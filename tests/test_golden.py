@@ -23,8 +23,8 @@ from pathlib import Path
 import pytest
 
 from pamd.config import load_config
-from pamd.harness import Harness
-from pamd.tick import LOOP_FIELDS
+from pamd.loop.harness import Harness
+from pamd.wire.tick import LOOP_FIELDS
 
 ROOT = Path(__file__).resolve().parents[1]
 HOST_FIELDS = {LOOP_FIELDS.index("wake_latency_s"), LOOP_FIELDS.index("compute_s")}

@@ -1,4 +1,4 @@
-"""The harness runs each tick as the loop does (`pamd.loop.tick_once`)."""
+"""The harness runs each tick as the loop does (`pamd.loop.loop.tick_once`)."""
 
 from __future__ import annotations
 

@@ -10,10 +10,10 @@ from typing import Any
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.daemon import Daemon
-from pamd.loop import GIL_SWITCH_FRACTION, SLACK_AT_FRACTION
-from pamd.tick import State
-from pamd.timing import Histogram
+from pamd.daemon.daemon import Daemon
+from pamd.loop.loop import GIL_SWITCH_FRACTION, SLACK_AT_FRACTION
+from pamd.loop.tick_timing import Histogram
+from pamd.wire.tick import State
 
 DEFAULT_SWITCH_INTERVAL_S = 0.005  # CPython's, while nothing lowers it
 

@@ -15,7 +15,7 @@ from collections.abc import Callable
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 
 PERIOD_S = 0.002
 

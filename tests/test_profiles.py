@@ -6,10 +6,10 @@ import math
 
 import pytest
 
-from pamd.errors import CommandRefused
-from pamd.profile_kinds import SHAPE_PARAMS
 from pamd.profiles import Profile, ProfileSpec
 from pamd.profiles.spec import OPTIONAL_PARAMS
+from pamd.wire.errors import CommandRefused
+from pamd.wire.shape_names import SHAPE_PARAMS
 
 
 def sample(p: Profile, t: float) -> tuple[float, float]:

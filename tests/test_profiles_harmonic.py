@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import CommandRefused
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 from pamd.profiles import DEFAULT_HARMONICS, Profile, ProfileSpec
+from pamd.wire.errors import CommandRefused
 
 
 def _trace(p: Profile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -95,12 +95,12 @@ def test_malformed_harmonics_are_refused(harm: tuple[tuple[int, float], ...], ms
 
 def test_a_plan_with_a_harmonic_outside_the_limits_is_refused_before_it_runs(
         tmp_path: Path) -> None:
-    from pamd.experiment.plan import PlanProfile
+    from pamd.loop.experiment.plan import PlanProfile
 
     prof = PlanProfile(kind="multisine", min_bar=2.0, max_bar=6.0, freq_hz=0.05, cycles=1,
                        harmonics=None)
     prof.as_spec().check(0.0, 6.0, 5.0)
-    from pamd.experiment.plan import PlanHarmonic
+    from pamd.loop.experiment.plan import PlanHarmonic
 
     bad = PlanProfile(kind="multisine", min_bar=2.0, max_bar=6.0, freq_hz=0.05, cycles=1,
                       harmonics=(PlanHarmonic(number=1, share=0.6),

@@ -59,7 +59,7 @@ def quickstart_commands(block: str) -> list[list[str]]:
 def test_the_quickstart_commands_parse() -> None:
     """Each `pamd` command of the quickstart is one `pamd` takes (its parser, the
     sub-command's options); the first block installs the plot extra `pamd plot` needs."""
-    from pamd.cli.main import build_parser
+    from pamd.client.cli.main import build_parser
 
     blocks = quickstart_blocks()
     assert len(blocks) == 3 and blocks[0].startswith("pip install '.[plot]'")

@@ -1,4 +1,4 @@
-"""A stalled loop (pamd/stalls.py, the loop, the sim's scheduled stall, pamd/rt.py):
+"""A stalled loop (pamd/loop/stalls.py, the loop, the sim's scheduled stall, pamd/loop/rt.py):
 what the actuation allows, a stall that recovers is an event and one past the limit
 latches FAULT, samples that aged in a stall are excused, a stall that cannot happen
 is refused with file:line:key, and the loop process's other threads run below the
@@ -19,14 +19,14 @@ from pamd.drivers.sim import SimDriver
 
 from pamd.config import LoadedConfig, load_config, load_config_text
 from pamd.config.schema import RealtimeConfig
-from pamd.daemon import Daemon
-from pamd.errors import ConfigError
-from pamd.harness import Harness
-from pamd.loop import Loop
-from pamd.rt import RESET_ON_FORK, RealtimeSession
+from pamd.daemon.daemon import Daemon
+from pamd.loop.harness import Harness
+from pamd.loop.loop import Loop
+from pamd.loop.rt import RESET_ON_FORK, RealtimeSession
+from pamd.loop.stalls import HOLD_S, stall_limit
 from pamd.sim.options import SimCommSafety, SimMuscleOptions, SimOptions
-from pamd.stalls import HOLD_S, stall_limit
-from pamd.tick import State
+from pamd.wire.errors import ConfigError
+from pamd.wire.tick import State
 from tests.sim.rig import Rig
 
 from .conftest import sim_dict

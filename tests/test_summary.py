@@ -3,8 +3,8 @@ a daemon that takes commands for months does not grow by each one."""
 
 from __future__ import annotations
 
-from pamd.summary import EVENTS_KEPT, SummarySink
-from pamd.tick import TickLayout
+from pamd.loop.control.summary import EVENTS_KEPT, SummarySink
+from pamd.wire.tick import TickLayout
 
 
 def test_the_events_kept_in_memory_are_bounded_and_the_latest() -> None:
@@ -22,7 +22,7 @@ def test_the_summary_reports_mae_beside_rmse_for_pressure_and_length() -> None:
     errors +1, -3 and +2 give MAE 2 where RMSE is sqrt(14/3)."""
     import math
 
-    from pamd.tick import I_STATE, M_LENGTH, M_PRESSURE, M_SETPOINT, M_TARGET_LENGTH, State
+    from pamd.wire.tick import I_STATE, M_LENGTH, M_PRESSURE, M_SETPOINT, M_TARGET_LENGTH, State
 
     layout = TickLayout(["m1"])
     sink = SummarySink(layout)

@@ -5,7 +5,7 @@ one to say why it is one. An `Any` in pamd/ or drivers/ is justified when its li
 or the line above, carries a comment `# Any: <which edge>` (a YAML or JSON value
 before its checker, an untyped third-party object, a value pickled across a process,
 ...). Imports of `Any` need none. The JSON and YAML aliases (`JsonObject`,
-`JsonValue` in pamd/declare/jsonsafe.py) are justified once where they are declared,
+`JsonValue` in pamd/wire/declare/jsonsafe.py) are justified once where they are declared,
 so a module that uses them names its edge by the alias and needs no comment.
 """
 
@@ -56,7 +56,7 @@ def test_every_any_says_which_edge_it_is() -> None:
     assert not found, (
         "an `Any` without `# Any: <which edge>` on its line or the line above "
         "(type it if a real type exists: a TypedDict, a Protocol, `object` and "
-        f"narrowing, JsonObject/JsonValue from pamd/declare/jsonsafe.py): {found}")
+        f"narrowing, JsonObject/JsonValue from pamd/wire/declare/jsonsafe.py): {found}")
 
 
 def test_the_check_finds_an_unjustified_any_and_accepts_a_justified_one() -> None:

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from pamd.config.drivertype import driver_type
 from pamd.config.schema import RigConfig
-from pamd.declare.jsonsafe import JsonValue
-from pamd.schema.engine import Context, line_of
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.schema.engine import Context, line_of
 
 #: how far apart the loop's rate and the clock's may be (float rounding only)
 RATE_TOLERANCE = 1e-9

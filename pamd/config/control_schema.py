@@ -7,9 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from pamd.schema.engine import spec
+from pamd.wire.schema.engine import spec
 
-# Gain caps (what `pamd tune` always satisfies: `pamd.control.tuning.simc_pi` slows its
+# Gain caps (what `pamd tune` always satisfies: `pamd.loop.control.tuning.simc_pi` slows its
 # closed loop until they hold), bounds of what a gain can mean: within them, whether a
 # gain set is stable on the muscle's plant is judged against that plant
 # (`pamd.config.gains`, the closed loop at the loop's rate). Pressure loop: kp 20 makes

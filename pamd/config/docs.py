@@ -8,9 +8,9 @@ import dataclasses
 import typing
 from dataclasses import MISSING
 
+from pamd.config.plugins import DRIVERS_GROUP, installed
 from pamd.config.schema import RigConfig
-from pamd.plugins import DRIVERS_GROUP, installed
-from pamd.schema.engine import _type_name
+from pamd.wire.schema.engine import _type_name
 
 HEADER = """# pamd config reference
 

@@ -1,15 +1,15 @@
 """What the config needs of an installed driver class (`pamd.drivers.Driver`), as a
 Protocol: the config builds a driver's options and reads its channels before any
-driver is opened (pamd.config.loader, pamd.config.chain)."""
+driver is opened (pamd.config.loader, pamd.config.chain_rules)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from typing import ClassVar, Protocol, cast, runtime_checkable
 
-from pamd.errors import DriverError
+from pamd.config.plugins import load_driver_entry
 from pamd.muscle_type import MuscleType
-from pamd.plugins import load_driver_entry
+from pamd.wire.errors import DriverError
 
 
 class DriverType(Protocol):

@@ -59,9 +59,9 @@ from pamd.config.stability import (
     pid,
     simc,
 )
-from pamd.declare.jsonsafe import JsonValue
-from pamd.errors import ConfigIssue
-from pamd.schema.engine import Context, line_at
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.errors import ConfigIssue
+from pamd.wire.schema.engine import Context, line_at
 
 
 @dataclass(frozen=True)

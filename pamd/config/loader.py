@@ -12,24 +12,24 @@ from dataclasses import dataclass
 from importlib import resources
 from typing import Protocol, runtime_checkable
 
-from pamd.config.actuation import check_actuation, check_sim_sample_periods, check_sim_stalls
-from pamd.config.chain import check_safety_chain
+from pamd.config.actuation_rules import check_actuation, check_sim_sample_periods, check_sim_stalls
+from pamd.config.chain_rules import check_safety_chain
 from pamd.config.clock import check_loop_clock
 from pamd.config.control_schema import ControlConfig
 from pamd.config.drivertype import BindsMuscleTypes, driver_type
 from pamd.config.gains import check_gains
 from pamd.config.muscle_types import Ratings, ratings_of, resolve
 from pamd.config.names import NAME_RE, check_chunk
-from pamd.config.plausibility import check_plausibility_thresholds
+from pamd.config.plausibility_rules import check_plausibility_thresholds
 from pamd.config.request_timeouts import check_request_timeouts
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import InputSignal, MuscleConfig, RigConfig, SignalConfig, muscle_control
-from pamd.config.timing import check_timing
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import DriverError
+from pamd.config.timing_rules import check_timing
 from pamd.muscle_type import MuscleType
-from pamd.schema.engine import Context, build_dataclass, describe, line_of
-from pamd.schema.yamlload import load_yaml_text, read_text
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import DriverError
+from pamd.wire.schema.engine import Context, build_dataclass, describe, line_of
+from pamd.wire.schema.yamlload import load_yaml_text, read_text
 
 log = logging.getLogger(__name__)
 
@@ -55,7 +55,7 @@ class LoadedConfig:
     text: str
     limits: dict[str, MuscleLimitsResolved]
     #: the config's own `calibration_file`, resolved; None: in the run's state directory
-    #: (pamd.service.state.calibration_path), or for the run only without one
+    #: (pamd.daemon.service.state.calibration_path), or for the run only without one
     calibration_path: str | None
     #: values above their safe ceiling that `safety.relax_ceilings` let pass (said at start)
     warnings: tuple[str, ...] = ()
@@ -321,7 +321,7 @@ def _check_muscles(rig: RigConfig, node: JsonValue, path: str, ctx: Context
             if mtype is not None:
                 types[m.name] = mtype
         if m.signals.valve is not None and rating is not None:
-            # required or refused: pamd.config.actuation
+            # required or refused: pamd.config.actuation_rules
             _check_valve(m, limits[m.name].max_pressure_bar, rating.max_pressure_bar,
                          (item.get("signals") or {}).get("valve") or {}, base, ctx)
     return limits, types

@@ -5,7 +5,7 @@ A datasheet type (`dmsp20`, `dmsp40`) is the registry's (`pamd.muscle_type`); it
 figures are the manufacturer's, so the config may not restate them (a `custom`
 section beside it is refused). A `custom` type's ratings are its config's `custom`
 section and its map is the lab's table, read through the reader `pamd train` uses
-(`pamd.view.tables`: CSV or MAT, units converted; a layer above the config, so it is
+(`pamd.client.training_tables`: CSV or MAT, units converted; a layer above the config, so it is
 imported by name, only when a config names a custom map) and checked by
 `pamd.muscle_type.mapcheck` against the muscle's resolved limits, naming the file
 and row of what is wrong.
@@ -20,8 +20,6 @@ from dataclasses import replace
 from typing import Protocol, cast
 
 from pamd.config.schema import CustomMuscleConfig, MuscleConfig
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import ModelError
 from pamd.muscle_type import (
     TYPE_NAMES,
     MapBox,
@@ -32,16 +30,18 @@ from pamd.muscle_type import (
 )
 from pamd.muscle_type.custom import NAME as CUSTOM
 from pamd.muscle_type.custom import custom_type
-from pamd.schema.engine import Context, line_of
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import ModelError
+from pamd.wire.schema.engine import Context, line_of
 
 #: the module whose `read_data` reads a lab's tables (`pamd train`'s reader)
-TABLE_READER = "pamd.view.tables"
+TABLE_READER = "pamd.client.training_tables"
 #: the map problems said in one config error (the first; a table has more rows)
 PROBLEMS_SAID = 5
 
 
 class _Table(Protocol):
-    """One table as the reader gives it (`pamd.models.anfis.samples.Run`)."""
+    """One table as the reader gives it (`pamd.models.data.samples.Run`)."""
 
     source: str
     columns: Mapping[str, Sequence[float]]

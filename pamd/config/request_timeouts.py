@@ -15,8 +15,8 @@ from collections.abc import Callable, Sequence
 
 from pamd.config.safety_schema import SafetyConfig
 from pamd.config.schema import InputSignal, RigConfig, SignalConfig
-from pamd.declare.jsonsafe import JsonValue
-from pamd.schema.engine import Context, line_of
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.schema.engine import Context, line_of
 
 
 def check_request_timeouts(rig: RigConfig, node: JsonValue, lost_reply: dict[str, float],

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from pamd.schema.engine import spec
+from pamd.wire.schema.engine import spec
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -22,14 +22,14 @@ from pamd.config.control_schema import (
     PressurePlantConfig,
 )
 from pamd.config.safety_schema import SafetyConfig
-from pamd.declare.jsonsafe import JsonValue
 from pamd.muscle_type import DEFAULT_TYPE, TYPE_NAMES
-from pamd.schema.engine import spec
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.schema.engine import spec
 
 #: The largest model file any reader reads (`pamd.models.registry`, the `model` command's
 #: named files): the largest kind, an offline svr, stays far below it.
 MODEL_FILE_MAX_BYTES = 8 << 20
-#: The largest plan file a remote `collect` may name (`pamd.commands.named_files`).
+#: The largest plan file a remote `collect` may name (`pamd.loop.commands.named_files`).
 PLAN_FILE_MAX_BYTES = 1 << 20
 
 #: How air reaches a muscle (`muscles[].actuation`): a proportional pressure regulator,
@@ -551,7 +551,7 @@ class TelemetryConfig:
                                     "this time is answered with an error saying so.",
                                     unit="s", gt=0.0)
     foxglove: FoxgloveConfig = spec(FoxgloveConfig(), "Live view in Foxglove (WebSocket, "
-                                    "in the io process; pamd.view.live).")
+                                    "in the io process; pamd.iohost.live).")
     plans_dir: str | None = spec(
         None, "Directory (relative to the config file) whose plan files a remote `collect` "
         "may name, by file name only (`pamd cmd collect --plan-file sweep.yaml`); at most "
@@ -579,16 +579,16 @@ class RigConfig:
         "(docs/safety.md).")
     recording: RecordingConfig = spec(RecordingConfig(), "MCAP recording by the io process.")
     telemetry: TelemetryConfig = spec(TelemetryConfig(), "Live state, events, status and "
-                                      "remote commands over Zenoh (pamd.net, in the io "
+                                      "remote commands over Zenoh (pamd.iohost, in the io "
                                       "process).")
     calibration_file: str | None = spec(
-        None, "Where home/tare references are kept (relative to the config file); null: "
+        None, "Where home/tare datums are kept (relative to the config file); null: "
         "calibration.yaml in the state directory (see state_dir; without one, for the run "
         "only).")
     state_dir: str | None = spec(
         None, "Directory for state that survives a restart: the latched fault (fault.json) "
         "and the last known-good safe outputs (safe-outputs.json, replayed by `pamd "
-        "safe-outputs`) and, by default, the home/tare references (calibration.yaml). "
+        "safe-outputs`) and, by default, the home/tare datums (calibration.yaml). "
         "Relative to the config file; null: $XDG_STATE_HOME/pamd/<rig_id> "
         "(~/.local/state/pamd/<rig_id>) for a real-clock run, none for a virtual-clock "
         "run or the built-in simulated rig (a private simulation keeps no state). `pamd "

@@ -16,11 +16,11 @@ Sampled through the tick's zero-order hold at the period T, with theta = d T + e
 readings of the ticks after it, which is what the recorded steps measured).
 
 The controllers are those of the tick, term for term:
-- the PID of `pamd.control.pid` (pressure loop, and the position loop's `pid`): the
+- the PID of `pamd.loop.control.pid` (pressure loop, and the position loop's `pid`): the
   integral summed each tick (ki T / (1 - z^-1)), the derivative on the measurement
   through its first-order low-pass (kd alpha (1 - z^-1) / (T (1 - (1 - alpha) z^-1)),
   alpha = T / (T + 1 / (2 pi f_c)));
-- seed 003's incremental PID (`pamd.control.incremental_pid`), at its own sample
+- seed 003's incremental PID (`pamd.loop.control.incremental_pid`), at its own sample
   period: du = Kp (1 - z^-1) e + Ki e + Kd (1 - z^-1)^2 e, accumulated (Method 2,
   / (1 - z^-1)) or not (Method 1).
 
@@ -156,7 +156,7 @@ def sampled_plant(plant: Plant, period_s: float) -> tuple[Poly, Poly]:
 
 def pid(kp: float, ki_per_s: float, kd_s: float, filter_hz: float, period_s: float
         ) -> tuple[Poly, Poly]:
-    """`pamd.control.pid.Pid` as a transfer function from the error to the output
+    """`pamd.loop.control.pid.Pid` as a transfer function from the error to the output
     (without an integral, no integrator pole: ki 0 holds the integral where it is;
     without a derivative, no filter pole)."""
     t = period_s
@@ -175,7 +175,7 @@ def pid(kp: float, ki_per_s: float, kd_s: float, filter_hz: float, period_s: flo
 
 
 def incremental(method: int, kp: float, ki: float, kd: float) -> tuple[Poly, Poly]:
-    """Seed 003's incremental PID, per sample (`pamd.control.incremental_pid`)."""
+    """Seed 003's incremental PID, per sample (`pamd.loop.control.incremental_pid`)."""
     one = poly(1.0, -1.0)
     if method == 2 and ki == 0.0:  # the accumulated Kp and Kd increments: Kp e + Kd de
         return poly(kp + kd, -kd), poly(1.0)
@@ -185,7 +185,7 @@ def incremental(method: int, kp: float, ki: float, kd: float) -> tuple[Poly, Pol
 
 def simc(plant: Plant, closed_loop_tau_s: float) -> tuple[float, float]:
     """Skogestad's SIMC PI on the plant, (Kc, Ki = Kc / Ti), Ti = min(tau, 4 (tau_c +
-    theta)); `pamd.control.tuning.simc_pi` and the refusals' suggestions use it."""
+    theta)); `pamd.loop.control.tuning.simc_pi` and the refusals' suggestions use it."""
     kc = plant.lag_s / (abs(plant.gain) * (closed_loop_tau_s + plant.dead_time_s))
     ti = min(plant.lag_s, 4.0 * (closed_loop_tau_s + plant.dead_time_s))
     return kc, kc / ti

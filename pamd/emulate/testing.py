@@ -22,7 +22,7 @@ from typing import TypeVar
 
 import yaml
 
-from pamd.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_EMULATED = REPO / "config" / "rig-emulated.yaml"

@@ -9,14 +9,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pamd.errors import ModelError
 from pamd.models.anfis import modelfile
+from pamd.models.anfis.anfis_plots import write_plots
+from pamd.models.anfis.hybrid import RULE_RIDGE, WIDTH_STARTS, TrainingOptions, fit
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
-from pamd.models.anfis.plots import write_plots
-from pamd.models.anfis.samples import OUTPUT_UNITS
-from pamd.models.anfis.training import RULE_RIDGE, WIDTH_STARTS, TrainingOptions, fit
 from pamd.models.contract import InverseModel
+from pamd.models.data.samples import OUTPUT_UNITS
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
+from pamd.wire.errors import ModelError
 
 
 def parse_mfs(text: str) -> tuple[int, ...]:

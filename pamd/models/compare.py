@@ -3,7 +3,7 @@
 Role: for one or several models of any kind, the extraction settings that give every
 model the inputs it was trained on from the same recorded samples (`common_options`),
 each model's predictions on them (`predict_samples`, run by run for the stateful
-kinds), its metrics (`pamd.metrics`) and its tick cost (`tick_cost_us`: the compiled
+kinds), its metrics (`pamd.models.metrics`) and its tick cost (`tick_cost_us`: the compiled
 evaluator timed on the data's own rows), and the table itself (`format_comparison`).
 """
 
@@ -18,12 +18,12 @@ from typing import TextIO
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
-from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
 from pamd.models.contract import InverseModel, velocity_window
+from pamd.models.data.samples import INPUT_UNITS, OUTPUT_UNITS, ExtractOptions, Samples
+from pamd.models.metrics import regression_metrics
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import ModelError
 
 #: Comparison table columns: metric key, header, format (seed 002's Table 4 and more).
 COMPARISON_COLUMNS: tuple[tuple[str, str, str], ...] = (

@@ -2,8 +2,8 @@
 
 Role: a leaf module (imports nothing of pamd but the errors) naming the seam between
 model kinds (`pamd.models.registry` finds them by a file's ``kind``) and their users:
-the feedforward (`pamd.control.feedforward`), the config-time and command-time checks
-(`pamd.control.model_check`), `pamd train` and `pamd evaluate`.
+the feedforward (`pamd.loop.control.feedforward`), the config-time and command-time checks
+(`pamd.loop.control.model_check`), `pamd train` and `pamd evaluate`.
 
 An `InverseModel` maps tick signals (`SOURCES`: force, length or contraction,
 velocity) to a pressure. It says what it takes (`inputs`, each with the range it was
@@ -32,8 +32,8 @@ from typing import Literal, Protocol, overload, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 #: Signals a model input can be fed from, in the order `Feedforward.pressure` takes them.
 SOURCES: tuple[str, ...] = ("force_n", "length_mm", "contraction", "velocity_mm_s")

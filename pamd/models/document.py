@@ -12,7 +12,7 @@ layout of the kinds after ANFIS (`header`, `read_header`)::
       "provenance": {...}, "metrics": {...}
     }
 
-Problems raise `pamd.errors.ModelError` naming the field; the registry adds the file.
+Problems raise `pamd.wire.errors.ModelError` naming the field; the registry adds the file.
 ANFIS files keep their own layout (``"format": "pamd-anfis"``, `pamd.models.anfis.modelfile`).
 """
 
@@ -23,9 +23,9 @@ import math
 from collections.abc import Iterable
 from typing import NoReturn, SupportsFloat, TypeGuard, TypeVar, overload
 
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import ModelError
 from pamd.models.contract import InverseModel, Variable
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import ModelError
 
 FORMAT = "pamd-model"
 

@@ -48,9 +48,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import ModelError
 from pamd.models.contract import InverseModel
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import ModelError
 
 #: A gap between neighbouring training forces wider than this share of the force scale
 #: (the larger of their span and the largest force) separates two bands (two hanging

@@ -57,15 +57,15 @@ from pathlib import Path
 
 import numpy as np
 
-from pamd.atomic import write_atomic
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
-from pamd.models.anfis.extraction import derived_inputs
 from pamd.models.anfis.model import AnfisModel
-from pamd.models.anfis.samples import INPUT_UNITS, OUTPUT_UNITS
 from pamd.models.contract import InverseModel, Variable
+from pamd.models.data.extraction import derived_inputs
+from pamd.models.data.samples import INPUT_UNITS, OUTPUT_UNITS
 from pamd.models.velocity import MODEL_VELOCITY_WINDOW_S
-from pamd.version import __version__
+from pamd.wire.atomic import write_atomic
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
+from pamd.wire.version import __version__
 
 #: The version written (readfis reads 1.0, 2.0 and 3.0 alike for a type-1 system).
 VERSION = "3.0"

@@ -42,11 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
-from pamd.models.anfis.samples import Samples
 from pamd.models.contract import Envelope, Predictor, Variable, describe_common, tick_problems
+from pamd.models.data.samples import Samples
 from pamd.models.document import field, footer, header, mapping, numbers, read_header
 from pamd.models.fn_qupi_inverse import CompiledInverse, PlayQupi, fit_play_qupi
 from pamd.models.fn_qupi_narmax import (
@@ -58,7 +55,10 @@ from pamd.models.fn_qupi_narmax import (
     structure_dict,
 )
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions, option
+from pamd.models.metrics import regression_metrics
 from pamd.models.qupi import DEFAULT_OPERATORS, Qupi, _identify
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 VERSION = 1
 

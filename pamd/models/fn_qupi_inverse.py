@@ -39,9 +39,9 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.document import mapping, numbers
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 DEFAULT_OPERATORS = 10  # n (seed 003, "Set n = 10")
 THRESHOLD_SPAN = 0.8

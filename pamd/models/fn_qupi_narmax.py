@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
+from pamd.wire.declare.jsonsafe import JsonObject
 
 INERTIA, ACCEL = 0.7298, 1.49618
 #: Levenberg-Marquardt iterations after the swarm (`polish`).

@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from pamd.errors import ModelError
 from pamd.models.fn_qupi import FnQupiModel
 from pamd.models.fn_qupi_narmax import HOLD_HI, HOLD_LO
 from pamd.models.registry import load_model
+from pamd.wire.errors import ModelError
 
 
 class FnQupiStepper:

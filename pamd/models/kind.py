@@ -31,11 +31,11 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
-from pamd.models.anfis.samples import Samples
-from pamd.models.anfis.splitting import Split
 from pamd.models.contract import InverseModel
+from pamd.models.data.samples import Samples
+from pamd.models.data.splitting import Split
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 #: Progress: (epoch or generation, training error, validation error or None).
 Progress = Callable[[int, float, float | None], None]

@@ -36,12 +36,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
 from pamd.models import svr_kernels
-from pamd.models.anfis.samples import OUTPUT_UNITS
 from pamd.models.contract import Envelope, describe_common, tick_problems
+from pamd.models.data.samples import OUTPUT_UNITS
 from pamd.models.document import field
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
 from pamd.models.learned_base import (
@@ -51,7 +48,10 @@ from pamd.models.learned_base import (
     sklearn_module,
     standardise,
 )
+from pamd.models.metrics import regression_metrics
 from pamd.models.mlp_fit import SOLVERS, fit_network, minmax_scaling
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 __all__ = ["MAX_TICK_SUPPORT_VECTORS", "MLP", "SVR", "CompiledLearned", "LearnedModel",
            "MlpModel", "SvrModel"]

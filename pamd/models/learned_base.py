@@ -17,9 +17,6 @@ from types import ModuleType
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
 from pamd.models.contract import (
     Envelope,
     Predictor,
@@ -29,6 +26,9 @@ from pamd.models.contract import (
     tick_problems,
 )
 from pamd.models.document import field, footer, header, numbers, read_header
+from pamd.models.metrics import regression_metrics
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 VERSION = 1
 

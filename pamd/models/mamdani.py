@@ -41,10 +41,6 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
-from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
 from pamd.models.anfis.membership import initial_parameters
 from pamd.models.anfis_kind import parse_mfs
 from pamd.models.contract import (
@@ -55,9 +51,13 @@ from pamd.models.contract import (
     describe_common,
     tick_problems,
 )
+from pamd.models.data.checks import as_inputs_outputs, check_trainable
 from pamd.models.document import field, footer, header, numbers, read_header
 from pamd.models.genetic import GaOptions, minimise
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
+from pamd.models.metrics import regression_metrics
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 VERSION = 1
 #: Points of the output range the centroid is taken over (MATLAB's default, 101).

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pamd.errors import ModelError
+from pamd.wire.errors import ModelError
 
 SOLVERS = ("br", "lm")
 MU_START, MU_DEC, MU_INC, MU_MAX = 1e-3, 0.1, 10.0, 1e10

@@ -1,5 +1,5 @@
 """Figures of several models judged on the same data: predictions overlaid on the
-measurement, and their errors over time (matplotlib, optional, as `pamd.models.anfis.plots`).
+measurement, and their errors over time (matplotlib, optional, as `pamd.models.anfis.anfis_plots`).
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from pamd.models.anfis.plots import _label, _pyplot, _save
+from pamd.models.anfis.anfis_plots import _label, _pyplot, _save
 from pamd.models.compare import Judged
 
 

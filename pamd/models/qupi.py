@@ -40,12 +40,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
 from pamd.models.contract import Envelope, Predictor, Variable, describe_common, tick_problems
 from pamd.models.document import field, footer, header, mapping, numbers, read_header
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions, option
+from pamd.models.metrics import regression_metrics
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 VERSION = 1
 DEFAULT_OPERATORS = 10  # Na = Nb (seed 003)

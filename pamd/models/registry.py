@@ -23,10 +23,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from pamd.atomic import write_atomic
 from pamd.config.schema import MODEL_FILE_MAX_BYTES
-from pamd.declare.jsonsafe import JsonValue
-from pamd.errors import ModelError
 from pamd.models import anfis_kind, fn_qupi, learned, qupi, static_force, ts_fuzzy
 from pamd.models.anfis import modelfile as anfis_file
 from pamd.models.contract import InverseModel
@@ -34,6 +31,9 @@ from pamd.models.document import field, format_json, parse_json
 from pamd.models.domain import domain_of
 from pamd.models.kind import Kind
 from pamd.models.mamdani import KIND as MAMDANI
+from pamd.wire.atomic import write_atomic
+from pamd.wire.declare.jsonsafe import JsonValue
+from pamd.wire.errors import ModelError
 
 #: Largest model file read (bytes), declared with the config's `telemetry.models_dir`.
 MAX_FILE_BYTES = MODEL_FILE_MAX_BYTES
@@ -137,7 +137,7 @@ def dumps_model(model: InverseModel) -> str:
 
 
 def save_model(model: InverseModel, path: str | os.PathLike[str]) -> Path:
-    """Write any kind's model file whole or not at all (`pamd.atomic`)."""
+    """Write any kind's model file whole or not at all (`pamd.wire.atomic`)."""
     target = Path(path)
     write_atomic(target, dumps_model(model))
     return target

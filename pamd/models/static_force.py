@@ -43,9 +43,6 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
 from pamd.models.contract import (
     Envelope,
     Predictor,
@@ -56,12 +53,15 @@ from pamd.models.contract import (
 )
 from pamd.models.document import field, footer, header, numbers, read_header
 from pamd.models.kind import FitJob, Fitted, Forward, Kind, KindOptions
+from pamd.models.metrics import regression_metrics
 from pamd.models.static_force_fit import fit_sarosi, lstsq
 from pamd.models.static_force_tick import (
     MIN_GAIN_N_PER_BAR,
     CompiledForwardForce,
     CompiledStaticForce,
 )
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 VERSION = 1
 #: The two orientations: inputs -> output (the inverse, and the forward model itself).

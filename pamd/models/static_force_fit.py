@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from pamd.errors import ModelError
+from pamd.wire.errors import ModelError
 
 #: The values of c (1/%) searched before the golden-section refinement.
 SAROSI_C_GRID = np.concatenate([np.linspace(-1.5, -0.01, 50), np.linspace(0.01, 0.5, 15)])

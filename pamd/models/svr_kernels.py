@@ -26,7 +26,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from pamd.errors import ModelError
+from pamd.wire.errors import ModelError
 
 #: preset -> (family, degree of the polynomial kernels or 0)
 PRESETS: dict[str, tuple[str, int]] = {

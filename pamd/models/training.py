@@ -13,12 +13,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.models.anfis.samples import Samples
-from pamd.models.anfis.splitting import Split
 from pamd.models.contract import InverseModel
+from pamd.models.data.samples import Samples
+from pamd.models.data.splitting import Split
 from pamd.models.kind import FitJob, Fitted, KindOptions, Progress, rows_of
 from pamd.models.registry import declared
+from pamd.wire.declare.jsonsafe import JsonObject
 
 __all__ = ["fit_split", "fit_with", "rows_of"]
 

@@ -17,7 +17,7 @@ How its premises are found (``--tuner``):
 
 * ``gd``: gradient descent on the premises (eq. 8, normalised steps with Jang's step
   rule) with the consequents re-identified by SVD every epoch, best epoch on the
-  validation set kept: ANFIS's hybrid learning (`pamd.models.anfis.training.train`);
+  validation set kept: ANFIS's hybrid learning (`pamd.models.anfis.hybrid.train`);
 * ``ga``: the conventional GA of `pamd.models.genetic` (population 100 random strings,
   12-bit genes, roulette wheel on F = 1 / (1 + MSE), crossover 0.95, mutation 0.01);
 * ``mga``: the modified GA (elitism, then gradient-based selection once stalled).
@@ -48,14 +48,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
 from pamd.models.anfis import modelfile
-from pamd.models.anfis.checks import as_inputs_outputs, check_trainable
-from pamd.models.anfis.membership import log_membership
-from pamd.models.anfis.model import AnfisModel, init_model, rule_firing
-from pamd.models.anfis.training import (
+from pamd.models.anfis.hybrid import (
     TrainingOptions,
     _design,
     _Layout,
@@ -63,9 +57,15 @@ from pamd.models.anfis.training import (
     solve_consequents,
     train,
 )
+from pamd.models.anfis.membership import log_membership
+from pamd.models.anfis.model import AnfisModel, init_model, rule_firing
 from pamd.models.anfis_kind import anfis_plots, parse_mfs
+from pamd.models.data.checks import as_inputs_outputs, check_trainable
 from pamd.models.genetic import SCALINGS, GaOptions, GaResult, minimise
 from pamd.models.kind import FitJob, Fitted, Kind, KindOptions, option
+from pamd.models.metrics import regression_metrics
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 TUNERS: tuple[str, ...] = ("gd", "ga", "mga")
 CONSEQUENTS: tuple[str, ...] = ("constant", "linear")

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from typing import Protocol, SupportsFloat
 
-from pamd.declare.jsonsafe import JsonObject
+from pamd.wire.declare.jsonsafe import JsonObject
 
 VELOCITY_WINDOW_S = 0.05
 """Time constant of the recorded velocity (`velocity_mm_s` of the tick record), s."""

@@ -12,7 +12,7 @@ profile that is faster than the slew limit or leaves the allowed range.
 
 A shape is one `Shape` subclass, registered in `SHAPES`: its name, its own checks and
 its evaluator; its name and the `ProfileSpec` fields it reads are declared in
-`pamd.profile_kinds` (light: the command schemas in the io process read only that).
+`pamd.wire.shape_names` (light: the command schemas in the io process read only that).
 The command schema, experiment plans, `pamd run --profile` and length profiles take
 their kinds from there.
 
@@ -22,7 +22,6 @@ spec       `ProfileSpec` (what is asked for, checked before anything moves), the
            registry `SHAPES`, and `Profile`, a running profile sampled in the tick
 """
 
-from pamd.profile_kinds import SHAPE_NAMES, ProfileKind, kinds_reading, kinds_text
 from pamd.profiles.harmonic import (
     DEFAULT_HARMONICS,
     HARMONIC_GRID,
@@ -33,6 +32,7 @@ from pamd.profiles.harmonic import (
 )
 from pamd.profiles.shapes import Constant, Periodic, Ramp, Shape, Sine, Step, Triangle
 from pamd.profiles.spec import MAX_PROFILE_S, SHAPES, Profile, ProfilePoint, ProfileSpec, shape_of
+from pamd.wire.shape_names import SHAPE_NAMES, ProfileKind, kinds_reading, kinds_text
 
 __all__ = [
     "DEFAULT_HARMONICS", "HARMONIC_GRID", "MAX_PROFILE_S", "SHAPES", "SHAPE_NAMES", "Constant",

@@ -18,8 +18,8 @@ import math
 import sys
 from typing import TYPE_CHECKING
 
-from pamd.errors import CommandRefused
 from pamd.profiles.shapes import Periodic
+from pamd.wire.errors import CommandRefused
 
 if TYPE_CHECKING:
     from pamd.profiles.spec import Profile, ProfilePoint, ProfileSpec

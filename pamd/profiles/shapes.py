@@ -9,8 +9,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, ClassVar
 
-from pamd.errors import CommandRefused
-from pamd.profile_kinds import SHAPE_PARAMS
+from pamd.wire.errors import CommandRefused
+from pamd.wire.shape_names import SHAPE_PARAMS
 
 if TYPE_CHECKING:
     from pamd.profiles.spec import Profile, ProfilePoint, ProfileSpec
@@ -28,7 +28,7 @@ class Shape:
     @property
     def params(self) -> tuple[str, ...]:
         """The ProfileSpec fields the shape reads (beyond lead_in_bar_per_s), as
-        declared in `pamd.profile_kinds.SHAPE_PARAMS`."""
+        declared in `pamd.wire.shape_names.SHAPE_PARAMS`."""
         return SHAPE_PARAMS[self.name]
 
     def start_value(self, spec: ProfileSpec) -> float:

@@ -12,19 +12,19 @@ import sys
 from collections.abc import Collection
 from dataclasses import dataclass
 
-from pamd.errors import CommandRefused
-from pamd.profile_kinds import SHAPE_NAMES, ProfileKind, kinds_text
 from pamd.profiles.harmonic import DEFAULT_HARMONICS, Harmonic, Multisine, Multitriangle
 from pamd.profiles.shapes import Constant, Ramp, Shape, Sine, Step, Triangle
+from pamd.wire.errors import CommandRefused
+from pamd.wire.shape_names import SHAPE_NAMES, ProfileKind, kinds_text
 
 _IMPLEMENTED: dict[str, Shape] = {s.name: s for s in (
     Constant(), Step(), Ramp(), Sine(), Triangle(), Multisine(), Multitriangle())}
 if set(_IMPLEMENTED) != set(SHAPE_NAMES):  # a shape declared or implemented, not both
     raise ImportError(f"profile shapes implemented {sorted(_IMPLEMENTED)} but declared in "
-                      f"pamd.profile_kinds {sorted(SHAPE_NAMES)}")
+                      f"pamd.wire.shape_names {sorted(SHAPE_NAMES)}")
 SHAPES: dict[str, Shape] = {name: _IMPLEMENTED[name] for name in SHAPE_NAMES}
-"""Every profile shape by name, in `pamd.profile_kinds`' order: a new shape is its name
-and fields in `pamd.profile_kinds.SHAPE_PARAMS` and one `Shape` subclass added above (a
+"""Every profile shape by name, in `pamd.wire.shape_names`' order: a new shape is its name
+and fields in `pamd.wire.shape_names.SHAPE_PARAMS` and one `Shape` subclass added above (a
 shape declared there and not here, or here and not there, fails at import)."""
 
 
@@ -37,7 +37,7 @@ def shape_of(kind: str) -> Shape:
 
 
 #: Longest profile (s): one cycle or all of them (30 days, as a time in the config,
-#: `pamd.schema.domains`).
+#: `pamd.wire.schema.domains`).
 MAX_PROFILE_S = 30 * 86400.0
 
 
@@ -109,7 +109,7 @@ class ProfileSpec:
         """Refuse (CommandRefused) a parameter that is no physical number: not finite, or
         subnormal (nonzero below 2.2e-308, such as 1e-320: no quantity is that small,
         and arithmetic on it loses its precision silently), as the command and config
-        schemas refuse them (`pamd.schema.domains`), for whatever built this spec (the
+        schemas refuse them (`pamd.wire.schema.domains`), for whatever built this spec (the
         harmonics' shares: `Harmonic.check_params`)."""
         for name in _FLOAT_PARAMS:
             v = getattr(self, name)
@@ -240,7 +240,7 @@ class Profile(ProfilePoint):
 
 
 #: ProfileSpec's parameters that default to None ("not given"): one given to a shape that
-#: does not read it (`pamd.profile_kinds.SHAPE_PARAMS`) is refused, not ignored.
+#: does not read it (`pamd.wire.shape_names.SHAPE_PARAMS`) is refused, not ignored.
 OPTIONAL_PARAMS: tuple[str, ...] = tuple(
     f.name for f in dataclasses.fields(ProfileSpec) if f.default is None)
 #: ProfileSpec's number parameters (`check_values`)

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
-from pamd.schema.engine import spec
+from pamd.wire.schema.engine import spec
 
 #: Which fault kinds each signal takes (see `SimFault`).
 FAULT_KINDS: dict[str, tuple[str, ...]] = {

@@ -4,7 +4,7 @@ read it (`SimSensors`). `pamd.sim.options.SimMuscleOptions` is all three, one fl
 `muscles[]` block of the config (the parts are how the code is read, not config keys).
 
 Every field has a default, a one-sentence `doc`, and where it applies a `unit` and
-`min`/`max` bounds (`pamd.schema.engine.spec`). Like `pamd.sim.options`, this module
+`min`/`max` bounds (`pamd.wire.schema.engine.spec`). Like `pamd.sim.options`, this module
 does not use `from __future__ import annotations`, so `dataclasses.fields(...)[i].type`
 holds real types for the config engine.
 """
@@ -13,13 +13,13 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from pamd.config.schema import Actuation
-from pamd.schema.engine import spec
+from pamd.wire.schema.engine import spec
 
 
 def option(
     default: object, doc: str, unit: str = "", lo: float | None = None, hi: float | None = None
 ) -> Any:  # Any: a dataclass field() standing for the field's own type, as spec's
-    """`pamd.schema.engine.spec` with the bounds given positionally."""
+    """`pamd.wire.schema.engine.spec` with the bounds given positionally."""
     meta: dict[str, object] = {}
     if unit:
         meta["unit"] = unit

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 from pamd.muscle_type import DEFAULT_TYPE, TYPE_NAMES, datasheet_type
 from pamd.muscle_type.custom import NAME as CUSTOM
-from pamd.schema.engine import spec
 from pamd.sim.faults import SimFault, check_faults
 from pamd.sim.muscle_options import SimMechanics, SimPneumatics, SimSensors, option
+from pamd.wire.schema.engine import spec
 
 
 @dataclass(frozen=True)

@@ -52,11 +52,11 @@ import random
 from collections.abc import Callable
 
 from pamd.muscle_type import GRAVITY_M_S2, ForceModel, equilibrium_contraction
-from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions
 from pamd.sim.pneumatics import StiffSupply, SupplyLine
 from pamd.sim.regulator import Regulator
 from pamd.sim.sensors import SampledSensor
+from pamd.sim.solenoid import OnOffValves
 from pamd.sim.specimen import Specimen, specimen
 from pamd.sim.vppm import FlowRegulator
 

@@ -14,8 +14,8 @@ import sys
 import time
 from pathlib import Path
 
-from pamd.experiment.manifest import Manifest
-from pamd.view.collection import inspect_collection
+from pamd.client.collection import inspect_collection
+from pamd.loop.experiment.manifest import Manifest
 
 REPO = Path(__file__).resolve().parents[2]
 PLAN = """name: crash

@@ -22,11 +22,11 @@ import numpy as np
 import pytest
 import yaml
 
+from pamd.client.remote import Client
 from pamd.emulate.testing import free_port
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.anfis.serialize import to_dict
 from pamd.models.contract import Variable
-from pamd.net.client.client import Client
 
 REPO = Path(__file__).resolve().parents[2]
 

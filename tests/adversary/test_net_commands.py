@@ -21,8 +21,8 @@ from typing import Any
 import pytest
 
 import pamd
-from pamd.net.client.client import URGENT_CUT_BYTES, BadRigName, Client, command_body
-from pamd.net.credential import Signer, find_token
+from pamd.client.remote import URGENT_CUT_BYTES, BadRigName, Client, command_body
+from pamd.wire.credential import Signer, find_token
 from tests.net.conftest import RigProc, wait_until
 
 RIG = "sim"

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from pamd.net.client.client import Client
+from pamd.client.remote import Client
 from tests.adversary.wsraw import OP_BINARY, WS
 from tests.net.conftest import RigProc, free_port, wait_listening
 
@@ -117,7 +117,7 @@ def test_waves_of_50_zenoh_clients_cost_bounded_memory_that_comes_back(rig: RigP
             s.undeclare()
         for c in clients:
             c.close()
-        samples = []  # the io loop returns free memory every 2 s (pamd.net.node.node.trim_heap)
+        samples = []  # the io loop returns free memory every 2 s (pamd.iohost.node.trim_heap)
         for _ in range(12):
             time.sleep(0.25)
             samples.append(rss_kb(pid))

@@ -162,7 +162,7 @@ def test_the_progress_bar_never_passes_its_total() -> None:
     import io
     import warnings
 
-    from pamd.cli.collect import _bar, show_rig_time
+    from pamd.client.cli.collect import _bar, show_rig_time
 
     for total_s, ran_s in ((371.04, 371.07), (20.0, 20.3), (12.5, 3.0)):
         bar = _bar(total_s, True)

@@ -10,9 +10,9 @@ from typing import Any, NoReturn
 
 import pytest
 
-from pamd.cli import evaluate
-from pamd.cli.evaluate import data_files
-from pamd.cli.main import main
+from pamd.client.cli import evaluate
+from pamd.client.cli.evaluate import data_files
+from pamd.client.cli.main import main
 
 
 @pytest.mark.usefixtures("without_matplotlib")

@@ -21,12 +21,12 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pamd.cli import run as run_cli
-from pamd.cli.net import refusal
-from pamd.daemon import Daemon
+from pamd.client.cli import run as run_cli
+from pamd.client.cli.net import refusal
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
+from pamd.daemon.service.riglock import ResourceLock
 from pamd.emulate.testing import free_port
-from pamd.io.session import RecordingRequest
-from pamd.service.riglock import ResourceLock
 
 from ..conftest import sim_dict
 
@@ -130,7 +130,7 @@ def test_where_a_run_records(sim_config: object, monkeypatch: pytest.MonkeyPatch
 
 def test_the_recording_stops_at_its_size_cap_and_says_so(
         sim_config: object, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from pamd.view.recording import open_recording
+    from pamd.client.recording import open_recording
 
     cfg = sim_config()  # type: ignore[operator]
     d = Daemon(cfg, recording=RecordingRequest(dir=str(tmp_path / "rec"), max_mb=0.05))

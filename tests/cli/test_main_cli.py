@@ -10,7 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from pamd.cli.main import COMMANDS, EXIT_BROKEN_PIPE, build_parser, chosen_command
+from pamd.client.cli.main import COMMANDS, EXIT_BROKEN_PIPE, build_parser, chosen_command
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -70,7 +70,7 @@ def test_the_declared_subcommands_are_what_their_modules_add() -> None:
 
 def _imported_by(*argv: str) -> tuple[set[str], str]:
     """The pamd modules a fresh `pamd ARGV` imported, and what it printed."""
-    code = ("import sys\nfrom pamd.cli.main import main\ntry:\n    main(sys.argv[1:])\n"
+    code = ("import sys\nfrom pamd.client.cli.main import main\ntry:\n    main(sys.argv[1:])\n"
             "except SystemExit:\n    pass\n"
             "print('MODULES', *sorted(m for m in sys.modules if m.startswith('pamd')))")
     out = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
@@ -84,15 +84,15 @@ def test_help_lists_every_subcommand_without_importing_them() -> None:
     for command in COMMANDS:
         assert f"    {command.name}" in text, command.name
     assert not {c.module for c in COMMANDS} & modules
-    assert "pamd.daemon" not in modules and "pamd.controller" not in modules
+    assert "pamd.daemon.daemon" not in modules and "pamd.loop.control.controller" not in modules
 
 
 def test_a_chosen_subcommand_imports_its_module_only() -> None:
     modules, text = _imported_by("status", "--help")
-    assert "--connect" in text and "pamd.cli.net" in modules  # status's own parser
-    assert "pamd.cli.run" not in modules and "pamd.daemon" not in modules
+    assert "--connect" in text and "pamd.client.cli.net" in modules  # status's own parser
+    assert "pamd.client.cli.run" not in modules and "pamd.daemon.daemon" not in modules
     modules, text = _imported_by("-v", "run", "--help")
-    assert "--profile" in text and "pamd.cli.run" in modules
+    assert "--profile" in text and "pamd.client.cli.run" in modules
 
 
 def test_the_chosen_subcommand_is_the_first_word_not_an_option() -> None:
@@ -106,7 +106,7 @@ def test_the_chosen_subcommand_is_the_first_word_not_an_option() -> None:
 def test_help_suggests_the_readmes_first_command() -> None:
     """`pamd --help` starts a new user where the README does (issue 40: it suggested a
     30 s virtual-clock run, the README a 10 s real-clock one)."""
-    from pamd.cli.main import FIRST_COMMAND
+    from pamd.client.cli.main import FIRST_COMMAND
 
     readme = (REPO / "README.md").read_text()
     first = readme.split("## The two commands", 1)[1].split("```sh\n", 1)[1].split("\n", 1)[0]
@@ -122,7 +122,7 @@ def test_every_exit_code_is_listed() -> None:
     missing)."""
     import re
 
-    codes = {0, 130}  # done; Ctrl-C outside a run (pamd.cli.main)
+    codes = {0, 130}  # done; Ctrl-C outside a run (pamd.client.cli.main)
     for path in (REPO / "pamd").rglob("*.py"):
         text = path.read_text()
         codes |= {int(n) for n in re.findall(r"^\s+exit_code = (\d+)$", text, re.M)}

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import yaml
 
-from pamd.declare.summary import SUMMARY
+from pamd.wire.declare.summary_keys import SUMMARY
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -37,7 +37,7 @@ def test_virtual_run_with_profile_prints_json_summary() -> None:
     assert (again["ticks"], again["tracking"]) == (s["ticks"], s["tracking"])
     assert s["clock"] == "virtual" and s["final_state"] == "IDLE"
     assert s["stop_reason"] == "profile finished"
-    # the keys are the declared ones, in order (pamd.declare.summary, docs/run-summary.md)
+    # the keys are the declared ones, in order (pamd.wire.declare.summary_keys, docs/run-summary.md)
     assert list(s) == [k.name for k in SUMMARY]
     # 2 s lead-in (0 -> 2 bar at 1 bar/s) + 2 cycles of 2 s, then 0.4 s ramp to safe
     # (2 -> 0 bar at the 5 bar/s slew limit).

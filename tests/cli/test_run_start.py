@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pamd.cli.run import add_parser, load_overrides
+from pamd.client.cli.run import add_parser, load_overrides
 from pamd.config import load_config
-from pamd.errors import ConfigError
+from pamd.wire.errors import ConfigError
 
 from .test_run_cli import REPO, pamd
 

@@ -1,5 +1,5 @@
 """A `model` command's file is read, parsed, checked and timed in a child process
-(`pamd.commands.offload`), never in the daemon's own; the child is held to a time
+(`pamd.loop.commands.offload`), never in the daemon's own; the child is held to a time
 limit; a model the tick cannot evaluate within its budget is refused."""
 
 from __future__ import annotations
@@ -13,22 +13,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.commands import parse_command, prepare_command
-from pamd.commands.model_file import (
+from pamd.config import LoadedConfig, load_config
+from pamd.loop.commands import parse_command, prepare_command
+from pamd.loop.commands.model_file import (
     MODEL_TICK_FRACTION,
     ModelSource,
     check_models_isolated,
     read_model,
 )
-from pamd.commands.named_files import MODEL_MAX_BYTES
-from pamd.commands.offload import run_isolated, warm_up
-from pamd.commands.schema import PreparedModelArgs
-from pamd.config import LoadedConfig, load_config
-from pamd.errors import CommandRefused, ConfigError
+from pamd.loop.commands.named_files import MODEL_MAX_BYTES
+from pamd.loop.commands.offload import run_isolated, warm_up
+from pamd.loop.commands.prepared import PreparedModelArgs
 from pamd.models import registry
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.anfis.serialize import to_dict
 from pamd.models.contract import Variable
+from pamd.wire.errors import CommandRefused, ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -1,4 +1,4 @@
-"""`pamd.commands.offload`: a file's time limit is the file's. The forkserver's own
+"""`pamd.loop.commands.offload`: a file's time limit is the file's. The forkserver's own
 start (importing pamd: a second of a core idle, many on a busy machine) comes first and
 outside that limit, so a good file is never refused because the reader was cold."""
 
@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from pamd.commands import offload
-from pamd.errors import CommandRefused
+from pamd.loop.commands import offload
+from pamd.wire.errors import CommandRefused
 
 
 def _sleep(seconds: float) -> float:

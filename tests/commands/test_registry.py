@@ -1,5 +1,5 @@
-"""Each command verb's spec is declared once (`pamd.verbs.VERBS`) and its handler once
-(`pamd.commands.registry.Verb`); the parser, the loop's dispatcher, the io process's
+"""Each command verb's spec is declared once (`pamd.wire.verbs.table.VERBS`) and its handler once
+(`pamd.loop.commands.verb_registry.Verb`); the parser, the loop's dispatcher, the io process's
 routing, the status and `pamd cmd --help` derive from them."""
 
 from __future__ import annotations
@@ -9,23 +9,31 @@ from typing import Any
 
 import pytest
 
-from pamd.cli.main import build_parser
-from pamd.cli.net import verb_parser
-from pamd.commands import (
+from pamd.client.cli.main import build_parser
+from pamd.client.cli.net import verb_parser
+from pamd.loop.commands import (
     REGISTRY,
     Command,
     Verb,
     VerbRegistry,
-    adapt,
     apply_command,
-    motion,
     parse_command,
-    plan,
-    rig,
 )
-from pamd.errors import CommandRefused
-from pamd.verbs.schema import NoArgs
-from pamd.verbs.table import VERBS, VerbSpec, VerbTable
+from pamd.loop.commands import (
+    adapt_verbs as adapt,
+)
+from pamd.loop.commands import (
+    motion_verbs as motion,
+)
+from pamd.loop.commands import (
+    plan_verbs as plan,
+)
+from pamd.loop.commands import (
+    rig_verbs as rig,
+)
+from pamd.wire.errors import CommandRefused
+from pamd.wire.verbs.args import NoArgs
+from pamd.wire.verbs.table import VERBS, VerbSpec, VerbTable
 
 PUBLIC = ("setpoint", "profile", "mode", "model", "adapt", "hold", "resume", "stop", "estop",
           "reset", "home", "tare", "load", "confirm", "pause", "collect")
@@ -111,7 +119,7 @@ def specs_of(verbs: tuple[Verb, ...]) -> tuple[VerbSpec, ...]:
 
 
 def test_the_io_side_specs_are_the_loops_verbs() -> None:
-    """`pamd.verbs.VERBS` (the io process's) and the loop's registry name the same
+    """`pamd.wire.verbs.table.VERBS` (the io process's) and the loop's registry name the same
     public verbs, in the same order, with the same specs."""
     assert VERBS.names == REGISTRY.names
     assert all(REGISTRY.public(s.name).spec is s for s in VERBS)  # type: ignore[union-attr]

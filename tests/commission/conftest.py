@@ -11,9 +11,9 @@ from typing import Any
 
 import yaml
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 from pamd.config import load_config
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 
 REPO = Path(__file__).resolve().parents[2]
 #: how long the proposed thresholds run a healthy rig: a minute of virtual time (three

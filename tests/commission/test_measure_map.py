@@ -16,19 +16,13 @@ from typing import Any
 import pytest
 import yaml
 
-from pamd.cli.commission_map import _ask
-from pamd.commission.mapfit import (
-    Hold,
-    build,
-    compare,
-    complete,
-    map_csv,
-)
-from pamd.commission.mapsweep import FALLING, RISING, choose_sweep, plans
-from pamd.commission.moves import CommissionRefused
+from pamd.client.cli.commission_map import _ask
+from pamd.client.commission.mapfit import Hold, build, compare, complete, map_csv
+from pamd.client.commission.mapsweep import FALLING, RISING, choose_sweep, plans
+from pamd.client.commission.moves import CommissionRefused
 from pamd.config import load_config
 from pamd.config.muscle_types import read_map
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 from pamd.muscle_type import (
     ForceMap,
     MapBox,

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 
 from .conftest import REPO, commission, copy_config
 

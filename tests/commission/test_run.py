@@ -13,12 +13,12 @@ from typing import Any
 
 import pytest
 
-from pamd.commission.moves import choose
-from pamd.commission.probe import Probe
-from pamd.commission.run import Between, Outcome, commission
+from pamd.client.commission.commissioning import Between, Outcome, commission
+from pamd.client.commission.moves import choose
+from pamd.client.commission.probe import Probe
 from pamd.config import load_config
-from pamd.daemon import Daemon
-from pamd.tick import State
+from pamd.daemon.daemon import Daemon
+from pamd.wire.tick import State
 
 from .conftest import REPO
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 
 from .conftest import LONG_SOAK_S, QUICK, REPO, SOAK_S, commission, copy_config
 from .soak import finds, no_false_fault

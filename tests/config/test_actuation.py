@@ -14,7 +14,7 @@ import pytest
 from mcap.reader import make_reader
 
 from pamd.config import load_config, load_config_text
-from pamd.errors import ConfigError
+from pamd.wire.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
 SIM = (REPO / "config" / "sim.yaml").read_text()

@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from pamd.config import builtin_config_path, load_config, load_config_text
-from pamd.errors import ConfigError
+from pamd.wire.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
 SIM = (REPO / "config" / "sim.yaml").read_text()

@@ -1,4 +1,4 @@
-"""Every number has a domain (`pamd.schema.domains`): finite, not subnormal, within
+"""Every number has a domain (`pamd.wire.schema.domains`): finite, not subnormal, within
 its unit's domain where its key states no bound, within the rig's where it has one;
 refused with file, line and key. `pamd tune`'s gains always satisfy the caps."""
 
@@ -12,8 +12,6 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pamd.commands import parse_command
-from pamd.commands.verbs import REGISTRY
 from pamd.config import load_config
 from pamd.config.control_schema import (
     PID_KI_MAX_PER_S,
@@ -22,10 +20,12 @@ from pamd.config.control_schema import (
     POSITION_KP_MAX_BAR_PER_MM,
 )
 from pamd.config.schema import RigConfig
-from pamd.control.tuning import Fopdt, simc_pi
-from pamd.errors import CommandRefused, ConfigError
-from pamd.experiment.plan import Plan, parse_plan
-from pamd.schema.domains import bounds
+from pamd.loop.commands import parse_command
+from pamd.loop.commands.verbs import REGISTRY
+from pamd.loop.control.tuning import Fopdt, simc_pi
+from pamd.loop.experiment.plan import Plan, parse_plan
+from pamd.wire.errors import CommandRefused, ConfigError
+from pamd.wire.schema.domains import bounds
 
 REPO = Path(__file__).resolve().parents[2]
 SIM = (REPO / "config" / "sim.yaml").read_text()

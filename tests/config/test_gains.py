@@ -25,10 +25,10 @@ from pamd.config.stability import (
     pid,
     sampled_plant,
 )
-from pamd.errors import ConfigError
-from pamd.harness import Harness
+from pamd.daemon.service.reload import classify
+from pamd.loop.harness import Harness
 from pamd.models.registry import MAX_FILE_BYTES
-from pamd.service.reload import classify
+from pamd.wire.errors import ConfigError
 
 from ..conftest import sim_dict
 

@@ -16,8 +16,8 @@ import yaml
 
 from pamd.config import load_config, load_config_text
 from pamd.config.loader import effective_timeout_s
-from pamd.errors import ConfigError
-from pamd.schema.yamlload import MAX_DEPTH, load_yaml_text
+from pamd.wire.errors import ConfigError
+from pamd.wire.schema.yamlload import MAX_DEPTH, load_yaml_text
 
 REPO = Path(__file__).resolve().parents[2]
 SIM = (REPO / "config" / "sim.yaml").read_text()

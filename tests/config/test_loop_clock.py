@@ -12,7 +12,7 @@ import yaml
 
 from pamd.config import load_config, load_config_text
 from pamd.emulate.testing import RIG_NIDAQ_EMULATED
-from pamd.errors import ConfigError
+from pamd.wire.errors import ConfigError
 
 
 def issues(text: str) -> list[str]:

@@ -10,8 +10,8 @@ from typing import Any
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.errors import ConfigError
-from pamd.service.reload import classify, plan_reload
+from pamd.daemon.service.reload import classify, plan_reload
+from pamd.wire.errors import ConfigError
 
 from ..conftest import sim_dict
 

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from pamd.config import load_config, load_config_text
-from pamd.errors import ConfigError
-from pamd.experiment.plan import parse_plan
+from pamd.loop.experiment.plan import parse_plan
+from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.muscle_type import (
     TYPE_NAMES,
     ForceMap,
@@ -24,7 +24,7 @@ from pamd.muscle_type import (
     datasheet_type,
     equilibrium_contraction,
 )
-from pamd.safety.envelope import MuscleEnvelope
+from pamd.wire.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
 SIM = (REPO / "config" / "sim.yaml").read_text()

@@ -8,9 +8,9 @@ from typing import Any
 import pytest
 
 from pamd.config import load_config
-from pamd.control.actuation import Actuation, RegulatorActuation
-from pamd.errors import ConfigError
-from pamd.tick import Flag, MuscleTick
+from pamd.loop.control.actuation import Actuation, RegulatorActuation
+from pamd.wire.errors import ConfigError
+from pamd.wire.tick import Flag, MuscleTick
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -1,4 +1,4 @@
-"""The adaptation stage (`pamd.control.adapt`) on a hand-built inverse model: it follows
+"""The adaptation stage (`pamd.loop.control.adapt`) on a hand-built inverse model: it follows
 a drifted truth, its bounds hold (per second and in total), it refuses what is not
 finite or past its bound (parameters kept, frozen, the reason reported), it learns
 nothing outside RUNNING/LOAD_CHANGE or from a flagged tick, and a model kind without
@@ -16,12 +16,12 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from pamd.config.schema import AdaptConfig  # noqa: E402
-from pamd.control.adapt import Adaptation, AdaptState  # noqa: E402
-from pamd.control.feedforward import Feedforward  # noqa: E402
+from pamd.loop.control.adapt import Adaptation, AdaptState  # noqa: E402
+from pamd.loop.control.feedforward import Feedforward  # noqa: E402
 from pamd.models.anfis import AnfisModel, Variable  # noqa: E402
 from pamd.models.anfis.rls import OutputBound  # noqa: E402
 from pamd.models.static_force import PolynomialModel  # noqa: E402
-from pamd.tick import Flag, State  # noqa: E402
+from pamd.wire.tick import Flag, State  # noqa: E402
 
 DT = 0.001
 L0 = 200.0

@@ -15,15 +15,15 @@ import pytest
 
 from pamd.config import LoadedConfig
 from pamd.config.control_schema import PositionConfig, PositionPidConfig
-from pamd.control.feedforward import Feedforward, LoadedModel
-from pamd.control.length_control import LengthControl, preview_s_of
-from pamd.harness import Harness
+from pamd.loop.control.feedforward import Feedforward, LoadedModel
+from pamd.loop.control.length_control import LengthControl, preview_s_of
+from pamd.loop.harness import Harness
+from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.models.anfis import TrainingOptions, fit
 from pamd.models.contract import InverseModel
 from pamd.muscle_type import GRAVITY_M_S2
 from pamd.profiles import Profile, ProfilePoint, ProfileSpec
-from pamd.safety.envelope import MuscleEnvelope
-from pamd.tick import Mode, State
+from pamd.wire.tick import Mode, State
 
 S_RUNNING = int(State.RUNNING)
 #: the known model: p = 3 + DP_DF (F - 295) + DP_DL (L - 180), bar
@@ -69,7 +69,7 @@ def sine(freq_hz: float = 0.5) -> Profile:
 
 def run(lc: LengthControl, prof: Profile, until_s: float, force_n: float = 294.0) -> float:
     """Tick `lc` on the profile to `until_s`, the length on target; the last setpoint."""
-    sp = lc.last_sp
+    sp = lc.last_setpoint
     t = 0.0
     while t < until_s - 1e-9:
         t += DT

@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 import yaml
 
-from pamd.commands import apply_command, parse_command, prepare_command
 from pamd.config import LoadedConfig, load_config
-from pamd.control.feedforward import LoadedModel, load_models
-from pamd.control.model_check import velocity_window
-from pamd.errors import CommandRefused, ConfigError
-from pamd.harness import Harness
+from pamd.loop.commands import apply_command, parse_command, prepare_command
+from pamd.loop.control.feedforward import LoadedModel, load_models
+from pamd.loop.control.model_check import velocity_window
+from pamd.loop.harness import Harness
 from pamd.models.anfis import TrainingOptions, fit, save
-from pamd.tick import Flag, Mode, State
+from pamd.wire.errors import CommandRefused, ConfigError
+from pamd.wire.tick import Flag, Mode, State
 
 CLIP = int(Flag.FF_CLIPPED)
 SIM_YAML = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
@@ -149,10 +149,10 @@ def test_mode_refusals(sim_config: Callable[..., LoadedConfig], static_model: Pa
     assert h.m1.mode == Mode.PRESSURE
     assert not h.cmd("mode", muscle="m1", mode="flying")["ok"]
     assert not h.cmd("mode", muscle="m1", mode="length_force", feedforward=False)["ok"]
-    h.m1.reference.length_referenced = False
+    h.m1.datums.length_referenced = False
     v = h.cmd("mode", muscle="m1", mode="position", feedforward=False)
     assert not v["ok"] and "not referenced" in v["error"]
-    h.m1.reference.length_referenced = True
+    h.m1.datums.length_referenced = True
     assert h.cmd("mode", muscle="m1", mode="position", feedforward=False)["ok"]
     # In a length mode, pressure setpoints and profiles are refused; and the reverse.
     v = h.cmd("setpoint", muscle="m1", bar=2.0)

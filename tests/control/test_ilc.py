@@ -1,4 +1,4 @@
-"""Iterative learning (pamd.control.ilc) alone: what a cycle's error teaches the next
+"""Iterative learning (pamd.loop.control.ilc) alone: what a cycle's error teaches the next
 cycle, learned per cycle and spread over ticks, the Q-filter's frequency response, the
 lead that compensates a known plant delay, the clamp and forgetting."""
 
@@ -9,7 +9,7 @@ from collections import deque
 
 import pytest
 
-from pamd.control.ilc import BINS_PER_TICK, Ilc, q_gain, q_pole
+from pamd.loop.control.ilc import BINS_PER_TICK, Ilc, q_gain, q_pole
 
 DT_S = 0.002
 PERIOD_S = 1.0

@@ -11,8 +11,8 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from pamd.harness import Harness
-from pamd.tick import State
+from pamd.loop.harness import Harness
+from pamd.wire.tick import State
 
 FAST = {"slew_limit_bar_per_s": 25.0, "position": {"max_rate_per_s": 1.0}}
 

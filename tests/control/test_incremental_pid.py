@@ -14,12 +14,12 @@ import pytest
 
 from pamd.config import LoadedConfig
 from pamd.config.control_schema import IncrementalPidConfig, PositionPidConfig
-from pamd.control.feedforward import LoadedModel
-from pamd.control.incremental_pid import IncrementalPid
-from pamd.harness import Harness
+from pamd.loop.control.feedforward import LoadedModel
+from pamd.loop.control.incremental_pid import IncrementalPid
+from pamd.loop.harness import Harness
 from pamd.models.fn_qupi import FnQupiOptions, fit_fn_qupi
 from pamd.models.registry import save_model
-from pamd.tick import State
+from pamd.wire.tick import State
 
 
 def test_increments_are_the_papers_and_method_2_sums_them() -> None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 
 SPAN = {"min_contraction": 0.05, "max_contraction": 0.20}
 

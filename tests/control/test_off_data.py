@@ -1,4 +1,4 @@
-"""The loop knows when the model is off its data (pamd.control.off_data): inputs outside
+"""The loop knows when the model is off its data (pamd.loop.control.off_data): inputs outside
 the model's training domain counted, said once, and faded to the position PID alone
 there and back without a bump (`control.feedforward.off_data: fade`), only said
 (`warn`), or not judged (`off`); a feedforward that oscillates against the pressure loop
@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.control.feedforward import LoadedModel
-from pamd.control.off_data import OscillationWatch
-from pamd.harness import Harness
+from pamd.loop.control.feedforward import LoadedModel
+from pamd.loop.control.off_data import OscillationWatch
+from pamd.loop.harness import Harness
 from pamd.models.anfis import TrainingOptions, fit, save
 from pamd.models.domain import derive
 from pamd.muscle_type import force_model, pressure_for_force
-from pamd.tick import Flag, State
+from pamd.wire.tick import Flag, State
 
 FIXTURES = Path(__file__).parent / "fixtures"
 OFF, FADED, OSC = int(Flag.FF_OFF_DATA), int(Flag.FF_FADED), int(Flag.FF_OSCILLATING)

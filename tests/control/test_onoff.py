@@ -8,11 +8,11 @@ import random
 
 import pytest
 
-from pamd.control.onoff import EXHAUST, HOLD, INFLATE, PwmPressure, SlidingModePosition
+from pamd.loop.control.onoff import EXHAUST, HOLD, INFLATE, PwmPressure, SlidingModePosition
 from pamd.models.velocity import velocity_step
-from pamd.sim.onoff import OnOffValves
 from pamd.sim.options import SimMuscleOptions
 from pamd.sim.plant import MusclePlant
+from pamd.sim.solenoid import OnOffValves
 
 DT = 0.001
 

@@ -8,9 +8,9 @@ from typing import Any
 
 import pytest
 
-from pamd.control.actuation import OnOffActuation
-from pamd.harness import Harness
-from pamd.tick import Flag, State
+from pamd.loop.control.actuation import OnOffActuation
+from pamd.loop.harness import Harness
+from pamd.wire.tick import Flag, State
 from tests.safety.conftest import onoff_muscles, sim_driver
 
 

@@ -12,10 +12,10 @@ from pathlib import Path
 from typing import Any
 
 from pamd.config import LoadedConfig
-from pamd.control.feedforward import LoadedModel
-from pamd.control.onoff import POSITION_TAKES_NO_MODEL
-from pamd.harness import Harness
-from pamd.tick import M_SETPOINT
+from pamd.loop.control.feedforward import LoadedModel
+from pamd.loop.control.onoff import POSITION_TAKES_NO_MODEL
+from pamd.loop.harness import Harness
+from pamd.wire.tick import M_SETPOINT
 from tests.safety.conftest import onoff_muscles, sim_driver
 
 REPO = Path(__file__).resolve().parents[2]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from pamd.control.pid import Pid
+from pamd.loop.control.pid import Pid
 
 
 def test_proportional_and_integral_terms() -> None:

@@ -10,10 +10,8 @@ import typing
 
 import pytest
 
-from pamd.cli.main import build_parser
-from pamd.errors import CommandRefused
-from pamd.experiment.plan import PlanProfile
-from pamd.profile_kinds import SHAPE_PARAMS
+from pamd.client.cli.main import build_parser
+from pamd.loop.experiment.plan import PlanProfile
 from pamd.profiles import (
     SHAPE_NAMES,
     SHAPES,
@@ -23,7 +21,9 @@ from pamd.profiles import (
     kinds_text,
     shape_of,
 )
-from pamd.verbs.schema import ProfileArgs
+from pamd.wire.errors import CommandRefused
+from pamd.wire.shape_names import SHAPE_PARAMS
+from pamd.wire.verbs.args import ProfileArgs
 
 SLEW = 5.0
 PARAMS = {"min_bar": 1.0, "max_bar": 4.0, "freq_hz": 0.2, "cycles": 2, "to_bar": 3.5,
@@ -79,7 +79,7 @@ def test_an_unknown_kind_is_refused_naming_the_registered_ones() -> None:
 
 
 def test_the_light_declaration_names_the_registered_shapes() -> None:
-    """`pamd.profile_kinds` (what the io process reads) and the registry of the shapes'
+    """`pamd.wire.shape_names` (what the io process reads) and the registry of the shapes'
     code name the same shapes in the same order, and each shape reads its declared
     fields: a shape added to one and not the other fails here."""
     assert tuple(SHAPES) == tuple(SHAPE_PARAMS) == SHAPE_NAMES

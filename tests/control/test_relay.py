@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from pamd.config.control_schema import PidConfig
-from pamd.control.pressure_loop import PressureLoop
-from pamd.control.relay import DONE, Relay
-from pamd.control.tuning import Fopdt, relay_fopdt, relay_oscillation, simc_pi
+from pamd.loop.control.pressure_loop import PressureLoop
+from pamd.loop.control.relay import DONE, Relay
+from pamd.loop.control.tuning import Fopdt, relay_fopdt, relay_oscillation, simc_pi
 
 from .test_tuning import DT, FopdtPlant
 

@@ -49,7 +49,7 @@ def test_the_shipped_gains_are_the_procedures(tune_bench) -> None:
 def test_a_recorded_step_is_found_and_fitted(tune_bench) -> None:
     """The columns a recording holds (t_s, valve_cmd_bar, pressure_bar), here from an
     identification run on the harness: one step up, one down."""
-    from pamd.harness import Harness
+    from pamd.loop.harness import Harness
 
     cfg = tune_bench.ident_config(str(REPO / "config" / "sim.yaml"), None, {
         "pid": {"kp": 0.0, "ki_per_s": 0.0}, "rate_feedforward_s": 0.0,

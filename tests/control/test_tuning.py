@@ -9,7 +9,7 @@ import random
 import numpy as np
 import pytest
 
-from pamd.control.tuning import (
+from pamd.loop.control.tuning import (
     Fopdt,
     IdentificationError,
     fit_step,

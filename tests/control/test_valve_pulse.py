@@ -9,14 +9,14 @@ from typing import Any, Literal
 
 import pytest
 
-from pamd.commands.tune import PulseArgs
-from pamd.control.actuation import OnOffActuation
-from pamd.control.relay import DONE
-from pamd.control.valve_pulse import AT_LIMIT, MOVED
-from pamd.declare.jsonsafe import JsonObject
-from pamd.harness import Harness
-from pamd.tick import Flag
-from pamd.verbs.schema import Command
+from pamd.loop.commands.tune_verbs import PulseArgs
+from pamd.loop.control.actuation import OnOffActuation
+from pamd.loop.control.relay import DONE
+from pamd.loop.control.valve_pulse import AT_LIMIT, MOVED
+from pamd.loop.harness import Harness
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.tick import Flag
+from pamd.wire.verbs.args import Command
 from tests.safety.conftest import onoff_muscles, sim_driver
 
 INFLATE, EXHAUST = int(Flag.INFLATE_OPEN), int(Flag.EXHAUST_OPEN)

@@ -1,4 +1,4 @@
-"""The event registry (pamd.declare.events) declares every event kind pamd emits and
+"""The event registry (pamd.wire.declare.events) declares every event kind pamd emits and
 each payload's keys: a scan of every emission site in the source finds a kind not
 declared or a literal payload key that drifted from its declaration; the recording's
 event JSON schema and the docs derive from it. (tests/record/test_declared.py checks
@@ -15,9 +15,9 @@ from typing import Any
 import jsonschema
 import pytest
 
-from pamd.declare import events
-from pamd.declare.jsonsafe import dumps, jsonsafe
-from pamd.record import recorder
+from pamd.iohost import recorder
+from pamd.wire.declare import events
+from pamd.wire.declare.jsonsafe import dumps, jsonsafe
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -25,8 +25,8 @@ ROOT = Path(__file__).resolve().parents[2]
 KIND_SECOND = {"event"}
 KIND_FIRST = {"_publish_event", "_record_io", "record"}
 #: wrappers whose callers name a sub-kind: the kind they emit, and the key it goes in
-WRAPPERS = {("experiment/sequencer.py", "_event"): "experiment",
-            ("net/collections.py", "_event"): "collection"}
+WRAPPERS = {("loop/experiment/sequencer.py", "_event"): "experiment",
+            ("daemon/host/collections.py", "_event"): "collection"}
 
 
 def _sites() -> Iterator[tuple[str, int, str, ast.expr | None]]:
@@ -68,7 +68,7 @@ def test_every_emitted_kind_is_declared_and_its_literal_payload_matches() -> Non
         k = events.EVENTS.get(kind)
         if k is None:
             wrong.append(f"pamd/{rel}:{line}: event kind {kind!r} is not declared in "
-                         "pamd.declare.events")
+                         "pamd.wire.declare.events")
             continue
         if not isinstance(data, ast.Dict):
             continue  # built elsewhere: checked at run time (tests/record/test_declared.py)
@@ -104,7 +104,7 @@ def test_problems_names_what_drifted() -> None:
                                      "fault_ms": 500.0}) == [
         "stall: 'count' is str, declared integer"]
     assert events.problems("no_such", {}) == [
-        "event kind 'no_such' is not declared in pamd.declare.events"]
+        "event kind 'no_such' is not declared in pamd.wire.declare.events"]
     # an open kind takes more keys (a verdict's), a closed one does not
     assert events.problems("reply", {"id": 3, "ok": True, "ramp_s": 1.5}) == []
     assert events.problems("reply", {"id": 3}) == ["reply: 'ok' missing"]
@@ -144,7 +144,7 @@ def test_every_kind_is_documented(kind: str) -> None:
 
 
 def test_one_json_encoder() -> None:
-    from pamd.net import status
+    from pamd.wire import status
     assert status.jsonsafe is jsonsafe  # the status snapshot's and the recording's
     x = {"a": float("nan"), 1: (float("inf"), 2.5, [float("-inf")]), "s": "t"}
     assert jsonsafe(x) == {"a": None, "1": [None, 2.5, [None]], "s": "t"}

@@ -1,4 +1,4 @@
-"""The field table (pamd.declare.fields) is the one declaration of every recorded value:
+"""The field table (pamd.wire.declare.fields) is the one declaration of every recorded value:
 the tick's offsets, the MCAP/ROS 2 schemas (read back by the independent parser of
 `mcap_ros2`), the exports' units and descriptions, the Foxglove layout and the
 generated docs/fields-reference.md all derive from it; each test fails on a drift."""
@@ -11,13 +11,15 @@ from pathlib import Path
 import pytest
 from mcap_ros2._vendor.rosidl_adapter.parser import parse_message_string
 
-from pamd import controller, loop, tick
-from pamd.control import muscle
-from pamd.declare import docs, fields
-from pamd.record import cdr
-from pamd.record.recorder import record_schemas
-from pamd.view import fields as view_fields
-from pamd.view.layout import PANELS, build_layout
+from pamd.client import field_info as view_fields
+from pamd.client.layout import PANELS, build_layout
+from pamd.iohost.recorder import record_schemas
+from pamd.loop import loop
+from pamd.loop.control import controller, muscle
+from pamd.wire import tick
+from pamd.wire.declare import fields
+from pamd.wire.declare import fields_doc as docs
+from pamd.wire.record import cdr
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -25,12 +27,12 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_the_generated_reference_is_current() -> None:
     path = ROOT / "docs" / "fields-reference.md"
     assert path.read_text() == docs.generate(), (
-        "docs/fields-reference.md is stale: python -m pamd.declare.docs > "
+        "docs/fields-reference.md is stale: python -m pamd.wire.declare.fields_doc > "
         "docs/fields-reference.md")
 
 
 def test_the_reference_names_every_field_flag_and_event() -> None:
-    from pamd.declare import events
+    from pamd.wire.declare import events
     text = docs.generate()
     for f in fields.BY_NAME.values():
         assert f"| `{f.name}` | {f.unit} | {f.type} |" in text
@@ -74,7 +76,7 @@ def _stored(tree: ast.AST, prefix: str) -> set[str]:
 
 def test_the_muscle_stage_writes_every_muscle_field() -> None:
     """`MuscleController._record` stores each muscle field of the table, by its offset."""
-    src = (ROOT / "pamd" / "control" / "muscle.py").read_text()
+    src = (ROOT / "pamd" / "loop" / "control" / "muscle.py").read_text()
     fn = next(n for n in ast.walk(ast.parse(src))
               if isinstance(n, ast.FunctionDef) and n.name == "_record")
     offsets = {getattr(muscle, n) for n in _stored(fn, "M_")}

@@ -10,17 +10,17 @@ from pathlib import Path
 
 import pytest
 
-from pamd.cli import exit_codes, reference
-from pamd.cli.main import COMMANDS
-from pamd.declare import summary
-from pamd.errors import EXIT_MEANINGS
+from pamd.client.cli import exit_codes, reference
+from pamd.client.cli.main import COMMANDS
+from pamd.wire.declare import summary_keys as summary
+from pamd.wire.errors import EXIT_MEANINGS
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 
 PAGES: dict[str, tuple[Callable[[], str], str]] = {
-    "cli-reference.md": (reference.markdown, "pamd.cli.reference"),
-    "exit-codes.md": (exit_codes.markdown, "pamd.cli.exit_codes"),
-    "run-summary.md": (summary.markdown, "pamd.declare.summary"),
+    "cli-reference.md": (reference.markdown, "pamd.client.cli.reference"),
+    "exit-codes.md": (exit_codes.markdown, "pamd.client.cli.exit_codes"),
+    "run-summary.md": (summary.markdown, "pamd.wire.declare.summary_keys"),
 }
 
 
@@ -32,7 +32,7 @@ def test_the_generated_page_is_current(name: str) -> None:
 
 
 def test_the_cli_reference_has_every_sub_command_action_and_verb() -> None:
-    from pamd.verbs.table import VERBS
+    from pamd.wire.verbs.table import VERBS
 
     text = reference.markdown()
     for command in COMMANDS:
@@ -52,8 +52,8 @@ def test_every_exit_status_given_has_a_meaning_and_every_meaning_a_status() -> N
     assert {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 130, 141} <= given
     assert set(EXIT_MEANINGS) == given
     names = {r.name for r in exit_codes.raisers()}
-    assert {"pamd.errors.ConfigError", "pamd.net.zconf.NoDaemon",
-            "pamd.service.riglock.RigBusy", "pamd.cli.main.EXIT_BROKEN_PIPE"} <= names
+    assert {"pamd.wire.errors.ConfigError", "pamd.wire.zconf.NoDaemon",
+            "pamd.daemon.service.riglock.RigBusy", "pamd.client.cli.main.EXIT_BROKEN_PIPE"} <= names
 
 
 def test_a_status_without_a_meaning_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -18,7 +18,7 @@ from pamd.drivers.canopen_encoder import CanEncoderDriver, CanEncoderOptions
 
 from pamd.emulate.canopen_node import EmulatedEncoder
 from pamd.emulate.testing import wait_until
-from pamd.errors import DriverError
+from pamd.wire.errors import DriverError
 
 _ids = itertools.count()
 

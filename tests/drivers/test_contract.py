@@ -57,8 +57,8 @@ from pamd.emulate.nidaq_server import DaqServer
 from pamd.emulate.ptys import PtyPair
 from pamd.emulate.socketcand import SocketcandServer
 from pamd.emulate.testing import AioThread, emulated_dict, free_port, wait_until, write_config
-from pamd.errors import DriverError
 from pamd.sim.options import SimMuscleOptions, SimOptions
+from pamd.wire.errors import DriverError
 
 WAIT_S = 20.0  # generous: this machine is busy; a pass takes a fraction of it
 

@@ -25,10 +25,10 @@ from typing import Any
 import pytest
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.emulate.rig import EmulatedRig
 from pamd.emulate.testing import emulated_dict, free_port, wait_until, write_config
-from pamd.tick import State
+from pamd.wire.tick import State
 
 pytestmark = pytest.mark.usefixtures("socat")  # missing: fails saying so
 

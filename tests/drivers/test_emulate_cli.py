@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pytest
 
+from pamd.daemon.service.riglock import ResourceLock
 from pamd.emulate.lateness import LATE_S, Lateness
 from pamd.emulate.rig import realtime_priority
 from pamd.emulate.testing import emulated_dict, free_port, write_config
-from pamd.rt import RESET_ON_FORK
-from pamd.service.riglock import ResourceLock
+from pamd.loop.rt import RESET_ON_FORK
 
 pytestmark = pytest.mark.usefixtures("socat")  # missing: fails saying so
 

@@ -27,7 +27,7 @@ from pamd.config.loader import load_config
 from pamd.emulate.modbus_device import EmulatedModbusDevice, serve_rtu
 from pamd.emulate.ptys import PtyPair
 from pamd.emulate.testing import AioThread, emulated_dict, free_port, wait_until, write_config
-from pamd.errors import ConfigError
+from pamd.wire.errors import ConfigError
 
 pytestmark = pytest.mark.usefixtures("socat")  # missing: fails saying so
 

@@ -14,7 +14,7 @@ from pamd.drivers.modbus_map import (
     to_value,
 )
 
-from pamd.errors import DriverError
+from pamd.wire.errors import DriverError
 
 
 @pytest.mark.parametrize("typ,raw", [("int16", -1234), ("uint16", 54321), ("int32", -123456789),

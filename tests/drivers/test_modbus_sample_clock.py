@@ -98,8 +98,8 @@ def test_the_emulated_rig_samples_at_the_configs_sample_period(tmp_path: Any) ->
 
 
 def test_the_rig_binds_each_input_with_its_device_aware_timeout(tmp_path: Any) -> None:
-    from pamd.calibration import Calibration
-    from pamd.rig import Rig
+    from pamd.loop.devices.bindings import Rig
+    from pamd.loop.devices.datum_file import Calibration
 
     d = emulated_dict(tmp_path, free_port(), can="virtual")
     d["safety"].update(signal_timeout_s=0.05, latency_margin_s=0.05)

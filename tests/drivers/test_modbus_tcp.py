@@ -16,11 +16,11 @@ import pytest
 from pamd.drivers.modbus import ModbusDriver, ModbusOptions
 from pamd.drivers.modbus_map import ModbusPoint
 
-from pamd.calibration import Calibration
 from pamd.config import load_config
 from pamd.emulate.modbus_device import EmulatedModbusDevice, serve_tcp
 from pamd.emulate.testing import AioThread, emulated_dict, free_port, wait_until, write_config
-from pamd.rig import Rig
+from pamd.loop.devices.bindings import Rig
+from pamd.loop.devices.datum_file import Calibration
 
 
 class Bench:

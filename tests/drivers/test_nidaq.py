@@ -30,7 +30,7 @@ from pamd.drivers.nidaq_options import (
 from pamd.emulate.nidaq_device import NI_9237, USB_6211, EmulatedDaq
 from pamd.emulate.nidaq_server import DaqServer
 from pamd.emulate.testing import free_port, wait_until
-from pamd.errors import DriverError
+from pamd.wire.errors import DriverError
 
 
 class Card:

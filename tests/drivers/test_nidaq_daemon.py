@@ -16,10 +16,10 @@ from pathlib import Path
 import pytest
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.emulate.rig import EmulatedRig
 from pamd.emulate.testing import free_port, nidaq_emulated_dict, wait_until, write_config
-from pamd.tick import State
+from pamd.wire.tick import State
 
 #: the emulator in the daemon's process on a busy 2-core machine: 100 Hz, and a stall
 #: check that the shared interpreter lock does not trip (what is tested is the pacing)

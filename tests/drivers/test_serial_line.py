@@ -14,7 +14,7 @@ import pytest
 from pamd.drivers.serial_line import LineField, SerialLineDriver, SerialLineOptions, check_line
 
 from pamd.emulate.testing import wait_until
-from pamd.errors import DriverError
+from pamd.wire.errors import DriverError
 
 
 def nmea(body: str) -> str:

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from pamd.cli.main import build_parser
+from pamd.client.cli.main import build_parser
 from tests.tutorial import REPO, commands, page, sh_blocks
 
 #: the verbs of the tutorial's steps, in order

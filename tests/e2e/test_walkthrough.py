@@ -23,8 +23,8 @@ from pathlib import Path
 import pytest
 
 from pamd.config import load_config
-from pamd.experiment.plan import load_plan
-from pamd.experiment.timeline import timeline
+from pamd.loop.experiment.plan import load_plan
+from pamd.loop.experiment.timeline import timeline
 from tests.tutorial import REPO, SHORT_LOADS_KG, commands, shortened
 
 #: The figures this shortened copy gives, as its commands print them (virtual clock:

@@ -17,10 +17,10 @@ import pytest
 import yaml
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.emulate.rig import EmulatedRig
 from pamd.emulate.testing import REPO, free_port, wait_until
-from pamd.tick import State
+from pamd.wire.tick import State
 
 CHAIN_CONFIG = REPO / "config" / "rig-emulated-chain.yaml"
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from pamd.experiment.manifest import FORMAT, VERSION, Manifest
+from pamd.loop.experiment.manifest import FORMAT, VERSION, Manifest
 
 
 def manifest(tmp_path: Path) -> Manifest:

@@ -8,9 +8,9 @@ from typing import Any
 import pytest
 
 from pamd.config import load_config
-from pamd.errors import ConfigError
-from pamd.experiment.plan import load_plan, parse_plan
-from pamd.experiment.timeline import format_timeline, timeline
+from pamd.loop.experiment.plan import load_plan, parse_plan
+from pamd.loop.experiment.timeline import format_timeline, timeline
+from pamd.wire.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
 PLAN = """name: test

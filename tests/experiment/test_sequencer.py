@@ -7,11 +7,11 @@ from typing import Any
 
 import pytest
 
-from pamd.commands import Command, apply_command, parse_command
-from pamd.daemon import _PlanArgs
-from pamd.experiment.plan import parse_plan
-from pamd.experiment.sequencer import running_plan
-from pamd.harness import Harness
+from pamd.daemon.daemon import _PlanArgs
+from pamd.loop.commands import Command, apply_command, parse_command
+from pamd.loop.experiment.plan import parse_plan
+from pamd.loop.experiment.sequencer import running_plan
+from pamd.loop.harness import Harness
 from pamd.muscle_type import GRAVITY_M_S2
 
 PLAN = """name: short

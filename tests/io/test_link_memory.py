@@ -9,8 +9,8 @@ from array import array
 from types import SimpleNamespace
 from typing import Any
 
-from pamd.io.link import HELD_EVENTS_MAX, RingSink
-from pamd.ipc.ring import C_LOST_EVENTS, FILES_MAX, BlockLayout, SharedBlock
+from pamd.loop.io_link import HELD_EVENTS_MAX, RingSink
+from pamd.wire.ring import C_LOST_EVENTS, FILES_MAX, BlockLayout, SharedBlock
 
 
 def test_events_from_other_threads_wait_in_a_bounded_queue() -> None:
@@ -49,8 +49,8 @@ def test_a_loss_that_goes_on_is_said_every_second_and_in_the_header_at_once() ->
     shared header with every record it loses (the status reads it there, however far
     behind the io process is), and a loss that goes on is an event after each second of
     it (`ongoing`), then once more when the ring has room again."""
-    from pamd.ipc.ring import C_HEARTBEAT, C_LOOP_LOST
-    from pamd.tick import I_T, I_TICK
+    from pamd.wire.ring import C_HEARTBEAT, C_LOOP_LOST
+    from pamd.wire.tick import I_T, I_TICK
 
     block = SharedBlock(BlockLayout(record_bytes=16, tick_slots=4), create=True)
     events: list[tuple[str, dict[str, Any]]] = []

@@ -4,7 +4,7 @@ The loop writes a tick's events into their ring before the tick's record, and th
 process drains the ticks' ring in batches before the events'. On a busy machine one
 batch spans a step's end: the step's `step_finished` event (on its last tick) must
 still go into that step's file, which a crashed collection is later rebuilt from
-(`pamd.experiment.stepfiles`), and the next step's first event into the next file."""
+(`pamd.loop.experiment.stepfiles`), and the next step's first event into the next file."""
 
 from __future__ import annotations
 
@@ -16,13 +16,13 @@ from pathlib import Path
 
 import pytest
 
-from pamd.experiment.stepfiles import read_step_file
-from pamd.io.process import IoProcess
-from pamd.io.spec import IoSpec
-from pamd.ipc.ring import BlockLayout, SharedBlock
-from pamd.record.recorder import Recorder
-from pamd.record.spec import RecordSpec
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
+from pamd.iohost.io_spec import IoSpec
+from pamd.iohost.process import IoProcess
+from pamd.iohost.recorder import Recorder
+from pamd.loop.experiment.stepfiles import read_step_file
+from pamd.wire.record.record_spec import RecordSpec
+from pamd.wire.ring import BlockLayout, SharedBlock
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 RATE_HZ = 100.0
 STEPS = ({"step": "light", "index": 0, "plan": "quick", "load_kg": 15.0},
@@ -82,7 +82,7 @@ def test_the_io_process_takes_its_nice_value_before_any_thread_and_says_a_refusa
     and the io process goes on at normal priority."""
     import threading
 
-    from pamd.io.process import take_nice
+    from pamd.iohost.process import take_nice
 
     seen: dict[str, int] = {}
 

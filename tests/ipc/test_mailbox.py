@@ -9,11 +9,11 @@ from typing import Any
 
 from mcap.reader import make_reader
 
-from pamd.daemon import Daemon
-from pamd.io.link import RingMailbox
-from pamd.io.process import RingCommandPort
-from pamd.io.session import RecordingRequest
-from pamd.ipc.ring import BlockLayout, SharedBlock
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
+from pamd.iohost.process import RingCommandPort
+from pamd.loop.io_link import RingMailbox
+from pamd.wire.ring import BlockLayout, SharedBlock
 
 from ..record.conftest import make_sim_config
 

@@ -9,7 +9,7 @@ from array import array
 
 import pytest
 
-from pamd.ipc.ring import BlockLayout, SharedBlock
+from pamd.wire.ring import BlockLayout, SharedBlock
 
 
 @pytest.fixture

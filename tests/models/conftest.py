@@ -12,10 +12,10 @@ from pathlib import Path  # noqa: E402
 import pytest  # noqa: E402
 import yaml  # noqa: E402
 
-from pamd.cli.main import main  # noqa: E402
+from pamd.client.cli.main import main  # noqa: E402
 from pamd.config import load_config  # noqa: E402
-from pamd.daemon import Daemon  # noqa: E402
-from pamd.io.session import RecordingRequest  # noqa: E402
+from pamd.daemon.daemon import Daemon  # noqa: E402
+from pamd.daemon.io_session import RecordingRequest  # noqa: E402
 from tests.once import once_per_run  # noqa: E402
 
 SIM_YAML = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"

@@ -15,13 +15,13 @@ import yaml
 
 import pamd
 from pamd.config import load_config
-from pamd.control.adapt import AdaptState
-from pamd.control.feedforward import LoadedModel, load_models
-from pamd.daemon import Daemon, RecordingRequest
-from pamd.errors import ConfigError
+from pamd.daemon.daemon import Daemon, RecordingRequest
+from pamd.loop.control.adapt import AdaptState
+from pamd.loop.control.feedforward import LoadedModel, load_models
 from pamd.models.anfis.adapted import save_adapted
 from pamd.models.registry import load_model
-from pamd.tick import State
+from pamd.wire.errors import ConfigError
+from pamd.wire.tick import State
 
 SIM_YAML = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
 

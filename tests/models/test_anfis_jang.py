@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pamd.models.anfis import TrainingOptions, fit
-from pamd.models.anfis.training import WIDTH_STARTS
+from pamd.models.anfis.hybrid import WIDTH_STARTS
 from tests.benchmod import bench_module
 
 

@@ -20,10 +20,10 @@ def test_50kg_test_figures_as_reported(tmp_path: Path) -> None:
         import models_compare as mc  # type: ignore[import-not-found]
     finally:
         sys.path.remove(str(BENCH))
-    from pamd.metrics import regression_metrics
-    from pamd.models.anfis.extraction import extract
-    from pamd.models.anfis.recordings import read_runs
-    from pamd.models.anfis.samples import ExtractOptions
+    from pamd.models.data.extraction import extract
+    from pamd.models.data.recordings import read_runs
+    from pamd.models.data.samples import ExtractOptions
+    from pamd.models.metrics import regression_metrics
 
     runs = {load: read_runs([mc.record(load, 0.0, 6.0, 3, str(tmp_path), "sweep")])
             for load in (*mc.TRAIN_LOADS_KG, mc.TEST_LOAD_KG)}

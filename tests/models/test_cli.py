@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from pamd.cli.main import main
+from pamd.client.cli.main import main
 from pamd.models.registry import load_model
 
 

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import ModelError
 from pamd.models.anfis import TrainingOptions, fit, save
 from pamd.models.domain import (
     DomainTable,
@@ -21,6 +20,7 @@ from pamd.models.domain import (
     from_json,
 )
 from pamd.models.registry import load_model
+from pamd.wire.errors import ModelError
 
 NAMES = ["force_n", "length_mm"]
 LOADS_KG = (15.0, 30.0, 50.0)

@@ -11,10 +11,10 @@ from pathlib import Path
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.control.feedforward import LoadedModel
-from pamd.errors import ModelError
-from pamd.harness import Harness
-from pamd.tick import State
+from pamd.loop.control.feedforward import LoadedModel
+from pamd.loop.harness import Harness
+from pamd.wire.errors import ModelError
+from pamd.wire.tick import State
 
 
 def with_model(cfg: LoadedConfig, path: Path) -> Harness:

@@ -17,12 +17,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pamd.cli.main import main
-from pamd.errors import ModelError
+from pamd.client.cli.main import main
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.contract import ModelEnvelope, Variable
 from pamd.models.fis import FisError, export_fis, fis_text, import_fis, parse_fis
 from pamd.models.registry import load_model, save_model
+from pamd.wire.errors import ModelError
 
 REPO = Path(__file__).resolve().parents[2]
 

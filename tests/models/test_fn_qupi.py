@@ -11,15 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.cli.main import main
-from pamd.errors import ModelError
-from pamd.models.anfis.extraction import load_samples
-from pamd.models.anfis.samples import ExtractOptions
+from pamd.client.cli.main import main
 from pamd.models.contract import ModelEnvelope
+from pamd.models.data.extraction import load_samples
+from pamd.models.data.samples import ExtractOptions
 from pamd.models.fn_qupi import FnQupiOptions, fit_fn_qupi
 from pamd.models.fn_qupi_inverse import PlayQupi, fit_play_qupi
 from pamd.models.qupi import _identify
 from pamd.models.registry import load_model, save_model
+from pamd.wire.errors import ModelError
 
 #: where the network is not under test (Algorithm 1's swarm cut short, no polish)
 QUICK = FnQupiOptions(particles=10, iterations=3, polish=0)

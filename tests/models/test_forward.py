@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 import pamd
-from pamd.cli.main import main
-from pamd.errors import ModelError
-from pamd.models.anfis.samples import ExtractOptions
-from pamd.models.anfis.splitting import split
+from pamd.client.cli.main import main
+from pamd.client.training_tables import load_samples
 from pamd.models.contract import ModelEnvelope
+from pamd.models.data.samples import ExtractOptions
+from pamd.models.data.splitting import split
 from pamd.models.registry import load_model
 from pamd.models.static_force import PolynomialModel
-from pamd.view.tables import load_samples
+from pamd.wire.errors import ModelError
 
 DATA = Path(pamd.__file__).parent / "data"
 CO = {"a1": 0.31, "a2": -21.0, "a3": 262.0, "a4": -40.0}  # F = p (a1 h^2 + a2 h + a3) + a4

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.metrics import regression_metrics
 from pamd.models import mlp_fit, svr_kernels
 from pamd.models.learned import MlpModel, SvrModel
+from pamd.models.metrics import regression_metrics
 from pamd.models.registry import load_model, save_model
 
 NAMES = ["pressure_bar", "contraction"]

@@ -15,10 +15,10 @@ from typing import Any
 
 import pytest
 
-from pamd.cli.main import main
-from pamd.errors import ModelError
+from pamd.client.cli.main import main
 from pamd.models import kinds_doc
 from pamd.models.registry import KINDS, adaptable, load_model, register
+from pamd.wire.errors import ModelError
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from pamd.metrics import regression_metrics
+from pamd.models.metrics import regression_metrics
 from pamd.models.contract import (Predictor, Variable, clip_inputs, describe_common,
                                   tick_problems)
 from pamd.models.document import footer, header, numbers, read_header

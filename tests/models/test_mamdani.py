@@ -13,10 +13,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pamd.cli.main import main
-from pamd.errors import ModelError
-from pamd.models.anfis.extraction import derived_inputs
+from pamd.client.cli.main import main
 from pamd.models.contract import ModelEnvelope, Variable
+from pamd.models.data.extraction import derived_inputs
 from pamd.models.mamdani import (
     DEFUZZ_POINTS,
     MamdaniModel,
@@ -25,6 +24,7 @@ from pamd.models.mamdani import (
     rule_base,
 )
 from pamd.models.registry import KINDS, dumps_model, load_model
+from pamd.wire.errors import ModelError
 
 NAMES = ["force_n", "length_mm", "velocity_mm_s"]
 UNITS = ["N", "mm", "mm/s"]

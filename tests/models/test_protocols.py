@@ -15,16 +15,16 @@ import numpy as np
 import pytest
 
 import pamd
-from pamd.cli.main import main
-from pamd.errors import ModelError
-from pamd.metrics import regression_metrics
-from pamd.models.anfis.extraction import delta_length
-from pamd.models.anfis.samples import ExtractOptions, Samples
-from pamd.models.anfis.splitting import default_fractions, resplit, split
-from pamd.models.anfis.training import premise_units, raw_step
+from pamd.client.cli.main import main
+from pamd.client.training_tables import load_samples
+from pamd.models.anfis.hybrid import premise_units, raw_step
 from pamd.models.anfis_kind import AnfisOptions
+from pamd.models.data.extraction import delta_length
+from pamd.models.data.samples import ExtractOptions, Samples
+from pamd.models.data.splitting import default_fractions, resplit, split
+from pamd.models.metrics import regression_metrics
 from pamd.models.registry import load_model
-from pamd.view.tables import load_samples
+from pamd.wire.errors import ModelError
 
 MAP = str(Path(pamd.__file__).parent / "data" / "dmsp20_force_map.csv")  # 58 points
 FORWARD = ["--target", "force_n", "--inputs", "pressure_bar,contraction"]

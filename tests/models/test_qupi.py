@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import ModelError
-from pamd.models.anfis.extraction import load_samples
-from pamd.models.anfis.samples import ExtractOptions
 from pamd.models.contract import ModelEnvelope
+from pamd.models.data.extraction import load_samples
+from pamd.models.data.samples import ExtractOptions
 from pamd.models.qupi import Qupi, fit_qupi
 from pamd.models.registry import load_model, save_model
+from pamd.wire.errors import ModelError
 
 
 @pytest.fixture(scope="module")

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import ModelError
 from pamd.models.anfis import TrainingOptions, fit, save
 from pamd.models.contract import CompiledModel, InverseModel
 from pamd.models.registry import KINDS, dumps_model, kind_of, load_model
+from pamd.wire.errors import ModelError
 
 
 @pytest.fixture(scope="module")

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import ModelError
 from pamd.models.contract import ModelEnvelope
 from pamd.models.registry import load_model, save_model
 from pamd.models.static_force import PolynomialModel, fit_coefficients, fit_static
+from pamd.wire.errors import ModelError
 
 #: rig-physics.md's smooth fit of the DMSP-20 force map (d = 0): a known Sarosi model.
 SAROSI = {"a": -10.1206, "b": 236.3164, "c": -0.3378, "d": 0.0, "e": -7.9242,
@@ -130,7 +130,7 @@ def test_fits_to_the_datasheet_map_as_reported() -> None:
     """Seed 002's static use: the force map itself. Sarosi's form fits it to 98.9 %
     NRMSE (RMSE 6.5 N, as rig-physics.md's smooth fit); the 4-parameter polynomial,
     whose offset cannot follow the force at 0 bar, to 67.4 %."""
-    from pamd.metrics import regression_metrics
+    from pamd.models.metrics import regression_metrics
     from pamd.models.static_force import gain_offset
 
     p, x, F = datasheet_map()

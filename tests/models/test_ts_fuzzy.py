@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import ModelError
 from pamd.models.anfis.adapted import adapted_model
 from pamd.models.anfis.model import AnfisModel, init_model
 from pamd.models.genetic import GaOptions, _roulette, decode, encode, minimise
@@ -22,6 +21,7 @@ from pamd.models.ts_fuzzy import (
     fit_ts_fuzzy,
     premise_cost,
 )
+from pamd.wire.errors import ModelError
 
 NAMES = ["force_n", "length_mm", "velocity_mm_s"]
 UNITS = ["N", "mm", "mm/s"]

@@ -1,4 +1,4 @@
-"""A client process for the network tests: its own Zenoh session (pamd.net.client.client),
+"""A client process for the network tests: its own Zenoh session (pamd.client.remote),
 driven by the test through stdin/stdout, one JSON object per line each way.
 
 Start: `python agent.py [--connect EP] [--zenoh-config FILE]`; the first line out is
@@ -24,8 +24,8 @@ import sys
 import time
 from typing import Any
 
-from pamd.net.client.client import Client
-from pamd.net.zconf import NoDaemon
+from pamd.client.remote import Client
+from pamd.wire.zconf import NoDaemon
 
 
 def _payload(req: dict[str, Any]) -> Any:

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import pytest
 
-from pamd.net.client.client import Client
+from pamd.client.remote import Client
 
 
 @dataclass

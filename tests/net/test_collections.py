@@ -1,5 +1,5 @@
 """A collection started over the network, the daemon's main-thread side
-(`pamd.net.host.collections`), with real plans, directories and manifests and a stand-in
+(`pamd.daemon.host.collections`), with real plans, directories and manifests and a stand-in
 for the daemon: where a collection goes (new, or the newest unfinished one of the plan
 to resume), what is refused and what a refusal leaves behind (nothing), what the io
 process is told, and the manifest a daemon that stops mid-plan writes as it closes.
@@ -17,11 +17,11 @@ import pytest
 import yaml
 
 from pamd.config import load_config
-from pamd.errors import CommandRefused
-from pamd.experiment.manifest import Manifest
-from pamd.experiment.plan import load_plan
-from pamd.net.host.collections import Collections
-from pamd.safety.supervisor import Supervisor
+from pamd.daemon.host.collections import Collections
+from pamd.loop.experiment.manifest import Manifest
+from pamd.loop.experiment.plan import load_plan
+from pamd.loop.safety.supervisor import Supervisor
+from pamd.wire.errors import CommandRefused
 
 PLAN = yaml.safe_dump({
     "name": "quick", "muscle": "m1", "settle": {"seconds": 1},

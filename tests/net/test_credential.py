@@ -1,4 +1,4 @@
-"""The command credential's file (`pamd.net.credential`): made once, readable by the
+"""The command credential's file (`pamd.wire.credential`): made once, readable by the
 daemon's user and group only, kept across restarts, never taken from a directory
 another user controls; found by the client in the same places (or as told); each
 command signed with it, never replayable; rotated in place. And rig ids are names: the
@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from pamd.net import credential as cr
-from pamd.net.client.client import BadRigName, Client, rig_name
-from pamd.net.zconf import NoDaemon
+from pamd.client.remote import BadRigName, Client, rig_name
+from pamd.wire import credential as cr
+from pamd.wire.zconf import NoDaemon
 
 
 @pytest.fixture

@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from pamd.record.files import Decoder, iter_messages
+from pamd.wire.record.files import Decoder, iter_messages
 
 from .conftest import RigProc, pamd_cli, wait_until
 

@@ -16,9 +16,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 from pamd.config.loader import load_config
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
-from pamd.net.spec import TelemetryRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
+from pamd.wire.net_spec import TelemetryRequest
 from tests.net.conftest import Agent, free_port, rig_config, wait_listening, wait_until
 
 

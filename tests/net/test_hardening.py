@@ -182,7 +182,7 @@ def test_200_refused_1mb_payloads_are_refused_unread_and_recorded_small(rig: Rig
                     assert len(ev["data"]["args"]["head"]) == 256
                 elif ev["kind"] == "refusals" and ev["data"]["kind"] == "size":
                     counted += ev["data"]["refused_unrecorded"]  # the rest, said later
-    # one recorded per second (pamd.net.node.intake.RECORD_INTERVAL_S), each saying how many
+    # one recorded per second (pamd.iohost.intake.RECORD_INTERVAL_S), each saying how many
     # like it were refused since the last: every refused one counted, none more than once
     # (a lost query may never have reached the node: it counts only what it refused)
     assert n_events > 0 and 1 <= big < 200 and n <= counted <= 200, (big, counted, n)

@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
-from pamd.net.credential import Signer, digest
-from pamd.net.node import node as node_mod
-from pamd.net.node.node import NetNode
-from pamd.net.spec import NetSpec
+from pamd.iohost import node as node_mod
+from pamd.iohost.node import NetNode
+from pamd.wire.credential import Signer, digest
+from pamd.wire.net_spec import NetSpec
 
 TOKEN = "t" * 43
 NONCE = "0123456789abcdef"  # the daemon's run nonce
@@ -257,7 +257,7 @@ def test_a_storm_of_status_queries_builds_one_answer_per_interval() -> None:
 
 def test_the_status_says_the_nonce_the_local_channel_and_the_warnings(
         capsys: pytest.CaptureFixture[str]) -> None:
-    from pamd.cli.net import print_status
+    from pamd.client.cli.net import print_status
 
     clear = "telemetry listens on tcp/0.0.0.0:7447 beyond loopback WITHOUT TLS (allowed)"
     n, _, _ = make(warnings=(clear,))

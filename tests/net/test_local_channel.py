@@ -3,7 +3,7 @@ filled the daemon's cap and `pamd status` and `pamd cmd estop` failed ("no daemo
 router to talk to", exit 7); leaked sessions of a dead daemon's clients reconnected to
 the next daemon and filled its cap.
 
-- The daemon's local channel (`pamd.net.local`) answers status and takes commands on
+- The daemon's local channel (`pamd.wire.local_channel`) answers status and takes commands on
   the rig PC outside Zenoh: with the daemon's session cap full, `pamd status` answers
   and `pamd cmd estop` stops the rig (default run: a cap lowered to 8 with 12
   sessions; `-m slow`: 200 sessions against the shipped cap of 100). The estop's
@@ -34,10 +34,10 @@ from typing import Any
 
 import pytest
 
-from pamd.net import credential as cr
-from pamd.net import local as lc
-from pamd.net.client.client import Client, local_rig
-from pamd.net.zconf import NoDaemon
+from pamd.client.remote import Client, local_rig
+from pamd.wire import credential as cr
+from pamd.wire import local_channel as lc
+from pamd.wire.zconf import NoDaemon
 from tests.net.conftest import RigProc, free_port, pamd_cli, wait_until
 
 RIG = "sim"

@@ -11,9 +11,9 @@ import time
 from types import SimpleNamespace
 from typing import Any
 
-from pamd.io.process import RingCommandPort
-from pamd.net.node.node import NetNode
-from pamd.net.spec import NetSpec
+from pamd.iohost.node import NetNode
+from pamd.iohost.process import RingCommandPort
+from pamd.wire.net_spec import NetSpec
 
 
 class Query:

@@ -1,6 +1,6 @@
 """One line per kind per interval, the next saying how many were dropped
-(`pamd.net.ratelimit`): what clients send cannot grow a log. And what an estop or stop
-keeps of a payload it cannot take whole (`pamd.net.node.intake.salvage`)."""
+(`pamd.iohost.ratelimit`): what clients send cannot grow a log. And what an estop or stop
+keeps of a payload it cannot take whole (`pamd.iohost.intake.salvage`)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from typing import Any
 
 import pytest
 
-from pamd.net import ratelimit
-from pamd.net.node.intake import salvage
-from pamd.net.ratelimit import LineLimiter, RateLimitedHandler, kind_of
+from pamd.iohost import ratelimit
+from pamd.iohost.intake import salvage
+from pamd.iohost.ratelimit import LineLimiter, RateLimitedHandler, kind_of
 
 
 def test_one_line_per_kind_per_interval_then_the_count() -> None:
@@ -78,9 +78,9 @@ def test_salvage_keeps_the_declared_fields_and_says_what_it_cut() -> None:
 
 
 def test_the_daemons_own_endpoint_bounds_what_clients_cost() -> None:
-    """Sessions, message size and no shared-memory pool (pamd.net.zconf): what 50
+    """Sessions, message size and no shared-memory pool (pamd.wire.zconf): what 50
     clients cost the io process is bounded and comes back (tests/adversary)."""
-    from pamd.net import zconf
+    from pamd.wire import zconf
 
     cfg = zconf.daemon_config(None)
     assert zconf.get(cfg, "transport/unicast/max_sessions") == zconf.MAX_SESSIONS == 100

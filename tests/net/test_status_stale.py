@@ -12,9 +12,9 @@ import json
 from types import SimpleNamespace
 from typing import Any
 
-from pamd.net.node.answer import StatusAnswer, TickStats
-from pamd.net.spec import NetSpec
-from pamd.tick import I_T, LOOP_FIELDS, MUSCLE_FIELDS
+from pamd.iohost.answer import StatusAnswer, TickStats
+from pamd.wire.net_spec import NetSpec
+from pamd.wire.tick import I_T, LOOP_FIELDS, MUSCLE_FIELDS
 
 T0 = 100.0  # the loop's clock (monotonic) at the run's start
 

@@ -1,4 +1,4 @@
-"""The pieces of pamd.net without a network: configs secure by default, the state
+"""The pieces of pamd.iohost without a network: configs secure by default, the state
 encoding, rate limits, the status board, the CLI's payloads and the status snapshot."""
 
 from __future__ import annotations
@@ -10,16 +10,16 @@ from typing import Any
 
 import pytest
 
-from pamd.cli.net import _parse_bool, build_payload, verb_parser
-from pamd.errors import ConfigError
-from pamd.net import zconf
-from pamd.net.board import Board
-from pamd.net.host.resolve import resolve
-from pamd.net.ratelimit import RateLimiter
-from pamd.net.spec import TelemetryRequest
-from pamd.net.telemetry import LOOP_COLUMNS, StateBatcher, decode, rows
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS, State, TickLayout
-from pamd.timing import Histogram
+from pamd.client.cli.net import _parse_bool, build_payload, verb_parser
+from pamd.daemon.host.resolve import resolve
+from pamd.iohost.ratelimit import RateLimiter
+from pamd.loop.tick_timing import Histogram
+from pamd.wire import zconf
+from pamd.wire.board import Board
+from pamd.wire.errors import ConfigError
+from pamd.wire.net_spec import TelemetryRequest
+from pamd.wire.telemetry import LOOP_COLUMNS, StateBatcher, decode, rows
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS, State, TickLayout
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -157,7 +157,7 @@ def test_the_foxglove_view_beyond_loopback_needs_tls_or_the_same_permission(
     like a Zenoh listen in clear, from the config (its line) or --foxglove, in one error
     with the Zenoh endpoint when both are; allowed, warned at start and in the status;
     with TLS (wss://) or on loopback, nothing to say."""
-    from pamd.net.host.resolve import resolve_all
+    from pamd.daemon.host.resolve import resolve_all
 
     lan = {"foxglove": {"enabled": True, "listen": "0.0.0.0:8765"}}
     with pytest.raises(ConfigError) as err:
@@ -190,7 +190,7 @@ def test_the_foxglove_view_beyond_loopback_needs_tls_or_the_same_permission(
 
 def test_the_foxglove_certificate_and_key_are_checked_before_anything_starts(
         sim_config: Any, tmp_path: Path) -> None:
-    from pamd.net.host.resolve import resolve_all
+    from pamd.daemon.host.resolve import resolve_all
 
     (tmp_path / "view.pem").write_bytes(b"-----BEGIN CERTIFICATE-----\nMII...\n")
     (tmp_path / "view.key").write_bytes(b"-----BEGIN PRIVATE KEY-----\nSECRET\n")
@@ -216,7 +216,7 @@ def test_the_router_judges_its_links_by_the_same_rule(tmp_path: Path) -> None:
     the file's line, in the rule's words, before any session opens."""
     import argparse
 
-    from pamd.cli.router import run
+    from pamd.client.cli.router import run
 
     conf = tmp_path / "router.json5"
     conf.write_text('{\n  mode: "router",\n  listen: {endpoints: ["tcp/0.0.0.0:7447"]},\n'
@@ -234,8 +234,8 @@ def test_the_io_session_says_the_allowed_links_in_clear_at_start(
         sim_config: Any, caplog: pytest.LogCaptureFixture) -> None:
     """The start says each warning, the live view's too with telemetry off (the status
     says them from NetSpec.warnings: test_intake)."""
-    from pamd.io.session import IoSession
-    from pamd.net.host.resolve import resolve_all
+    from pamd.daemon.host.resolve import resolve_all
+    from pamd.daemon.io_session import IoSession
 
     got = resolve_all(sim_config(30.0), TelemetryRequest(foxglove="0.0.0.0:8765",
                                                          allow_cleartext=True))
@@ -255,8 +255,8 @@ def test_the_io_session_says_the_allowed_links_in_clear_at_start(
 
 
 def test_a_restart_in_place_keeps_the_permission_to_run_in_clear() -> None:
-    from pamd.cli.main import build_parser
-    from pamd.service.restart import run_argv
+    from pamd.client.cli.main import build_parser
+    from pamd.daemon.service.restart import run_argv
 
     args = build_parser().parse_args(["run", "--listen", "tcp/0.0.0.0:7447",
                                       "--allow-cleartext"])
@@ -345,15 +345,15 @@ def test_cmd_payloads_from_options() -> None:
 
 
 def test_status_snapshot_from_a_running_daemon(sim_daemon: Any) -> None:
-    from pamd.net.host.status import StatusBuilder, recording_status
-    from pamd.net.node.answer import TickStats
-    from pamd.net.status import MUSCLE_STATUS_FIELDS, STATUS_FIELDS
+    from pamd.daemon.host.snapshot import StatusBuilder, recording_status
+    from pamd.iohost.answer import TickStats
+    from pamd.wire.status import MUSCLE_STATUS_FIELDS, STATUS_FIELDS
 
     d = sim_daemon(duration_s=None)
     assert d.wait_for_state((State.IDLE,)) == State.IDLE
     st = StatusBuilder(d.ctrl, d.loop, lambda: d.cfg, lambda: recording_status(d.io)).build(0.0)
     json.dumps(st, allow_nan=False)  # strict JSON
-    # every declared field, and only those (pamd.net.status declares them)
+    # every declared field, and only those (pamd.wire.status declares them)
     assert tuple(st) == STATUS_FIELDS and tuple(st["muscles"]["m1"]) == MUSCLE_STATUS_FIELDS
     assert st["rig_id"] == "sim" and st["config_sha256"] == d.cfg.sha256
     assert st["muscles"]["m1"]["references"]["length_referenced"] is True

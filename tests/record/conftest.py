@@ -15,10 +15,10 @@ import pytest
 import yaml
 
 from pamd.config import LoadedConfig, load_config
-from pamd.daemon import Daemon
-from pamd.declare import events
-from pamd.declare.jsonsafe import dumps
-from pamd.io.session import RecordingRequest
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
+from pamd.wire.declare import events
+from pamd.wire.declare.jsonsafe import dumps
 
 SIM_YAML = Path(__file__).resolve().parents[2] / "config" / "sim.yaml"
 
@@ -50,7 +50,7 @@ def sim_config(tmp_path: Path) -> Callable[..., LoadedConfig]:
 
 class CaptureSink:
     """What the loop saw: a copy of every tick record and every event; each event is
-    checked against its declaration (pamd.declare.events) as it comes, and the
+    checked against its declaration (pamd.wire.declare.events) as it comes, and the
     `recorded_run` fixture fails on any that drifted."""
 
     def __init__(self) -> None:

@@ -1,6 +1,6 @@
 """The recorder's files for experiment steps, read back with the `mcap` reader and its
 ROS 2 decoder: a collection announced to a recorder that is already writing a run file
-(`pamd.record.control`) gets one file per step in its own directory, from the tick its
+(`pamd.wire.record.control`) gets one file per step in its own directory, from the tick its
 first step begins to the tick the plan ends, and the run goes on in a new ordinary
 file; a plan of `pamd collect` (steps known at the start) keeps the rest of the run in
 its last step's file; every tick lands in exactly one file."""
@@ -16,12 +16,12 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from pamd.io.spec import IoSpec
-from pamd.ipc.ring import BlockLayout
-from pamd.record import control
-from pamd.record.recorder import Recorder
-from pamd.record.spec import RecordSpec
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
+from pamd.iohost.io_spec import IoSpec
+from pamd.iohost.recorder import Recorder
+from pamd.wire.record import control
+from pamd.wire.record.record_spec import RecordSpec
+from pamd.wire.ring import BlockLayout
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 I_SEG = LOOP_FIELDS.index("segment")
 STEPS = ({"step": "light", "index": 0, "plan": "quick", "load_kg": 15.0},

@@ -1,4 +1,4 @@
-"""A real recorded run against the declarations (pamd.declare): the file's schemas, read
+"""A real recorded run against the declarations (pamd.wire.declare): the file's schemas, read
 back by the independent `mcap` and `mcap_ros2` readers, hold exactly the field
 table's fields and types; every event of the run (in the file and as the loop emitted
 it) is a declared kind with its declared payload and passes the file's own event JSON
@@ -17,9 +17,9 @@ from mcap.reader import make_reader
 from mcap_ros2._vendor.rosidl_adapter.parser import parse_message_string
 from mcap_ros2.decoder import DecoderFactory
 
-from pamd.declare import events, fields
-from pamd.view.export import export_mat, export_named_csv
-from pamd.view.fields import MUSCLE_COLUMNS
+from pamd.client.export import export_mat, export_named_csv
+from pamd.client.field_info import MUSCLE_COLUMNS
+from pamd.wire.declare import events, fields
 
 PY_TYPE = {"float64": float, "uint8": int, "uint16": int, "uint32": int, "uint64": int}
 

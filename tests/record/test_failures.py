@@ -19,10 +19,10 @@ from typing import Any
 import pytest
 from mcap.reader import make_reader
 
-from pamd.daemon import Daemon
-from pamd.io.session import RecordingRequest
-from pamd.record import files
-from pamd.tick import State
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
+from pamd.wire.record import files
+from pamd.wire.tick import State
 
 
 def until(cond: Callable[[], bool], timeout_s: float = 60.0, what: str = "") -> None:

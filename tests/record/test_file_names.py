@@ -8,9 +8,9 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
-from pamd.io.spec import IoSpec
-from pamd.record.recorder import Recorder
-from pamd.record.spec import RecordSpec
+from pamd.iohost.io_spec import IoSpec
+from pamd.iohost.recorder import Recorder
+from pamd.wire.record.record_spec import RecordSpec
 
 
 def _spec(tmp_path: Path) -> IoSpec:

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS, TickLayout
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS, TickLayout
 
 from .conftest import same
 

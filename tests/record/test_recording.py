@@ -11,7 +11,7 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS, TickLayout
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS, TickLayout
 
 from .conftest import same
 
@@ -150,8 +150,8 @@ def test_rotation_by_size(recorded_run: Any) -> None:
 def test_markers_from_another_thread_reach_the_file(tmp_path: Any, sim_config: Any) -> None:
     """Events from any thread (an experiment runner, the CLI) are handed to the loop's
     thread, which alone writes the rings, and land on the events topic in order."""
-    from pamd.daemon import Daemon
-    from pamd.io.session import RecordingRequest
+    from pamd.daemon.daemon import Daemon
+    from pamd.daemon.io_session import RecordingRequest
 
     d = Daemon(sim_config(30.0), recording=RecordingRequest(dir=str(tmp_path / "r")))
     d.start(None)

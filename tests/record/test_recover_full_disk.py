@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from pamd.daemon import Daemon
-from pamd.errors import RecordingError
-from pamd.io.session import RecordingRequest
-from pamd.record import files
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.io_session import RecordingRequest
+from pamd.wire.errors import RecordingError
+from pamd.wire.record import files
 
 from .conftest import make_sim_config
 

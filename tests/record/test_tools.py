@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pamd.cli.main import main
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
-from pamd.view.export import column_decimals
+from pamd.client.cli.main import main
+from pamd.client.export import column_decimals
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 BAD = {
     "missing": None,
@@ -91,7 +91,7 @@ def test_inspect_and_export_a_good_file(recorded_run: Any, tmp_path: Path,
     assert len(rows) == n + 1
     i = rows[0].index("force_n")
     fi = len(LOOP_FIELDS) + MUSCLE_FIELDS.index("force_n")
-    d = column_decimals("force_n")  # written to what a load cell resolves (pamd.view.export)
+    d = column_decimals("force_n")  # written to what a load cell resolves (pamd.client.export)
     assert d is not None
     got = np.array([float(r[i]) for r in rows[1:]])
     assert np.abs(got - np.array([r[fi] for r in run.cap.rows])).max() <= 0.5 * 10.0**-d + 1e-9

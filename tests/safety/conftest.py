@@ -1,6 +1,6 @@
 """The safety suite's rig: the simulated DMSP-20 with a load and a scripted fault
 schedule (the sim driver's `faults` option), stepped tick by tick on the virtual
-clock through `pamd.harness.Harness`, with what each tick did kept for the
+clock through `pamd.loop.harness.Harness`, with what each tick did kept for the
 invariant checks."""
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ import pytest
 import yaml
 
 from pamd.config import LoadedConfig
-from pamd.harness import Harness
+from pamd.loop.harness import Harness
 from pamd.sim.faults import SimFault
-from pamd.tick import State
+from pamd.wire.tick import State
 
 from ..conftest import sim_dict
 

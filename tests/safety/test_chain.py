@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from pamd.tick import Flag, State
+from pamd.wire.tick import Flag, State
 from tests.safety.conftest import SafetyRig
 
 CHAIN = {"estop": {"driver": "sim", "channel": "safety_chain"},

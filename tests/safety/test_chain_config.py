@@ -10,7 +10,7 @@ import pytest
 
 from pamd.config import load_config_text
 from pamd.config.loader import effective_timeout_s
-from pamd.errors import ConfigError
+from pamd.wire.errors import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
 SIM = (REPO / "config" / "sim.yaml").read_text()

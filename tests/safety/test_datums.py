@@ -11,8 +11,8 @@ from typing import Any
 import pytest
 import yaml
 
-from pamd.calibration import load_calibration
-from pamd.cli.main import main
+from pamd.client.cli.main import main
+from pamd.loop.devices.datum_file import load_calibration
 from pamd.muscle_type import GRAVITY_M_S2, equilibrium_contraction, force_model
 
 from .conftest import SafetyRig
@@ -37,7 +37,7 @@ def test_home_is_refused_on_an_absolute_sensor(safety_rig: Callable[..., SafetyR
     rig.run(0.05)
     v = rig.h.cmd("home", muscle="m1", length_mm=rig.plant.length_mm)
     assert not v["ok"] and "m1.length (driver 'sim') is an absolute sensor" in v["error"]
-    assert rig.m.reference.length_offset_mm == 0.0 and not rig.h.ctrl.calibration_dirty
+    assert rig.m.datums.length_offset_mm == 0.0 and not rig.h.ctrl.calibration_dirty
 
 
 def test_absolute_true_on_an_analog_length_input_references_it_and_refuses_home(
@@ -62,7 +62,7 @@ def test_home_is_refused_when_it_disagrees_with_the_expected_length(
         v = rig.h.cmd("home", muscle="m1", length_mm=wrong)
         assert not v["ok"] and "disagrees with the" in v["error"], v
         assert "safety.home_tolerance" in v["error"]
-    assert not rig.m.referenced and rig.m.reference.length_offset_mm == 0.0
+    assert not rig.m.referenced and rig.m.datums.length_offset_mm == 0.0
     ok = rig.h.cmd("home", muscle="m1", length_mm=round(true_mm, 1))
     assert ok["ok"], ok
     rig.run(0.1)
@@ -84,13 +84,13 @@ def test_home_is_refused_while_the_muscle_moves(safety_rig: Callable[..., Safety
 def test_tare_refuses_to_call_a_hanging_load_zero(safety_rig: Callable[..., SafetyRig]) -> None:
     rig = safety_rig(30.0)
     rig.run(0.2)
-    before = rig.m.reference.force_offset_n
+    before = rig.m.datums.force_offset_n
     v = rig.h.cmd("tare", muscle="m1")
     assert not v["ok"] and "holds the configured load of 30 kg" in v["error"]
     assert "--load-kg 30" in v["error"]
     v = rig.h.cmd("tare", muscle="m1", load_kg=50.0)
     assert not v["ok"] and "configured load is 30 kg" in v["error"]
-    assert rig.m.reference.force_offset_n == before
+    assert rig.m.datums.force_offset_n == before
     ok = rig.h.cmd("tare", muscle="m1", load_kg=30.0)
     assert ok["ok"] and abs(ok["force_offset_n"]["m1"]) < 5.0
     rig.run(0.01)

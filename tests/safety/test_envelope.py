@@ -10,10 +10,10 @@ from typing import Any
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.control.length_targets import check_length_profile_config
-from pamd.errors import CommandRefused
-from pamd.safety import safe_pressure_bar
-from pamd.safety.envelope import MuscleEnvelope
+from pamd.loop.control.length_targets import check_length_profile_config
+from pamd.loop.safety import safe_pressure_bar
+from pamd.loop.safety.envelope import MuscleEnvelope
+from pamd.wire.errors import CommandRefused
 
 
 def test_the_envelope_holds_the_configs_limits_and_names(
@@ -27,7 +27,7 @@ def test_the_envelope_holds_the_configs_limits_and_names(
                                                          lim.max_pretension)
     assert env.soft_max_contraction == lim.max_contraction - saf.soft_band_contraction
     assert env.slew_limit_bar_per_s == ctl.slew_limit_bar_per_s
-    assert ctl.position.max_rate_per_s is None  # derived (pamd.safety.length_rate)
+    assert ctl.position.max_rate_per_s is None  # derived (pamd.loop.safety.length_rate)
     assert env.max_length_rate_per_s == MuscleEnvelope.derived_length_rate(
         cfg, "m1").max_rate_per_s
     assert env.nominal_length_mm == cfg.muscle("m1").nominal_length_mm

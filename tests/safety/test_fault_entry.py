@@ -18,9 +18,9 @@ from typing import Any
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.control.feedforward import LoadedModel
-from pamd.harness import Harness
-from pamd.tick import State
+from pamd.loop.control.feedforward import LoadedModel
+from pamd.loop.harness import Harness
+from pamd.wire.tick import State
 from tests.experiment.test_sequencer import start
 
 from ..conftest import sim_dict

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from pamd.commands import Command, apply_command
-from pamd.commands.tune import RelayArgs
-from pamd.experiment.sequencer import running_plan
-from pamd.harness import Harness
-from pamd.tick import State
-from pamd.tune.run import IDENT_SLEW_BAR_PER_S, tuning_config
+from pamd.client.tune.ident_run import IDENT_SLEW_BAR_PER_S, tuning_config
+from pamd.loop.commands import Command, apply_command
+from pamd.loop.commands.tune_verbs import RelayArgs
+from pamd.loop.experiment.sequencer import running_plan
+from pamd.loop.harness import Harness
+from pamd.wire.tick import State
 from tests.experiment.test_sequencer import start
 
 from .conftest import SafetyRig

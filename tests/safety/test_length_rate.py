@@ -10,10 +10,10 @@ from typing import Any
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.control.length_targets import check_length_profile_config
-from pamd.errors import CommandRefused
+from pamd.loop.control.length_targets import check_length_profile_config
+from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.muscle_type import equilibrium_contraction
-from pamd.safety.envelope import MuscleEnvelope
+from pamd.wire.errors import CommandRefused
 
 
 def _sine(freq_hz: float) -> dict[str, object]:

@@ -18,13 +18,13 @@ from typing import Any
 import pytest
 import yaml
 
-from pamd.commands import Command, apply_command
 from pamd.config import load_config
-from pamd.harness import Harness
+from pamd.daemon.service.reload import plan_reload
+from pamd.loop.commands import Command, apply_command
+from pamd.loop.harness import Harness
+from pamd.loop.safety.load_check import check_load, load_tolerance_n
 from pamd.muscle_type import GRAVITY_M_S2
-from pamd.safety.load_check import check_load, load_tolerance_n
-from pamd.service.reload import plan_reload
-from pamd.tick import State
+from pamd.wire.tick import State
 
 from ..conftest import sim_dict
 

@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import pytest
 
-from pamd.tick import Flag
+from pamd.wire.tick import Flag
 
 from .conftest import SENSOR_SETS, SafetyRig, sensor_delay_s, sim_driver
 

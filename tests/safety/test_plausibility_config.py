@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from pamd.config import LoadedConfig, load_config
-from pamd.errors import ConfigError
+from pamd.wire.errors import ConfigError
 
 from ..conftest import sim_dict
 

@@ -12,8 +12,8 @@ import pytest
 from pamd.drivers.device import ArrivalWindow
 
 from pamd.config.safety_schema import PlausibilityConfig
+from pamd.loop.safety.plausibility import Plausibility
 from pamd.muscle_type import force_model
-from pamd.safety.plausibility import Plausibility
 from pamd.sim.sensors import SampledSensor
 
 L0 = 200.0

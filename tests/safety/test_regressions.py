@@ -157,7 +157,7 @@ def test_a_profile_held_at_a_soft_limit_shows_in_tracking_an_event_and_the_summa
 
 
 def test_pid_integral_moves_away_from_a_clamp_never_into_it() -> None:
-    from pamd.control.pid import Pid
+    from pamd.loop.control.pid import Pid
 
     pid = Pid(0.3, 20.0, 0.0, 30.0, 1.0, 1.5)
     pid.reset(0.0, 0.5)

@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 import yaml
 
-from pamd.service.keeper import ServiceKeeper
+from pamd.daemon.service.keeper import ServiceKeeper
 
 from .conftest import SafetyRig
 

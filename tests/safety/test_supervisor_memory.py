@@ -4,8 +4,8 @@ faults came since a given moment."""
 
 from __future__ import annotations
 
-from pamd.safety.supervisor import FAULTS_KEPT, HISTORY_KEPT, Supervisor
-from pamd.tick import State
+from pamd.loop.safety.supervisor import FAULTS_KEPT, HISTORY_KEPT, Supervisor
+from pamd.wire.tick import State
 
 
 def test_history_and_faults_stay_bounded_over_many_faults_and_resets() -> None:

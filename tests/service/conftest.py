@@ -21,6 +21,11 @@ from typing import Any
 import pytest
 import yaml
 
+from .testhooks import SLOW_RELOAD_ENV, STALL_ENV
+
+#: `pamd run` with the tests' hooks (`python tests/service/testhooks.py run ...`)
+HOOKS = Path(__file__).resolve().parent / "testhooks.py"
+
 REPO = Path(__file__).resolve().parents[2]
 SIM_YAML = REPO / "config" / "sim.yaml"
 
@@ -125,8 +130,12 @@ class DaemonProcess:
         for k in ("NOTIFY_SOCKET", "WATCHDOG_USEC", "WATCHDOG_PID"):
             full_env.pop(k, None)
         full_env.update(env or {})
+        # a test hook asked for: `pamd run` through the hooks' launcher (tests/service/
+        # testhooks.py: the hooks are the tests', not pamd's)
+        hooked = any(k in full_env for k in (STALL_ENV, SLOW_RELOAD_ENV))
+        pamd = [str(HOOKS)] if hooked else ["-m", "pamd"]
         with open(self.out_path, "w") as out, open(self.err_path, "w") as err:
-            self.proc = subprocess.Popen([sys.executable, "-m", "pamd", "run", *args],
+            self.proc = subprocess.Popen([sys.executable, *pamd, "run", *args],
                                          stdout=out, stderr=err, env=full_env, cwd=tmp)
 
     def log(self) -> str:

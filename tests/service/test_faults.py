@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 
 from pamd.config import LoadedConfig
-from pamd.daemon import Daemon
-from pamd.service.state import state_paths
-from pamd.tick import State
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.service.state import state_paths
+from pamd.wire.tick import State
 
 from .conftest import wait_until
 

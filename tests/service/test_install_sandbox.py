@@ -9,7 +9,12 @@ from pathlib import Path
 
 import yaml
 
-from pamd.service.install import executable_paths, hidden_by_sandbox, install, sandbox_relief
+from pamd.daemon.service.install import (
+    executable_paths,
+    hidden_by_sandbox,
+    install,
+    sandbox_relief,
+)
 
 from .conftest import sim_dict
 

@@ -12,11 +12,11 @@ import signal
 import socket
 from pathlib import Path
 
+from pamd.daemon.service.notify import Notifier, socket_address
 from pamd.emulate.testing import free_port
-from pamd.service.notify import Notifier, socket_address
-from pamd.service.testhooks import STALL_ENV
 
 from .conftest import NotifySocket, sim_dict, wait_until, write_yaml
+from .testhooks import STALL_ENV
 
 WATCHDOG_USEC = 400_000  # pings due every 0.2 s
 

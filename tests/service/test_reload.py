@@ -12,9 +12,9 @@ from typing import Any
 import yaml
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
-from pamd.service.reload import changed_paths, classify
-from pamd.tick import State
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.service.reload import changed_paths, classify
+from pamd.wire.tick import State
 
 from .conftest import merge, wait_until
 
@@ -176,7 +176,7 @@ def test_a_custom_map_edited_on_disk_is_a_change_as_a_changed_type_is(tmp_path: 
     A reload compares what the config resolves to (the map's rows, by their digest), so
     the edit is a change that needs a restart (as a changed `type`), said with the file;
     a map rewritten with the same rows is none."""
-    from pamd.service.reload import describe, plan_reload
+    from pamd.daemon.service.reload import describe, plan_reload
 
     path = _custom_rig(tmp_path)
     table = tmp_path / "maps" / "specimen-20.csv"

@@ -18,13 +18,13 @@ import pytest
 
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
-from pamd.declare.jsonsafe import JsonObject
-from pamd.harness import Harness
-from pamd.service.keeper import ServiceKeeper
-from pamd.service.testhooks import SLOW_RELOAD_ENV
+from pamd.daemon.service.keeper import ServiceKeeper
+from pamd.loop.harness import Harness
+from pamd.wire.declare.jsonsafe import JsonObject
 from tests.benchmod import bench_module
 
 from .conftest import NotifySocket, sim_dict, wait_until, write_yaml
+from .testhooks import SLOW_RELOAD_ENV
 
 WATCHDOG_S = 1.0
 #: the read of each reload is made this much slower: longer than WatchdogSec
@@ -36,7 +36,7 @@ def gaps_s(times: list[float]) -> list[float]:
 
 
 def sighup_blocked(pid: int) -> bool:
-    """The process holds SIGHUP (`pamd.cli.main` blocks it at its first line)."""
+    """The process holds SIGHUP (`pamd.client.cli.main` blocks it at its first line)."""
     try:
         status = Path(f"/proc/{pid}/status").read_text()
     except OSError:

@@ -16,9 +16,9 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
-from pamd.cli.main import build_parser
+from pamd.client.cli.main import build_parser
+from pamd.daemon.service.restart import run_argv
 from pamd.emulate.testing import free_port
-from pamd.service.restart import run_argv
 
 from .conftest import NotifySocket, sim_dict, wait_until, write_yaml
 from .test_signals import read_recording
@@ -132,13 +132,13 @@ def test_a_stop_during_the_restart_reaches_the_new_process(tmp_path: Path) -> No
         import os, signal
         got = []
         signal.signal(signal.SIGTERM, lambda s, f: got.append(s))
-        from pamd.service.restart import unblock_signals
+        from pamd.daemon.service.restart import unblock_signals
         unblock_signals()
         print("child", os.getpid(), got, flush=True)
     """)
     parent = textwrap.dedent(f"""
         import os, sys
-        from pamd.service.restart import restart_in_place
+        from pamd.daemon.service.restart import restart_in_place
         print("parent", os.getpid(), flush=True)
         restart_in_place([sys.executable, "-c", {child!r}], "test", stop_received=True)
     """)

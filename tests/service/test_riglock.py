@@ -20,11 +20,11 @@ from pamd.drivers.canopen_encoder import CanEncoderDriver, CanEncoderOptions
 from pamd.drivers.modbus import ModbusDriver, ModbusOptions
 from pamd.drivers.serial_line import LineField, SerialLineDriver, SerialLineOptions
 
+from pamd.client.tune.ident_run import PRESSURE, run_identification
 from pamd.config import LoadedConfig
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
+from pamd.daemon.service.riglock import ResourceLock, RigBusy, holder, lock_dir, lock_path
 from pamd.emulate.testing import free_port
-from pamd.service.riglock import ResourceLock, RigBusy, holder, lock_dir, lock_path
-from pamd.tune.run import PRESSURE, run_identification
 
 
 def test_lock_dir_follows_the_environment(rig_lock_dir: Path,
@@ -164,7 +164,7 @@ def _sim_driver() -> dict[str, object]:
 
 HOLD = """
 import sys, time
-from pamd.service.riglock import ResourceLock
+from pamd.daemon.service.riglock import ResourceLock
 lock = ResourceLock(sys.argv[1], 'lab')
 lock.acquire('pamd run --config lab.yaml')
 print('held', flush=True)

@@ -16,10 +16,10 @@ import pytest
 from pamd.drivers.modbus import ModbusOptions
 
 from pamd.config import load_config
-from pamd.daemon import Daemon
+from pamd.daemon.daemon import Daemon
 from pamd.emulate.modbus_device import EmulatedModbusDevice, serve_tcp
 from pamd.emulate.testing import AioThread, free_port
-from pamd.tick import State
+from pamd.wire.tick import State
 
 from .conftest import sim_dict, wait_until, write_yaml
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from pamd.service.install import PLACEHOLDER, install
+from pamd.daemon.service.install import PLACEHOLDER, install
 
 REPO = Path(__file__).resolve().parents[2]
 UNIT = REPO / "systemd" / "pamd.service"
@@ -63,7 +63,7 @@ def test_the_unit_says_what_the_rig_needs() -> None:
     assert one["User"] == "pamd" and "dialout" in one["SupplementaryGroups"].split()
     assert int(one["LimitRTPRIO"]) >= 80 and one["LimitMEMLOCK"] == "infinity"
     assert one["StateDirectory"] == "pamd" and one["ConfigurationDirectory"] == "pamd"
-    # the rig locks: where a `pamd run` started by hand looks too (pamd.service.riglock)
+    # the rig locks: where a `pamd run` started by hand looks too (pamd.daemon.service.riglock)
     assert one["RuntimeDirectory"] == "pamd" and one["RuntimeDirectoryPreserve"] == "yes"
     assert one["NoNewPrivileges"] == "yes" and one["ProtectSystem"] == "strict"
     assert one["ProtectHome"] == "yes" and one["PrivateTmp"] == "yes"

@@ -12,9 +12,9 @@ import pytest
 from pamd.drivers import load_driver_class
 from pamd.drivers.sim import SimDriver
 
-from pamd.errors import DriverError
 from pamd.muscle_type import equilibrium_contraction, force_model
 from pamd.sim.options import SimMuscleOptions, SimOptions
+from pamd.wire.errors import DriverError
 
 # --- protocol and options -------------------------------------------------------
 
@@ -28,7 +28,7 @@ def test_registered_as_sim_and_steps_with_the_loop() -> None:
 
 def test_empty_options_give_one_muscle_m1() -> None:
     drv = SimDriver("sim", SimOptions())
-    # the muscle's, then the rig's safety chain (pamd.safety.chain)
+    # the muscle's, then the rig's safety chain (pamd.loop.safety.chain)
     assert [c.name for c in drv.input_channels] == ["m1.pressure", "m1.force", "m1.length",
                                                      "safety_chain", "supply", "reset"]
     assert [c.unit for c in drv.input_channels] == ["bar", "N", "mm", "", "bar", ""]

@@ -15,9 +15,9 @@ import yaml
 from pamd.drivers.sim import SimDriver
 
 from pamd.config import load_config
-from pamd.errors import ConfigError, DriverError
 from pamd.sim.faults import SimFault
 from pamd.sim.options import SimMuscleOptions, SimOptions
+from pamd.wire.errors import ConfigError, DriverError
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -131,7 +131,7 @@ def test_a_10_samples_per_second_input_is_stale_for_a_50_ms_timeout(sim_config) 
     naming the input; at 20 ms per sample the same rig runs. (The config refuses a
     simulated sensor slower than its timeout, tests/config/test_actuation.py; here the
     device is slower than its config says, as real hardware can be.)"""
-    from pamd.harness import Harness
+    from pamd.loop.harness import Harness
 
     def run(period_s: float) -> Harness:
         cfg = sim_config(safety={"signal_timeout_s": 0.05})

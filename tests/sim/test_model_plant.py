@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import DriverError, ModelError
 from pamd.models.fn_qupi import FnQupiOptions, fit_fn_qupi
 from pamd.models.fn_qupi_plant import FnQupiStepper, plant_model
 from pamd.models.registry import save_model
 from pamd.sim.model_plant import ModelPlant
 from pamd.sim.options import SimMuscleOptions
+from pamd.wire.errors import DriverError, ModelError
 
 PERIOD_S = 0.04
 

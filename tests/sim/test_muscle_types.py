@@ -10,10 +10,10 @@ import pytest
 from pamd.drivers.sim import SimDriver
 
 from pamd.config.muscle_types import read_map
-from pamd.errors import DriverError
 from pamd.muscle_type import ForceMap, datasheet_type, equilibrium_contraction
 from pamd.sim.options import SimMuscleOptions, SimOptions
 from pamd.sim.pneumatics import MuscleVolume
+from pamd.wire.errors import DriverError
 from tests.sim.rig import Rig
 
 REPO = Path(__file__).resolve().parents[2]

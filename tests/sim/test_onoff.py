@@ -8,9 +8,9 @@ from dataclasses import replace
 import pytest
 from pamd.drivers.sim import SimDriver
 
-from pamd.sim.onoff import OnOffValves, SolenoidValve
 from pamd.sim.options import SimMuscleOptions, SimOptions
 from pamd.sim.pneumatics import SupplyLine
+from pamd.sim.solenoid import OnOffValves, SolenoidValve
 from tests.sim.rig import Rig
 
 DT = 0.001

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from pamd.tune.onoff import StepTest
-from pamd.tune.onoff_run import run_onoff
+from pamd.client.tune.onoff_run import run_onoff
+from pamd.client.tune.onoff_steps import StepTest
 from tests.once import once_per_run
 
 REPO = Path(__file__).resolve().parents[2]

@@ -1,4 +1,4 @@
-"""`pamd tune --loop onoff --plot FILE` (pamd/tune/onoff_plot.py): the figure draws
+"""`pamd tune --loop onoff --plot FILE` (pamd/client/tune/onoff_plot.py): the figure draws
 each of the ten pulses per muscle around its own window from the data the analysis
 measured (the valve's open interval, the means where they were taken, the 300 ms
 pulses' fastest length change), marks an unsound pulse, and is written as a PNG;
@@ -15,11 +15,18 @@ from typing import Any, NoReturn
 import numpy as np
 import pytest
 
-from pamd.cli import tune as tune_cli
-from pamd.errors import PamdError
-from pamd.tune.onoff import PULSES, SPEED_PULSE_S, SPEED_WINDOW_S, WINDOW_S, StepTest, unsound
-from pamd.tune.onoff_plot import onoff_figure, plot_onoff
-from pamd.tune.report import pyplot
+from pamd.client.cli import tune as tune_cli
+from pamd.client.tune.onoff_plot import onoff_figure, plot_onoff
+from pamd.client.tune.onoff_steps import (
+    PULSES,
+    SPEED_PULSE_S,
+    SPEED_WINDOW_S,
+    WINDOW_S,
+    StepTest,
+    unsound,
+)
+from pamd.client.tune.tune_report import pyplot
+from pamd.wire.errors import PamdError
 from tests.tune.conftest import ONOFF
 
 

@@ -1,5 +1,5 @@
 """`pamd tune --loop onoff`'s dead band from the PWM's shortest pulse, three times per
-valve, alternating, their typical step taken (pamd/tune/onoff.py): one pulse's step is
+valve, alternating, their typical step taken (pamd/client/tune/onoff_steps.py): one pulse's step is
 not the valve's (its spool's switching delays, not the tick, decide how long it is
 really open: 7, 8 or 9 ms of spool for the same 6-tick pulse on the real clock), so
 the typical step is the mean of the three; one held open by a stall or cut short is
@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.tune.onoff import (
+from pamd.client.tune.ident_run import TuneRefused
+from pamd.client.tune.onoff_steps import (
     INFLATE_OPEN,
     LEVEL_BAR,
     PULSES,
@@ -33,7 +34,6 @@ from pamd.tune.onoff import (
     shortest_of,
     typical_step_bar,
 )
-from pamd.tune.run import TuneRefused
 
 PWM_PERIOD_S = 0.02
 #: where the exhaust valve's shortest pulses are in PULSES (the smaller valve's: the

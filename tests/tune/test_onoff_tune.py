@@ -15,9 +15,9 @@ from typing import Any
 import pytest
 import yaml
 
-from pamd.cli import tune as tune_cli
+from pamd.client.cli import tune as tune_cli
+from pamd.client.tune.onoff_steps import StepTest, derived_settings, unsound
 from pamd.config import load_config
-from pamd.tune.onoff import StepTest, derived_settings, unsound
 from tests.benchmod import bench_module
 from tests.cli.test_tune_cli import rig_copy
 from tests.tune.conftest import ONOFF, REPO

@@ -13,11 +13,11 @@ from typing import Any
 
 import yaml
 
+from pamd.client.tune.placement import place
+from pamd.client.tune.tune_report import PLANT_KEYS, Present
+from pamd.client.tune.yamledit import set_values
 from pamd.config import LoadedConfig, load_config
-from pamd.control.tuning import Fopdt
-from pamd.tune.placement import place
-from pamd.tune.report import PLANT_KEYS, Present
-from pamd.tune.yamledit import set_values
+from pamd.loop.control.tuning import Fopdt
 
 from ..conftest import sim_dict
 

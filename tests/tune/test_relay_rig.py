@@ -13,10 +13,10 @@ from typing import Any
 
 import pytest
 
+from pamd.client.tune.ident_run import PRESSURE, run_identification
+from pamd.client.tune.relay_run import mean_relay_model, run_relay
+from pamd.client.tune.step_responses import fit_all, mean_model, pressure_gains
 from pamd.config import LoadedConfig
-from pamd.tune.relay import mean_relay_model, run_relay
-from pamd.tune.run import PRESSURE, run_identification
-from pamd.tune.steps import fit_all, mean_model, pressure_gains
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -5,8 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pamd.control.tuning import Fopdt, IdentificationError
-from pamd.tune.steps import Step, check_model, fit_all, mean_model, pressure_gains, steps_in
+from pamd.client.tune.step_responses import (
+    StepResponse,
+    check_model,
+    fit_all,
+    mean_model,
+    pressure_gains,
+    steps_in,
+)
+from pamd.loop.control.tuning import Fopdt, IdentificationError
 
 PLANT = Fopdt(0.95, 0.013, 0.0126)
 
@@ -44,7 +51,7 @@ def test_no_response_is_refused() -> None:
     t, u, _ = recorded(0.2)
     flat = 2.85 + 0.001 * np.sin(np.arange(t.size))
     with pytest.raises(IdentificationError, match="within the noise"):
-        fit_all([Step("x", 0.3005, 0.2, t, flat)])
+        fit_all([StepResponse("x", 0.3005, 0.2, t, flat)])
 
 
 def test_a_response_that_is_not_first_order_is_refused() -> None:

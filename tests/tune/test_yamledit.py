@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from pamd.tune.yamledit import YamlEditError, format_value, set_values
+from pamd.client.tune.yamledit import YamlEditError, format_value, set_values
 
 TEXT = """# the rig
 rig_id: x
@@ -77,8 +77,8 @@ def test_words_are_written_as_yaml_reads_them() -> None:
 def test_the_gains_shown_are_the_gains_saved(capsys: pytest.CaptureFixture[str]) -> None:
     """`pamd tune` showed kp 0.07353, ki 2.285 and --save wrote 0.0735, 2.28 (issue 40):
     the table shows each new value as it is written, its change counted on that."""
-    from pamd.tune.onoff import print_settings
-    from pamd.tune.report import Present, print_gains
+    from pamd.client.tune.onoff_steps import print_settings
+    from pamd.client.tune.tune_report import Present, print_gains
 
     kp, ki = ("control", "pid", "kp"), ("control", "pid", "ki_per_s")
     new = {kp: 0.0735312, ki: 2.28514}

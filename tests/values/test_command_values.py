@@ -13,9 +13,9 @@ from typing import Any
 
 import pytest
 
-from pamd.errors import CommandRefused
-from pamd.harness import Harness
-from pamd.verbs.table import VERBS
+from pamd.loop.harness import Harness
+from pamd.wire.errors import CommandRefused
+from pamd.wire.verbs.table import VERBS
 
 BAD = {"subnormal": 5e-324, "huge": 1e308, "nan": math.nan, "inf": math.inf,
        "negative": -1.0}
@@ -99,16 +99,16 @@ def test_a_bad_value_is_refused_and_nothing_moves(rigs: dict[str, Harness],
         h = rigs["position" if field in LENGTH_FIELDS or (verb, field) in (
             ("setpoint", "length_mm"), ("setpoint", "force_n")) else "pressure"]
         m = h.m1
-        before = (h.state, m.load_kg, m.reference.length_offset_mm,
-                  m.reference.force_offset_n)
+        before = (h.state, m.load_kg, m.datums.length_offset_mm,
+                  m.datums.force_offset_n)
         sp0, p0 = m.setpoint_bar, h.sim.plant("m1").pressure_bar
         try:
             v = h.cmd(verb, **WITH[(verb, field)], **{field: BAD[value]})
         except CommandRefused:  # by its verb's schema, as the io process parses it
             v = {"ok": False}
         h.step(0.005)
-        after = (h.state, m.load_kg, m.reference.length_offset_mm,
-                 m.reference.force_offset_n)
+        after = (h.state, m.load_kg, m.datums.length_offset_mm,
+                 m.datums.force_offset_n)
         if (v["ok"] or after != before or abs(m.setpoint_bar - sp0) > 0.02
                 or abs(h.sim.plant("m1").pressure_bar - p0) > 0.02):
             accepted.append(f"{field}={BAD[value]!r}: {v}")

@@ -19,10 +19,10 @@ import yaml
 
 from pamd.config import load_config
 from pamd.config.loader import LoadedConfig
-from pamd.errors import CommandRefused, ConfigError
-from pamd.experiment.plan import parse_plan
+from pamd.loop.experiment.plan import parse_plan
 from pamd.profiles import ProfileSpec
 from pamd.profiles.harmonic import max_harmonics
+from pamd.wire.errors import CommandRefused, ConfigError
 from tests.conftest import CliResult
 
 BAD: dict[str, Any] = {"subnormal": 1e-320, "huge": 1e308, "nan": math.nan, "negative": -1}
@@ -80,7 +80,7 @@ def test_the_table_names_every_numeric_key_of_a_plan() -> None:
     import dataclasses
     import typing
 
-    from pamd.experiment import plan as plan_mod
+    from pamd.loop.experiment import plan as plan_mod
 
     numeric = set()
     for cls in (plan_mod.Plan, plan_mod.Settle, plan_mod.PlanStep, plan_mod.PlanProfile,

@@ -13,9 +13,9 @@ import pytest
 from mat4py import loadmat
 
 import pamd
-from pamd.cli.main import main
-from pamd.models.anfis.recordings import read_csv
-from pamd.tick import MUSCLE_FIELDS, Flag, State
+from pamd.client.cli.main import main
+from pamd.models.data.recordings import read_csv
+from pamd.wire.tick import MUSCLE_FIELDS, Flag, State
 
 from .conftest import Recorded
 
@@ -148,7 +148,7 @@ def test_inspect_a_directory_without_manifest_and_a_broken_manifest(
 
 
 def test_csv_cells_are_what_the_sensors_resolve(tmp_path: Path) -> None:
-    from pamd.view.export import _write_table  # noqa: PLC0415 - the writer itself
+    from pamd.client.export import _write_table  # noqa: PLC0415 - the writer itself
 
     cols = {"tick": np.array([1, 2, 3], dtype=np.int64),
             "t_s": np.array([0.001, 0.002, 0.003]),

@@ -1,4 +1,4 @@
-"""Models judged as the tick runs them (pamd.view.judging): the feedforward stage's own
+"""Models judged as the tick runs them (pamd.client.judging): the feedforward stage's own
 clamps, counted; points off the training data jointly, warned of; a fit worse than a
 constant refused by `pamd train`."""
 
@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 import pamd
-from pamd.cli.main import main
-from pamd.control.feedforward import Feedforward
-from pamd.models.anfis.samples import ExtractOptions
+from pamd.client.cli.main import main
+from pamd.client.judging import judge_as_tick, off_data, poor_fit
+from pamd.client.training_tables import load_samples
+from pamd.loop.control.feedforward import Feedforward
 from pamd.models.contract import Variable
+from pamd.models.data.samples import ExtractOptions
 from pamd.models.domain import derive
 from pamd.models.registry import load_model
-from pamd.view.judging import judge_as_tick, off_data, poor_fit
-from pamd.view.tables import load_samples
 
 MAP = Path(pamd.__file__).parent / "data" / "dmsp20_force_map.csv"
 OPTS = ExtractOptions(inputs=("force_n", "contraction"), output="pressure_bar")

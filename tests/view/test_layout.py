@@ -10,8 +10,8 @@ from typing import Any
 
 from mcap.reader import make_reader
 
-from pamd.record.cdr import parse_flat_schema
-from pamd.view.layout import build_layout, layout_json, main
+from pamd.client.layout import build_layout, layout_json, main
+from pamd.wire.record.cdr import parse_flat_schema
 
 from .conftest import Recorded
 

@@ -19,9 +19,9 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap.records import Channel, Schema
 
-from pamd.record.files import Decoder
-from pamd.record.recorder import record_schemas
-from pamd.tick import LOOP_FIELDS, MUSCLE_FIELDS
+from pamd.iohost.recorder import record_schemas
+from pamd.wire.record.files import Decoder
+from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS
 
 from ..net.conftest import DaemonProc, free_port, rig_config
 from .conftest import Viewer
@@ -190,8 +190,8 @@ def test_a_bad_listen_address_is_refused_with_its_field(tmp_path: Path) -> None:
 
 def test_a_restart_in_place_keeps_the_view() -> None:
     """A reload that reopens the devices execs `pamd run` again: the view stays on."""
-    from pamd.cli.main import build_parser
-    from pamd.service.restart import run_argv
+    from pamd.client.cli.main import build_parser
+    from pamd.daemon.service.restart import run_argv
 
     for given, kept in ((["--foxglove"], ["--foxglove", "default"]),
                         (["--foxglove", "0.0.0.0:9000"], ["--foxglove", "0.0.0.0:9000"]),
@@ -202,7 +202,7 @@ def test_a_restart_in_place_keeps_the_view() -> None:
 
 
 @dataclass(frozen=True)
-class Clock:  # a run's clock (pamd.net.seams.RunClock), as the view reads it
+class Clock:  # a run's clock (pamd.wire.seams.RunClock), as the view reads it
     virtual: bool
     wall0_ns: int
     clock0_s: float
@@ -218,8 +218,8 @@ def test_with_a_certificate_the_view_serves_wss_only(tmp_path: Path) -> None:
 
     import pytest
 
-    from pamd.view.live import LiveView
-    from pamd.view.spec import ViewerSpec
+    from pamd.iohost.live import LiveView
+    from pamd.iohost.viewer_spec import ViewerSpec
 
     if shutil.which("openssl") is None:
         pytest.fail("openssl is not installed (apt-get install openssl, or run "

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import pamd
-from pamd.cli.main import main
-from pamd.view.plots import hysteresis_loops
+from pamd.client.cli.main import main
+from pamd.client.plots import hysteresis_loops
 
 from .conftest import Recorded
 
@@ -53,7 +53,7 @@ def test_a_long_series_is_drawn_through_each_columns_least_and_largest_value() -
     is drawn through the least and largest value of each of SERIES_BUCKETS runs, at
     their own times and in order, so every spike, reversal and gap stays; a short one
     is drawn as it is."""
-    from pamd.view.plots import SERIES_BUCKETS, envelope
+    from pamd.client.plots import SERIES_BUCKETS, envelope
 
     n = 375_000
     t = np.arange(n) / 1000.0

@@ -16,7 +16,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 import pamd
-from pamd.tick import MUSCLE_FIELDS
+from pamd.wire.tick import MUSCLE_FIELDS
 
 from .conftest import Recorded
 
@@ -136,7 +136,7 @@ def test_the_three_ways_of_reading_give_the_same_columns(
     records, else (no chunk index: an unfinished file) message by message: the columns
     and events are the same each way, and an index that misses a message is not trusted
     (the walk reads it)."""
-    from pamd.record import files, tables
+    from pamd.wire.record import files, tables
 
     def columns() -> tables.Columns:
         return tables.read_columns(str(recorded.file))
@@ -172,7 +172,7 @@ def test_the_three_ways_of_reading_give_the_same_columns(
 
 
 def test_states_and_modes_are_named_tick_by_tick(recorded: Recorded) -> None:
-    from pamd.view import fields
+    from pamd.client import field_info as fields
 
     m1 = pamd.open_recording(recorded.file)["m1"]
     codes = m1["state"].copy()

@@ -11,8 +11,8 @@ from mcap.reader import make_reader
 from mcap.writer import Writer
 
 import pamd
-from pamd.models.anfis.recordings import read_runs
-from pamd.record.cdr import EVENT_SCHEMA_NAME
+from pamd.models.data.recordings import read_runs
+from pamd.wire.record.cdr import EVENT_SCHEMA_NAME
 
 from .conftest import Recorded
 

@@ -23,11 +23,12 @@ from scipy.io import savemat
 from scipy.sparse import csc_matrix
 
 import pamd
-from pamd.errors import ModelError
-from pamd.models.anfis.samples import ExtractOptions
-from pamd.view import csvtext, tables
-from pamd.view.table_checks import MAX_COLUMNS, MAX_LINE_CHARS, shown
-from pamd.view.tables import load_samples, read_data
+from pamd.client import csvtext
+from pamd.client import training_tables as tables
+from pamd.client.table_checks import MAX_COLUMNS, MAX_LINE_CHARS, shown
+from pamd.client.training_tables import load_samples, read_data
+from pamd.models.data.samples import ExtractOptions
+from pamd.wire.errors import ModelError
 
 REPO = Path(__file__).resolve().parents[2]
 MAP = Path(pamd.__file__).parent / "data" / "dmsp20_force_map.csv"

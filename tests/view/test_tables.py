@@ -1,4 +1,4 @@
-"""Tables in (pamd.view.tables): CSV and MAT tables of named signals with units, read by
+"""Tables in (pamd.client.training_tables): CSV and MAT tables of named signals with units, read by
 `pamd train` and `pamd evaluate` beside recordings; units converted and said; bad
 tables refused naming file:row:column; what `pamd export` writes reads back."""
 
@@ -12,10 +12,10 @@ import pytest
 from scipy.io import savemat
 
 import pamd
-from pamd.cli.main import main
-from pamd.errors import ModelError
-from pamd.models.anfis.samples import ExtractOptions
-from pamd.view.tables import load_samples, parse_name, read_data, read_table_csv
+from pamd.client.cli.main import main
+from pamd.client.training_tables import load_samples, parse_name, read_data, read_table_csv
+from pamd.models.data.samples import ExtractOptions
+from pamd.wire.errors import ModelError
 
 from .conftest import Recorded
 

@@ -1,5 +1,5 @@
 """An adapted model as a new model file: the source model file (as `pamd train` wrote
-it) with the consequents a running daemon adapted (`pamd.control.adapt`, the `adapt`
+it) with the consequents a running daemon adapted (`pamd.loop.control.adapt`, the `adapt`
 command's ``parameters``) and their provenance.
 
 The daemon's loop only copies its parameters into the command's verdict between two
@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.anfis.model import AnfisModel
 from pamd.models.registry import load_model, save_model
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 
 def _iso(unix: float | None) -> str | None:
@@ -53,7 +53,7 @@ def adapted_model(source: AnfisModel, snapshot: JsonObject) -> AnfisModel:
         "started": _iso(snapshot.get("started_unix")),
         "saved": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
         "method": "recursive least squares with forgetting on the rule consequents "
-                  "(pamd.control.adapt); metrics are the source model's",
+                  "(pamd.loop.control.adapt); metrics are the source model's",
         **{k: snapshot.get(k) for k in keys}}}
     return source
 

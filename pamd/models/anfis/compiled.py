@@ -22,7 +22,7 @@ A NaN input gives a NaN output and is not counted as clipped; the caller must tr
 NaN sensor values itself. The evaluator is a snapshot: later changes to the model do
 not reach it; compile again.
 
-Online adaptation (`pamd.control.adapt`): the rule consequents are read, on every
+Online adaptation (`pamd.loop.control.adapt`): the rule consequents are read, on every
 call, from a mutable store, ``consequent_columns`` (one list of R floats per input,
 then the constants q; lists iterate as fast as the tuples they replaced, an
 ``array('d')`` costs ~30 % more per dot product), which `set_consequents` overwrites

@@ -2,7 +2,7 @@
 
 Role: evaluate the log-membership of every sample in every membership function (MF)
 of one input, and its analytic derivatives with respect to the MF parameters, for
-training (`pamd.models.anfis.training`) and batch prediction (`pamd.models.anfis.model`). The
+training (`pamd.models.anfis.hybrid`) and batch prediction (`pamd.models.anfis.model`). The
 single-sample path (`pamd.models.anfis.compiled`) re-implements the same formulas with
 `math` on plain floats.
 

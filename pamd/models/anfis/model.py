@@ -3,7 +3,7 @@
 Role: hold every parameter of a trained or initialised model (input/output
 description, input scaling, membership functions, rule consequents, provenance and
 metrics) and evaluate it on many samples at once. Training lives in
-`pamd.models.anfis.training`, the 1 kHz single-sample path in `pamd.models.anfis.compiled`, files
+`pamd.models.anfis.hybrid`, the 1 kHz single-sample path in `pamd.models.anfis.compiled`, files
 in `pamd.models.anfis.modelfile`.
 
 Structure (Jang 1993; seed 000 eqs. 1-6):
@@ -32,8 +32,6 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from pamd.declare.jsonsafe import JsonObject
-from pamd.errors import ModelError
 from pamd.models.anfis.compiled import CompiledAnfis
 from pamd.models.anfis.membership import (
     UNDERFLOW_GUARD,
@@ -49,6 +47,8 @@ from pamd.models.contract import (
     describe_common,
     tick_problems,
 )
+from pamd.wire.declare.jsonsafe import JsonObject
+from pamd.wire.errors import ModelError
 
 SCALINGS: tuple[str, ...] = ("minmax", "zscore")
 #: Rule consequents: "linear" f = p . s + q (first-order Sugeno, seed 000's; Jang's
@@ -376,7 +376,7 @@ def init_model(
 ) -> AnfisModel:
     """An untrained model laid out over the ranges of X (n x d) and y (consequents 0).
 
-    X and y must already have passed `pamd.models.anfis.checks.as_inputs_outputs`.
+    X and y must already have passed `pamd.models.data.checks.as_inputs_outputs`.
     """
 
     d = X.shape[1]

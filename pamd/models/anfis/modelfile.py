@@ -4,7 +4,7 @@ Role: `save` and `load` an `AnfisModel`. Floats are written with Python's shorte
 round-tripping repr (the json module's default), so `load(save(m))` predicts bit for
 bit like `m`. Anything wrong with a file (not JSON, truncated, another format or
 version, missing fields, wrong shapes, NaN/inf, non-positive widths) raises
-`pamd.errors.ModelError` with the file name and the field at fault.
+`pamd.wire.errors.ModelError` with the file name and the field at fault.
 
 Layout (version 1)::
 
@@ -40,9 +40,6 @@ import math
 import os
 from pathlib import Path
 
-from pamd.atomic import write_atomic
-from pamd.declare.jsonsafe import JsonObject, JsonValue
-from pamd.errors import ModelError
 from pamd.models.anfis.model import CONSEQUENTS, AnfisModel
 from pamd.models.anfis.serialize import FORMAT as FORMAT  # re-exported: pamd.models.registry
 from pamd.models.anfis.serialize import VERSION, to_dict
@@ -52,6 +49,9 @@ from pamd.models.document import mapping as _mapping
 from pamd.models.document import numbers as _numbers
 from pamd.models.document import parse_json
 from pamd.models.document import variable as _variable
+from pamd.wire.atomic import write_atomic
+from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
+from pamd.wire.errors import ModelError
 
 #: Kinds stored in this layout (seed 001's TS fuzzy model is an ANFIS structure).
 KINDS: tuple[str, ...] = ("anfis", "ts-fuzzy")
@@ -67,7 +67,7 @@ def dumps(model: AnfisModel) -> str:
 
 
 def save(model: AnfisModel, path: str | os.PathLike[str]) -> Path:
-    """Write the model file whole or not at all (`pamd.atomic`); returns the path."""
+    """Write the model file whole or not at all (`pamd.wire.atomic`); returns the path."""
     target = Path(path)
     write_atomic(target, dumps(model))
     return target

@@ -35,7 +35,7 @@ max |Phi_grid delta|, one (points x n) product (about 25 us for 1000 x 108). The
 model's output is smooth between the points (Gaussian or bell memberships wider than
 the grid's spacing), so this is what an operator means by "the adapted model differs
 from the trained one by at most so many bar anywhere". The adaptation bounds
-(`pamd.control.adapt`) are stated in it.
+(`pamd.loop.control.adapt`) are stated in it.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pamd.models.anfis.training import _design, _with_ones
+from pamd.models.anfis.hybrid import _design, _with_ones
 
 if TYPE_CHECKING:
     from pamd.models.anfis.model import AnfisModel

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from pamd.declare.jsonsafe import JsonObject
 from pamd.models.document import floats as _floats
 from pamd.models.document import plain as _plain
+from pamd.wire.declare.jsonsafe import JsonObject
 
 if TYPE_CHECKING:
     from pamd.models.anfis.model import AnfisModel

@@ -9,9 +9,9 @@ import json
 import numpy as np
 import pytest
 
-from pamd.errors import ModelError
 from pamd.models.anfis.adapted import save_adapted
 from pamd.models.registry import load_model, save_model
+from pamd.wire.errors import ModelError
 
 
 def snapshot_of(ff, theta: np.ndarray, path, **extra) -> dict:

@@ -9,8 +9,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pamd.errors import ModelError  # noqa: E402
 from pamd.models.anfis import TrainingOptions, fit  # noqa: E402
+from pamd.wire.errors import ModelError  # noqa: E402
 
 NAMES = ["force_n", "length_mm"]
 

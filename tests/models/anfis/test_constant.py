@@ -14,12 +14,12 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pamd.cli.main import main  # noqa: E402
-from pamd.errors import ModelError  # noqa: E402
+from pamd.client.cli.main import main  # noqa: E402
 from pamd.models.anfis import TrainingOptions, dumps, fit, load, loads, train  # noqa: E402
 from pamd.models.anfis.adapted import adapted_model  # noqa: E402
 from pamd.models.anfis.model import AnfisModel, init_model  # noqa: E402
 from pamd.models.anfis.rls import OutputBound  # noqa: E402
+from pamd.wire.errors import ModelError  # noqa: E402
 
 
 def zero_order(model: AnfisModel, q: np.ndarray) -> AnfisModel:

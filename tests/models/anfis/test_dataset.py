@@ -1,4 +1,4 @@
-"""Training pairs from recordings (pamd.models.anfis.recordings, .extraction, .splitting): CSV
+"""Training pairs from recordings (pamd.models.data.recordings, .extraction, .splitting): CSV
 and MCAP, what is dropped, the velocity filter shared with the tick, the split, and bad
 data refused."""
 
@@ -13,13 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pamd.errors import ModelError
-from pamd.models.anfis.extraction import extract, load_samples
-from pamd.models.anfis.recordings import read_csv, read_runs
-from pamd.models.anfis.samples import ExtractOptions
-from pamd.models.anfis.splitting import split
+from pamd.models.data.extraction import extract, load_samples
+from pamd.models.data.recordings import read_csv, read_runs
+from pamd.models.data.samples import ExtractOptions
+from pamd.models.data.splitting import split
 from pamd.models.velocity import VELOCITY_WINDOW_S, filtered_velocity, velocity_step
-from pamd.tick import Flag, State
+from pamd.wire.errors import ModelError
+from pamd.wire.tick import Flag, State
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -115,8 +115,8 @@ def test_an_onoff_recording_says_its_actuation(tmp_path: Path, recording: Path) 
     assert "flag EXHAUST_OPEN" not in s.runs[0]["dropped"]
     assert [r.meta["actuation"] for r in read_runs([str(recording)])] == ["proportional"]
     # `pamd export --csv`'s tables say it through their sidecar's copy of the config
-    from pamd.view.export import export_named_csv
-    from pamd.view.tables import load_samples as load_tables
+    from pamd.client.export import export_named_csv
+    from pamd.client.training_tables import load_samples as load_tables
 
     out = export_named_csv(str(path), str(tmp_path / "csv"))
     table = out["m1"][0]
@@ -124,7 +124,7 @@ def test_an_onoff_recording_says_its_actuation(tmp_path: Path, recording: Path) 
     assert "flag EXHAUST_OPEN" not in from_csv.runs[0]["dropped"]
     assert abs(len(from_csv) - len(s)) <= 0.02 * len(s)
     pytest.importorskip("scipy.io")  # `pamd export --mat`'s file says it too
-    from pamd.view.export import export_mat
+    from pamd.client.export import export_mat
 
     mat = str(tmp_path / "sweep.mat")
     export_mat(str(path), mat)
@@ -258,7 +258,7 @@ def test_pamd_export_csv_gives_the_same_pairs(recording: Path, tmp_path: Path) -
     """The CSVs of `pamd export` (state taken from the loop file beside the muscle's)
     give the pairs the MCAP file gives, but for the lead-in, which only MCAP events
     tell (so its settling is dropped by --settle-s alone)."""
-    from pamd.record.files import export_csv
+    from pamd.wire.record.files import export_csv
 
     out = export_csv(str(recording), str(tmp_path / "csv"))
     muscle_csv = next(p for t, (p, _n) in out.items() if t.endswith("/state/m1"))

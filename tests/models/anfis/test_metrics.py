@@ -1,4 +1,4 @@
-"""Metrics against values computed by hand on tiny arrays (pamd.metrics)."""
+"""Metrics against values computed by hand on tiny arrays (pamd.models.metrics)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pamd.metrics import METRIC_NAMES, regression_metrics  # noqa: E402
+from pamd.models.metrics import METRIC_NAMES, regression_metrics  # noqa: E402
 
 
 def test_hand_computed_values() -> None:

@@ -11,8 +11,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pamd.errors import ModelError  # noqa: E402
 from pamd.models.anfis import TrainingOptions, dumps, fit, load, save  # noqa: E402
+from pamd.wire.errors import ModelError  # noqa: E402
 
 
 @pytest.fixture(params=["gaussian", "bell"])

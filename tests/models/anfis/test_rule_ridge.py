@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pamd.models.anfis import TrainingOptions, fit
-from pamd.models.anfis.training import RULE_RIDGE, rule_penalty, solve_consequents
+from pamd.models.anfis.hybrid import RULE_RIDGE, rule_penalty, solve_consequents
 
 
 def sweeps(loads_kg: tuple[float, ...], n: int = 60, seed: int = 0

@@ -10,10 +10,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pamd.cli.main import main
-from pamd.metrics import METRIC_NAMES
+from pamd.client.cli.main import main
 from pamd.models.anfis import load
-from pamd.tick import Flag
+from pamd.models.metrics import METRIC_NAMES
+from pamd.wire.tick import Flag
 from tests.models.anfis.test_dataset import write_csv
 
 

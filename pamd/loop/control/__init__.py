@@ -1,0 +1,1 @@
+"""pamd.loop.control"""

@@ -1,0 +1,133 @@
+"""The glossary's words in the code (issue 41 item 2): docs/architecture.md's "Words"
+table says, per word, what pamd does *not* call it (`setpoint`, not `sp`); its
+"Glossary" says home and tare are datums, never references. This test reads both and
+finds those words in pamd's identifiers (a part of a snake_case or CamelCase name:
+`last_sp`, `MuscleReference`), outside the names and places listed below, each with its reason.
+A new use fails; a word the table adds is checked without a change here, unless it is
+a word the code rightly uses in another sense (`NOT_CHECKED`, each with why).
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "architecture.md"
+
+#: "not" words the code rightly uses for something else, never checked
+NOT_CHECKED = {
+    "regulator": "the device keeps its name (the simulated regulator, RegulatorActuation); "
+                 "what it receives is the valve command",
+    "segment": "the tick field that numbers a plan's steps is `segment` (the table says so)",
+    "output": "a driver's output channels are outputs; the limiter's result is "
+              "`valve_cmd_bar` in code and record",
+    "kind": "the config's and the commands' key stays `kind` (the table says so)",
+}
+
+#: names that use a checked word and stay, wherever they stand, and why
+NAMES = {
+    "dump": "json.dump: serialising (the library's name)",
+    "safe_dump": "yaml.safe_dump: serialising (the library's name)",
+    "length_referenced": "the datums file's key (calibration.yaml): old files load",
+    "referenced": "the status's `referenced`, which clients read",
+    "NOT_REFERENCED": "the tick flag's name, which recordings and their readers carry",
+    "references": "the status's `references` object, which clients read",
+    "References": "the status's `references` object, declared",
+}
+
+#: where a checked word may stand in another name, and why: file -> reason, per word
+ALLOWED: dict[str, dict[str, str]] = {
+    "sp": {
+        "pamd/iohost/live.py": "`sp` is the live view's spec here",
+        "pamd/iohost/recorder.py": "`sp` is the recording's spec here",
+        "pamd/models/anfis/compiled.py": "`sp_i` is an input's span (its scale)",
+        "pamd/models/fis.py": "`sp` is the inputs' spans (their scales)",
+        "pamd/loop/control/adapt.py": "`_sp` is a sum of pressures (beside `_sf`, `_sl`)",
+    },
+    "dump": {
+        "pamd/sim/vppm.py": "not yet renamed: the simulated muscle's exhaust valve "
+                            "(`dump_flow_l_min`, `c_dump`) beside the regulator's own "
+                            "exhaust port (`c_exhaust`); both want names of their own",
+    },
+    "reference": {
+        "pamd/emulate/canopen_node.py": "the CANopen encoder's preset (the device's word)",
+        "pamd/sim/vppm.py": "not yet renamed: the simulated regulator's setpoint",
+    },
+}
+
+
+def _not_words() -> dict[str, str]:
+    """word -> what it is not said for, from the Words table (its third column) and the
+    Glossary's "never" (home, tare: datums, never references)."""
+    text = DOC.read_text()
+    words = text.split("| word | means | not |", 1)[1].split("\n\n", 1)[0]
+    found = {}
+    for row in words.splitlines()[2:]:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        word = re.match(r"[A-Za-z0-9_]+", cells[2]) if len(cells) > 2 else None
+        if word:
+            found[word.group(0).lower()] = cells[0]
+    for said, never in re.findall(r"pamd calls them (\w+), never (\w+)", text):
+        stem = never.rstrip("s")
+        for form in (stem, stem + "s", stem + "d"):
+            found[form] = said
+    return found
+
+
+#: what is not code: triple-quoted strings, then quoted strings and comments
+DOCSTRING = re.compile(r'("""|\'\'\')[\s\S]*?\1')
+LITERAL = re.compile(r'"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|#[^\n]*')
+IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+@functools.cache
+def _identifiers() -> list[tuple[str, str]]:
+    """(path, identifier) of every name in pamd's and its drivers' code (strings and
+    comments left out: a regular expression, much cheaper than parsing every file)."""
+    out = []
+    for base in ("pamd", "drivers"):
+        for path in sorted((ROOT / base).rglob("*.py")):
+            rel = str(path.relative_to(ROOT))
+            if rel == "pamd/_moved.py":  # the old module names, kept for users' scripts
+                continue
+            code = LITERAL.sub(" ", DOCSTRING.sub(" ", path.read_text()))
+            out += [(rel, name) for name in set(IDENTIFIER.findall(code))]
+    return out
+
+
+def _parts(name: str) -> set[str]:
+    return {p.lower() for p in re.split(r"_+|(?<=[a-z0-9])(?=[A-Z])", name) if p}
+
+
+def _found(words: set[str]) -> dict[str, set[tuple[str, str]]]:
+    hits: dict[str, set[tuple[str, str]]] = {w: set() for w in words}
+    for path, name in _identifiers():
+        for word in _parts(name) & words:
+            hits[word].add((path, name))
+    return hits
+
+
+def test_the_glossarys_not_words_are_not_in_the_code() -> None:
+    words = _not_words()
+    assert {"sp", "dump", "length0", "reference"} <= set(words), words  # the table is read
+    checked = set(words) - set(NOT_CHECKED)
+    wrong = [f"{path}: {name} ({word!r}: the glossary says {words[word]!r})"
+             for word, hits in _found(checked).items() for path, name in sorted(hits)
+             if name not in NAMES and path not in ALLOWED.get(word, {})]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_allowances_are_still_needed() -> None:
+    """An allowance whose file no longer uses the word goes (the list only shrinks)."""
+    hits = _found(set(ALLOWED))
+    stale = [f"{word}: {path}" for word, paths in ALLOWED.items() for path in paths
+             if not any(p == path and n not in NAMES for p, n in hits[word])]
+    assert not stale, "\n".join(stale)
+
+
+def test_the_check_sees_a_not_word() -> None:
+    """The check itself: the parts of a name, snake_case and CamelCase."""
+    assert "sp" in _parts("last_sp") and "sp" in _parts("SP_RATE")
+    assert "reference" in _parts("MuscleReference") and "sp" not in _parts("spec")
