@@ -29,6 +29,7 @@ from pamd.daemon.daemon import Daemon
 from pamd.emulate.rig import EmulatedRig
 from pamd.emulate.testing import emulated_dict, free_port, wait_until, write_config
 from pamd.wire.tick import State
+from tests.drivers.conftest import daemon_on_emulated_rig
 
 pytestmark = pytest.mark.usefixtures("socat")  # missing: fails saying so
 
@@ -80,17 +81,8 @@ def config(tmp: Path, can: str | None, patient: bool = False) -> Any:
 @pytest.fixture
 def running(tmp_path: Path) -> Iterator[tuple[EmulatedRig, Daemon]]:
     cfg = config(tmp_path, "virtual")
-    rig = EmulatedRig(cfg)
-    rig.start()
-    daemon = Daemon(cfg)
-    daemon.start()
-    try:
-        yield rig, daemon
-    finally:
-        daemon.stop("test finished")
-        daemon.wait(timeout_s=40)
-        daemon.close()
-        rig.stop()
+    with daemon_on_emulated_rig(cfg) as running:
+        yield running
 
 
 def test_silent_device_leads_to_the_safe_state_and_reset(

@@ -20,6 +20,7 @@ from pamd.daemon.daemon import Daemon
 from pamd.emulate.rig import EmulatedRig
 from pamd.emulate.testing import free_port, nidaq_emulated_dict, wait_until, write_config
 from pamd.wire.tick import State
+from tests.drivers.conftest import daemon_on_emulated_rig
 
 #: the emulator in the daemon's process on a busy 2-core machine: 100 Hz, and a stall
 #: check that the shared interpreter lock does not trip (what is tested is the pacing)
@@ -36,17 +37,8 @@ def running(tmp_path: Path) -> Iterator[tuple[EmulatedRig, Daemon]]:
             sig["sample_period_s"] = 1.0 / RATE_HZ
     cfg = load_config(str(write_config(tmp_path, d)))
     assert cfg.rig.loop.clock == "daq"
-    rig = EmulatedRig(cfg)
-    rig.start()
-    daemon = Daemon(cfg)
-    daemon.start()
-    try:
-        yield rig, daemon
-    finally:
-        daemon.stop("test finished")
-        daemon.wait(timeout_s=40)
-        daemon.close()
-        rig.stop()
+    with daemon_on_emulated_rig(cfg) as running:
+        yield running
 
 
 def test_the_cards_sample_clock_paces_the_loop_and_a_removed_device_faults(
