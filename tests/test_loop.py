@@ -38,6 +38,39 @@ def test_virtual_duration_run_counts_every_tick(sim_daemon: Any) -> None:
     assert 2000 <= r["ticks"] <= 2010  # 30 kg at rest: already at the safe state
 
 
+def _stopped_from_3_bar(sim_daemon: Any, **patches: Any) -> tuple[Any, dict[str, Any]]:
+    """A 3 s virtual run whose setpoint stands at 3 bar when its duration ends: the
+    stop's ramp brings the setpoint down faster than the air leaves the muscle."""
+    d = sim_daemon(duration_s=3.0)
+    for name, value in patches.items():
+        setattr(d.ctrl, name, value)
+    assert d.command("setpoint", {"muscle": "m1", "bar": 3.0})["ok"]
+    assert d.wait(timeout_s=60)
+    return d, d.result()
+
+
+def test_a_stop_ends_once_the_command_is_at_the_safe_pressure(sim_daemon: Any) -> None:
+    """A regulator holds its last command after the loop ends: a stop that ended when
+    its setpoint reached the safe pressure left it holding the pressure loop's
+    correction (0.03 bar above a safe pressure of 0 in `pamd run --profile sine`)."""
+    d, r = _stopped_from_3_bar(sim_daemon)
+    out = r["outputs"]["m1"]
+    assert abs(out["valve_cmd_bar"] - out["safe_pressure_bar"]) <= 1e-3, out
+    assert d.ctrl.muscles[0].setpoint_bar == pytest.approx(out["safe_pressure_bar"])
+    assert r["ticks"] < 3000 + 1000  # the ramp (3 bar at the slew limit) and a short settle
+
+
+def test_a_stop_whose_command_stays_off_the_safe_pressure_ends_after_the_settle(
+        sim_daemon: Any) -> None:
+    """A pressure loop that must hold a correction there (a regulator's offset) ends
+    the stop `safety.tracking_time_s` after the setpoint reached the safe pressure, not
+    at the stop's 30 s deadline; with the command at the safe pressure at once it ends
+    sooner."""
+    _, quick = _stopped_from_3_bar(sim_daemon)
+    _, held = _stopped_from_3_bar(sim_daemon, commands_at_safe=lambda: False)
+    assert held["ticks"] - quick["ticks"] == pytest.approx(1000, abs=100)  # 1 s settle
+
+
 def test_a_stalled_loop_faults_but_one_late_tick_does_not(sim_daemon: Any) -> None:
     # Margins wide enough that a busy machine's own hiccups cannot decide the test.
     d = sim_daemon(loop={"clock": "real", "stall_timeout_s": 0.5})

@@ -151,7 +151,10 @@ class Loop:
         self._woken = threading.Condition()
         # one run's state (`_run`): when it ends, when its stop began, the last overrun
         # said, whether it ran a profile, the drivers' samples' age excused and until when
-        self._end_t = self._stopping_since = math.inf
+        self._end_t = self._stopping_since = self._settling_since = math.inf
+        #: a stop's settle: the command given this long to reach the safe pressure
+        #: once the setpoint is there (`_stopped`)
+        self.settle_s = cfg.rig.safety.tracking_time_s
         self._last_warn = -math.inf
         self._saw_running = False
         self._excuse = self._excused_until = 0.0
@@ -292,7 +295,7 @@ class Loop:
         start = self.clock()
         ctrl.start(start)
         self._end_t = math.inf if duration_s is None else start + duration_s
-        self._stopping_since = math.inf
+        self._stopping_since = self._settling_since = math.inf
         self._last_warn = -math.inf
         self._saw_running = False
         self._excuse = self._excused_until = 0.0
@@ -427,9 +430,20 @@ class Loop:
             self._stopping_since = next_t
             self.stopped_reason = self._stop_reason
             ctrl.go_safe(f"{self._stop_reason}: ramping to the safe state")
-        since = self._stopping_since
-        return since != math.inf and (
-            ctrl.at_safe_state() or next_t - since > SAFE_STATE_DEADLINE_S)
+        return self._stopping_since != math.inf and self._stopped(ctrl, next_t)
+
+    def _stopped(self, ctrl: RigController, next_t: float) -> bool:
+        """A stop under way has ended: the setpoints at the safe pressure and then the
+        commands too, or `settle_s` after the setpoints got there
+        (`rig_safe_state.commands_at_safe` says why), or the stop's deadline passed."""
+        if next_t - self._stopping_since > SAFE_STATE_DEADLINE_S:
+            return True
+        if not ctrl.at_safe_state():
+            self._settling_since = math.inf
+            return False
+        if self._settling_since == math.inf:
+            self._settling_since = next_t
+        return ctrl.commands_at_safe() or next_t - self._settling_since >= self.settle_s
 
     def _handing_over(self, ctrl: RigController, state: State) -> bool:
         """A hand-over asked for, no stop, the rig at rest (not during a ramp)."""

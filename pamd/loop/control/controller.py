@@ -35,6 +35,7 @@ from pamd.loop.control.rig_safe_state import (
     SAFE_CMD_BAND_BAR,
     at_rest,
     at_safe_state,
+    commands_at_safe,
     pace_safe_entry,
     rest_text,
 )
@@ -412,6 +413,11 @@ class RigController:
     def at_safe_state(self) -> bool:
         """Every started muscle at its safe pressure (`rig_safe_state.at_safe_state`)."""
         return at_safe_state(self.muscles, self.supervisor.latched)
+
+    def commands_at_safe(self) -> bool:
+        """Every started muscle's command at its safe pressure
+        (`rig_safe_state.commands_at_safe`)."""
+        return commands_at_safe(self.muscles)
 
     def at_rest(self) -> bool:
         """IDLE with nothing moving, where a reload's limits and loads apply

@@ -40,6 +40,21 @@ def at_safe_state(muscles: Sequence[MuscleController], latched: bool) -> bool:
                for m in muscles)
 
 
+def commands_at_safe(muscles: Sequence[MuscleController]) -> bool:
+    """Every started muscle's valve command at its safe pressure (within
+    SAFE_CMD_BAND_BAR), or its air held. The end of a stop's settle: once a stop's ramp
+    has brought the setpoint to the safe pressure, the pressure loop still corrects
+    the pressure lagging behind it (the air takes its time to leave the muscle), and a
+    device that holds its last command (a regulator) would go on holding that
+    correction after the loop ends. The loop waits for the command to reach the safe
+    pressure, at most `safety.tracking_time_s` (`pamd.loop.loop.Loop`): where the
+    pressure loop must hold a correction to keep the pressure there (a regulator's
+    offset), that correction is what the safe state needs."""
+    return all(not m.started or m.holding_air
+               or abs(m.valve_cmd_bar - m.safe_pressure_bar) <= SAFE_CMD_BAND_BAR
+               for m in muscles)
+
+
 def at_rest(muscles: Sequence[MuscleController], state: State) -> bool:
     """IDLE with nothing moving: no profile, and every ramp to the safe state (a stop,
     a deadman, a start-up outside the limits) has reached its safe pressure."""
