@@ -18,8 +18,6 @@ DOC = ROOT / "docs" / "architecture.md"
 
 #: "not" words the code rightly uses for something else, never checked
 NOT_CHECKED = {
-    "regulator": "the device keeps its name (the simulated regulator, RegulatorActuation); "
-                 "what it receives is the valve command",
     "segment": "the tick field that numbers a plan's steps is `segment` (the table says so)",
     "output": "a driver's output channels are outputs; the limiter's result is "
               "`valve_cmd_bar` in code and record",
@@ -46,14 +44,8 @@ ALLOWED: dict[str, dict[str, str]] = {
         "pamd/models/fis.py": "`sp` is the inputs' spans (their scales)",
         "pamd/loop/control/adapt.py": "`_sp` is a sum of pressures (beside `_sf`, `_sl`)",
     },
-    "dump": {
-        "pamd/sim/vppm.py": "not yet renamed: the simulated muscle's exhaust valve "
-                            "(`dump_flow_l_min`, `c_dump`) beside the regulator's own "
-                            "exhaust port (`c_exhaust`); both want names of their own",
-    },
     "reference": {
         "pamd/emulate/canopen_node.py": "the CANopen encoder's preset (the device's word)",
-        "pamd/sim/vppm.py": "not yet renamed: the simulated regulator's setpoint",
     },
 }
 
