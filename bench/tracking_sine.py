@@ -22,7 +22,7 @@ that preview to first order, and the exact one (the profile sampled a dead time
 ahead, plus the lag times its rate there) measured 0.0203 vs 0.0197 bar at 1 Hz
 1.5-6 bar and 0.0161 vs 0.0161 bar at 0.5 Hz 0-6 bar: no better.
 
-`--exhaust-assist-below BAR` adds the shipped gains with the dump valve assisting below
+`--exhaust-assist-below BAR` adds the shipped gains with the exhaust valve assisting below
 BAR (`muscles[].exhaust_assist_below_bar`); `--choose-assist` picks BAR from a grid on a
 validation sine (0.8 Hz, never the test frequency) and then runs the test once.
 Virtual clock, 3 cycles, deterministic.
@@ -93,7 +93,7 @@ ASSIST_GRID_BAR = (0.5, 1.0, 1.5, 2.0, 3.0)
 
 
 def assisted(below_bar: float) -> dict[str, Any]:
-    """Config changes: config/sim.yaml's muscle with its dump valve assisting below
+    """Config changes: config/sim.yaml's muscle with its exhaust valve assisting below
     `below_bar`."""
     muscles = yaml.safe_load((REPO / "config" / "sim.yaml").read_text())["muscles"]
     muscles[0]["exhaust_assist_below_bar"] = below_bar
@@ -128,7 +128,7 @@ def main() -> None:
     ap.add_argument("--min-bar", type=float, default=0.0, help="the sine's low end (default "
                     "0; the high end is 6 bar)")
     ap.add_argument("--exhaust-assist-below", type=float, metavar="BAR",
-                    help="also with the dump valve assisting below BAR")
+                    help="also with the exhaust valve assisting below BAR")
     ap.add_argument("--choose-assist", action="store_true", help="choose BAR on the "
                     f"validation sine ({VALIDATION_HZ:g} Hz), then run the test with it")
     args = ap.parse_args()

@@ -5,7 +5,7 @@ Device Server (`server: host:port`: a PXI controller, a cRIO, or `pamd emulate`)
 Channels by their physical names (`drivers/nidaq_options.py`): analog inputs (a
 pressure transducer in volts; a load cell in volts, or on a bridge input in newtons
 by DAQmx's two-point scaling), quadrature linear encoders on counters (mm, with the
-index for home), analog outputs (the regulators' setpoints, V) and digital lines (dump
+index for home), analog outputs (the regulators' setpoints, V) and digital lines (exhaust
 valves and the safety chain's heartbeat out; its emergency-stop contact and reset
 button in). Each kind is one DAQmx task, read or written in one call per cycle
 (`drivers/nidaq_tasks.py`).

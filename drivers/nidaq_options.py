@@ -125,10 +125,10 @@ class AnalogOutput:
 
 @dataclass(frozen=True, kw_only=True)
 class DigitalLine:
-    """One digital line: a dump valve, a heartbeat (outputs); the safety chain's
+    """One digital line: an exhaust valve, a heartbeat (outputs); the safety chain's
     contact, a reset button (inputs)."""
 
-    name: str = spec(doc="Channel name the rig's signals refer to (e.g. estop, dump1).")
+    name: str = spec(doc="Channel name the rig's signals refer to (e.g. estop, exhaust1).")
     line: str = spec(doc="Physical line, e.g. Dev1/port0/line0.")
     invert: bool = spec(False, "The line is active low: 1 in pamd is 0 V on the wire.")
 

@@ -3,7 +3,7 @@
 A module with a communication watchdog (ADAM 'Comm Safety') sets its outputs to
 preset values when the host goes silent. Those presets should be the commands of
 the present safe state: each regulator at its muscle's safe pressure (which
-depends on the hanging load) and each dump valve open only where that pressure is
+depends on the hanging load) and each exhaust valve open only where that pressure is
 0. `push_safe_outputs(ctrl)` computes them through the rig's output calibration and
 hands each driver its share (`Driver.set_safe_outputs`, which never blocks). The
 daemon calls it once the rig is started and after every `load` command.

@@ -6,7 +6,7 @@ Per muscle X it has inputs `X.pressure` (bar), `X.force` (N, in-line load cell),
 `X.length` (mm; absolute, so the simulated rig starts referenced, unless the
 muscle's `length_absolute` is false: then an incremental encoder reading 0 at
 power-up) and outputs
-`X.valve` (bar, regulator setpoint) and `X.exhaust` (0 closed / 1 open dump
+`X.valve` (bar, regulator setpoint) and `X.exhaust` (0 closed / 1 open exhaust
 valve), or with on/off actuation `X.inflate` and `X.exhaust` (0 / 1: the inflate
 and exhaust solenoid valves). Inputs of muscle k are channels 3k..3k+2, outputs
 2k..2k+1.

@@ -82,7 +82,7 @@ def test_stop_ramps_to_safe_pressure_at_slew_and_vents_only_when_safe_is_zero(
         h.step(0.01)
         opened.append(h.m1.exhaust_open)
     # the exhaust opens once the safe pressure 0 is reached (whether it then stays
-    # open is test_the_dump_valve_stays_open_at_a_safe_pressure_of_0 below)
+    # open is test_the_exhaust_valve_stays_open_at_a_safe_pressure_of_0 below)
     assert h.m1.setpoint_bar == 0.0 and any(opened) and h.ctrl.at_safe_state()
 
     heavy = harness(load_kg=80.0, **sim_muscle(load_kg=80.0, initial_pressure_bar=4.0))
@@ -193,9 +193,9 @@ def test_virtual_runs_are_deterministic_for_a_seed(harness: Any) -> None:
     assert runs[0][-1]["m1"]["pressure_bar"] != runs[0][0]["m1"]["pressure_bar"]
 
 
-def test_the_dump_valve_stays_open_at_a_safe_pressure_of_0(harness: Any) -> None:
+def test_the_exhaust_valve_stays_open_at_a_safe_pressure_of_0(harness: Any) -> None:
     """In a stop's safe state at 0 bar the pressure loop stays open once the setpoint is
-    there: no PID on the sensor's noise, so the dump valve stays open (it chattered)."""
+    there: no PID on the sensor's noise, so the exhaust valve stays open (it chattered)."""
     h = harness(load_kg=30.0)
     h.step(0.01)
     assert h.cmd("setpoint", muscle="m1", bar=3.0)["ok"]

@@ -18,8 +18,6 @@ DOC = ROOT / "docs" / "architecture.md"
 
 #: "not" words the code rightly uses for something else, never checked
 NOT_CHECKED = {
-    "regulator": "the device keeps its name (the simulated regulator, RegulatorActuation); "
-                 "what it receives is the valve command",
     "segment": "the tick field that numbers a plan's steps is `segment` (the table says so)",
     "output": "a driver's output channels are outputs; the limiter's result is "
               "`valve_cmd_bar` in code and record",
@@ -46,14 +44,8 @@ ALLOWED: dict[str, dict[str, str]] = {
         "pamd/models/fis.py": "`sp` is the inputs' spans (their scales)",
         "pamd/loop/control/adapt.py": "`_sp` is a sum of pressures (beside `_sf`, `_sl`)",
     },
-    "dump": {
-        "pamd/sim/vppm.py": "not yet renamed: the simulated muscle's exhaust valve "
-                            "(`dump_flow_l_min`, `c_dump`) beside the regulator's own "
-                            "exhaust port (`c_exhaust`); both want names of their own",
-    },
     "reference": {
         "pamd/emulate/canopen_node.py": "the CANopen encoder's preset (the device's word)",
-        "pamd/sim/vppm.py": "not yet renamed: the simulated regulator's setpoint",
     },
 }
 
@@ -131,3 +123,40 @@ def test_the_check_sees_a_not_word() -> None:
     """The check itself: the parts of a name, snake_case and CamelCase."""
     assert "sp" in _parts("last_sp") and "sp" in _parts("SP_RATE")
     assert "reference" in _parts("MuscleReference") and "sp" not in _parts("spec")
+
+
+# -- verb: a command's name sent to the loop, never a sub-command of the CLI ------------
+
+#: the CLI's and the emulators' modules that say "verb", each for what it does with one
+#: (a module not listed says sub-command, action or its protocol's own word, never verb)
+SAYS_VERB = {
+    "pamd/client/cli/net.py": "`pamd cmd VERB`: sends a verb, its options from the verb's spec",
+    "pamd/client/cli/reference.py": "documents `pamd cmd`'s verbs in docs/cli-reference.md",
+    "pamd/client/cli/run.py": "checks `pamd run`'s options as the verbs they send are parsed",
+    "pamd/client/cli/run_start.py": "the verbs `pamd run` sends from its start (--load, ...)",
+    "pamd/client/cli/offline.py": "`pamd home` and `pamd tare` apply their verb offline",
+}
+VERB = re.compile(r"verb(?!ose)", re.IGNORECASE)  # not --verbose
+
+
+def test_the_cli_and_the_emulators_say_verb_only_for_a_command_sent_to_the_loop() -> None:
+    """A sub-command (`pamd status`) or an emulated protocol's command (socketcand's
+    `open`) is not a verb: only the modules listed in SAYS_VERB say it, and each does."""
+    paths = [*(ROOT / "pamd" / "client" / "cli").glob("*.py"),
+             *(ROOT / "pamd" / "emulate").rglob("*.py")]
+    says = {str(p.relative_to(ROOT)) for p in paths if VERB.search(p.read_text())}
+    assert says - set(SAYS_VERB) == set(), "say sub-command, action or command"
+    assert set(SAYS_VERB) - says == set(), "no longer says verb: drop it from SAYS_VERB"
+
+
+def test_the_cli_help_says_verb_only_in_pamd_cmd() -> None:
+    """The CLI's help as docs/cli-reference.md has it (generated from the parsers;
+    tests/docs checks that it is current): "verb" in `pamd cmd`'s and its verbs'
+    sections, and in the page's table only in their rows, never another sub-command's."""
+    text = (ROOT / "docs" / "cli-reference.md").read_text()
+    head, *sections = text.split("\n## `pamd ")
+    wrong = [line for line in head.splitlines() if VERB.search(line) and "`pamd cmd" not in line]
+    said_in = {s.split("`", 1)[0] for s in sections if VERB.search(s)}
+    assert "cmd" in said_in, "the check reads the page's sections"  # `pamd cmd` says VERB
+    wrong += sorted(f"pamd {name}" for name in said_in if name.split()[0] != "cmd")
+    assert not wrong, wrong

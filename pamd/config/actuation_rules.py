@@ -6,10 +6,11 @@
 its driver (`pamd.drivers.Channel.digital`: the sim driver's NAME.inflate and
 NAME.exhaust, a Modbus coil), `signals.valve` is refused, and the PWM period must
 leave a valve the time to open and close within it. An exhaust assist
-(`exhaust_assist_below_bar`) needs a regulator's dump valve. A simulated muscle's sensors
-must sample within the timeout of the signal that reads them (a device slower than
-its timeout is stale by construction), and a scheduled stall of the loop's process
-needs the real clock (a virtual one does not move while the process is stopped).
+(`exhaust_assist_below_bar`) needs an exhaust valve beside the regulator. A simulated
+muscle's sensors must sample within the timeout of the signal that reads them (a
+device slower than its timeout is stale by construction), and a scheduled stall of the
+loop's process needs the real clock (a virtual one does not move while the process is
+stopped).
 Every refusal names file, line and key.
 """
 
@@ -51,7 +52,7 @@ def _check_proportional(m: MuscleConfig, item: JsonValue, sig_node: JsonValue, b
                 "signals.exhaust)", "none")
     if m.exhaust_assist_below_bar is not None and m.signals.exhaust is None:
         ctx.add(line_of(item, "exhaust_assist_below_bar"), f"{base}.exhaust_assist_below_bar",
-                "a dump valve to assist with (signals.exhaust), or no exhaust assist",
+                "an exhaust valve to assist with (signals.exhaust), or no exhaust assist",
                 f"{m.exhaust_assist_below_bar:g} bar without signals.exhaust")
     if m.signals.inflate is not None:
         ctx.add(line_of(sig_node, "inflate"), f"{base}.signals.inflate",

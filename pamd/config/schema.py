@@ -157,9 +157,9 @@ class MuscleSignals:
                                         "(a sim NAME.inflate, a Modbus coil). Required "
                                         "there, refused with proportional.")
     exhaust: SignalConfig | None = spec(None, "Exhaust valve, 1 = open: with proportional "
-                                        "actuation the optional dump valve; with onoff the "
-                                        "required exhaust valve (2/2 NC, muscle -> "
-                                        "atmosphere), a digital output.")
+                                        "actuation the optional one, venting past the "
+                                        "regulator; with onoff the required one (2/2 NC, "
+                                        "muscle -> atmosphere), a digital output.")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -388,17 +388,17 @@ class MuscleConfig:
         "only).")
     actuation: Actuation = spec(
         "proportional", "How air reaches the muscle: `proportional`, a pressure regulator "
-        "(signals.valve, optionally a dump valve signals.exhaust); `onoff`, an inflate and "
+        "(signals.valve, optionally an exhaust valve signals.exhaust); `onoff`, an inflate and "
         "an exhaust solenoid valve on digital outputs (signals.inflate, signals.exhaust), "
         "pulsed within `onoff.pwm_period_s` (seed 004).")
     onoff: OnOffConfig = spec(OnOffConfig(), "`actuation: onoff`: the valves' PWM period "
                               "and switching times.")
     exhaust_assist_below_bar: float | None = spec(
-        None, "`actuation: proportional` with a dump valve (signals.exhaust): below this "
-        "command the dump valve opens while the measured pressure stands 0.1 bar or more "
+        None, "`actuation: proportional` with an exhaust valve (signals.exhaust): below this "
+        "command the exhaust valve opens while the measured pressure stands 0.1 bar or more "
         "above the command, and shuts once it is within 0.03 bar. A regulator vents ever "
         "slower as the pressure nears the atmosphere's; this lets a fast profile fall as "
-        "fast near 0 bar (the 1 Hz 0-6 bar sine: bench/tracking_sine.py). Null: the dump "
+        "fast near 0 bar (the 1 Hz 0-6 bar sine: bench/tracking_sine.py). Null: the exhaust "
         "valve opens only to vent to a safe pressure of 0.", unit="bar", gt=0.0, max=10.0)
     control: MuscleControlConfig = spec(
         MuscleControlConfig(), "This muscle's own gains where muscles differ (`pamd tune "

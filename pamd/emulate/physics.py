@@ -4,7 +4,7 @@ inverted so each emulated device knows what to show on which channel.
 
 For an input signal `si = gain * raw + offset` the device shows
 `raw = (si - offset) / gain`; for an output the device's raw value becomes
-`gain * raw + offset` at the simulated regulator (or dump valve).
+`gain * raw + offset` at the simulated regulator (or exhaust valve).
 """
 
 from __future__ import annotations

@@ -221,25 +221,25 @@ class SocketcandServer:
         if not words:
             client.send("< error empty command >")
             return
-        verb, rest = words[0], words[1:]
+        command, rest = words[0], words[1:]
         if client.raw:
             client.raw_from = 0.0  # it has read the "< ok >" to rawmode
-        if verb == "open":
+        if command == "open":
             if rest == [self.bus_name]:
                 client.send("< ok >")
             else:
                 client.send(f"< error no such bus {' '.join(rest)} (this server has "
                             f"{self.bus_name}) >")
-        elif verb == "rawmode":
+        elif command == "rawmode":
             # python-can's client takes this "< ok >" with one recv() that must hold
             # nothing else: frames follow once it has had time to read it, or once it
             # sent a command (then it has read it)
             client.raw_from = time.monotonic() + RAW_GRACE_S
             client.raw = True
             client.send("< ok >")
-        elif verb == "echo":
+        elif command == "echo":
             client.send("< echo >")
-        elif verb == "send" and client.raw:
+        elif command == "send" and client.raw:
             try:
                 msg = parse_send(rest)
             except ValueError as exc:
@@ -250,4 +250,4 @@ class SocketcandServer:
             self._bus.send(msg)  # to the emulated devices
             self._to_clients(msg, client)  # and the other clients on the bus
         else:
-            client.send(f"< error {verb} is not served (raw mode only) >")
+            client.send(f"< error {command} is not served (raw mode only) >")

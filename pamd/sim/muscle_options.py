@@ -211,7 +211,7 @@ class SimPneumatics:
     )
     exhaust_vent_time_constant_s: float = option(
         0.015,
-        "'lag' pneumatics: time constant of the pressure decay while the exhaust (dump) "
+        "'lag' pneumatics: time constant of the pressure decay while the exhaust "
         "valve is open ('flow' vents through exhaust_flow_l_min).",
         "s",
         0.0001,
@@ -220,7 +220,7 @@ class SimPneumatics:
     actuation: Actuation = option(
         "proportional",
         "How air reaches the muscle: 'proportional', a pressure regulator (outputs "
-        "NAME.valve in bar and NAME.exhaust, the dump valve); 'onoff', an inflate valve "
+        "NAME.valve in bar and NAME.exhaust, its exhaust valve); 'onoff', an inflate valve "
         "(3/2 NC) and an exhaust valve (2/2 NC), digital outputs NAME.inflate and "
         "NAME.exhaust, always with air that flows.",
     )
@@ -294,7 +294,8 @@ class SimPneumatics:
     )
     exhaust_flow_l_min: float = option(
         300.0,
-        "'flow' pneumatics: standard nominal flow of the exhaust (dump) valve.",
+        "'flow' pneumatics: standard nominal flow of the exhaust valve (the "
+        "regulator vents through its own port, regulator_flow_l_min).",
         "l/min",
         1.0,
         100000.0,

@@ -1,4 +1,4 @@
-"""The simulated proportional pressure regulator (Festo VPPM) and dump valve, as
+"""The simulated proportional pressure regulator (Festo VPPM) and exhaust valve, as
 a filter on its setpoint (the `lag` pneumatics; `pamd.sim.vppm` lets air flow).
 
 Zero-point suppression, backlash and dead time are the `SetpointPilot`'s; then a

@@ -3,15 +3,15 @@
 The regulator is not a filter on its setpoint: it has its own pressure loop.
 
     setpoint -> zero point, backlash, pilot dead time (`SetpointPilot`)
-             -> pilot response (first-order lag)           = the loop's reference
-    main stage opening u = clip((reference - p_out) / full_open_error_bar, -1, 1)
-             u > 0: supply -> muscle through C_in u      (ISO 6358 orifice)
-             u < 0: muscle -> atmosphere through C_ex |u| (its own exhaust)
+             -> pilot response (first-order lag)    = the pilot pressure p_pilot
+    main stage opening u = clip((p_pilot - p_out) / full_open_error_bar, -1, 1)
+             u > 0: supply -> muscle through C_in u        (ISO 6358 orifice)
+             u < 0: muscle -> atmosphere through C_vent |u| (its own vent port)
 
 so the muscle pressure is what the air flow allows: a large volume fills slower, a
 contracting muscle loses pressure unless air flows in, and a sagging supply slows
 the fill. Without power the main stage closes and the muscle holds its pressure
-(a VPPM holds on power loss). A separate dump valve (`exhaust_open`) vents through
+(a VPPM holds on power loss). A separate exhaust valve (`exhaust_open`) vents through
 its own orifice whatever the regulator does. Without supply (`supply_ok` False) the
 inlet is shut: the pressure can only fall.
 
@@ -52,8 +52,8 @@ class FlowRegulator(FedChamber):
         backlash_bar: float,
         zero_bar: float,
         nominal_flow_l_min: float,
-        exhaust_flow_l_min: float,
-        dump_flow_l_min: float,
+        vent_flow_l_min: float,
+        exhaust_valve_flow_l_min: float,
         critical_ratio: float,
         full_open_error_bar: float,
         polytropic: float,
@@ -68,11 +68,12 @@ class FlowRegulator(FedChamber):
         self.pilot_lag_s = pilot_lag_s
         self.critical_ratio = critical_ratio
         self.c_in = conductance_from_nominal_flow(nominal_flow_l_min, critical_ratio)
-        self.c_exhaust = conductance_from_nominal_flow(exhaust_flow_l_min, critical_ratio)
-        self.c_dump = conductance_from_nominal_flow(dump_flow_l_min, critical_ratio)
+        self.c_vent = conductance_from_nominal_flow(vent_flow_l_min, critical_ratio)  # its own
+        self.c_exhaust_valve = conductance_from_nominal_flow(exhaust_valve_flow_l_min,
+                                                             critical_ratio)
         self._inv_band_pa = 1.0 / (full_open_error_bar * BAR_PA)
-        self.reference_bar = p0
-        self._reference_pa = p0 * BAR_PA + P_ATM_PA  # the reference, absolute (each step's)
+        self.pilot_bar = p0  # the pilot stage's pressure, which the main stage tracks
+        self._pilot_pa = p0 * BAR_PA + P_ATM_PA  # the same, absolute (each step's)
         self.supply_ok = True
         self.stuck = False  # an injected fault: new setpoints are ignored
         self.powered = True
@@ -100,8 +101,8 @@ class FlowRegulator(FedChamber):
             backlash_bar=o.regulator_backlash_bar,
             zero_bar=o.regulator_zero_bar,
             nominal_flow_l_min=o.regulator_flow_l_min,
-            exhaust_flow_l_min=o.regulator_flow_l_min,
-            dump_flow_l_min=o.exhaust_flow_l_min,
+            vent_flow_l_min=o.regulator_flow_l_min,
+            exhaust_valve_flow_l_min=o.exhaust_flow_l_min,
             critical_ratio=o.critical_pressure_ratio,
             full_open_error_bar=o.regulator_full_open_error_bar,
             polytropic=o.polytropic_exponent,
@@ -124,7 +125,7 @@ class FlowRegulator(FedChamber):
         q_supply = 0.0
         q = 0.0
         if self.powered:
-            u = (self._reference_pa - p_pa) * self._inv_band_pa
+            u = (self._pilot_pa - p_pa) * self._inv_band_pa
             if u > 1.0:
                 u = 1.0
             elif u < -1.0:
@@ -136,11 +137,11 @@ class FlowRegulator(FedChamber):
                                                  self.supply.pressure_pa, p_pa)
                     q = q_supply
             elif u < 0.0:
-                q = -orifice_flow_kg_s(-self.c_exhaust * u, self.critical_ratio, p_pa, P_ATM_PA)
+                q = -orifice_flow_kg_s(-self.c_vent * u, self.critical_ratio, p_pa, P_ATM_PA)
         else:
             self.opening = 0.0
         if self.exhaust_open:
-            q -= orifice_flow_kg_s(self.c_dump, self.critical_ratio, p_pa, P_ATM_PA)
+            q -= orifice_flow_kg_s(self.c_exhaust_valve, self.critical_ratio, p_pa, P_ATM_PA)
         self._q_supply = q_supply
         return q
 
@@ -152,8 +153,8 @@ class FlowRegulator(FedChamber):
             lag = self.pilot_lag_s
             self._alpha_pilot = 1.0 - math.exp(-dt_s / lag) if lag > 0.0 else 1.0
         delayed = self.pilot.step(self.t_s)
-        self.reference_bar += (delayed - self.reference_bar) * self._alpha_pilot
-        self._reference_pa = self.reference_bar * BAR_PA + P_ATM_PA  # for the 3 flows below
+        self.pilot_bar += (delayed - self.pilot_bar) * self._alpha_pilot
+        self._pilot_pa = self.pilot_bar * BAR_PA + P_ATM_PA  # for the 3 flows below
         self.t_s += dt_s
         # `settle_chamber_pa`, then `FedChamber._admit`, inlined (this runs in the tick):
         # the chamber's implicit pressure by two chord-Newton steps from the no-flow

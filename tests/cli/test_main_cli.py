@@ -1,6 +1,6 @@
-"""The CLI entry point: a reader that goes away (`pamd status | head`) ends the verb
-quietly, library chatter stays out of the operator's terminal, and a sub-command's
-module is imported only when it is chosen."""
+"""The CLI entry point: a reader that goes away (`pamd status | head`) ends the
+sub-command quietly, library chatter stays out of the operator's terminal, and a
+sub-command's module is imported only when it is chosen."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from pamd.client.cli.main import COMMANDS, EXIT_BROKEN_PIPE, build_parser, chose
 REPO = Path(__file__).resolve().parents[2]
 
 
-def test_a_closed_pipe_ends_the_verb_without_a_traceback() -> None:
+def test_a_closed_pipe_ends_the_sub_command_without_a_traceback() -> None:
     # `pamd check-config ... | head -0`: the reader is gone before pamd writes
     proc = subprocess.Popen(
         [sys.executable, "-m", "pamd", "check-config", str(REPO / "config" / "sim.yaml")],
@@ -117,7 +117,7 @@ def test_help_suggests_the_readmes_first_command() -> None:
 
 
 def test_every_exit_code_is_listed() -> None:
-    """Each exit code pamd's errors and verbs give has its row in the exit-code table
+    """Each exit code pamd's errors and sub-commands give has its row in the exit-code table
     (docs/exit-codes.md, generated: tests/docs/test_references.py; issue 40: 5 was
     missing)."""
     import re

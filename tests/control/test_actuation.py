@@ -80,7 +80,7 @@ def test_the_exhaust_assist_opens_below_its_threshold_with_hysteresis(harness: A
     assert not reg.exhaust_open and assisted.switch_count == 2
     assert write(assisted, 2.5, 3.5, False, h) == 0  # above the threshold
     assert write(assisted, 1.0, float("nan"), False, h) == 0  # untrusted: shut
-    # without an assist (the default) the same gap never opens the dump valve
+    # without an assist (the default) the same gap never opens the exhaust valve
     assert write(act, 1.0, 1.5, False, h) == 0 and not reg.exhaust_open
 
 
@@ -99,7 +99,7 @@ def _refusal(tmp_path: Path, config: str, edits: list[tuple[str, str]]) -> str:
     return str(err.value)
 
 
-def test_an_exhaust_assist_needs_a_regulators_dump_valve(tmp_path: Path) -> None:
+def test_an_exhaust_assist_needs_an_exhaust_valve(tmp_path: Path) -> None:
     err = _refusal(tmp_path, "sim.yaml", [
         ("      exhaust:  {driver: sim, channel: m1.exhaust}\n", ""),
         ("\n    load_kg: 30 ", "\n    exhaust_assist_below_bar: 2.0\n    load_kg: 30 ")])

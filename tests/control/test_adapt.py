@@ -190,7 +190,7 @@ def test_every_flag_that_says_the_measurement_is_bad_drops_the_sample(flag) -> N
 def test_on_onoff_valves_the_pwm_pulses_are_the_muscles_own_samples() -> None:
     """On on/off valves the exhaust opens within PWM periods as the control itself, as
     the inflate valve does: a window with either open is learned. A regulator's open
-    exhaust (the dump valve venting past it) is not (the test above), and on on/off
+    exhaust (the exhaust valve venting past it) is not (the test above), and on on/off
     valves a stale signal still is not."""
     ad, ff = stage(onoff=True, max_rate_bar_per_s=1.0)
     trained = theta(ff)

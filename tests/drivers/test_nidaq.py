@@ -294,8 +294,8 @@ def test_nan_is_never_written_and_safe_outputs_are_unsupported(
 def test_a_digital_line_the_loop_has_not_set_goes_out_closed(
         card: Card, made: list[NidaqDriver]) -> None:
     """The lines of a task are written together: the heartbeat's first write takes the
-    dump valve with it, closed (pamd's valves start closed), whatever a run before left."""
-    card.out["dev1/port1/line0"] = 1.0  # a run before left the dump valve open
+    exhaust valve with it, closed (pamd's valves start closed), whatever a run before left."""
+    card.out["dev1/port1/line0"] = 1.0  # a run before left the exhaust valve open
     lines = (DigitalLine(name="dump", line="Dev1/port1/line0"),
              DigitalLine(name="heartbeat", line="Dev1/port1/line1"))
     d = opened(made, card.options(digital_outputs=lines))

@@ -40,7 +40,7 @@ def aio() -> Any:
 
 
 def rig_with_modbus_valve(tmp: Path, port: int, load_kg: float) -> Path:
-    """The sim rig's sensors, but the valve and dump valve on an ADAM-6024."""
+    """The sim rig's sensors, but the valve and exhaust valve on an ADAM-6024."""
     d = sim_dict()
     d["drivers"].append({"name": "io", "type": "modbus", "options": {
         "transport": "tcp", "host": "127.0.0.1", "port": port, "preset": "adam-6024",
@@ -77,7 +77,7 @@ def test_replays_the_saved_safe_outputs_without_the_config(tmp_path: Path,
     io = next(d for d in saved["drivers"] if d["name"] == "io")
     assert io["type"] == "modbus" and io["options"]["port"] == port
     assert {o["channel"]: o["raw"] for o in io["outputs"]} == pytest.approx(
-        {"ao0": safe_bar / 0.6, "do0": 0.0})  # pressure held: the dump valve stays shut
+        {"ao0": safe_bar / 0.6, "do0": 0.0})  # pressure held: the exhaust valve stays shut
 
     cfg_path.unlink()  # the config is gone (or broken): the second line still works
     device.tables["holding"][10] = 4000  # whatever the module shows now

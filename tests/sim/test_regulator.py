@@ -1,4 +1,4 @@
-"""The simulated VPPM regulator and dump valve, seen through the pressure sensor: the
+"""The simulated VPPM regulator and exhaust valve, seen through the pressure sensor: the
 'lag' pneumatics (the old simple plant, a filter on the setpoint) in detail, and what
 the default 'flow' regulator must do the same way (dead time, backlash, clamps, zero
 point, supply loss, holding at power-up)."""
@@ -138,7 +138,7 @@ def test_supply_lost_pressure_cannot_rise_but_can_fall(make_rig, pneumatics: str
 def test_exhaust_vents_fast_and_closing_it_restores(make_rig) -> None:
     tau_s = 0.015
     rig = make_rig(initial_pressure_bar=5.0, exhaust_vent_time_constant_s=tau_s)
-    rig.write("m1.exhaust", 1.0)  # the regulator still asks for 5 bar: the dump wins
+    rig.write("m1.exhaust", 1.0)  # the regulator still asks for 5 bar: the exhaust valve wins
     samples = rig.run(0.1)
     k = rig.driver.input_index("m1.pressure")
     t_1e = next(t for t, v in samples if v[k] <= 5.0 / 2.718281828)

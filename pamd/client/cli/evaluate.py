@@ -100,7 +100,7 @@ def add_actuation_option(p: argparse.ArgumentParser, default: str) -> None:
                    "data file does not say (a lab's own CSV or MAT table; pamd's recordings "
                    "and exports carry their config, which wins): onoff keeps the samples "
                    "the exhaust valve's PWM pulses flag, as the control's own work, where a "
-                   f"proportional regulator's open dump valve drops them ({default})")
+                   f"proportional regulator's open exhaust valve drops them ({default})")
 
 
 def say_own_actuations(samples: Samples, command: str) -> None:

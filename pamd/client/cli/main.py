@@ -156,7 +156,7 @@ EXIT_OK = 0
 #: Exit status of a command interrupted by Ctrl-C outside a run (a run's own Ctrl-C
 #: stops it in its safe state: EXIT_OK), as a shell reports SIGINT: 128 + 2.
 EXIT_INTERRUPTED = 130
-#: Exit status of a verb whose reader went away (`pamd status | head`): 128 + SIGPIPE,
+#: Exit status of a sub-command whose reader went away (`pamd status | head`): 128 + SIGPIPE,
 #: what a Unix tool killed by the signal reports.
 EXIT_BROKEN_PIPE = 141
 

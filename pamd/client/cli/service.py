@@ -18,7 +18,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         "safe-outputs", help="write the last known-good safe outputs to the devices",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Write the safe outputs the daemon last saved (each valve at its "
-        "muscle's safe pressure, dump valves open only where that is 0) straight to "
+        "muscle's safe pressure, exhaust valves open only where that is 0) straight to "
         "the devices, without the daemon and without the config: systemd runs it after "
         "every stop, crash or failed start (ExecStopPost=). The simulated rig has no "
         "device to reach and is skipped.",

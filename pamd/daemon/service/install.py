@@ -116,14 +116,14 @@ def install(prefix: str = "/", dry_run: bool = False, pamd_path: str | None = No
             "with --prefix DIR")
         return 1
     pamd = pamd_path or installed_pamd()
-    verb = "would write" if dry_run else "wrote"
+    done = "would write" if dry_run else "wrote"
     for src, rel in FILES:
         target = os.path.join(prefix, rel)
         text = render(src, pamd)
         if not dry_run:
             os.makedirs(os.path.dirname(target), exist_ok=True)
             write_atomic(target, text, file_mode=0o644)
-        say(f"{verb} {target}")
+        say(f"{done} {target}")
     say(f"  ExecStart= {pamd} run --config /etc/pamd/pamd.yaml --state-dir {STATE_DIR}")
     _check_executable(pamd, say)
     commands = [["systemd-sysusers", "/etc/sysusers.d/pamd.conf"],

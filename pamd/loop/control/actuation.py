@@ -120,14 +120,14 @@ class Actuation(Protocol):
         ...
 
 
-#: Exhaust assist: the dump valve opens with the pressure this far above the command,
+#: Exhaust assist: the exhaust valve opens with the pressure this far above the command,
 #: and shuts once it is within ASSIST_CLOSE_BAR (hysteresis against chatter).
 ASSIST_OPEN_BAR = 0.1
 ASSIST_CLOSE_BAR = 0.03
 
 
 class RegulatorActuation:
-    """A proportional pressure regulator's setpoint, plus the optional exhaust (dump)
+    """A proportional pressure regulator's setpoint, plus the optional exhaust
     valve: open to vent to a safe pressure of 0 (`vent`), and, with an exhaust assist,
     while a command below `assist_below_bar` stands well under the measured pressure
     (a regulator alone vents ever slower as the pressure nears the atmosphere's)."""

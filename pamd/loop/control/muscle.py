@@ -93,7 +93,7 @@ from pamd.wire.tick import (
     M_SETPOINT,
     M_TARGET_FORCE,
     M_TARGET_LENGTH,
-    M_VALVE,
+    M_VALVE_CMD,
     M_VELOCITY,
     Mode,
     MuscleTick,
@@ -723,7 +723,7 @@ class MuscleController:
         """What the actuation acts on, then the actuation: vent at a safe pressure of 0
         once the command is there; in a held tick never vent below the safe pressure
         (the air hold vents nothing anyway) nor position the length; holding the air,
-        no pressure is acted on (on/off valves both shut, a dump valve shut, the
+        no pressure is acted on (on/off valves both shut, an exhaust valve shut, the
         regulator at the held command)."""
         venting, held, air_hold = t.venting, t.held, t.air_hold
         t.vent = venting and t.command_bar <= VENT_BELOW_BAR
@@ -752,7 +752,7 @@ class MuscleController:
         rec[b + M_PID_P] = pid.p
         rec[b + M_PID_I] = pid.i
         rec[b + M_PID_D] = pid.d
-        rec[b + M_VALVE] = self._valve_cmd_bar
+        rec[b + M_VALVE_CMD] = self._valve_cmd_bar
         rec[b + M_TARGET_LENGTH] = lc.target_length_mm
         rec[b + M_TARGET_FORCE] = lc.target_force_n
         rec[b + M_SAFE_PRESSURE] = self._safe_pressure_bar

@@ -20,7 +20,7 @@ from pamd.wire.tick import (
     M_PRESSURE,
     M_SETPOINT,
     M_TARGET_LENGTH,
-    M_VALVE,
+    M_VALVE_CMD,
     Flag,
     Sink,
     State,
@@ -103,7 +103,7 @@ class SummarySink:
                         self._steady(k, record, b)
                 flags = int(record[b + M_FLAGS])
                 if flags & _AT_LIMIT and held_back(flags, record[b + M_SETPOINT],
-                                                   record[b + M_VALVE]):
+                                                   record[b + M_VALVE_CMD]):
                     self.limited_s[k] += dt
                 e = record[b + M_SETPOINT] - record[b + M_PRESSURE]
                 if e == e:

@@ -68,7 +68,7 @@ class MuscleSignals:
     force: InputBinding
     length: InputBinding
     valve: OutputBinding | None  # the regulator (actuation: proportional)
-    exhaust: OutputBinding | None  # the dump valve, or on/off's exhaust valve
+    exhaust: OutputBinding | None  # the exhaust valve (beside a regulator, or on/off's)
     datums: MuscleDatums
     inflate: OutputBinding | None = None  # on/off's inflate valve (actuation: onoff)
 

@@ -103,7 +103,7 @@ FLAG_MEANINGS: dict[Flag, str] = {
 #: The valve flags that, on on/off valves (`actuation: onoff`), mark the PWM's own
 #: pulses: the control itself, a few ms in each period, inflate and exhaust alike (the
 #: pressure sensor reads the muscle at every sample either way). With a regulator the
-#: exhaust is the dump valve, which vents past the regulator: there EXHAUST_OPEN says
+#: exhaust is the exhaust valve, which vents past the regulator: there EXHAUST_OPEN says
 #: the pressure is the vent's, and training and adaptation drop those samples.
 PWM_VALVE_FLAGS = Flag.EXHAUST_OPEN | Flag.INFLATE_OPEN
 

@@ -54,8 +54,8 @@ SUMMARY: tuple[SummaryKey, ...] = (
                "([the inverse model](explanation/inverse-model.md), \"Off its data in the "
                "loop\")"),
     SummaryKey("valve_switches", "per muscle, switchings per valve since start (`inflate`, "
-               "`exhaust` on on/off valves; the dump valve's `exhaust` with a regulator); also "
-               "in the recording's `pamd.summary` metadata"),
+               "`exhaust` on on/off valves; the exhaust valve's `exhaust` beside a regulator); "
+               "also in the recording's `pamd.summary` metadata"),
     SummaryKey("faults", "every fault reason, in order"),
     SummaryKey("final_state", "supervisor state at exit (`IDLE` after a clean stop)"),
     SummaryKey("outputs", "per muscle, the `valve_cmd_bar` written last and its "

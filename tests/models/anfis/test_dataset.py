@@ -55,7 +55,7 @@ def test_csv_pairs_drop_settling_and_flags_and_decimate(tmp_path: Path) -> None:
 
 
 def test_exhaust_open_drops_the_sample_except_on_onoff_valves(tmp_path: Path) -> None:
-    """A regulator's open exhaust is the dump valve venting past it: dropped. On on/off
+    """A regulator's open exhaust is the exhaust valve venting past it: dropped. On on/off
     valves (the recording's config says so) both valves open within PWM periods as the
     control itself: kept, as the inflate valve's pulses always were."""
     flags = np.zeros(3000)
