@@ -60,3 +60,19 @@ def test_an_old_name_left_out_of_the_table_is_found(monkeypatch: pytest.MonkeyPa
     monkeypatch.setitem(deprecated.FLAG_NAMES, "NOT_STALE", "STALE")
     with pytest.raises(ValueError, match="Flag.NOT_STALE"):
         fields.check_table()
+
+
+def test_pamd_status_prints_the_datums_of_a_daemon_new_or_older(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`pamd status` reads the new keys, and an older daemon's old ones the same."""
+    from pamd.client.cli.net import print_status
+
+    datums = {"has_length_datum": True, "homed_at": "2026-01-02T03:04:05", "tared_at": None,
+              "length_offset_mm": 1.5, "force_offset_n": 0.0}
+    new = {"has_length_datum": True, "datums": datums}
+    older = with_old_keys(new)
+    del older["has_length_datum"], older["datums"]
+    for muscle in (with_old_keys(new), older):
+        print_status({"rig_id": "sim", "state": "IDLE", "muscles": {"m1": muscle}})
+        assert "length datum yes (homed 2026-01-02T03:04:05, tared -)" in (
+            capsys.readouterr().out)
