@@ -133,8 +133,8 @@ class Driver(ABC):
         """Simulated devices only (`steps_with_loop`): advance physics by `dt_s`."""
 
     def is_absolute(self, index: int) -> bool:
-        """True if input `index` is referenced by the device itself (an absolute
-        encoder, a simulated rig), so it needs no `home`."""
+        """True if input `index` is absolute, its own datum (an absolute encoder, a
+        simulated rig), so it needs no `home`."""
         return False
 
     def preset_input(self, index: int, raw_value: float) -> bool:

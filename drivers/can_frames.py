@@ -64,7 +64,7 @@ class EncoderNode:
         "50 ms).", unit="s", gt=0.0)
     position_timeout_s: float = spec(0.2, "Faulty node after this long without a position "
                                      "frame while operational.", unit="s", gt=0.0)
-    absolute: bool = spec(False, "An absolute encoder, referenced by itself (needs no home).")
+    absolute: bool = spec(False, "An absolute encoder, its own datum (needs no home).")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -15,7 +15,7 @@ one that stops sending positions, one that reports an emergency (EMCY) or sends
 frames of the wrong length is counted and named in `health()`, and when that lasts
 `fault_after_s` it sets `fault` (safe state). A node that reboots (boot-up message)
 is configured and started again; the fault clears when it is healthy and the
-operator resets. `preset_position()` sets the encoder's own reference through
+operator resets. `preset_position()` sets the encoder's own datum through
 the preset object 0x6003 (for `home`), without blocking the caller.
 
 Raw frames (`frames:`) read a field of any CAN frame for devices that are not

@@ -141,8 +141,8 @@ class NidaqDriver(ThreadedDriver):
     def preset_input(self, index: int, raw_value: float) -> bool:
         """`home` on an encoder with an index before the card has seen the mark: the
         home holds in software until the index reloads the count, which the driver then
-        confirms (`preset_counts`); the encoder reads the referenced length itself from
-        then on. Otherwise False: the home is a software offset."""
+        confirms (`preset_counts`); the encoder reads the length with its datum itself
+        from then on. Otherwise False: the home is a software offset."""
         j = index - self._first_encoder
         o: NidaqOptions = self.options
         if not 0 <= j < len(o.encoders) or o.encoders[j].index is None:

@@ -84,7 +84,7 @@ class AnalogInput:
 @dataclass(frozen=True, kw_only=True)
 class EncoderIndex:
     """The encoder's index (Z) mark: the card reloads the count at the mark, so the
-    length is referenced by the card itself once the muscle has passed it."""
+    length has its datum from the card itself once the muscle has passed it."""
 
     position_mm: float = spec(doc="The length the encoder reads at the index mark.",
                               unit="mm")

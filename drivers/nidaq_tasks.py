@@ -317,7 +317,7 @@ class DaqTasks:
     def _length_mm(self, j: int, mm: float) -> float:
         """An index channel counts from UNINDEXED_MM until the card's index reloads it:
         until then the length since the task started (as an incremental encoder reads at
-        power-up), after it the card's own referenced length."""
+        power-up), after it the card's own length with its datum."""
         if self.indexed[j]:
             return mm
         if mm > 0.5 * UNINDEXED_MM:

@@ -3,7 +3,7 @@ muscle's `type`, or the type of the rig muscle reading its channels, says otherw
 `pamd.sim.specimen`).
 
 Per muscle X it has inputs `X.pressure` (bar), `X.force` (N, in-line load cell),
-`X.length` (mm; absolute, so the simulated rig starts referenced, unless the
+`X.length` (mm; absolute, so the simulated rig starts with its length datum, unless the
 muscle's `length_absolute` is false: then an incremental encoder reading 0 at
 power-up) and outputs
 `X.valve` (bar, regulator setpoint) and `X.exhaust` (0 closed / 1 open exhaust

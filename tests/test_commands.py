@@ -14,11 +14,11 @@ INCREMENTAL = {"drivers": [{"name": "sim", "type": "sim", "options": {
     "seed": 1, "muscles": [{"name": "m1", "load_kg": 30.0, "length_absolute": False}]}}]}
 
 
-def test_profile_refused_until_length_is_referenced_then_home_persists(
+def test_profile_refused_until_the_length_has_its_datum_then_home_persists(
         harness: Any, tmp_path: Path) -> None:
     h = harness(**INCREMENTAL)  # an incremental encoder: reads 0 mm at power-up
     h.step(0.01)
-    assert not h.m1.referenced and h.m1.length_mm == 0.0
+    assert not h.m1.has_length_datum and h.m1.length_mm == 0.0
     refused = h.cmd("profile", kind="sine", cycles=1)
     assert not refused["ok"] and "send home first" in refused["error"]
     assert h.state == "IDLE" and h.m1.profile is None  # nothing changed

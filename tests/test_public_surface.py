@@ -49,6 +49,13 @@ MUSCLE_FIELDS = ("pressure_bar", "force_n", "length_mm", "contraction", "velocit
                  "mode", "flags", "adapt_drift_bar", "adapt_state")
 #: the columns the exports add
 DERIVED_COLUMNS = ("load_kg", "file")
+#: the tick flags' names and bits (`flags`): a deprecated name keeps its bit, beside its
+#: new one, until it goes (`pamd.wire.declare.deprecated`)
+FLAG_BITS = {"STALE": 1, "SOFT_LIMIT_PRESSURE": 2, "SOFT_LIMIT_CONTRACTION": 4,
+             "PRETENSION_LIMIT": 8, "SLEW_LIMITED": 16, "OUTPUT_SATURATED": 32,
+             "FF_CLIPPED": 64, "NO_LENGTH_DATUM": 128, "EXHAUST_OPEN": 256, "TRACKING": 512,
+             "INFLATE_OPEN": 1024, "FF_OFF_DATA": 2048, "FF_FADED": 4096,
+             "FF_OSCILLATING": 8192, "NOT_REFERENCED": 128}
 
 
 def test_the_drivers_entry_points_and_the_driver_contract() -> None:
@@ -90,6 +97,16 @@ def test_the_recorded_field_names_and_the_export_columns() -> None:
     assert tuple(f.name for f in fields.DERIVED) == DERIVED_COLUMNS
     # the MATLAB export names a field as recorded: no column renamed on the way out
     assert all(matlab_name(n) == n for n in (*LOOP_FIELDS, *MUSCLE_FIELDS, *DERIVED_COLUMNS))
+
+
+def test_the_flag_names_and_bits() -> None:
+    """Every flag's name keeps its bit (recordings hold bits), in `Flag` and in the
+    exports' flag tables; an old name resolves to its new one's bit."""
+    from pamd.client.field_info import FLAG_BITS as exported
+    from pamd.wire.tick import Flag
+
+    assert {n: int(f) for n, f in Flag.__members__.items()} == FLAG_BITS
+    assert exported == FLAG_BITS
 
 
 def test_the_shipped_configs_and_an_old_model_file_load() -> None:

@@ -5,6 +5,7 @@ and CSV exports and the plots. All of it from the field table (pamd.wire.declare
 from __future__ import annotations
 
 from pamd.wire.declare import fields as table
+from pamd.wire.declare.deprecated import FLAG_NAMES, REMOVED_IN
 from pamd.wire.tick import LOOP_FIELDS, MUSCLE_FIELDS, Flag, Mode, State
 
 #: units of names the table does not declare (a column of an older recording): by suffix
@@ -18,8 +19,13 @@ LOOP_COLUMNS: tuple[str, ...] = LOOP_FIELDS
 
 STATE_NAMES: dict[int, str] = {s.value: s.name for s in State}
 MODE_NAMES: dict[int, str] = {m.value: m.name.lower() for m in Mode}
-FLAG_BITS: dict[str, int] = {f.name: int(f.value) for f in Flag if f.name}
-FLAG_MEANINGS: dict[str, str] = {f.name: m for f, m in table.FLAG_MEANINGS.items() if f.name}
+#: every flag's name and bit, a deprecated old name beside its new one (the same bit:
+#: `pamd.wire.declare.deprecated`), so that scripts on the exports read either
+FLAG_BITS: dict[str, int] = {n: int(f.value) for n, f in Flag.__members__.items()}
+FLAG_MEANINGS: dict[str, str] = {
+    **{f.name: m for f, m in table.FLAG_MEANINGS.items() if f.name},
+    **{old: f"deprecated: {new}'s old name, the same bit (it goes in {REMOVED_IN})"
+       for old, new in FLAG_NAMES.items()}}
 DESCRIPTIONS: dict[str, str] = {n: f.description for n, f in table.BY_NAME.items()}
 
 

@@ -27,11 +27,11 @@ class PlausibilityConfig:
         unit="bar/s", gt=0.0)
     pressure_jump_bar: float = spec(0.3, "Allowance on top of pressure_max_rate_bar_per_s "
                                     "(noise, sampling).", unit="bar", min=0.0)
-    min_contraction: float = spec(-0.15, "A referenced length stretched beyond this contraction "
-                                  "is physically impossible (a broken or dead sensor).",
+    min_contraction: float = spec(-0.15, "A length with its datum stretched beyond this "
+                                  "contraction is physically impossible (a broken or dead sensor).",
                                   min=-1.0, max=0.0)
-    max_contraction: float = spec(0.40, "A referenced length contracted beyond this (0 mm is "
-                                  "100 %) is physically impossible.", min=0.0, max=1.0)
+    max_contraction: float = spec(0.40, "A length with its datum contracted beyond this (0 "
+                                  "mm is 100 %) is physically impossible.", min=0.0, max=1.0)
     frozen_pressure_change_bar: float = spec(
         0.5, "A length that stays within frozen_length_mm while the pressure changes this much, "
         "and the force does not change as it would at a fixed length, is frozen (away from "

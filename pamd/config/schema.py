@@ -128,9 +128,10 @@ class SignalConfig:
     raw_max: float | None = spec(None, "Highest raw value ever written (outputs). For a valve, "
                                  "gain * raw_max + offset is its full scale and must not "
                                  "exceed the muscle's pressure rating.")
-    absolute: bool = spec(False, "A length input that is referenced by itself (a potentiometer "
-                          "or laser sensor on an analog input, an absolute encoder): the "
-                          "muscle starts referenced and `home` is refused.")
+    absolute: bool = spec(False, "A length input that is absolute, its own datum (a "
+                          "potentiometer or laser sensor on an analog input, an absolute "
+                          "encoder): the muscle starts with its length datum and `home` is "
+                          "refused.")
 
 
 class InputSignal(NamedTuple):

@@ -1,4 +1,4 @@
-"""Reference profiles for a pressure (or length) setpoint, and the registry of their
+"""Profiles: a pressure (or length) setpoint over time, and the registry of their
 shapes.
 
 Every profile starts with a lead-in ramp from the present value to its own start

@@ -442,6 +442,6 @@ class SimSensors:
     length_absolute: bool = option(
         True,
         "True: the length reads the true length (an absolute sensor; the muscle starts "
-        "referenced). False: an incremental encoder that reads 0 mm at power-up and needs "
-        "`home`.",
+        "with its length datum). False: an incremental encoder that reads 0 mm at power-up "
+        "and needs `home`.",
     )

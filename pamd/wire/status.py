@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import TypedDict
 
+from pamd.wire.declare.deprecated import DATUM_KEYS, MUSCLE_STATUS_KEYS
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.declare.jsonsafe import jsonsafe as jsonsafe  # the one JSON encoder's
 
@@ -28,7 +29,21 @@ class MuscleLimits(TypedDict):
     max_pretension: float
 
 
+class Datums(TypedDict):
+    """A muscle's datums: the length's (`home`; an absolute sensor has its own) and the
+    force's zero (`tare`), as the state directory's calibration.yaml keeps them."""
+
+    has_length_datum: bool
+    homed_at: str | None
+    tared_at: str | None
+    length_offset_mm: float
+    force_offset_n: float
+
+
 class References(TypedDict):
+    """Deprecated: `Datums` under the status's old names (`length_referenced` is
+    `has_length_datum`), served until `pamd.wire.declare.deprecated.REMOVED_IN`."""
+
     length_referenced: bool
     homed_at: str | None
     tared_at: str | None
@@ -47,17 +62,21 @@ class MuscleStatus(TypedDict):
     contraction: float
     load_kg: float
     safe_pressure_bar: float
-    referenced: bool
+    has_length_datum: bool  # the length has its datum (homed, or an absolute sensor)
     mode: str  # pressure, length_force, position
     safe_ramp: bool
     trusted: Trusted
     profile: str | None  # the running profile's shape
     limits: MuscleLimits
-    references: References
+    datums: Datums
     model: JsonObject | None  # the inverse model's description (JSON edge)
     adapt: JsonObject  # online adaptation (pamd.loop.control.adapt; JSON edge)
     feedforward: JsonObject  # the model off its data, faded (pamd.loop.control.off_data)
     deadman_left_s: float | None
+    # deprecated (pamd.wire.declare.deprecated.MUSCLE_STATUS_KEYS): the old names of
+    # `has_length_datum` and `datums`, the same values, until REMOVED_IN
+    referenced: bool
+    references: References
 
 
 class SafetyChainStatus(TypedDict):
@@ -125,6 +144,18 @@ class IoStatus(TypedDict, total=False):
     command_nonce: str  # this run's, signed into every command (pamd.wire.credential)
     local_channel: str | None  # the local channel's socket (pamd.wire.local_channel), if it listens
     warnings: list[str]  # what the operator must know: cleartext beyond loopback, ...
+
+
+def with_old_keys(muscle: JsonObject) -> JsonObject:
+    """A muscle's status with the deprecated keys added after the new ones, each the
+    value of its new key (in a datums object, its old keys for the new ones)."""
+    old_datum_key = {new: old for old, new in DATUM_KEYS.items()}
+    out = dict(muscle)
+    for old, new in MUSCLE_STATUS_KEYS.items():
+        value = muscle[new]
+        out[old] = ({old_datum_key.get(k, k): v for k, v in value.items()}
+                    if isinstance(value, dict) else value)
+    return out
 
 
 STATUS_FIELDS: tuple[str, ...] = tuple(Status.__annotations__)

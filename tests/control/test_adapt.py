@@ -177,7 +177,7 @@ def test_nothing_is_learned_outside_running_or_from_a_bad_sample(how) -> None:
     assert not np.array_equal(theta(ff), trained)
 
 
-@pytest.mark.parametrize("flag", [Flag.STALE, Flag.NOT_REFERENCED, Flag.EXHAUST_OPEN,
+@pytest.mark.parametrize("flag", [Flag.STALE, Flag.NO_LENGTH_DATUM, Flag.EXHAUST_OPEN,
                                   Flag.TRACKING])
 def test_every_flag_that_says_the_measurement_is_bad_drops_the_sample(flag) -> None:
     ad, ff = stage(max_rate_bar_per_s=1.0)

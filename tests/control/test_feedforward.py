@@ -149,10 +149,10 @@ def test_mode_refusals(sim_config: Callable[..., LoadedConfig], static_model: Pa
     assert h.m1.mode == Mode.PRESSURE
     assert not h.cmd("mode", muscle="m1", mode="flying")["ok"]
     assert not h.cmd("mode", muscle="m1", mode="length_force", feedforward=False)["ok"]
-    h.m1.datums.length_referenced = False
+    h.m1.datums.has_length_datum = False
     v = h.cmd("mode", muscle="m1", mode="position", feedforward=False)
-    assert not v["ok"] and "not referenced" in v["error"]
-    h.m1.datums.length_referenced = True
+    assert not v["ok"] and "has no datum" in v["error"]
+    h.m1.datums.has_length_datum = True
     assert h.cmd("mode", muscle="m1", mode="position", feedforward=False)["ok"]
     # In a length mode, pressure setpoints and profiles are refused; and the reverse.
     v = h.cmd("setpoint", muscle="m1", bar=2.0)

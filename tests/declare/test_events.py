@@ -160,7 +160,7 @@ def test_a_run_of_the_controller_says_only_declared_events_and_verdicts(harness:
     h.step(0.1)
     verdicts = [h.cmd("setpoint", muscle="m1", bar=2.0, deadman_s=0.2),
                 h.cmd("setpoint", muscle="m1", bar=99.0),  # refused: over the limit
-                h.cmd("mode", muscle="m1", mode="position")]  # refused: not referenced
+                h.cmd("mode", muscle="m1", mode="position")]  # refused: no length datum
     h.step(0.5)  # the deadman fires
     verdicts += [h.cmd("estop", reason="test"), h.cmd("hold"), h.cmd("reset")]
     h.step(0.1)

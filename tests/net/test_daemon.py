@@ -38,7 +38,8 @@ def test_state_status_and_liveliness(rig: RigProc) -> None:
     st = rig.status()
     assert st["ok"] and st["rig_id"] == RIG and st["state"] == "IDLE"
     m1 = st["muscles"]["m1"]
-    assert m1["limits"]["max_pressure_bar"] == 6.0 and m1["references"]["length_referenced"]
+    assert m1["limits"]["max_pressure_bar"] == 6.0 and m1["datums"]["has_length_datum"]
+    assert m1["referenced"] and m1["references"]["length_referenced"]  # deprecated, served
     assert m1["mode"] == "pressure" and m1["model"] is None and m1["profile"] is None
     assert m1["adapt"]["state"] == "off" and m1["adapt"]["why_not"] == "no model"
     assert len(st["config_sha256"]) == 64 and st["clock"] == "real" and st["rate_hz"] == 500

@@ -356,7 +356,12 @@ def test_status_snapshot_from_a_running_daemon(sim_daemon: Any) -> None:
     # every declared field, and only those (pamd.wire.status declares them)
     assert tuple(st) == STATUS_FIELDS and tuple(st["muscles"]["m1"]) == MUSCLE_STATUS_FIELDS
     assert st["rig_id"] == "sim" and st["config_sha256"] == d.cfg.sha256
-    assert st["muscles"]["m1"]["references"]["length_referenced"] is True
+    m1 = st["muscles"]["m1"]
+    assert m1["has_length_datum"] is True and m1["datums"]["has_length_datum"] is True
+    # the deprecated old names, served beside the new ones with the same values
+    assert m1["referenced"] is m1["has_length_datum"]
+    assert m1["references"] == {"length_referenced" if k == "has_length_datum" else k: v
+                                for k, v in m1["datums"].items()}
     # the model's watch as the run summary has it (no model ran: nothing judged)
     assert st["muscles"]["m1"]["feedforward"] == {
         "off_data": "fade", "off_data_pct": None, "faded_pct": None,

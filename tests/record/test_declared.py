@@ -20,6 +20,7 @@ from mcap_ros2.decoder import DecoderFactory
 from pamd.client.export import export_mat, export_named_csv
 from pamd.client.field_info import MUSCLE_COLUMNS
 from pamd.wire.declare import events, fields
+from pamd.wire.declare.deprecated import FLAG_NAMES
 
 PY_TYPE = {"float64": float, "uint8": int, "uint16": int, "uint32": int, "uint64": int}
 
@@ -86,8 +87,10 @@ def test_a_recorded_run_is_what_the_declarations_say(recorded_run: Any, tmp_path
         f = fields.BY_NAME[name]
         assert (doc["unit"], doc["description"]) == (f.unit, f.description)
     assert set(side["columns"]) >= set(fields.MUSCLE_NAMES) | set(derived)
-    assert {n: d["meaning"] for n, d in side["flags"].items()} == {
+    assert {n: d["meaning"] for n, d in side["flags"].items() if n not in FLAG_NAMES} == {
         f.name: m for f, m in fields.FLAG_MEANINGS.items()}
+    for old, new in FLAG_NAMES.items():  # a deprecated flag name beside its new one
+        assert side["flags"][old]["bit"] == side["flags"][new]["bit"]
 
     from scipy.io import loadmat
     mat = str(tmp_path / "run.mat")
@@ -96,3 +99,4 @@ def test_a_recorded_run_is_what_the_declarations_say(recorded_run: Any, tmp_path
     assert [c for c in m1 if c in fields.BY_NAME] == [*MUSCLE_COLUMNS, *derived]
     assert {k: m1["units"][k] for k in MUSCLE_COLUMNS} == {
         k: fields.BY_NAME[k].unit for k in MUSCLE_COLUMNS}
+    assert all(m1["flag_bits"][old] == m1["flag_bits"][new] for old, new in FLAG_NAMES.items())

@@ -1,4 +1,4 @@
-"""References that cannot lie (issue 11): `home` refused on an absolute sensor and
+"""Datums that cannot lie (issue 11): `home` refused on an absolute sensor and
 when it disagrees with the expected length; `tare` refused under an undeclared
 load; both offline (`pamd home`, `pamd tare`) with the same rules."""
 
@@ -46,7 +46,7 @@ def test_absolute_true_on_an_analog_length_input_references_it_and_refuses_home(
     rig = safety_rig(30.0, drivers=_incremental(30.0), muscles=[
         {"name": "m1", "load_kg": 30.0, "signals": _signals(absolute=True)}])
     rig.run(0.05)
-    assert rig.m.referenced and rig.m.length_absolute
+    assert rig.m.has_length_datum and rig.m.length_absolute
     v = rig.h.cmd("home", muscle="m1", length_mm=204.0)
     assert not v["ok"] and "absolute sensor" in v["error"]
 
@@ -62,11 +62,11 @@ def test_home_is_refused_when_it_disagrees_with_the_expected_length(
         v = rig.h.cmd("home", muscle="m1", length_mm=wrong)
         assert not v["ok"] and "disagrees with the" in v["error"], v
         assert "safety.home_tolerance" in v["error"]
-    assert not rig.m.referenced and rig.m.datums.length_offset_mm == 0.0
+    assert not rig.m.has_length_datum and rig.m.datums.length_offset_mm == 0.0
     ok = rig.h.cmd("home", muscle="m1", length_mm=round(true_mm, 1))
     assert ok["ok"], ok
     rig.run(0.1)
-    assert rig.m.referenced and rig.m.length_mm == pytest.approx(true_mm, abs=0.1)
+    assert rig.m.has_length_datum and rig.m.length_mm == pytest.approx(true_mm, abs=0.1)
     assert rig.h.state == "IDLE"
 
 
@@ -128,7 +128,7 @@ def test_pamd_home_offline_references_and_saves(tmp_path: Path,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
     path = _config(tmp_path, 30.0)
     true_mm = 200.0 * (1.0 - equilibrium_contraction(force_model("map"), 0.0, 30.0, -0.5, 0.9))
-    state = tmp_path / "state"  # a simulation keeps references where it is told
+    state = tmp_path / "state"  # a simulation keeps its datums where it is told
     cal = state / "calibration.yaml"
     assert main(["home", "--config", str(path), "--muscle", "m1", "--length-mm", "150",
                  "--state-dir", str(state)]) == 4
@@ -138,9 +138,10 @@ def test_pamd_home_offline_references_and_saves(tmp_path: Path,
                  f"{true_mm:.2f}", "--json", "--state-dir", str(state)]) == 0
     out = capsys.readouterr().out
     assert '"ok": true' in out
-    ref = load_calibration(str(cal)).muscles["m1"]
-    assert ref.length_referenced and ref.homed_at
-    assert ref.length_offset_mm == pytest.approx(true_mm, abs=0.1)  # the encoder read 0
+    datums = load_calibration(str(cal)).muscles["m1"]
+    assert datums.has_length_datum and datums.homed_at
+    assert "has_length_datum: true" in cal.read_text()  # the new key, written
+    assert datums.length_offset_mm == pytest.approx(true_mm, abs=0.1)  # the encoder read 0
 
 
 def test_pamd_tare_offline_needs_the_load_declared(tmp_path: Path,
@@ -156,3 +157,26 @@ def test_pamd_tare_offline_needs_the_load_declared(tmp_path: Path,
                  "--state-dir", str(state)]) == 0
     ref = load_calibration(str(cal)).muscles["m1"]
     assert ref.tared_at and abs(ref.force_offset_n) < 5.0
+
+
+def test_a_calibration_file_with_the_old_key_loads(tmp_path: Path) -> None:
+    """calibration.yaml's `length_referenced` (before `has_length_datum`, deprecated) is
+    read as the new key; pamd writes the new one; both at once is an error naming them."""
+    from pamd.loop.devices.datum_file import save_calibration
+    from pamd.wire.errors import ConfigError
+
+    old = tmp_path / "calibration.yaml"
+    old.write_text("muscles:\n  m1:\n    length_offset_mm: 12.5\n    length_referenced: true\n"
+                   "    homed_at: '2026-01-02T03:04:05+0000'\n  m2:\n"
+                   "    length_referenced: false\n")
+    cal = load_calibration(str(old))
+    assert cal.muscles["m1"].has_length_datum and cal.muscles["m1"].length_offset_mm == 12.5
+    assert cal.muscles["m1"].homed_at == "2026-01-02T03:04:05+0000"
+    assert not cal.muscles["m2"].has_length_datum
+    new = tmp_path / "new.yaml"
+    save_calibration(cal, str(new))
+    assert "has_length_datum: true" in new.read_text() and "referenced" not in new.read_text()
+    assert load_calibration(str(new)) == cal
+    old.write_text("muscles:\n  m1:\n    has_length_datum: true\n    length_referenced: false\n")
+    with pytest.raises(ConfigError, match=r"calibration.yaml:4.*muscles\.m1\.length_referenced"):
+        load_calibration(str(old))

@@ -109,7 +109,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    help="how long each level and step is held (default 2; at least 0.5)")
     p.add_argument("--state-dir", metavar="DIR",
                    help="as `pamd run --state-dir`: where the latched fault and the home/tare "
-                   "references are kept (default: the config's state_dir, else the rig's "
+                   "datums are kept (default: the config's state_dir, else the rig's "
                    "own for a real-clock run; a virtual-clock run keeps none)")
     p.add_argument("--save", action="store_true",
                    help="write the proposed thresholds into CONFIG (after showing the diff)")

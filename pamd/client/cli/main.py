@@ -72,7 +72,7 @@ COMMANDS: tuple[SubCommandEntry, ...] = (
                ("safe-outputs", "write the last known-good safe outputs to the devices"),
                ("install-service", "install the systemd unit, its user and directories")),
     # offline datums on the configured rig (no daemon, no Zenoh)
-    *_commands("home", ("home", "reference a muscle's length (offline, on the configured "
+    *_commands("home", ("home", "set a muscle's length datum (offline, on the configured "
                                 "rig)")),
     *_commands("tare", ("tare", "zero a load cell (offline, on the configured rig)")),
     # clients of a running daemon over Zenoh (status, cmd, watch) and the lab router

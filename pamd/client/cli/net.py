@@ -76,7 +76,7 @@ def add_client_args(p: argparse.ArgumentParser, suppress: bool = False) -> None:
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     s = sub.add_parser("status", help="ask a running daemon how it is (over Zenoh)",
-                       description="The daemon's status: state, faults, limits, references, "
+                       description="The daemon's status: state, faults, limits, datums, "
                        "timing, profile and model, config hash.")
     add_client_args(s)
     s.add_argument("--json", action="store_true", help="print the status as JSON")
@@ -199,8 +199,10 @@ def _print_latched(st: JsonObject) -> None:
 
 
 def _print_muscle(name: str, m: JsonObject) -> None:
-    """One muscle: its values, limits and references, and its model."""
-    lim, ref = m.get("limits") or {}, m.get("references") or {}
+    """One muscle: its values, limits and datums, and its model (an older daemon says
+    its datums under their old names only: `pamd.wire.declare.deprecated`)."""
+    lim, datums = m.get("limits") or {}, m.get("datums") or m.get("references") or {}
+    has_datum = m.get("has_length_datum", m.get("referenced"))
     print(f"  {name}: {_f(m.get('pressure_bar'))} bar (setpoint "
           f"{_f(m.get('setpoint_bar'))}, valve {_f(m.get('valve_cmd_bar'))}), force "
           f"{_f(m.get('force_n'), '.1f')} N, length {_f(m.get('length_mm'), '.2f')} mm, "
@@ -209,8 +211,8 @@ def _print_muscle(name: str, m: JsonObject) -> None:
           f"{_f(lim.get('max_contraction'), 'g')}, pretension "
           f"{_f(lim.get('max_pretension'), 'g')}; safe pressure "
           f"{_f(m.get('safe_pressure_bar'), '.2f')} bar at {_f(m.get('load_kg'), 'g')} "
-          f"kg; referenced {m.get('referenced')} (homed {ref.get('homed_at') or '-'}, "
-          f"tared {ref.get('tared_at') or '-'})")
+          f"kg; length datum {'yes' if has_datum else 'no'} (homed "
+          f"{datums.get('homed_at') or '-'}, tared {datums.get('tared_at') or '-'})")
     model = m.get("model")
     if model:
         print(f"      model {model.get('file')} ({model.get('rules')} rules)")

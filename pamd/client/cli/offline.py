@@ -1,11 +1,11 @@
-"""Offline reference commands (`pamd home`, `pamd tare`): open the configured rig
+"""Offline datum commands (`pamd home`, `pamd tare`): open the configured rig
 without a daemon or Zenoh, read every sensor, apply one command through the same
 loop-side handler a running daemon uses (so the same refusals apply), save the
 calibration file, and leave the outputs as they were.
 
 Start-up is the daemon's: nothing is written before every sensor is read; inside
 its limits the rig holds its measured pressure (nothing moves); outside them it
-ramps to its safe pressure first, and the reference is taken once it rests. The
+ramps to its safe pressure first, and the datum is taken once it rests. The
 run then ends holding its outputs (a VPPM keeps its pressure), not ramping to the
 safe state, unless it is latched in FAULT or ESTOP.
 """
@@ -35,7 +35,7 @@ def _at_rest(d: Daemon) -> bool:
 
 
 def add_state_args(p: argparse.ArgumentParser) -> None:
-    """--state-dir and --json, as every offline reference command takes them."""
+    """--state-dir and --json, as every offline datum command takes them."""
     p.add_argument("--state-dir", metavar="DIR", help="the state directory whose "
                    "calibration.yaml keeps the datums (the service's: /var/lib/pamd; "
                    "default: as `pamd run` keeps it, see state_dir)")

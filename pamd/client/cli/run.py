@@ -129,7 +129,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
                    "telemetry.foxglove.tls_cert/tls_key (wss://) or --allow-cleartext; "
                    "layout: config/foxglove/pamd-layout.json")
     g = p.add_argument_group("profile (on every muscle unless --muscle)")
-    g.add_argument("--profile", choices=SHAPE_NAMES, help="start this reference profile")
+    g.add_argument("--profile", choices=SHAPE_NAMES, help="start this profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")
     g.add_argument("--freq-hz", type=float,
                    help=f"{kinds_reading('freq_hz', '/')} (0.05); in a length mode too")
@@ -143,8 +143,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     lm = p.add_argument_group(
         "length modes (the ANFIS inverse model as feedforward; every muscle unless --muscle)")
     lm.add_argument("--mode", choices=("pressure", "length_force", "position"),
-                    help="control mode from the start (length modes need a referenced "
-                    "length and, but for position --no-feedforward, a model); a --profile "
+                    help="control mode from the start (length modes need a length "
+                    "with its datum and, but for position --no-feedforward, a model); a --profile "
                     "is then a length profile in contraction")
     lm.add_argument("--model", metavar="FILE", help="inverse model (pamd train) for the "
                     "length modes, overriding model_file of the config; read and checked "

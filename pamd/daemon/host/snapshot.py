@@ -17,7 +17,14 @@ from pamd.loop.control.muscle import MuscleController
 from pamd.loop.control.rig_report import muscle_status
 from pamd.loop.experiment.sequencer import running_plan
 from pamd.wire.declare.jsonsafe import JsonObject
-from pamd.wire.status import ExperimentStatus, MuscleStatus, RecordingStatus, Status, jsonsafe
+from pamd.wire.status import (
+    ExperimentStatus,
+    MuscleStatus,
+    RecordingStatus,
+    Status,
+    jsonsafe,
+    with_old_keys,
+)
 from pamd.wire.verbs.table import VERBS
 from pamd.wire.version import __version__
 
@@ -96,18 +103,19 @@ class StatusBuilder:
     def _muscle(self, m: MuscleController) -> MuscleStatus:
         """The muscle's status as the rig controller says it (`muscle_status`, built
         there once), and what only the daemon's status adds: the datums, the model, its
-        adaptation and feedforward, the deadman."""
-        ref = m.datums
+        adaptation and feedforward, the deadman; and, for this release, the deprecated
+        old keys (`pamd.wire.status.with_old_keys`)."""
+        d = m.datums
         ff = m.length_control.ff
         dm = self.ctrl.deadman.get(m.name)
-        return cast(MuscleStatus, {
+        return cast(MuscleStatus, with_old_keys({
             **muscle_status(m),
-            "references": {
-                "length_referenced": ref.length_referenced, "homed_at": ref.homed_at,
-                "tared_at": ref.tared_at, "length_offset_mm": ref.length_offset_mm,
-                "force_offset_n": ref.force_offset_n},
+            "datums": {
+                "has_length_datum": d.has_length_datum, "homed_at": d.homed_at,
+                "tared_at": d.tared_at, "length_offset_mm": d.length_offset_mm,
+                "force_offset_n": d.force_offset_n},
             "model": ff.describe() if ff is not None else None,
             "adapt": m.adaptation.describe(),  # online adaptation (pamd.loop.control.adapt)
             "feedforward": m.feedforward_report(),  # off its data (pamd.loop.control.off_data)
             "deadman_left_s": None if dm is None else max(0.0, dm[0] - self.ctrl.now),
-        })
+        }))

@@ -1,5 +1,5 @@
 """What the loop-side command handlers share: their signature and the checks of a
-command against the rig's present state (muscle names, state, length reference)."""
+command against the rig's present state (muscle names, state, the length's datum)."""
 
 from __future__ import annotations
 
@@ -36,12 +36,12 @@ def can_move(ctrl: RigController) -> None:
                              "once the cause is gone")
 
 
-def need_homed(ms: list[MuscleController]) -> None:
-    """Refuse unless every muscle has its length referenced (home)."""
+def need_length_datum(ms: list[MuscleController]) -> None:
+    """Refuse unless every muscle's length has its datum (home)."""
     for m in ms:
-        if not m.referenced:
-            raise CommandRefused(f"{m.name}: length not referenced, so contraction limits "
-                                 "cannot be enforced; send home first")
+        if not m.has_length_datum:
+            raise CommandRefused(f"{m.name}: the length has no datum yet, so contraction "
+                                 "limits cannot be enforced; send home first")
 
 
 def idle_or_hold(ctrl: RigController, verb: str) -> None:

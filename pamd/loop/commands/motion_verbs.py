@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from pamd.loop.commands.guards import can_move, named_muscles, need_homed
+from pamd.loop.commands.guards import can_move, named_muscles, need_length_datum
 from pamd.loop.commands.model_file import prepare_model
 from pamd.loop.commands.prepared import PreparedModelArgs
 from pamd.loop.commands.verb_registry import Verb
@@ -40,7 +40,7 @@ def _start(ctrl: RigController, ms: list[MuscleController], spec_: ProfileSpec) 
 def _setpoint(ctrl: RigController, a: SetpointArgs) -> JsonObject:
     can_move(ctrl)
     ms = named_muscles(ctrl, a.muscle)
-    need_homed(ms)
+    need_length_datum(ms)
     m = ms[0]
     if m.in_length_mode or a.bar is None:
         out = _length_setpoint(ctrl, m, a)
@@ -70,7 +70,7 @@ def _setpoint(ctrl: RigController, a: SetpointArgs) -> JsonObject:
 def _profile(ctrl: RigController, a: ProfileArgs) -> JsonObject:
     can_move(ctrl)
     ms = named_muscles(ctrl, a.muscle)
-    need_homed(ms)
+    need_length_datum(ms)
     if any(m.in_length_mode for m in ms) or any(
             getattr(a, k) is not None for k in LENGTH_PROFILE_FIELDS):
         return _length_profile(ctrl, ms, a)
@@ -177,7 +177,7 @@ def _mode(ctrl: RigController, a: ModeArgs) -> JsonObject:
     if not a.feedforward and mode != Mode.POSITION:
         raise CommandRefused("length_force mode is the model itself: feedforward cannot be "
                              "off")
-    need_homed(ms)
+    need_length_datum(ms)
     for m in ms:
         _can_enter(m, mode, a)
     for m in ms:

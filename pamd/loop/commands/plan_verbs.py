@@ -3,7 +3,7 @@ checked outside the loop), confirm (a load change) and pause (at a cycle's end).
 
 from __future__ import annotations
 
-from pamd.loop.commands.guards import can_move, need_homed
+from pamd.loop.commands.guards import can_move, need_length_datum
 from pamd.loop.commands.verb_registry import Verb
 from pamd.loop.control.controller import RigController
 from pamd.loop.experiment.sequencer import Sequencer, running_plan
@@ -41,7 +41,7 @@ def _collect(ctrl: RigController, a: CollectArgs) -> JsonObject:
     plan = getattr(a, "plan", None)
     if plan is None:
         raise CommandRefused("collect: the plan was not loaded (pass it through the daemon)")
-    need_homed([ctrl.by_name[plan.muscle]])
+    need_length_datum([ctrl.by_name[plan.muscle]])
     if ctrl.by_name[plan.muscle].in_length_mode:
         raise CommandRefused(f"{plan.muscle} is in a length mode and plans run pressure "
                              "profiles; send mode pressure first")

@@ -69,9 +69,9 @@ def _home(ctrl: RigController, a: HomeArgs) -> JsonObject:
     m = named_muscles(ctrl, a.muscle)[0]
     raw_len = m.length_mm - m.datums.length_offset_mm
     if not math.isfinite(raw_len):
-        raise CommandRefused(f"{m.name}: no length reading to reference")
+        raise CommandRefused(f"{m.name}: no length reading to set its datum from")
     check_home(m, a.length_mm)  # absolute sensor, untrusted, moving, or disagreeing: refused
-    # At once in software; a device that takes the reference too confirms later.
+    # At once in software; a device that takes the preset too confirms later.
     offset = m.home(a.length_mm, raw_len, time.strftime("%Y-%m-%dT%H:%M:%S%z"))
     ctrl.mark_calibration_dirty()  # saved outside the loop's thread
     return {"muscle": m.name, "length_offset_mm": offset}

@@ -17,7 +17,7 @@ behaviour this corrects):
   it), so the rules adapted are the rules the feedforward reads.
 * **Gated.** A window is dropped (state PAUSED) if any of its ticks was outside
   RUNNING or LOAD_CHANGE, in a safe state, had a flag that says the *measurement* is
-  not the muscle's (`BAD_FLAGS`: stale, not referenced, exhaust open, pressure not
+  not the muscle's (`BAD_FLAGS`: stale, no length datum, exhaust open, pressure not
   following its command; on on/off valves the exhaust's PWM pulses are the control
   itself, as the inflate valve's are, and do not: `ONOFF_BAD_FLAGS`), had an
   untrusted signal, or if the sample's own inputs fall outside the model's training
@@ -67,7 +67,7 @@ if TYPE_CHECKING:
 
 S_RUNNING, S_LOAD = int(State.RUNNING), int(State.LOAD_CHANGE)
 #: Flags that say a tick's measurement is not the muscle's own (module docstring).
-BAD_FLAGS = int(Flag.STALE | Flag.NOT_REFERENCED | Flag.EXHAUST_OPEN | Flag.TRACKING)
+BAD_FLAGS = int(Flag.STALE | Flag.NO_LENGTH_DATUM | Flag.EXHAUST_OPEN | Flag.TRACKING)
 #: On on/off valves the exhaust's PWM pulses are the control itself (`PWM_VALVE_FLAGS`).
 ONOFF_BAD_FLAGS = BAD_FLAGS & ~int(PWM_VALVE_FLAGS)
 #: What the `adapt` command can do.
@@ -127,7 +127,7 @@ class Adaptation:
 
     # -- set-up and commands (loop thread, between ticks) -----------------------------------
     def bind(self, ff: Feedforward | None) -> None:
-        """A (new) model: its trained consequents are the reference of the bounds and
+        """A (new) model: its trained consequents are the baseline of the bounds and
         of the drift; any adaptation of the previous model ends with it."""
         self.ff, self.compiled, self.rls, self.bound = ff, None, None, None
         self.drift_bar = self.total_bar = 0.0

@@ -378,7 +378,7 @@ class RigController:
         return self._hold_started
 
     def mark_calibration_dirty(self) -> None:
-        """A reference changed (home, tare): the daemon saves the calibration outside
+        """A datum changed (home, tare): the daemon saves the calibration outside
         the loop's thread."""
         self._calibration_dirty = True
 

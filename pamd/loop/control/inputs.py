@@ -2,14 +2,14 @@
 against the timeouts, the velocity (over the length samples' own stamps, never the
 loop's period: a slow encoder or a late tick does not make a step a speed), and their
 plausibility (`pamd.loop.safety.plausibility`, with each value's stamp and jitter);
-and their references (`home`, `tare`, a device's confirmation of a homed preset).
+and their datums (`home`, `tare`, a device's confirmation of a homed preset).
 
 The first stage of the muscle's read (`update`): what it leaves in the muscle's
 `MuscleTick` for the later stages: `pressure_bar`, `force_n`, `length_mm`,
 `contraction`, `velocity_mm_s` (also kept here, the muscle's properties read them),
 whether the pressure and the length are trusted this tick (`pressure_ok`,
-`length_ok`: fresh, plausible and, for the length, referenced), the STALE /
-NOT_REFERENCED bits (`flags`), the fault they raise and a new plausibility finding
+`length_ok`: fresh, plausible and, for the length, with its datum), the STALE /
+NO_LENGTH_DATUM bits (`flags`), the fault they raise and a new plausibility finding
 (`finding`).
 
 Tick path: float arithmetic on cached driver arrays; a string only on a fault.
@@ -25,7 +25,7 @@ from pamd.loop.safety.plausibility import Plausibility
 from pamd.models.velocity import VELOCITY_WINDOW_S, velocity_step
 from pamd.wire.tick import Flag, MuscleTick, State
 
-F_STALE, F_NOREF = int(Flag.STALE), int(Flag.NOT_REFERENCED)
+F_STALE, F_NO_DATUM = int(Flag.STALE), int(Flag.NO_LENGTH_DATUM)
 S_LOAD = int(State.LOAD_CHANGE)
 
 
@@ -70,7 +70,7 @@ class Inputs:
         # How much of a sample's age a stalled loop excuses (`pamd.loop.stalls`; the rig
         # controller sets it after a late tick, 0 otherwise): not a dead sensor.
         self.stall_excuse_s = 0.0
-        # A homed reference the device confirms later: (its preset counts, index, count).
+        # A home the device confirms later: (its preset counts, index, count).
         self._pending_preset: tuple[list[int], int, int] | None = None
         self._calibration_dirty = False
 
@@ -99,7 +99,7 @@ class Inputs:
         return self._fg * self._fv[self._fi] + self._fo - self.datums.force_offset_n
 
     def measured_length_mm(self) -> float:
-        """The newest length reading with the reference offset (whatever its age)."""
+        """The newest length reading with the home offset (whatever its age)."""
         return self._lg * self._lv[self._li] + self._lo + self.datums.length_offset_mm
 
     def missing(self, now: float) -> str | None:
@@ -112,13 +112,13 @@ class Inputs:
         return None
 
     def datums_changed(self) -> None:
-        """A new length reference (home, a device preset): the velocity and the length
+        """A new length datum (home, a device preset): the velocity and the length
         checks start afresh (the reading's step is the new offset, not a motion)."""
         self._prev_length_mm = math.nan
         self.plausibility.datums_changed()
 
     def home(self, length_mm: float, raw_length_mm: float, at: str) -> float:
-        """Reference the length: this reading (`raw_length_mm`, without the present
+        """Set the length's datum: this reading (`raw_length_mm`, without the present
         offset) is `length_mm`, at once in software; a device that takes a preset
         confirms later (`read` then drops the software offset). Returns the offset."""
         ref = self.datums
@@ -127,7 +127,7 @@ class Inputs:
         counts = b.driver.preset_counts
         if b.driver.preset_input(b.index, (length_mm - b.offset) / b.gain):
             self._pending_preset = (counts, b.index, counts[b.index])
-        ref.length_referenced = True
+        ref.has_length_datum = True
         ref.homed_at = at
         self.datums_changed()
         return ref.length_offset_mm
@@ -151,7 +151,7 @@ class Inputs:
     def update(self, t: MuscleTick, now: float, dt: float) -> None:
         """Read this tick's inputs into `t` (and this stage's own attributes): the
         readings, whether the pressure and the length are trusted, STALE and
-        NOT_REFERENCED, and the fault they raise (a stale input, else a new
+        NO_LENGTH_DATUM, and the fault they raise (a stale input, else a new
         plausibility finding). Judged against `t.last_command_bar` (NaN before any)
         and, unless `t.state` is LOAD_CHANGE (the load is changing), the load."""
         pp = self._pending_preset
@@ -182,11 +182,11 @@ class Inputs:
         self.length_mm = t.length_mm = length
         self.contraction = t.contraction = (l0 - length) / l0
         t.velocity_mm_s = self.velocity_mm_s
-        referenced = ref.length_referenced
-        if not referenced:
-            flags |= F_NOREF
+        has_datum = ref.has_length_datum
+        if not has_datum:
+            flags |= F_NO_DATUM
         plaus = self.plausibility
-        finding = plaus.check(now, p, pt, f, ft, length, lt, referenced, t.last_command_bar,
+        finding = plaus.check(now, p, pt, f, ft, length, lt, has_datum, t.last_command_bar,
                               t.state != S_LOAD, self._pj[pi], self._fj[fi], self._lj[li])
         if finding is not None:
             t.finding = finding
@@ -194,7 +194,7 @@ class Inputs:
                 fault = finding
         self.pressure_fresh = p_fresh
         self.pressure_ok = t.pressure_ok = p_fresh and plaus.pressure_ok
-        self.length_ok = t.length_ok = l_fresh and plaus.length_ok and referenced
+        self.length_ok = t.length_ok = l_fresh and plaus.length_ok and has_datum
         t.flags = flags
         t.fault = fault
 

@@ -239,8 +239,9 @@ class MuscleController:
         return self.signals.datums
 
     @property
-    def referenced(self) -> bool:
-        return self.signals.datums.length_referenced
+    def has_length_datum(self) -> bool:
+        """Whether the length has its datum: homed, or an absolute sensor's own."""
+        return self.signals.datums.has_length_datum
 
     @property
     def pressure_bar(self) -> float:
@@ -358,19 +359,19 @@ class MuscleController:
         return report
 
     def take_calibration_dirty(self) -> bool:
-        """Whether the device took a homed reference since the last call (then the
+        """Whether the device took a homed preset since the last call (then the
         calibration is to be saved, outside the loop's thread)."""
         return self.inputs.take_calibration_dirty()
 
-    # -- references, modes, profiles, the model (commands: the loop's thread, between
+    # -- datums, modes, profiles, the model (commands: the loop's thread, between
     # ticks; each takes effect bumpless at the next tick) ---------------------------------
     def home(self, length_mm: float, raw_length_mm: float, at: str) -> float:
-        """Reference the length (`Inputs.home`; the caller has run
+        """Set the length's datum (`Inputs.home`; the caller has run
         `pamd.loop.safety.datums.check_home`). Returns the offset."""
         return self.inputs.home(length_mm, raw_length_mm, at)
 
     def tare(self, force_offset_n: float, at: str) -> None:
-        """The force reference (checked by `pamd.loop.safety.datums.tare_offset`)."""
+        """Set the force's zero (checked by `pamd.loop.safety.datums.tare_offset`)."""
         self.inputs.tare(force_offset_n, at)
 
     def start_profile(self, profile: Profile) -> None:
@@ -476,7 +477,7 @@ class MuscleController:
         p = self.inputs.measured_pressure_bar()
         if p > env.max_pressure_bar:
             return f"pressure {p:.2f} bar above the limit {env.max_pressure_bar:g} bar"
-        if not self.referenced:
+        if not self.has_length_datum:
             return None
         if not self.plausibility.length_ok:
             return f"length untrusted ({self.signals.length.name})"

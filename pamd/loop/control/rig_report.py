@@ -78,7 +78,7 @@ def muscle_status(m: MuscleController) -> JsonObject:
         "valve_cmd_bar": m.valve_cmd_bar, "force_n": m.force_n,
         "length_mm": m.length_mm, "contraction": m.contraction,
         "load_kg": m.load_kg, "safe_pressure_bar": m.safe_pressure_bar,
-        "referenced": m.referenced, "mode": m.mode.name.lower(),
+        "has_length_datum": m.has_length_datum, "mode": m.mode.name.lower(),
         "safe_ramp": m.in_safe_ramp,
         "trusted": {"pressure": m.plausibility.pressure_ok,
                     "force": m.plausibility.force_ok,

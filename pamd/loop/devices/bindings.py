@@ -88,12 +88,12 @@ class Rig:
         self.muscles: list[MuscleSignals] = []
         for m in cfg.rig.muscles:
             s = m.signals
-            ref = calibration.for_muscle(m.name)
+            datums = calibration.for_muscle(m.name)
             length = self._input(f"{m.name}.length", s.length, safety)
             self.absolute_length = (length.driver.is_absolute(length.index)
                                     or s.length.absolute)
-            if self.absolute_length:
-                ref.length_referenced = True
+            if self.absolute_length:  # an absolute sensor has its datum by construction
+                datums.has_length_datum = True
             self.muscles.append(MuscleSignals(
                 pressure=self._input(f"{m.name}.pressure", s.pressure, safety),
                 force=self._input(f"{m.name}.force", s.force, safety),
@@ -101,7 +101,7 @@ class Rig:
                 valve=(None if m.actuation == "onoff" else
                        self._output(f"{m.name}.valve", _required(s.valve, cfg.path, m.name))),
                 exhaust=self._output(f"{m.name}.exhaust", s.exhaust) if s.exhaust else None,
-                datums=ref,
+                datums=datums,
                 inflate=(self._output(f"{m.name}.inflate", s.inflate)
                          if m.actuation == "onoff" and s.inflate else None),
             ))

@@ -2,8 +2,12 @@
 (force offset), persisted in a small YAML file beside the config.
 
 An incremental encoder reads 0 at power-up and a load cell drifts, so length and
-force need a reference. A muscle whose length is not referenced refuses everything
-that needs absolute length. Simulated drivers start referenced.
+force need a datum. A muscle whose length has no datum refuses everything that needs
+absolute length. An absolute sensor (the simulated rig's) has its datum by
+construction.
+
+The file's old key `length_referenced` (before `has_length_datum`) is read as the new
+one until `pamd.wire.declare.deprecated.REMOVED_IN`; pamd writes the new key.
 """
 
 from __future__ import annotations
@@ -14,7 +18,8 @@ from dataclasses import asdict, dataclass, field
 import yaml
 
 from pamd.wire.atomic import write_atomic
-from pamd.wire.schema.engine import Context, build_dataclass, spec
+from pamd.wire.declare.deprecated import DATUM_KEYS
+from pamd.wire.schema.engine import Context, LinedDict, build_dataclass, spec
 from pamd.wire.schema.yamlload import load_yaml_file
 
 
@@ -24,7 +29,8 @@ class MuscleDatums:
                                    unit="mm")
     force_offset_n: float = spec(0.0, "Subtracted from the calibrated force (set by tare).",
                                  unit="N")
-    length_referenced: bool = spec(False, "True once the length has been homed.")
+    has_length_datum: bool = spec(False, "True once the length has its datum (homed; an "
+                                  "absolute sensor has its own).")
     homed_at: str | None = spec(None, "When the length was last homed (ISO time).")
     tared_at: str | None = spec(None, "When the force was last tared (ISO time).")
 
@@ -47,11 +53,35 @@ def load_calibration(path: str | None) -> Calibration:
     cal = Calibration()
     muscles = raw.get("muscles", {}) if isinstance(raw, dict) else {}
     for name, node in (muscles or {}).items():
-        ref = build_dataclass(MuscleDatums, node, ctx, f"muscles.{name}", None)
-        if ref is not None:
-            cal.muscles[str(name)] = ref
+        where = f"muscles.{name}"
+        datums = build_dataclass(MuscleDatums, _new_keys(node, ctx, where), ctx, where, None)
+        if datums is not None:
+            cal.muscles[str(name)] = datums
     ctx.raise_if_any()
     return cal
+
+
+def _new_keys(node: object, ctx: Context, where: str) -> object:
+    """A muscle's entry with its deprecated keys (`DATUM_KEYS`: a file written before
+    the rename) under their new names, each at its own line; both an old key and its
+    new one is an error (which is meant?)."""
+    if not isinstance(node, dict) or not any(old in node for old in DATUM_KEYS):
+        return node
+    out = LinedDict()
+    out.line = getattr(node, "line", None)
+    lines = getattr(node, "key_lines", {})
+    out.key_lines = {}
+    for key, value in node.items():
+        new = DATUM_KEYS.get(key, key) if isinstance(key, str) else key
+        if new != key and new in node:
+            ctx.add(lines.get(key), f"{where}.{key}",
+                    f"one of {key!r} (its old name) and {new!r}: remove {key!r}",
+                    "both")
+            continue
+        out[new] = value
+        if key in lines:
+            out.key_lines[new] = lines[key]
+    return out
 
 
 def save_calibration(cal: Calibration, path: str) -> None:

@@ -7,7 +7,7 @@ muscle "at its contraction limit" that was never pressurised, or one stretched
 past its pretension limit that looks relaxed); a tare under a load makes the load
 cell read zero with 80 kg hanging. So:
 
-* `home` is refused on an absolute length sensor (it is referenced by itself), on
+* `home` is refused on an absolute length sensor (it has its datum by construction), on
   an untrusted reading, while the muscle moves, and when the new length differs
   from the expected one (nominal length, the load's stretch at the measured
   pressure, from the muscle's force model) by more than `safety.home_tolerance`;
@@ -51,7 +51,7 @@ class DatumMuscle(Protocol):
     @property
     def load_kg(self) -> float: ...
 
-#: A muscle moving faster than this is not at rest: no reference is taken.
+#: A muscle moving faster than this is not at rest: no datum is taken.
 AT_REST_MM_S = 2.0
 #: Configured and declared loads closer than this agree.
 LOAD_AGREES_KG = 0.5
@@ -72,12 +72,12 @@ def expected_length_mm(m: DatumMuscle) -> tuple[float, float]:
 
 
 def check_home(m: DatumMuscle, length_mm: float) -> None:
-    """Refuse (CommandRefused) a `home` that would make the length reference lie."""
+    """Refuse (CommandRefused) a `home` that would make the length datum lie."""
     b = m.signals.length
     if m.length_absolute:
         raise CommandRefused(
-            f"{m.name}: {b.name} (driver {b.driver.name!r}) is an absolute sensor, referenced "
-            "by itself; home would only make it lie (calibrate its gain/offset in the config "
+            f"{m.name}: {b.name} (driver {b.driver.name!r}) is an absolute sensor, its own "
+            "datum; home would only make it lie (calibrate its gain/offset in the config "
             "instead)")
     if not m.plausibility.length_ok:
         raise CommandRefused(f"{m.name}: {b.name} is not trusted (an implausible reading); "
@@ -100,7 +100,7 @@ def check_home(m: DatumMuscle, length_mm: float) -> None:
 
 def tare_offset(m: DatumMuscle, load_kg: float | None) -> float:
     """The new force offset of a `tare` (against `load_kg` hanging, default none), or
-    CommandRefused if it would make the force reference lie."""
+    CommandRefused if it would make the force zero lie."""
     b = m.signals.force
     if not m.plausibility.force_ok:
         raise CommandRefused(f"{m.name}: {b.name} is not trusted (an implausible reading); "

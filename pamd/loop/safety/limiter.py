@@ -1,5 +1,5 @@
 """The limiter: the supervisor's invariants on one muscle's valve command, applied
-last, after the reference, the PID and every guard. Nothing downstream of it
+last, after the setpoint, the PID and every guard. Nothing downstream of it
 changes the command.
 
 Always: the command is never above the pressure limit (a command that starts above
@@ -39,13 +39,13 @@ F_SOFT_P, F_SLEW = int(Flag.SOFT_LIMIT_PRESSURE), int(Flag.SLEW_LIMITED)
 F_SOFT_C, F_PRETENSION = int(Flag.SOFT_LIMIT_CONTRACTION), int(Flag.PRETENSION_LIMIT)
 
 HELD_BACK_BAR = 0.005
-"""A command clamped at the pressure limit holds the reference back only where the
+"""A command clamped at the pressure limit holds the setpoint back only where the
 setpoint itself asks for more than the command by this much; the top of a profile that
 reaches the limit, where only the PID's correction is trimmed, is not held back."""
 
 
 def held_back(flags: int, setpoint_bar: float, command_bar: float) -> bool:
-    """Whether a limit or guard held the reference back this tick (what the summary
+    """Whether a limit or guard held the setpoint back this tick (what the summary
     counts and a `soft_limit` event reports): a contraction or pretension guard, or
     the pressure limit below the setpoint."""
     return bool(flags & (F_SOFT_C | F_PRETENSION)) or (

@@ -8,7 +8,7 @@ it it falls at the slew limit; stretched past the pretension limit it may not
 fall, and rises at the slew limit), with a release band so they do not chatter.
 A released guard lets the command return to what control wants at the slew limit
 (bumpless, as when the guard used to drag the setpoint along).
-They act only on a trusted, referenced length: an untrusted length bounds nothing
+They act only on a trusted length with its datum: an untrusted length bounds nothing
 (the muscle then holds its safe pressure open loop; `pamd.loop.safety.limiter`).
 
 Tick path: float arithmetic on attributes; a message string only on a finding.
@@ -155,7 +155,7 @@ class Guards:
         self._engaged = False  # either guard engaged (`_engage` judges every tick then)
         self._held_since = math.inf
         self._held_reported = False
-        self.holding_back = False  # a reference is held back at a limit (held_at_limit)
+        self.holding_back = False  # a profile is held back at a limit (held_at_limit)
         self.lo = -math.inf  # guard bounds on the command of this tick (none: +-inf;
         # the limiter keeps the command >= 0 without naming a guard)
         self.hi = math.inf
@@ -229,7 +229,7 @@ class Guards:
             self.s_recover = False
         self._engaged = self.c_guard or self.s_guard
 
-    # -- a reference held back --------------------------------------------------------
+    # -- a profile held back ----------------------------------------------------------
     def held_at_limit(self, now: float, flags: int, moving: bool, setpoint_bar: float,
                       command_bar: float) -> str | None:
         """A profile held back at a soft limit (`held_back`) for more than

@@ -23,7 +23,7 @@ The checks, what each relies on, and when it fires (defaults of
   change between two samples larger than that rate times (stamp difference + both
   jitters) plus `length_jump_mm` (counts, sampling) is a broken or noisy sensor:
   found at the first sample after the jump.
-* **length out of range** (referenced lengths): the braid cannot stretch beyond
+* **length out of range** (a length with its datum): the braid cannot stretch beyond
   `min_contraction` nor contract beyond `max_contraction` (a dead encoder's 0 mm is
   100 %): at the first sample.
 * **length frozen**: away from the stops (the muscle's contraction limit, 25 % on a
@@ -57,7 +57,7 @@ The checks, what each relies on, and when it fires (defaults of
   change over the stamps' time (with jitter) beyond that plus `pressure_jump_bar`
   (noise, sampling) is a dead sensor dropping to 0 or a noisy one: at the first sample.
 * **pressure frozen**: at a fixed pressure a hanging load does not move; a pressure
-  repeating the identical value for `frozen_s` while the (trusted, referenced) length
+  repeating the identical value for `frozen_s` while the (trusted, with its datum) length
   moved 0.5 mm under a known load is a stuck sensor.
 * **pressure not following its valve**: the tracking check in `pamd.loop.safety.limits`
   (`tracking_band_bar` for `tracking_time_s`) marks the pressure untrusted here
@@ -181,7 +181,7 @@ class Plausibility:
         return self._p_lp
 
     def datums_changed(self) -> None:
-        """A new length reference (home, a device preset): the reading steps by the new
+        """A new length datum (home, a device preset): the reading steps by the new
         offset, which is not a jump; the length checks start afresh."""
         self._l_last = math.nan
         self._anchor_l = math.nan
@@ -224,23 +224,24 @@ class Plausibility:
 
     # -- the tick -----------------------------------------------------------------
     def check(self, now: float, p: float, p_t: float, f: float, f_t: float, length: float,
-              l_t: float, referenced: bool, command: float, load_known: bool,
+              l_t: float, has_datum: bool, command: float, load_known: bool,
               p_j: float = 0.0, f_j: float = 0.0, l_j: float = 0.0) -> str | None:
         """Check this tick's readings (with their sample stamps and jitters); a reason
         for the first new finding, else None. `command` is the last valve command (NaN
-        before any), `load_known` False while an experiment changes the load."""
+        before any), `load_known` False while an experiment changes the load; `has_datum`
+        whether the length has its datum (else it is a relative reading)."""
         if not self.enabled:
             return None
         found = None
         self._lowpass(p, p_t, f, f_t)
         # the pressure first: the length and force checks lean on it
         if self.pressure_ok and p_t != self._p_t:
-            found = self._check_pressure(p_t, p_j, p, length, load_known and referenced)
+            found = self._check_pressure(p_t, p_j, p, length, load_known and has_datum)
         if self.length_ok and l_t != self._l_t and found is None:
-            found = self._check_length(l_t, l_j, length, self._p_lp, self._f_lp, referenced)
+            found = self._check_length(l_t, l_j, length, self._p_lp, self._f_lp, has_datum)
         if self.force_ok and f_t != self._f_t and found is None:
             found = self._check_force(now, f_t, f, self._p_lp, length,
-                                      load_known and referenced)
+                                      load_known and has_datum)
         if found is not None and self.reason is None:
             self.reason = found
         return found
@@ -264,13 +265,13 @@ class Plausibility:
         return (self.nominal_length_mm - length) / self.nominal_length_mm
 
     def _check_length(self, t: float, jitter: float, length: float, p: float, f: float,
-                      referenced: bool) -> str | None:
+                      has_datum: bool) -> str | None:
         prev_t, prev, prev_j = self._l_t, self._l_last, self._l_j
         self._l_t, self._l_last, self._l_j = t, length, jitter
         if length != length:
             return None  # not a number: the stale check speaks for it
         x = (self.nominal_length_mm - length) / self.nominal_length_mm  # _contraction, inlined
-        if referenced and (x > self.max_x or x < self.min_x):
+        if has_datum and (x > self.max_x or x < self.min_x):
             self.length_ok = False
             return (f"{self.muscle}: {self.l_name} reads {length:.2f} mm, outside what the "
                     f"muscle can physically reach ({100 * self.min_x:.0f} % to "
@@ -293,7 +294,7 @@ class Plausibility:
         # compared was sampled while the length stood (a slow sensor's older sample is
         # not: it waits for the next).
         if (self._anchor_l != self._anchor_l or abs(length - self._anchor_l) > self.frozen_mm
-                or (referenced and not self.stop_lo < x < self.stop_hi)):
+                or (has_datum and not self.stop_lo < x < self.stop_hi)):
             self._anchor_l, self._anchor_t = length, t
             self._anchor_p = self._anchor_f = math.nan
             return None

@@ -12,7 +12,7 @@ What is dropped, per run (counted per reason in the provenance):
   samples are kept (IDLE holds, HOLD, LOAD_CHANGE, FAULT, ESTOP, STARTING are not
   the sweep);
 * flagged samples: stale signals, soft limits (pressure, contraction, pretension),
-  PID saturation, open exhaust, tracking alarms, unreferenced length
+  PID saturation, open exhaust, tracking alarms, a length without its datum
   (`pamd.models.data.samples.DROP_FLAGS`); on on/off valves (the recording's config
   says `actuation: onoff`, or for a table that carries no config, the options'
   `actuation`) the exhaust's PWM pulses are the control itself, as the inflate

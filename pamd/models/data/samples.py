@@ -37,7 +37,7 @@ OUTPUT_UNITS: dict[str, str] = {"pressure_bar": "bar", "force_n": "N", "length_m
 #: Flag bits whose samples are not training data.
 DROP_FLAGS = int(Flag.STALE | Flag.SOFT_LIMIT_PRESSURE | Flag.SOFT_LIMIT_CONTRACTION
                  | Flag.PRETENSION_LIMIT | Flag.OUTPUT_SATURATED | Flag.EXHAUST_OPEN
-                 | Flag.TRACKING | Flag.NOT_REFERENCED)
+                 | Flag.TRACKING | Flag.NO_LENGTH_DATUM)
 
 
 @dataclass

@@ -1,5 +1,6 @@
 """What pamd says, declared once: the recorded and published fields (`fields`), the
-event kinds and command verdicts (`events`), and the one JSON encoder (`jsonsafe`).
+event kinds and command verdicts (`events`), the one JSON encoder (`jsonsafe`), and the
+old names still served beside their new ones until a stated release (`deprecated`).
 
 Everything else derives from these tables: the tick record's layout and indices
 (`pamd.wire.tick`), the MCAP/ROS 2 message schemas (`pamd.wire.record.cdr`), the event JSON

@@ -19,6 +19,8 @@ import builtins
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
 
+from pamd.wire.declare import deprecated
+
 #: the ROS 2 primitive types a field may be recorded as
 TYPES = ("float64", "uint8", "uint16", "uint32", "uint64")
 
@@ -72,13 +74,17 @@ class Flag(IntFlag):
     SLEW_LIMITED = 1 << 4
     OUTPUT_SATURATED = 1 << 5
     FF_CLIPPED = 1 << 6
-    NOT_REFERENCED = 1 << 7
+    NO_LENGTH_DATUM = 1 << 7
     EXHAUST_OPEN = 1 << 8
     TRACKING = 1 << 9
     INFLATE_OPEN = 1 << 10
     FF_OFF_DATA = 1 << 11
     FF_FADED = 1 << 12
     FF_OSCILLATING = 1 << 13
+    #: deprecated: NO_LENGTH_DATUM's old name, the same bit (an alias, so
+    #: `Flag.NOT_REFERENCED is Flag.NO_LENGTH_DATUM`; iterating `Flag` gives the new one
+    #: only), kept for old scripts until `pamd.wire.declare.deprecated.REMOVED_IN`
+    NOT_REFERENCED = NO_LENGTH_DATUM
 
 
 FLAG_MEANINGS: dict[Flag, str] = {
@@ -89,7 +95,7 @@ FLAG_MEANINGS: dict[Flag, str] = {
     Flag.SLEW_LIMITED: "setpoint rate limited",
     Flag.OUTPUT_SATURATED: "PID output at its limit",
     Flag.FF_CLIPPED: "feedforward inputs outside the model's trained range",
-    Flag.NOT_REFERENCED: "length not referenced (home)",
+    Flag.NO_LENGTH_DATUM: "the length has no datum yet (home)",
     Flag.EXHAUST_OPEN: "exhaust valve open",
     Flag.TRACKING: "pressure outside the tracking band (timer running)",
     Flag.INFLATE_OPEN: "inflate valve open (on/off valves)",
@@ -157,7 +163,7 @@ MUSCLE: tuple[Field, ...] = (
     Field("length_mm", "mm", "float64", "measured length", plot="length", label="length"),
     Field("contraction", "1", "float64", "(nominal - length) / nominal"),
     Field("velocity_mm_s", "mm/s", "float64", "filtered d(length)/dt"),
-    Field("setpoint_bar", "bar", "float64", "pressure reference given to the PID (NaN: "
+    Field("setpoint_bar", "bar", "float64", "pressure setpoint given to the PID (NaN: "
           "on/off valves in position mode have none)", plot="pressure", label="setpoint"),
     Field("feedforward_bar", "bar", "float64", "inverse-model (ANFIS) part of the setpoint "
           "(faded off the model's training domain: FF_FADED)"),
@@ -213,6 +219,9 @@ def check_table() -> None:
                            (MODE_MEANINGS, Mode)):
         if set(meanings) != set(enum):
             raise ValueError(f"{enum.__name__}: every member needs a meaning")
+    for old, new in deprecated.FLAG_NAMES.items():
+        if Flag.__members__.get(old) is not Flag[new]:
+            raise ValueError(f"Flag.{old}: the deprecated alias of Flag.{new} is missing")
 
 
 check_table()

@@ -1,15 +1,17 @@
-"""Generates docs/fields-reference.md from the field table and the event registry, so
-the reference cannot drift from the code: `python -m pamd.wire.declare.fields_doc > FILE`.
-A test checks the committed file is current."""
+"""Generates docs/fields-reference.md from the field table, the event registry and the
+old names still served (`deprecated`), so the reference cannot drift from the code:
+`python -m pamd.wire.declare.fields_doc > FILE`. A test checks the committed file is
+current."""
 
 from __future__ import annotations
 
-from pamd.wire.declare import events, fields
+from pamd.wire.declare import deprecated, events, fields
 
 HEADER = """# pamd fields and events reference
 
-Generated from `pamd/wire/declare/fields.py` and `pamd/wire/declare/events.py` by
-`python -m pamd.wire.declare.fields_doc`; do not edit by hand.
+Generated from `pamd/wire/declare/fields.py`, `pamd/wire/declare/events.py` and
+`pamd/wire/declare/deprecated.py` by `python -m pamd.wire.declare.fields_doc`; do not
+edit by hand.
 
 What pamd records and publishes. Per tick: one loop message
 (`/pamd/<rig>/loop`, `pamd_msgs/msg/LoopTiming`) and one message per muscle
@@ -77,6 +79,11 @@ def generate() -> str:
               "The reply to every command (and the verdict inside its `command` event):", ""]
     lines += _keys(events.VERDICT)
     lines.append(f"- and: {events.VERDICT_EXTRA}")
+    lines += ["", "## Old names (deprecated)", "",
+              f"Still served beside their new names, and go in pamd {deprecated.REMOVED_IN}: "
+              "use the new ones.", "", "| old | new | where, and how the old one still works |",
+              "|---|---|---|"]
+    lines += [f"| `{o.old}` | `{o.new}` | {_cell(o.where)} |" for o in deprecated.OLD_NAMES]
     return "\n".join(lines) + "\n"
 
 

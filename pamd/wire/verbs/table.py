@@ -101,8 +101,8 @@ VERBS = VerbTable((
     # motion
     VerbSpec("setpoint", SetpointArgs, "one muscle's pressure (or length/force) target, "
              "reached by a ramp; --deadman-s for streamed setpoints"),
-    VerbSpec("profile", ProfileArgs, "run a reference profile (constant, step, ramp, sine, "
-             "triangle) in pressure, or in contraction in a length mode"),
+    VerbSpec("profile", ProfileArgs, "run a profile (constant, step, ramp, sine, triangle) in "
+             "pressure, or in contraction in a length mode"),
     VerbSpec("mode", ModeArgs, "control mode: pressure, length_force or position"),
     VerbSpec("model", ModelArgs, "swap in an inverse model file (by name, from "
              "telemetry.models_dir)", main_thread=True),
@@ -115,7 +115,7 @@ VERBS = VerbTable((
     VerbSpec("estop", EstopArgs, "emergency stop: safety.estop_action at once, latched until "
              "reset", urgent=True),
     VerbSpec("reset", NoArgs, "leave FAULT or ESTOP once its cause is gone"),
-    VerbSpec("home", HomeArgs, "reference a muscle's length: its true length now"),
+    VerbSpec("home", HomeArgs, "set a muscle's length datum: its true length now"),
     VerbSpec("tare", TareArgs, "zero the load cells (optionally against a known load)"),
     VerbSpec("load", LoadArgs, "the hanging load now on a muscle (moves its safe pressure)"),
     # experiment plans
