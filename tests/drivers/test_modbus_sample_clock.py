@@ -6,6 +6,7 @@ module whose sampling stops goes stale; a rig states such an input's
 
 from __future__ import annotations
 
+import statistics
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -133,4 +134,7 @@ def test_each_value_declares_how_far_from_its_stamp_it_was_taken(module: Any,
         jitters.append(drv.in_jitter_s[0])
         time.sleep(0.003)
     assert min(jitters) > 0.0, jitters
-    assert max(jitters) < SAMPLE_PERIOD_S, max(jitters)  # reads every 2 ms, on loopback
+    # The driver reads every 2 ms on loopback, so a value's jitter is a few ms; one read
+    # the OS delays past the sample period (a loaded CI host: 0.123 s seen once) makes
+    # that one step's jitter as long, rightly. The median step's stays well under it.
+    assert statistics.median(jitters) < SAMPLE_PERIOD_S / 2, sorted(jitters)
