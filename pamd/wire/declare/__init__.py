@@ -1,5 +1,5 @@
 """What pamd says, declared once: the recorded and published fields (`fields`), the
-event kinds and command verdicts (`events`), and the one JSON encoder (`jsonsafe`).
+events by name and command verdicts (`events`), and the one JSON encoder (`jsonsafe`).
 
 Everything else derives from these tables: the tick record's layout and indices
 (`pamd.wire.tick`), the MCAP/ROS 2 message schemas (`pamd.wire.record.cdr`), the event JSON
