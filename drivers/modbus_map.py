@@ -95,10 +95,11 @@ class SampleClock:
 
     function: Literal["holding", "input"] = spec("input", "Register type.")
     address: int = spec(doc="Zero-based address of the register.", min=0, max=65535)
-    kind: Literal["counter", "age"] = spec(
-        "counter", "counter: steps by one (mod 65536) with each new sample; the values are "
+    holds: Literal["counter", "age"] = spec(
+        "counter", "What the register holds. counter: steps by one (mod 65536) with each new sample; the values are "
         "stamped with the read before the counter was seen to step (never later than the "
-        "sample). age: the sample's age in `unit_s` counts at the time of the read.")
+        "sample). age: the sample's age in `unit_s` counts at the time of the read.",
+        old="kind")
     unit_s: float = spec(0.001, "age: seconds per count.", unit="s", gt=0.0)
 
 
@@ -119,7 +120,7 @@ class SampleTimes:
     def read(self, word: int, now: float, round_trip_s: float) -> None:
         """The register read `word` at `now`, within `round_trip_s`."""
         sc = self._clock
-        if sc.kind == "age":
+        if sc.holds == "age":
             self.sample_s = now - word * sc.unit_s
             self.jitter_s = sc.unit_s + round_trip_s
         elif self._counter is None:
