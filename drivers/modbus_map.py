@@ -197,11 +197,11 @@ class Block:
 
     @property
     def label(self) -> str:
-        kind = {"holding": "holding registers", "input": "input registers",
+        registers = {"holding": "holding registers", "input": "input registers",
                 "coil": "coils", "discrete": "discrete inputs"}[self.function]
         end = self.start + self.count - 1
         where = f"{self.start}" if end == self.start else f"{self.start}-{end}"
-        return f"{kind} {where} ({', '.join(self.names)})"
+        return f"{registers} {where} ({', '.join(self.names)})"
 
 
 def plan_blocks(points: tuple[ModbusPoint, ...], max_gap: int = 0,
