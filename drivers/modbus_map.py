@@ -96,9 +96,10 @@ class SampleClock:
     function: Literal["holding", "input"] = spec("input", "Register type.")
     address: int = spec(doc="Zero-based address of the register.", min=0, max=65535)
     holds: Literal["counter", "age"] = spec(
-        "counter", "What the register holds. counter: steps by one (mod 65536) with each new sample; the values are "
-        "stamped with the read before the counter was seen to step (never later than the "
-        "sample). age: the sample's age in `unit_s` counts at the time of the read.",
+        "counter", "What the register holds. counter: steps by one (mod 65536) with each "
+        "new sample; the values are stamped with the read before the counter was seen to "
+        "step (never later than the sample). age: the sample's age in `unit_s` counts at "
+        "the time of the read.",
         old="kind")
     unit_s: float = spec(0.001, "age: seconds per count.", unit="s", gt=0.0)
 

@@ -32,8 +32,8 @@ def test_sine_starts_mid_range_rising_with_max_slope_after_lead_in() -> None:
 
 
 def test_triangle_and_step_shapes() -> None:
-    tri = Profile(ProfileSpec(shape_name="triangle", min_bar=1.0, max_bar=3.0, freq_hz=0.5, cycles=1),
-                  0.0, 1.0, 5.0)
+    tri = Profile(ProfileSpec(shape_name="triangle", min_bar=1.0, max_bar=3.0, freq_hz=0.5,
+                              cycles=1), 0.0, 1.0, 5.0)
     assert sample(tri, 0.5) == pytest.approx((2.0, 2.0))  # 2 bar up in half a period
     assert sample(tri, 1.5) == pytest.approx((2.0, -2.0))
     step = Profile(ProfileSpec(shape_name="step", min_bar=1.0, max_bar=3.0, freq_hz=0.25, cycles=2),

@@ -106,8 +106,8 @@ class Harmonic(Periodic):
                                  "default (1, 2, 3 with shares 0.6, 0.25, 0.15)")
         for n, a in spec.harmonic_list():
             if not (isinstance(n, int) and 1 <= n <= MAX_HARMONIC_NUMBER) or n in seen:
-                raise CommandRefused(f"{spec.shape_name} profile: harmonic numbers must be distinct "
-                                     f"whole numbers from 1 to {MAX_HARMONIC_NUMBER} (got "
+                raise CommandRefused(f"{spec.shape_name} profile: harmonic numbers must be "
+                                     f"distinct whole numbers from 1 to {MAX_HARMONIC_NUMBER} (got "
                                      f"{n!r})")
             if not (math.isfinite(a) and abs(a) >= sys.float_info.min):
                 raise CommandRefused(f"{spec.shape_name} profile: harmonic {n}'s share must be a "

@@ -17,9 +17,9 @@ from pamd.profiles import (
     SHAPES,
     Profile,
     ProfileSpec,
+    shape_of,
     shapes_reading,
     shapes_text,
-    shape_of,
 )
 from pamd.wire.errors import CommandRefused
 from pamd.wire.shape_names import SHAPE_PARAMS

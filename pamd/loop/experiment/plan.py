@@ -15,7 +15,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.config.names import NAME_RE
 from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.muscle_type import equilibrium_contraction
-from pamd.profiles import ShapeName, ProfileSpec, shapes_reading
+from pamd.profiles import ProfileSpec, ShapeName, shapes_reading
 from pamd.profiles.harmonic import MAX_HARMONIC_NUMBER
 from pamd.wire.declare.jsonsafe import JsonValue
 from pamd.wire.errors import CommandRefused

@@ -3,12 +3,13 @@ a command gets.
 
 An event is `(t_s, name, data)` (its name's key in the record is `kind`): the loop,
 the daemon's main thread and the io process emit them; the recording writes them to
-`/pamd/<rig>/events` (JSON, schema: `json_schema()`), Zenoh publishes them on `<rig>/events`, exports write them as rows.
-Each `EventSpec` says what the event means, who emits it and its payload's keys with
-JSON type, unit and meaning; `open` events also carry keys that depend on something
-else (a command's verdict, a run's summary), said in `extra`. `problems(name, data)`
-checks one event against its declaration (tests run it over every event of a run and
-over every emission site in the source).
+`/pamd/<rig>/events` (JSON, schema: `json_schema()`), Zenoh publishes them on
+`<rig>/events`, exports write them as rows. Each `EventSpec` says what the event
+means, who emits it and its payload's keys with JSON type, unit and meaning; `open`
+events also carry keys that depend on something else (a command's verdict, a run's
+summary), said in `extra`. `problems(name, data)` checks one event against its
+declaration (tests run it over every event of a run and over every emission site in
+the source).
 """
 
 from __future__ import annotations

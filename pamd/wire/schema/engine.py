@@ -356,7 +356,7 @@ def _key_given(value: dict[YamlKey, JsonValue], name: str, f: dataclasses.Field[
         return name if name in value else None
     if name in value:
         key_lines = getattr(value, "key_lines", {})
-        later = max((name, old), key=lambda k: key_lines.get(k, 0))
+        later = max((name, old), key=list(value).index)  # the file's order
         ctx.add(key_lines.get(later, getattr(value, "line", None)), f"{prefix}{later}",
                 f"{name!r} or its old name {old!r}, not both", "both given")
     return str(old)
