@@ -383,7 +383,7 @@ def _loadmat(path: str, where: str) -> dict[str, Any]:
     except NotImplementedError:
         raise ModelError(f"{where}: a MAT 7.3 (HDF5) file; save it with save(..., '-v7') "
                          "or export CSV") from None
-    except Exception as exc:  # noqa: BLE001 (scipy's reader raises many kinds on a corrupt file)
+    except Exception as exc:  # noqa: BLE001 (scipy's reader raises many exceptions on a corrupt file)
         raise ModelError(f"{where}: cannot read it as a MAT file ({type(exc).__name__}: "
                          f"{shown(str(exc))[:200]})") from None
     return mat
@@ -679,7 +679,7 @@ def _check_table_columns(r: Run, need: list[str]) -> None:
 
 def _missing_text(r: Run, missing: list[str]) -> str:
     """The missing columns, each with what the table holds in its place (a text
-    column, a variable of another kind), and the columns it has."""
+    column, a variable of another type), and the columns it has."""
     skipped = r.meta.get("skipped_columns") or {}
     text = [f"{m} (a text column at {r.meta['text_columns'][m]})"
             if m in r.meta["text_columns"] else

@@ -45,7 +45,7 @@ FORCE_AGREE_TIMEOUT_S = 15.0
 
 def running_plan(ctrl: RigController) -> Sequencer | None:
     """The controller's experiment plan (running or ended), or None: a `Sequencer`,
-    the only kind the `collect` command starts."""
+    the only plan run the `collect` command starts."""
     return cast("Sequencer | None", ctrl.plan_run)
 
 

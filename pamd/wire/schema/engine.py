@@ -141,7 +141,7 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
 
 
 class _Builder(typing.Protocol):
-    """Builds a value of one kind of schema type (the arguments as `build` takes them)."""
+    """Builds a value of one sort of schema type (the arguments as `build` takes them)."""
 
     # Any: as `build`: the value of the type `tp` names at run time
     def __call__(self, tp: SchemaType, value: object, ctx: Context, path: str,
@@ -149,7 +149,7 @@ class _Builder(typing.Protocol):
 
 
 def _builder(tp: SchemaType) -> _Builder:
-    """The builder for the kind of schema type `tp` is."""
+    """The builder for the sort of schema type `tp` is."""
     origin = typing.get_origin(tp)
     if origin in (Union, types.UnionType):
         return _build_optional
