@@ -130,7 +130,7 @@ def position(period: float) -> None:
         hold = swing(h, "length_mm")
         h.cmd("profile", muscle="m1", kind="constant", to_contraction=0.12, duration_s=10)
         h.step(3.0)
-        verdict = {"integral": "warned*"}.get(v.kind, v.kind)
+        verdict = {"integral": "warned*"}.get(v.outcome, v.outcome)
         print(f"  {kp:6.3g} {ki:5.3g}  {v.margins.text()[:44]:44s} {verdict:8s} "
               f"{hold:8.4f} {swing(h, 'length_mm'):8.4f} {swing(h, 'setpoint_bar'):12.4f}")
         h.rig.close()

@@ -38,14 +38,14 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--evals", type=int, default=4000)
     a = ap.parse_args()
-    sine = eval_us(ProfileSpec(kind="sine", min_bar=1.0, max_bar=4.0, freq_hz=0.01),
+    sine = eval_us(ProfileSpec(shape_name="sine", min_bar=1.0, max_bar=4.0, freq_hz=0.01),
                    a.rounds, a.evals)
     print(f"sine: {sine:.2f} us per evaluation")
     for kind in ("multisine", "multitriangle"):
         costs = []
         for k in COUNTS:
             h = tuple((n, 0.5 / k) for n in range(1, k + 1))
-            spec = ProfileSpec(kind=kind, min_bar=1.0, max_bar=4.0, freq_hz=0.01, harmonics=h)
+            spec = ProfileSpec(shape_name=kind, min_bar=1.0, max_bar=4.0, freq_hz=0.01, harmonics=h)
             us = eval_us(spec, a.rounds, a.evals)
             costs.append(us)
             print(f"{kind} {k:2d} harmonics: {us:6.2f} us per evaluation "
@@ -56,13 +56,13 @@ def main() -> None:
     most = min(max_harmonics(1e-3), MAX_HARMONIC_NUMBER)
     h = tuple((n, 0.5 / most) for n in range(1, most + 1))
     t0 = time.process_time()
-    ProfileSpec(kind="multisine", min_bar=1.0, max_bar=4.0, freq_hz=0.01,
+    ProfileSpec(shape_name="multisine", min_bar=1.0, max_bar=4.0, freq_hz=0.01,
                 harmonics=h).check(0.0, 6.0, 5.0, 1e-3)
     print(f"check of {most} harmonics (the most at 1 kHz): "
           f"{time.process_time() - t0:.3f} s")
     t0 = time.process_time()
     try:
-        ProfileSpec(kind="multisine", min_bar=1.0, max_bar=4.0, freq_hz=0.01,
+        ProfileSpec(shape_name="multisine", min_bar=1.0, max_bar=4.0, freq_hz=0.01,
                     harmonics=tuple((n, 0.5 / 3000) for n in range(1, 3001))
                     ).check(0.0, 6.0, 5.0, 1e-3)
     except CommandRefused as exc:

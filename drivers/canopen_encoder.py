@@ -336,8 +336,8 @@ class CanEncoderDriver(ThreadedDriver):
         if hit is None:
             self.count("ignored_frames")
             return
-        kind, n = hit
-        if kind == "pdo":
+        frame, n = hit
+        if frame == "pdo":
             if n.needs_config:  # not configured (failed, or rebooted since): whatever
                 self.count("unconfigured_frames")  # sends on its position address is
                 return  # not a position this driver asked for (CiA 301: TPDO1 unset)
@@ -351,7 +351,7 @@ class CanEncoderDriver(ThreadedDriver):
             self.stamp(n.index, counts * n.spec.mm_per_count + n.spec.offset_mm, now,
                        self._window.jitter_s(now))
             self.count("positions")
-        elif kind == "hb":
+        elif frame == "hb":
             self.encoder_nodes.heartbeat(self, n, data)
         else:
             self.encoder_nodes.emergency(self, n, data)

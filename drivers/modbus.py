@@ -14,7 +14,7 @@ the loop has written them (start-up reads before it writes). Values are in the
 channel's unit (volts); the rig's signal calibration goes on to SI.
 
 All bus I/O runs on the driver's thread with pymodbus's synchronous client.
-Exception responses, timeouts and disconnects are counted per kind and per
+Exception responses, timeouts and disconnects are counted per cause and per
 channel and logged with the device and channel named (`health()`).
 
 A request left unanswered for `timeout_s` is re-sent at once, not taken for a lost

@@ -95,10 +95,12 @@ class SampleClock:
 
     function: Literal["holding", "input"] = spec("input", "Register type.")
     address: int = spec(doc="Zero-based address of the register.", min=0, max=65535)
-    kind: Literal["counter", "age"] = spec(
-        "counter", "counter: steps by one (mod 65536) with each new sample; the values are "
-        "stamped with the read before the counter was seen to step (never later than the "
-        "sample). age: the sample's age in `unit_s` counts at the time of the read.")
+    holds: Literal["counter", "age"] = spec(
+        "counter", "What the register holds. counter: steps by one (mod 65536) with each "
+        "new sample; the values are stamped with the read before the counter was seen to "
+        "step (never later than the sample). age: the sample's age in `unit_s` counts at "
+        "the time of the read.",
+        old="kind")
     unit_s: float = spec(0.001, "age: seconds per count.", unit="s", gt=0.0)
 
 
@@ -119,7 +121,7 @@ class SampleTimes:
     def read(self, word: int, now: float, round_trip_s: float) -> None:
         """The register read `word` at `now`, within `round_trip_s`."""
         sc = self._clock
-        if sc.kind == "age":
+        if sc.holds == "age":
             self.sample_s = now - word * sc.unit_s
             self.jitter_s = sc.unit_s + round_trip_s
         elif self._counter is None:
@@ -196,11 +198,11 @@ class Block:
 
     @property
     def label(self) -> str:
-        kind = {"holding": "holding registers", "input": "input registers",
+        registers = {"holding": "holding registers", "input": "input registers",
                 "coil": "coils", "discrete": "discrete inputs"}[self.function]
         end = self.start + self.count - 1
         where = f"{self.start}" if end == self.start else f"{self.start}-{end}"
-        return f"{kind} {where} ({', '.join(self.names)})"
+        return f"{registers} {where} ({', '.join(self.names)})"
 
 
 def plan_blocks(points: tuple[ModbusPoint, ...], max_gap: int = 0,

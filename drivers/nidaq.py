@@ -7,7 +7,7 @@ pressure transducer in volts; a load cell in volts, or on a bridge input in newt
 by DAQmx's two-point scaling), quadrature linear encoders on counters (mm, with the
 index for home), analog outputs (the regulators' setpoints, V) and digital lines (exhaust
 valves and the safety chain's heartbeat out; its emergency-stop contact and reset
-button in). Each kind is one DAQmx task, read or written in one call per cycle
+button in). Each type of channel is one DAQmx task, read or written in one call per cycle
 (`drivers/nidaq_tasks.py`).
 
 Two timings. `on_demand`: the driver's thread reads every input and writes the
@@ -93,7 +93,7 @@ class NidaqDriver(ThreadedDriver):
     # -- Driver protocol ----------------------------------------------------------------------
     def channels(self) -> Sequence[Channel]:
         o: NidaqOptions = self.options
-        return ([Channel(a.name, "in", "V" if a.kind == "voltage" else "N")
+        return ([Channel(a.name, "in", "V" if a.measurement == "voltage" else "N")
                  for a in o.analog_inputs]
                 + [Channel(e.name, "in", "mm") for e in o.encoders]
                 + [Channel(d.name, "in", "", True) for d in o.digital_inputs]

@@ -6,7 +6,7 @@ channel used once, ranges in order; what only the device can say (does `Dev1/ai1
 exist, can it do +-15 V, this sample clock) NI-DAQmx says when the driver opens, by
 its own error code, before anything moves (`drivers/nidaq_tasks.py`).
 
-Each kind of channel goes into one DAQmx task (one batched read or write per tick):
+Each type of channel goes into one DAQmx task (one batched read or write per tick):
 the analog inputs, each encoder (a counter is a task of its own), the analog outputs,
 the digital inputs and the digital outputs.
 """
@@ -64,10 +64,10 @@ class AnalogInput:
 
     name: str = spec(doc="Channel name the rig's signals refer to (e.g. p1, force1).")
     physical_channel: str = spec(doc="Physical channel, e.g. Dev1/ai0.")
-    kind: Literal["voltage", "bridge"] = spec(
+    measurement: Literal["voltage", "bridge"] = spec(
         "voltage", "voltage: read in volts (the signal's gain goes on to SI). bridge: a "
         "strain-gauge load cell read in newtons through `bridge` (the device must have "
-        "bridge inputs: a USB-6211 has none).")
+        "bridge inputs: a USB-6211 has none).", old="kind")
     min_v: float = spec(-10.0, "voltage: lowest value to measure; NI-DAQmx picks the "
                         "smallest range of the device that holds [min_v, max_v].",
                         unit="V", min=-MAX_VOLTS, max=MAX_VOLTS)
@@ -77,7 +77,7 @@ class AnalogInput:
         "default", "Terminal configuration: rse (referenced to AI GND), nrse (to AI SENSE), "
         "diff (a differential pair: aiN with aiN+8 on an M Series card), pseudodiff; "
         "default: the device's own default.")
-    bridge: BridgeScale | None = spec(None, "kind bridge: the load cell's bridge and "
+    bridge: BridgeScale | None = spec(None, "measurement bridge: the load cell's bridge and "
                                       "calibration; required there.")
 
 
@@ -182,14 +182,14 @@ def check_options(o: NidaqOptions) -> list[str]:
     physicals: set[str] = set()
     devices: set[str] = set()
 
-    def take(name: str, kind: str, physical: str, where: str) -> None:
+    def take(name: str, chan_type: str, physical: str, where: str) -> None:
         if name in names:
             problems.append(f"channel name {name!r} is used twice")
         names.add(name)
-        m = PHYSICAL[kind].match(physical)
+        m = PHYSICAL[chan_type].match(physical)
         if m is None:
-            problems.append(f"{where}: {physical!r} is not an {kind}'s physical name "
-                            f"({_EXAMPLE[kind]})")
+            problems.append(f"{where}: {physical!r} is not an {chan_type}'s physical name "
+                            f"({_EXAMPLE[chan_type]})")
             return
         if physical.lower() in physicals:
             problems.append(f"{where}: {physical} is used twice")
@@ -238,13 +238,13 @@ _EXAMPLE = {"analog input": "Dev1/ai0", "analog output": "Dev1/ao0", "counter": 
 
 
 def _check_analog_input(ai: AnalogInput, where: str) -> list[str]:
-    if ai.kind == "bridge":
+    if ai.measurement == "bridge":
         if ai.bridge is None:
-            return [f"{where}: kind bridge needs `bridge` (excitation, resistance, rated "
+            return [f"{where}: measurement bridge needs `bridge` (excitation, resistance, rated "
                     "output, capacity)"]
         return []
     if ai.bridge is not None:
-        return [f"{where}: `bridge` is for kind bridge, not {ai.kind}"]
+        return [f"{where}: `bridge` is for measurement bridge, not {ai.measurement}"]
     if not ai.min_v < ai.max_v:
         return [f"{where}: min_v {ai.min_v:g} V is not below max_v {ai.max_v:g} V"]
     return []

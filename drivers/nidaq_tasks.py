@@ -9,7 +9,7 @@ device's refusal, with DAQmx's code), its `RpcError` (the NI gRPC Device Server
 unreachable) or `DaqNotFoundError` (NI's C driver missing on this machine);
 `drivers/nidaq.py` says which it was.
 
-The channels of one kind share a task (a counter is a task of its own, as DAQmx
+The channels of one type share a task (a counter is a task of its own, as DAQmx
 wants): the analog inputs, each encoder, the analog outputs, the digital inputs and
 the digital outputs. Timing `hardware_timed` puts the analog inputs on the card's
 sample clock in NI's hardware-timed single point mode (no buffer: one sample per
@@ -107,7 +107,7 @@ class Task:
 
     name: str
     task: nidaqmx.Task
-    # Any: nidaqmx's stream reader or writer of the task's kind (untyped package)
+    # Any: nidaqmx's stream reader or writer of the task's channel type (untyped package)
     io: object = None
 
 
@@ -202,14 +202,14 @@ class DaqTasks:
             raise Refused(f"{device} is a {found}, not the {o.product} the config names "
                           "(options.product): check the device name, or the product")
 
-    def _task(self, kind: str, options: object) -> Task:
-        name = f"{self.label}-{kind}-{self.generation}"
+    def _task(self, chan_type: str, options: object) -> Task:
+        name = f"{self.label}-{chan_type}-{self.generation}"
         t = Task(name, nidaqmx.Task(name, grpc_options=options))
         self.tasks.append(t)
         return t
 
     def _add_analog_input(self, task: nidaqmx.Task, ai: AnalogInput) -> None:
-        if ai.kind == "voltage":
+        if ai.measurement == "voltage":
             task.ai_channels.add_ai_voltage_chan(
                 ai.physical_channel, ai.name, _TERMINAL[ai.terminal], ai.min_v, ai.max_v,
                 c.VoltageUnits.VOLTS)

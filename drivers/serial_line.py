@@ -83,11 +83,11 @@ def _unescape(text: str) -> str:
     return codecs.decode(text, "unicode_escape")
 
 
-def check_line(line: str, kind: str) -> tuple[str | None, str]:
+def check_line(line: str, checksum: str) -> tuple[str | None, str]:
     """(payload, why): the line without its checksum, or None and the reason."""
-    if kind == "none":
+    if checksum == "none":
         return line, ""
-    if kind == "nmea":
+    if checksum == "nmea":
         m = re.fullmatch(r"\$?([^*]*)\*([0-9A-Fa-f]{2})", line)
         if m is None:
             return None, "no '*HH' checksum"
@@ -101,7 +101,7 @@ def check_line(line: str, kind: str) -> tuple[str | None, str]:
     body, want = line[:-2], int(line[-2:], 16)
     data = body.encode("latin-1", "replace")
     got = sum(data) & 0xFF
-    if kind == "xor8":
+    if checksum == "xor8":
         got = 0
         for b in data:
             got ^= b

@@ -54,7 +54,7 @@ from pamd.config.muscle_types import read_map
 from pamd.models.fn_qupi_plant import plant_model
 from pamd.muscle_type import ForceMap, MuscleType, check_map
 from pamd.muscle_type.custom import NAME as CUSTOM
-from pamd.sim.faults import FAULT_KINDS, SimFault
+from pamd.sim.faults import FAILURES, SimFault
 from pamd.sim.model_plant import ModelPlant
 from pamd.sim.options import SimMuscleOptions, SimOptions, check_options
 from pamd.sim.plant import MusclePlant
@@ -71,7 +71,7 @@ CLOCK_AGREES_S = 1e-9
 
 #: The rig's safety-chain inputs after the muscles' (their offsets from 3 x muscles).
 CHAIN_INPUTS: tuple[str, ...] = ("safety_chain", "supply", "reset")
-SENSOR_FAULTS: tuple[str, ...] = FAULT_KINDS["length"]
+SENSOR_FAULTS: tuple[str, ...] = FAILURES["length"]
 
 
 def _plant(driver: str, m: SimMuscleOptions, rng: random.Random,
@@ -242,10 +242,10 @@ class SimDriver(Driver):
     def _scheduled(self, elapsed: float) -> None:
         """The scheduled faults due by `elapsed`, injected."""
         while (f := self._schedule.due(elapsed)) is not None:
-            if f.kind == "stall":  # the readings keep this step's time: the
+            if f.failure == "stall":  # the readings keep this step's time: the
                 self.stall_process(f.duration_s or 0.0)  # plant catches up next step
             else:
-                self.inject_fault(f.muscle, f.signal, f.kind, f.size)
+                self.inject_fault(f.muscle, f.signal, f.failure, f.size)
 
     def _step_plants(self, dt_s: float) -> None:
         for plant in self._plants:
@@ -303,7 +303,7 @@ class SimDriver(Driver):
         """Change the mass hanging from `muscle` while running."""
         self.plant(muscle).set_load_kg(load_kg)
 
-    def inject_fault(self, muscle: str, signal: str, kind: str,
+    def inject_fault(self, muscle: str, signal: str, failure: str,
                      size: float | None = None) -> None:
         """Make part of the simulated rig fail until `clear_faults`.
 
@@ -316,13 +316,13 @@ class SimDriver(Driver):
         `inject_fault("*", "driver", "error")`: the whole device fails: `fault` is
         set, readings stop, writes are dropped.
         """
-        check_fault(signal, kind)
+        check_fault(signal, failure)
         if signal == "driver":
             self._driver_error = True
             self.fault = f"simulated rig {self.name!r} stopped answering (injected driver error)"
             return
         if signal == "safety_chain":
-            if kind == "open":
+            if failure == "open":
                 self.chain.open_by("e-stop")
             else:
                 self.chain.close()
@@ -337,7 +337,7 @@ class SimDriver(Driver):
         if signal == "valve":
             self._plants[k].regulator.stuck = True
             return
-        self.sensor_faults.inject(k * INPUTS_PER_MUSCLE + SIGNALS.index(signal), signal, kind,
+        self.sensor_faults.inject(k * INPUTS_PER_MUSCLE + SIGNALS.index(signal), signal, failure,
                                   size)
 
     def stall_process(self, duration_s: float) -> None:

@@ -1,6 +1,6 @@
 """The simulated rig's sensor readings as the driver publishes them, each through its
 injected fault, and the scheduled stall of the loop's process (`drivers/sim.py`; the
-fault kinds and their schedule are `pamd.sim.faults`).
+failures and their schedule are `pamd.sim.faults`).
 
 A failed sensor's value changes with a new sample only, as a device's: a slow or held
 one keeps its last value until the next sample. `stuck` keeps the value while the
@@ -16,7 +16,7 @@ import random
 import time
 from collections.abc import Sequence
 
-from pamd.sim.faults import FAULT_KINDS, JUMP_DEFAULT, NOISE_DEFAULT, SimFault
+from pamd.sim.faults import FAILURES, JUMP_DEFAULT, NOISE_DEFAULT, SimFault
 from pamd.sim.plant import MusclePlant
 
 OK, STUCK, DEAD, SILENT, NOISY, JUMP = 0, 1, 2, 3, 4, 5
@@ -26,17 +26,17 @@ SIGNALS: tuple[str, ...] = ("pressure", "force", "length")  # a muscle's inputs,
 INJECTABLE: tuple[str, ...] = (*SIGNALS, "supply", "valve", "driver", "safety_chain")
 
 
-def check_fault(signal: str, kind: str) -> None:
-    """ValueError unless `signal` can be made to fail as `kind` (`FAULT_KINDS`)."""
+def check_fault(signal: str, failure: str) -> None:
+    """ValueError unless `signal` can be made to fail as `failure` (`FAILURES`)."""
     if signal not in INJECTABLE:
         raise ValueError(f"unknown signal {signal!r}; use one of {', '.join(INJECTABLE)}")
-    kinds = FAULT_KINDS[signal]
-    if kind in kinds:
+    failures = FAILURES[signal]
+    if failure in failures:
         return
     if signal in SIGNALS:
-        raise ValueError(f"unknown sensor fault {kind!r}; use one of {', '.join(kinds)}")
-    raise ValueError(f"{signal} fault kind must be {' or '.join(map(repr, kinds))}, "
-                     f"got {kind!r}")
+        raise ValueError(f"unknown sensor fault {failure!r}; use one of {', '.join(failures)}")
+    raise ValueError(f"{signal} fault must be {' or '.join(map(repr, failures))}, "
+                     f"got {failure!r}")
 
 
 class FaultSchedule:
@@ -67,12 +67,12 @@ class SensorFaults:
         self._rng = random.Random(f"pamd.sim.faults:{seed}")
         self.any = False  # a sensor fault stands (else the readings pass as they are)
 
-    def inject(self, i: int, signal: str, kind: str, size: float | None) -> None:
-        """Input `i` (of `signal`) fails as `kind` (a key of FAULT_CODES)."""
-        self._modes[i] = FAULT_CODES[kind]
-        if kind == "noisy":
+    def inject(self, i: int, signal: str, failure: str, size: float | None) -> None:
+        """Input `i` (of `signal`) fails as `failure` (a key of FAULT_CODES)."""
+        self._modes[i] = FAULT_CODES[failure]
+        if failure == "noisy":
             self._sizes[i] = NOISE_DEFAULT[signal] if size is None else size
-        elif kind == "jump":
+        elif failure == "jump":
             self._sizes[i] = JUMP_DEFAULT[signal] if size is None else size
         self.any = True
 

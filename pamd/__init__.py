@@ -7,7 +7,7 @@ The Python API (stable; nothing else is promised):
   (`Recording`, `MuscleData`, `Event`, `RecordingIncomplete`).
 - `connect(rig=None, endpoint=...)`: a running daemon: `status()`,
   `command(verb, **fields)`, `stream()` of state batches (`RigClient`, `StateBatch`).
-- The errors they raise: `PamdError` and its kinds `RecordingError`,
+- The errors they raise: `PamdError` and its subclasses `RecordingError`,
   `CommandRefused`, `NoDaemon`.
 """
 

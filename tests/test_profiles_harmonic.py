@@ -28,7 +28,7 @@ def _trace(p: Profile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("kind", ["multisine", "multitriangle"])
 def test_harmonic_signal_is_its_sum_starts_mid_rising_and_rate_is_its_slope(kind: str) -> None:
-    spec = ProfileSpec(kind=kind, min_bar=1.0, max_bar=3.0, freq_hz=0.1, cycles=2)
+    spec = ProfileSpec(shape_name=kind, min_bar=1.0, max_bar=3.0, freq_hz=0.1, cycles=2)
     p = Profile(spec, t0_s=0.0, present_bar=2.0, slew_limit=5.0)
     assert p.lead_in_s == 0.0 and p.total_s() == pytest.approx(20.0)
     t = np.arange(0.0, 20.0, 0.001)
@@ -54,20 +54,20 @@ def test_harmonic_signal_is_its_sum_starts_mid_rising_and_rate_is_its_slope(kind
 
 def test_default_shares_stay_within_the_span() -> None:
     for kind in ("multisine", "multitriangle"):
-        lo, hi = ProfileSpec(kind=kind, min_bar=1.0, max_bar=3.0).span()
+        lo, hi = ProfileSpec(shape_name=kind, min_bar=1.0, max_bar=3.0).span()
         assert 1.0 - 1e-9 <= lo < 1.5 and 2.5 < hi <= 3.0 + 1e-9
-    ProfileSpec(kind="multisine", min_bar=0.0, max_bar=6.0, freq_hz=0.05).check(0.0, 6.0, 5.0)
+    ProfileSpec(shape_name="multisine", min_bar=0.0, max_bar=6.0, freq_hz=0.05).check(0.0, 6.0, 5.0)
 
 
 def test_a_harmonic_leaving_the_pressure_limits_is_refused_by_name() -> None:
     # mid 3.5 bar, half span 1.5 bar: harmonics 1 and 5 peak together at a quarter
     # period, 3.5 + 1.5 (0.8 + 0.9) = 6.05 bar
-    spec = ProfileSpec(kind="multisine", min_bar=2.0, max_bar=5.0, freq_hz=0.05,
+    spec = ProfileSpec(shape_name="multisine", min_bar=2.0, max_bar=5.0, freq_hz=0.05,
                        harmonics=((1, 0.8), (5, 0.9)))
     with pytest.raises(CommandRefused, match=r"with harmonic 5 \(share 0.9\) it spans .* "
                        "outside the allowed 0-6 bar"):
         spec.check(0.0, 6.0, 5.0)
-    ok = ProfileSpec(kind="multisine", min_bar=2.0, max_bar=5.0, freq_hz=0.05,
+    ok = ProfileSpec(shape_name="multisine", min_bar=2.0, max_bar=5.0, freq_hz=0.05,
                      harmonics=((1, 0.8), (5, 0.8)))
     ok.check(0.0, 6.0, 5.0)  # no false refusal: the first two stay inside
 
@@ -75,12 +75,12 @@ def test_a_harmonic_leaving_the_pressure_limits_is_refused_by_name() -> None:
 def test_a_harmonic_outrunning_the_slew_limit_is_refused_by_name() -> None:
     # fundamental at 0.2 Hz over 4 bar: pi * 0.2 * 4 * 0.5 = 1.26 bar/s; the 9th
     # harmonic at share 0.2 adds up to 2 pi * 1.8 * 2 * 0.2 = 4.5 bar/s
-    spec = ProfileSpec(kind="multisine", min_bar=1.0, max_bar=5.0, freq_hz=0.2,
+    spec = ProfileSpec(shape_name="multisine", min_bar=1.0, max_bar=5.0, freq_hz=0.2,
                        harmonics=((1, 0.5), (2, 0.2), (9, 0.2)))
     with pytest.raises(CommandRefused, match=r"with harmonic 9 \(share 0.2\) it needs "
                        r".* bar/s but the limit is 3 bar/s"):
         spec.check(0.0, 6.0, 3.0)
-    ProfileSpec(kind="multisine", min_bar=1.0, max_bar=5.0, freq_hz=0.2,
+    ProfileSpec(shape_name="multisine", min_bar=1.0, max_bar=5.0, freq_hz=0.2,
                 harmonics=((1, 0.5), (2, 0.2))).check(0.0, 6.0, 3.0)
 
 
@@ -89,7 +89,7 @@ def test_a_harmonic_outrunning_the_slew_limit_is_refused_by_name() -> None:
                                        (((1, math.nan),), "finite non-zero")])
 def test_malformed_harmonics_are_refused(harm: tuple[tuple[int, float], ...], msg: str) -> None:
     with pytest.raises(CommandRefused, match=msg):
-        ProfileSpec(kind="multitriangle", min_bar=1.0, max_bar=3.0, harmonics=harm).check(
+        ProfileSpec(shape_name="multitriangle", min_bar=1.0, max_bar=3.0, harmonics=harm).check(
             0.0, 6.0, 5.0)
 
 
@@ -97,12 +97,12 @@ def test_a_plan_with_a_harmonic_outside_the_limits_is_refused_before_it_runs(
         tmp_path: Path) -> None:
     from pamd.loop.experiment.plan import PlanProfile
 
-    prof = PlanProfile(kind="multisine", min_bar=2.0, max_bar=6.0, freq_hz=0.05, cycles=1,
+    prof = PlanProfile(shape="multisine", min_bar=2.0, max_bar=6.0, freq_hz=0.05, cycles=1,
                        harmonics=None)
     prof.as_spec().check(0.0, 6.0, 5.0)
     from pamd.loop.experiment.plan import PlanHarmonic
 
-    bad = PlanProfile(kind="multisine", min_bar=2.0, max_bar=6.0, freq_hz=0.05, cycles=1,
+    bad = PlanProfile(shape="multisine", min_bar=2.0, max_bar=6.0, freq_hz=0.05, cycles=1,
                       harmonics=(PlanHarmonic(number=1, share=0.6),
                                  PlanHarmonic(number=2, share=0.7)))
     with pytest.raises(CommandRefused, match="harmonic 2"):

@@ -157,7 +157,7 @@ def read_table_csv(path: str) -> Run:
     meta: JsonObject = {
         "row_offset": breaks[0][1], "conversions": [c.how for c in cols if c.how],
         "text_columns": {c.name: f"{where}:{breaks[0][1]}:{c.head}" for c in cols
-                         if c.kind == "text"},
+                         if c.content == "text"},
         "headers": {c.name: c.head for c in cols}, "factors": {c.name: c.factor for c in cols}}
     if len(breaks) > 1:
         meta["row_breaks"] = breaks
@@ -170,21 +170,21 @@ def _csv_values(text: CsvText, cols: list[_CsvColumn]
     """(the columns' values, unscaled: `_run` scales them; each [row index, its file
     line] where lines were skipped; the number of rows), read chunk by chunk."""
     comma = text.dialect.delimiter != ","
-    parts: dict[str, list[np.ndarray]] = {c.name: [] for c in cols if c.kind != "text"}
+    parts: dict[str, list[np.ndarray]] = {c.name: [] for c in cols if c.content != "text"}
     breaks: list[list[int]] = []  # [row index, its file line] where lines were skipped
     n = 0
     for chunk in text.chunks():
         _note_breaks(breaks, chunk.lines, n)
         for c in cols:
             _csv_cells(c, chunk.columns[c.index], chunk.lines, comma, text.where, n == 0)
-            if c.kind != "text":
+            if c.content != "text":
                 parts[c.name].append(c.values)
         n += len(chunk.lines)
     columns: dict[str, np.ndarray] = {}
     if n == 0:
         return columns, breaks, n
     for c in cols:
-        if c.kind != "text":
+        if c.content != "text":
             columns[c.name] = np.concatenate(parts.pop(c.name))  # scaled by `_run`
     return columns, breaks, n
 
@@ -220,7 +220,7 @@ class _CsvColumn:
 
     def __init__(self, index: int, head: str, name: str, factor: float, how: str) -> None:
         self.index, self.head, self.name, self.factor, self.how = index, head, name, factor, how
-        self.kind = ""  # "numbers", "codes" or "text", from the first data row
+        self.content = ""  # "numbers", "codes" or "text", from the first data row
         self.values = np.empty(0)
 
 
@@ -242,21 +242,21 @@ def _csv_columns(text: CsvText, side: JsonObject | None) -> list[_CsvColumn]:
 
 def _csv_cells(c: _CsvColumn, raw: tuple[str, ...], lines: list[int], comma: bool,
                where: str, first: bool) -> None:
-    """Read one chunk of column `c`'s cells into `c.values` (deciding its kind on the
+    """Read one chunk of column `c`'s cells into `c.values` (deciding its content on the
     first); ModelError at file:line:column for a cell that is not a number."""
     cells = [x.strip() for x in raw]
     if first:
-        c.kind = "codes" if c.name in _NAMED and not _numeric(cells[0]) else "numbers"
-    if c.kind == "codes":
+        c.content = "codes" if c.name in _NAMED and not _numeric(cells[0]) else "numbers"
+    if c.content == "codes":
         codes = _NAMED[c.name]
         c.values = np.array([codes.get(x, math.nan) if x else math.nan for x in cells])
         return
-    if c.kind == "text":
+    if c.content == "text":
         return
     values, bad = _floats(cells, comma)
     if bad is not None:
         if first and bad == 0:
-            c.kind = "text"  # a text column (notes, events): kept out, said if needed
+            c.content = "text"  # a text column (notes, events): kept out, said if needed
             return
         raise ModelError(f"{where}:{lines[bad]}:{c.head}: {cells[bad][:80]!r} is not a "
                          "number")
@@ -274,12 +274,12 @@ def _csv_events(path: str, muscle: str) -> list[tuple[float, str, JsonObject]]:
 
 def _events(rows: list[tuple[float, str, str]], muscle: str
             ) -> list[tuple[float, str, JsonObject]]:
-    """(t_s, kind, data) of the events that concern `muscle` (as `read_mcap` keeps them)."""
+    """(t_s, name, data) of the events that concern `muscle` (as `read_mcap` keeps them)."""
     out = []
-    for t, kind, text in rows:
+    for t, name, text in rows:
         data = json.loads(text) if text else {}
         if isinstance(data, dict) and (data.get("args") or {}).get("muscle") in (None, muscle):
-            out.append((t, kind, data))
+            out.append((t, name, data))
     return out
 
 
@@ -383,7 +383,7 @@ def _loadmat(path: str, where: str) -> dict[str, Any]:
     except NotImplementedError:
         raise ModelError(f"{where}: a MAT 7.3 (HDF5) file; save it with save(..., '-v7') "
                          "or export CSV") from None
-    except Exception as exc:  # noqa: BLE001 (scipy's reader raises many kinds on a corrupt file)
+    except Exception as exc:  # noqa: BLE001 (scipy's reader raises many exceptions on a corrupt file)
         raise ModelError(f"{where}: cannot read it as a MAT file ({type(exc).__name__}: "
                          f"{shown(str(exc))[:200]})") from None
     return mat
@@ -445,9 +445,9 @@ def _mat_events(path: str, ev: dict[str, Any], muscle: str  # Any: a .mat struct
                 ) -> list[tuple[float, str, JsonObject]]:
     try:
         t = np.atleast_1d(np.asarray(ev["t_s"], dtype=np.float64)).tolist()
-        kinds = np.atleast_1d(np.asarray(ev["kind"], dtype=object)).tolist()
+        names = np.atleast_1d(np.asarray(ev["kind"], dtype=object)).tolist()
         data = np.atleast_1d(np.asarray(ev["data"], dtype=object)).tolist()
-        return _events([(a, str(b), str(c)) for a, b, c in zip(t, kinds, data, strict=True)],
+        return _events([(a, str(b), str(c)) for a, b, c in zip(t, names, data, strict=True)],
                        muscle)
     except (KeyError, ValueError, TypeError) as exc:
         raise ModelError(f"{path}: cannot read the exported events ({exc})") from None
@@ -679,7 +679,7 @@ def _check_table_columns(r: Run, need: list[str]) -> None:
 
 def _missing_text(r: Run, missing: list[str]) -> str:
     """The missing columns, each with what the table holds in its place (a text
-    column, a variable of another kind), and the columns it has."""
+    column, a variable of another type), and the columns it has."""
     skipped = r.meta.get("skipped_columns") or {}
     text = [f"{m} (a text column at {r.meta['text_columns'][m]})"
             if m in r.meta["text_columns"] else

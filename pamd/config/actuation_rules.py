@@ -135,20 +135,21 @@ def check_sim_sample_periods(rig: RigConfig, node: JsonValue, ctx: Context,
 
 def check_sim_stalls(rig: RigConfig, node: JsonValue, ctx: Context) -> None:
     """A sim driver's scheduled `stall` (signal loop) cannot happen with a virtual
-    clock: refused at its `kind`; `node` is the raw `drivers` list."""
+    clock: refused at its `failure` (or its old key `kind`); `node` is the raw `drivers` list."""
     if rig.loop.clock != "virtual":
         return
     drivers_node = node if isinstance(node, list) else []
     for k, d in enumerate(rig.drivers):
         faults = getattr(d.options, "faults", ()) if d.type == "sim" else ()
         for j, f in enumerate(faults):
-            if getattr(f, "kind", None) != "stall":
+            if getattr(f, "failure", None) != "stall":
                 continue
             dnode = drivers_node[k] if k < len(drivers_node) else {}
             opts = (dnode.get("options") or {}) if isinstance(dnode, dict) else {}
             fnode = (opts.get("faults") or [{}])
             fnode = fnode[j] if j < len(fnode) and isinstance(fnode[j], dict) else {}
-            ctx.add(line_of(fnode, "kind") or line_of(fnode), f"drivers[{k}].options.faults[{j}]"
-                    ".kind", "loop.clock real for a stall of the loop's process (a virtual "
+            key = "kind" if "kind" in fnode else "failure"  # the key the file gives
+            ctx.add(line_of(fnode, key) or line_of(fnode), f"drivers[{k}].options.faults[{j}]"
+                    f".{key}", "loop.clock real for a stall of the loop's process (a virtual "
                     "clock does not move while the process is stopped, so the loop would "
                     "never see it)", "stall with loop.clock virtual")

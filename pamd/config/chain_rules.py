@@ -2,7 +2,7 @@
 with the rest of the config.
 
 Each signal names a driver and one of its channels, as a muscle's signals do, and
-must be the kind of channel its job needs (`pamd.drivers.Channel.digital`):
+must be the type of channel its job needs (`pamd.drivers.Channel.digital`):
 
 * `estop`: a digital input (the chain's contact reads 0 or 1, not a value on a scale);
 * `supply`: an input (analog, bar; or a digital pressure switch);
@@ -60,7 +60,7 @@ def check_safety_chain(rig: RigConfig, node: JsonValue, ctx: Context) -> None:
 
 def _check_signal(rig: RigConfig, name: str, sig: SignalConfig, node: dict[str, JsonValue],
                   known: list[str], ctx: Context) -> None:
-    """One signal of the chain: a known driver, a channel of the kind its job needs
+    """One signal of the chain: a known driver, a channel of the type its job needs
     (`_RULES`) and a non-zero gain. A driver unknown is refused here, an invalid one
     by the driver checks; the channel and gain of either are not judged."""
     snode = node.get(name) or {}
@@ -87,16 +87,16 @@ def _check_channel(sig: SignalConfig, rule: tuple[str, bool, str],
     found = next(((d, dig) for c, d, dig in chans if c == sig.channel), None)
     if found is not None and found[0] == direction and (found[1] or not digital):
         return
-    kind = ("a digital " if digital else "an ") + ("input" if direction == "in" else "output")
+    needed = ("a digital " if digital else "an ") + ("input" if direction == "in" else "output")
     fits = [c for c, d, dig in chans if d == direction and (dig or not digital)]
-    have = (f"{kind.split(' ', 1)[1]}s: {', '.join(fits)}" if fits else
-            f"driver {sig.driver!r} has no {kind.split(' ', 1)[1]}s")
-    ctx.add(line, path, f"{kind} of driver {sig.driver!r} for {what} ({have})",
+    have = (f"{needed.split(' ', 1)[1]}s: {', '.join(fits)}" if fits else
+            f"driver {sig.driver!r} has no {needed.split(' ', 1)[1]}s")
+    ctx.add(line, path, f"{needed} of driver {sig.driver!r} for {what} ({have})",
             _channel_found(sig.channel, found))
 
 
 def _channel_found(channel: str, found: tuple[str, bool] | None) -> str:
-    """What the signal's channel is: none, or its kind (digital or analog, direction)."""
+    """What the signal's channel is: none, or its type (digital or analog, direction)."""
     if found is None:
         return f"{channel!r} (no such channel)"
     return (f"{channel!r} ({'a digital' if found[1] else 'an analog'} "

@@ -49,6 +49,8 @@ def _rows(cls: type, prefix: str, out: list[str]) -> None:
         key = f"{prefix}{f.name}"
         inner = _dataclass_in(tp)
         doc = f.metadata.get("doc", "")
+        if "old" in f.metadata:
+            doc += f" Old name `{f.metadata['old']}`: still loads (never both)."
         unit = f.metadata.get("unit", "")
         if inner is not None:
             plural = typing.get_origin(tp) is tuple

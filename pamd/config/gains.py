@@ -84,17 +84,17 @@ class Judged:
 
 @dataclass(frozen=True)
 class Verdict:
-    """One loop's judgement: `kind` ok, warned, refused, or integral (the position loop
+    """One loop's judgement: its `outcome` ok, warned, refused, or integral (the position loop
     fails the margins by its integral only: warned, module doc), with the whole loop's
     margins and, for integral, its proportional part's."""
 
-    kind: str
+    outcome: str
     margins: Margins
     proportional: Margins | None = None
 
     def note(self) -> str:
         """What check-config adds to the margins."""
-        if self.kind != "integral" or self.proportional is None:
+        if self.outcome != "integral" or self.proportional is None:
             return ""
         return (f" (by its integral: without it {self.proportional.text()}; warned, not "
                 "refused: friction holds the muscle where the integral acts)")
@@ -139,15 +139,15 @@ def check_gains(rig: RigConfig, raw: JsonValue, ctx: Context) -> tuple[str, ...]
                 continue
             seen.add(once)
             verdict = judge(judged)
-            if verdict.kind == "refused":
+            if verdict.outcome == "refused":
                 issue = _refusal(ctx.file, judged, verdict.margins)
                 if rig.safety.relax_stability:
                     warnings.append(f"{issue}; loaded: safety.relax_stability is true")
                 else:
                     ctx.issues.append(issue)
-            elif verdict.kind == "integral":
+            elif verdict.outcome == "integral":
                 warnings.append(_integral_warning(ctx.file, judged, verdict))
-            elif verdict.kind == "warned":
+            elif verdict.outcome == "warned":
                 warnings.append(_warning(ctx.file, judged, verdict.margins))
     return tuple(warnings)
 

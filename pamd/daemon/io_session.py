@@ -41,8 +41,9 @@ class IoParts:
     config in force (`config()`: a reload replaces it), the run's note, the tick's
     layout and the datums (the recording's metadata), the rig's controller (its
     clock, counters and supervisor: a lost io process may fault it), the loop (its
-    clock kind, notices, and the mailbox the ring's commands join), the summary sink
-    (the ring sink goes downstream of it) and the loop's local mailbox."""
+    clock, real, virtual or daq, its notices, and the mailbox the ring's commands
+    join), the summary sink (the ring sink goes downstream of it) and the loop's local
+    mailbox."""
 
     config: Callable[[], LoadedConfig]
     note: str

@@ -134,7 +134,7 @@ class EmulatedModbusDevice:
         sc = self.options.sample_clock
         if sc is not None:
             t = self.tables[sc.function]
-            if sc.kind == "counter":
+            if sc.holds == "counter":
                 t[sc.address] = self.samples & 0xFFFF
             else:
                 t[sc.address] = min(0xFFFF, round((now - self._sampled_s) / sc.unit_s))

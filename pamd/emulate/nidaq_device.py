@@ -97,11 +97,11 @@ AO_RANGE_V = 10.0
 
 @dataclass
 class EmuChannel:
-    """One virtual channel: its physical name (lower case), kind and scaling."""
+    """One virtual channel: its physical name (lower case), channel type and scaling."""
 
     physical: str
     name: str
-    kind: str  # ai, bridge, ci, ao, di, do
+    chan_type: str  # ai, bridge, ci, ao, di, do
     lo: float = -10.0
     hi: float = 10.0
     # bridge: newtons per mV/V; encoder: metres per count, the reload value
@@ -128,11 +128,11 @@ class EmuTask:
     read: int = 0  # the last clock read
 
     @property
-    def kind(self) -> str:
-        return self.channels[0].kind if self.channels else ""
+    def chan_type(self) -> str:
+        return self.channels[0].chan_type if self.channels else ""
 
 
-#: a numbered channel's kind -> (its physical name's prefix, the Product field that
+#: a numbered channel's type -> (its physical name's prefix, the Product field that
 #: counts them)
 _NUMBERED: dict[str, tuple[str, str]] = {
     "ai": ("ai", "ai"), "bridge": ("ai", "ai"), "ao": ("ao", "ao"), "ci": ("ctr", "counters")}
@@ -147,7 +147,7 @@ class Card:
         self.name = name
         self.product = product
 
-    def physical(self, physical: str, kind: str) -> tuple[int, ...]:
+    def physical(self, physical: str, chan_type: str) -> tuple[int, ...]:
         """The numbers of a physical name on this device (ai 3 -> (3,)), or DAQmx's
         refusal: another device, or a channel it does not have."""
         dev, _, rest = physical.partition("/")
@@ -156,8 +156,8 @@ class Card:
                              f"Specified: {dev}\nSuggested Device(s): {self.name}")
         parts = rest.lower().split("/")
         try:
-            found = (self._line(parts, kind, rest) if kind in ("di", "do")
-                     else self._numbered(parts, kind))
+            found = (self._line(parts, chan_type, rest) if chan_type in ("di", "do")
+                     else self._numbered(parts, chan_type))
         except ValueError:
             found = None
         if found is not None:
@@ -167,19 +167,19 @@ class Card:
             "documentation for channels available on this device.\n"
             f"Device: {self.name}\nPhysical Channel Name: {rest}"))
 
-    def _numbered(self, parts: list[str], kind: str) -> tuple[int] | None:
-        """(k,) of a numbered channel (`ai3`, `ao0`, `ctr1`) the card has of this kind;
+    def _numbered(self, parts: list[str], chan_type: str) -> tuple[int] | None:
+        """(k,) of a numbered channel (`ai3`, `ao0`, `ctr1`) the card has of this type;
         None if it is none."""
-        if kind not in _NUMBERED:
+        if chan_type not in _NUMBERED:
             return None
-        prefix, count = _NUMBERED[kind]
+        prefix, count = _NUMBERED[chan_type]
         if len(parts) == 1 and parts[0].startswith(prefix):
             k = int(parts[0][len(prefix):])
             if k < getattr(self.product, count):
                 return (k,)
         return None
 
-    def _line(self, parts: list[str], kind: str, rest: str) -> tuple[int, int] | None:
+    def _line(self, parts: list[str], chan_type: str, rest: str) -> tuple[int, int] | None:
         """(port, line) of a digital line (`port0/line3`) the card has; None if it is
         none; DAQmx's refusal for a line of the other direction's port."""
         if len(parts) != 2 or not parts[0].startswith("port"):
@@ -189,7 +189,7 @@ class Card:
         ports = {p.di[0]: p.di[1], p.do[0]: p.do[1]}
         if line >= ports.get(port, 0):
             return None
-        want = p.di if kind == "di" else p.do
+        want = p.di if chan_type == "di" else p.do
         if port != want[0]:
             raise DaqmxError(INVALID_PHYS_CHAN_TYPE, (
                 "I/O type of the physical channel does not match the I/O type "
@@ -254,9 +254,9 @@ class Card:
                 raise _value_refused(prop, v, f"{-AO_RANGE_V:g} to {AO_RANGE_V:g}", name)
         return EmuChannel(physical.lower(), name, "ao", lo, hi)
 
-    def lines(self, lines: str, name: str, kind: str) -> EmuChannel:
-        self.physical(lines, kind)
-        return EmuChannel(lines.lower(), name, kind, 0.0, 1.0)
+    def lines(self, lines: str, name: str, chan_type: str) -> EmuChannel:
+        self.physical(lines, chan_type)
+        return EmuChannel(lines.lower(), name, chan_type, 0.0, 1.0)
 
 
 class EmulatedDaq:
@@ -323,11 +323,12 @@ class EmulatedDaq:
                 f"temporarily without power.\nDevice: {self.name}"))
 
     def _add(self, task: EmuTask, ch: EmuChannel) -> None:
-        if task.kind and task.kind != ch.kind and {task.kind, ch.kind} != {"ai", "bridge"}:
+        mixed = {task.chan_type, ch.chan_type} != {"ai", "bridge"}  # DAQmx's own grouping
+        if task.chan_type and task.chan_type != ch.chan_type and mixed:
             raise DaqmxError(-200559, "Task cannot contain a channel with the specified "
                              "channel type, because the task already contains channels with "
                              "a different channel type.")
-        if task.kind == "ci":
+        if task.chan_type == "ci":
             raise DaqmxError(-200559, "A counter input task holds one counter here.")
         task.channels.append(ch)
 
@@ -357,7 +358,7 @@ class EmulatedDaq:
                                      f"0 to {self.max_rate_hz:g} (hardware-timed single "
                                      "point, this emulated device)", task.name)
             master = source in ("", "OnboardClock")
-            if master and task.kind not in ("ai", "bridge"):
+            if master and task.chan_type not in ("ai", "bridge"):
                 raise DaqmxError(-200303, "External sample clock source must be specified "
                                  "for this application.\nTask Name: " + task.name)
             if not master and source.lower() != f"/{self.name.lower()}/ai/sampleclock":
@@ -372,7 +373,7 @@ class EmulatedDaq:
             task.t0 = time.monotonic()
             task.waited = task.read = 0
             for ch in task.channels:
-                if ch.kind == "ci":
+                if ch.chan_type == "ci":
                     mm = self.source(ch.physical)
                     ch.start_mm = ch.last_mm = 0.0 if mm is None else mm
                     ch.indexed = False
@@ -448,13 +449,13 @@ class EmulatedDaq:
 
     def _sample(self, ch: EmuChannel) -> float:
         v = self.source(ch.physical)
-        if ch.kind == "ci":
+        if ch.chan_type == "ci":
             return self._count(ch, v)
         if v is None:
             v = 0.0
-        if ch.kind in ("di", "do"):
+        if ch.chan_type in ("di", "do"):
             return 1.0 if v >= 0.5 else 0.0
-        if ch.kind == "bridge":
+        if ch.chan_type == "bridge":
             lsb = 2 * BRIDGE_MV_PER_V * ch.scale / 2**24  # 24 bits of +-25 mV/V
         else:
             lsb = (ch.hi - ch.lo) / 65536.0  # 16 bits of the range
@@ -488,7 +489,7 @@ class EmulatedDaq:
                 due = clock.t0 + (clock.waited + 1) / clock.rate_hz
                 late = time.monotonic() > due
             for ch, v in zip(task.channels, values, strict=False):
-                if ch.kind == "ao" and not ch.lo <= v <= ch.hi:
+                if ch.chan_type == "ao" and not ch.lo <= v <= ch.hi:
                     raise _value_refused("DAQmx_AO_Max", v, f"{ch.lo:g} to {ch.hi:g}",
                                          task.name, code=-200561)
                 self.sink(ch.physical, v)

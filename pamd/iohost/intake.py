@@ -9,7 +9,7 @@ An `estop` acts from anyone, credential and pattern or not, and is recorded with
 sent it; an `estop` or `stop` acts whatever its size or extra fields, the rest cut and
 recorded (`salvage`); beyond its sender's rate it joins the same verb's command that
 waits for its verdict, if any, and gets that verdict. Refusals are recorded one per
-kind per second, the next with the count of those between (a flood cannot grow the
+cause per second, the next with the count of those between (a flood cannot grow the
 recording).
 
 Salvage. An `estop` or `stop` always acts: whatever its size, JSON or extra fields, the
@@ -27,7 +27,7 @@ and pressures against the limits of the latest status snapshot (refreshed once a
 second; the loop checks again against the present state).
 
 Refusals. What the io process records of the commands it refuses, or takes in part: one record
-per kind per interval (`RECORD_INTERVAL_S`), the next of the kind saying how many like
+per cause per interval (`RECORD_INTERVAL_S`), the next of the cause saying how many like
 it came between (`refused_unrecorded`), and the rest of a flood said in a `refusals`
 record once its interval has passed. So a flood of refusals (too large, not JSON, no
 credential, a pattern, over the rate) cannot grow the recording, and none goes
@@ -43,7 +43,7 @@ import time
 import typing
 from collections.abc import Callable
 
-from pamd.iohost.ratelimit import LineLimiter, RateLimiter, kind_of
+from pamd.iohost.ratelimit import LineLimiter, RateLimiter, pattern_of
 from pamd.wire import credential
 from pamd.wire.board import Board
 from pamd.wire.credential import STALE
@@ -208,21 +208,21 @@ class PressureRanges:
         return self._limits
 
 
-RECORD_INTERVAL_S = 1.0  # a refusal of each kind recorded at most once per this
+RECORD_INTERVAL_S = 1.0  # a refusal of each cause recorded at most once per this
 
 RecordIo = Callable[[str, JsonObject], None]
 
 
 class RefusalLog:
     def __init__(self, record: RecordIo, rig_id: str) -> None:
-        """`record(kind, data)`: into the recording and onto the events key."""
+        """`record(name, data)`: an event into the recording and onto the events key."""
         self.record = record
         self.rig_id = rig_id
         self.limiter = LineLimiter(RECORD_INTERVAL_S)
 
     def refused(self, verb: str, raw: bytes, sender: str, user: str,
-                verdict: JsonObject, kind: str | None = None) -> None:
-        dropped = self.limiter.admit(kind or kind_of(f"{verb[:40]}:{verdict['error']}", 80),
+                verdict: JsonObject, cause: str | None = None) -> None:
+        dropped = self.limiter.admit(cause or pattern_of(f"{verb[:40]}:{verdict['error']}", 80),
                                      time.monotonic())
         if dropped is None:
             return
@@ -248,10 +248,10 @@ class RefusalLog:
         return bool(self.limiter.dropped)
 
     def flush_due(self, final: bool = False) -> None:
-        """The rest of a flood, counted, once its kind's interval has passed (`final`:
+        """The rest of a flood, counted, once its cause's interval has passed (`final`:
         all of it, as the daemon stops)."""
-        for kind, n in self.limiter.due(float("inf") if final else time.monotonic()):
-            self.record("refusals", {"kind": kind, "refused_unrecorded": n,
+        for cause, n in self.limiter.due(float("inf") if final else time.monotonic()):
+            self.record("refusals", {"kind": cause, "refused_unrecorded": n,
                                      "rig": self.rig_id})
 
 
@@ -323,7 +323,7 @@ class CommandIntake:
                          if spec.token_sha256 else None)
         self.token_watch = credential.TokenWatch(spec.token_file)
         self.ranges = PressureRanges(spec.muscles, board)
-        self.refusals = RefusalLog(record_io, spec.rig_id)  # recorded per kind
+        self.refusals = RefusalLog(record_io, spec.rig_id)  # recorded per cause
         self.waiting: dict[int, tuple[Query, float, str, int | None]] = {}
         self.notes: dict[int, str] = {}  # what was cut of an estop or stop, by query
         self.joined: dict[int, list[Query]] = {}  # estops or stops answered with another's
@@ -349,9 +349,9 @@ class CommandIntake:
                     f"the {verb} command may still be applied (see status)")})
 
     def _refuse(self, q: Query, key: str, verb: str, args: bytes, sender: str, user: str,
-                error: str, record: bool = True, kind: str | None = None,
+                error: str, record: bool = True, cause: str | None = None,
                 credential: str | None = None) -> None:
-        """Answer a refusal; record it (one per kind per RECORD_INTERVAL_S, the next
+        """Answer a refusal; record it (one per cause per RECORD_INTERVAL_S, the next
         saying how many like it were refused meanwhile: a flood of refusals cannot
         grow the recording). `credential`: why the signature was not taken, said in
         the reply for the client (signed for another run: with this run's nonce, so it
@@ -359,7 +359,7 @@ class CommandIntake:
         self.counts["refused_here"] += 1
         verdict: JsonObject = {"ok": False, "error": error, "rig": self.spec.rig_id}
         if record:
-            self.refusals.refused(verb, args, sender, user, verdict, kind)
+            self.refusals.refused(verb, args, sender, user, verdict, cause)
         if credential is not None:
             verdict["credential"] = credential
         if credential == STALE:
@@ -402,7 +402,7 @@ class CommandIntake:
                         {"ok": False, "error": error}).encode())
 
     def _who_refusal(self, key: str, verb: str, why: str | None) -> tuple[str, str] | None:
-        """(error, record kind) if this sender may not send this command here: a key that
+        """(error, its cause as recorded) if this sender may not send this command here: a key that
         is a pattern (`pamd/*/cmd/...`, `pamd/<rig>/**/setpoint`), or no valid credential
         (`why`, pamd.wire.credential). An estop passes both (anyone may stop the rig)."""
         if verb == ESTOP:
@@ -449,9 +449,9 @@ class CommandIntake:
             self._enqueue(c, payload, taken[1], now)
 
     def _refuse_incoming(self, c: _Incoming, error: str, record: bool = True,
-                         kind: str | None = None, credential: str | None = None) -> None:
+                         cause: str | None = None, credential: str | None = None) -> None:
         self._refuse(c.q, c.key, c.verb, c.raw, c.sender, c.user, error, record=record,
-                     kind=kind, credential=credential)
+                     cause=cause, credential=credential)
 
     def _admitted(self, c: _Incoming, now: float, trusted: bool) -> bool:
         """Whether this sender may send this command now: one verb named, a valid
@@ -463,7 +463,7 @@ class CommandIntake:
         unsigned = None if trusted else self._credential(c.q, c.verb, c.raw)
         refusal = self._who_refusal(c.key, c.verb, unsigned)
         if refusal is not None:
-            self._refuse_incoming(c, refusal[0], kind=refusal[1],
+            self._refuse_incoming(c, refusal[0], cause=refusal[1],
                                   credential=unsigned if refusal[1] == "credential" else None)
             return False
         if unsigned is not None:  # an estop: anyone who reaches the daemon may stop the rig
@@ -484,7 +484,7 @@ class CommandIntake:
             self.counts["rate_limited"] += 1
             self._refuse_incoming(c, (
                 f"rate limited: more than {self.spec.command_rate_per_s:g} commands/s "
-                f"(burst {self.spec.command_burst}) from {c.sender}; not taken"), kind="rate")
+                f"(burst {self.spec.command_burst}) from {c.sender}; not taken"), cause="rate")
             return False
         return True
 
@@ -500,14 +500,14 @@ class CommandIntake:
         if len(c.raw) > MAX_PAYLOAD_BYTES:
             self._refuse(c.q, c.key, cap_text(c.verb, 40), c.raw, c.sender, c.user,
                          f"payload of {len(c.raw)} bytes, above the limit of "
-                         f"{MAX_PAYLOAD_BYTES} bytes; not taken", kind="size")
+                         f"{MAX_PAYLOAD_BYTES} bytes; not taken", cause="size")
             return None
         text = c.raw.decode("utf-8", "replace")
         try:
             return (json.loads(text) if text.strip() else {}), ""
         except (ValueError, RecursionError) as exc:
             why = exc if isinstance(exc, ValueError) else "nested too deep"
-            self._refuse_incoming(c, f"malformed JSON: {why}", kind="json")
+            self._refuse_incoming(c, f"malformed JSON: {why}", cause="json")
             return None
 
     def _checked(self, c: _Incoming, payload: JsonValue) -> JsonObject | None:

@@ -20,7 +20,7 @@ Zenoh, where the router authenticates them.
 
 What the server says of its clients (a garbage frame, a subscribe to an unknown
 channel, a dropped connection) comes through Python's logging (logger `foxglove`) and
-goes to stderr one line per kind per 10 s, each saying how many like it were dropped
+goes to stderr one line per pattern per 10 s, each saying how many like it were dropped
 (`pamd.iohost.ratelimit`): a client cannot grow the daemon's log (one line per bad frame
 was 108 MB in 100 s).
 """
@@ -154,9 +154,9 @@ class LiveView:
                 ch.log(self.mus_payload.pack(hdr, *mv), log_time=log_ns)
             self.sent += 1
 
-    def event(self, t_abs_s: float, kind: str, data: JsonObject) -> None:
+    def event(self, t_abs_s: float, name: str, data: JsonObject) -> None:
         """An event as the recording writes it (`t_s`, `tick`, `kind`, `data`)."""
-        if self.server is None or kind == "summary":
+        if self.server is None or name == "summary":
             return
         io = self.io_spec
         t0 = self.t_start()
@@ -164,7 +164,7 @@ class LiveView:
         log_ns = io.wall0_ns + round((t_abs_s - io.clock0_s) * 1e9)
         try:
             body = dumps({"t_s": t_abs_s - t0, "tick": round((t_abs_s - t0) * io.rate_hz),
-                          "kind": kind, "data": data})
+                          "kind": name, "data": data})
             assert self.events_ch is not None  # opened with the server (checked above)
             self.events_ch.log(body.encode(), log_time=log_ns)
         except Exception as exc:

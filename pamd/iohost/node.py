@@ -73,7 +73,7 @@ class NetNode:
         self.io_spec = io_spec
         self.block = block
         self.port = port
-        self.record = record  # (loop time, kind, data) -> the recording, if any
+        self.record = record  # (loop time, name, data) -> the recording, if any
         self.keys = Keys(spec.rig_id)
         self.batcher = StateBatcher(spec.rig_id, spec.muscles, spec.every_ticks)
         self.stats = TickStats()
@@ -210,18 +210,18 @@ class NetNode:
         self.last_t_s = rows[-1][1]
         self.rows_mono = time.monotonic()
 
-    def event(self, t: float, kind: str, data: JsonObject) -> None:
-        if kind == "reply":
+    def event(self, t: float, name: str, data: JsonObject) -> None:
+        if name == "reply":
             return
-        if kind == "summary":
-            kind = "run_stop"
+        if name == "summary":
+            name = "run_stop"
         t0 = self._t_start()
-        self._publish_event(kind, data, None if t0 is None else t - t0)
+        self._publish_event(name, data, None if t0 is None else t - t0)
 
-    def _publish_event(self, kind: str, data: JsonObject, t_s: float | None = None) -> None:
+    def _publish_event(self, name: str, data: JsonObject, t_s: float | None = None) -> None:
         w0 = self._wall0()
         msg = {"t_s": t_s, "wall_s": (w0 + t_s) if (w0 is not None and t_s is not None)
-               else time.time(), "kind": kind, "data": jsonsafe(data)}
+               else time.time(), "kind": name, "data": jsonsafe(data)}
         try:
             self.events_pub.put(json.dumps(msg, default=str, allow_nan=False))
             self.counts["events"] += 1
@@ -304,13 +304,13 @@ class NetNode:
         send_reply(q, self.keys.status, body)
 
     # -- commands -------------------------------------------------------------------------
-    def _record_io(self, kind: str, data: JsonObject) -> None:
+    def _record_io(self, name: str, data: JsonObject) -> None:
         """What the command intake records (refusals, cut estops): into the recording
         by the io loop, and onto the events key now."""
         now = self.loop_now()
-        self.to_record.append((now, kind, data))  # recorded by the io loop
+        self.to_record.append((now, name, data))  # recorded by the io loop
         t0 = self._t_start()
-        self._publish_event(kind, data, None if t0 is None else now - t0)
+        self._publish_event(name, data, None if t0 is None else now - t0)
 
 
 

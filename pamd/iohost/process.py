@@ -388,15 +388,15 @@ class IoProcess:
                 self._next_event = ev
                 break
             n += 1
-            kind, data = ev["kind"], ev["data"]
-            if kind == "reply":
+            name, data = ev["kind"], ev["data"]
+            if name == "reply":
                 self.reply_t = ev["t"]
                 self.port.on_reply(data)
             if self.net is not None:
-                self.net.event(ev["t"], kind, data)
+                self.net.event(ev["t"], name, data)
             if self.viewer is not None:
-                self.viewer.event(ev["t"], kind, data)
-            if kind == "summary":
+                self.viewer.event(ev["t"], name, data)
+            if name == "summary":
                 summary = data
                 continue
             rec = self.recorder
@@ -404,7 +404,7 @@ class IoProcess:
                 if rec.t_start is None:
                     rec.t_start = self.block.t_start()
                 try:
-                    rec.event(ev["t"], kind, data)
+                    rec.event(ev["t"], name, data)
                 except Exception as exc:
                     self._fail("recording write failed", exc)
         return n, summary
@@ -425,7 +425,7 @@ class IoProcess:
                 self.net.event((self.block.t_start() or 0.0) + t_s, "collection", msg)
         rec.notices.clear()
 
-    def _record_event(self, t_s: float, kind: str, data: JsonObject) -> None:
+    def _record_event(self, t_s: float, name: str, data: JsonObject) -> None:
         """An event of the io process's own (a command it refused) into the recording."""
         rec = self.recorder
         if rec is None:
@@ -433,7 +433,7 @@ class IoProcess:
         if rec.t_start is None:
             rec.t_start = self.block.t_start()
         try:
-            rec.event(t_s, kind, data)
+            rec.event(t_s, name, data)
         except Exception as exc:
             self._fail("recording write failed", exc)
 

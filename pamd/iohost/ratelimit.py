@@ -6,9 +6,10 @@ senders together, so a flood is refused in the io process and never reaches the
 loop's mailbox.
 
 `LineLimiter` and `RateLimitedHandler`: what the io process writes about what clients
-send (a log line, a recorded refusal) is one line per kind per interval, and the next
-line of that kind says how many were dropped meanwhile; the kinds it keeps are
-bounded too. So nothing a client sends can grow a log, the recording or the io
+send (a log line, a recorded refusal) is one line per pattern per interval (lines alike
+share a pattern: their text with the numbers as `#`, or a refusal's cause), and the
+next line of that pattern says how many were dropped meanwhile; the patterns it keeps
+are bounded too. So nothing a client sends can grow a log, the recording or the io
 process without bound (a Foxglove client sending garbage frames made the server write
 a line per frame: 108 MB in 100 s).
 """
@@ -68,57 +69,57 @@ class RateLimiter:
         return ok
 
 
-LINE_INTERVAL_S = 10.0  # one line per kind per this
-MAX_KINDS = 256  # kinds kept; beyond, every new kind shares one
-OTHER_KIND = "(other kinds)"
+LINE_INTERVAL_S = 10.0  # one line per pattern per this
+MAX_PATTERNS = 256  # patterns kept; beyond, every new one shares one
+OTHER_PATTERN = "(other patterns)"
 _NUMBERS = re.compile(r"\d+")
 
 
-def kind_of(text: str, limit: int = 120) -> str:
-    """A line's kind: its text with every number (addresses, ports, ids, sizes) as `#`."""
+def pattern_of(text: str, limit: int = 120) -> str:
+    """A line's pattern: its text with every number (addresses, ports, ids, sizes) as `#`."""
     return _NUMBERS.sub("#", text[:limit])
 
 
 class LineLimiter:
-    """`admit(kind, now)`: None when a line of `kind` is to be dropped (one went out
-    less than `interval_s` ago), else how many of that kind were dropped since the
+    """`admit(pattern, now)`: None when a line of `pattern` is to be dropped (one went out
+    less than `interval_s` ago), else how many of that pattern were dropped since the
     last that went out."""
 
-    def __init__(self, interval_s: float = LINE_INTERVAL_S, max_kinds: int = MAX_KINDS
+    def __init__(self, interval_s: float = LINE_INTERVAL_S, max_patterns: int = MAX_PATTERNS
                  ) -> None:
         self.interval_s = interval_s
-        self.max_kinds = max_kinds
+        self.max_patterns = max_patterns
         self.last: dict[str, float] = {}
         self.dropped: dict[str, int] = {}
         self.total_dropped = 0
 
-    def admit(self, kind: str, now: float) -> int | None:
-        if kind not in self.last and len(self.last) >= self.max_kinds:
-            kind = OTHER_KIND
-        t = self.last.get(kind)
+    def admit(self, pattern: str, now: float) -> int | None:
+        if pattern not in self.last and len(self.last) >= self.max_patterns:
+            pattern = OTHER_PATTERN
+        t = self.last.get(pattern)
         if t is not None and now - t < self.interval_s:
-            self.dropped[kind] = self.dropped.get(kind, 0) + 1
+            self.dropped[pattern] = self.dropped.get(pattern, 0) + 1
             self.total_dropped += 1
             return None
-        self.last[kind] = now
-        return self.dropped.pop(kind, 0)
+        self.last[pattern] = now
+        return self.dropped.pop(pattern, 0)
 
     def due(self, now: float) -> list[tuple[str, int]]:
-        """The kinds whose interval has passed with lines dropped: (kind, how many),
+        """The patterns whose interval has passed with lines dropped: (pattern, how many),
         said now so that the last of a flood is counted too (the interval starts
         again)."""
         out = []
-        for kind, n in list(self.dropped.items()):
-            if now - self.last.get(kind, -1e18) >= self.interval_s:
-                out.append((kind, n))
-                del self.dropped[kind]
-                self.last[kind] = now
+        for pattern, n in list(self.dropped.items()):
+            if now - self.last.get(pattern, -1e18) >= self.interval_s:
+                out.append((pattern, n))
+                del self.dropped[pattern]
+                self.last[pattern] = now
         return out
 
 
 class RateLimitedHandler(logging.Handler):
-    """A logging handler writing one line per kind (logger and message, numbers
-    aside) per interval to `stream` (stderr), each saying how many like it were
+    """A logging handler writing one line per pattern (logger and message, numbers
+    as `#`) per interval to `stream` (stderr), each saying how many like it were
     dropped before it."""
 
     def __init__(self, prefix: str, interval_s: float = LINE_INTERVAL_S,
@@ -131,7 +132,7 @@ class RateLimitedHandler(logging.Handler):
     def emit(self, record: logging.LogRecord) -> None:
         try:
             msg = record.getMessage()
-            dropped = self.limiter.admit(f"{record.name}:{kind_of(msg)}", time.monotonic())
+            dropped = self.limiter.admit(f"{record.name}:{pattern_of(msg)}", time.monotonic())
             if dropped is None:
                 return
             more = (f" ({dropped} more like it in the last "
@@ -141,9 +142,9 @@ class RateLimitedHandler(logging.Handler):
             self.handleError(record)
 
     def flush_due(self, now: float) -> None:
-        """Say the counts of kinds whose interval passed with lines dropped."""
-        for kind, n in self.limiter.due(now):
-            self._write(f"{self.prefix}{n} more like \"{kind.split(':', 1)[-1][:80]}\" in "
+        """Say the counts of patterns whose interval passed with lines dropped."""
+        for pattern, n in self.limiter.due(now):
+            self._write(f"{self.prefix}{n} more like \"{pattern.split(':', 1)[-1][:80]}\" in "
                         f"the last {self.limiter.interval_s:g} s not shown")
 
     def _write(self, line: str) -> None:

@@ -4,7 +4,7 @@ optional rotation), metadata and attachments stating what the run was.
 Topics (they match the Zenoh key names):
   /pamd/<rig>/state/<muscle>  pamd_msgs/msg/MuscleState, cdr, one per muscle per tick
   /pamd/<rig>/loop            pamd_msgs/msg/LoopTiming,  cdr, one per tick
-  /pamd/<rig>/events          pamd_msgs/msg/Event, json (jsonschema): every recorded kind
+  /pamd/<rig>/events          pamd_msgs/msg/Event, json (jsonschema): every recorded event
                               of pamd.wire.declare.events (transitions, commands and verdicts,
                               lost records, recording notices, ...)
 Log time: wall-clock ns of the tick's scheduled time in real time; with the virtual
@@ -302,13 +302,13 @@ class Recorder:
         self.chunk_t0 = -1
         self.writer.sync()
 
-    def event(self, t_abs_s: float, kind: str, data: JsonObject) -> None:
+    def event(self, t_abs_s: float, name: str, data: JsonObject) -> None:
         w = self.writer
         assert w is not None
         t0 = self.t_start if self.t_start is not None else t_abs_s
         log_ns = self.log_ns_of(t_abs_s)
         tick = round((t_abs_s - t0) * self.spec.rate_hz)
-        body = dumps({"t_s": t_abs_s - t0, "tick": tick, "kind": kind, "data": data})
+        body = dumps({"t_s": t_abs_s - t0, "tick": tick, "kind": name, "data": data})
         w.add_message(self.ch_events, log_ns, body.encode(), self.events)
         self.events += 1
         if self.chunk_t0 < 0:

@@ -294,22 +294,22 @@ class RingSink:
                    "lost_records", data)
 
     # -- events -----------------------------------------------------------------------
-    def event(self, t_s: float, kind: str, data: JsonObject) -> None:
+    def event(self, t_s: float, name: str, data: JsonObject) -> None:
         if not self.active:
             return
         if threading.get_ident() != self._producer:
             if len(self._pending) < HELD_EVENTS_MAX:  # the loop's thread sends it
-                self._pending.append((t_s, kind, data))
+                self._pending.append((t_s, name, data))
             else:  # the loop's thread takes none (it has stopped): counted, not kept
                 self.lost_events += 1
                 self.u64[C_LOST_EVENTS] = self.lost_events
             return
-        blob = self._encode(t_s, kind, data)
+        blob = self._encode(t_s, name, data)
         if self._held:  # after the ones waiting, in order
             self._flush_held()
         if not self._held and self.events_ring.put_blob(blob):
             return
-        if not self.virtual and kind != "summary":
+        if not self.virtual and name != "summary":
             if len(self._held) < HELD_EVENTS_MAX:  # a burst's verdicts wait, never lost
                 self._held.append(blob)
                 return
@@ -327,12 +327,12 @@ class RingSink:
         st = self.u64[C_IO_STATE]
         return st == IO_DONE or (st == IO_FAILED and not self.keeps_draining)
 
-    def _encode(self, t_s: float, kind: str, data: JsonObject) -> bytes:
-        blob = json.dumps({"t": t_s, "kind": kind, "data": data}, default=str).encode()
+    def _encode(self, t_s: float, name: str, data: JsonObject) -> bytes:
+        blob = json.dumps({"t": t_s, "kind": name, "data": data}, default=str).encode()
         cap = self.events_ring.slot_bytes - 4
         if len(blob) > cap:
             text = json.dumps(data, default=str)[: cap // 2]
-            blob = json.dumps({"t": t_s, "kind": kind,
+            blob = json.dumps({"t": t_s, "kind": name,
                                "data": {"truncated": True, "text": text}}).encode()
         return blob
 
@@ -352,8 +352,8 @@ class RingSink:
 
     def _flush_pending(self) -> None:
         while self._pending:
-            t_s, kind, data = self._pending.popleft()
-            self.event(t_s, kind, data)
+            t_s, name, data = self._pending.popleft()
+            self.event(t_s, name, data)
 
     def finish(self, summary: JsonObject) -> None:
         """Last words, from the thread that owns the rings once the loop has ended."""

@@ -133,7 +133,7 @@ class Loop:
         self.clock_gaps = 0  # loop.clock daq: ticks the OS clock paced (no sample came)
         self.sample_grace_s = max(SAMPLE_GRACE_PERIODS * self.period_s,
                                   0.5 * lc.stall_timeout_s)
-        # loop.clock daq: when each kind of notice was last said (at most once a second)
+        # loop.clock daq: when each notice (gap, missed) was last said (at most once a second)
         self._said_gap_s = self._said_missed_s = -math.inf
         self.timing = TickTiming()
         self.notices: deque[str] = deque(maxlen=256)

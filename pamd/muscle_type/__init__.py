@@ -35,8 +35,8 @@ __all__ = [
 ]
 
 
-def force_model(kind: str = "map") -> ForceModel:
+def force_model(name: str = "map") -> ForceModel:
     """The DMSP-20's force model by name, 'map' (its datasheet map) or 'fit' (the smooth
     fit): the reference rig's, for benches and tests that study that muscle. A rig's
     muscle takes its own type's (`MuscleType.force_model`)."""
-    return datasheet_type(DEFAULT_TYPE).force_model(kind)
+    return datasheet_type(DEFAULT_TYPE).force_model(name)

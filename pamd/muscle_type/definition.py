@@ -46,17 +46,17 @@ class MuscleType:
     #: compares, since the table may change on disk while the config's text does not
     map_sha256: str | None = None
 
-    def force_model(self, kind: str = "map") -> ForceModel:
-        """The force model `kind` ('map' or 'fit') of this type; ValueError when the
+    def force_model(self, name: str = "map") -> ForceModel:
+        """The force model `name`d ('map' or 'fit') of this type; ValueError when the
         type has no fit (the loader refuses that config with the reason)."""
-        if kind == "map":
+        if name == "map":
             return self.force_map
-        if kind == "fit":
+        if name == "fit":
             if self.force_fit is None:
                 raise ValueError(f"the {self.name} type has no smooth fit of its map; use "
                                  "force_model: map")
             return self.force_fit
-        raise ValueError(f"unknown force model {kind!r}; use one of {', '.join(FORCE_MODELS)}")
+        raise ValueError(f"unknown force model {name!r}; use one of {', '.join(FORCE_MODELS)}")
 
     def stops(self) -> tuple[float, float]:
         """Where a simulated rig's hard stops sit by default (contraction fractions):

@@ -14,7 +14,7 @@ A shape is one `Shape` subclass, registered in `SHAPES`: its name, its own check
 its evaluator; its name and the `ProfileSpec` fields it reads are declared in
 `pamd.wire.shape_names` (light: the command schemas in the io process read only that).
 The command schema, experiment plans, `pamd run --profile` and length profiles take
-their kinds from there.
+their shapes from there.
 
 shapes     `Shape` and the plain shapes: constant, ramp, step, sine, triangle
 harmonic   seed 003's sums of harmonics: multisine, multitriangle
@@ -32,11 +32,11 @@ from pamd.profiles.harmonic import (
 )
 from pamd.profiles.shapes import Constant, Periodic, Ramp, Shape, Sine, Step, Triangle
 from pamd.profiles.spec import MAX_PROFILE_S, SHAPES, Profile, ProfilePoint, ProfileSpec, shape_of
-from pamd.wire.shape_names import SHAPE_NAMES, ProfileKind, kinds_reading, kinds_text
+from pamd.wire.shape_names import SHAPE_NAMES, ShapeName, shapes_reading, shapes_text
 
 __all__ = [
     "DEFAULT_HARMONICS", "HARMONIC_GRID", "MAX_PROFILE_S", "SHAPES", "SHAPE_NAMES", "Constant",
-    "Harmonic", "Multisine", "Multitriangle", "Periodic", "Profile", "ProfileKind",
-    "ProfilePoint", "ProfileSpec", "Ramp", "Shape", "Sine", "Step", "Triangle", "kinds_reading",
-    "kinds_text", "shape_of", "unit_triangle",
+    "Harmonic", "Multisine", "Multitriangle", "Periodic", "Profile", "ShapeName",
+    "ProfilePoint", "ProfileSpec", "Ramp", "Shape", "Sine", "Step", "Triangle", "shapes_reading",
+    "shapes_text", "shape_of", "unit_triangle",
 ]

@@ -101,16 +101,16 @@ class Harmonic(Periodic):
         super().check_params(spec)
         seen: set[int] = set()
         if not spec.harmonic_list():
-            raise CommandRefused(f"{spec.kind} profile: harmonics is empty; give at least "
+            raise CommandRefused(f"{spec.shape_name} profile: harmonics is empty; give at least "
                                  "one {number, share}, or leave harmonics out for the "
                                  "default (1, 2, 3 with shares 0.6, 0.25, 0.15)")
         for n, a in spec.harmonic_list():
             if not (isinstance(n, int) and 1 <= n <= MAX_HARMONIC_NUMBER) or n in seen:
-                raise CommandRefused(f"{spec.kind} profile: harmonic numbers must be distinct "
-                                     f"whole numbers from 1 to {MAX_HARMONIC_NUMBER} (got "
+                raise CommandRefused(f"{spec.shape_name} profile: harmonic numbers must be "
+                                     f"distinct whole numbers from 1 to {MAX_HARMONIC_NUMBER} (got "
                                      f"{n!r})")
             if not (math.isfinite(a) and abs(a) >= sys.float_info.min):
-                raise CommandRefused(f"{spec.kind} profile: harmonic {n}'s share must be a "
+                raise CommandRefused(f"{spec.shape_name} profile: harmonic {n}'s share must be a "
                                      f"finite non-zero number of a physical size (got {a!r})")
             seen.add(n)
 
@@ -120,7 +120,7 @@ class Harmonic(Periodic):
         count, most = len(spec.harmonic_list()), max_harmonics(period_s)
         if count > most:
             raise CommandRefused(
-                f"{spec.kind} profile: {count} harmonics cost a tick about "
+                f"{spec.shape_name} profile: {count} harmonics cost a tick about "
                 f"{1e6 * EVALUATIONS_PER_TICK * HARMONIC_TICK_COST_S * count:.0f} us, more "
                 f"than a tenth of the loop's {1e3 * period_s:g} ms period affords: at most "
                 f"{most} harmonics")
@@ -130,7 +130,7 @@ class Harmonic(Periodic):
         """Refuse naming the first harmonic with which the signal leaves [low, high] or
         moves faster than `rate_limit` (values shown times `scale`, in `unit`; `origin`
         says where the limits come from)."""
-        k = spec.kind
+        k = spec.shape_name
         for n, a, lo, hi, rate in self.partial(spec):
             what = f"{k} profile: with harmonic {n} (share {a:g})"
             if lo < low - 1e-9 or hi > high + 1e-9:

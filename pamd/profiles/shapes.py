@@ -121,7 +121,7 @@ class Periodic(Shape):
     periodic = True
 
     def check_params(self, spec: ProfileSpec) -> None:
-        k = spec.kind
+        k = spec.shape_name
         if not spec.max_bar > spec.min_bar:
             raise CommandRefused(f"{k} profile: max_bar ({spec.max_bar}) must exceed "
                                  f"min_bar ({spec.min_bar})")

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pamd.profiles.harmonic import DEFAULT_HARMONICS, Harmonic, Multisine, Multitriangle
 from pamd.profiles.shapes import Constant, Ramp, Shape, Sine, Step, Triangle
 from pamd.wire.errors import CommandRefused
-from pamd.wire.shape_names import SHAPE_NAMES, ProfileKind, kinds_text
+from pamd.wire.shape_names import SHAPE_NAMES, ShapeName, shapes_text
 
 _IMPLEMENTED: dict[str, Shape] = {s.name: s for s in (
     Constant(), Step(), Ramp(), Sine(), Triangle(), Multisine(), Multitriangle())}
@@ -28,11 +28,11 @@ and fields in `pamd.wire.shape_names.SHAPE_PARAMS` and one `Shape` subclass adde
 shape declared there and not here, or here and not there, fails at import)."""
 
 
-def shape_of(kind: str) -> Shape:
+def shape_of(name: str) -> Shape:
     """The registered shape so named; CommandRefused naming the known ones."""
-    shape = SHAPES.get(kind)
+    shape = SHAPES.get(name)
     if shape is None:
-        raise CommandRefused(f"unknown profile kind {kind!r}; use {kinds_text()}")
+        raise CommandRefused(f"unknown profile shape {name!r}; use {shapes_text()}")
     return shape
 
 
@@ -44,9 +44,9 @@ MAX_PROFILE_S = 30 * 86400.0
 @dataclass(frozen=True)
 class ProfileSpec:
     """What an operator asks for; validated by `check` before anything moves. An
-    unknown `kind` is refused when the spec is made (CommandRefused)."""
+    unknown `shape_name` is refused when the spec is made (CommandRefused)."""
 
-    kind: ProfileKind = "sine"
+    shape_name: ShapeName = "sine"
     min_bar: float = 0.0
     max_bar: float = 6.0
     freq_hz: float = 0.05
@@ -61,7 +61,7 @@ class ProfileSpec:
     harmonics: tuple[tuple[int, float], ...] | None = None
 
     def __post_init__(self) -> None:
-        shape_of(self.kind)
+        shape_of(self.shape_name)
 
     def harmonic_list(self) -> tuple[tuple[int, float], ...]:
         """The harmonics a multisine or multitriangle sums (the default if none given)."""
@@ -71,7 +71,7 @@ class ProfileSpec:
 
     @property
     def shape(self) -> Shape:
-        return SHAPES[self.kind]
+        return SHAPES[self.shape_name]
 
     def start_value(self) -> float:
         return self.shape.start_value(self)
@@ -100,10 +100,10 @@ class ProfileSpec:
                   and n not in self.shape.params and n != "lead_in_bar_per_s"]
         if unread:
             raise CommandRefused(
-                f"a {self.kind} profile does not read {' or '.join(unread)} (it reads "
+                f"a {self.shape_name} profile does not read {' or '.join(unread)} (it reads "
                 f"{', '.join(self.shape.params)}); leave {'them' if len(unread) > 1 else 'it'}"
                 " out" + ("; a constant holds until stopped, or for its duration_s (pamd run: "
-                          "the run's --duration)" if self.kind == "constant" else ""))
+                          "the run's --duration)" if self.shape_name == "constant" else ""))
 
     def check_values(self) -> None:
         """Refuse (CommandRefused) a parameter that is no physical number: not finite, or
@@ -114,7 +114,7 @@ class ProfileSpec:
         for name in _FLOAT_PARAMS:
             v = getattr(self, name)
             if v is not None and not _physical(v):
-                raise CommandRefused(f"{self.kind} profile: {name} {v!r} is not a physical "
+                raise CommandRefused(f"{self.shape_name} profile: {name} {v!r} is not a physical "
                                      "number (finite, 0 or at least 2.2e-308 in magnitude)")
 
     def check(self, low_bar: float, high_bar: float, slew_limit: float,
@@ -122,7 +122,7 @@ class ProfileSpec:
         """Refuse (CommandRefused) a profile outside [low, high] or faster than the slew
         limit, or costing a tick of the loop's `period_s` more than it affords (the
         harmonics), saying which parameter to change."""
-        k = self.kind
+        k = self.shape_name
         shape = self.shape
         self.check_values()
         self.check_reads()
@@ -150,7 +150,7 @@ class ProfileSpec:
         """Refuse a profile whose one cycle, or whole run, is longer than
         MAX_PROFILE_S (a frequency of 1e-300 Hz, a billion cycles): its times would not
         even be finite, and no rig runs unattended that long."""
-        k = self.kind
+        k = self.shape_name
         if self.shape.periodic:
             period = 1.0 / self.freq_hz if self.freq_hz > 0 else math.inf
             if not period <= MAX_PROFILE_S:
@@ -194,7 +194,7 @@ class Profile(ProfilePoint):
     def __init__(self, spec: ProfileSpec, t0_s: float, present_bar: float,
                  slew_limit: float) -> None:
         self.spec = spec
-        self.kind = spec.kind
+        self.shape_name = spec.shape_name
         self.shape = spec.shape
         self.t0_s = t0_s
         self.from_bar = present_bar

@@ -1,5 +1,5 @@
 """The simulated rig's scripted faults (the `sim` driver's `faults` option): what can
-fail, each kind's defaults, and the rules the per-field bounds cannot catch.
+fail (each fault's `failure`), their defaults, and the rules the per-field bounds cannot catch.
 
 This module deliberately does not use `from __future__ import annotations`, so
 `dataclasses.fields(...)[i].type` holds real types for the config engine.
@@ -12,8 +12,8 @@ from typing import Literal
 
 from pamd.wire.schema.engine import spec
 
-#: Which fault kinds each signal takes (see `SimFault`).
-FAULT_KINDS: dict[str, tuple[str, ...]] = {
+#: The failures each signal can have (see `SimFault`).
+FAILURES: dict[str, tuple[str, ...]] = {
     "pressure": ("dead", "stuck", "noisy", "jump", "silent"),
     "force": ("dead", "stuck", "noisy", "jump", "silent"),
     "length": ("dead", "stuck", "noisy", "jump", "silent"),
@@ -42,7 +42,7 @@ class SimFault:
         "the whole device (driver), the loop's process (loop) or the hardware safety "
         "chain (safety_chain, muscle '*').",
     )
-    kind: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error", "stall",
+    failure: Literal["dead", "stuck", "noisy", "jump", "silent", "lost", "error", "stall",
                   "open", "closed"] = spec(
         "error",
         "Sensors: dead (reads 0), stuck (repeats its last value), noisy (adds noise of "
@@ -54,6 +54,7 @@ class SimFault:
         "clock, a virtual one does not move meanwhile); safety_chain: open (an e-stop "
         "pressed: the chain's input reads 0 and the chain cuts the supply of every "
         "muscle) or closed (released again: the air returns).",
+        old="kind",
     )
     duration_s: float | None = spec(
         None, "stall: how long the loop's process stops (required there, refused "
@@ -77,16 +78,16 @@ def check_faults(faults: Sequence[SimFault], names: Sequence[str]) -> list[str]:
     problems: list[str] = []
     for k, f in enumerate(faults):
         where = f"faults[{k}]"
-        if f.kind not in FAULT_KINDS[f.signal]:
+        if f.failure not in FAILURES[f.signal]:
             problems.append(
-                f"{where}: a {f.signal} fault is one of {', '.join(FAULT_KINDS[f.signal])}, "
-                f"not {f.kind!r}"
+                f"{where}: a {f.signal} fault is one of {', '.join(FAILURES[f.signal])}, "
+                f"not {f.failure!r}"
             )
         problems += _muscle_problems(f, names, where)
-        if (f.kind == "stall") != (f.duration_s is not None):
+        if (f.failure == "stall") != (f.duration_s is not None):
             problems.append(f"{where}: duration_s is " + (
                 "required by a stall (how long the loop's process stops)"
-                if f.kind == "stall" else f"only for a stall, not a {f.kind} fault"))
+                if f.failure == "stall" else f"only for a stall, not a {f.failure} fault"))
         problems += _size_problems(f, where)
     return problems
 
@@ -113,10 +114,10 @@ def _size_problems(f: SimFault, where: str) -> list[str]:
     """The fault's size: finite (and > 0 for noisy), not 0 for a jump, and given for
     noisy and jump faults only."""
     if f.size is not None and (not math.isfinite(f.size) or
-                               (f.kind == "noisy" and f.size <= 0.0)):
+                               (f.failure == "noisy" and f.size <= 0.0)):
         return [f"{where}: size must be finite (and > 0 for noisy), got {f.size}"]
-    if f.kind == "jump" and f.size == 0.0:
+    if f.failure == "jump" and f.size == 0.0:
         return [f"{where}: a jump of size 0 changes nothing: no fault to script"]
-    if f.size is not None and f.kind not in ("noisy", "jump"):
-        return [f"{where}: size applies to noisy and jump faults only, not {f.kind!r}"]
+    if f.size is not None and f.failure not in ("noisy", "jump"):
+        return [f"{where}: size applies to noisy and jump faults only, not {f.failure!r}"]
     return []

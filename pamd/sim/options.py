@@ -80,7 +80,7 @@ class SimOptions:
     )
     faults: tuple[SimFault, ...] = option(
         (),
-        "Scripted faults, each {at_s, muscle, signal, kind[, size]}: how a rig reacts to a "
+        "Scripted faults, each {at_s, muscle, signal, failure[, size]}: how a rig reacts to a "
         "dead, stuck, noisy or jumping sensor, a lost supply, a stuck valve or a driver "
         "error, from the CLI.",
     )
@@ -146,7 +146,7 @@ def check_options(options: SimOptions) -> list[str]:
             if burst and not m.burst_every_s > burst:
                 problems.append(f"{where}: {what}_burst_s ({burst} s) must be shorter than "
                                 f"burst_every_s ({m.burst_every_s} s): a link that never "
-                                "delivers is a silent sensor (a fault kind), not a burst")
+                                "delivers is a silent sensor (a failure of a fault), not a burst")
         problems += _type_problems(m, where)
         stop_lo, stop_hi = stops(m)
         if stop_lo is not None and stop_hi is not None and stop_lo > stop_hi:

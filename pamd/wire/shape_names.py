@@ -1,5 +1,5 @@
 """The profile shapes' names and the `ProfileSpec` fields each reads: what a command's
-schema, a plan's `kind` and `pamd run --help` need of the shapes, without their code
+schema, a plan's `shape` and `pamd run --help` need of the shapes, without their code
 (`pamd.profiles`). The io process validates commands with this module alone.
 
 A new shape is one line here and one `pamd.profiles.Shape` subclass registered in
@@ -28,16 +28,16 @@ SHAPE_PARAMS: dict[str, tuple[str, ...]] = {
 SHAPE_NAMES: tuple[str, ...] = tuple(SHAPE_PARAMS)
 
 if TYPE_CHECKING:
-    ProfileKind = str
-else:  # the config engine validates a plan's `kind` against the registered names
-    ProfileKind = Literal[SHAPE_NAMES]
+    ShapeName = str
+else:  # the config engine validates a plan's `shape` against the registered names
+    ShapeName = Literal[SHAPE_NAMES]
 
 
-def kinds_text() -> str:
+def shapes_text() -> str:
     """The shapes for an operator: 'constant, step, ramp, sine or triangle'."""
     return ", ".join(SHAPE_NAMES[:-1]) + " or " + SHAPE_NAMES[-1]
 
 
-def kinds_reading(param: str, sep: str = ", ") -> str:
+def shapes_reading(param: str, sep: str = ", ") -> str:
     """The shapes that read ProfileSpec field `param` (help texts)."""
     return sep.join(name for name, params in SHAPE_PARAMS.items() if param in params)

@@ -112,9 +112,9 @@ class Sink(Protocol):
     def put(self, record: array[float]) -> bool:
         """Take one tick record; False if it had to be dropped."""
 
-    def event(self, t_s: float, kind: str, data: JsonObject) -> None:
-        """A discrete event: supervisor transition, command outcome, ...: a kind
-        declared, with its payload's keys, in pamd.wire.declare.events."""
+    def event(self, t_s: float, name: str, data: JsonObject) -> None:
+        """A discrete event: supervisor transition, command outcome, ...: its
+        `name` declared, with its payload's keys, in pamd.wire.declare.events."""
 
     def close(self) -> None: ...
 

@@ -191,7 +191,7 @@ def test_only_the_position_loop_and_only_its_integral_is_judged_so() -> None:
     from pamd.config.gains import loop_margins
 
     (_, pressure, _), (_, position, _) = loop_margins(cfg.rig, 0)
-    assert pressure.kind == "ok" and position.kind == "integral"
+    assert pressure.outcome == "ok" and position.outcome == "integral"
     assert "warned, not refused: friction" in position.note()
 
 

@@ -62,7 +62,7 @@ def control(cfg: LoadedConfig, model: InverseModel, **position: object) -> Lengt
 
 def sine(freq_hz: float = 0.5) -> Profile:
     """5-20 % contraction (190 -> 160 mm), from mid-range: no lead-in."""
-    spec = ProfileSpec(kind="sine", min_bar=0.05, max_bar=0.20, freq_hz=freq_hz,
+    spec = ProfileSpec(shape_name="sine", min_bar=0.05, max_bar=0.20, freq_hz=freq_hz,
                        lead_in_bar_per_s=0.1)
     return Profile(spec, 0.0, 0.125, 0.5)
 

@@ -17,9 +17,9 @@ from pamd.profiles import (
     SHAPES,
     Profile,
     ProfileSpec,
-    kinds_reading,
-    kinds_text,
     shape_of,
+    shapes_reading,
+    shapes_text,
 )
 from pamd.wire.errors import CommandRefused
 from pamd.wire.shape_names import SHAPE_PARAMS
@@ -31,7 +31,7 @@ PARAMS = {"min_bar": 1.0, "max_bar": 4.0, "freq_hz": 0.2, "cycles": 2, "to_bar":
 
 
 def _run(kind: str, present_bar: float = 0.5) -> tuple[Profile, list[float], list[float]]:
-    spec = ProfileSpec(kind=kind, **{k: v for k, v in PARAMS.items()  # type: ignore[arg-type]
+    spec = ProfileSpec(shape_name=kind, **{k: v for k, v in PARAMS.items()  # type: ignore[arg-type]
                                      if k in SHAPES[kind].params})
     spec.check(0.0, 6.0, SLEW)
     p = Profile(spec, 0.0, present_bar, SLEW)
@@ -68,13 +68,13 @@ def test_each_shape_runs_as_it_declares(kind: str) -> None:
         assert p.cycle == spec.cycles
 
 
-def test_an_unknown_kind_is_refused_naming_the_registered_ones() -> None:
-    assert kinds_text() == ("constant, step, ramp, sine, triangle, multisine or "
+def test_an_unknown_shape_is_refused_naming_the_registered_ones() -> None:
+    assert shapes_text() == ("constant, step, ramp, sine, triangle, multisine or "
                             "multitriangle")
-    for make in (lambda: ProfileSpec(kind="zigzag"), lambda: shape_of("zigzag")):
+    for make in (lambda: ProfileSpec(shape_name="zigzag"), lambda: shape_of("zigzag")):
         with pytest.raises(CommandRefused) as exc:
             make()
-        assert str(exc.value) == ("unknown profile kind 'zigzag'; use constant, step, ramp, "
+        assert str(exc.value) == ("unknown profile shape 'zigzag'; use constant, step, ramp, "
                                   "sine, triangle, multisine or multitriangle")
 
 
@@ -88,12 +88,12 @@ def test_the_light_declaration_names_the_registered_shapes() -> None:
                for params in SHAPE_PARAMS.values())
 
 
-def test_every_place_that_names_the_kinds_reads_the_registry() -> None:
-    assert typing.get_args(typing.get_type_hints(PlanProfile)["kind"]) == SHAPE_NAMES
+def test_every_place_that_names_the_shapes_reads_the_registry() -> None:
+    assert typing.get_args(typing.get_type_hints(PlanProfile)["shape"]) == SHAPE_NAMES
     docs = {f.name: f.metadata["doc"] for f in dataclasses.fields(ProfileArgs)}
-    assert docs["kind"] == kinds_text() + "."
+    assert docs["shape"] == "Profile shape: " + shapes_text() + "."
     assert docs["freq_hz"] == "Frequency (step, sine, triangle, multisine, multitriangle)."
-    assert kinds_reading("to_bar") == "constant, ramp"
+    assert shapes_reading("to_bar") == "constant, ramp"
     parser = build_parser()  # `pamd run --profile` takes every shape and nothing else
     for name in SHAPE_NAMES:
         assert parser.parse_args(["run", "--profile", name]).profile == name

@@ -67,7 +67,7 @@ def test_every_emitted_kind_is_declared_and_its_literal_payload_matches() -> Non
     for rel, line, kind, data in _sites():
         k = events.EVENTS.get(kind)
         if k is None:
-            wrong.append(f"pamd/{rel}:{line}: event kind {kind!r} is not declared in "
+            wrong.append(f"pamd/{rel}:{line}: event {kind!r} is not declared in "
                          "pamd.wire.declare.events")
             continue
         if not isinstance(data, ast.Dict):
@@ -89,7 +89,7 @@ def test_every_declared_kind_is_said_somewhere() -> None:
     """No declaration outlives its event: each kind's name is in pamd's source."""
     text = "\n".join(p.read_text() for p in (ROOT / "pamd").rglob("*.py")
                      if "declare" not in p.parts)
-    dead = [k.name for k in events.KINDS if f'"{k.name}"' not in text]
+    dead = [k.name for k in events.DECLARED if f'"{k.name}"' not in text]
     assert not dead
 
 
@@ -104,7 +104,7 @@ def test_problems_names_what_drifted() -> None:
                                      "fault_ms": 500.0}) == [
         "stall: 'count' is str, declared integer"]
     assert events.problems("no_such", {}) == [
-        "event kind 'no_such' is not declared in pamd.wire.declare.events"]
+        "event 'no_such' is not declared in pamd.wire.declare.events"]
     # an open kind takes more keys (a verdict's), a closed one does not
     assert events.problems("reply", {"id": 3, "ok": True, "ramp_s": 1.5}) == []
     assert events.problems("reply", {"id": 3}) == ["reply: 'ok' missing"]
@@ -121,7 +121,7 @@ def _valid(event: dict[str, object]) -> bool:
 def test_the_recorded_event_schema_is_the_registry() -> None:
     schema = recorder.EVENT_SCHEMA
     jsonschema.Draft202012Validator.check_schema(schema)
-    recorded = [k.name for k in events.KINDS if k.recorded]
+    recorded = [k.name for k in events.DECLARED if k.recorded]
     assert schema["properties"]["kind"]["enum"] == recorded  # type: ignore[index]
     assert {"startup", "soft_limit", "implausible", "deadman", "adapt",
             "verdict_received"} <= set(recorded)  # the six the old schema did not name
@@ -136,7 +136,7 @@ def test_the_recorded_event_schema_is_the_registry() -> None:
         "state": "out", "supply_bar": float("nan"), "safety_chain": 1.0}})))
 
 
-@pytest.mark.parametrize("kind", [k.name for k in events.KINDS])
+@pytest.mark.parametrize("kind", [k.name for k in events.DECLARED])
 def test_every_kind_is_documented(kind: str) -> None:
     k = events.EVENTS[kind]
     assert k.meaning and k.emitted_by

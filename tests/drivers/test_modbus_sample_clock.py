@@ -61,16 +61,16 @@ def ages_over(drv: ModbusDriver, seconds: float) -> list[float]:
     return out
 
 
-@pytest.mark.parametrize("kind", ["counter", "age"])
-def test_values_are_as_old_as_their_sample(module: Any, kind: str) -> None:
-    dev, drv = module(SampleClock(address=100, kind=kind), SAMPLE_PERIOD_S)
+@pytest.mark.parametrize("holds", ["counter", "age"])
+def test_values_are_as_old_as_their_sample(module: Any, holds: str) -> None:
+    dev, drv = module(SampleClock(address=100, holds=holds), SAMPLE_PERIOD_S)
     ages = ages_over(drv, 1.0)
     # polled every 2 ms, but a sample is up to a period old before the next one: stamped
     # at read time the age would stay near the poll period
     assert max(ages) >= 0.8 * SAMPLE_PERIOD_S, max(ages)
     assert min(ages) >= -1e-3  # never stamped in the future
     assert dev.samples >= 5
-    if kind == "counter":  # one stamp per sample, not one per read
+    if holds == "counter":  # one stamp per sample, not one per read
         stamps = set()
         end = time.monotonic() + 0.5
         while time.monotonic() < end:
@@ -119,14 +119,14 @@ def test_the_rig_binds_each_input_with_its_device_aware_timeout(tmp_path: Any) -
         rig.close()
 
 
-@pytest.mark.parametrize("kind", [None, "counter", "age"])
+@pytest.mark.parametrize("holds", [None, "counter", "age"])
 def test_each_value_declares_how_far_from_its_stamp_it_was_taken(module: Any,
-                                                                 kind: str | None) -> None:
+                                                                 holds: str | None) -> None:
     """Stamped on arrival: the request's round trip (the module sampled it in between);
     by a counter: the time between the two reads that saw it step; by an age register:
     its unit plus the round trip. Never 0 where the protocol leaves time open, never as
     long as the sample period (the checks would then excuse any change)."""
-    dev, drv = module(None if kind is None else SampleClock(address=100, kind=kind),
+    dev, drv = module(None if holds is None else SampleClock(address=100, holds=holds),
                       SAMPLE_PERIOD_S)
     jitters = []
     end = time.monotonic() + 0.5

@@ -102,7 +102,7 @@ def opened(made: list[NidaqDriver], options: NidaqOptions) -> NidaqDriver:
      "one nidaqmx driver per device"),
     ({"analog_inputs": (AnalogInput(name="p", physical_channel="Dev1/ai0", min_v=5.0,
                                     max_v=1.0),)}, "not below"),
-    ({"analog_inputs": (AnalogInput(name="p", physical_channel="Dev1/ai0", kind="bridge"),)},
+    ({"analog_inputs": (AnalogInput(name="p", physical_channel="Dev1/ai0", measurement="bridge"),)},
      "needs `bridge`"),
     ({"timing": "hardware_timed"}, "sample_rate_hz"),
     ({"timing": "hardware_timed", "sample_rate_hz": 200.0, "analog_inputs": ()},
@@ -139,7 +139,7 @@ def test_channels_by_name_and_unit(card: Card) -> None:
     ({"analog_inputs": (AnalogInput(name="p", physical_channel="Dev1/ai9", terminal="diff"),)},
      -200077, "DAQmx_AI_TermCfg"),
     ({"timing": "hardware_timed", "sample_rate_hz": 50_000.0}, -200077, "DAQmx_SampClk_Rate"),
-    ({"analog_inputs": (AnalogInput(name="f", physical_channel="Dev1/ai0", kind="bridge",
+    ({"analog_inputs": (AnalogInput(name="f", physical_channel="Dev1/ai0", measurement="bridge",
                                     bridge=BridgeScale()),)}, -200431, "measurement type"),
     ({"encoders": (EncoderInput(name="len", counter="Dev1/ctr0", mm_per_pulse=0.04,
                                 a_terminal="PFI9"),)}, -89120, "PFI9"),
@@ -168,7 +168,7 @@ def test_a_bridge_input_reads_newtons_by_daqmx_scaling(made: list[NidaqDriver]) 
     try:
         module.shown["dev1/ai0"] = 750.0  # N on a 2000 N, 2 mV/V load cell
         o = NidaqOptions(server=f"127.0.0.1:{module.port}", analog_inputs=(
-            AnalogInput(name="f", physical_channel="Dev1/ai0", kind="bridge",
+            AnalogInput(name="f", physical_channel="Dev1/ai0", measurement="bridge",
                         bridge=BridgeScale(excitation_v=5.0, rated_output_mv_per_v=2.0,
                                            capacity_n=2000.0)),))
         d = opened(made, o)

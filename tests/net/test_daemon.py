@@ -67,7 +67,7 @@ BAD: list[tuple[str, dict[str, Any], str]] = [
     ("setpoint", {"payload": {"muscle": "m1", "bar": 2.0, "ramp_s": 0.01}}, "slew limit"),
     ("setpoint", {"payload": {"muscle": "m1", "bar": 2.0, "deadman_s": 0}}, "deadman_s"),
     ("profile", {"payload": {"kind": "sine", "max_bar": 8.0}}, "outside 0-6 bar"),
-    ("profile", {"payload": {"kind": "zigzag"}}, "unknown profile kind"),
+    ("profile", {"payload": {"kind": "zigzag"}}, "unknown profile shape"),
     ("profile", {"payload": {"cycles": 1.5}}, "cycles: expected an integer"),
     ("load", {"payload": {"muscle": "m1", "load_kg": 500.0}}, "exceeds"),
     ("home", {"payload": {"muscle": "m1", "length_mm": -5.0}}, "greater than 0"),

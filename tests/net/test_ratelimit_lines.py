@@ -1,4 +1,4 @@
-"""One line per kind per interval, the next saying how many were dropped
+"""One line per pattern per interval, the next saying how many were dropped
 (`pamd.iohost.ratelimit`): what clients send cannot grow a log. And what an estop or stop
 keeps of a payload it cannot take whole (`pamd.iohost.intake.salvage`)."""
 
@@ -13,26 +13,26 @@ import pytest
 
 from pamd.iohost import ratelimit
 from pamd.iohost.intake import salvage
-from pamd.iohost.ratelimit import LineLimiter, RateLimitedHandler, kind_of
+from pamd.iohost.ratelimit import LineLimiter, RateLimitedHandler, pattern_of
 
 
-def test_one_line_per_kind_per_interval_then_the_count() -> None:
-    lim = LineLimiter(interval_s=10.0, max_kinds=3)
+def test_one_line_per_pattern_per_interval_then_the_count() -> None:
+    lim = LineLimiter(interval_s=10.0, max_patterns=3)
     assert lim.admit("a", 0.0) == 0
     assert [lim.admit("a", t) for t in (1.0, 2.0, 9.9)] == [None, None, None]
-    assert lim.admit("b", 5.0) == 0  # another kind is not held back
+    assert lim.admit("b", 5.0) == 0  # another pattern is not held back
     assert lim.admit("a", 10.0) == 3  # the next says how many were dropped
     assert lim.due(25.0) == []  # nothing dropped since
     assert lim.admit("a", 21.0) == 0 and lim.admit("a", 22.0) is None
     assert lim.due(30.0) == [] and lim.due(31.0) == [("a", 1)]  # the end of a flood, said
-    for k in "cdefgh":  # kinds are bounded: new ones share one
+    for k in "cdefgh":  # patterns are bounded: new ones share one
         lim.admit(k, 40.0)
-    assert len(lim.last) <= 4 and ratelimit.OTHER_KIND in lim.last
+    assert len(lim.last) <= 4 and ratelimit.OTHER_PATTERN in lim.last
 
 
-def test_numbers_do_not_make_kinds() -> None:
-    assert kind_of("Invalid message from 127.0.0.1:55714: opcode 153") == \
-        kind_of("Invalid message from 10.0.0.7:1: opcode 9")
+def test_numbers_do_not_make_patterns() -> None:
+    assert pattern_of("Invalid message from 127.0.0.1:55714: opcode 153") == \
+        pattern_of("Invalid message from 10.0.0.7:1: opcode 9")
 
 
 def test_the_handler_writes_a_flood_of_bad_frames_as_a_few_lines(
@@ -54,7 +54,7 @@ def test_the_handler_writes_a_flood_of_bad_frames_as_a_few_lines(
     finally:
         log.removeHandler(h)
     lines = out.getvalue().splitlines()
-    assert 2 * 10 <= len(lines) <= 2 * 11 + 2, len(lines)  # 2 kinds, one per 10 s each
+    assert 2 * 10 <= len(lines) <= 2 * 11 + 2, len(lines)  # 2 patterns, one per 10 s each
     assert len(out.getvalue()) < 5000  # was one line a frame: some 1.5 MB
     assert "(999 more like it in the last 10 s not shown)" in lines[2]
     assert lines[-1].endswith("in the last 10 s not shown")

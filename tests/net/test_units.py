@@ -332,7 +332,10 @@ def test_cmd_payloads_from_options() -> None:
     assert p == {"muscle": "m1", "bar": 3.0, "deadman_s": 0.5}
     p = build_payload("profile", ["--kind", "sine", "--cycles", "2", "--max-bar", "4"],
                       verb_parser("profile").parse_args([]))
-    assert p == {"kind": "sine", "cycles": 2, "max_bar": 4.0}
+    assert p == {"shape": "sine", "cycles": 2, "max_bar": 4.0}
+    p = build_payload("profile", ["--shape", "sine", "--cycles", "2", "--max-bar", "4"],
+                      verb_parser("profile").parse_args([]))  # the new name, and the old one
+    assert p == {"shape": "sine", "cycles": 2, "max_bar": 4.0}
     assert _parse_bool("false") is False and _parse_bool("On") is True
     p = build_payload("load", ["--arg", "muscle=m1", "--arg", "load_kg=40"],
                       verb_parser("load").parse_args([]))

@@ -80,7 +80,7 @@ def test_events_metadata_and_attachments(recorded_run: Any) -> None:
     tr = [e["data"] for e in ev if e["kind"] == "transition"]
     assert tr[0]["from"] == "STARTING" and tr[0]["to"] == "IDLE" and tr[0]["reason"]
     cmd = next(e["data"] for e in ev if e["kind"] == "command")
-    assert cmd["verb"] == "profile" and cmd["ok"] is True and cmd["args"]["kind"] == "sine"
+    assert cmd["verb"] == "profile" and cmd["ok"] is True and cmd["args"]["shape"] == "sine"
     meta = f["meta"]
     assert meta["pamd"]["note"] == "test note"
     assert meta["pamd"]["rig_id"] == "sim" and meta["pamd"]["clock"] == "virtual"

@@ -62,7 +62,7 @@ def _to_the_fault(rig: SafetyRig, state: str, load_kg: float) -> None:
 
 
 def _fault(signal: str, kind: str, state: str) -> dict[str, Any]:
-    return {"at_s": FAULT_AT_S[state], "signal": signal, "kind": kind,
+    return {"at_s": FAULT_AT_S[state], "signal": signal, "failure": kind,
             "muscle": "*" if signal == "driver" else "m1"}
 
 

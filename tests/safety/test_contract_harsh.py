@@ -23,7 +23,7 @@ AFTER_S = 2.5
 
 
 def _fault(signal: str, kind: str, state: str) -> dict[str, Any]:
-    return {"at_s": FAULT_AT_S[state], "signal": signal, "kind": kind,
+    return {"at_s": FAULT_AT_S[state], "signal": signal, "failure": kind,
             "muscle": "*" if signal == "driver" else "m1"}
 
 

@@ -211,7 +211,7 @@ def test_unknown_faults_are_refused(make_rig) -> None:
     with pytest.raises(ValueError, match="fault"):
         drv.inject_fault("m1", "force", "melted")
     # each signal takes only its own kinds (pamd.sim.faults.FAULT_KINDS), named
-    with pytest.raises(ValueError, match="valve fault kind must be 'stuck', got 'lost'"):
+    with pytest.raises(ValueError, match="valve fault must be 'stuck', got 'lost'"):
         drv.inject_fault("m1", "valve", "lost")
     with pytest.raises(ValueError, match="'open' or 'closed', got 'stuck'"):
         drv.inject_fault("*", "safety_chain", "stuck")

@@ -45,7 +45,7 @@ def run(drv: SimDriver, clock: Clock, seconds: float, dt: float = 0.001) -> None
 
 
 def test_a_scheduled_fault_strikes_at_its_time_on_the_loops_clock() -> None:
-    drv, clock = stepped(SimFault(at_s=0.5, muscle="m1", signal="length", kind="dead"))
+    drv, clock = stepped(SimFault(at_s=0.5, muscle="m1", signal="length", failure="dead"))
     run(drv, clock, 0.499)
     assert drv.in_values[2] > 150.0
     run(drv, clock, 0.001)
@@ -54,12 +54,12 @@ def test_a_scheduled_fault_strikes_at_its_time_on_the_loops_clock() -> None:
 
 @pytest.mark.parametrize("signal, index", [("pressure", 0), ("force", 1), ("length", 2)])
 def test_jump_and_noisy_sensors(signal: str, index: int) -> None:
-    drv, clock = stepped(SimFault(at_s=0.1, muscle="m1", signal=signal, kind="jump", size=7.0))
+    drv, clock = stepped(SimFault(at_s=0.1, muscle="m1", signal=signal, failure="jump", size=7.0))
     clean, cclock = stepped()
     run(drv, clock, 0.2)
     run(clean, cclock, 0.2)
     assert drv.in_values[index] - clean.in_values[index] == pytest.approx(7.0, abs=1e-9)
-    noisy, nclock = stepped(SimFault(at_s=0.0, muscle="m1", signal=signal, kind="noisy",
+    noisy, nclock = stepped(SimFault(at_s=0.0, muscle="m1", signal=signal, failure="noisy",
                                      size=2.0))
     clean, cclock = stepped()
     diffs = []
@@ -72,7 +72,7 @@ def test_jump_and_noisy_sensors(signal: str, index: int) -> None:
 
 
 def test_a_stuck_valve_ignores_new_setpoints_and_a_lost_supply_cannot_rise() -> None:
-    drv, clock = stepped(SimFault(at_s=0.3, muscle="m1", signal="valve", kind="stuck"))
+    drv, clock = stepped(SimFault(at_s=0.3, muscle="m1", signal="valve", failure="stuck"))
     drv.write(0, 2.0)
     run(drv, clock, 0.5)
     drv.write(0, 4.0)
@@ -82,26 +82,26 @@ def test_a_stuck_valve_ignores_new_setpoints_and_a_lost_supply_cannot_rise() -> 
     drv.write(0, 4.0)
     run(drv, clock, 0.5)
     assert drv.plant("m1").pressure_bar == pytest.approx(4.0, abs=0.05)
-    drv, clock = stepped(SimFault(at_s=0.0, muscle="m1", signal="supply", kind="lost"))
+    drv, clock = stepped(SimFault(at_s=0.0, muscle="m1", signal="supply", failure="lost"))
     drv.write(0, 3.0)
     run(drv, clock, 0.5)
     assert drv.plant("m1").pressure_bar < 0.05
 
 
 def test_a_driver_error_on_schedule() -> None:
-    drv, clock = stepped(SimFault(at_s=0.2, signal="driver", kind="error"))
+    drv, clock = stepped(SimFault(at_s=0.2, signal="driver", failure="error"))
     run(drv, clock, 0.3)
     assert drv.fault is not None and "injected driver error" in drv.fault
 
 
 @pytest.mark.parametrize("fault, said", [
-    (SimFault(muscle="m9", signal="length", kind="dead"), "no muscle 'm9' in this sim driver"),
-    (SimFault(muscle="*", signal="force", kind="dead"), "no muscle '*'"),
-    (SimFault(muscle="m1", signal="supply", kind="dead"), "a supply fault is one of lost"),
-    (SimFault(muscle="m1", signal="valve", kind="noisy"), "a valve fault is one of stuck"),
-    (SimFault(muscle="m1", signal="force", kind="noisy", size=-1.0), "size must be"),
-    (SimFault(muscle="m1", signal="length", kind="jump", size=0.0), "a jump of size 0"),
-    (SimFault(muscle="m1", signal="length", kind="dead", size=5.0), "size applies to noisy"),
+    (SimFault(muscle="m9", signal="length", failure="dead"), "no muscle 'm9' in this sim driver"),
+    (SimFault(muscle="*", signal="force", failure="dead"), "no muscle '*'"),
+    (SimFault(muscle="m1", signal="supply", failure="dead"), "a supply fault is one of lost"),
+    (SimFault(muscle="m1", signal="valve", failure="noisy"), "a valve fault is one of stuck"),
+    (SimFault(muscle="m1", signal="force", failure="noisy", size=-1.0), "size must be"),
+    (SimFault(muscle="m1", signal="length", failure="jump", size=0.0), "a jump of size 0"),
+    (SimFault(muscle="m1", signal="length", failure="dead", size=5.0), "size applies to noisy"),
 ])
 def test_a_schedule_naming_what_does_not_exist_is_refused(fault: SimFault, said: str) -> None:
     with pytest.raises(DriverError, match=said.replace("(", r"\(")):

@@ -115,7 +115,7 @@ def test_more_harmonics_than_a_tick_affords_are_refused_at_once(rig: LoadedConfi
     """Refused before the span is computed on its grid (bench/profile_harmonics.py times
     it): the issue's 3000 harmonics as a profile, more than 64 or more than a tick
     affords in a plan, at the line of the first one."""
-    issue = ProfileSpec(kind="multisine", min_bar=1.0, max_bar=4.0, freq_hz=0.01,
+    issue = ProfileSpec(shape_name="multisine", min_bar=1.0, max_bar=4.0, freq_hz=0.01,
                         harmonics=tuple((n, 0.5 / 3000) for n in range(1, 3001)))
     with pytest.raises(CommandRefused, match="whole numbers from 1 to 64"):
         issue.check(0.0, 6.0, 5.0, rig.period_s)
@@ -131,7 +131,7 @@ def test_more_harmonics_than_a_tick_affords_are_refused_at_once(rig: LoadedConfi
     # a 10 kHz loop affords 8 (a tenth of its 0.1 ms, two evaluations): 9 are refused
     most = max_harmonics(1e-4)
     assert most == 8
-    spec = ProfileSpec(kind="multisine", min_bar=1.0, max_bar=4.0, freq_hz=0.01,
+    spec = ProfileSpec(shape_name="multisine", min_bar=1.0, max_bar=4.0, freq_hz=0.01,
                        harmonics=tuple((n, 0.5 / (most + 1)) for n in range(1, most + 2)))
     with pytest.raises(CommandRefused, match=f"at most {most} harmonics"):
         spec.check(0.0, 6.0, 5.0, 1e-4)
@@ -159,5 +159,5 @@ def test_a_profile_built_in_code_refuses_what_is_no_physical_number(field: str) 
     are checked as the schemas check them."""
     for value in (1e-320, math.nan, math.inf):
         with pytest.raises(CommandRefused, match="physical"):
-            ProfileSpec(kind="sine", **{field: value}).check_values()
-    ProfileSpec(kind="sine", **{field: 0.5}).check_values()
+            ProfileSpec(shape_name="sine", **{field: value}).check_values()
+    ProfileSpec(shape_name="sine", **{field: 0.5}).check_values()

@@ -41,7 +41,7 @@ from pamd.wire.zconf import NoDaemon
 CMD_EPILOG = """examples:
   pamd cmd setpoint --muscle m1 --bar 3.0
   pamd cmd setpoint --muscle m1 --bar 3.0 --deadman-s 0.5     # streamed: refresh it
-  pamd cmd profile --kind sine --min-bar 0 --max-bar 6 --freq-hz 0.05 --cycles 2
+  pamd cmd profile --shape sine --min-bar 0 --max-bar 6 --freq-hz 0.05 --cycles 2
   pamd cmd hold ; pamd cmd stop ; pamd cmd estop --reason "hand in the rig"
   pamd cmd collect --plan-file sweep.yaml     # by name, from the daemon's telemetry.plans_dir
   pamd cmd model --muscle m1 --file m1.json   # by name, from its telemetry.models_dir
@@ -288,7 +288,11 @@ def verb_parser(verb: str) -> argparse.ArgumentParser:
         for f in dataclasses.fields(declared.args):
             doc = f.metadata.get("doc", "")
             unit = f.metadata.get("unit")
-            p.add_argument("--" + f.name.replace("_", "-"), dest=f"field_{f.name}",
+            flags = ["--" + f.name.replace("_", "-")]
+            if "old" in f.metadata:  # the field's old name still works (`--kind`)
+                flags.append("--" + f.metadata["old"].replace("_", "-"))
+                doc += f" (old name: {flags[1]})"
+            p.add_argument(*flags, dest=f"field_{f.name}",
                            type=_field_type(hints[f.name]), metavar=unit or "VALUE",
                            help=doc)
     return p

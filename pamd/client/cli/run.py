@@ -28,7 +28,7 @@ from pamd.iohost.viewer_spec import parse_listen
 from pamd.loop.control.feedforward import LoadedModel, load_models
 from pamd.loop.control.length_targets import check_length_profile_config
 from pamd.loop.control.onoff import POSITION_TAKES_NO_MODEL
-from pamd.profiles import SHAPE_NAMES, ProfileSpec, kinds_reading
+from pamd.profiles import SHAPE_NAMES, ProfileSpec, shapes_reading
 from pamd.wire.declare.jsonsafe import JsonObject
 from pamd.wire.errors import CommandRefused, ConfigError, ConfigIssue
 from pamd.wire.net_spec import TelemetryRequest
@@ -132,12 +132,12 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     g.add_argument("--profile", choices=SHAPE_NAMES, help="start this profile")
     g.add_argument("--muscle", help="apply the profile to this muscle only")
     g.add_argument("--freq-hz", type=float,
-                   help=f"{kinds_reading('freq_hz', '/')} (0.05); in a length mode too")
+                   help=f"{shapes_reading('freq_hz', '/')} (0.05); in a length mode too")
     g.add_argument("--min-bar", type=float, help="lowest pressure (0)")
     g.add_argument("--max-bar", type=float, help="highest pressure (6)")
-    g.add_argument("--cycles", type=int, help=f"number of cycles ({kinds_reading('cycles', '/')}; "
+    g.add_argument("--cycles", type=int, help=f"number of cycles ({shapes_reading('cycles', '/')}; "
                    "default: until stopped)")
-    g.add_argument("--to-bar", type=float, help=f"{kinds_reading('to_bar', '/')} target")
+    g.add_argument("--to-bar", type=float, help=f"{shapes_reading('to_bar', '/')} target")
     g.add_argument("--rate-bar-per-s", type=float, help="ramp rate (pressure mode; a "
                    "length ramp runs at half control.position.max_rate_per_s)")
     lm = p.add_argument_group(
@@ -165,7 +165,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     lm.add_argument("--max-contraction", type=float, help="length profile: most contraction "
                     "(fraction, e.g. 0.20)")
     lm.add_argument("--to-contraction", type=float, help="length profile: "
-                    f"{kinds_reading('to_bar', '/')} target (fraction)")
+                    f"{shapes_reading('to_bar', '/')} target (fraction)")
     p.set_defaults(func=run)
 
 
@@ -317,10 +317,10 @@ def _pressure_profile(args: argparse.Namespace, cfg: LoadedConfig,
                       given: dict[str, str]) -> JsonObject:
     """The --profile of the pressure mode as a profile command, checked against each
     selected muscle's limits and the slew limit before anything opens."""
-    payload: JsonObject = {"kind": args.profile,
-                           **{p: getattr(args, _dest(o)) for p, o in given.items()}}
+    numbers: JsonObject = {p: getattr(args, _dest(o)) for p, o in given.items()}
+    payload: JsonObject = {"shape": args.profile, **numbers}
     _checked("profile", payload, {p: o for p, o in PRESSURE_OPTIONS.items()})
-    spec = ProfileSpec(**payload)
+    spec = ProfileSpec(shape_name=args.profile, **numbers)
     for m in cfg.rig.muscles:
         if args.muscle in (None, m.name):
             spec.check(0.0, cfg.limits[m.name].max_pressure_bar,
@@ -352,7 +352,7 @@ def _length_profile(args: argparse.Namespace, cfg: LoadedConfig,
     """The --profile of a length mode as a profile command (contraction), checked
     against each muscle's limits, load and rate limit before anything opens."""
 
-    payload: JsonObject = {"kind": args.profile,
+    payload: JsonObject = {"shape": args.profile,
                            **{LENGTH_FIELDS[o]: getattr(args, _dest(o)) for o in given.values()}}
     _checked("profile", payload, {f: o for o, f in LENGTH_FIELDS.items()})
     for m in cfg.rig.muscles:

@@ -171,12 +171,12 @@ def plans(cfg: LoadedConfig, sweep: MapSweep) -> list[tuple[LoadSweep, Plan, lis
         rate = f"rate_bar_per_s: {sweep.rate_bar_per_s:g}"
         steps = [f"  - name: load\n    load_kg: {ls.load_kg:g}\n"
                  f"    settle: {{seconds: {LOAD_SETTLE_S:g}}}\n"
-                 f"    profile: {{kind: ramp, to_bar: {first_bar:g}}}\n"
+                 f"    profile: {{shape: ramp, to_bar: {first_bar:g}}}\n"
                  f"    hold_s: {sweep.hold_s:g}"]
         branches = [holds[0][1]]
         for j, (p, branch) in enumerate(holds[1:], 1):
             steps.append(f"  - name: {('turn', 'up', 'down')[branch]}-{j}\n"
-                         f"    profile: {{kind: ramp, to_bar: {p:g}, {rate}}}\n"
+                         f"    profile: {{shape: ramp, to_bar: {p:g}, {rate}}}\n"
                          f"    hold_s: {sweep.hold_s:g}")
             branches.append(branch)
         text = (f"name: map-{sweep.muscle}-{k + 1}\nmuscle: {sweep.muscle}\nmetadata:\n"

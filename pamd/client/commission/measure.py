@@ -105,7 +105,7 @@ def _clean(v: object) -> object:
 
 def signal_stats(probe: Probe, muscle: str, signal: str, max_rate: float) -> SignalStats:
     """One signal's figures over all the rows taken so far (see the module's doc);
-    `max_rate` the plausibility rate of its kind (per s; 0: no jump check)."""
+    `max_rate` the plausibility rate of its signal (per s; 0: no jump check)."""
     st = SignalStats(f"{muscle}.{signal}", UNITS[signal])
     t = probe.column("t")
     phase = probe.column("phase")

@@ -101,7 +101,7 @@ def plans(cfg: LoadedConfig, mv: Moves) -> list[tuple[str, Plan]]:
     moves: list[str] = []
     for k, level in enumerate(mv.levels_bar[1:]):
         moves += _level_steps(level, mv, chr(ord("b") + k))
-    moves.append(f"  - name: back\n    profile: {{kind: ramp, to_bar: {first:g}}}\n"
+    moves.append(f"  - name: back\n    profile: {{shape: ramp, to_bar: {first:g}}}\n"
                  f"    hold_s: {mv.hold_s:g}")
     out = []
     for name, steps in (("rest", rest), ("first-step", first_step), ("moves", moves)):
@@ -113,6 +113,6 @@ def plans(cfg: LoadedConfig, mv: Moves) -> list[tuple[str, Plan]]:
 
 
 def _level_steps(level: float, mv: Moves, tag: str) -> list[str]:
-    return [f"  - name: {what}-{tag}\n    profile: {{kind: ramp, to_bar: {to:g}}}\n"
+    return [f"  - name: {what}-{tag}\n    profile: {{shape: ramp, to_bar: {to:g}}}\n"
             f"    hold_s: {mv.hold_s:g}"
             for what, to in (("level", level), ("up", level + mv.step_bar), ("down", level))]

@@ -145,7 +145,7 @@ class Probe:
             self.ended = True
         return True
 
-    def event(self, t_s: float, kind: str, data: JsonObject) -> None:
+    def event(self, t_s: float, name: str, data: JsonObject) -> None:
         pass
 
     def close(self) -> None:

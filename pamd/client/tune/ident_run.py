@@ -185,7 +185,7 @@ def plan_text(muscle: str, lp: LoopPlan) -> str:
         name = f"{level:g}-bar".replace(".", "_")
         for what, to_bar in (("level", level), ("up", level + lp.step_bar), ("down", level)):
             lines.append(f"  - name: {what}-{name}")
-            lines.append(f"    profile: {{kind: ramp, to_bar: {to_bar:g}}}")
+            lines.append(f"    profile: {{shape: ramp, to_bar: {to_bar:g}}}")
             lines.append(f"    hold_s: {lp.hold_s:g}")
     return "\n".join(lines) + "\n"
 

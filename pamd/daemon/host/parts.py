@@ -35,7 +35,7 @@ class RecordingState(Protocol):
 class EventLog(Protocol):
     """Where an event is recorded (the daemon's summary sink, upstream of the ring)."""
 
-    def event(self, t_s: float, kind: str, data: JsonObject) -> None: ...
+    def event(self, t_s: float, name: str, data: JsonObject) -> None: ...
 
 
 class CommandInbox(Protocol):

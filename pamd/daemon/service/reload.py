@@ -39,9 +39,9 @@ from typing import Literal
 from pamd.config.loader import LoadedConfig, effective_timeout_s
 from pamd.loop.commands import MuscleSettings, ReloadArgs
 
-Kind = Literal["now", "idle", "restart"]
+Effect = Literal["now", "idle", "restart"]
 
-_RULE_TEXT: tuple[tuple[str, Kind], ...] = (
+_RULE_TEXT: tuple[tuple[str, Effect], ...] = (
     (r"^control\.pid\.", "now"),
     (r"^control\.rate_feedforward_s$", "now"),
     (r"^muscles\[\d+\]\.control\.(pid\.|rate_feedforward_s$)", "now"),
@@ -57,15 +57,15 @@ _RULE_TEXT: tuple[tuple[str, Kind], ...] = (
     (r"^muscles\[\d+\]\.(load_kg|nominal_length_mm)$", "idle"),
     (r"^muscles\[\d+\]\.limits\.", "idle"),
 )
-_RULES: tuple[tuple[re.Pattern[str], Kind], ...] = tuple(
+_RULES: tuple[tuple[re.Pattern[str], Effect], ...] = tuple(
     (re.compile(p), k) for p, k in _RULE_TEXT)
 
 
-def classify(path: str) -> Kind:
+def classify(path: str) -> Effect:
     """When a change at key `path` may apply (see the module's docstring)."""
-    for pattern, kind in _RULES:
+    for pattern, effect in _RULES:
         if pattern.search(path):
-            return kind
+            return effect
     return "restart"
 
 

@@ -33,7 +33,7 @@ def _start(ctrl: RigController, ms: list[MuscleController], spec_: ProfileSpec) 
         prof = Profile(spec_, ctrl.now, m.setpoint_bar, m.envelope.slew_limit_bar_per_s)
         m.start_profile(prof)
         total = prof.total_s()
-    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"{spec_.kind} profile started")
+    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"{spec_.shape_name} profile started")
     return total
 
 
@@ -58,7 +58,7 @@ def _setpoint(ctrl: RigController, a: SetpointArgs) -> JsonObject:
     if rate > slew:
         raise CommandRefused(f"{m.name}: reaching {a.bar:g} bar in {a.ramp_s:g} s needs "
                              f"{rate:.3g} bar/s, above the slew limit {slew:g} bar/s")
-    spec_ = ProfileSpec(kind="ramp", to_bar=a.bar, rate_bar_per_s=max(rate, 1e-6),
+    spec_ = ProfileSpec(shape_name="ramp", to_bar=a.bar, rate_bar_per_s=max(rate, 1e-6),
                         lead_in_bar_per_s=slew)
     m.start_profile(Profile(spec_, ctrl.now, m.setpoint_bar, slew))
     ctrl.supervisor.go(ctrl.now, State.RUNNING, f"setpoint {m.name} {a.bar:g} bar")
@@ -76,6 +76,7 @@ def _profile(ctrl: RigController, a: ProfileArgs) -> JsonObject:
         return _length_profile(ctrl, ms, a)
     fields = dataclasses.asdict(a)
     fields.pop("muscle")
+    fields["shape_name"] = fields.pop("shape")
     for k in LENGTH_PROFILE_FIELDS:
         fields.pop(k)
     total = _start(ctrl, ms, ProfileSpec(**fields))
@@ -140,7 +141,7 @@ def _length_profile(ctrl: RigController, ms: list[MuscleController],
             raise CommandRefused(f"{m.name} is in pressure mode: a length profile "
                                  "(min/max/to_contraction) needs mode length_force or position "
                                  "first")
-    profiles = [length_profile(m.envelope, m.load_kg, m.target_length_mm, ctrl.now, a.kind,
+    profiles = [length_profile(m.envelope, m.load_kg, m.target_length_mm, ctrl.now, a.shape,
                                min_contraction=a.min_contraction,
                                max_contraction=a.max_contraction,
                                to_contraction=a.to_contraction, freq_hz=a.freq_hz,
@@ -152,7 +153,7 @@ def _length_profile(ctrl: RigController, ms: list[MuscleController],
     for m, prof in zip(ms, profiles, strict=True):
         m.start_length_profile(prof)
         total = prof.total_s()
-    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"{a.kind} length profile started")
+    ctrl.supervisor.go(ctrl.now, State.RUNNING, f"{a.shape} length profile started")
     return {"duration_s": total, "length_profile": True}
 
 

@@ -11,7 +11,7 @@ holding the interpreter lock, and returns its result, pickled back: a small obje
 `bench/files_model_load.py`). The child is killed past `time_limit_s`, and the
 refusal says so; a `CommandRefused` or `PamdError` it raises comes back as it is; any
 other failure (even the child's death: a hostile file that exhausts memory) is a
-refusal naming the file's role and the kind of failure, never its contents.
+refusal naming the file's role and the failure's class, never its contents.
 
 The caller's thread blocks (waiting in a pipe, the lock released): the daemon's main
 thread hands the wait to a worker thread (`Preparer`) so that status and other
@@ -94,7 +94,7 @@ def _child(conn: Connection, fn: Callable[..., object], args: tuple[object, ...]
         out = (False, "nested too deep to read")
     except MemoryError:
         out = (False, "too large to read (out of memory)")
-    except Exception as exc:  # the parent refuses with the kind, never the contents
+    except Exception as exc:  # the parent refuses with the class, never the contents
         out = (False, f"it could not be read ({exc.__class__.__name__})")
     try:
         conn.send(out)

@@ -344,7 +344,7 @@ class RigController:
         """A profile that has finished its cycles leaves the rig IDLE at its end value."""
         for m in self.muscles:
             p = m.profile
-            if p is None or not p.done or p.spec.kind == "ramp":
+            if p is None or not p.done or p.spec.shape_name == "ramp":
                 return
         for m in self.muscles:
             m.stop_profile()

@@ -65,7 +65,7 @@ def _what_would_pass(spec: ProfileSpec, rate: float, max_rate: float) -> str:
 
 
 def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float, now: float,
-                   kind: str, *, min_contraction: float | None,
+                   shape_name: str, *, min_contraction: float | None,
                    max_contraction: float | None, to_contraction: float | None,
                    freq_hz: float, cycles: int | None, rate_per_s: float | None,
                    rise_s: float | None, duration_s: float | None,
@@ -77,10 +77,10 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
     the contraction limits, the length rate limit and what a tick of the loop's
     `period_s` affords (the harmonics) before anything moves."""
     max_rate = env.max_length_rate_per_s
-    shape = shape_of(kind)  # unknown kinds refused, naming the known ones
+    shape = shape_of(shape_name)  # unknown shapes refused, naming the known ones
     # every number physical, one cycle and the whole run within MAX_PROFILE_S, as for a
     # pressure profile (a length profile at freq_hz 1e-300 was accepted)
-    numbers = ProfileSpec(kind=kind, min_bar=min_contraction or 0.0,
+    numbers = ProfileSpec(shape_name=shape_name, min_bar=min_contraction or 0.0,
                           max_bar=max_contraction or 0.0, freq_hz=freq_hz, cycles=cycles,
                           to_bar=to_contraction, rate_bar_per_s=rate_per_s, rise_s=rise_s,
                           duration_s=duration_s, lead_in_bar_per_s=lead_in_per_s or 1.0,
@@ -89,24 +89,24 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
     numbers.check_duration()
     if shape.periodic:
         if min_contraction is None or max_contraction is None:
-            raise CommandRefused(f"{kind} length profile: give min_contraction and "
+            raise CommandRefused(f"{shape_name} length profile: give min_contraction and "
                                  "max_contraction (fractions, e.g. 0.05 and 0.20)")
         if not max_contraction > min_contraction:
-            raise CommandRefused(f"{kind} length profile: max_contraction "
+            raise CommandRefused(f"{shape_name} length profile: max_contraction "
                                  f"({max_contraction}) must exceed min_contraction "
                                  f"({min_contraction})")
-        check_contraction(env, f"{kind} profile spans to", min_contraction, max_contraction)
+        check_contraction(env, f"{shape_name} profile spans to", min_contraction, max_contraction)
     else:
         if to_contraction is None:
-            raise CommandRefused(f"{kind} length profile: give to_contraction")
-        check_contraction(env, f"{kind} profile target", to_contraction)
+            raise CommandRefused(f"{shape_name} length profile: give to_contraction")
+        check_contraction(env, f"{shape_name} profile target", to_contraction)
     check_reachable(env, load_kg, *(v for v in (min_contraction, max_contraction,
                                                 to_contraction) if v is not None))
     lead = lead_in_per_s if lead_in_per_s is not None else 0.5 * max_rate
     if not 0 < lead <= max_rate:
         raise CommandRefused(f"lead-in rate must be in (0, {max_rate:.3g}] contraction/s "
                              f"({env.length_rate_origin})")
-    spec = ProfileSpec(kind=kind,
+    spec = ProfileSpec(shape_name=shape_name,
                        min_bar=min_contraction if min_contraction is not None else 0.0,
                        max_bar=max_contraction if max_contraction is not None else 0.0,
                        freq_hz=freq_hz, cycles=cycles, to_bar=to_contraction,
@@ -127,7 +127,7 @@ def length_profile(env: MuscleEnvelope, load_kg: float, target_length_mm: float,
     rate = spec.shape_max_rate(max_rate)
     if rate > max_rate * (1 + 1e-9):
         raise CommandRefused(
-            f"{kind} length profile needs {rate:.3g} contraction/s "
+            f"{shape_name} length profile needs {rate:.3g} contraction/s "
             f"({rate * env.nominal_length_mm:.3g} mm/s) but the limit is {max_rate:.3g}/s "
             f"({env.length_rate_origin}); {_what_would_pass(spec, rate, max_rate)}")
     if cycles is not None and cycles < 1:
@@ -142,7 +142,7 @@ def check_length_profile_config(cfg: LoadedConfig, muscle: str,
     the muscle at its nominal length with its configured load."""
     env = MuscleEnvelope.from_config(cfg, muscle)
     length_profile(env, cfg.muscle(muscle).load_kg, env.nominal_length_mm, 0.0,
-                   payload.get("kind", "sine"),
+                   str(payload.get("shape", payload.get("kind", "sine"))),
                    min_contraction=payload.get("min_contraction"),
                    max_contraction=payload.get("max_contraction"),
                    to_contraction=payload.get("to_contraction"),

@@ -83,7 +83,7 @@ def muscle_status(m: MuscleController) -> JsonObject:
         "trusted": {"pressure": m.plausibility.pressure_ok,
                     "force": m.plausibility.force_ok,
                     "length": m.plausibility.length_ok},
-        "profile": m.profile.spec.kind if m.profile else None,
+        "profile": m.profile.spec.shape_name if m.profile else None,
         "limits": {"max_pressure_bar": m.envelope.max_pressure_bar,
                    "max_contraction": m.envelope.max_contraction,
                    "max_pretension": m.envelope.max_pretension},

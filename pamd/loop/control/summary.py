@@ -143,12 +143,12 @@ class SummarySink:
             if abs(e) > s[4]:
                 s[4] = abs(e)
 
-    def event(self, t_s: float, kind: str, data: JsonObject) -> None:
-        self.events.append((t_s, kind, data))
-        if kind == "soft_limit" and data.get("muscle") in self.layout.muscles:
+    def event(self, t_s: float, name: str, data: JsonObject) -> None:
+        self.events.append((t_s, name, data))
+        if name == "soft_limit" and data.get("muscle") in self.layout.muscles:
             self.limit_events[self.layout.muscles.index(data["muscle"])] += 1
         for d in self.downstream:
-            d.event(t_s, kind, data)
+            d.event(t_s, name, data)
 
     def close(self) -> None:
         for d in self.downstream:

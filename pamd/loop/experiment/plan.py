@@ -15,7 +15,7 @@ from pamd.config.loader import LoadedConfig
 from pamd.config.names import NAME_RE
 from pamd.loop.safety.envelope import MuscleEnvelope
 from pamd.muscle_type import equilibrium_contraction
-from pamd.profiles import ProfileKind, ProfileSpec, kinds_reading
+from pamd.profiles import ProfileSpec, ShapeName, shapes_reading
 from pamd.profiles.harmonic import MAX_HARMONIC_NUMBER
 from pamd.wire.declare.jsonsafe import JsonValue
 from pamd.wire.errors import CommandRefused
@@ -38,22 +38,22 @@ class PlanHarmonic:
 
 @dataclass(frozen=True, kw_only=True)
 class PlanProfile:
-    kind: ProfileKind = spec("sine", "Profile shape.")
+    shape: ShapeName = spec("sine", "Profile shape.", old="kind")
     min_bar: float = spec(0.0, "Lowest pressure.", unit="bar", min=0.0)
     max_bar: float = spec(6.0, "Highest pressure.", unit="bar", min=0.0)
-    freq_hz: float = spec(0.05, f"Frequency ({kinds_reading('freq_hz')}).", unit="Hz",
+    freq_hz: float = spec(0.05, f"Frequency ({shapes_reading('freq_hz')}).", unit="Hz",
                           gt=0.0)
     cycles: int | None = spec(None, "Cycles to run (default: 3 for the shapes that read it: "
-                              f"{kinds_reading('cycles')}).", min=1)
-    to_bar: float | None = spec(None, f"Target ({kinds_reading('to_bar')}).", unit="bar",
+                              f"{shapes_reading('cycles')}).", min=1)
+    to_bar: float | None = spec(None, f"Target ({shapes_reading('to_bar')}).", unit="bar",
                                 min=0.0)
-    duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
+    duration_s: float | None = spec(None, f"Duration ({shapes_reading('duration_s')}).",
                                     unit="s", gt=0.0)
-    rate_bar_per_s: float | None = spec(None, f"Rate ({kinds_reading('rate_bar_per_s')}; "
+    rate_bar_per_s: float | None = spec(None, f"Rate ({shapes_reading('rate_bar_per_s')}; "
                                         "default: half the slew limit).", unit="bar/s",
                                         gt=0.0)
     harmonics: tuple[PlanHarmonic, ...] | None = spec(
-        None, f"Harmonics ({kinds_reading('harmonics')}; default: seed 003's signal as "
+        None, f"Harmonics ({shapes_reading('harmonics')}; default: seed 003's signal as "
         "pamd builds it, harmonics 1, 2, 3 with shares 0.6, 0.25, 0.15): at least one, "
         "and no more than a tick of the loop affords (8 at 10 kHz; "
         "pamd.profiles.harmonic.max_harmonics).")
@@ -64,12 +64,12 @@ class PlanProfile:
         a constant or a ramp ends by its own parameters)."""
         if self.cycles is not None:
             return self.cycles
-        return PLAN_CYCLES if "cycles" in SHAPE_PARAMS[self.kind] else None
+        return PLAN_CYCLES if "cycles" in SHAPE_PARAMS[self.shape] else None
 
     def as_spec(self) -> ProfileSpec:
         harm = None if self.harmonics is None else tuple(
             (h.number, h.share) for h in self.harmonics)
-        return ProfileSpec(kind=self.kind, min_bar=self.min_bar, max_bar=self.max_bar,
+        return ProfileSpec(shape_name=self.shape, min_bar=self.min_bar, max_bar=self.max_bar,
                            freq_hz=self.freq_hz, cycles=self.cycles_to_run, to_bar=self.to_bar,
                            duration_s=self.duration_s, rate_bar_per_s=self.rate_bar_per_s,
                            harmonics=harm)

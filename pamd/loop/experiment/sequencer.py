@@ -45,7 +45,7 @@ FORCE_AGREE_TIMEOUT_S = 15.0
 
 def running_plan(ctrl: RigController) -> Sequencer | None:
     """The controller's experiment plan (running or ended), or None: a `Sequencer`,
-    the only kind the `collect` command starts."""
+    the only plan run the `collect` command starts."""
     return cast("Sequencer | None", ctrl.plan_run)
 
 
@@ -286,7 +286,7 @@ class Sequencer:
     def _ramp_to(self, now: float, bar: float) -> None:
         m = self.muscle
         slew = m.envelope.slew_limit_bar_per_s
-        spec = ProfileSpec(kind="ramp", to_bar=bar, rate_bar_per_s=0.5 * slew,
+        spec = ProfileSpec(shape_name="ramp", to_bar=bar, rate_bar_per_s=0.5 * slew,
                            lead_in_bar_per_s=slew)
         m.start_profile(Profile(spec, now, m.setpoint_bar, slew))
 

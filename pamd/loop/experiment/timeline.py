@@ -85,7 +85,7 @@ def timeline(plan: Plan, rig: LoadedConfig, simulated: bool) -> list[StepLine]:
             dur += total
             lo, hi = profile_range(spec)
             peak = max(peak, hi)
-            what.append(f"{spec.kind} {lo:g}-{hi:g} bar" + (
+            what.append(f"{spec.shape_name} {lo:g}-{hi:g} bar" + (
                 f" {spec.freq_hz:g} Hz x {spec.cycles}" if spec.shape.periodic else ""))
             run.sample(total + 1.0)
             pressure = run.value

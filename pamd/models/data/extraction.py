@@ -296,12 +296,12 @@ def _profile_start(args: JsonObject) -> float | None:
     """Where a recorded profile command's shape starts (its lead-in's end), by the shape's
     own rule (`pamd.profiles`); None where the record does not say (a ramp
     starts where it is)."""
-    shape = SHAPES.get(str(args.get("kind")))
+    shape = SHAPES.get(str(args.get("shape", args.get("kind"))))  # `kind`: the old key
     if shape is None:
         return None
     try:
         to_bar = args.get("to_bar")
-        spec = ProfileSpec(kind=shape.name, min_bar=float(args["min_bar"]),
+        spec = ProfileSpec(shape_name=shape.name, min_bar=float(args["min_bar"]),
                            max_bar=float(args["max_bar"]),
                            to_bar=None if to_bar is None else float(to_bar))
     except (KeyError, TypeError, ValueError):

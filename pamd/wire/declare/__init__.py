@@ -1,5 +1,5 @@
 """What pamd says, declared once: the recorded and published fields (`fields`), the
-event kinds and command verdicts (`events`), the one JSON encoder (`jsonsafe`), and the
+events by name and command verdicts (`events`), the one JSON encoder (`jsonsafe`), and the
 old names still served beside their new ones until a stated release (`deprecated`).
 
 Everything else derives from these tables: the tick record's layout and indices

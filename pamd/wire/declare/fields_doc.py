@@ -64,8 +64,9 @@ def generate() -> str:
     lines += ["", "## Control modes (`mode`)", "", "| code | name | meaning |", "|---|---|---|"]
     lines += [f"| {int(m)} | {m.name.lower()} | {t} |" for m, t in fields.MODE_MEANINGS.items()]
     lines += ["", "## Events", "",
-              "Each event is `{t_s, tick, kind, data}`; `data` holds the keys below.", ""]
-    for k in events.KINDS:
+              "Each event is `{t_s, tick, kind, data}`: `kind` is the event's name (the headings "
+              "below), `data` holds the keys listed under it.", ""]
+    for k in events.DECLARED:
         where = "" if k.recorded else " Published on Zenoh only, not recorded."
         lines.append(f"### `{k.name}`")
         lines.append("")

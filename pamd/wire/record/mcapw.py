@@ -49,20 +49,20 @@ _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
 
 
-def _compressor(kind: str) -> Callable[[bytes], bytes] | None:
-    if kind == "zstd":
+def _compressor(compression: str) -> Callable[[bytes], bytes] | None:
+    if compression == "zstd":
         import zstandard
 
         compress: Callable[[bytes], bytes] = zstandard.ZstdCompressor(level=3).compress
         return compress
-    if kind == "lz4":
+    if compression == "lz4":
         import lz4.frame
 
         lz4_compress: Callable[[bytes], bytes] = lz4.frame.compress  # lz4 has no types
         return lz4_compress
-    if kind in ("", "none"):
+    if compression in ("", "none"):
         return None
-    raise ValueError(f"unknown compression {kind!r}; use zstd, lz4 or none")
+    raise ValueError(f"unknown compression {compression!r}; use zstd, lz4 or none")
 
 
 

@@ -33,6 +33,7 @@ class FieldMeta(TypedDict, total=False):
     gt: float  # an exclusive lower bound
     ceiling: float  # the safe upper value below `max` (module doc of pamd.wire.schema.engine)
     why: str  # the physics of the bounds, said with a value outside them
+    old: str  # the key's old name, still accepted (never together with the new one)
 
 
 #: Largest magnitude of a quantity by its unit (see the module doc).

@@ -10,7 +10,9 @@ value pass (values above it are collected in `Context.over_ceiling`, never silen
 Supported field types: bool, int, float, str, Literal[...], X | None, nested
 dataclasses, tuple[X, ...] and dict[str, Any] (kept raw, validated later by
 whoever owns it: driver options are validated with the driver's own dataclass).
-Unknown keys are errors. The same metadata generates the config reference.
+Unknown keys are errors. A field renamed keeps its old key as `old` (`spec("sine", "...",
+old="kind")`): a file that says the old key still loads, one that says both is refused
+at the second key's line. The same metadata generates the config reference.
 """
 
 from __future__ import annotations
@@ -139,7 +141,7 @@ def build(tp: SchemaType, value: object, ctx: Context, path: str, line: int | No
 
 
 class _Builder(typing.Protocol):
-    """Builds a value of one kind of schema type (the arguments as `build` takes them)."""
+    """Builds a value of one sort of schema type (the arguments as `build` takes them)."""
 
     # Any: as `build`: the value of the type `tp` names at run time
     def __call__(self, tp: SchemaType, value: object, ctx: Context, path: str,
@@ -147,7 +149,7 @@ class _Builder(typing.Protocol):
 
 
 def _builder(tp: SchemaType) -> _Builder:
-    """The builder for the kind of schema type `tp` is."""
+    """The builder for the sort of schema type `tp` is."""
     origin = typing.get_origin(tp)
     if origin in (Union, types.UnionType):
         return _build_optional
@@ -323,18 +325,20 @@ def build_dataclass(cls: type[_D], value: object, ctx: Context, path: str, line:
     fields = {f.name: f for f in dataclasses.fields(cls)}
     hints = typing.get_type_hints(cls)
     prefix = f"{path}." if path else ""
-    _report_unknown_keys(value, list(fields), ctx, prefix, line)
+    olds = {f.metadata["old"]: name for name, f in fields.items() if "old" in f.metadata}
+    _report_unknown_keys(value, list(fields), ctx, prefix, line, olds)
     kwargs: dict[str, object] = {}  # the fields' built values
     for name, f in fields.items():
-        key_line = key_lines.get(name, getattr(value, "line", line))
-        if name not in value:
+        key = _key_given(value, name, f, ctx, prefix)
+        if key is None:
             if f.default is MISSING and f.default_factory is MISSING:
                 ctx.add(getattr(value, "line", line), f"{prefix}{name}",
                         f"key {name!r}: {f.metadata.get('doc', '')}".rstrip(": "), "it missing")
             continue
-        built = build(hints[name], value[name], ctx, f"{prefix}{name}", key_line,
+        key_line = key_lines.get(key, getattr(value, "line", line))
+        built = build(hints[name], value[key], ctx, f"{prefix}{key}", key_line,
                       field_meta(f))
-        if built is not None or value[name] is None:
+        if built is not None or value[key] is None:
             kwargs[name] = built
     try:
         return cls(**kwargs)
@@ -343,12 +347,28 @@ def build_dataclass(cls: type[_D], value: object, ctx: Context, path: str, line:
 
 
 
+def _key_given(value: dict[YamlKey, JsonValue], name: str, f: dataclasses.Field[object],
+               ctx: Context, prefix: str) -> str | None:
+    """The key `value` gives field `f` by: its name, its old name (`old`), or None; both
+    given is refused at the later one's line (which of the two is meant is unsaid)."""
+    old = f.metadata.get("old")
+    if old is None or old not in value:
+        return name if name in value else None
+    if name in value:
+        key_lines = getattr(value, "key_lines", {})
+        later = max((name, old), key=list(value).index)  # the file's order
+        ctx.add(key_lines.get(later, getattr(value, "line", None)), f"{prefix}{later}",
+                f"{name!r} or its old name {old!r}, not both", "both given")
+    return str(old)
+
+
 def _report_unknown_keys(value: dict[YamlKey, JsonValue], known: list[str], ctx: Context,
-                         prefix: str, line: int | None) -> None:
-    """Each key of `value` that is none of `known`, with the nearest known one."""
+                         prefix: str, line: int | None, olds: dict[str, str]) -> None:
+    """Each key of `value` that is none of `known` (nor an old name of one, `olds`),
+    with the nearest known one."""
     key_lines = getattr(value, "key_lines", {})
     for key in value:
-        if key not in known:
+        if key not in known and key not in olds:
             near = _closest(str(key), known)
             hint = f" (did you mean {near!r}?)" if near else ""
             ctx.add(

@@ -15,7 +15,7 @@ from typing import Any
 
 from pamd.wire.declare.jsonsafe import JsonObject, JsonValue
 from pamd.wire.schema.engine import spec
-from pamd.wire.shape_names import kinds_reading, kinds_text
+from pamd.wire.shape_names import shapes_reading, shapes_text
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -38,18 +38,18 @@ class SetpointArgs:
 @dataclass(frozen=True, kw_only=True)
 class ProfileArgs:
     muscle: str | None = spec(None, "Muscle name (default: every muscle).")
-    kind: str = spec("sine", f"{kinds_text()}.")
+    shape: str = spec("sine", f"Profile shape: {shapes_text()}.", old="kind")
     min_bar: float = spec(0.0, "Lowest pressure.", unit="bar", min=0.0)
     max_bar: float = spec(6.0, "Highest pressure.", unit="bar", min=0.0)
-    freq_hz: float = spec(0.05, f"Frequency ({kinds_reading('freq_hz')}).", unit="Hz",
+    freq_hz: float = spec(0.05, f"Frequency ({shapes_reading('freq_hz')}).", unit="Hz",
                           gt=0.0)
-    cycles: int | None = spec(None, f"Number of cycles ({kinds_reading('cycles')}; default: "
+    cycles: int | None = spec(None, f"Number of cycles ({shapes_reading('cycles')}; default: "
                               "until stopped).", min=1)
-    to_bar: float | None = spec(None, f"Target ({kinds_reading('to_bar')}).", unit="bar",
+    to_bar: float | None = spec(None, f"Target ({shapes_reading('to_bar')}).", unit="bar",
                                 min=0.0)
     rate_bar_per_s: float | None = spec(None, "Ramp rate.", unit="bar/s", gt=0.0)
     rise_s: float | None = spec(None, "Step edge duration.", unit="s", gt=0.0)
-    duration_s: float | None = spec(None, f"Duration ({kinds_reading('duration_s')}).",
+    duration_s: float | None = spec(None, f"Duration ({shapes_reading('duration_s')}).",
                                     unit="s", gt=0.0)
     lead_in_bar_per_s: float = spec(1.0, "Lead-in ramp rate from the present pressure.",
                                     unit="bar/s", gt=0.0)
@@ -58,12 +58,12 @@ class ProfileArgs:
     # (a fraction of the nominal length: no muscle gets anywhere near -1 or 1; the
     # handler holds each to the muscle's own limits and load)
     min_contraction: float | None = spec(None, "Length profile: least contraction ("
-                                         f"{kinds_reading('min_bar')}), e.g. 0.05.",
+                                         f"{shapes_reading('min_bar')}), e.g. 0.05.",
                                          gt=-1.0, max=1.0)
     max_contraction: float | None = spec(None, "Length profile: most contraction, e.g. 0.20.",
                                          gt=-1.0, max=1.0)
     to_contraction: float | None = spec(None, "Length profile: target ("
-                                        f"{kinds_reading('to_bar')}).", gt=-1.0, max=1.0)
+                                        f"{shapes_reading('to_bar')}).", gt=-1.0, max=1.0)
     rate_per_s: float | None = spec(None, "Length profile: ramp rate, contraction per second.",
                                     unit="1/s", gt=0.0)
     lead_in_per_s: float | None = spec(None, "Length profile: lead-in rate from the present "
