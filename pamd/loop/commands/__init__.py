@@ -1,7 +1,7 @@
 """Commands to the running loop: their verbs, argument schemas and what each one does.
 
 The loop side of the command verbs: each verb's handler, declared in the module of
-its kind (`motion`, `rig`, `plan`, sharing `guards`) against its spec in
+its group (`motion`, `rig`, `plan`, `tune`, `adapt`, sharing `guards`) against its spec in
 `pamd.wire.verbs.table.VERBS` (name, argument dataclass, routing, help: what the io process
 parses and routes by, without these modules); `verbs.REGISTRY` holds them all.
 `parse_command` (`pamd.wire.verbs.table`, re-exported) checks a payload's shape;

@@ -1,5 +1,5 @@
 """Every command verb with its handler: the declarations of the handler modules, by
-kind (motion, rig, experiment plans), in one registry, checked against the specs the
+group (motion, rig, experiment plans, tune, adapt), in one registry, checked against the specs the
 io process parses by (`pamd.wire.verbs.table.VERBS`)."""
 
 from __future__ import annotations
