@@ -48,7 +48,7 @@ from pamd.wire.tick import State  # noqa: E402
 
 FREQ_HZ = 0.2
 PERIOD_S = 1.0 / FREQ_HZ
-PROFILE = {"kind": "sine", "min_contraction": 0.05, "max_contraction": 0.20,
+PROFILE = {"shape": "sine", "min_contraction": 0.05, "max_contraction": 0.20,
            "freq_hz": FREQ_HZ}
 #: The RLS settings, chosen on the validation runs (see the docstring); (c) / (a):
 #: 20 kg losing 15 % ((a) 0.388 mm, (b) 0.483 mm) and 25 kg losing 20 % ((a) 0.473 mm,

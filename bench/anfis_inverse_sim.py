@@ -57,7 +57,7 @@ P_RANGE_BAR = 6.0
 def record_sweep(load_kg: float, cycles: int, out_dir: str) -> str:
     """One recorded 0.05 Hz 0-6 bar sweep at `load_kg` (virtual clock); the file path."""
     return record_profile(sim_config("virtual", load_kg=load_kg), out_dir,
-                          f"sweep{load_kg:g}kg", {"kind": "sine", "min_bar": 0.0,
+                          f"sweep{load_kg:g}kg", {"shape": "sine", "min_bar": 0.0,
                                                   "max_bar": 6.0, "freq_hz": 0.05,
                                                   "cycles": cycles},
                           note=f"bench sweep {load_kg:g} kg")

@@ -28,7 +28,7 @@ FAST = {"slew_limit_bar_per_s": 25.0, "position": {"max_rate_per_s": 1.0}}
 def position_us(seconds: float, ilc: bool) -> list[float]:
     """Tick compute in mode position (no model) tracking a 1 Hz 5-20 % sine."""
     cmds = [("mode", {"muscle": "m1", "mode": "position", "feedforward": False, "ilc": ilc}),
-            ("profile", {"muscle": "m1", "kind": "sine", "min_contraction": 0.05,
+            ("profile", {"muscle": "m1", "shape": "sine", "min_contraction": 0.05,
                          "max_contraction": 0.2, "freq_hz": 1.0})]
     return controller_compute_us(sim_config("virtual", control=FAST), cmds, seconds)
 
@@ -57,7 +57,7 @@ def ilc_step_us(period_s: float, cycles: int = 4, dt_s: float = 0.001
 
 
 def main(seconds: float = 60.0) -> None:
-    us = controller_compute_us(sim_config("virtual"), [("profile", {"kind": "sine"})],
+    us = controller_compute_us(sim_config("virtual"), [("profile", {"shape": "sine"})],
                                seconds)
     print(f"controller compute per tick, plant excluded ({len(us)} ticks, sine profile "
           f"running): p50 {percentile(us, 50):.1f} us, p99 {percentile(us, 99):.1f} us, "

@@ -21,7 +21,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cycles", type=int, default=1)
     args = ap.parse_args()
-    profile = {"kind": "sine", "min_bar": 0.0, "max_bar": 6.0, "freq_hz": 0.05,
+    profile = {"shape": "sine", "min_bar": 0.0, "max_bar": 6.0, "freq_hz": 0.05,
                "cycles": args.cycles}
     with tempfile.TemporaryDirectory() as tmp:
         direct = run_profile(sim_config(Path(tmp)), profile)

@@ -97,7 +97,7 @@ def main() -> None:
         t0 = time.perf_counter()
         cycles = max(1, round(args.seconds * 0.05))
         source = record_profile(sim_config("virtual"), tmp, "sweep",
-                                {"kind": "sine", "min_bar": 0.0, "max_bar": 6.0,
+                                {"shape": "sine", "min_bar": 0.0, "max_bar": 6.0,
                                  "freq_hz": 0.05, "cycles": cycles})
         print(f"recorded a {cycles}-cycle 0.05 Hz 0-6 bar sweep in "
               f"{time.perf_counter() - t0:.1f} s: {source}")

@@ -81,7 +81,7 @@ def response(f_hz: float, amp_bar: float) -> complex:
     h.keep = True
     h.cmd("setpoint", muscle="m1", bar=3.0)
     h.step(8.0)  # the length creeps for seconds after a move (friction)
-    h.cmd("profile", muscle="m1", kind="sine", min_bar=3.0 - amp_bar, max_bar=3.0 + amp_bar,
+    h.cmd("profile", muscle="m1", shape="sine", min_bar=3.0 - amp_bar, max_bar=3.0 + amp_bar,
           freq_hz=f_hz, cycles=10000)
     h.step(max(1.0, 3.0 / f_hz))
     h.records.clear()
@@ -125,10 +125,10 @@ def position(period: float) -> None:
         h.keep = True
         h.step(0.5)
         h.cmd("mode", muscle="m1", mode="position", feedforward=False)
-        h.cmd("profile", muscle="m1", kind="constant", to_contraction=0.1, duration_s=5)
+        h.cmd("profile", muscle="m1", shape="constant", to_contraction=0.1, duration_s=5)
         h.step(5.0)  # the ramp to the target, then the hold
         hold = swing(h, "length_mm")
-        h.cmd("profile", muscle="m1", kind="constant", to_contraction=0.12, duration_s=10)
+        h.cmd("profile", muscle="m1", shape="constant", to_contraction=0.12, duration_s=10)
         h.step(3.0)
         verdict = {"integral": "warned*"}.get(v.outcome, v.outcome)
         print(f"  {kp:6.3g} {ki:5.3g}  {v.margins.text()[:44]:44s} {verdict:8s} "

@@ -69,7 +69,7 @@ def sweep(load_kg: float, muscle: dict[str, Any] | None = None
     h = Harness(sim_config("virtual", load_kg=load_kg, **changes))
     h.step(0.01)
     verdict = apply_command(h.ctrl, parse_command("profile", {
-        "kind": "sine", "cycles": 2, "freq_hz": FREQ_HZ, "min_bar": min_bar_for(load_kg),
+        "shape": "sine", "cycles": 2, "freq_hz": FREQ_HZ, "min_bar": min_bar_for(load_kg),
         "max_bar": MAX_BAR}))
     if not verdict.get("ok", True):
         raise SystemExit(f"{load_kg} kg: profile refused: {verdict}")

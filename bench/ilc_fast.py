@@ -49,7 +49,7 @@ def track(freq_hz: float, cycles: int, ilc: dict[str, float] | None, load_kg: fl
     v = h.cmd("mode", muscle="m1", mode="position", feedforward=model is not None,
               ilc=ilc is not None)
     assert v["ok"], v
-    v = h.cmd("profile", muscle="m1", kind="sine", min_contraction=contraction[0],
+    v = h.cmd("profile", muscle="m1", shape="sine", min_contraction=contraction[0],
               max_contraction=contraction[1], freq_hz=freq_hz, cycles=cycles)
     assert v["ok"], v
     m = h.m1

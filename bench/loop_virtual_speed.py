@@ -26,7 +26,7 @@ def run(cycles: int, **changes: Any) -> tuple[float, float, dict[str, Any]]:
     t0 = time.perf_counter()
     d.start(stop_when_profile_done=True)
     d.wait_for_state((State.IDLE,))
-    d.command("profile", {"kind": "sine", "cycles": cycles})
+    d.command("profile", {"shape": "sine", "cycles": cycles})
     d.wait()
     wall = time.perf_counter() - t0
     d.close()

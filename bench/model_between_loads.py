@@ -146,7 +146,7 @@ def track(model: Path | None, load_kg: float, off_data: str = "fade") -> dict[st
     v = h.cmd("mode", muscle="m1", mode="position", feedforward=model is not None)
     assert v["ok"], v
     lo, hi = stroke(load_kg)
-    v = h.cmd("profile", muscle="m1", kind="sine", min_contraction=lo, max_contraction=hi,
+    v = h.cmd("profile", muscle="m1", shape="sine", min_contraction=lo, max_contraction=hi,
               freq_hz=FREQ_HZ, cycles=CYCLES)
     assert v["ok"], v
     while h.ctrl.supervisor.state == State.RUNNING:
@@ -170,7 +170,7 @@ def tick_cost(model: Path, passes: int = 3, seconds: float = 8.0) -> None:
             lo, hi = stroke(40.0)
             us = controller_compute_us(cfg, [
                 ("mode", {"muscle": "m1", "mode": "position"}),
-                ("profile", {"muscle": "m1", "kind": "sine", "min_contraction": lo,
+                ("profile", {"muscle": "m1", "shape": "sine", "min_contraction": lo,
                              "max_contraction": hi, "freq_hz": FREQ_HZ})], seconds, models)
             b = best[policy]
             b[0], b[1] = min(b[0], percentile(us, 50)), min(b[1], percentile(us, 99))

@@ -74,7 +74,7 @@ QUPI_LOADS_KG = (40.0, 60.0)
 TRACK_LOAD_KG = 30.0
 TRACK_TRAIN_LOADS_KG = (20.0, 30.0, 40.0)
 TRACK_RANGES_BAR = ((0.0, 6.0), (0.0, 3.0), (1.5, 4.5), (3.0, 6.0))
-PROFILE = {"kind": "sine", "min_contraction": 0.05, "max_contraction": 0.20, "freq_hz": 0.05}
+PROFILE = {"shape": "sine", "min_contraction": 0.05, "max_contraction": 0.20, "freq_hz": 0.05}
 PERIOD_S = 20.0
 RIDGES = (0.001, 0.01, 0.1)
 I2, I3 = ("force_n", "length_mm"), ("force_n", "length_mm", "velocity_mm_s")
@@ -112,7 +112,7 @@ def record(load_kg: float, lo: float, hi: float, cycles: int, out: str, tag: str
     if found:
         return found[0]
     return record_profile(sim_config("virtual", load_kg=load_kg), out, name,
-                          {"kind": "sine", "min_bar": lo, "max_bar": hi, "freq_hz": 0.05,
+                          {"shape": "sine", "min_bar": lo, "max_bar": hi, "freq_hz": 0.05,
                            "cycles": cycles}, note=f"bench {name}")
 
 

@@ -130,7 +130,7 @@ def plateaus(load_kg: float, step_mm: float) -> list[dict[str, float]]:
         m, plant = h.m1, h.sim.plant("m1")
         assert h.cmd("mode", muscle="m1", mode="position", feedforward=False)["ok"]
         l0 = m.envelope.nominal_length_mm
-        v = h.cmd("profile", muscle="m1", kind="step", min_contraction=1.0 - long_mm / l0,
+        v = h.cmd("profile", muscle="m1", shape="step", min_contraction=1.0 - long_mm / l0,
                   max_contraction=1.0 - short_mm / l0, freq_hz=PLATEAU_FREQ_HZ,
                   cycles=PLATEAU_CYCLES)
         assert v["ok"], v
@@ -191,7 +191,7 @@ def sine_tracking(cycles: int = 3) -> dict[str, float]:
     """PWM tracking of the 0.05 Hz 0-6 bar sine at 30 kg, after the first cycle."""
     h = onoff_harness()
     try:
-        assert h.cmd("profile", muscle="m1", kind="sine", min_bar=0.0, max_bar=6.0,
+        assert h.cmd("profile", muscle="m1", shape="sine", min_bar=0.0, max_bar=6.0,
                      freq_hz=0.05, cycles=cycles)["ok"]
         m = h.m1
         first_end = h.t + m.profile.lead_in_s + 20.0

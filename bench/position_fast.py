@@ -100,7 +100,7 @@ def track(model: str | None, freq_hz: float, cycles: int, load_kg: float,
     h.step(0.05)
     v = h.cmd("mode", muscle="m1", mode="position", feedforward=model is not None, ilc=ilc)
     assert v["ok"], v
-    v = h.cmd("profile", muscle="m1", kind="sine", min_contraction=span[0],
+    v = h.cmd("profile", muscle="m1", shape="sine", min_contraction=span[0],
               max_contraction=span[1], freq_hz=freq_hz, cycles=cycles)
     assert v["ok"], v
     m = h.m1
@@ -196,7 +196,7 @@ def compute_us(model: str, position: dict[str, Any], seconds: float = 10.0
     models = {"m1": LoadedModel.read(model, cfg.muscle("m1"), cfg.limits["m1"])}
     span = TEST["span"]
     us = controller_compute_us(cfg, [("mode", {"mode": "position"}), (
-        "profile", {"muscle": "m1", "kind": "sine", "min_contraction": span[0],
+        "profile", {"muscle": "m1", "shape": "sine", "min_contraction": span[0],
                     "max_contraction": span[1], "freq_hz": 1.0})], seconds, models)
     return percentile(us, 50), percentile(us, 99)
 

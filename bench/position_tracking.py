@@ -52,7 +52,7 @@ from pamd.wire.tick import Flag, State  # noqa: E402
 LOAD_KG = 30.0
 TRAIN_LOADS_KG = (20.0, 30.0, 40.0)
 RANGES_BAR = ((0.0, 6.0), (0.0, 3.0), (1.5, 4.5), (3.0, 6.0))
-PROFILE = {"kind": "sine", "min_contraction": 0.05, "max_contraction": 0.20, "freq_hz": 0.05}
+PROFILE = {"shape": "sine", "min_contraction": 0.05, "max_contraction": 0.20, "freq_hz": 0.05}
 PERIOD_S = 20.0
 
 
@@ -62,7 +62,7 @@ def record(load_kg: float, lo: float, hi: float, out: str, cycles: int = 2) -> s
     if found:
         return found[0]
     return record_profile(sim_config("virtual", load_kg=load_kg), out, name,
-                          {"kind": "sine", "min_bar": lo, "max_bar": hi, "freq_hz": 0.05,
+                          {"shape": "sine", "min_bar": lo, "max_bar": hi, "freq_hz": 0.05,
                            "cycles": cycles})
 
 

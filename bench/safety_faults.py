@@ -1,6 +1,6 @@
 """What each scripted fault does to the simulated rig with 80 kg hanging (issue 11).
 
-For every fault kind of the sim driver's `faults` option, the rig runs a pressure
+For every failure of the sim driver's `faults` option, the rig runs a pressure
 sine (2-5 bar, 0.25 Hz) on the virtual clock; the fault strikes at 1.0 s (and, in a
 second table, 0.1 s into a stop's safe ramp from 4.5 bar). Printed per fault: when
 it was detected (the first `implausible` event or fault, after the fault struck),
@@ -32,11 +32,11 @@ FAULTS = [(s, k) for s in ("length", "force", "pressure")
 FAULTS += [("supply", "lost"), ("valve", "stuck"), ("driver", "error")]
 
 
-def run_one(load_kg: float, signal: str, kind: str, scenario: str,
+def run_one(load_kg: float, signal: str, failure: str, scenario: str,
             after_s: float) -> dict[str, Any]:
     at_s = 1.0 if scenario == "running" else 2.1
     fault = {"at_s": at_s, "muscle": "*" if signal == "driver" else "m1", "signal": signal,
-             "kind": kind}
+             "failure": failure}
     initial = 3.0
     cfg = sim_config(load_kg=load_kg, telemetry={"enabled": False}, drivers=[{
         "name": "sim", "type": "sim", "options": {"seed": 1, "faults": [fault], "muscles": [
@@ -46,7 +46,7 @@ def run_one(load_kg: float, signal: str, kind: str, scenario: str,
         m, plant, ctrl = h.m1, h.sim.plant("m1"), h.ctrl
         h.step(0.01)
         if scenario == "running":
-            v = h.cmd("profile", kind="sine", min_bar=2.0, max_bar=5.0, freq_hz=0.25)
+            v = h.cmd("profile", shape="sine", min_bar=2.0, max_bar=5.0, freq_hz=0.25)
             assert v["ok"], v
         else:
             assert h.cmd("setpoint", muscle="m1", bar=4.5)["ok"]
@@ -78,10 +78,10 @@ def run_one(load_kg: float, signal: str, kind: str, scenario: str,
                     min_cmd = min(min_cmd, m.valve_cmd_bar)
         detected = None
         named = ""
-        for t, kind_, data in h.sink.events:
+        for t, name, data in h.sink.events:
             if t < at_s - 1e-9:
                 continue
-            if kind_ == "implausible" or (kind_ == "transition" and data["to"] == "FAULT"):
+            if name == "implausible" or (name == "transition" and data["to"] == "FAULT"):
                 detected = t - at_s
                 named = data.get("reason", "")
                 break
@@ -102,14 +102,15 @@ def main() -> None:
         print(f"\n{args.load_kg:g} kg, {title} (virtual clock, seed 1)")
         print(f"{'fault':<16} {'detected':>9} {'entry':>6} {'min cmd':>8} {'safe':>6} "
               f"{'step':>6} {'min x':>7}  state  named")
-        for signal, kind in FAULTS:
-            r = run_one(args.load_kg, signal, kind, scenario, args.after_s)
+        for signal, failure in FAULTS:
+            r = run_one(args.load_kg, signal, failure, scenario, args.after_s)
             det = ("not" if r["detected_s"] is None
                    else f"{max(0.0, 1000 * r['detected_s']):.0f} ms")
             cmd = "-" if r["min_cmd"] == math.inf else f"{r['min_cmd']:.3f}"
             named = r["named"].split(": ", 1)[-1][:70]
             entry = "-" if r["entry"] != r["entry"] else f"{r['entry']:.3f}"
-            print(f"{signal + ' ' + kind:<16} {det:>9} {entry:>6} {cmd:>8} {r['safe_bar']:>6.3f} "
+            what = f"{signal} {failure}"
+            print(f"{what:<16} {det:>9} {entry:>6} {cmd:>8} {r['safe_bar']:>6.3f} "
                   f"{r['max_step']:>6.3f} {100 * r['min_x']:>6.2f}%  {r['state']:<6} {named}")
 
 

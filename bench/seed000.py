@@ -117,7 +117,7 @@ def sweep(load_kg: float, cycles: int, out_dir: str, noise_seed: int = 1) -> str
     if found:
         return found[0]
     return record_profile(config(load_kg, noise_seed), out_dir, name,
-                          {"kind": "sine", "min_bar": 0.0, "max_bar": P_RANGE_BAR,
+                          {"shape": "sine", "min_bar": 0.0, "max_bar": P_RANGE_BAR,
                            "freq_hz": 0.05, "cycles": cycles},
                           note=f"seed 000 sweep {load_kg:g} kg")
 

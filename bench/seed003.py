@@ -84,7 +84,7 @@ RATE_HZ = 250
 EVERY = 10  # ticks between model samples: 25 Hz
 SAMPLE_S = EVERY / RATE_HZ
 NOMINAL_MM = 200.0
-SINE = {"kind": "sine", "min_bar": 0.5, "max_bar": 5.5}
+SINE = {"shape": "sine", "min_bar": 0.5, "max_bar": 5.5}
 #: Table 3 (method -> Kp, Ki, Kd); the sample period is the plant model's
 PAPER_GAINS = {1: (9.5, 1.3, 0.5), 2: (5.0, 0.5, 0.1)}
 #: the config's named override that loads gains the stability judgement refuses
@@ -132,7 +132,7 @@ def sweep(load_kg: float, profile: dict[str, Any], every: int = EVERY,
 def paper_sine(p_bar: float, freq_hz: float, cycles: int) -> dict[str, Any]:
     """u(t) = (p/2) sin(c pi t) + p/2 (the paper's eq. 19; pamd's sine starts mid-range
     rising, as it does)."""
-    return {"kind": "sine", "min_bar": 0.0, "max_bar": p_bar, "freq_hz": freq_hz,
+    return {"shape": "sine", "min_bar": 0.0, "max_bar": p_bar, "freq_hz": freq_hz,
             "cycles": cycles}
 
 
@@ -187,7 +187,7 @@ def inverse_rows() -> list[SeedRow]:
     ln, p = sweep(40.0, {**SINE, "freq_hz": 0.1, "cycles": 2})
     model = fit_fn_qupi(ln, p, np.zeros(ln.size, int), [40.0],
                         FnQupiOptions(particles=5, iterations=2, polish=0))
-    t_ln, t_p = sweep(40.0, {"kind": "triangle", "min_bar": 2.5, "max_bar": 3.5,
+    t_ln, t_p = sweep(40.0, {"shape": "triangle", "min_bar": 2.5, "max_bar": 3.5,
                              "freq_hz": 0.05, "cycles": 1})
     analytic = model.predict(t_ln)
     u = model.length_ref_mm - ln
@@ -295,10 +295,10 @@ def profiles(quick: bool) -> list[tuple[str, str, dict[str, Any]]]:
     out = []
     for i, (amp, period, p1, p2) in enumerate(SCHEMES[:1] if quick else SCHEMES):
         out.append((f"Table 4 scheme {i + 1} (sine {amp} mm, {period} s)", f"{p1} / {p2}",
-                    {"kind": "sine", "freq_hz": 1.0 / period, "cycles": int(20 / period),
+                    {"shape": "sine", "freq_hz": 1.0 / period, "cycles": int(20 / period),
                      **span(amp)}))
-    for kind, figure, paper in COMPLEX:
-        out.append((figure, paper, {"kind": kind, "freq_hz": 0.05, "cycles": 1, **span(6)}))
+    for shape, figure, paper in COMPLEX:
+        out.append((figure, paper, {"shape": shape, "freq_hz": 0.05, "cycles": 1, **span(6)}))
     return out
 
 

@@ -46,7 +46,7 @@ def main() -> None:
     a = p.parse_args()
     rec = min(record_ns(200_000) for _ in range(a.rounds))
     p50s = [percentile(controller_compute_us(sim_config("virtual"), [
-        ("profile", {"kind": "sine"})], a.seconds), 50) for _ in range(a.rounds)]
+        ("profile", {"shape": "sine"})], a.seconds), 50) for _ in range(a.rounds)]
     print(f"MuscleController._record: {rec:.0f} ns a call (best of {a.rounds}); RigController.tick "
           f"p50 {min(p50s):.1f} us (best of {a.rounds} x {a.seconds:g} s, sine profile)")
 

@@ -68,7 +68,7 @@ def run(changes: dict[str, Any], cycles: int = 3, freq_hz: float = 0.05,
                **changes.get("control", {})}
     h = Harness(sim_config("virtual", **{**changes, "control": control}))
     h.step(0.01)
-    apply_command(h.ctrl, parse_command("profile", {"kind": "sine", "cycles": cycles,
+    apply_command(h.ctrl, parse_command("profile", {"shape": "sine", "cycles": cycles,
                                                     "freq_hz": freq_hz, "min_bar": min_bar}))
     t_first_cycle_end = h.t + h.m1.profile.lead_in_s + 1.0 / freq_hz
     sq = n = 0

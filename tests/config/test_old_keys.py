@@ -77,13 +77,27 @@ def test_a_simulated_fault_loads_by_failure_and_by_its_old_name_kind() -> None:
                                       "kind": "stuck"}), "rig.yaml")
 
 
-def test_the_shipped_configs_with_the_old_keys_load_unchanged() -> None:
-    """config/sim-chain.yaml's faults and config/rig-emulated.yaml's Modbus sample clock
-    say `kind:`; they load as they are."""
+def test_the_shipped_configs_say_the_new_keys_and_load_the_same_by_the_old() -> None:
+    """config/sim-chain.yaml's faults say `failure:` and config/rig-emulated.yaml's Modbus
+    sample clock `holds:` (the shipped files teach the new keys); the same files written
+    with the old `kind:` (a lab's copy from before) load to the same settings."""
+    for name, new in (("sim-chain.yaml", "failure: open"), ("rig-emulated.yaml",
+                                                            "holds: counter")):
+        path = REPO / "config" / name
+        text = path.read_text()
+        assert new in text and "kind:" not in text, name
+        old = text.replace(new, "kind: " + new.split(": ")[1])
+        assert load_config_text(old, str(path)).rig == load_config(str(path)).rig, name
     chain = load_config(str(REPO / "config" / "sim-chain.yaml"))
     assert {f.failure for d in chain.rig.drivers if d.type == "sim"
             for f in d.options.faults} >= {"open"}
-    assert "kind:" in (REPO / "config" / "rig-emulated.yaml").read_text()
     emulated = load_config(str(REPO / "config" / "rig-emulated.yaml"))
     clocks = [getattr(d.options, "sample_clock", None) for d in emulated.rig.drivers]
     assert any(c is not None and c.holds == "counter" for c in clocks)
+
+
+def test_the_shipped_plans_say_shape() -> None:
+    """The example plans teach the profile's key `shape` (`kind` loads too, above)."""
+    for path in sorted((REPO / "config" / "experiments").glob("*.yaml")):
+        text = path.read_text()
+        assert "kind:" not in text and ("profile:" not in text or "shape:" in text), path
