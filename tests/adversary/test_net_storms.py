@@ -117,16 +117,24 @@ def test_waves_of_50_zenoh_clients_cost_bounded_memory_that_comes_back(rig: RigP
             s.undeclare()
         for c in clients:
             c.close()
-        samples = []  # the io loop returns free memory every 2 s (pamd.iohost.node.trim_heap)
-        for _ in range(12):
-            time.sleep(0.25)
-            samples.append(rss_kb(pid))
-        after.append(min(samples))
+        after.append(_settled_rss_kb(pid, 3.0))
     # 50 sessions cost some 170 kB each while connected (bounded: at most 100 at once)
     assert peak - before < 40_000, (before, peak)
     # and what they used comes back: no growth wave after wave. Without the heap's trim
     # the two waves after the first left 2.9-4.9 MB (1-2.5 MB a wave); with it Zenoh's
     # and the allocator's bookkeeping leave 0.3-1.7 MB (less wave after wave: under
     # 0.1 MB a wave after twenty; a Zenoh router alone does the same)
+    if after[-1] - after[0] >= 2_500:  # a loaded host may run the last trim late: wait
+        after[-1] = min(after[-1], _settled_rss_kb(pid, 4.0))  # for two more (no trim: kept)
     assert after[-1] - after[0] < 2_500, (before, after)
     assert rig.status()["ok"]
+
+
+def _settled_rss_kb(pid: int, for_s: float) -> int:
+    """The least resident size over `for_s`: the io loop returns free memory to the OS
+    every 2 s (`pamd.iohost.node.trim_heap`)."""
+    samples = []
+    for _ in range(round(for_s / 0.25)):
+        time.sleep(0.25)
+        samples.append(rss_kb(pid))
+    return min(samples)
