@@ -61,6 +61,7 @@ class PacedSamples:
         self._done = 0  # the newest sample whose tick stored its outputs
         self._edge_s = math.nan
         self._missed = 0
+        self._missed_total = 0  # every missed clock published (`handed`)
         self.attached = False
 
     def describe(self) -> str:
@@ -74,6 +75,7 @@ class PacedSamples:
             self._seq += 1
             self._edge_s = edge_s
             self._missed += missed
+            self._missed_total += missed
             self._cv.notify_all()
 
     def await_tick(self, deadline_s: float) -> bool:
@@ -113,6 +115,13 @@ class PacedSamples:
             self._missed += self._seq - self._taken - 1
             self._taken = self._seq
             return self._edge_s
+
+    def handed(self) -> tuple[int, int]:
+        """(the sample clocks handed so far: samples and the missed ones published with
+        them; of those, the ones the loop has not taken yet): the tests' accounting."""
+        with self._cv:
+            return (self._seq + self._missed_total,
+                    self._seq - self._taken + self._missed)
 
     def take_missed(self) -> int:
         with self._cv:
