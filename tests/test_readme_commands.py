@@ -91,7 +91,7 @@ def test_the_quickstarts_virtual_run_prints_what_the_readme_says(tmp_path: Path)
     readme = (REPO / "README.md").read_text()
     run = outs[0]
     for said in ("STARTING -> IDLE: sensors read; holding measured pressure",
-                 "43602 ticks", "m1: pressure tracking RMSE 0.0034 bar"):
+                 "43604 ticks", "m1: pressure tracking RMSE 0.0034 bar"):
         assert said in run and said.split(": ", 1)[-1] in " ".join(readme.split()), said
     assert list((tmp_path / "runs" / "figs").glob("first_m1_*.png"))
     assert (tmp_path / "runs" / "csv" / "first_loop.csv").is_file()
