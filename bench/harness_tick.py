@@ -34,7 +34,8 @@ from pamd.loop.loop import tick_once
 def _harness() -> Harness:
     h = Harness(sim_config("virtual"))
     h.step(0.01)
-    v = h.cmd("profile", shape="sine", min_bar=1.5, max_bar=4.0, freq_hz=0.25)
+    # `kind`, the shape's old name: a baseline tree from before the rename reads it too
+    v = h.cmd("profile", kind="sine", min_bar=1.5, max_bar=4.0, freq_hz=0.25)
     assert v["ok"], v
     h.step(1.0)
     return h
