@@ -19,8 +19,12 @@ import yaml
 
 from pamd.wire.atomic import write_atomic
 from pamd.wire.declare.deprecated import DATUM_KEYS
-from pamd.wire.schema.engine import Context, LinedDict, build_dataclass, spec
+from pamd.wire.schema.engine import Context, build_dataclass, spec
 from pamd.wire.schema.yamlload import load_yaml_file
+
+#: a datum's key -> its deprecated old name, which the schema engine still reads (both
+#: given is an error at the later one's line)
+_OLD_KEY = {new: old for old, new in DATUM_KEYS.items()}
 
 
 @dataclass
@@ -30,7 +34,8 @@ class MuscleDatums:
     force_offset_n: float = spec(0.0, "Subtracted from the calibrated force (set by tare).",
                                  unit="N")
     has_length_datum: bool = spec(False, "True once the length has its datum (homed; an "
-                                  "absolute sensor has its own).")
+                                  "absolute sensor has its own).",
+                                  old=_OLD_KEY["has_length_datum"])
     homed_at: str | None = spec(None, "When the length was last homed (ISO time).")
     tared_at: str | None = spec(None, "When the force was last tared (ISO time).")
 
@@ -53,35 +58,11 @@ def load_calibration(path: str | None) -> Calibration:
     cal = Calibration()
     muscles = raw.get("muscles", {}) if isinstance(raw, dict) else {}
     for name, node in (muscles or {}).items():
-        where = f"muscles.{name}"
-        datums = build_dataclass(MuscleDatums, _new_keys(node, ctx, where), ctx, where, None)
+        datums = build_dataclass(MuscleDatums, node, ctx, f"muscles.{name}", None)
         if datums is not None:
             cal.muscles[str(name)] = datums
     ctx.raise_if_any()
     return cal
-
-
-def _new_keys(node: object, ctx: Context, where: str) -> object:
-    """A muscle's entry with its deprecated keys (`DATUM_KEYS`: a file written before
-    the rename) under their new names, each at its own line; both an old key and its
-    new one is an error (which is meant?)."""
-    if not isinstance(node, dict) or not any(old in node for old in DATUM_KEYS):
-        return node
-    out = LinedDict()
-    out.line = getattr(node, "line", None)
-    lines = getattr(node, "key_lines", {})
-    out.key_lines = {}
-    for key, value in node.items():
-        new = DATUM_KEYS.get(key, key) if isinstance(key, str) else key
-        if new != key and new in node:
-            ctx.add(lines.get(key), f"{where}.{key}",
-                    f"one of {key!r} (its old name) and {new!r}: remove {key!r}",
-                    "both")
-            continue
-        out[new] = value
-        if key in lines:
-            out.key_lines[new] = lines[key]
-    return out
 
 
 def save_calibration(cal: Calibration, path: str) -> None:
