@@ -185,7 +185,9 @@ class Loop:
 
     def set_stall_limits(self, cfg: LoadedConfig) -> None:
         """A reload's `loop.stall_timeout_s` / `stall_fault_s` and the limit its
-        actuation allows (the main thread reads them)."""
+        actuation allows (the main thread reads them), and its `safety.tracking_time_s`
+        (a stop's settle, `settle_s`)."""
+        self.settle_s = cfg.rig.safety.tracking_time_s
         self.stalls.limit = stall_limit(cfg.rig)
         self.stalls.timeout_s = cfg.rig.loop.stall_timeout_s
         self.stall_s = self.stalls.check_s

@@ -36,8 +36,13 @@ def at_safe_state(muscles: Sequence[MuscleController], latched: bool) -> bool:
     safety chain opened or the supply was lost is at its safe state where it holds."""
     return all(not m.started or (latched and m.holding_air) or (
         abs(m.setpoint_bar - m.safe_pressure_bar) <= SAFE_SETPOINT_BAND_BAR and (
-            not latched or abs(m.valve_cmd_bar - m.safe_pressure_bar) <= SAFE_CMD_BAND_BAR))
+            not latched or _command_at_safe(m)))
                for m in muscles)
+
+
+def _command_at_safe(m: MuscleController) -> bool:
+    """The muscle's valve command at its safe pressure, within SAFE_CMD_BAND_BAR."""
+    return abs(m.valve_cmd_bar - m.safe_pressure_bar) <= SAFE_CMD_BAND_BAR
 
 
 def commands_at_safe(muscles: Sequence[MuscleController]) -> bool:
@@ -50,9 +55,7 @@ def commands_at_safe(muscles: Sequence[MuscleController]) -> bool:
     pressure, at most `safety.tracking_time_s` (`pamd.loop.loop.Loop`): where the
     pressure loop must hold a correction to keep the pressure there (a regulator's
     offset), that correction is what the safe state needs."""
-    return all(not m.started or m.holding_air
-               or abs(m.valve_cmd_bar - m.safe_pressure_bar) <= SAFE_CMD_BAND_BAR
-               for m in muscles)
+    return all(not m.started or m.holding_air or _command_at_safe(m) for m in muscles)
 
 
 def at_rest(muscles: Sequence[MuscleController], state: State) -> bool:
